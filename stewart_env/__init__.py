@@ -1,0 +1,45 @@
+"""stewart-env: the 6-UPS Stewart platform on closed-form Newton-Euler dynamics.
+
+Public API::
+
+    import stewart_env as se
+    params = se.load_platform("dasgupta1998")
+    model = se.make_dynamics("improved", params)
+    lin_acc, ang_acc = model.forward(position, rotation, velocity, angular_velocity, leg_forces)
+    leg_forces = model.inverse(position, rotation, velocity, angular_velocity, lin_acc, ang_acc)
+    state = se.rollout(model, position, rotation, velocity, angular_velocity, leg_forces, dt=1e-3, steps=1000)
+"""
+
+from stewart_env.dynamics import MODEL_NAMES, Dynamics, make_dynamics
+from stewart_env.integrate import rollout
+from stewart_env.kinematics import (
+    ConvergenceError,
+    LegKinematics,
+    forward_kinematics,
+    inverse_kinematics,
+    jacobian,
+    leg_kinematics,
+)
+from stewart_env.params import ConfigError, PlatformParams, available_platforms, load_platform
+from stewart_env.rotations import matrix_to_rpy, rpy_to_matrix
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "MODEL_NAMES",
+    "ConfigError",
+    "ConvergenceError",
+    "Dynamics",
+    "LegKinematics",
+    "PlatformParams",
+    "available_platforms",
+    "forward_kinematics",
+    "inverse_kinematics",
+    "jacobian",
+    "leg_kinematics",
+    "load_platform",
+    "make_dynamics",
+    "matrix_to_rpy",
+    "rollout",
+    "rpy_to_matrix",
+]

@@ -1,0 +1,798 @@
+"""Compiled kernels: the one implementation of the Stewart platform's kinematics and dynamics.
+
+Everything physical in the package runs through the functions here; the Python classes around
+them only check arguments and pick a kernel.
+
+Conventions (see ``MODEL.md`` of the project for the full contract)
+-------------------------------------------------------------------
+* {B} base frame, fixed, z up.  {P} platform frame: origin P at ``t``, orientation ``R``
+  (columns = {P} axes in {B}).  Velocity ``v`` of P's origin, angular velocity ``w``, linear
+  acceleration ``a`` of P's origin and angular acceleration ``alpha``: all in {B}.
+* Leg i joins base joint B_i (``b_i`` in {B}) to platform joint P_i (``p_i`` in {P}).
+  S_i = t + R p_i - b_i, L_i = |S_i|, e_i = S_i / L_i.
+* U joint at B_i: fixed axis k_i, moving axis y_i = unit(k_i x e_i), z_i = e_i x y_i.  The leg
+  frame {D_i} = [e_i, y_i, z_i] moves with both leg parts.
+
+Why the leg is worked in its own frame
+--------------------------------------
+In {D_i} the leg axis is (1, 0, 0), the U joint's moving axis is (0, 1, 0), the fixed axis is
+k' = (kx, 0, kz) with kz = |k x e| > 0, and the normal of the U joint's axis plane is
+h' = k' x y' = (-kz, 0, kx).  The leg inertias and CoM offsets are constants in this frame, so
+the per-leg equations reduce to a few dozen scalar products and nothing is rotated or allocated.
+
+Leg kinematics (``_leg_rates``, ``_leg_accel``)
+-----------------------------------------------
+The velocity of P_i, v_P = v + w x q (q = R p_i), gives the leg rate Ldot = e . v_P and the
+part of the leg's angular velocity that swings the axis, w_perp = e x v_P / L.  The U joint adds
+a spin sigma about e: the leg's angular velocity must have no component along h (the joint only
+turns about k and y), so omega_l = w_perp + sigma e with sigma = -(w_perp . h) / (e . h).
+Differentiating omega_l . h = 0, and using dh/dt = -(k . omega_l) y because k is fixed and y turns
+with the leg, gives the axial part of the angular acceleration:
+alpha_l = alpha_perp + alpha_e e, alpha_perp = (e x a_P - 2 Ldot w_perp) / L - sigma (e x w_perp),
+alpha_e = ((omega_l . k)(omega_l . y) - alpha_perp . h) / (e . h).
+
+Leg dynamics (``_leg_force``)
+-----------------------------
+The two leg parts rotate together, so their moment equation is taken about B_i, where the U
+joint's reaction force has no moment.  The joint's reaction moment mu h lies along h, the only
+direction the joint cannot turn about.  With F_s the force of the platform on the leg at P_i,
+S x F_s + mu h = N, where N is the rate of change of angular momentum of both parts about B_i
+plus the moments of gravity and friction.  The component of this equation along e fixes mu
+(S x F_s has none), and the rest gives F_s's part perpendicular to the leg:
+F_s_perp = ((N - mu h) x e) / L.  Newton's law for the upper leg along e gives the axial part,
+e . F_s = m_u (a_u - g) . e - F_act + Cp Ldot.
+
+N is written in one of two equivalent forms:
+* about each part's CoM (``centroidal``):
+  N = sum_parts [ r x m a_c + I_c alpha_l + omega_l x I_c omega_l ] - sum_parts r x m g
+* about B_i (the default, "eq. 49" form): the lower leg turns about B_i, a point of its own,
+  so I_B alpha_l + omega_l x I_B omega_l with I_B = I_c + m (|r|^2 E - r r^T) is its whole
+  inertial moment.  B_i is not a point of the upper leg; the upper-leg point that coincides with
+  B_i has acceleration a_D = Lddot e + 2 Ldot (omega_l x e), and the moving-point form adds
+  r_u x m_u a_D to I_B alpha_l + omega_l x I_B omega_l.
+
+Platform (``_assemble`` and ``_inverse_one``)
+---------------------------------------------
+Newton: m_p a_c + sum F_s,i = m_p g + F_ext, a_c the acceleration of the platform's CoM.
+Euler about P, a point of the platform: either I_pc alpha + omega x I_pc omega + rho x m_p a_c
+(centroidal) or I_P alpha + omega x I_P omega + rho x m_p a (the body-point form), with
+rho = R R0 and I_P the parallel-axis shift of I_pc to P; on the right, rho x m_p g + M_ext and the
+spherical joints' friction sum Cs (omega_l - omega), and on the left sum q_i x F_s,i.
+
+Every leg force is affine in the acceleration a_P,i = a + alpha x q_i + omega x (omega x q_i)
+of its platform joint, and the leg actuator forces enter as J^T F with J the leg Jacobian
+(rows [e_i, q_i x e_i]).  Forward dynamics therefore assembles M [a; alpha] + h = J^T F + W_ext in
+closed form: each leg contributes the 3x3 map Q_i from a_P,i to F_s,i, evaluated by the same leg
+function with every velocity, gravity and friction input set to zero (the linear part of an
+affine map), and its bias, evaluated at zero platform acceleration.
+
+The classical simplifications (switch bits)
+-------------------------------------------
+* ``C1`` (bit 1), no leg spin: sigma = 0 and alpha_l = (e x a_P - 2 Ldot w_perp) / L.
+* ``C2`` (bit 2), U-joint reaction moment along e instead of h: the axial component of the leg
+  moment equation is dropped instead of being balanced by mu h.
+* ``C3`` (bit 4), legs: shifted inertias I_B used together with r x m a_c, so the parallel-axis
+  part is counted twice.
+* ``C4`` (bit 8), platform: the same double count, I_P together with rho x m_p a_c.
+``CENTROIDAL`` (bit 16) selects the centroidal form.  With C3 (C4) both forms use the same
+double-counted expression for the legs (platform).
+
+Packed parameters
+-----------------
+Kernels take ``prm`` of shape (Np, N_PARAMS), one row per platform (Np == 1 broadcasts over the
+batch).  The layout is given by the ``OFF_*`` offsets below and written by
+:func:`stewart_env.dynamics.model.pack_params`.
+"""
+
+import numpy as np
+from numba import njit, prange
+
+C1 = 1
+C2 = 2
+C3 = 4
+C4 = 8
+CENTROIDAL = 16
+
+OFF_B = 0  # (6,3) base joints b_i, {B}
+OFF_P = 18  # (6,3) platform joints p_i, {P}
+OFF_K = 36  # (6,3) unit Hooke axes k_i, {B}
+OFF_MP = 54  # platform mass m_p
+OFF_RHO = 55  # (3,) platform CoM R0, {P}
+OFF_IP = 58  # (3,3) platform inertia about CoM, {P}
+OFF_MU = 67  # (6,) upper leg masses
+OFF_RU = 73  # (6,3) upper leg CoM r_u0 from P_i, {D_i}
+OFF_IU = 91  # (6,3,3) upper leg inertia about CoM, {D_i}
+OFF_MD = 145  # (6,) lower leg masses
+OFF_RD = 151  # (6,3) lower leg CoM r_d0 from B_i, {D_i}
+OFF_ID = 169  # (6,3,3) lower leg inertia about CoM, {D_i}
+OFF_DAMP = 223  # Cu, Cp, Cs
+OFF_G = 226  # (3,) gravity, {B}
+N_PARAMS = 229
+
+
+@njit(cache=True)
+def _cross(a0, a1, a2, b0, b1, b2):
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@njit(cache=True)
+def _inertia(prm, off, s, m, r0, r1, r2):
+    """Inertia I = I_c + s m (|r|^2 E - r r^T) as (Ixx, Iyy, Izz, Ixy, Ixz, Iyz).
+
+    ``I_c`` is the 3x3 at ``prm[off:off+9]``; ``s`` counts parallel-axis shifts (0, 1 or 2).
+    """
+    rr = r0 * r0 + r1 * r1 + r2 * r2
+    sm = s * m
+    return (
+        prm[off + 0] + sm * (rr - r0 * r0),
+        prm[off + 4] + sm * (rr - r1 * r1),
+        prm[off + 8] + sm * (rr - r2 * r2),
+        prm[off + 1] - sm * r0 * r1,
+        prm[off + 2] - sm * r0 * r2,
+        prm[off + 5] - sm * r1 * r2,
+    )
+
+
+@njit(cache=True)
+def _euler(I, a0, a1, a2, w0, w1, w2):
+    """Inertial moment I alpha + w x (I w) of a symmetric inertia I = (xx, yy, zz, xy, xz, yz)."""
+    i00, i11, i22, i01, i02, i12 = I
+    iw0 = i00 * w0 + i01 * w1 + i02 * w2
+    iw1 = i01 * w0 + i11 * w1 + i12 * w2
+    iw2 = i02 * w0 + i12 * w1 + i22 * w2
+    c0, c1, c2 = _cross(w0, w1, w2, iw0, iw1, iw2)
+    return (
+        i00 * a0 + i01 * a1 + i02 * a2 + c0,
+        i01 * a0 + i11 * a1 + i12 * a2 + c1,
+        i02 * a0 + i12 * a1 + i22 * a2 + c2,
+    )
+
+
+@njit(cache=True)
+def _leg_bodies(prm, i, flags, L):
+    """Leg i's mass properties at length L, in {D_i}: (m_u, m_d, r_u, r_d, I_u, I_d).
+
+    r_u, r_d are the CoMs from B_i; I_u, I_d the inertias used in the moment equation about
+    B_i: about the CoM (centroidal form), shifted to B_i (eq. 49 form), or shifted once more
+    than the form needs (C3).
+    """
+    m_u = prm[OFF_MU + i]
+    m_d = prm[OFF_MD + i]
+    r_u = (L + prm[OFF_RU + 3 * i], prm[OFF_RU + 3 * i + 1], prm[OFF_RU + 3 * i + 2])
+    r_d = (prm[OFF_RD + 3 * i], prm[OFF_RD + 3 * i + 1], prm[OFF_RD + 3 * i + 2])
+    if flags & (CENTROIDAL | C3):
+        shifts = 1.0 if flags & C3 else 0.0
+    else:
+        shifts = 1.0
+    I_u = _inertia(prm, OFF_IU + 9 * i, shifts, m_u, r_u[0], r_u[1], r_u[2])
+    I_d = _inertia(prm, OFF_ID + 9 * i, shifts, m_d, r_d[0], r_d[1], r_d[2])
+    return m_u, m_d, r_u, r_d, I_u, I_d
+
+
+@njit(cache=True)
+def _leg_frame(prm, i, t, R):
+    """Leg i's geometry: q = R p_i, length L, frame [e y z] and k in that frame (kx, kz).
+
+    Returns (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz), vectors in {B}.
+    """
+    p0 = prm[OFF_P + 3 * i]
+    p1 = prm[OFF_P + 3 * i + 1]
+    p2 = prm[OFF_P + 3 * i + 2]
+    q0 = R[0, 0] * p0 + R[0, 1] * p1 + R[0, 2] * p2
+    q1 = R[1, 0] * p0 + R[1, 1] * p1 + R[1, 2] * p2
+    q2 = R[2, 0] * p0 + R[2, 1] * p1 + R[2, 2] * p2
+    s0 = t[0] + q0 - prm[OFF_B + 3 * i]
+    s1 = t[1] + q1 - prm[OFF_B + 3 * i + 1]
+    s2 = t[2] + q2 - prm[OFF_B + 3 * i + 2]
+    L = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    e0 = s0 / L
+    e1 = s1 / L
+    e2 = s2 / L
+    k0 = prm[OFF_K + 3 * i]
+    k1 = prm[OFF_K + 3 * i + 1]
+    k2 = prm[OFF_K + 3 * i + 2]
+    c0, c1, c2 = _cross(k0, k1, k2, e0, e1, e2)
+    kz = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)  # = |k x e| = k . z
+    y0 = c0 / kz
+    y1 = c1 / kz
+    y2 = c2 / kz
+    z0, z1, z2 = _cross(e0, e1, e2, y0, y1, y2)
+    kx = k0 * e0 + k1 * e1 + k2 * e2
+    return q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz
+
+
+@njit(cache=True)
+def _leg_rates(flags, L, kx, kz, u0, u1, u2):
+    """Leg rate and angular velocity from v_P' = (u0, u1, u2), P_i's velocity in {D_i}.
+
+    Returns (Ldot, sigma, w1, w2): omega_l' = (sigma, w1, w2) in {D_i}.
+    """
+    w1 = -u2 / L
+    w2 = u1 / L
+    sigma = 0.0 if flags & C1 else kx * w2 / kz
+    return u0, sigma, w1, w2
+
+
+@njit(cache=True)
+def _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2):
+    """Leg acceleration from a_P' = (A0, A1, A2), P_i's acceleration in {D_i}.
+
+    Returns (Lddot, al0, al1, al2): alpha_l' in {D_i}.
+    """
+    Lddot = A0 + L * (w1 * w1 + w2 * w2)
+    al1 = (-A2 - 2.0 * Ldot * w1) / L + sigma * w2
+    al2 = (A1 - 2.0 * Ldot * w2) / L - sigma * w1
+    if flags & C1:
+        al0 = 0.0
+    else:
+        al0 = (kx * al2 - (sigma * kx + w2 * kz) * w1) / kz
+    return Lddot, al0, al1, al2
+
+
+@njit(cache=True)
+def _leg_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2,
+               A0, A1, A2, F_act):
+    """Force of the platform on leg i at P_i, in {D_i}, for P_i's acceleration A' in {D_i}.
+
+    ``bodies`` is ``_leg_bodies``' result; ``o`` is the platform's angular velocity and ``g``
+    gravity, both in {D_i}; ``F_act`` the actuator force (N).  Returns (F0, F1, F2).
+    """
+    Lddot, al0, al1, al2 = _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2)
+    w0 = sigma
+    m_u, m_d, r_u, r_d, I_u, I_d = bodies
+    ru0, ru1, ru2 = r_u
+    rd0, rd1, rd2 = r_d
+    ww = w0 * w0 + w1 * w1 + w2 * w2
+
+    # a_D: the upper-leg point at B_i; a_u, a_d: the CoMs (w x (w x r) = w (w.r) - r |w|^2)
+    aD0 = Lddot
+    aD1 = 2.0 * Ldot * w2
+    aD2 = -2.0 * Ldot * w1
+    x0, x1, x2 = _cross(al0, al1, al2, ru0, ru1, ru2)
+    wr = w0 * ru0 + w1 * ru1 + w2 * ru2
+    au0 = aD0 + x0 + w0 * wr - ru0 * ww
+    au1 = aD1 + x1 + w1 * wr - ru1 * ww
+    au2 = aD2 + x2 + w2 * wr - ru2 * ww
+
+    if flags & (CENTROIDAL | C3):
+        x0, x1, x2 = _cross(al0, al1, al2, rd0, rd1, rd2)
+        wr = w0 * rd0 + w1 * rd1 + w2 * rd2
+        ad0 = x0 + w0 * wr - rd0 * ww
+        ad1 = x1 + w1 * wr - rd1 * ww
+        ad2 = x2 + w2 * wr - rd2 * ww
+        t0, t1, t2 = _cross(rd0, rd1, rd2, m_d * ad0, m_d * ad1, m_d * ad2)
+        u0, u1, u2 = _cross(ru0, ru1, ru2, m_u * au0, m_u * au1, m_u * au2)
+    else:
+        t0 = t1 = t2 = 0.0
+        u0, u1, u2 = _cross(ru0, ru1, ru2, m_u * aD0, m_u * aD1, m_u * aD2)
+    d0, d1, d2 = _euler(I_d, al0, al1, al2, w0, w1, w2)
+    e0, e1, e2 = _euler(I_u, al0, al1, al2, w0, w1, w2)
+    gd0, gd1, gd2 = _cross(rd0, rd1, rd2, m_d * g0, m_d * g1, m_d * g2)
+    gu0, gu1, gu2 = _cross(ru0, ru1, ru2, m_u * g0, m_u * g1, m_u * g2)
+    cu = prm[OFF_DAMP]
+    cs = prm[OFF_DAMP + 2]
+    N0 = t0 + u0 + d0 + e0 - gd0 - gu0 + cu * w0 + cs * (w0 - o0)
+    N1 = t1 + u1 + d1 + e1 - gd1 - gu1 + cu * w1 + cs * (w1 - o1)
+    N2 = t2 + u2 + d2 + e2 - gd2 - gu2 + cu * w2 + cs * (w2 - o2)
+
+    # split S x F_s + mu h = N; with C2 the axial row N0 is dropped instead
+    n2 = N2 if flags & C2 else N2 + N0 * kx / kz
+    F0 = m_u * (au0 - g0) - F_act + prm[OFF_DAMP + 1] * Ldot
+    return F0, n2 / L, -N1 / L
+
+
+@njit(cache=True)
+def _leg_inputs(prm, i, flags, t, R, v, w):
+    """Per-leg quantities shared by forward and inverse dynamics, all from the platform state.
+
+    Returns the frame of ``_leg_frame``, then (Ldot, sigma, w1, w2), then the platform angular
+    velocity, gravity and a_P0 = w x (w x q) in {D_i}.
+    """
+    q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz = _leg_frame(prm, i, t, R)
+    c0, c1, c2 = _cross(w[0], w[1], w[2], q0, q1, q2)
+    vp0 = v[0] + c0
+    vp1 = v[1] + c1
+    vp2 = v[2] + c2
+    Ldot, sigma, w1, w2 = _leg_rates(
+        flags, L, kx, kz,
+        vp0 * e0 + vp1 * e1 + vp2 * e2,
+        vp0 * y0 + vp1 * y1 + vp2 * y2,
+        vp0 * z0 + vp1 * z1 + vp2 * z2,
+    )
+    a0, a1, a2 = _cross(w[0], w[1], w[2], c0, c1, c2)
+    g0 = prm[OFF_G]
+    g1 = prm[OFF_G + 1]
+    g2 = prm[OFF_G + 2]
+    return (
+        q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
+        Ldot, sigma, w1, w2,
+        w[0] * e0 + w[1] * e1 + w[2] * e2,
+        w[0] * y0 + w[1] * y1 + w[2] * y2,
+        w[0] * z0 + w[1] * z1 + w[2] * z2,
+        g0 * e0 + g1 * e1 + g2 * e2,
+        g0 * y0 + g1 * y1 + g2 * y2,
+        g0 * z0 + g1 * z1 + g2 * z2,
+        a0 * e0 + a1 * e1 + a2 * e2,
+        a0 * y0 + a1 * y1 + a2 * y2,
+        a0 * z0 + a1 * z1 + a2 * z2,
+    )
+
+
+@njit(cache=True)
+def _platform_terms(prm, flags, R, w, M, h):
+    """Add the platform's own Newton and Euler terms to M (6,6) and h (6,), {B}.
+
+    Newton rows: m_p a_c - m_p g.  Euler rows (about P): the inertial moment in the chosen form
+    minus rho x m_p g.
+    """
+    m = prm[OFF_MP]
+    r0 = R[0, 0] * prm[OFF_RHO] + R[0, 1] * prm[OFF_RHO + 1] + R[0, 2] * prm[OFF_RHO + 2]
+    r1 = R[1, 0] * prm[OFF_RHO] + R[1, 1] * prm[OFF_RHO + 1] + R[1, 2] * prm[OFF_RHO + 2]
+    r2 = R[2, 0] * prm[OFF_RHO] + R[2, 1] * prm[OFF_RHO + 1] + R[2, 2] * prm[OFF_RHO + 2]
+    g0 = prm[OFF_G]
+    g1 = prm[OFF_G + 1]
+    g2 = prm[OFF_G + 2]
+    # centripetal acceleration of the CoM relative to P: w x (w x rho)
+    c0, c1, c2 = _cross(w[0], w[1], w[2], r0, r1, r2)
+    cc0, cc1, cc2 = _cross(w[0], w[1], w[2], c0, c1, c2)
+    # Newton: m (a + alpha x rho + w x (w x rho)) - m g; alpha x rho = -[rho]x alpha
+    for j in range(3):
+        M[j, j] += m
+    M[0, 4] += m * r2
+    M[0, 5] -= m * r1
+    M[1, 3] -= m * r2
+    M[1, 5] += m * r0
+    M[2, 3] += m * r1
+    M[2, 4] -= m * r0
+    h[0] += m * (cc0 - g0)
+    h[1] += m * (cc1 - g1)
+    h[2] += m * (cc2 - g2)
+
+    # Euler about P.  In {P} the inertia is constant; shifts counts parallel-axis shifts of I_pc.
+    use_com_acc = (flags & (CENTROIDAL | C4)) != 0
+    shifts = 1.0 if (flags & C4) or not (flags & CENTROIDAL) else 0.0
+    # inertia column j in {B}: R I (R^T e_j); bias w x I w via _euler in {P}
+    wp0 = R[0, 0] * w[0] + R[1, 0] * w[1] + R[2, 0] * w[2]
+    wp1 = R[0, 1] * w[0] + R[1, 1] * w[1] + R[2, 1] * w[2]
+    wp2 = R[0, 2] * w[0] + R[1, 2] * w[1] + R[2, 2] * w[2]
+    rp0 = prm[OFF_RHO]
+    rp1 = prm[OFF_RHO + 1]
+    rp2 = prm[OFF_RHO + 2]
+    I_p = _inertia(prm, OFF_IP, shifts, m, rp0, rp1, rp2)
+    for j in range(3):
+        i0, i1, i2 = _euler(I_p, R[j, 0], R[j, 1], R[j, 2], 0.0, 0.0, 0.0)
+        for k in range(3):
+            M[3 + k, 3 + j] += R[k, 0] * i0 + R[k, 1] * i1 + R[k, 2] * i2
+    b0, b1, b2 = _euler(I_p, 0.0, 0.0, 0.0, wp0, wp1, wp2)
+    h[3] += R[0, 0] * b0 + R[0, 1] * b1 + R[0, 2] * b2
+    h[4] += R[1, 0] * b0 + R[1, 1] * b1 + R[1, 2] * b2
+    h[5] += R[2, 0] * b0 + R[2, 1] * b1 + R[2, 2] * b2
+    # rho x m a (body-point form) or rho x m a_c: [rho]x m (a + alpha x rho + w x (w x rho))
+    M[3, 1] -= m * r2
+    M[3, 2] += m * r1
+    M[4, 0] += m * r2
+    M[4, 2] -= m * r0
+    M[5, 0] -= m * r1
+    M[5, 1] += m * r0
+    if use_com_acc:
+        # -m [rho]x [rho]x = m (|rho|^2 E - rho rho^T)
+        rr = r0 * r0 + r1 * r1 + r2 * r2
+        rv = (r0, r1, r2)
+        for a in range(3):
+            for b in range(3):
+                M[3 + a, 3 + b] += m * ((rr if a == b else 0.0) - rv[a] * rv[b])
+        x0, x1, x2 = _cross(r0, r1, r2, cc0, cc1, cc2)
+        h[3] += m * x0
+        h[4] += m * x1
+        h[5] += m * x2
+    x0, x1, x2 = _cross(r0, r1, r2, g0, g1, g2)
+    h[3] -= m * x0
+    h[4] -= m * x1
+    h[5] -= m * x2
+
+
+@njit(cache=True)
+def _add_column(M, c, q0, q1, q2, f0, f1, f2):
+    """Add the wrench at P of a force f at P_i (q = P_i - P) to column c of M: [f; q x f]."""
+    n0, n1, n2 = _cross(q0, q1, q2, f0, f1, f2)
+    M[0, c] += f0
+    M[1, c] += f1
+    M[2, c] += f2
+    M[3, c] += n0
+    M[4, c] += n1
+    M[5, c] += n2
+
+
+@njit(cache=True)
+def _solve6(M, b, x):
+    """Solve M x = b (6x6) by Gaussian elimination with partial pivoting; M and b are overwritten.
+
+    A singular M gives non-finite x, which callers report.
+    """
+    n = 6
+    for c in range(n):
+        p = c
+        big = abs(M[c, c])
+        for r in range(c + 1, n):
+            if abs(M[r, c]) > big:
+                big = abs(M[r, c])
+                p = r
+        if p != c:
+            for k in range(c, n):
+                tmp = M[c, k]
+                M[c, k] = M[p, k]
+                M[p, k] = tmp
+            tmp = b[c]
+            b[c] = b[p]
+            b[p] = tmp
+        piv = M[c, c]
+        for r in range(c + 1, n):
+            f = M[r, c] / piv
+            if f != 0.0:
+                for k in range(c + 1, n):
+                    M[r, k] -= f * M[c, k]
+                b[r] -= f * b[c]
+    for c in range(n - 1, -1, -1):
+        s = b[c]
+        for k in range(c + 1, n):
+            s -= M[c, k] * x[k]
+        x[c] = s / M[c, c]
+
+
+@njit(cache=True)
+def _forward_one(prm, flags, t, R, v, w, F, W, M, h, out):
+    """Forward dynamics of one platform: out[:3] = a, out[3:] = alpha, {B}.
+
+    M (6,6) and h (6,) are scratch.  Assembles M [a; alpha] + h = J^T F + W and solves it.
+    """
+    for r in range(6):
+        h[r] = 0.0
+        for c in range(6):
+            M[r, c] = 0.0
+    cs = prm[OFF_DAMP + 2]
+    for i in range(6):
+        (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
+         Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2, A0, A1, A2) = _leg_inputs(prm, i, flags, t, R, v, w)
+        bodies = _leg_bodies(prm, i, flags, L)
+        # bias: the leg force at zero platform acceleration, actuator force excluded
+        f0, f1, f2 = _leg_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2,
+                                g0, g1, g2, A0, A1, A2, 0.0)
+        fb0 = f0 * e0 + f1 * y0 + f2 * z0
+        fb1 = f0 * e1 + f1 * y1 + f2 * z1
+        fb2 = f0 * e2 + f1 * y2 + f2 * z2
+        m0, m1, m2 = _cross(q0, q1, q2, fb0, fb1, fb2)
+        # spherical-joint friction acts on the platform: +Cs (omega_l - omega)
+        wl0 = sigma * e0 + w1 * y0 + w2 * z0
+        wl1 = sigma * e1 + w1 * y1 + w2 * z1
+        wl2 = sigma * e2 + w1 * y2 + w2 * z2
+        h[0] += fb0
+        h[1] += fb1
+        h[2] += fb2
+        h[3] += m0 - cs * (wl0 - w[0])
+        h[4] += m1 - cs * (wl1 - w[1])
+        h[5] += m2 - cs * (wl2 - w[2])
+        # linear part: Q column j = leg force for a_P = unit vector j of {B}, i.e. row j of T
+        qa0, qa1, qa2 = _leg_force(prm, flags, bodies, L, kx, kz, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                                   0.0, 0.0, 0.0, e0, y0, z0, 0.0)
+        qb0, qb1, qb2 = _leg_force(prm, flags, bodies, L, kx, kz, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                                   0.0, 0.0, 0.0, e1, y1, z1, 0.0)
+        qc0, qc1, qc2 = _leg_force(prm, flags, bodies, L, kx, kz, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                                   0.0, 0.0, 0.0, e2, y2, z2, 0.0)
+        Qx0 = qa0 * e0 + qa1 * y0 + qa2 * z0
+        Qx1 = qa0 * e1 + qa1 * y1 + qa2 * z1
+        Qx2 = qa0 * e2 + qa1 * y2 + qa2 * z2
+        Qy0 = qb0 * e0 + qb1 * y0 + qb2 * z0
+        Qy1 = qb0 * e1 + qb1 * y1 + qb2 * z1
+        Qy2 = qb0 * e2 + qb1 * y2 + qb2 * z2
+        Qz0 = qc0 * e0 + qc1 * y0 + qc2 * z0
+        Qz1 = qc0 * e1 + qc1 * y1 + qc2 * z1
+        Qz2 = qc0 * e2 + qc1 * y2 + qc2 * z2
+        # a_P = a + alpha x q: column k of a moves P_i by e_k, of alpha by e_k x q
+        _add_column(M, 0, q0, q1, q2, Qx0, Qx1, Qx2)
+        _add_column(M, 1, q0, q1, q2, Qy0, Qy1, Qy2)
+        _add_column(M, 2, q0, q1, q2, Qz0, Qz1, Qz2)
+        _add_column(M, 3, q0, q1, q2, Qz0 * q1 - Qy0 * q2, Qz1 * q1 - Qy1 * q2, Qz2 * q1 - Qy2 * q2)
+        _add_column(M, 4, q0, q1, q2, Qx0 * q2 - Qz0 * q0, Qx1 * q2 - Qz1 * q0, Qx2 * q2 - Qz2 * q0)
+        _add_column(M, 5, q0, q1, q2, Qy0 * q0 - Qx0 * q1, Qy1 * q0 - Qx1 * q1, Qy2 * q0 - Qx2 * q1)
+        # actuator force along e_i at P_i moves to the right-hand side J^T F
+        mq0, mq1, mq2 = _cross(q0, q1, q2, e0, e1, e2)
+        Fi = F[i]
+        h[0] -= Fi * e0
+        h[1] -= Fi * e1
+        h[2] -= Fi * e2
+        h[3] -= Fi * mq0
+        h[4] -= Fi * mq1
+        h[5] -= Fi * mq2
+    _platform_terms(prm, flags, R, w, M, h)
+    for r in range(6):
+        h[r] = W[r] - h[r]
+    _solve6(M, h, out)
+
+
+@njit(cache=True)
+def _inverse_one(prm, flags, t, R, v, w, acc, W, M, h, out):
+    """Inverse dynamics of one platform: leg forces ``out`` (6,) for acc = [a; alpha], {B}.
+
+    Each leg's force on the platform follows from its own equations at the given acceleration;
+    the platform's six equations then fix the six actuator forces through J^T F = wrench.
+    M (6,6) and h (6,) are scratch.
+    """
+    for r in range(6):
+        h[r] = 0.0
+        for c in range(6):
+            M[r, c] = 0.0
+    cs = prm[OFF_DAMP + 2]
+    for i in range(6):
+        (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
+         Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2, A0, A1, A2) = _leg_inputs(prm, i, flags, t, R, v, w)
+        x0, x1, x2 = _cross(acc[3], acc[4], acc[5], q0, q1, q2)
+        x0 += acc[0]
+        x1 += acc[1]
+        x2 += acc[2]
+        A0 += x0 * e0 + x1 * e1 + x2 * e2
+        A1 += x0 * y0 + x1 * y1 + x2 * y2
+        A2 += x0 * z0 + x1 * z1 + x2 * z2
+        bodies = _leg_bodies(prm, i, flags, L)
+        f0, f1, f2 = _leg_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2,
+                                g0, g1, g2, A0, A1, A2, 0.0)
+        fs0 = f0 * e0 + f1 * y0 + f2 * z0
+        fs1 = f0 * e1 + f1 * y1 + f2 * z1
+        fs2 = f0 * e2 + f1 * y2 + f2 * z2
+        m0, m1, m2 = _cross(q0, q1, q2, fs0, fs1, fs2)
+        h[0] += fs0
+        h[1] += fs1
+        h[2] += fs2
+        h[3] += m0 - cs * (sigma * e0 + w1 * y0 + w2 * z0 - w[0])
+        h[4] += m1 - cs * (sigma * e1 + w1 * y1 + w2 * z1 - w[1])
+        h[5] += m2 - cs * (sigma * e2 + w1 * y2 + w2 * z2 - w[2])
+        mq0, mq1, mq2 = _cross(q0, q1, q2, e0, e1, e2)
+        M[0, i] = e0
+        M[1, i] = e1
+        M[2, i] = e2
+        M[3, i] = mq0
+        M[4, i] = mq1
+        M[5, i] = mq2
+    # the platform's own inertial and gravity terms at this acceleration, via its M and h
+    Mp = np.zeros((6, 6))
+    _platform_terms(prm, flags, R, w, Mp, h)
+    for r in range(6):
+        s = h[r] - W[r]
+        for c in range(6):
+            s += Mp[r, c] * acc[c]
+        h[r] = s
+    _solve6(M, h, out)
+
+
+@njit(cache=True)
+def _leg_kinematics_one(prm, flags, t, R, v, w, acc, frames, lengths, rates, accels,
+                        omega_l, alpha_l, jac):
+    """Leg kinematics of one platform, {B}: frames (6,3,3) T_i = [e y z] as columns, lengths (6,),
+    rates (6,), accels (6,), omega_l (6,3), alpha_l (6,3), jac (6,6) rows [e_i, q_i x e_i]."""
+    for i in range(6):
+        (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
+         Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2, A0, A1, A2) = _leg_inputs(prm, i, flags, t, R, v, w)
+        x0, x1, x2 = _cross(acc[3], acc[4], acc[5], q0, q1, q2)
+        x0 += acc[0]
+        x1 += acc[1]
+        x2 += acc[2]
+        A0 += x0 * e0 + x1 * e1 + x2 * e2
+        A1 += x0 * y0 + x1 * y1 + x2 * y2
+        A2 += x0 * z0 + x1 * z1 + x2 * z2
+        Lddot, al0, al1, al2 = _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2)
+        frames[i, 0, 0] = e0
+        frames[i, 1, 0] = e1
+        frames[i, 2, 0] = e2
+        frames[i, 0, 1] = y0
+        frames[i, 1, 1] = y1
+        frames[i, 2, 1] = y2
+        frames[i, 0, 2] = z0
+        frames[i, 1, 2] = z1
+        frames[i, 2, 2] = z2
+        lengths[i] = L
+        rates[i] = Ldot
+        accels[i] = Lddot
+        omega_l[i, 0] = sigma * e0 + w1 * y0 + w2 * z0
+        omega_l[i, 1] = sigma * e1 + w1 * y1 + w2 * z1
+        omega_l[i, 2] = sigma * e2 + w1 * y2 + w2 * z2
+        alpha_l[i, 0] = al0 * e0 + al1 * y0 + al2 * z0
+        alpha_l[i, 1] = al0 * e1 + al1 * y1 + al2 * z1
+        alpha_l[i, 2] = al0 * e2 + al1 * y2 + al2 * z2
+        mq0, mq1, mq2 = _cross(q0, q1, q2, e0, e1, e2)
+        jac[i, 0] = e0
+        jac[i, 1] = e1
+        jac[i, 2] = e2
+        jac[i, 3] = mq0
+        jac[i, 4] = mq1
+        jac[i, 5] = mq2
+
+
+@njit(cache=True, parallel=True)
+def forward_batch(prm, flags, t, R, v, w, F, W, out):
+    """Forward dynamics over a batch.  prm (Np, N_PARAMS) with Np in {1, N}; t, v, w (N,3);
+    R (N,3,3); F (N,6) N; W (N,6) external wrench [F_ext; M_ext] at P, {B}; out (N,6) [a; alpha]."""
+    n = t.shape[0]
+    shared = prm.shape[0] == 1
+    for b in prange(n):
+        M = np.empty((6, 6))
+        h = np.empty(6)
+        _forward_one(prm[0] if shared else prm[b], flags, t[b], R[b], v[b], w[b], F[b], W[b], M, h, out[b])
+
+
+@njit(cache=True, parallel=True)
+def inverse_batch(prm, flags, t, R, v, w, acc, W, out):
+    """Inverse dynamics over a batch: acc (N,6) [a; alpha] -> out (N,6) leg forces, N."""
+    n = t.shape[0]
+    shared = prm.shape[0] == 1
+    for b in prange(n):
+        M = np.empty((6, 6))
+        h = np.empty(6)
+        _inverse_one(prm[0] if shared else prm[b], flags, t[b], R[b], v[b], w[b], acc[b], W[b], M, h, out[b])
+
+
+@njit(cache=True, parallel=True)
+def leg_kinematics_batch(prm, flags, t, R, v, w, acc, frames, lengths, rates, accels,
+                         omega_l, alpha_l, jac):
+    """Leg kinematics over a batch (shapes of ``_leg_kinematics_one`` with a leading N)."""
+    n = t.shape[0]
+    shared = prm.shape[0] == 1
+    for b in prange(n):
+        _leg_kinematics_one(prm[0] if shared else prm[b], flags, t[b], R[b], v[b], w[b], acc[b],
+                            frames[b], lengths[b], rates[b], accels[b], omega_l[b], alpha_l[b], jac[b])
+
+
+@njit(cache=True)
+def _quat_to_matrix(q, R):
+    """Unit quaternion q = (w, x, y, z) to rotation matrix R (3,3), normalising q first."""
+    n = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    a = q[0] / n
+    b = q[1] / n
+    c = q[2] / n
+    d = q[3] / n
+    R[0, 0] = a * a + b * b - c * c - d * d
+    R[0, 1] = 2.0 * (b * c - a * d)
+    R[0, 2] = 2.0 * (b * d + a * c)
+    R[1, 0] = 2.0 * (b * c + a * d)
+    R[1, 1] = a * a - b * b + c * c - d * d
+    R[1, 2] = 2.0 * (c * d - a * b)
+    R[2, 0] = 2.0 * (b * d - a * c)
+    R[2, 1] = 2.0 * (c * d + a * b)
+    R[2, 2] = a * a - b * b - c * c + d * d
+
+
+@njit(cache=True)
+def _matrix_to_quat(R, q):
+    """Rotation matrix to unit quaternion (w, x, y, z), w >= 0 (Shepperd's method)."""
+    tr = R[0, 0] + R[1, 1] + R[2, 2]
+    if tr > 0.0:
+        s = 2.0 * np.sqrt(1.0 + tr)
+        q[0] = 0.25 * s
+        q[1] = (R[2, 1] - R[1, 2]) / s
+        q[2] = (R[0, 2] - R[2, 0]) / s
+        q[3] = (R[1, 0] - R[0, 1]) / s
+    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2])
+        q[0] = (R[2, 1] - R[1, 2]) / s
+        q[1] = 0.25 * s
+        q[2] = (R[0, 1] + R[1, 0]) / s
+        q[3] = (R[0, 2] + R[2, 0]) / s
+    elif R[1, 1] > R[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2])
+        q[0] = (R[0, 2] - R[2, 0]) / s
+        q[1] = (R[0, 1] + R[1, 0]) / s
+        q[2] = 0.25 * s
+        q[3] = (R[1, 2] + R[2, 1]) / s
+    else:
+        s = 2.0 * np.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1])
+        q[0] = (R[1, 0] - R[0, 1]) / s
+        q[1] = (R[0, 2] + R[2, 0]) / s
+        q[2] = (R[1, 2] + R[2, 1]) / s
+        q[3] = 0.25 * s
+    if q[0] < 0.0:
+        for j in range(4):
+            q[j] = -q[j]
+
+
+@njit(cache=True)
+def _state_derivative(prm, flags, x, F, W, R, M, h, acc, dx):
+    """dx/dt for x = [t (3), quaternion (4), v (3), w (3)]; quaternion rate 0.5 (0, w) * q."""
+    _quat_to_matrix(x[3:7], R)
+    _forward_one(prm, flags, x[0:3], R, x[7:10], x[10:13], F, W, M, h, acc)
+    dx[0] = x[7]
+    dx[1] = x[8]
+    dx[2] = x[9]
+    w0 = x[10]
+    w1 = x[11]
+    w2 = x[12]
+    qa = x[3]
+    qb = x[4]
+    qc = x[5]
+    qd = x[6]
+    dx[3] = 0.5 * (-w0 * qb - w1 * qc - w2 * qd)
+    dx[4] = 0.5 * (w0 * qa + w1 * qd - w2 * qc)
+    dx[5] = 0.5 * (-w0 * qd + w1 * qa + w2 * qb)
+    dx[6] = 0.5 * (w0 * qc - w1 * qb + w2 * qa)
+    for j in range(6):
+        dx[7 + j] = acc[j]
+
+
+@njit(cache=True, parallel=True)
+def rollout_batch(prm, flags, t, R, v, w, F, W, dt, steps):
+    """Integrate ``steps`` classical RK4 steps of ``dt`` seconds with F and W held constant.
+
+    t, R, v, w (batched as in ``forward_batch``) are overwritten with the final state.  The
+    orientation is carried as a unit quaternion (renormalised after each step) so R stays a
+    rotation.  A row whose state stops being finite is left at its first non-finite value.
+    """
+    n = t.shape[0]
+    shared = prm.shape[0] == 1
+    for b in prange(n):
+        p = prm[0] if shared else prm[b]
+        x = np.empty(13)
+        xs = np.empty(13)
+        k = np.empty((4, 13))
+        Rs = np.empty((3, 3))
+        M = np.empty((6, 6))
+        h = np.empty(6)
+        acc = np.empty(6)
+        for j in range(3):
+            x[j] = t[b, j]
+            x[7 + j] = v[b, j]
+            x[10 + j] = w[b, j]
+        _matrix_to_quat(R[b], x[3:7])
+        for _ in range(steps):
+            _state_derivative(p, flags, x, F[b], W[b], Rs, M, h, acc, k[0])
+            for j in range(13):
+                xs[j] = x[j] + 0.5 * dt * k[0, j]
+            _state_derivative(p, flags, xs, F[b], W[b], Rs, M, h, acc, k[1])
+            for j in range(13):
+                xs[j] = x[j] + 0.5 * dt * k[1, j]
+            _state_derivative(p, flags, xs, F[b], W[b], Rs, M, h, acc, k[2])
+            for j in range(13):
+                xs[j] = x[j] + dt * k[2, j]
+            _state_derivative(p, flags, xs, F[b], W[b], Rs, M, h, acc, k[3])
+            finite = True
+            for j in range(13):
+                x[j] += dt / 6.0 * (k[0, j] + 2.0 * k[1, j] + 2.0 * k[2, j] + k[3, j])
+                finite = finite and np.isfinite(x[j])
+            nq = np.sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5] + x[6] * x[6])
+            for j in range(3, 7):
+                x[j] /= nq
+            if not finite:
+                break
+        for j in range(3):
+            t[b, j] = x[j]
+            v[b, j] = x[7 + j]
+            w[b, j] = x[10 + j]
+        _quat_to_matrix(x[3:7], R[b])
+
+
+@njit(cache=True, parallel=True)
+def leg_sensors_batch(prm, t, R, v, w, lengths, rates, condition):
+    """What the environment checks after each control step, over a batch: leg lengths (N,6) m,
+    leg rates (N,6) m/s and the Jacobian's 2-norm condition number (N,) (inf when singular)."""
+    n = t.shape[0]
+    shared = prm.shape[0] == 1
+    for b in prange(n):
+        p = prm[0] if shared else prm[b]
+        jac = np.empty((6, 6))
+        for i in range(6):
+            (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
+             Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2, A0, A1, A2) = _leg_inputs(p, i, 0, t[b], R[b], v[b], w[b])
+            lengths[b, i] = L
+            rates[b, i] = Ldot
+            mq0, mq1, mq2 = _cross(q0, q1, q2, e0, e1, e2)
+            jac[i, 0] = e0
+            jac[i, 1] = e1
+            jac[i, 2] = e2
+            jac[i, 3] = mq0
+            jac[i, 4] = mq1
+            jac[i, 5] = mq2
+        finite = True
+        for i in range(6):
+            for j in range(6):
+                finite = finite and np.isfinite(jac[i, j])
+        if finite:
+            s = np.linalg.svd(jac)[1]
+            condition[b] = s[0] / s[5] if s[5] > 0.0 else np.inf
+        else:
+            condition[b] = np.inf

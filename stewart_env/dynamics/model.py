@@ -1,0 +1,190 @@
+"""Dynamics models by name, and the argument handling around the compiled kernels.
+
+Names
+-----
+``classical``            Dasgupta & Mruthyunjaya (1998) as He et al. (2018) describe it: the
+                         improved model with all four simplifications C1-C4 switched on.
+``improved``             He et al. (2018), exact rigid-body dynamics; leg moments about the base
+                         joints B_i and platform moments about P with body-point inertias
+                         (the paper's eq. 49 form).
+``improved_centroidal``  the same dynamics with every inertia about its body's CoM (eq. 55 form);
+                         agrees with ``improved`` to rounding.
+
+A name may carry switches after ``+``, e.g. ``"improved+c1"`` or ``"improved+c2+c3"``:
+
+``c1`` no leg spin about its own axis;
+``c2`` U-joint reaction moment taken along the leg instead of the normal of the joint's axes;
+``c3`` parallel-axis part counted twice in the legs' Euler equations;
+``c4`` parallel-axis part counted twice in the platform's Euler equation.
+
+The kernels' docstring (:mod:`stewart_env.dynamics.kernels`) carries the derivation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from stewart_env.dynamics import kernels as K
+from stewart_env.params import PlatformParams
+
+SWITCHES = {"c1": K.C1, "c2": K.C2, "c3": K.C3, "c4": K.C4}
+_BASE_FLAGS = {
+    "improved": 0,
+    "improved_centroidal": K.CENTROIDAL,
+    "classical": K.C1 | K.C2 | K.C3 | K.C4,
+}
+MODEL_NAMES = tuple(_BASE_FLAGS)
+
+
+def parse_model_name(name: str) -> tuple[str, int]:
+    """Canonical name and kernel flags of a model name such as ``"improved+c1+c3"``."""
+    if not isinstance(name, str):
+        raise ValueError(f"model: expected a name such as 'improved', got {name!r}")
+    base, *switches = name.strip().lower().split("+")
+    if base not in _BASE_FLAGS:
+        raise ValueError(
+            f"model: unknown model {base!r}; choose one of {', '.join(MODEL_NAMES)}, "
+            f"optionally with switches '+c1'..'+c4'"
+        )
+    flags = _BASE_FLAGS[base]
+    for s in switches:
+        if s not in SWITCHES:
+            raise ValueError(f"model: unknown switch {s!r} in {name!r}; switches are c1, c2, c3, c4")
+        flags |= SWITCHES[s]
+    canonical = base + "".join(f"+{s}" for s in sorted(set(switches)))
+    return canonical, flags
+
+
+def pack_params(params: PlatformParams) -> np.ndarray:
+    """Kernel parameter row (N_PARAMS,) of a platform, in the layout of the kernels' ``OFF_*``."""
+    row = np.zeros(K.N_PARAMS)
+    row[K.OFF_B:K.OFF_B + 18] = params.base_joints.ravel()
+    row[K.OFF_P:K.OFF_P + 18] = params.platform_joints.ravel()
+    row[K.OFF_K:K.OFF_K + 18] = params.hooke_axes.ravel()
+    row[K.OFF_MP] = params.platform.mass
+    row[K.OFF_RHO:K.OFF_RHO + 3] = params.platform.com
+    row[K.OFF_IP:K.OFF_IP + 9] = params.platform.inertia.ravel()
+    for i in range(6):
+        up, lo = params.upper_leg[i], params.lower_leg[i]
+        row[K.OFF_MU + i] = up.mass
+        row[K.OFF_RU + 3 * i:K.OFF_RU + 3 * i + 3] = up.com
+        row[K.OFF_IU + 9 * i:K.OFF_IU + 9 * i + 9] = up.inertia.ravel()
+        row[K.OFF_MD + i] = lo.mass
+        row[K.OFF_RD + 3 * i:K.OFF_RD + 3 * i + 3] = lo.com
+        row[K.OFF_ID + 9 * i:K.OFF_ID + 9 * i + 9] = lo.inertia.ravel()
+    d = params.damping
+    row[K.OFF_DAMP:K.OFF_DAMP + 3] = (d.universal, d.prismatic, d.spherical)
+    row[K.OFF_G:K.OFF_G + 3] = params.gravity
+    return row
+
+
+def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray]]:
+    """Bring state arguments to one batch size.
+
+    Each keyword is ``name=(value, tail_shape)``.  A value of shape ``tail_shape`` is one platform;
+    ``(N,) + tail_shape`` is a batch.  Returns (N, batched, contiguous float64 arrays of shape
+    (N,) + tail_shape).  Raises ValueError naming the argument on a wrong shape, mismatched batch
+    sizes, or a non-finite value.
+    """
+    sizes = {}
+    out = {}
+    for name, (value, tail) in arrays.items():
+        a = np.asarray(value, dtype=np.float64)
+        if a.shape == tail:
+            a = a[None]
+        elif a.ndim != len(tail) + 1 or a.shape[1:] != tail:
+            raise ValueError(f"{name}: expected shape {tail} or (N, *{tail}), got {a.shape}")
+        else:
+            sizes[name] = a.shape[0]
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{name}: contains NaN or inf")
+        out[name] = a
+    distinct = set(sizes.values())
+    if n_params > 1:
+        distinct.add(n_params)
+    if len(distinct) > 1:
+        raise ValueError(f"batch sizes disagree: {sizes}" + (f", parameters: {n_params}" if n_params > 1 else ""))
+    n = distinct.pop() if distinct else 1
+    batched = bool(sizes) or n_params > 1
+    for name, a in out.items():
+        out[name] = np.ascontiguousarray(np.broadcast_to(a, (n,) + a.shape[1:]))
+    return n, batched, out
+
+
+class Dynamics:
+    """A dynamics model of one platform, or of a batch of platforms (one parameter set per row).
+
+    Attributes: ``name`` (canonical, e.g. ``"improved+c1"``), ``flags`` (kernel switch bits),
+    ``params`` (a tuple of :class:`PlatformParams`, one per row of ``packed``) and ``packed``
+    (Np, N_PARAMS), read-only.
+    """
+
+    def __init__(self, name: str, params: PlatformParams | Sequence[PlatformParams]):
+        self.name, self.flags = parse_model_name(name)
+        plist = (params,) if isinstance(params, PlatformParams) else tuple(params)
+        if not plist or not all(isinstance(p, PlatformParams) for p in plist):
+            raise ValueError("params: expected a PlatformParams or a non-empty sequence of them")
+        self.params = plist
+        self.packed = np.stack([pack_params(p) for p in plist])
+        self.packed.setflags(write=False)
+
+    def __repr__(self) -> str:
+        names = sorted({p.name for p in self.params})
+        return f"Dynamics({self.name!r}, platforms={len(self.params)} [{', '.join(names)}])"
+
+    def with_params(self, params: PlatformParams | Sequence[PlatformParams]) -> "Dynamics":
+        """The same model on other parameters (e.g. one randomised set per batch row)."""
+        return Dynamics(self.name, params)
+
+    def forward(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench=None):
+        """Forward dynamics: platform accelerations under given leg forces.
+
+        position (3,) of P's origin, m; rotation (3,3); velocity (3,) of P's origin, m/s;
+        angular_velocity (3,) rad/s; leg_forces (6,) N, positive extends the leg;
+        external_wrench (6,) [force at P, N; moment, N m] or None.  All in {B}; every argument
+        may carry a leading batch dimension N.  Returns (lin_acc, ang_acc): acceleration of
+        P's origin (m/s^2) and angular acceleration (rad/s^2), each (3,) or (N,3).
+        """
+        n, batched, a = self._args(position, rotation, velocity, angular_velocity,
+                                   leg_forces=(leg_forces, (6,)), external_wrench=external_wrench)
+        out = np.empty((n, 6))
+        K.forward_batch(self.packed, self.flags, a["position"], a["rotation"], a["velocity"],
+                        a["angular_velocity"], a["leg_forces"], a["external_wrench"], out)
+        lin, ang = out[:, :3], out[:, 3:]
+        return (lin, ang) if batched else (lin[0], ang[0])
+
+    def inverse(self, position, rotation, velocity, angular_velocity, lin_acc, ang_acc, external_wrench=None):
+        """Inverse dynamics: the leg forces (6,) or (N,6), N, that produce the given accelerations.
+
+        Arguments as in :meth:`forward`, with lin_acc (3,) m/s^2 and ang_acc (3,) rad/s^2 in {B}.
+        """
+        n, batched, a = self._args(position, rotation, velocity, angular_velocity,
+                                   lin_acc=(lin_acc, (3,)), ang_acc=(ang_acc, (3,)),
+                                   external_wrench=external_wrench)
+        acc = np.concatenate([a["lin_acc"], a["ang_acc"]], axis=1)
+        out = np.empty((n, 6))
+        K.inverse_batch(self.packed, self.flags, a["position"], a["rotation"], a["velocity"],
+                        a["angular_velocity"], acc, a["external_wrench"], out)
+        return out if batched else out[0]
+
+    def _args(self, position, rotation, velocity, angular_velocity, external_wrench=None, **extra):
+        if external_wrench is None:
+            external_wrench = np.zeros(6)
+        n, batched, a = batch_args(
+            self.packed.shape[0],
+            position=(position, (3,)), rotation=(rotation, (3, 3)), velocity=(velocity, (3,)),
+            angular_velocity=(angular_velocity, (3,)), external_wrench=(external_wrench, (6,)),
+            **extra,
+        )
+        R = a["rotation"]
+        err = np.abs(np.einsum("nji,njk->nik", R, R) - np.eye(3)).max(axis=(1, 2))
+        if np.any(err > 1e-6):
+            raise ValueError(f"rotation: not a rotation matrix (|R^T R - I| = {err.max():.2e})")
+        return n, batched, a
+
+
+def make_dynamics(name: str, params: PlatformParams | Sequence[PlatformParams]) -> Dynamics:
+    """The dynamics model ``name`` (see the module docstring) on ``params``."""
+    return Dynamics(name, params)

@@ -1,0 +1,137 @@
+"""Kinematics of the 6-UPS platform: legs from a pose (inverse), pose from legs (forward).
+
+The per-leg equations live in the compiled kernels (:mod:`stewart_env.dynamics.kernels`); this
+module calls them and solves the forward problem by Newton-Raphson.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from stewart_env.dynamics import kernels as K
+from stewart_env.dynamics.model import Dynamics, batch_args, pack_params, parse_model_name
+from stewart_env.params import PlatformParams
+
+
+class LegKinematics(NamedTuple):
+    """Leg quantities of a platform state, all in {B}; a leading batch dimension N if batched.
+
+    vectors (6,3) S_i = t + R p_i - b_i, m; lengths (6,) L_i, m; units (6,3) e_i;
+    frames (6,3,3) U-joint leg frames T_i = [e_i y_i z_i] (columns); rates (6,) dL_i/dt, m/s;
+    accelerations (6,) d2L_i/dt2, m/s^2; omega (6,3) leg angular velocities, rad/s (spin about
+    e_i included); alpha (6,3) leg angular accelerations, rad/s^2; jacobian (6,6) J with
+    dL/dt = J [v; omega], rows [e_i, (R p_i) x e_i].
+    """
+
+    vectors: np.ndarray
+    lengths: np.ndarray
+    units: np.ndarray
+    frames: np.ndarray
+    rates: np.ndarray
+    accelerations: np.ndarray
+    omega: np.ndarray
+    alpha: np.ndarray
+    jacobian: np.ndarray
+
+
+class ConvergenceError(RuntimeError):
+    """Forward kinematics found no pose with the requested leg lengths."""
+
+
+def _packed(params: PlatformParams | Dynamics) -> np.ndarray:
+    if isinstance(params, Dynamics):
+        return params.packed
+    if isinstance(params, PlatformParams):
+        return pack_params(params)[None]
+    raise ValueError(f"params: expected PlatformParams or Dynamics, got {type(params).__name__}")
+
+
+def leg_kinematics(params: PlatformParams | Dynamics, position, rotation, velocity=None,
+                   angular_velocity=None, lin_acc=None, ang_acc=None, model: str = "improved") -> LegKinematics:
+    """Inverse kinematics to second order: leg vectors, lengths, frames, rates, accelerations,
+    leg angular velocities and accelerations, and the Jacobian.
+
+    position (3,), rotation (3,3), velocity (3,), angular_velocity (3,), lin_acc (3,),
+    ang_acc (3,) of the platform in {B} (missing rates are zero); ``model`` chooses whether the
+    leg spin is included (``"classical"`` or a ``+c1`` name leaves it out).
+    """
+    flags = parse_model_name(model)[1]
+    packed = _packed(params)
+    z3 = np.zeros(3)
+    n, batched, a = batch_args(
+        packed.shape[0], position=(position, (3,)), rotation=(rotation, (3, 3)),
+        velocity=(z3 if velocity is None else velocity, (3,)),
+        angular_velocity=(z3 if angular_velocity is None else angular_velocity, (3,)),
+        lin_acc=(z3 if lin_acc is None else lin_acc, (3,)), ang_acc=(z3 if ang_acc is None else ang_acc, (3,)),
+    )
+    acc = np.concatenate([a["lin_acc"], a["ang_acc"]], axis=1)
+    frames = np.empty((n, 6, 3, 3))
+    lengths, rates, accels = np.empty((n, 6)), np.empty((n, 6)), np.empty((n, 6))
+    omega, alpha, jac = np.empty((n, 6, 3)), np.empty((n, 6, 3)), np.empty((n, 6, 6))
+    K.leg_kinematics_batch(packed, flags, a["position"], a["rotation"], a["velocity"], a["angular_velocity"],
+                           acc, frames, lengths, rates, accels, omega, alpha, jac)
+    units = frames[..., :, 0]
+    out = LegKinematics(units * lengths[..., None], lengths, units, frames, rates, accels, omega, alpha, jac)
+    return out if batched else LegKinematics(*(x[0] for x in out))
+
+
+def inverse_kinematics(params: PlatformParams | Dynamics, position, rotation):
+    """Leg lengths (6,) m and unit vectors (6,3) of a pose; batched like :func:`leg_kinematics`."""
+    k = leg_kinematics(params, position, rotation)
+    return k.lengths, k.units
+
+
+def jacobian(params: PlatformParams | Dynamics, position, rotation) -> np.ndarray:
+    """The 6x6 leg Jacobian J (dL/dt = J [v; omega]) of a pose; batched like the others."""
+    return leg_kinematics(params, position, rotation).jacobian
+
+
+def forward_kinematics(params: PlatformParams | Dynamics, leg_lengths, position_guess, rotation_guess,
+                       tol: float = 1e-12, max_iter: int = 50):
+    """The platform pose with the given leg lengths, by Newton-Raphson from a guess.
+
+    leg_lengths (6,) m; position_guess (3,) and rotation_guess (3,3) in {B}.  Each iteration
+    solves J [dt; dphi] = L - L(pose) and updates t += dt, R = exp([dphi]x) R.  Returns
+    (position, rotation) once max |L - L(pose)| < tol (m); raises ConvergenceError otherwise.
+    """
+    target = np.asarray(leg_lengths, dtype=float)
+    if target.shape != (6,) or not np.all(np.isfinite(target)) or np.any(target <= 0):
+        raise ValueError(f"leg_lengths: expected six positive finite lengths, got {target}")
+    t = np.array(position_guess, dtype=float)
+    R = np.array(rotation_guess, dtype=float)
+    residual = np.inf
+    for _ in range(max_iter):
+        k = leg_kinematics(params, t, R)
+        r = target - k.lengths
+        residual = np.abs(r).max()
+        if residual < tol:
+            return t, R
+        try:
+            step = np.linalg.solve(k.jacobian, r)
+        except np.linalg.LinAlgError:
+            raise ConvergenceError("forward kinematics: singular Jacobian at an iterate") from None
+        t = t + step[:3]
+        R = _rotvec_matrix(step[3:]) @ R
+    raise ConvergenceError(
+        f"forward kinematics did not converge in {max_iter} iterations (leg length residual {residual:.3e} m)"
+    )
+
+
+def _rotvec_matrix(phi: np.ndarray) -> np.ndarray:
+    """Rotation matrix exp([phi]x) of a rotation vector (Rodrigues)."""
+    angle = np.linalg.norm(phi)
+    if angle < 1e-300:
+        return np.eye(3)
+    k = phi / angle
+    Kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * Kx + (1 - np.cos(angle)) * Kx @ Kx
+
+
+def leg_sensors_inplace(params: PlatformParams | Dynamics, position, rotation, velocity, angular_velocity,
+                        lengths, rates, condition) -> None:
+    """Leg lengths (N,6) m, rates (N,6) m/s and Jacobian condition numbers (N,) of a batch of
+    states, written into preallocated arrays; no argument checks (the environment's per-step
+    path).  State arrays as in :func:`stewart_env.integrate.rollout_inplace`."""
+    K.leg_sensors_batch(_packed(params), position, rotation, velocity, angular_velocity, lengths, rates, condition)
