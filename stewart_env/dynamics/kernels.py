@@ -110,12 +110,12 @@ OFF_G = 226  # (3,) gravity, {B}
 N_PARAMS = 229
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cross(a0, a1, a2, b0, b1, b2):
     return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _inertia(prm, off, s, m, r0, r1, r2):
     """Inertia I = I_c + s m (|r|^2 E - r r^T) as (Ixx, Iyy, Izz, Ixy, Ixz, Iyz).
 
@@ -133,7 +133,7 @@ def _inertia(prm, off, s, m, r0, r1, r2):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _euler(I, a0, a1, a2, w0, w1, w2):
     """Inertial moment I alpha + w x (I w) of a symmetric inertia I = (xx, yy, zz, xy, xz, yz)."""
     i00, i11, i22, i01, i02, i12 = I
@@ -148,7 +148,7 @@ def _euler(I, a0, a1, a2, w0, w1, w2):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _leg_bodies(prm, i, flags, L):
     """Leg i's mass properties at length L, in {D_i}: (m_u, m_d, r_u, r_d, I_u, I_d).
 
@@ -169,7 +169,7 @@ def _leg_bodies(prm, i, flags, L):
     return m_u, m_d, r_u, r_d, I_u, I_d
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _leg_frame(prm, i, t, R):
     """Leg i's geometry: q = R p_i, length L, frame [e y z] and k in that frame (kx, kz).
 
@@ -201,7 +201,7 @@ def _leg_frame(prm, i, t, R):
     return q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _leg_rates(flags, L, kx, kz, u0, u1, u2):
     """Leg rate and angular velocity from v_P' = (u0, u1, u2), P_i's velocity in {D_i}.
 
@@ -213,7 +213,7 @@ def _leg_rates(flags, L, kx, kz, u0, u1, u2):
     return u0, sigma, w1, w2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2):
     """Leg acceleration from a_P' = (A0, A1, A2), P_i's acceleration in {D_i}.
 
@@ -229,7 +229,7 @@ def _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2):
     return Lddot, al0, al1, al2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _leg_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2,
                A0, A1, A2, F_act):
     """Force of the platform on leg i at P_i, in {D_i}, for P_i's acceleration A' in {D_i}.
@@ -281,7 +281,7 @@ def _leg_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2, g
     return F0, n2 / L, -N1 / L
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _leg_inputs(prm, i, flags, t, R, v, w):
     """Per-leg quantities shared by forward and inverse dynamics, all from the platform state.
 
@@ -318,7 +318,7 @@ def _leg_inputs(prm, i, flags, t, R, v, w):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _platform_terms(prm, flags, R, w, M, h):
     """Add the platform's own Newton and Euler terms to M (6,6) and h (6,), {B}.
 
@@ -391,7 +391,7 @@ def _platform_terms(prm, flags, R, w, M, h):
     h[5] -= m * x2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _add_column(M, c, q0, q1, q2, f0, f1, f2):
     """Add the wrench at P of a force f at P_i (q = P_i - P) to column c of M: [f; q x f]."""
     n0, n1, n2 = _cross(q0, q1, q2, f0, f1, f2)
@@ -403,7 +403,7 @@ def _add_column(M, c, q0, q1, q2, f0, f1, f2):
     M[5, c] += n2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _solve6(M, b, x):
     """Solve M x = b (6x6) by Gaussian elimination with partial pivoting; M and b are overwritten.
 
@@ -439,7 +439,7 @@ def _solve6(M, b, x):
         x[c] = s / M[c, c]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _forward_one(prm, flags, t, R, v, w, F, W, M, h, out):
     """Forward dynamics of one platform: out[:3] = a, out[3:] = alpha, {B}.
 
@@ -509,7 +509,7 @@ def _forward_one(prm, flags, t, R, v, w, F, W, M, h, out):
     _solve6(M, h, out)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _inverse_one(prm, flags, t, R, v, w, acc, W, M, h, out):
     """Inverse dynamics of one platform: leg forces ``out`` (6,) for acc = [a; alpha], {B}.
 
@@ -563,7 +563,7 @@ def _inverse_one(prm, flags, t, R, v, w, acc, W, M, h, out):
     _solve6(M, h, out)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _leg_kinematics_one(prm, flags, t, R, v, w, acc, frames, lengths, rates, accels,
                         omega_l, alpha_l, jac):
     """Leg kinematics of one platform, {B}: frames (6,3,3) T_i = [e y z] as columns, lengths (6,),
@@ -606,7 +606,7 @@ def _leg_kinematics_one(prm, flags, t, R, v, w, acc, frames, lengths, rates, acc
         jac[i, 5] = mq2
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def forward_batch(prm, flags, t, R, v, w, F, W, out):
     """Forward dynamics over a batch.  prm (Np, N_PARAMS) with Np in {1, N}; t, v, w (N,3);
     R (N,3,3); F (N,6) N; W (N,6) external wrench [F_ext; M_ext] at P, {B}; out (N,6) [a; alpha]."""
@@ -618,7 +618,7 @@ def forward_batch(prm, flags, t, R, v, w, F, W, out):
         _forward_one(prm[0] if shared else prm[b], flags, t[b], R[b], v[b], w[b], F[b], W[b], M, h, out[b])
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def inverse_batch(prm, flags, t, R, v, w, acc, W, out):
     """Inverse dynamics over a batch: acc (N,6) [a; alpha] -> out (N,6) leg forces, N."""
     n = t.shape[0]
@@ -629,7 +629,7 @@ def inverse_batch(prm, flags, t, R, v, w, acc, W, out):
         _inverse_one(prm[0] if shared else prm[b], flags, t[b], R[b], v[b], w[b], acc[b], W[b], M, h, out[b])
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def leg_kinematics_batch(prm, flags, t, R, v, w, acc, frames, lengths, rates, accels,
                          omega_l, alpha_l, jac):
     """Leg kinematics over a batch (shapes of ``_leg_kinematics_one`` with a leading N)."""
@@ -640,7 +640,7 @@ def leg_kinematics_batch(prm, flags, t, R, v, w, acc, frames, lengths, rates, ac
                             frames[b], lengths[b], rates[b], accels[b], omega_l[b], alpha_l[b], jac[b])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _quat_to_matrix(q, R):
     """Unit quaternion q = (w, x, y, z) to rotation matrix R (3,3), normalising q first."""
     n = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
@@ -659,7 +659,7 @@ def _quat_to_matrix(q, R):
     R[2, 2] = a * a - b * b - c * c + d * d
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _matrix_to_quat(R, q):
     """Rotation matrix to unit quaternion (w, x, y, z), w >= 0 (Shepperd's method)."""
     tr = R[0, 0] + R[1, 1] + R[2, 2]
@@ -692,7 +692,7 @@ def _matrix_to_quat(R, q):
             q[j] = -q[j]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _state_derivative(prm, flags, x, F, W, R, M, h, acc, dx):
     """dx/dt for x = [t (3), quaternion (4), v (3), w (3)]; quaternion rate 0.5 (0, w) * q."""
     _quat_to_matrix(x[3:7], R)
@@ -715,7 +715,7 @@ def _state_derivative(prm, flags, x, F, W, R, M, h, acc, dx):
         dx[7 + j] = acc[j]
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def rollout_batch(prm, flags, t, R, v, w, F, W, dt, steps):
     """Integrate ``steps`` classical RK4 steps of ``dt`` seconds with F and W held constant.
 
@@ -766,7 +766,7 @@ def rollout_batch(prm, flags, t, R, v, w, F, W, dt, steps):
         _quat_to_matrix(x[3:7], R[b])
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def leg_sensors_batch(prm, t, R, v, w, lengths, rates, condition):
     """What the environment checks after each control step, over a batch: leg lengths (N,6) m,
     leg rates (N,6) m/s and the Jacobian's 2-norm condition number (N,) (inf when singular)."""

@@ -1,0 +1,19 @@
+import numpy as np
+import pytest
+
+import stewart_env as se
+
+
+@pytest.fixture(scope="session")
+def dasgupta():
+    return se.load_platform("dasgupta1998")
+
+
+@pytest.fixture(scope="session")
+def simulator():
+    return se.load_platform("motion_simulator")
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(20180523)

@@ -1,0 +1,265 @@
+"""Dynamics: conservation laws, statics by virtual work, agreement between formulations."""
+
+import numpy as np
+import pytest
+
+import stewart_env as se
+from stewart_env.params import Damping, RigidBody
+from physics_reference import (dissipated_power, kinetic_energy, potential_energy, random_state,
+                               rotvec_matrix)
+
+ALL_MODELS = ["improved", "improved_centroidal", "classical", "improved+c1", "improved+c2",
+              "improved+c3", "improved+c4", "improved_centroidal+c1+c3"]
+
+
+@pytest.fixture(params=["dasgupta", "simulator"])
+def platform(request):
+    return request.getfixturevalue(request.param)
+
+
+def holding_forces(model, t, R):
+    z = np.zeros(3)
+    return model.inverse(t, R, z, z, z, z)
+
+
+def without_friction(params):
+    return params.replace(damping=Damping(0.0, 0.0, 0.0))
+
+
+def energy_trajectory(model, state, F, W, dt, steps, every):
+    """States every `every` RK4 steps along a trajectory."""
+    out = [state]
+    for _ in range(steps // every):
+        state = se.rollout(model, *state, F, dt=dt, steps=every, external_wrench=W)
+        out.append(state)
+    return out
+
+
+def test_energy_is_conserved_without_friction(platform, rng):
+    params = without_friction(platform)
+    model = se.make_dynamics("improved", params)
+    t, R, v, w = random_state(params, rng, speed=0.1)
+    F = holding_forces(model, t, R) * 1.02 + rng.normal(scale=0.01, size=6) * np.abs(holding_forces(model, t, R))
+    F_ext = rng.normal(scale=0.05 * params.platform.mass, size=3)
+    W = np.concatenate([F_ext, np.zeros(3)])
+    traj = energy_trajectory(model, (t, R, v, w), F, W, dt=1e-3, steps=300, every=10)
+
+    def energy(s):
+        lengths = se.inverse_kinematics(params, s[0], s[1])[0]
+        # actuator forces and the constant external force at P are conservative
+        return kinetic_energy(params, *s) + potential_energy(params, s[0], s[1]) - F @ lengths - F_ext @ s[0]
+
+    E = np.array([energy(s) for s in traj])
+    T0 = max(kinetic_energy(params, *s) for s in traj)
+    assert T0 > 0.05  # J: the trajectory really moves
+    # RK4 at dt = 1 ms: local error O(dt^5) per step, far below 1e-8 of the kinetic energy scale
+    assert np.abs(E - E[0]).max() < 1e-8 * T0
+
+
+def test_classical_model_does_not_conserve_the_true_energy(dasgupta, rng):
+    params = without_friction(dasgupta)
+    model = se.make_dynamics("classical", params)
+    t, R, v, w = random_state(params, rng, speed=0.3)
+    F = holding_forces(se.make_dynamics("improved", params), t, R)
+    traj = energy_trajectory(model, (t, R, v, w), F, np.zeros(6), dt=1e-3, steps=200, every=10)
+
+    def energy(s):
+        lengths = se.inverse_kinematics(params, s[0], s[1])[0]
+        return kinetic_energy(params, *s) + potential_energy(params, s[0], s[1]) - F @ lengths
+
+    E = np.array([energy(s) for s in traj])
+    T0 = max(kinetic_energy(params, *s) for s in traj)
+    # the classical simplifications break energy balance by far more than integration error
+    assert np.abs(E - E[0]).max() > 1e-4 * T0
+
+
+def test_power_balance_with_friction(platform, rng):
+    d = platform.damping
+    # friction scaled up so the dissipated energy is large next to the integration error
+    params = platform.replace(damping=Damping(max(d.universal, 1e-3) * 500, max(d.prismatic, 1e-3) * 500,
+                                              max(d.spherical, 1e-3) * 500))
+    model = se.make_dynamics("improved", params)
+    t, R, v, w = random_state(params, rng, speed=0.2)
+    F = holding_forces(model, t, R)
+    M_ext = rng.normal(scale=0.2 * params.platform.mass, size=3)
+    W = np.concatenate([np.zeros(3), M_ext])
+    dt, steps = 2e-4, 1000
+    traj = energy_trajectory(model, (t, R, v, w), F, W, dt=dt, steps=steps, every=1)
+
+    def energy(s):
+        lengths = se.inverse_kinematics(params, s[0], s[1])[0]
+        return kinetic_energy(params, *s) + potential_energy(params, s[0], s[1]) - F @ lengths
+
+    E = np.array([energy(s) for s in traj])
+    # dE/dt = M_ext . w - friction power, integrated with Simpson's rule over the samples
+    rate = np.array([M_ext @ s[3] - dissipated_power(params, *s) for s in traj])
+    integral = dt / 3 * (rate[0] + rate[-1] + 4 * rate[1:-1:2].sum() + 2 * rate[2:-1:2].sum())
+    lost = dt * np.abs(rate).sum()
+    assert lost > 1e-3 * max(kinetic_energy(params, *s) for s in traj)  # friction matters here
+    # Simpson and RK4 errors are O(dt^4): 1e-6 of the energy exchanged
+    assert abs((E[-1] - E[0]) - integral) < 1e-6 * lost
+
+
+def potential_gradient(params, t, R, h=1e-6):
+    """dV/d[t; phi] for R = exp([phi]x) R, central differences (error O(h^2) ~ 1e-12)."""
+    grad = np.zeros(6)
+    for j in range(6):
+        d = np.zeros(6)
+        d[j] = h
+        Vp = potential_energy(params, t + d[:3], rotvec_matrix(d[3:]) @ R)
+        Vm = potential_energy(params, t - d[:3], rotvec_matrix(-d[3:]) @ R)
+        grad[j] = (Vp - Vm) / (2 * h)
+    return grad
+
+
+@pytest.mark.parametrize("name", ["improved", "improved_centroidal", "improved+c1", "improved+c3", "improved+c4"])
+def test_statics_satisfy_virtual_work(platform, rng, name):
+    model = se.make_dynamics(name, platform)
+    for _ in range(3):
+        t, R, _, _ = random_state(platform, rng)
+        F = holding_forces(model, t, R)
+        J = se.jacobian(platform, t, R)
+        grad = potential_gradient(platform, t, R)
+        # virtual work: J^T F = grad V; the difference quotient is good to ~1e-9 relative
+        np.testing.assert_allclose(J.T @ F, grad, rtol=0, atol=1e-7 * np.abs(grad).max())
+
+
+@pytest.mark.parametrize("name", ["classical", "improved+c2"])
+def test_constraint_moment_along_the_leg_misses_virtual_work(dasgupta, rng, name):
+    model = se.make_dynamics(name, dasgupta)
+    t, R, _, _ = random_state(dasgupta, rng)
+    F = holding_forces(model, t, R)
+    J = se.jacobian(dasgupta, t, R)
+    grad = potential_gradient(dasgupta, t, R)
+    # off-axis leg CoMs give the leg weight a moment about the leg axis that C2 drops
+    assert np.abs(J.T @ F - grad).max() > 1e-3 * np.abs(grad).max()
+
+
+def test_both_improved_forms_agree(platform, rng):
+    a = se.make_dynamics("improved", platform)
+    b = se.make_dynamics("improved_centroidal", platform)
+    for _ in range(10):
+        state = random_state(platform, rng, speed=0.5)
+        F = holding_forces(a, *state[:2]) + rng.normal(scale=0.1, size=6) * np.abs(holding_forces(a, *state[:2]))
+        W = rng.normal(size=6) * platform.platform.mass
+        la, aa = a.forward(*state, F, external_wrench=W)
+        lb, ab = b.forward(*state, F, external_wrench=W)
+        acc_a, acc_b = np.concatenate([la, aa]), np.concatenate([lb, ab])
+        # two formulas for one dynamics: rounding only
+        assert np.abs(acc_a - acc_b).max() <= 1e-10 * np.abs(acc_a).max()
+
+
+@pytest.mark.parametrize("name", ALL_MODELS)
+def test_inverse_undoes_forward(platform, rng, name):
+    model = se.make_dynamics(name, platform)
+    for _ in range(5):
+        state = random_state(platform, rng, speed=0.5)
+        F = holding_forces(model, *state[:2]) * rng.uniform(0.5, 1.5, size=6)
+        W = rng.normal(size=6) * platform.platform.mass
+        lin, ang = model.forward(*state, F, external_wrench=W)
+        F_back = model.inverse(*state, lin, ang, external_wrench=W)
+        # a 6x6 solve with condition < 10 and back: rounding of the largest force term
+        np.testing.assert_allclose(F_back, F, rtol=0, atol=1e-10 * np.abs(F).max())
+
+
+def _massless_legs(params, platform_com):
+    massless = RigidBody(0.0, np.zeros(3), np.zeros((3, 3)))
+    body = RigidBody(params.platform.mass, platform_com, params.platform.inertia)
+    return params.replace(upper_leg=massless, lower_leg=massless, platform=body, damping=Damping(0.0, 0.0, 0.0))
+
+
+def test_massless_frictionless_legs_give_one_answer_for_all_models(platform, rng):
+    # C4 also touches the platform's own equation unless its CoM is at P; with the CoM there,
+    # nothing is left for any simplification to change
+    params = _massless_legs(platform, np.zeros(3))
+    ref = se.make_dynamics("improved", params)
+    for _ in range(5):
+        state = random_state(params, rng, speed=0.5)
+        F = rng.normal(size=6) * params.platform.mass * 10
+        acc_ref = np.concatenate(ref.forward(*state, F))
+        for name in ALL_MODELS[1:]:
+            acc = np.concatenate(se.make_dynamics(name, params).forward(*state, F))
+            np.testing.assert_allclose(acc, acc_ref, rtol=0, atol=1e-10 * np.abs(acc_ref).max())  # rounding
+
+
+def test_with_massless_legs_only_the_platform_simplification_acts(dasgupta, rng):
+    params = _massless_legs(dasgupta, dasgupta.platform.com)
+    state = random_state(params, rng, speed=0.5)
+    F = rng.normal(size=6) * params.platform.mass * 10
+    acc_ref = np.concatenate(se.make_dynamics("improved", params).forward(*state, F))
+    for name in ["improved+c1+c2+c3", "improved_centroidal+c1+c2+c3"]:
+        acc = np.concatenate(se.make_dynamics(name, params).forward(*state, F))
+        np.testing.assert_allclose(acc, acc_ref, rtol=0, atol=1e-10 * np.abs(acc_ref).max())  # rounding
+    acc_c4 = np.concatenate(se.make_dynamics("improved+c4", params).forward(*state, F))
+    assert np.abs(acc_c4 - acc_ref).max() > 1e-3 * np.abs(acc_ref).max()
+
+
+@pytest.mark.parametrize("name", ["classical", "improved+c1", "improved+c2", "improved+c3", "improved+c4"])
+def test_each_simplification_changes_the_dynamics_of_the_example(dasgupta, rng, name):
+    ref = se.make_dynamics("improved", dasgupta)
+    model = se.make_dynamics(name, dasgupta)
+    state = random_state(dasgupta, rng, speed=0.5)
+    F = holding_forces(ref, *state[:2]) * 1.2
+    acc_ref = np.concatenate(ref.forward(*state, F))
+    acc = np.concatenate(model.forward(*state, F))
+    # legs with mass, spin and off-axis CoMs: each simplification moves the answer by > 0.1 %
+    assert np.abs(acc - acc_ref).max() > 1e-3 * np.abs(acc_ref).max()
+
+
+def test_batched_calls_equal_single_calls(dasgupta, simulator, rng):
+    n = 7
+    params = [dasgupta.replace(platform=RigidBody(dasgupta.platform.mass * (1 + 0.1 * i), dasgupta.platform.com,
+                                                  dasgupta.platform.inertia)) for i in range(n)]
+    for model in (se.make_dynamics("improved", dasgupta), se.make_dynamics("classical", params)):
+        states = [random_state(dasgupta, rng) for _ in range(n)]
+        t, R, v, w = (np.array(x) for x in zip(*states))
+        F = rng.normal(size=(n, 6)) * 200 + 180
+        lin, ang = model.forward(t, R, v, w, F)
+        Fi = model.inverse(t, R, v, w, lin, ang)
+        end = se.rollout(model, t, R, v, w, F, dt=1e-3, steps=20)
+        for b in range(n):
+            single = model if len(model.params) == 1 else se.make_dynamics(model.name, model.params[b])
+            l1, a1 = single.forward(t[b], R[b], v[b], w[b], F[b])
+            assert np.array_equal(l1, lin[b]) and np.array_equal(a1, ang[b])  # same code path: bit-identical
+            assert np.array_equal(single.inverse(t[b], R[b], v[b], w[b], l1, a1), Fi[b])
+            e1 = se.rollout(single, t[b], R[b], v[b], w[b], F[b], dt=1e-3, steps=20)
+            for x, y in zip(e1, end):
+                assert np.array_equal(x, y[b])
+
+
+def test_rk4_converges_at_fourth_order(dasgupta, rng):
+    model = se.make_dynamics("improved", dasgupta)
+    state = random_state(dasgupta, rng, speed=0.3)
+    F = holding_forces(model, *state[:2]) * 1.1
+    ref = se.rollout(model, *state, F, dt=0.25e-3, steps=800)
+    errors = [np.abs(se.rollout(model, *state, F, dt=dt, steps=round(0.2 / dt))[0] - ref[0]).max()
+              for dt in (4e-3, 2e-3)]
+    # halving dt divides a 4th-order method's error by ~16
+    assert 10 < errors[0] / errors[1] < 20
+
+
+def test_bad_arguments_name_what_is_wrong(dasgupta):
+    model = se.make_dynamics("improved", dasgupta)
+    t, R, z = dasgupta.home_position, np.eye(3), np.zeros(3)
+    with pytest.raises(ValueError, match="leg_forces: expected shape"):
+        model.forward(t, R, z, z, np.zeros(5))
+    with pytest.raises(ValueError, match="velocity: contains NaN"):
+        model.forward(t, R, [0, np.nan, 0], z, np.zeros(6))
+    with pytest.raises(ValueError, match="rotation: not a rotation"):
+        model.forward(t, 2 * R, z, z, np.zeros(6))
+    with pytest.raises(ValueError, match="batch sizes disagree"):
+        model.forward(np.tile(t, (3, 1)), R, z, z, np.zeros((2, 6)))
+    with pytest.raises(ValueError, match="unknown model 'newton'"):
+        se.make_dynamics("newton", dasgupta)
+    with pytest.raises(ValueError, match="unknown switch 'c5'"):
+        se.make_dynamics("improved+c5", dasgupta)
+    with pytest.raises(ValueError, match="dt: must be a positive"):
+        se.rollout(model, t, R, z, z, np.zeros(6), dt=0.0)
+
+
+def test_rollout_reports_a_state_that_stops_being_finite(dasgupta):
+    model = se.make_dynamics("improved", dasgupta)
+    # a huge force throws the platform through a singular pose within a few steps
+    with pytest.raises(FloatingPointError, match="non-finite in batch rows"):
+        se.rollout(model, dasgupta.home_position, np.eye(3), np.zeros(3), np.zeros(3), np.full(6, -1e9),
+                   dt=1e-3, steps=2000)
