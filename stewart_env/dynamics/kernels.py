@@ -116,6 +116,29 @@ def _cross(a0, a1, a2, b0, b1, b2):
 
 
 @njit(cache=True, error_model="numpy")
+def _to_base(u0, u1, u2, e0, e1, e2, y0, y1, y2, z0, z1, z2):
+    """{B} components of a vector given in the leg frame [e y z]."""
+    return u0 * e0 + u1 * y0 + u2 * z0, u0 * e1 + u1 * y1 + u2 * z1, u0 * e2 + u1 * y2 + u2 * z2
+
+
+@njit(cache=True, error_model="numpy")
+def _to_leg(u0, u1, u2, e0, e1, e2, y0, y1, y2, z0, z1, z2):
+    """Leg-frame components (u . e, u . y, u . z) of a vector given in {B}."""
+    return u0 * e0 + u1 * e1 + u2 * e2, u0 * y0 + u1 * y1 + u2 * y2, u0 * z0 + u1 * z1 + u2 * z2
+
+
+@njit(cache=True, error_model="numpy")
+def _with_platform_acc(acc, q0, q1, q2, e0, e1, e2, y0, y1, y2, z0, z1, z2, A0, A1, A2):
+    """P_i's acceleration in {D_i}: the velocity part A' plus a + alpha x q for acc = [a; alpha]."""
+    x0, x1, x2 = _cross(acc[3], acc[4], acc[5], q0, q1, q2)
+    x0 += acc[0]
+    x1 += acc[1]
+    x2 += acc[2]
+    d0, d1, d2 = _to_leg(x0, x1, x2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
+    return A0 + d0, A1 + d1, A2 + d2
+
+
+@njit(cache=True, error_model="numpy")
 def _inertia(prm, off, s, m, r0, r1, r2):
     """Inertia I = I_c + s m (|r|^2 E - r r^T) as (Ixx, Iyy, Izz, Ixy, Ixz, Iyz).
 
@@ -289,32 +312,16 @@ def _leg_inputs(prm, i, flags, t, R, v, w):
     velocity, gravity and a_P0 = w x (w x q) in {D_i}.
     """
     q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz = _leg_frame(prm, i, t, R)
+    frame = (e0, e1, e2, y0, y1, y2, z0, z1, z2)
     c0, c1, c2 = _cross(w[0], w[1], w[2], q0, q1, q2)
-    vp0 = v[0] + c0
-    vp1 = v[1] + c1
-    vp2 = v[2] + c2
-    Ldot, sigma, w1, w2 = _leg_rates(
-        flags, L, kx, kz,
-        vp0 * e0 + vp1 * e1 + vp2 * e2,
-        vp0 * y0 + vp1 * y1 + vp2 * y2,
-        vp0 * z0 + vp1 * z1 + vp2 * z2,
-    )
+    u0, u1, u2 = _to_leg(v[0] + c0, v[1] + c1, v[2] + c2, *frame)
+    Ldot, sigma, w1, w2 = _leg_rates(flags, L, kx, kz, u0, u1, u2)
     a0, a1, a2 = _cross(w[0], w[1], w[2], c0, c1, c2)
-    g0 = prm[OFF_G]
-    g1 = prm[OFF_G + 1]
-    g2 = prm[OFF_G + 2]
     return (
-        q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
-        Ldot, sigma, w1, w2,
-        w[0] * e0 + w[1] * e1 + w[2] * e2,
-        w[0] * y0 + w[1] * y1 + w[2] * y2,
-        w[0] * z0 + w[1] * z1 + w[2] * z2,
-        g0 * e0 + g1 * e1 + g2 * e2,
-        g0 * y0 + g1 * y1 + g2 * y2,
-        g0 * z0 + g1 * z1 + g2 * z2,
-        a0 * e0 + a1 * e1 + a2 * e2,
-        a0 * y0 + a1 * y1 + a2 * y2,
-        a0 * z0 + a1 * z1 + a2 * z2,
+        (q0, q1, q2, L) + frame + (kx, kz, Ldot, sigma, w1, w2)
+        + _to_leg(w[0], w[1], w[2], *frame)
+        + _to_leg(prm[OFF_G], prm[OFF_G + 1], prm[OFF_G + 2], *frame)
+        + _to_leg(a0, a1, a2, *frame)
     )
 
 
@@ -457,14 +464,10 @@ def _forward_one(prm, flags, t, R, v, w, F, W, M, h, out):
         # bias: the leg force at zero platform acceleration, actuator force excluded
         f0, f1, f2 = _leg_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2,
                                 g0, g1, g2, A0, A1, A2, 0.0)
-        fb0 = f0 * e0 + f1 * y0 + f2 * z0
-        fb1 = f0 * e1 + f1 * y1 + f2 * z1
-        fb2 = f0 * e2 + f1 * y2 + f2 * z2
+        fb0, fb1, fb2 = _to_base(f0, f1, f2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
         m0, m1, m2 = _cross(q0, q1, q2, fb0, fb1, fb2)
         # spherical-joint friction acts on the platform: +Cs (omega_l - omega)
-        wl0 = sigma * e0 + w1 * y0 + w2 * z0
-        wl1 = sigma * e1 + w1 * y1 + w2 * z1
-        wl2 = sigma * e2 + w1 * y2 + w2 * z2
+        wl0, wl1, wl2 = _to_base(sigma, w1, w2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
         h[0] += fb0
         h[1] += fb1
         h[2] += fb2
@@ -478,15 +481,9 @@ def _forward_one(prm, flags, t, R, v, w, F, W, M, h, out):
                                    0.0, 0.0, 0.0, e1, y1, z1, 0.0)
         qc0, qc1, qc2 = _leg_force(prm, flags, bodies, L, kx, kz, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
                                    0.0, 0.0, 0.0, e2, y2, z2, 0.0)
-        Qx0 = qa0 * e0 + qa1 * y0 + qa2 * z0
-        Qx1 = qa0 * e1 + qa1 * y1 + qa2 * z1
-        Qx2 = qa0 * e2 + qa1 * y2 + qa2 * z2
-        Qy0 = qb0 * e0 + qb1 * y0 + qb2 * z0
-        Qy1 = qb0 * e1 + qb1 * y1 + qb2 * z1
-        Qy2 = qb0 * e2 + qb1 * y2 + qb2 * z2
-        Qz0 = qc0 * e0 + qc1 * y0 + qc2 * z0
-        Qz1 = qc0 * e1 + qc1 * y1 + qc2 * z1
-        Qz2 = qc0 * e2 + qc1 * y2 + qc2 * z2
+        Qx0, Qx1, Qx2 = _to_base(qa0, qa1, qa2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
+        Qy0, Qy1, Qy2 = _to_base(qb0, qb1, qb2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
+        Qz0, Qz1, Qz2 = _to_base(qc0, qc1, qc2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
         # a_P = a + alpha x q: column k of a moves P_i by e_k, of alpha by e_k x q
         _add_column(M, 0, q0, q1, q2, Qx0, Qx1, Qx2)
         _add_column(M, 1, q0, q1, q2, Qy0, Qy1, Qy2)
@@ -525,26 +522,19 @@ def _inverse_one(prm, flags, t, R, v, w, acc, W, M, h, out):
     for i in range(6):
         (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
          Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2, A0, A1, A2) = _leg_inputs(prm, i, flags, t, R, v, w)
-        x0, x1, x2 = _cross(acc[3], acc[4], acc[5], q0, q1, q2)
-        x0 += acc[0]
-        x1 += acc[1]
-        x2 += acc[2]
-        A0 += x0 * e0 + x1 * e1 + x2 * e2
-        A1 += x0 * y0 + x1 * y1 + x2 * y2
-        A2 += x0 * z0 + x1 * z1 + x2 * z2
+        A0, A1, A2 = _with_platform_acc(acc, q0, q1, q2, e0, e1, e2, y0, y1, y2, z0, z1, z2, A0, A1, A2)
         bodies = _leg_bodies(prm, i, flags, L)
         f0, f1, f2 = _leg_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2,
                                 g0, g1, g2, A0, A1, A2, 0.0)
-        fs0 = f0 * e0 + f1 * y0 + f2 * z0
-        fs1 = f0 * e1 + f1 * y1 + f2 * z1
-        fs2 = f0 * e2 + f1 * y2 + f2 * z2
+        fs0, fs1, fs2 = _to_base(f0, f1, f2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
         m0, m1, m2 = _cross(q0, q1, q2, fs0, fs1, fs2)
         h[0] += fs0
         h[1] += fs1
         h[2] += fs2
-        h[3] += m0 - cs * (sigma * e0 + w1 * y0 + w2 * z0 - w[0])
-        h[4] += m1 - cs * (sigma * e1 + w1 * y1 + w2 * z1 - w[1])
-        h[5] += m2 - cs * (sigma * e2 + w1 * y2 + w2 * z2 - w[2])
+        wl0, wl1, wl2 = _to_base(sigma, w1, w2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
+        h[3] += m0 - cs * (wl0 - w[0])
+        h[4] += m1 - cs * (wl1 - w[1])
+        h[5] += m2 - cs * (wl2 - w[2])
         mq0, mq1, mq2 = _cross(q0, q1, q2, e0, e1, e2)
         M[0, i] = e0
         M[1, i] = e1
@@ -571,13 +561,7 @@ def _leg_kinematics_one(prm, flags, t, R, v, w, acc, frames, lengths, rates, acc
     for i in range(6):
         (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
          Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2, A0, A1, A2) = _leg_inputs(prm, i, flags, t, R, v, w)
-        x0, x1, x2 = _cross(acc[3], acc[4], acc[5], q0, q1, q2)
-        x0 += acc[0]
-        x1 += acc[1]
-        x2 += acc[2]
-        A0 += x0 * e0 + x1 * e1 + x2 * e2
-        A1 += x0 * y0 + x1 * y1 + x2 * y2
-        A2 += x0 * z0 + x1 * z1 + x2 * z2
+        A0, A1, A2 = _with_platform_acc(acc, q0, q1, q2, e0, e1, e2, y0, y1, y2, z0, z1, z2, A0, A1, A2)
         Lddot, al0, al1, al2 = _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2)
         frames[i, 0, 0] = e0
         frames[i, 1, 0] = e1
@@ -591,12 +575,8 @@ def _leg_kinematics_one(prm, flags, t, R, v, w, acc, frames, lengths, rates, acc
         lengths[i] = L
         rates[i] = Ldot
         accels[i] = Lddot
-        omega_l[i, 0] = sigma * e0 + w1 * y0 + w2 * z0
-        omega_l[i, 1] = sigma * e1 + w1 * y1 + w2 * z1
-        omega_l[i, 2] = sigma * e2 + w1 * y2 + w2 * z2
-        alpha_l[i, 0] = al0 * e0 + al1 * y0 + al2 * z0
-        alpha_l[i, 1] = al0 * e1 + al1 * y1 + al2 * z1
-        alpha_l[i, 2] = al0 * e2 + al1 * y2 + al2 * z2
+        omega_l[i, 0], omega_l[i, 1], omega_l[i, 2] = _to_base(sigma, w1, w2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
+        alpha_l[i, 0], alpha_l[i, 1], alpha_l[i, 2] = _to_base(al0, al1, al2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
         mq0, mq1, mq2 = _cross(q0, q1, q2, e0, e1, e2)
         jac[i, 0] = e0
         jac[i, 1] = e1
