@@ -263,3 +263,15 @@ def test_rollout_reports_a_state_that_stops_being_finite(dasgupta):
     with pytest.raises(FloatingPointError, match="non-finite in batch rows"):
         se.rollout(model, dasgupta.home_position, np.eye(3), np.zeros(3), np.zeros(3), np.full(6, -1e9),
                    dt=1e-3, steps=2000)
+
+
+def test_replacing_rows_equals_packing_every_row(dasgupta):
+    heavier = [dasgupta.replace(platform=RigidBody(dasgupta.platform.mass * f, dasgupta.platform.com,
+                                                   dasgupta.platform.inertia)) for f in (1.1, 1.2, 1.3, 1.4)]
+    model = se.make_dynamics("improved", [dasgupta] * 4)
+    swapped = model.with_rows([1, 3], [heavier[1], heavier[3]])
+    expected = se.make_dynamics("improved", [dasgupta, heavier[1], dasgupta, heavier[3]])
+    assert np.array_equal(swapped.packed, expected.packed) and swapped.params == expected.params
+    assert np.array_equal(model.packed, se.make_dynamics("improved", [dasgupta] * 4).packed)  # original untouched
+    with pytest.raises(ValueError, match="rows: 4 is outside"):
+        model.with_rows([4], [dasgupta])

@@ -109,6 +109,10 @@ OFF_DAMP = 223  # Cu, Cp, Cs
 OFF_G = 226  # (3,) gravity, {B}
 N_PARAMS = 229
 
+# Batches smaller than this run on the calling thread: for a handful of rows, waking numba's
+# worker threads costs more than it saves, and far more when other processes hold the cores.
+PARALLEL_MIN_ROWS = 16
+
 
 @njit(cache=True, error_model="numpy")
 def _cross(a0, a1, a2, b0, b1, b2):
@@ -591,32 +595,51 @@ def forward_batch(prm, flags, t, R, v, w, F, W, out):
     """Forward dynamics over a batch.  prm (Np, N_PARAMS) with Np in {1, N}; t, v, w (N,3);
     R (N,3,3); F (N,6) N; W (N,6) external wrench [F_ext; M_ext] at P, {B}; out (N,6) [a; alpha]."""
     n = t.shape[0]
-    shared = prm.shape[0] == 1
-    for b in prange(n):
-        M = np.empty((6, 6))
-        h = np.empty(6)
-        _forward_one(prm[0] if shared else prm[b], flags, t[b], R[b], v[b], w[b], F[b], W[b], M, h, out[b])
+    if n >= PARALLEL_MIN_ROWS:
+        for b in prange(n):
+            _forward_row(prm, flags, t, R, v, w, F, W, out, b)
+    else:
+        for b in range(n):
+            _forward_row(prm, flags, t, R, v, w, F, W, out, b)
+
+
+@njit(cache=True, error_model="numpy")
+def _forward_row(prm, flags, t, R, v, w, F, W, out, b):
+    """Row b of ``forward_batch``."""
+    M = np.empty((6, 6))
+    h = np.empty(6)
+    _forward_one(prm[0] if prm.shape[0] == 1 else prm[b], flags, t[b], R[b], v[b], w[b], F[b], W[b], M, h, out[b])
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def inverse_batch(prm, flags, t, R, v, w, acc, W, out):
     """Inverse dynamics over a batch: acc (N,6) [a; alpha] -> out (N,6) leg forces, N."""
     n = t.shape[0]
-    shared = prm.shape[0] == 1
-    for b in prange(n):
-        M = np.empty((6, 6))
-        h = np.empty(6)
-        _inverse_one(prm[0] if shared else prm[b], flags, t[b], R[b], v[b], w[b], acc[b], W[b], M, h, out[b])
+    if n >= PARALLEL_MIN_ROWS:
+        for b in prange(n):
+            _inverse_row(prm, flags, t, R, v, w, acc, W, out, b)
+    else:
+        for b in range(n):
+            _inverse_row(prm, flags, t, R, v, w, acc, W, out, b)
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
+def _inverse_row(prm, flags, t, R, v, w, acc, W, out, b):
+    """Row b of ``inverse_batch``."""
+    M = np.empty((6, 6))
+    h = np.empty(6)
+    _inverse_one(prm[0] if prm.shape[0] == 1 else prm[b], flags, t[b], R[b], v[b], w[b], acc[b], W[b], M, h, out[b])
+
+
+@njit(cache=True, error_model="numpy")
 def leg_kinematics_batch(prm, flags, t, R, v, w, acc, frames, lengths, rates, accels,
                          omega_l, alpha_l, jac):
-    """Leg kinematics over a batch (shapes of ``_leg_kinematics_one`` with a leading N)."""
+    """Leg kinematics over a batch (shapes of ``_leg_kinematics_one`` with a leading N).
+
+    Serial: it serves analysis and tests, not the per-step path."""
     n = t.shape[0]
-    shared = prm.shape[0] == 1
-    for b in prange(n):
-        _leg_kinematics_one(prm[0] if shared else prm[b], flags, t[b], R[b], v[b], w[b], acc[b],
+    for b in range(n):
+        _leg_kinematics_one(prm[0] if prm.shape[0] == 1 else prm[b], flags, t[b], R[b], v[b], w[b], acc[b],
                             frames[b], lengths[b], rates[b], accels[b], omega_l[b], alpha_l[b], jac[b])
 
 
@@ -704,46 +727,55 @@ def rollout_batch(prm, flags, t, R, v, w, F, W, dt, steps):
     rotation.  A row whose state stops being finite is left at its first non-finite value.
     """
     n = t.shape[0]
-    shared = prm.shape[0] == 1
-    for b in prange(n):
-        p = prm[0] if shared else prm[b]
-        x = np.empty(13)
-        xs = np.empty(13)
-        k = np.empty((4, 13))
-        Rs = np.empty((3, 3))
-        M = np.empty((6, 6))
-        h = np.empty(6)
-        acc = np.empty(6)
-        for j in range(3):
-            x[j] = t[b, j]
-            x[7 + j] = v[b, j]
-            x[10 + j] = w[b, j]
-        _matrix_to_quat(R[b], x[3:7])
-        for _ in range(steps):
-            _state_derivative(p, flags, x, F[b], W[b], Rs, M, h, acc, k[0])
-            for j in range(13):
-                xs[j] = x[j] + 0.5 * dt * k[0, j]
-            _state_derivative(p, flags, xs, F[b], W[b], Rs, M, h, acc, k[1])
-            for j in range(13):
-                xs[j] = x[j] + 0.5 * dt * k[1, j]
-            _state_derivative(p, flags, xs, F[b], W[b], Rs, M, h, acc, k[2])
-            for j in range(13):
-                xs[j] = x[j] + dt * k[2, j]
-            _state_derivative(p, flags, xs, F[b], W[b], Rs, M, h, acc, k[3])
-            finite = True
-            for j in range(13):
-                x[j] += dt / 6.0 * (k[0, j] + 2.0 * k[1, j] + 2.0 * k[2, j] + k[3, j])
-                finite = finite and np.isfinite(x[j])
-            nq = np.sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5] + x[6] * x[6])
-            for j in range(3, 7):
-                x[j] /= nq
-            if not finite:
-                break
-        for j in range(3):
-            t[b, j] = x[j]
-            v[b, j] = x[7 + j]
-            w[b, j] = x[10 + j]
-        _quat_to_matrix(x[3:7], R[b])
+    if n >= PARALLEL_MIN_ROWS:
+        for b in prange(n):
+            _rollout_row(prm, flags, t, R, v, w, F, W, dt, steps, b)
+    else:
+        for b in range(n):
+            _rollout_row(prm, flags, t, R, v, w, F, W, dt, steps, b)
+
+
+@njit(cache=True, error_model="numpy")
+def _rollout_row(prm, flags, t, R, v, w, F, W, dt, steps, b):
+    """Row b of ``rollout_batch``."""
+    p = prm[0] if prm.shape[0] == 1 else prm[b]
+    x = np.empty(13)
+    xs = np.empty(13)
+    k = np.empty((4, 13))
+    Rs = np.empty((3, 3))
+    M = np.empty((6, 6))
+    h = np.empty(6)
+    acc = np.empty(6)
+    for j in range(3):
+        x[j] = t[b, j]
+        x[7 + j] = v[b, j]
+        x[10 + j] = w[b, j]
+    _matrix_to_quat(R[b], x[3:7])
+    for _ in range(steps):
+        _state_derivative(p, flags, x, F[b], W[b], Rs, M, h, acc, k[0])
+        for j in range(13):
+            xs[j] = x[j] + 0.5 * dt * k[0, j]
+        _state_derivative(p, flags, xs, F[b], W[b], Rs, M, h, acc, k[1])
+        for j in range(13):
+            xs[j] = x[j] + 0.5 * dt * k[1, j]
+        _state_derivative(p, flags, xs, F[b], W[b], Rs, M, h, acc, k[2])
+        for j in range(13):
+            xs[j] = x[j] + dt * k[2, j]
+        _state_derivative(p, flags, xs, F[b], W[b], Rs, M, h, acc, k[3])
+        finite = True
+        for j in range(13):
+            x[j] += dt / 6.0 * (k[0, j] + 2.0 * k[1, j] + 2.0 * k[2, j] + k[3, j])
+            finite = finite and np.isfinite(x[j])
+        nq = np.sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5] + x[6] * x[6])
+        for j in range(3, 7):
+            x[j] /= nq
+        if not finite:
+            break
+    for j in range(3):
+        t[b, j] = x[j]
+        v[b, j] = x[7 + j]
+        w[b, j] = x[10 + j]
+    _quat_to_matrix(x[3:7], R[b])
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -751,28 +783,37 @@ def leg_sensors_batch(prm, t, R, v, w, lengths, rates, condition):
     """What the environment checks after each control step, over a batch: leg lengths (N,6) m,
     leg rates (N,6) m/s and the Jacobian's 2-norm condition number (N,) (inf when singular)."""
     n = t.shape[0]
-    shared = prm.shape[0] == 1
-    for b in prange(n):
-        p = prm[0] if shared else prm[b]
-        jac = np.empty((6, 6))
-        for i in range(6):
-            (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
-             Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2, A0, A1, A2) = _leg_inputs(p, i, 0, t[b], R[b], v[b], w[b])
-            lengths[b, i] = L
-            rates[b, i] = Ldot
-            mq0, mq1, mq2 = _cross(q0, q1, q2, e0, e1, e2)
-            jac[i, 0] = e0
-            jac[i, 1] = e1
-            jac[i, 2] = e2
-            jac[i, 3] = mq0
-            jac[i, 4] = mq1
-            jac[i, 5] = mq2
-        finite = True
-        for i in range(6):
-            for j in range(6):
-                finite = finite and np.isfinite(jac[i, j])
-        if finite:
-            s = np.linalg.svd(jac)[1]
-            condition[b] = s[0] / s[5] if s[5] > 0.0 else np.inf
-        else:
-            condition[b] = np.inf
+    if n >= PARALLEL_MIN_ROWS:
+        for b in prange(n):
+            _leg_sensors_row(prm, t, R, v, w, lengths, rates, condition, b)
+    else:
+        for b in range(n):
+            _leg_sensors_row(prm, t, R, v, w, lengths, rates, condition, b)
+
+
+@njit(cache=True, error_model="numpy")
+def _leg_sensors_row(prm, t, R, v, w, lengths, rates, condition, b):
+    """Row b of ``leg_sensors_batch``."""
+    p = prm[0] if prm.shape[0] == 1 else prm[b]
+    jac = np.empty((6, 6))
+    for i in range(6):
+        (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
+         Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2, A0, A1, A2) = _leg_inputs(p, i, 0, t[b], R[b], v[b], w[b])
+        lengths[b, i] = L
+        rates[b, i] = Ldot
+        mq0, mq1, mq2 = _cross(q0, q1, q2, e0, e1, e2)
+        jac[i, 0] = e0
+        jac[i, 1] = e1
+        jac[i, 2] = e2
+        jac[i, 3] = mq0
+        jac[i, 4] = mq1
+        jac[i, 5] = mq2
+    finite = True
+    for i in range(6):
+        for j in range(6):
+            finite = finite and np.isfinite(jac[i, j])
+    if finite:
+        s = np.linalg.svd(jac)[1]
+        condition[b] = s[0] / s[5] if s[5] > 0.0 else np.inf
+    else:
+        condition[b] = np.inf

@@ -138,6 +138,27 @@ class Dynamics:
         """The same model on other parameters (e.g. one randomised set per batch row)."""
         return Dynamics(self.name, params)
 
+    def with_rows(self, rows: Sequence[int], params: Sequence[PlatformParams]) -> "Dynamics":
+        """The same model with the parameters of batch rows ``rows`` replaced by ``params`` (one
+        each); the other rows keep their packed parameters, so only the new rows are packed."""
+        rows = [int(r) for r in rows]
+        if len(rows) != len(params):
+            raise ValueError(f"params: expected one per row ({len(rows)}), got {len(params)}")
+        plist = list(self.params)
+        packed = self.packed.copy()
+        for r, p in zip(rows, params):
+            if not 0 <= r < len(plist):
+                raise ValueError(f"rows: {r} is outside the batch of {len(plist)} parameter rows")
+            if not isinstance(p, PlatformParams):
+                raise ValueError(f"params: expected PlatformParams, got {type(p).__name__}")
+            plist[r] = p
+            packed[r] = pack_params(p)
+        new = object.__new__(Dynamics)
+        new.name, new.flags, new.params = self.name, self.flags, tuple(plist)
+        packed.setflags(write=False)
+        new.packed = packed
+        return new
+
     def forward(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench=None):
         """Forward dynamics: platform accelerations under given leg forces.
 

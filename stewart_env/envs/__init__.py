@@ -1,0 +1,27 @@
+"""The Gymnasium environments: the single env, the native vector env and the SB3 VecEnv adapter.
+
+``StewartPlatformSB3VecEnv`` is imported on first use, so this package imports without
+stable-baselines3 (and torch).
+"""
+
+from stewart_env.envs.core import DEFAULTS, TERMINATION_REASONS
+from stewart_env.envs.stewart_platform import PlatformState, StewartPlatformEnv, Target
+from stewart_env.envs.vector import StewartPlatformVectorEnv
+
+__all__ = [
+    "DEFAULTS",
+    "TERMINATION_REASONS",
+    "PlatformState",
+    "StewartPlatformEnv",
+    "StewartPlatformSB3VecEnv",
+    "StewartPlatformVectorEnv",
+    "Target",
+]
+
+
+def __getattr__(name: str):
+    if name == "StewartPlatformSB3VecEnv":
+        from stewart_env.envs.sb3 import StewartPlatformSB3VecEnv
+
+        return StewartPlatformSB3VecEnv
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

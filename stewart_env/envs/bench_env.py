@@ -1,0 +1,119 @@
+"""Speed of the environments: single-env steps/s through ``gymnasium.make`` and vector platform-steps/s.
+
+Run ``python -m stewart_env.envs.bench_env`` (options: ``--n-vector``, ``--seconds``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
+
+__all__ = ["bench_env"]
+
+
+def _holding_action(env) -> np.ndarray:
+    """The action whose leg forces hold the nominal platform at rest at its start pose.
+
+    With the fixed start of the benchmark's task an episode then runs for hundreds of steps (the
+    open-loop platform drifts off slowly), so the timing is of steps, with the occasional reset
+    included as in training.
+    """
+    u = env.unwrapped
+    state = u.state
+    z = np.zeros(3)
+    forces = u.model.inverse(state.position, state.rotation, z, z, z, z)
+    lo, hi = u.platform.limits.leg_force
+    return ((forces - 0.5 * (lo + hi)) / (0.5 * (hi - lo))).astype(np.float32)
+
+
+def _timed(step, seconds: float, batch: int = 64) -> tuple[int, float, float]:
+    """Call ``step`` in batches until ``seconds`` have passed; (calls, wall s, process CPU s)."""
+    calls, start, cpu = 0, time.perf_counter(), time.process_time()
+    while True:
+        for _ in range(batch):
+            step()
+        calls += batch
+        elapsed = time.perf_counter() - start
+        if elapsed >= seconds:
+            return calls, elapsed, time.process_time() - cpu
+
+
+def bench_env(n_vector: int = 1024, seconds: float = 5.0, **kwargs) -> dict:
+    """Measure both environments with default settings (improved model, control_dt 0.01 s,
+    physics_dt 0.001 s: 10 RK4 substeps per step) or the given keyword arguments of the
+    environment.  The setpoint task starts at its fixed pose (``task_options={"randomize":
+    False}``, overridable) and the action holds the platform there, so that episodes are long;
+    the physics and the per-step work are those of the default task.
+
+    Returns a dict: single_steps_per_s (``gymnasium.make`` with its default wrappers: passive
+    checker, order enforcing, time limit), vector_platform_steps_per_s (N x steps/s of
+    ``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")`` at N = ``n_vector``),
+    vector_steps_per_s, the episode resets counted in each run, and the settings; all per second
+    of wall-clock time, and the two rates also per second of this process's CPU time
+    (``*_per_cpu_s``), which other load on the machine does not lower (the vector env uses every
+    core, so on an idle machine its wall-clock rate approaches cores x its CPU-time rate).  A
+    short warm-up (which includes any first compilation) is not timed.
+    """
+    kwargs = {"task_options": {"randomize": False}, **kwargs}
+    env = gym.make("StewartPlatform-v0", **kwargs)
+    env.reset(seed=0)
+    action = _holding_action(env)
+    resets = [0]
+
+    def single_step():
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            env.reset()
+            resets[0] += 1
+
+    _timed(single_step, 0.2)
+    resets[0] = 0
+    single_calls, single_s, single_cpu = _timed(single_step, seconds)
+    single_resets = resets[0]
+    env.close()
+
+    venv = gym.make_vec("StewartPlatform-v0", num_envs=n_vector, vectorization_mode="vector_entry_point", **kwargs)
+    actions = np.tile(action, (n_vector, 1))
+    venv.reset(seed=0)
+    vector_resets = [0]
+
+    def vector_step():
+        _, _, terminated, truncated, _ = venv.step(actions)
+        vector_resets[0] += int(np.count_nonzero(terminated | truncated))
+
+    _timed(vector_step, 0.5, batch=2)
+    vector_resets[0] = 0
+    vector_calls, vector_s, vector_cpu = _timed(vector_step, seconds, batch=2)
+    venv.close()
+    u = env.unwrapped
+    return {
+        "single_steps_per_s": single_calls / single_s,
+        "single_steps_per_cpu_s": single_calls / single_cpu,
+        "single_resets": single_resets,
+        "vector_platform_steps_per_s": vector_calls * n_vector / vector_s,
+        "vector_platform_steps_per_cpu_s": vector_calls * n_vector / vector_cpu,
+        "vector_steps_per_s": vector_calls / vector_s,
+        "vector_resets": vector_resets[0],
+        "n_vector": n_vector,
+        "control_dt": u.dt,
+        "model": u.model.name,
+        "task": u.task.name,
+    }
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n-vector", type=int, default=1024)
+    parser.add_argument("--seconds", type=float, default=5.0)
+    args = parser.parse_args(argv)
+    print(json.dumps(bench_env(args.n_vector, args.seconds), indent=2))
+
+
+if __name__ == "__main__":
+    main()

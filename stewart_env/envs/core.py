@@ -1,0 +1,463 @@
+"""The batched core of the environments: N platforms, a task, and one compiled rollout per step.
+
+:class:`PlatformBatch` holds the state of N platforms in preallocated arrays and does everything
+of a control step for all of them at once: action to leg forces, actuator lag, the task's
+external wrench, one call of :func:`~stewart_env.integrate.rollout_inplace`, leg sensors,
+termination, reward terms and the observation (noise and delay included).  The single
+environment is a batch of one, the vector environment a batch of N; both give a platform the same
+arithmetic, so a vector row reproduces a single environment bit for bit.  Per-row Python loops
+run only at episode start and for observation noise (each row draws from its own Generator).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from stewart_env.dynamics import Dynamics, make_dynamics
+from stewart_env.integrate import rollout_inplace
+from stewart_env.kinematics import leg_sensors_inplace
+from stewart_env.params import PlatformParams, load_platform
+from stewart_env.randomization import Randomization
+from stewart_env.rotations import rpy_to_matrix
+from stewart_env.tasks import Reference, RewardWeights, Scales, State, make_task, tracking_errors
+
+__all__ = ["DEFAULTS", "OBSERVATION_MODES", "TERMINATION_REASONS", "PlatformBatch", "check_action"]
+
+#: Every keyword argument of the environments and its default (the arguments table of the card).
+DEFAULTS: dict[str, Any] = {
+    "model": "improved",
+    "platform": "dasgupta1998",
+    "task": "setpoint",
+    "task_options": None,
+    "control_dt": 0.01,
+    "physics_dt": 0.001,
+    "actuator_tau": 0.0,
+    "observation_mode": "pose",
+    "normalize_observation": True,
+    "observation_noise": 0.0,
+    "observation_delay": 0,
+    "randomization": None,
+    **{name: getattr(RewardWeights, name) for name in RewardWeights.__dataclass_fields__},
+    "width": 480,
+    "height": 480,
+}
+OBSERVATION_MODES = ("pose", "sensors")
+#: The environment's own reasons to terminate, by priority (a task's reasons come after these).
+TERMINATION_REASONS = ("non_finite", "singularity", "leg_stroke", "workspace")
+# Relative tolerance on control_dt / physics_dt being a whole number (rounding of decimal inputs).
+_DT_TOLERANCE = 1e-9
+
+
+def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """The action as a float64 array of ``shape``; ValueError saying what is wrong otherwise."""
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"action: expected numbers of shape {shape}, got {action!r}") from None
+    if a.shape != shape:
+        raise ValueError(f"action: expected shape {shape}, got {a.shape}")
+    # One sum tells whether all is finite in the common case; only a non-finite sum looks closer.
+    if not math.isfinite(a.sum()):
+        bad = ~np.isfinite(a)
+        if bad.any():
+            where = np.argwhere(bad)[0]
+            kind = "NaN" if np.isnan(a[tuple(where)]) else "inf"
+            raise ValueError(f"action: contains {kind} at index {tuple(int(i) for i in where)} "
+                             f"({int(bad.sum())} non-finite value(s)); actions must be finite")
+    return a
+
+
+@njit(cache=True)
+def _limit_codes(t, R, lengths, condition, non_finite, position_min, position_max, home_rpy, max_angle,
+                 length_min, length_max, max_condition, code):
+    """Termination code of every row, by priority: 1 non-finite state, 2 Jacobian condition number
+    above max_condition, 3 a leg outside its stroke, 4 P outside the workspace box or a
+    roll-pitch-yaw angle (as stewart_env.rotations.matrix_to_rpy, wrapped to [-pi, pi) about home)
+    further than max_angle from home; 0 none."""
+    for b in range(t.shape[0]):
+        c = 0
+        if non_finite[b]:
+            c = 1
+        elif condition[b] > max_condition:
+            c = 2
+        else:
+            for i in range(6):
+                if lengths[b, i] < length_min or lengths[b, i] > length_max:
+                    c = 3
+            if c == 0:
+                for j in range(3):
+                    if t[b, j] < position_min[j] or t[b, j] > position_max[j]:
+                        c = 4
+                s = -R[b, 2, 0]
+                s = min(max(s, -1.0), 1.0)
+                rpy = (np.arctan2(R[b, 2, 1], R[b, 2, 2]), np.arcsin(s), np.arctan2(R[b, 1, 0], R[b, 0, 0]))
+                for j in range(3):
+                    d = (rpy[j] - home_rpy[j] + np.pi) % (2.0 * np.pi) - np.pi
+                    if abs(d) > max_angle:
+                        c = 4
+        code[b] = c
+
+
+def _positive(name: str, value: Any, allow_zero: bool = False) -> float:
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool) \
+        and math.isfinite(value) and (value >= 0 if allow_zero else value > 0)
+    if not ok:
+        raise ValueError(f"{name}: expected a finite number {'>=' if allow_zero else '>'} 0, got {value!r}")
+    return float(value)
+
+
+def _platform(value: Any) -> PlatformParams:
+    if isinstance(value, PlatformParams):
+        return value
+    if isinstance(value, str) or hasattr(value, "__fspath__"):
+        return load_platform(value)
+    raise ValueError(f"platform: expected a config name, a YAML path or a PlatformParams, got {value!r}")
+
+
+class PlatformBatch:
+    """N platforms under one dynamics model, one task and one set of options.
+
+    ``n`` rows; keyword arguments as in :data:`DEFAULTS` (validated here, errors name the
+    argument).  Public arrays (row i = platform i, frames and units of the environment card):
+    position (n,3), rotation (n,3,3), velocity (n,3), angular_velocity (n,3), leg_forces (n,6),
+    external_wrench (n,6), time (n,), leg_lengths (n,6), leg_rates (n,6), condition (n,), the
+    reference (a :class:`~stewart_env.tasks.Reference` of (n, ...) arrays) and observation (n, D),
+    the latest observation of every row (scaled, noisy, delayed as configured).
+    """
+
+    def __init__(self, n: int, **kwargs: Any):
+        unknown = [k for k in kwargs if k not in DEFAULTS]
+        if unknown:
+            raise ValueError(f"unknown keyword argument(s) {', '.join(map(repr, unknown))}; "
+                             f"valid: {', '.join(DEFAULTS)}")
+        cfg = {**DEFAULTS, **kwargs}
+        self.n = n = int(n)
+
+        # -- physics ------------------------------------------------------------------------------
+        self.platform = _platform(cfg["platform"])
+        self.nominal_model: Dynamics = make_dynamics(cfg["model"], self.platform)
+        self.model: Dynamics = self.nominal_model
+        self.control_dt = _positive("control_dt", cfg["control_dt"])
+        physics_dt = _positive("physics_dt", cfg["physics_dt"])
+        substeps = round(self.control_dt / physics_dt)
+        if substeps < 1 or abs(substeps * physics_dt - self.control_dt) > _DT_TOLERANCE * self.control_dt:
+            raise ValueError(f"control_dt ({self.control_dt}) must be a whole multiple of physics_dt "
+                             f"({physics_dt}): the ratio is {self.control_dt / physics_dt:.6g}")
+        self.substeps = substeps
+        # Integrate with control_dt / substeps so that n control steps are exactly n control_dt.
+        self.physics_dt = self.control_dt / substeps
+        tau = _positive("actuator_tau", cfg["actuator_tau"], allow_zero=True)
+        self.actuator_tau = tau
+        self._lag = 1.0 - math.exp(-self.control_dt / tau) if tau > 0 else 0.0
+        lim = self.platform.limits
+        self._force_mid = 0.5 * (lim.leg_force[0] + lim.leg_force[1])
+        self._force_half = 0.5 * (lim.leg_force[1] - lim.leg_force[0])
+
+        spec = cfg["randomization"]
+        self.randomization = Randomization(spec) if spec else None
+
+        # -- task and reward ----------------------------------------------------------------------
+        self.task = make_task(cfg["task"], self.platform, self.control_dt, cfg["task_options"])
+        self.weights = RewardWeights(**{k: cfg[k] for k in RewardWeights.__dataclass_fields__})
+        self.termination_reasons: tuple[str | None, ...] = (None, *TERMINATION_REASONS,
+                                                            *self.task.termination_reasons)
+        self._reason_array = np.array(self.termination_reasons, dtype=object)
+        self._task_code_offset = 1 + len(TERMINATION_REASONS)
+
+        for name in ("width", "height"):
+            v = cfg[name]
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v <= 0:
+                raise ValueError(f"{name}: expected a positive integer number of pixels, got {v!r}")
+        self.width, self.height = int(cfg["width"]), int(cfg["height"])
+
+        # -- state, preallocated --------------------------------------------------------------------
+        self.position = np.zeros((n, 3))
+        self.rotation = np.zeros((n, 3, 3))
+        self.velocity = np.zeros((n, 3))
+        self.angular_velocity = np.zeros((n, 3))
+        self.leg_forces = np.zeros((n, 6))
+        self.external_wrench = np.zeros((n, 6))
+        self.time = np.zeros(n)
+        self.steps = np.zeros(n, dtype=np.int64)
+        self.leg_lengths = np.zeros((n, 6))
+        self.leg_rates = np.zeros((n, 6))
+        self.condition = np.zeros(n)
+        self.reference = Reference(np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3)))
+        self.episode = {k: np.zeros((n, *shape)) for k, shape in self.task.episode_fields.items()}
+        self.row_params: list[PlatformParams] = [self.platform] * n
+        self._state = State(self.position, self.rotation, self.velocity, self.angular_velocity)
+        self._backup = State(*(np.zeros_like(x) for x in self._state))
+        self._action = np.zeros((n, 6))
+        self._command = np.zeros((n, 6))
+        self._state_sum = np.zeros(n)
+        self._non_finite = np.zeros(n, dtype=bool)
+        self._code = np.zeros(n, dtype=np.int64)
+        self._home_rpy = self.platform.home_rpy
+        self._home_rotation = rpy_to_matrix(self.platform.home_rpy)
+
+        # -- observation ----------------------------------------------------------------------------
+        mode = cfg["observation_mode"]
+        if mode not in OBSERVATION_MODES:
+            raise ValueError(f"observation_mode: expected one of {OBSERVATION_MODES}, got {mode!r}")
+        self.observation_mode = mode
+        scales = Scales.of(self.platform)
+        box_centre = 0.5 * (lim.position_min + lim.position_max)
+        stroke_mid = 0.5 * (lim.leg_length[0] + lim.leg_length[1])
+        ang = np.full(3, scales.angle)
+        # (name, scale, offset): observed value = (physical - offset) / scale when normalised.
+        terms: list[tuple[str, np.ndarray, np.ndarray]] = []
+        if mode == "pose":
+            terms += [("position", scales.position, box_centre), ("orientation", np.ones(6), np.zeros(6)),
+                      ("velocity", scales.position, np.zeros(3)), ("angular_velocity", ang, np.zeros(3))]
+        else:
+            terms += [("leg_lengths", np.full(6, scales.leg_length), np.full(6, stroke_mid)),
+                      ("leg_rates", np.full(6, scales.leg_length), np.zeros(6))]
+        if tau > 0:
+            terms.append(("leg_forces", np.full(6, scales.leg_force), np.full(6, self._force_mid)))
+        terms += [(name, scale, np.zeros(scale.size)) for name, scale in self.task.observation_terms(scales)]
+        normalize = cfg["normalize_observation"]
+        if not isinstance(normalize, (bool, np.bool_)):
+            raise ValueError(f"normalize_observation: expected True or False, got {normalize!r}")
+        self.normalize_observation = bool(normalize)
+        self.observation_layout: dict[str, slice] = {}
+        start = 0
+        for name, scale, _ in terms:
+            self.observation_layout[name] = slice(start, start + scale.size)
+            start += scale.size
+        self.obs_dim = start
+        if self.normalize_observation:
+            self.observation_scale = np.concatenate([t[1] for t in terms])
+            self.observation_offset = np.concatenate([t[2] for t in terms])
+        else:
+            self.observation_scale = np.ones(start)
+            self.observation_offset = np.zeros(start)
+        self._inv_scale = 1.0 / self.observation_scale
+        self._raw = np.zeros((n, start))
+        self._raw_views = self._views(self._raw)
+        self.noise_std = self._noise(cfg["observation_noise"])
+        delay = cfg["observation_delay"]
+        if isinstance(delay, bool) or not isinstance(delay, (int, np.integer)) or delay < 0:
+            raise ValueError(f"observation_delay: expected an integer number of control steps >= 0, got {delay!r}")
+        self.observation_delay = int(delay)
+        self._history = np.zeros((self.observation_delay + 1, n, start))
+        self._head = 0
+        self.observation = self._history[0]
+
+    # -- configuration -----------------------------------------------------------------------------
+
+    def _views(self, raw: np.ndarray) -> dict[str, np.ndarray]:
+        return {name: raw[:, sl] for name, sl in self.observation_layout.items()}
+
+    def _noise(self, value: Any) -> np.ndarray | None:
+        """Per-entry noise std (D,) in observation units, or None for no noise."""
+        std = np.zeros(self.obs_dim)
+        if isinstance(value, dict):
+            unknown = [k for k in value if k not in self.observation_layout]
+            if unknown:
+                raise ValueError(f"observation_noise: unknown observation term(s) {', '.join(map(repr, unknown))}; "
+                                 f"terms: {', '.join(self.observation_layout)}")
+            for name, s in value.items():
+                std[self.observation_layout[name]] = _positive(f"observation_noise[{name!r}]", s, allow_zero=True)
+        else:
+            std[:] = _positive("observation_noise", value, allow_zero=True)
+        return std if std.any() else None
+
+    @property
+    def render_fps(self) -> float:
+        return 1.0 / self.control_dt
+
+    def decode_observation(self, observation: np.ndarray) -> dict[str, np.ndarray]:
+        """Observation(s) (..., D) back to physical units, by layout name."""
+        physical = np.asarray(observation, dtype=np.float64) * self.observation_scale + self.observation_offset
+        return {name: physical[..., sl] for name, sl in self.observation_layout.items()}
+
+    # -- episode start ----------------------------------------------------------------------------------
+
+    def reset_rows(self, rows: np.ndarray, rngs: Sequence[np.random.Generator]) -> list[dict[str, Any]]:
+        """Start a new episode in each of ``rows`` (int array), row rows[j] drawing from rngs[j].
+
+        Draw order within a row: randomisation factors, the task's episode, observation noise.
+        Returns one info dict per row: with randomisation, ``randomization`` (the factors) and
+        ``platform_params`` (the episode's PlatformParams).
+        """
+        infos = []
+        for j, i in enumerate(rows):
+            rng = rngs[j]
+            info: dict[str, Any] = {}
+            if self.randomization is not None:
+                factors = self.randomization.sample(rng)
+                self.row_params[i] = self.randomization.apply(self.platform, factors)
+                info["randomization"] = factors
+                info["platform_params"] = self.row_params[i]
+            start, episode = self.task.initialize_episode(rng)
+            self.position[i], self.rotation[i], self.velocity[i], self.angular_velocity[i] = start
+            for k, v in episode.items():
+                self.episode[k][i] = v
+            infos.append(info)
+        if self.randomization is not None:
+            # repack only the rows that start an episode, once every row has its own parameters
+            self.model = (self.model.with_rows(rows, [self.row_params[i] for i in rows])
+                          if len(self.model.params) == self.n
+                          else self.nominal_model.with_params(self.row_params))
+        self.steps[rows] = 0
+        self.time[rows] = 0.0
+        self.external_wrench[rows] = 0.0
+        state = State(*(x[rows] for x in self._state))
+        lengths, rates, cond = np.empty((len(rows), 6)), np.empty((len(rows), 6)), np.empty(len(rows))
+        if self._lag:
+            # The actuators start holding the start state: the forces of zero acceleration.
+            model = (self.nominal_model if self.randomization is None
+                     else self.nominal_model.with_params([self.row_params[i] for i in rows]))
+            zero = np.zeros((len(rows), 3))
+            self.leg_forces[rows] = model.inverse(*state, zero, zero)
+        else:
+            self.leg_forces[rows] = 0.0
+        leg_sensors_inplace(self.nominal_model, *state, lengths, rates, cond)
+        self.leg_lengths[rows], self.leg_rates[rows], self.condition[rows] = lengths, rates, cond
+        episode = {k: v[rows] for k, v in self.episode.items()}
+        ref = Reference(*(np.empty_like(x) for x in state))
+        self.task.reference(episode, self.time[rows], ref)
+        for dst, src in zip(self.reference, ref):
+            dst[rows] = src
+        raw = np.empty((len(rows), self.obs_dim))
+        self._measure(state, lengths, rates, self.leg_forces[rows], ref, episode, self.time[rows], raw)
+        if self.noise_std is not None:
+            for j in range(len(rows)):
+                raw[j] += rngs[j].normal(size=self.obs_dim) * self.noise_std
+        # A delayed sensor has seen only the start: every slot of the history holds it.
+        self._history[:, rows] = raw
+        return infos
+
+    # -- control step -----------------------------------------------------------------------------------
+
+    def step(self, action: np.ndarray, rngs: Sequence[np.random.Generator],
+             skip: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """One control step of every row.
+
+        action (n,6) float64, finite (see :func:`check_action`); clipped to [-1, 1] here.  rngs:
+        one Generator per row (used only for observation noise).  skip: optional (n,) bool of rows
+        about to be reset by the caller: they are parked at home first (their outcome is thrown
+        away) and draw no noise.  Returns (reward (n,), termination code (n,) int, reward terms
+        by name, each (n,)); codes index :attr:`termination_reasons` (0: none).
+        """
+        a = np.clip(action, -1.0, 1.0, out=self._action)
+        cmd = np.multiply(a, self._force_half, out=self._command)
+        cmd += self._force_mid
+        if self._lag:
+            self.leg_forces += self._lag * (cmd - self.leg_forces)
+        else:
+            self.leg_forces[:] = cmd
+        if skip is not None:
+            self._park(skip)
+        task = self.task
+        if task.has_external_wrench:
+            task.external_wrench(self.episode, self.time, self.control_dt, self.external_wrench)
+        for dst, src in zip(self._backup, self._state):
+            np.copyto(dst, src)
+        self._physics()
+        return self._outcome(rngs, skip)
+
+    def _physics(self) -> None:
+        """The rollout of every row, the non-finite check and the leg sensors."""
+        rollout_inplace(self.model, self.position, self.rotation, self.velocity, self.angular_velocity,
+                        self.leg_forces, self.external_wrench, self.physics_dt, self.substeps)
+        self.steps += 1
+        np.multiply(self.steps, self.control_dt, out=self.time)
+
+        # A NaN or inf anywhere in a row's state makes the row's sum non-finite.
+        s = self._state_sum
+        np.sum(self.position, axis=1, out=s)
+        s += self.rotation.reshape(self.n, 9).sum(axis=1)
+        s += self.velocity.sum(axis=1)
+        s += self.angular_velocity.sum(axis=1)
+        non_finite = self._non_finite
+        np.logical_not(np.isfinite(s), out=non_finite)
+        if non_finite.any():
+            # Keep the last finite state, so that observation, reward and rendering stay finite.
+            for dst, src in zip(self._state, self._backup):
+                dst[non_finite] = src[non_finite]
+        leg_sensors_inplace(self.nominal_model, self.position, self.rotation, self.velocity,
+                            self.angular_velocity, self.leg_lengths, self.leg_rates, self.condition)
+
+    def _outcome(self, rngs, skip) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """Reference, termination, reward and observation after the physics of a step."""
+        task = self.task
+        non_finite = self._non_finite
+        a = self._action
+        if task.moving_reference:
+            task.reference(self.episode, self.time, self.reference)
+        errors = tracking_errors(self._state, self.reference)
+
+        code = self._terminations(non_finite, errors)
+        terms = task.reward_terms(errors, a, self.weights)
+        terms["termination"] = -self.weights.termination_cost * (code > 0)
+        reward = sum(terms.values())
+
+        raw = self._raw
+        self._measure(self._state, self.leg_lengths, self.leg_rates, self.leg_forces, self.reference,
+                      self.episode, self.time, raw, errors)
+        if self.noise_std is not None:
+            for i in range(self.n):
+                if skip is None or not skip[i]:
+                    raw[i] += rngs[i].normal(size=self.obs_dim) * self.noise_std
+        if self.observation_delay:
+            self._head = (self._head + 1) % (self.observation_delay + 1)
+            self._history[self._head] = raw
+            self.observation = self._history[(self._head + 1) % (self.observation_delay + 1)]
+        else:
+            self._history[0] = raw
+        return reward, code, terms
+
+    def _park(self, rows: np.ndarray) -> None:
+        """Put rows at home at rest: a safe state to step before the caller resets them."""
+        self.position[rows] = self.platform.home_position
+        self.rotation[rows] = self._home_rotation
+        self.velocity[rows] = 0.0
+        self.angular_velocity[rows] = 0.0
+
+    def _terminations(self, non_finite: np.ndarray, errors) -> np.ndarray:
+        lim = self.platform.limits
+        code = self._code
+        _limit_codes(self.position, self.rotation, self.leg_lengths, self.condition, non_finite,
+                     lim.position_min, lim.position_max, self._home_rpy, lim.max_angle,
+                     lim.leg_length[0], lim.leg_length[1], lim.max_condition, code)
+        own = self.task.termination(self._state, errors, self.time)
+        if own is not None:
+            # A task's own reasons rank after the environment's.
+            mine = (own > 0) & (code == 0)
+            code[mine] = own[mine] + self._task_code_offset - 1
+        return code
+
+    def _measure(self, state: State, lengths, rates, forces, reference: Reference, episode, time,
+                 raw: np.ndarray, errors=None) -> None:
+        """Write the clean observation of a batch (any number of rows) into ``raw``."""
+        views = self._raw_views if raw is self._raw else self._views(raw)
+        if errors is None:
+            errors = tracking_errors(state, reference)
+        if self.observation_mode == "pose":
+            views["position"][:] = state.position
+            o = views["orientation"]
+            o[:, :3] = state.rotation[:, :, 0]
+            o[:, 3:] = state.rotation[:, :, 1]
+            views["velocity"][:] = state.velocity
+            views["angular_velocity"][:] = state.angular_velocity
+        else:
+            views["leg_lengths"][:] = lengths
+            views["leg_rates"][:] = rates
+        if "leg_forces" in views:
+            views["leg_forces"][:] = forces
+        self.task.observe(state, errors, episode, time, views)
+        if self.normalize_observation:
+            raw -= self.observation_offset
+            raw *= self._inv_scale
+
+    # -- introspection ------------------------------------------------------------------------------------
+
+    def reasons(self, code: np.ndarray) -> np.ndarray:
+        """Termination reason names (object array of str or None) of codes."""
+        return self._reason_array[code]

@@ -1,0 +1,111 @@
+"""A stable-baselines3 ``VecEnv`` on the native batch, so SB3 trains on one rollout call per step.
+
+Importing this module imports stable-baselines3 (and torch); ``stewart_env.envs`` imports it only
+when ``StewartPlatformSB3VecEnv`` is first used.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+from gymnasium.vector import AutoresetMode
+from stable_baselines3.common.vec_env import VecEnv
+
+from stewart_env.envs.vector import StewartPlatformVectorEnv
+from stewart_env.registration import MAX_EPISODE_STEPS
+
+__all__ = ["StewartPlatformSB3VecEnv"]
+
+
+class StewartPlatformSB3VecEnv(VecEnv):
+    """``num_envs`` platforms behind stable-baselines3's VecEnv API.
+
+    Keyword arguments are the environment's (see :class:`StewartPlatformEnv`), plus
+    ``max_episode_steps`` (default 500, as registered; None never truncates).  SB3 semantics: a
+    row that ends is reset in the same step, its last observation in
+    ``infos[i]["terminal_observation"]``, ``infos[i]["TimeLimit.truncated"]`` True when the time
+    limit (and not a termination) ended it, and ``infos[i]["termination"]`` the reason (None when
+    truncated).  ``seed(s)`` seeds row i with s + i at the next ``reset()``, as SB3's own VecEnvs
+    do, so row i reproduces ``gymnasium.make("StewartPlatform-v0")`` reset with seed s + i.
+    Wrap in ``VecMonitor`` for episode statistics.
+
+    The batch is one environment to Python: ``get_attr``/``env_method`` reach attributes and
+    methods of the underlying :class:`StewartPlatformVectorEnv` (the same value for every index),
+    ``set_attr`` is not supported, and ``render()``/``get_images()`` draw row 0.
+    """
+
+    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = MAX_EPISODE_STEPS,
+                 render_mode: str | None = None, **kwargs: Any):
+        self.venv = StewartPlatformVectorEnv(num_envs=num_envs, max_episode_steps=max_episode_steps,
+                                             render_mode=render_mode, autoreset_mode=AutoresetMode.SAME_STEP,
+                                             **kwargs)
+        super().__init__(num_envs, self.venv.single_observation_space, self.venv.single_action_space)
+        self._actions: np.ndarray | None = None
+
+    def reset(self) -> np.ndarray:
+        seed = None if all(s is None for s in self._seeds) else list(self._seeds)
+        if any(self._options):
+            raise ValueError("reset: this environment takes no reset options")
+        obs, infos = self.venv.reset(seed=seed)
+        self.reset_infos = self._row_infos(infos, range(self.num_envs))
+        self._reset_seeds()
+        self._reset_options()
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = actions
+
+    def step_wait(self):
+        if self._actions is None:
+            raise RuntimeError("step_wait() called without step_async()")
+        obs, reward, terminated, truncated, infos = self.venv.step(self._actions)
+        self._actions = None
+        done = terminated | truncated
+        time_limit = truncated & ~terminated
+        row_infos = [{"TimeLimit.truncated": bool(time_limit[i])} for i in range(self.num_envs)]
+        if done.any():
+            rows = np.flatnonzero(done)
+            reasons = infos["final_info"]["termination"]
+            for i, info in zip(rows, self._row_infos(infos, rows)):
+                row_infos[i]["terminal_observation"] = infos["final_obs"][i]
+                row_infos[i]["termination"] = reasons[i]
+                self.reset_infos[i] = info
+        return obs, reward.astype(np.float32), done, row_infos
+
+    @staticmethod
+    def _row_infos(infos: dict[str, Any], rows: Iterable[int]) -> list[dict[str, Any]]:
+        """Per-row reset infos (domain randomisation factors and parameters) from vector infos."""
+        out = []
+        for i in rows:
+            info = {}
+            if "randomization" in infos and infos["_randomization"][i]:
+                r = infos["randomization"]
+                info["randomization"] = {k: float(v[i]) for k, v in r.items() if not k.startswith("_")}
+                info["platform_params"] = infos["platform_params"][i]
+            out.append(info)
+        return out
+
+    def close(self) -> None:
+        self.venv.close()
+
+    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+        return [getattr(self.venv, attr_name)] * len(self._indices(indices))
+
+    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        raise NotImplementedError("set_attr: the rows share one batched environment; set options at construction")
+
+    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
+        result = getattr(self.venv, method_name)(*method_args, **method_kwargs)
+        return [result] * len(self._indices(indices))
+
+    def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+        return [False] * len(self._indices(indices))
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        frames = self.venv.render() if self.render_mode == "rgb_array" else None
+        return list(frames) if frames is not None else [None]
+
+    def _indices(self, indices) -> list[int]:
+        return list(self._get_indices(indices))

@@ -1,0 +1,375 @@
+"""The single Stewart platform environment, ``StewartPlatform-v0``."""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from stewart_env.dynamics import Dynamics
+from stewart_env.envs.core import PlatformBatch, check_action
+
+__all__ = ["PlatformState", "StewartPlatformEnv", "Target"]
+
+_ROW0 = np.zeros(1, dtype=np.int64)
+
+
+class PlatformState(NamedTuple):
+    """The platform's state in {B}: position (3,) m of P's origin, rotation (3,3) (columns = {P}
+    axes), velocity (3,) m/s of P's origin, angular_velocity (3,) rad/s; a leading N in the
+    vector environment."""
+
+    position: np.ndarray
+    rotation: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+
+
+class Target(NamedTuple):
+    """The task's reference now, in {B}: position (3,) m, rotation (3,3), velocity (3,) m/s and
+    angular_velocity (3,) rad/s (zero for setpoint and disturbance); a leading N in the vector
+    environment."""
+
+    position: np.ndarray
+    rotation: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+
+
+def term_key(name: str) -> str:
+    """The info key of a reward term: ``reward_<name>``."""
+    return f"reward_{name}"
+
+
+class StewartPlatformEnv(gym.Env):
+    """## Description
+
+    A 6-UPS Stewart platform: a rigid platform carried by six extensible legs, each a lower leg
+    (cylinder) hung on a universal joint at the base and an upper leg (piston) that slides in it and
+    meets the platform in a spherical joint.  The agent commands the six actuator forces along the
+    legs; the platform moves under them, gravity, viscous joint friction and, in the disturbance task,
+    an external wrench.  The dynamics are closed-form Newton-Euler models of the whole mechanism
+    (platform and twelve leg bodies), chosen by name: `"improved"` (He et al. 2018, exact rigid-body
+    dynamics), `"improved_centroidal"` (the same in its centroidal form) and `"classical"`
+    (Dasgupta and Mruthyunjaya 1998 as He et al. describe it), or an ablation such as
+    `"improved+c1"`.  They are integrated with RK4 at `physics_dt` while the forces are held over
+    each control step of `control_dt`.
+
+    The default platform, `"dasgupta1998"`, is the published Dasgupta/Tsai test manipulator: a 40 kg
+    platform, legs of 1.26 m at home, stroke 1.0-1.6 m, forces within +-2000 N.  Three tasks:
+    `"setpoint"` (reach a pose and hold it), `"tracking"` (follow a six-axis sinusoidal reference)
+    and `"disturbance"` (hold home against a random external wrench).
+
+    Frames and units: {B} is the base frame (z up, gravity -z), {P} the platform frame with origin P;
+    R is the rotation of {P} in {B} (columns = {P} axes); positions in m, angles in rad, velocities of
+    P in m/s and angular velocities in {B} in rad/s, forces in N, moments in N m.
+
+    ## Action Space
+
+    `Box(-1.0, 1.0, (6,), float32)`: one number per leg, mapped affinely onto the platform's
+    actuator force range `limits.leg_force = (F_min, F_max)`:
+
+        F_i = (F_max + F_min) / 2 + a_i (F_max - F_min) / 2        (dasgupta1998: F_i = 2000 a_i N)
+
+    A positive force extends the leg.  Values outside [-1, 1] are clipped; an action with NaN or inf,
+    or of a shape other than (6,), raises `ValueError` saying what is wrong.  The forces are held
+    constant over the control step (zero-order hold) while the physics takes
+    `control_dt / physics_dt` RK4 substeps.  With `actuator_tau > 0` the applied forces follow the
+    commanded ones through a first-order lag, discretised exactly per control step:
+    `F += (1 - exp(-control_dt / actuator_tau)) (F_cmd - F)`, the updated F being held over the step.
+    Note that a = 0 is zero force: the platform falls unless the policy holds it (about 130-225 N per
+    leg, a ~ 0.1, for dasgupta1998).
+
+    ## Observation Space
+
+    `Box(-inf, inf, (D,), float32)`.  `env.unwrapped.observation_layout` maps each term's name to its
+    slice, and `env.unwrapped.decode_observation(obs)` returns every term in physical units.  With
+    `normalize_observation=True` (default) each entry is `(value - offset) / scale`, the scales taken
+    from the platform's limits so that values inside the limits are of order one: `h` = half the
+    workspace box `(position_max - position_min) / 2` (dasgupta1998: 0.25, 0.25, 0.15 m), `c` its
+    centre, `A` = `limits.max_angle` (0.5 rad), `s` = half the stroke (0.3 m), `f` = half the force
+    range (2000 N).  With `normalize_observation=False` the observation is in SI units.
+
+    Default (`observation_mode="pose"`), setpoint and disturbance tasks, D = 21:
+
+    | index | name | observation | unit | scaling |
+    |---|---|---|---|---|
+    | 0-2 | position | x, y, z of P in {B} | m | (p - c) / h |
+    | 3-5 | orientation | first column of R: the {P} x axis in {B} | - | none |
+    | 6-8 | orientation | second column of R: the {P} y axis in {B} | - | none |
+    | 9-11 | velocity | velocity of P in {B} | m/s | v / h (h per second) |
+    | 12-14 | angular_velocity | angular velocity in {B} | rad/s | w / A |
+    | 15-17 | position_error | target position - position, {B} | m | e / h |
+    | 18-20 | orientation_error | rotation vector of R_target R^T, {B} | rad | e / A |
+
+    The two columns of R are a continuous description of the orientation (no angle wrapping or
+    gimbal lock); the third column is their cross product.  The tracking task appends (D = 45):
+
+    | index | name | observation | unit | scaling |
+    |---|---|---|---|---|
+    | 21-23 | velocity_error | reference velocity - velocity | m/s | e / h |
+    | 24-26 | angular_velocity_error | reference angular velocity - angular velocity | rad/s | e / A |
+    | 27-44 | reference_preview | for j = 1, 2, 3: reference position at t + 0.1 j s minus the position (3), rotation vector of R_ref(t + 0.1 j s) R^T (3) | m, rad | / h, / A |
+
+    With `observation_mode="sensors"` the pose block (indices 0-14) is replaced by what leg encoders
+    measure: `leg_lengths` (6, m, (L - stroke centre) / s) and `leg_rates` (6, m/s, / s); the task
+    terms follow unchanged (D = 18 for setpoint).  With `actuator_tau > 0` the applied forces
+    `leg_forces` (6, N, (F - force centre) / f) follow the pose or sensor block, since the lagged
+    force is part of the state.  `observation_noise` adds Gaussian noise of the given standard
+    deviation, in observation units (a number for every entry, or a dict from term name to std);
+    `observation_delay=k` returns the observation of k control steps ago (at reset, every slot holds
+    the first observation).
+
+    ## Rewards
+
+    Every step, with the errors e of the observation (reference minus actual; e_o as an angle):
+
+        r = position_reward_weight    * exp(-|e_p| / position_reward_scale)
+          + orientation_reward_weight * exp(-|e_o| / orientation_reward_scale)
+          - velocity_cost_weight      * (1 - exp(-(|e_v| / velocity_cost_scale
+                                                   + |e_w| / angular_velocity_cost_scale)))
+          - ctrl_cost_weight          * mean(a_i^2)                  (a clipped to [-1, 1])
+          - termination_cost          on the step that terminates
+
+    With the defaults (0.5, 0.05 m, 0.5, 0.1 rad, 0.1, 0.5 m/s, 1 rad/s, 0.1, 10) a step earns at most
+    1 (on target, at the target velocity, zero force) and at least -10.2.  Each term is in `info`:
+    `reward_position`, `reward_orientation`, `reward_velocity`, `reward_control` and
+    `reward_termination`; they sum to the reward.
+
+    ## Starting State
+
+    - `setpoint`: at rest at a start pose; the target pose is fixed for the episode.  By default
+      (`randomize=True`) start and target are drawn independently and uniformly, positions in
+      home +- `position_range` (default 0.4 h: 0.1, 0.1, 0.06 m) and roll, pitch, yaw in
+      home +- `angle_range` (default 0.4 A = 0.2 rad), each redrawn until it lies inside the limits
+      with 10 % margins.  `randomize=False` gives the case study of He et al. (2018): start
+      (0.1, 0, 0.395) m, target (0.1, 0, 0.4) m, both at rpy (0, 0, -0.2) rad (written as offsets
+      from home, so other platforms get the same offsets); `start_position`, `start_rpy`,
+      `target_position`, `target_rpy` override them.
+    - `tracking`: on the reference at t = 0 (its pose and twist).  Per episode and axis (x, y, z,
+      roll, pitch, yaw) an amplitude uniform in [0, max] (max 0.4 h and 0.4 A by default), a
+      frequency uniform in `frequency_range` (0.1-0.5 Hz) and a uniform phase; the reference is home
+      plus the six sinusoids, its amplitudes scaled down until every corner of its range lies inside
+      the limits with 10 % margins.
+    - `disturbance`: at rest at home, the target.  Per episode: sinusoidal forces and moments on each
+      axis (amplitudes up to 0.2 W and 0.2 W r, W the platform's weight, r its joint radius;
+      0.2-2 Hz) plus `n_impulses` = 2 pulses of 0.05 s at random times in the first 5 s (force up to
+      W, moment up to 0.5 W r, random directions), applied as the external wrench on the platform.
+      The wrench is not observed.
+
+    Options of a task go in `task_options` (a dict); `env.unwrapped.target` gives the current
+    reference (position, rotation, velocity, angular_velocity).
+
+    ## Episode End
+
+    ### Termination
+    The episode terminates when, after a control step,
+    1. the state is no longer finite (`info["termination"] == "non_finite"`; the state is kept at
+       the last finite one),
+    2. the leg Jacobian's condition number exceeds `limits.max_condition` (`"singularity"`),
+    3. a leg length leaves the stroke `limits.leg_length` (`"leg_stroke"`),
+    4. P leaves the workspace box `limits.position_min`-`position_max`, or roll, pitch or yaw
+       deviates from home by more than `limits.max_angle` (`"workspace"`),
+
+    reasons checked in this order; `info["termination"]` is None otherwise.
+
+    ### Truncation
+    Only by the time limit: 500 steps (5 s at the default `control_dt`), set by `max_episode_steps`
+    of `gymnasium.make` (the `TimeLimit` wrapper) or of `gymnasium.make_vec`.
+
+    ## Arguments
+
+    `gymnasium.make("StewartPlatform-v0", **kwargs)` takes:
+
+    | argument | default | description |
+    |---|---|---|
+    | `model` | `"improved"` | dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, optionally with switches such as `"+c1"` |
+    | `platform` | `"dasgupta1998"` | a shipped config name, a YAML path, or a `PlatformParams` |
+    | `task` | `"setpoint"` | `"setpoint"`, `"tracking"`, `"disturbance"` (or a `Task` subclass) |
+    | `task_options` | `None` | dict of the task's options (see Starting State and `stewart_env.tasks`) |
+    | `control_dt` | `0.01` | s per environment step |
+    | `physics_dt` | `0.001` | s per RK4 substep; `control_dt` must be a whole multiple of it |
+    | `actuator_tau` | `0.0` | s, first-order actuator lag time constant; 0 applies the commanded forces directly |
+    | `observation_mode` | `"pose"` | `"pose"` (pose and twist) or `"sensors"` (leg lengths and rates) |
+    | `normalize_observation` | `True` | scale the observation by the platform's limits (see Observation Space) |
+    | `observation_noise` | `0.0` | Gaussian noise std in observation units: a number, or a dict term name -> std |
+    | `observation_delay` | `0` | control steps between measurement and observation |
+    | `randomization` | `None` | domain randomisation spec, e.g. `{"platform.mass": (0.8, 1.2), "legs.mass": (0.9, 1.1), "inertia": (0.9, 1.1), "com": (0.9, 1.1), "damping": (0.5, 2.0)}` |
+    | `position_reward_weight` | `0.5` | weight of the position term |
+    | `position_reward_scale` | `0.05` | m, decay length of the position term |
+    | `orientation_reward_weight` | `0.5` | weight of the orientation term |
+    | `orientation_reward_scale` | `0.1` | rad, decay angle of the orientation term |
+    | `velocity_cost_weight` | `0.1` | weight of the velocity-error cost |
+    | `velocity_cost_scale` | `0.5` | m/s, scale of the velocity error in that cost |
+    | `angular_velocity_cost_scale` | `1.0` | rad/s, scale of the angular velocity error in that cost |
+    | `ctrl_cost_weight` | `0.1` | weight of the control cost mean(a^2) |
+    | `termination_cost` | `10.0` | subtracted on the step that terminates |
+    | `width` | `480` | rendered frame width, px |
+    | `height` | `480` | rendered frame height, px |
+    | `render_mode` | `None` | `"rgb_array"` or `"human"` |
+
+    Domain randomisation (`randomization`) draws, at every reset, one factor per key uniformly in its
+    range and scales the nominal parameters by it: keys `platform.`, `upper_leg.`, `lower_leg.` or
+    `legs.` followed by `mass`, `inertia` or `com`; `mass`, `inertia`, `com` for every body; `damping`
+    or `damping.universal`, `.prismatic`, `.spherical`.  Unknown keys or bad ranges raise
+    `ValueError`.  The reset `info` then holds `randomization` (the factors) and `platform_params`
+    (the episode's `PlatformParams`); `env.unwrapped.model` is the episode's dynamics model.
+
+    Rendering: `render_mode="rgb_array"` returns (height, width, 3) uint8 frames (headless; works with
+    `gymnasium.wrappers.RecordVideo`), `"human"` draws in a window; legs are coloured by force, the
+    target pose is a dashed ghost.  `metadata["render_fps"]` is `1 / control_dt`.
+
+    Vector environment: `gymnasium.make_vec("StewartPlatform-v0", num_envs=N,
+    vectorization_mode="vector_entry_point", **kwargs)` steps all N platforms in one compiled call,
+    with Gymnasium's next-step autoreset (`autoreset_mode` also takes `"SameStep"` and `"Disabled"`);
+    `reset(seed=s)` seeds row i with s + i, so row i reproduces the single environment reset with
+    seed s + i.  `stewart_env.envs.StewartPlatformSB3VecEnv(num_envs=N, **kwargs)` is the same batch
+    behind stable-baselines3's `VecEnv` API.
+
+    Other attributes of `env.unwrapped`: `state` (position, rotation, velocity, angular_velocity),
+    `target`, `model` (the `Dynamics`), `leg_forces` (N, applied over the last step),
+    `external_wrench`, `leg_lengths`, `platform`, `task`, `dt`, and `set_state(...)`.  All randomness
+    comes from `env.np_random`, so a seed fixes an episode bit for bit.
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 100.0}
+
+    def __init__(self, render_mode: str | None = None, **kwargs: Any):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode: expected one of {self.metadata['render_modes']} or None, "
+                             f"got {render_mode!r}")
+        self._core = core = PlatformBatch(1, **kwargs)
+        self.render_mode = render_mode
+        self.metadata = {**type(self).metadata, "render_fps": core.render_fps}
+        self.action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
+        self.observation_space = spaces.Box(-np.inf, np.inf, (core.obs_dim,), np.float32)
+        self._renderer = None
+        self._rngs: tuple[np.random.Generator, ...] = ()
+
+    # -- the Gymnasium API --------------------------------------------------------------------------
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        if options:
+            raise ValueError(f"reset: unknown option(s) {', '.join(map(repr, options))}; this environment takes none")
+        self._rngs = (self.np_random,)
+        info = self._core.reset_rows(_ROW0, self._rngs)[0]
+        if self.render_mode == "human":
+            self.render()
+        return self._core.observation[0].astype(np.float32), info
+
+    def step(self, action):
+        core = self._core
+        a = check_action(action, (6,))
+        reward, code, terms = core.step(a.reshape(1, 6), self._rngs)
+        info = {term_key(k): float(v[0]) for k, v in terms.items()}
+        info["termination"] = core.termination_reasons[code[0]]
+        info["time"] = float(core.time[0])
+        if self.render_mode == "human":
+            self.render()
+        return core.observation[0].astype(np.float32), float(reward[0]), bool(code[0]), False, info
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human' "
+                            "to gymnasium.make")
+            return None
+        core = self._core
+        if self._renderer is None:
+            from stewart_env.render import PlatformRenderer  # matplotlib only when rendering
+
+            p = core.platform
+            self._renderer = PlatformRenderer(p.base_joints, p.platform_joints, p.home_position,
+                                              p.limits.leg_force, core.width, core.height, self.render_mode)
+        ref = core.reference
+        return self._renderer.render(core.position[0], core.rotation[0], core.leg_forces[0],
+                                     target_position=ref.position[0], target_rotation=ref.rotation[0],
+                                     text=f"t = {core.time[0]:.2f} s")
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # -- introspection ------------------------------------------------------------------------------
+
+    @property
+    def observation_layout(self) -> dict[str, slice]:
+        """Observation term name -> slice of the observation vector."""
+        return dict(self._core.observation_layout)
+
+    def decode_observation(self, observation) -> dict[str, np.ndarray]:
+        """An observation (or a batch) in physical units, by term name (undoes the scaling)."""
+        return self._core.decode_observation(observation)
+
+    @property
+    def state(self) -> PlatformState:
+        """The platform's current state (copies)."""
+        c = self._core
+        return PlatformState(c.position[0].copy(), c.rotation[0].copy(), c.velocity[0].copy(),
+                             c.angular_velocity[0].copy())
+
+    @property
+    def target(self) -> Target:
+        """The task's current reference (copies)."""
+        return Target(*(x[0].copy() for x in self._core.reference))
+
+    @property
+    def model(self) -> Dynamics:
+        """The dynamics model of the current episode (its parameters randomised, if configured)."""
+        return self._core.model
+
+    @property
+    def platform(self):
+        """The nominal PlatformParams."""
+        return self._core.platform
+
+    @property
+    def task(self):
+        """The task object (see stewart_env.tasks)."""
+        return self._core.task
+
+    @property
+    def leg_forces(self) -> np.ndarray:
+        """The leg forces (6,) N applied over the last control step (after clipping and lag)."""
+        return self._core.leg_forces[0].copy()
+
+    @property
+    def external_wrench(self) -> np.ndarray:
+        """The external wrench (6,) [N; N m] in {B} applied over the last control step."""
+        return self._core.external_wrench[0].copy()
+
+    @property
+    def leg_lengths(self) -> np.ndarray:
+        """Leg lengths (6,) m now."""
+        return self._core.leg_lengths[0].copy()
+
+    @property
+    def dt(self) -> float:
+        """The control period, s."""
+        return self._core.control_dt
+
+    def set_state(self, position, rotation, velocity=None, angular_velocity=None) -> None:
+        """Put the platform in a state (in {B}; velocities default to zero); the episode goes on
+        from it at the next step.  Shapes (3,), (3,3), (3,), (3,); rotation must be orthonormal."""
+        values = {"position": (position, (3,)), "rotation": (rotation, (3, 3)),
+                  "velocity": (np.zeros(3) if velocity is None else velocity, (3,)),
+                  "angular_velocity": (np.zeros(3) if angular_velocity is None else angular_velocity, (3,))}
+        checked = {}
+        for name, (value, shape) in values.items():
+            arr = np.asarray(value, dtype=np.float64)
+            if arr.shape != shape or not np.all(np.isfinite(arr)):
+                raise ValueError(f"{name}: expected finite numbers of shape {shape}, got {value!r}")
+            checked[name] = arr
+        R = checked["rotation"]
+        if np.abs(R.T @ R - np.eye(3)).max() > 1e-9 or np.linalg.det(R) < 0:
+            raise ValueError("rotation: not a rotation matrix (R^T R != I or det R < 0)")
+        c = self._core
+        c.position[0], c.rotation[0] = checked["position"], R
+        c.velocity[0], c.angular_velocity[0] = checked["velocity"], checked["angular_velocity"]

@@ -1,0 +1,65 @@
+"""Tasks of the Stewart platform environment: what the platform should do and how it is scored.
+
+``setpoint`` (reach and hold a pose), ``tracking`` (follow a sinusoidal reference) and
+``disturbance`` (hold home against a random external wrench).  See :mod:`stewart_env.tasks.base`
+for the interface a task implements.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from stewart_env.params import PlatformParams
+from stewart_env.tasks.base import (
+    Errors,
+    InitialState,
+    Reference,
+    RewardWeights,
+    Scales,
+    State,
+    Task,
+    check_option_names,
+    rotation_error,
+    tracking_errors,
+)
+from stewart_env.tasks.disturbance import DisturbanceTask
+from stewart_env.tasks.setpoint import SetpointTask
+from stewart_env.tasks.tracking import TrackingTask
+
+TASKS: dict[str, type[Task]] = {cls.name: cls for cls in (SetpointTask, TrackingTask, DisturbanceTask)}
+
+__all__ = [
+    "TASKS",
+    "DisturbanceTask",
+    "Errors",
+    "InitialState",
+    "Reference",
+    "RewardWeights",
+    "Scales",
+    "SetpointTask",
+    "State",
+    "Task",
+    "TrackingTask",
+    "make_task",
+    "rotation_error",
+    "tracking_errors",
+]
+
+
+def make_task(task: str | type[Task], params: PlatformParams, control_dt: float,
+              options: dict[str, Any] | None = None) -> Task:
+    """The task ``task`` (a name in TASKS or a Task subclass) on ``params`` with ``options``."""
+    if isinstance(task, str):
+        if task not in TASKS:
+            raise ValueError(f"task: unknown task {task!r}; choose one of {', '.join(TASKS)}")
+        cls = TASKS[task]
+    elif isinstance(task, type) and issubclass(task, Task):
+        cls = task
+    else:
+        raise ValueError(f"task: expected a task name ({', '.join(TASKS)}) or a Task subclass, got {task!r}")
+    if options is None:
+        options = {}
+    if not isinstance(options, dict):
+        raise ValueError(f"task_options: expected a dict of options, got {options!r}")
+    check_option_names(cls, options)
+    return cls(params, control_dt, **options)

@@ -1,0 +1,390 @@
+"""What every task shares: the batched containers, the tracking-error reward and pose checks.
+
+A task says what the platform should do: how an episode starts, the reference pose over time,
+an optional external wrench, its observation terms and its reward terms.  It knows nothing of
+integrators or of the environment around it.  Every per-step method works on a batch (a leading
+dimension N, one row per platform) and is a pure function of its arguments; all randomness is
+drawn once per episode, per row, in :meth:`Task.initialize_episode` from the numpy Generator it
+is given.  So one implementation serves the single environment (N = 1) and the vector
+environment, and a row of the vector environment reproduces a single environment bit for bit.
+
+Frames and units: {B} is the base frame, z up; positions in m, angles in rad, velocities of P's
+origin in m/s, angular velocities in {B} in rad/s, forces in N, moments in N m.
+"""
+
+from __future__ import annotations
+
+import inspect
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+from numba import njit
+
+from stewart_env.params import PlatformParams
+from stewart_env.rotations import rpy_to_matrix, rpy_rate_matrix
+
+__all__ = [
+    "Errors",
+    "InitialState",
+    "Reference",
+    "RewardWeights",
+    "Scales",
+    "State",
+    "Task",
+    "check_option_names",
+    "pose_margins",
+    "rotation_error",
+    "sinusoid_reference",
+    "tracking_errors",
+]
+
+
+class State(NamedTuple):
+    """Platform states of a batch, all in {B}: position (N,3) of P's origin, m; rotation (N,3,3)
+    (columns = {P} axes); velocity (N,3) of P's origin, m/s; angular_velocity (N,3), rad/s."""
+
+    position: np.ndarray
+    rotation: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+
+
+class Reference(NamedTuple):
+    """Reference (target) poses and twists of a batch, shapes and frames as :class:`State`."""
+
+    position: np.ndarray
+    rotation: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+
+
+class InitialState(NamedTuple):
+    """The state one platform starts an episode in: position (3,), rotation (3,3), velocity (3,),
+    angular_velocity (3,), in {B}."""
+
+    position: np.ndarray
+    rotation: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+
+
+class Errors(NamedTuple):
+    """Tracking errors of a batch, reference minus actual, in {B}.
+
+    position (N,3) m; orientation (N,3) rad, the rotation vector of R_ref R^T (the rotation that
+    takes the platform to the reference); velocity (N,3) m/s; angular_velocity (N,3) rad/s; and
+    their norms position_norm, orientation_norm (the angle), velocity_norm,
+    angular_velocity_norm, each (N,).
+    """
+
+    position: np.ndarray
+    orientation: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+    position_norm: np.ndarray
+    orientation_norm: np.ndarray
+    velocity_norm: np.ndarray
+    angular_velocity_norm: np.ndarray
+
+
+class Scales(NamedTuple):
+    """Observation scales of a platform, from its limits (see the environment's card).
+
+    position (3,) m: half the workspace box; angle rad: limits.max_angle; leg_length m: half the
+    stroke; leg_force N: half the force range.  Rates use the same scales per second.
+    """
+
+    position: np.ndarray
+    angle: float
+    leg_length: float
+    leg_force: float
+
+    @classmethod
+    def of(cls, params: PlatformParams) -> Scales:
+        lim = params.limits
+        return cls(position=0.5 * (lim.position_max - lim.position_min), angle=lim.max_angle,
+                   leg_length=0.5 * (lim.leg_length[1] - lim.leg_length[0]),
+                   leg_force=0.5 * (lim.leg_force[1] - lim.leg_force[0]))
+
+
+@dataclass(frozen=True)
+class RewardWeights:
+    """Weights and scales of the tracking-error reward (the environment's keyword arguments).
+
+    r = position_reward_weight * exp(-|e_p| / position_reward_scale)
+      + orientation_reward_weight * exp(-|e_o| / orientation_reward_scale)
+      - velocity_cost_weight * (1 - exp(-(|e_v| / velocity_cost_scale
+                                          + |e_w| / angular_velocity_cost_scale)))
+      - ctrl_cost_weight * mean(a^2)
+      - termination_cost on the step that terminates.
+    """
+
+    position_reward_weight: float = 0.5
+    position_reward_scale: float = 0.05
+    orientation_reward_weight: float = 0.5
+    orientation_reward_scale: float = 0.1
+    velocity_cost_weight: float = 0.1
+    velocity_cost_scale: float = 0.5
+    angular_velocity_cost_scale: float = 1.0
+    ctrl_cost_weight: float = 0.1
+    termination_cost: float = 10.0
+
+    def __post_init__(self) -> None:
+        for name, value in vars(self).items():
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                    or not np.isfinite(value):
+                raise ValueError(f"{name}: must be a finite number, got {value!r}")
+            if name.endswith("_scale") and not value > 0:
+                raise ValueError(f"{name}: must be > 0, got {value!r}")
+            if not name.endswith("_scale") and value < 0:
+                raise ValueError(f"{name}: must be >= 0 (it is a weight; the sign is fixed by the term), "
+                                 f"got {value!r}")
+            object.__setattr__(self, name, float(value))
+
+
+@njit(cache=True)
+def _rotation_error_rows(r, c, phi, angle):
+    """Rotation vector phi (N,3) of r c^T and its angle (N,), row by row; see rotation_error."""
+    for b in range(c.shape[0]):
+        trace = 0.0
+        for i in range(3):
+            for k in range(3):
+                trace += r[b, i, k] * c[b, i, k]
+        # Half the axial vector of M - M^T, M = sum_k r_k c_k^T: 0.5 sum_k c_k x r_k.
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for k in range(3):
+            s0 += c[b, 1, k] * r[b, 2, k] - c[b, 2, k] * r[b, 1, k]
+            s1 += c[b, 2, k] * r[b, 0, k] - c[b, 0, k] * r[b, 2, k]
+            s2 += c[b, 0, k] * r[b, 1, k] - c[b, 1, k] * r[b, 0, k]
+        s0 *= 0.5
+        s1 *= 0.5
+        s2 *= 0.5
+        sin = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+        a = np.arctan2(sin, 0.5 * (trace - 1.0))
+        ratio = a / sin if sin > 1e-12 else 1.0  # angle / sin -> 1 as the rotation vanishes
+        phi[b, 0] = s0 * ratio
+        phi[b, 1] = s1 * ratio
+        phi[b, 2] = s2 * ratio
+        angle[b] = a
+
+
+def rotation_error(rotation_ref: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation vector phi (N,3) of R_ref R^T and its angle |phi| (N,), rad, in {B}.
+
+    With M = R_ref R^T = sum_k r_k c_k^T (r_k, c_k the k-th columns of R_ref and R), trace(M) =
+    sum(R_ref * R) and the axial vector of M - M^T is sum_k c_k x r_k = 2 sin(angle) axis; so
+    angle = atan2(|s|, (trace - 1) / 2) with s the half axial vector.  Accurate for angles below
+    pi (at pi the axis is undefined and phi comes back zero).
+    """
+    n = rotation.shape[0]
+    phi, angle = np.empty((n, 3)), np.empty(n)
+    _rotation_error_rows(np.ascontiguousarray(rotation_ref, dtype=np.float64),
+                         np.ascontiguousarray(rotation, dtype=np.float64), phi, angle)
+    return phi, angle
+
+
+@njit(cache=True)
+def _error_rows(t, R, v, w, rt, rR, rv, rw, ep, eo, ev, ew, norms):
+    """Reference minus actual for every row; norms (N,4): |ep|, angle, |ev|, |ew|."""
+    _rotation_error_rows(rR, R, eo, norms[:, 1])
+    for b in range(t.shape[0]):
+        sp = 0.0
+        sv = 0.0
+        sw = 0.0
+        for j in range(3):
+            ep[b, j] = rt[b, j] - t[b, j]
+            ev[b, j] = rv[b, j] - v[b, j]
+            ew[b, j] = rw[b, j] - w[b, j]
+            sp += ep[b, j] * ep[b, j]
+            sv += ev[b, j] * ev[b, j]
+            sw += ew[b, j] * ew[b, j]
+        norms[b, 0] = np.sqrt(sp)
+        norms[b, 2] = np.sqrt(sv)
+        norms[b, 3] = np.sqrt(sw)
+
+
+def tracking_errors(state: State, reference: Reference) -> Errors:
+    """Reference minus actual, for a batch (see :class:`Errors`); C-contiguous float64 inputs."""
+    n = state.position.shape[0]
+    ep, eo, ev, ew = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+    norms = np.empty((4, n)).T  # columns contiguous, so each norm below is a contiguous array
+    _error_rows(*state, *reference, ep, eo, ev, ew, norms)
+    return Errors(ep, eo, ev, ew, norms[:, 0], norms[:, 1], norms[:, 2], norms[:, 3])
+
+
+def pose_margins(params: PlatformParams, position: np.ndarray, rpy: np.ndarray,
+                 margin: float = 0.1) -> np.ndarray:
+    """Whether poses lie safely inside the platform's limits, (M,) bool.
+
+    position (M,3) m, rpy (M,3) rad.  Safe means: position inside the workspace box shrunk by
+    ``margin`` of its half-size on each side, each angle within (1 - margin) max_angle of the home
+    angle, every leg within the stroke shrunk by ``margin`` of its half-length at each end, and the
+    Jacobian's condition number below limits.max_condition.  Used at episode start, never per step.
+    """
+    lim = params.limits
+    position = np.atleast_2d(position)
+    rpy = np.atleast_2d(rpy)
+    half = 0.5 * (lim.position_max - lim.position_min)
+    ok = np.all((position >= lim.position_min + margin * half)
+                & (position <= lim.position_max - margin * half), axis=1)
+    ok &= np.all(np.abs(rpy - params.home_rpy) <= (1.0 - margin) * lim.max_angle, axis=1)
+    R = rpy_to_matrix(rpy)
+    q = np.einsum("mij,lj->mli", R, params.platform_joints)  # R p_i, (M,6,3)
+    legs = position[:, None, :] + q - params.base_joints
+    lengths = np.sqrt((legs * legs).sum(axis=2))
+    lo, hi = lim.leg_length
+    stroke_margin = margin * 0.5 * (hi - lo)
+    ok &= np.all((lengths >= lo + stroke_margin) & (lengths <= hi - stroke_margin), axis=1)
+    if not ok.any():
+        return ok  # the condition number (an SVD per pose) is needed only where all else holds
+    e = legs / lengths[..., None]
+    jac = np.concatenate([e, q[..., [1, 2, 0]] * e[..., [2, 0, 1]] - q[..., [2, 0, 1]] * e[..., [1, 2, 0]]], axis=2)
+    ok &= np.linalg.cond(jac) < lim.max_condition
+    return ok
+
+
+def sinusoid_reference(home_position: np.ndarray, home_rpy: np.ndarray, amplitude: np.ndarray,
+                       omega: np.ndarray, phase: np.ndarray, time: np.ndarray, out: Reference) -> None:
+    """Pose offsets a_k sin(omega_k t + phi_k) about home on x, y, z, roll, pitch, yaw.
+
+    amplitude, omega (rad/s), phase: (N,6); time (N,) s.  Writes the reference pose and twist into
+    ``out`` (angular velocity = E(rpy) d(rpy)/dt, see :func:`stewart_env.rotations.rpy_rate_matrix`).
+    """
+    arg = omega * time[:, None] + phase
+    offset = amplitude * np.sin(arg)
+    rate = amplitude * omega * np.cos(arg)
+    rpy = home_rpy + offset[:, 3:]
+    out.position[:] = home_position + offset[:, :3]
+    out.rotation[:] = rpy_to_matrix(rpy)
+    out.velocity[:] = rate[:, :3]
+    E = rpy_rate_matrix(rpy)
+    d = rate[:, 3:]
+    out.angular_velocity[:] = E[:, :, 0] * d[:, 0:1] + E[:, :, 1] * d[:, 1:2] + E[:, :, 2] * d[:, 2:3]
+
+
+def check_option_names(task_cls: type, options: dict[str, Any]) -> None:
+    """Refuse task options the task's constructor does not take, naming them and the valid ones."""
+    params = list(inspect.signature(task_cls.__init__).parameters.values())
+    valid = [p.name for p in params if p.kind == p.KEYWORD_ONLY]
+    unknown = [k for k in options if k not in valid]
+    if unknown:
+        raise ValueError(
+            f"task_options: unknown option(s) {', '.join(map(repr, unknown))} for task {task_cls.name!r}; "
+            f"valid options: {', '.join(valid) or 'none'}"
+        )
+
+
+def as_vector(value: Any, name: str, size: int = 3, positive: bool = False) -> np.ndarray:
+    """A finite float vector of ``size`` from a number (broadcast) or a sequence; errors name it."""
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"task_options[{name!r}]: expected a number or {size} numbers, got {value!r}") from None
+    if arr.ndim == 0:
+        arr = np.full(size, float(arr))
+    if arr.shape != (size,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"task_options[{name!r}]: expected {size} finite numbers, got {value!r}")
+    if positive and np.any(arr < 0):
+        raise ValueError(f"task_options[{name!r}]: must be >= 0, got {value!r}")
+    return arr
+
+
+def as_number(value: Any, name: str, low: float = 0.0, strict: bool = False) -> float:
+    """A finite float >= low (> low if strict); errors name the option."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(value) or value < low or (strict and value == low):
+        relation = ">" if strict else ">="
+        raise ValueError(f"task_options[{name!r}]: expected a finite number {relation} {low}, got {value!r}")
+    return float(value)
+
+
+def as_range(value: Any, name: str, low: float = 0.0) -> tuple[float, float]:
+    """(min, max) with low < min <= max; errors name the option."""
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"task_options[{name!r}]: expected (min, max), got {value!r}") from None
+    if not (np.isfinite(lo) and np.isfinite(hi) and low < lo <= hi):
+        raise ValueError(f"task_options[{name!r}]: expected (min, max) with {low} < min <= max, got {value!r}")
+    return lo, hi
+
+
+class Task:
+    """Base class of the tasks: a fixed or moving reference pose to reach and hold.
+
+    Subclasses set ``name`` and ``episode_fields`` and implement :meth:`initialize_episode` and
+    :meth:`reference`; they may add an external wrench, observation terms, reward terms and a
+    termination of their own.  Options are keyword-only arguments of the subclass constructor
+    (the environment's ``task_options``); the platform's nominal parameters come first.
+    """
+
+    name = "task"
+    #: Per-row episode parameters, name -> shape without the batch dimension; the environment
+    #: keeps them as (N, *shape) arrays and fills row i from :meth:`initialize_episode`.
+    episode_fields: dict[str, tuple[int, ...]] = {}
+    #: Whether :meth:`external_wrench` produces a wrench (else the environment keeps zeros).
+    has_external_wrench = False
+    #: Whether the reference moves (else the environment computes it at reset only).
+    moving_reference = False
+    #: Names of this task's own termination reasons, codes 1, 2, ... of :meth:`termination`.
+    termination_reasons: tuple[str, ...] = ()
+
+    def __init__(self, params: PlatformParams, control_dt: float):
+        self.params = params
+        self.control_dt = float(control_dt)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(platform={self.params.name!r})"
+
+    # -- episode ----------------------------------------------------------------------------------
+
+    def initialize_episode(self, rng: np.random.Generator) -> tuple[InitialState, dict[str, np.ndarray]]:
+        """Draw one row's episode: its initial state and its ``episode_fields`` values."""
+        raise NotImplementedError
+
+    def reference(self, episode: dict[str, np.ndarray], time: np.ndarray, out: Reference) -> None:
+        """Write the reference at ``time`` (N,) s into ``out`` (N rows)."""
+        raise NotImplementedError
+
+    def external_wrench(self, episode: dict[str, np.ndarray], time: np.ndarray, dt: float,
+                        out: np.ndarray) -> None:
+        """Write the wrench [F_ext at P (3), N; M_ext (3), N m] in {B} held over [time, time + dt]
+        into ``out`` (N,6).  Only called when ``has_external_wrench``."""
+        raise NotImplementedError
+
+    # -- observation ------------------------------------------------------------------------------
+
+    def observation_terms(self, scales: Scales) -> list[tuple[str, np.ndarray]]:
+        """(name, scale) of each task observation term, scale (size,) in the term's units."""
+        angle = np.full(3, scales.angle)
+        return [("position_error", scales.position.copy()), ("orientation_error", angle)]
+
+    def observe(self, state: State, errors: Errors, episode: dict[str, np.ndarray],
+                time: np.ndarray, out: dict[str, np.ndarray]) -> None:
+        """Write each term of :meth:`observation_terms`, in physical units, into ``out[name]``
+        (N, size)."""
+        out["position_error"][:] = errors.position
+        out["orientation_error"][:] = errors.orientation
+
+    # -- reward and termination -------------------------------------------------------------------
+
+    def reward_terms(self, errors: Errors, action: np.ndarray, weights: RewardWeights) -> dict[str, np.ndarray]:
+        """Reward terms (N,) each, by name (see :class:`RewardWeights`); action (N,6) in [-1, 1]."""
+        w = weights
+        a2 = action * action
+        return {
+            "position": w.position_reward_weight * np.exp(-errors.position_norm / w.position_reward_scale),
+            "orientation": w.orientation_reward_weight * np.exp(-errors.orientation_norm / w.orientation_reward_scale),
+            "velocity": -w.velocity_cost_weight * -np.expm1(
+                -(errors.velocity_norm / w.velocity_cost_scale
+                  + errors.angular_velocity_norm / w.angular_velocity_cost_scale)),
+            "control": -w.ctrl_cost_weight * (a2.sum(axis=1) / 6.0),
+        }
+
+    def termination(self, state: State, errors: Errors, time: np.ndarray) -> np.ndarray | None:
+        """This task's own termination: (N,) int codes (0 none, k for termination_reasons[k-1]),
+        or None when the task never terminates an episode itself."""
+        return None

@@ -1,0 +1,96 @@
+"""Disturbance rejection: hold the home pose while a random external wrench acts on the platform."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stewart_env.params import PlatformParams
+from stewart_env.rotations import rpy_to_matrix
+from stewart_env.tasks.base import InitialState, Reference, Task, as_number, as_range, as_vector
+
+
+class DisturbanceTask(Task):
+    """Hold the home pose, starting there at rest, against a random external wrench.
+
+    The wrench [F_ext at P's origin; M_ext] in {B} is the sum of
+      * sinusoids on each of its six axes k: A_k sin(omega_k t + phi_k), A_k uniform in
+        [0, sine_force] (forces) or [0, sine_moment] (moments), omega_k = 2 pi f_k with f_k uniform
+        in frequency_range, phi_k uniform in [0, 2 pi);
+      * n_impulses rectangular pulses of impulse_duration, starting at times uniform in
+        [0, horizon - impulse_duration], each a force of uniform magnitude in [0, impulse_force]
+        along a uniformly random direction and a moment of uniform magnitude in
+        [0, impulse_moment] about a uniformly random axis.
+    All of it is drawn once per episode.  The environment holds the wrench constant over each
+    control step (as it holds the leg forces) at its average over that step, computed exactly, so
+    a pulse shorter than a control step still delivers its full impulse.
+
+    Options (``task_options``), with W = platform.mass |g| the platform's weight and r the mean
+    distance of the platform joints from P's origin in the {P} x-y plane (dasgupta1998: W = 392 N,
+    r = 0.62 m):
+        sine_force: (3,) N or one number, default 0.2 W.
+        sine_moment: (3,) N m or one number, default 0.2 W r.
+        frequency_range: (min, max) Hz, default (0.2, 2.0).
+        n_impulses: default 2.
+        impulse_force: N, default W.
+        impulse_moment: N m, default 0.5 W r.
+        impulse_duration: s, default 0.05.
+        horizon: s, the span the pulses are placed in, default 5.0 (the default episode length).
+    """
+
+    name = "disturbance"
+    has_external_wrench = True
+
+    def __init__(self, params: PlatformParams, control_dt: float, *, sine_force=None, sine_moment=None,
+                 frequency_range=(0.2, 2.0), n_impulses: int = 2, impulse_force=None, impulse_moment=None,
+                 impulse_duration: float = 0.05, horizon: float = 5.0):
+        super().__init__(params, control_dt)
+        weight = params.platform.mass * (float(np.linalg.norm(params.gravity)) or 9.81)
+        radius = float(np.mean(np.linalg.norm(params.platform_joints[:, :2], axis=1)))
+        self.sine_force = (np.full(3, 0.2 * weight) if sine_force is None
+                           else as_vector(sine_force, "sine_force", positive=True))
+        self.sine_moment = (np.full(3, 0.2 * weight * radius) if sine_moment is None
+                            else as_vector(sine_moment, "sine_moment", positive=True))
+        self.frequency_range = as_range(frequency_range, "frequency_range")
+        if isinstance(n_impulses, bool) or not isinstance(n_impulses, (int, np.integer)) or n_impulses < 0:
+            raise ValueError(f"task_options['n_impulses']: expected an integer >= 0, got {n_impulses!r}")
+        self.n_impulses = int(n_impulses)
+        self.impulse_force = weight if impulse_force is None else as_number(impulse_force, "impulse_force")
+        self.impulse_moment = (0.5 * weight * radius if impulse_moment is None
+                               else as_number(impulse_moment, "impulse_moment"))
+        self.impulse_duration = as_number(impulse_duration, "impulse_duration", strict=True)
+        self.horizon = as_number(horizon, "horizon", low=self.impulse_duration)
+        self.episode_fields = {"sine_amplitude": (6,), "sine_omega": (6,), "sine_phase": (6,),
+                               "impulse_time": (self.n_impulses,), "impulse_wrench": (self.n_impulses, 6)}
+        self._home_rotation = rpy_to_matrix(params.home_rpy)
+
+    def initialize_episode(self, rng):
+        amplitude = rng.uniform(0.0, 1.0, 6) * np.concatenate([self.sine_force, self.sine_moment])
+        omega = 2.0 * np.pi * rng.uniform(*self.frequency_range, 6)
+        phase = rng.uniform(0.0, 2.0 * np.pi, 6)
+        n = self.n_impulses
+        times = rng.uniform(0.0, self.horizon - self.impulse_duration, n)
+        directions = rng.normal(size=(n, 2, 3))
+        directions /= np.linalg.norm(directions, axis=2, keepdims=True)
+        magnitudes = rng.uniform(0.0, 1.0, (n, 2)) * (self.impulse_force, self.impulse_moment)
+        wrench = (directions * magnitudes[:, :, None]).reshape(n, 6)
+        p = self.params
+        start = InitialState(p.home_position.copy(), self._home_rotation.copy(), np.zeros(3), np.zeros(3))
+        return start, {"sine_amplitude": amplitude, "sine_omega": omega, "sine_phase": phase,
+                       "impulse_time": times, "impulse_wrench": wrench}
+
+    def reference(self, episode, time, out: Reference) -> None:
+        out.position[:] = self.params.home_position
+        out.rotation[:] = self._home_rotation
+        out.velocity[:] = 0.0
+        out.angular_velocity[:] = 0.0
+
+    def external_wrench(self, episode, time, dt, out) -> None:
+        omega, phase = episode["sine_omega"], episode["sine_phase"]
+        t0 = omega * time[:, None] + phase
+        # Average of A sin(omega t + phi) over [t, t + dt].
+        out[:] = episode["sine_amplitude"] * (np.cos(t0) - np.cos(t0 + omega * dt)) / (omega * dt)
+        start = episode["impulse_time"]
+        overlap = (np.minimum(time[:, None] + dt, start + self.impulse_duration)
+                   - np.maximum(time[:, None], start)).clip(min=0.0) / dt
+        for k in range(self.n_impulses):
+            out += overlap[:, k:k + 1] * episode["impulse_wrench"][:, k]

@@ -1,0 +1,102 @@
+"""Setpoint: bring the platform from a start pose at rest to a fixed target pose and hold it."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stewart_env.params import PlatformParams
+from stewart_env.rotations import rpy_to_matrix
+from stewart_env.tasks.base import InitialState, Reference, Task, as_vector, pose_margins
+
+# The case study of He et al. (2018), as offsets from the home pose (0, 0, 0.4) of the dasgupta1998
+# platform, where they give its absolute poses: start (0.1, 0, 0.395), target (0.1, 0, 0.4),
+# rpy (0, 0, -0.2) for both, at rest.
+PAPER_START_OFFSET = np.array([0.1, 0.0, -0.005])
+PAPER_TARGET_OFFSET = np.array([0.1, 0.0, 0.0])
+PAPER_RPY_OFFSET = np.array([0.0, 0.0, -0.2])
+# Rejection sampling of random poses gives up after this many draws (each draw is kept with a
+# probability close to 1 for the default ranges).
+_MAX_DRAWS = 1000
+
+
+class SetpointTask(Task):
+    """Reach a target pose from a start pose at rest, then hold it.
+
+    Options (``task_options``):
+        randomize: True (default) draws the start and the target pose of every episode
+            independently and uniformly: positions in home +- position_range, angles in home rpy
+            +- angle_range, each pose redrawn until it lies safely inside the limits (10 %
+            margins, see :func:`~stewart_env.tasks.base.pose_margins`).  False gives the fixed
+            poses below every episode.
+        position_range: (3,) m, or one number for all axes; default 0.4 x the workspace half-size
+            (dasgupta1998: 0.1, 0.1, 0.06).
+        angle_range: (3,) rad, or one number; default 0.4 x limits.max_angle (dasgupta1998: 0.2).
+        start_position, start_rpy, target_position, target_rpy: the fixed poses used when
+            randomize is False, in {B} (m, rad).  Defaults: the paper's case study written as
+            offsets from home, i.e. start home + (0.1, 0, -0.005) with rpy home + (0, 0, -0.2),
+            target home + (0.1, 0, 0) with the same rpy; for dasgupta1998 exactly the paper's
+            start (0.1, 0, 0.395) and target (0.1, 0, 0.4), rpy (0, 0, -0.2).
+    """
+
+    name = "setpoint"
+    episode_fields = {"target_position": (3,), "target_rotation": (3, 3)}
+
+    def __init__(self, params: PlatformParams, control_dt: float, *, randomize: bool = True,
+                 position_range=None, angle_range=None, start_position=None, start_rpy=None,
+                 target_position=None, target_rpy=None):
+        super().__init__(params, control_dt)
+        if not isinstance(randomize, (bool, np.bool_)):
+            raise ValueError(f"task_options['randomize']: expected True or False, got {randomize!r}")
+        self.randomize = bool(randomize)
+        lim = params.limits
+        half = 0.5 * (lim.position_max - lim.position_min)
+        self.position_range = (0.4 * half if position_range is None
+                               else as_vector(position_range, "position_range", positive=True))
+        self.angle_range = (np.full(3, 0.4 * lim.max_angle) if angle_range is None
+                            else as_vector(angle_range, "angle_range", positive=True))
+        home_p, home_r = params.home_position, params.home_rpy
+        poses = {
+            "start_position": (start_position, home_p + PAPER_START_OFFSET),
+            "start_rpy": (start_rpy, home_r + PAPER_RPY_OFFSET),
+            "target_position": (target_position, home_p + PAPER_TARGET_OFFSET),
+            "target_rpy": (target_rpy, home_r + PAPER_RPY_OFFSET),
+        }
+        fixed = {k: (default if v is None else as_vector(v, k)) for k, (v, default) in poses.items()}
+        self.start_position, self.start_rpy = fixed["start_position"], fixed["start_rpy"]
+        self.target_position, self.target_rpy = fixed["target_position"], fixed["target_rpy"]
+        if not self.randomize:
+            for which in ("start", "target"):
+                p, r = fixed[f"{which}_position"], fixed[f"{which}_rpy"]
+                if not pose_margins(params, p, r, margin=0.0)[0]:
+                    raise ValueError(
+                        f"task_options[{which + '_position'!r}], [{which + '_rpy'!r}]: the pose {p.tolist()}, "
+                        f"rpy {r.tolist()} lies outside the limits of platform {params.name!r}"
+                    )
+
+    def _draw_pose(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        p = self.params
+        for _ in range(_MAX_DRAWS):
+            position = p.home_position + rng.uniform(-1.0, 1.0, 3) * self.position_range
+            rpy = p.home_rpy + rng.uniform(-1.0, 1.0, 3) * self.angle_range
+            if pose_margins(p, position, rpy)[0]:
+                return position, rpy
+        raise RuntimeError(
+            f"setpoint: no pose inside the limits of platform {p.name!r} in {_MAX_DRAWS} draws; "
+            "reduce task_options['position_range'] or ['angle_range']"
+        )
+
+    def initialize_episode(self, rng):
+        if self.randomize:
+            start_p, start_r = self._draw_pose(rng)
+            target_p, target_r = self._draw_pose(rng)
+        else:
+            start_p, start_r = self.start_position, self.start_rpy
+            target_p, target_r = self.target_position, self.target_rpy
+        start = InitialState(start_p.copy(), rpy_to_matrix(start_r), np.zeros(3), np.zeros(3))
+        return start, {"target_position": target_p, "target_rotation": rpy_to_matrix(target_r)}
+
+    def reference(self, episode, time, out: Reference) -> None:
+        out.position[:] = episode["target_position"]
+        out.rotation[:] = episode["target_rotation"]
+        out.velocity[:] = 0.0
+        out.angular_velocity[:] = 0.0

@@ -1,0 +1,126 @@
+"""Tracking: follow a multi-axis sinusoidal reference about the home pose."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from stewart_env.params import PlatformParams
+from stewart_env.tasks.base import (
+    Errors,
+    InitialState,
+    Reference,
+    Scales,
+    State,
+    Task,
+    as_number,
+    as_range,
+    as_vector,
+    pose_margins,
+    rotation_error,
+    sinusoid_reference,
+)
+
+# Amplitudes that put a corner of the reference's range outside the limits are scaled down by this
+# factor until every corner fits.
+_SHRINK = 0.8
+_MAX_SHRINKS = 50
+
+
+class TrackingTask(Task):
+    """Follow a reference that moves every axis sinusoidally about home.
+
+    Each episode draws, for each of x, y, z, roll, pitch, yaw (k = 1..6), an amplitude a_k
+    uniformly in [0, max amplitude], a frequency f_k uniformly in frequency_range and a phase
+    phi_k uniformly in [0, 2 pi); the reference pose is home + a_k sin(2 pi f_k t + phi_k) on each
+    axis (angles as roll-pitch-yaw).  The episode's amplitudes are bounded to the limits: while
+    any of the 64 corners of the range home +- a (every axis at an extreme at once) is not safely
+    inside the workspace, the stroke and the condition bound (10 % margins), all amplitudes are
+    scaled by 0.8.  The platform starts on the reference (pose and twist at t = 0).
+
+    Options (``task_options``):
+        position_amplitude: (3,) m or one number: max amplitude on x, y, z; default 0.4 x the
+            workspace half-size (dasgupta1998: 0.1, 0.1, 0.06).
+        angle_amplitude: (3,) rad or one number: max amplitude on roll, pitch, yaw; default
+            0.4 x limits.max_angle (dasgupta1998: 0.2).
+        frequency_range: (min, max) Hz, default (0.1, 0.5).
+        preview: number of future reference samples observed, default 3.
+        preview_interval: s between them, default 0.1 (samples at t + 0.1, 0.2, 0.3 s).
+
+    Observation terms beyond position and orientation error: velocity_error (3) m/s,
+    angular_velocity_error (3) rad/s, and reference_preview (6 x preview): for each future
+    sample j, the position of the reference minus the platform's position (3, m, {B}) and the
+    rotation vector of R_ref(t + j dt) R^T (3, rad, {B}).
+    """
+
+    name = "tracking"
+    episode_fields = {"amplitude": (6,), "omega": (6,), "phase": (6,)}
+    moving_reference = True
+
+    def __init__(self, params: PlatformParams, control_dt: float, *, position_amplitude=None,
+                 angle_amplitude=None, frequency_range=(0.1, 0.5), preview: int = 3,
+                 preview_interval: float = 0.1):
+        super().__init__(params, control_dt)
+        lim = params.limits
+        half = 0.5 * (lim.position_max - lim.position_min)
+        self.position_amplitude = (0.4 * half if position_amplitude is None
+                                   else as_vector(position_amplitude, "position_amplitude", positive=True))
+        self.angle_amplitude = (np.full(3, 0.4 * lim.max_angle) if angle_amplitude is None
+                                else as_vector(angle_amplitude, "angle_amplitude", positive=True))
+        self.frequency_range = as_range(frequency_range, "frequency_range")
+        if isinstance(preview, bool) or not isinstance(preview, (int, np.integer)) or preview < 0:
+            raise ValueError(f"task_options['preview']: expected an integer >= 0, got {preview!r}")
+        self.preview = int(preview)
+        self.preview_interval = as_number(preview_interval, "preview_interval", strict=True)
+        self._corners = np.array(list(itertools.product((-1.0, 1.0), repeat=6)))
+
+    def _bounded(self, amplitude: np.ndarray) -> np.ndarray:
+        p = self.params
+        for _ in range(_MAX_SHRINKS):
+            offsets = self._corners * amplitude
+            if np.all(pose_margins(p, p.home_position + offsets[:, :3], p.home_rpy + offsets[:, 3:])):
+                return amplitude
+            amplitude = _SHRINK * amplitude
+        raise RuntimeError(f"tracking: no amplitude fits the limits of platform {p.name!r}")
+
+    def initialize_episode(self, rng):
+        max_amplitude = np.concatenate([self.position_amplitude, self.angle_amplitude])
+        amplitude = self._bounded(rng.uniform(0.0, 1.0, 6) * max_amplitude)
+        omega = 2.0 * np.pi * rng.uniform(*self.frequency_range, 6)
+        phase = rng.uniform(0.0, 2.0 * np.pi, 6)
+        episode = {"amplitude": amplitude, "omega": omega, "phase": phase}
+        ref = Reference(np.empty((1, 3)), np.empty((1, 3, 3)), np.empty((1, 3)), np.empty((1, 3)))
+        self.reference({k: v[None] for k, v in episode.items()}, np.zeros(1), ref)
+        return InitialState(*(x[0] for x in ref)), episode
+
+    def reference(self, episode, time, out: Reference) -> None:
+        p = self.params
+        sinusoid_reference(p.home_position, p.home_rpy, episode["amplitude"], episode["omega"],
+                           episode["phase"], time, out)
+
+    def observation_terms(self, scales: Scales):
+        angle = np.full(3, scales.angle)
+        terms = super().observation_terms(scales)
+        terms += [("velocity_error", scales.position.copy()), ("angular_velocity_error", angle.copy())]
+        if self.preview:
+            terms.append(("reference_preview", np.tile(np.concatenate([scales.position, angle]), self.preview)))
+        return terms
+
+    def observe(self, state: State, errors: Errors, episode, time, out) -> None:
+        super().observe(state, errors, episode, time, out)
+        out["velocity_error"][:] = errors.velocity
+        out["angular_velocity_error"][:] = errors.angular_velocity
+        if not self.preview:
+            return
+        n, k = time.shape[0], self.preview
+        # All preview samples of all rows as one batch of n * k rows (row-major: row i, sample j).
+        future = (time[:, None] + self.preview_interval * np.arange(1, k + 1)).reshape(n * k)
+        ep = {name: np.repeat(v, k, axis=0) for name, v in episode.items()}
+        ref = Reference(np.empty((n * k, 3)), np.empty((n * k, 3, 3)), np.empty((n * k, 3)), np.empty((n * k, 3)))
+        self.reference(ep, future, ref)
+        preview = np.empty((n, k, 6))
+        preview[:, :, :3] = ref.position.reshape(n, k, 3) - state.position[:, None, :]
+        phi, _ = rotation_error(ref.rotation, np.repeat(state.rotation, k, axis=0))
+        preview[:, :, 3:] = phi.reshape(n, k, 3)
+        out["reference_preview"][:] = preview.reshape(n, 6 * k)

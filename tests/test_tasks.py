@@ -1,0 +1,368 @@
+"""Tests of the tasks (stewart_env.tasks) and of domain randomisation (stewart_env.randomization)."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
+from stewart_env.params import load_platform
+from stewart_env.randomization import KEYS, Randomization
+from stewart_env.rotations import matrix_to_rpy, rpy_to_matrix
+from stewart_env.tasks import (
+    DisturbanceTask,
+    Reference,
+    SetpointTask,
+    State,
+    TrackingTask,
+    make_task,
+    rotation_error,
+    tracking_errors,
+)
+from stewart_env.tasks.base import pose_margins
+
+PLATFORMS = ("dasgupta1998", "motion_simulator")
+
+
+@pytest.fixture(scope="module")
+def dasgupta():
+    return load_platform("dasgupta1998")
+
+
+def empty_reference(n):
+    return Reference(np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3)))
+
+
+def batch(episodes):
+    """Per-row episode dicts stacked into the (N, ...) arrays the per-step methods take."""
+    return {k: np.stack([e[k] for e in episodes]) for k in episodes[0]}
+
+
+# -- geometry ----------------------------------------------------------------------------------------------
+
+
+def test_rotation_error_matches_scipy():
+    rng = np.random.default_rng(0)
+    R = Rotation.random(50, random_state=1).as_matrix()
+    phi = rng.normal(size=(50, 3))
+    phi *= (rng.uniform(0, 3.0, 50) / np.linalg.norm(phi, axis=1))[:, None]  # angles up to 3 rad
+    R_ref = Rotation.from_rotvec(phi).as_matrix() @ R
+    got, angle = rotation_error(R_ref, R)
+    np.testing.assert_allclose(got, phi, atol=1e-10)  # rounding of trace and axial vector
+    np.testing.assert_allclose(angle, np.linalg.norm(phi, axis=1), atol=1e-10)
+    zero, angle0 = rotation_error(R, R)
+    assert np.all(zero == 0) and np.all(angle0 == 0)
+
+
+def test_tracking_errors_are_reference_minus_actual():
+    rng = np.random.default_rng(3)
+    n = 4
+    state = State(rng.normal(size=(n, 3)), Rotation.random(n, random_state=2).as_matrix(),
+                  rng.normal(size=(n, 3)), rng.normal(size=(n, 3)))
+    ref = Reference(rng.normal(size=(n, 3)), Rotation.random(n, random_state=3).as_matrix(),
+                    rng.normal(size=(n, 3)), rng.normal(size=(n, 3)))
+    e = tracking_errors(state, ref)
+    np.testing.assert_array_equal(e.position, ref.position - state.position)
+    np.testing.assert_array_equal(e.velocity, ref.velocity - state.velocity)
+    np.testing.assert_array_equal(e.angular_velocity, ref.angular_velocity - state.angular_velocity)
+    np.testing.assert_allclose(e.position_norm, np.linalg.norm(e.position, axis=1), rtol=1e-15)  # sum order
+    np.testing.assert_array_equal(e.orientation, rotation_error(ref.rotation, state.rotation)[0])
+
+
+def test_pose_margins(dasgupta):
+    p = dasgupta
+    assert pose_margins(p, p.home_position, p.home_rpy)[0]
+    assert not pose_margins(p, [0.0, 0.0, 0.26], [0, 0, 0])[0]  # inside the box but within its margin
+    assert not pose_margins(p, p.home_position, [0, 0, 0.48])[0]  # yaw within 10 % of max_angle
+    assert pose_margins(p, p.home_position, [0, 0, 0.44])[0]
+    # The condition bound: 3.62 at home, 3.81 at the paper's case pose (the config's comments).
+    lim = p.limits
+    strict = p.replace(limits=type(lim)(lim.leg_length, lim.leg_force, lim.position_min, lim.position_max,
+                                        lim.max_angle, 3.7))
+    assert pose_margins(strict, p.home_position, [0, 0, 0], margin=0.0)[0]
+    assert not pose_margins(strict, [0.1, 0.0, 0.4], [0, 0, -0.2], margin=0.0)[0]
+    assert pose_margins(p, [0.1, 0.0, 0.4], [0, 0, -0.2], margin=0.0)[0]
+
+
+# -- setpoint ---------------------------------------------------------------------------------------------
+
+
+def test_setpoint_fixed_case_is_the_papers(dasgupta):
+    task = SetpointTask(dasgupta, 0.01, randomize=False)
+    start, episode = task.initialize_episode(np.random.default_rng(0))
+    # Exactly the paper's numbers: home (0, 0, 0.4) plus the offsets, in float64.
+    np.testing.assert_allclose(start.position, [0.1, 0.0, 0.395], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(matrix_to_rpy(start.rotation), [0.0, 0.0, -0.2], atol=1e-15)
+    assert np.all(start.velocity == 0) and np.all(start.angular_velocity == 0)
+    np.testing.assert_allclose(episode["target_position"], [0.1, 0.0, 0.4], atol=1e-15)
+    np.testing.assert_allclose(matrix_to_rpy(episode["target_rotation"]), [0.0, 0.0, -0.2], atol=1e-15)
+
+
+def test_setpoint_fixed_case_through_the_env():
+    env = gym.make("StewartPlatform-v0", task_options={"randomize": False})
+    env.reset(seed=0)
+    np.testing.assert_allclose(env.unwrapped.state.position, [0.1, 0.0, 0.395], atol=1e-15)  # float64 offsets
+    np.testing.assert_allclose(env.unwrapped.target.position, [0.1, 0.0, 0.4], atol=1e-15)
+
+
+@pytest.mark.parametrize("name", PLATFORMS)
+def test_setpoint_random_poses_are_inside_the_limits_and_vary(name):
+    p = load_platform(name)
+    task = SetpointTask(p, 0.01)
+    rng = np.random.default_rng(5)
+    starts, targets = [], []
+    for _ in range(30):
+        start, episode = task.initialize_episode(rng)
+        starts.append(start.position)
+        targets.append(episode["target_position"])
+        for position, R in ((start.position, start.rotation), (episode["target_position"], episode["target_rotation"])):
+            assert pose_margins(p, position, matrix_to_rpy(R))[0]
+            assert np.all(np.abs(position - p.home_position) <= task.position_range + 1e-15)  # + rounding
+    starts, targets = np.array(starts), np.array(targets)
+    assert np.all(np.std(starts, axis=0) > 0.1 * task.position_range)  # spread over the range
+    assert np.all(np.linalg.norm(starts - targets, axis=1) > 0)
+
+
+def test_setpoint_rejects_a_fixed_pose_outside_the_limits(dasgupta):
+    with pytest.raises(ValueError, match="target_position"):
+        SetpointTask(dasgupta, 0.01, randomize=False, target_position=[0.0, 0.0, 0.7])
+    with pytest.raises(ValueError, match="randomize"):
+        SetpointTask(dasgupta, 0.01, randomize="yes")
+
+
+# -- tracking ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", PLATFORMS)
+def test_tracking_reference_stays_inside_the_limits(name):
+    p = load_platform(name)
+    task = TrackingTask(p, 0.01)
+    rng = np.random.default_rng(7)
+    episodes = [task.initialize_episode(rng)[1] for _ in range(20)]
+    times = np.linspace(0.0, 20.0, 401)
+    ep = batch(episodes)
+    for t in times[::20]:
+        ref = empty_reference(len(episodes))
+        task.reference(ep, np.full(len(episodes), t), ref)
+        assert np.all(pose_margins(p, ref.position, matrix_to_rpy(ref.rotation), margin=0.0))
+    amplitudes = ep["amplitude"]
+    assert np.all(amplitudes[:, :3] <= task.position_amplitude + 1e-15)  # + rounding
+    assert np.std(amplitudes[:, 0]) > 0  # random per episode
+
+
+def test_tracking_reference_twist_is_its_derivative(dasgupta):
+    task = TrackingTask(dasgupta, 0.01)
+    _, episode = task.initialize_episode(np.random.default_rng(1))
+    ep = batch([episode] * 3)
+    h = 1e-6
+    t = 0.73
+    ref = empty_reference(3)
+    task.reference(ep, np.array([t - h, t, t + h]), ref)
+    velocity = (ref.position[2] - ref.position[0]) / (2 * h)
+    # Central differences: truncation ~h^2 * |x'''| and rounding ~1e-16 / h.
+    np.testing.assert_allclose(ref.velocity[1], velocity, atol=1e-8)
+    dR = (ref.rotation[2] - ref.rotation[0]) / (2 * h)
+    W = dR @ ref.rotation[1].T  # [omega]x
+    omega = np.array([W[2, 1], W[0, 2], W[1, 0]])
+    np.testing.assert_allclose(ref.angular_velocity[1], omega, atol=1e-8)
+
+
+def test_tracking_starts_on_the_reference_and_previews_it():
+    env = gym.make("StewartPlatform-v0", task="tracking", normalize_observation=False,
+                   task_options={"preview": 2, "preview_interval": 0.05})
+    env.reset(seed=9)
+    u = env.unwrapped
+    s, tg = u.state, u.target
+    np.testing.assert_array_equal(s.position, tg.position)
+    np.testing.assert_array_equal(s.velocity, tg.velocity)
+    np.testing.assert_allclose(s.angular_velocity, tg.angular_velocity, atol=1e-15)  # one rounding apart
+    obs, *_ = env.step(np.full(6, 0.1))
+    s = u.state
+    preview = obs[u.observation_layout["reference_preview"]].reshape(2, 6)
+    # The reference does not depend on the actions: step on and read it 5 and 10 steps later.
+    later = {}
+    for k in range(1, 11):
+        env.step(np.full(6, 0.1))
+        later[k] = u.target
+    for j, ahead in enumerate((5, 10)):
+        ref = later[ahead]
+        np.testing.assert_allclose(preview[j, :3], ref.position - s.position, atol=1e-6)  # float32
+        np.testing.assert_allclose(preview[j, 3:], rotation_error(ref.rotation[None], s.rotation[None])[0][0],
+                                   atol=1e-6)
+
+
+# -- disturbance --------------------------------------------------------------------------------------------
+
+
+def test_disturbance_wrench_delivers_its_exact_impulse(dasgupta):
+    task = DisturbanceTask(dasgupta, 0.01, n_impulses=3, impulse_duration=0.004)
+    _, episode = task.initialize_episode(np.random.default_rng(2))
+    ep = batch([episode])
+    dt, steps = 0.01, 600
+    total = np.zeros(6)
+    out = np.zeros((1, 6))
+    for k in range(steps):
+        task.external_wrench(ep, np.array([k * dt]), dt, out)
+        total += out[0] * dt
+    T = steps * dt
+    A, w, phi = episode["sine_amplitude"], episode["sine_omega"], episode["sine_phase"]
+    sine = A * (np.cos(phi) - np.cos(w * T + phi)) / w
+    pulses = (episode["impulse_wrench"] * task.impulse_duration).sum(axis=0)
+    # Pulses of 4 ms, shorter than a control step, still deliver all of it; rounding only.
+    np.testing.assert_allclose(total, sine + pulses, atol=1e-9)
+    assert np.all(np.abs(A[:3]) <= task.sine_force) and np.any(episode["impulse_wrench"] != 0)
+
+
+def test_disturbance_holds_home_under_a_wrench_it_does_not_observe():
+    env = gym.make("StewartPlatform-v0", task="disturbance")
+    obs, _ = env.reset(seed=4)
+    u = env.unwrapped
+    p = u.platform
+    np.testing.assert_array_equal(u.state.position, p.home_position)
+    np.testing.assert_array_equal(u.target.position, p.home_position)
+    env.step(np.full(6, 0.1))
+    assert np.any(u.external_wrench != 0)
+    assert set(u.observation_layout) == {"position", "orientation", "velocity", "angular_velocity",
+                                         "position_error", "orientation_error"}
+
+
+def test_disturbance_wrench_moves_the_platform():
+    calm = gym.make("StewartPlatform-v0", task="disturbance", task_options={"sine_force": 0.0, "sine_moment": 0.0,
+                                                                            "n_impulses": 0})
+    pushed = gym.make("StewartPlatform-v0", task="disturbance")
+    for env in (calm, pushed):
+        env.reset(seed=1)
+    a = np.full(6, 0.08)
+    for _ in range(5):
+        calm.step(a)
+        pushed.step(a)
+    assert np.all(calm.unwrapped.external_wrench == 0)
+    assert not np.array_equal(calm.unwrapped.state.position, pushed.unwrapped.state.position)
+
+
+# -- options ------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("task, options, message", [
+    ("setpoint", {"position_rang": 0.1}, "position_rang"),
+    ("setpoint", {"angle_range": -0.1}, "angle_range"),
+    ("tracking", {"frequency_range": (1.0, 0.5)}, "frequency_range"),
+    ("tracking", {"preview": -1}, "preview"),
+    ("tracking", {"preview_interval": 0.0}, "preview_interval"),
+    ("disturbance", {"n_impulses": 1.5}, "n_impulses"),
+    ("disturbance", {"impulse_duration": 0.0}, "impulse_duration"),
+    ("disturbance", {"horizon": 0.01, "impulse_duration": 0.05}, "horizon"),
+    ("disturbance", {"sine_force": [1.0, 2.0]}, "sine_force"),
+])
+def test_bad_task_options_name_the_option(dasgupta, task, options, message):
+    with pytest.raises(ValueError, match=message):
+        make_task(task, dasgupta, 0.01, options)
+
+
+def test_make_task_accepts_a_task_class(dasgupta):
+    assert isinstance(make_task(TrackingTask, dasgupta, 0.01, {"preview": 1}), TrackingTask)
+    with pytest.raises(ValueError, match="task"):
+        make_task(3, dasgupta, 0.01)
+
+
+# -- domain randomisation --------------------------------------------------------------------------------
+
+
+def test_randomization_validates_its_spec():
+    with pytest.raises(ValueError, match="unknown key.*'legs.weight'"):
+        Randomization({"legs.weight": (0.9, 1.1)})
+    with pytest.raises(ValueError, match="platform.mass.*> 0"):
+        Randomization({"platform.mass": (0.0, 1.1)})
+    with pytest.raises(ValueError, match="damping.*>= 0"):
+        Randomization({"damping": (-0.1, 1.1)})
+    with pytest.raises(ValueError, match="com.*low <= high"):
+        Randomization({"com": (1.1, 0.9)})
+    with pytest.raises(ValueError, match="inertia.*low, high"):
+        Randomization({"inertia": 1.1})
+    Randomization({"com": (-1.0, 1.0), "damping": (0.0, 0.0)})
+
+
+def test_randomization_scales_the_declared_parameters(dasgupta):
+    spec = {"platform.mass": (0.5, 0.5), "legs.mass": (2.0, 2.0), "inertia": (3.0, 3.0),
+            "upper_leg.com": (-1.0, -1.0), "damping.prismatic": (4.0, 4.0), "mass": (1.5, 1.5)}
+    r = Randomization(spec)
+    factors = r.sample(np.random.default_rng(0))
+    assert list(factors) == [k for k in KEYS if k in spec]  # drawn in the order of KEYS
+    q = r.apply(dasgupta, factors)
+    p = dasgupta
+    # One or two multiplications each: equal to rounding.
+    assert q.platform.mass == pytest.approx(p.platform.mass * 0.5 * 1.5, rel=1e-15)
+    assert q.upper_leg[3].mass == pytest.approx(p.upper_leg[3].mass * 2.0 * 1.5, rel=1e-15)
+    np.testing.assert_allclose(q.lower_leg[0].inertia, 3.0 * p.lower_leg[0].inertia, rtol=1e-15)
+    np.testing.assert_allclose(q.upper_leg[0].com, -p.upper_leg[0].com, rtol=1e-15)
+    np.testing.assert_array_equal(q.lower_leg[0].com, p.lower_leg[0].com)
+    assert q.damping.prismatic == pytest.approx(4.0 * p.damping.prismatic, rel=1e-15)
+    assert q.damping.universal == p.damping.universal
+    assert q.upper_leg[0] is q.upper_leg[5]  # shared legs stay shared
+    np.testing.assert_array_equal(q.base_joints, p.base_joints)
+
+
+def test_randomization_order_does_not_depend_on_the_dict_order():
+    a = Randomization({"mass": (0.5, 2.0), "damping": (0.5, 2.0)}).sample(np.random.default_rng(3))
+    b = Randomization({"damping": (0.5, 2.0), "mass": (0.5, 2.0)}).sample(np.random.default_rng(3))
+    assert a == b
+
+
+def test_randomized_env_draws_new_params_each_episode_and_reports_them():
+    spec = {"platform.mass": (0.8, 1.2), "legs.mass": (0.9, 1.1), "inertia": (0.8, 1.2), "com": (0.9, 1.1),
+            "damping": (0.5, 2.0)}
+    env = gym.make("StewartPlatform-v0", randomization=spec)
+    _, info1 = env.reset(seed=0)
+    params1 = env.unwrapped.model.params[0]
+    _, info2 = env.reset()
+    params2 = env.unwrapped.model.params[0]
+    assert set(info1["randomization"]) == set(spec)
+    for key, (lo, hi) in spec.items():
+        assert lo <= info1["randomization"][key] <= hi
+    assert info1["randomization"] != info2["randomization"]
+    assert info1["platform_params"] == params1 and info2["platform_params"] == params2
+    assert params1 != params2
+    nominal = env.unwrapped.platform
+    # One multiplication: equal to rounding.
+    assert params1.platform.mass == pytest.approx(nominal.platform.mass * info1["randomization"]["platform.mass"],
+                                                  rel=1e-15)
+    _, again = env.reset(seed=0)
+    assert again["randomization"] == info1["randomization"]
+
+
+def test_randomized_dynamics_differ_from_nominal():
+    nominal = gym.make("StewartPlatform-v0", task="disturbance")
+    heavy = gym.make("StewartPlatform-v0", task="disturbance", randomization={"platform.mass": (1.5, 1.5)})
+    for env in (nominal, heavy):
+        env.reset(seed=0)
+        for _ in range(3):
+            env.step(np.full(6, 0.1))
+    # Same forces and wrench on a 50 % heavier platform: a different motion, by far more than
+    # the 1e-9 m rounding could explain.
+    assert not np.allclose(nominal.unwrapped.state.position, heavy.unwrapped.state.position, rtol=0, atol=1e-9)
+
+
+class _NearTarget(SetpointTask):
+    """A task with a termination of its own: the episode ends once within 2 cm of the target."""
+
+    name = "near_target"
+    termination_reasons = ("reached",)
+
+    def termination(self, state, errors, time):
+        return (errors.position_norm < 0.02).astype(int)
+
+
+def test_a_task_of_ones_own_with_its_own_termination():
+    env = gym.make("StewartPlatform-v0", task=_NearTarget, task_options={"randomize": False})
+    env.reset(seed=0)
+    u = env.unwrapped
+    assert u.task.name == "near_target"
+    # The fixed case starts 5 mm below the target: the first step already ends the episode.
+    _, reward, terminated, _, info = env.step(np.full(6, 0.09))
+    assert terminated and info["termination"] == "reached"
+    assert info["reward_termination"] == -10.0
+    # The environment's own reasons rank first: on the target position but pitched 0.52 rad (past
+    # max_angle 0.5; legs 1.17-1.46 m, in stroke) both apply, and the environment's "workspace" wins.
+    u.set_state([0.1, 0.0, 0.4], rpy_to_matrix([0.0, 0.52, 0.0]))
+    _, _, terminated, _, info = env.step(np.full(6, 0.09))
+    assert terminated and info["termination"] == "workspace"
