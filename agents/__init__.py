@@ -1,0 +1,53 @@
+"""Baseline controllers, the evaluation harness and the reproduction of He et al. (2018).
+
+Importable as ``stewart_env.agents``::
+
+    from stewart_env.agents import PDPolicy, ComputedTorquePolicy, evaluate
+    result = evaluate(PDPolicy, {"model": "classical", "task": "setpoint"}, episodes=5, seed=0)
+"""
+
+from stewart_env.agents.computed_torque import ComputedTorque, ComputedTorquePolicy, preview_acceleration
+from stewart_env.agents.evaluation import (
+    METRICS,
+    EvaluationResult,
+    compare,
+    episode_metrics,
+    evaluate,
+    markdown_table,
+    write_report,
+)
+from stewart_env.agents.pd import (
+    PAPER_KD,
+    PAPER_KP,
+    PDPolicy,
+    PlatformState,
+    Reference,
+    TaskSpacePD,
+    task_space_inertia,
+    zoh_pd_gains,
+    zoh_spectral_radius,
+)
+from stewart_env.agents.reproduce import reproduce
+
+__all__ = [
+    "METRICS",
+    "PAPER_KD",
+    "PAPER_KP",
+    "ComputedTorque",
+    "ComputedTorquePolicy",
+    "EvaluationResult",
+    "PDPolicy",
+    "PlatformState",
+    "Reference",
+    "TaskSpacePD",
+    "compare",
+    "episode_metrics",
+    "evaluate",
+    "markdown_table",
+    "preview_acceleration",
+    "reproduce",
+    "task_space_inertia",
+    "write_report",
+    "zoh_pd_gains",
+    "zoh_spectral_radius",
+]

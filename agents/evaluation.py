@@ -1,0 +1,413 @@
+"""Evaluation harness: run a policy for seeded episodes of ``StewartPlatform-v0`` and score it.
+
+:func:`evaluate` runs K episodes of one environment configuration (task, model, platform and
+any other keyword of the environment) for one policy, as the K rows of the vector environment
+(row i is the single environment reset with seed + i, step for step), and returns an
+:class:`EvaluationResult`; :func:`write_report` writes the markdown table, the CSV and the plots
+of one or more results.
+
+Metrics of an episode (errors are the truth, target minus state, not the noisy observation;
+samples at t = 0 and after every control step; see the functions of the same names):
+
+* ``rms_position_error`` (m), ``rms_orientation_error`` (rad): root mean square over the samples
+  of |e_p| and of the angle of the rotation R_target R^T.
+* ``settling_time`` (s): the first sample time from which |e_p| <= position_tolerance and the
+  angle <= orientation_tolerance hold to the end; NaN if the last sample is outside, or if the
+  episode terminated early.
+* ``position_overshoot``, ``orientation_overshoot`` (%): how far the error vector goes past zero
+  along its initial direction, max_t -(e(t) . e(0)) / |e(0)|^2, times 100, zero if it never
+  crosses; NaN when |e(0)| is within the tolerance (no step to overshoot, e.g. tracking).  For a
+  scalar unit step response y(t) this is the classic max(y) - 1.
+* ``steady_state_position_error`` (m), ``steady_state_orientation_error`` (rad): mean of |e_p|
+  and of the angle over the final window (the last ``final_window`` fraction of the episode).
+* ``peak_leg_force`` (N): max over steps and legs of |F_i|, the forces actually applied.
+* ``control_energy`` (J): the actuators' absolute mechanical work,
+  sum over steps k and legs i of |F_i,k (Ldot_i(t_k) + Ldot_i(t_k+1)) / 2| (t_k+1 - t_k),
+  F held over each step (zero-order hold) and the leg rate averaged over it (trapezoid); energy
+  that a leg absorbs counts as spent, as in an actuator without regeneration.
+* ``success``: the episode ran to its time limit without termination and every sample of the
+  final window is inside both tolerances.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import gymnasium as gym
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from tqdm.auto import tqdm  # noqa: E402
+
+import stewart_env as se  # noqa: E402
+from stewart_env.agents.computed_torque import rotation_error  # noqa: E402
+
+ENV_ID = "StewartPlatform-v0"
+#: Default tolerances of settling and success: 2 mm and 0.01 rad (0.57 deg).
+POSITION_TOLERANCE = 2e-3
+ORIENTATION_TOLERANCE = 1e-2
+#: Default final window, as a fraction of the episode's duration.
+FINAL_WINDOW = 0.1
+
+#: Metrics of an episode, in the order of the CSV columns: key, table header, display factor, format.
+METRICS = (
+    ("success", "success", 1.0, ".0%"),
+    ("rms_position_error", "RMS pos. err. (mm)", 1e3, ".3g"),
+    ("rms_orientation_error", "RMS ori. err. (mrad)", 1e3, ".3g"),
+    ("settling_time", "settling (s)", 1.0, ".3g"),
+    ("position_overshoot", "overshoot pos. (%)", 1.0, ".3g"),
+    ("orientation_overshoot", "overshoot ori. (%)", 1.0, ".3g"),
+    ("steady_state_position_error", "steady-state pos. (mm)", 1e3, ".3g"),
+    ("steady_state_orientation_error", "steady-state ori. (mrad)", 1e3, ".3g"),
+    ("peak_leg_force", "peak leg force (N)", 1.0, ".4g"),
+    ("control_energy", "energy (J)", 1.0, ".4g"),
+)
+
+
+# -- metrics of one episode ------------------------------------------------------------------------
+
+
+def rms(error) -> float:
+    """Root mean square of the norm of error samples (T, k) (or of a scalar signal (T,))."""
+    e = np.asarray(error, dtype=float)
+    e = e[:, None] if e.ndim == 1 else e
+    return float(np.sqrt(np.mean(np.sum(e * e, axis=1))))
+
+
+def settling_time(time, inside) -> float:
+    """First sample time from which ``inside`` (T,) bool holds to the end; NaN if the last sample
+    is outside.  time (T,) s."""
+    inside = np.asarray(inside, dtype=bool)
+    if not inside[-1]:
+        return math.nan
+    outside = np.flatnonzero(~inside)
+    return float(time[0] if outside.size == 0 else time[outside[-1] + 1])
+
+
+def overshoot(error, tolerance: float) -> float:
+    """Percent overshoot of an error vector signal (T, k) past zero along its initial direction:
+    100 max(0, max_t -(e(t) . e(0)) / |e(0)|^2); NaN if |e(0)| <= tolerance (no step)."""
+    e = np.asarray(error, dtype=float)
+    e = e[:, None] if e.ndim == 1 else e
+    size2 = float(e[0] @ e[0])
+    if math.sqrt(size2) <= tolerance:
+        return math.nan
+    return 100.0 * max(0.0, float(np.max(-(e @ e[0]) / size2)))
+
+
+def final_window_mask(time, final_window: float) -> np.ndarray:
+    """(T,) bool: the samples with t >= t_end - final_window (t_end - t_0); at least the last."""
+    time = np.asarray(time, dtype=float)
+    mask = time >= time[-1] - final_window * (time[-1] - time[0])
+    mask[-1] = True
+    return mask
+
+
+def control_energy(time, leg_forces, leg_rates) -> float:
+    """sum_k sum_i |F_i,k (Ldot_i(t_k) + Ldot_i(t_k+1)) / 2| (t_k+1 - t_k), J.
+
+    time (T+1,) s; leg_forces (T,6) N, held over [t_k, t_k+1]; leg_rates (T+1,6) m/s at the
+    sample times."""
+    dt = np.diff(np.asarray(time, dtype=float))
+    rates = np.asarray(leg_rates, dtype=float)
+    mean_rate = 0.5 * (rates[:-1] + rates[1:])
+    return float(np.sum(np.abs(np.asarray(leg_forces) * mean_rate) * dt[:, None]))
+
+
+def episode_metrics(time, position_error, orientation_error, leg_forces, leg_rates, terminated: bool,
+                    position_tolerance: float = POSITION_TOLERANCE,
+                    orientation_tolerance: float = ORIENTATION_TOLERANCE,
+                    final_window: float = FINAL_WINDOW) -> dict[str, float]:
+    """The metrics of one episode (module docstring).
+
+    time (T+1,) s; position_error (T+1,3) m and orientation_error (T+1,3) rad (rotation vector)
+    at the samples; leg_forces (T,6) N over the steps; leg_rates (T+1,6) m/s at the samples;
+    terminated: whether the episode ended early.
+    """
+    p_norm = np.linalg.norm(position_error, axis=1)
+    o_norm = np.linalg.norm(orientation_error, axis=1)
+    inside = (p_norm <= position_tolerance) & (o_norm <= orientation_tolerance)
+    window = final_window_mask(time, final_window)
+    return {
+        "success": float(not terminated and bool(inside[window].all())),
+        "rms_position_error": rms(position_error),
+        "rms_orientation_error": rms(orientation_error),
+        "settling_time": math.nan if terminated else settling_time(time, inside),
+        "position_overshoot": overshoot(position_error, position_tolerance),
+        "orientation_overshoot": overshoot(orientation_error, orientation_tolerance),
+        "steady_state_position_error": float(p_norm[window].mean()),
+        "steady_state_orientation_error": float(o_norm[window].mean()),
+        "peak_leg_force": float(np.abs(leg_forces).max()) if len(leg_forces) else 0.0,
+        "control_energy": control_energy(time, leg_forces, leg_rates),
+    }
+
+
+# -- running episodes ------------------------------------------------------------------------------
+
+
+@dataclass
+class Episode:
+    """The recorded trajectory of one episode: time (T+1,) s; position_error (T+1,3) m and
+    orientation_error (T+1,3) rad in {B}, target minus state; leg_forces (T,6) N applied over
+    each step; leg_rates (T+1,6) m/s; termination: the environment's reason or None; reward:
+    the episode's return; metrics (see the module docstring)."""
+
+    seed: int
+    time: np.ndarray
+    position_error: np.ndarray
+    orientation_error: np.ndarray
+    leg_forces: np.ndarray
+    leg_rates: np.ndarray
+    termination: str | None
+    reward: float
+    metrics: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class EvaluationResult:
+    """The episodes of one policy on one environment configuration, and their metrics."""
+
+    label: str
+    env_kwargs: dict
+    seed: int
+    episodes: list[Episode]
+
+    def summary(self) -> dict[str, float]:
+        """Mean of every metric over the episodes (NaN-ignoring: settling time and overshoot are
+        averaged over the episodes where they are defined; NaN if none)."""
+        out = {}
+        for key, *_ in METRICS:
+            values = np.array([ep.metrics[key] for ep in self.episodes], dtype=float)
+            out[key] = float(np.mean(values[np.isfinite(values)])) if np.isfinite(values).any() else math.nan
+        return out
+
+    @property
+    def model(self) -> str:
+        return str(self.env_kwargs.get("model", "improved"))
+
+    @property
+    def task(self) -> str:
+        return str(self.env_kwargs.get("task", "setpoint"))
+
+
+def _make_policy(policy, env_kwargs: dict):
+    if hasattr(policy, "predict") and not isinstance(policy, type):
+        return policy
+    if callable(policy):
+        made = policy(gym.make(ENV_ID, **env_kwargs))
+        if not hasattr(made, "predict"):
+            raise ValueError(f"policy: the factory returned {type(made).__name__}, which has no predict method")
+        return made
+    raise ValueError(f"policy: expected an object with predict(observation) or a callable env -> policy, "
+                     f"got {type(policy).__name__}")
+
+
+def evaluate(policy, env_kwargs: Mapping | None = None, episodes: int = 5, seed: int = 0, label: str | None = None,
+             max_steps: int | None = None, position_tolerance: float = POSITION_TOLERANCE,
+             orientation_tolerance: float = ORIENTATION_TOLERANCE, final_window: float = FINAL_WINDOW,
+             out=None, progress: bool = True) -> EvaluationResult:
+    """Run ``episodes`` seeded episodes of a policy and measure them.
+
+    policy: anything with Stable-Baselines3's ``predict(observation, state, episode_start,
+        deterministic) -> (action, state)`` that accepts a batch of observations (N, obs_dim), or
+        a callable that builds one from an environment (e.g. :class:`~.pd.PDPolicy`); the callable
+        gets ``gymnasium.make("StewartPlatform-v0", **env_kwargs)``.
+    env_kwargs: keywords of the environment (model, platform, task, task_options, control_dt, ...).
+    episodes, seed: episode i is the environment reset with seed + i; the run is deterministic
+        given the seed (for a deterministic policy).
+    max_steps: episode length in control steps; default the registered time limit (500).
+    position_tolerance (m), orientation_tolerance (rad), final_window (fraction of the episode):
+        settling and success criteria (module docstring).
+    out: if given, a directory for :func:`write_report` of this result.
+    """
+    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
+        raise ValueError(f"episodes: expected a positive integer, got {episodes!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise ValueError(f"seed: expected an integer, got {seed!r}")
+    if not (position_tolerance > 0 and orientation_tolerance > 0):
+        raise ValueError(f"position_tolerance, orientation_tolerance: must be positive, got "
+                         f"{position_tolerance}, {orientation_tolerance}")
+    if not 0 <= final_window <= 1:
+        raise ValueError(f"final_window: a fraction of the episode in [0, 1], got {final_window}")
+    env_kwargs = dict(env_kwargs or {})
+    agent = _make_policy(policy, env_kwargs)
+    label = label or type(agent).__name__
+    vec_kwargs = {} if max_steps is None else {"max_episode_steps": int(max_steps)}
+    env = gym.make_vec(ENV_ID, num_envs=int(episodes), vectorization_mode="vector_entry_point",
+                       **vec_kwargs, **env_kwargs)
+    base = env.unwrapped
+    n = base.num_envs
+    dt = base.dt
+    steps = base.max_episode_steps
+    if steps is None:
+        raise ValueError("max_steps: the environment has no time limit; give max_steps")
+    obs, _ = env.reset(seed=int(seed))
+    pos_err, ori_err, rates = _measure(base)
+    record = {"p": [pos_err], "o": [ori_err], "r": [rates], "f": []}
+    alive = np.ones(n, dtype=bool)
+    length = np.full(n, steps)
+    reasons: list[str | None] = [None] * n
+    returns = np.zeros(n)
+    with tqdm(total=steps, desc=f"{label} on {env_kwargs.get('model', 'improved')}", unit="step",
+              disable=not progress, leave=False) as bar:
+        for k in range(steps):
+            action, _ = agent.predict(obs, deterministic=True)
+            obs, reward, terminated, truncated, info = env.step(np.asarray(action, dtype=np.float32))
+            returns[alive] += reward[alive]
+            record["f"].append(np.array(base.leg_forces))
+            pos_err, ori_err, rates = _measure(base)
+            record["p"].append(pos_err)
+            record["o"].append(ori_err)
+            record["r"].append(rates)
+            for i in np.flatnonzero(alive & terminated):
+                length[i] = k + 1
+                reasons[i] = str(info["termination"][i])
+            alive &= ~(terminated | truncated)
+            bar.update()
+            if not alive.any():
+                break
+    env.close()
+    arrays = {key: np.stack(v, axis=1) for key, v in record.items()}  # (n, T(+1), ...)
+    results = []
+    for i in range(n):
+        t_end = int(length[i])
+        ep = Episode(int(seed) + i, dt * np.arange(t_end + 1), arrays["p"][i, :t_end + 1],
+                     arrays["o"][i, :t_end + 1], arrays["f"][i, :t_end], arrays["r"][i, :t_end + 1],
+                     reasons[i], float(returns[i]))
+        ep.metrics = episode_metrics(ep.time, ep.position_error, ep.orientation_error, ep.leg_forces,
+                                     ep.leg_rates, ep.termination is not None, position_tolerance,
+                                     orientation_tolerance, final_window)
+        results.append(ep)
+    result = EvaluationResult(label, env_kwargs, int(seed), results)
+    if out is not None:
+        write_report([result], out)
+    return result
+
+
+def _measure(base) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """True errors (target minus state, (N,3) m and rad) and leg rates (N,6) m/s of a vector env."""
+    state, target = base.state, base.target
+    legs = se.leg_kinematics(base.model, state.position, state.rotation, state.velocity, state.angular_velocity)
+    return target.position - state.position, rotation_error(state.rotation, target.rotation), legs.rates
+
+
+# -- reports ---------------------------------------------------------------------------------------
+
+
+def _fmt(value: float, factor: float, spec: str) -> str:
+    return "-" if not np.isfinite(value) else format(value * factor, spec)
+
+
+def markdown_table(results: Sequence[EvaluationResult]) -> str:
+    """A markdown table of the mean metrics of each result (one row per result)."""
+    head = ["controller", "model", "task", "episodes"] + [m[1] for m in METRICS]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in results:
+        s = r.summary()
+        cells = [r.label, r.model, r.task, str(len(r.episodes))]
+        cells += [_fmt(s[key], factor, spec) for key, _, factor, spec in METRICS]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _slug(text: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in text).strip("_").lower()
+
+
+def write_report(results: Sequence[EvaluationResult], out, title: str = "Controller evaluation") -> dict[str, Path]:
+    """Write ``results.md`` (the table and the definitions' source), ``episodes.csv`` (one row per
+    episode, SI units), ``error_norms.png`` (every result's error norms over time) and one
+    ``trajectory_<label>_<model>.png`` per result (error components and leg forces of its first
+    episode) into the directory ``out``.  Returns {name: path}."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"markdown": out / "results.md", "csv": out / "episodes.csv", "error_norms": out / "error_norms.png"}
+    paths["markdown"].write_text(
+        f"# {title}\n\n" + markdown_table(results) + "\n\n"
+        "Means over the episodes (settling time and overshoot over the episodes where they are defined; "
+        "'-' where none). Metric definitions: `stewart_env.agents.evaluation`.\n")
+    with paths["csv"].open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["controller", "model", "task", "platform", "seed", "termination", "return"]
+                        + [m[0] for m in METRICS])
+        for r in results:
+            platform = r.env_kwargs.get("platform", "dasgupta1998")
+            platform = platform.name if isinstance(platform, se.PlatformParams) else str(platform)
+            for ep in r.episodes:
+                writer.writerow([r.label, r.model, r.task, platform, ep.seed, ep.termination or "", f"{ep.reward:.6g}"]
+                                + [f"{ep.metrics[m[0]]:.9g}" for m in METRICS])
+    _plot_error_norms(results, paths["error_norms"])
+    for r in results:
+        path = out / f"trajectory_{_slug(r.label)}_{_slug(r.model)}.png"
+        _plot_trajectory(r, path)
+        paths[f"trajectory {r.label} {r.model}"] = path
+    return paths
+
+
+def _plot_error_norms(results: Sequence[EvaluationResult], path: Path) -> None:
+    """Position and orientation error norms against time, log scale: each episode faint, the
+    median over episodes bold, one colour per result."""
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True, layout="constrained")
+    colours = plt.cm.tab10.colors
+    floor = 1e-6  # mm and mrad: below this the log axis shows only rounding
+    for j, r in enumerate(results):
+        colour = colours[j % len(colours)]
+        for ax, key, factor in ((axes[0], "position_error", 1e3), (axes[1], "orientation_error", 1e3)):
+            norms = [np.maximum(np.linalg.norm(getattr(ep, key), axis=1) * factor, floor) for ep in r.episodes]
+            for ep, nrm in zip(r.episodes, norms):
+                ax.plot(ep.time, nrm, color=colour, lw=0.6, alpha=0.35)
+            shortest = min(len(x) for x in norms)
+            ax.plot(r.episodes[0].time[:shortest], np.median([x[:shortest] for x in norms], axis=0), color=colour,
+                    lw=2.0, label=f"{r.label} on {r.model}")
+    axes[0].set_ylabel("|position error| (mm)")
+    axes[1].set_ylabel("orientation error (mrad)")
+    axes[1].set_xlabel("time (s)")
+    for ax in axes:
+        ax.set_yscale("log")
+        ax.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=9)
+    task = results[0].task
+    fig.suptitle(f"Errors on the {task} task (median over episodes bold, episodes faint)", fontsize=11)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _plot_trajectory(result: EvaluationResult, path: Path) -> None:
+    """Error components and leg forces of the result's first episode."""
+    ep = result.episodes[0]
+    fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True, layout="constrained")
+    for k, name in enumerate("xyz"):
+        axes[0].plot(ep.time, ep.position_error[:, k] * 1e3, label=name)
+    for k, name in enumerate(("about x", "about y", "about z")):
+        axes[1].plot(ep.time, ep.orientation_error[:, k] * 1e3, label=name)
+    for i in range(6):
+        axes[2].step(ep.time[:-1], ep.leg_forces[:, i], where="post", lw=1.0, label=f"leg {i + 1}")
+    axes[0].set_ylabel("position error (mm)")
+    axes[1].set_ylabel("orientation error,\nrotation vector (mrad)")
+    axes[2].set_ylabel("leg force (N)")
+    axes[2].set_xlabel("time (s)")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, ncol=6 if ax is axes[2] else 3, loc="upper right")
+    end = f", terminated: {ep.termination}" if ep.termination else ""
+    fig.suptitle(f"{result.label} on the {result.model} model, {result.task} task, seed {ep.seed}{end}", fontsize=11)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def compare(policies: Mapping[str, object], env_kwargs_list: Sequence[Mapping], episodes: int = 5, seed: int = 0,
+            out=None, progress: bool = True, **kwargs) -> list[EvaluationResult]:
+    """:func:`evaluate` every policy (label -> policy or factory) on every environment
+    configuration, with the same seeds; writes one report of all of them into ``out`` if given."""
+    results = [evaluate(policy, env_kwargs, episodes, seed, label=label, progress=progress, **kwargs)
+               for env_kwargs in env_kwargs_list for label, policy in policies.items()]
+    if out is not None:
+        write_report(results, out)
+    return results
+

@@ -1,0 +1,143 @@
+"""The evaluation harness: metrics against hand-computed values, determinism, the report."""
+
+import csv
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from stewart_env.agents import PDPolicy, evaluate, write_report
+from stewart_env.agents.evaluation import (
+    ENV_ID,
+    METRICS,
+    control_energy,
+    episode_metrics,
+    final_window_mask,
+    overshoot,
+    rms,
+    settling_time,
+)
+
+
+def second_order_step(zeta: float, wn: float, t: np.ndarray) -> np.ndarray:
+    """Unit step response y(t) of wn^2 / (s^2 + 2 zeta wn s + wn^2), zeta < 1."""
+    wd = wn * math.sqrt(1 - zeta**2)
+    return 1 - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / math.sqrt(1 - zeta**2) * np.sin(wd * t))
+
+
+def test_overshoot_of_a_second_order_step_response():
+    t = np.linspace(0.0, 5.0, 50001)
+    zeta = 0.3
+    y = second_order_step(zeta, 10.0, t)
+    expected = 100 * math.exp(-math.pi * zeta / math.sqrt(1 - zeta**2))  # 37.23 %
+    # the peak falls between samples 1e-4 s apart: the sampled peak is within 1e-6 of it
+    assert overshoot((1 - y)[:, None], 1e-3) == pytest.approx(expected, abs=1e-4)
+    # a vector error: the same step along an oblique direction plus a crosswise wobble of no effect
+    direction = np.array([0.6, 0.0, 0.8])
+    crosswise = np.array([0.0, 1.0, 0.0])
+    e = np.outer(1 - y, direction) + np.outer(0.2 * np.sin(3 * t), crosswise)
+    assert overshoot(e, 1e-3) == pytest.approx(expected, abs=1e-4)  # exact projection
+    assert overshoot(np.exp(-t)[:, None], 1e-3) == 0.0  # never crosses
+    assert math.isnan(overshoot(np.full((5, 3), 1e-4), 1e-3))  # no step: starts inside the tolerance
+
+
+def test_settling_time_of_a_first_order_decay():
+    t = np.linspace(0.0, 2.0, 2001)
+    tau, tol = 0.1, 0.02
+    e = np.exp(-t / tau)
+    # inside from the first sample with exp(-t/tau) <= tol: t = tau ln(1/tol) = 0.3912, rounded up to the grid
+    expected = math.ceil(tau * math.log(1 / tol) / 1e-3) * 1e-3
+    assert settling_time(t, e <= tol) == pytest.approx(expected, abs=1e-12)
+    inside = np.array([False, True, False, True, True])
+    assert settling_time(np.arange(5.0), inside) == 3.0  # the last entry into the band counts
+    assert settling_time(np.arange(3.0), np.array([True, True, True])) == 0.0
+    assert math.isnan(settling_time(np.arange(3.0), np.array([True, True, False])))
+
+
+def test_rms_energy_and_final_window():
+    assert rms(np.tile([3.0, 4.0, 0.0], (10, 1))) == pytest.approx(5.0, rel=1e-15)
+    t = np.linspace(0.0, 1.0, 100001)
+    assert rms(np.sin(2 * np.pi * 5 * t)) == pytest.approx(1 / math.sqrt(2), rel=1e-4)  # 5 whole periods
+    time = np.linspace(0.0, 2.0, 201)
+    forces = np.tile([100.0, -50.0, 0.0, 10.0, 10.0, 10.0], (200, 1))
+    rates = np.tile([-0.1, -0.2, 5.0, 0.0, 0.0, 0.0], (201, 1))
+    # |100 * -0.1| + |-50 * -0.2| = 20 W for 2 s; the idle and still legs add nothing
+    assert control_energy(time, forces, rates) == pytest.approx(40.0, rel=1e-12)
+    # a rate ramping linearly over one step: the trapezoid is exact
+    assert control_energy([0.0, 0.5], [[4.0] * 6], [[0.0] * 6, [1.0] * 6]) == pytest.approx(6.0)
+    mask = final_window_mask(np.linspace(0.0, 5.0, 501), 0.1)
+    assert mask.sum() == 51 and mask[-51:].all()  # t >= 4.5 s
+    assert final_window_mask(np.linspace(0.0, 5.0, 501), 0.0).sum() == 1  # at least the last sample
+
+
+def test_episode_metrics_of_a_synthetic_step():
+    t = np.linspace(0.0, 5.0, 501)
+    y = second_order_step(0.5, 8.0, t)
+    position_error = np.outer(1 - y, [0.05, 0.0, 0.0])  # a 5 cm step along x
+    orientation_error = np.outer(1 - y, [0.0, 0.0, 0.2])  # and 0.2 rad about z
+    forces = np.full((500, 6), 100.0)
+    rates = np.zeros((501, 6))
+    m = episode_metrics(t, position_error, orientation_error, forces, rates, terminated=False,
+                        position_tolerance=2e-3, orientation_tolerance=1e-2)
+    expected_overshoot = 100 * math.exp(-math.pi * 0.5 / math.sqrt(0.75))  # 16.3 %
+    # a 10 ms grid against a 0.45 s oscillation period: the sampled peak is within 0.1 % of the true one
+    assert m["position_overshoot"] == pytest.approx(expected_overshoot, rel=1e-3)
+    assert m["orientation_overshoot"] == pytest.approx(expected_overshoot, rel=1e-3)
+    # both errors are the same signal scaled; the orientation band (1e-2 / 0.2 = 5 %) is the wider
+    # one, so the settling time is the last 4 % (2e-3 / 0.05) crossing
+    band = np.abs(1 - y) <= 0.04
+    assert m["settling_time"] == pytest.approx(t[np.flatnonzero(~band)[-1] + 1])
+    assert m["success"] == 1.0
+    assert m["peak_leg_force"] == 100.0
+    assert m["control_energy"] == 0.0  # nothing moves
+    assert m["rms_position_error"] == pytest.approx(0.05 * rms(1 - y), rel=1e-12)
+    window = t >= 4.5
+    assert m["steady_state_position_error"] == pytest.approx(0.05 * np.abs(1 - y[window]).mean(), rel=1e-12)
+    failed = episode_metrics(t, position_error, orientation_error, forces, rates, terminated=True)
+    assert failed["success"] == 0.0 and math.isnan(failed["settling_time"])
+
+
+def test_evaluate_is_deterministic_and_matches_the_single_environment():
+    kwargs = {"model": "improved", "task": "setpoint"}
+    a = evaluate(PDPolicy, kwargs, episodes=2, seed=7, max_steps=20, progress=False)
+    b = evaluate(PDPolicy, kwargs, episodes=2, seed=7, max_steps=20, progress=False)
+    c = evaluate(PDPolicy, kwargs, episodes=2, seed=8, max_steps=20, progress=False)
+    for x, y in zip(a.episodes, b.episodes):
+        assert x.metrics == y.metrics
+        np.testing.assert_array_equal(x.position_error, y.position_error)
+    assert a.episodes[0].metrics != c.episodes[0].metrics
+    # episode 1 (seed 8) of the run with seed 7 is episode 0 of the run with seed 8
+    assert a.episodes[1].metrics == c.episodes[0].metrics
+    # and the single environment reset with seed 8 walks the same path
+    env = gym.make(ENV_ID, **kwargs)
+    policy = PDPolicy(env)
+    obs, _ = env.reset(seed=8)
+    for _ in range(3):
+        obs, *_ = env.step(policy.predict(obs)[0])
+    u = env.unwrapped
+    np.testing.assert_allclose(a.episodes[1].position_error[3], u.target.position - u.state.position,
+                               rtol=0, atol=1e-12)  # the same arithmetic; batched solves may round differently
+
+
+def test_report_files(tmp_path):
+    result = evaluate(PDPolicy, {"task": "tracking"}, episodes=2, seed=0, max_steps=10, label="PD", progress=False)
+    paths = write_report([result], tmp_path)
+    table = paths["markdown"].read_text()
+    assert "| PD | improved | tracking | 2 |" in table
+    assert all(header in table for _, header, _, _ in METRICS)
+    with paths["csv"].open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 2 and rows[1]["seed"] == "1"
+    assert float(rows[0]["rms_position_error"]) == pytest.approx(result.episodes[0].metrics["rms_position_error"])
+    for key in ("error_norms", "trajectory PD improved"):
+        assert paths[key].stat().st_size > 10_000  # a real plot, not an empty canvas
+
+
+def test_evaluate_names_bad_arguments():
+    with pytest.raises(ValueError, match="episodes"):
+        evaluate(PDPolicy, {}, episodes=0)
+    with pytest.raises(ValueError, match="policy"):
+        evaluate(42, {})
+    with pytest.raises(ValueError, match="final_window"):
+        evaluate(PDPolicy, {}, final_window=2.0)
