@@ -257,55 +257,95 @@ def _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2):
 
 
 @njit(cache=True, error_model="numpy")
-def _leg_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2,
-               A0, A1, A2, F_act):
-    """Force of the platform on leg i at P_i, in {D_i}, for P_i's acceleration A' in {D_i}.
+def _leg_split(flags, L, kx, kz, N0, N1, N2, axial):
+    """Force of the platform on the leg, in {D_i}, from the leg's moment equation about B_i.
 
-    ``bodies`` is ``_leg_bodies``' result; ``o`` is the platform's angular velocity and ``g``
-    gravity, both in {D_i}; ``F_act`` the actuator force (N).  Returns (F0, F1, F2).
+    Solves S x F_s + mu h = N for F_s's part perpendicular to the leg: the row along e fixes mu,
+    with h' = (-kz, 0, kx).  With C2 the reaction moment lies along e and that row is dropped.
+    ``axial`` is e . F_s from the upper leg's Newton equation.  Linear in (N, axial).
     """
-    Lddot, al0, al1, al2 = _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2)
+    n2 = N2 if flags & C2 else N2 + N0 * kx / kz
+    return axial, n2 / L, -N1 / L
+
+
+@njit(cache=True, error_model="numpy")
+def _leg_inertial_force(flags, bodies, L, kx, kz, Lddot, al0, al1, al2):
+    """The part of F_s that is linear in the leg's accelerations (Lddot, alpha_l'), {D_i}.
+
+    The accelerations enter the CoMs' accelerations (a_u = Lddot e + alpha_l x r_u + ...,
+    a_d = alpha_l x r_d + ..., a_D = Lddot e + ...) and the Euler terms I alpha_l.
+    """
+    m_u, m_d, r_u, r_d, I_u, I_d = bodies
+    ru0, ru1, ru2 = r_u
+    rd0, rd1, rd2 = r_d
+    x0, x1, x2 = _cross(al0, al1, al2, ru0, ru1, ru2)
+    au0 = Lddot + x0
+    if flags & (CENTROIDAL | C3):
+        ad0, ad1, ad2 = _cross(al0, al1, al2, rd0, rd1, rd2)
+        t0, t1, t2 = _cross(rd0, rd1, rd2, m_d * ad0, m_d * ad1, m_d * ad2)
+        u0, u1, u2 = _cross(ru0, ru1, ru2, m_u * au0, m_u * x1, m_u * x2)
+    else:
+        t0 = t1 = t2 = 0.0
+        u0, u1, u2 = _cross(ru0, ru1, ru2, m_u * Lddot, 0.0, 0.0)
+    d0, d1, d2 = _euler(I_d, al0, al1, al2, 0.0, 0.0, 0.0)
+    e0, e1, e2 = _euler(I_u, al0, al1, al2, 0.0, 0.0, 0.0)
+    return _leg_split(flags, L, kx, kz, t0 + u0 + d0 + e0, t1 + u1 + d1 + e1, t2 + u2 + d2 + e2, m_u * au0)
+
+
+@njit(cache=True, error_model="numpy")
+def _leg_rate_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2):
+    """The part of F_s that does not depend on accelerations, {D_i}: velocity products
+    (Coriolis 2 Ldot omega_l x e, centripetal omega_l x (omega_l x r), gyroscopic
+    omega_l x I omega_l), gravity and joint friction.  ``o`` and ``g``: platform angular velocity
+    and gravity in {D_i}."""
     w0 = sigma
     m_u, m_d, r_u, r_d, I_u, I_d = bodies
     ru0, ru1, ru2 = r_u
     rd0, rd1, rd2 = r_d
     ww = w0 * w0 + w1 * w1 + w2 * w2
-
-    # a_D: the upper-leg point at B_i; a_u, a_d: the CoMs (w x (w x r) = w (w.r) - r |w|^2)
-    aD0 = Lddot
+    # a_D: the upper-leg point at B_i; w x (w x r) = w (w.r) - r |w|^2
     aD1 = 2.0 * Ldot * w2
     aD2 = -2.0 * Ldot * w1
-    x0, x1, x2 = _cross(al0, al1, al2, ru0, ru1, ru2)
     wr = w0 * ru0 + w1 * ru1 + w2 * ru2
-    au0 = aD0 + x0 + w0 * wr - ru0 * ww
-    au1 = aD1 + x1 + w1 * wr - ru1 * ww
-    au2 = aD2 + x2 + w2 * wr - ru2 * ww
-
+    au0 = w0 * wr - ru0 * ww
+    au1 = aD1 + w1 * wr - ru1 * ww
+    au2 = aD2 + w2 * wr - ru2 * ww
     if flags & (CENTROIDAL | C3):
-        x0, x1, x2 = _cross(al0, al1, al2, rd0, rd1, rd2)
         wr = w0 * rd0 + w1 * rd1 + w2 * rd2
-        ad0 = x0 + w0 * wr - rd0 * ww
-        ad1 = x1 + w1 * wr - rd1 * ww
-        ad2 = x2 + w2 * wr - rd2 * ww
-        t0, t1, t2 = _cross(rd0, rd1, rd2, m_d * ad0, m_d * ad1, m_d * ad2)
+        t0, t1, t2 = _cross(rd0, rd1, rd2, m_d * (w0 * wr - rd0 * ww), m_d * (w1 * wr - rd1 * ww),
+                            m_d * (w2 * wr - rd2 * ww))
         u0, u1, u2 = _cross(ru0, ru1, ru2, m_u * au0, m_u * au1, m_u * au2)
     else:
         t0 = t1 = t2 = 0.0
-        u0, u1, u2 = _cross(ru0, ru1, ru2, m_u * aD0, m_u * aD1, m_u * aD2)
-    d0, d1, d2 = _euler(I_d, al0, al1, al2, w0, w1, w2)
-    e0, e1, e2 = _euler(I_u, al0, al1, al2, w0, w1, w2)
+        u0, u1, u2 = _cross(ru0, ru1, ru2, 0.0, m_u * aD1, m_u * aD2)
+    d0, d1, d2 = _euler(I_d, 0.0, 0.0, 0.0, w0, w1, w2)
+    e0, e1, e2 = _euler(I_u, 0.0, 0.0, 0.0, w0, w1, w2)
     gd0, gd1, gd2 = _cross(rd0, rd1, rd2, m_d * g0, m_d * g1, m_d * g2)
     gu0, gu1, gu2 = _cross(ru0, ru1, ru2, m_u * g0, m_u * g1, m_u * g2)
     cu = prm[OFF_DAMP]
     cs = prm[OFF_DAMP + 2]
-    N0 = t0 + u0 + d0 + e0 - gd0 - gu0 + cu * w0 + cs * (w0 - o0)
-    N1 = t1 + u1 + d1 + e1 - gd1 - gu1 + cu * w1 + cs * (w1 - o1)
-    N2 = t2 + u2 + d2 + e2 - gd2 - gu2 + cu * w2 + cs * (w2 - o2)
+    return _leg_split(
+        flags, L, kx, kz,
+        t0 + u0 + d0 + e0 - gd0 - gu0 + cu * w0 + cs * (w0 - o0),
+        t1 + u1 + d1 + e1 - gd1 - gu1 + cu * w1 + cs * (w1 - o1),
+        t2 + u2 + d2 + e2 - gd2 - gu2 + cu * w2 + cs * (w2 - o2),
+        m_u * (au0 - g0) + prm[OFF_DAMP + 1] * Ldot,
+    )
 
-    # split S x F_s + mu h = N; with C2 the axial row N0 is dropped instead
-    n2 = N2 if flags & C2 else N2 + N0 * kx / kz
-    F0 = m_u * (au0 - g0) - F_act + prm[OFF_DAMP + 1] * Ldot
-    return F0, n2 / L, -N1 / L
+
+@njit(cache=True, error_model="numpy")
+def _leg_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2,
+               A0, A1, A2, F_act):
+    """Force of the platform on leg i at P_i, in {D_i}, for P_i's acceleration A' in {D_i}.
+
+    ``bodies`` is ``_leg_bodies``' result; ``o`` is the platform's angular velocity and ``g``
+    gravity, both in {D_i}; ``F_act`` the actuator force (N), which pushes the upper leg along e.
+    Returns (F0, F1, F2): the acceleration part plus the rate part.
+    """
+    Lddot, al0, al1, al2 = _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2)
+    a0, a1, a2 = _leg_inertial_force(flags, bodies, L, kx, kz, Lddot, al0, al1, al2)
+    r0, r1, r2 = _leg_rate_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2)
+    return a0 + r0 - F_act, a1 + r1, a2 + r2
 
 
 @njit(cache=True, error_model="numpy")
@@ -478,13 +518,14 @@ def _forward_one(prm, flags, t, R, v, w, F, W, M, h, out):
         h[3] += m0 - cs * (wl0 - w[0])
         h[4] += m1 - cs * (wl1 - w[1])
         h[5] += m2 - cs * (wl2 - w[2])
-        # linear part: Q column j = leg force for a_P = unit vector j of {B}, i.e. row j of T
-        qa0, qa1, qa2 = _leg_force(prm, flags, bodies, L, kx, kz, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-                                   0.0, 0.0, 0.0, e0, y0, z0, 0.0)
-        qb0, qb1, qb2 = _leg_force(prm, flags, bodies, L, kx, kz, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-                                   0.0, 0.0, 0.0, e1, y1, z1, 0.0)
-        qc0, qc1, qc2 = _leg_force(prm, flags, bodies, L, kx, kz, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-                                   0.0, 0.0, 0.0, e2, y2, z2, 0.0)
+        # linear part: Q column j = the acceleration part of the leg force for a_P = unit vector j
+        # of {B} (row j of T in {D_i}); with zero rates _leg_accel returns only its linear part
+        qa0, qa1, qa2 = _leg_inertial_force(flags, bodies, L, kx, kz,
+                                            *_leg_accel(flags, L, kx, kz, 0.0, 0.0, 0.0, 0.0, e0, y0, z0))
+        qb0, qb1, qb2 = _leg_inertial_force(flags, bodies, L, kx, kz,
+                                            *_leg_accel(flags, L, kx, kz, 0.0, 0.0, 0.0, 0.0, e1, y1, z1))
+        qc0, qc1, qc2 = _leg_inertial_force(flags, bodies, L, kx, kz,
+                                            *_leg_accel(flags, L, kx, kz, 0.0, 0.0, 0.0, 0.0, e2, y2, z2))
         Qx0, Qx1, Qx2 = _to_base(qa0, qa1, qa2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
         Qy0, Qy1, Qy2 = _to_base(qb0, qb1, qb2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
         Qz0, Qz1, Qz2 = _to_base(qc0, qc1, qc2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
