@@ -84,8 +84,17 @@ batch).  The layout is given by the ``OFF_*`` offsets below and written by
 :func:`stewart_env.dynamics.model.pack_params`.
 """
 
+import os
+
+import numba
 import numpy as np
 from numba import njit, prange
+
+# libgomp's idle threads spin: when the cores are shared (a learner training beside the
+# simulation, a busy CI runner) a parallel call of these kernels ran 6x slower than one thread.
+# numba's own workqueue layer lets idle threads sleep.  A layer the user chose still wins.
+if "NUMBA_THREADING_LAYER" not in os.environ:
+    numba.config.THREADING_LAYER = "workqueue"
 
 C1 = 1
 C2 = 2
