@@ -28,7 +28,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 import stewart_env as se
-from stewart_env.agents.pd import EnvPolicy, PlatformState, Reference, _gain, _rates, _rotvec_to_matrix
+from stewart_env.agents.pd import DesiredMotion, EnvPolicy, _gain, _rates, _rotvec_to_matrix
+from stewart_env.state import PlatformState
 from stewart_env.params import PlatformParams
 
 #: Default natural frequency of the error dynamics, rad/s, and its damping ratio.
@@ -63,7 +64,7 @@ class ComputedTorque:
         self.kp = _gain(wn**2 if kp is None else kp, "kp")
         self.kd = _gain(2 * zeta * wn if kd is None else kd, "kd")
 
-    def commanded_acceleration(self, state: PlatformState, reference: Reference) -> np.ndarray:
+    def commanded_acceleration(self, state: PlatformState, reference: DesiredMotion) -> np.ndarray:
         """[a_cmd; alpha_cmd] (6,) or (N,6) in m/s^2 and rad/s^2, {B}."""
         v = np.asarray(state.velocity, float)
         w = np.asarray(state.angular_velocity, float)
@@ -74,7 +75,7 @@ class ComputedTorque:
         feedforward = np.concatenate([_rates(reference.lin_acc, v), _rates(reference.ang_acc, w)], axis=-1)
         return feedforward + self.kd * error_rate + self.kp * error
 
-    def __call__(self, state: PlatformState, reference: Reference) -> np.ndarray:
+    def __call__(self, state: PlatformState, reference: DesiredMotion) -> np.ndarray:
         """Leg forces (6,) or (N,6), N, from the internal model's inverse dynamics."""
         acc = self.commanded_acceleration(state, reference)
         return self.model.inverse(state.position, state.rotation, state.velocity, state.angular_velocity,
@@ -119,7 +120,7 @@ class ComputedTorquePolicy(EnvPolicy):
         preview = getattr(base.task, "preview", 0) if "reference_preview" in base.observation_layout else 0
         self._horizons = getattr(base.task, "preview_interval", 0.0) * np.arange(1, preview + 1)
 
-    def reference(self, state: PlatformState, part: dict[str, np.ndarray]) -> Reference:
+    def reference(self, state: PlatformState, part: dict[str, np.ndarray]) -> DesiredMotion:
         ref = super().reference(state, part)
         if not self._horizons.size or ref.velocity is None:
             return ref

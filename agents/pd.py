@@ -12,7 +12,7 @@ of the current pose are added (gravity compensation, see :class:`TaskSpacePD`).
 
 Two faces:
 
-* :class:`TaskSpacePD` maps a platform state and a :class:`Reference` to leg forces; it is a
+* :class:`TaskSpacePD` maps a platform state and a :class:`DesiredMotion` to leg forces; it is a
   continuous-time law, called at every integrator stage in :mod:`stewart_env.agents.reproduce`.
 * :class:`PDPolicy` wraps it for the environment with Stable-Baselines3's ``predict``: it reads
   the state and the target out of the observation, and maps the forces to actions.
@@ -42,6 +42,7 @@ import scipy.linalg
 import stewart_env as se
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_rate_matrix
+from stewart_env.state import PlatformState
 
 #: Proportional gains of the paper's case study, [x, y, z, roll, pitch, yaw]: N/m and N m/rad.
 PAPER_KP = np.array([4e5, 4e5, 4e6, 5e4, 5e4, 1e5])
@@ -49,21 +50,8 @@ PAPER_KP = np.array([4e5, 4e5, 4e6, 5e4, 5e4, 1e5])
 PAPER_KD = np.array([1e4, 1e4, 2e4, 1e3, 1e3, 2e3])
 
 
-class PlatformState(NamedTuple):
-    """The platform's state in {B}; every field may carry a leading batch dimension N.
-
-    position (3,) of P's origin, m; rotation (3,3), columns = {P} axes; velocity (3,) of P's
-    origin, m/s; angular_velocity (3,) rad/s.
-    """
-
-    position: np.ndarray
-    rotation: np.ndarray
-    velocity: np.ndarray
-    angular_velocity: np.ndarray
-
-
-class Reference(NamedTuple):
-    """A desired motion of the platform in {B}; fields as in :class:`PlatformState`.
+class DesiredMotion(NamedTuple):
+    """A desired motion of the platform in {B}; fields as in :class:`~stewart_env.state.PlatformState`.
 
     lin_acc (3,) m/s^2 and ang_acc (3,) rad/s^2 are the reference accelerations (feedforward of
     the computed-torque law).  Rates and accelerations left as None are zero (a set point).
@@ -175,7 +163,7 @@ class TaskSpacePD:
         self._geometry = se.make_dynamics("improved", platform)
         self._gravity = se.make_dynamics(gravity_model, platform) if self.gravity_compensation else None
 
-    def wrench(self, state: PlatformState, reference: Reference) -> np.ndarray:
+    def wrench(self, state: PlatformState, reference: DesiredMotion) -> np.ndarray:
         """The PD wrench W (6,) or (N,6): force at P's origin (N) and moment (N m), in {B}."""
         rpy = se.matrix_to_rpy(state.rotation)
         rpy_d = se.matrix_to_rpy(reference.rotation)
@@ -188,7 +176,7 @@ class TaskSpacePD:
         error_rate = np.concatenate([_rates(reference.velocity, v) - v, rate_d - rate], axis=-1)
         return self.kp * error + self.kd * error_rate
 
-    def __call__(self, state: PlatformState, reference: Reference) -> np.ndarray:
+    def __call__(self, state: PlatformState, reference: DesiredMotion) -> np.ndarray:
         """Leg forces (6,) or (N,6), N, for a state and a reference (see the class docstring)."""
         jac = se.jacobian(self._geometry, state.position, state.rotation)
         forces = np.linalg.solve(np.swapaxes(jac, -1, -2), self.wrench(state, reference)[..., None])[..., 0]
@@ -232,7 +220,7 @@ class EnvPolicy:
     velocity, angular_velocity, position_error, orientation_error; a task's velocity_error and
     angular_velocity_error (tracking) give the reference's twist, which is zero otherwise.
 
-    Subclasses set the controller (a callable (PlatformState, Reference) -> leg forces) and may
+    Subclasses set the controller (a callable (PlatformState, DesiredMotion) -> leg forces) and may
     override :meth:`reference` to add what else the observation tells about the target.
     """
 
@@ -248,19 +236,19 @@ class EnvPolicy:
         low, high = base.platform.limits.leg_force
         self._mid, self._half = 0.5 * (low + high), 0.5 * (high - low)
 
-    def decode(self, observation) -> tuple[PlatformState, Reference]:
+    def decode(self, observation) -> tuple[PlatformState, DesiredMotion]:
         """State and target (batched, N rows) of observations (obs_dim,) or (N, obs_dim)."""
         part = self.env.unwrapped.decode_observation(np.atleast_2d(np.asarray(observation, dtype=float)))
         rotation = _columns_to_matrix(part["orientation"])
         state = PlatformState(part["position"], rotation, part["velocity"], part["angular_velocity"])
         return state, self.reference(state, part)
 
-    def reference(self, state: PlatformState, part: dict[str, np.ndarray]) -> Reference:
+    def reference(self, state: PlatformState, part: dict[str, np.ndarray]) -> DesiredMotion:
         """The target of decoded observations ``part`` (name -> (N, size), physical units)."""
         velocity = state.velocity + part["velocity_error"] if "velocity_error" in part else None
         angular_velocity = (state.angular_velocity + part["angular_velocity_error"]
                             if "angular_velocity_error" in part else None)
-        return Reference(state.position + part["position_error"],
+        return DesiredMotion(state.position + part["position_error"],
                          _rotvec_to_matrix(part["orientation_error"]) @ state.rotation, velocity, angular_velocity)
 
     def forces_to_action(self, forces) -> np.ndarray:

@@ -43,7 +43,8 @@ from matplotlib.ticker import FuncFormatter  # noqa: E402
 from tqdm.auto import tqdm  # noqa: E402
 
 import stewart_env as se  # noqa: E402
-from stewart_env.agents.pd import PAPER_KD, PAPER_KP, PlatformState, Reference, TaskSpacePD  # noqa: E402
+from stewart_env.agents.pd import PAPER_KD, PAPER_KP, DesiredMotion, TaskSpacePD  # noqa: E402
+from stewart_env.state import PlatformState  # noqa: E402
 
 START_POSITION = np.array([0.1, 0.0, 0.395])
 START_RPY = np.array([0.0, 0.0, -0.2])
@@ -115,7 +116,7 @@ def simulate_case_study(model_name: str, platform: se.PlatformParams, controller
                         progress: tqdm | None = None) -> CaseTrajectory:
     """Integrate the case study's closed loop with RK4, the controller evaluated at every stage.
 
-    model_name: the plant's dynamics; controller: (PlatformState, Reference) -> leg forces N, for
+    model_name: the plant's dynamics; controller: (PlatformState, DesiredMotion) -> leg forces N, for
     one state or a batch; duration, dt, sample_dt in s (sample_dt a multiple of dt, default dt:
     the transient under the paper's gains lasts about 50 ms, and coarser samples cut its peaks);
     ``progress`` is advanced once per step.  Returns the sampled :class:`CaseTrajectory`.
@@ -129,7 +130,7 @@ def simulate_case_study(model_name: str, platform: se.PlatformParams, controller
     if abs(every * dt - sample_dt) > 1e-9 * sample_dt:
         raise ValueError(f"sample_dt: must be a multiple of dt = {dt} s, got {sample_dt}")
     model = se.make_dynamics(model_name, platform)
-    reference = Reference(TARGET_POSITION, se.rpy_to_matrix(TARGET_RPY))
+    reference = DesiredMotion(TARGET_POSITION, se.rpy_to_matrix(TARGET_RPY))
 
     def rate(y: np.ndarray) -> np.ndarray:
         s = _unpack(y)

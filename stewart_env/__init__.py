@@ -22,6 +22,7 @@ from stewart_env.kinematics import (
 )
 from stewart_env.params import ConfigError, PlatformParams, available_platforms, load_platform
 from stewart_env.rotations import matrix_to_rpy, rpy_to_matrix
+from stewart_env.state import PlatformState, Reference
 from stewart_env import registration  # noqa: F401  (registers StewartPlatform-v0 with Gymnasium)
 
 __version__ = "0.1.0"
@@ -33,6 +34,8 @@ __all__ = [
     "Dynamics",
     "LegKinematics",
     "PlatformParams",
+    "PlatformState",
+    "Reference",
     "available_platforms",
     "forward_kinematics",
     "inverse_kinematics",

@@ -5,14 +5,14 @@ import numpy as np
 import pytest
 
 import stewart_env as se
+from stewart_env.state import PlatformState
 from stewart_env.agents import (
     PAPER_KD,
     PAPER_KP,
     ComputedTorque,
     ComputedTorquePolicy,
     PDPolicy,
-    PlatformState,
-    Reference,
+    DesiredMotion,
     TaskSpacePD,
     evaluate,
     preview_acceleration,
@@ -27,7 +27,7 @@ def moving_state(dasgupta, rng):
     """A state near the paper's case pose, moving, and a reference a little away from it."""
     state = PlatformState(np.array([0.1, 0.01, 0.39]), se.rpy_to_matrix([0.03, -0.02, -0.18]),
                           rng.normal(scale=0.05, size=3), rng.normal(scale=0.1, size=3))
-    reference = Reference(np.array([0.1, 0.0, 0.4]), se.rpy_to_matrix([0.0, 0.0, -0.2]),
+    reference = DesiredMotion(np.array([0.1, 0.0, 0.4]), se.rpy_to_matrix([0.0, 0.0, -0.2]),
                           rng.normal(scale=0.05, size=3), rng.normal(scale=0.1, size=3),
                           rng.normal(size=3), rng.normal(size=3))
     return state, reference

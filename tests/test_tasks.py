@@ -13,7 +13,7 @@ from stewart_env.tasks import (
     DisturbanceTask,
     Reference,
     SetpointTask,
-    State,
+    PlatformState,
     TrackingTask,
     make_task,
     rotation_error,
@@ -57,7 +57,7 @@ def test_rotation_error_matches_scipy():
 def test_tracking_errors_are_reference_minus_actual():
     rng = np.random.default_rng(3)
     n = 4
-    state = State(rng.normal(size=(n, 3)), Rotation.random(n, random_state=2).as_matrix(),
+    state = PlatformState(rng.normal(size=(n, 3)), Rotation.random(n, random_state=2).as_matrix(),
                   rng.normal(size=(n, 3)), rng.normal(size=(n, 3)))
     ref = Reference(rng.normal(size=(n, 3)), Rotation.random(n, random_state=3).as_matrix(),
                     rng.normal(size=(n, 3)), rng.normal(size=(n, 3)))

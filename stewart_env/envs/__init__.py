@@ -5,17 +5,15 @@ stable-baselines3 (and torch).
 """
 
 from stewart_env.envs.core import DEFAULTS, TERMINATION_REASONS
-from stewart_env.envs.stewart_platform import PlatformState, StewartPlatformEnv, Target
+from stewart_env.envs.stewart_platform import StewartPlatformEnv
 from stewart_env.envs.vector import StewartPlatformVectorEnv
 
 __all__ = [
     "DEFAULTS",
     "TERMINATION_REASONS",
-    "PlatformState",
     "StewartPlatformEnv",
     "StewartPlatformSB3VecEnv",
     "StewartPlatformVectorEnv",
-    "Target",
 ]
 
 

@@ -24,9 +24,10 @@ from stewart_env.kinematics import leg_sensors_inplace
 from stewart_env.params import PlatformParams, load_platform
 from stewart_env.randomization import Randomization
 from stewart_env.rotations import rpy_to_matrix
-from stewart_env.tasks import Reference, RewardWeights, Scales, State, make_task, tracking_errors
+from stewart_env.state import PlatformState, Reference
+from stewart_env.tasks import RewardWeights, Scales, make_task, tracking_errors
 
-__all__ = ["DEFAULTS", "OBSERVATION_MODES", "TERMINATION_REASONS", "PlatformBatch", "check_action"]
+__all__ = ["DEFAULTS", "OBSERVATION_MODES", "TERMINATION_REASONS", "BatchAttributes", "PlatformBatch", "check_action"]
 
 #: Every keyword argument of the environments and its default (the arguments table of the card).
 DEFAULTS: dict[str, Any] = {
@@ -190,8 +191,8 @@ class PlatformBatch:
         self.reference = Reference(np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3)))
         self.episode = {k: np.zeros((n, *shape)) for k, shape in self.task.episode_fields.items()}
         self.row_params: list[PlatformParams] = [self.platform] * n
-        self._state = State(self.position, self.rotation, self.velocity, self.angular_velocity)
-        self._backup = State(*(np.zeros_like(x) for x in self._state))
+        self._state = PlatformState(self.position, self.rotation, self.velocity, self.angular_velocity)
+        self._backup = PlatformState(*(np.zeros_like(x) for x in self._state))
         self._action = np.zeros((n, 6))
         self._command = np.zeros((n, 6))
         self._state_sum = np.zeros(n)
@@ -307,7 +308,7 @@ class PlatformBatch:
         self.steps[rows] = 0
         self.time[rows] = 0.0
         self.external_wrench[rows] = 0.0
-        state = State(*(x[rows] for x in self._state))
+        state = PlatformState(*(x[rows] for x in self._state))
         lengths, rates, cond = np.empty((len(rows), 6)), np.empty((len(rows), 6)), np.empty(len(rows))
         if self._lag:
             # The actuators start holding the start state: the forces of zero acceleration.
@@ -433,7 +434,7 @@ class PlatformBatch:
             code[mine] = own[mine] + self._task_code_offset - 1
         return code
 
-    def _measure(self, state: State, lengths, rates, forces, reference: Reference, episode, time,
+    def _measure(self, state: PlatformState, lengths, rates, forces, reference: Reference, episode, time,
                  raw: np.ndarray, errors=None) -> None:
         """Write the clean observation of a batch (any number of rows) into ``raw``."""
         views = self._raw_views if raw is self._raw else self._views(raw)
@@ -461,3 +462,72 @@ class PlatformBatch:
     def reasons(self, code: np.ndarray) -> np.ndarray:
         """Termination reason names (object array of str or None) of codes."""
         return self._reason_array[code]
+
+
+class BatchAttributes:
+    """What both environments show of their :class:`PlatformBatch`.
+
+    ``_rows`` picks row 0 (the single environment: arrays without the batch axis) or every row
+    (the vector environment: a leading N).  Arrays are copies.
+    """
+
+    _core: PlatformBatch
+    _rows: int | slice
+
+    def _rows_of(self, array: np.ndarray) -> np.ndarray:
+        return array[self._rows].copy()
+
+    @property
+    def observation_layout(self) -> dict[str, slice]:
+        """Observation term name -> slice of a (row's) observation vector."""
+        return dict(self._core.observation_layout)
+
+    def decode_observation(self, observation) -> dict[str, np.ndarray]:
+        """An observation, or a batch of them, in physical units by term name (undoes the scaling)."""
+        return self._core.decode_observation(observation)
+
+    @property
+    def state(self) -> PlatformState:
+        """The platform's current state, {B}: position, rotation, velocity, angular velocity."""
+        return PlatformState(*(self._rows_of(x) for x in self._core._state))
+
+    @property
+    def target(self) -> Reference:
+        """The task's current reference: position, rotation, velocity, angular velocity, {B}."""
+        return Reference(*(self._rows_of(x) for x in self._core.reference))
+
+    @property
+    def model(self) -> Dynamics:
+        """The dynamics model of the current episode: one parameter set, or one per row with
+        domain randomisation."""
+        return self._core.model
+
+    @property
+    def platform(self) -> PlatformParams:
+        """The nominal PlatformParams."""
+        return self._core.platform
+
+    @property
+    def task(self):
+        """The task object (see stewart_env.tasks)."""
+        return self._core.task
+
+    @property
+    def leg_forces(self) -> np.ndarray:
+        """The leg forces (6,) N applied over the last control step (after clipping and lag)."""
+        return self._rows_of(self._core.leg_forces)
+
+    @property
+    def external_wrench(self) -> np.ndarray:
+        """The external wrench (6,) [N; N m] in {B} applied over the last control step."""
+        return self._rows_of(self._core.external_wrench)
+
+    @property
+    def leg_lengths(self) -> np.ndarray:
+        """Leg lengths (6,) m now."""
+        return self._rows_of(self._core.leg_lengths)
+
+    @property
+    def dt(self) -> float:
+        """The control period, s."""
+        return self._core.control_dt

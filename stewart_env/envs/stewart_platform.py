@@ -2,40 +2,17 @@
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from stewart_env.dynamics import Dynamics
-from stewart_env.envs.core import PlatformBatch, check_action
+from stewart_env.envs.core import BatchAttributes, PlatformBatch, check_action
 
-__all__ = ["PlatformState", "StewartPlatformEnv", "Target"]
+__all__ = ["StewartPlatformEnv"]
 
 _ROW0 = np.zeros(1, dtype=np.int64)
-
-
-class PlatformState(NamedTuple):
-    """The platform's state in {B}: position (3,) m of P's origin, rotation (3,3) (columns = {P}
-    axes), velocity (3,) m/s of P's origin, angular_velocity (3,) rad/s; a leading N in the
-    vector environment."""
-
-    position: np.ndarray
-    rotation: np.ndarray
-    velocity: np.ndarray
-    angular_velocity: np.ndarray
-
-
-class Target(NamedTuple):
-    """The task's reference now, in {B}: position (3,) m, rotation (3,3), velocity (3,) m/s and
-    angular_velocity (3,) rad/s (zero for setpoint and disturbance); a leading N in the vector
-    environment."""
-
-    position: np.ndarray
-    rotation: np.ndarray
-    velocity: np.ndarray
-    angular_velocity: np.ndarray
 
 
 def term_key(name: str) -> str:
@@ -43,7 +20,7 @@ def term_key(name: str) -> str:
     return f"reward_{name}"
 
 
-class StewartPlatformEnv(gym.Env):
+class StewartPlatformEnv(BatchAttributes, gym.Env):
     """## Description
 
     A 6-UPS Stewart platform: a rigid platform carried by six extensible legs, each a lower leg
@@ -238,6 +215,7 @@ class StewartPlatformEnv(gym.Env):
     * v0: initial version.
     """
 
+    _rows = 0  # BatchAttributes: the single platform, no batch axis
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 100.0}
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any):
@@ -297,63 +275,7 @@ class StewartPlatformEnv(gym.Env):
             self._renderer.close()
             self._renderer = None
 
-    # -- introspection ------------------------------------------------------------------------------
-
-    @property
-    def observation_layout(self) -> dict[str, slice]:
-        """Observation term name -> slice of the observation vector."""
-        return dict(self._core.observation_layout)
-
-    def decode_observation(self, observation) -> dict[str, np.ndarray]:
-        """An observation (or a batch) in physical units, by term name (undoes the scaling)."""
-        return self._core.decode_observation(observation)
-
-    @property
-    def state(self) -> PlatformState:
-        """The platform's current state (copies)."""
-        c = self._core
-        return PlatformState(c.position[0].copy(), c.rotation[0].copy(), c.velocity[0].copy(),
-                             c.angular_velocity[0].copy())
-
-    @property
-    def target(self) -> Target:
-        """The task's current reference (copies)."""
-        return Target(*(x[0].copy() for x in self._core.reference))
-
-    @property
-    def model(self) -> Dynamics:
-        """The dynamics model of the current episode (its parameters randomised, if configured)."""
-        return self._core.model
-
-    @property
-    def platform(self):
-        """The nominal PlatformParams."""
-        return self._core.platform
-
-    @property
-    def task(self):
-        """The task object (see stewart_env.tasks)."""
-        return self._core.task
-
-    @property
-    def leg_forces(self) -> np.ndarray:
-        """The leg forces (6,) N applied over the last control step (after clipping and lag)."""
-        return self._core.leg_forces[0].copy()
-
-    @property
-    def external_wrench(self) -> np.ndarray:
-        """The external wrench (6,) [N; N m] in {B} applied over the last control step."""
-        return self._core.external_wrench[0].copy()
-
-    @property
-    def leg_lengths(self) -> np.ndarray:
-        """Leg lengths (6,) m now."""
-        return self._core.leg_lengths[0].copy()
-
-    @property
-    def dt(self) -> float:
-        """The control period, s."""
-        return self._core.control_dt
+    # -- introspection: see BatchAttributes ------------------------------------------------------
 
     def set_state(self, position, rotation, velocity=None, angular_velocity=None) -> None:
         """Put the platform in a state (in {B}; velocities default to zero); the episode goes on

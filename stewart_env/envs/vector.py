@@ -10,9 +10,8 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from stewart_env.dynamics import Dynamics
-from stewart_env.envs.core import PlatformBatch, check_action
-from stewart_env.envs.stewart_platform import PlatformState, Target, term_key
+from stewart_env.envs.core import BatchAttributes, PlatformBatch, check_action
+from stewart_env.envs.stewart_platform import term_key
 
 __all__ = ["StewartPlatformVectorEnv"]
 
@@ -35,7 +34,7 @@ def _masked(value: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return out
 
 
-class StewartPlatformVectorEnv(VectorEnv):
+class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
     """``num_envs`` Stewart platforms in one batch (see :class:`StewartPlatformEnv` for the card).
 
     Keyword arguments are those of the single environment, plus:
@@ -56,6 +55,7 @@ class StewartPlatformVectorEnv(VectorEnv):
     ``termination``, ``time``).  ``render()`` draws row 0 only.
     """
 
+    _rows = slice(None)  # BatchAttributes: every row
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 100.0,
                 "autoreset_mode": AutoresetMode.NEXT_STEP}
 
@@ -222,45 +222,3 @@ class StewartPlatformVectorEnv(VectorEnv):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-
-    # -- introspection ------------------------------------------------------------------------------
-
-    @property
-    def observation_layout(self) -> dict[str, slice]:
-        """Observation term name -> slice of a row's observation."""
-        return dict(self._core.observation_layout)
-
-    def decode_observation(self, observation) -> dict[str, np.ndarray]:
-        """Observations (N, D) in physical units, by term name (undoes the scaling)."""
-        return self._core.decode_observation(observation)
-
-    @property
-    def state(self) -> PlatformState:
-        """The platforms' current states, (N, ...) copies."""
-        c = self._core
-        return PlatformState(c.position.copy(), c.rotation.copy(), c.velocity.copy(), c.angular_velocity.copy())
-
-    @property
-    def target(self) -> Target:
-        """The task's current references, (N, ...) copies."""
-        return Target(*(x.copy() for x in self._core.reference))
-
-    @property
-    def model(self) -> Dynamics:
-        """The dynamics model: one parameter set, or one per row with domain randomisation."""
-        return self._core.model
-
-    @property
-    def platform(self):
-        """The nominal PlatformParams."""
-        return self._core.platform
-
-    @property
-    def leg_forces(self) -> np.ndarray:
-        """Leg forces (N,6) N applied over the last control step."""
-        return self._core.leg_forces.copy()
-
-    @property
-    def dt(self) -> float:
-        """The control period, s."""
-        return self._core.control_dt

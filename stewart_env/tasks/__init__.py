@@ -10,13 +10,11 @@ from __future__ import annotations
 from typing import Any
 
 from stewart_env.params import PlatformParams
+from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks.base import (
     Errors,
-    InitialState,
-    Reference,
     RewardWeights,
     Scales,
-    State,
     Task,
     check_option_names,
     rotation_error,
@@ -32,12 +30,11 @@ __all__ = [
     "TASKS",
     "DisturbanceTask",
     "Errors",
-    "InitialState",
+    "PlatformState",
     "Reference",
     "RewardWeights",
     "Scales",
     "SetpointTask",
-    "State",
     "Task",
     "TrackingTask",
     "make_task",

@@ -23,14 +23,12 @@ from numba import njit
 
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix, rpy_rate_matrix
+from stewart_env.state import PlatformState, Reference
 
 __all__ = [
     "Errors",
-    "InitialState",
-    "Reference",
     "RewardWeights",
     "Scales",
-    "State",
     "Task",
     "check_option_names",
     "pose_margins",
@@ -38,35 +36,6 @@ __all__ = [
     "sinusoid_reference",
     "tracking_errors",
 ]
-
-
-class State(NamedTuple):
-    """Platform states of a batch, all in {B}: position (N,3) of P's origin, m; rotation (N,3,3)
-    (columns = {P} axes); velocity (N,3) of P's origin, m/s; angular_velocity (N,3), rad/s."""
-
-    position: np.ndarray
-    rotation: np.ndarray
-    velocity: np.ndarray
-    angular_velocity: np.ndarray
-
-
-class Reference(NamedTuple):
-    """Reference (target) poses and twists of a batch, shapes and frames as :class:`State`."""
-
-    position: np.ndarray
-    rotation: np.ndarray
-    velocity: np.ndarray
-    angular_velocity: np.ndarray
-
-
-class InitialState(NamedTuple):
-    """The state one platform starts an episode in: position (3,), rotation (3,3), velocity (3,),
-    angular_velocity (3,), in {B}."""
-
-    position: np.ndarray
-    rotation: np.ndarray
-    velocity: np.ndarray
-    angular_velocity: np.ndarray
 
 
 class Errors(NamedTuple):
@@ -206,7 +175,7 @@ def _error_rows(t, R, v, w, rt, rR, rv, rw, ep, eo, ev, ew, norms):
         norms[b, 3] = np.sqrt(sw)
 
 
-def tracking_errors(state: State, reference: Reference) -> Errors:
+def tracking_errors(state: PlatformState, reference: Reference) -> Errors:
     """Reference minus actual, for a batch (see :class:`Errors`); C-contiguous float64 inputs."""
     n = state.position.shape[0]
     ep, eo, ev, ew = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
@@ -341,7 +310,7 @@ class Task:
 
     # -- episode ----------------------------------------------------------------------------------
 
-    def initialize_episode(self, rng: np.random.Generator) -> tuple[InitialState, dict[str, np.ndarray]]:
+    def initialize_episode(self, rng: np.random.Generator) -> tuple[PlatformState, dict[str, np.ndarray]]:
         """Draw one row's episode: its initial state and its ``episode_fields`` values."""
         raise NotImplementedError
 
@@ -362,7 +331,7 @@ class Task:
         angle = np.full(3, scales.angle)
         return [("position_error", scales.position.copy()), ("orientation_error", angle)]
 
-    def observe(self, state: State, errors: Errors, episode: dict[str, np.ndarray],
+    def observe(self, state: PlatformState, errors: Errors, episode: dict[str, np.ndarray],
                 time: np.ndarray, out: dict[str, np.ndarray]) -> None:
         """Write each term of :meth:`observation_terms`, in physical units, into ``out[name]``
         (N, size)."""
@@ -384,7 +353,7 @@ class Task:
             "control": -w.ctrl_cost_weight * (a2.sum(axis=1) / 6.0),
         }
 
-    def termination(self, state: State, errors: Errors, time: np.ndarray) -> np.ndarray | None:
+    def termination(self, state: PlatformState, errors: Errors, time: np.ndarray) -> np.ndarray | None:
         """This task's own termination: (N,) int codes (0 none, k for termination_reasons[k-1]),
         or None when the task never terminates an episode itself."""
         return None

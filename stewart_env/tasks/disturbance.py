@@ -6,7 +6,8 @@ import numpy as np
 
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
-from stewart_env.tasks.base import InitialState, Reference, Task, as_number, as_range, as_vector
+from stewart_env.state import PlatformState, Reference
+from stewart_env.tasks.base import Task, as_number, as_range, as_vector
 
 
 class DisturbanceTask(Task):
@@ -74,7 +75,7 @@ class DisturbanceTask(Task):
         magnitudes = rng.uniform(0.0, 1.0, (n, 2)) * (self.impulse_force, self.impulse_moment)
         wrench = (directions * magnitudes[:, :, None]).reshape(n, 6)
         p = self.params
-        start = InitialState(p.home_position.copy(), self._home_rotation.copy(), np.zeros(3), np.zeros(3))
+        start = PlatformState(p.home_position.copy(), self._home_rotation.copy(), np.zeros(3), np.zeros(3))
         return start, {"sine_amplitude": amplitude, "sine_omega": omega, "sine_phase": phase,
                        "impulse_time": times, "impulse_wrench": wrench}
 

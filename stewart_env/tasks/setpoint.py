@@ -6,7 +6,8 @@ import numpy as np
 
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
-from stewart_env.tasks.base import InitialState, Reference, Task, as_vector, pose_margins
+from stewart_env.state import PlatformState, Reference
+from stewart_env.tasks.base import Task, as_vector, pose_margins
 
 # The case study of He et al. (2018), as offsets from the home pose (0, 0, 0.4) of the dasgupta1998
 # platform, where they give its absolute poses: start (0.1, 0, 0.395), target (0.1, 0, 0.4),
@@ -92,7 +93,7 @@ class SetpointTask(Task):
         else:
             start_p, start_r = self.start_position, self.start_rpy
             target_p, target_r = self.target_position, self.target_rpy
-        start = InitialState(start_p.copy(), rpy_to_matrix(start_r), np.zeros(3), np.zeros(3))
+        start = PlatformState(start_p.copy(), rpy_to_matrix(start_r), np.zeros(3), np.zeros(3))
         return start, {"target_position": target_p, "target_rotation": rpy_to_matrix(target_r)}
 
     def reference(self, episode, time, out: Reference) -> None:

@@ -7,12 +7,10 @@ import itertools
 import numpy as np
 
 from stewart_env.params import PlatformParams
+from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks.base import (
     Errors,
-    InitialState,
-    Reference,
     Scales,
-    State,
     Task,
     as_number,
     as_range,
@@ -92,7 +90,7 @@ class TrackingTask(Task):
         episode = {"amplitude": amplitude, "omega": omega, "phase": phase}
         ref = Reference(np.empty((1, 3)), np.empty((1, 3, 3)), np.empty((1, 3)), np.empty((1, 3)))
         self.reference({k: v[None] for k, v in episode.items()}, np.zeros(1), ref)
-        return InitialState(*(x[0] for x in ref)), episode
+        return PlatformState(*(x[0] for x in ref)), episode
 
     def reference(self, episode, time, out: Reference) -> None:
         p = self.params
@@ -107,7 +105,7 @@ class TrackingTask(Task):
             terms.append(("reference_preview", np.tile(np.concatenate([scales.position, angle]), self.preview)))
         return terms
 
-    def observe(self, state: State, errors: Errors, episode, time, out) -> None:
+    def observe(self, state: PlatformState, errors: Errors, episode, time, out) -> None:
         super().observe(state, errors, episode, time, out)
         out["velocity_error"][:] = errors.velocity
         out["angular_velocity_error"][:] = errors.angular_velocity
