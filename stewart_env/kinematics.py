@@ -130,8 +130,11 @@ def _rotvec_matrix(phi: np.ndarray) -> np.ndarray:
 
 
 def leg_sensors_inplace(params: PlatformParams | Dynamics, position, rotation, velocity, angular_velocity,
-                        lengths, rates, condition) -> None:
+                        max_condition, lengths, rates, condition) -> None:
     """Leg lengths (N,6) m, rates (N,6) m/s and Jacobian condition numbers (N,) of a batch of
     states, written into preallocated arrays; no argument checks (the environment's per-step
-    path).  State arrays as in :func:`stewart_env.integrate.rollout_inplace`."""
-    K.leg_sensors_batch(_packed(params), position, rotation, velocity, angular_velocity, lengths, rates, condition)
+    path).  State arrays as in :func:`stewart_env.integrate.rollout_inplace`.  ``condition`` is
+    exact where it exceeds ``max_condition`` and an upper bound at most ``max_condition``
+    elsewhere, so comparing it with ``max_condition`` decides singularity exactly."""
+    K.leg_sensors_batch(_packed(params), position, rotation, velocity, angular_velocity, float(max_condition),
+                        lengths, rates, condition)

@@ -104,3 +104,23 @@ def test_rpy_round_trip(rng):
     np.testing.assert_allclose(se.matrix_to_rpy(se.rpy_to_matrix(rpy)), rpy, atol=1e-13)
     Rz = se.rpy_to_matrix([0, 0, np.pi / 2])
     np.testing.assert_allclose(Rz @ [1, 0, 0], [0, 1, 0], atol=1e-16)
+
+
+def test_leg_sensors_decide_the_condition_threshold_exactly(dasgupta, rng):
+    from stewart_env.kinematics import leg_sensors_inplace
+
+    states = [random_state(dasgupta, rng) for _ in range(20)]
+    t, R, v, w = (np.ascontiguousarray(x) for x in map(np.array, zip(*states)))
+    k = se.leg_kinematics(dasgupta, t, R, v, w)
+    exact = np.linalg.cond(k.jacobian)
+    threshold = np.median(exact)  # half the rows above it, half below
+    lengths, rates, condition = np.empty((20, 6)), np.empty((20, 6)), np.empty(20)
+    leg_sensors_inplace(dasgupta, t, R, v, w, threshold, lengths, rates, condition)
+    np.testing.assert_array_equal(lengths, k.lengths)  # the same kernel code
+    np.testing.assert_allclose(rates, k.rates, rtol=0, atol=1e-15)
+    above = exact > threshold
+    np.testing.assert_allclose(condition[above], exact[above], rtol=1e-12)  # SVD both ways
+    # below the threshold the bound ||J||_F ||J^-1||_F: above cond_2, at most the threshold
+    assert np.all(condition[~above] >= exact[~above] * (1 - 1e-12))
+    assert np.all(condition[~above] <= threshold)
+    assert np.array_equal(condition > threshold, above)

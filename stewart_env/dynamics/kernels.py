@@ -829,20 +829,25 @@ def _rollout_row(prm, flags, t, R, v, w, F, W, dt, steps, b):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def leg_sensors_batch(prm, t, R, v, w, lengths, rates, condition):
+def leg_sensors_batch(prm, t, R, v, w, max_condition, lengths, rates, condition):
     """What the environment checks after each control step, over a batch: leg lengths (N,6) m,
-    leg rates (N,6) m/s and the Jacobian's 2-norm condition number (N,) (inf when singular)."""
+    leg rates (N,6) m/s and the Jacobian's condition number (N,) against ``max_condition``.
+
+    ``condition`` is the 2-norm condition number wherever it exceeds ``max_condition`` (inf when
+    singular or non-finite); below it, the cheaper bound ||J||_F ||J^-1||_F >= cond_2, itself
+    at most ``max_condition``.  So ``condition > max_condition`` holds exactly when cond_2 does.
+    """
     n = t.shape[0]
     if n >= PARALLEL_MIN_ROWS:
         for b in prange(n):
-            _leg_sensors_row(prm, t, R, v, w, lengths, rates, condition, b)
+            _leg_sensors_row(prm, t, R, v, w, max_condition, lengths, rates, condition, b)
     else:
         for b in range(n):
-            _leg_sensors_row(prm, t, R, v, w, lengths, rates, condition, b)
+            _leg_sensors_row(prm, t, R, v, w, max_condition, lengths, rates, condition, b)
 
 
 @njit(cache=True, error_model="numpy")
-def _leg_sensors_row(prm, t, R, v, w, lengths, rates, condition, b):
+def _leg_sensors_row(prm, t, R, v, w, max_condition, lengths, rates, condition, b):
     """Row b of ``leg_sensors_batch``."""
     p = prm[0] if prm.shape[0] == 1 else prm[b]
     jac = np.empty((6, 6))
@@ -858,12 +863,33 @@ def _leg_sensors_row(prm, t, R, v, w, lengths, rates, condition, b):
         jac[i, 3] = mq0
         jac[i, 4] = mq1
         jac[i, 5] = mq2
-    finite = True
-    for i in range(6):
-        for j in range(6):
-            finite = finite and np.isfinite(jac[i, j])
-    if finite:
+    bound = _frobenius_condition(jac)
+    if bound <= max_condition:
+        condition[b] = bound
+    elif np.isfinite(bound):
         s = np.linalg.svd(jac)[1]
         condition[b] = s[0] / s[5] if s[5] > 0.0 else np.inf
     else:
         condition[b] = np.inf
+
+
+@njit(cache=True, error_model="numpy")
+def _frobenius_condition(J):
+    """||J||_F ||J^-1||_F of a 6x6 matrix, an upper bound of its 2-norm condition number (inf
+    or NaN when J is singular or not finite)."""
+    M = np.empty((6, 6))
+    e = np.empty(6)
+    x = np.empty(6)
+    norm = 0.0
+    for i in range(6):
+        for j in range(6):
+            norm += J[i, j] * J[i, j]
+    inv_norm = 0.0
+    for k in range(6):
+        M[:, :] = J
+        e[:] = 0.0
+        e[k] = 1.0
+        _solve6(M, e, x)
+        for j in range(6):
+            inv_norm += x[j] * x[j]
+    return np.sqrt(norm * inv_norm)

@@ -318,7 +318,7 @@ class PlatformBatch:
             self.leg_forces[rows] = model.inverse(*state, zero, zero)
         else:
             self.leg_forces[rows] = 0.0
-        leg_sensors_inplace(self.nominal_model, *state, lengths, rates, cond)
+        leg_sensors_inplace(self.nominal_model, *state, self.platform.limits.max_condition, lengths, rates, cond)
         self.leg_lengths[rows], self.leg_rates[rows], self.condition[rows] = lengths, rates, cond
         episode = {k: v[rows] for k, v in self.episode.items()}
         ref = Reference(*(np.empty_like(x) for x in state))
@@ -383,7 +383,8 @@ class PlatformBatch:
             for dst, src in zip(self._state, self._backup):
                 dst[non_finite] = src[non_finite]
         leg_sensors_inplace(self.nominal_model, self.position, self.rotation, self.velocity,
-                            self.angular_velocity, self.leg_lengths, self.leg_rates, self.condition)
+                            self.angular_velocity, self.platform.limits.max_condition, self.leg_lengths,
+                            self.leg_rates, self.condition)
 
     def _outcome(self, rngs, skip) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         """Reference, termination, reward and observation after the physics of a step."""
