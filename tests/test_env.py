@@ -133,7 +133,6 @@ def test_render_fps_follows_control_dt():
 
 
 def test_record_video(tmp_path):
-    pytest.importorskip("moviepy")
     env = make(render_mode="rgb_array", width=96, height=96, max_episode_steps=8)
     folder = tmp_path / "videos"
     env = gym.wrappers.RecordVideo(env, str(folder), episode_trigger=lambda e: True, disable_logger=True)
