@@ -25,22 +25,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 import stewart_env as se
-from stewart_env.agents.pd import DesiredMotion, EnvPolicy, _gain, _rates, _rotvec_to_matrix
+from stewart_env.agents.pd import DesiredMotion, EnvPolicy, _gain, _rates
+from stewart_env.rotations import rotation_error, rotvec_to_matrix
 from stewart_env.state import PlatformState
 from stewart_env.params import PlatformParams
 
 #: Default natural frequency of the error dynamics, rad/s, and its damping ratio.
 DEFAULT_NATURAL_FREQUENCY = 20.0
 DEFAULT_DAMPING = 1.0
-
-
-def rotation_error(rotation, target_rotation) -> np.ndarray:
-    """Rotation vector (3,) or (N,3), rad, of R_d R^T: the rotation, in {B}, from R to R_d."""
-    rel = np.asarray(target_rotation, float) @ np.swapaxes(np.asarray(rotation, float), -1, -2)
-    return Rotation.from_matrix(rel).as_rotvec()
 
 
 class ComputedTorque:
@@ -69,7 +63,7 @@ class ComputedTorque:
         v = np.asarray(state.velocity, float)
         w = np.asarray(state.angular_velocity, float)
         error = np.concatenate([np.asarray(reference.position, float) - state.position,
-                                rotation_error(state.rotation, reference.rotation)], axis=-1)
+                                rotation_error(reference.rotation, state.rotation)[0]], axis=-1)
         error_rate = np.concatenate([_rates(reference.velocity, v) - v, _rates(reference.angular_velocity, w) - w],
                                     axis=-1)
         feedforward = np.concatenate([_rates(reference.lin_acc, v), _rates(reference.ang_acc, w)], axis=-1)
@@ -129,7 +123,7 @@ class ComputedTorquePolicy(EnvPolicy):
         # the preview is the future reference minus the platform now; the fit wants it minus the
         # reference now
         position_step = preview[:, :, :3] - part["position_error"][:, None, :]
-        future = _rotvec_to_matrix(preview[:, :, 3:].reshape(n * k, 3)) @ np.repeat(state.rotation, k, axis=0)
-        rotation_step = rotation_error(np.repeat(ref.rotation, k, axis=0), future).reshape(n, k, 3)
+        future = rotvec_to_matrix(preview[:, :, 3:].reshape(n * k, 3)) @ np.repeat(state.rotation, k, axis=0)
+        rotation_step = rotation_error(future, np.repeat(ref.rotation, k, axis=0))[0].reshape(n, k, 3)
         acc = preview_acceleration(position_step, rotation_step, ref.velocity, ref.angular_velocity, self._horizons)
         return ref._replace(lin_acc=acc[:, :3], ang_acc=acc[:, 3:])

@@ -46,7 +46,7 @@ import numpy as np  # noqa: E402
 from tqdm.auto import tqdm  # noqa: E402
 
 import stewart_env as se  # noqa: E402
-from stewart_env.agents.computed_torque import rotation_error  # noqa: E402
+from stewart_env.rotations import rotation_error  # noqa: E402
 
 ENV_ID = "StewartPlatform-v0"
 #: Default tolerances of settling and success: 2 mm and 0.01 rad (0.57 deg).
@@ -294,7 +294,7 @@ def _measure(base) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """True errors (target minus state, (N,3) m and rad) and leg rates (N,6) m/s of a vector env."""
     state, target = base.state, base.target
     legs = se.leg_kinematics(base.model, state.position, state.rotation, state.velocity, state.angular_velocity)
-    return target.position - state.position, rotation_error(state.rotation, target.rotation), legs.rates
+    return target.position - state.position, rotation_error(target.rotation, state.rotation)[0], legs.rates
 
 
 # -- reports ---------------------------------------------------------------------------------------

@@ -41,7 +41,7 @@ import scipy.linalg
 
 import stewart_env as se
 from stewart_env.params import PlatformParams
-from stewart_env.rotations import rpy_rate_matrix
+from stewart_env.rotations import rotvec_to_matrix, rpy_rate_matrix
 from stewart_env.state import PlatformState
 
 #: Proportional gains of the paper's case study, [x, y, z, roll, pitch, yaw]: N/m and N m/rad.
@@ -186,20 +186,6 @@ class TaskSpacePD:
         return forces
 
 
-def _rotvec_to_matrix(phi: np.ndarray) -> np.ndarray:
-    """exp([phi]x) for rotation vectors phi (N,3) -> (N,3,3) (Rodrigues)."""
-    angle = np.linalg.norm(phi, axis=-1)[:, None, None]
-    k = np.zeros((phi.shape[0], 3, 3))
-    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -phi[:, 2], phi[:, 1], -phi[:, 0]
-    k = k - np.swapaxes(k, 1, 2)
-    small = angle < 1e-8
-    # sin(a)/a and (1 - cos a)/a^2 by their series near zero, where the quotients lose digits
-    safe = np.where(small, 1.0, angle)
-    s = np.where(small, 1.0 - angle**2 / 6, np.sin(safe) / safe)
-    c = np.where(small, 0.5 - angle**2 / 24, (1 - np.cos(safe)) / safe**2)
-    return np.eye(3) + s * k + c * k @ k
-
-
 def _columns_to_matrix(cols: np.ndarray) -> np.ndarray:
     """Rotation (N,3,3) from its first two columns (N,6) = [x-axis, y-axis], re-orthonormalised
     (observation noise makes them slightly non-orthogonal)."""
@@ -249,7 +235,7 @@ class EnvPolicy:
         angular_velocity = (state.angular_velocity + part["angular_velocity_error"]
                             if "angular_velocity_error" in part else None)
         return DesiredMotion(state.position + part["position_error"],
-                         _rotvec_to_matrix(part["orientation_error"]) @ state.rotation, velocity, angular_velocity)
+                         rotvec_to_matrix(part["orientation_error"]) @ state.rotation, velocity, angular_velocity)
 
     def forces_to_action(self, forces) -> np.ndarray:
         """Actions in [-1, 1] for leg forces (N): the environment's affine map inverted, clipped."""

@@ -13,6 +13,7 @@ import numpy as np
 from stewart_env.dynamics import kernels as K
 from stewart_env.dynamics.model import Dynamics, batch_args, pack_params, parse_model_name
 from stewart_env.params import PlatformParams
+from stewart_env.rotations import rotvec_to_matrix
 
 
 class LegKinematics(NamedTuple):
@@ -113,20 +114,10 @@ def forward_kinematics(params: PlatformParams | Dynamics, leg_lengths, position_
         except np.linalg.LinAlgError:
             raise ConvergenceError("forward kinematics: singular Jacobian at an iterate") from None
         t = t + step[:3]
-        R = _rotvec_matrix(step[3:]) @ R
+        R = rotvec_to_matrix(step[3:]) @ R
     raise ConvergenceError(
         f"forward kinematics did not converge in {max_iter} iterations (leg length residual {residual:.3e} m)"
     )
-
-
-def _rotvec_matrix(phi: np.ndarray) -> np.ndarray:
-    """Rotation matrix exp([phi]x) of a rotation vector (Rodrigues)."""
-    angle = np.linalg.norm(phi)
-    if angle < 1e-300:
-        return np.eye(3)
-    k = phi / angle
-    Kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(angle) * Kx + (1 - np.cos(angle)) * Kx @ Kx
 
 
 def leg_sensors_inplace(params: PlatformParams | Dynamics, position, rotation, velocity, angular_velocity,

@@ -1,10 +1,12 @@
 """Roll-pitch-yaw angles and rotation matrices: R = Rz(yaw) Ry(pitch) Rx(roll).
 
 Angles are for configs, observations and control laws; the dynamics works with R and omega.
-Every function accepts one leading batch dimension.
+Every function accepts one leading batch dimension.  Also rotation vectors: exp([phi]x) and the
+rotation vector between two orientations.
 """
 
 import numpy as np
+from numba import njit
 
 
 def rpy_to_matrix(rpy):
@@ -61,3 +63,65 @@ def rpy_rate_matrix(rpy):
     E[..., 1, 1] = cy
     E[..., 2, 2] = 1.0
     return E
+
+
+def rotvec_to_matrix(phi):
+    """exp([phi]x): rotation matrices (..., 3, 3) of rotation vectors phi (..., 3), rad (Rodrigues)."""
+    phi = np.asarray(phi, dtype=float)
+    angle = np.linalg.norm(phi, axis=-1)[..., None, None]
+    k = np.zeros(phi.shape[:-1] + (3, 3))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -phi[..., 2], phi[..., 1], -phi[..., 0]
+    k = k - np.swapaxes(k, -1, -2)
+    small = angle < 1e-8
+    # sin(a)/a and (1 - cos a)/a^2 by their series near zero, where the quotients lose digits
+    safe = np.where(small, 1.0, angle)
+    s = np.where(small, 1.0 - angle**2 / 6, np.sin(safe) / safe)
+    c = np.where(small, 0.5 - angle**2 / 24, (1 - np.cos(safe)) / safe**2)
+    return np.eye(3) + s * k + c * k @ k
+
+
+@njit(cache=True)
+def rotation_error_rows(r, c, phi, angle):
+    """Rotation vector phi (N,3) of r c^T and its angle (N,), row by row; see :func:`rotation_error`."""
+    for b in range(c.shape[0]):
+        trace = 0.0
+        for i in range(3):
+            for k in range(3):
+                trace += r[b, i, k] * c[b, i, k]
+        # Half the axial vector of M - M^T, M = sum_k r_k c_k^T: 0.5 sum_k c_k x r_k.
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for k in range(3):
+            s0 += c[b, 1, k] * r[b, 2, k] - c[b, 2, k] * r[b, 1, k]
+            s1 += c[b, 2, k] * r[b, 0, k] - c[b, 0, k] * r[b, 2, k]
+            s2 += c[b, 0, k] * r[b, 1, k] - c[b, 1, k] * r[b, 0, k]
+        s0 *= 0.5
+        s1 *= 0.5
+        s2 *= 0.5
+        sin = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+        a = np.arctan2(sin, 0.5 * (trace - 1.0))
+        ratio = a / sin if sin > 1e-12 else 1.0  # angle / sin -> 1 as the rotation vanishes
+        phi[b, 0] = s0 * ratio
+        phi[b, 1] = s1 * ratio
+        phi[b, 2] = s2 * ratio
+        angle[b] = a
+
+
+def rotation_error(rotation_ref: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation vector phi (N,3) of R_ref R^T and its angle |phi| (N,), rad, in {B}: the rotation
+    that takes R to R_ref.  Rotations (3,3) or (N,3,3); one pair gives (3,) and a scalar.
+
+    With M = R_ref R^T = sum_k r_k c_k^T (r_k, c_k the k-th columns of R_ref and R), trace(M) =
+    sum(R_ref * R) and the axial vector of M - M^T is sum_k c_k x r_k = 2 sin(angle) axis; so
+    angle = atan2(|s|, (trace - 1) / 2) with s the half axial vector.  Accurate for angles below
+    pi (at pi the axis is undefined and phi comes back zero).
+    """
+    ref = np.ascontiguousarray(rotation_ref, dtype=np.float64)
+    cur = np.ascontiguousarray(rotation, dtype=np.float64)
+    single = cur.ndim == 2
+    ref, cur = np.broadcast_arrays(ref.reshape(-1, 3, 3), cur.reshape(-1, 3, 3))
+    n = cur.shape[0]
+    phi, angle = np.empty((n, 3)), np.empty(n)
+    rotation_error_rows(np.ascontiguousarray(ref), np.ascontiguousarray(cur), phi, angle)
+    return (phi[0], angle[0]) if single and ref.shape[0] == 1 else (phi, angle)

@@ -16,7 +16,7 @@ import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
 from stewart_env.envs import DEFAULTS, StewartPlatformEnv
 from stewart_env.params import Limits, load_platform
 from stewart_env.rotations import rpy_to_matrix
-from stewart_env.tasks import rotation_error
+from stewart_env.rotations import rotation_error
 
 ENV_ID = "StewartPlatform-v0"
 MODELS = ("improved", "classical", "improved_centroidal")

@@ -124,3 +124,14 @@ def test_leg_sensors_decide_the_condition_threshold_exactly(dasgupta, rng):
     assert np.all(condition[~above] >= exact[~above] * (1 - 1e-12))
     assert np.all(condition[~above] <= threshold)
     assert np.array_equal(condition > threshold, above)
+
+
+def test_rotation_vectors_round_trip(rng):
+    from stewart_env.rotations import rotation_error, rotvec_to_matrix
+
+    phi = rng.normal(size=(50, 3)) * np.concatenate([np.full(25, 1e-10), np.full(25, 0.8)])[:, None]
+    R = rotvec_to_matrix(phi)
+    np.testing.assert_allclose(R, [rotvec_matrix(p) for p in phi], atol=1e-15)  # Rodrigues, written out
+    back, angle = rotation_error(R, np.eye(3))
+    np.testing.assert_allclose(back, phi, rtol=1e-12, atol=1e-16)  # the small-angle series keeps digits
+    np.testing.assert_allclose(angle, np.linalg.norm(phi, axis=1), rtol=1e-12)

@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
 from stewart_env.params import load_platform
 from stewart_env.randomization import KEYS, Randomization
-from stewart_env.rotations import matrix_to_rpy, rpy_to_matrix
+from stewart_env.rotations import matrix_to_rpy, rotation_error, rpy_to_matrix
 from stewart_env.tasks import (
     DisturbanceTask,
     Reference,
@@ -16,7 +16,6 @@ from stewart_env.tasks import (
     PlatformState,
     TrackingTask,
     make_task,
-    rotation_error,
     tracking_errors,
 )
 from stewart_env.tasks.base import pose_margins

@@ -17,7 +17,6 @@ from stewart_env.tasks.base import (
     Scales,
     Task,
     check_option_names,
-    rotation_error,
     tracking_errors,
 )
 from stewart_env.tasks.disturbance import DisturbanceTask
@@ -38,7 +37,6 @@ __all__ = [
     "Task",
     "TrackingTask",
     "make_task",
-    "rotation_error",
     "tracking_errors",
 ]
 

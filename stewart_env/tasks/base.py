@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from stewart_env.params import PlatformParams
-from stewart_env.rotations import rpy_to_matrix, rpy_rate_matrix
+from stewart_env.rotations import rotation_error_rows, rpy_rate_matrix, rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
 
 __all__ = [
@@ -32,7 +32,6 @@ __all__ = [
     "Task",
     "check_option_names",
     "pose_margins",
-    "rotation_error",
     "sinusoid_reference",
     "tracking_errors",
 ]
@@ -113,52 +112,9 @@ class RewardWeights:
 
 
 @njit(cache=True)
-def _rotation_error_rows(r, c, phi, angle):
-    """Rotation vector phi (N,3) of r c^T and its angle (N,), row by row; see rotation_error."""
-    for b in range(c.shape[0]):
-        trace = 0.0
-        for i in range(3):
-            for k in range(3):
-                trace += r[b, i, k] * c[b, i, k]
-        # Half the axial vector of M - M^T, M = sum_k r_k c_k^T: 0.5 sum_k c_k x r_k.
-        s0 = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        for k in range(3):
-            s0 += c[b, 1, k] * r[b, 2, k] - c[b, 2, k] * r[b, 1, k]
-            s1 += c[b, 2, k] * r[b, 0, k] - c[b, 0, k] * r[b, 2, k]
-            s2 += c[b, 0, k] * r[b, 1, k] - c[b, 1, k] * r[b, 0, k]
-        s0 *= 0.5
-        s1 *= 0.5
-        s2 *= 0.5
-        sin = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
-        a = np.arctan2(sin, 0.5 * (trace - 1.0))
-        ratio = a / sin if sin > 1e-12 else 1.0  # angle / sin -> 1 as the rotation vanishes
-        phi[b, 0] = s0 * ratio
-        phi[b, 1] = s1 * ratio
-        phi[b, 2] = s2 * ratio
-        angle[b] = a
-
-
-def rotation_error(rotation_ref: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation vector phi (N,3) of R_ref R^T and its angle |phi| (N,), rad, in {B}.
-
-    With M = R_ref R^T = sum_k r_k c_k^T (r_k, c_k the k-th columns of R_ref and R), trace(M) =
-    sum(R_ref * R) and the axial vector of M - M^T is sum_k c_k x r_k = 2 sin(angle) axis; so
-    angle = atan2(|s|, (trace - 1) / 2) with s the half axial vector.  Accurate for angles below
-    pi (at pi the axis is undefined and phi comes back zero).
-    """
-    n = rotation.shape[0]
-    phi, angle = np.empty((n, 3)), np.empty(n)
-    _rotation_error_rows(np.ascontiguousarray(rotation_ref, dtype=np.float64),
-                         np.ascontiguousarray(rotation, dtype=np.float64), phi, angle)
-    return phi, angle
-
-
-@njit(cache=True)
 def _error_rows(t, R, v, w, rt, rR, rv, rw, ep, eo, ev, ew, norms):
     """Reference minus actual for every row; norms (N,4): |ep|, angle, |ev|, |ew|."""
-    _rotation_error_rows(rR, R, eo, norms[:, 1])
+    rotation_error_rows(rR, R, eo, norms[:, 1])
     for b in range(t.shape[0]):
         sp = 0.0
         sv = 0.0

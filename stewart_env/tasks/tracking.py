@@ -7,6 +7,7 @@ import itertools
 import numpy as np
 
 from stewart_env.params import PlatformParams
+from stewart_env.rotations import rotation_error
 from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks.base import (
     Errors,
@@ -16,7 +17,6 @@ from stewart_env.tasks.base import (
     as_range,
     as_vector,
     pose_margins,
-    rotation_error,
     sinusoid_reference,
 )
 
