@@ -126,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         r = bench_env()
         print()
         print(f"single env (gymnasium.make): {r['single_steps_per_s']:,.0f} steps/s")
-        print(f"vector env N={r['num_envs']}: {r['vector_platform_steps_per_s']:,.0f} platform-steps/s")
+        print(f"vector env N={r['n_vector']}: {r['vector_platform_steps_per_s']:,.0f} platform-steps/s")
     return 0
 
 

@@ -98,7 +98,7 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
             raise ValueError(f"{name}: expected shape {tail} or (N, *{tail}), got {a.shape}")
         else:
             sizes[name] = a.shape[0]
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"{name}: contains NaN or inf")
         out[name] = a
     distinct = set(sizes.values())
@@ -109,7 +109,9 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
     n = distinct.pop() if distinct else 1
     batched = bool(sizes) or n_params > 1
     for name, a in out.items():
-        out[name] = np.ascontiguousarray(np.broadcast_to(a, (n,) + a.shape[1:]))
+        if a.shape[0] != n:
+            a = np.broadcast_to(a, (n,) + a.shape[1:])
+        out[name] = np.ascontiguousarray(a)
     return n, batched, out
 
 
