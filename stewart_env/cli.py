@@ -1,0 +1,206 @@
+"""The ``stewart-env`` command: demo, evaluate, reproduce, train, mismatch, bench.
+
+    stewart-env demo                       PD baseline on the classical and improved models
+    stewart-env evaluate --policy pd ct --model classical improved --task tracking --out results/
+    stewart-env evaluate --agent runs/ppo --model classical improved
+    stewart-env reproduce --out figures/   the case study of He et al. (2018), Fig. 6-10
+    stewart-env train ... / mismatch ...   stewart_env.agents.training and .mismatch
+    stewart-env bench ...                  the benchmark (stewart_env.bench)
+
+Each subcommand has ``--help``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Sequence
+
+CONTROLLERS = ("pd", "ct")
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text}")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text}")
+    return value
+
+
+def _model_name(text: str) -> str:
+    from stewart_env.dynamics.model import parse_model_name
+
+    try:
+        return parse_model_name(text)[0]
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    # the training modules import stable-baselines3 only inside the functions that need it
+    from stewart_env.agents import mismatch, training
+
+    parser = argparse.ArgumentParser(
+        prog="stewart-env",
+        description="The 6-UPS Stewart platform on closed-form Newton-Euler dynamics: baselines, "
+                    "evaluation and the reproduction of He et al. (2018).",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    demo = sub.add_parser(
+        "demo", help="evaluate the PD baseline on the classical and improved models and print the table",
+        description="Evaluate the task-space PD baseline (gains tuned for the 10 ms control step, gravity "
+                    "compensation on) on the set-point task of the default platform, once on the classical "
+                    "and once on the improved dynamics model, with the same seeded episodes, and print the "
+                    "comparison table.  No training; under a minute.",
+    )
+    demo.add_argument("--episodes", type=_positive_int, default=3, help="episodes per model (default 3)")
+    demo.add_argument("--seed", type=int, default=0, help="episode i uses seed + i (default 0)")
+    demo.add_argument("--platform", default="dasgupta1998", help="platform config name or YAML path "
+                      "(default dasgupta1998)")
+    demo.add_argument("--out", help="also write the report (table, CSV, plots) into this directory")
+
+    ev = sub.add_parser(
+        "evaluate", help="evaluate baseline controllers on a task and dynamics model(s)",
+        description="Run seeded episodes of the baseline controllers and report RMS errors, settling time, "
+                    "overshoot, steady-state error, peak leg force, control energy and success rate "
+                    "(definitions: stewart_env.agents.evaluation).  Every controller runs on every model, "
+                    "with the same seeds.",
+    )
+    ev.add_argument("--policy", nargs="+", choices=CONTROLLERS,
+                    help="pd: task-space PD (paper eq. 56, gains tuned for the control step); ct: computed "
+                         "torque with its own internal model (default pd, unless --agent is given)")
+    ev.add_argument("--agent", nargs="+", metavar="DIR",
+                    help="run directories of agents trained by `stewart-env train` (model.zip with its "
+                         "VecNormalize statistics); each is evaluated with its training environment "
+                         "settings, the plant model replaced by --model")
+    ev.add_argument("--internal-model", type=_model_name, default="improved",
+                    help="the computed-torque controller's dynamics model, independent of the plant's "
+                         "(default improved)")
+    ev.add_argument("--model", nargs="+", type=_model_name, default=["improved"],
+                    help="the plant's dynamics model(s): classical, improved, improved_centroidal, "
+                         "optionally with switches +c1..+c4 (default improved)")
+    ev.add_argument("--task", choices=("setpoint", "tracking", "disturbance"),
+                    help="default setpoint (for an --agent: the task it was trained on)")
+    ev.add_argument("--platform", help="platform config name or YAML path (default dasgupta1998; for an "
+                    "--agent: the platform it was trained on)")
+    ev.add_argument("--episodes", type=_positive_int, default=5, help="episodes per configuration (default 5)")
+    ev.add_argument("--seed", type=int, default=0, help="episode i uses seed + i (default 0)")
+    ev.add_argument("--max-steps", type=_positive_int, help="episode length in control steps "
+                    "(default the registered 500)")
+    ev.add_argument("--out", help="write the report (results.md, episodes.csv, PNG plots) into this directory")
+
+    rep = sub.add_parser(
+        "reproduce", help="reproduce the case study of He et al. (2018): figures 6-10 and a summary",
+        description="Drive the platform from (0.1, 0, 0.395) m to (0.1, 0, 0.4) m, rpy (0, 0, -0.2), with the "
+                    "paper's task-space PD gains as a continuous controller (RK4, the law evaluated at every "
+                    "stage), on the classical, improved and improved_centroidal models; write the figures "
+                    "(PNG) and summary.md with the peak differences.",
+    )
+    rep.add_argument("--out", required=True, help="output directory")
+    rep.add_argument("--duration", type=_positive_float, default=1.0, help="simulated time, s (default 1.0)")
+    rep.add_argument("--dt", type=_positive_float, default=2e-4, help="RK4 step, s (default 2e-4)")
+    rep.add_argument("--platform", default="dasgupta1998", help="platform config (default dasgupta1998)")
+    rep.add_argument("--gravity-compensation", action="store_true",
+                     help="add the static holding forces to the PD law (the paper's law as we have it has none)")
+
+    training.add_cli(sub)
+    mismatch.add_cli(sub)
+    sub.add_parser("bench", add_help=False, help="the benchmark (stewart_env.bench); see stewart-env bench --help")
+    return parser
+
+
+def _controllers(names: Sequence[str], internal_model: str) -> dict:
+    from stewart_env.agents.computed_torque import ComputedTorquePolicy
+    from stewart_env.agents.pd import PDPolicy
+
+    out = {}
+    for name in names:
+        if name == "pd":
+            out["PD"] = PDPolicy
+        else:
+            out[f"CT ({internal_model})"] = lambda env, m=internal_model: ComputedTorquePolicy(env, m)
+    return out
+
+
+def _run_demo(args: argparse.Namespace) -> str:
+    from stewart_env.agents.evaluation import compare, markdown_table, write_report
+
+    configs = [{"model": m, "task": "setpoint", "platform": args.platform} for m in ("classical", "improved")]
+    results = compare(_controllers(["pd"], "improved"), configs, episodes=args.episodes, seed=args.seed)
+    if args.out is not None:
+        write_report(results, args.out, title="Demo: PD baseline, classical vs improved dynamics")
+    return markdown_table(results)
+
+
+def _evaluate_command(args: argparse.Namespace) -> str:
+    """The evaluate subcommand: baselines and trained agents on every --model, the same seeds."""
+    from stewart_env.agents.evaluation import evaluate, markdown_table, write_report
+
+    runs = []  # (label, policy or factory, environment kwargs without the model)
+    baseline_kwargs = {"task": args.task or "setpoint", "platform": args.platform or "dasgupta1998"}
+    names = args.policy or ([] if args.agent else ["pd"])
+    runs += [(label, policy, baseline_kwargs) for label, policy in _controllers(names, args.internal_model).items()]
+    if args.agent:
+        from stewart_env.agents.training import load_agent
+
+        for directory in args.agent:
+            agent = load_agent(directory)
+            kwargs = dict(agent.env_kwargs)
+            kwargs.update({k: v for k, v in (("task", args.task), ("platform", args.platform)) if v is not None})
+            runs.append((agent.name, agent, kwargs))
+    results = [evaluate(policy, {**kwargs, "model": model}, args.episodes, args.seed, label=label,
+                        max_steps=args.max_steps)
+               for model in args.model for label, policy, kwargs in runs]
+    if args.out is not None:
+        write_report(results, args.out)
+    return markdown_table(results)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["bench"]:
+        # bench parses its own arguments
+        from stewart_env import bench
+
+        return bench.main(argv[1:]) or 0
+    args = build_parser().parse_args(argv)
+    start = time.perf_counter()
+    if args.command == "demo":
+        table = _run_demo(args)
+        print(f"PD baseline on the set-point task of {args.platform}, {args.episodes} seeded episodes per model "
+              f"(seed {args.seed}):\n")
+        print(table)
+    elif args.command == "evaluate":
+        try:
+            print(_evaluate_command(args))
+        except ValueError as err:  # a bad agent directory or environment setting, named in the message
+            print(f"stewart-env evaluate: error: {err}", file=sys.stderr)
+            return 2
+    elif args.command in ("train", "mismatch"):
+        return args.func(args)
+    elif args.command == "reproduce":
+        from stewart_env.agents.reproduce import reproduce
+
+        result = reproduce(args.out, duration=args.duration, dt=args.dt, platform=args.platform,
+                           gravity_compensation=args.gravity_compensation)
+        force = result["differences"]["leg_force"]
+        print(f"wrote the figures and summary.md to {args.out}")
+        print(f"leg force: peak-value difference classical vs improved {100 * force['peak_difference']:.2f} %, "
+              f"pointwise {100 * force['pointwise_difference']:.2f} %; improved vs improved_centroidal "
+              f"{result['centroidal_difference']:.1e}")
+    if args.out is not None and args.command != "reproduce":
+        print(f"\nreport written to {args.out}")
+    print(f"({time.perf_counter() - start:.1f} s)", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
