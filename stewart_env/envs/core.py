@@ -474,6 +474,7 @@ class BatchAttributes:
 
     _core: PlatformBatch
     _rows: int | slice
+    _renderer = None  # made on first render
 
     def _rows_of(self, array: np.ndarray) -> np.ndarray:
         return array[self._rows].copy()
@@ -532,3 +533,23 @@ class BatchAttributes:
     def dt(self) -> float:
         """The control period, s."""
         return self._core.control_dt
+
+    def _draw(self, label: str = ""):
+        """Row 0 drawn by a PlatformRenderer made on first use (the target pose as a ghost): an
+        RGB frame, or None in human mode."""
+        core = self._core
+        if self._renderer is None:
+            from stewart_env.render import PlatformRenderer  # matplotlib only when rendering
+
+            p = core.platform
+            self._renderer = PlatformRenderer(p.base_joints, p.platform_joints, p.home_position,
+                                              p.limits.leg_force, core.width, core.height, self.render_mode)
+        ref = core.reference
+        return self._renderer.render(core.position[0], core.rotation[0], core.leg_forces[0],
+                                     target_position=ref.position[0], target_rotation=ref.rotation[0],
+                                     text=f"{label}t = {core.time[0]:.2f} s")
+
+    def _close_renderer(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None

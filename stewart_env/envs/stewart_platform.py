@@ -227,7 +227,6 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
         self.metadata = {**type(self).metadata, "render_fps": core.render_fps}
         self.action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
         self.observation_space = spaces.Box(-np.inf, np.inf, (core.obs_dim,), np.float32)
-        self._renderer = None
         self._rngs: tuple[np.random.Generator, ...] = ()
 
     # -- the Gymnasium API --------------------------------------------------------------------------
@@ -258,22 +257,10 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human' "
                             "to gymnasium.make")
             return None
-        core = self._core
-        if self._renderer is None:
-            from stewart_env.render import PlatformRenderer  # matplotlib only when rendering
-
-            p = core.platform
-            self._renderer = PlatformRenderer(p.base_joints, p.platform_joints, p.home_position,
-                                              p.limits.leg_force, core.width, core.height, self.render_mode)
-        ref = core.reference
-        return self._renderer.render(core.position[0], core.rotation[0], core.leg_forces[0],
-                                     target_position=ref.position[0], target_rotation=ref.rotation[0],
-                                     text=f"t = {core.time[0]:.2f} s")
+        return self._draw()
 
     def close(self):
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
+        self._close_renderer()
 
     # -- introspection: see BatchAttributes ------------------------------------------------------
 

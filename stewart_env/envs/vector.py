@@ -83,7 +83,6 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
         self._rngs: list[np.random.Generator | None] = [None] * self.num_envs
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
-        self._renderer = None
 
     # -- the Gymnasium vector API --------------------------------------------------------------------
 
@@ -205,20 +204,8 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
         if self.render_mode is None:
             logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
             return None
-        core = self._core
-        if self._renderer is None:
-            from stewart_env.render import PlatformRenderer  # matplotlib only when rendering
-
-            p = core.platform
-            self._renderer = PlatformRenderer(p.base_joints, p.platform_joints, p.home_position,
-                                              p.limits.leg_force, core.width, core.height, self.render_mode)
-        ref = core.reference
-        frame = self._renderer.render(core.position[0], core.rotation[0], core.leg_forces[0],
-                                      target_position=ref.position[0], target_rotation=ref.rotation[0],
-                                      text=f"row 0, t = {core.time[0]:.2f} s")
+        frame = self._draw("row 0, ")
         return None if frame is None else (frame,)
 
     def close_extras(self, **kwargs: Any) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
+        self._close_renderer()
