@@ -49,8 +49,9 @@ from stewart_env.agents.training import (
     train,
 )
 
-#: Environment steps per RL agent of the quick default study (a smoke-scale budget: minutes for
-#: the whole study on 2 cores; pass --timesteps for agents worth comparing).
+#: Environment steps per RL agent of the quick default study: a smoke-scale budget (the whole
+#: study in about a minute; such agents still lose the platform), --timesteps 1500000 or more for
+#: agents that hold a set point.
 QUICK_TIMESTEPS = 20_000
 #: The classical model's simplifications, each a switch on the improved model.
 SIMPLIFICATIONS = ("c1", "c2", "c3", "c4")
@@ -61,8 +62,8 @@ SIMPLIFICATION_NAMES = {
     "c4": "C4 platform inertia counted twice",
 }
 #: Domain randomisation of the DR row: per-episode factors on the nominal parameters.  The legs'
-#: inertial parameters get the widest ranges because the classical model's errors are in the
-#: legs' dynamics (spin, U-joint moment, leg inertia).
+#: inertial parameters get the widest ranges because three of the classical model's four
+#: simplifications (C1-C3) concern the legs' dynamics.
 DEFAULT_RANDOMIZATION: dict[str, tuple[float, float]] = {
     "platform.mass": (0.8, 1.2),
     "platform.inertia": (0.8, 1.2),
