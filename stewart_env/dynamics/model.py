@@ -202,7 +202,7 @@ class Dynamics:
             **extra,
         )
         R = a["rotation"]
-        err = np.abs(np.einsum("nji,njk->nik", R, R) - np.eye(3)).max(axis=(1, 2))
+        err = np.abs(np.matmul(R.transpose(0, 2, 1), R) - np.eye(3)).max(axis=(1, 2))
         if np.any(err > 1e-6):
             raise ValueError(f"rotation: not a rotation matrix (|R^T R - I| = {err.max():.2e})")
         return n, batched, a
