@@ -34,10 +34,10 @@ def test_leg_rates_and_jacobian_match_finite_differences(platform, rng):
         Lp, Lm = (leg_frames(platform, *path(state, acc, s)[:2])[0] for s in (H, -H))
         L0 = leg_frames(platform, *state[:2])[0]
         # central differences: truncation O(H^2) ~ 1e-10, rounding 1e-16 / H^2 ~ 1e-6 for the second
-        np.testing.assert_allclose(k.lengths, L0, rtol=1e-14)
+        np.testing.assert_allclose(k.lengths, L0, rtol=1e-14)  # one norm, two orders of summation
         np.testing.assert_allclose(k.rates, (Lp - Lm) / (2 * H), atol=1e-9)
         np.testing.assert_allclose(k.accelerations, (Lp - 2 * L0 + Lm) / H ** 2, atol=2e-5)
-        np.testing.assert_allclose(k.jacobian @ np.concatenate(state[2:]), k.rates, atol=1e-13)
+        np.testing.assert_allclose(k.jacobian @ np.concatenate(state[2:]), k.rates, atol=1e-13)  # rounding of m/s terms
 
 
 def test_leg_angular_velocity_includes_the_spin_the_u_joint_imposes(platform, rng):
@@ -47,7 +47,7 @@ def test_leg_angular_velocity_includes_the_spin_the_u_joint_imposes(platform, rn
         k = se.leg_kinematics(platform, *state, *acc)
         Tp, Tm = (leg_frames(platform, *path(state, acc, s)[:2])[1] for s in (H, -H))
         T0 = leg_frames(platform, *state[:2])[1]
-        np.testing.assert_allclose(k.frames, T0, atol=1e-15)
+        np.testing.assert_allclose(k.frames, T0, atol=1e-15)  # unit vectors: a few ulps
         for i in range(6):
             # the whole leg frame turns with omega_l: dT/dt = [omega_l]x T (spin about e included)
             Wx = (Tp[i] - Tm[i]) / (2 * H) @ T0[i].T
@@ -57,7 +57,7 @@ def test_leg_angular_velocity_includes_the_spin_the_u_joint_imposes(platform, rn
             h = np.cross(platform.hooke_axes[i], T0[i][:, 1])
             assert abs(k.omega[i] @ h) < 1e-13  # the joint cannot turn about h
         # spin is present: the leg's angular velocity has a component along its own axis
-        assert np.abs(np.einsum("ij,ij->i", k.omega, k.units)).max() > 1e-3
+        assert np.abs(np.einsum("ij,ij->i", k.omega, k.units)).max() > 1e-3  # rad/s, far above rounding
 
 
 def test_leg_angular_acceleration_matches_finite_differences(platform, rng):
@@ -72,8 +72,8 @@ def test_leg_angular_acceleration_matches_finite_differences(platform, rng):
 def test_classical_leg_kinematics_has_no_spin(dasgupta, rng):
     state = random_state(dasgupta, rng)
     k = se.leg_kinematics(dasgupta, *state, model="classical")
-    np.testing.assert_allclose(np.einsum("ij,ij->i", k.omega, k.units), 0, atol=1e-15)
-    # C1: omega_l = e x v_P / L, perpendicular to the leg
+    np.testing.assert_allclose(np.einsum("ij,ij->i", k.omega, k.units), 0, atol=1e-15)  # rounding of a zero
+    # C1: omega_l = e x v_P / L, perpendicular to the leg (rounding of rad/s terms)
     np.testing.assert_allclose(k.omega, np.cross(k.units, _vp(dasgupta, state)) / k.lengths[:, None], atol=1e-14)
 
 
@@ -101,9 +101,9 @@ def test_forward_kinematics_reports_failure(dasgupta):
 
 def test_rpy_round_trip(rng):
     rpy = rng.uniform(-1.2, 1.2, size=(50, 3))
-    np.testing.assert_allclose(se.matrix_to_rpy(se.rpy_to_matrix(rpy)), rpy, atol=1e-13)
+    np.testing.assert_allclose(se.matrix_to_rpy(se.rpy_to_matrix(rpy)), rpy, atol=1e-13)  # arcsin near 1.2 rad
     Rz = se.rpy_to_matrix([0, 0, np.pi / 2])
-    np.testing.assert_allclose(Rz @ [1, 0, 0], [0, 1, 0], atol=1e-16)
+    np.testing.assert_allclose(Rz @ [1, 0, 0], [0, 1, 0], atol=1e-16)  # cos(pi/2) = 6e-17
 
 
 def test_leg_sensors_decide_the_condition_threshold_exactly(dasgupta, rng):
@@ -117,7 +117,7 @@ def test_leg_sensors_decide_the_condition_threshold_exactly(dasgupta, rng):
     lengths, rates, condition = np.empty((20, 6)), np.empty((20, 6)), np.empty(20)
     leg_sensors_inplace(dasgupta, t, R, v, w, threshold, lengths, rates, condition)
     np.testing.assert_array_equal(lengths, k.lengths)  # the same kernel code
-    np.testing.assert_allclose(rates, k.rates, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(rates, k.rates, rtol=0, atol=1e-15)  # same formula, other call path
     above = exact > threshold
     np.testing.assert_allclose(condition[above], exact[above], rtol=1e-12)  # SVD both ways
     # below the threshold the bound ||J||_F ||J^-1||_F: above cond_2, at most the threshold
