@@ -202,6 +202,16 @@ def check_option_names(task_cls: type, options: dict[str, Any]) -> None:
         )
 
 
+def motion_ranges(params: PlatformParams, position, angle, names: tuple[str, str]) -> tuple[np.ndarray, np.ndarray]:
+    """A task's per-axis motion bounds: ``position`` (3,) m and ``angle`` (3,) rad as given, or by
+    default 40 % of the workspace box's half-size and of ``limits.max_angle``, which leaves room
+    for the platform to overshoot inside the limits.  ``names`` are the option names for errors."""
+    lim = params.limits
+    half = 0.5 * (lim.position_max - lim.position_min)
+    return (0.4 * half if position is None else as_vector(position, names[0], positive=True),
+            np.full(3, 0.4 * lim.max_angle) if angle is None else as_vector(angle, names[1], positive=True))
+
+
 def as_vector(value: Any, name: str, size: int = 3, positive: bool = False) -> np.ndarray:
     """A finite float vector of ``size`` from a number (broadcast) or a sequence; errors name it."""
     try:

@@ -7,7 +7,7 @@ import numpy as np
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
-from stewart_env.tasks.base import Task, as_vector, pose_margins
+from stewart_env.tasks.base import Task, as_vector, motion_ranges, pose_margins
 
 # The case study of He et al. (2018), as offsets from the home pose (0, 0, 0.4) of the dasgupta1998
 # platform, where they give its absolute poses: start (0.1, 0, 0.395), target (0.1, 0, 0.4),
@@ -49,12 +49,8 @@ class SetpointTask(Task):
         if not isinstance(randomize, (bool, np.bool_)):
             raise ValueError(f"task_options['randomize']: expected True or False, got {randomize!r}")
         self.randomize = bool(randomize)
-        lim = params.limits
-        half = 0.5 * (lim.position_max - lim.position_min)
-        self.position_range = (0.4 * half if position_range is None
-                               else as_vector(position_range, "position_range", positive=True))
-        self.angle_range = (np.full(3, 0.4 * lim.max_angle) if angle_range is None
-                            else as_vector(angle_range, "angle_range", positive=True))
+        self.position_range, self.angle_range = motion_ranges(params, position_range, angle_range,
+                                                              ("position_range", "angle_range"))
         home_p, home_r = params.home_position, params.home_rpy
         poses = {
             "start_position": (start_position, home_p + PAPER_START_OFFSET),

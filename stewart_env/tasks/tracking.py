@@ -15,7 +15,7 @@ from stewart_env.tasks.base import (
     Task,
     as_number,
     as_range,
-    as_vector,
+    motion_ranges,
     pose_margins,
     sinusoid_reference,
 )
@@ -60,12 +60,8 @@ class TrackingTask(Task):
                  angle_amplitude=None, frequency_range=(0.1, 0.5), preview: int = 3,
                  preview_interval: float = 0.1):
         super().__init__(params, control_dt)
-        lim = params.limits
-        half = 0.5 * (lim.position_max - lim.position_min)
-        self.position_amplitude = (0.4 * half if position_amplitude is None
-                                   else as_vector(position_amplitude, "position_amplitude", positive=True))
-        self.angle_amplitude = (np.full(3, 0.4 * lim.max_angle) if angle_amplitude is None
-                                else as_vector(angle_amplitude, "angle_amplitude", positive=True))
+        self.position_amplitude, self.angle_amplitude = motion_ranges(
+            params, position_amplitude, angle_amplitude, ("position_amplitude", "angle_amplitude"))
         self.frequency_range = as_range(frequency_range, "frequency_range")
         if isinstance(preview, bool) or not isinstance(preview, (int, np.integer)) or preview < 0:
             raise ValueError(f"task_options['preview']: expected an integer >= 0, got {preview!r}")
