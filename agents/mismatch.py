@@ -7,8 +7,8 @@ The study is a matrix.  Rows are controllers, each tied to the dynamics model it
 * ``<ALGO> [m]``: an RL agent trained on a plant simulated with model ``m``;
 * ``<ALGO> [improved + DR]`` (optional): an agent trained on the improved model with domain
   randomisation of the inertial and friction parameters (:data:`DEFAULT_RANDOMIZATION`);
-* ``PD``: the task-space PD law with gravity compensation, a model-light reference row (its
-  holding forces come from the improved model's statics).
+* ``PD + gravity comp.``: the task-space PD law with gravity compensation, a model-light
+  reference row (its holding forces come from the improved model's statics).
 
 Columns are test plants: the environment simulated with each test model (nominal parameters).
 Every cell is :func:`stewart_env.agents.evaluation.evaluate` of the row's controller on the
@@ -156,7 +156,8 @@ def build_rows(out: Path, train_models: Sequence[str], task: str, algo: str | No
     from stewart_env.agents.pd import PDPolicy
 
     models = list(train_models) + [f"improved+{c}" for c in simplifications if f"improved+{c}" not in train_models]
-    rows = [Row("PD", "PD", "", PDPolicy, "task-space PD, gravity compensation from the improved statics")]
+    rows = [Row("PD + gravity comp.", "PD", "", lambda env: PDPolicy(env, gravity_compensation=True),
+                "task-space PD, gravity compensation from the improved statics")]
     rows += [Row(f"CT [{m}]", "CT", m, lambda env, m=m: ComputedTorquePolicy(env, m)) for m in models]
     if algo is None:
         return rows

@@ -24,10 +24,13 @@ zero-order hold cannot follow (the sampled loop is unstable, see :func:`zoh_spec
 Kd_j = 2 zeta M_jj wn, with M the task-space inertia at the home pose and wn = bandwidth /
 control_dt.  The default bandwidth 0.2 (wn = 20 rad/s at 10 ms) and zeta = 1 give a sampled loop
 with spectral radius 0.88 on the dasgupta1998 platform, still stable if the inertia is halved
-or doubled, and settle the set-point task to 2 mm in about 0.3 s.  With them the weight carried
-by the legs (480 N) would make the platform sag by 480 N / Kp_z = 27 mm, so the environment
-policy adds the holding forces (gravity compensation) by default: the sag goes, and what is left
-on a plant whose statics differ from the compensation's (the classical model) is about 0.02 mm.
+or doubled, and settle the set-point task to 2 mm in about 0.3 s.  As the law is specified, the
+environment policy has no gravity compensation by default, and the weight carried by the legs
+(480 N) makes the platform sag by 480 N / Kp_z = 27 mm at these gains (4.3 mm at bandwidth 0.5,
+where the sampled loop contracts fastest, spectral radius 0.74).  ``gravity_compensation=True``
+adds the holding forces: the sag goes, and what is left on a plant whose statics differ from the
+compensation's (the classical model) is about 0.02 mm.
+
 The policies take the environment's observation as the current state: they do not model an
 actuator lag (``actuator_tau``) or an observation delay.
 """
@@ -252,12 +255,13 @@ class EnvPolicy:
 class PDPolicy(EnvPolicy):
     """The task-space PD law as a policy on ``StewartPlatform-v0`` (see :class:`EnvPolicy`).
 
-    Default gains: :func:`zoh_pd_gains` for the environment's control step, with gravity
-    compensation (holding forces of the ``improved`` model) on; the controller knows the
-    platform's geometry and, for the compensation, its statics, nothing of the plant's model.
+    Default gains: :func:`zoh_pd_gains` for the environment's control step.  Gravity compensation
+    (the holding forces of the ``improved`` model) is off by default, as in the law itself; the
+    controller knows the platform's geometry and, with the compensation, its statics, nothing of
+    the plant's model.
     """
 
-    def __init__(self, env, kp=None, kd=None, gravity_compensation: bool = True, bandwidth: float = 0.2,
+    def __init__(self, env, kp=None, kd=None, gravity_compensation: bool = False, bandwidth: float = 0.2,
                  damping: float = 1.0):
         base = env.unwrapped
         if kp is None or kd is None:

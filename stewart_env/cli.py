@@ -16,8 +16,9 @@ import argparse
 import sys
 import time
 from collections.abc import Sequence
+from pathlib import Path
 
-CONTROLLERS = ("pd", "ct")
+CONTROLLERS = ("pd", "pd-gc", "ct")
 
 
 def _positive_int(text: str) -> int:
@@ -56,10 +57,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     demo = sub.add_parser(
         "demo", help="evaluate the PD baseline on the classical and improved models and print the table",
-        description="Evaluate the task-space PD baseline (gains tuned for the 10 ms control step, gravity "
-                    "compensation on) on the set-point task of the default platform, once on the classical "
-                    "and once on the improved dynamics model, with the same seeded episodes, and print the "
-                    "comparison table.  No training; under a minute.",
+        description="Evaluate the task-space PD baseline (gains tuned for the 10 ms control step), without and "
+                    "with gravity compensation, on the set-point task of the default platform, once on the "
+                    "classical and once on the improved dynamics model, with the same seeded episodes, and print "
+                    "the comparison table.  No training; under a minute.",
     )
     demo.add_argument("--episodes", type=_positive_int, default=3, help="episodes per model (default 3)")
     demo.add_argument("--seed", type=int, default=0, help="episode i uses seed + i (default 0)")
@@ -75,7 +76,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "with the same seeds.",
     )
     ev.add_argument("--policy", nargs="+", choices=CONTROLLERS,
-                    help="pd: task-space PD (paper eq. 56, gains tuned for the control step); ct: computed "
+                    help="pd: task-space PD (paper eq. 56, gains tuned for the control step); pd-gc: the same "
+                         "with gravity compensation (the improved model's holding forces); ct: computed "
                          "torque with its own internal model (default pd, unless --agent is given)")
     ev.add_argument("--agent", nargs="+", metavar="DIR",
                     help="run directories of agents trained by `stewart-env train` (model.zip with its "
@@ -125,6 +127,8 @@ def _controllers(names: Sequence[str], internal_model: str) -> dict:
     for name in names:
         if name == "pd":
             out["PD"] = PDPolicy
+        elif name == "pd-gc":
+            out["PD + gravity comp."] = lambda env: PDPolicy(env, gravity_compensation=True)
         else:
             out[f"CT ({internal_model})"] = lambda env, m=internal_model: ComputedTorquePolicy(env, m)
     return out
@@ -134,7 +138,7 @@ def _run_demo(args: argparse.Namespace) -> str:
     from stewart_env.agents.evaluation import compare, markdown_table, write_report
 
     configs = [{"model": m, "task": "setpoint", "platform": args.platform} for m in ("classical", "improved")]
-    results = compare(_controllers(["pd"], "improved"), configs, episodes=args.episodes, seed=args.seed)
+    results = compare(_controllers(["pd", "pd-gc"], "improved"), configs, episodes=args.episodes, seed=args.seed)
     if args.out is not None:
         write_report(results, args.out, title="Demo: PD baseline, classical vs improved dynamics")
     return markdown_table(results)
@@ -151,11 +155,14 @@ def _evaluate_command(args: argparse.Namespace) -> str:
     if args.agent:
         from stewart_env.agents.training import load_agent
 
-        for directory in args.agent:
-            agent = load_agent(directory)
+        agents = [load_agent(directory) for directory in args.agent]
+        names = [agent.name for agent in agents]
+        for directory, agent in zip(args.agent, agents):
             kwargs = dict(agent.env_kwargs)
             kwargs.update({k: v for k, v in (("task", args.task), ("platform", args.platform)) if v is not None})
-            runs.append((agent.name, agent, kwargs))
+            # agents of one algorithm and model are told apart by their run directory
+            label = agent.name if names.count(agent.name) == 1 else f"{agent.name} {Path(directory).name}"
+            runs.append((label, agent, kwargs))
     results = [evaluate(policy, {**kwargs, "model": model}, args.episodes, args.seed, label=label,
                         max_steps=args.max_steps)
                for model in args.model for label, policy, kwargs in runs]

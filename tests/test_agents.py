@@ -151,10 +151,10 @@ def test_preview_acceleration_of_a_sinusoid():
         np.testing.assert_allclose(acc[0], exact, atol=4e-3 * amplitude * omega**2)
 
 
-def test_pd_settles_the_setpoint_task_on_both_models():
+def test_pd_with_gravity_compensation_settles_the_setpoint_task_on_both_models():
     for model in ("classical", "improved"):
-        result = evaluate(PDPolicy, {"model": model, "task": "setpoint"}, episodes=2, seed=0, max_steps=150,
-                          progress=False)
+        result = evaluate(lambda env: PDPolicy(env, gravity_compensation=True), {"model": model, "task": "setpoint"},
+                          episodes=2, seed=0, max_steps=150, progress=False)
         for ep in result.episodes:
             m = ep.metrics
             assert ep.termination is None
@@ -168,12 +168,35 @@ def test_pd_settles_the_setpoint_task_on_both_models():
             assert m["steady_state_orientation_error"] < bound_o
 
 
+def test_pd_without_compensation_sags_until_its_wrench_holds_the_weight():
+    env = gym.make(ENV_ID, task="setpoint", max_episode_steps=300)
+    policy = PDPolicy(env)
+    obs, _ = env.reset(seed=3)
+    for _ in range(300):
+        obs, *_ = env.step(policy.predict(obs)[0])
+    base = env.unwrapped
+    state, target = base.state, base.target
+    # poles at 20 rad/s, critically damped: after 3 s the transient is e^-60 of the step, gone; what
+    # moves is the jitter of float32 actions (steps of 1e-4 N on 45 kg): nm/s
+    assert np.linalg.norm(state.velocity) < 1e-7 and np.linalg.norm(state.angular_velocity) < 1e-7
+    zero = np.zeros(3)
+    holding = base.model.inverse(state.position, state.rotation, zero, zero, zero, zero)
+    # at rest the legs carry exactly the statics: float32 rounding of the action, 2000 N * 2^-24
+    np.testing.assert_allclose(base.leg_forces, holding, atol=1e-3)
+    # and the law makes that wrench from the error alone: J^T F_hold = Kp e, so the sag is Kp^-1 J^T F_hold
+    jac = se.jacobian(base.model, state.position, state.rotation)
+    error = np.concatenate([target.position - state.position,
+                            se.matrix_to_rpy(target.rotation) - se.matrix_to_rpy(state.rotation)])
+    np.testing.assert_allclose(policy.controller.kp * error, jac.T @ holding, rtol=1e-6, atol=1e-3)
+    assert 0.02 < target.position[2] - state.position[2] < 0.035  # 480 N of weight / Kp_z: 27 mm
+
+
 def test_computed_torque_with_the_plant_model_beats_pd_on_tracking():
     for model in ("improved", "classical"):
         env_kwargs = {"model": model, "task": "tracking"}
         runs = {
             label: evaluate(policy, env_kwargs, episodes=2, seed=0, max_steps=150, progress=False)
-            for label, policy in (("pd", PDPolicy),
+            for label, policy in (("pd", lambda env: PDPolicy(env, gravity_compensation=True)),
                                   ("matched", lambda env, m=model: ComputedTorquePolicy(env, m)),
                                   ("mismatched", lambda env, m=model: ComputedTorquePolicy(
                                       env, "classical" if m == "improved" else "improved")))

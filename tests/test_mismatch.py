@@ -20,7 +20,7 @@ TEST_MODELS = ["classical", "improved", "improved_centroidal"]
 # episode never settles, as in 40 steps of an untrained agent).
 ALWAYS_DEFINED = ("success", "rms_position_error", "rms_orientation_error", "steady_state_position_error",
                   "steady_state_orientation_error", "peak_leg_force", "control_energy")
-EXPECTED_ROWS = ["PD", "CT [classical]", "CT [improved]", "CT [improved+c2]",
+EXPECTED_ROWS = ["PD + gravity comp.", "CT [classical]", "CT [improved]", "CT [improved+c2]",
                  "PPO [classical]", "PPO [improved]", "PPO [improved+c2]", "PPO [improved + DR]"]
 
 
@@ -79,7 +79,7 @@ def test_second_run_loads_the_agents_instead_of_training(study):
     again = run_mismatch(out, ["classical"], ["improved"], algo="ppo", timesteps=200, n_envs=2, episodes=1,
                          simplifications=[], max_steps=5, progress=False)
     assert model.stat().st_mtime_ns == before
-    assert [r.label for r in again.rows] == ["PD", "CT [classical]", "PPO [classical]"]
+    assert [r.label for r in again.rows] == ["PD + gravity comp.", "CT [classical]", "PPO [classical]"]
 
 
 @pytest.mark.parametrize("change", [{"env_kwargs": {"observation_noise": 0.01}}, {"seed": 1}, {"algo": "sac"}])
