@@ -44,6 +44,7 @@ DEFAULTS: dict[str, Any] = {
     "observation_delay": 0,
     "error_integral": False,
     "error_integral_limit": 0.1,
+    "error_integral_band": None,
     "randomization": None,
     **{name: getattr(RewardWeights, name) for name in RewardWeights.__dataclass_fields__},
     "width": 480,
@@ -231,8 +232,15 @@ class PlatformBatch:
         # Anti-windup bound (6,) [m s; rad s]: error_integral_limit seconds of an error of one
         # observation scale (h, A); the normalised integral is the integral over this bound.
         self.error_integral_bound = self.error_integral_limit * np.concatenate([scales.position, ang])
+        band = cfg["error_integral_band"]
+        # Conditional integration (6,) [m; rad]: an error component adds to the integral only
+        # while within band x its observation scale, so that approaching the target (large
+        # errors) does not wind the integral up and it holds mostly the steady-state bias.
+        self.error_integral_band = (None if band is None else
+                                    _positive("error_integral_band", band) * np.concatenate([scales.position, ang]))
         # The time integral (n,6) [m s; rad s] of (position_error, orientation_error); None when off.
         self.error_integral = np.zeros((n, 6)) if integral else None
+        self._integral_step = np.zeros((n, 6))
         if integral:
             terms.append(("error_integral", self.error_integral_bound, np.zeros(6)))
         normalize = cfg["normalize_observation"]
@@ -436,10 +444,16 @@ class PlatformBatch:
 
     def _integrate(self, errors) -> None:
         """Add this step's errors times control_dt to the error integral (rectangle rule on the
-        errors after the step), clipped elementwise to +-error_integral_bound (anti-windup)."""
+        errors after the step; with a band, only the components within it), clipped elementwise
+        to +-error_integral_bound (anti-windup)."""
+        step = self._integral_step
+        step[:, :3] = errors.position
+        step[:, 3:] = errors.orientation
+        if self.error_integral_band is not None:
+            step[np.abs(step) > self.error_integral_band] = 0.0
+        step *= self.control_dt
         s = self.error_integral
-        s[:, :3] += self.control_dt * errors.position
-        s[:, 3:] += self.control_dt * errors.orientation
+        s += step
         np.clip(s, -self.error_integral_bound, self.error_integral_bound, out=s)
 
     def _park(self, rows: np.ndarray) -> None:
