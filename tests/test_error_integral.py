@@ -52,6 +52,24 @@ def test_integral_is_the_clipped_sum_of_errors_times_dt(normalize, limit):
         assert np.all(np.abs(obs[sl]) <= 1.0)
 
 
+def test_a_band_integrates_only_the_error_components_within_it():
+    band = 0.02
+    env = gym.make(ENV_ID, error_integral=True, error_integral_limit=100.0, error_integral_band=band,
+                   normalize_observation=False)
+    sl = env.unwrapped.observation_layout["error_integral"]
+    width = band * np.concatenate([H, np.full(3, A)])
+    env.reset(seed=3)
+    expected, gated = np.zeros(6), 0
+    for a in hold(30):
+        obs, *_ = env.step(a)
+        e = pose_errors(env)
+        inside = np.abs(e) <= width
+        gated += int((~inside).sum())
+        expected += np.where(inside, e, 0.0) * DT
+        np.testing.assert_allclose(obs[sl], expected, rtol=1e-6, atol=1e-12)
+    assert gated > 0 and np.any(expected != 0.0)
+
+
 def test_decode_observation_round_trips_the_integral():
     env = gym.make(ENV_ID, error_integral=True)
     env.reset(seed=1)
@@ -130,6 +148,7 @@ def test_same_step_autoreset_starts_the_new_episode_at_zero():
     ({"error_integral": True, "error_integral_limit": 0.0}, "error_integral_limit"),
     ({"error_integral": True, "error_integral_limit": float("inf")}, "error_integral_limit"),
     ({"error_integral_limit": -1.0}, "error_integral_limit"),
+    ({"error_integral": True, "error_integral_band": 0.0}, "error_integral_band"),
 ])
 def test_bad_arguments_raise_naming_the_argument(kwargs, name):
     with pytest.raises(ValueError, match=f"^{name}:"):
