@@ -42,6 +42,9 @@ DEFAULTS: dict[str, Any] = {
     "normalize_observation": True,
     "observation_noise": 0.0,
     "observation_delay": 0,
+    "error_integral": False,
+    "error_integral_limit": 0.1,
+    "error_integral_band": None,
     "randomization": None,
     **{name: getattr(RewardWeights, name) for name in RewardWeights.__dataclass_fields__},
     "width": 480,
@@ -127,8 +130,9 @@ class PlatformBatch:
     argument).  Public arrays (row i = platform i, frames and units of the environment card):
     position (n,3), rotation (n,3,3), velocity (n,3), angular_velocity (n,3), leg_forces (n,6),
     external_wrench (n,6), time (n,), leg_lengths (n,6), leg_rates (n,6), condition (n,), the
-    reference (a :class:`~stewart_env.tasks.Reference` of (n, ...) arrays) and observation (n, D),
-    the latest observation of every row (scaled, noisy, delayed as configured).
+    reference (a :class:`~stewart_env.tasks.Reference` of (n, ...) arrays), error_integral (n,6)
+    [m s; rad s] (None unless ``error_integral=True``) and observation (n, D), the latest
+    observation of every row (scaled, noisy, delayed as configured).
     """
 
     def __init__(self, n: int, **kwargs: Any):
@@ -221,6 +225,24 @@ class PlatformBatch:
         if tau > 0:
             terms.append(("leg_forces", np.full(6, scales.leg_force), np.full(6, self._force_mid)))
         terms += [(name, scale, np.zeros(scale.size)) for name, scale in self.task.observation_terms(scales)]
+        integral = cfg["error_integral"]
+        if not isinstance(integral, (bool, np.bool_)):
+            raise ValueError(f"error_integral: expected True or False, got {integral!r}")
+        self.error_integral_limit = _positive("error_integral_limit", cfg["error_integral_limit"])
+        # Anti-windup bound (6,) [m s; rad s]: error_integral_limit seconds of an error of one
+        # observation scale (h, A); the normalised integral is the integral over this bound.
+        self.error_integral_bound = self.error_integral_limit * np.concatenate([scales.position, ang])
+        band = cfg["error_integral_band"]
+        # Conditional integration (6,) [m; rad]: an error component adds to the integral only
+        # while within band x its observation scale, so that approaching the target (large
+        # errors) does not wind the integral up and it holds mostly the steady-state bias.
+        self.error_integral_band = (None if band is None else
+                                    _positive("error_integral_band", band) * np.concatenate([scales.position, ang]))
+        # The time integral (n,6) [m s; rad s] of (position_error, orientation_error); None when off.
+        self.error_integral = np.zeros((n, 6)) if integral else None
+        self._integral_step = np.zeros((n, 6))
+        if integral:
+            terms.append(("error_integral", self.error_integral_bound, np.zeros(6)))
         normalize = cfg["normalize_observation"]
         if not isinstance(normalize, (bool, np.bool_)):
             raise ValueError(f"normalize_observation: expected True or False, got {normalize!r}")
@@ -307,6 +329,8 @@ class PlatformBatch:
                           else self.nominal_model.with_params(self.row_params))
         self.steps[rows] = 0
         self.time[rows] = 0.0
+        if self.error_integral is not None:
+            self.error_integral[rows] = 0.0
         self.external_wrench[rows] = 0.0
         state = PlatformState(*(x[rows] for x in self._state))
         lengths, rates, cond = np.empty((len(rows), 6)), np.empty((len(rows), 6)), np.empty(len(rows))
@@ -326,7 +350,8 @@ class PlatformBatch:
         for dst, src in zip(self.reference, ref):
             dst[rows] = src
         raw = np.empty((len(rows), self.obs_dim))
-        self._measure(state, lengths, rates, self.leg_forces[rows], ref, episode, self.time[rows], raw)
+        integral = None if self.error_integral is None else self.error_integral[rows]
+        self._measure(state, lengths, rates, self.leg_forces[rows], ref, episode, self.time[rows], integral, raw)
         if self.noise_std is not None:
             for j in range(len(rows)):
                 raw[j] += rngs[j].normal(size=self.obs_dim) * self.noise_std
@@ -400,9 +425,11 @@ class PlatformBatch:
         terms["termination"] = -self.weights.termination_cost * (code > 0)
         reward = sum(terms.values())
 
+        if self.error_integral is not None:
+            self._integrate(errors)
         raw = self._raw
         self._measure(self._state, self.leg_lengths, self.leg_rates, self.leg_forces, self.reference,
-                      self.episode, self.time, raw, errors)
+                      self.episode, self.time, self.error_integral, raw, errors)
         if self.noise_std is not None:
             for i in range(self.n):
                 if skip is None or not skip[i]:
@@ -414,6 +441,20 @@ class PlatformBatch:
         else:
             self._history[0] = raw
         return reward, code, terms
+
+    def _integrate(self, errors) -> None:
+        """Add this step's errors times control_dt to the error integral (rectangle rule on the
+        errors after the step; with a band, only the components within it), clipped elementwise
+        to +-error_integral_bound (anti-windup)."""
+        step = self._integral_step
+        step[:, :3] = errors.position
+        step[:, 3:] = errors.orientation
+        if self.error_integral_band is not None:
+            step[np.abs(step) > self.error_integral_band] = 0.0
+        step *= self.control_dt
+        s = self.error_integral
+        s += step
+        np.clip(s, -self.error_integral_bound, self.error_integral_bound, out=s)
 
     def _park(self, rows: np.ndarray) -> None:
         """Put rows at home at rest: a safe state to step before the caller resets them."""
@@ -436,8 +477,9 @@ class PlatformBatch:
         return code
 
     def _measure(self, state: PlatformState, lengths, rates, forces, reference: Reference, episode, time,
-                 raw: np.ndarray, errors=None) -> None:
-        """Write the clean observation of a batch (any number of rows) into ``raw``."""
+                 integral, raw: np.ndarray, errors=None) -> None:
+        """Write the clean observation of a batch (any number of rows) into ``raw``; integral is
+        the batch's error integral (rows, 6), or None when it is not observed."""
         views = self._raw_views if raw is self._raw else self._views(raw)
         if errors is None:
             errors = tracking_errors(state, reference)
@@ -454,6 +496,8 @@ class PlatformBatch:
         if "leg_forces" in views:
             views["leg_forces"][:] = forces
         self.task.observe(state, errors, episode, time, views)
+        if integral is not None:
+            views["error_integral"][:] = integral
         if self.normalize_observation:
             raw -= self.observation_offset
             raw *= self._inv_scale

@@ -99,6 +99,21 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     `observation_delay=k` returns the observation of k control steps ago (at reset, every slot holds
     the first observation).
 
+    With `error_integral=True` the observation ends with one more term (D = 27 for setpoint):
+
+    | index | name | observation | unit | scaling |
+    |---|---|---|---|---|
+    | D-6 to D-4 | error_integral | time integral of position_error over the episode | m s | / (T h) |
+    | D-3 to D-1 | error_integral | time integral of orientation_error over the episode | rad s | / (T A) |
+
+    It is the state of an integral controller: zero at reset, after each control step it adds the
+    step's true (noise-free) errors times `control_dt`, and it is clipped elementwise to
+    +-T h and +-T A (anti-windup), T = `error_integral_limit` (default 0.1 s), so that its
+    normalised entries lie in [-1, 1].  With `error_integral_band=b` the integration is
+    conditional: an error component adds to the integral only while |e| <= b h (position) or b A
+    (orientation), so that the approach to the target does not wind it up.  Observation noise and
+    delay then apply to it as to any other term.
+
     ## Rewards
 
     Every step, with the errors e of the observation (reference minus actual; e_o as an angle):
@@ -173,6 +188,9 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     | `normalize_observation` | `True` | scale the observation by the platform's limits (see Observation Space) |
     | `observation_noise` | `0.0` | Gaussian noise std in observation units: a number, or a dict term name -> std |
     | `observation_delay` | `0` | control steps between measurement and observation |
+    | `error_integral` | `False` | observe the time integral of the pose error (see Observation Space) |
+    | `error_integral_limit` | `0.1` | s, anti-windup bound T of the error integral: +-T h (position), +-T A (orientation) |
+    | `error_integral_band` | `None` | integrate an error component only within this fraction of its scale (h, A); None: always |
     | `randomization` | `None` | domain randomisation spec, e.g. `{"platform.mass": (0.8, 1.2), "legs.mass": (0.9, 1.1), "inertia": (0.9, 1.1), "com": (0.9, 1.1), "damping": (0.5, 2.0)}` |
     | `position_reward_weight` | `0.5` | weight of the position term |
     | `position_reward_scale` | `0.05` | m, decay length of the position term |
