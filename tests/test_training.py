@@ -45,11 +45,15 @@ def _algorithm(algo):
     return getattr(stable_baselines3, algo.upper())
 
 
-@pytest.mark.parametrize("algo", ALGORITHMS)
-def test_zoo_config_names_only_valid_hyperparameters(algo):
+#: every shipped hyperparameter file and the algorithm it configures
+CONFIGS = [(algo, f"{algo}.yml") for algo in ALGORITHMS] + [("ppo", "ppo_integral.yml")]
+
+
+@pytest.mark.parametrize("algo, name", CONFIGS)
+def test_zoo_config_names_only_valid_hyperparameters(algo, name):
     import torch
 
-    with open(CONFIG_DIR / f"{algo}.yml") as f:
+    with open(CONFIG_DIR / name) as f:
         entries = yaml.safe_load(f)
     assert list(entries) == [ENV_ID]
     entry = entries[ENV_ID]
@@ -65,11 +69,12 @@ def test_zoo_config_names_only_valid_hyperparameters(algo):
         assert isinstance(eval(entry["normalize"], {"dict": dict}), dict)
 
 
-@pytest.mark.parametrize("algo", ALGORITHMS)
-def test_zoo_config_builds_the_algorithm(algo):
-    """The parsed entry is accepted by the algorithm's constructor on the native batch."""
-    hp = parse_hyperparameters(algo, read_hyperparameters(algo))
-    env = training.make_training_env(2, {}, seed=0, normalize=hp.normalize)
+@pytest.mark.parametrize("algo, name", CONFIGS)
+def test_zoo_config_builds_the_algorithm(algo, name):
+    """The parsed entry, environment kwargs included, is accepted by the algorithm's constructor on
+    the native batch."""
+    hp = parse_hyperparameters(algo, read_hyperparameters(algo, CONFIG_DIR / name))
+    env = training.make_training_env(2, hp.env_kwargs, seed=0, normalize=hp.normalize)
     kwargs = dict(hp.algorithm_kwargs)
     if "buffer_size" in kwargs:
         kwargs["buffer_size"] = 1000  # the construction is the check, not the allocation
