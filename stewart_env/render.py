@@ -7,7 +7,9 @@ The renderer builds one figure with one 3D axes and keeps its artists; every cal
 :meth:`PlatformRenderer.render` only moves vertices and recolours legs. In
 ``"rgb_array"`` mode the figure is drawn on a private Agg canvas, so frames are produced
 headless and independently of the global pyplot backend; ``"human"`` mode goes through
-pyplot to get a window.
+pyplot to get a window. Where no window can be opened (no display, a non-interactive
+backend such as Agg, or a backend that fails), ``"human"`` mode warns once and draws
+nothing, so that scripts and checkers run unchanged on headless machines.
 """
 
 from __future__ import annotations
@@ -16,25 +18,44 @@ import os
 import sys
 
 import numpy as np
-from matplotlib import colormaps
+from gymnasium import logger
 from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.colors import Normalize
+from matplotlib.colors import LinearSegmentedColormap, Normalize
 from matplotlib.figure import Figure
+from matplotlib.patches import Patch
+from mpl_toolkits.mplot3d import proj3d
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
-__all__ = ["PlatformRenderer"]
+__all__ = ["PlatformRenderer", "LEG_FORCE_COLORMAP"]
 
 _RENDER_MODES = ("rgb_array", "human")
 # Backends that cannot open a window; "human" mode would silently draw nothing with them.
 _NON_INTERACTIVE_BACKENDS = {"agg", "cairo", "pdf", "pgf", "ps", "svg", "template"}
 _DPI = 100
-# Room around the geometry so the platform stays in view when it moves off home.
-_VIEW_MARGIN = 1.15
-_VIEW_ZOOM = 1.35
+#: Leg force colours: saturated blue (retracting) through dark grey (no force) to saturated
+#: red (extending). No white centre, so a leg at holding force stays visible on white.
+LEG_FORCE_COLORMAP = LinearSegmentedColormap.from_list("leg_force", ["#1f5fbf", "#505050", "#c8102e"])
+# Room left for the platform's motion, as a fraction of the platform radius: above and below
+# the home plate, and around the base's footprint.
+_HEADROOM = 0.6
+_SIDE_MARGIN = 0.1
+_VIEW_ZOOM = 1.1
+_VIEW_ELEVATION, _VIEW_AZIMUTH = 30.0, -60.0
 # Triad length as a fraction of the platform radius: long enough to read at 480 px.
 _TRIAD_SCALE = 0.3
-_COLORBAR_WIDTH_PX = 8.0
 _TRIAD_COLOURS = ("tab:red", "tab:green", "tab:blue")
+_LEG_WIDTH = 3.0
+# A dark rim around every leg keeps its edge visible whatever its colour and background.
+_LEG_OUTLINE_WIDTH = _LEG_WIDTH + 2.0
+_LEG_OUTLINE_COLOUR = "#1a1a1a"
+_TARGET_FACE = (0.3, 0.7, 0.3, 0.12)
+_TARGET_EDGE = (0.1, 0.5, 0.1, 0.9)
+_PLATFORM_FACE = (0.27, 0.51, 0.71, 0.6)
+_COLORBAR_WIDTH_PX = 12.0
+_FONT_SIZE = 8
+
+# Whether the no-display warning was given: once per process, not once per environment.
+_warned_no_display = False
 
 
 def _as_array(value, shape: tuple[int, ...], name: str) -> np.ndarray:
@@ -54,25 +75,64 @@ def _display_available() -> bool:
     return True
 
 
+def _warn_no_display(reason: str) -> None:
+    global _warned_no_display
+    if not _warned_no_display:
+        _warned_no_display = True
+        logger.warn(f"render_mode='human': no display is available ({reason}), so human rendering draws "
+                    "nothing and render() returns None; use render_mode='rgb_array' to get frames as arrays")
+
+
+def _open_window(figsize: tuple[float, float]) -> Figure | None:
+    """A pyplot figure shown in a window, or None (after the warning) where none can be opened."""
+    if not _display_available():
+        _warn_no_display("neither DISPLAY nor WAYLAND_DISPLAY is set")
+        return None
+    import matplotlib.pyplot as plt  # only human mode may touch the global backend
+
+    try:
+        backend = plt.get_backend().lower()
+    except Exception as exc:  # the configured GUI toolkit cannot be loaded
+        _warn_no_display(f"matplotlib's backend failed to load: {exc}")
+        return None
+    if backend in _NON_INTERACTIVE_BACKENDS:
+        _warn_no_display(f"matplotlib uses the non-interactive backend {backend!r}")
+        return None
+    fig = None
+    try:
+        fig = plt.figure(figsize=figsize, dpi=_DPI)
+        plt.ion()
+        fig.show()
+    except Exception as exc:  # e.g. Tk's "couldn't connect to display" behind a stale DISPLAY
+        if fig is not None:
+            plt.close(fig)
+        _warn_no_display(f"the {backend!r} backend could not open a window: {exc}")
+        return None
+    return fig
+
+
 class PlatformRenderer:
     """Draws Stewart platform states to RGB arrays (headless) or a window.
 
     The scene shows the base polygon through the base joints, the six legs coloured by
-    leg force on a diverging colormap (blue = ``force_range[0]``, red =
-    ``force_range[1]``), the platform polygon with a triad of the {P} axes, an optional
-    dashed ghost of a target pose and an optional text line. Axis limits are fixed at
-    construction, so consecutive frames share one view.
+    leg force (:data:`LEG_FORCE_COLORMAP`: blue = ``force_range[0]``, dark grey = 0, red =
+    ``force_range[1]``) with a dark outline, the platform polygon with a triad of the {P}
+    axes, an optional dashed ghost of a target pose (legend entry "target"), a colour bar
+    of the leg force in N and an optional text line. The view is fixed at construction,
+    fitted to the base and the home platform with room for the platform's motion, at
+    equal scale on the three axes, so consecutive frames share one view.
 
     Args:
         base_joints: (6, 3) base joint positions b_i in {B} [m].
         platform_joints: (6, 3) platform joint positions p_i in {P} [m].
         home_position: (3,) position of the {P} origin in {B} at home [m]; with the base
-            joints it fixes the view limits.
+            joints it fixes the view.
         force_range: (min, max) leg force [N] mapped to the ends of the colormap; forces
             outside it are shown with the end colours.
         width: frame width [px].
         height: frame height [px].
-        render_mode: ``"rgb_array"`` to return frames, ``"human"`` to draw in a window.
+        render_mode: ``"rgb_array"`` to return frames, ``"human"`` to draw in a window
+            (nothing, after a one-time warning, where no window can be opened).
     """
 
     def __init__(
@@ -98,54 +158,45 @@ class PlatformRenderer:
             raise ValueError(f"render_mode must be one of {_RENDER_MODES}, got {render_mode!r}")
         self.width, self.height = int(width), int(height)
         self.render_mode = render_mode
+        self._closed = False
 
         # Platform radius measured in the {P} x-y plane, where the joints form the plate.
-        radius = float(np.max(np.linalg.norm(self._platform_joints[:, :2], axis=1)))
-        self._triad_length = _TRIAD_SCALE * radius
+        self._radius = float(np.max(np.linalg.norm(self._platform_joints[:, :2], axis=1)))
+        self._triad_length = _TRIAD_SCALE * self._radius
 
-        self._fig = self._make_figure()
-        self._build_scene(home_position, Normalize(force_min, force_max))
-
-    def _make_figure(self) -> Figure:
-        """Create the figure: a private Agg canvas, or a pyplot window in human mode."""
         figsize = (self.width / _DPI, self.height / _DPI)
-        if self.render_mode == "rgb_array":
-            fig = Figure(figsize=figsize, dpi=_DPI)
-            FigureCanvasAgg(fig)
-            return fig
+        if render_mode == "rgb_array":
+            self._fig = Figure(figsize=figsize, dpi=_DPI)
+            FigureCanvasAgg(self._fig)
+        else:
+            self._fig = _open_window(figsize)
+        if self._fig is not None:
+            self._build_scene(home_position, Normalize(force_min, force_max))
 
-        no_window = (
-            "render_mode='human' needs a display to open a window, {reason}; "
-            "use render_mode='rgb_array' to get frames as arrays instead"
-        )
-        if not _display_available():
-            raise RuntimeError(no_window.format(reason="but neither DISPLAY nor WAYLAND_DISPLAY is set"))
-        import matplotlib.pyplot as plt  # only human mode may touch the global backend
-
-        backend = plt.get_backend().lower()
-        if backend in _NON_INTERACTIVE_BACKENDS:
-            raise RuntimeError(no_window.format(reason=f"but matplotlib uses the non-interactive backend {backend!r}"))
-        plt.ion()
-        fig = plt.figure(figsize=figsize, dpi=_DPI)
-        fig.show()
-        return fig
+    @property
+    def draws(self) -> bool:
+        """False in ``"human"`` mode where no window could be opened: render() draws nothing."""
+        return self._fig is not None
 
     def _build_scene(self, home_position: np.ndarray, norm: Normalize) -> None:
         """Create the axes and every artist once; render() only updates their data."""
         fig = self._fig
-        ax = fig.add_axes((0.0, 0.0, 0.88, 1.0), projection="3d")
+        ax = fig.add_axes((0.0, 0.0, 1.0, 1.0), projection="3d")
 
-        # A cube around the base and the home platform, equal scale on all three axes.
+        # The view holds the base and the home plate, with room for the platform's motion
+        # around it; the box's aspect follows its extents, so the scale is equal on all three
+        # axes. Orthographic, so that the zoom scales the picture linearly (see _fit_view).
         home_joints = home_position + self._platform_joints
-        points = np.vstack([self._base_joints, home_joints])
-        centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
-        half = 0.5 * _VIEW_MARGIN * float(np.max(points.max(axis=0) - points.min(axis=0)))
-        ax.set_xlim(centre[0] - half, centre[0] + half)
-        ax.set_ylim(centre[1] - half, centre[1] + half)
-        ax.set_zlim(centre[2] - half, centre[2] + half)
-        # Zoom past the cube's own corners: with the axes hidden they are empty space.
-        ax.set_box_aspect((1.0, 1.0, 1.0), zoom=_VIEW_ZOOM)
-        ax.view_init(elev=25.0, azim=-55.0)
+        room = self._radius * np.array([_SIDE_MARGIN, _SIDE_MARGIN, _HEADROOM])
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * room
+        self._view_points = np.vstack([self._base_joints, (home_joints[:, None, :] + corners).reshape(-1, 3)])
+        low, high = self._view_points.min(axis=0), self._view_points.max(axis=0)
+        ax.set_xlim(low[0], high[0])
+        ax.set_ylim(low[1], high[1])
+        ax.set_zlim(low[2], high[2])
+        self._box_aspect = tuple(high - low)
+        ax.set_proj_type("ortho")
+        ax.view_init(elev=_VIEW_ELEVATION, azim=_VIEW_AZIMUTH)
         # Ticks, panes and grid dominate the cost of a 3D draw and carry little here.
         ax.set_axis_off()
         # Fixed layering (base, ghost, legs, platform, triad) instead of per-frame depth
@@ -158,38 +209,104 @@ class PlatformRenderer:
         ax.add_collection3d(base)
 
         self._ghost = Poly3DCollection(
-            [home_joints], facecolors=(0.3, 0.7, 0.3, 0.12), edgecolors=(0.1, 0.5, 0.1, 0.8),
-            linewidths=1.2, linestyles="--", zorder=2,
+            [home_joints], facecolors=_TARGET_FACE, edgecolors=_TARGET_EDGE, linewidths=1.5, linestyles="--", zorder=2
         )
         self._ghost.set_visible(False)
         ax.add_collection3d(self._ghost)
 
         segments = np.stack([self._base_joints, home_joints], axis=1)
-        self._legs = Line3DCollection(segments, cmap=colormaps["coolwarm"], norm=norm, linewidths=3.0, zorder=3)
+        self._leg_outlines = Line3DCollection(
+            segments, colors=_LEG_OUTLINE_COLOUR, linewidths=_LEG_OUTLINE_WIDTH, capstyle="round", zorder=3
+        )
+        ax.add_collection3d(self._leg_outlines)
+        self._legs = Line3DCollection(
+            segments, cmap=LEG_FORCE_COLORMAP, norm=norm, linewidths=_LEG_WIDTH, capstyle="round", zorder=3.1
+        )
         self._legs.set_array(np.zeros(6))
         ax.add_collection3d(self._legs)
 
         self._platform = Poly3DCollection(
-            [home_joints], facecolors=(0.27, 0.51, 0.71, 0.6), edgecolors="navy", linewidths=1.0, zorder=4
+            [home_joints], facecolors=_PLATFORM_FACE, edgecolors="navy", linewidths=1.0, zorder=4
         )
         ax.add_collection3d(self._platform)
 
         self._triad = [ax.plot([], [], [], color=colour, linewidth=2.0, zorder=5)[0] for colour in _TRIAD_COLOURS]
 
-        # The colorbar never changes, but it is cheap: one small image and a few ticks.
-        bar = (0.9, 0.3, _COLORBAR_WIDTH_PX / self.width, 0.4)
+        handles = [
+            Patch(facecolor=_PLATFORM_FACE, edgecolor="navy", label="platform"),
+            Patch(facecolor=_TARGET_FACE, edgecolor=_TARGET_EDGE, linestyle="--", label="target"),
+        ]
+        legend = fig.legend(handles=handles, loc="upper right", fontsize=_FONT_SIZE, frameon=False,
+                            handlelength=1.6, borderaxespad=0.3)
+
+        bar_height = 0.45
+        bar = (0.9, 0.5 * (1.0 - bar_height), _COLORBAR_WIDTH_PX / self.width, bar_height)
         cax = fig.add_axes(bar)
-        fig.colorbar(self._legs, cax=cax, ticks=[norm.vmin, 0.5 * (norm.vmin + norm.vmax), norm.vmax])
-        cax.set_title("F [N]", fontsize=7)
-        cax.tick_params(labelsize=6)
-        # Fonts have a fixed pixel size, so on small frames the tick labels would run off
-        # the right edge: measure them once and slide the bar left until they fit.
-        overflow_px = cax.get_tightbbox().x1 - (self.width - 2)
-        bar_left = bar[0] - max(overflow_px, 0.0) / self.width
-        cax.set_position((bar_left, *bar[1:]))
-        ax.set_position((0.0, 0.0, max(bar_left - 0.02, 0.1), 1.0))
+        ticks = np.linspace(norm.vmin, norm.vmax, 5)
+        colorbar = fig.colorbar(self._legs, cax=cax, ticks=ticks, format="{x:g}")
+        colorbar.set_label("leg force (N)", fontsize=_FONT_SIZE, labelpad=2)
+        cax.tick_params(labelsize=_FONT_SIZE - 1, length=2, pad=1)
+        # Fonts have a fixed pixel size, so on small frames the tick labels and the label
+        # would run off the right edge: measure them once and slide the bar left until they fit.
+        overflow_px = cax.get_tightbbox().x1 - (self.width - 3)
+        cax.set_position((bar[0] - max(overflow_px, 0.0) / self.width, *bar[1:]))
 
         self._text = fig.text(0.02, 0.97, "", ha="left", va="top", fontsize=9, family="monospace")
+        # The scene fills the frame left of the colour bar, below the text line and the legend.
+        # Small frames have no room for the legend, and the scene keeps at least half the width.
+        renderer = fig.canvas.get_renderer()
+        bar_box, legend_box = cax.get_tightbbox(renderer), legend.get_window_extent(renderer)
+        text_bottom = self.height - 2.2 * 9.0 * _DPI / 72.0
+        if legend_box.y0 - 2.0 < 0.5 * self.height:
+            legend.remove()
+            static = [(cax, bar_box)]
+            top = text_bottom
+        else:
+            static = [(cax, bar_box), (legend, legend_box)]
+            top = min(text_bottom, legend_box.y0) - 2.0
+        right = bar_box.x0 - 4.0
+        if right < 0.5 * self.width:
+            right, static = 0.5 * self.width, []  # the scene runs under the bar: draw the bar every frame
+        self._fit_view(ax, (4.0, 4.0, right, top))
+
+        # Text is most of the cost of a frame, and the colour bar and the legend never change:
+        # in rgb_array mode they are drawn once and their pixels pasted into every frame.
+        self._static_pixels = []
+        if self.render_mode == "rgb_array":
+            fig.canvas.draw()
+            for artist, box in static:
+                self._static_pixels.append(fig.canvas.copy_from_bbox(box.padded(2.0)))
+                artist.set_visible(False)
+
+    def _fit_view(self, ax, region: tuple[float, float, float, float]) -> None:
+        """Zoom and place the 3D axes so that the projected view points fill ``region``
+        (left, bottom, right, top in pixels), centred in it.
+
+        The axes is a large square (its artists are clipped at its edges, the frame's edges
+        clip it instead); in an orthographic view, the picture scales linearly with the zoom
+        about the axes' centre, so one measurement gives the zoom and the shift, and a second
+        pass corrects the rounding of the first.
+        """
+        side = 2.0 * max(self.width, self.height)
+        region_centre = np.array([0.5 * (region[0] + region[2]), 0.5 * (region[1] + region[3])])
+        size = np.array([region[2] - region[0], region[3] - region[1]])
+        axes_centre, zoom = region_centre, 1.0
+
+        def place() -> None:
+            ax.set_position(((axes_centre[0] - 0.5 * side) / self.width, (axes_centre[1] - 0.5 * side) / self.height,
+                             side / self.width, side / self.height))
+            ax.set_box_aspect(self._box_aspect, zoom=zoom)
+
+        for _ in range(2):
+            place()
+            x, y, _ = proj3d.proj_transform(*self._view_points.T, ax.get_proj())
+            pixels = ax.transData.transform(np.column_stack([x, y]))
+            low, high = pixels.min(axis=0), pixels.max(axis=0)
+            scale = float(np.min(size / (high - low)))
+            zoom *= scale
+            # Zooming moves the picture's centre away from the axes' centre by the same factor.
+            axes_centre = region_centre - (0.5 * (low + high) - axes_centre) * scale
+        place()
 
     def render(
         self,
@@ -214,9 +331,9 @@ class PlatformRenderer:
 
         Returns:
             In ``"rgb_array"`` mode a (height, width, 3) uint8 array; in ``"human"`` mode
-            None after updating the window.
+            None after updating the window (or drawing nothing where there is none).
         """
-        if self._fig is None:
+        if self._closed:
             raise RuntimeError("PlatformRenderer.render called after close()")
         position = _as_array(position, (3,), "position")
         rotation = _as_array(rotation, (3, 3), "rotation")
@@ -231,9 +348,13 @@ class PlatformRenderer:
                 np.eye(3) if target_rotation is None else _as_array(target_rotation, (3, 3), "target_rotation")
             )
             target_joints = target_position + self._platform_joints @ target_rotation.T
+        if self._fig is None:  # human mode without a window: the inputs are checked, nothing drawn
+            return None
 
         joints = position + self._platform_joints @ rotation.T  # P_i = t + R p_i, (6, 3)
-        self._legs.set_segments(np.stack([self._base_joints, joints], axis=1))
+        segments = np.stack([self._base_joints, joints], axis=1)
+        self._legs.set_segments(segments)
+        self._leg_outlines.set_segments(segments)
         self._legs.set_array(leg_forces)
         self._platform.set_verts([joints])
 
@@ -260,15 +381,18 @@ class PlatformRenderer:
 
         canvas = self._fig.canvas
         canvas.draw()
+        for pixels in self._static_pixels:
+            canvas.restore_region(pixels)
         rgba = np.asarray(canvas.buffer_rgba())
         return np.array(rgba[: self.height, : self.width, :3], dtype=np.uint8)
 
     def close(self) -> None:
         """Release the figure (and close the window in human mode); safe to call twice."""
-        if self._fig is None:
+        if self._closed:
             return
-        if self.render_mode == "human":
+        if self.render_mode == "human" and self._fig is not None:
             import matplotlib.pyplot as plt
 
             plt.close(self._fig)
         self._fig = None
+        self._closed = True

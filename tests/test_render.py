@@ -1,11 +1,15 @@
 """Tests for the headless platform renderer (stewart_env.render)."""
 
+import os
+import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
 
-from stewart_env.render import PlatformRenderer
+from stewart_env import render
+from stewart_env.render import LEG_FORCE_COLORMAP, PlatformRenderer
 
 # The project's example platform: joints in metres, b_i in {B}, p_i in {P}.
 BASE_JOINTS = np.array(
@@ -126,12 +130,103 @@ def test_constructor_rejects_bad_input(name, kwargs):
         PlatformRenderer(**call)
 
 
+@pytest.fixture
+def no_warning_yet(monkeypatch):
+    """Each test sees the once-per-process no-display warning afresh."""
+    monkeypatch.setattr(render, "_warned_no_display", False)
+
+
+def _display_warnings(record) -> list[str]:
+    return [str(w.message) for w in record if "no display is available" in str(w.message)]
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="display detection differs off Linux")
-def test_human_mode_without_display_raises(monkeypatch):
+def test_human_mode_without_display_warns_once_and_draws_nothing(monkeypatch, no_warning_yet):
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    with pytest.raises(RuntimeError, match="rgb_array"):
-        PlatformRenderer(BASE_JOINTS, PLATFORM_JOINTS, HOME, FORCE_RANGE, render_mode="human")
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        first = PlatformRenderer(BASE_JOINTS, PLATFORM_JOINTS, HOME, FORCE_RANGE, render_mode="human")
+        assert first.render(HOME, np.eye(3), np.zeros(6), target_position=HOME) is None
+        second = PlatformRenderer(BASE_JOINTS, PLATFORM_JOINTS, HOME, FORCE_RANGE, render_mode="human")
+        assert second.render(HOME, np.eye(3), np.zeros(6)) is None
+    messages = _display_warnings(record)
+    assert len(messages) == 1 and "DISPLAY" in messages[0] and "rgb_array" in messages[0]
+    assert not first.draws
+    # the inputs are still checked, and close() still ends the renderer
+    with pytest.raises(ValueError, match="leg_forces"):
+        first.render(HOME, np.eye(3), np.zeros(5))
+    first.close()
+    with pytest.raises(RuntimeError, match="close"):
+        first.render(HOME, np.eye(3), np.zeros(6))
+
+
+def test_human_mode_when_the_backend_cannot_open_a_window(monkeypatch, no_warning_yet):
+    import matplotlib.pyplot as plt
+
+    def refuse(*args, **kwargs):
+        raise RuntimeError("couldn't connect to display ':99'")
+
+    monkeypatch.setenv("DISPLAY", ":99")
+    monkeypatch.setattr(plt, "get_backend", lambda: "TkAgg")
+    monkeypatch.setattr(plt, "figure", refuse)
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        r = PlatformRenderer(BASE_JOINTS, PLATFORM_JOINTS, HOME, FORCE_RANGE, render_mode="human")
+    messages = _display_warnings(record)
+    assert len(messages) == 1 and "couldn't connect" in messages[0]
+    assert r.render(HOME, np.eye(3), np.zeros(6)) is None
+
+
+# check_env builds a render_mode="human" environment and resets it: it must pass on headless
+# machines, as CI sets them up (MPLBACKEND=Agg), with no backend chosen, and with Agg on a desktop.
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="display detection differs off Linux")
+@pytest.mark.parametrize("environ", [{"MPLBACKEND": "Agg"}, {}, {"MPLBACKEND": "Agg", "DISPLAY": ":0"}])
+def test_check_env_passes_headless(environ):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "MPLBACKEND")}
+    script = (
+        "import warnings, gymnasium as gym, stewart_env\n"
+        "from gymnasium.utils.env_checker import check_env\n"
+        "with warnings.catch_warnings(record=True) as record:\n"
+        "    warnings.simplefilter('always')\n"
+        "    check_env(gym.make('StewartPlatform-v0').unwrapped)\n"
+        "print(sum('no display is available' in str(w.message) for w in record))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], env=env | environ, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "1"  # warned once, though check_env resets the human-mode env
+
+
+def test_legs_at_holding_force_stand_out_from_the_background(renderer):
+    frame = renderer.render(HOME, np.eye(3), np.full(6, 150.0)).astype(float) / 255.0
+    luminance = frame @ np.array([0.2126, 0.7152, 0.0722])
+    # Six outlined legs at 320 x 240 cover ~7 % of the frame in dark pixels; near-white legs (the
+    # former white-centred colour map) left under 1 %, only the plate's edges and the text.
+    assert np.mean(luminance < 0.4) > 0.04
+    # no colour of the map is near white, whatever the force
+    colours = LEG_FORCE_COLORMAP(np.linspace(0.0, 1.0, 256))[:, :3]
+    assert np.max(colours @ np.array([0.2126, 0.7152, 0.0722])) < 0.5
+
+
+def test_scene_fills_the_frame_width(renderer):
+    frame = renderer.render(HOME, np.eye(3), np.zeros(6))
+    drawn_columns = np.any(frame.min(axis=-1) < 240, axis=0)
+    # the scene runs edge to edge, up to the colour bar (the former cube view left ~30 % empty)
+    assert drawn_columns.mean() > 0.95
+
+
+def test_legend_names_the_target_and_the_colour_bar_its_unit(renderer):
+    figure = renderer._fig
+    assert "target" in [t.get_text() for t in figure.legends[0].get_texts()]
+    assert any(ax.get_ylabel() == "leg force (N)" for ax in figure.axes)
+
+
+@pytest.mark.parametrize("width, height", [(319, 241), (64, 48), (640, 360)])
+def test_frame_size_is_exact(width, height):
+    r = PlatformRenderer(BASE_JOINTS, PLATFORM_JOINTS, HOME, FORCE_RANGE, width=width, height=height)
+    frame = r.render(HOME, np.eye(3), np.zeros(6))
+    r.close()
+    assert frame.shape == (height, width, 3) and frame.dtype == np.uint8
 
 
 def test_render_after_close_raises():
