@@ -1,7 +1,9 @@
 """Kinematics of the 6-UPS platform: legs from a pose (inverse), pose from legs (forward).
 
 The per-leg equations live in the compiled kernels (:mod:`stewart_env.dynamics.kernels`); this
-module calls them and solves the forward problem by Newton-Raphson.
+module calls them and solves the forward problem by Newton-Raphson.  ``docs/physics.md`` in the
+repository derives them (section 4: leg vector, length, rate and acceleration, the U-joint frame,
+the leg's angular velocity and acceleration with its spin, the Jacobian).
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ class LegKinematics(NamedTuple):
     frames (6,3,3) U-joint leg frames T_i = [e_i y_i z_i] (columns); rates (6,) dL_i/dt, m/s;
     accelerations (6,) d2L_i/dt2, m/s^2; omega (6,3) leg angular velocities, rad/s (spin about
     e_i included); alpha (6,3) leg angular accelerations, rad/s^2; jacobian (6,6) J with
-    dL/dt = J [v; omega], rows [e_i, (R p_i) x e_i].
+    dL/dt = J [v; omega], rows [e_i, (R p_i) x e_i].  Symbols as in docs/physics.md section 3.
     """
 
     vectors: np.ndarray
@@ -56,7 +58,8 @@ def leg_kinematics(params: PlatformParams | Dynamics, position, rotation, veloci
 
     position (3,), rotation (3,3), velocity (3,), angular_velocity (3,), lin_acc (3,),
     ang_acc (3,) of the platform in {B} (missing rates are zero); ``model`` chooses whether the
-    leg spin is included (``"classical"`` or a ``+c1`` name leaves it out).
+    leg spin is included (``"classical"`` or a ``+c1`` name leaves it out).  docs/physics.md
+    section 4 derives every quantity.
     """
     flags = parse_model_name(model)[1]
     packed = _packed(params)
@@ -85,7 +88,10 @@ def inverse_kinematics(params: PlatformParams | Dynamics, position, rotation):
 
 
 def jacobian(params: PlatformParams | Dynamics, position, rotation) -> np.ndarray:
-    """The 6x6 leg Jacobian J (dL/dt = J [v; omega]) of a pose; batched like the others."""
+    """The 6x6 leg Jacobian J (dL/dt = J [v; omega]) of a pose; batched like the others.
+
+    docs/physics.md section 4.4.
+    """
     return leg_kinematics(params, position, rotation).jacobian
 
 
@@ -96,6 +102,7 @@ def forward_kinematics(params: PlatformParams | Dynamics, leg_lengths, position_
     leg_lengths (6,) m; position_guess (3,) and rotation_guess (3,3) in {B}.  Each iteration
     solves J [dt; dphi] = L - L(pose) and updates t += dt, R = exp([dphi]x) R.  Returns
     (position, rotation) once max |L - L(pose)| < tol (m); raises ConvergenceError otherwise.
+    docs/physics.md section 4.4.
     """
     target = np.asarray(leg_lengths, dtype=float)
     if target.shape != (6,) or not np.all(np.isfinite(target)) or np.any(target <= 0):

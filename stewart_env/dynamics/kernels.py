@@ -1,72 +1,42 @@
 """Compiled kernels: the one implementation of the Stewart platform's kinematics and dynamics.
 
 Everything physical in the package runs through the functions here; the Python classes around
-them only check arguments and pick a kernel.
+them only check arguments and pick a kernel.  ``docs/physics.md`` in the repository is the full
+account of the physics: frames, parameters, a table of every symbol used below beside the
+paper's, the derivations and the tests that decide correctness.  Each function's docstring names
+the section of that page and the equations of He et al. (2018) it implements.
 
-Conventions (see ``MODEL.md`` of the project for the full contract)
--------------------------------------------------------------------
-* {B} base frame, fixed, z up.  {P} platform frame: origin P at ``t``, orientation ``R``
-  (columns = {P} axes in {B}).  Velocity ``v`` of P's origin, angular velocity ``w``, linear
-  acceleration ``a`` of P's origin and angular acceleration ``alpha``: all in {B}.
+Conventions (docs/physics.md section 1)
+---------------------------------------
+* {B} base frame, fixed.  {P} platform frame: origin P at ``t``, orientation ``R`` (columns =
+  {P} axes in {B}).  Velocity ``v`` of P's origin, angular velocity ``w``, linear acceleration
+  ``a`` of P's origin and angular acceleration ``alpha``: all in {B}.
 * Leg i joins base joint B_i (``b_i`` in {B}) to platform joint P_i (``p_i`` in {P}).
   S_i = t + R p_i - b_i, L_i = |S_i|, e_i = S_i / L_i.
 * U joint at B_i: fixed axis k_i, moving axis y_i = unit(k_i x e_i), z_i = e_i x y_i.  The leg
   frame {D_i} = [e_i, y_i, z_i] moves with both leg parts.
+* Actuator force F_i > 0 extends the leg; F_s is the force of the platform on the leg at P_i.
 
 Why the leg is worked in its own frame
 --------------------------------------
-In {D_i} the leg axis is (1, 0, 0), the U joint's moving axis is (0, 1, 0), the fixed axis is
-k' = (kx, 0, kz) with kz = |k x e| > 0, and the normal of the U joint's axis plane is
-h' = k' x y' = (-kz, 0, kx).  The leg inertias and CoM offsets are constants in this frame, so
-the per-leg equations reduce to a few dozen scalar products and nothing is rotated or allocated.
+In {D_i} (a prime marks components in that frame) the leg axis is (1, 0, 0), the U joint's
+moving axis is (0, 1, 0), the fixed axis is k' = (kx, 0, kz) with kz = |k x e| > 0, and the
+normal of the U joint's axis plane is h' = k' x y' = (-kz, 0, kx).  The leg inertias and CoM
+offsets are constants in this frame, so the per-leg equations reduce to a few dozen scalar
+products and nothing is rotated or allocated.
 
-Leg kinematics (``_leg_rates``, ``_leg_accel``)
------------------------------------------------
-The velocity of P_i, v_P = v + w x q (q = R p_i), gives the leg rate Ldot = e . v_P and the
-part of the leg's angular velocity that swings the axis, w_perp = e x v_P / L.  The U joint adds
-a spin sigma about e: the leg's angular velocity must have no component along h (the joint only
-turns about k and y), so omega_l = w_perp + sigma e with sigma = -(w_perp . h) / (e . h).
-Differentiating omega_l . h = 0, and using dh/dt = -(k . omega_l) y because k is fixed and y turns
-with the leg, gives the axial part of the angular acceleration:
-alpha_l = alpha_perp + alpha_e e, alpha_perp = (e x a_P - 2 Ldot w_perp) / L - sigma (e x w_perp),
-alpha_e = ((omega_l . k)(omega_l . y) - alpha_perp . h) / (e . h).
+Map of the kernels
+------------------
+* Leg kinematics (section 4): ``_leg_frame``, ``_leg_rates``, ``_leg_accel``.
+* One leg's force on the platform (sections 5.1-5.2): ``_leg_bodies``, ``_leg_inertial_force``,
+  ``_leg_rate_force``, ``_leg_split``, ``_leg_force``.  The leg's moment equation about B_i is
+  S x F_s + mu h = N; its row along e fixes mu and the rest gives F_s perpendicular to the leg;
+  Newton's law for the upper leg along e gives e . F_s.
+* The platform (section 5.3): ``_platform_terms``.
+* Forward dynamics M [a; alpha] + h = J^T F + W (section 5.4): ``_forward_one``; inverse
+  dynamics (section 5.5): ``_inverse_one``; RK4 (section 5.6): ``rollout_batch``.
 
-Leg dynamics (``_leg_force``)
------------------------------
-The two leg parts rotate together, so their moment equation is taken about B_i, where the U
-joint's reaction force has no moment.  The joint's reaction moment mu h lies along h, the only
-direction the joint cannot turn about.  With F_s the force of the platform on the leg at P_i,
-S x F_s + mu h = N, where N is the rate of change of angular momentum of both parts about B_i
-plus the moments of gravity and friction.  The component of this equation along e fixes mu
-(S x F_s has none), and the rest gives F_s's part perpendicular to the leg:
-F_s_perp = ((N - mu h) x e) / L.  Newton's law for the upper leg along e gives the axial part,
-e . F_s = m_u (a_u - g) . e - F_act + Cp Ldot.
-
-N is written in one of two equivalent forms:
-* about each part's CoM (``centroidal``):
-  N = sum_parts [ r x m a_c + I_c alpha_l + omega_l x I_c omega_l ] - sum_parts r x m g
-* about B_i (the default, "eq. 49" form): the lower leg turns about B_i, a point of its own,
-  so I_B alpha_l + omega_l x I_B omega_l with I_B = I_c + m (|r|^2 E - r r^T) is its whole
-  inertial moment.  B_i is not a point of the upper leg; the upper-leg point that coincides with
-  B_i has acceleration a_D = Lddot e + 2 Ldot (omega_l x e), and the moving-point form adds
-  r_u x m_u a_D to I_B alpha_l + omega_l x I_B omega_l.
-
-Platform (``_assemble`` and ``_inverse_one``)
----------------------------------------------
-Newton: m_p a_c + sum F_s,i = m_p g + F_ext, a_c the acceleration of the platform's CoM.
-Euler about P, a point of the platform: either I_pc alpha + omega x I_pc omega + rho x m_p a_c
-(centroidal) or I_P alpha + omega x I_P omega + rho x m_p a (the body-point form), with
-rho = R R0 and I_P the parallel-axis shift of I_pc to P; on the right, rho x m_p g + M_ext and the
-spherical joints' friction sum Cs (omega_l - omega), and on the left sum q_i x F_s,i.
-
-Every leg force is affine in the acceleration a_P,i = a + alpha x q_i + omega x (omega x q_i)
-of its platform joint, and the leg actuator forces enter as J^T F with J the leg Jacobian
-(rows [e_i, q_i x e_i]).  Forward dynamics therefore assembles M [a; alpha] + h = J^T F + W_ext in
-closed form: each leg contributes the 3x3 map Q_i from a_P,i to F_s,i, evaluated by the same leg
-function with every velocity, gravity and friction input set to zero (the linear part of an
-affine map), and its bias, evaluated at zero platform acceleration.
-
-The classical simplifications (switch bits)
+The model switches (switch bits, section 6)
 -------------------------------------------
 * ``C1`` (bit 1), no leg spin: sigma = 0 and alpha_l = (e x a_P - 2 Ldot w_perp) / L.
 * ``C2`` (bit 2), U-joint reaction moment along e instead of h: the axial component of the leg
@@ -74,14 +44,15 @@ The classical simplifications (switch bits)
 * ``C3`` (bit 4), legs: shifted inertias I_B used together with r x m a_c, so the parallel-axis
   part is counted twice.
 * ``C4`` (bit 8), platform: the same double count, I_P together with rho x m_p a_c.
-``CENTROIDAL`` (bit 16) selects the centroidal form.  With C3 (C4) both forms use the same
-double-counted expression for the legs (platform).
+``CENTROIDAL`` (bit 16) selects the centroidal form (paper eq. 55) instead of the joint form
+(eq. 49).  With C3 (C4) both forms use the same double-counted expression for the legs
+(platform).
 
 Packed parameters
 -----------------
 Kernels take ``prm`` of shape (Np, N_PARAMS), one row per platform (Np == 1 broadcasts over the
-batch).  The layout is given by the ``OFF_*`` offsets below and written by
-:func:`stewart_env.dynamics.model.pack_params`.
+batch).  The layout is given by the ``OFF_*`` offsets below (docs/physics.md section 2) and
+written by :func:`stewart_env.dynamics.model.pack_params`.
 """
 
 import os
@@ -125,24 +96,34 @@ PARALLEL_MIN_ROWS = 16
 
 @njit(cache=True, error_model="numpy")
 def _cross(a0, a1, a2, b0, b1, b2):
+    """Components of a x b (docs/physics.md section 3.2)."""
     return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
 
 
 @njit(cache=True, error_model="numpy")
 def _to_base(u0, u1, u2, e0, e1, e2, y0, y1, y2, z0, z1, z2):
-    """{B} components of a vector given in the leg frame [e y z]."""
+    """{B} components of a vector given in the leg frame [e y z]: u = T_i u'.
+
+    docs/physics.md section 1; paper eq. 15 (T_i).
+    """
     return u0 * e0 + u1 * y0 + u2 * z0, u0 * e1 + u1 * y1 + u2 * z1, u0 * e2 + u1 * y2 + u2 * z2
 
 
 @njit(cache=True, error_model="numpy")
 def _to_leg(u0, u1, u2, e0, e1, e2, y0, y1, y2, z0, z1, z2):
-    """Leg-frame components (u . e, u . y, u . z) of a vector given in {B}."""
+    """Leg-frame components (u . e, u . y, u . z) of a vector given in {B}: u' = T_i^T u.
+
+    docs/physics.md section 1; paper eq. 15 (T_i).
+    """
     return u0 * e0 + u1 * e1 + u2 * e2, u0 * y0 + u1 * y1 + u2 * y2, u0 * z0 + u1 * z1 + u2 * z2
 
 
 @njit(cache=True, error_model="numpy")
 def _with_platform_acc(acc, q0, q1, q2, e0, e1, e2, y0, y1, y2, z0, z1, z2, A0, A1, A2):
-    """P_i's acceleration in {D_i}: the velocity part A' plus a + alpha x q for acc = [a; alpha]."""
+    """P_i's acceleration in {D_i}: the velocity part A' plus a + alpha x q for acc = [a; alpha].
+
+    docs/physics.md section 4.1; paper eqs. 10-12 (a_Pi).
+    """
     x0, x1, x2 = _cross(acc[3], acc[4], acc[5], q0, q1, q2)
     x0 += acc[0]
     x1 += acc[1]
@@ -155,7 +136,9 @@ def _with_platform_acc(acc, q0, q1, q2, e0, e1, e2, y0, y1, y2, z0, z1, z2, A0, 
 def _inertia(prm, off, s, m, r0, r1, r2):
     """Inertia I = I_c + s m (|r|^2 E - r r^T) as (Ixx, Iyy, Izz, Ixy, Ixz, Iyz).
 
-    ``I_c`` is the 3x3 at ``prm[off:off+9]``; ``s`` counts parallel-axis shifts (0, 1 or 2).
+    ``I_c`` is the 3x3 at ``prm[off:off+9]``; ``s`` counts parallel-axis shifts (the callers pass 0 or 1).
+    docs/physics.md sections 5.2 and 6 (C3, C4); the paper's shifted inertias before eq. 32 and
+    eq. 44, its CoM inertias eqs. 50 and 52.
     """
     rr = r0 * r0 + r1 * r1 + r2 * r2
     sm = s * m
@@ -171,7 +154,10 @@ def _inertia(prm, off, s, m, r0, r1, r2):
 
 @njit(cache=True, error_model="numpy")
 def _euler(I, a0, a1, a2, w0, w1, w2):
-    """Inertial moment I alpha + w x (I w) of a symmetric inertia I = (xx, yy, zz, xy, xz, yz)."""
+    """Inertial moment I alpha + w x (I w) of a symmetric inertia I = (xx, yy, zz, xy, xz, yz).
+
+    docs/physics.md sections 5.2-5.3; the Euler terms of paper eqs. 32, 46, 50 and 53.
+    """
     i00, i11, i22, i01, i02, i12 = I
     iw0 = i00 * w0 + i01 * w1 + i02 * w2
     iw1 = i01 * w0 + i11 * w1 + i12 * w2
@@ -190,7 +176,8 @@ def _leg_bodies(prm, i, flags, L):
 
     r_u, r_d are the CoMs from B_i; I_u, I_d the inertias used in the moment equation about
     B_i: about the CoM (centroidal form), shifted to B_i (eq. 49 form), or shifted once more
-    than the form needs (C3).
+    than the form needs (C3).  docs/physics.md sections 4.3 (CoMs), 5.2 and 6 (C3); paper
+    eqs. 28-29 (r_u, r_d), the inertias about B_i before eq. 32 and about the CoM in eq. 50.
     """
     m_u = prm[OFF_MU + i]
     m_d = prm[OFF_MD + i]
@@ -210,6 +197,7 @@ def _leg_frame(prm, i, t, R):
     """Leg i's geometry: q = R p_i, length L, frame [e y z] and k in that frame (kx, kz).
 
     Returns (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz), vectors in {B}.
+    docs/physics.md sections 1 and 4.1; paper eqs. 6-8 (q_i, S_i, L_i, e_i) and 15 (T_i).
     """
     p0 = prm[OFF_P + 3 * i]
     p1 = prm[OFF_P + 3 * i + 1]
@@ -242,6 +230,8 @@ def _leg_rates(flags, L, kx, kz, u0, u1, u2):
     """Leg rate and angular velocity from v_P' = (u0, u1, u2), P_i's velocity in {D_i}.
 
     Returns (Ldot, sigma, w1, w2): omega_l' = (sigma, w1, w2) in {D_i}.
+    docs/physics.md section 4.2; paper eqs. 13 (Ldot), 20-21 (w_perp) and 22 (the spin sigma);
+    C1 sets sigma = 0 (section 6).
     """
     w1 = -u2 / L
     w2 = u1 / L
@@ -254,6 +244,8 @@ def _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2):
     """Leg acceleration from a_P' = (A0, A1, A2), P_i's acceleration in {D_i}.
 
     Returns (Lddot, al0, al1, al2): alpha_l' in {D_i}.
+    docs/physics.md section 4.3; paper eqs. 14 (Lddot), 23-24 (alpha_perp = (al1, al2)), 26
+    (alpha_e = al0) and 27; C1 sets al0 = 0 (section 6).
     """
     Lddot = A0 + L * (w1 * w1 + w2 * w2)
     al1 = (-A2 - 2.0 * Ldot * w1) / L + sigma * w2
@@ -272,6 +264,7 @@ def _leg_split(flags, L, kx, kz, N0, N1, N2, axial):
     Solves S x F_s + mu h = N for F_s's part perpendicular to the leg: the row along e fixes mu,
     with h' = (-kz, 0, kx).  With C2 the reaction moment lies along e and that row is dropped.
     ``axial`` is e . F_s from the upper leg's Newton equation.  Linear in (N, axial).
+    docs/physics.md sections 5.1 and 6 (C2); paper eqs. 35, 37 (mu), 38 and 40.
     """
     n2 = N2 if flags & C2 else N2 + N0 * kx / kz
     return axial, n2 / L, -N1 / L
@@ -283,6 +276,8 @@ def _leg_inertial_force(flags, bodies, L, kx, kz, Lddot, al0, al1, al2):
 
     The accelerations enter the CoMs' accelerations (a_u = Lddot e + alpha_l x r_u + ...,
     a_d = alpha_l x r_d + ..., a_D = Lddot e + ...) and the Euler terms I alpha_l.
+    docs/physics.md sections 5.1-5.2 and 6 (C3); paper eqs. 30-31, 33, 36 and 39 (their
+    acceleration terms), 41 and, in the centroidal form, 51.
     """
     m_u, m_d, r_u, r_d, I_u, I_d = bodies
     ru0, ru1, ru2 = r_u
@@ -306,7 +301,8 @@ def _leg_rate_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, 
     """The part of F_s that does not depend on accelerations, {D_i}: velocity products
     (Coriolis 2 Ldot omega_l x e, centripetal omega_l x (omega_l x r), gyroscopic
     omega_l x I omega_l), gravity and joint friction.  ``o`` and ``g``: platform angular velocity
-    and gravity in {D_i}."""
+    and gravity in {D_i}.  docs/physics.md sections 5.1-5.2 and 6 (C3); paper eqs. 30-34, 36 and
+    39 (their velocity, gravity and friction terms), 41 and, in the centroidal form, 51."""
     w0 = sigma
     m_u, m_d, r_u, r_d, I_u, I_d = bodies
     ru0, ru1, ru2 = r_u
@@ -350,6 +346,7 @@ def _leg_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2, g
     ``bodies`` is ``_leg_bodies``' result; ``o`` is the platform's angular velocity and ``g``
     gravity, both in {D_i}; ``F_act`` the actuator force (N), which pushes the upper leg along e.
     Returns (F0, F1, F2): the acceleration part plus the rate part.
+    docs/physics.md section 5.1; paper eqs. 38-41 (joint form) and 51 (centroidal form).
     """
     Lddot, al0, al1, al2 = _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2)
     a0, a1, a2 = _leg_inertial_force(flags, bodies, L, kx, kz, Lddot, al0, al1, al2)
@@ -363,6 +360,7 @@ def _leg_inputs(prm, i, flags, t, R, v, w):
 
     Returns the frame of ``_leg_frame``, then (Ldot, sigma, w1, w2), then the platform angular
     velocity, gravity and a_P0 = w x (w x q) in {D_i}.
+    docs/physics.md sections 4.1-4.2; paper eqs. 6-13 and 20-22.
     """
     q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz = _leg_frame(prm, i, t, R)
     frame = (e0, e1, e2, y0, y1, y2, z0, z1, z2)
@@ -383,7 +381,8 @@ def _platform_terms(prm, flags, R, w, M, h):
     """Add the platform's own Newton and Euler terms to M (6,6) and h (6,), {B}.
 
     Newton rows: m_p a_c - m_p g.  Euler rows (about P): the inertial moment in the chosen form
-    minus rho x m_p g.
+    minus rho x m_p g.  docs/physics.md sections 5.3-5.4 and 6 (C4); paper eqs. 42-46 (joint
+    form) and 52-53 (centroidal form).
     """
     m = prm[OFF_MP]
     r0 = R[0, 0] * prm[OFF_RHO] + R[0, 1] * prm[OFF_RHO + 1] + R[0, 2] * prm[OFF_RHO + 2]
@@ -453,7 +452,10 @@ def _platform_terms(prm, flags, R, w, M, h):
 
 @njit(cache=True, error_model="numpy")
 def _add_column(M, c, q0, q1, q2, f0, f1, f2):
-    """Add the wrench at P of a force f at P_i (q = P_i - P) to column c of M: [f; q x f]."""
+    """Add the wrench at P of a force f at P_i (q = P_i - P) to column c of M: [f; q x f].
+
+    docs/physics.md section 5.4; paper eqs. 47-48.
+    """
     n0, n1, n2 = _cross(q0, q1, q2, f0, f1, f2)
     M[0, c] += f0
     M[1, c] += f1
@@ -467,7 +469,8 @@ def _add_column(M, c, q0, q1, q2, f0, f1, f2):
 def _solve6(M, b, x):
     """Solve M x = b (6x6) by Gaussian elimination with partial pivoting; M and b are overwritten.
 
-    A singular M gives non-finite x, which callers report.
+    A singular M gives non-finite x, which callers report.  docs/physics.md section 5.4 (no
+    paper equation).
     """
     n = 6
     for c in range(n):
@@ -504,6 +507,7 @@ def _forward_one(prm, flags, t, R, v, w, F, W, M, h, out):
     """Forward dynamics of one platform: out[:3] = a, out[3:] = alpha, {B}.
 
     M (6,6) and h (6,) are scratch.  Assembles M [a; alpha] + h = J^T F + W and solves it.
+    docs/physics.md section 5.4; paper eq. 49 (joint form) or 55 (centroidal form).
     """
     for r in range(6):
         h[r] = 0.0
@@ -566,7 +570,8 @@ def _inverse_one(prm, flags, t, R, v, w, acc, W, M, h, out):
 
     Each leg's force on the platform follows from its own equations at the given acceleration;
     the platform's six equations then fix the six actuator forces through J^T F = wrench.
-    M (6,6) and h (6,) are scratch.
+    M (6,6) and h (6,) are scratch.  docs/physics.md section 5.5; paper eq. 49 (joint form) or
+    55 (centroidal form) solved for the forces.
     """
     for r in range(6):
         h[r] = 0.0
@@ -611,7 +616,8 @@ def _inverse_one(prm, flags, t, R, v, w, acc, W, M, h, out):
 def _leg_kinematics_one(prm, flags, t, R, v, w, acc, frames, lengths, rates, accels,
                         omega_l, alpha_l, jac):
     """Leg kinematics of one platform, {B}: frames (6,3,3) T_i = [e y z] as columns, lengths (6,),
-    rates (6,), accels (6,), omega_l (6,3), alpha_l (6,3), jac (6,6) rows [e_i, q_i x e_i]."""
+    rates (6,), accels (6,), omega_l (6,3), alpha_l (6,3), jac (6,6) rows [e_i, q_i x e_i].
+    docs/physics.md section 4; paper eqs. 6-27."""
     for i in range(6):
         (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
          Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2, A0, A1, A2) = _leg_inputs(prm, i, flags, t, R, v, w)
@@ -643,7 +649,8 @@ def _leg_kinematics_one(prm, flags, t, R, v, w, acc, frames, lengths, rates, acc
 @njit(cache=True, parallel=True, error_model="numpy")
 def forward_batch(prm, flags, t, R, v, w, F, W, out):
     """Forward dynamics over a batch.  prm (Np, N_PARAMS) with Np in {1, N}; t, v, w (N,3);
-    R (N,3,3); F (N,6) N; W (N,6) external wrench [F_ext; M_ext] at P, {B}; out (N,6) [a; alpha]."""
+    R (N,3,3); F (N,6) N; W (N,6) external wrench [F_ext; M_ext] at P, {B}; out (N,6) [a; alpha].
+    docs/physics.md section 5.4; paper eq. 49 or 55."""
     n = t.shape[0]
     if n >= PARALLEL_MIN_ROWS:
         for b in prange(n):
@@ -655,7 +662,7 @@ def forward_batch(prm, flags, t, R, v, w, F, W, out):
 
 @njit(cache=True, error_model="numpy")
 def _forward_row(prm, flags, t, R, v, w, F, W, out, b):
-    """Row b of ``forward_batch``."""
+    """Row b of ``forward_batch`` (docs/physics.md section 5.4)."""
     M = np.empty((6, 6))
     h = np.empty(6)
     _forward_one(prm[0] if prm.shape[0] == 1 else prm[b], flags, t[b], R[b], v[b], w[b], F[b], W[b], M, h, out[b])
@@ -663,7 +670,10 @@ def _forward_row(prm, flags, t, R, v, w, F, W, out, b):
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def inverse_batch(prm, flags, t, R, v, w, acc, W, out):
-    """Inverse dynamics over a batch: acc (N,6) [a; alpha] -> out (N,6) leg forces, N."""
+    """Inverse dynamics over a batch: acc (N,6) [a; alpha] -> out (N,6) leg forces, N.
+
+    docs/physics.md section 5.5; paper eq. 49 or 55 solved for the forces.
+    """
     n = t.shape[0]
     if n >= PARALLEL_MIN_ROWS:
         for b in prange(n):
@@ -675,7 +685,7 @@ def inverse_batch(prm, flags, t, R, v, w, acc, W, out):
 
 @njit(cache=True, error_model="numpy")
 def _inverse_row(prm, flags, t, R, v, w, acc, W, out, b):
-    """Row b of ``inverse_batch``."""
+    """Row b of ``inverse_batch`` (docs/physics.md section 5.5)."""
     M = np.empty((6, 6))
     h = np.empty(6)
     _inverse_one(prm[0] if prm.shape[0] == 1 else prm[b], flags, t[b], R[b], v[b], w[b], acc[b], W[b], M, h, out[b])
@@ -686,7 +696,8 @@ def leg_kinematics_batch(prm, flags, t, R, v, w, acc, frames, lengths, rates, ac
                          omega_l, alpha_l, jac):
     """Leg kinematics over a batch (shapes of ``_leg_kinematics_one`` with a leading N).
 
-    Serial: it serves analysis and tests, not the per-step path."""
+    Serial: it serves analysis and tests, not the per-step path.  docs/physics.md section 4;
+    paper eqs. 6-27."""
     n = t.shape[0]
     for b in range(n):
         _leg_kinematics_one(prm[0] if prm.shape[0] == 1 else prm[b], flags, t[b], R[b], v[b], w[b], acc[b],
@@ -695,7 +706,10 @@ def leg_kinematics_batch(prm, flags, t, R, v, w, acc, frames, lengths, rates, ac
 
 @njit(cache=True, error_model="numpy")
 def _quat_to_matrix(q, R):
-    """Unit quaternion q = (w, x, y, z) to rotation matrix R (3,3), normalising q first."""
+    """Unit quaternion q = (w, x, y, z) to rotation matrix R (3,3), normalising q first.
+
+    docs/physics.md section 5.6 (no paper equation).
+    """
     n = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     a = q[0] / n
     b = q[1] / n
@@ -714,7 +728,10 @@ def _quat_to_matrix(q, R):
 
 @njit(cache=True, error_model="numpy")
 def _matrix_to_quat(R, q):
-    """Rotation matrix to unit quaternion (w, x, y, z), w >= 0 (Shepperd's method)."""
+    """Rotation matrix to unit quaternion (w, x, y, z), w >= 0 (Shepperd's method).
+
+    docs/physics.md section 5.6 (no paper equation).
+    """
     tr = R[0, 0] + R[1, 1] + R[2, 2]
     if tr > 0.0:
         s = 2.0 * np.sqrt(1.0 + tr)
@@ -747,7 +764,10 @@ def _matrix_to_quat(R, q):
 
 @njit(cache=True, error_model="numpy")
 def _state_derivative(prm, flags, x, F, W, R, M, h, acc, dx):
-    """dx/dt for x = [t (3), quaternion (4), v (3), w (3)]; quaternion rate 0.5 (0, w) * q."""
+    """dx/dt for x = [t (3), quaternion (4), v (3), w (3)]; quaternion rate 0.5 (0, w) * q.
+
+    docs/physics.md section 5.6; the accelerations from paper eq. 49 or 55.
+    """
     _quat_to_matrix(x[3:7], R)
     _forward_one(prm, flags, x[0:3], R, x[7:10], x[10:13], F, W, M, h, acc)
     dx[0] = x[7]
@@ -775,6 +795,7 @@ def rollout_batch(prm, flags, t, R, v, w, F, W, dt, steps):
     t, R, v, w (batched as in ``forward_batch``) are overwritten with the final state.  The
     orientation is carried as a unit quaternion (renormalised after each step) so R stays a
     rotation.  A row whose state stops being finite is left at its first non-finite value.
+    docs/physics.md section 5.6 (no paper equation).
     """
     n = t.shape[0]
     if n >= PARALLEL_MIN_ROWS:
@@ -787,7 +808,7 @@ def rollout_batch(prm, flags, t, R, v, w, F, W, dt, steps):
 
 @njit(cache=True, error_model="numpy")
 def _rollout_row(prm, flags, t, R, v, w, F, W, dt, steps, b):
-    """Row b of ``rollout_batch``."""
+    """Row b of ``rollout_batch`` (docs/physics.md section 5.6)."""
     p = prm[0] if prm.shape[0] == 1 else prm[b]
     x = np.empty(13)
     xs = np.empty(13)
@@ -836,6 +857,7 @@ def leg_sensors_batch(prm, t, R, v, w, max_condition, lengths, rates, condition)
     ``condition`` is the 2-norm condition number wherever it exceeds ``max_condition`` (inf when
     singular or non-finite); below it, the cheaper bound ||J||_F ||J^-1||_F >= cond_2, itself
     at most ``max_condition``.  So ``condition > max_condition`` holds exactly when cond_2 does.
+    docs/physics.md section 4.4; paper eqs. 7 and 13.
     """
     n = t.shape[0]
     if n >= PARALLEL_MIN_ROWS:
@@ -848,7 +870,7 @@ def leg_sensors_batch(prm, t, R, v, w, max_condition, lengths, rates, condition)
 
 @njit(cache=True, error_model="numpy")
 def _leg_sensors_row(prm, t, R, v, w, max_condition, lengths, rates, condition, b):
-    """Row b of ``leg_sensors_batch``."""
+    """Row b of ``leg_sensors_batch`` (docs/physics.md section 4.4)."""
     p = prm[0] if prm.shape[0] == 1 else prm[b]
     jac = np.empty((6, 6))
     for i in range(6):
@@ -876,7 +898,7 @@ def _leg_sensors_row(prm, t, R, v, w, max_condition, lengths, rates, condition, 
 @njit(cache=True, error_model="numpy")
 def _frobenius_condition(J):
     """||J||_F ||J^-1||_F of a 6x6 matrix, an upper bound of its 2-norm condition number (inf
-    or NaN when J is singular or not finite)."""
+    or NaN when J is singular or not finite).  docs/physics.md section 4.4 (no paper equation)."""
     M = np.empty((6, 6))
     e = np.empty(6)
     x = np.empty(6)

@@ -17,7 +17,8 @@ A name may carry switches after ``+``, e.g. ``"improved+c1"`` or ``"improved+c2+
 ``c3`` parallel-axis part counted twice in the legs' Euler equations;
 ``c4`` parallel-axis part counted twice in the platform's Euler equation.
 
-The kernels' docstring (:mod:`stewart_env.dynamics.kernels`) carries the derivation.
+``docs/physics.md`` in the repository carries the derivation: the two improved forms in its
+section 5, the switches c1-c4 and where each enters the equations in its section 6.
 """
 
 from __future__ import annotations
@@ -39,7 +40,10 @@ MODEL_NAMES = tuple(_BASE_FLAGS)
 
 
 def parse_model_name(name: str) -> tuple[str, int]:
-    """Canonical name and kernel flags of a model name such as ``"improved+c1+c3"``."""
+    """Canonical name and kernel flags of a model name such as ``"improved+c1+c3"``.
+
+    The flags are the kernels' switch bits (docs/physics.md section 6).
+    """
     if not isinstance(name, str):
         raise ValueError(f"model: expected a name such as 'improved', got {name!r}")
     base, *switches = name.strip().lower().split("+")
@@ -58,7 +62,10 @@ def parse_model_name(name: str) -> tuple[str, int]:
 
 
 def pack_params(params: PlatformParams) -> np.ndarray:
-    """Kernel parameter row (N_PARAMS,) of a platform, in the layout of the kernels' ``OFF_*``."""
+    """Kernel parameter row (N_PARAMS,) of a platform, in the layout of the kernels' ``OFF_*``.
+
+    docs/physics.md section 2 lists the parameters, their symbols and frames.
+    """
     row = np.zeros(K.N_PARAMS)
     row[K.OFF_B:K.OFF_B + 18] = params.base_joints.ravel()
     row[K.OFF_P:K.OFF_P + 18] = params.platform_joints.ravel()
@@ -169,6 +176,7 @@ class Dynamics:
         external_wrench (6,) [force at P, N; moment, N m] or None.  All in {B}; every argument
         may carry a leading batch dimension N.  Returns (lin_acc, ang_acc): acceleration of
         P's origin (m/s^2) and angular acceleration (rad/s^2), each (3,) or (N,3).
+        Solves M [a; alpha] + h = J^T F + W (docs/physics.md section 5.4).
         """
         n, batched, a = self._args(position, rotation, velocity, angular_velocity,
                                    leg_forces=(leg_forces, (6,)), external_wrench=external_wrench)
@@ -182,6 +190,7 @@ class Dynamics:
         """Inverse dynamics: the leg forces (6,) or (N,6), N, that produce the given accelerations.
 
         Arguments as in :meth:`forward`, with lin_acc (3,) m/s^2 and ang_acc (3,) rad/s^2 in {B}.
+        docs/physics.md section 5.5.
         """
         n, batched, a = self._args(position, rotation, velocity, angular_velocity,
                                    lin_acc=(lin_acc, (3,)), ang_acc=(ang_acc, (3,)),
