@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from gymnasium.error import ResetNeeded
 from numba import njit
 
 from stewart_env.dynamics import Dynamics, make_dynamics
@@ -26,8 +27,10 @@ from stewart_env.randomization import Randomization
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks import RewardWeights, Scales, make_task, tracking_errors
+from stewart_env.validation import check_action, check_keywords, choice, flag, integer, real
 
-__all__ = ["DEFAULTS", "OBSERVATION_MODES", "TERMINATION_REASONS", "BatchAttributes", "PlatformBatch", "check_action"]
+__all__ = ["DEFAULTS", "LIMITS", "OBSERVATION_MODES", "TERMINATION_REASONS", "BatchAttributes", "PlatformBatch",
+           "check_action"]
 
 #: Every keyword argument of the environments and its default (the arguments table of the card).
 DEFAULTS: dict[str, Any] = {
@@ -50,30 +53,30 @@ DEFAULTS: dict[str, Any] = {
     "width": 480,
     "height": 480,
 }
+#: The ranges of the numeric keyword arguments (low, high), both included; the reward weights and
+#: scales have theirs in :class:`~stewart_env.tasks.RewardWeights`.  Beyond them a value is no
+#: longer a meaningful setting and can overflow the arithmetic (the card's Arguments table).
+LIMITS: dict[str, tuple[float, float]] = {
+    "control_dt": (1e-6, 10.0),
+    "actuator_tau": (0.0, 100.0),
+    "observation_noise": (0.0, 100.0),
+    "observation_delay": (0, 1000),
+    "error_integral_limit": (1e-6, 1e6),
+    "error_integral_band": (0.0, 1e6),  # > 0
+    "width": (1, 4096),
+    "height": (1, 4096),
+}
+#: At most this many RK4 substeps per control step (control_dt / physics_dt).
+MAX_SUBSTEPS = 10**6
 OBSERVATION_MODES = ("pose", "sensors")
 #: The environment's own reasons to terminate, by priority (a task's reasons come after these).
 TERMINATION_REASONS = ("non_finite", "singularity", "leg_stroke", "workspace")
+#: ``info["termination"]`` of a step that does not terminate.
+NOT_TERMINATED = ""
 # Relative tolerance on control_dt / physics_dt being a whole number (rounding of decimal inputs).
 _DT_TOLERANCE = 1e-9
-
-
-def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
-    """The action as a float64 array of ``shape``; ValueError saying what is wrong otherwise."""
-    try:
-        a = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"action: expected numbers of shape {shape}, got {action!r}") from None
-    if a.shape != shape:
-        raise ValueError(f"action: expected shape {shape}, got {a.shape}")
-    # One sum tells whether all is finite in the common case; only a non-finite sum looks closer.
-    if not math.isfinite(a.sum()):
-        bad = ~np.isfinite(a)
-        if bad.any():
-            where = np.argwhere(bad)[0]
-            kind = "NaN" if np.isnan(a[tuple(where)]) else "inf"
-            raise ValueError(f"action: contains {kind} at index {tuple(int(i) for i in where)} "
-                             f"({int(bad.sum())} non-finite value(s)); actions must be finite")
-    return a
+# The largest float32: an observation entry beyond it would become inf in the returned float32 array.
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 @njit(cache=True)
@@ -107,12 +110,9 @@ def _limit_codes(t, R, lengths, condition, non_finite, position_min, position_ma
         code[b] = c
 
 
-def _positive(name: str, value: Any, allow_zero: bool = False) -> float:
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool) \
-        and math.isfinite(value) and (value >= 0 if allow_zero else value > 0)
-    if not ok:
-        raise ValueError(f"{name}: expected a finite number {'>=' if allow_zero else '>'} 0, got {value!r}")
-    return float(value)
+def _limited(name: str, value: Any, *, low_open: bool = False) -> float:
+    """A number keyword argument checked against its :data:`LIMITS`."""
+    return real(name, value, *LIMITS[name], low_open=low_open)
 
 
 def _platform(value: Any) -> PlatformParams:
@@ -136,27 +136,27 @@ class PlatformBatch:
     """
 
     def __init__(self, n: int, **kwargs: Any):
-        unknown = [k for k in kwargs if k not in DEFAULTS]
-        if unknown:
-            raise ValueError(f"unknown keyword argument(s) {', '.join(map(repr, unknown))}; "
-                             f"valid: {', '.join(DEFAULTS)}")
+        check_keywords("PlatformBatch.__init__", kwargs, DEFAULTS)
         cfg = {**DEFAULTS, **kwargs}
-        self.n = n = int(n)
+        self.n = n = integer("n", n, 1, 2**31 - 1)
 
         # -- physics ------------------------------------------------------------------------------
         self.platform = _platform(cfg["platform"])
         self.nominal_model: Dynamics = make_dynamics(cfg["model"], self.platform)
         self.model: Dynamics = self.nominal_model
-        self.control_dt = _positive("control_dt", cfg["control_dt"])
-        physics_dt = _positive("physics_dt", cfg["physics_dt"])
+        self.control_dt = _limited("control_dt", cfg["control_dt"])
+        physics_dt = real("physics_dt", cfg["physics_dt"], 0.0, self.control_dt, low_open=True)
         substeps = round(self.control_dt / physics_dt)
-        if substeps < 1 or abs(substeps * physics_dt - self.control_dt) > _DT_TOLERANCE * self.control_dt:
+        if substeps > MAX_SUBSTEPS:
+            raise ValueError(f"physics_dt ({physics_dt}): control_dt / physics_dt is "
+                             f"{self.control_dt / physics_dt:.6g}, more than {MAX_SUBSTEPS} RK4 substeps per step")
+        if abs(substeps * physics_dt - self.control_dt) > _DT_TOLERANCE * self.control_dt:
             raise ValueError(f"control_dt ({self.control_dt}) must be a whole multiple of physics_dt "
                              f"({physics_dt}): the ratio is {self.control_dt / physics_dt:.6g}")
         self.substeps = substeps
         # Integrate with control_dt / substeps so that n control steps are exactly n control_dt.
         self.physics_dt = self.control_dt / substeps
-        tau = _positive("actuator_tau", cfg["actuator_tau"], allow_zero=True)
+        tau = _limited("actuator_tau", cfg["actuator_tau"])
         self.actuator_tau = tau
         self._lag = 1.0 - math.exp(-self.control_dt / tau) if tau > 0 else 0.0
         lim = self.platform.limits
@@ -169,16 +169,12 @@ class PlatformBatch:
         # -- task and reward ----------------------------------------------------------------------
         self.task = make_task(cfg["task"], self.platform, self.control_dt, cfg["task_options"])
         self.weights = RewardWeights(**{k: cfg[k] for k in RewardWeights.__dataclass_fields__})
-        self.termination_reasons: tuple[str | None, ...] = (None, *TERMINATION_REASONS,
-                                                            *self.task.termination_reasons)
-        self._reason_array = np.array(self.termination_reasons, dtype=object)
+        self.termination_reasons: tuple[str, ...] = (NOT_TERMINATED, *TERMINATION_REASONS,
+                                                     *self.task.termination_reasons)
+        self._reason_array = np.array(self.termination_reasons, dtype=str)
         self._task_code_offset = 1 + len(TERMINATION_REASONS)
-
-        for name in ("width", "height"):
-            v = cfg[name]
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v <= 0:
-                raise ValueError(f"{name}: expected a positive integer number of pixels, got {v!r}")
-        self.width, self.height = int(cfg["width"]), int(cfg["height"])
+        self.width = integer("width", cfg["width"], *LIMITS["width"])
+        self.height = integer("height", cfg["height"], *LIMITS["height"])
 
         # -- state, preallocated --------------------------------------------------------------------
         self.position = np.zeros((n, 3))
@@ -195,28 +191,26 @@ class PlatformBatch:
         self.reference = Reference(np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3)))
         self.episode = {k: np.zeros((n, *shape)) for k, shape in self.task.episode_fields.items()}
         self.row_params: list[PlatformParams] = [self.platform] * n
-        self._state = PlatformState(self.position, self.rotation, self.velocity, self.angular_velocity)
-        self._backup = PlatformState(*(np.zeros_like(x) for x in self._state))
+        self._backup = PlatformState(*(np.zeros((n, *shape)) for shape in ((3,), (3, 3), (3,), (3,))))
         self._action = np.zeros((n, 6))
         self._command = np.zeros((n, 6))
         self._state_sum = np.zeros(n)
         self._non_finite = np.zeros(n, dtype=bool)
+        # Rows whose start observation was not finite: their first step terminates ("non_finite").
+        self._pending = np.zeros(n, dtype=bool)
         self._code = np.zeros(n, dtype=np.int64)
         self._home_rpy = self.platform.home_rpy
         self._home_rotation = rpy_to_matrix(self.platform.home_rpy)
 
         # -- observation ----------------------------------------------------------------------------
-        mode = cfg["observation_mode"]
-        if mode not in OBSERVATION_MODES:
-            raise ValueError(f"observation_mode: expected one of {OBSERVATION_MODES}, got {mode!r}")
-        self.observation_mode = mode
+        self.observation_mode = choice("observation_mode", cfg["observation_mode"], OBSERVATION_MODES)
         scales = Scales.of(self.platform)
         box_centre = 0.5 * (lim.position_min + lim.position_max)
         stroke_mid = 0.5 * (lim.leg_length[0] + lim.leg_length[1])
         ang = np.full(3, scales.angle)
         # (name, scale, offset): observed value = (physical - offset) / scale when normalised.
         terms: list[tuple[str, np.ndarray, np.ndarray]] = []
-        if mode == "pose":
+        if self.observation_mode == "pose":
             terms += [("position", scales.position, box_centre), ("orientation", np.ones(6), np.zeros(6)),
                       ("velocity", scales.position, np.zeros(3)), ("angular_velocity", ang, np.zeros(3))]
         else:
@@ -225,10 +219,8 @@ class PlatformBatch:
         if tau > 0:
             terms.append(("leg_forces", np.full(6, scales.leg_force), np.full(6, self._force_mid)))
         terms += [(name, scale, np.zeros(scale.size)) for name, scale in self.task.observation_terms(scales)]
-        integral = cfg["error_integral"]
-        if not isinstance(integral, (bool, np.bool_)):
-            raise ValueError(f"error_integral: expected True or False, got {integral!r}")
-        self.error_integral_limit = _positive("error_integral_limit", cfg["error_integral_limit"])
+        integral = flag("error_integral", cfg["error_integral"])
+        self.error_integral_limit = _limited("error_integral_limit", cfg["error_integral_limit"])
         # Anti-windup bound (6,) [m s; rad s]: error_integral_limit seconds of an error of one
         # observation scale (h, A); the normalised integral is the integral over this bound.
         self.error_integral_bound = self.error_integral_limit * np.concatenate([scales.position, ang])
@@ -236,17 +228,14 @@ class PlatformBatch:
         # Conditional integration (6,) [m; rad]: an error component adds to the integral only
         # while within band x its observation scale, so that approaching the target (large
         # errors) does not wind the integral up and it holds mostly the steady-state bias.
-        self.error_integral_band = (None if band is None else
-                                    _positive("error_integral_band", band) * np.concatenate([scales.position, ang]))
+        self.error_integral_band = (None if band is None else _limited("error_integral_band", band, low_open=True)
+                                    * np.concatenate([scales.position, ang]))
         # The time integral (n,6) [m s; rad s] of (position_error, orientation_error); None when off.
         self.error_integral = np.zeros((n, 6)) if integral else None
         self._integral_step = np.zeros((n, 6))
         if integral:
             terms.append(("error_integral", self.error_integral_bound, np.zeros(6)))
-        normalize = cfg["normalize_observation"]
-        if not isinstance(normalize, (bool, np.bool_)):
-            raise ValueError(f"normalize_observation: expected True or False, got {normalize!r}")
-        self.normalize_observation = bool(normalize)
+        self.normalize_observation = flag("normalize_observation", cfg["normalize_observation"])
         self.observation_layout: dict[str, slice] = {}
         start = 0
         for name, scale, _ in terms:
@@ -261,19 +250,36 @@ class PlatformBatch:
             self.observation_offset = np.zeros(start)
         self._inv_scale = 1.0 / self.observation_scale
         self._raw = np.zeros((n, start))
-        self._raw_views = self._views(self._raw)
         self.noise_std = self._noise(cfg["observation_noise"])
-        delay = cfg["observation_delay"]
-        if isinstance(delay, bool) or not isinstance(delay, (int, np.integer)) or delay < 0:
-            raise ValueError(f"observation_delay: expected an integer number of control steps >= 0, got {delay!r}")
-        self.observation_delay = int(delay)
+        self.observation_delay = integer("observation_delay", cfg["observation_delay"], *LIMITS["observation_delay"])
+        # A ring of the last observation_delay + 1 observations; the slot _head + 1 is the oldest.
         self._history = np.zeros((self.observation_delay + 1, n, start))
         self._head = 0
-        self.observation = self._history[0]
+        self._views()
+
+    def _views(self) -> None:
+        """The members that are views of others; made again in a copy (see :meth:`__setstate__`),
+        since a copy of a view is no longer a view."""
+        self._state = PlatformState(self.position, self.rotation, self.velocity, self.angular_velocity)
+        self._raw_views = self._views_of(self._raw)
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        del state["_state"], state["_raw_views"]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._views()
+
+    @property
+    def observation(self) -> np.ndarray:
+        """The latest observation of every row (n, D): scaled, noisy and delayed as configured."""
+        return self._history[(self._head + 1) % (self.observation_delay + 1)]
 
     # -- configuration -----------------------------------------------------------------------------
 
-    def _views(self, raw: np.ndarray) -> dict[str, np.ndarray]:
+    def _views_of(self, raw: np.ndarray) -> dict[str, np.ndarray]:
         return {name: raw[:, sl] for name, sl in self.observation_layout.items()}
 
     def _noise(self, value: Any) -> np.ndarray | None:
@@ -285,9 +291,10 @@ class PlatformBatch:
                 raise ValueError(f"observation_noise: unknown observation term(s) {', '.join(map(repr, unknown))}; "
                                  f"terms: {', '.join(self.observation_layout)}")
             for name, s in value.items():
-                std[self.observation_layout[name]] = _positive(f"observation_noise[{name!r}]", s, allow_zero=True)
+                std[self.observation_layout[name]] = real(f"observation_noise[{name!r}]", s,
+                                                          *LIMITS["observation_noise"])
         else:
-            std[:] = _positive("observation_noise", value, allow_zero=True)
+            std[:] = _limited("observation_noise", value)
         return std if std.any() else None
 
     @property
@@ -305,8 +312,8 @@ class PlatformBatch:
         """Start a new episode in each of ``rows`` (int array), row rows[j] drawing from rngs[j].
 
         Draw order within a row: randomisation factors, the task's episode, observation noise.
-        Returns one info dict per row: with randomisation, ``randomization`` (the factors) and
-        ``platform_params`` (the episode's PlatformParams).
+        Returns one info dict per row: with randomisation, ``randomization`` (the factors, name ->
+        np.float64); the episode's PlatformParams are ``row_params[i]``.
         """
         infos = []
         for j, i in enumerate(rows):
@@ -315,8 +322,7 @@ class PlatformBatch:
             if self.randomization is not None:
                 factors = self.randomization.sample(rng)
                 self.row_params[i] = self.randomization.apply(self.platform, factors)
-                info["randomization"] = factors
-                info["platform_params"] = self.row_params[i]
+                info["randomization"] = {k: np.float64(v) for k, v in factors.items()}
             start, episode = self.task.initialize_episode(rng)
             self.position[i], self.rotation[i], self.velocity[i], self.angular_velocity[i] = start
             for k, v in episode.items():
@@ -335,11 +341,13 @@ class PlatformBatch:
         state = PlatformState(*(x[rows] for x in self._state))
         lengths, rates, cond = np.empty((len(rows), 6)), np.empty((len(rows), 6)), np.empty(len(rows))
         if self._lag:
-            # The actuators start holding the start state: the forces of zero acceleration.
+            # The actuators start holding the start state: the forces of zero acceleration, as far
+            # as the actuators reach.
             model = (self.nominal_model if self.randomization is None
                      else self.nominal_model.with_params([self.row_params[i] for i in rows]))
             zero = np.zeros((len(rows), 3))
-            self.leg_forces[rows] = model.inverse(*state, zero, zero)
+            lo, hi = self.platform.limits.leg_force
+            self.leg_forces[rows] = np.clip(model.inverse(*state, zero, zero), lo, hi)
         else:
             self.leg_forces[rows] = 0.0
         leg_sensors_inplace(self.nominal_model, *state, self.platform.limits.max_condition, lengths, rates, cond)
@@ -355,6 +363,7 @@ class PlatformBatch:
         if self.noise_std is not None:
             for j in range(len(rows)):
                 raw[j] += rngs[j].normal(size=self.obs_dim) * self.noise_std
+        self._pending[rows] = self._finite_or_marked(raw)
         # A delayed sensor has seen only the start: every slot of the history holds it.
         self._history[:, rows] = raw
         return infos
@@ -434,13 +443,35 @@ class PlatformBatch:
             for i in range(self.n):
                 if skip is None or not skip[i]:
                     raw[i] += rngs[i].normal(size=self.obs_dim) * self.noise_std
-        if self.observation_delay:
-            self._head = (self._head + 1) % (self.observation_delay + 1)
-            self._history[self._head] = raw
-            self.observation = self._history[(self._head + 1) % (self.observation_delay + 1)]
-        else:
-            self._history[0] = raw
+        bad = self._finite_or_marked(raw, reward)
+        if self._pending.any():
+            bad |= self._pending
+            self._pending[:] = False
+        if bad.any():
+            # No NaN or inf leaves the environment: the row ends as non-finite, its reward terms
+            # that are not finite count 0 and the termination cost is paid.
+            code[bad] = 1 + TERMINATION_REASONS.index("non_finite")
+            for term in terms.values():
+                term[bad] = np.nan_to_num(term[bad], nan=0.0, posinf=0.0, neginf=0.0)
+            terms["termination"][bad] = -self.weights.termination_cost
+            reward = sum(terms.values())
+        self._head = (self._head + 1) % (self.observation_delay + 1)
+        self._history[self._head] = raw
         return reward, code, terms
+
+    @staticmethod
+    def _finite_or_marked(raw: np.ndarray, reward: np.ndarray | None = None) -> np.ndarray:
+        """Rows (bool (rows,)) of an observation batch (and reward) with an entry that is not
+        finite or beyond the float32 range; their observation entries are made finite in place
+        (NaN 0, the rest clipped to the float32 range).  Two reductions in the common case."""
+        if (raw.max(initial=0.0) <= _FLOAT32_MAX and raw.min(initial=0.0) >= -_FLOAT32_MAX
+                and (reward is None or math.isfinite(reward.sum()))):
+            return np.zeros(raw.shape[0], dtype=bool)
+        bad = ~(np.abs(raw) <= _FLOAT32_MAX).all(axis=1)
+        if reward is not None:
+            bad |= ~np.isfinite(reward)
+        raw[bad] = np.clip(np.nan_to_num(raw[bad], nan=0.0), -_FLOAT32_MAX, _FLOAT32_MAX)
+        return bad
 
     def _integrate(self, errors) -> None:
         """Add this step's errors times control_dt to the error integral (rectangle rule on the
@@ -480,7 +511,7 @@ class PlatformBatch:
                  integral, raw: np.ndarray, errors=None) -> None:
         """Write the clean observation of a batch (any number of rows) into ``raw``; integral is
         the batch's error integral (rows, 6), or None when it is not observed."""
-        views = self._raw_views if raw is self._raw else self._views(raw)
+        views = self._raw_views if raw is self._raw else self._views_of(raw)
         if errors is None:
             errors = tracking_errors(state, reference)
         if self.observation_mode == "pose":
@@ -505,7 +536,7 @@ class PlatformBatch:
     # -- introspection ------------------------------------------------------------------------------------
 
     def reasons(self, code: np.ndarray) -> np.ndarray:
-        """Termination reason names (object array of str or None) of codes."""
+        """Termination reason names (str array; "" for code 0) of codes."""
         return self._reason_array[code]
 
 
@@ -519,9 +550,22 @@ class BatchAttributes:
     _core: PlatformBatch
     _rows: int | slice
     _renderer = None  # made on first render
+    _reset_done = False  # set by the first reset()
 
     def _rows_of(self, array: np.ndarray) -> np.ndarray:
         return array[self._rows].copy()
+
+    def __getstate__(self) -> dict[str, Any]:
+        # A copy draws with a renderer of its own, made on its first render().
+        state = self.__dict__.copy()
+        state.pop("_renderer", None)
+        return state
+
+    def _check_reset(self) -> None:
+        """Refuse a step before the first reset(), which draws the episode (the state would be zeros)."""
+        if not self._reset_done:
+            raise ResetNeeded(f"{type(self).__name__}: call reset() before step(); the first reset() "
+                              "draws the episode's start state")
 
     @property
     def observation_layout(self) -> dict[str, slice]:
@@ -554,6 +598,14 @@ class BatchAttributes:
         return self._core.platform
 
     @property
+    def episode_params(self):
+        """The PlatformParams of the current episode (with domain randomisation, the nominal ones
+        scaled by the episode's factors; else the nominal ones); a tuple of one per row in the
+        vector environment."""
+        params = self._core.row_params[self._rows]
+        return tuple(params) if isinstance(params, list) else params
+
+    @property
     def task(self):
         """The task object (see stewart_env.tasks)."""
         return self._core.task
@@ -578,9 +630,16 @@ class BatchAttributes:
         """The control period, s."""
         return self._core.control_dt
 
-    def _draw(self, label: str = ""):
-        """Row 0 drawn by a PlatformRenderer made on first use (the target pose as a ghost): an
-        RGB frame, or None in human mode."""
+    def _scene(self) -> tuple[np.ndarray, ...]:
+        """What a frame shows of every row: position, rotation, leg forces, target position and
+        rotation, time (the batch's own arrays, not copies)."""
+        core = self._core
+        ref = core.reference
+        return core.position, core.rotation, core.leg_forces, ref.position, ref.rotation, core.time
+
+    def _draw(self, row: int = 0, label: str = "", scene: tuple[np.ndarray, ...] | None = None):
+        """Row ``row`` of ``scene`` (default: now, see :meth:`_scene`) drawn by a PlatformRenderer
+        made on first use (the target pose as a ghost): an RGB frame, or None in human mode."""
         core = self._core
         if self._renderer is None:
             from stewart_env.render import PlatformRenderer  # matplotlib only when rendering
@@ -588,10 +647,9 @@ class BatchAttributes:
             p = core.platform
             self._renderer = PlatformRenderer(p.base_joints, p.platform_joints, p.home_position,
                                               p.limits.leg_force, core.width, core.height, self.render_mode)
-        ref = core.reference
-        return self._renderer.render(core.position[0], core.rotation[0], core.leg_forces[0],
-                                     target_position=ref.position[0], target_rotation=ref.rotation[0],
-                                     text=f"{label}t = {core.time[0]:.2f} s")
+        position, rotation, forces, target_position, target_rotation, time = scene or self._scene()
+        return self._renderer.render(position[row], rotation[row], forces[row], target_position=target_position[row],
+                                     target_rotation=target_rotation[row], text=f"{label}t = {time[row]:.2f} s")
 
     def _close_renderer(self) -> None:
         if self._renderer is not None:

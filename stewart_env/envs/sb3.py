@@ -13,8 +13,10 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env import VecEnv
 
+from stewart_env.envs.core import DEFAULTS
 from stewart_env.envs.vector import StewartPlatformVectorEnv
 from stewart_env.registration import MAX_EPISODE_STEPS
+from stewart_env.validation import check_keywords
 
 __all__ = ["StewartPlatformSB3VecEnv"]
 
@@ -26,18 +28,20 @@ class StewartPlatformSB3VecEnv(VecEnv):
     ``max_episode_steps`` (default 500, as registered; None never truncates).  SB3 semantics: a
     row that ends is reset in the same step, its last observation in
     ``infos[i]["terminal_observation"]``, ``infos[i]["TimeLimit.truncated"]`` True when the time
-    limit (and not a termination) ended it, and ``infos[i]["termination"]`` the reason (None when
+    limit (and not a termination) ended it, and ``infos[i]["termination"]`` the reason ("" when
     truncated).  ``seed(s)`` seeds row i with s + i at the next ``reset()``, as SB3's own VecEnvs
     do, so row i reproduces ``gymnasium.make("StewartPlatform-v0")`` reset with seed s + i.
     Wrap in ``VecMonitor`` for episode statistics.
 
-    The batch is one environment to Python: ``get_attr``/``env_method`` reach attributes and
-    methods of the underlying :class:`StewartPlatformVectorEnv` (the same value for every index),
-    ``set_attr`` is not supported, and ``render()``/``get_images()`` draw row 0.
+    ``get_attr``, ``set_attr`` and ``env_method`` reach the rows as sub-environments, as the
+    vector environment's ``get_attr``, ``set_attr`` and ``call`` do (a row's state, target,
+    ``np_random``...; other names are the batch's, shared by every row, and set only for all rows
+    at once); ``render()``/``get_images()`` draw row 0.
     """
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = MAX_EPISODE_STEPS,
                  render_mode: str | None = None, **kwargs: Any):
+        check_keywords(f"{type(self).__name__}.__init__", kwargs, DEFAULTS)
         self.venv = StewartPlatformVectorEnv(num_envs=num_envs, max_episode_steps=max_episode_steps,
                                              render_mode=render_mode, autoreset_mode=AutoresetMode.SAME_STEP,
                                              **kwargs)
@@ -70,20 +74,19 @@ class StewartPlatformSB3VecEnv(VecEnv):
             reasons = infos["final_info"]["termination"]
             for i, info in zip(rows, self._row_infos(infos, rows)):
                 row_infos[i]["terminal_observation"] = infos["final_obs"][i]
-                row_infos[i]["termination"] = reasons[i]
+                row_infos[i]["termination"] = str(reasons[i])
                 self.reset_infos[i] = info
         return obs, reward.astype(np.float32), done, row_infos
 
     @staticmethod
     def _row_infos(infos: dict[str, Any], rows: Iterable[int]) -> list[dict[str, Any]]:
-        """Per-row reset infos (domain randomisation factors and parameters) from vector infos."""
+        """Per-row reset infos (the domain randomisation factors) from vector infos."""
         out = []
         for i in rows:
             info = {}
             if "randomization" in infos and infos["_randomization"][i]:
                 r = infos["randomization"]
-                info["randomization"] = {k: float(v[i]) for k, v in r.items() if not k.startswith("_")}
-                info["platform_params"] = infos["platform_params"][i]
+                info["randomization"] = {k: v[i] for k, v in r.items() if not k.startswith("_")}
             out.append(info)
         return out
 
@@ -91,21 +94,29 @@ class StewartPlatformSB3VecEnv(VecEnv):
         self.venv.close()
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
-        return [getattr(self.venv, attr_name)] * len(self._indices(indices))
+        return [getattr(self.venv._row(i), attr_name) for i in self._indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
-        raise NotImplementedError("set_attr: the rows share one batched environment; set options at construction")
+        rows = self._indices(indices)
+        if len(rows) == self.num_envs:
+            self.venv.set_attr(attr_name, [value] * self.num_envs)  # SB3: one value for every index
+            return
+        own = getattr(type(self.venv._row(0)), attr_name, None)
+        if not (isinstance(own, property) and own.fset is not None):
+            raise ValueError(f"set_attr: {attr_name!r} is shared by all rows of the batch; set it for every index")
+        for i in rows:
+            setattr(self.venv._row(i), attr_name, value)
 
     def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
-        result = getattr(self.venv, method_name)(*method_args, **method_kwargs)
-        return [result] * len(self._indices(indices))
+        return [getattr(self.venv._row(i), method_name)(*method_args, **method_kwargs)
+                for i in self._indices(indices)]
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
         return [False] * len(self._indices(indices))
 
     def get_images(self) -> Sequence[np.ndarray | None]:
         frames = self.venv.render() if self.render_mode == "rgb_array" else None
-        return list(frames) if frames is not None else [None]
+        return [frames[0]] if frames is not None else [None]
 
     def _indices(self, indices) -> list[int]:
         return list(self._get_indices(indices))

@@ -8,7 +8,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from stewart_env.envs.core import BatchAttributes, PlatformBatch, check_action
+from stewart_env.envs.core import DEFAULTS, BatchAttributes, PlatformBatch
+from stewart_env.validation import check_action, check_keywords
 
 __all__ = ["StewartPlatformEnv"]
 
@@ -237,6 +238,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 100.0}
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any):
+        check_keywords(f"{type(self).__name__}.__init__", kwargs, (*DEFAULTS, "render_mode"))
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode: expected one of {self.metadata['render_modes']} or None, "
                              f"got {render_mode!r}")
@@ -255,17 +257,19 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
             raise ValueError(f"reset: unknown option(s) {', '.join(map(repr, options))}; this environment takes none")
         self._rngs = (self.np_random,)
         info = self._core.reset_rows(_ROW0, self._rngs)[0]
+        self._reset_done = True
         if self.render_mode == "human":
             self.render()
         return self._core.observation[0].astype(np.float32), info
 
     def step(self, action):
+        self._check_reset()
         core = self._core
         a = check_action(action, (6,))
         reward, code, terms = core.step(a.reshape(1, 6), self._rngs)
-        info = {term_key(k): float(v[0]) for k, v in terms.items()}
+        info = {term_key(k): v[0] for k, v in terms.items()}
         info["termination"] = core.termination_reasons[code[0]]
-        info["time"] = float(core.time[0])
+        info["time"] = core.time[0]
         if self.render_mode == "human":
             self.render()
         return core.observation[0].astype(np.float32), float(reward[0]), bool(code[0]), False, info

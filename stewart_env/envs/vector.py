@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -10,8 +11,9 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from stewart_env.envs.core import BatchAttributes, PlatformBatch, check_action
+from stewart_env.envs.core import DEFAULTS, BatchAttributes, PlatformBatch
 from stewart_env.envs.stewart_platform import term_key
+from stewart_env.validation import check_action, check_keywords, integer
 
 __all__ = ["StewartPlatformVectorEnv"]
 
@@ -28,10 +30,80 @@ def _autoreset_mode(value: Any) -> AutoresetMode:
 
 
 def _masked(value: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """``value`` where ``mask``, else the empty value of its dtype (0 or None)."""
+    """``value`` where ``mask``, else the empty value of its dtype (0, or "" for str)."""
     out = np.full(value.shape, None, dtype=object) if value.dtype == object else np.zeros_like(value)
     out[mask] = value[mask]
     return out
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Whether two values given to set_attr are equal (arrays compared entrywise)."""
+    try:
+        return a is b or bool(np.array_equal(a, b))
+    except (TypeError, ValueError):
+        return False
+
+
+class _Row(BatchAttributes):
+    """Sub-environment ``index`` of a vector environment, as ``call``, ``get_attr`` and
+    ``set_attr`` see it: the row's state, target, forces, episode parameters, Generator
+    (``np_random``, settable) and frame (``render()``); every other name is the vector
+    environment's own, shared by all rows."""
+
+    def __init__(self, venv: StewartPlatformVectorEnv, index: int):
+        self._venv, self._core, self._rows = venv, venv._core, index
+
+    @property
+    def np_random(self) -> np.random.Generator | None:
+        """The row's Generator (None before its first reset)."""
+        return self._venv._rngs[self._rows]
+
+    @np_random.setter
+    def np_random(self, value: np.random.Generator) -> None:
+        if not isinstance(value, np.random.Generator):
+            raise ValueError(f"np_random: expected a numpy Generator, got {value!r}")
+        self._venv._rngs[self._rows] = value
+
+    @property
+    def observation_space(self) -> spaces.Box:
+        return self._venv.single_observation_space
+
+    @property
+    def action_space(self) -> spaces.Box:
+        return self._venv.single_action_space
+
+    def render(self):
+        """The row's frame now, as the single environment's render()."""
+        venv = self._venv
+        if venv.render_mode is None:
+            return venv.render()
+        return venv._draw(self._rows, f"row {self._rows}, ")
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("_"):  # the row's own members are set in __init__
+            raise AttributeError(name)
+        return getattr(self._venv, name)
+
+
+class _Frames(Sequence):
+    """One rgb_array frame per row, of the rows as they were when made; a row is drawn on first
+    access, so recording row 0 of a large batch draws one frame per step, not N."""
+
+    def __init__(self, venv: StewartPlatformVectorEnv):
+        self._venv = venv
+        self._scene = tuple(x.copy() for x in venv._scene())
+        self._frames: dict[int, np.ndarray] = {}
+
+    def __len__(self) -> int:
+        return self._venv.num_envs
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[i] for i in range(len(self))[index]]
+        i = range(len(self))[index]  # IndexError beyond the rows, as a list
+        if i not in self._frames:
+            self._frames[i] = self._venv._draw(i, f"row {i}, ", self._scene)
+        return self._frames[i]
 
 
 class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
@@ -52,7 +124,12 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
 
     Infos are Gymnasium vector infos: every key holds an (N,) array with a boolean mask under
     ``"_" + key``; step keys are those of the single environment (``reward_<term>``,
-    ``termination``, ``time``).  ``render()`` draws row 0 only.
+    ``termination`` a str array, "" for rows that go on, ``time``).
+
+    A row is a sub-environment to ``call``, ``get_attr`` and ``set_attr`` (Gymnasium's
+    semantics: a tuple of one result per row), e.g. ``get_attr("state")`` or ``call("render")``;
+    ``render()`` gives one frame per row in ``rgb_array`` mode (each drawn when first indexed),
+    and draws row 0 in ``human`` mode.
     """
 
     _rows = slice(None)  # BatchAttributes: every row
@@ -61,12 +138,10 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, render_mode: str | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **kwargs: Any):
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs: expected a positive integer, got {num_envs!r}")
-        if max_episode_steps is not None and (isinstance(max_episode_steps, bool)
-                                              or not isinstance(max_episode_steps, (int, np.integer))
-                                              or max_episode_steps < 1):
-            raise ValueError(f"max_episode_steps: expected a positive integer or None, got {max_episode_steps!r}")
+        check_keywords(f"{type(self).__name__}.__init__", kwargs, DEFAULTS)
+        num_envs = integer("num_envs", num_envs, 1, 2**31 - 1)
+        if max_episode_steps is not None:
+            max_episode_steps = integer("max_episode_steps", max_episode_steps, 1, 2**62)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode: expected one of {self.metadata['render_modes']} or None, "
                              f"got {render_mode!r}")
@@ -110,6 +185,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
             if seeds[i] is not None or self._rngs[i] is None:
                 self._rngs[i] = seeding.np_random(seeds[i])[0]
         infos = self._reset_infos({}, rows, self._core.reset_rows(rows, [self._rngs[i] for i in rows]))
+        self._reset_done = all(rng is not None for rng in self._rngs)
         self._elapsed[rows] = 0
         self._autoreset[rows] = False
         if self.render_mode == "human":
@@ -117,6 +193,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
         return self._core.observation.astype(np.float32), infos
 
     def step(self, actions):
+        self._check_reset()
         core, n = self._core, self.num_envs
         a = check_action(actions, (n, 6))
         mode = self.autoreset_mode
@@ -180,17 +257,19 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
 
     def _reset_infos(self, infos: dict[str, Any], rows: np.ndarray,
                      row_infos: list[dict[str, Any]]) -> dict[str, Any]:
-        """Add per-row reset infos to vector infos, as Gymnasium's vector envs do."""
+        """Add per-row reset infos (numbers, or dicts of numbers) to vector infos, as Gymnasium's
+        vector envs do: an (N,) array of the value's dtype and its mask under ``"_" + key``."""
+        n = self.num_envs
         for i, info in zip(rows, row_infos):
             for key, value in info.items():
                 if key not in infos:
                     if isinstance(value, dict):
-                        infos[key] = {k: np.zeros(self.num_envs) for k in value}
+                        infos[key] = {k: np.zeros(n, dtype=np.asarray(v).dtype) for k, v in value.items()}
                         for k in value:
-                            infos[key]["_" + k] = np.zeros(self.num_envs, dtype=bool)
+                            infos[key]["_" + k] = np.zeros(n, dtype=bool)
                     else:
-                        infos[key] = np.full(self.num_envs, None, dtype=object)
-                    infos["_" + key] = np.zeros(self.num_envs, dtype=bool)
+                        infos[key] = np.zeros(n, dtype=np.asarray(value).dtype)
+                    infos["_" + key] = np.zeros(n, dtype=bool)
                 if isinstance(value, dict):
                     for k, v in value.items():
                         infos[key][k][i] = v
@@ -201,11 +280,50 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
         return infos
 
     def render(self):
+        """``rgb_array``: one frame per row (a sequence of N, each row drawn when first indexed,
+        as the rows are now); ``human``: draws row 0 in the window and returns None."""
         if self.render_mode is None:
             logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
             return None
-        frame = self._draw("row 0, ")
-        return None if frame is None else (frame,)
+        if self.render_mode == "human":
+            self._draw(0, "row 0, ")
+            return None
+        return _Frames(self)
+
+    def _row(self, index: int) -> _Row:
+        return _Row(self, index)
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        """Gymnasium's vector ``call``: ``name`` of every row (see :class:`_Row`), called with the
+        arguments if callable; a tuple of one result per row."""
+        results = []
+        for i in range(self.num_envs):
+            value = getattr(self._row(i), name)
+            results.append(value(*args, **kwargs) if callable(value) else value)
+        return tuple(results)
+
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        """Gymnasium's vector ``get_attr``: the attribute ``name`` of every row, a tuple."""
+        return self.call(name)
+
+    def set_attr(self, name: str, values: Any) -> None:
+        """Gymnasium's vector ``set_attr``: one value for every row, or a list or tuple of one per
+        row.  A row's own settable attribute (``np_random``) is set row by row; any other
+        attribute is shared by the whole batch and takes one value."""
+        n = self.num_envs
+        if not isinstance(values, (list, tuple)):
+            values = [values] * n
+        if len(values) != n:
+            raise ValueError(f"set_attr: expected one value or num_envs={n} values for {name!r}, "
+                             f"got {len(values)}")
+        own = getattr(_Row, name, None)
+        if isinstance(own, property) and own.fset is not None:
+            for i, value in enumerate(values):
+                setattr(self._row(i), name, value)
+        elif all(_same(v, values[0]) for v in values):
+            setattr(self, name, values[0])
+        else:
+            raise ValueError(f"set_attr: {name!r} is shared by all rows of the batch; give one value for all")
 
     def close_extras(self, **kwargs: Any) -> None:
         self._close_renderer()

@@ -24,6 +24,7 @@ from numba import njit
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rotation_error_rows, rpy_rate_matrix, rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
+from stewart_env.validation import real, vector
 
 __all__ = [
     "Errors",
@@ -31,6 +32,8 @@ __all__ = [
     "Scales",
     "Task",
     "check_option_names",
+    "motion_ranges",
+    "option",
     "pose_margins",
     "sinusoid_reference",
     "tracking_errors",
@@ -76,6 +79,11 @@ class Scales(NamedTuple):
                    leg_force=0.5 * (lim.leg_force[1] - lim.leg_force[0]))
 
 
+#: Bounds of the reward weights and scales (see :class:`RewardWeights`).
+MAX_WEIGHT = 1e6
+MAX_SCALE = 1e6
+
+
 @dataclass(frozen=True)
 class RewardWeights:
     """Weights and scales of the tracking-error reward (the environment's keyword arguments).
@@ -86,6 +94,9 @@ class RewardWeights:
                                           + |e_w| / angular_velocity_cost_scale)))
       - ctrl_cost_weight * mean(a^2)
       - termination_cost on the step that terminates.
+
+    Weights lie in [0, MAX_WEIGHT] (the sign is fixed by the term), scales in (0, MAX_SCALE], so
+    that no term and no sum of them overflows.
     """
 
     position_reward_weight: float = 0.5
@@ -100,15 +111,9 @@ class RewardWeights:
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-                    or not np.isfinite(value):
-                raise ValueError(f"{name}: must be a finite number, got {value!r}")
-            if name.endswith("_scale") and not value > 0:
-                raise ValueError(f"{name}: must be > 0, got {value!r}")
-            if not name.endswith("_scale") and value < 0:
-                raise ValueError(f"{name}: must be >= 0 (it is a weight; the sign is fixed by the term), "
-                                 f"got {value!r}")
-            object.__setattr__(self, name, float(value))
+            checked = (real(name, value, 0.0, MAX_SCALE, low_open=True) if name.endswith("_scale")
+                       else real(name, value, 0.0, MAX_WEIGHT))
+            object.__setattr__(self, name, checked)
 
 
 @njit(cache=True)
@@ -202,49 +207,21 @@ def check_option_names(task_cls: type, options: dict[str, Any]) -> None:
         )
 
 
+def option(name: str) -> str:
+    """How errors name a task option: ``task_options['name']``."""
+    return f"task_options[{name!r}]"
+
+
 def motion_ranges(params: PlatformParams, position, angle, names: tuple[str, str]) -> tuple[np.ndarray, np.ndarray]:
-    """A task's per-axis motion bounds: ``position`` (3,) m and ``angle`` (3,) rad as given, or by
-    default 40 % of the workspace box's half-size and of ``limits.max_angle``, which leaves room
-    for the platform to overshoot inside the limits.  ``names`` are the option names for errors."""
+    """A task's per-axis motion bounds: ``position`` (3,) m and ``angle`` (3,) rad as given (at
+    most the workspace box's half-size and ``limits.max_angle``: beyond, no motion fits the
+    limits), or by default 40 % of them, which leaves room for the platform to overshoot inside
+    the limits.  ``names`` are the option names for errors."""
     lim = params.limits
     half = 0.5 * (lim.position_max - lim.position_min)
-    return (0.4 * half if position is None else as_vector(position, names[0], positive=True),
-            np.full(3, 0.4 * lim.max_angle) if angle is None else as_vector(angle, names[1], positive=True))
-
-
-def as_vector(value: Any, name: str, size: int = 3, positive: bool = False) -> np.ndarray:
-    """A finite float vector of ``size`` from a number (broadcast) or a sequence; errors name it."""
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"task_options[{name!r}]: expected a number or {size} numbers, got {value!r}") from None
-    if arr.ndim == 0:
-        arr = np.full(size, float(arr))
-    if arr.shape != (size,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"task_options[{name!r}]: expected {size} finite numbers, got {value!r}")
-    if positive and np.any(arr < 0):
-        raise ValueError(f"task_options[{name!r}]: must be >= 0, got {value!r}")
-    return arr
-
-
-def as_number(value: Any, name: str, low: float = 0.0, strict: bool = False) -> float:
-    """A finite float >= low (> low if strict); errors name the option."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not np.isfinite(value) or value < low or (strict and value == low):
-        relation = ">" if strict else ">="
-        raise ValueError(f"task_options[{name!r}]: expected a finite number {relation} {low}, got {value!r}")
-    return float(value)
-
-
-def as_range(value: Any, name: str, low: float = 0.0) -> tuple[float, float]:
-    """(min, max) with low < min <= max; errors name the option."""
-    try:
-        lo, hi = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"task_options[{name!r}]: expected (min, max), got {value!r}") from None
-    if not (np.isfinite(lo) and np.isfinite(hi) and low < lo <= hi):
-        raise ValueError(f"task_options[{name!r}]: expected (min, max) with {low} < min <= max, got {value!r}")
-    return lo, hi
+    return (0.4 * half if position is None else vector(option(names[0]), position, 3, 0.0, half),
+            np.full(3, 0.4 * lim.max_angle) if angle is None
+            else vector(option(names[1]), angle, 3, 0.0, lim.max_angle))
 
 
 class Task:

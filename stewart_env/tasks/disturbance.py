@@ -7,7 +7,16 @@ import numpy as np
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
-from stewart_env.tasks.base import Task, as_number, as_range, as_vector
+from stewart_env.tasks.base import Task, option
+from stewart_env.validation import integer, interval, real, vector
+
+#: Bounds of the options: forces at most MAX_LOAD platform weights W (moments MAX_LOAD W r),
+#: frequencies in (0, MAX_FREQUENCY] Hz, at most MAX_IMPULSES pulses, a horizon of at most
+#: MAX_HORIZON s.  Beyond, the wrench throws any platform out of its workspace at once.
+MAX_LOAD = 100.0
+MAX_FREQUENCY = 1000.0
+MAX_IMPULSES = 1000
+MAX_HORIZON = 1e6
 
 
 class DisturbanceTask(Task):
@@ -27,15 +36,16 @@ class DisturbanceTask(Task):
 
     Options (``task_options``), with W = platform.mass |g| the platform's weight and r the mean
     distance of the platform joints from P's origin in the {P} x-y plane (dasgupta1998: W = 392 N,
-    r = 0.62 m):
+    r = 0.62 m); forces at most 100 W, moments at most 100 W r:
         sine_force: (3,) N or one number, default 0.2 W.
         sine_moment: (3,) N m or one number, default 0.2 W r.
-        frequency_range: (min, max) Hz, default (0.2, 2.0).
-        n_impulses: default 2.
+        frequency_range: (min, max) Hz, 0 < min <= max <= 1000, default (0.2, 2.0).
+        n_impulses: 0-1000, default 2.
         impulse_force: N, default W.
         impulse_moment: N m, default 0.5 W r.
-        impulse_duration: s, default 0.05.
-        horizon: s, the span the pulses are placed in, default 5.0 (the default episode length).
+        impulse_duration: s, > 0, default 0.05.
+        horizon: s, the span the pulses are placed in, from impulse_duration to 1e6, default 5.0
+            (the default episode length).
     """
 
     name = "disturbance"
@@ -47,19 +57,19 @@ class DisturbanceTask(Task):
         super().__init__(params, control_dt)
         weight = params.platform.mass * (float(np.linalg.norm(params.gravity)) or 9.81)
         radius = float(np.mean(np.linalg.norm(params.platform_joints[:, :2], axis=1)))
+        max_force, max_moment = MAX_LOAD * weight, MAX_LOAD * weight * radius
         self.sine_force = (np.full(3, 0.2 * weight) if sine_force is None
-                           else as_vector(sine_force, "sine_force", positive=True))
+                           else vector(option("sine_force"), sine_force, 3, 0.0, max_force))
         self.sine_moment = (np.full(3, 0.2 * weight * radius) if sine_moment is None
-                            else as_vector(sine_moment, "sine_moment", positive=True))
-        self.frequency_range = as_range(frequency_range, "frequency_range")
-        if isinstance(n_impulses, bool) or not isinstance(n_impulses, (int, np.integer)) or n_impulses < 0:
-            raise ValueError(f"task_options['n_impulses']: expected an integer >= 0, got {n_impulses!r}")
-        self.n_impulses = int(n_impulses)
-        self.impulse_force = weight if impulse_force is None else as_number(impulse_force, "impulse_force")
+                            else vector(option("sine_moment"), sine_moment, 3, 0.0, max_moment))
+        self.frequency_range = interval(option("frequency_range"), frequency_range, 0.0, MAX_FREQUENCY, low_open=True)
+        self.n_impulses = integer(option("n_impulses"), n_impulses, 0, MAX_IMPULSES)
+        self.impulse_force = (weight if impulse_force is None
+                              else real(option("impulse_force"), impulse_force, 0.0, max_force))
         self.impulse_moment = (0.5 * weight * radius if impulse_moment is None
-                               else as_number(impulse_moment, "impulse_moment"))
-        self.impulse_duration = as_number(impulse_duration, "impulse_duration", strict=True)
-        self.horizon = as_number(horizon, "horizon", low=self.impulse_duration)
+                               else real(option("impulse_moment"), impulse_moment, 0.0, max_moment))
+        self.impulse_duration = real(option("impulse_duration"), impulse_duration, 0.0, MAX_HORIZON, low_open=True)
+        self.horizon = real(option("horizon"), horizon, self.impulse_duration, MAX_HORIZON)
         self.episode_fields = {"sine_amplitude": (6,), "sine_omega": (6,), "sine_phase": (6,),
                                "impulse_time": (self.n_impulses,), "impulse_wrench": (self.n_impulses, 6)}
         self._home_rotation = rpy_to_matrix(params.home_rpy)

@@ -7,7 +7,8 @@ import numpy as np
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
-from stewart_env.tasks.base import Task, as_vector, motion_ranges, pose_margins
+from stewart_env.tasks.base import Task, motion_ranges, option, pose_margins
+from stewart_env.validation import flag, vector
 
 # The case study of He et al. (2018), as offsets from the home pose (0, 0, 0.4) of the dasgupta1998
 # platform, where they give its absolute poses: start (0.1, 0, 0.395), target (0.1, 0, 0.4),
@@ -29,9 +30,10 @@ class SetpointTask(Task):
             +- angle_range, each pose redrawn until it lies safely inside the limits (10 %
             margins, see :func:`~stewart_env.tasks.base.pose_margins`).  False gives the fixed
             poses below every episode.
-        position_range: (3,) m, or one number for all axes; default 0.4 x the workspace half-size
-            (dasgupta1998: 0.1, 0.1, 0.06).
-        angle_range: (3,) rad, or one number; default 0.4 x limits.max_angle (dasgupta1998: 0.2).
+        position_range: (3,) m, or one number for all axes, at most the workspace half-size;
+            default 0.4 x the workspace half-size (dasgupta1998: 0.1, 0.1, 0.06).
+        angle_range: (3,) rad, or one number, at most limits.max_angle; default 0.4 x
+            limits.max_angle (dasgupta1998: 0.2).
         start_position, start_rpy, target_position, target_rpy: the fixed poses used when
             randomize is False, in {B} (m, rad).  Defaults: the paper's case study written as
             offsets from home, i.e. start home + (0.1, 0, -0.005) with rpy home + (0, 0, -0.2),
@@ -46,9 +48,7 @@ class SetpointTask(Task):
                  position_range=None, angle_range=None, start_position=None, start_rpy=None,
                  target_position=None, target_rpy=None):
         super().__init__(params, control_dt)
-        if not isinstance(randomize, (bool, np.bool_)):
-            raise ValueError(f"task_options['randomize']: expected True or False, got {randomize!r}")
-        self.randomize = bool(randomize)
+        self.randomize = flag(option("randomize"), randomize)
         self.position_range, self.angle_range = motion_ranges(params, position_range, angle_range,
                                                               ("position_range", "angle_range"))
         home_p, home_r = params.home_position, params.home_rpy
@@ -58,7 +58,7 @@ class SetpointTask(Task):
             "target_position": (target_position, home_p + PAPER_TARGET_OFFSET),
             "target_rpy": (target_rpy, home_r + PAPER_RPY_OFFSET),
         }
-        fixed = {k: (default if v is None else as_vector(v, k)) for k, (v, default) in poses.items()}
+        fixed = {k: (default if v is None else vector(option(k), v, 3)) for k, (v, default) in poses.items()}
         self.start_position, self.start_rpy = fixed["start_position"], fixed["start_rpy"]
         self.target_position, self.target_rpy = fixed["target_position"], fixed["target_rpy"]
         if not self.randomize:

@@ -9,21 +9,18 @@ import numpy as np
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rotation_error
 from stewart_env.state import PlatformState, Reference
-from stewart_env.tasks.base import (
-    Errors,
-    Scales,
-    Task,
-    as_number,
-    as_range,
-    motion_ranges,
-    pose_margins,
-    sinusoid_reference,
-)
+from stewart_env.tasks.base import Errors, Scales, Task, motion_ranges, option, pose_margins, sinusoid_reference
+from stewart_env.validation import integer, interval, real
 
 # Amplitudes that put a corner of the reference's range outside the limits are scaled down by this
 # factor until every corner fits.
 _SHRINK = 0.8
 _MAX_SHRINKS = 50
+#: Bounds of the options: frequencies in (0, MAX_FREQUENCY] Hz, at most MAX_PREVIEW samples, at
+#: most MAX_PREVIEW_INTERVAL s apart.
+MAX_FREQUENCY = 1000.0
+MAX_PREVIEW = 100
+MAX_PREVIEW_INTERVAL = 100.0
 
 
 class TrackingTask(Task):
@@ -38,13 +35,13 @@ class TrackingTask(Task):
     scaled by 0.8.  The platform starts on the reference (pose and twist at t = 0).
 
     Options (``task_options``):
-        position_amplitude: (3,) m or one number: max amplitude on x, y, z; default 0.4 x the
-            workspace half-size (dasgupta1998: 0.1, 0.1, 0.06).
-        angle_amplitude: (3,) rad or one number: max amplitude on roll, pitch, yaw; default
-            0.4 x limits.max_angle (dasgupta1998: 0.2).
-        frequency_range: (min, max) Hz, default (0.1, 0.5).
-        preview: number of future reference samples observed, default 3.
-        preview_interval: s between them, default 0.1 (samples at t + 0.1, 0.2, 0.3 s).
+        position_amplitude: (3,) m or one number: max amplitude on x, y, z, at most the
+            workspace half-size; default 0.4 x the workspace half-size (dasgupta1998: 0.1, 0.1, 0.06).
+        angle_amplitude: (3,) rad or one number: max amplitude on roll, pitch, yaw, at most
+            limits.max_angle; default 0.4 x limits.max_angle (dasgupta1998: 0.2).
+        frequency_range: (min, max) Hz, 0 < min <= max <= 1000, default (0.1, 0.5).
+        preview: number of future reference samples observed (0-100), default 3.
+        preview_interval: s between them (at most 100), default 0.1 (samples at t + 0.1, 0.2, 0.3 s).
 
     Observation terms beyond position and orientation error: velocity_error (3) m/s,
     angular_velocity_error (3) rad/s, and reference_preview (6 x preview): for each future
@@ -62,11 +59,10 @@ class TrackingTask(Task):
         super().__init__(params, control_dt)
         self.position_amplitude, self.angle_amplitude = motion_ranges(
             params, position_amplitude, angle_amplitude, ("position_amplitude", "angle_amplitude"))
-        self.frequency_range = as_range(frequency_range, "frequency_range")
-        if isinstance(preview, bool) or not isinstance(preview, (int, np.integer)) or preview < 0:
-            raise ValueError(f"task_options['preview']: expected an integer >= 0, got {preview!r}")
-        self.preview = int(preview)
-        self.preview_interval = as_number(preview_interval, "preview_interval", strict=True)
+        self.frequency_range = interval(option("frequency_range"), frequency_range, 0.0, MAX_FREQUENCY, low_open=True)
+        self.preview = integer(option("preview"), preview, 0, MAX_PREVIEW)
+        self.preview_interval = real(option("preview_interval"), preview_interval, 0.0, MAX_PREVIEW_INTERVAL,
+                                     low_open=True)
         self._corners = np.array(list(itertools.product((-1.0, 1.0), repeat=6)))
 
     def _bounded(self, amplitude: np.ndarray) -> np.ndarray:

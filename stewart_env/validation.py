@@ -1,0 +1,145 @@
+"""The argument checks of the environments and tasks: one set of validators, every error naming
+the argument it refuses.
+
+A value of the wrong kind (a bool or a string where a number belongs, an unknown keyword) raises
+:class:`ArgumentError`, which is both a ``TypeError`` (as Python raises for a bad call) and a
+``ValueError`` (as the environment raises for every bad argument), so callers that catch either
+see it.  A value of the right kind outside its range raises ``ValueError``.  Ranges are finite
+wherever a value could otherwise overflow a computation downstream.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+import numpy as np
+
+__all__ = ["ArgumentError", "check_action", "check_keywords", "choice", "flag", "integer", "interval",
+           "real", "vector"]
+
+
+class ArgumentError(TypeError, ValueError):
+    """An argument of the wrong kind, or an unknown keyword argument."""
+
+
+def _is_real(value: Any) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+def _as_float(value: Any) -> float:
+    try:
+        return float(value)
+    except OverflowError:  # a Python int beyond the float range
+        return math.copysign(math.inf, value)
+
+
+def _span(low: float, high: float, low_open: bool) -> str:
+    if high == math.inf:
+        return f"{'>' if low_open else '>='} {low:g}"
+    return f"in {'(' if low_open else '['}{low:g}, {high:g}]"
+
+
+def real(name: str, value: Any, low: float = -math.inf, high: float = math.inf, *, low_open: bool = False) -> float:
+    """``value`` as a float: a real number (not a bool), finite, in [low, high] ((low, high] if
+    ``low_open``)."""
+    if not _is_real(value):
+        raise ArgumentError(f"{name}: expected a finite number {_span(low, high, low_open)}, got {value!r}")
+    x = _as_float(value)
+    if not (math.isfinite(x) and (x > low if low_open else x >= low) and x <= high):
+        raise ValueError(f"{name}: expected a finite number {_span(low, high, low_open)}, got {value!r}")
+    return x
+
+
+def integer(name: str, value: Any, low: int, high: int) -> int:
+    """``value`` as an int: an integer (not a bool) in [low, high]."""
+    if not isinstance(value, numbers.Integral) or isinstance(value, (bool, np.bool_)):
+        raise ArgumentError(f"{name}: expected an integer in [{low}, {high}], got {value!r}")
+    if not low <= value <= high:
+        raise ValueError(f"{name}: expected an integer in [{low}, {high}], got {value!r}")
+    return int(value)
+
+
+def flag(name: str, value: Any) -> bool:
+    """``value`` as a bool: True or False (Python's or numpy's), nothing else."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ArgumentError(f"{name}: expected True or False, got {value!r}")
+    return bool(value)
+
+
+def choice(name: str, value: Any, choices: Iterable[Any]) -> Any:
+    """``value`` if it is one of ``choices``."""
+    choices = tuple(choices)
+    if not isinstance(value, str) or value not in choices:
+        raise ValueError(f"{name}: expected one of {', '.join(map(repr, choices))}, got {value!r}")
+    return value
+
+
+def vector(name: str, value: Any, size: int, low: float = -math.inf, high: Any = math.inf) -> np.ndarray:
+    """A float vector (size,) from one number (for every entry) or ``size`` numbers, each finite
+    and in [low, high] (``high`` a number or a (size,) array)."""
+    items = [value] if _is_real(value) else value
+    try:
+        items = list(items)
+    except TypeError:
+        raise ArgumentError(f"{name}: expected a number or {size} numbers, got {value!r}") from None
+    if not all(_is_real(v) for v in items) or len(items) not in (1, size):
+        raise ArgumentError(f"{name}: expected a number or {size} numbers, got {value!r}")
+    arr = np.array([_as_float(v) for v in items] * (size if len(items) == 1 else 1))
+    high = np.broadcast_to(np.asarray(high, dtype=float), (size,))
+    if not (np.all(np.isfinite(arr)) and np.all(arr >= low) and np.all(arr <= high)):
+        top = f"{high[0]:g}" if np.all(high == high[0]) else f"({', '.join(f'{h:g}' for h in high)})"
+        raise ValueError(f"{name}: expected finite numbers in [{low:g}, {top}], got {value!r}")
+    return arr
+
+
+def interval(name: str, value: Any, low: float, high: float, *, low_open: bool = False) -> tuple[float, float]:
+    """(min, max) of two real numbers with low <= min <= max <= high (low < min if ``low_open``)."""
+    try:
+        lo, hi = value
+    except (TypeError, ValueError):
+        raise ArgumentError(f"{name}: expected (min, max), got {value!r}") from None
+    span = _span(low, high, low_open)
+    if not (_is_real(lo) and _is_real(hi)):
+        raise ArgumentError(f"{name}: expected (min, max) of numbers {span}, got {value!r}")
+    lo, hi = _as_float(lo), _as_float(hi)
+    if not (math.isfinite(lo) and math.isfinite(hi) and (lo > low if low_open else lo >= low)
+            and lo <= hi <= high):
+        raise ValueError(f"{name}: expected (min, max) with min <= max, both {span}, got {value!r}")
+    return lo, hi
+
+
+def check_keywords(owner: str, kwargs: Mapping[str, Any], valid: Iterable[str]) -> None:
+    """Refuse keywords not in ``valid`` as Python refuses them in a call of ``owner``."""
+    valid = tuple(valid)
+    for key in kwargs:
+        if key not in valid:
+            raise ArgumentError(f"{owner}() got an unexpected keyword argument {key!r}; "
+                                f"valid keyword arguments: {', '.join(valid)}")
+
+
+def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """The action as a float64 array of ``shape``: real numbers (integers or floats of any width),
+    finite.  Anything else raises an error naming ``action`` and saying what is wrong."""
+    try:
+        a = np.asarray(action)
+    except (TypeError, ValueError, OverflowError):
+        raise ArgumentError(f"action: expected real numbers of shape {shape}, got {action!r}") from None
+    if a.dtype.kind not in "iuf":
+        hint = " (an integer too large for any integer type?)" if a.dtype.kind == "O" else ""
+        raise ArgumentError(f"action: expected real numbers (integers or floats) of shape {shape}, "
+                            f"got dtype {a.dtype}{hint}: {action!r}")
+    if a.shape != shape:
+        raise ValueError(f"action: expected shape {shape}, got {a.shape}")
+    a = a.astype(np.float64, copy=False)
+    # One sum tells whether all is finite in the common case; only a non-finite sum looks closer.
+    if not math.isfinite(a.sum()):
+        bad = ~np.isfinite(a)
+        if bad.any():
+            where = np.argwhere(bad)[0]
+            kind = "NaN" if np.isnan(a[tuple(where)]) else "inf"
+            raise ValueError(f"action: contains {kind} at index {tuple(int(i) for i in where)} "
+                             f"({int(bad.sum())} non-finite value(s)); actions must be finite")
+    return a
