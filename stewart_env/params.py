@@ -34,16 +34,29 @@ built from the physical keys alone:
 - limits.workspace.position_min / position_max: the home position -/+ 0.5 mean_i L_i on each axis.
 - limits.workspace.max_angle: 0.5 rad.  limits.max_condition: 1000.
 
+Every number must be a real number (not a boolean), finite as a float64 and at most 1e12 in
+magnitude, so that nothing overflows in the dynamics; the platform's mass must be at least 1e-6 kg
+and its principal moments of inertia at least 1e-15 kg m^2.
+
 Every invalid input raises `ConfigError` (a `ValueError`) whose message starts with the key path
-of the offending value, e.g. ``upper_leg[2].inertia: not symmetric``. Leg indices in messages
-count from 0, like the rows of the arrays.
+of the offending value, e.g. ``upper_leg[2].inertia: not symmetric`` or
+``base_joints[3][1]: not a finite number (inf)``. Leg indices in messages count from 0, like the
+rows of the arrays. Messages quote at most a short excerpt of a value, never a whole file.
+
+Files: `load_platform` and `PlatformParams.from_yaml` read only regular files named *.yaml or
+*.yml of at most 1 MB (`MAX_CONFIG_BYTES`), with YAML's safe loader, nesting at most 32 levels
+deep and at most 5000 values once aliases are expanded.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import importlib.resources
+import math
 import os
+import re
+import reprlib
+import stat
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -74,6 +87,24 @@ _MIN_HOOKE_SINE = 1e-3
 _G0 = 9.81
 _DEFAULT_MAX_ANGLE = 0.5
 _DEFAULT_MAX_CONDITION = 1000.0
+# No physical value of a Stewart platform in SI units comes near 1e12; products of a few such
+# values in the dynamics stay far from float64's 1.8e308.
+_MAX_MAGNITUDE = 1e12
+# Far below any real platform; they keep accelerations (force / mass, torque / inertia) finite.
+_MIN_PLATFORM_MASS = 1e-6
+_MIN_PLATFORM_INERTIA = 1e-15
+
+#: Largest platform config file accepted, bytes. The shipped configs are about 4 KB.
+MAX_CONFIG_BYTES = 1 << 20
+_CONFIG_SUFFIXES = (".yaml", ".yml")
+# A config has about 200 values nested 4 deep; far larger documents are refused before they are
+# built (a few KB of nested YAML aliases can expand to billions of values).
+_MAX_YAML_DEPTH = 32
+_MAX_YAML_VALUES = 5_000
+# Longest integer literal read; Python's int() takes quadratic time in the literal's length.
+_MAX_INT_LITERAL = 1000
+# Longest excerpt of a value quoted in an error message, characters.
+_EXCERPT = 60
 
 
 class ConfigError(ValueError):
@@ -124,18 +155,65 @@ def _within(prefix: str) -> Iterator[None]:
 _TEXT_HINT = " (text; in YAML write floats with a dot, e.g. 1.0e-4)"
 
 
+def _excerpt(text: str, limit: int = _EXCERPT) -> str:
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+class _ShortRepr(reprlib.Repr):
+    """repr() that stays short however large or deeply nested the value is (a YAML file can
+    expand to a huge structure): a few items per level, a few levels."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.maxlevel = 3
+        self.maxlist = self.maxtuple = self.maxdict = self.maxset = self.maxfrozenset = 4
+        self.maxstring = self.maxlong = self.maxother = _EXCERPT
+
+    def repr_int(self, x: int, level: int) -> str:
+        try:
+            return super().repr_int(x, level)
+        except ValueError:  # str() refuses integers of more than sys.get_int_max_str_digits()
+            return f"an integer of about {int(x.bit_length() * math.log10(2))} digits"
+
+
+_short_repr = _ShortRepr()
+
+
+def _short(value: object) -> str:
+    """A short excerpt of `value`'s repr for an error message."""
+    try:
+        return _excerpt(_short_repr.repr(value))
+    except Exception:  # a foreign object whose repr fails: name its type instead
+        return f"a {type(value).__name__}"
+
+
 def _describe(value: object) -> str:
-    return repr(value) + (_TEXT_HINT if isinstance(value, str) else "")
+    """`_short(value)`, with a hint when it is a number that YAML read as text."""
+    return _short(value) + (_TEXT_HINT if isinstance(value, str) and _is_float_text(value) else "")
+
+
+def _is_float_text(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _number(value: object, key: str) -> float:
-    """A finite float. Booleans and strings are refused: they are always a mistake here."""
+    """A finite float of magnitude at most _MAX_MAGNITUDE. Booleans and strings are refused:
+    they are always a mistake here."""
     numeric = isinstance(value, (int, float, np.integer, np.floating))
     if isinstance(value, (bool, np.bool_)) or not numeric:
         raise ConfigError(key, f"must be a number, got {_describe(value)}")
-    number = float(value)
-    if not np.isfinite(number):
-        raise ConfigError(key, f"must be finite, got {number}")
+    try:
+        number = float(value)
+    except OverflowError:  # an int beyond float64's range
+        number = math.inf
+    if not math.isfinite(number):
+        raise ConfigError(key, f"not a finite number ({_describe(value if isinstance(value, int) else number)})")
+    if abs(number) > _MAX_MAGNITUDE:
+        raise ConfigError(key, f"magnitude above {_MAX_MAGNITUDE:g}, got {number:g}")
     return number
 
 
@@ -146,26 +224,48 @@ def _frozen_array(values: np.ndarray) -> np.ndarray:
     return np.frombuffer(data.tobytes(), dtype=np.float64).reshape(data.shape)
 
 
+def _is_sequence(value: object) -> bool:
+    return isinstance(value, (Sequence, np.ndarray)) and not isinstance(value, (str, bytes))
+
+
 def _array(value: object, key: str, *shapes: tuple[int, ...]) -> np.ndarray:
-    """A finite float64 array of one of `shapes` (not yet frozen)."""
+    """A float64 array of one of `shapes` (not yet frozen), every entry checked by `_number` and
+    named by its index path, e.g. ``base_joints[3][1]``."""
     expected = " or ".join(str(s) for s in shapes)
-    if isinstance(value, (str, bytes, Mapping)):
+    if isinstance(value, np.ndarray) and value.dtype.kind in "iuf":
+        if value.shape not in shapes:
+            raise ConfigError(key, f"expected shape {expected}, got {value.shape}")
+        with np.errstate(over="ignore"):  # an overflowing float128 becomes inf, refused below
+            arr = value.astype(np.float64)
+        bad = np.argwhere(~(np.abs(arr) <= _MAX_MAGNITUDE))
+        if bad.size:
+            index = tuple(int(i) for i in bad[0])
+            _number(value[index], key + "".join(f"[{i}]" for i in index))
+        return arr
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    if not _is_sequence(value):
         raise ConfigError(key, f"expected numbers of shape {expected}, got {_describe(value)}")
+    depth = max(len(s) for s in shapes)
+    longest = max(max(s) for s in shapes)
+
+    def numbers(item: object, where: str, level: int) -> float | list:
+        # Lengths are checked before walking, so a huge or deep list costs nothing.
+        if isinstance(item, np.ndarray) and item.ndim == 0:
+            item = item[()]
+        if not _is_sequence(item) or level == depth:
+            return _number(item, where)
+        if len(item) > longest:
+            raise ConfigError(where, f"expected shape {expected}, got a sequence of {len(item)} items")
+        return [numbers(x, f"{where}[{i}]", level + 1) for i, x in enumerate(item)]
+
+    nested = numbers(value, key, 0)
     try:
-        raw = np.asarray(value)
-    except (ValueError, TypeError):
-        raw = None
-    if raw is None or raw.dtype.kind not in "iuf":
-        hint = _TEXT_HINT if raw is not None and raw.dtype.kind in "US" else ""
-        raise ConfigError(key, f"expected numbers of shape {expected}, got {_describe(value)}{hint}")
-    if raw.shape not in shapes:
-        raise ConfigError(key, f"expected shape {expected}, got {raw.shape}")
-    arr = raw.astype(np.float64)
-    bad = np.argwhere(~np.isfinite(arr))
-    if bad.size:
-        index = tuple(int(i) for i in bad[0])
-        where = "".join(f"[{i}]" for i in index)
-        raise ConfigError(key + where, f"must be finite, got {arr[index]}")
+        arr = np.array(nested, dtype=np.float64)
+    except ValueError:
+        raise ConfigError(key, f"expected numbers of shape {expected}, got rows of unequal lengths") from None
+    if arr.shape not in shapes:
+        raise ConfigError(key, f"expected shape {expected}, got {arr.shape}")
     return arr
 
 
@@ -180,20 +280,44 @@ def _interval(value: object, key: str) -> tuple[float, float]:
 def _mapping(value: object, key: str, required: Sequence[str], optional: Sequence[str] = ()) -> Mapping:
     """Check that `value` is a mapping with all `required` keys and nothing unknown."""
     if not isinstance(value, Mapping):
-        raise ConfigError(key, f"expected a mapping, got {_describe(value)}")
+        # The whole document is never quoted: it may be any file, e.g. one of secrets.
+        got = _describe(value) if key else _kind(value)
+        raise ConfigError(key, f"expected a mapping, got {got}")
     # Unknown keys first: a misspelt required key is then reported as the typo it is.
     known = (*required, *optional)
     unknown = [k for k in value if k not in known]
     if unknown:
         raise ConfigError(
             key,
-            "unknown key " + ", ".join(repr(k) for k in unknown)
-            + " (expected " + ", ".join(repr(k) for k in known) + ")",
+            f"unknown key {_key_names(unknown)} (expected " + ", ".join(repr(k) for k in known) + ")",
         )
     missing = [k for k in required if k not in value]
     if missing:
         raise ConfigError(key, "missing key " + ", ".join(repr(k) for k in missing))
     return value
+
+
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,39}")
+
+
+def _key_names(keys: Sequence) -> str:
+    """Unknown keys for an error message, the first three of them: quoted if they look like
+    misspelt names, else only described, for a file that is no config at all may be all keys (a
+    line of /etc/shadow is a YAML key)."""
+    names = [repr(k) if isinstance(k, str) and _NAME.fullmatch(k) else f"({_kind(k)})" for k in keys[:3]]
+    return ", ".join(names) + (f" and {len(keys) - 3} more" if len(keys) > 3 else "")
+
+
+def _kind(value: object) -> str:
+    """What `value` is, without quoting it."""
+    if value is None:
+        return "None"
+    if isinstance(value, str):
+        return f"text of {len(value)} characters"
+    if _is_sequence(value):
+        return f"a {type(value).__name__} of {len(value)} items"
+    name = type(value).__name__
+    return f"{'an' if name[0] in 'aeiou' else 'a'} {name}"
 
 
 def _symmetric_eigenvalues(matrix: np.ndarray, key: str) -> np.ndarray:
@@ -502,12 +626,14 @@ class PlatformParams(_ValueObject):
         plat = _array(self.platform_joints, "platform_joints", (N_LEGS, 3))
         hooke = _unit_rows(_array(self.hooke_axes, "hooke_axes", (N_LEGS, 3), (3,)))
         platform = _instance(self.platform, RigidBody, "platform")
-        if platform.mass <= 0:
-            raise ConfigError("platform.mass", f"must be > 0, got {platform.mass}")
+        _check_platform_mass(platform.mass)
         eigenvalues = np.linalg.eigvalsh(platform.inertia)
         if eigenvalues[0] <= 1e-12 * eigenvalues[-1]:
             raise ConfigError("platform.inertia",
                               f"not positive definite (eigenvalues {eigenvalues.tolist()})")
+        if eigenvalues[0] < _MIN_PLATFORM_INERTIA:
+            raise ConfigError("platform.inertia", f"smallest principal moment {eigenvalues[0]:.3g} is "
+                                                  f"below {_MIN_PLATFORM_INERTIA:g} kg m^2")
         upper = _legs(self.upper_leg, "upper_leg")
         lower = _legs(self.lower_leg, "lower_leg")
         _instance(self.damping, Damping, "damping")
@@ -557,9 +683,9 @@ class PlatformParams(_ValueObject):
         hooke = _unit_rows(_array(d["hooke_axes"], "hooke_axes", (N_LEGS, 3), (3,)))
         with _within("platform"):
             body = _mapping(d["platform"], "", ("mass", "com", "inertia"))
-            # Checked before RigidBody, which accepts a massless body and would word it ">= 0".
-            if _number(body["mass"], "mass") <= 0:
-                raise ConfigError("mass", f"must be > 0, got {body['mass']}")
+        # Checked before RigidBody, which accepts a massless body and would word it ">= 0".
+        _check_platform_mass(_number(body["mass"], "platform.mass"))
+        with _within("platform"):
             platform = RigidBody.from_dict(body)
         upper = _legs_from_config(d["upper_leg"], "upper_leg")
         lower = _legs_from_config(d["lower_leg"], "lower_leg")
@@ -604,10 +730,10 @@ class PlatformParams(_ValueObject):
 
     @classmethod
     def from_yaml(cls, path: str | os.PathLike) -> PlatformParams:
-        """Load a YAML config; the platform's name is the file stem. Errors name the file."""
+        """Load a YAML config file (a regular *.yaml or *.yml file of at most MAX_CONFIG_BYTES);
+        the platform's name is the file stem. Errors are ConfigErrors naming the file."""
         path = Path(path)
-        with open(path, encoding="utf-8") as f:
-            return _from_text(f.read(), path.stem, str(path))
+        return _from_text(_read_config(path), path.stem, str(path))
 
     def to_dict(self) -> dict:
         """The config as plain lists and floats (every key written out, defaults included);
@@ -635,6 +761,11 @@ class PlatformParams(_ValueObject):
     def replace(self, **changes) -> PlatformParams:
         """A copy with some fields changed (dataclass field names), validated again."""
         return dataclasses.replace(self, **changes)
+
+
+def _check_platform_mass(mass: float) -> None:
+    if not mass >= _MIN_PLATFORM_MASS:
+        raise ConfigError("platform.mass", f"must be >= {_MIN_PLATFORM_MASS:g} kg, got {mass}")
 
 
 def _unit_rows(axes: np.ndarray) -> np.ndarray:
@@ -675,11 +806,147 @@ def _limits_from_config(value: object, lengths: np.ndarray, position: np.ndarray
     )
 
 
+# ----------------------------------------------------------------------------------------------
+# Reading config files: every file comes from someone else, so each step is bounded.
+
+
+def _read_config(path: Path) -> str:
+    """The text of a config file, after checking that it is a regular *.yaml/*.yml file of at
+    most MAX_CONFIG_BYTES. FIFOs, devices and directories are refused before they are opened
+    (a FIFO would block, /dev/zero never ends)."""
+    source = str(path)
+    if path.suffix.lower() not in _CONFIG_SUFFIXES:
+        raise ConfigError("", "not a platform config: the file name must end in .yaml or .yml", source)
+    try:
+        info = os.stat(path)
+    except (OSError, ValueError) as err:  # ValueError: a NUL character in the path
+        raise ConfigError("", f"cannot read the file: {getattr(err, 'strerror', None) or err}", source) from None
+    _check_regular(info, source)
+    # O_NONBLOCK: should the path have become a FIFO since the stat, opening it does not block.
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError as err:
+        raise ConfigError("", f"cannot read the file: {err.strerror}", source) from None
+    with os.fdopen(fd, "rb") as f:
+        _check_regular(os.fstat(fd), source)
+        data = f.read(MAX_CONFIG_BYTES + 1)  # the file may have grown since the stat
+    if len(data) > MAX_CONFIG_BYTES:
+        raise ConfigError("", f"larger than {MAX_CONFIG_BYTES} bytes", source)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise ConfigError("", f"not UTF-8 text (invalid byte at offset {err.start})", source) from None
+
+
+def _check_regular(info: os.stat_result, source: str) -> None:
+    if stat.S_ISDIR(info.st_mode):
+        raise ConfigError("", "a directory, not a config file", source)
+    if not stat.S_ISREG(info.st_mode):
+        raise ConfigError("", "not a regular file (a FIFO, socket or device)", source)
+    if info.st_size > MAX_CONFIG_BYTES:
+        raise ConfigError("", f"larger than {MAX_CONFIG_BYTES} bytes ({info.st_size} bytes)", source)
+
+
+class _ConfigLoader(yaml.SafeLoader):
+    """YAML's safe loader, bounded: nesting depth, the number of values after alias expansion
+    (a "billion laughs" document of nested aliases is refused before it is built) and the length
+    of integer literals."""
+
+    def __init__(self, stream: str):
+        super().__init__(stream)
+        self._depth = 0
+        self._nodes = 0
+
+    def compose_node(self, parent, index):
+        # The composer recurses once per level: bound it before Python's recursion limit. Counting
+        # nodes stops a long document early (PyYAML parses about 100 KB/s).
+        self._depth += 1
+        self._nodes += 1
+        try:
+            if self._depth > _MAX_YAML_DEPTH:
+                raise yaml.composer.ComposerError(None, None, f"nested more than {_MAX_YAML_DEPTH} levels deep",
+                                                  self.peek_event().start_mark)
+            if self._nodes > _MAX_YAML_VALUES:
+                raise yaml.composer.ComposerError(None, None, f"more than {_MAX_YAML_VALUES} values",
+                                                  self.peek_event().start_mark)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+    def construct_document(self, node):
+        _check_expansion(node)
+        return super().construct_document(node)
+
+    def construct_yaml_int(self, node):
+        if len(node.value) > _MAX_INT_LITERAL:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"an integer literal of {len(node.value)} characters", node.start_mark)
+        return super().construct_yaml_int(node)
+
+
+_ConfigLoader.add_constructor("tag:yaml.org,2002:int", _ConfigLoader.construct_yaml_int)
+
+
+def _children(node: yaml.Node) -> list[yaml.Node]:
+    if isinstance(node, yaml.SequenceNode):
+        return node.value
+    if isinstance(node, yaml.MappingNode):
+        return [child for pair in node.value for child in pair]
+    return []
+
+
+def _check_expansion(root: yaml.Node) -> None:
+    """Refuse a document that, once its aliases are expanded (an alias repeats its anchor's node
+    object), holds more than _MAX_YAML_VALUES values, nests deeper than _MAX_YAML_DEPTH or
+    contains itself. Iterative: a chain of aliases can be far deeper than the recursion limit."""
+    sizes: dict[int, int] = {}
+    depths: dict[int, int] = {}
+    started: set[int] = set()
+    stack = [(root, False)]
+    while stack:
+        node, children_done = stack.pop()
+        key = id(node)
+        if not children_done:
+            if key in sizes:
+                continue
+            if key in started:  # reached again from inside its own expansion
+                raise yaml.constructor.ConstructorError(None, None, "an alias refers to its own anchor",
+                                                        node.start_mark)
+            started.add(key)
+            stack.append((node, True))
+            stack.extend((child, False) for child in _children(node))
+            continue
+        children = _children(node)
+        sizes[key] = 1 + sum(sizes[id(child)] for child in children)
+        depths[key] = 1 + max((depths[id(child)] for child in children), default=0)
+        started.discard(key)
+        if sizes[key] > _MAX_YAML_VALUES:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"more than {_MAX_YAML_VALUES} values (after expanding aliases)", node.start_mark)
+        if depths[key] > _MAX_YAML_DEPTH:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"nested more than {_MAX_YAML_DEPTH} levels deep (after expanding aliases)",
+                node.start_mark)
+
+
+def _yaml_problem(err: yaml.YAMLError) -> str:
+    """Where and what went wrong, without PyYAML's snippet of the offending line."""
+    if isinstance(err, yaml.reader.ReaderError):
+        return f"position {err.position + 1}: character #x{err.character:04x} is not allowed"
+    if isinstance(err, yaml.MarkedYAMLError):
+        mark = err.problem_mark or err.context_mark
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+        what = "; ".join(_excerpt(part, 2 * _EXCERPT) for part in (err.context, err.problem) if part)
+        return where + what
+    return type(err).__name__
+
+
 def _from_text(text: str, name: str, source: str) -> PlatformParams:
     try:
-        config = yaml.safe_load(text)
+        config = yaml.load(text, Loader=_ConfigLoader)
     except yaml.YAMLError as err:
-        raise ConfigError("", f"not valid YAML: {err}", source) from None
+        raise ConfigError("", f"not valid YAML: {_yaml_problem(err)}", source) from None
     try:
         return PlatformParams.from_dict(config, name=name)
     except ConfigError as err:
@@ -711,20 +978,33 @@ def available_platforms() -> list[str]:
                   if entry.name.endswith(".yaml"))
 
 
+def _exists(path: Path) -> bool:
+    try:
+        return path.exists()
+    except (OSError, ValueError):  # a name too long for the file system, a NUL character
+        return False
+
+
 def load_platform(name_or_path: str | os.PathLike) -> PlatformParams:
     """Load a platform by name (a shipped config, see `available_platforms`) or from a YAML file.
 
     A string without a suffix or directory part that is not an existing path is a name, e.g.
-    ``"dasgupta1998"``; anything else (``"my.yaml"``, ``"dir/robot"``, a Path) is read as a file.
+    ``"dasgupta1998"``; anything else (``"my.yaml"``, ``"dir/robot"``, a Path) is read as a file,
+    which must be a regular *.yaml or *.yml file of at most MAX_CONFIG_BYTES (see
+    `PlatformParams.from_yaml`). Every error is a ConfigError naming the file or the key.
     """
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        raise ConfigError("", f"expected a platform name or a path, got {_describe(name_or_path)}")
     text = os.fspath(name_or_path)
+    if not isinstance(text, str):
+        raise ConfigError("", f"expected a platform name or a path, got {_describe(name_or_path)}")
     candidate = Path(text)
     is_name = (isinstance(name_or_path, str) and not candidate.suffix and candidate.name == text
-               and not candidate.exists())
+               and not _exists(candidate))
     if not is_name:
         return PlatformParams.from_yaml(candidate)
-    resource = _platforms_dir() / f"{text}.yaml"
-    if not resource.is_file():
+    if text not in available_platforms():
         available = ", ".join(available_platforms()) or "none"
-        raise ValueError(f"unknown platform {text!r}; available: {available}")
+        raise ConfigError("", f"unknown platform {_describe(text)}; available: {available}")
+    resource = _platforms_dir() / f"{text}.yaml"
     return _from_text(resource.read_text(encoding="utf-8"), text, f"{text}.yaml")

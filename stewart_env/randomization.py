@@ -23,18 +23,20 @@ damping.spherical
 
 Keys that cover the same parameter multiply (``{"mass": (0.9, 1.1), "platform.mass": (0.5, 2)}``
 draws two factors and scales m_p by their product).  A mass factor does not scale the inertia:
-randomise ``inertia`` too for a body that gets heavier in proportion.  Ranges: mass and inertia
-factors > 0, damping factors >= 0, CoM factors any finite numbers; low <= high.  Factors are drawn
-in the order of :data:`KEYS`, whatever the order of the dict, so a seed gives the same episode.
+randomise ``inertia`` too for a body that gets heavier in proportion.  Ranges are pairs of finite
+numbers, low <= high: mass and inertia factors in [1e-3, 1e3], damping factors in [0, 1e3] (0 turns
+the friction off), CoM factors in [-1e3, 1e3] (a negative one mirrors the CoM).  An invalid spec
+raises :class:`~stewart_env.params.ConfigError` (a ``ValueError``) naming the key.  Factors are
+drawn in the order of :data:`KEYS`, whatever the order of the dict, so a seed gives the same episode.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from stewart_env.params import Damping, PlatformParams, RigidBody
+from stewart_env.params import ConfigError, Damping, PlatformParams, RigidBody, _key_names, _number, _short
 
 __all__ = ["KEYS", "Randomization"]
 
@@ -51,13 +53,34 @@ KEYS: tuple[str, ...] = (
 )
 
 
-def _lowest(key: str) -> tuple[float, bool]:
-    """(bound, strict) on a factor of ``key``: > 0 for mass and inertia, >= 0 for damping."""
+# Factors beyond a thousandfold change describe another machine, not an uncertain one; the bounds
+# also keep the product of the (up to three) factors on one parameter far from overflow.
+_MAX_FACTOR = 1e3
+_MIN_POSITIVE_FACTOR = 1e-3
+
+
+def _bounds(key: str) -> tuple[float, float, str]:
+    """(lowest, highest, wording) of the factors of ``key``."""
     if key.startswith("damping"):
-        return 0.0, False
+        return 0.0, _MAX_FACTOR, f">= 0 and <= {_MAX_FACTOR:g}"
     if key.endswith("com"):
-        return -np.inf, False
-    return 0.0, True
+        return -_MAX_FACTOR, _MAX_FACTOR, f"within [{-_MAX_FACTOR:g}, {_MAX_FACTOR:g}]"
+    return _MIN_POSITIVE_FACTOR, _MAX_FACTOR, f"> 0 and within [{_MIN_POSITIVE_FACTOR:g}, {_MAX_FACTOR:g}]"
+
+
+def _range(value: object, key: str) -> tuple[float, float]:
+    """A checked (low, high) range of the factors of ``key``."""
+    name = f"randomization[{key!r}]"
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence, np.ndarray)) \
+            or len(value) != 2:
+        raise ConfigError(name, f"expected (low, high), got {_short(value)}")
+    low, high = (_number(v, f"{name}[{i}]") for i, v in enumerate(value))
+    if not low <= high:
+        raise ConfigError(name, f"expected low <= high, got ({low}, {high})")
+    lowest, highest, wording = _bounds(key)
+    if low < lowest or high > highest:
+        raise ConfigError(name, f"factors must be {wording}, got ({low}, {high})")
+    return low, high
 
 
 class Randomization:
@@ -69,28 +92,11 @@ class Randomization:
 
     def __init__(self, spec: Mapping[str, tuple[float, float]]):
         if not isinstance(spec, Mapping):
-            raise ValueError(f"randomization: expected a dict of key -> (low, high), got {spec!r}")
+            raise ConfigError("randomization", f"expected a dict of key -> (low, high), got {_short(spec)}")
         unknown = [k for k in spec if k not in KEYS]
         if unknown:
-            raise ValueError(
-                f"randomization: unknown key(s) {', '.join(map(repr, unknown))}; valid keys: {', '.join(KEYS)}"
-            )
-        self.ranges: dict[str, tuple[float, float]] = {}
-        for key in KEYS:
-            if key not in spec:
-                continue
-            value = spec[key]
-            try:
-                low, high = (float(v) for v in value)
-            except (TypeError, ValueError):
-                raise ValueError(f"randomization[{key!r}]: expected (low, high), got {value!r}") from None
-            bound, strict = _lowest(key)
-            if not (np.isfinite(low) and np.isfinite(high) and low <= high):
-                raise ValueError(f"randomization[{key!r}]: expected finite (low, high) with low <= high, got {value!r}")
-            if low < bound or (strict and low == bound):
-                raise ValueError(f"randomization[{key!r}]: factors must be {'>' if strict else '>='} {bound}, "
-                                 f"got {value!r}")
-            self.ranges[key] = (low, high)
+            raise ConfigError("randomization", f"unknown key(s) {_key_names(unknown)}; valid keys: {', '.join(KEYS)}")
+        self.ranges: dict[str, tuple[float, float]] = {key: _range(spec[key], key) for key in KEYS if key in spec}
 
     def __bool__(self) -> bool:
         return bool(self.ranges)
