@@ -4,26 +4,38 @@ One run lives in one directory ``DIR``:
 
 ====================================  ==========================================================
 ``DIR/run.json``                      the run manifest: algorithm, dynamics model, task, seed,
-                                      steps, environment kwargs, hyperparameters, versions
+                                      steps, environment kwargs, hyperparameters, versions and
+                                      the sha256 of the final model and statistics
 ``DIR/model.zip``                     the trained model (SB3 ``save``)
 ``DIR/vecnormalize.pkl``              the VecNormalize statistics the model was trained with
-``DIR/checkpoints/``                  ``model_<steps>_steps.zip`` and ``vecnormalize_<steps>_steps.pkl``
-                                      every ``checkpoint_freq`` steps, the replay buffer of the
-                                      latest checkpoint (off-policy algorithms) and
-                                      ``progress.csv`` (steps and wall time of each checkpoint)
+``DIR/checkpoints/step_<steps>/``     one checkpoint: ``model.zip``, ``vecnormalize.pkl``, the
+                                      replay buffer ``replay_buffer.pkl`` (off-policy algorithms)
+                                      and ``manifest.json`` (step count, algorithm, sha256 of
+                                      each file); the last ``keep_checkpoints`` are kept
+``DIR/checkpoints/progress.csv``      steps and wall time of each checkpoint
 ``DIR/tensorboard/``                  TensorBoard logs (``tensorboard --logdir DIR/tensorboard``)
 ``DIR/monitor.csv``                   per-episode return, length, wall time and termination reason
                                       (``resumed_<steps>.monitor.csv`` for a resumed part)
 ====================================  ==========================================================
 
+Every file is published atomically: a checkpoint is written into ``checkpoints/.tmp-<steps>/``
+and renamed to ``step_<steps>/`` once complete; the final files are written under temporary names
+and renamed.  A run killed at any moment leaves its newest complete checkpoint, which ``--resume``
+finds by its manifest and hashes.  SIGINT and SIGTERM stop training at the next step, save a
+checkpoint and raise :class:`TrainingInterrupted`; a second signal exits at once.
+
 Hyperparameters come from ``configs/agents/{ppo,sac,td3}.yml`` in rl-baselines3-zoo's format,
-keyed by the environment id, so the same files drive ``python -m rl_zoo3.train``.  Training runs
-on the native batch of platforms through :class:`~stewart_env.envs.StewartPlatformSB3VecEnv`
-(one compiled rollout call per step for all ``n_envs`` rows).
+keyed by the environment id, so the same files drive ``python -m rl_zoo3.train``.  The zoo's
+string-valued entries (``policy_kwargs: "dict(net_arch=[64, 64])"``) are read by a parser of
+that vocabulary (:func:`zoo_eval`), never evaluated as Python.  Training runs on the native batch
+of platforms through :class:`~stewart_env.envs.StewartPlatformSB3VecEnv` (one compiled rollout
+call per step for all ``n_envs`` rows).
 
 :func:`load_agent` turns a run directory back into a policy with SB3's ``predict`` that applies
 the saved observation normalisation itself, so it runs on raw environment observations next to
-the PD and computed-torque baselines.
+the PD and computed-torque baselines.  SB3's model zip and the statistics are pickles, i.e. code:
+their sha256 is checked against run.json before anything is unpickled, which catches truncated,
+swapped or edited files, but a run directory is trusted as a whole, like any pickle.
 
 stable-baselines3 and torch are imported inside the functions that need them, so that
 ``stewart-env`` commands that do not train start without loading torch.
@@ -32,16 +44,24 @@ stable-baselines3 and torch are imported inside the functions that need them, so
 from __future__ import annotations
 
 import argparse
+import ast
+import contextlib
+import hashlib
 import importlib.resources
+import importlib.util
 import inspect
+import io
 import json
 import os
 import pickle
 import platform as _platform
 import re
+import shutil
+import signal
 import sys
+import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -60,20 +80,78 @@ CONFIG_DIR = Path(str(importlib.resources.files("stewart_env.configs") / "agents
 #: second with a pointer to rl_zoo3.
 ZOO_KEYS_HANDLED = ("n_timesteps", "policy", "normalize", "n_envs", "env_kwargs", "noise_type", "noise_std")
 ZOO_KEYS_ZOO_ONLY = ("frame_stack", "env_wrapper", "vec_env_wrapper", "callback", "monitor_kwargs")
-#: Zoo keys whose string value is Python code the zoo evaluates.
+#: Zoo keys whose string value is a Python expression to rl_zoo3; here, data in that syntax.
 ZOO_EVALUATED_KEYS = ("policy_kwargs", "replay_buffer_class", "replay_buffer_kwargs")
 #: Zoo keys that accept a schedule string "lin_<initial value>".
 ZOO_SCHEDULE_KEYS = ("learning_rate", "clip_range", "clip_range_vf")
+#: The torch.nn activation classes a config may name, as ``nn.<Name>`` or ``th.nn.<Name>``.
+ACTIVATIONS = ("ReLU", "Tanh", "ELU", "LeakyReLU", "GELU", "SiLU", "SELU", "Sigmoid", "Softplus", "Mish")
 
 MANIFEST = "run.json"
 MODEL_FILE = "model.zip"
 VECNORMALIZE_FILE = "vecnormalize.pkl"
+REPLAY_BUFFER_FILE = "replay_buffer.pkl"
 CHECKPOINT_DIR = "checkpoints"
-_CHECKPOINT_RE = re.compile(r"^model_(\d+)_steps\.zip$")
+CHECKPOINT_MANIFEST = "manifest.json"
+DEFAULT_KEEP_CHECKPOINTS = 3
+_STEP_DIR_RE = re.compile(r"^step_(\d+)$")
+_TMP_PREFIX = ".tmp-"
+#: Seconds to pause inside every checkpoint write, before its rename: lets the tests signal or kill
+#: a training process while a checkpoint is being written.
+PAUSE_IN_CHECKPOINT_ENV = "STEWART_ENV_TEST_CHECKPOINT_PAUSE"
+RL_INSTALL_HINT = ('install the RL extra: first torch==2.13.0 (the CPU build, not the default CUDA one), then '
+                   'pip install "stewart-env[rl]"')
 
 
 class TrainingError(ValueError):
     """A training or loading request that cannot be carried out; the message says why."""
+
+
+class TrainingInterrupted(KeyboardInterrupt):
+    """Training stopped by SIGINT or SIGTERM after saving ``checkpoint``; ``exit_code`` is the
+    shell's 128 + signal number (130 for SIGINT, 143 for SIGTERM)."""
+
+    def __init__(self, signum: int, checkpoint: Path):
+        super().__init__(signal.Signals(signum).name, str(checkpoint))
+        self.signum = signum
+        self.checkpoint = checkpoint
+        self.exit_code = 128 + signum
+
+
+def check_rl_installed() -> None:
+    """TrainingError with the install command unless stable-baselines3 and torch are importable.
+    Looks them up without importing them, so it is cheap and runs before anything is written."""
+    missing = [name for name in ("torch", "stable_baselines3") if importlib.util.find_spec(name) is None]
+    if missing:
+        raise TrainingError(f"{' and '.join(missing)} not installed; {RL_INSTALL_HINT}")
+
+
+def progress_bar_available() -> bool:
+    """SB3's progress bar needs tqdm and rich, and a terminal on stderr to draw on."""
+    return (all(importlib.util.find_spec(name) is not None for name in ("tqdm", "rich"))
+            and sys.stderr is not None and sys.stderr.isatty())
+
+
+@contextlib.contextmanager
+def single_thread(numba: bool = True) -> Iterator[None]:
+    """One thread for torch (and, with ``numba``, the compiled kernels) inside the block, the
+    previous counts restored after it: for small MLPs and batches of tens of platforms a second
+    thread gains little, and on a shared machine it slows everyone else."""
+    import torch
+
+    before_torch = torch.get_num_threads()
+    if numba:
+        import numba as nb
+
+        before_numba = nb.get_num_threads()
+        nb.set_num_threads(1)
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before_torch)
+        if numba:
+            nb.set_num_threads(before_numba)
 
 
 # -- hyperparameters ------------------------------------------------------------------------------
@@ -83,6 +161,7 @@ def algorithm_class(algo: str):
     """The stable-baselines3 class of ``algo`` (one of :data:`ALGORITHMS`)."""
     if algo not in ALGORITHMS:
         raise TrainingError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGORITHMS)}")
+    check_rl_installed()
     import stable_baselines3
 
     return getattr(stable_baselines3, algo.upper())
@@ -113,16 +192,59 @@ def read_hyperparameters(algo: str, config: str | os.PathLike | None = None, env
     return dict(entry)
 
 
-def zoo_eval(text: str, key: str) -> Any:
-    """Evaluate a zoo hyperparameter string (e.g. ``policy_kwargs: "dict(net_arch=[64, 64])"``)
-    as rl_zoo3 does, with ``nn``/``th`` (torch) and ``np`` in scope."""
-    import torch
+def _describe(node: ast.AST) -> str:
+    """What a refused piece of a zoo expression is, for the error message."""
+    if isinstance(node, ast.Call):
+        return f"the call {ast.unparse(node.func)}(...)"
+    if isinstance(node, (ast.Attribute, ast.Name)):
+        return f"the name {ast.unparse(node)}"
+    if isinstance(node, ast.Lambda):
+        return "a lambda"
+    if isinstance(node, (ast.ListComp, ast.SetComp, ast.DictComp, ast.GeneratorExp)):
+        return "a comprehension"
+    if isinstance(node, ast.Constant):
+        return f"the constant {node.value!r}"
+    return f"the expression {ast.unparse(node)!r}"
 
-    scope = {"__builtins__": {}, "dict": dict, "list": list, "tuple": tuple, "nn": torch.nn, "th": torch, "np": np}
+
+def _zoo_value(node: ast.AST, key: str, text: str) -> Any:
+    """The data of one node of a zoo expression; TrainingError naming ``key`` for anything else."""
+    if isinstance(node, ast.Constant) and (node.value is None or type(node.value) in (bool, int, float, str)):
+        return node.value
+    if (isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd))
+            and isinstance(node.operand, ast.Constant) and type(node.operand.value) in (int, float)):
+        return -node.operand.value if isinstance(node.op, ast.USub) else node.operand.value
+    if isinstance(node, (ast.List, ast.Tuple)):
+        items = [_zoo_value(e, key, text) for e in node.elts]
+        return items if isinstance(node, ast.List) else tuple(items)
+    if isinstance(node, ast.Dict) and None not in node.keys:  # a None key is a ** unpacking
+        keys = [_zoo_value(k, key, text) for k in node.keys]
+        if not all(isinstance(k, (str, int, float, bool)) or k is None for k in keys):
+            raise TrainingError(f"hyperparameter {key}: dict keys must be names or numbers in {text!r}")
+        return dict(zip(keys, (_zoo_value(v, key, text) for v in node.values)))
+    if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "dict" and not node.args
+            and all(k.arg is not None for k in node.keywords)):
+        return {k.arg: _zoo_value(k.value, key, text) for k in node.keywords}
+    if isinstance(node, ast.Attribute):
+        dotted = ast.unparse(node)
+        if dotted in {f"{prefix}.{name}" for prefix in ("nn", "th.nn") for name in ACTIVATIONS}:
+            import torch
+
+            return getattr(torch.nn, node.attr)
+    raise TrainingError(f"hyperparameter {key}: {_describe(node)} is not allowed in {text!r}; a config holds data "
+                        "only: dict(key=value, ...), {...}, [...], (...), numbers, strings, True/False/None and "
+                        f"nn.<activation> ({', '.join(ACTIVATIONS)})")
+
+
+def zoo_eval(text: str, key: str) -> Any:
+    """Read a zoo hyperparameter string (e.g. ``policy_kwargs: "dict(net_arch=[64, 64])"``) as
+    data: the subset of Python that rl-zoo configs use (see :func:`_zoo_value`), parsed, never
+    evaluated, so that a config from a stranger cannot run code."""
     try:
-        return eval(text, scope)  # the zoo's own format: a Python expression in the config file
-    except Exception as exc:
-        raise TrainingError(f"hyperparameter {key}: cannot evaluate {text!r}: {exc}") from None
+        tree = ast.parse(text.strip(), mode="eval")
+    except SyntaxError as exc:
+        raise TrainingError(f"hyperparameter {key}: not an expression: {text!r} ({exc.msg})") from None
+    return _zoo_value(tree.body, key, text)
 
 
 def _schedule(value: Any, key: str):
@@ -265,12 +387,11 @@ def jsonable(value: Any) -> Any:
 
 
 def make_training_env(n_envs: int, env_kwargs: Mapping[str, Any], seed: int, normalize: dict[str, Any] | None,
-                      monitor_path: str | os.PathLike | None = None,
-                      vecnormalize_path: str | os.PathLike | None = None):
+                      monitor_path: str | os.PathLike | None = None, statistics=None):
     """The training VecEnv: ``n_envs`` platforms in one native batch, VecMonitor (episode
     statistics, ``monitor_path`` CSV) and, if ``normalize`` is not None, VecNormalize with those
-    kwargs, or with the statistics saved at ``vecnormalize_path`` (resuming).  Rows are seeded
-    seed, seed + 1, ...; ValueError from the environment for bad kwargs."""
+    kwargs, or the saved VecNormalize ``statistics`` put on this batch (resuming).  Rows are
+    seeded seed, seed + 1, ...; ValueError from the environment for bad kwargs."""
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
     from stewart_env.envs import StewartPlatformSB3VecEnv
@@ -281,17 +402,30 @@ def make_training_env(n_envs: int, env_kwargs: Mapping[str, Any], seed: int, nor
                      info_keywords=("termination",))
     if normalize is None:
         return env
-    if vecnormalize_path is not None:
-        return VecNormalize.load(str(vecnormalize_path), env)
+    if statistics is not None:
+        statistics.set_venv(env)  # what VecNormalize.load does after unpickling
+        return statistics
     return VecNormalize(env, **normalize)
 
 
-# -- the run directory ----------------------------------------------------------------------------
+# -- files: atomic writes and hashes --------------------------------------------------------------
 
 
-def check_writable(directory: str | os.PathLike) -> Path:
-    """Create ``directory`` if needed and prove it writable; TrainingError naming it otherwise."""
+def check_writable(directory: str | os.PathLike, create: bool = True) -> Path:
+    """Prove ``directory`` writable; TrainingError naming it otherwise.  With ``create`` it is
+    created and a file written in it; without, nothing is written: the directory, or its nearest
+    existing parent, must be a writable directory."""
     path = Path(directory)
+    if not create:
+        existing = path
+        while not existing.exists() and existing != existing.parent:
+            existing = existing.parent
+        if not existing.is_dir():
+            raise TrainingError(f"output directory {str(path)!r} is not writable: {str(existing)!r} is not a directory")
+        if not os.access(existing, os.W_OK | os.X_OK):
+            raise TrainingError(f"output directory {str(path)!r} is not writable: no write permission on "
+                                f"{str(existing)!r}")
+        return path
     try:
         path.mkdir(parents=True, exist_ok=True)
         probe = path / ".write-test"
@@ -302,29 +436,92 @@ def check_writable(directory: str | os.PathLike) -> Path:
     return path
 
 
-def latest_checkpoint(directory: str | os.PathLike) -> int | None:
-    """The step count of the latest checkpoint in DIR/checkpoints, or None if there is none."""
-    ckpt = Path(directory) / CHECKPOINT_DIR
-    steps = [int(m.group(1)) for name in (os.listdir(ckpt) if ckpt.is_dir() else ())
-             if (m := _CHECKPOINT_RE.match(name))]
-    return max(steps, default=None)
+def sha256(path: Path) -> str:
+    """The hex sha256 of a file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
-def _checkpoint_files(directory: Path, steps: int) -> dict[str, Path]:
-    ckpt = directory / CHECKPOINT_DIR
-    return {"model": ckpt / f"model_{steps}_steps.zip", "vecnormalize": ckpt / f"vecnormalize_{steps}_steps.pkl",
-            "replay_buffer": ckpt / f"replay_buffer_{steps}_steps.pkl"}
+def _fsync(path: Path) -> None:
+    """Flush a file's or a directory's entries to disk: a rename is durable only after both."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _write_json(path: Path, data: Mapping[str, Any]) -> None:
+    """Write ``data`` to ``path`` atomically: a temporary file, flushed, then renamed over it."""
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w") as f:
+        f.write(json.dumps(data, indent=2) + "\n")
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+    _fsync(path.parent)
+
+
+def _write_agent_files(model, folder: Path, replay_buffer: bool) -> dict[str, str]:
+    """Write ``model``, its VecNormalize statistics and (``replay_buffer``) its replay buffer into
+    ``folder``, each flushed to disk; returns {file name: sha256}."""
+    files = [MODEL_FILE]
+    model.save(folder / MODEL_FILE)
+    vn = model.get_vec_normalize_env()
+    if vn is not None:
+        vn.save(str(folder / VECNORMALIZE_FILE))
+        files.append(VECNORMALIZE_FILE)
+    if replay_buffer and getattr(model, "replay_buffer", None) is not None:
+        model.save_replay_buffer(folder / REPLAY_BUFFER_FILE)
+        files.append(REPLAY_BUFFER_FILE)
+    for name in files:
+        _fsync(folder / name)
+    return {name: sha256(folder / name) for name in files}
+
+
+def _verified_bytes(folder: Path, hashes: Mapping[str, str], name: str, what: str) -> bytes:
+    """The bytes of ``folder/name`` if their sha256 is ``hashes[name]``; TrainingError otherwise.
+    Reading once and unpickling these bytes leaves no gap between the check and the load."""
+    path = folder / name
+    if name not in hashes:
+        raise TrainingError(f"{path}: not listed in {what}; refusing to load an unrecorded file")
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise TrainingError(f"{path}: missing ({what} lists it)") from None
+    if hashlib.sha256(data).hexdigest() != hashes[name]:
+        raise TrainingError(f"{path}: its sha256 does not match {what}: the file was changed, truncated or "
+                            "replaced after it was written; refusing to unpickle it")
+    return data
+
+
+def _unpickle_statistics(data: bytes):
+    normalizer = pickle.loads(data)  # SB3's VecNormalize.save format; the bytes' hash was checked
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    if not isinstance(normalizer, VecNormalize):
+        raise TrainingError(f"{VECNORMALIZE_FILE} does not hold VecNormalize statistics")
+    return normalizer
+
+
+# -- the run directory ----------------------------------------------------------------------------
 
 
 def read_manifest(directory: str | os.PathLike) -> dict[str, Any]:
     """DIR/run.json as a dict; TrainingError if missing or unreadable."""
     path = Path(directory) / MANIFEST
     try:
-        return json.loads(path.read_text())
+        manifest = json.loads(path.read_text())
     except FileNotFoundError:
         raise TrainingError(f"{directory}: no {MANIFEST}; not a directory written by `stewart-env train`") from None
     except json.JSONDecodeError as exc:
         raise TrainingError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(manifest, dict) or manifest.get("algo") not in ALGORITHMS:
+        raise TrainingError(f"{path}: not a run manifest of `stewart-env train` (no known algorithm)")
+    return manifest
 
 
 def _versions() -> dict[str, str]:
@@ -339,32 +536,99 @@ def _versions() -> dict[str, str]:
             "python": _platform.python_version()}
 
 
-def _write_manifest(directory: Path, manifest: dict[str, Any]) -> None:
-    tmp = directory / (MANIFEST + ".tmp")
-    tmp.write_text(json.dumps(manifest, indent=2) + "\n")
-    os.replace(tmp, directory / MANIFEST)  # atomic: an interrupted write never leaves half a manifest
+def _step_dirs(directory: Path) -> list[tuple[int, Path]]:
+    """The published checkpoint directories, newest first."""
+    root = directory / CHECKPOINT_DIR
+    found = [(int(m.group(1)), root / name) for name in (os.listdir(root) if root.is_dir() else ())
+             if (m := _STEP_DIR_RE.match(name))]
+    return sorted(found, reverse=True)
 
 
-def _checkpoint_callback(directory: Path, freq: int, save_replay_buffer: bool, wall_offset: float):
-    """An SB3 callback calling :func:`save_checkpoint` every ``freq`` environment steps (0: never)
-    and logging each checkpoint's step count and training wall time (s, ``wall_offset`` plus the
-    time since this call started) to DIR/checkpoints/progress.csv, so that a point of the
-    learning curve can be matched to its budget."""
-    from stable_baselines3.common.callbacks import BaseCallback
+def _required_files(algo: str, normalize: bool) -> list[str]:
+    return [MODEL_FILE] + [VECNORMALIZE_FILE] * normalize + [REPLAY_BUFFER_FILE] * (algo in OFF_POLICY)
 
-    class Checkpoints(BaseCallback):
-        def _on_training_start(self) -> None:
-            self.last = self.num_timesteps
-            self.start = time.perf_counter() - wall_offset
 
-        def _on_step(self) -> bool:
-            if freq and self.num_timesteps - self.last >= freq:
-                self.last = self.num_timesteps
-                save_checkpoint(self.model, directory, save_replay_buffer)
-                log_progress(directory, self.num_timesteps, time.perf_counter() - self.start)
-            return True
+def checkpoint_problem(folder: Path, steps: int, algo: str, normalize: bool) -> str | None:
+    """Why the checkpoint in ``folder`` cannot be resumed from (None if it is complete: manifest
+    present, its step count and algorithm, every file the run needs, every hash matching)."""
+    try:
+        manifest = json.loads((folder / CHECKPOINT_MANIFEST).read_text())
+    except FileNotFoundError:
+        return f"no {CHECKPOINT_MANIFEST}"
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        return f"{CHECKPOINT_MANIFEST} is not valid JSON"
+    if not isinstance(manifest, dict) or manifest.get("num_timesteps") != steps or manifest.get("algo") != algo:
+        return f"{CHECKPOINT_MANIFEST} is not that of a {algo} checkpoint at {steps} steps"
+    hashes = manifest.get("files") or {}
+    for name in _required_files(algo, normalize):
+        if name not in hashes:
+            return f"{name} missing from its manifest"
+        if not (folder / name).is_file():
+            return f"{name} missing"
+        if sha256(folder / name) != hashes[name]:
+            return f"{name} does not match its sha256"
+    return None
 
-    return Checkpoints()
+
+def newest_checkpoint(directory: str | os.PathLike, algo: str, normalize: bool,
+                      report: Callable[[str], None] = lambda message: None) -> tuple[int, Path] | None:
+    """The step count and folder of the newest complete checkpoint in DIR/checkpoints (None if
+    there is none).  Unfinished writes (``.tmp-*``) and incomplete or corrupt checkpoints are
+    passed over, each with a line to ``report``."""
+    root = Path(directory) / CHECKPOINT_DIR
+    for name in sorted(os.listdir(root) if root.is_dir() else ()):
+        if name.startswith(_TMP_PREFIX):
+            report(f"skipping {CHECKPOINT_DIR}/{name}: a checkpoint write that did not finish")
+    for steps, folder in _step_dirs(Path(directory)):
+        problem = checkpoint_problem(folder, steps, algo, normalize)
+        if problem is None:
+            return steps, folder
+        report(f"skipping {CHECKPOINT_DIR}/{folder.name}: incomplete or corrupt ({problem})")
+    return None
+
+
+def _pause_for_tests() -> None:
+    pause = os.environ.get(PAUSE_IN_CHECKPOINT_ENV)
+    if pause:
+        time.sleep(float(pause))
+
+
+def save_checkpoint(model, directory: Path, algo: str, keep: int = DEFAULT_KEEP_CHECKPOINTS) -> Path:
+    """Save ``model``, its VecNormalize statistics and (off-policy) its replay buffer as the
+    checkpoint DIR/checkpoints/step_<num_timesteps>/, atomically: written into a temporary
+    folder with a manifest of sha256 hashes, flushed, then renamed.  Only the newest ``keep``
+    checkpoints are kept (each holds its own replay buffer, tens of MB off-policy)."""
+    steps = int(model.num_timesteps)
+    root = directory / CHECKPOINT_DIR
+    root.mkdir(parents=True, exist_ok=True)
+    tmp, final = root / f"{_TMP_PREFIX}{steps}", root / f"step_{steps}"
+    shutil.rmtree(tmp, ignore_errors=True)  # the leftover of a write killed at the same step count
+    tmp.mkdir()
+    files = _write_agent_files(model, tmp, replay_buffer=algo in OFF_POLICY)
+    _pause_for_tests()
+    _write_json(tmp / CHECKPOINT_MANIFEST, {"algo": algo, "num_timesteps": steps, "files": files})
+    _fsync(tmp)
+    if final.exists():  # saved again at the same step count: the new one replaces it
+        shutil.rmtree(final)
+    os.replace(tmp, final)
+    _fsync(root)
+    for _, old in _step_dirs(directory)[keep:]:
+        shutil.rmtree(old)
+    return final
+
+
+def _publish_final(model, directory: Path) -> dict[str, str]:
+    """Write DIR/model.zip and DIR/vecnormalize.pkl, each under a temporary name renamed over the
+    previous one; returns their hashes for run.json (which, written last, makes them a set)."""
+    tmp = directory / f"{_TMP_PREFIX}final"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    files = _write_agent_files(model, tmp, replay_buffer=False)
+    for name in files:
+        os.replace(tmp / name, directory / name)
+    tmp.rmdir()
+    _fsync(directory)
+    return files
 
 
 def log_progress(directory: Path, num_timesteps: int, wall_time: float) -> None:
@@ -375,157 +639,285 @@ def log_progress(directory: Path, num_timesteps: int, wall_time: float) -> None:
         f.write(f"{header}{num_timesteps},{wall_time:.1f}\n")
 
 
-def _single_thread() -> None:
-    """One thread for torch and for the compiled kernels: for small MLPs and batches of tens of
-    platforms a second thread gains little, and on a shared machine it slows everyone else."""
-    import numba
-    import torch
-
-    torch.set_num_threads(1)
-    numba.set_num_threads(1)
+# -- signals --------------------------------------------------------------------------------------
 
 
-def save_checkpoint(model, directory: Path, save_replay_buffer: bool) -> Path:
-    """Save ``model``, its VecNormalize statistics and (``save_replay_buffer``) its replay buffer
-    as the checkpoint of its step count in DIR/checkpoints.  Only the latest replay buffer is
-    kept: it is tens of MB, while the models are small and all kept, for picking a point of the
-    learning curve."""
-    files = _checkpoint_files(directory, model.num_timesteps)
-    files["model"].parent.mkdir(parents=True, exist_ok=True)
-    model.save(files["model"])
-    vn = model.get_vec_normalize_env()
-    if vn is not None:
-        vn.save(files["vecnormalize"])
-    if save_replay_buffer and getattr(model, "replay_buffer", None) is not None:
-        model.save_replay_buffer(files["replay_buffer"])
-        for old in files["replay_buffer"].parent.glob("replay_buffer_*_steps.pkl"):
-            if old != files["replay_buffer"]:
-                old.unlink()
-    return files["model"]
+class _StopRequest:
+    """The first SIGINT/SIGTERM received while training, or None."""
+
+    signum: int | None = None
 
 
+@contextlib.contextmanager
+def _stop_on_signals(stop: _StopRequest) -> Iterator[None]:
+    """Inside the block, SIGINT and SIGTERM set ``stop.signum`` (training then stops at the next
+    step and saves a checkpoint); a second signal exits at once with 128 + its number.  Only the
+    main thread can own signal handlers: elsewhere the block changes nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        name = signal.Signals(signum).name
+        if stop.signum is not None:
+            os.write(2, f"stewart-env train: second signal ({name}); exiting now without saving\n".encode())
+            os._exit(128 + signum)
+        stop.signum = signum
+        os.write(2, f"stewart-env train: {name} received; saving a checkpoint (send it again to exit at once)\n"
+                 .encode())
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+
+def _checkpoint_callback(directory: Path, algo: str, freq: int, keep: int, wall_offset: float, stop: _StopRequest):
+    """An SB3 callback that stops training once ``stop`` holds a signal, and otherwise calls
+    :func:`save_checkpoint` at the first rollout end ``freq`` environment steps after the last
+    checkpoint (0: never), logging each
+    checkpoint's step count and training wall time (s, ``wall_offset`` plus the time since this
+    call started) to DIR/checkpoints/progress.csv, so that a point of the learning curve can be
+    matched to its budget."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Checkpoints(BaseCallback):
+        def _on_training_start(self) -> None:
+            self.last = self.model.num_timesteps
+            self.start = time.perf_counter() - wall_offset
+
+        def _on_step(self) -> bool:
+            return stop.signum is None
+
+        def _on_rollout_end(self) -> None:
+            # at the end of a rollout, not in _on_step: off-policy, SB3 stores a step's transition
+            # after the step's callback, so a checkpoint taken there would miss it
+            steps = self.model.num_timesteps
+            if freq and steps - self.last >= freq and stop.signum is None:
+                self.last = steps
+                save_checkpoint(self.model, directory, algo, keep)
+                log_progress(directory, steps, time.perf_counter() - self.start)
+
+    return Checkpoints()
 # -- training -------------------------------------------------------------------------------------
 
 
 @dataclass
 class TrainResult:
     """What a training call did: the run directory, the total env steps of the model
-    (num_timesteps, over all resumes), the steps of this call and its wall time in s."""
+    (num_timesteps, over all resumes), the steps of this call, its wall time in s, the steps
+    requested and the steps of one whole rollout (SB3 trains in whole rollouts, so a call runs
+    ``requested`` rounded up to a multiple of ``rollout``)."""
 
     directory: Path
     num_timesteps: int
     steps_this_run: int
     wall_time: float
+    requested: int
+    rollout: int
 
 
-def train(algo: str, out: str | os.PathLike, *, model: str = "improved", task: str = "setpoint",
-          timesteps: int | None = None, seed: int = 0, n_envs: int | None = None,
-          checkpoint_freq: int = 50_000, env_kwargs: Mapping[str, Any] | None = None,
-          config: str | os.PathLike | None = None, resume: bool = False, progress_bar: bool = True,
-          verbose: int = 0) -> TrainResult:
+def rollout_steps(agent, algo: str) -> int:
+    """Environment steps SB3 collects between two checks of its budget: n_steps x n_envs
+    on-policy, train_freq x n_envs off-policy (n_envs for a train_freq counted in episodes)."""
+    if algo not in OFF_POLICY:
+        return int(agent.n_steps * agent.n_envs)
+    freq = agent.train_freq
+    return int(freq.frequency * agent.n_envs) if freq.unit.value == "step" else int(agent.n_envs)
+
+
+def _check_count(name: str, value: Any, minimum: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise TrainingError(f"{name} must be an integer >= {minimum}, got {value!r}")
+
+
+_UNSET = object()
+
+
+def _show(value: Any) -> str:
+    return "(unset)" if value is _UNSET else json.dumps(value)
+
+
+def run_changes(manifest: Mapping[str, Any], entry: Mapping[str, Any], env_kwargs: Mapping[str, Any],
+                seed: int | None, n_envs: int | None) -> list[str]:
+    """What differs, key by key ("key: old -> new"), between the run in ``manifest`` and a
+    request to continue it with the zoo ``entry``, ``env_kwargs``, ``seed`` and ``n_envs``
+    (None: the run's).  The budget ``n_timesteps`` may differ: ``--timesteps`` sets the steps
+    added."""
+    changes = []
+    for what, old, new in (("hyperparameter", manifest.get("hyperparameters", {}), jsonable(dict(entry))),
+                           ("environment kwarg", manifest.get("env_kwargs", {}), jsonable(dict(env_kwargs)))):
+        for key in sorted(set(old) | set(new)):
+            before, after = old.get(key, _UNSET), new.get(key, _UNSET)
+            if key != "n_timesteps" and before != after:
+                changes.append(f"{what} {key}: {_show(before)} -> {_show(after)}")
+    for key, value in (("seed", seed), ("n_envs", n_envs)):
+        if value is not None and value != manifest.get(key):
+            changes.append(f"{key}: {_show(manifest.get(key, _UNSET))} -> {_show(int(value))}")
+    return changes
+
+
+def _check_fresh_directory(directory: Path, algo: str) -> None:
+    """Refuse to start a run in a directory that holds anything but a run of ``algo`` that saved
+    nothing yet (a start that failed before its first checkpoint)."""
+    if not directory.is_dir() or not os.listdir(directory):
+        return
+    if not (directory / MANIFEST).is_file():
+        raise TrainingError(f"{directory} is not empty and holds no run of `stewart-env train` (no {MANIFEST}); "
+                            "refusing to write into it: choose a new or empty output directory")
+    manifest = read_manifest(directory)
+    if manifest["algo"] != algo:
+        raise TrainingError(f"{directory} holds a {manifest['algo']} run; refusing to overwrite it with a {algo} "
+                            "run: choose another output directory")
+    if (directory / MODEL_FILE).exists() or _step_dirs(directory):
+        raise TrainingError(f"{directory} already holds a trained agent; pass --resume to continue it, "
+                            "or choose another output directory")
+
+
+def _stderr_report(message: str) -> None:
+    print(f"stewart-env train: {message}", file=sys.stderr)
+
+
+def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: str | None = None,
+          timesteps: int | None = None, seed: int | None = None, n_envs: int | None = None,
+          checkpoint_freq: int = 50_000, keep_checkpoints: int = DEFAULT_KEEP_CHECKPOINTS,
+          env_kwargs: Mapping[str, Any] | None = None, config: str | os.PathLike | None = None,
+          resume: bool = False, progress_bar: bool = True, verbose: int = 0,
+          report: Callable[[str], None] = _stderr_report) -> TrainResult:
     """Train (or, with ``resume``, continue training) an SB3 agent on StewartPlatform-v0.
 
     Args:
         algo: "ppo", "sac" or "td3".
-        out: the run directory (created; see the module docstring for its contents).
-        model, task: the plant's dynamics model and the task (environment kwargs).
-        timesteps: environment steps of this call (default the config's n_timesteps).  With
-            ``resume`` they are added to the steps already done: num_timesteps continues.
-        seed: seeds torch, numpy and the platforms (row i gets seed + i; a resumed run seeds
-            its rows with seed + num_timesteps, so it does not replay the first episodes).
+        out: the run directory (created; see the module docstring for its contents).  A new run
+            refuses a directory that holds anything else than a run of ``algo`` with nothing
+            saved yet.
+        model, task: the plant's dynamics model and the task (default improved, setpoint).
+        timesteps: environment steps of this call, at least (default the config's n_timesteps):
+            SB3 collects whole rollouts, so it runs ``timesteps`` rounded up to a multiple of
+            :func:`rollout_steps`.  With ``resume`` they are added to the steps already done.
+        seed: seeds torch, numpy and the platforms (default 0; row i gets seed + i; a resumed
+            run seeds its rows with seed + num_timesteps, so it does not replay the first
+            episodes).
         n_envs: platforms in the batch (default the config's n_envs).
         checkpoint_freq: environment steps between checkpoints (0: none but the final one).
+        keep_checkpoints: how many of the newest checkpoints to keep.
         env_kwargs: further environment kwargs (override the config's env_kwargs; ``model`` and
             ``task`` override both).
-        config: a zoo hyperparameter file (default configs/agents/<algo>.yml).
-        resume: continue from the latest checkpoint in ``out`` (its model, VecNormalize
-            statistics and, off-policy, replay buffer).
+        config: a zoo hyperparameter file (default configs/agents/<algo>.yml; resuming, the
+            hyperparameters recorded in run.json).
+        resume: continue from the newest complete checkpoint in ``out``.  Every setting left
+            None is the run's; one given must equal the run's (the config's n_timesteps
+            excepted), else TrainingError lists each difference.
+        progress_bar: SB3's progress bar, when stderr is a terminal and tqdm and rich are installed.
+        report: where resume messages (the checkpoint taken, those skipped) go; default stderr.
 
-    Every check (algorithm, config file and entry, hyperparameter names, output directory,
-    environment kwargs, resume state) runs before the first training step; failures raise
-    :class:`TrainingError` (or ValueError from the environment) naming what is wrong.
+    Every check (installation, algorithm, config file and entry, hyperparameter names, output
+    directory, environment kwargs, resume state and file hashes) runs before the first training
+    step; failures raise :class:`TrainingError` (or ValueError from the environment) naming what
+    is wrong.  SIGINT or SIGTERM during training saves a checkpoint, then raises
+    :class:`TrainingInterrupted`.
     """
     cls = algorithm_class(algo)
-    cfg_path = config_path(algo, config)
-    hp = parse_hyperparameters(algo, read_hyperparameters(algo, cfg_path))
-    if timesteps is None:
-        timesteps = hp.n_timesteps
-    if isinstance(timesteps, bool) or not isinstance(timesteps, (int, np.integer)) or timesteps < 1:
-        raise TrainingError(f"timesteps must be a positive integer, got {timesteps!r}")
-    n_envs = hp.n_envs if n_envs is None else n_envs
-    if isinstance(n_envs, bool) or not isinstance(n_envs, (int, np.integer)) or n_envs < 1:
-        raise TrainingError(f"n_envs must be a positive integer, got {n_envs!r}")
-    if isinstance(checkpoint_freq, bool) or not isinstance(checkpoint_freq, (int, np.integer)) or checkpoint_freq < 0:
-        raise TrainingError(f"checkpoint_freq must be an integer >= 0, got {checkpoint_freq!r}")
-    kwargs = {**hp.env_kwargs, **(env_kwargs or {}), "model": model, "task": task}
-    jsonable(kwargs)
-    directory = check_writable(out)
+    for name, value, minimum in (("timesteps", timesteps, 1), ("seed", seed, 0), ("n_envs", n_envs, 1)):
+        if value is not None:
+            _check_count(name, value, minimum)
+    _check_count("checkpoint_freq", checkpoint_freq, 0)
+    _check_count("keep_checkpoints", keep_checkpoints, 1)
+    directory = Path(out)
 
-    steps_done, segments = 0, []
+    steps_done, segments, checkpoint = 0, [], None
     if resume:
-        manifest = read_manifest(directory)
-        if manifest["algo"] != algo:
-            raise TrainingError(f"--resume: {directory} holds a {manifest['algo']} run, not {algo}")
-        latest = latest_checkpoint(directory)
-        if latest is None:
-            raise TrainingError(f"--resume: no checkpoint in {directory / CHECKPOINT_DIR}")
-        steps_done, segments = latest, manifest.get("segments", [])
-        # The run's environment, seed and batch, whatever the command line says: the saved
-        # statistics and replay buffer belong to them.
-        kwargs, seed, n_envs = manifest["env_kwargs"], manifest["seed"], manifest["n_envs"]
-    elif (directory / MODEL_FILE).exists() or latest_checkpoint(directory) is not None:
-        raise TrainingError(f"{directory} already holds a trained agent; pass --resume to continue it, "
-                            "or choose another output directory")
+        previous = read_manifest(directory)
+        if previous["algo"] != algo:
+            raise TrainingError(f"--resume: {directory} holds a {previous['algo']} run, not {algo}")
+        entry = read_hyperparameters(algo, config) if config is not None else dict(previous["hyperparameters"])
+        cfg_path = str(config_path(algo, config)) if config is not None else previous["config"]
+        hp = parse_hyperparameters(algo, entry)
+        given = {k: v for k, v in (("model", model), ("task", task)) if v is not None}
+        changes = run_changes(previous, entry, {**previous["env_kwargs"], **(env_kwargs or {}), **given}, seed, n_envs)
+        if changes:
+            raise TrainingError(f"--resume: {directory} was trained with other settings; refusing to continue it "
+                                "with\n  " + "\n  ".join(changes) + "\nresume without these changes (--timesteps "
+                                "may differ: it sets the steps added), or start a new run in another --out")
+        kwargs, seed, n_envs = previous["env_kwargs"], previous["seed"], previous["n_envs"]
+        found = newest_checkpoint(directory, algo, hp.normalize is not None, report)
+        if found is None:
+            raise TrainingError(f"--resume: no complete checkpoint in {directory / CHECKPOINT_DIR}")
+        steps_done, checkpoint = found
+        segments = previous.get("segments", [])
+        report(f"resuming from {CHECKPOINT_DIR}/{checkpoint.name} ({steps_done} steps)")
+        hashes = json.loads((checkpoint / CHECKPOINT_MANIFEST).read_text())["files"]
+        what = f"{CHECKPOINT_DIR}/{checkpoint.name}/{CHECKPOINT_MANIFEST}"
+        saved = {name: _verified_bytes(checkpoint, hashes, name, what) for name in hashes}
+        check_writable(directory)
+        for name in os.listdir(directory / CHECKPOINT_DIR):
+            if name.startswith(_TMP_PREFIX):
+                shutil.rmtree(directory / CHECKPOINT_DIR / name)
+    else:
+        cfg_path = str(config_path(algo, config))
+        hp = parse_hyperparameters(algo, read_hyperparameters(algo, cfg_path))
+        seed = 0 if seed is None else seed
+        n_envs = hp.n_envs if n_envs is None else n_envs
+        kwargs = {**hp.env_kwargs, **(env_kwargs or {}), "model": model or "improved", "task": task or "setpoint"}
+        jsonable(kwargs)
+        _check_fresh_directory(directory, algo)
+        check_writable(directory)
+    timesteps = hp.n_timesteps if timesteps is None else int(timesteps)
+    progress_bar = progress_bar and progress_bar_available()
 
-    _single_thread()
-    files = _checkpoint_files(directory, steps_done)
+    stop = _StopRequest()
     monitor = "monitor.csv" if not resume else f"resumed_{steps_done}.monitor.csv"
-    env = make_training_env(n_envs, kwargs, seed + steps_done, hp.normalize, monitor_path=directory / monitor,
-                            vecnormalize_path=files["vecnormalize"] if resume else None)
-    try:
-        if not resume:
-            agent = cls(env=env, seed=seed, device="cpu", verbose=verbose,
-                        tensorboard_log=str(directory / "tensorboard"), **hp.algorithm_kwargs)
-        else:
-            agent = cls.load(files["model"], env=env, device="cpu", tensorboard_log=str(directory / "tensorboard"))
-            # A resumed run draws new exploration noise and new episodes (seed + steps done).
-            agent.set_random_seed(seed + steps_done)
-            if algo in OFF_POLICY and files["replay_buffer"].exists():
-                agent.load_replay_buffer(files["replay_buffer"])
-        manifest = {
-            "env_id": ENV_ID, "algo": algo, "model": kwargs["model"], "task": kwargs["task"], "seed": seed,
-            "n_envs": n_envs, "env_kwargs": jsonable(kwargs), "config": str(cfg_path),
-            "hyperparameters": jsonable(hp.raw), "normalize": hp.normalize is not None,
-            "versions": _versions(), "num_timesteps": steps_done,
-            "wall_time": sum(s["wall_time"] for s in segments), "segments": segments, "finished": False,
-        }
-        _write_manifest(directory, manifest)
-
-        callback = _checkpoint_callback(directory, int(checkpoint_freq), algo in OFF_POLICY, manifest["wall_time"])
-        start = time.perf_counter()
-        interrupted = False
+    with single_thread():
+        statistics = _unpickle_statistics(saved[VECNORMALIZE_FILE]) if resume and hp.normalize is not None else None
+        env = make_training_env(n_envs, kwargs, seed + steps_done, hp.normalize, monitor_path=directory / monitor,
+                                statistics=statistics)
         try:
-            agent.learn(total_timesteps=int(timesteps), callback=callback, progress_bar=progress_bar,
-                        tb_log_name=algo, reset_num_timesteps=not resume)
-        except KeyboardInterrupt:
-            interrupted = True  # keep what was learnt: the checkpoint below lets --resume continue
-        wall = time.perf_counter() - start
-        if getattr(callback, "last", None) != agent.num_timesteps:  # else the callback just saved it
-            save_checkpoint(agent, directory, algo in OFF_POLICY)
-            log_progress(directory, agent.num_timesteps, manifest["wall_time"] + wall)
-        agent.save(directory / MODEL_FILE)
-        if agent.get_vec_normalize_env() is not None:
-            agent.get_vec_normalize_env().save(str(directory / VECNORMALIZE_FILE))
-        manifest["segments"].append({"start": steps_done, "end": int(agent.num_timesteps), "wall_time": wall,
-                                     "interrupted": interrupted})
-        manifest.update(num_timesteps=int(agent.num_timesteps), finished=not interrupted,
-                        wall_time=sum(s["wall_time"] for s in manifest["segments"]))
-        _write_manifest(directory, manifest)
-    finally:
-        env.close()
-    if interrupted:
-        raise KeyboardInterrupt
-    return TrainResult(directory, int(agent.num_timesteps), int(agent.num_timesteps) - steps_done, wall)
+            if not resume:
+                agent = cls(env=env, seed=seed, device="cpu", verbose=verbose,
+                            tensorboard_log=str(directory / "tensorboard"), **hp.algorithm_kwargs)
+            else:
+                agent = cls.load(io.BytesIO(saved[MODEL_FILE]), env=env, device="cpu",
+                                 tensorboard_log=str(directory / "tensorboard"))
+                # A resumed run draws new exploration noise and new episodes (seed + steps done).
+                agent.set_random_seed(seed + steps_done)
+                if REPLAY_BUFFER_FILE in saved:
+                    agent.load_replay_buffer(io.BytesIO(saved[REPLAY_BUFFER_FILE]))
+                del saved
+            manifest = {
+                "env_id": ENV_ID, "algo": algo, "model": kwargs["model"], "task": kwargs["task"], "seed": seed,
+                "n_envs": int(n_envs), "env_kwargs": jsonable(kwargs), "config": cfg_path,
+                "hyperparameters": jsonable(hp.raw), "normalize": hp.normalize is not None,
+                "versions": _versions(), "num_timesteps": steps_done,
+                "wall_time": sum(s["wall_time"] for s in segments), "segments": segments, "finished": False,
+                "files": {},
+            }
+            _write_json(directory / MANIFEST, manifest)
+
+            callback = _checkpoint_callback(directory, algo, int(checkpoint_freq), int(keep_checkpoints),
+                                            manifest["wall_time"], stop)
+            start = time.perf_counter()
+            with _stop_on_signals(stop):
+                agent.learn(total_timesteps=timesteps, callback=callback, progress_bar=progress_bar,
+                            tb_log_name=algo, reset_num_timesteps=not resume)
+                wall = time.perf_counter() - start
+                steps = int(agent.num_timesteps)
+                checkpoint = directory / CHECKPOINT_DIR / f"step_{steps}"
+                if getattr(callback, "last", None) != steps or not checkpoint.is_dir():  # else just saved
+                    checkpoint = save_checkpoint(agent, directory, algo, int(keep_checkpoints))
+                    log_progress(directory, steps, manifest["wall_time"] + wall)
+                files = _publish_final(agent, directory)
+                manifest["segments"].append({"start": steps_done, "end": steps, "wall_time": wall,
+                                             "interrupted": stop.signum is not None})
+                manifest.update(num_timesteps=steps, finished=stop.signum is None, files=files,
+                                wall_time=sum(s["wall_time"] for s in manifest["segments"]))
+                _write_json(directory / MANIFEST, manifest)
+        finally:
+            env.close()
+    if stop.signum is not None:
+        raise TrainingInterrupted(stop.signum, checkpoint)
+    return TrainResult(directory, steps, steps - steps_done, wall, timesteps, rollout_steps(agent, algo))
 
 
 # -- loading a trained agent ----------------------------------------------------------------------
@@ -567,9 +959,11 @@ class TrainedAgent:
         return self._normalizer.normalize_obs(obs).astype(np.float32)
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
-        """SB3's interface on raw observations: (action (6,) or (N,6) in [-1, 1], None)."""
-        return self.model.predict(self.normalize(observation), state=state, episode_start=episode_start,
-                                  deterministic=deterministic)
+        """SB3's interface on raw observations: (action (6,) or (N,6) in [-1, 1], None).  The
+        network runs on one torch thread; the caller's thread count is restored after."""
+        with single_thread(numba=False):
+            return self.model.predict(self.normalize(observation), state=state, episode_start=episode_start,
+                                      deterministic=deterministic)
 
     def make_env(self, **overrides: Any):
         """``gymnasium.make("StewartPlatform-v0")`` with the training kwargs and ``overrides``."""
@@ -582,26 +976,41 @@ class TrainedAgent:
 
 def load_agent(directory: str | os.PathLike, checkpoint: int | None = None) -> TrainedAgent:
     """The agent trained in ``directory`` by ``stewart-env train`` (its final model, or the
-    checkpoint at ``checkpoint`` steps) as a :class:`TrainedAgent`."""
+    checkpoint at ``checkpoint`` steps) as a :class:`TrainedAgent`.
+
+    The model zip and the statistics are pickles: their sha256 is checked against run.json (or
+    the checkpoint's manifest) before they are unpickled, and a file that does not match is
+    refused with TrainingError.  This detects changed and damaged files, not a forged directory:
+    load only run directories you trust."""
     path = Path(directory)
     manifest = read_manifest(path)
     cls = algorithm_class(manifest["algo"])
     if checkpoint is None:
-        model_file, vn_file = path / MODEL_FILE, path / VECNORMALIZE_FILE
+        folder, what = path, MANIFEST
+        if not (path / MODEL_FILE).exists():
+            raise TrainingError(f"{path}: no model at {MODEL_FILE}; the run has not finished (try --resume)")
+        hashes = manifest.get("files")
+        if not hashes:
+            raise TrainingError(f"{path}: {MANIFEST} records no sha256 of {MODEL_FILE} (written by an older "
+                                "stewart-env, or not by `stewart-env train`); refusing to unpickle unverified files")
     else:
-        files = _checkpoint_files(path, checkpoint)
-        model_file, vn_file = files["model"], files["vecnormalize"]
-    if not model_file.exists():
-        raise TrainingError(f"{path}: no model at {model_file.name}"
-                            + ("; the run has not finished (try --resume)" if checkpoint is None else ""))
-    _single_thread()
-    model = cls.load(model_file, device="cpu")
+        folder = path / CHECKPOINT_DIR / f"step_{checkpoint}"
+        what = f"{CHECKPOINT_DIR}/{folder.name}/{CHECKPOINT_MANIFEST}"
+        problem = (checkpoint_problem(folder, checkpoint, manifest["algo"], bool(manifest.get("normalize")))
+                   if folder.is_dir() else "no such checkpoint")
+        if problem is not None:
+            found = ", ".join(str(steps) for steps, _ in _step_dirs(path)) or "none"
+            raise TrainingError(f"{path}: cannot load the checkpoint at {checkpoint} steps: {problem} "
+                                f"(checkpoints: {found})")
+        hashes = json.loads((folder / CHECKPOINT_MANIFEST).read_text())["files"]
+    model_bytes = _verified_bytes(folder, hashes, MODEL_FILE, what)
+    statistics = (_verified_bytes(folder, hashes, VECNORMALIZE_FILE, what)
+                  if manifest.get("normalize", False) else None)
+    with single_thread():
+        model = cls.load(io.BytesIO(model_bytes), device="cpu")
     normalizer = None
-    if manifest.get("normalize", False):
-        if not vn_file.exists():
-            raise TrainingError(f"{path}: the model was trained with VecNormalize but {vn_file.name} is missing")
-        with open(vn_file, "rb") as f:
-            normalizer = pickle.load(f)  # SB3's VecNormalize.save format; normalize_obs needs no env
+    if statistics is not None:
+        normalizer = _unpickle_statistics(statistics)
         normalizer.training = False
     return TrainedAgent(path, manifest, model, normalizer)
 
@@ -609,29 +1018,51 @@ def load_agent(directory: str | os.PathLike, checkpoint: int | None = None) -> T
 # -- command line ---------------------------------------------------------------------------------
 
 
+def _env_kwargs_token(text: str) -> str:
+    """argparse type of one --env-kwargs token: checked here, so that a bad one is an argparse error."""
+    try:
+        parse_env_kwargs([text])
+    except TrainingError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--env-kwargs: ")) from None
+    return text
+
+
 def add_cli(subparsers) -> argparse.ArgumentParser:
     """Add ``train`` to an argparse subparsers object; its ``func`` returns an exit code."""
+    from stewart_env.cli import TASKS, existing_file, model_name, nonnegative_int, positive_int
+
     p = subparsers.add_parser(
         "train", help="train an RL agent (stable-baselines3) on StewartPlatform-v0",
         description="Train a stable-baselines3 agent with the hyperparameters of configs/agents/<algo>.yml "
                     "(rl-baselines3-zoo format). Writes DIR/model.zip, DIR/vecnormalize.pkl, DIR/run.json, "
-                    "checkpoints and TensorBoard logs.")
-    p.add_argument("--algo", required=True, help=f"algorithm: {', '.join(ALGORITHMS)}")
-    p.add_argument("--model", default="improved", help="plant dynamics model (default: improved)")
-    p.add_argument("--task", default="setpoint", help="task: setpoint, tracking or disturbance (default: setpoint)")
-    p.add_argument("--timesteps", type=int, default=None,
-                   help="environment steps of this call (default: the config's n_timesteps; with --resume, "
-                        "steps added to those already done)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    p.add_argument("--out", required=True, help="run directory")
-    p.add_argument("--resume", action="store_true", help="continue the run in --out from its latest checkpoint")
-    p.add_argument("--n-envs", type=int, default=None, help="platforms in the training batch (default: the config's)")
-    p.add_argument("--checkpoint-freq", type=int, default=50_000,
+                    "checkpoints and TensorBoard logs. SIGINT (Ctrl-C) or SIGTERM saves a checkpoint and exits "
+                    "with 130 or 143; a second signal exits at once.")
+    p.add_argument("--algo", required=True, choices=ALGORITHMS, help=f"algorithm: {', '.join(ALGORITHMS)}")
+    p.add_argument("--model", type=model_name, default=None,
+                   help="plant dynamics model (default: improved; with --resume, the run's)")
+    p.add_argument("--task", choices=TASKS, default=None,
+                   help="task (default: setpoint; with --resume, the run's)")
+    p.add_argument("--timesteps", type=positive_int, default=None,
+                   help="environment steps of this call, at least: SB3 rounds up to whole rollouts of n_steps x "
+                        "n_envs (default: the config's n_timesteps; with --resume, steps added to those done)")
+    p.add_argument("--seed", type=nonnegative_int, default=None,
+                   help="random seed (default: 0; with --resume, the run's)")
+    p.add_argument("--out", required=True, help="run directory (new or empty, unless --resume)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the run in --out from its newest complete checkpoint; a setting that differs from "
+                        "the run's is refused, except --timesteps")
+    p.add_argument("--n-envs", type=positive_int, default=None,
+                   help="platforms in the training batch (default: the config's; with --resume, the run's)")
+    p.add_argument("--checkpoint-freq", type=nonnegative_int, default=50_000,
                    help="environment steps between checkpoints, 0 for none but the final (default: 50000)")
-    p.add_argument("--config", default=None, help="hyperparameter file (default: configs/agents/<algo>.yml)")
-    p.add_argument("--env-kwargs", nargs="*", default=None, metavar="KW",
+    p.add_argument("--keep-checkpoints", type=positive_int, default=DEFAULT_KEEP_CHECKPOINTS, metavar="K",
+                   help=f"keep the newest K checkpoints (default: {DEFAULT_KEEP_CHECKPOINTS})")
+    p.add_argument("--config", type=existing_file, default=None,
+                   help="hyperparameter file (default: configs/agents/<algo>.yml; with --resume, the run's)")
+    p.add_argument("--env-kwargs", nargs="*", type=_env_kwargs_token, default=None, metavar="KW",
                    help="environment kwargs: a JSON object or key=value pairs (values parsed as JSON)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (there is none unless stderr is a "
+                   "terminal)")
     p.set_defaults(func=_cli_train)
     return p
 
@@ -640,15 +1071,18 @@ def _cli_train(args: argparse.Namespace) -> int:
     try:
         result = train(args.algo, args.out, model=args.model, task=args.task, timesteps=args.timesteps,
                        seed=args.seed, n_envs=args.n_envs, checkpoint_freq=args.checkpoint_freq,
-                       env_kwargs=parse_env_kwargs(args.env_kwargs), config=args.config, resume=args.resume,
-                       progress_bar=not args.no_progress)
+                       keep_checkpoints=args.keep_checkpoints, env_kwargs=parse_env_kwargs(args.env_kwargs),
+                       config=args.config, resume=args.resume, progress_bar=not args.no_progress)
+    except TrainingInterrupted as stop:
+        print(f"stewart-env train: stopped by {signal.Signals(stop.signum).name}; checkpoint saved in "
+              f"{stop.checkpoint} (continue with --resume)", file=sys.stderr)
+        return stop.exit_code
+    except KeyboardInterrupt:
+        print("stewart-env train: interrupted before training started; nothing saved", file=sys.stderr)
+        return 130
     except (TrainingError, ValueError) as exc:
         print(f"stewart-env train: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"stewart-env train: interrupted; checkpoint saved in {Path(args.out) / CHECKPOINT_DIR} "
-              "(continue with --resume)", file=sys.stderr)
-        return 130
-    print(f"trained {args.algo} for {result.steps_this_run} steps ({result.num_timesteps} in total) "
-          f"in {result.wall_time:.0f} s -> {result.directory}")
+    print(f"trained {args.algo}: requested {result.requested} steps, ran {result.steps_this_run} (whole rollouts "
+          f"of {result.rollout}); {result.num_timesteps} in total, in {result.wall_time:.0f} s -> {result.directory}")
     return 0

@@ -13,35 +13,77 @@ Each subcommand has ``--help``.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
 CONTROLLERS = ("pd", "pd-gc", "ct")
+TASKS = ("setpoint", "tracking", "disturbance")
+#: Commands that run the compiled kernels (bench announces its own compilation).
+_SIMULATING = ("demo", "evaluate", "reproduce", "train", "mismatch")
 
 
-def _positive_int(text: str) -> int:
-    value = int(text)
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
     if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text}")
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
     return value
 
 
-def _positive_float(text: str) -> float:
-    value = float(text)
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text}")
+def nonnegative_int(text: str) -> int:
+    """argparse type: an integer >= 0 (seeds, step counts that may be 0)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
     return value
 
 
-def _model_name(text: str) -> str:
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (value > 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"expected a finite positive number, got {text!r}")
+    return value
+
+
+def existing_file(text: str) -> str:
+    """argparse type: the path of an existing file."""
+    if not Path(text).is_file():
+        raise argparse.ArgumentTypeError(f"no such file: {text!r}")
+    return text
+
+
+def model_name(text: str) -> str:
+    """argparse type: a dynamics model name (classical, improved, ... with +c1..+c4 switches)."""
     from stewart_env.dynamics.model import parse_model_name
 
     try:
         return parse_model_name(text)[0]
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def platform_name(text: str) -> str:
+    """argparse type: a shipped platform name or a platform YAML file that loads."""
+    from stewart_env.params import load_platform
+
+    try:
+        load_platform(text)
+    except (ValueError, OSError, KeyError, TypeError) as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    return text
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -62,9 +104,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "classical and once on the improved dynamics model, with the same seeded episodes, and print "
                     "the comparison table.  No training; under a minute.",
     )
-    demo.add_argument("--episodes", type=_positive_int, default=3, help="episodes per model (default 3)")
-    demo.add_argument("--seed", type=int, default=0, help="episode i uses seed + i (default 0)")
-    demo.add_argument("--platform", default="dasgupta1998", help="platform config name or YAML path "
+    demo.add_argument("--episodes", type=positive_int, default=3, help="episodes per model (default 3)")
+    demo.add_argument("--seed", type=nonnegative_int, default=0, help="episode i uses seed + i (default 0)")
+    demo.add_argument("--platform", type=platform_name, default="dasgupta1998", help="platform config name or YAML path "
                       "(default dasgupta1998)")
     demo.add_argument("--out", help="also write the report (table, CSV, plots) into this directory")
 
@@ -83,19 +125,19 @@ def build_parser() -> argparse.ArgumentParser:
                     help="run directories of agents trained by `stewart-env train` (model.zip with its "
                          "VecNormalize statistics); each is evaluated with its training environment "
                          "settings, the plant model replaced by --model")
-    ev.add_argument("--internal-model", type=_model_name, default="improved",
+    ev.add_argument("--internal-model", type=model_name, default="improved",
                     help="the computed-torque controller's dynamics model, independent of the plant's "
                          "(default improved)")
-    ev.add_argument("--model", nargs="+", type=_model_name, default=["improved"],
+    ev.add_argument("--model", nargs="+", type=model_name, default=["improved"],
                     help="the plant's dynamics model(s): classical, improved, improved_centroidal, "
                          "optionally with switches +c1..+c4 (default improved)")
-    ev.add_argument("--task", choices=("setpoint", "tracking", "disturbance"),
+    ev.add_argument("--task", choices=TASKS,
                     help="default setpoint (for an --agent: the task it was trained on)")
-    ev.add_argument("--platform", help="platform config name or YAML path (default dasgupta1998; for an "
+    ev.add_argument("--platform", type=platform_name, help="platform config name or YAML path (default dasgupta1998; for an "
                     "--agent: the platform it was trained on)")
-    ev.add_argument("--episodes", type=_positive_int, default=5, help="episodes per configuration (default 5)")
-    ev.add_argument("--seed", type=int, default=0, help="episode i uses seed + i (default 0)")
-    ev.add_argument("--max-steps", type=_positive_int, help="episode length in control steps "
+    ev.add_argument("--episodes", type=positive_int, default=5, help="episodes per configuration (default 5)")
+    ev.add_argument("--seed", type=nonnegative_int, default=0, help="episode i uses seed + i (default 0)")
+    ev.add_argument("--max-steps", type=positive_int, help="episode length in control steps "
                     "(default the registered 500)")
     ev.add_argument("--out", help="write the report (results.md, episodes.csv, PNG plots) into this directory")
 
@@ -107,9 +149,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "(PNG) and summary.md with the peak differences.",
     )
     rep.add_argument("--out", required=True, help="output directory")
-    rep.add_argument("--duration", type=_positive_float, default=1.0, help="simulated time, s (default 1.0)")
-    rep.add_argument("--dt", type=_positive_float, default=2e-4, help="RK4 step, s (default 2e-4)")
-    rep.add_argument("--platform", default="dasgupta1998", help="platform config (default dasgupta1998)")
+    rep.add_argument("--duration", type=positive_float, default=1.0, help="simulated time, s (default 1.0)")
+    rep.add_argument("--dt", type=positive_float, default=2e-4, help="RK4 step, s (default 2e-4)")
+    rep.add_argument("--platform", type=platform_name, default="dasgupta1998", help="platform config (default dasgupta1998)")
     rep.add_argument("--gravity-compensation", action="store_true",
                      help="add the static holding forces to the PD law (the paper's law as we have it has none)")
 
@@ -171,6 +213,36 @@ def _evaluate_command(args: argparse.Namespace) -> str:
     return markdown_table(results)
 
 
+def _preflight(args: argparse.Namespace) -> str | None:
+    """What makes a command impossible before it does any work or writes anything: stable-baselines3
+    missing for a command that trains or loads an agent, an --out that cannot be written."""
+    from stewart_env.agents.training import TrainingError, check_rl_installed, check_writable
+
+    needs_rl = (args.command == "train" or (args.command == "evaluate" and args.agent)
+                or (args.command == "mismatch" and str(args.algo).lower() != "none"))
+    try:
+        if needs_rl:
+            check_rl_installed()
+    except TrainingError as err:
+        return str(err)
+    if getattr(args, "out", None) is not None:
+        try:
+            check_writable(args.out, create=False)
+        except TrainingError as err:
+            return f"argument --out: {err}"
+    return None
+
+
+def _announce_compilation() -> None:
+    """One line before the kernels' first compilation, which takes tens of seconds."""
+    try:
+        from stewart_env.numba_cache import is_warm
+    except ImportError:
+        return
+    if not is_warm():
+        print("compiling kernels, first run only (~30 s)", file=sys.stderr)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["bench"]:
@@ -179,6 +251,12 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         return bench.main(argv[1:]) or 0
     args = build_parser().parse_args(argv)
+    problem = _preflight(args)
+    if problem is not None:
+        print(f"stewart-env {args.command}: error: {problem}", file=sys.stderr)
+        return 2
+    if args.command in _SIMULATING:
+        _announce_compilation()
     start = time.perf_counter()
     if args.command == "demo":
         table = _run_demo(args)

@@ -3,6 +3,7 @@
 import shutil
 import subprocess
 import sys
+import time
 import types
 
 import pytest
@@ -91,3 +92,78 @@ def test_bad_model_name_is_refused(capsys):
 def test_console_script():
     done = subprocess.run(["stewart-env", "reproduce", "--help"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and "--out" in done.stdout
+
+
+@pytest.mark.parametrize("argv", [
+    ["train", "--algo", "ppo", "--timesteps", "10"],
+    ["evaluate", "--agent", "runs/ppo"],
+    ["mismatch", "--algo", "ppo"],
+])
+def test_commands_that_need_stable_baselines3_say_which_extra_before_writing(argv, tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "stable_baselines3", None)  # find_spec: not installed
+    out = tmp_path / "out"
+    assert main(argv + ["--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert 'pip install "stewart-env[rl]"' in err and "torch==2.13.0" in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("argv", [
+    ["demo"], ["evaluate"], ["reproduce"], ["train", "--algo", "ppo"], ["mismatch", "--algo", "none"],
+])
+def test_unwritable_out_is_refused_before_any_work(argv, tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("")  # a directory cannot be made below a file, even by root
+    start = time.perf_counter()
+    assert main(argv + ["--out", str(blocker / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "argument --out" in err and "is not a directory" in err
+    assert time.perf_counter() - start < 5  # refused up front: no episode, figure or training ran
+
+
+@pytest.mark.parametrize("argv, flag", [
+    (["train", "--algo", "a2c"], "--algo"),
+    (["train", "--algo", "ppo", "--timesteps", "0"], "--timesteps"),
+    (["train", "--algo", "ppo", "--timesteps", "1e5"], "--timesteps"),
+    (["train", "--algo", "ppo", "--seed", "-1"], "--seed"),
+    (["train", "--algo", "ppo", "--n-envs", "two"], "--n-envs"),
+    (["train", "--algo", "ppo", "--checkpoint-freq", "-5"], "--checkpoint-freq"),
+    (["train", "--algo", "ppo", "--keep-checkpoints", "0"], "--keep-checkpoints"),
+    (["train", "--algo", "ppo", "--config", "missing.yml"], "--config"),
+    (["train", "--algo", "ppo", "--task", "hover"], "--task"),
+    (["train", "--algo", "ppo", "--model", "newtonian"], "--model"),
+    (["train", "--algo", "ppo", "--env-kwargs", "control_dt"], "--env-kwargs"),
+    (["demo", "--episodes", "0"], "--episodes"),
+    (["demo", "--seed", "-3"], "--seed"),
+    (["demo", "--platform", "nowhere"], "--platform"),
+    (["evaluate", "--max-steps", "0"], "--max-steps"),
+    (["reproduce", "--duration", "nan"], "--duration"),
+    (["reproduce", "--dt", "inf"], "--dt"),
+])
+def test_bad_flag_values_are_argparse_errors_naming_the_flag(argv, flag, tmp_path, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(argv + ["--out", str(tmp_path / "out")])
+    assert stop.value.code == 2
+    assert f"argument {flag}" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_first_run_announces_the_kernel_compilation_once(monkeypatch, capsys):
+    import stewart_env.cli as cli
+
+    fake = types.ModuleType("stewart_env.numba_cache")
+    monkeypatch.setitem(sys.modules, "stewart_env.numba_cache", fake)
+    for warm, expected in ((False, "compiling kernels, first run only (~30 s)\n"), (True, "")):
+        fake.is_warm = lambda warm=warm: warm
+        cli._announce_compilation()
+        assert capsys.readouterr().err == expected
+
+
+def test_train_cli_says_how_many_steps_it_ran(tmp_path, capsys):
+    config = tmp_path / "ppo.yml"
+    config.write_text("StewartPlatform-v0:\n  n_timesteps: 1000\n  policy: MlpPolicy\n  n_envs: 2\n  n_steps: 16\n"
+                      "  batch_size: 32\n  n_epochs: 1\n  policy_kwargs: \"dict(net_arch=[8])\"\n")
+    assert main(["train", "--algo", "ppo", "--config", str(config), "--timesteps", "40", "--out",
+                 str(tmp_path / "run")]) == 0
+    # rollouts of 2 platforms x 16 steps: 40 requested steps take 2 of them
+    assert "requested 40 steps, ran 64 (whole rollouts of 32)" in capsys.readouterr().out
