@@ -1,0 +1,140 @@
+"""The documentation stays true to the code: links resolve, the physics page's tables name code
+and tests that exist, every kernel names the section of the physics page it implements, and no
+project file points at a document outside the repository."""
+
+import ast
+import importlib
+import re
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PHYSICS = ROOT / "docs" / "physics.md"
+KERNELS = ROOT / "stewart_env" / "dynamics" / "kernels.py"
+CODE_MODULES = {
+    "kernels": "stewart_env.dynamics.kernels",
+    "model": "stewart_env.dynamics.model",
+    "kinematics": "stewart_env.kinematics",
+}
+# Written in two pieces so that this file does not match its own search.
+OUTSIDE_DOCUMENTS = ["MODEL" + ".md", "../" + "shared", "/work/" + "shared"]
+
+
+def tracked_files():
+    try:
+        out = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        pytest.skip("not a git checkout")
+    return [ROOT / name for name in out.decode().split("\0") if name]
+
+
+def markdown_files():
+    return [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+
+def prose(text):
+    """Markdown without fenced code blocks and inline code spans, where brackets are not links."""
+    text = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
+    return re.sub(r"`[^`\n]*`", "", text)
+
+
+def slug(heading):
+    """GitHub's anchor of a heading: lower case, punctuation dropped, spaces to hyphens."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def section(text, heading):
+    """The text under a heading up to the next heading of the same or a higher level."""
+    level = heading.split(" ")[0]
+    start = text.index(heading + "\n")
+    end = re.search(rf"^#{{1,{len(level)}}} ", text[start + len(heading):], flags=re.M)
+    return text[start:start + len(heading) + end.start()] if end else text[start:]
+
+
+def first_column_names(table):
+    """Backticked names in the first column of a Markdown table (header and rule skipped)."""
+    names = []
+    for line in table.splitlines():
+        cells = line.split("|")
+        if line.startswith("|") and len(cells) > 2 and not set(cells[1].strip()) <= set("-"):
+            names += re.findall(r"`([^`]+)`", cells[1])
+    return names
+
+
+def test_no_tracked_file_points_at_a_document_outside_the_repository():
+    offenders = []
+    for path in tracked_files():
+        if not path.is_file():
+            continue  # deleted in the working tree
+        data = path.read_bytes()
+        offenders += [f"{path.relative_to(ROOT)}: {p}" for p in OUTSIDE_DOCUMENTS if p.encode() in data]
+    assert not offenders
+
+
+@pytest.mark.parametrize("page", markdown_files(), ids=lambda p: p.name)
+def test_relative_links_resolve(page):
+    text = page.read_text()
+    targets = re.findall(r"\]\(([^)\s]+)\)", prose(text)) + re.findall(r"^\[[^\]]+\]:\s*(\S+)", text, flags=re.M)
+    anchors = {slug(h) for h in re.findall(r"^#+ (.+)$", prose(text), flags=re.M)}
+    broken = []
+    for target in targets:
+        if re.match(r"[a-z]+:", target):
+            continue  # http(s), mailto: outside the repository by intent
+        path, _, anchor = target.partition("#")
+        if path and not (page.parent / path).exists():
+            broken.append(target)
+        elif not path and anchor not in anchors:
+            broken.append(target)
+    assert not broken
+
+
+def test_every_function_in_the_physics_table_exists_and_every_kernel_is_listed():
+    table = section(PHYSICS.read_text(), "### 3.2 Functions")
+    listed = first_column_names(table)
+    assert len(listed) > 30  # the table was found and parsed
+    missing = []
+    for name in listed:
+        module, _, attr = name.partition(".")
+        if not hasattr(importlib.import_module(CODE_MODULES[module]), attr):
+            missing.append(name)
+    assert not missing
+    kernels = [n.name for n in ast.parse(KERNELS.read_text()).body if isinstance(n, ast.FunctionDef)]
+    assert sorted(set(kernels) - {n.partition(".")[2] for n in listed if n.startswith("kernels.")}) == []
+
+
+def test_every_code_name_in_the_symbol_table_occurs_in_the_code():
+    table = section(PHYSICS.read_text(), "### 3.1 Quantities")
+    names = first_column_names(table)
+    assert len(names) > 50  # the table was found and parsed
+    source = "".join(importlib.import_module(m).__loader__.get_source(m) for m in CODE_MODULES.values())
+
+    def occurs(word):
+        return re.search(rf"(?<![\w']){re.escape(word)}(?![\w'])", source) is not None
+
+    # a vector's components are named with the suffixes 0, 1, 2; the table gives the stem
+    assert [n for n in names if not (occurs(n) or occurs(n + "0"))] == []
+
+
+def test_every_test_the_physics_page_cites_exists():
+    cited = re.findall(r"`(tests/[\w/]+\.py)::(\w+)`", PHYSICS.read_text())
+    assert len(cited) >= 10
+    missing = [f"{f}::{t}" for f, t in cited
+               if not (ROOT / f).is_file() or not re.search(rf"^def {t}\(", (ROOT / f).read_text(), flags=re.M)]
+    assert not missing
+
+
+def test_code_docstrings_cite_sections_that_exist():
+    headings = set(re.findall(r"^#{2,3} (\d+(?:\.\d+)?)\.? ", PHYSICS.read_text(), flags=re.M))
+    tree = ast.parse(KERNELS.read_text())
+    undocumented = [n.name for n in tree.body
+                    if isinstance(n, ast.FunctionDef) and "docs/physics.md" not in (ast.get_docstring(n) or "")]
+    assert not undocumented
+    cited = []
+    for module in CODE_MODULES.values():
+        source = importlib.import_module(module).__loader__.get_source(module)
+        for ref in re.findall(r"docs/physics\.md\)? (sections? [0-9][0-9.,\- and]*)", source):
+            cited += re.findall(r"(?<![\w.])\d+(?:\.\d+)?", ref)
+    assert len(cited) > 30
+    assert sorted(set(cited) - headings) == []
