@@ -450,6 +450,9 @@ def _fsync(path: Path) -> None:
     fd = os.open(path, os.O_RDONLY)
     try:
         os.fsync(fd)
+    except OSError:
+        if not path.is_dir():
+            raise  # some file systems cannot sync a directory: its rename is then as durable as they make it
     finally:
         os.close(fd)
 
@@ -844,7 +847,10 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
         kwargs, seed, n_envs = previous["env_kwargs"], previous["seed"], previous["n_envs"]
         found = newest_checkpoint(directory, algo, hp.normalize is not None, report)
         if found is None:
-            raise TrainingError(f"--resume: no complete checkpoint in {directory / CHECKPOINT_DIR}")
+            older = list((directory / CHECKPOINT_DIR).glob("model_*_steps.zip"))
+            raise TrainingError(f"--resume: no complete checkpoint in {directory / CHECKPOINT_DIR}" + (
+                "; its model_<steps>_steps.zip files are checkpoints of an older stewart-env, which record no "
+                "hashes: start a new run" if older else ""))
         steps_done, checkpoint = found
         segments = previous.get("segments", [])
         report(f"resuming from {CHECKPOINT_DIR}/{checkpoint.name} ({steps_done} steps)")

@@ -3,6 +3,7 @@ read as data, and agent folders whose pickles are checked before they are loaded
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import pickle
@@ -343,3 +344,28 @@ def test_a_second_signal_exits_at_once_without_claiming_a_save(tmp_path):
     assert waited < 10  # well inside the 60 s pause: it did not finish the write
     assert "second signal (SIGTERM); exiting now without saving" in err and "checkpoint saved" not in err
     assert not (out / "checkpoints" / "step_64").exists()
+
+
+def test_progress_bar_only_on_a_terminal_with_tqdm_and_rich(monkeypatch):
+    class Terminal:
+        def isatty(self):
+            return True
+
+    monkeypatch.setattr(sys, "stderr", Terminal())
+    assert training.progress_bar_available()
+    monkeypatch.setitem(sys.modules, "rich", None)  # find_spec: not installed
+    assert not training.progress_bar_available()
+    monkeypatch.delitem(sys.modules, "rich")
+    monkeypatch.setattr(sys, "stderr", io.StringIO())
+    assert not training.progress_bar_available()
+
+
+def test_resume_without_a_complete_checkpoint_is_refused(tiny_run, tmp_path):
+    out, _, _ = tiny_run
+    run = _copy(out, tmp_path / "run")
+    for folder in (run / "checkpoints").glob("step_*"):
+        (folder / "manifest.json").unlink()
+    said = []
+    with pytest.raises(TrainingError, match="no complete checkpoint"):
+        train("ppo", run, timesteps=10, resume=True, report=said.append)
+    assert said == [f"skipping checkpoints/step_{n}: incomplete or corrupt (no manifest.json)" for n in (96, 64, 32)]
