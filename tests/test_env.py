@@ -262,7 +262,7 @@ def test_control_dt_must_be_a_multiple_of_physics_dt():
     ({"observation_delay": 1.5}, "observation_delay"),
     ({"ctrl_cost_weight": -1.0}, "ctrl_cost_weight"),
     ({"position_reward_scale": 0.0}, "position_reward_scale"),
-    ({"randomization": {"platform.colour": (0.9, 1.1)}}, "randomization.*platform.colour"),
+    ({"randomization": {"colour": (0.9, 1.1)}}, "randomization.*colour"),
     ({"randomization": {"platform.mass": (1.2, 0.8)}}, "platform.mass"),
     ({"width": 0}, "width"),
     ({"gravity": 1.0}, "gravity"),

@@ -51,8 +51,10 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
         F_i = (F_max + F_min) / 2 + a_i (F_max - F_min) / 2        (dasgupta1998: F_i = 2000 a_i N)
 
-    A positive force extends the leg.  Values outside [-1, 1] are clipped; an action with NaN or inf,
-    or of a shape other than (6,), raises `ValueError` saying what is wrong.  The forces are held
+    A positive force extends the leg.  Values outside [-1, 1] are clipped.  An action must be real
+    numbers (integers or floats of any width) of shape (6,), all finite: NaN or inf, another shape,
+    or bools, complex numbers, strings, dates or objects raise a `ValueError` naming `action` and
+    saying what is wrong (a wrong kind is also a `TypeError`).  The forces are held
     constant over the control step (zero-order hold) while the physics takes
     `control_dt / physics_dt` RK4 substeps.  With `actuator_tau > 0` the applied forces follow the
     commanded ones through a first-order lag, discretised exactly per control step:
@@ -166,7 +168,11 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     4. P leaves the workspace box `limits.position_min`-`position_max`, or roll, pitch or yaw
        deviates from home by more than `limits.max_angle` (`"workspace"`),
 
-    reasons checked in this order; `info["termination"]` is None otherwise.
+    reasons checked in this order; `info["termination"]` is `""` otherwise.  No NaN or inf leaves
+    the environment: a step whose observation or reward is not finite, or beyond the float32 range
+    of the returned observation, also terminates with `"non_finite"` and returns a finite
+    observation (NaN as 0, the rest clipped to the float32 range) and a finite reward; a start
+    state whose observation is not finite ends the episode so at the first step.
 
     ### Truncation
     Only by the time limit: 500 steps (5 s at the default `control_dt`), set by `max_episode_steps`
@@ -174,7 +180,10 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     ## Arguments
 
-    `gymnasium.make("StewartPlatform-v0", **kwargs)` takes:
+    `gymnasium.make("StewartPlatform-v0", **kwargs)` takes these, each checked at construction
+    against a finite range (outside it, or of the wrong kind, a `ValueError` naming the argument);
+    an unknown keyword raises, as Python does, `StewartPlatformEnv.__init__() got an unexpected
+    keyword argument '...'` (an error that is both a `TypeError` and a `ValueError`):
 
     | argument | default | description |
     |---|---|---|
@@ -182,16 +191,16 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     | `platform` | `"dasgupta1998"` | a shipped config name, a YAML path, or a `PlatformParams` |
     | `task` | `"setpoint"` | `"setpoint"`, `"tracking"`, `"disturbance"` (or a `Task` subclass) |
     | `task_options` | `None` | dict of the task's options (see Starting State and `stewart_env.tasks`) |
-    | `control_dt` | `0.01` | s per environment step |
-    | `physics_dt` | `0.001` | s per RK4 substep; `control_dt` must be a whole multiple of it |
-    | `actuator_tau` | `0.0` | s, first-order actuator lag time constant; 0 applies the commanded forces directly |
+    | `control_dt` | `0.01` | s per environment step, 1e-6 to 10 |
+    | `physics_dt` | `0.001` | s per RK4 substep; `control_dt` must be a whole multiple of it, at most 10^6 substeps |
+    | `actuator_tau` | `0.0` | s, first-order actuator lag time constant, 0 to 100; 0 applies the commanded forces directly |
     | `observation_mode` | `"pose"` | `"pose"` (pose and twist) or `"sensors"` (leg lengths and rates) |
     | `normalize_observation` | `True` | scale the observation by the platform's limits (see Observation Space) |
-    | `observation_noise` | `0.0` | Gaussian noise std in observation units: a number, or a dict term name -> std |
-    | `observation_delay` | `0` | control steps between measurement and observation |
+    | `observation_noise` | `0.0` | Gaussian noise std in observation units, 0 to 100: a number, or a dict term name -> std |
+    | `observation_delay` | `0` | control steps between measurement and observation, 0 to 1000 |
     | `error_integral` | `False` | observe the time integral of the pose error (see Observation Space) |
-    | `error_integral_limit` | `0.1` | s, anti-windup bound T of the error integral: +-T h (position), +-T A (orientation) |
-    | `error_integral_band` | `None` | integrate an error component only within this fraction of its scale (h, A); None: always |
+    | `error_integral_limit` | `0.1` | s, anti-windup bound T of the error integral: +-T h (position), +-T A (orientation); 1e-6 to 1e6 |
+    | `error_integral_band` | `None` | integrate an error component only within this fraction (0 to 1e6) of its scale (h, A); None: always |
     | `randomization` | `None` | domain randomisation spec, e.g. `{"platform.mass": (0.8, 1.2), "legs.mass": (0.9, 1.1), "inertia": (0.9, 1.1), "com": (0.9, 1.1), "damping": (0.5, 2.0)}` |
     | `position_reward_weight` | `0.5` | weight of the position term |
     | `position_reward_scale` | `0.05` | m, decay length of the position term |
@@ -202,30 +211,44 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     | `angular_velocity_cost_scale` | `1.0` | rad/s, scale of the angular velocity error in that cost |
     | `ctrl_cost_weight` | `0.1` | weight of the control cost mean(a^2) |
     | `termination_cost` | `10.0` | subtracted on the step that terminates |
-    | `width` | `480` | rendered frame width, px |
-    | `height` | `480` | rendered frame height, px |
+    | `width` | `480` | rendered frame width, px, 1 to 4096 |
+    | `height` | `480` | rendered frame height, px, 1 to 4096 |
     | `render_mode` | `None` | `"rgb_array"` or `"human"` |
 
     Domain randomisation (`randomization`) draws, at every reset, one factor per key uniformly in its
     range and scales the nominal parameters by it: keys `platform.`, `upper_leg.`, `lower_leg.` or
     `legs.` followed by `mass`, `inertia` or `com`; `mass`, `inertia`, `com` for every body; `damping`
     or `damping.universal`, `.prismatic`, `.spherical`.  Unknown keys or bad ranges raise
-    `ValueError`.  The reset `info` then holds `randomization` (the factors) and `platform_params`
-    (the episode's `PlatformParams`); `env.unwrapped.model` is the episode's dynamics model.
+    `ValueError`.  The reset `info` then holds `randomization` (the factors, name -> number);
+    `env.unwrapped.episode_params` is the episode's `PlatformParams` and `env.unwrapped.model` its
+    dynamics model.  Reward weights lie in [0, 1e6] and reward scales in (0, 1e6]; the tasks'
+    options have ranges of their own (see `stewart_env.tasks`).
+
+    Infos hold only numbers and strings: a step's `info` has `reward_<term>` and `time` as numpy
+    float64 and `termination` as a str.  `step()` before the first `reset()` raises
+    `gymnasium.error.ResetNeeded`.  `copy.deepcopy(env)` and `pickle` give an environment that
+    continues bit for bit as the original, at any point of an episode.
 
     Rendering: `render_mode="rgb_array"` returns (height, width, 3) uint8 frames (headless; works with
     `gymnasium.wrappers.RecordVideo`), `"human"` draws in a window; legs are coloured by force, the
-    target pose is a dashed ghost.  `metadata["render_fps"]` is `1 / control_dt`.
+    target pose is a dashed ghost.  On a machine without a display, `"human"` warns once (through
+    Gymnasium's logger) and draws nothing, and `render()` returns None.  `metadata["render_fps"]`
+    is `1 / control_dt`.
 
     Vector environment: `gymnasium.make_vec("StewartPlatform-v0", num_envs=N,
     vectorization_mode="vector_entry_point", **kwargs)` steps all N platforms in one compiled call,
     with Gymnasium's next-step autoreset (`autoreset_mode` also takes `"SameStep"` and `"Disabled"`);
     `reset(seed=s)` seeds row i with s + i, so row i reproduces the single environment reset with
-    seed s + i.  `stewart_env.envs.StewartPlatformSB3VecEnv(num_envs=N, **kwargs)` is the same batch
-    behind stable-baselines3's `VecEnv` API.
+    seed s + i.  Each row is a sub-environment to Gymnasium's `call`, `get_attr` and `set_attr`
+    (e.g. `get_attr("state")`, `call("render")`; `set_attr` sets a row's `np_random`, or one value
+    shared by all rows), and `render()` gives one frame per row (drawn when first indexed, so that
+    `gymnasium.wrappers.vector.RecordVideo` works).  Step infos are arrays with Gymnasium's masks,
+    `termination` a str array with `""` for rows that go on.
+    `stewart_env.envs.StewartPlatformSB3VecEnv(num_envs=N, **kwargs)` is the same batch behind
+    stable-baselines3's `VecEnv` API.
 
     Other attributes of `env.unwrapped`: `state` (position, rotation, velocity, angular_velocity),
-    `target`, `model` (the `Dynamics`), `leg_forces` (N, applied over the last step),
+    `target`, `model` (the `Dynamics`), `episode_params`, `leg_forces` (N, applied over the last step),
     `external_wrench`, `leg_lengths`, `platform`, `task`, `dt`, and `set_state(...)`.  All randomness
     comes from `env.np_random`, so a seed fixes an episode bit for bit.
 

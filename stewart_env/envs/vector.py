@@ -77,7 +77,7 @@ class _Row(BatchAttributes):
         venv = self._venv
         if venv.render_mode is None:
             return venv.render()
-        return venv._draw(self._rows, f"row {self._rows}, ")
+        return venv._draw(self._rows)
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith("_"):  # the row's own members are set in __init__
@@ -86,8 +86,9 @@ class _Row(BatchAttributes):
 
 
 class _Frames(Sequence):
-    """One rgb_array frame per row, of the rows as they were when made; a row is drawn on first
-    access, so recording row 0 of a large batch draws one frame per step, not N."""
+    """One rgb_array frame per row, of the rows as they were when made, each as the single
+    environment draws it; a row is drawn on first access, so recording row 0 of a large batch
+    draws one frame per step, not N."""
 
     def __init__(self, venv: StewartPlatformVectorEnv):
         self._venv = venv
@@ -102,7 +103,7 @@ class _Frames(Sequence):
             return [self[i] for i in range(len(self))[index]]
         i = range(len(self))[index]  # IndexError beyond the rows, as a list
         if i not in self._frames:
-            self._frames[i] = self._venv._draw(i, f"row {i}, ", self._scene)
+            self._frames[i] = self._venv._draw(i, scene=self._scene)
         return self._frames[i]
 
 
