@@ -10,6 +10,11 @@ Public API::
     state = se.rollout(model, position, rotation, velocity, angular_velocity, leg_forces, dt=1e-3, steps=1000)
 """
 
+from stewart_env import numba_cache
+
+# Before any module with compiled kernels: numba picks their cache directory at import.
+numba_cache.configure()
+
 from stewart_env.dynamics import MODEL_NAMES, Dynamics, make_dynamics
 from stewart_env.integrate import rollout
 from stewart_env.kinematics import (

@@ -2,10 +2,15 @@
 short ConfigError naming the key or the file, and never quotes a file's content."""
 
 import copy
+import json
 import math
 import os
 import re
 import shutil
+import stat
+import subprocess
+import sys
+import textwrap
 import threading
 import time
 from pathlib import Path
@@ -16,6 +21,7 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import stewart_env
 from stewart_env.params import MAX_CONFIG_BYTES, ConfigError, PlatformParams, load_platform
 from stewart_env.randomization import Randomization
 
@@ -421,3 +427,132 @@ def test_randomization_accepts_the_extreme_valid_ranges():
     spec = {"mass": (1e-3, 1e3), "com": (-1e3, 1e3), "damping": (0.0, 1e3), "inertia": np.array([0.5, 2.0])}
     assert Randomization(spec).ranges == {"mass": (1e-3, 1e3), "inertia": (0.5, 2.0), "com": (-1e3, 1e3),
                                           "damping": (0.0, 1e3)}
+
+
+# ---------------------------------------------------------------------------------------------
+# Read-only installs: numba's cache
+
+
+def _unprivileged_prefix(tmp_path: Path) -> list[str] | None:
+    """A command prefix under which this Python cannot write to a 0555 directory it owns, or None.
+
+    chmod does not stop root, so root runs the child without capabilities (setpriv keeps uid 0,
+    so that the interpreter under /root stays readable) or as nobody."""
+    if os.geteuid() != 0:
+        return []
+    probe = tmp_path / "probe"
+    probe.mkdir()
+    (probe / "readable").write_text("yes")
+    probe.chmod(0o555)
+    candidates = []
+    if shutil.which("setpriv"):
+        candidates.append(["setpriv", "--securebits=+noroot,+noroot_locked", "--bounding-set=-all", "--inh-caps=-all"])
+        candidates.append(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"])
+    if shutil.which("runuser"):
+        candidates.append(["runuser", "-u", "nobody", "--"])
+    # The child must read the directory (the install will live in tmp_path too) but not write it.
+    code = f"print(open({str(probe / 'readable')!r}).read()); open({str(probe / 'x')!r}, 'w')"
+    for prefix in candidates:
+        try:
+            result = subprocess.run([*prefix, sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+        except OSError:
+            continue
+        if result.stdout == "yes\n" and "PermissionError" in result.stderr:
+            return prefix
+    return None
+
+
+@pytest.fixture
+def read_only_install(tmp_path):
+    """(run, root): `run(code, tempdir=None)` runs Python code in a child that imports
+    stewart_env from a read-only copy of the package, with a read-only HOME and NUMBA_CACHE_DIR
+    unset; `tempdir` is the child's temporary directory (a fresh writable one by default)."""
+    prefix = _unprivileged_prefix(tmp_path)
+    if prefix is None:
+        pytest.skip("running as root and no way to drop the privilege to write read-only directories "
+                    "(setpriv or runuser)")
+    install = tmp_path / "install"
+    package_dir = Path(stewart_env.__file__).resolve().parent
+    shutil.copytree(package_dir, install / "stewart_env", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(package_dir.parent / "configs", install / "configs", ignore=shutil.ignore_patterns("__pycache__"))
+    home = tmp_path / "home"
+    home.mkdir()
+    writable_tmp = tmp_path / "tmp"
+    writable_tmp.mkdir()
+    writable_tmp.chmod(0o777)  # for a child that runs as nobody
+    for directory in (install, home):
+        for root, dirs, files in os.walk(directory):
+            for name in files:
+                os.chmod(os.path.join(root, name), 0o444)
+            os.chmod(root, 0o555)
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("NUMBA_", "PYTHON", "XDG_"))}
+    env.update(HOME=str(home), PYTHONPATH=str(install), TMPDIR=str(writable_tmp), PYTHONDONTWRITEBYTECODE="1")
+
+    def run(code: str, tempdir: Path | None = None) -> subprocess.CompletedProcess:
+        setup = f"import tempfile; tempfile.tempdir = {str(tempdir)!r}\n" if tempdir else ""
+        script = setup + textwrap.dedent(code)
+        return subprocess.run([*prefix, sys.executable, "-W", "always", "-c", script], env=env, cwd=str(home),
+                              capture_output=True, text=True, timeout=300)
+
+    yield run, tmp_path
+    for root, dirs, files in os.walk(tmp_path):  # let pytest remove the tree
+        os.chmod(root, stat.S_IRWXU)
+
+
+CHILD = """
+import json
+import warnings
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    import stewart_env
+from stewart_env import numba_cache
+from stewart_env.dynamics import kernels
+print("FILE", stewart_env.__file__)
+print("WARNINGS", json.dumps([str(w.message) for w in caught if w.category is numba_cache.CacheWarning]))
+print("WARM_BEFORE", numba_cache.is_warm(["_cross"]))
+print("CROSS", kernels._cross(1.0, 0.0, 0.0, 0.0, 1.0, 0.0))
+print("WARM_AFTER", numba_cache.is_warm(["_cross"]), numba_cache.is_warm())
+print("MASS", stewart_env.load_platform("dasgupta1998").platform.mass)
+"""
+
+
+def child_output(result: subprocess.CompletedProcess) -> dict[str, str]:
+    assert result.returncode == 0, result.stderr[-3000:]
+    return dict(line.split(" ", 1) for line in result.stdout.splitlines())
+
+
+def test_import_from_a_read_only_install_caches_in_a_private_temp_dir(read_only_install):
+    run, root = read_only_install
+    first = child_output(run(CHILD))
+    assert first["FILE"] == str(root / "install" / "stewart_env" / "__init__.py")
+    warnings = json.loads(first["WARNINGS"])
+    assert len(warnings) == 1 and "numba cannot cache compiled kernels" in warnings[0]
+    assert str(root / "tmp" / "stewart_env-numba-cache-") in warnings[0]
+    assert first["WARM_BEFORE"] == "False"
+    assert first["CROSS"] == "(0.0, 0.0, 1.0)"  # x cross y = z
+    assert first["WARM_AFTER"] == "True True"
+    assert first["MASS"] == "40.0"
+    caches = list(root.glob("tmp/stewart_env-numba-cache-*"))
+    assert len(caches) == 1 and stat.S_IMODE(caches[0].stat().st_mode) == 0o700
+    assert list(caches[0].glob("*/kernels._cross-*.nbi")), "the kernel was not cached"
+    second = child_output(run(CHILD))
+    assert second["WARM_BEFORE"] == "True"  # compiled by the first process, loaded by the second
+    assert not list(root.glob("install/**/__pycache__")) and not list(root.glob("home/*"))
+
+
+def test_import_without_any_writable_directory_compiles_in_memory(read_only_install):
+    run, root = read_only_install
+    out = child_output(run(CHILD, tempdir=root / "home"))
+    warnings = json.loads(out["WARNINGS"])
+    assert len(warnings) == 1 and "kernels are compiled in memory" in warnings[0]
+    assert out["CROSS"] == "(0.0, 0.0, 1.0)"  # x cross y = z
+    assert out["WARM_AFTER"] == "False False"  # nothing can be cached
+    assert out["MASS"] == "40.0"
+
+
+def test_is_warm_knows_the_kernels():
+    from stewart_env.numba_cache import is_warm
+
+    assert isinstance(is_warm(), bool)
+    with pytest.raises(ValueError, match=r"^is_warm: unknown kernel\(s\) 'no_such_kernel'$"):
+        is_warm(["rollout_batch", "no_such_kernel"])
