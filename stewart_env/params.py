@@ -108,11 +108,12 @@ _EXCERPT = 60
 
 
 class ConfigError(ValueError):
-    """An invalid platform parameter.
+    """An invalid platform parameter or config file (also raised for an invalid domain
+    randomisation spec).
 
     Attributes:
         key: path of the offending value in the config, e.g. ``"platform.inertia"`` or
-            ``"hooke_axes[3]"``; empty for problems of the config as a whole.
+            ``"hooke_axes[3]"``; empty for problems of the config or file as a whole.
         problem: what is wrong with it.
         source: the file the config came from, if any.
     """
