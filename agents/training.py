@@ -524,6 +524,10 @@ def read_manifest(directory: str | os.PathLike) -> dict[str, Any]:
         raise TrainingError(f"{path}: not valid JSON ({exc})") from None
     if not isinstance(manifest, dict) or manifest.get("algo") not in ALGORITHMS:
         raise TrainingError(f"{path}: not a run manifest of `stewart-env train` (no known algorithm)")
+    for key, kind in (("env_kwargs", dict), ("hyperparameters", dict), ("seed", int), ("n_envs", int)):
+        if not isinstance(manifest.get(key), kind):
+            raise TrainingError(f"{path}: not a run manifest of `stewart-env train` ({key} missing or not a "
+                                f"{kind.__name__})")
     return manifest
 
 
@@ -562,7 +566,9 @@ def checkpoint_problem(folder: Path, steps: int, algo: str, normalize: bool) -> 
         return f"{CHECKPOINT_MANIFEST} is not valid JSON"
     if not isinstance(manifest, dict) or manifest.get("num_timesteps") != steps or manifest.get("algo") != algo:
         return f"{CHECKPOINT_MANIFEST} is not that of a {algo} checkpoint at {steps} steps"
-    hashes = manifest.get("files") or {}
+    hashes = manifest.get("files")
+    if not isinstance(hashes, dict):
+        return f"{CHECKPOINT_MANIFEST} lists no file hashes"
     for name in _required_files(algo, normalize):
         if name not in hashes:
             return f"{name} missing from its manifest"
@@ -836,7 +842,7 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
         if previous["algo"] != algo:
             raise TrainingError(f"--resume: {directory} holds a {previous['algo']} run, not {algo}")
         entry = read_hyperparameters(algo, config) if config is not None else dict(previous["hyperparameters"])
-        cfg_path = str(config_path(algo, config)) if config is not None else previous["config"]
+        cfg_path = str(config_path(algo, config)) if config is not None else previous.get("config")
         hp = parse_hyperparameters(algo, entry)
         given = {k: v for k, v in (("model", model), ("task", task)) if v is not None}
         changes = run_changes(previous, entry, {**previous["env_kwargs"], **(env_kwargs or {}), **given}, seed, n_envs)
@@ -996,7 +1002,7 @@ def load_agent(directory: str | os.PathLike, checkpoint: int | None = None) -> T
         if not (path / MODEL_FILE).exists():
             raise TrainingError(f"{path}: no model at {MODEL_FILE}; the run has not finished (try --resume)")
         hashes = manifest.get("files")
-        if not hashes:
+        if not isinstance(hashes, dict) or not hashes:
             raise TrainingError(f"{path}: {MANIFEST} records no sha256 of {MODEL_FILE} (written by an older "
                                 "stewart-env, or not by `stewart-env train`); refusing to unpickle unverified files")
     else:

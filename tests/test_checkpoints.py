@@ -188,6 +188,9 @@ def test_tampered_statistics_and_model_are_refused_before_unpickling(tiny_run, t
     (run / "run.json").write_text(json.dumps(manifest))
     with pytest.raises(TrainingError, match="records no sha256"):
         load_agent(run)
+    (run / "run.json").write_text(json.dumps({"algo": "ppo", "files": ["model.zip"]}))
+    with pytest.raises(TrainingError, match=r"not a run manifest .*\(env_kwargs missing or not a dict\)"):
+        load_agent(run)
 
 
 def test_thread_counts_are_restored_after_training_and_inference(tiny_run):
