@@ -38,15 +38,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import gymnasium as gym
-import matplotlib
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from tqdm.auto import tqdm  # noqa: E402
-
-import stewart_env as se  # noqa: E402
-from stewart_env.rotations import rotation_error  # noqa: E402
+import stewart_env as se
+from stewart_env.progress import progress as progress_bar
+from stewart_env.rotations import rotation_error
 
 ENV_ID = "StewartPlatform-v0"
 #: Default tolerances of settling and success: 2 mm and 0.01 rad (0.57 deg).
@@ -254,8 +253,8 @@ def evaluate(policy, env_kwargs: Mapping | None = None, episodes: int = 5, seed:
     length = np.full(n, steps)
     reasons: list[str | None] = [None] * n
     returns = np.zeros(n)
-    with tqdm(total=steps, desc=f"{label} on {env_kwargs.get('model', 'improved')}", unit="step",
-              disable=not progress, leave=False) as bar:
+    with progress_bar(total=steps, desc=f"{label} on {env_kwargs.get('model', 'improved')}", unit="step",
+                      disable=not progress, leave=False) as bar:
         for k in range(steps):
             action, _ = agent.predict(obs, deterministic=True)
             obs, reward, terminated, truncated, info = env.step(np.asarray(action, dtype=np.float32))
@@ -350,38 +349,91 @@ def write_report(results: Sequence[EvaluationResult], out, title: str = "Control
     return paths
 
 
-def _plot_error_norms(results: Sequence[EvaluationResult], path: Path) -> None:
+#: Error norms below this (mm, mrad) are drawn at it: a log axis would otherwise spread rounding
+#: noise over decades, or drop exact zeros.
+ERROR_FLOOR = 1e-6
+#: Styles of the results in one plot, in drawing order: each later one narrower and on top, so a
+#: curve lying on an earlier one leaves that one showing around it.
+_STYLES = (
+    dict(ls="-", lw=3.2),
+    dict(ls="--", lw=2.2, marker="o", ms=4),
+    dict(ls=":", lw=1.8, marker="s", ms=3.5),
+    dict(ls="-.", lw=1.4, marker="^", ms=3.5),
+    dict(ls=(0, (5, 1, 1, 1)), lw=1.0, marker="D", ms=3),
+)
+
+
+def new_figure(**kwargs) -> Figure:
+    """A matplotlib Figure on its own Agg canvas: figures are made without pyplot, so writing
+    them neither needs a display nor changes the user's backend."""
+    fig = Figure(**kwargs)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def curve_style(j: int) -> dict:
+    """Line style of the j-th overlaid curve (see :data:`_STYLES`); markers at even distances
+    on the screen (on log axes too), offset from the other curves' markers."""
+    style = dict(_STYLES[j % len(_STYLES)], zorder=2 + j)
+    if "marker" in style:
+        style["markevery"] = (0.02 * (j % len(_STYLES)), 0.1)
+    return style
+
+
+def draw_floor(ax, floor: float, unit: str) -> None:
+    """Mark a log axis's clip floor as one: a dotted rule, a label and nothing drawn below it."""
+    ax.axhline(floor, color="0.35", ls=":", lw=1.0, zorder=1)
+    mantissa, exponent = f"{floor:.0e}".split("e")
+    ax.annotate(f"below {mantissa}e{int(exponent)} {unit}: rounding floor", (0.01, floor),
+                xycoords=("axes fraction", "data"), xytext=(0, 2), textcoords="offset points", fontsize=8,
+                color="0.3", va="bottom")
+    ax.set_ylim(bottom=floor / 2)
+
+
+def error_norms_figure(results: Sequence[EvaluationResult]) -> Figure:
     """Position and orientation error norms against time, log scale: each episode faint, the
-    median over episodes bold, one colour per result."""
-    fig, axes = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True, layout="constrained")
-    colours = plt.cm.tab10.colors
-    floor = 1e-6  # mm and mrad: below this the log axis shows only rounding
+    median over episodes bold; one colour and one line style per result; norms below
+    :data:`ERROR_FLOOR` drawn at the floor, which is marked when reached."""
+    fig = new_figure(figsize=(9, 6.5), layout="constrained")
+    axes = fig.subplots(2, 1, sharex=True)
+    colours = colormaps["tab10"].colors
+    panels = ((axes[0], "position_error", "mm"), (axes[1], "orientation_error", "mrad"))
+    floored = [False, False]
     for j, r in enumerate(results):
         colour = colours[j % len(colours)]
-        for ax, key, factor in ((axes[0], "position_error", 1e3), (axes[1], "orientation_error", 1e3)):
-            norms = [np.maximum(np.linalg.norm(getattr(ep, key), axis=1) * factor, floor) for ep in r.episodes]
+        for p, (ax, key, _) in enumerate(panels):
+            raw = [np.linalg.norm(getattr(ep, key), axis=1) * 1e3 for ep in r.episodes]
+            floored[p] |= any(np.any(x < ERROR_FLOOR) for x in raw)
+            norms = [np.maximum(x, ERROR_FLOOR) for x in raw]
+            style = curve_style(j)
             for ep, nrm in zip(r.episodes, norms):
-                ax.plot(ep.time, nrm, color=colour, lw=0.6, alpha=0.35)
+                ax.plot(ep.time, nrm, color=colour, ls=style["ls"], lw=0.6, alpha=0.35, zorder=1)
             shortest = min(len(x) for x in norms)
             ax.plot(r.episodes[0].time[:shortest], np.median([x[:shortest] for x in norms], axis=0), color=colour,
-                    lw=2.0, label=f"{r.label} on {r.model}")
+                    label=f"{r.label} on {r.model}", **style)
     axes[0].set_ylabel("|position error| (mm)")
     axes[1].set_ylabel("orientation error (mrad)")
     axes[1].set_xlabel("time (s)")
-    for ax in axes:
+    for p, (ax, _, unit) in enumerate(panels):
         ax.set_yscale("log")
         ax.grid(alpha=0.3, which="both")
+        if floored[p]:
+            draw_floor(ax, ERROR_FLOOR, unit)
     axes[0].legend(fontsize=9)
     task = results[0].task
     fig.suptitle(f"Errors on the {task} task (median over episodes bold, episodes faint)", fontsize=11)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig
+
+
+def _plot_error_norms(results: Sequence[EvaluationResult], path: Path) -> None:
+    error_norms_figure(results).savefig(path, dpi=110)
 
 
 def _plot_trajectory(result: EvaluationResult, path: Path) -> None:
     """Error components and leg forces of the result's first episode."""
     ep = result.episodes[0]
-    fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True, layout="constrained")
+    fig = new_figure(figsize=(9, 8), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
     for k, name in enumerate("xyz"):
         axes[0].plot(ep.time, ep.position_error[:, k] * 1e3, label=name)
     for k, name in enumerate(("about x", "about y", "about z")):
@@ -398,7 +450,6 @@ def _plot_trajectory(result: EvaluationResult, path: Path) -> None:
     end = f", terminated: {ep.termination}" if ep.termination else ""
     fig.suptitle(f"{result.label} on the {result.model} model, {result.task} task, seed {ep.seed}{end}", fontsize=11)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def compare(policies: Mapping[str, object], env_kwargs_list: Sequence[Mapping], episodes: int = 5, seed: int = 0,

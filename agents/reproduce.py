@@ -34,17 +34,14 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.ticker import FuncFormatter
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.ticker import FuncFormatter  # noqa: E402
-from tqdm.auto import tqdm  # noqa: E402
-
-import stewart_env as se  # noqa: E402
-from stewart_env.agents.pd import PAPER_KD, PAPER_KP, DesiredMotion, TaskSpacePD  # noqa: E402
-from stewart_env.state import PlatformState  # noqa: E402
+import stewart_env as se
+from stewart_env.agents.evaluation import curve_style, new_figure
+from stewart_env.agents.pd import PAPER_KD, PAPER_KP, DesiredMotion, TaskSpacePD
+from stewart_env.progress import progress as progress_bar
+from stewart_env.state import PlatformState
 
 START_POSITION = np.array([0.1, 0.0, 0.395])
 START_RPY = np.array([0.0, 0.0, -0.2])
@@ -113,13 +110,14 @@ def _unpack(y: np.ndarray) -> PlatformState:
 
 def simulate_case_study(model_name: str, platform: se.PlatformParams, controller, duration: float = 1.0,
                         dt: float = 2e-4, sample_dt: float | None = None,
-                        progress: tqdm | None = None) -> CaseTrajectory:
+                        progress=None) -> CaseTrajectory:
     """Integrate the case study's closed loop with RK4, the controller evaluated at every stage.
 
     model_name: the plant's dynamics; controller: (PlatformState, DesiredMotion) -> leg forces N, for
     one state or a batch; duration, dt, sample_dt in s (sample_dt a multiple of dt, default dt:
     the transient under the paper's gains lasts about 50 ms, and coarser samples cut its peaks);
-    ``progress`` is advanced once per step.  Returns the sampled :class:`CaseTrajectory`.
+    ``progress`` (a :func:`stewart_env.progress.progress` bar, or None) is advanced once per
+    step.  Returns the sampled :class:`CaseTrajectory`.
     """
     sample_dt = dt if sample_dt is None else sample_dt
     if not (np.isfinite(duration) and duration > 0):
@@ -216,7 +214,7 @@ def plot_comparison(path: Path, keys: tuple[str, ...], classical: CaseTrajectory
     spec = {q[0]: q for q in QUANTITIES}
     panels = [(key, k) for key in keys for k in range(len(_component_names(key)))]
     rows = len(panels) // 3
-    fig = plt.figure(figsize=(13, 3.4 * rows), layout="constrained")
+    fig = new_figure(figsize=(13, 3.4 * rows), layout="constrained")
     grid = fig.add_gridspec(2 * rows, 3, height_ratios=[3, 1.3] * rows)
     t = improved.time
     for n, (key, k) in enumerate(panels):
@@ -225,8 +223,9 @@ def plot_comparison(path: Path, keys: tuple[str, ...], classical: CaseTrajectory
         qi = improved.quantity(key, from_start)[:, k] * factor
         top = fig.add_subplot(grid[2 * (n // 3), n % 3])
         bottom = fig.add_subplot(grid[2 * (n // 3) + 1, n % 3], sharex=top)
-        top.plot(t, qc, color="tab:blue", lw=1.6, label="classical")
-        top.plot(t, qi, color="tab:red", lw=1.2, ls="--", label="improved")
+        # classical wide beneath, improved narrower and dashed on top: both show where they agree
+        top.plot(t, qc, color="tab:blue", label="classical", **curve_style(0))
+        top.plot(t, qi, color="tab:red", label="improved", **curve_style(1))
         top.set_title(f"{name}, {_component_names(key)[k]}", fontsize=10)
         top.set_ylabel(unit)
         top.tick_params(labelbottom=False)
@@ -244,7 +243,6 @@ def plot_comparison(path: Path, keys: tuple[str, ...], classical: CaseTrajectory
             top.legend(fontsize=9, loc="best")
     fig.suptitle(title + "  (lower axes: improved - classical)", fontsize=12)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 FIGURES = (
@@ -324,7 +322,7 @@ def reproduce(out, duration: float = 1.0, dt: float = 2e-4, sample_dt: float | N
     sample_dt = dt if sample_dt is None else sample_dt
     steps = int(round(duration / sample_dt)) * int(round(sample_dt / dt))
     runs = {}
-    with tqdm(total=steps * len(MODELS), desc="case study", unit="step", disable=not progress) as bar:
+    with progress_bar(total=steps * len(MODELS), desc="case study", unit="step", disable=not progress) as bar:
         for name in MODELS:
             bar.set_postfix_str(name)
             runs[name] = simulate_case_study(name, params, controller, duration, dt, sample_dt, bar)

@@ -2,6 +2,8 @@
 
 import csv
 import math
+import subprocess
+import sys
 
 import gymnasium as gym
 import numpy as np
@@ -10,8 +12,12 @@ import pytest
 from stewart_env.agents import PDPolicy, evaluate, write_report
 from stewart_env.agents.evaluation import (
     ENV_ID,
+    ERROR_FLOOR,
     METRICS,
+    Episode,
+    EvaluationResult,
     control_energy,
+    error_norms_figure,
     episode_metrics,
     final_window_mask,
     overshoot,
@@ -141,3 +147,66 @@ def test_evaluate_names_bad_arguments():
         evaluate(42, {})
     with pytest.raises(ValueError, match="final_window"):
         evaluate(PDPolicy, {}, final_window=2.0)
+
+
+def _decaying_result(label: str, model: str, zero_after: float | None) -> EvaluationResult:
+    """Two episodes of an error decaying from 5 cm (and 0.1 rad) to 2.3e-3 mm (4.5e-3 mrad) at 2 s,
+    exactly zero after ``zero_after`` s if given."""
+    t = np.linspace(0.0, 2.0, 201)
+    error = np.outer(np.exp(-5.0 * t), [0.05, 0.0, 0.0])
+    if zero_after is not None:
+        error[t > zero_after] = 0.0
+    episodes = [Episode(seed, t, error, 2.0 * error, np.zeros((200, 6)), np.zeros((201, 6)), None, 0.0)
+                for seed in (0, 1)]
+    return EvaluationResult(label, {"model": model}, 0, episodes)
+
+
+def test_error_norm_plot_marks_its_floor_as_a_floor():
+    fig = error_norms_figure([_decaying_result("CT", "improved", zero_after=1.5)])
+    for ax, unit in zip(fig.axes, ("mm", "mrad")):
+        assert [t.get_text() for t in ax.texts] == [f"below 1e-6 {unit}: rounding floor"]
+        assert ax.get_ylim()[0] == pytest.approx(ERROR_FLOOR / 2)  # nothing is drawn below the floor
+    # errors that stay above the floor draw none
+    fig = error_norms_figure([_decaying_result("CT", "improved", zero_after=None)])
+    assert all(not ax.texts for ax in fig.axes)
+
+
+def test_overlapping_results_all_show():
+    """Two results with the same curves (as PD on two models that agree): the later one is drawn on
+    top, narrower and in another line style, so the one beneath shows around it."""
+    fig = error_norms_figure([_decaying_result("PD", "classical", None), _decaying_result("PD", "improved", None)])
+    for ax in fig.axes:
+        medians = {line.get_label(): line for line in ax.get_lines() if not line.get_label().startswith("_")}
+        below, above = medians["PD on classical"], medians["PD on improved"]
+        np.testing.assert_array_equal(below.get_ydata(), above.get_ydata())
+        assert above.get_zorder() > below.get_zorder()
+        assert above.get_linewidth() < below.get_linewidth()
+        assert above.get_linestyle() != below.get_linestyle()
+        assert above.get_marker() not in ("None", "", None)
+
+
+def test_figures_leave_the_matplotlib_backend_alone():
+    """Writing reports and figures goes through private Agg canvases: the user's backend (here
+    'template') stays selected and pyplot is never imported, so render_mode='human' still works."""
+    script = """
+import sys, matplotlib
+matplotlib.use("template")
+import numpy as np
+from pathlib import Path
+import tempfile
+from stewart_env.agents import mismatch, reproduce
+from stewart_env.agents.evaluation import METRICS, Episode, EvaluationResult, write_report
+t = np.linspace(0.0, 1.0, 11)
+e = np.outer(np.exp(-t), [0.01, 0.0, 0.0])
+result = EvaluationResult("PD", {}, 0, [Episode(0, t, e, e, np.zeros((10, 6)), np.zeros((11, 6)), None, 0.0)])
+result.episodes[0].metrics = {key: 1.0 for key, *_ in METRICS}
+out = Path(tempfile.mkdtemp())
+write_report([result], out)
+rows = [mismatch.Row("PD", "PD", "")]
+study = mismatch.MismatchResult(rows, ["improved"], {"PD": {"improved": result.summary()}}, 1)
+mismatch.heatmap(study, "success", "success", 1.0, ".0%", out / "heatmap.png")
+print(matplotlib.get_backend(), "matplotlib.pyplot" in sys.modules)
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["template", "False"]
