@@ -19,7 +19,8 @@ study says which simplification costs most on the true (improved) plant.
 
 Output in DIR: ``matrix.csv`` (one line per row and test plant, every metric, SI units),
 ``matrix.md`` (one table per metric, rows x test plants, and the ranking of the
-simplifications) and ``heatmap_<metric>.png`` per metric; trained agents in
+simplifications, withheld with a warning where a ranked controller fails) and
+``heatmap_<metric>.png`` per metric, failed cells hatched; trained agents in
 ``DIR/agents/<name>/`` (a second run with the same DIR loads them instead of training again).
 """
 
@@ -48,6 +49,8 @@ from stewart_env.agents.training import (
     read_manifest,
     train,
 )
+from stewart_env.progress import on_terminal
+from stewart_env.progress import progress as progress_bar
 
 #: Environment steps per RL agent of the quick default study: a smoke-scale budget (the whole
 #: study in about a minute; such agents still lose the platform), --timesteps 1500000 or more for
@@ -80,6 +83,9 @@ EVAL_SEED_OFFSET = 100_000
 RANKING_METRICS = ("steady_state_position_error", "steady_state_orientation_error", "rms_position_error",
                    "peak_leg_force")
 TRUE_MODEL = "improved"
+#: A cell whose controller succeeds in fewer than this share of the episodes is marked failed: its
+#: heatmap cell is hatched grey, not coloured, and it ranks no simplification.
+FAILURE_THRESHOLD = 0.5
 
 
 @dataclass
@@ -144,7 +150,7 @@ def _agent(algo: str, directory: Path, env_kwargs: dict[str, Any], timesteps: in
         return load_agent(directory)
     rest = {k: v for k, v in env_kwargs.items() if k not in ("model", "task")}
     train(algo, directory, model=env_kwargs["model"], task=env_kwargs["task"], timesteps=timesteps, seed=seed,
-          n_envs=n_envs, checkpoint_freq=0, env_kwargs=rest, progress_bar=progress)
+          n_envs=n_envs, checkpoint_freq=0, env_kwargs=rest, progress_bar=progress and on_terminal())
     return load_agent(directory)
 
 
@@ -194,8 +200,6 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     n_envs: platforms per training batch (default the algorithm config's).
     max_steps: evaluation episode length in control steps (default the registered 500).
     """
-    from tqdm.auto import tqdm
-
     from stewart_env.agents.evaluation import METRICS, evaluate
 
     if algo is not None and algo not in ALGORITHMS:
@@ -219,7 +223,7 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
                       env_kwargs, n_envs, progress)
     summary: dict[str, dict[str, dict[str, float]]] = {r.label: {} for r in rows}
     cells = [(r, m) for r in rows for m in test_models]
-    for row, model in tqdm(cells, desc="mismatch matrix", unit="cell", disable=not progress):
+    for row, model in progress_bar(cells, desc="mismatch matrix", unit="cell", disable=not progress):
         result = evaluate(row.policy, {**env_kwargs, "model": model, "task": task}, episodes=episodes,
                           seed=seed + EVAL_SEED_OFFSET, label=row.label, max_steps=max_steps, progress=False)
         summary[row.label][model] = result.summary()
@@ -251,17 +255,27 @@ def simplification_costs(result: MismatchResult, family: str, plant: str = TRUE_
 def _ranking_lines(result: MismatchResult, family: str, metrics) -> list[str]:
     """The markdown block saying which simplification costs the ``family`` most on the true plant:
     each simplification's metrics and their ratios to the exact-model row, and per metric the
-    simplifications ordered by that ratio."""
+    simplifications ordered by that ratio; only a warning line if any of these rows fails on the
+    true plant (success below :data:`FAILURE_THRESHOLD`)."""
     rows = simplification_costs(result, family)
     if not rows:
         return []
     meta = {m[0]: m for m in metrics}
-    exact = result.summary[f"{family} [{TRUE_MODEL}]"][TRUE_MODEL]
-    lines = [f"## Which simplification costs most: {family} on the {TRUE_MODEL} plant", "",
-             f"Each entry: the metric of {family} [improved+cK] on the {TRUE_MODEL} plant, and in brackets its "
-             f"ratio to {family} [{TRUE_MODEL}] (the controller built on the exact model).", "",
-             "| simplification | " + " | ".join(meta[k][1] for k in RANKING_METRICS) + " |",
-             "|---|" + "---|" * len(RANKING_METRICS)]
+    exact_label = f"{family} [{TRUE_MODEL}]"
+    exact = result.summary[exact_label][TRUE_MODEL]
+    heading = [f"## Which simplification costs most: {family} on the {TRUE_MODEL} plant", ""]
+    failed = [label for label in [exact_label] + [label for _, label in rows]
+              if result.summary[label][TRUE_MODEL]["success"] < FAILURE_THRESHOLD]
+    if failed:
+        return heading + [
+            f"**Warning: no ranking.** {', '.join(failed)} succeed{'s' if len(failed) == 1 else ''} in fewer than "
+            f"{FAILURE_THRESHOLD:.0%} of the episodes on the {TRUE_MODEL} plant; their errors measure the failure, "
+            "not the simplification.", ""]
+    lines = heading + [
+        f"Each entry: the metric of {family} [improved+cK] on the {TRUE_MODEL} plant, and in brackets its "
+        f"ratio to {family} [{TRUE_MODEL}] (the controller built on the exact model).", "",
+        "| simplification | " + " | ".join(meta[k][1] for k in RANKING_METRICS) + " |",
+        "|---|" + "---|" * len(RANKING_METRICS)]
     ratios = {}
     for c, label in rows:
         cells = []
@@ -317,29 +331,48 @@ def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[st
 
 
 def heatmap(result: MismatchResult, key: str, title: str, factor: float, spec: str, path: Path) -> None:
-    """One metric as a rows x test-plants heatmap with the values written in the cells; a log
-    colour scale when the values span more than two decades (model errors do)."""
-    import matplotlib
+    """Write :func:`heatmap_figure` of one metric to ``path`` (PNG)."""
+    heatmap_figure(result, key, title, factor, spec).savefig(path, dpi=110)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+def heatmap_figure(result: MismatchResult, key: str, title: str, factor: float, spec: str):
+    """One metric as a rows x test-plants heatmap with the values written in the cells; a log
+    colour scale when the values span more than two decades (model errors do).  Failed cells
+    (success below :data:`FAILURE_THRESHOLD`) are hatched grey and say so, outside the colour
+    scale, so that a controller that loses the platform is never coloured as the best."""
+    from matplotlib import colormaps
     from matplotlib.colors import LogNorm, Normalize
+    from matplotlib.patches import Rectangle
+    from matplotlib.ticker import PercentFormatter
+
+    from stewart_env.agents.evaluation import new_figure
 
     values = result.matrix(key) * factor
-    finite = values[np.isfinite(values)]
+    failed = result.matrix("success") < FAILURE_THRESHOLD
+    finite = values[np.isfinite(values) & ~failed]
     positive = finite[finite > 0]
-    if positive.size and positive.size == finite.size and positive.max() > 100 * positive.min():
+    if key == "success":  # a share of the episodes: one fixed scale for every study
+        norm = Normalize(0.0, 1.0)
+    elif positive.size and positive.size == finite.size and positive.max() > 100 * positive.min():
         norm = LogNorm(positive.min(), positive.max())
     else:
         norm = Normalize(*(finite.min(), finite.max()) if finite.size else (0, 1))
-    cmap = matplotlib.colormaps["viridis" if key == "success" else "viridis_r"].with_extremes(bad="lightgrey")
+    cmap = colormaps["viridis" if key == "success" else "viridis_r"].with_extremes(bad="white")
     n_rows, n_cols = values.shape
-    fig, ax = plt.subplots(figsize=(2.0 + 1.6 * n_cols, 1.2 + 0.42 * n_rows), layout="constrained")
-    image = ax.imshow(np.ma.masked_invalid(values), cmap=cmap, norm=norm, aspect="auto")
+    fig = new_figure(figsize=(2.0 + 1.6 * n_cols, 1.6 + 0.42 * n_rows), layout="constrained")
+    ax = fig.subplots()
+    image = ax.imshow(np.ma.masked_where(~np.isfinite(values) | failed, values), cmap=cmap, norm=norm, aspect="auto")
+    for i, j in zip(*np.nonzero(failed)):
+        ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1.0, 1.0, facecolor="0.82", edgecolor="0.55", hatch="///",
+                               lw=0.0))
     for i in range(n_rows):
         for j in range(n_cols):
             v = values[i, j]
             text = "-" if not np.isfinite(v) else format(v, spec)
+            if failed[i, j]:
+                ax.text(j, i, f"failed ({text})", ha="center", va="center", fontsize=8, color="black",
+                        bbox=dict(boxstyle="round,pad=0.15", facecolor="0.82", edgecolor="none"))
+                continue
             # viridis is dark at its low end, viridis_r at its high end
             dark = np.isfinite(v) and (norm(v) < 0.5 if key == "success" else norm(v) > 0.5)
             ax.text(j, i, text, ha="center", va="center", fontsize=8, color="white" if dark else "black")
@@ -350,10 +383,10 @@ def heatmap(result: MismatchResult, key: str, title: str, factor: float, spec: s
     ax.set_yticks(range(n_rows), [r.label for r in result.rows])
     ax.set_xlabel("test plant (dynamics model simulated)")
     ax.set_ylabel("controller [design / training model]")
-    ax.set_title(title, fontsize=11)
-    fig.colorbar(image, ax=ax, shrink=0.9)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    note = f"\nhatched: failed (success < {FAILURE_THRESHOLD:.0%}), value in brackets" if failed.any() else ""
+    ax.set_title(title + note, fontsize=11 if not note else 10)
+    fig.colorbar(image, ax=ax, shrink=0.9, format=PercentFormatter(1.0) if key == "success" else None)
+    return fig
 
 
 # -- command line ---------------------------------------------------------------------------------

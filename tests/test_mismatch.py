@@ -110,3 +110,51 @@ def test_cli_model_based_rows_only(tmp_path, capsys):
     assert "3 controllers x 2 plants" in capsys.readouterr().out
     with open(tmp_path / "matrix.csv") as f:
         assert len(list(csv.DictReader(f))) == 6
+
+
+def _small_study(ppo_success: float) -> mismatch.MismatchResult:
+    """CT and PPO, each on the exact model and with C2, on the improved plant; CT succeeds, PPO
+    succeeds in ``ppo_success`` of the episodes with errors 1000 times CT's."""
+    from stewart_env.agents.evaluation import METRICS
+
+    rows = [mismatch.Row(f"{family} [{model}]", family, model) for family in ("CT", "PPO")
+            for model in ("improved", "improved+c2")]
+    summary = {}
+    for row in rows:
+        scale = 1e3 if row.family == "PPO" else 1.0
+        scale *= 2.0 if row.model == "improved+c2" else 1.0
+        metrics = {key: 1e-6 * scale for key, *_ in METRICS}
+        metrics["success"] = ppo_success if row.family == "PPO" else 1.0
+        summary[row.label] = {"improved": metrics}
+    return mismatch.MismatchResult(rows, ["improved"], summary, 4)
+
+
+def test_failed_agents_rank_no_simplification(tmp_path):
+    from stewart_env.agents.evaluation import METRICS
+
+    header = {"task": "setpoint", "eval_seed": 100_000, "wall_time": 1.0}
+    mismatch.write_outputs(_small_study(ppo_success=0.25), tmp_path, METRICS, header)
+    text = (tmp_path / "matrix.md").read_text()
+    ct, ppo = text.split("## Which simplification costs most: PPO")
+    assert "costliest first: C2 x2" in ct  # CT succeeds: its ranking stands
+    assert "**Warning: no ranking.** PPO [improved], PPO [improved+c2] succeed in fewer than 50%" in ppo
+    assert "costliest first" not in ppo
+    # at the threshold the agents count as succeeding and are ranked
+    mismatch.write_outputs(_small_study(ppo_success=0.5), tmp_path, METRICS, header)
+    assert "Warning" not in (tmp_path / "matrix.md").read_text()
+
+
+def test_heatmap_hatches_failed_cells_outside_the_colour_scale():
+    study = _small_study(ppo_success=0.25)
+    fig = mismatch.heatmap_figure(study, "steady_state_position_error", "steady-state pos. (mm)", 1e3, ".3g")
+    ax = fig.axes[0]
+    image = ax.get_images()[0]
+    failed = np.array([[False], [False], [True], [True]])  # the PPO rows
+    np.testing.assert_array_equal(np.ma.getmaskarray(image.get_array()), failed)
+    # the colour scale spans the CT cells only (1e-3 and 2e-3 mm): the failed 1 and 2 mm are not "worst"
+    assert image.norm.vmin == pytest.approx(1e-3) and image.norm.vmax == pytest.approx(2e-3)
+    hatched = [p for p in ax.patches if p.get_hatch()]
+    assert len(hatched) == 2
+    cells = [t.get_text() for t in ax.texts]
+    assert cells == ["0.001", "0.002", "failed (1)", "failed (2)"]
+    assert "hatched: failed (success < 50%)" in ax.get_title()
