@@ -9,7 +9,10 @@ that produce the commanded accelerations
 
     F = inverse_dynamics_internal(t, R, v, omega, a_cmd, alpha_cmd)
 
-all in {B}: t, v, a of P's origin (m, m/s, m/s^2), omega and alpha in rad/s and rad/s^2.  With
+all in {B}: t, v, a of P's origin (m, m/s, m/s^2), omega and alpha in rad/s and rad/s^2.  In
+terms of the internal model's mass matrix and bias (:meth:`stewart_env.Dynamics.mass_and_bias`)
+this is J^T F = M [a_cmd; alpha_cmd] + h; inverse dynamics evaluates exactly that in one
+compiled call, without forming M.  With
 an exact internal model the closed loop is the linear error dynamics
 e'' + Kd e' + Kp e = 0 on every axis (to first order in the orientation error); a wrong
 internal model leaves a model-error disturbance, which is what the mismatch studies measure.

@@ -87,19 +87,13 @@ def wrap_angle(angle):
 
 
 def task_space_inertia(model: se.Dynamics, position, rotation) -> np.ndarray:
-    """The platform's 6x6 task-space inertia at a pose, at rest.
+    """The platform's 6x6 task-space inertia at a pose: the model's mass matrix, legs included.
 
     M maps [lin_acc of P's origin; ang_acc] (m/s^2, rad/s^2, in {B}) to the wrench the legs must
-    add to the static one: M[:, j] = J^T (F(unit acceleration j) - F(0)), legs included.
+    add to the one they supply at rest (see :meth:`stewart_env.Dynamics.mass_and_bias`).
     position (3,) m, rotation (3,3).
     """
-    zero = np.zeros(3)
-    jac = se.jacobian(model, position, rotation)
-    unit = np.eye(6)
-    forces = model.inverse(np.broadcast_to(position, (7, 3)), np.broadcast_to(rotation, (7, 3, 3)),
-                           np.zeros((7, 3)), np.zeros((7, 3)),
-                           np.vstack([unit[:, :3], zero]), np.vstack([unit[:, 3:], zero]))
-    return jac.T @ (forces[:6] - forces[6]).T
+    return model.mass_matrix(position, rotation)
 
 
 def zoh_pd_gains(model: se.Dynamics, control_dt: float, bandwidth: float = 0.2, damping: float = 1.0):

@@ -33,7 +33,8 @@ Map of the kernels
   S x F_s + mu h = N; its row along e fixes mu and the rest gives F_s perpendicular to the leg;
   Newton's law for the upper leg along e gives e . F_s.
 * The platform (section 5.3): ``_platform_terms``.
-* Forward dynamics M [a; alpha] + h = J^T F + W (section 5.4): ``_forward_one``; inverse
+* Forward dynamics M [a; alpha] + h = J^T F + W (section 5.4): ``_assemble_one`` builds M and
+  h, which ``_forward_one`` solves and ``mass_bias_batch`` returns; inverse
   dynamics (section 5.5): ``_inverse_one``; RK4 (section 5.6): ``rollout_batch``.
 
 The model switches (switch bits, section 6)
@@ -503,10 +504,12 @@ def _solve6(M, b, x):
 
 
 @njit(cache=True, error_model="numpy")
-def _forward_one(prm, flags, t, R, v, w, F, W, M, h, out):
-    """Forward dynamics of one platform: out[:3] = a, out[3:] = alpha, {B}.
+def _assemble_one(prm, flags, t, R, v, w, F, M, h):
+    """The equations of motion of one platform, {B}: M (6,6) and h (6,) overwritten with the
+    mass matrix and h - J^T F, so that M [a; alpha] + h = W.
 
-    M (6,6) and h (6,) are scratch.  Assembles M [a; alpha] + h = J^T F + W and solves it.
+    With F = 0, ``h`` is the bias: velocity products, gravity and joint friction.  The actuator
+    forces are folded in leg by leg, so forward dynamics needs no second pass over the legs.
     docs/physics.md section 5.4; paper eq. 49 (joint form) or 55 (centroidal form).
     """
     for r in range(6):
@@ -559,6 +562,16 @@ def _forward_one(prm, flags, t, R, v, w, F, W, M, h, out):
         h[4] -= Fi * mq1
         h[5] -= Fi * mq2
     _platform_terms(prm, flags, R, w, M, h)
+
+
+@njit(cache=True, error_model="numpy")
+def _forward_one(prm, flags, t, R, v, w, F, W, M, h, out):
+    """Forward dynamics of one platform: out[:3] = a, out[3:] = alpha, {B}.
+
+    M (6,6) and h (6,) are scratch.  Assembles M [a; alpha] + h = J^T F + W and solves it.
+    docs/physics.md section 5.4; paper eq. 49 (joint form) or 55 (centroidal form).
+    """
+    _assemble_one(prm, flags, t, R, v, w, F, M, h)
     for r in range(6):
         h[r] = W[r] - h[r]
     _solve6(M, h, out)
@@ -666,6 +679,29 @@ def _forward_row(prm, flags, t, R, v, w, F, W, out, b):
     M = np.empty((6, 6))
     h = np.empty(6)
     _forward_one(prm[0] if prm.shape[0] == 1 else prm[b], flags, t[b], R[b], v[b], w[b], F[b], W[b], M, h, out[b])
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def mass_bias_batch(prm, flags, t, R, v, w, W, M, h):
+    """Mass matrix M (N,6,6) and bias h (N,6) over a batch, so that M [a; alpha] + h = J^T F:
+    the assembly of ``forward_batch`` at F = 0, with the external wrench W (N,6) moved into h.
+    docs/physics.md section 5.4; paper eq. 49 or 55.
+    """
+    n = t.shape[0]
+    if n >= PARALLEL_MIN_ROWS:
+        for b in prange(n):
+            _mass_bias_row(prm, flags, t, R, v, w, W, M, h, b)
+    else:
+        for b in range(n):
+            _mass_bias_row(prm, flags, t, R, v, w, W, M, h, b)
+
+
+@njit(cache=True, error_model="numpy")
+def _mass_bias_row(prm, flags, t, R, v, w, W, M, h, b):
+    """Row b of ``mass_bias_batch`` (docs/physics.md section 5.4)."""
+    _assemble_one(prm[0] if prm.shape[0] == 1 else prm[b], flags, t[b], R[b], v[b], w[b], np.zeros(6), M[b], h[b])
+    for r in range(6):
+        h[b, r] -= W[b, r]
 
 
 @njit(cache=True, parallel=True, error_model="numpy")

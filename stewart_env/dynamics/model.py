@@ -201,6 +201,35 @@ class Dynamics:
                         a["angular_velocity"], acc, a["external_wrench"], out)
         return out if batched else out[0]
 
+    def mass_and_bias(self, position, rotation, velocity, angular_velocity, external_wrench=None):
+        """Mass matrix and bias of the equations of motion M [a; alpha] + h = J^T F.
+
+        Arguments as in :meth:`forward`.  Returns (M, h): M (6,6) or (N,6,6) maps
+        [a; alpha] (acceleration of P's origin, m/s^2; angular acceleration, rad/s^2; {B}) to the
+        wrench at P it takes (N; N m; {B}), legs included; it depends on the pose only.  h (6,)
+        or (N,6), N and N m in {B}: the wrench the legs must supply at zero acceleration, i.e.
+        the velocity products (Coriolis, centripetal, gyroscopic), gravity and joint friction,
+        minus ``external_wrench``.  Both come from the assembly :meth:`forward` solves
+        (docs/physics.md section 5.4; paper eq. 49 or 55), so forward(F) = M^-1 (J^T F - h).
+        """
+        n, batched, a = self._args(position, rotation, velocity, angular_velocity, external_wrench=external_wrench)
+        M = np.empty((n, 6, 6))
+        h = np.empty((n, 6))
+        K.mass_bias_batch(self.packed, self.flags, a["position"], a["rotation"], a["velocity"],
+                          a["angular_velocity"], a["external_wrench"], M, h)
+        return (M, h) if batched else (M[0], h[0])
+
+    def mass_matrix(self, position, rotation, velocity=None, angular_velocity=None):
+        """The mass matrix M (6,6) or (N,6,6) of :meth:`mass_and_bias` (kg, kg m, kg m^2; {B},
+        moments about P).  It does not depend on the rates, which may be left out."""
+        zero = np.zeros(3)
+        return self.mass_and_bias(position, rotation, zero if velocity is None else velocity,
+                                  zero if angular_velocity is None else angular_velocity)[0]
+
+    def bias(self, position, rotation, velocity, angular_velocity, external_wrench=None):
+        """The bias h (6,) or (N,6) of :meth:`mass_and_bias`: [force, N; moment about P, N m], {B}."""
+        return self.mass_and_bias(position, rotation, velocity, angular_velocity, external_wrench)[1]
+
     def _args(self, position, rotation, velocity, angular_velocity, external_wrench=None, **extra):
         if external_wrench is None:
             external_wrench = np.zeros(6)
