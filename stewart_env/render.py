@@ -254,8 +254,7 @@ class PlatformRenderer:
         self._text = fig.text(0.02, 0.97, "", ha="left", va="top", fontsize=9, family="monospace")
         # The scene fills the frame left of the colour bar, below the text line and the legend.
         # Small frames have no room for the legend, and the scene keeps at least half the width.
-        renderer = fig.canvas.get_renderer()
-        bar_box, legend_box = cax.get_tightbbox(renderer), legend.get_window_extent(renderer)
+        bar_box, legend_box = cax.get_tightbbox(), legend.get_window_extent()
         text_bottom = self.height - 2.2 * 9.0 * _DPI / 72.0
         if legend_box.y0 - 2.0 < 0.5 * self.height:
             legend.remove()

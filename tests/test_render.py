@@ -178,6 +178,26 @@ def test_human_mode_when_the_backend_cannot_open_a_window(monkeypatch, no_warnin
     assert r.render(HOME, np.eye(3), np.zeros(6)) is None
 
 
+def test_human_mode_with_a_window_draws_and_returns_none(monkeypatch, no_warning_yet):
+    """The window path, on pyplot's Agg backend reported as a GUI one (no real display here)."""
+    import matplotlib.pyplot as plt
+
+    plt.switch_backend("agg")
+    monkeypatch.setenv("DISPLAY", ":99")
+    monkeypatch.setattr(plt, "get_backend", lambda: "TkAgg")
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        r = PlatformRenderer(BASE_JOINTS, PLATFORM_JOINTS, HOME, FORCE_RANGE, width=WIDTH, height=HEIGHT,
+                             render_mode="human")
+        assert r.draws
+        assert r.render(HOME, np.eye(3), np.full(6, 150.0), target_position=HOME, text="t = 0.01 s") is None
+    assert not _display_warnings(record)
+    figure = r._fig
+    assert plt.fignum_exists(figure.number)
+    r.close()
+    assert not plt.fignum_exists(figure.number)
+
+
 # check_env builds a render_mode="human" environment and resets it: it must pass on headless
 # machines, as CI sets them up (MPLBACKEND=Agg), with no backend chosen, and with Agg on a desktop.
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="display detection differs off Linux")
