@@ -33,7 +33,7 @@ def _as_float(value: Any) -> float:
     try:
         return float(value)
     except OverflowError:  # a Python int beyond the float range
-        return math.copysign(math.inf, value)
+        return math.inf if value > 0 else -math.inf
 
 
 def _span(low: float, high: float, low_open: bool) -> str:
