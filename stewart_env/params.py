@@ -45,7 +45,8 @@ rows of the arrays. Messages quote at most a short excerpt of a value, never a w
 
 Files: `load_platform` and `PlatformParams.from_yaml` read only regular files named *.yaml or
 *.yml of at most 1 MB (`MAX_CONFIG_BYTES`), with YAML's safe loader, nesting at most 32 levels
-deep and at most 5000 values once aliases are expanded.
+deep and at most 5000 values once aliases are expanded; a key given twice in one mapping is an
+error (a merge, <<: *anchor, may still be overridden).
 """
 
 from __future__ import annotations
@@ -852,7 +853,7 @@ def _check_regular(info: os.stat_result, source: str) -> None:
 class _ConfigLoader(yaml.SafeLoader):
     """YAML's safe loader, bounded: nesting depth, the number of values after alias expansion
     (a "billion laughs" document of nested aliases is refused before it is built) and the length
-    of integer literals."""
+    of integer literals; duplicate keys are refused."""
 
     def __init__(self, stream: str):
         super().__init__(stream)
@@ -878,6 +879,20 @@ class _ConfigLoader(yaml.SafeLoader):
     def construct_document(self, node):
         _check_expansion(node)
         return super().construct_document(node)
+
+    def construct_mapping(self, node, deep=False):
+        # PyYAML keeps the last of two equal keys: one of two values would be dropped unseen.
+        # Keys brought in by a merge (<<: *anchor) may be overridden, as YAML intends.
+        if isinstance(node, yaml.MappingNode):
+            seen = set()
+            for key_node, _ in node.value:
+                if isinstance(key_node, yaml.ScalarNode) and key_node.tag != "tag:yaml.org,2002:merge":
+                    if (key_node.tag, key_node.value) in seen:
+                        raise yaml.constructor.ConstructorError(
+                            "while constructing a mapping", node.start_mark,
+                            f"duplicate key {_key_names([key_node.value])}", key_node.start_mark)
+                    seen.add((key_node.tag, key_node.value))
+        return super().construct_mapping(node, deep)
 
     def construct_yaml_int(self, node):
         if len(node.value) > _MAX_INT_LITERAL:

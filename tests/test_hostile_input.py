@@ -220,6 +220,15 @@ def test_a_few_aliases_are_fine(tmp_path, dasgupta_config):
     assert load_platform(write(tmp_path / "aliases.yaml", text)).hooke_axes.tolist() == [[0.0, 0.0, 1.0]] * 6
 
 
+def test_duplicate_keys_are_refused_but_merges_may_override(tmp_path):
+    text = config_text("  mass: 40.0 ", "  mass: 40.0\n  mass: 4000.0 ")
+    line = next(i for i, row in enumerate(text.splitlines(), 1) if row.startswith("  mass: 4000.0"))
+    error = load_error(write(tmp_path / "twice.yaml", text))
+    assert str(error).endswith(f"not valid YAML: line {line}, column 3: while constructing a mapping; duplicate key 'mass'")
+    text = config_text("  mass: 1.0 ", "  <<: {mass: 9.0, com: [0.0, 0.0, 0.0]}\n  mass: 1.0 ")
+    assert load_platform(write(tmp_path / "override.yaml", text)).upper_leg[0].mass == 1.0
+
+
 def test_recursive_alias_is_refused(tmp_path):
     error = load_error(write(tmp_path / "loop.yaml", "base_joints: &a [*a]\n"))
     assert str(error).endswith("not valid YAML: line 1, column 14: an alias refers to its own anchor")
