@@ -32,14 +32,14 @@ _RENDER_MODES = ("rgb_array", "human")
 # Backends that cannot open a window; "human" mode would silently draw nothing with them.
 _NON_INTERACTIVE_BACKENDS = {"agg", "cairo", "pdf", "pgf", "ps", "svg", "template"}
 _DPI = 100
-#: Leg force colours: saturated blue (retracting) through dark grey (no force) to saturated
-#: red (extending). No white centre, so a leg at holding force stays visible on white.
+#: Leg force colours: saturated blue (the most negative force) through dark grey (no force) to
+#: saturated red (the most positive, extending). No white centre, so a leg at holding force stays
+#: visible on white.
 LEG_FORCE_COLORMAP = LinearSegmentedColormap.from_list("leg_force", ["#1f5fbf", "#505050", "#c8102e"])
-# Room left for the platform's motion, as a fraction of the platform radius: above and below
-# the home plate, and around the base's footprint.
+# Room kept in view for the platform's motion, as a fraction of the platform radius: above and
+# below the home plate, and beside it.
 _HEADROOM = 0.6
 _SIDE_MARGIN = 0.1
-_VIEW_ZOOM = 1.1
 _VIEW_ELEVATION, _VIEW_AZIMUTH = 30.0, -60.0
 # Triad length as a fraction of the platform radius: long enough to read at 480 px.
 _TRIAD_SCALE = 0.3
