@@ -51,17 +51,28 @@ def _packed(params: PlatformParams | Dynamics) -> np.ndarray:
     raise ValueError(f"params: expected PlatformParams or Dynamics, got {type(params).__name__}")
 
 
+def _flags(params: PlatformParams | Dynamics, model: str | None) -> int:
+    """The switch bits of the leg kinematics: a Dynamics' own, else those of ``model``."""
+    if isinstance(params, Dynamics):
+        if model is not None and parse_model_name(model)[1] != params.flags:
+            raise ValueError(f"model: {model!r} disagrees with the switches of the Dynamics given, {params.name!r}; "
+                             "leave model out")
+        return params.flags
+    return parse_model_name("improved" if model is None else model)[1]
+
+
 def leg_kinematics(params: PlatformParams | Dynamics, position, rotation, velocity=None,
-                   angular_velocity=None, lin_acc=None, ang_acc=None, model: str = "improved") -> LegKinematics:
+                   angular_velocity=None, lin_acc=None, ang_acc=None, model: str | None = None) -> LegKinematics:
     """Inverse kinematics to second order: leg vectors, lengths, frames, rates, accelerations,
     leg angular velocities and accelerations, and the Jacobian.
 
     position (3,), rotation (3,3), velocity (3,), angular_velocity (3,), lin_acc (3,),
-    ang_acc (3,) of the platform in {B} (missing rates are zero); ``model`` chooses whether the
-    leg spin is included (``"classical"`` or a ``+c1`` name leaves it out).  docs/physics.md
-    section 4 derives every quantity.
+    ang_acc (3,) of the platform in {B} (missing rates are zero).  The model's switches decide
+    whether the leg spin is included (``"classical"`` or a ``+c1`` name leaves it out): those
+    of ``params`` when it is a Dynamics, else those of ``model`` (default ``"improved"``).
+    docs/physics.md section 4 derives every quantity.
     """
-    flags = parse_model_name(model)[1]
+    flags = _flags(params, model)
     packed = _packed(params)
     z3 = np.zeros(3)
     n, batched, a = batch_args(
@@ -107,8 +118,10 @@ def forward_kinematics(params: PlatformParams | Dynamics, leg_lengths, position_
     target = np.asarray(leg_lengths, dtype=float)
     if target.shape != (6,) or not np.all(np.isfinite(target)) or np.any(target <= 0):
         raise ValueError(f"leg_lengths: expected six positive finite lengths, got {target}")
-    t = np.array(position_guess, dtype=float)
-    R = np.array(rotation_guess, dtype=float)
+    _, batched, a = batch_args(1, position_guess=(position_guess, (3,)), rotation_guess=(rotation_guess, (3, 3)))
+    if batched:
+        raise ValueError("position_guess, rotation_guess: forward kinematics solves one platform at a time")
+    t, R = a["position_guess"][0], a["rotation_guess"][0]
     residual = np.inf
     for _ in range(max_iter):
         k = leg_kinematics(params, t, R)

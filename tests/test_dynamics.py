@@ -257,6 +257,61 @@ def test_bad_arguments_name_what_is_wrong(dasgupta):
         se.rollout(model, t, R, z, z, np.zeros(6), dt=0.0)
 
 
+def _entry_points(model, params):
+    """Every public call that takes a platform state, as f(position, rotation, velocity)."""
+    z, F = np.zeros(3), np.full(6, 180.0)
+    return {
+        "forward": lambda t, R, v: model.forward(t, R, v, z, F),
+        "inverse": lambda t, R, v: model.inverse(t, R, v, z, z, z),
+        "mass_and_bias": lambda t, R, v: model.mass_and_bias(t, R, v, z),
+        "mass_matrix": lambda t, R, v: model.mass_matrix(t, R, v, z),
+        "bias": lambda t, R, v: model.bias(t, R, v, z),
+        "rollout": lambda t, R, v: se.rollout(model, t, R, v, z, F, steps=1),
+        "leg_kinematics": lambda t, R, v: se.leg_kinematics(model, t, R, v),
+        "leg_kinematics of params": lambda t, R, v: se.leg_kinematics(params, t, R, v),
+        "jacobian": lambda t, R, v: se.jacobian(model, t, R),
+        "inverse_kinematics": lambda t, R, v: se.inverse_kinematics(params, t, R),
+    }
+
+
+NOT_ROTATIONS = {
+    "scaled": 2 * np.eye(3),
+    "reflection": np.diag([1.0, 1.0, -1.0]),
+    "sheared": np.eye(3) + np.triu(np.full((3, 3), 1e-5), 1),
+}
+
+
+@pytest.mark.parametrize("entry", list(_entry_points(None, None)))
+def test_every_entry_point_checks_its_arguments_alike(dasgupta, entry):
+    call = _entry_points(se.make_dynamics("improved", dasgupta), dasgupta)[entry]
+    t, R, v = dasgupta.home_position, se.rpy_to_matrix([0.02, -0.03, 0.05]), np.zeros(3)
+    for kind, bad in NOT_ROTATIONS.items():
+        with pytest.raises(ValueError, match="rotation: not a rotation matrix"):
+            call(t, bad, v)
+        with pytest.raises(ValueError, match=r"rotation: not a rotation matrix in batch rows \[1\]"):
+            call(np.stack([t, t]), np.stack([R, bad]), np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="rotation: contains NaN"):
+        call(t, np.where(np.eye(3) > 0, np.nan, R), v)
+    with pytest.raises(ValueError, match="position: expected shape"):
+        call(t[:2], R, v)
+    with pytest.raises(ValueError, match="position: contains NaN or inf"):
+        call(t + [0, np.inf, 0], R, v)
+    if entry not in ("jacobian", "inverse_kinematics"):
+        with pytest.raises(ValueError, match="velocity: expected shape"):
+            call(t, R, np.zeros(4))
+    # rounding far above float64's but within the stated tolerance (a rotation rebuilt from
+    # float32 numbers) is accepted
+    call(t, R + 1e-8 * np.array([[0.3, -0.7, 0.2], [0.5, 0.1, -0.4], [-0.2, 0.6, 0.8]]), v)
+
+
+def test_forward_kinematics_checks_its_guess_like_every_entry_point(dasgupta):
+    lengths = se.inverse_kinematics(dasgupta, dasgupta.home_position, np.eye(3))[0]
+    with pytest.raises(ValueError, match="rotation_guess: not a rotation matrix"):
+        se.forward_kinematics(dasgupta, lengths, dasgupta.home_position, np.diag([1.0, 1.0, -1.0]))
+    with pytest.raises(ValueError, match="position_guess: contains NaN"):
+        se.forward_kinematics(dasgupta, lengths, [0.0, np.nan, 1.0], np.eye(3))
+
+
 def test_rollout_reports_a_state_that_stops_being_finite(dasgupta):
     model = se.make_dynamics("improved", dasgupta)
     # a huge force throws the platform through a singular pose within a few steps

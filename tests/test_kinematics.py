@@ -77,6 +77,18 @@ def test_classical_leg_kinematics_has_no_spin(dasgupta, rng):
     np.testing.assert_allclose(k.omega, np.cross(k.units, _vp(dasgupta, state)) / k.lengths[:, None], atol=1e-14)
 
 
+def test_leg_kinematics_follows_the_switches_of_a_dynamics_model(dasgupta, rng):
+    state = random_state(dasgupta, rng)
+    classical = se.leg_kinematics(se.make_dynamics("classical", dasgupta), *state)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", classical.omega, classical.units), 0, atol=1e-15)  # rounding of a zero
+    expected = se.leg_kinematics(dasgupta, *state, model="classical")
+    assert np.array_equal(classical.omega, expected.omega) and np.array_equal(classical.alpha, expected.alpha)
+    improved = se.leg_kinematics(se.make_dynamics("improved", dasgupta), *state, model="improved")
+    assert np.abs(np.einsum("ij,ij->i", improved.omega, improved.units)).max() > 1e-3  # rad/s: the spin is there
+    with pytest.raises(ValueError, match="model: 'improved' disagrees"):
+        se.leg_kinematics(se.make_dynamics("classical", dasgupta), *state, model="improved")
+
+
 def _vp(params, state):
     """Velocities of the platform joints P_i, (6,3) in {B}."""
     t, R, v, w = state

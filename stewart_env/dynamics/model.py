@@ -87,18 +87,28 @@ def pack_params(params: PlatformParams) -> np.ndarray:
     return row
 
 
+#: Largest deviation |R^T R - I| (any entry) and |det R - 1| a rotation argument may show.  Products
+#: of float64 rotations stay below 1e-12, and one rebuilt from float32 numbers (eps 6e-8) below
+#: 1e-6; a matrix off by more is not a rotation, and the kernels would treat it as one silently.
+ROTATION_TOLERANCE = 1e-6
+
+
 def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray]]:
-    """Bring state arguments to one batch size.
+    """Bring state arguments to one batch size: the argument check of every public entry point.
 
     Each keyword is ``name=(value, tail_shape)``.  A value of shape ``tail_shape`` is one platform;
-    ``(N,) + tail_shape`` is a batch.  Returns (N, batched, contiguous float64 arrays of shape
-    (N,) + tail_shape).  Raises ValueError naming the argument on a wrong shape, mismatched batch
-    sizes, or a non-finite value.
+    ``(N,) + tail_shape`` is a batch.  Every (3,3) argument is a rotation and must be orthonormal
+    with determinant +1 within :data:`ROTATION_TOLERANCE`.  Returns (N, batched, contiguous
+    float64 arrays of shape (N,) + tail_shape).  Raises ValueError naming the argument on a
+    wrong shape, mismatched batch sizes, a non-finite value or a matrix that is not a rotation.
     """
     sizes = {}
     out = {}
     for name, (value, tail) in arrays.items():
-        a = np.asarray(value, dtype=np.float64)
+        try:
+            a = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name}: expected an array of numbers of shape {tail}, got {type(value).__name__}") from None
         if a.shape == tail:
             a = a[None]
         elif a.ndim != len(tail) + 1 or a.shape[1:] != tail:
@@ -107,6 +117,8 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
             sizes[name] = a.shape[0]
         if not np.isfinite(a).all():
             raise ValueError(f"{name}: contains NaN or inf")
+        if tail == (3, 3):
+            _check_rotation(name, a)
         out[name] = a
     distinct = set(sizes.values())
     if n_params > 1:
@@ -120,6 +132,19 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
             a = np.broadcast_to(a, (n,) + a.shape[1:])
         out[name] = np.ascontiguousarray(a)
     return n, batched, out
+
+
+def _check_rotation(name: str, R: np.ndarray) -> None:
+    """Raise ValueError naming ``name`` unless every R (N,3,3) is a rotation within
+    :data:`ROTATION_TOLERANCE` (orthonormal, determinant +1)."""
+    orth = np.abs(np.matmul(R.transpose(0, 2, 1), R) - np.eye(3)).max(axis=(1, 2))
+    det = np.linalg.det(R)
+    bad = (orth > ROTATION_TOLERANCE) | (np.abs(det - 1.0) > ROTATION_TOLERANCE)
+    if bad.any():
+        rows = np.flatnonzero(bad)
+        where = f" in batch rows {rows[:10].tolist()}" if R.shape[0] > 1 else ""
+        raise ValueError(f"{name}: not a rotation matrix{where} (|R^T R - I| = {orth[rows[0]]:.2e}, "
+                         f"det R = {det[rows[0]]:.6g}; tolerance {ROTATION_TOLERANCE:g})")
 
 
 class Dynamics:
@@ -233,17 +258,12 @@ class Dynamics:
     def _args(self, position, rotation, velocity, angular_velocity, external_wrench=None, **extra):
         if external_wrench is None:
             external_wrench = np.zeros(6)
-        n, batched, a = batch_args(
+        return batch_args(
             self.packed.shape[0],
             position=(position, (3,)), rotation=(rotation, (3, 3)), velocity=(velocity, (3,)),
             angular_velocity=(angular_velocity, (3,)), external_wrench=(external_wrench, (6,)),
             **extra,
         )
-        R = a["rotation"]
-        err = np.abs(np.matmul(R.transpose(0, 2, 1), R) - np.eye(3)).max(axis=(1, 2))
-        if np.any(err > 1e-6):
-            raise ValueError(f"rotation: not a rotation matrix (|R^T R - I| = {err.max():.2e})")
-        return n, batched, a
 
 
 def make_dynamics(name: str, params: PlatformParams | Sequence[PlatformParams]) -> Dynamics:
