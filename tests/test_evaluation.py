@@ -210,3 +210,9 @@ print(matplotlib.get_backend(), "matplotlib.pyplot" in sys.modules)
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["template", "False"]
+
+
+def test_no_progress_bar_in_a_log(capsys):
+    """Under pytest stderr is captured, not a terminal: a short run writes no bar and no line."""
+    evaluate(PDPolicy, {}, episodes=1, max_steps=5, progress=True)
+    assert capsys.readouterr().err == ""
