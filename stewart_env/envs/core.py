@@ -110,6 +110,18 @@ def _limit_codes(t, R, lengths, condition, non_finite, position_min, position_ma
         code[b] = c
 
 
+@njit(cache=True)
+def _within_float32(raw, reward, largest):
+    """Whether every entry of raw (rows, D) is within +-largest (so finite) and every reward finite."""
+    for v in raw.flat:
+        if not abs(v) <= largest:
+            return False
+    for r in reward:
+        if not abs(r) < np.inf:
+            return False
+    return True
+
+
 def _limited(name: str, value: Any, *, low_open: bool = False) -> float:
     """A number keyword argument checked against its :data:`LIMITS`."""
     return real(name, value, *LIMITS[name], low_open=low_open)
@@ -198,6 +210,7 @@ class PlatformBatch:
         self._non_finite = np.zeros(n, dtype=bool)
         # Rows whose start observation was not finite: their first step terminates ("non_finite").
         self._pending = np.zeros(n, dtype=bool)
+        self._any_pending = False
         self._code = np.zeros(n, dtype=np.int64)
         self._home_rpy = self.platform.home_rpy
         self._home_rotation = rpy_to_matrix(self.platform.home_rpy)
@@ -363,7 +376,9 @@ class PlatformBatch:
         if self.noise_std is not None:
             for j in range(len(rows)):
                 raw[j] += rngs[j].normal(size=self.obs_dim) * self.noise_std
-        self._pending[rows] = self._finite_or_marked(raw)
+        bad = self._finite_or_marked(raw, np.zeros(len(rows)))
+        self._pending[rows] = False if bad is None else bad
+        self._any_pending = bool(self._pending.any())
         # A delayed sensor has seen only the start: every slot of the history holds it.
         self._history[:, rows] = raw
         return infos
@@ -444,10 +459,11 @@ class PlatformBatch:
                 if skip is None or not skip[i]:
                     raw[i] += rngs[i].normal(size=self.obs_dim) * self.noise_std
         bad = self._finite_or_marked(raw, reward)
-        if self._pending.any():
-            bad |= self._pending
+        if self._any_pending:
+            bad = self._pending.copy() if bad is None else bad | self._pending
             self._pending[:] = False
-        if bad.any():
+            self._any_pending = False
+        if bad is not None:
             # No NaN or inf leaves the environment: the row ends as non-finite, its reward terms
             # that are not finite count 0 and the termination cost is paid.
             code[bad] = 1 + TERMINATION_REASONS.index("non_finite")
@@ -460,16 +476,14 @@ class PlatformBatch:
         return reward, code, terms
 
     @staticmethod
-    def _finite_or_marked(raw: np.ndarray, reward: np.ndarray | None = None) -> np.ndarray:
-        """Rows (bool (rows,)) of an observation batch (and reward) with an entry that is not
-        finite or beyond the float32 range; their observation entries are made finite in place
-        (NaN 0, the rest clipped to the float32 range).  Two reductions in the common case."""
-        if (raw.max(initial=0.0) <= _FLOAT32_MAX and raw.min(initial=0.0) >= -_FLOAT32_MAX
-                and (reward is None or math.isfinite(reward.sum()))):
-            return np.zeros(raw.shape[0], dtype=bool)
-        bad = ~(np.abs(raw) <= _FLOAT32_MAX).all(axis=1)
-        if reward is not None:
-            bad |= ~np.isfinite(reward)
+    def _finite_or_marked(raw: np.ndarray, reward: np.ndarray) -> np.ndarray | None:
+        """The rows (bool (rows,)) of an observation batch or its reward with an entry that is
+        not finite or beyond the float32 range, their observation entries made finite in place
+        (NaN 0, the rest clipped to the float32 range); None when every row is fine (one
+        compiled pass)."""
+        if _within_float32(raw, reward, _FLOAT32_MAX):
+            return None
+        bad = ~((np.abs(raw) <= _FLOAT32_MAX).all(axis=1) & np.isfinite(reward))
         raw[bad] = np.clip(np.nan_to_num(raw[bad], nan=0.0), -_FLOAT32_MAX, _FLOAT32_MAX)
         return bad
 
