@@ -30,6 +30,7 @@ import argparse
 import csv
 import math
 import re
+import signal
 import sys
 import time
 from collections.abc import Mapping, Sequence
@@ -41,10 +42,13 @@ import numpy as np
 
 from stewart_env.agents.training import (
     ALGORITHMS,
+    MANIFEST,
     MODEL_FILE,
     TrainingError,
+    TrainingInterrupted,
     check_writable,
     load_agent,
+    newest_checkpoint,
     parse_env_kwargs,
     read_manifest,
     train,
@@ -148,9 +152,19 @@ def _agent(algo: str, directory: Path, env_kwargs: dict[str, Any], timesteps: in
                 f"{directory} holds an agent trained differently (algorithm, seed, env kwargs: {found}) from "
                 f"this study's row ({(algo, seed, env_kwargs)}); use another --out")
         return load_agent(directory)
+    bar = progress and on_terminal()
+    resumable = None
+    if (directory / MANIFEST).exists():
+        resumable = newest_checkpoint(directory, algo, bool(read_manifest(directory).get("normalize")))
+    if resumable:
+        # A study stopped while training this row: continue the row's run for the rest of its budget
+        # (train() refuses a resume whose algorithm, seed or environment differ).
+        steps, _ = resumable
+        train(algo, directory, timesteps=max(timesteps - steps, 1), resume=True, progress_bar=bar)
+        return load_agent(directory)
     rest = {k: v for k, v in env_kwargs.items() if k not in ("model", "task")}
     train(algo, directory, model=env_kwargs["model"], task=env_kwargs["task"], timesteps=timesteps, seed=seed,
-          n_envs=n_envs, checkpoint_freq=0, env_kwargs=rest, progress_bar=progress and on_terminal())
+          n_envs=n_envs, checkpoint_freq=0, env_kwargs=rest, progress_bar=bar)
     return load_agent(directory)
 
 
@@ -440,5 +454,9 @@ def _cli_mismatch(args: argparse.Namespace) -> int:
     except (TrainingError, ValueError) as exc:
         print(f"stewart-env mismatch: error: {exc}", file=sys.stderr)
         return 2
+    except TrainingInterrupted as stop:
+        print(f"stewart-env mismatch: stopped by {signal.Signals(stop.signum).name}; checkpoint saved in "
+              f"{stop.checkpoint} (run the same command again to continue)", file=sys.stderr)
+        return stop.exit_code
     print(f"{len(result.rows)} controllers x {len(result.test_models)} plants -> {result.files['markdown']}")
     return 0

@@ -158,3 +158,22 @@ def test_heatmap_hatches_failed_cells_outside_the_colour_scale():
     cells = [t.get_text() for t in ax.texts]
     assert cells == ["0.001", "0.002", "failed (1)", "failed (2)"]
     assert "hatched: failed (success < 50%)" in ax.get_title()
+
+
+def test_a_row_stopped_while_training_continues_from_its_checkpoint(study, tmp_path):
+    import shutil
+
+    from stewart_env.agents.training import MODEL_FILE, VECNORMALIZE_FILE, newest_checkpoint, read_manifest
+
+    out, _ = study
+    row = tmp_path / "improved"
+    shutil.copytree(out / "agents" / "improved", row)
+    # what a stop during the row's training leaves: the run and its checkpoint, no final model
+    (row / MODEL_FILE).unlink()
+    (row / VECNORMALIZE_FILE).unlink(missing_ok=True)
+    manifest = read_manifest(row)
+    steps, _ = newest_checkpoint(row, "ppo", bool(manifest["normalize"]))
+    agent = mismatch._agent("ppo", row, manifest["env_kwargs"], steps + 1, manifest["seed"], None, False)
+    assert (row / MODEL_FILE).is_file()
+    assert agent.num_timesteps > steps  # it trained on from the checkpoint, not from scratch
+    assert read_manifest(row)["segments"][-1]["start"] == steps
