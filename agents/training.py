@@ -69,6 +69,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from stewart_env.progress import on_terminal
+
 ENV_ID = "StewartPlatform-v0"
 ALGORITHMS = ("ppo", "sac", "td3")
 OFF_POLICY = ("sac", "td3")
@@ -128,8 +130,7 @@ def check_rl_installed() -> None:
 
 def progress_bar_available() -> bool:
     """SB3's progress bar needs tqdm and rich, and a terminal on stderr to draw on."""
-    return (all(importlib.util.find_spec(name) is not None for name in ("tqdm", "rich"))
-            and sys.stderr is not None and sys.stderr.isatty())
+    return all(importlib.util.find_spec(name) is not None for name in ("tqdm", "rich")) and on_terminal()
 
 
 @contextlib.contextmanager
