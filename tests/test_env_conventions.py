@@ -297,6 +297,8 @@ def test_vector_get_attr_call_and_set_attr_follow_sync_vector_env():
         envs.set_attr("max_episode_steps", [7, 8, 9])
     with pytest.raises(ValueError, match="num_envs=3"):
         envs.set_attr("np_random", gens[:2])
+    with pytest.raises(AttributeError, match="reset_mask"):  # not N resets of the whole batch
+        envs.call("reset")
 
 
 def test_vector_record_video(tmp_path):

@@ -82,6 +82,9 @@ class _Row(BatchAttributes):
     def __getattr__(self, name: str) -> Any:
         if name.startswith("_"):  # the row's own members are set in __init__
             raise AttributeError(name)
+        if name in ("reset", "step"):
+            raise AttributeError(f"{name}: a row does not {name} alone; call the vector environment's {name}() "
+                                 "(reset(options={'reset_mask': mask}) resets some rows)")
         return getattr(self._venv, name)
 
 
