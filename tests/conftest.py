@@ -17,3 +17,10 @@ def simulator():
 @pytest.fixture
 def rng():
     return np.random.default_rng(20180523)
+
+
+@pytest.fixture
+def headless(monkeypatch):
+    """No display, as on CI and servers: human rendering must warn once and draw nothing."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
