@@ -230,8 +230,9 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     continues bit for bit as the original, at any point of an episode.
 
     Rendering: `render_mode="rgb_array"` returns (height, width, 3) uint8 frames (headless; works with
-    `gymnasium.wrappers.RecordVideo`), `"human"` draws in a window; legs are coloured by force, the
-    target pose is a dashed ghost.  On a machine without a display, `"human"` warns once (through
+    `gymnasium.wrappers.RecordVideo`), `"human"` draws in a window.  Legs run from blue (minimum force)
+    through dark grey (zero) to red (maximum), with a colour bar in N; the target pose is a dashed
+    green ghost.  On a machine without a display, `"human"` warns once (through
     Gymnasium's logger) and draws nothing, and `render()` returns None.  `metadata["render_fps"]`
     is `1 / control_dt`.
 
