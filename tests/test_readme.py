@@ -242,10 +242,15 @@ def test_readme_states_the_long_convention(readme_run):
     assert f"`{LONG_MARK}" in nearby and "tests/test_readme.py" in nearby
 
 
-def test_quick_start_leaves_a_video(readme_run):
-    cwd = readme_run[2]
+def test_snippets_write_what_they_say(readme_run):
+    """A snippet's `# writes PATH` comment (the videos of the quick start and of the environment)
+    names a file it left behind."""
+    blocks, cwd = readme_run[0], readme_run[2]
     assert readme_run[3] is None, "an earlier block failed"
-    assert list(cwd.glob("videos/*.mp4")), "no .mp4 under videos/ after the README's blocks"
+    promised = [(b.line, path) for b in blocks if b.tag == "python" for path in re.findall(r"# writes (\S+)", b.text)]
+    assert any(path.endswith(".mp4") for _, path in promised), "no snippet records a video"
+    for line, path in promised:
+        assert (cwd / path).is_file(), f"README.md:{line}: the snippet says it writes {path}, which does not exist"
 
 
 # --- the numbers of the tables ---------------------------------------------------------------
@@ -332,6 +337,19 @@ def test_case_study_table(readme_run):
     stated = re.search(r"`improved` vs `improved_centroidal`: (\S+) relative", README.read_text())
     printed = re.search(r"improved vs improved_centroidal (\S+)", block.outputs[command])
     assert stated and printed and float(stated.group(1)) < 1e-12 and float(printed.group(1)) < 1e-12
+
+
+def test_snippet_figures(readme_run):
+    """A snippet that prints a table states a figure of it as `# <column>: <value>`."""
+    assert readme_run[3] is None, "an earlier block failed"
+    stated = [(b, m) for b in readme_run[0] if b.tag == "python"
+              for m in re.finditer(r"# ([^#\n]+): (\S+)$", b.text, re.M)]
+    assert stated, "no snippet states a figure of its table"
+    for block, match in stated:
+        (row,) = markdown_tables(block.outputs["python"])[0]
+        column, figure = match.groups()
+        assert same_figure(figure, row[column]), \
+            f"README.md:{block.line}: the snippet says {column} {figure}, it prints {row[column]}"
 
 
 def test_physics_snippet_numbers(readme_run):
