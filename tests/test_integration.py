@@ -11,6 +11,7 @@ import pickle
 import re
 import subprocess
 import sys
+import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -168,6 +169,19 @@ def test_copy_mid_episode_continues_bit_identically(copier, vector):
 
 
 # -- stable-baselines3 ----------------------------------------------------------------------------
+
+
+def test_sb3_env_checker_finds_nothing_to_warn_about():
+    from stable_baselines3.common.env_checker import check_env
+
+    env = gym.make(ENV_ID)
+    try:
+        with warnings.catch_warnings():
+            # SB3's checker reports every doubtful point of the API as a UserWarning.
+            warnings.simplefilter("error", UserWarning)
+            check_env(env, warn=True)
+    finally:
+        env.close()
 
 
 @pytest.mark.slow
