@@ -115,6 +115,17 @@ def check_pip(part: str, where: str) -> None:
             assert word == "torch==2.13.0", f"{where}: torch must be pinned to the CPU build's 2.13.0, not {word!r}"
 
 
+def check_pytest(part: str, where: str) -> None:
+    """A test command is not run (the suite runs the README, not the other way round): the
+    markers it selects must be registered."""
+    argv = shlex.split(part)
+    registered = set(re.findall(r'^\s*"(\w+):', (ROOT / "pyproject.toml").read_text(), re.M))
+    if "-m" in argv[3:]:
+        expression = argv[3:][argv[3:].index("-m") + 1]
+        unknown = set(re.findall(r"\w+", expression)) - {"not", "and", "or"} - registered
+        assert not unknown, f"{where}: {part!r} selects unregistered markers {sorted(unknown)}"
+
+
 def check_long(command: str, where: str) -> None:
     """A long command is not run: its arguments must parse and the repository files it names exist."""
     argv = shlex.split(command, comments=True)
@@ -149,12 +160,14 @@ def run_shell_block(block: Block, cwd: Path) -> None:
             check_long(command, where)
             continue
         parts = [part.strip() for part in command.split("&&")]
-        if any(part.startswith("python -m pytest") for part in parts):
+        if any(part.startswith("pip ") for part in parts) and any(part.startswith("python -m pytest") for part in parts):
             assert command == ci_test_command(), (f"{where}: the README's test command {command!r} is not "
                                                   f"the one .ci/run runs, {ci_test_command()!r}")
         for part in parts:
             if part.startswith("pip "):
                 check_pip(part, where)
+            elif part.startswith("python -m pytest"):
+                check_pytest(part, where)
         rest = [part for part in parts if not part.startswith(("pip ", "python -m pytest"))]
         if rest:
             block.outputs[command] = run_shell(" && ".join(rest), cwd, where)
