@@ -299,7 +299,7 @@ def _mapping(value: object, key: str, required: Sequence[str], optional: Sequenc
     return value
 
 
-_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,39}")
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.]{0,39}")  # dotted too: randomisation keys ("legs.mass")
 
 
 def _key_names(keys: Sequence) -> str:
