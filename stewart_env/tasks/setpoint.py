@@ -19,6 +19,8 @@ PAPER_RPY_OFFSET = np.array([0.0, 0.0, -0.2])
 # Rejection sampling of random poses gives up after this many draws (each draw is kept with a
 # probability close to 1 for the default ranges).
 _MAX_DRAWS = 1000
+# Fixed poses are checked against the limits; beyond this (m or rad) the check itself would overflow.
+_MAX_POSE = 1e3
 
 
 class SetpointTask(Task):
@@ -38,7 +40,8 @@ class SetpointTask(Task):
             randomize is False, in {B} (m, rad).  Defaults: the paper's case study written as
             offsets from home, i.e. start home + (0.1, 0, -0.005) with rpy home + (0, 0, -0.2),
             target home + (0.1, 0, 0) with the same rpy; for dasgupta1998 exactly the paper's
-            start (0.1, 0, 0.395) and target (0.1, 0, 0.4), rpy (0, 0, -0.2).
+            start (0.1, 0, 0.395) and target (0.1, 0, 0.4), rpy (0, 0, -0.2).  Each must lie
+            inside the platform's limits.
     """
 
     name = "setpoint"
@@ -58,7 +61,8 @@ class SetpointTask(Task):
             "target_position": (target_position, home_p + PAPER_TARGET_OFFSET),
             "target_rpy": (target_rpy, home_r + PAPER_RPY_OFFSET),
         }
-        fixed = {k: (default if v is None else vector(option(k), v, 3)) for k, (v, default) in poses.items()}
+        fixed = {k: (default if v is None else vector(option(k), v, 3, -_MAX_POSE, _MAX_POSE))
+                 for k, (v, default) in poses.items()}
         self.start_position, self.start_rpy = fixed["start_position"], fixed["start_rpy"]
         self.target_position, self.target_rpy = fixed["target_position"], fixed["target_rpy"]
         if not self.randomize:
