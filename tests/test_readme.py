@@ -225,7 +225,8 @@ def readme_run(tmp_path_factory):
             if block.tag in SHELL_TAGS:
                 run_shell_block(block, cwd)
             elif block.tag == "python":
-                namespace = namespaces.setdefault(block.heading, {"__name__": "__readme__"})
+                # run as a script runs them, so that a snippet's `if __name__ == "__main__":` block runs
+                namespace = namespaces.setdefault(block.heading, {"__name__": "__main__"})
                 with contextlib.redirect_stdout(io.StringIO()) as out:
                     exec(compile(block.text, f"README.md:{block.line}", "exec"), namespace)
                 block.outputs["python"] = out.getvalue()
