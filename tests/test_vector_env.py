@@ -187,6 +187,10 @@ def test_vector_seeding_list_and_none():
     envs.reset()  # continues each row's generator
     with pytest.raises(ValueError, match="seeds"):
         envs.reset(seed=[1, 2, 3])
+    with pytest.raises(ValueError, match=r"^seed: "):
+        envs.reset(seed=True)
+    with pytest.raises(ValueError, match=r"^seed\[1\]: "):
+        envs.reset(seed=[1, -2])
 
 
 def test_vector_render_gives_one_frame_per_row():

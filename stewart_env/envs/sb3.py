@@ -101,8 +101,7 @@ class StewartPlatformSB3VecEnv(VecEnv):
         if len(rows) == self.num_envs:
             self.venv.set_attr(attr_name, [value] * self.num_envs)  # SB3: one value for every index
             return
-        own = getattr(type(self.venv._row(0)), attr_name, None)
-        if not (isinstance(own, property) and own.fset is not None):
+        if not self.venv._row(0).settable(attr_name):
             raise ValueError(f"set_attr: {attr_name!r} is shared by all rows of the batch; set it for every index")
         for i in rows:
             setattr(self.venv._row(i), attr_name, value)

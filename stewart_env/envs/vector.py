@@ -53,6 +53,12 @@ class _Row(BatchAttributes):
     def __init__(self, venv: StewartPlatformVectorEnv, index: int):
         self._venv, self._core, self._rows = venv, venv._core, index
 
+    @classmethod
+    def settable(cls, name: str) -> bool:
+        """Whether ``name`` is an attribute that each row sets for itself."""
+        own = getattr(cls, name, None)
+        return isinstance(own, property) and own.fset is not None
+
     @property
     def np_random(self) -> np.random.Generator | None:
         """The row's Generator (None before its first reset)."""
@@ -177,13 +183,14 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
             raise ValueError(f"reset: options['reset_mask'] must be a bool array of shape ({n},), got {mask!r}")
         if seed is None:
             seeds = [None] * n
-        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            seeds = [int(seed) + i for i in range(n)]
-            self._np_random, self._np_random_seed = seeding.np_random(int(seed))
+        elif isinstance(seed, (list, tuple, np.ndarray)):
+            if len(seed) != n:
+                raise ValueError(f"reset: a list of seeds must have num_envs={n} entries, got {len(seed)}")
+            seeds = [None if s is None else integer(f"seed[{i}]", s, 0, 2**63) for i, s in enumerate(seed)]
         else:
-            seeds = list(seed)
-            if len(seeds) != n:
-                raise ValueError(f"reset: a list of seeds must have num_envs={n} entries, got {len(seeds)}")
+            seed = integer("seed", seed, 0, 2**63 - n)
+            seeds = [seed + i for i in range(n)]
+            self._np_random, self._np_random_seed = seeding.np_random(seed)
         rows = np.flatnonzero(mask)
         for i in rows:
             if seeds[i] is not None or self._rngs[i] is None:
@@ -320,8 +327,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
         if len(values) != n:
             raise ValueError(f"set_attr: expected one value or num_envs={n} values for {name!r}, "
                              f"got {len(values)}")
-        own = getattr(_Row, name, None)
-        if isinstance(own, property) and own.fset is not None:
+        if _Row.settable(name):
             for i, value in enumerate(values):
                 setattr(self._row(i), name, value)
         elif all(_same(v, values[0]) for v in values):
