@@ -5,9 +5,12 @@ later block finds what an earlier one wrote), by its info string:
 
 - ``bash``, ``sh`` or none: commands, each run by bash.  A ``# long: <why>`` line marks the next
   command as a long run: it is not run, but a ``stewart-env`` command's arguments are parsed and
-  the repository files it names must exist.  ``pip install`` commands are checked, not run: the
-  test command must be the one ``.ci/run`` runs, the extras must exist and torch must be pinned.
-- ``python``: run; the blocks under one heading share a namespace.
+  the repository files it names must exist.  ``pip install`` and ``python -m pytest`` commands
+  are checked, not run: the install-and-test command must be the one ``.ci/run`` runs, the extras
+  must exist, torch must be pinned, and a marker expression may name registered markers only.
+- ``python``: run as a script (``__name__ == "__main__"``); the blocks under one heading share a
+  namespace.  A comment ``# writes PATH`` names a file the block must leave, and
+  ``# <column>: <value>`` a figure of the table it prints.
 - ``yaml``: parsed; it must name exactly the keys of a shipped platform config, with its values.
 - ``text``: an overview: each ``stewart-env <command>`` must have ``--help``, each listed
   directory must exist.
