@@ -266,7 +266,7 @@ def evaluate(policy, env_kwargs: Mapping | None = None, episodes: int = 5, seed:
             record["r"].append(rates)
             for i in np.flatnonzero(alive & terminated):
                 length[i] = k + 1
-                reasons[i] = str(info["termination"][i])
+                reasons[i] = base.termination_reasons[info["termination"][i]]
             alive &= ~(terminated | truncated)
             bar.update()
             if not alive.any():

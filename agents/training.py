@@ -14,8 +14,10 @@ One run lives in one directory ``DIR``:
                                       each file); the last ``keep_checkpoints`` are kept
 ``DIR/checkpoints/progress.csv``      steps and wall time of each checkpoint
 ``DIR/tensorboard/``                  TensorBoard logs (``tensorboard --logdir DIR/tensorboard``)
-``DIR/monitor.csv``                   per-episode return, length, wall time and termination reason
-                                      (``resumed_<steps>.monitor.csv`` for a resumed part)
+``DIR/monitor.csv``                   per-episode return, length, wall time and termination code
+                                      (the environment's ``info["termination"]``: 0 for the time
+                                      limit, else an index into its ``termination_reasons``;
+                                      ``resumed_<steps>.monitor.csv`` for a resumed part)
 ====================================  ==========================================================
 
 Every file is published atomically: a checkpoint is written into ``checkpoints/.tmp-<steps>/``

@@ -360,10 +360,13 @@ def test_a_task_of_ones_own_with_its_own_termination():
     assert u.task.name == "near_target"
     # The fixed case starts 5 mm below the target: the first step already ends the episode.
     _, reward, terminated, _, info = env.step(np.full(6, 0.09))
-    assert terminated and info["termination"] == "reached"
+    assert terminated and env.unwrapped.termination_reasons[info["termination"]] == "reached"
+    # The task's reasons follow the environment's four.
+    assert u.termination_reasons == ("", "non_finite", "singularity", "leg_stroke", "workspace", "reached")
+    assert info["termination"] == 5
     assert info["reward_termination"] == -10.0
     # The environment's own reasons rank first: on the target position but pitched 0.52 rad (past
     # max_angle 0.5; legs 1.17-1.46 m, in stroke) both apply, and the environment's "workspace" wins.
     u.set_state([0.1, 0.0, 0.4], rpy_to_matrix([0.0, 0.52, 0.0]))
     _, _, terminated, _, info = env.step(np.full(6, 0.09))
-    assert terminated and info["termination"] == "workspace"
+    assert terminated and env.unwrapped.termination_reasons[info["termination"]] == "workspace"

@@ -71,7 +71,8 @@ MAX_SUBSTEPS = 10**6
 OBSERVATION_MODES = ("pose", "sensors")
 #: The environment's own reasons to terminate, by priority (a task's reasons come after these).
 TERMINATION_REASONS = ("non_finite", "singularity", "leg_stroke", "workspace")
-#: ``info["termination"]`` of a step that does not terminate.
+#: The name of termination code 0, a step that does not terminate (``info["termination"]`` is
+#: the code, an index into an environment's ``termination_reasons``).
 NOT_TERMINATED = ""
 # Relative tolerance on control_dt / physics_dt being a whole number (rounding of decimal inputs).
 _DT_TOLERANCE = 1e-9
@@ -610,6 +611,12 @@ class BatchAttributes:
     def platform(self) -> PlatformParams:
         """The nominal PlatformParams."""
         return self._core.platform
+
+    @property
+    def termination_reasons(self) -> tuple[str, ...]:
+        """The names of the termination codes of ``info["termination"]``: "" (code 0, the episode
+        goes on), then the environment's reasons by priority, then the task's."""
+        return self._core.termination_reasons
 
     @property
     def episode_params(self):

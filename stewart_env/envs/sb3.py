@@ -28,8 +28,8 @@ class StewartPlatformSB3VecEnv(VecEnv):
     ``max_episode_steps`` (default 500, as registered; None never truncates).  SB3 semantics: a
     row that ends is reset in the same step, its last observation in
     ``infos[i]["terminal_observation"]``, ``infos[i]["TimeLimit.truncated"]`` True when the time
-    limit (and not a termination) ended it, and ``infos[i]["termination"]`` the reason ("" when
-    truncated).  ``seed(s)`` seeds row i with s + i at the next ``reset()``, as SB3's own VecEnvs
+    limit (and not a termination) ended it, and ``infos[i]["termination"]`` the reason's code, as
+    the environment's (an index into ``termination_reasons``; 0 when truncated).  ``seed(s)`` seeds row i with s + i at the next ``reset()``, as SB3's own VecEnvs
     do, so row i reproduces ``gymnasium.make("StewartPlatform-v0")`` reset with seed s + i.
     Wrap in ``VecMonitor`` for episode statistics.
 
@@ -71,10 +71,10 @@ class StewartPlatformSB3VecEnv(VecEnv):
         row_infos = [{"TimeLimit.truncated": bool(time_limit[i])} for i in range(self.num_envs)]
         if done.any():
             rows = np.flatnonzero(done)
-            reasons = infos["final_info"]["termination"]
+            codes = infos["final_info"]["termination"]
             for i, info in zip(rows, self._row_infos(infos, rows)):
                 row_infos[i]["terminal_observation"] = infos["final_obs"][i]
-                row_infos[i]["termination"] = str(reasons[i])
+                row_infos[i]["termination"] = codes[i]
                 self.reset_infos[i] = info
         return obs, reward.astype(np.float32), done, row_infos
 

@@ -161,18 +161,20 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     ### Termination
     The episode terminates when, after a control step,
-    1. the state is no longer finite (`info["termination"] == "non_finite"`; the state is kept at
-       the last finite one),
+    1. the state is no longer finite (`"non_finite"`; the state is kept at the last finite one),
     2. the leg Jacobian's condition number exceeds `limits.max_condition` (`"singularity"`),
     3. a leg length leaves the stroke `limits.leg_length` (`"leg_stroke"`),
     4. P leaves the workspace box `limits.position_min`-`position_max`, or roll, pitch or yaw
        deviates from home by more than `limits.max_angle` (`"workspace"`),
 
-    reasons checked in this order; `info["termination"]` is `""` otherwise.  No NaN or inf leaves
-    the environment: a step whose observation or reward is not finite, or beyond the float32 range
-    of the returned observation, also terminates with `"non_finite"` and returns a finite
-    observation (NaN as 0, the rest clipped to the float32 range) and a finite reward; a start
-    state whose observation is not finite ends the episode so at the first step.
+    reasons checked in this order.  `info["termination"]` is the reason's code, a numpy int64:
+    0 while the episode goes on, else the index of the reason in
+    `env.unwrapped.termination_reasons` = `("", "non_finite", "singularity", "leg_stroke",
+    "workspace")` followed by the task's own reasons (so `termination_reasons[code]` is its name).
+    No NaN or inf leaves the environment: a step whose observation or reward is not finite, or
+    beyond the float32 range of the returned observation, also terminates as `"non_finite"` and
+    returns a finite observation (NaN as 0, the rest clipped to the float32 range) and a finite
+    reward; a start state whose observation is not finite ends the episode so at the first step.
 
     ### Truncation
     Only by the time limit: 500 steps (5 s at the default `control_dt`), set by `max_episode_steps`
@@ -224,8 +226,8 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     dynamics model.  Reward weights lie in [0, 1e6] and reward scales in (0, 1e6]; the tasks'
     options have ranges of their own (see `stewart_env.tasks`).
 
-    Infos hold only numbers and strings: a step's `info` has `reward_<term>` and `time` as numpy
-    float64 and `termination` as a str.  `step()` before the first `reset()` raises
+    Infos hold only numpy numbers (as torchrl's info readers need): a step's `info` has
+    `reward_<term>` and `time` as float64 and `termination` as an int64 code.  `step()` before the first `reset()` raises
     `gymnasium.error.ResetNeeded`.  `copy.deepcopy(env)` and `pickle` give an environment that
     continues bit for bit as the original, at any point of an episode.
 
@@ -244,7 +246,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     (e.g. `get_attr("state")`, `call("render")`; `set_attr` sets a row's `np_random`, or one value
     shared by all rows), and `render()` gives one frame per row (drawn when first indexed, so that
     `gymnasium.wrappers.vector.RecordVideo` works).  Step infos are arrays with Gymnasium's masks,
-    `termination` a str array with `""` for rows that go on.
+    `termination` an int64 array with 0 for rows that go on.
     `stewart_env.envs.StewartPlatformSB3VecEnv(num_envs=N, **kwargs)` is the same batch behind
     stable-baselines3's `VecEnv` API.
 
@@ -292,7 +294,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
         a = check_action(action, (6,))
         reward, code, terms = core.step(a.reshape(1, 6), self._rngs)
         info = {term_key(k): v[0] for k, v in terms.items()}
-        info["termination"] = core.termination_reasons[code[0]]
+        info["termination"] = code[0]
         info["time"] = core.time[0]
         if self.render_mode == "human":
             self.render()

@@ -134,7 +134,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
 
     Infos are Gymnasium vector infos: every key holds an (N,) array with a boolean mask under
     ``"_" + key``; step keys are those of the single environment (``reward_<term>``,
-    ``termination`` a str array, "" for rows that go on, ``time``).
+    ``termination`` an int64 array of codes, 0 for rows that go on, ``time``).
 
     A row is a sub-environment to ``call``, ``get_attr`` and ``set_attr`` (Gymnasium's
     semantics: a tuple of one result per row), e.g. ``get_attr("state")`` or ``call("render")``;
@@ -257,7 +257,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
     def _step_infos(self, terms: dict[str, np.ndarray], code: np.ndarray, stepped: np.ndarray) -> dict[str, Any]:
         core = self._core
         values = {term_key(k): v for k, v in terms.items()}
-        values["termination"] = core.reasons(code)
+        values["termination"] = code.copy()
         values["time"] = core.time.copy()
         all_rows = bool(stepped.all())
         infos: dict[str, Any] = {}
