@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["ArgumentError", "check_action", "check_keywords", "choice", "flag", "integer", "interval",
-           "real", "vector"]
+           "real", "real_array", "vector"]
 
 
 class ArgumentError(TypeError, ValueError):
@@ -121,18 +121,24 @@ def check_keywords(owner: str, kwargs: Mapping[str, Any], valid: Iterable[str]) 
 
 
 def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
-    """The action as a float64 array of ``shape``: real numbers (integers or floats of any width),
-    finite.  Anything else raises an error naming ``action`` and saying what is wrong."""
+    """The action as a float64 array of ``shape`` (see :func:`real_array`)."""
+    return real_array("action", action, shape)
+
+
+def real_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a float64 array of ``shape``: real numbers (integers or floats of any width),
+    finite.  Anything else (bools, complex numbers, strings, dates, objects, a Python int beyond
+    every integer type, NaN, inf, another shape) raises an error naming ``name``."""
     try:
-        a = np.asarray(action)
+        a = np.asarray(value)
     except (TypeError, ValueError, OverflowError):
-        raise ArgumentError(f"action: expected real numbers of shape {shape}, got {action!r}") from None
+        raise ArgumentError(f"{name}: expected real numbers of shape {shape}, got {value!r}") from None
     if a.dtype.kind not in "iuf":
         hint = " (an integer too large for any integer type?)" if a.dtype.kind == "O" else ""
-        raise ArgumentError(f"action: expected real numbers (integers or floats) of shape {shape}, "
-                            f"got dtype {a.dtype}{hint}: {action!r}")
+        raise ArgumentError(f"{name}: expected real numbers (integers or floats) of shape {shape}, "
+                            f"got dtype {a.dtype}{hint}: {value!r}")
     if a.shape != shape:
-        raise ValueError(f"action: expected shape {shape}, got {a.shape}")
+        raise ValueError(f"{name}: expected shape {shape}, got {a.shape}")
     a = a.astype(np.float64, copy=False)
     # One sum tells whether all is finite in the common case; only a non-finite sum looks closer.
     if not math.isfinite(a.sum()):
@@ -140,6 +146,6 @@ def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
         if bad.any():
             where = np.argwhere(bad)[0]
             kind = "NaN" if np.isnan(a[tuple(where)]) else "inf"
-            raise ValueError(f"action: contains {kind} at index {tuple(int(i) for i in where)} "
-                             f"({int(bad.sum())} non-finite value(s)); actions must be finite")
+            raise ValueError(f"{name}: contains {kind} at index {tuple(int(i) for i in where)} "
+                             f"({int(bad.sum())} non-finite value(s)); it must be finite")
     return a

@@ -252,6 +252,15 @@ def test_actions_must_be_real_numbers(action):
         env.step(action)
 
 
+@pytest.mark.parametrize("velocity", [np.ones(3, dtype=bool), np.ones(3, dtype=complex), ["1", "2", "3"]])
+def test_set_state_takes_real_numbers_only(velocity):
+    env = StewartPlatformEnv()
+    env.reset(seed=0)
+    s = env.state
+    with pytest.raises(ArgumentError, match="^velocity: "):
+        env.set_state(s.position, s.rotation, velocity=velocity)
+
+
 @pytest.mark.parametrize("action", [
     [0, 0, 0, 0, 0, 1],
     np.zeros(6, dtype=np.int8),

@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from stewart_env.envs.core import DEFAULTS, BatchAttributes, PlatformBatch
-from stewart_env.validation import check_action, check_keywords
+from stewart_env.validation import check_action, check_keywords, real_array
 
 __all__ = ["StewartPlatformEnv"]
 
@@ -318,12 +318,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
         values = {"position": (position, (3,)), "rotation": (rotation, (3, 3)),
                   "velocity": (np.zeros(3) if velocity is None else velocity, (3,)),
                   "angular_velocity": (np.zeros(3) if angular_velocity is None else angular_velocity, (3,))}
-        checked = {}
-        for name, (value, shape) in values.items():
-            arr = np.asarray(value, dtype=np.float64)
-            if arr.shape != shape or not np.all(np.isfinite(arr)):
-                raise ValueError(f"{name}: expected finite numbers of shape {shape}, got {value!r}")
-            checked[name] = arr
+        checked = {name: real_array(name, value, shape) for name, (value, shape) in values.items()}
         R = checked["rotation"]
         if np.abs(R.T @ R - np.eye(3)).max() > 1e-9 or np.linalg.det(R) < 0:
             raise ValueError("rotation: not a rotation matrix (R^T R != I or det R < 0)")
