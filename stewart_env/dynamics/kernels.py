@@ -51,12 +51,12 @@ The model switches (switch bits, section 6)
 
 Speed
 -----
-The per-leg helpers are inlined into their callers (``inline="always"``: numba compiles them
-into one function, so LLVM optimises a leg's computation as a whole; they take no ``*args`` for
-that reason), and every kernel compiles with ``FASTMATH``.  Together they cut the time of a
-forward evaluation by about 40 % and the first compilation by a quarter.  Inlining the platform
-terms, the assembly and the solve as well gains another 10 % but nearly triples the first
-compilation, so they stay separate functions.
+The per-leg helpers, the platform terms and the 6x6 solve are inlined into their callers
+(``inline="always"``: numba compiles them into one function, so LLVM optimises the computation
+as a whole; the helpers take no ``*args`` for that reason), and every kernel compiles with
+``FASTMATH``.  Together they cut the time of a forward evaluation by about 40 %, and the first
+compilation takes no longer than before.  Inlining the assembly ``_assemble_one`` as well gains
+a few per cent more but more than doubles the first compilation, so it stays a function.
 
 Packed parameters
 -----------------
@@ -398,7 +398,7 @@ def _leg_inputs(prm, i, flags, t, R, v, w):
             o0, o1, o2, g0, g1, g2, A0, A1, A2)
 
 
-@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
 def _platform_terms(prm, flags, R, w, M, h):
     """Add the platform's own Newton and Euler terms to M (6,6) and h (6,), {B}.
 
@@ -487,7 +487,7 @@ def _add_column(M, c, q0, q1, q2, f0, f1, f2):
     M[5, c] += n2
 
 
-@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
 def _solve6(M, b, x):
     """Solve M x = b (6x6) by Gaussian elimination with partial pivoting; M and b are overwritten.
 
