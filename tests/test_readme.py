@@ -347,6 +347,30 @@ def test_tracking_table(readme_run):
     printed = [row for out in block.outputs.values() for t in markdown_tables(out) for row in t]
     compare_table(table, printed, ("controller", "model"), f"README.md:{block.end + 1}, tracking table")
 
+    # the prose above the table: the ratios between these rows, on each plant
+    def rms(controller, plant, unit):
+        row = next(r for r in printed if (r["controller"], r["model"]) == (controller, plant))
+        return float(row[{"pos.": "RMS pos. err. (mm)", "ori.": "RMS ori. err. (mrad)"}[unit]])
+
+    plants = {"classical": "improved", "improved": "classical"}  # plant -> the other model
+    pd_over_ct = {unit: [rms("PD + gravity comp.", m, unit) / rms(f"CT ({m})", m, unit) for m in plants]
+                  for unit in ("pos.", "ori.")}
+    mismatch = {unit: [rms(f"CT ({other})", m, unit) / rms(f"CT ({m})", m, unit) for m, other in plants.items()]
+                for unit in ("pos.", "ori.")}
+    claims = {
+        r"(\S+)-(\S+) times more closely in position": pd_over_ct["pos."],
+        r"\((\S+)-(\S+) times in orientation\)": pd_over_ct["ori."],
+        r"its position error grows (\S+)-(\S+) times": mismatch["pos."],
+        r"its orientation error (\S+)-(\S+) times": mismatch["ori."],
+    }
+    text = " ".join(README.read_text().split())  # the prose's line breaks are not part of it
+    for pattern, values in claims.items():
+        stated = re.search(pattern, text)
+        assert stated, f"README: the tracking prose no longer says {pattern!r}"
+        for figure, value in zip(stated.groups(), sorted(values)):
+            assert same_figure(figure, f"{value:.{len(figure.partition('.')[2])}f}"), \
+                f"README: tracking prose {stated.group(0)!r}, the table gives {sorted(values)}"
+
 
 def test_case_study_table(readme_run):
     block, table = block_and_table(readme_run, "stewart-env reproduce")
