@@ -233,13 +233,7 @@ def _torchrl_rollout(num_envs: int, read_infos: bool, steps: int = 40):
         env.close()
 
 
-# torchrl's info readers take numeric numpy values only (torchrl/envs/gym_like.py:123-130), and a
-# batched GymEnv always reads the infos; info["termination"] is a str.
-_STR_INFO = pytest.mark.xfail(strict=True, reason="info['termination'] is a str; torchrl's info readers need numbers")
-
-
-@pytest.mark.parametrize("num_envs, read_infos", [(1, False), pytest.param(1, True, marks=_STR_INFO),
-                                                  pytest.param(N_ENVS, True, marks=_STR_INFO)],
+@pytest.mark.parametrize("num_envs, read_infos", [(1, False), (1, True), (N_ENVS, True)],
                          ids=["single", "single-infos", "batched"])
 def test_torchrl_gym_env_specs_and_rollout(num_envs, read_infos):
     td = _torchrl_rollout(num_envs, read_infos)
