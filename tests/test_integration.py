@@ -418,7 +418,7 @@ def _cleanrl_ppo(seed: int, updates: int = 2, n_steps: int = 64) -> list[float]:
             loss.backward()
             torch.nn.utils.clip_grad_norm_([*actor.parameters(), *critic.parameters(), log_std], 0.5)
             optimizer.step()
-            losses.append(float(loss))
+            losses.append(float(loss.detach()))
     finally:
         envs.close()
     return losses
