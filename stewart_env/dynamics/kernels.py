@@ -759,6 +759,28 @@ def leg_kinematics_batch(prm, flags, t, R, v, w, acc, frames, lengths, rates, ac
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
+def rotation_errors_batch(R, orth, det):
+    """How far each matrix of R (N,3,3) is from a rotation: orth (N,) the largest entry of
+    |R^T R - I| and det (N,) its determinant.  Returns the largest of all orth and |det - 1|.
+    One compiled pass, so that checking the argument of a single-platform call costs about a
+    microsecond.  docs/physics.md section 1 (no paper equation)."""
+    largest = 0.0
+    for b in range(R.shape[0]):
+        A = R[b]
+        worst = 0.0
+        for i in range(3):
+            for j in range(3):
+                g = A[0, i] * A[0, j] + A[1, i] * A[1, j] + A[2, i] * A[2, j] - (1.0 if i == j else 0.0)
+                worst = max(worst, abs(g))
+        orth[b] = worst
+        det[b] = (A[0, 0] * (A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1])
+                  - A[0, 1] * (A[1, 0] * A[2, 2] - A[1, 2] * A[2, 0])
+                  + A[0, 2] * (A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]))
+        largest = max(largest, worst, abs(det[b] - 1.0))
+    return largest
+
+
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def _quat_to_matrix(q, R):
     """Unit quaternion q = (w, x, y, z) to rotation matrix R (3,3), normalising q first.
 

@@ -137,11 +137,10 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
 def _check_rotation(name: str, R: np.ndarray) -> None:
     """Raise ValueError naming ``name`` unless every R (N,3,3) is a rotation within
     :data:`ROTATION_TOLERANCE` (orthonormal, determinant +1)."""
-    orth = np.abs(np.matmul(R.transpose(0, 2, 1), R) - np.eye(3)).max(axis=(1, 2))
-    det = np.linalg.det(R)
-    bad = (orth > ROTATION_TOLERANCE) | (np.abs(det - 1.0) > ROTATION_TOLERANCE)
-    if bad.any():
-        rows = np.flatnonzero(bad)
+    orth = np.empty(R.shape[0])
+    det = np.empty(R.shape[0])
+    if K.rotation_errors_batch(R, orth, det) > ROTATION_TOLERANCE:
+        rows = np.flatnonzero((orth > ROTATION_TOLERANCE) | (np.abs(det - 1.0) > ROTATION_TOLERANCE))
         where = f" in batch rows {rows[:10].tolist()}" if R.shape[0] > 1 else ""
         raise ValueError(f"{name}: not a rotation matrix{where} (|R^T R - I| = {orth[rows[0]]:.2e}, "
                          f"det R = {det[rows[0]]:.6g}; tolerance {ROTATION_TOLERANCE:g})")
