@@ -1044,7 +1044,7 @@ def _env_kwargs_token(text: str) -> str:
 
 def add_cli(subparsers) -> argparse.ArgumentParser:
     """Add ``train`` to an argparse subparsers object; its ``func`` returns an exit code."""
-    from stewart_env.cli import TASKS, existing_file, model_name, nonnegative_int, positive_int
+    from stewart_env.agents.arguments import TASKS, existing_file, model_name, nonnegative_int, positive_int
 
     p = subparsers.add_parser(
         "train", help="train an RL agent (stable-baselines3) on StewartPlatform-v0",

@@ -13,66 +13,16 @@ Each subcommand has ``--help``.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from stewart_env.agents.arguments import TASKS, model_name, nonnegative_int, positive_float, positive_int
+
 CONTROLLERS = ("pd", "pd-gc", "ct")
-TASKS = ("setpoint", "tracking", "disturbance")
 #: Commands that run the compiled kernels (bench announces its own compilation).
 _SIMULATING = ("demo", "evaluate", "reproduce", "train", "mismatch")
-
-
-def positive_int(text: str) -> int:
-    """argparse type: an integer >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
-
-
-def nonnegative_int(text: str) -> int:
-    """argparse type: an integer >= 0 (seeds, step counts that may be 0)."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return value
-
-
-def positive_float(text: str) -> float:
-    """argparse type: a finite number > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (value > 0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"expected a finite positive number, got {text!r}")
-    return value
-
-
-def existing_file(text: str) -> str:
-    """argparse type: the path of an existing file."""
-    if not Path(text).is_file():
-        raise argparse.ArgumentTypeError(f"no such file: {text!r}")
-    return text
-
-
-def model_name(text: str) -> str:
-    """argparse type: a dynamics model name (classical, improved, ... with +c1..+c4 switches)."""
-    from stewart_env.dynamics.model import parse_model_name
-
-    try:
-        return parse_model_name(text)[0]
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def platform_name(text: str) -> str:

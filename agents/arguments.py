@@ -1,0 +1,58 @@
+"""argparse types shared by the command-line verbs (``stewart-env`` and the agents' own parsers).
+
+They live below the command line so that the agents' parsers can use them without importing
+``stewart_env.cli`` (imports run physics <- tasks <- envs <- agents <- cli).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+from stewart_env.tasks import TASKS as _TASK_CLASSES
+
+#: The task names the command line offers: those of the task registry.
+TASKS = tuple(_TASK_CLASSES)
+
+
+def _checked(cast: Callable[[str], float], ok: Callable[[float], bool], expected: str, doc: str):
+    """An argparse type: ``cast(text)`` if it converts and passes ``ok``, else an error saying
+    what was expected."""
+
+    def parse(text: str):
+        try:
+            value = cast(text)
+        except (ValueError, OverflowError):
+            value = None
+        if value is None or not ok(value):
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return value
+
+    parse.__doc__ = doc
+    return parse
+
+
+positive_int = _checked(int, lambda v: v >= 1, "a positive integer", "argparse type: an integer >= 1.")
+nonnegative_int = _checked(int, lambda v: v >= 0, "an integer >= 0",
+                           "argparse type: an integer >= 0 (seeds, step counts that may be 0).")
+positive_float = _checked(float, lambda v: v > 0 and math.isfinite(v), "a finite positive number",
+                          "argparse type: a finite number > 0.")
+
+
+def existing_file(text: str) -> str:
+    """argparse type: the path of an existing file."""
+    if not Path(text).is_file():
+        raise argparse.ArgumentTypeError(f"no such file: {text!r}")
+    return text
+
+
+def model_name(text: str) -> str:
+    """argparse type: a dynamics model name (classical, improved, ... with +c1..+c4 switches)."""
+    from stewart_env.dynamics.model import parse_model_name
+
+    try:
+        return parse_model_name(text)[0]
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
