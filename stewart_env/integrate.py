@@ -15,7 +15,9 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
     position (3,) m, rotation (3,3), velocity (3,) m/s, angular_velocity (3,) rad/s of the
     platform in {B}; leg_forces (6,) N; external_wrench (6,) [force at P; moment] or None; each
     may carry a leading batch dimension N.  ``dt`` s, ``steps`` >= 0.  The orientation is
-    integrated as a unit quaternion, so the returned rotation is orthonormal to rounding.
+    integrated as a unit quaternion, so the returned rotation is orthonormal to rounding.  The
+    arguments are checked as every entry point checks them (:func:`stewart_env.dynamics.model.batch_args`):
+    shapes, finite values, and a rotation orthonormal with determinant +1 within 1e-6.
 
     Returns the final (position, rotation, velocity, angular_velocity).  With ``check_finite``
     a state that stops being finite raises FloatingPointError naming the batch rows; without it
