@@ -376,3 +376,18 @@ def test_a_non_finite_start_gives_a_finite_observation_and_ends_at_the_first_ste
     obs, reward, terminated, _, info = env.step(np.zeros(6))
     assert terminated and env.termination_reasons[info["termination"]] == "non_finite"
     assert np.all(np.isfinite(obs)) and np.isfinite(reward)
+
+
+def test_set_state_refuses_what_the_physics_api_refuses():
+    import stewart_env as se
+
+    env = gym.make("StewartPlatform-v0").unwrapped
+    env.reset(seed=0)
+    model = env.model
+    t, v = np.array([0.0, 0.0, 0.4]), np.zeros(3)
+    for R in (2.0 * np.eye(3), np.diag([1.0, 1.0, -1.0])):  # scaled, and a reflection
+        with pytest.raises(ValueError, match="rotation: not a rotation matrix"):
+            env.set_state(t, R)
+        with pytest.raises(ValueError, match="not a rotation matrix"):
+            model.forward(t, R, v, v, np.zeros(6))
+    env.set_state(t, se.rpy_to_matrix([0.0, 0.0, 0.1]))  # a rotation is accepted by both

@@ -118,7 +118,7 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
         if not np.isfinite(a).all():
             raise ValueError(f"{name}: contains NaN or inf")
         if tail == (3, 3):
-            _check_rotation(name, a)
+            check_rotation(name, a)
         out[name] = a
     distinct = set(sizes.values())
     if n_params > 1:
@@ -134,7 +134,7 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
     return n, batched, out
 
 
-def _check_rotation(name: str, R: np.ndarray) -> None:
+def check_rotation(name: str, R: np.ndarray) -> None:
     """Raise ValueError naming ``name`` unless every R (N,3,3) is a rotation within
     :data:`ROTATION_TOLERANCE` (orthonormal, determinant +1)."""
     orth = np.empty(R.shape[0])

@@ -8,6 +8,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from stewart_env.dynamics.model import check_rotation
 from stewart_env.envs.core import DEFAULTS, BatchAttributes, PlatformBatch
 from stewart_env.validation import check_action, check_keywords, real_array
 
@@ -320,8 +321,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
                   "angular_velocity": (np.zeros(3) if angular_velocity is None else angular_velocity, (3,))}
         checked = {name: real_array(name, value, shape) for name, (value, shape) in values.items()}
         R = checked["rotation"]
-        if np.abs(R.T @ R - np.eye(3)).max() > 1e-9 or np.linalg.det(R) < 0:
-            raise ValueError("rotation: not a rotation matrix (R^T R != I or det R < 0)")
+        check_rotation("rotation", R[None])  # the physics API's own test, so both accept the same states
         c = self._core
         c.position[0], c.rotation[0] = checked["position"], R
         c.velocity[0], c.angular_velocity[0] = checked["velocity"], checked["angular_velocity"]
