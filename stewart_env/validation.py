@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import reprlib
 from collections.abc import Iterable, Mapping
 from typing import Any
 
@@ -23,6 +24,16 @@ __all__ = ["ArgumentError", "check_action", "check_keywords", "choice", "flag", 
 
 class ArgumentError(TypeError, ValueError):
     """An argument of the wrong kind, or an unknown keyword argument."""
+
+
+def _excerpt(value: Any, limit: int = 80) -> str:
+    """A short quote of ``value`` for an error message: a huge number, list or string is cut,
+    never quoted whole (reprlib bounds digits and items; an int too long for repr is named)."""
+    try:
+        text = reprlib.repr(value)
+    except ValueError:  # an int beyond Python's digit limit for str()
+        text = f"<{type(value).__name__} too large to print>"
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def _is_real(value: Any) -> bool:
@@ -46,26 +57,26 @@ def real(name: str, value: Any, low: float = -math.inf, high: float = math.inf, 
     """``value`` as a float: a real number (not a bool), finite, in [low, high] ((low, high] if
     ``low_open``)."""
     if not _is_real(value):
-        raise ArgumentError(f"{name}: expected a finite number {_span(low, high, low_open)}, got {value!r}")
+        raise ArgumentError(f"{name}: expected a finite number {_span(low, high, low_open)}, got {_excerpt(value)}")
     x = _as_float(value)
     if not (math.isfinite(x) and (x > low if low_open else x >= low) and x <= high):
-        raise ValueError(f"{name}: expected a finite number {_span(low, high, low_open)}, got {value!r}")
+        raise ValueError(f"{name}: expected a finite number {_span(low, high, low_open)}, got {_excerpt(value)}")
     return x
 
 
 def integer(name: str, value: Any, low: int, high: int) -> int:
     """``value`` as an int: an integer (not a bool) in [low, high]."""
     if not isinstance(value, numbers.Integral) or isinstance(value, (bool, np.bool_)):
-        raise ArgumentError(f"{name}: expected an integer in [{low}, {high}], got {value!r}")
+        raise ArgumentError(f"{name}: expected an integer in [{low}, {high}], got {_excerpt(value)}")
     if not low <= value <= high:
-        raise ValueError(f"{name}: expected an integer in [{low}, {high}], got {value!r}")
+        raise ValueError(f"{name}: expected an integer in [{low}, {high}], got {_excerpt(value)}")
     return int(value)
 
 
 def flag(name: str, value: Any) -> bool:
     """``value`` as a bool: True or False (Python's or numpy's), nothing else."""
     if not isinstance(value, (bool, np.bool_)):
-        raise ArgumentError(f"{name}: expected True or False, got {value!r}")
+        raise ArgumentError(f"{name}: expected True or False, got {_excerpt(value)}")
     return bool(value)
 
 
@@ -73,7 +84,7 @@ def choice(name: str, value: Any, choices: Iterable[Any]) -> Any:
     """``value`` if it is one of ``choices``."""
     choices = tuple(choices)
     if not isinstance(value, str) or value not in choices:
-        raise ValueError(f"{name}: expected one of {', '.join(map(repr, choices))}, got {value!r}")
+        raise ValueError(f"{name}: expected one of {', '.join(map(repr, choices))}, got {_excerpt(value)}")
     return value
 
 
@@ -84,14 +95,14 @@ def vector(name: str, value: Any, size: int, low: float = -math.inf, high: Any =
     try:
         items = list(items)
     except TypeError:
-        raise ArgumentError(f"{name}: expected a number or {size} numbers, got {value!r}") from None
+        raise ArgumentError(f"{name}: expected a number or {size} numbers, got {_excerpt(value)}") from None
     if not all(_is_real(v) for v in items) or len(items) not in (1, size):
-        raise ArgumentError(f"{name}: expected a number or {size} numbers, got {value!r}")
+        raise ArgumentError(f"{name}: expected a number or {size} numbers, got {_excerpt(value)}")
     arr = np.array([_as_float(v) for v in items] * (size if len(items) == 1 else 1))
     high = np.broadcast_to(np.asarray(high, dtype=float), (size,))
     if not (np.all(np.isfinite(arr)) and np.all(arr >= low) and np.all(arr <= high)):
         top = f"{high[0]:g}" if np.all(high == high[0]) else f"({', '.join(f'{h:g}' for h in high)})"
-        raise ValueError(f"{name}: expected finite numbers in [{low:g}, {top}], got {value!r}")
+        raise ValueError(f"{name}: expected finite numbers in [{low:g}, {top}], got {_excerpt(value)}")
     return arr
 
 
@@ -100,14 +111,14 @@ def interval(name: str, value: Any, low: float, high: float, *, low_open: bool =
     try:
         lo, hi = value
     except (TypeError, ValueError):
-        raise ArgumentError(f"{name}: expected (min, max), got {value!r}") from None
+        raise ArgumentError(f"{name}: expected (min, max), got {_excerpt(value)}") from None
     span = _span(low, high, low_open)
     if not (_is_real(lo) and _is_real(hi)):
-        raise ArgumentError(f"{name}: expected (min, max) of numbers {span}, got {value!r}")
+        raise ArgumentError(f"{name}: expected (min, max) of numbers {span}, got {_excerpt(value)}")
     lo, hi = _as_float(lo), _as_float(hi)
     if not (math.isfinite(lo) and math.isfinite(hi) and (lo > low if low_open else lo >= low)
             and lo <= hi <= high):
-        raise ValueError(f"{name}: expected (min, max) with min <= max, both {span}, got {value!r}")
+        raise ValueError(f"{name}: expected (min, max) with min <= max, both {span}, got {_excerpt(value)}")
     return lo, hi
 
 
@@ -132,11 +143,11 @@ def real_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
     try:
         a = np.asarray(value)
     except (TypeError, ValueError, OverflowError):
-        raise ArgumentError(f"{name}: expected real numbers of shape {shape}, got {value!r}") from None
+        raise ArgumentError(f"{name}: expected real numbers of shape {shape}, got {_excerpt(value)}") from None
     if a.dtype.kind not in "iuf":
         hint = " (an integer too large for any integer type?)" if a.dtype.kind == "O" else ""
         raise ArgumentError(f"{name}: expected real numbers (integers or floats) of shape {shape}, "
-                            f"got dtype {a.dtype}{hint}: {value!r}")
+                            f"got dtype {a.dtype}{hint}: {_excerpt(value)}")
     if a.shape != shape:
         raise ValueError(f"{name}: expected shape {shape}, got {a.shape}")
     a = a.astype(np.float64, copy=False)

@@ -391,3 +391,13 @@ def test_set_state_refuses_what_the_physics_api_refuses():
         with pytest.raises(ValueError, match="not a rotation matrix"):
             model.forward(t, R, v, v, np.zeros(6))
     env.set_state(t, se.rpy_to_matrix([0.0, 0.0, 0.1]))  # a rotation is accepted by both
+
+
+@pytest.mark.parametrize("action", [[10**400] * 6, [10**5000] * 6, "abc" * 10_000],
+                         ids=["huge-ints", "ints-beyond-repr", "long-string"])
+def test_errors_quote_a_hostile_value_briefly(action):
+    env = gym.make("StewartPlatform-v0")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="^action: ") as err:
+        env.step(action)
+    assert len(str(err.value)) < 300  # an excerpt of the value, never the whole of it
