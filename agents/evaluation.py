@@ -45,9 +45,9 @@ from matplotlib.figure import Figure
 
 import stewart_env as se
 from stewart_env.progress import progress as progress_bar
+from stewart_env.registration import ENV_ID
 from stewart_env.rotations import rotation_error
 
-ENV_ID = "StewartPlatform-v0"
 #: Default tolerances of settling and success: 2 mm and 0.01 rad (0.57 deg).
 POSITION_TOLERANCE = 2e-3
 ORIENTATION_TOLERANCE = 1e-2

@@ -72,8 +72,8 @@ import numpy as np
 import yaml
 
 from stewart_env.progress import on_terminal
+from stewart_env.registration import ENV_ID
 
-ENV_ID = "StewartPlatform-v0"
 ALGORITHMS = ("ppo", "sac", "td3")
 OFF_POLICY = ("sac", "td3")
 #: Where the zoo-format hyperparameter files live: configs/agents, shipped as stewart_env.configs.

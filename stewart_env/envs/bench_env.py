@@ -12,7 +12,7 @@ import time
 import gymnasium as gym
 import numpy as np
 
-import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
+from stewart_env.registration import ENV_ID  # importing it registers the environment
 
 __all__ = ["bench_env"]
 
@@ -61,7 +61,7 @@ def bench_env(n_vector: int = 1024, seconds: float = 5.0, **kwargs) -> dict:
     short warm-up (which includes any first compilation) is not timed.
     """
     kwargs = {"task_options": {"randomize": False}, **kwargs}
-    env = gym.make("StewartPlatform-v0", **kwargs)
+    env = gym.make(ENV_ID, **kwargs)
     env.reset(seed=0)
     action = _holding_action(env)
     resets = [0]
@@ -78,7 +78,7 @@ def bench_env(n_vector: int = 1024, seconds: float = 5.0, **kwargs) -> dict:
     single_resets = resets[0]
     env.close()
 
-    venv = gym.make_vec("StewartPlatform-v0", num_envs=n_vector, vectorization_mode="vector_entry_point", **kwargs)
+    venv = gym.make_vec(ENV_ID, num_envs=n_vector, vectorization_mode="vector_entry_point", **kwargs)
     actions = np.tile(action, (n_vector, 1))
     venv.reset(seed=0)
     vector_resets = [0]
