@@ -415,20 +415,16 @@ def make_training_env(n_envs: int, env_kwargs: Mapping[str, Any], seed: int, nor
 
 
 def check_writable(directory: str | os.PathLike, create: bool = True) -> Path:
-    """Prove ``directory`` writable; TrainingError naming it otherwise.  With ``create`` it is
-    created and a file written in it; without, nothing is written: the directory, or its nearest
-    existing parent, must be a writable directory."""
+    """Prove ``directory`` writable by creating it and writing a file in it; TrainingError naming
+    it otherwise.  Without ``create`` nothing is left behind: the probe file and every directory
+    the probe made are removed again.  (Permission bits alone cannot tell: root passes them on a
+    read-only or virtual file system.)"""
     path = Path(directory)
-    if not create:
-        existing = path
-        while not existing.exists() and existing != existing.parent:
-            existing = existing.parent
-        if not existing.is_dir():
-            raise TrainingError(f"output directory {str(path)!r} is not writable: {str(existing)!r} is not a directory")
-        if not os.access(existing, os.W_OK | os.X_OK):
-            raise TrainingError(f"output directory {str(path)!r} is not writable: no write permission on "
-                                f"{str(existing)!r}")
-        return path
+    made = []
+    missing = path
+    while not missing.exists() and missing != missing.parent:
+        made.append(missing)
+        missing = missing.parent
     try:
         path.mkdir(parents=True, exist_ok=True)
         probe = path / ".write-test"
@@ -436,6 +432,11 @@ def check_writable(directory: str | os.PathLike, create: bool = True) -> Path:
         probe.unlink()
     except OSError as exc:
         raise TrainingError(f"output directory {str(path)!r} is not writable: {exc.strerror or exc}") from None
+    finally:
+        if not create:
+            for folder in made:  # innermost first
+                with contextlib.suppress(OSError):
+                    folder.rmdir()
     return path
 
 

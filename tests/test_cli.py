@@ -4,6 +4,7 @@ import shutil
 import subprocess
 import sys
 import time
+from pathlib import Path
 import types
 
 import pytest
@@ -117,8 +118,22 @@ def test_unwritable_out_is_refused_before_any_work(argv, tmp_path, capsys):
     start = time.perf_counter()
     assert main(argv + ["--out", str(blocker / "out")]) == 2
     err = capsys.readouterr().err
-    assert "argument --out" in err and "is not a directory" in err
+    assert "argument --out" in err and "is not writable: Not a directory" in err
     assert time.perf_counter() - start < 5  # refused up front: no episode, figure or training ran
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux's /proc")
+def test_out_on_a_file_system_that_refuses_even_root_is_refused(capsys):
+    # permission bits say yes to root everywhere; only a real probe finds that /proc takes no folder
+    assert main(["demo", "--out", "/proc/stewart-env-out"]) == 2
+    assert "argument --out: output directory '/proc/stewart-env-out' is not writable" in capsys.readouterr().err
+
+
+def test_the_out_probe_leaves_nothing_behind(tmp_path):
+    from stewart_env.agents.training import check_writable
+
+    check_writable(tmp_path / "a" / "b", create=False)
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize("argv, flag", [
