@@ -4,9 +4,12 @@ import numpy as np
 import pytest
 
 import stewart_env as se
+from stewart_env.dynamics.kernels import PARALLEL_MIN_ROWS
 from stewart_env.params import Damping, RigidBody
 from physics_reference import (dissipated_power, kinetic_energy, potential_energy, random_state,
                                rotvec_matrix)
+
+pytestmark = pytest.mark.physics
 
 ALL_MODELS = ["improved", "improved_centroidal", "classical", "improved+c1", "improved+c2",
               "improved+c3", "improved+c4", "improved_centroidal+c1+c3"]
@@ -225,6 +228,26 @@ def test_batched_calls_equal_single_calls(dasgupta, simulator, rng):
             e1 = se.rollout(single, t[b], R[b], v[b], w[b], F[b], dt=1e-3, steps=20)
             for x, y in zip(e1, end):
                 assert np.array_equal(x, y[b])
+
+
+@pytest.mark.parametrize("name", ["improved", "classical"])
+def test_parallel_batches_equal_single_calls(dasgupta, rng, name):
+    """Batches of >= PARALLEL_MIN_ROWS rows take the threaded kernel path; each row must be the single-row answer."""
+    n = PARALLEL_MIN_ROWS + 3
+    model = se.make_dynamics(name, dasgupta)
+    t, R, v, w = (np.array(x) for x in zip(*(random_state(dasgupta, rng) for _ in range(n))))
+    F = np.array([holding_forces(model, t[b], R[b]) for b in range(n)]) * rng.uniform(0.9, 1.1, (n, 6))
+    lin, ang = model.forward(t, R, v, w, F)
+    Fi = model.inverse(t, R, v, w, lin, ang)
+    end = se.rollout(model, t, R, v, w, F, dt=1e-3, steps=20)
+    for b in range(n):
+        l1, a1 = model.forward(t[b], R[b], v[b], w[b], F[b])
+        # the same arithmetic per row on every thread: bit-identical, no tolerance
+        assert np.array_equal(l1, lin[b]) and np.array_equal(a1, ang[b])
+        assert np.array_equal(model.inverse(t[b], R[b], v[b], w[b], l1, a1), Fi[b])
+        e1 = se.rollout(model, t[b], R[b], v[b], w[b], F[b], dt=1e-3, steps=20)
+        for x, y in zip(e1, end):
+            assert np.array_equal(x, y[b])
 
 
 def test_rk4_converges_at_fourth_order(dasgupta, rng):

@@ -18,6 +18,8 @@ from stewart_env.params import Limits, load_platform
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.rotations import rotation_error
 
+pytestmark = pytest.mark.env
+
 ENV_ID = "StewartPlatform-v0"
 MODELS = ("improved", "classical", "improved_centroidal")
 TASKS = ("setpoint", "tracking", "disturbance")

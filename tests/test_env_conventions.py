@@ -18,6 +18,8 @@ from stewart_env.envs import StewartPlatformEnv, StewartPlatformVectorEnv
 from stewart_env.tasks import SetpointTask
 from stewart_env.validation import ArgumentError
 
+pytestmark = pytest.mark.env
+
 ENV_ID = "StewartPlatform-v0"
 # Every option that keeps state between steps: noise Generators, the delay ring, the actuator lag,
 # the error integral, per-episode parameters.

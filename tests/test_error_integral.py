@@ -8,6 +8,8 @@ from scipy.spatial.transform import Rotation
 
 import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
 
+pytestmark = pytest.mark.env
+
 ENV_ID = "StewartPlatform-v0"
 DT = 0.01
 # dasgupta1998: h (half the workspace box, m) and A (max_angle, rad), the observation scales.

@@ -6,6 +6,8 @@ import pytest
 import stewart_env as se
 from physics_reference import left_jacobian, leg_frames, random_state, rotvec_matrix
 
+pytestmark = pytest.mark.physics
+
 H = 1e-5  # finite-difference step, s
 
 

@@ -8,6 +8,8 @@ import stewart_env as se
 from stewart_env.params import RigidBody
 from physics_reference import kinetic_energy, random_state
 
+pytestmark = pytest.mark.physics
+
 ALL_MODELS = ["improved", "improved_centroidal", "classical", "improved+c1", "improved+c2",
               "improved+c3", "improved+c4", "improved+c1+c2", "improved+c3+c4",
               "improved_centroidal+c1+c3", "improved_centroidal+c2+c4"]

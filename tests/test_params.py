@@ -20,6 +20,8 @@ from stewart_env.params import (
 )
 from stewart_env.rotations import rpy_to_matrix
 
+pytestmark = pytest.mark.physics
+
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs" / "platforms"
 SHIPPED = ("dasgupta1998", "motion_simulator")
 

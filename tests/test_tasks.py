@@ -20,6 +20,8 @@ from stewart_env.tasks import (
 )
 from stewart_env.tasks.base import pose_margins
 
+pytestmark = pytest.mark.env
+
 PLATFORMS = ("dasgupta1998", "motion_simulator")
 
 

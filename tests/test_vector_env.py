@@ -9,6 +9,8 @@ import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
 from stewart_env.envs import StewartPlatformVectorEnv
 from stewart_env.envs import core as core_module
 
+pytestmark = pytest.mark.env
+
 ENV_ID = "StewartPlatform-v0"
 CONFIGS = [
     {},
