@@ -2,7 +2,8 @@
 the task-space PD law.
 
 The platform starts at rest at t0 = (0.1, 0, 0.395) m, rpy0 = (0, 0, -0.2) rad and is driven to
-td = (0.1, 0, 0.4) m, rpyd = rpy0 by the paper's PD law with its gains (:mod:`.pd`), evaluated as
+td = (0.1, 0, 0.4) m, rpyd = rpy0 (on another platform: the same offsets from its home pose,
+:func:`stewart_env.tasks.setpoint.paper_case`, refused where they leave the leg stroke) by the paper's PD law with its gains (:mod:`.pd`), evaluated as
 a continuous controller: the closed loop (plant dynamics + law) is integrated with a fixed-step
 classical RK4 whose every stage calls the law, not held over a control period as in the
 environment.  The orientation is integrated as a unit quaternion.  The same run is made with the
@@ -42,11 +43,8 @@ from stewart_env.agents.evaluation import curve_style, new_figure
 from stewart_env.agents.pd import PAPER_KD, PAPER_KP, DesiredMotion, TaskSpacePD
 from stewart_env.progress import progress as progress_bar
 from stewart_env.state import PlatformState
+from stewart_env.tasks.setpoint import paper_case
 
-START_POSITION = np.array([0.1, 0.0, 0.395])
-START_RPY = np.array([0.0, 0.0, -0.2])
-TARGET_POSITION = np.array([0.1, 0.0, 0.4])
-TARGET_RPY = np.array([0.0, 0.0, -0.2])
 MODELS = ("classical", "improved", "improved_centroidal")
 
 #: Quantities of the report: key, title, unit, display factor from SI, change from the start?
@@ -127,8 +125,9 @@ def simulate_case_study(model_name: str, platform: se.PlatformParams, controller
     every = int(round(sample_dt / dt))
     if abs(every * dt - sample_dt) > 1e-9 * sample_dt:
         raise ValueError(f"sample_dt: must be a multiple of dt = {dt} s, got {sample_dt}")
+    case = paper_case(platform)
     model = se.make_dynamics(model_name, platform)
-    reference = DesiredMotion(TARGET_POSITION, se.rpy_to_matrix(TARGET_RPY))
+    reference = DesiredMotion(case.target_position, se.rpy_to_matrix(case.target_rpy))
 
     def rate(y: np.ndarray) -> np.ndarray:
         s = _unpack(y)
@@ -139,7 +138,7 @@ def simulate_case_study(model_name: str, platform: se.PlatformParams, controller
         return np.concatenate([y[7:10], q_rate, lin_acc, ang_acc])
 
     n_samples = int(round(duration / sample_dt))
-    y = np.concatenate([START_POSITION, _matrix_to_quat(se.rpy_to_matrix(START_RPY)), np.zeros(6)])
+    y = np.concatenate([case.start_position, _matrix_to_quat(se.rpy_to_matrix(case.start_rpy)), np.zeros(6)])
     samples = np.empty((n_samples + 1, 13))
     samples[0] = y
     for k in range(n_samples):
@@ -256,15 +255,23 @@ FIGURES = (
 )
 
 
+def _triple(x: np.ndarray) -> str:
+    """A pose's three numbers as the paper writes them: (0.1, 0, 0.395)."""
+    return "(" + ", ".join(f"{v:.6g}" for v in x + 0.0) + ")"  # + 0.0 turns -0 into 0
+
+
 def _summary_markdown(runs: dict[str, CaseTrajectory], diff: dict[str, dict], centroidal: float, settings: dict) -> str:
+    case = settings["case"]
     lines = [
         "# Case study of He et al. (2018): classical versus improved dynamics",
         "",
-        "Platform `{platform}`; start t0 = (0.1, 0, 0.395) m, rpy0 = (0, 0, -0.2) rad, at rest; target "
-        "td = (0.1, 0, 0.4) m, rpyd = rpy0; task-space PD law with the paper's gains (Kp = diag(4e5, 4e5, "
+        "Platform `{platform}`; start t0 = {start} m, rpy0 = {rpy} rad, at rest; target "
+        "td = {target} m, rpyd = rpy0; task-space PD law with the paper's gains (Kp = diag(4e5, 4e5, "
         "4e6, 5e4, 5e4, 1e5), Kd = diag(1e4, 1e4, 2e4, 1e3, 1e3, 2e3)), gravity compensation {gravity}; "
         "continuous control: RK4 with dt = {dt:g} s, the law evaluated at every stage; {duration:g} s "
-        "simulated, sampled every {sample_dt:g} s; run time {seconds:.1f} s.".format(**settings),
+        "simulated, sampled every {sample_dt:g} s; run time {seconds:.1f} s.".format(
+            start=_triple(case.start_position), rpy=_triple(case.start_rpy), target=_triple(case.target_position),
+            **settings),
         "",
         "Measures (q is the change from the start for leg length, displacement and angles, the value "
         "itself otherwise):",
@@ -296,7 +303,7 @@ def _summary_markdown(runs: dict[str, CaseTrajectory], diff: dict[str, dict], ce
         f"improved vs improved_centroidal (two forms of the same dynamics), largest pointwise difference "
         f"over all quantities: {centroidal:.3e} (relative).",
         "",
-        f"Final position error (improved): {1e3 * np.linalg.norm(TARGET_POSITION - final.displacement[-1]):.4f} mm.",
+        f"Final position error (improved): {1e3 * np.linalg.norm(case.target_position - final.displacement[-1]):.4f} mm.",
         "",
         "Figures: " + ", ".join(f"`{f[0]}`" for f in FIGURES) + ".",
         "",
@@ -315,9 +322,10 @@ def reproduce(out, duration: float = 1.0, dt: float = 2e-4, sample_dt: float | N
     the largest relative pointwise difference improved vs improved_centroidal, "seconds": run time}.
     """
     start = time.perf_counter()
+    params = se.load_platform(platform)
+    case = paper_case(params)  # refuses, before any work, a platform whose stroke the case leaves
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    params = se.load_platform(platform)
     controller = TaskSpacePD(params, PAPER_KP, PAPER_KD, gravity_compensation=gravity_compensation)
     sample_dt = dt if sample_dt is None else sample_dt
     steps = int(round(duration / sample_dt)) * int(round(sample_dt / dt))
@@ -333,6 +341,7 @@ def reproduce(out, duration: float = 1.0, dt: float = 2e-4, sample_dt: float | N
         plot_comparison(out / filename, keys, runs["classical"], runs["improved"], title)
     seconds = time.perf_counter() - start
     settings = {"platform": platform, "gravity": "on" if gravity_compensation else "off", "dt": dt,
-                "duration": duration, "sample_dt": sample_dt, "seconds": seconds}
+                "duration": duration, "sample_dt": sample_dt, "seconds": seconds,
+                "case": case}
     (out / "summary.md").write_text(_summary_markdown(runs, diff, centroidal, settings))
     return {"runs": runs, "differences": diff, "centroidal_difference": centroidal, "seconds": seconds}

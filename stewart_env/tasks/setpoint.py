@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
+from stewart_env.kinematics import inverse_kinematics
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
@@ -16,6 +19,43 @@ from stewart_env.validation import flag, vector
 PAPER_START_OFFSET = np.array([0.1, 0.0, -0.005])
 PAPER_TARGET_OFFSET = np.array([0.1, 0.0, 0.0])
 PAPER_RPY_OFFSET = np.array([0.0, 0.0, -0.2])
+
+
+class PaperCase(NamedTuple):
+    """The poses of the case study on one platform, in {B}: positions m, angles rpy rad."""
+
+    start_position: np.ndarray
+    start_rpy: np.ndarray
+    target_position: np.ndarray
+    target_rpy: np.ndarray
+
+
+def paper_case(params: PlatformParams, *, check_stroke: bool = True) -> PaperCase:
+    """The case study of He et al. (2018) on ``params``: the paper's poses as offsets from home.
+
+    With ``check_stroke`` (the default), raises ValueError naming the platform and every leg that
+    the start or the target pose takes outside the stroke limits.leg_length: the case is defined
+    on the dasgupta1998 geometry, and on another platform the same offsets need not be reachable.
+    """
+    home_p, home_r = params.home_position, params.home_rpy
+    case = PaperCase(home_p + PAPER_START_OFFSET, home_r + PAPER_RPY_OFFSET,
+                     home_p + PAPER_TARGET_OFFSET, home_r + PAPER_RPY_OFFSET)
+    if not check_stroke:
+        return case
+    lo, hi = params.limits.leg_length
+    problems = []
+    for which, position, rpy in (("start", case.start_position, case.start_rpy),
+                                 ("target", case.target_position, case.target_rpy)):
+        lengths, _ = inverse_kinematics(params, position, rpy_to_matrix(rpy))
+        problems += [f"at the {which} pose leg {i} is {length:.4f} m long"
+                     for i, length in enumerate(lengths) if not lo <= length <= hi]
+    if problems:
+        raise ValueError(
+            f"platform {params.name!r}: the case study of He et al. (2018) (home + {PAPER_START_OFFSET.tolist()} m "
+            f"to home + {PAPER_TARGET_OFFSET.tolist()} m, rpy home + {PAPER_RPY_OFFSET.tolist()} rad) leaves "
+            f"the leg stroke limits.leg_length = [{lo}, {hi}] m: " + "; ".join(problems)
+        )
+    return case
 # Rejection sampling of random poses gives up after this many draws (each draw is kept with a
 # probability close to 1 for the default ranges).
 _MAX_DRAWS = 1000
@@ -54,12 +94,13 @@ class SetpointTask(Task):
         self.randomize = flag(option("randomize"), randomize)
         self.position_range, self.angle_range = motion_ranges(params, position_range, angle_range,
                                                               ("position_range", "angle_range"))
-        home_p, home_r = params.home_position, params.home_rpy
+        # unchecked: random episodes never use these defaults, and fixed ones are checked below
+        case = paper_case(params, check_stroke=False)
         poses = {
-            "start_position": (start_position, home_p + PAPER_START_OFFSET),
-            "start_rpy": (start_rpy, home_r + PAPER_RPY_OFFSET),
-            "target_position": (target_position, home_p + PAPER_TARGET_OFFSET),
-            "target_rpy": (target_rpy, home_r + PAPER_RPY_OFFSET),
+            "start_position": (start_position, case.start_position),
+            "start_rpy": (start_rpy, case.start_rpy),
+            "target_position": (target_position, case.target_position),
+            "target_rpy": (target_rpy, case.target_rpy),
         }
         fixed = {k: (default if v is None else vector(option(k), v, 3, -_MAX_POSE, _MAX_POSE))
                  for k, (v, default) in poses.items()}
