@@ -879,6 +879,9 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
         kwargs = {**hp.env_kwargs, **(env_kwargs or {}), "model": model or "improved", "task": task or "setpoint"}
         jsonable(kwargs)
         _check_fresh_directory(directory, algo)
+        from stewart_env.envs import StewartPlatformEnv
+
+        StewartPlatformEnv(**kwargs).close()  # a bad environment keyword fails here, before --out is made
         check_writable(directory)
     timesteps = hp.n_timesteps if timesteps is None else int(timesteps)
     progress_bar = progress_bar and progress_bar_available()

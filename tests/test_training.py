@@ -231,7 +231,9 @@ def test_existing_run_needs_resume_and_resume_needs_a_run(ppo_run, tmp_path):
 def test_bad_environment_kwarg_is_named_before_training(tmp_path):
     with pytest.raises(ValueError, match="contol_dt"):
         train("ppo", tmp_path / "run", timesteps=10, env_kwargs={"contol_dt": 0.02}, progress_bar=False)
-    assert not (tmp_path / "run" / "run.json").exists()
+    with pytest.raises(ValueError, match="observation_noise"):
+        train("ppo", tmp_path / "run", timesteps=10, env_kwargs={"observation_noise": 1e300}, progress_bar=False)
+    assert not (tmp_path / "run").exists()  # nothing written for a request that cannot run
 
 
 def test_cli_reports_errors_with_exit_code(tmp_path, capsys):
