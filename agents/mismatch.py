@@ -53,6 +53,7 @@ from stewart_env.agents.training import (
     read_manifest,
     train,
 )
+from stewart_env.dynamics.model import SIMPLIFICATIONS as SIMPLIFICATION_TEXT
 from stewart_env.progress import on_terminal
 from stewart_env.progress import progress as progress_bar
 
@@ -61,13 +62,7 @@ from stewart_env.progress import progress as progress_bar
 #: agents that hold a set point.
 QUICK_TIMESTEPS = 20_000
 #: The classical model's simplifications, each a switch on the improved model.
-SIMPLIFICATIONS = ("c1", "c2", "c3", "c4")
-SIMPLIFICATION_NAMES = {
-    "c1": "C1 no leg spin",
-    "c2": "C2 U-joint moment along the leg",
-    "c3": "C3 leg inertia counted twice",
-    "c4": "C4 platform inertia counted twice",
-}
+SIMPLIFICATIONS = tuple(SIMPLIFICATION_TEXT)
 #: Domain randomisation of the DR row: per-episode factors on the nominal parameters.  The legs'
 #: inertial parameters get the widest ranges because three of the classical model's four
 #: simplifications (C1-C3) concern the legs' dynamics.
@@ -297,7 +292,7 @@ def _ranking_lines(result: MismatchResult, family: str, metrics) -> list[str]:
             value, base = result.summary[label][TRUE_MODEL][key], exact[key]
             ratios[c, key] = value / base if base > 0 else math.nan
             cells.append(f"{_fmt(value, meta[key][2], meta[key][3])} ({ratios[c, key]:.3g})")
-        lines.append(f"| {SIMPLIFICATION_NAMES[c]} | " + " | ".join(cells) + " |")
+        lines.append(f"| {c.upper()}: {SIMPLIFICATION_TEXT[c]} | " + " | ".join(cells) + " |")
     lines.append("")
     for key in RANKING_METRICS:
         order = sorted((c for c, _ in rows), key=lambda c: -ratios[c, key] if np.isfinite(ratios[c, key]) else math.inf)

@@ -138,3 +138,12 @@ def test_code_docstrings_cite_sections_that_exist():
             cited += re.findall(r"(?<![\w.])\d+(?:\.\d+)?", ref)
     assert len(cited) > 30
     assert sorted(set(cited) - headings) == []
+
+
+def test_readme_switch_table_is_the_code_table():
+    """The README's table of the switches c1-c4 says what stewart_env.dynamics.model.SIMPLIFICATIONS says."""
+    from stewart_env.dynamics.model import SIMPLIFICATIONS
+
+    rows = re.findall(r"^\| `(c\d)` \| (.+?) \|$", (ROOT / "README.md").read_text(), flags=re.M)
+    assert dict(rows) == SIMPLIFICATIONS
+    assert len(rows) == len(SIMPLIFICATIONS)  # no switch listed twice

@@ -10,12 +10,8 @@ Names
 ``improved_centroidal``  the same dynamics with every inertia about its body's CoM (eq. 55 form);
                          agrees with ``improved`` to rounding.
 
-A name may carry switches after ``+``, e.g. ``"improved+c1"`` or ``"improved+c2+c3"``:
-
-``c1`` no leg spin about its own axis;
-``c2`` U-joint reaction moment taken along the leg instead of the normal of the joint's axes;
-``c3`` parallel-axis part counted twice in the legs' Euler equations;
-``c4`` parallel-axis part counted twice in the platform's Euler equation.
+A name may carry switches after ``+``, e.g. ``"improved+c1"`` or ``"improved+c2+c3"``;
+:data:`SIMPLIFICATIONS` says what each switch assumes.
 
 ``docs/physics.md`` in the repository carries the derivation: the two improved forms in its
 section 5, the switches c1-c4 and where each enters the equations in its section 6.
@@ -31,6 +27,13 @@ from stewart_env.dynamics import kernels as K
 from stewart_env.params import PlatformParams
 
 SWITCHES = {"c1": K.C1, "c2": K.C2, "c3": K.C3, "c4": K.C4}
+#: The classical model's simplifications, each a switch on the improved model: switch -> what it assumes.
+SIMPLIFICATIONS = {
+    "c1": "the leg does not spin about its own axis",
+    "c2": "the universal joint's reaction moment lies along the leg (instead of the normal of the joint's two axes)",
+    "c3": "parallel-axis part counted twice in the legs' Euler equations",
+    "c4": "parallel-axis part counted twice in the platform's Euler equation",
+}
 _BASE_FLAGS = {
     "improved": 0,
     "improved_centroidal": K.CENTROIDAL,
