@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -315,8 +316,10 @@ def markdown_table(results: Sequence[EvaluationResult]) -> str:
     return "\n".join(lines)
 
 
-def _slug(text: str) -> str:
-    return "".join(c if c.isalnum() else "_" for c in text).strip("_").lower()
+def slug(text: str) -> str:
+    """``text`` as a file or directory name: lower case, each run of other characters than a-z and 0-9
+    one underscore, e.g. ``"PPO [improved + DR]"`` -> ``"ppo_improved_dr"``."""
+    return re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_")
 
 
 def write_report(results: Sequence[EvaluationResult], out, title: str = "Controller evaluation") -> dict[str, Path]:
@@ -343,7 +346,7 @@ def write_report(results: Sequence[EvaluationResult], out, title: str = "Control
                                 + [f"{ep.metrics[m[0]]:.9g}" for m in METRICS])
     _plot_error_norms(results, paths["error_norms"])
     for r in results:
-        path = out / f"trajectory_{_slug(r.label)}_{_slug(r.model)}.png"
+        path = out / f"trajectory_{slug(r.label)}_{slug(r.model)}.png"
         _plot_trajectory(r, path)
         paths[f"trajectory {r.label} {r.model}"] = path
     return paths

@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import csv
 import math
-import re
 import signal
 import sys
 import time
@@ -115,10 +114,6 @@ class MismatchResult:
         return np.array([[self.summary[r.label][m][metric] for m in self.test_models] for r in self.rows])
 
 
-def _slug(text: str) -> str:
-    return re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_")
-
-
 def _check_models(names: Sequence[str], what: str) -> list[str]:
     import stewart_env as se
 
@@ -168,6 +163,7 @@ def build_rows(out: Path, train_models: Sequence[str], task: str, algo: str | No
                n_envs: int | None, progress: bool) -> list[Row]:
     """The study's controllers, training the RL agents that ``out/agents`` does not hold yet."""
     from stewart_env.agents.computed_torque import ComputedTorquePolicy
+    from stewart_env.agents.evaluation import slug
     from stewart_env.agents.pd import PDPolicy
 
     models = list(train_models) + [f"improved+{c}" for c in simplifications if f"improved+{c}" not in train_models]
@@ -184,7 +180,7 @@ def build_rows(out: Path, train_models: Sequence[str], task: str, algo: str | No
         kwargs = {**env_kwargs, "model": m, "task": task}
         if randomization:
             kwargs["randomization"] = {k: list(v) for k, v in randomization.items()}
-        agent = _agent(algo, out / "agents" / _slug(name), kwargs, timesteps, seed, n_envs, progress)
+        agent = _agent(algo, out / "agents" / slug(name), kwargs, timesteps, seed, n_envs, progress)
         info = f"{agent.num_timesteps} steps, seed {agent.manifest['seed']}"
         rows.append(Row(f"{algo.upper()} [{name}]", algo.upper(), m, agent, info))
     return rows
