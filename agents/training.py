@@ -49,7 +49,6 @@ import argparse
 import ast
 import contextlib
 import hashlib
-import importlib.resources
 import importlib.util
 import inspect
 import io
@@ -71,13 +70,14 @@ from typing import Any
 import numpy as np
 import yaml
 
+from stewart_env.params import config_dir
 from stewart_env.progress import on_terminal
 from stewart_env.registration import ENV_ID
 
 ALGORITHMS = ("ppo", "sac", "td3")
 OFF_POLICY = ("sac", "td3")
 #: Where the zoo-format hyperparameter files live: configs/agents, shipped as stewart_env.configs.
-CONFIG_DIR = Path(str(importlib.resources.files("stewart_env.configs") / "agents"))
+CONFIG_DIR = config_dir("agents")
 
 #: Keys of a zoo hyperparameter entry that are not constructor arguments of the algorithm.
 #: rl_zoo3 consumes them itself; ``stewart-env train`` handles the first group and refuses the

@@ -973,21 +973,22 @@ def _from_text(text: str, name: str, source: str) -> PlatformParams:
 # Shipped configs.
 
 
-def _platforms_dir():
-    """The directory of shipped platform configs: the installed `stewart_env.configs` package,
-    or configs/platforms in the source tree when the package is not installed."""
+def config_dir(kind: str) -> Path:
+    """The directory of shipped configs of one kind, ``platforms`` or ``agents``: in the installed
+    `stewart_env.configs` package, or configs/<kind> in the source tree when the package is not
+    installed (running from a checkout)."""
     try:
-        installed = importlib.resources.files("stewart_env.configs") / "platforms"
+        installed = importlib.resources.files("stewart_env.configs") / kind
     except ModuleNotFoundError:
         installed = None
     if installed is not None and installed.is_dir():
-        return installed
-    return Path(__file__).resolve().parent.parent / "configs" / "platforms"
+        return Path(str(installed))
+    return Path(__file__).resolve().parent.parent / "configs" / kind
 
 
 def available_platforms() -> list[str]:
     """Names of the shipped platform configs, sorted."""
-    directory = _platforms_dir()
+    directory = config_dir("platforms")
     if not directory.is_dir():
         return []
     return sorted(entry.name.removesuffix(".yaml") for entry in directory.iterdir()
@@ -1022,5 +1023,5 @@ def load_platform(name_or_path: str | os.PathLike) -> PlatformParams:
     if text not in available_platforms():
         available = ", ".join(available_platforms()) or "none"
         raise ConfigError("", f"unknown platform {_describe(text)}; available: {available}")
-    resource = _platforms_dir() / f"{text}.yaml"
+    resource = config_dir("platforms") / f"{text}.yaml"
     return _from_text(resource.read_text(encoding="utf-8"), text, f"{text}.yaml")
