@@ -13,7 +13,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 
 import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
-from stewart_env.envs import DEFAULTS, StewartPlatformEnv
+from stewart_env.envs import DEFAULTS, StewartPlatformEnv, holding_action
 from stewart_env.params import Limits, load_platform
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.rotations import rotation_error
@@ -28,18 +28,6 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def make(**kwargs):
     return gym.make(ENV_ID, **kwargs)
-
-
-def holding_action(env, position=None, rotation=None):
-    """The action whose forces hold the platform at rest at a pose (home by default)."""
-    u = env.unwrapped
-    p = u.platform
-    position = p.home_position if position is None else position
-    rotation = rpy_to_matrix(p.home_rpy) if rotation is None else rotation
-    z = np.zeros(3)
-    forces = u.model.inverse(position, rotation, z, z, z, z)
-    lo, hi = p.limits.leg_force
-    return (forces - 0.5 * (lo + hi)) / (0.5 * (hi - lo))
 
 
 def computed_torque_action(env, kp=100.0, kd=20.0):

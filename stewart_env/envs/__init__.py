@@ -5,7 +5,7 @@ stable-baselines3 (and torch).
 """
 
 from stewart_env.envs.core import DEFAULTS, TERMINATION_REASONS
-from stewart_env.envs.stewart_platform import StewartPlatformEnv
+from stewart_env.envs.stewart_platform import StewartPlatformEnv, holding_action
 from stewart_env.envs.vector import StewartPlatformVectorEnv
 
 __all__ = [
@@ -14,6 +14,7 @@ __all__ = [
     "StewartPlatformEnv",
     "StewartPlatformSB3VecEnv",
     "StewartPlatformVectorEnv",
+    "holding_action",
 ]
 
 

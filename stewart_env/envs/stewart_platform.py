@@ -10,9 +10,10 @@ from gymnasium import spaces
 
 from stewart_env.dynamics.model import check_rotation
 from stewart_env.envs.core import DEFAULTS, BatchAttributes, PlatformBatch
+from stewart_env.rotations import rpy_to_matrix
 from stewart_env.validation import check_action, check_keywords, real_array
 
-__all__ = ["StewartPlatformEnv"]
+__all__ = ["StewartPlatformEnv", "holding_action"]
 
 _ROW0 = np.zeros(1, dtype=np.int64)
 
@@ -20,6 +21,21 @@ _ROW0 = np.zeros(1, dtype=np.int64)
 def term_key(name: str) -> str:
     """The info key of a reward term: ``reward_<name>``."""
     return f"reward_{name}"
+
+
+def holding_action(env, position=None, rotation=None) -> np.ndarray:
+    """The action (6,) whose leg forces hold the env's platform at rest at a pose in {B}: position
+    (3,) m and rotation (3,3), the platform's home pose by default.  The env's model at zero rates
+    and accelerations gives the forces; the inverse of the action's affine map to the force range
+    gives the action (not clipped)."""
+    u = env.unwrapped
+    p = u.platform
+    position = p.home_position if position is None else position
+    rotation = rpy_to_matrix(p.home_rpy) if rotation is None else rotation
+    z = np.zeros(3)
+    forces = u.model.inverse(position, rotation, z, z, z, z)
+    lo, hi = p.limits.leg_force
+    return (forces - 0.5 * (lo + hi)) / (0.5 * (hi - lo))
 
 
 class StewartPlatformEnv(BatchAttributes, gym.Env):
