@@ -1,7 +1,40 @@
+import importlib.util
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import stewart_env as se
+
+#: The checkout these tests belong to.
+REPOSITORY = Path(__file__).resolve().parent.parent
+#: The modules that must come from it, and where in it: configs/ and agents/ sit at the top of the
+#: repository and an editable install maps them into the package, so with checkout A installed
+#: editable, the tests of checkout B would otherwise silently import A's agents and configs.
+CHECKOUT_MODULES = {"stewart_env": "stewart_env", "stewart_env.agents": "agents", "stewart_env.configs": "configs"}
+
+
+def foreign_modules(repository: Path = REPOSITORY) -> list[str]:
+    """The modules of CHECKOUT_MODULES that Python would import from outside ``repository``'s folders,
+    each as "name from path" (path None when the module is not found)."""
+    foreign = []
+    for name, folder in CHECKOUT_MODULES.items():
+        spec = importlib.util.find_spec(name)
+        origin = None if spec is None or spec.origin is None else Path(spec.origin).resolve()
+        if origin is None or not origin.is_relative_to(repository / folder):
+            foreign.append(f"{name} from {origin}")
+    return foreign
+
+
+def pytest_configure(config):
+    """Refuse to run, before collecting any test, when the tests would not test this checkout."""
+    if foreign := foreign_modules():
+        raise pytest.UsageError(
+            f"these tests belong to the checkout {REPOSITORY}, but Python would import "
+            + "; ".join(foreign)
+            + f". Install this checkout (pip install -e {REPOSITORY}) or run its tests in an environment "
+            "where it is the one installed."
+        )
 
 
 @pytest.fixture(scope="session")

@@ -1,15 +1,33 @@
-"""Every module finds the shipped configs alike, installed or from the source tree."""
+"""The tests import the checkout they belong to, and every module finds the shipped configs alike,
+installed or from the source tree."""
 
 import importlib.resources
-from pathlib import Path
 
 import pytest
+from conftest import CHECKOUT_MODULES, REPOSITORY, foreign_modules
 
 import stewart_env.params as params_module
 from stewart_env.agents import training
 from stewart_env.params import config_dir
 
-REPOSITORY = Path(__file__).resolve().parent.parent
+
+def test_the_tests_import_this_checkout():
+    assert foreign_modules() == []
+
+
+def test_another_checkout_is_detected(tmp_path):
+    # seen from a repository that is not the one imported, every checkout module is foreign
+    foreign = foreign_modules(tmp_path)
+    assert len(foreign) == len(CHECKOUT_MODULES) == 3
+    assert foreign[1] == f"stewart_env.agents from {REPOSITORY / 'agents' / '__init__.py'}"
+
+
+def test_a_foreign_module_stops_the_run_naming_it(monkeypatch):
+    import conftest
+
+    monkeypatch.setattr(conftest, "foreign_modules", lambda: ["stewart_env.agents from /elsewhere/agents/__init__.py"])
+    with pytest.raises(pytest.UsageError, match=r"would import stewart_env\.agents from /elsewhere/agents/__init__\.py"):
+        conftest.pytest_configure(None)
 
 
 @pytest.mark.parametrize(("kind", "example"), [("platforms", "dasgupta1998.yaml"), ("agents", "ppo.yml")])
