@@ -19,6 +19,7 @@ from stewart_env.tasks import (
     tracking_errors,
 )
 from stewart_env.tasks.base import pose_margins
+from stewart_env.tasks.setpoint import paper_case
 
 pytestmark = pytest.mark.env
 
@@ -97,6 +98,18 @@ def test_setpoint_fixed_case_is_the_papers(dasgupta):
     assert np.all(start.velocity == 0) and np.all(start.angular_velocity == 0)
     np.testing.assert_allclose(episode["target_position"], [0.1, 0.0, 0.4], atol=1e-15)
     np.testing.assert_allclose(matrix_to_rpy(episode["target_rotation"]), [0.0, 0.0, -0.2], atol=1e-15)
+
+
+@pytest.mark.parametrize("name", PLATFORMS)
+def test_setpoint_fixed_case_is_the_reproductions(name):
+    """The task's fixed poses and the reproduction's case are one definition, relative to home."""
+    p = load_platform(name)
+    task = SetpointTask(p, 0.01, randomize=False)
+    case = paper_case(p)
+    np.testing.assert_array_equal(task.start_position, case.start_position)
+    np.testing.assert_array_equal(task.start_rpy, case.start_rpy)
+    np.testing.assert_array_equal(task.target_position, case.target_position)
+    np.testing.assert_array_equal(task.target_rpy, case.target_rpy)
 
 
 def test_setpoint_fixed_case_through_the_env():
