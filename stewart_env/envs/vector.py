@@ -268,26 +268,10 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
 
     def _reset_infos(self, infos: dict[str, Any], rows: np.ndarray,
                      row_infos: list[dict[str, Any]]) -> dict[str, Any]:
-        """Add per-row reset infos (numbers, or dicts of numbers) to vector infos, as Gymnasium's
-        vector envs do: an (N,) array of the value's dtype and its mask under ``"_" + key``."""
-        n = self.num_envs
+        """Add per-row reset infos to vector infos with Gymnasium's own rule (``VectorEnv._add_info``):
+        an (N,) array per key, of the value's type, and its mask under ``"_" + key``."""
         for i, info in zip(rows, row_infos):
-            for key, value in info.items():
-                if key not in infos:
-                    if isinstance(value, dict):
-                        infos[key] = {k: np.zeros(n, dtype=np.asarray(v).dtype) for k, v in value.items()}
-                        for k in value:
-                            infos[key]["_" + k] = np.zeros(n, dtype=bool)
-                    else:
-                        infos[key] = np.zeros(n, dtype=np.asarray(value).dtype)
-                    infos["_" + key] = np.zeros(n, dtype=bool)
-                if isinstance(value, dict):
-                    for k, v in value.items():
-                        infos[key][k][i] = v
-                        infos[key]["_" + k][i] = True
-                else:
-                    infos[key][i] = value
-                infos["_" + key][i] = True
+            infos = self._add_info(infos, info, int(i))
         return infos
 
     def render(self):
