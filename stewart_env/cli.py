@@ -224,8 +224,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     elif args.command == "reproduce":
         from stewart_env.agents.reproduce import reproduce
 
-        result = reproduce(args.out, duration=args.duration, dt=args.dt, platform=args.platform,
-                           gravity_compensation=args.gravity_compensation)
+        try:
+            result = reproduce(args.out, duration=args.duration, dt=args.dt, platform=args.platform,
+                               gravity_compensation=args.gravity_compensation)
+        except ValueError as err:  # a platform whose leg stroke the paper's case leaves, named in the message
+            print(f"stewart-env reproduce: error: {err}", file=sys.stderr)
+            return 2
         force = result["differences"]["leg_force"]
         print(f"wrote the figures and summary.md to {args.out}")
         print(f"leg force: peak-value difference classical vs improved {100 * force['peak_difference']:.2f} %, "

@@ -182,3 +182,18 @@ def test_train_cli_says_how_many_steps_it_ran(tmp_path, capsys):
                  str(tmp_path / "run")]) == 0
     # rollouts of 2 platforms x 16 steps: 40 requested steps take 2 of them
     assert "requested 40 steps, ran 64 (whole rollouts of 32)" in capsys.readouterr().out
+
+
+def test_reproduce_refuses_a_platform_whose_stroke_the_case_leaves(tmp_path, capsys):
+    import yaml
+
+    import stewart_env as se
+
+    d = se.load_platform("dasgupta1998").to_dict()
+    d["limits"]["leg_length"] = [1.0, 1.3]  # the case's legs reach about 1.43 m
+    path = tmp_path / "short.yaml"
+    path.write_text(yaml.safe_dump(d))
+    assert main(["reproduce", "--platform", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "leaves the leg stroke" in err and "leg 0" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
