@@ -18,8 +18,6 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from stewart_env.agents.arguments import TASKS, model_name, nonnegative_int, positive_float, positive_int
-
 CONTROLLERS = ("pd", "pd-gc", "ct")
 #: Commands that run the compiled kernels (bench announces its own compilation).
 _SIMULATING = ("demo", "evaluate", "reproduce", "train", "mismatch")
@@ -37,8 +35,11 @@ def platform_name(text: str) -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    # the training modules import stable-baselines3 only inside the functions that need it
+    # imported here, not at module top: stewart_env.agents loads the evaluation harness and
+    # matplotlib, which `stewart-env bench` never needs; the training modules import
+    # stable-baselines3 only inside the functions that need it
     from stewart_env.agents import mismatch, training
+    from stewart_env.agents.arguments import TASKS, model_name, nonnegative_int, positive_float, positive_int
 
     parser = argparse.ArgumentParser(
         prog="stewart-env",
