@@ -30,8 +30,8 @@ def _autoreset_mode(value: Any) -> AutoresetMode:
 
 
 def _masked(value: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """``value`` where ``mask``, else the empty value of its dtype (0, or "" for str)."""
-    out = np.full(value.shape, None, dtype=object) if value.dtype == object else np.zeros_like(value)
+    """``value`` (a step info array: float or int codes) where ``mask``, else 0."""
+    out = np.zeros_like(value)
     out[mask] = value[mask]
     return out
 
