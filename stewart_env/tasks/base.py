@@ -82,6 +82,8 @@ class Scales(NamedTuple):
 #: Bounds of the reward weights and scales (see :class:`RewardWeights`).
 MAX_WEIGHT = 1e6
 MAX_SCALE = 1e6
+#: Bound of the tasks' sinusoid frequencies, Hz (their frequency_range options lie in (0, it]).
+MAX_FREQUENCY = 1000.0
 
 
 @dataclass(frozen=True)

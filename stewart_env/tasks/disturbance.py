@@ -7,14 +7,13 @@ import numpy as np
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
-from stewart_env.tasks.base import Task, option
+from stewart_env.tasks.base import MAX_FREQUENCY, Task, option
 from stewart_env.validation import integer, interval, real, vector
 
 #: Bounds of the options: forces at most MAX_LOAD platform weights W (moments MAX_LOAD W r),
 #: frequencies in (0, MAX_FREQUENCY] Hz, at most MAX_IMPULSES pulses, a horizon of at most
 #: MAX_HORIZON s.  Beyond, the wrench throws any platform out of its workspace at once.
 MAX_LOAD = 100.0
-MAX_FREQUENCY = 1000.0
 MAX_IMPULSES = 1000
 MAX_HORIZON = 1e6
 

@@ -9,7 +9,8 @@ import numpy as np
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rotation_error
 from stewart_env.state import PlatformState, Reference
-from stewart_env.tasks.base import Errors, Scales, Task, motion_ranges, option, pose_margins, sinusoid_reference
+from stewart_env.tasks.base import (MAX_FREQUENCY, Errors, Scales, Task, motion_ranges, option, pose_margins,
+                                     sinusoid_reference)
 from stewart_env.validation import integer, interval, real
 
 # Amplitudes that put a corner of the reference's range outside the limits are scaled down by this
@@ -18,7 +19,6 @@ _SHRINK = 0.8
 _MAX_SHRINKS = 50
 #: Bounds of the options: frequencies in (0, MAX_FREQUENCY] Hz, at most MAX_PREVIEW samples, at
 #: most MAX_PREVIEW_INTERVAL s apart.
-MAX_FREQUENCY = 1000.0
 MAX_PREVIEW = 100
 MAX_PREVIEW_INTERVAL = 100.0
 
