@@ -32,11 +32,11 @@ drawn in the order of :data:`KEYS`, whatever the order of the dict, so a seed gi
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 
 import numpy as np
 
-from stewart_env.params import ConfigError, Damping, PlatformParams, RigidBody, _key_names, _number, _short
+from stewart_env.params import ConfigError, Damping, PlatformParams, RigidBody, _is_sequence, _key_names, _number, _short
 
 __all__ = ["KEYS", "Randomization"]
 
@@ -71,8 +71,7 @@ def _bounds(key: str) -> tuple[float, float, str]:
 def _range(value: object, key: str) -> tuple[float, float]:
     """A checked (low, high) range of the factors of ``key``."""
     name = f"randomization[{key!r}]"
-    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence, np.ndarray)) \
-            or len(value) != 2:
+    if not _is_sequence(value) or getattr(value, "ndim", 1) != 1 or len(value) != 2:
         raise ConfigError(name, f"expected (low, high), got {_short(value)}")
     low, high = (_number(v, f"{name}[{i}]") for i, v in enumerate(value))
     if not low <= high:

@@ -425,6 +425,8 @@ def test_fuzz_one_hostile_leaf(dasgupta_config, all_paths, data):
     ({"com": (0.9, 1.0, 1.1)}, r"^randomization\['com'\]: expected \(low, high\), got \(0\.9, 1\.0, 1\.1\)$"),
     ({"com": {"low": 0.9, "high": 1.1}}, r"^randomization\['com'\]: expected \(low, high\), got \{"),
     ({"com": None}, r"^randomization\['com'\]: expected \(low, high\), got None$"),
+    ({"com": np.array(1.0)}, r"^randomization\['com'\]: expected \(low, high\), got array\(1\.\)$"),
+    ({"com": np.ones((2, 2))}, r"^randomization\['com'\]: expected \(low, high\), got array\("),
     ({"mass": HUGE_LIST}, r"^randomization\['mass'\]: expected \(low, high\), got \[1\.0, 1\.0, 1\.0, 1\.0, [.][.][.]\]$"),
     ({"x" * 1000: (1.0, 1.0)}, r"^randomization: unknown key\(s\) \(text of 1000 characters\); valid keys: platform\.mass, "),
     ({3: (1.0, 1.0)}, r"^randomization: unknown key\(s\) \(an int\); valid keys"),
