@@ -326,9 +326,7 @@ def test_native_vector_env_matches_gymnasiums_sync_vector_env(mode):
             np.testing.assert_array_equal(x, y)
         a_info, b_info = a_out[4], b_out[4]
         assert set(a_info) == set(b_info)
-        for key in ("_reward_position", "_termination"):
-            assert list(a_info[key]) == list(b_info[key]), key
-        for key in ("reward_position", "termination", "time"):
+        for key in ("reward_position", "_reward_position", "termination", "_termination", "time"):
             assert list(a_info[key]) == list(b_info[key]), key
         if "final_obs" in b_info:
             assert a_info["_final_obs"].tolist() == b_info["_final_obs"].tolist()
