@@ -387,10 +387,7 @@ def test_fuzz_one_hostile_leaf(dasgupta_config, all_paths, data):
     path = data.draw(st.sampled_from(all_paths), label="path")
     value = data.draw(st.sampled_from(NOT_A_NUMBER + NUMBERS), label="value")
     config = copy.deepcopy(dasgupta_config)
-    parent = config
-    for key in path[:-1]:
-        parent = parent[key]
-    parent[path[-1]] = value
+    get(config, path[:-1])[path[-1]] = value
     try:
         params = PlatformParams.from_dict(config)
     except ConfigError as err:
