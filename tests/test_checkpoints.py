@@ -271,18 +271,27 @@ def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 60) -> None:
         time.sleep(0.02)
 
 
+def _signal_during_writes(out: Path, algo: str, pause: float, sig: signal.Signals, *waits: str,
+                          timeout: float) -> tuple[int, str]:
+    """Start `stewart-env train` (see _start), wait for each of ``waits`` under out/checkpoints in
+    turn, send ``sig`` and wait up to ``timeout`` s for the exit: its return code and stderr."""
+    proc = _start(out, tiny_config(out.parent / f"{algo}.yml", algo), algo, pause=pause)
+    try:
+        for name in waits:
+            _wait_for(out / "checkpoints" / name, proc)
+        proc.send_signal(sig)
+        err = proc.communicate(timeout=timeout)[1]
+    finally:
+        proc.kill()
+    return proc.returncode, err
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_signal_during_a_checkpoint_write_saves_and_resumes(sig, code, tmp_path):
     out = tmp_path / "run"
-    proc = _start(out, tiny_config(tmp_path / "ppo.yml", "ppo"), "ppo", pause=0.5)
-    try:
-        _wait_for(out / "checkpoints" / ".tmp-64", proc)
-        proc.send_signal(sig)
-        err = proc.communicate(timeout=60)[1]
-    finally:
-        proc.kill()
-    assert proc.returncode == code, err[-2000:]
+    returncode, err = _signal_during_writes(out, "ppo", 0.5, sig, ".tmp-64", timeout=60)
+    assert returncode == code, err[-2000:]
     # the checkpoint being written completes; training stops at the next step (+2) and saves that
     assert (out / "checkpoints" / "step_64" / "manifest.json").is_file()
     assert err.rstrip().endswith(f"checkpoint saved in {out / 'checkpoints' / 'step_66'} (continue with --resume)")
@@ -299,15 +308,8 @@ def test_signal_during_a_checkpoint_write_saves_and_resumes(sig, code, tmp_path)
 @pytest.mark.slow
 def test_kill_during_a_checkpoint_write_resumes_from_the_newest_complete(tmp_path):
     out = tmp_path / "run"
-    proc = _start(out, tiny_config(tmp_path / "sac.yml", "sac"), "sac", pause=3.0)
-    try:
-        _wait_for(out / "checkpoints" / "step_64", proc)
-        _wait_for(out / "checkpoints" / ".tmp-128", proc)
-        proc.send_signal(signal.SIGKILL)
-        proc.communicate(timeout=30)
-    finally:
-        proc.kill()
-    assert proc.returncode == -signal.SIGKILL
+    returncode, _ = _signal_during_writes(out, "sac", 3.0, signal.SIGKILL, "step_64", ".tmp-128", timeout=30)
+    assert returncode == -signal.SIGKILL
     ckpt = out / "checkpoints"
     # killed somewhere inside the write of the checkpoint at 128 steps: no manifest, so not a checkpoint
     assert (ckpt / ".tmp-128").is_dir() and not (ckpt / ".tmp-128" / "manifest.json").exists()
