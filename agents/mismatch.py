@@ -53,7 +53,6 @@ from stewart_env.agents.training import (
     train,
 )
 from stewart_env.dynamics.model import SIMPLIFICATIONS as SIMPLIFICATION_TEXT
-from stewart_env.progress import on_terminal
 from stewart_env.progress import progress as progress_bar
 
 #: Environment steps per RL agent of the quick default study: a smoke-scale budget (the whole
@@ -142,7 +141,6 @@ def _agent(algo: str, directory: Path, env_kwargs: dict[str, Any], timesteps: in
                 f"{directory} holds an agent trained differently (algorithm, seed, env kwargs: {found}) from "
                 f"this study's row ({(algo, seed, env_kwargs)}); use another --out")
         return load_agent(directory)
-    bar = progress and on_terminal()
     resumable = None
     if (directory / MANIFEST).exists():
         resumable = newest_checkpoint(directory, algo, bool(read_manifest(directory).get("normalize")))
@@ -150,11 +148,11 @@ def _agent(algo: str, directory: Path, env_kwargs: dict[str, Any], timesteps: in
         # A study stopped while training this row: continue the row's run for the rest of its budget
         # (train() refuses a resume whose algorithm, seed or environment differ).
         steps, _ = resumable
-        train(algo, directory, timesteps=max(timesteps - steps, 1), resume=True, progress_bar=bar)
+        train(algo, directory, timesteps=max(timesteps - steps, 1), resume=True, progress_bar=progress)
         return load_agent(directory)
     rest = {k: v for k, v in env_kwargs.items() if k not in ("model", "task")}
     train(algo, directory, model=env_kwargs["model"], task=env_kwargs["task"], timesteps=timesteps, seed=seed,
-          n_envs=n_envs, checkpoint_freq=0, env_kwargs=rest, progress_bar=bar)
+          n_envs=n_envs, checkpoint_freq=0, env_kwargs=rest, progress_bar=progress)
     return load_agent(directory)
 
 
