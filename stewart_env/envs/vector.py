@@ -149,14 +149,12 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, render_mode: str | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **kwargs: Any):
         check_keywords(f"{type(self).__name__}.__init__", kwargs, DEFAULTS)
-        num_envs = integer("num_envs", num_envs, 1, 2**31 - 1)
-        if max_episode_steps is not None:
-            max_episode_steps = integer("max_episode_steps", max_episode_steps, 1, 2**62)
+        self.num_envs = integer("num_envs", num_envs, 1, 2**31 - 1)
+        self.max_episode_steps = (None if max_episode_steps is None
+                                  else integer("max_episode_steps", max_episode_steps, 1, 2**62))
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode: expected one of {self.metadata['render_modes']} or None, "
                              f"got {render_mode!r}")
-        self.num_envs = int(num_envs)
-        self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self.render_mode = render_mode
         self.autoreset_mode = _autoreset_mode(autoreset_mode)
         self._core = core = PlatformBatch(self.num_envs, **kwargs)
