@@ -115,13 +115,13 @@ def forward_kinematics(params: PlatformParams | Dynamics, leg_lengths, position_
     (position, rotation) once max |L - L(pose)| < tol (m); raises ConvergenceError otherwise.
     docs/physics.md section 4.4.
     """
-    target = np.asarray(leg_lengths, dtype=float)
-    if target.shape != (6,) or not np.all(np.isfinite(target)) or np.any(target <= 0):
-        raise ValueError(f"leg_lengths: expected six positive finite lengths, got {target}")
-    _, batched, a = batch_args(1, position_guess=(position_guess, (3,)), rotation_guess=(rotation_guess, (3, 3)))
+    _, batched, a = batch_args(1, leg_lengths=(leg_lengths, (6,)), position_guess=(position_guess, (3,)),
+                               rotation_guess=(rotation_guess, (3, 3)))
     if batched:
-        raise ValueError("position_guess, rotation_guess: forward kinematics solves one platform at a time")
-    t, R = a["position_guess"][0], a["rotation_guess"][0]
+        raise ValueError("leg_lengths, position_guess, rotation_guess: forward kinematics solves one platform at a time")
+    target, t, R = a["leg_lengths"][0], a["position_guess"][0], a["rotation_guess"][0]
+    if np.any(target <= 0):
+        raise ValueError(f"leg_lengths: expected six positive lengths, got {target}")
     residual = np.inf
     for _ in range(max_iter):
         k = leg_kinematics(params, t, R)

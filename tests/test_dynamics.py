@@ -333,6 +333,10 @@ def test_forward_kinematics_checks_its_guess_like_every_entry_point(dasgupta):
         se.forward_kinematics(dasgupta, lengths, dasgupta.home_position, np.diag([1.0, 1.0, -1.0]))
     with pytest.raises(ValueError, match="position_guess: contains NaN"):
         se.forward_kinematics(dasgupta, lengths, [0.0, np.nan, 1.0], np.eye(3))
+    with pytest.raises(ValueError, match="leg_lengths: expected an array of numbers of shape"):
+        se.forward_kinematics(dasgupta, "1.2 m", dasgupta.home_position, np.eye(3))
+    with pytest.raises(ValueError, match="leg_lengths: expected six positive lengths"):
+        se.forward_kinematics(dasgupta, -lengths, dasgupta.home_position, np.eye(3))
 
 
 def test_rollout_reports_a_state_that_stops_being_finite(dasgupta):
