@@ -98,6 +98,7 @@ def test_paper_case_is_relative_to_home(dasgupta, simulator):
     np.testing.assert_array_equal(case.target_rpy, case.start_rpy)
     # on the motion simulator the same offsets from its own home, whose legs stay in its stroke
     moved = paper_case(simulator)
+    # (home + offset) - home in float64: the offset up to the rounding of the 2.6 m home height
     np.testing.assert_allclose(moved.start_position - simulator.home_position, [0.1, 0.0, -0.005], atol=1e-15)
     np.testing.assert_allclose(moved.target_position - simulator.home_position, [0.1, 0.0, 0.0], atol=1e-15)
     lo, hi = simulator.limits.leg_length
