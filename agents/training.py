@@ -690,10 +690,9 @@ def _stop_on_signals(stop: _StopRequest) -> Iterator[None]:
 def _checkpoint_callback(directory: Path, algo: str, freq: int, keep: int, wall_offset: float, stop: _StopRequest):
     """An SB3 callback that stops training once ``stop`` holds a signal, and otherwise calls
     :func:`save_checkpoint` at the first rollout end ``freq`` environment steps after the last
-    checkpoint (0: never), logging each
-    checkpoint's step count and training wall time (s, ``wall_offset`` plus the time since this
-    call started) to DIR/checkpoints/progress.csv, so that a point of the learning curve can be
-    matched to its budget."""
+    checkpoint (0: never), logging each checkpoint's step count and training wall time (s,
+    ``wall_offset`` plus the time since this call started) to DIR/checkpoints/progress.csv, so
+    that a point of the learning curve can be matched to its budget."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Checkpoints(BaseCallback):
@@ -714,6 +713,8 @@ def _checkpoint_callback(directory: Path, algo: str, freq: int, keep: int, wall_
                 log_progress(directory, steps, time.perf_counter() - self.start)
 
     return Checkpoints()
+
+
 # -- training -------------------------------------------------------------------------------------
 
 
