@@ -19,6 +19,11 @@ from stewart_env.validation import flag, vector
 PAPER_START_OFFSET = np.array([0.1, 0.0, -0.005])
 PAPER_TARGET_OFFSET = np.array([0.1, 0.0, 0.0])
 PAPER_RPY_OFFSET = np.array([0.0, 0.0, -0.2])
+# Rejection sampling of random poses gives up after this many draws (each draw is kept with a
+# probability close to 1 for the default ranges).
+_MAX_DRAWS = 1000
+# Fixed poses are checked against the limits; beyond this (m or rad) the check itself would overflow.
+_MAX_POSE = 1e3
 
 
 class PaperCase(NamedTuple):
@@ -56,11 +61,6 @@ def paper_case(params: PlatformParams, *, check_stroke: bool = True) -> PaperCas
             f"the leg stroke limits.leg_length = [{lo}, {hi}] m: " + "; ".join(problems)
         )
     return case
-# Rejection sampling of random poses gives up after this many draws (each draw is kept with a
-# probability close to 1 for the default ranges).
-_MAX_DRAWS = 1000
-# Fixed poses are checked against the limits; beyond this (m or rad) the check itself would overflow.
-_MAX_POSE = 1e3
 
 
 class SetpointTask(Task):
