@@ -17,7 +17,8 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
     may carry a leading batch dimension N.  ``dt`` s, ``steps`` >= 0.  The orientation is
     integrated as a unit quaternion, so the returned rotation is orthonormal to rounding.  The
     arguments are checked as every entry point checks them (:func:`stewart_env.dynamics.model.batch_args`):
-    shapes, finite values, and a rotation orthonormal with determinant +1 within 1e-6.
+    shapes, finite values, and a rotation orthonormal with determinant +1 within
+    :data:`~stewart_env.dynamics.model.ROTATION_TOLERANCE`.
 
     Returns the final (position, rotation, velocity, angular_velocity).  With ``check_finite``
     a state that stops being finite raises FloatingPointError naming the batch rows; without it
