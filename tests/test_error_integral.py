@@ -44,11 +44,12 @@ def test_integral_is_the_clipped_sum_of_errors_times_dt(normalize, limit):
         obs, *_ = env.step(a)
         expected = np.clip(expected + pose_errors(env) * DT, -bound, bound)
         observed = obs[sl] * bound if normalize else obs[sl]
+        # The observation is float32 (relative rounding ~6e-8); atol covers components near 0.
         np.testing.assert_allclose(observed, expected, rtol=1e-6, atol=1e-9 * bound.max())
         np.testing.assert_allclose(env.unwrapped.decode_observation(obs)["error_integral"], expected,
                                    rtol=1e-6, atol=1e-9 * bound.max())
     # The start is ~0.1 m from the target: a 0.02 s bound clips within the first steps, 100 s never.
-    clipped = np.isclose(np.abs(expected), bound, rtol=1e-12)
+    clipped = np.isclose(np.abs(expected), bound, rtol=1e-12)  # np.clip returns the bound itself
     assert clipped.any() if limit < 1 else not clipped.any()
     if normalize:
         assert np.all(np.abs(obs[sl]) <= 1.0)
@@ -68,6 +69,7 @@ def test_a_band_integrates_only_the_error_components_within_it():
         inside = np.abs(e) <= width
         gated += int((~inside).sum())
         expected += np.where(inside, e, 0.0) * DT
+        # The observation is float32 (relative rounding ~6e-8); atol covers components near 0.
         np.testing.assert_allclose(obs[sl], expected, rtol=1e-6, atol=1e-12)
     assert gated > 0 and np.any(expected != 0.0)
 
@@ -79,7 +81,7 @@ def test_decode_observation_round_trips_the_integral():
         obs, *_ = env.step(a)
     core = env.unwrapped._core
     decoded = env.unwrapped.decode_observation(obs.astype(np.float64))["error_integral"]
-    np.testing.assert_allclose(decoded, core.error_integral[0], rtol=1e-6)
+    np.testing.assert_allclose(decoded, core.error_integral[0], rtol=1e-6)  # decoded from float32
     assert np.any(core.error_integral[0] != 0.0)
 
 
