@@ -583,6 +583,13 @@ def checkpoint_problem(folder: Path, steps: int, algo: str, normalize: bool) -> 
     return None
 
 
+def _checkpoint_hashes(folder: Path) -> tuple[dict[str, str], str]:
+    """The {file name: sha256} of a checkpoint that :func:`checkpoint_problem` passed, and its
+    manifest's name for error messages."""
+    return (json.loads((folder / CHECKPOINT_MANIFEST).read_text())["files"],
+            f"{CHECKPOINT_DIR}/{folder.name}/{CHECKPOINT_MANIFEST}")
+
+
 def newest_checkpoint(directory: str | os.PathLike, algo: str, normalize: bool,
                       report: Callable[[str], None] = lambda message: None) -> tuple[int, Path] | None:
     """The step count and folder of the newest complete checkpoint in DIR/checkpoints (None if
@@ -865,8 +872,7 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
         steps_done, checkpoint = found
         segments = previous.get("segments", [])
         report(f"resuming from {CHECKPOINT_DIR}/{checkpoint.name} ({steps_done} steps)")
-        hashes = json.loads((checkpoint / CHECKPOINT_MANIFEST).read_text())["files"]
-        what = f"{CHECKPOINT_DIR}/{checkpoint.name}/{CHECKPOINT_MANIFEST}"
+        hashes, what = _checkpoint_hashes(checkpoint)
         saved = {name: _verified_bytes(checkpoint, hashes, name, what) for name in hashes}
         check_writable(directory)
         for name in os.listdir(directory / CHECKPOINT_DIR):
@@ -1015,14 +1021,13 @@ def load_agent(directory: str | os.PathLike, checkpoint: int | None = None) -> T
                                 "stewart-env, or not by `stewart-env train`); refusing to unpickle unverified files")
     else:
         folder = path / CHECKPOINT_DIR / f"step_{checkpoint}"
-        what = f"{CHECKPOINT_DIR}/{folder.name}/{CHECKPOINT_MANIFEST}"
         problem = (checkpoint_problem(folder, checkpoint, manifest["algo"], bool(manifest.get("normalize")))
                    if folder.is_dir() else "no such checkpoint")
         if problem is not None:
             found = ", ".join(str(steps) for steps, _ in _step_dirs(path)) or "none"
             raise TrainingError(f"{path}: cannot load the checkpoint at {checkpoint} steps: {problem} "
                                 f"(checkpoints: {found})")
-        hashes = json.loads((folder / CHECKPOINT_MANIFEST).read_text())["files"]
+        hashes, what = _checkpoint_hashes(folder)
     model_bytes = _verified_bytes(folder, hashes, MODEL_FILE, what)
     statistics = (_verified_bytes(folder, hashes, VECNORMALIZE_FILE, what)
                   if manifest.get("normalize", False) else None)
