@@ -344,7 +344,7 @@ def write_report(results: Sequence[EvaluationResult], out, title: str = "Control
             for ep in r.episodes:
                 writer.writerow([r.label, r.model, r.task, platform, ep.seed, ep.termination or "", f"{ep.reward:.6g}"]
                                 + [f"{ep.metrics[m[0]]:.9g}" for m in METRICS])
-    _plot_error_norms(results, paths["error_norms"])
+    error_norms_figure(results).savefig(paths["error_norms"], dpi=110)
     for r in results:
         path = out / f"trajectory_{slug(r.label)}_{slug(r.model)}.png"
         _plot_trajectory(r, path)
@@ -426,10 +426,6 @@ def error_norms_figure(results: Sequence[EvaluationResult]) -> Figure:
     task = results[0].task
     fig.suptitle(f"Errors on the {task} task (median over episodes bold, episodes faint)", fontsize=11)
     return fig
-
-
-def _plot_error_norms(results: Sequence[EvaluationResult], path: Path) -> None:
-    error_norms_figure(results).savefig(path, dpi=110)
 
 
 def _plot_trajectory(result: EvaluationResult, path: Path) -> None:
