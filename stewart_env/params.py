@@ -1010,9 +1010,8 @@ def load_platform(name_or_path: str | os.PathLike) -> PlatformParams:
     which must be a regular *.yaml or *.yml file of at most MAX_CONFIG_BYTES (see
     `PlatformParams.from_yaml`). Every error is a ConfigError naming the file or the key.
     """
-    if not isinstance(name_or_path, (str, os.PathLike)):
-        raise ConfigError("", f"expected a platform name or a path, got {_describe(name_or_path)}")
-    text = os.fspath(name_or_path)
+    # a bytes path (or a PathLike giving one) is refused too: names and messages are text
+    text = os.fspath(name_or_path) if isinstance(name_or_path, (str, os.PathLike)) else None
     if not isinstance(text, str):
         raise ConfigError("", f"expected a platform name or a path, got {_describe(name_or_path)}")
     candidate = Path(text)
