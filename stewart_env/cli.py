@@ -186,10 +186,8 @@ def _preflight(args: argparse.Namespace) -> str | None:
 
 def _announce_compilation() -> None:
     """One line before the kernels' first compilation, which takes tens of seconds."""
-    try:
-        from stewart_env.numba_cache import is_warm
-    except ImportError:
-        return
+    from stewart_env.numba_cache import is_warm
+
     if not is_warm():
         print("compiling kernels, first run only (~30 s)", file=sys.stderr)
 
