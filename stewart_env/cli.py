@@ -171,11 +171,11 @@ def _preflight(args: argparse.Namespace) -> str | None:
 
     needs_rl = (args.command == "train" or (args.command == "evaluate" and args.agent)
                 or (args.command == "mismatch" and str(args.algo).lower() != "none"))
-    try:
-        if needs_rl:
+    if needs_rl:
+        try:
             check_rl_installed()
-    except TrainingError as err:
-        return str(err)
+        except TrainingError as err:
+            return str(err)
     if getattr(args, "out", None) is not None:
         try:
             check_writable(args.out, create=False)
