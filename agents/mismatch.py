@@ -141,18 +141,19 @@ def _agent(algo: str, directory: Path, env_kwargs: dict[str, Any], timesteps: in
                 f"{directory} holds an agent trained differently (algorithm, seed, env kwargs: {found}) from "
                 f"this study's row ({(algo, seed, env_kwargs)}); use another --out")
         return load_agent(directory)
+    rest = {k: v for k, v in env_kwargs.items() if k not in ("model", "task")}
+    row = dict(algo=algo, out=directory, model=env_kwargs["model"], task=env_kwargs["task"], seed=seed,
+               n_envs=n_envs, checkpoint_freq=0, env_kwargs=rest, progress_bar=progress)
     resumable = None
     if (directory / MANIFEST).exists():
         resumable = newest_checkpoint(directory, algo, bool(read_manifest(directory).get("normalize")))
     if resumable:
-        # A study stopped while training this row: continue the row's run for the rest of its budget
-        # (train() refuses a resume whose algorithm, seed or environment differ).
+        # A study stopped while training this row: continue the row's run for the rest of its budget;
+        # given the row's settings, train() refuses a run trained with another seed or environment.
         steps, _ = resumable
-        train(algo, directory, timesteps=max(timesteps - steps, 1), resume=True, progress_bar=progress)
-        return load_agent(directory)
-    rest = {k: v for k, v in env_kwargs.items() if k not in ("model", "task")}
-    train(algo, directory, model=env_kwargs["model"], task=env_kwargs["task"], timesteps=timesteps, seed=seed,
-          n_envs=n_envs, checkpoint_freq=0, env_kwargs=rest, progress_bar=progress)
+        train(**row, timesteps=max(timesteps - steps, 1), resume=True)
+    else:
+        train(**row, timesteps=timesteps)
     return load_agent(directory)
 
 

@@ -174,6 +174,8 @@ def test_a_row_stopped_while_training_continues_from_its_checkpoint(study, tmp_p
     (row / VECNORMALIZE_FILE).unlink(missing_ok=True)
     manifest = read_manifest(row)
     steps, _ = newest_checkpoint(row, "ppo", bool(manifest["normalize"]))
+    with pytest.raises(TrainingError, match="seed"):  # a row of another seed is not continued silently
+        mismatch._agent("ppo", row, manifest["env_kwargs"], steps + 1, manifest["seed"] + 1, None, False)
     agent = mismatch._agent("ppo", row, manifest["env_kwargs"], steps + 1, manifest["seed"], None, False)
     assert (row / MODEL_FILE).is_file()
     assert agent.num_timesteps > steps  # it trained on from the checkpoint, not from scratch
