@@ -1,0 +1,161 @@
+"""Interval estimates for the mismatch study: statistics of episodes grouped by training seed.
+
+A cell of the study holds one metric's values in an array ``(seeds, episodes)``: row s is the
+agent trained with seed s, column k the evaluation episode k (the same episodes for every row).
+A deterministic controller (computed torque, PD) has one row.  Some metrics are undefined in
+some episodes (NaN, e.g. the settling time of an episode that never settles).
+
+* :func:`iqm`: the interquartile mean, the mean of the middle half of the values (25 % trimmed
+  from each end, as ``scipy.stats.trim_mean(x, 0.25)``).  Agarwal et al., "Deep reinforcement
+  learning at the edge of the statistical precipice" (NeurIPS 2021, the rliable library),
+  recommend it for RL results: a few failed episodes dominate a mean, and a median ignores all
+  but one or two values.
+* :func:`stratified_bootstrap`: the percentile bootstrap of a statistic over a two-level
+  sample: each resample draws the seeds with replacement, then within each drawn seed its
+  episodes with replacement (the stratified, hierarchical bootstrap of rliable's
+  ``StratifiedBootstrap`` over runs, here with episodes as the inner level).  So the interval
+  covers both sources of variation: another set of evaluation episodes, and another set of
+  training seeds.
+* :func:`paired_difference`: the same for the difference of a statistic between two cells
+  measured on the same episodes: one set of drawn indices serves both, so what the two cells
+  share (the episodes' difficulty) cancels in each resample.
+* :func:`resolved`: whether an interval excludes zero.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Bootstrap resamples of every interval: percentile bounds of a 95 % interval then move by
+#: about 0.1 of the interval's width between seeds of the resampling (Efron & Tibshirani 1993).
+RESAMPLES = 2000
+CONFIDENCE = 0.95
+#: The seed of the resampling, so that an interval is reproducible.
+BOOTSTRAP_SEED = 0
+#: The statistics a cell can report, by name.
+STATISTICS = ("mean", "iqm")
+
+
+def _as_cell(values) -> np.ndarray:
+    """``values`` as a float array (seeds, episodes); a 1-d array is one seed."""
+    a = np.asarray(values, dtype=float)
+    if a.ndim == 1:
+        a = a[None, :]
+    if a.ndim != 2 or a.size == 0:
+        raise ValueError(f"values: expected a non-empty array (seeds, episodes) or (episodes,), got shape {a.shape}")
+    return a
+
+
+def _along_last(values: np.ndarray, statistic: str) -> np.ndarray:
+    """``statistic`` ("mean" or "iqm") of ``values`` along the last axis, NaNs left out; NaN
+    where a slice has no finite value.  The IQM drops floor(n / 4) values from each end of the n
+    finite ones, as ``scipy.stats.trim_mean(x, 0.25)``."""
+    if statistic not in STATISTICS:
+        raise ValueError(f"statistic: expected one of {', '.join(STATISTICS)}, got {statistic!r}")
+    finite = np.isfinite(values)
+    n = finite.sum(axis=-1)
+    if statistic == "mean":
+        total = np.where(finite, values, 0.0).sum(axis=-1)
+    else:
+        ordered = np.sort(np.where(finite, values, np.inf), axis=-1)  # NaNs last, as +inf
+        cut = (n // 4)[..., None]
+        position = np.arange(values.shape[-1])
+        keep = (position >= cut) & (position < n[..., None] - cut)
+        total = np.where(keep, ordered, 0.0).sum(axis=-1)
+        n = keep.sum(axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 0, total / np.maximum(n, 1), np.nan)
+
+
+def iqm(values) -> float:
+    """Interquartile mean of the finite values (all seeds and episodes pooled); NaN if none."""
+    return float(_along_last(np.asarray(values, dtype=float).ravel(), "iqm"))
+
+
+def point_estimate(values, statistic: str) -> float:
+    """``statistic`` ("mean" or "iqm") of a cell's finite values, seeds and episodes pooled."""
+    return float(_along_last(_as_cell(values).ravel(), statistic))
+
+
+def _resample_indices(shape: tuple[int, int], resamples: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Stratified draws for a cell (seeds S, episodes K): seed indices (B, S, 1) with replacement,
+    and for each drawn seed episode indices (B, S, K) with replacement."""
+    seeds, episodes = shape
+    s = rng.integers(0, seeds, size=(resamples, seeds, 1))
+    k = rng.integers(0, episodes, size=(resamples, seeds, episodes))
+    return s, k
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A point estimate and its bootstrap interval [low, high]; ``seeds`` and ``episodes``: the
+    sample it was computed from."""
+
+    estimate: float
+    low: float
+    high: float
+    seeds: int
+    episodes: int
+
+    @property
+    def resolved(self) -> bool:
+        """Whether the interval excludes zero (see :func:`resolved`)."""
+        return resolved(self.low, self.high)
+
+
+def resolved(low: float, high: float) -> bool:
+    """Whether the interval [low, high] excludes zero: a difference whose sign the sample
+    determines.  An undefined bound (NaN) resolves nothing."""
+    return bool(np.isfinite(low) and np.isfinite(high) and (low > 0 or high < 0))
+
+
+def _percentiles(samples: np.ndarray, confidence: float) -> tuple[float, float]:
+    finite = samples[np.isfinite(samples)]
+    if finite.size == 0:
+        return float("nan"), float("nan")
+    tail = 50.0 * (1.0 - confidence)
+    low, high = np.percentile(finite, [tail, 100.0 - tail])
+    return float(low), float(high)
+
+
+def _check(confidence: float, resamples: int) -> None:
+    if not 0.0 < confidence < 1.0:
+        raise ValueError(f"confidence: expected a number in (0, 1), got {confidence!r}")
+    if isinstance(resamples, bool) or not isinstance(resamples, (int, np.integer)) or resamples < 1:
+        raise ValueError(f"resamples: expected a positive integer, got {resamples!r}")
+
+
+def _bootstrap(cells: list[np.ndarray], combine: Callable[..., np.ndarray], statistic: str, confidence: float,
+               resamples: int, seed: int) -> Interval:
+    """The percentile interval of ``combine(stat(cell_1*), stat(cell_2*), ...)`` over stratified
+    resamples drawn once for all cells (they share the shape (seeds, episodes))."""
+    _check(confidence, resamples)
+    shape = cells[0].shape
+    if any(c.shape != shape for c in cells):
+        raise ValueError(f"values: paired cells need one shape (seeds, episodes), got {[c.shape for c in cells]}")
+    s, k = _resample_indices(shape, int(resamples), np.random.default_rng(seed))
+    drawn = [_along_last(c[s, k].reshape(int(resamples), -1), statistic) for c in cells]
+    estimate = float(combine(*[_along_last(c.ravel(), statistic) for c in cells]))
+    low, high = _percentiles(combine(*drawn), confidence)
+    return Interval(estimate, low, high, shape[0], shape[1])
+
+
+def stratified_bootstrap(values, statistic: str = "mean", confidence: float = CONFIDENCE,
+                         resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> Interval:
+    """Point estimate and percentile bootstrap interval of ``statistic`` ("mean" or "iqm") of a
+    cell ``values`` (seeds, episodes), or (episodes,) for one seed.  Each of ``resamples``
+    resamples draws the seeds with replacement and, within each drawn seed, its episodes with
+    replacement; NaN values are left out of each resample's statistic.  Reproducible: the same
+    ``seed`` gives the same interval."""
+    return _bootstrap([_as_cell(values)], lambda a: a, statistic, confidence, resamples, seed)
+
+
+def paired_difference(values, reference, statistic: str = "mean", confidence: float = CONFIDENCE,
+                      resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> Interval:
+    """``statistic(values) - statistic(reference)`` and its stratified bootstrap interval, the
+    two cells (seeds, episodes) resampled with the same indices: episode k of ``values`` and of
+    ``reference`` are the same seeded episode, and seed s of each is drawn together."""
+    return _bootstrap([_as_cell(values), _as_cell(reference)], np.subtract, statistic, confidence, resamples, seed)
