@@ -1,0 +1,480 @@
+"""The MuJoCo twin of a platform: the mechanism of any config as MJCF, and a batch plant on it.
+
+    import stewart_env as se
+    from stewart_env.mujoco import to_mjcf, MujocoPlant
+    xml = to_mjcf(se.load_platform("dasgupta1998"))          # loads with mujoco.MjModel.from_xml_string
+    plant = MujocoPlant(se.load_platform("dasgupta1998"))      # step_inplace(...) like rollout_inplace
+
+Needs the optional extra: ``pip install -e ".[mujoco]"``.
+
+The mechanism (docs/physics.md sections 1-2).  The platform is a free body whose frame is {P}
+(origin P, axes the columns of R).  Leg i is two bodies: the lower leg (cylinder) hangs on a
+universal joint at the base joint b_i, written as two hinges, the first along the config's
+fixed Hooke axis k_i, the second along the moving axis y_i (perpendicular to k_i and to the leg
+at the home pose); the upper leg (piston) is its child on a slide joint along the leg.  Both
+leg bodies carry the leg frame {D_i} of the home pose as their own frame, so the config's leg
+CoMs and inertias (given in {D_i}) are written unchanged, and the bodies turn with {D_i} as the
+closed-form models assume.  MuJoCo simulates trees, so the six loops are closed at the platform
+joints P_i by ``connect`` equality constraints (a ball joint outside the tree) between a site at
+the upper leg's tip and a site at p_i on the platform.  Those constraints are soft: MuJoCo
+lets them give by an amount set by ``solref``/``solimp`` (see :data:`DEFAULT_SOLIMP`), which is
+the one approximation of the twin besides the spherical-joint friction below.
+
+Joint friction (docs/physics.md section 1, "Signs of forces").  The universal joint's torque
+-C_u omega_l is the two hinges' viscous damping C_u each (the hinge axes k_i and y_i are
+orthogonal, so the torque's work on each hinge rate is exactly -C_u times that rate); the
+prismatic joint's -C_p dL/dt is the slide's damping.  The spherical joint's -C_s (omega_l -
+omega) has no counterpart: an equality constraint carries no damping, so the twin **omits
+C_s**.  :func:`spherical_friction_effect` measures what that leaves out.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from stewart_env.dynamics.model import make_dynamics
+from stewart_env.kinematics import leg_kinematics
+from stewart_env.params import Damping, PlatformParams
+from stewart_env.rotations import rpy_to_matrix
+
+try:
+    import mujoco as _mj
+except ImportError:  # the optional extra is missing
+    _mj = None
+
+__all__ = [
+    "DEFAULT_SOLIMP",
+    "DEFAULT_SOLREF",
+    "MujocoPlant",
+    "acceleration_error",
+    "holding_drift",
+    "spherical_friction_effect",
+    "to_mjcf",
+    "trajectory_report",
+]
+
+#: Time constant (s) and damping ratio of the loop-closure constraints' error correction.
+#: 0.002 s is the smallest MuJoCo accepts at a 1 ms step (it raises any smaller value to twice
+#: the step), so a gap is pulled shut within a few steps; critical damping (1) avoids ringing.
+#: Over 1 s of free motion of dasgupta1998 (:func:`trajectory_report`) it keeps the loops closed
+#: to 1.3 um and the energy to 1.6 mJ of 0.79 J kinetic, against 11 um and 27 mJ at MuJoCo's
+#: default time constant 0.02 s (and 5.6 mm and 13 J with MuJoCo's default solimp as well).
+DEFAULT_SOLREF = (0.002, 1.0)
+#: Impedance of the loop-closure constraints (MuJoCo's d_min, d_max, width, midpoint, power).  The
+#: constraint force reaches the fraction d of the force that would hold the loop rigidly, so the
+#: platform's accelerations differ from the rigid mechanism's by about (1 - d) / d relative:
+#: d = 0.9999, the largest MuJoCo allows, left 5.1e-4 m/s^2 at 1 g on dasgupta1998
+#: (:func:`acceleration_error`; 5.1e-2 at d = 0.99 and 0.53 at MuJoCo's default 0.9), so the
+#: error scales with 1 - d and stays below g (1 - d) / d (tests/test_mujoco.py).
+DEFAULT_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
+
+_INSTALL_HINT = 'the MuJoCo twin needs the optional extra: pip install -e ".[mujoco]"'
+
+
+def _require_mujoco():
+    if _mj is None:
+        raise ImportError(f"stewart_env.mujoco: the package 'mujoco' is not installed; {_INSTALL_HINT}")
+    return _mj
+
+
+def _num(x) -> str:
+    return " ".join(repr(float(v)) for v in np.atleast_1d(x))
+
+
+def _quat(R: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a rotation matrix (MuJoCo's convention)."""
+    mj = _require_mujoco()
+    q = np.empty(4)
+    mj.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=np.float64).ravel())
+    return q
+
+
+def _full_inertia(I: np.ndarray) -> str:
+    return _num([I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]])
+
+
+def _check_pair(name: str, value, size: int) -> tuple[float, ...]:
+    try:
+        v = tuple(float(x) for x in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected {size} numbers, got {value!r}") from None
+    if len(v) != size or not all(np.isfinite(v)):
+        raise ValueError(f"{name}: expected {size} finite numbers, got {value!r}")
+    return v
+
+
+def to_mjcf(params: PlatformParams, timestep: float = 1e-3, solref: Sequence[float] = DEFAULT_SOLREF,
+            solimp: Sequence[float] = DEFAULT_SOLIMP, integrator: str = "RK4", geometry: bool = True) -> str:
+    """MJCF text of the mechanism of ``params`` (see the module docstring), at its home pose.
+
+    timestep: MuJoCo's step, s.  solref (time constant s, damping ratio) and solimp (d_min, d_max,
+    width m, midpoint, power): softness of the six loop-closure constraints, MuJoCo's own
+    parameters (its documentation, "Solver parameters"); the defaults :data:`DEFAULT_SOLREF`
+    and :data:`DEFAULT_SOLIMP` are explained there.  integrator: MuJoCo's ("RK4",
+    "implicitfast", "Euler", ...).  geometry: add massless, non-colliding shapes (legs as
+    capsules, the platform and base as outlines) so the model shows in MuJoCo's viewer; they
+    carry no mass (inertias are explicit) and never collide.
+
+    Names in the model: bodies ``platform``, ``lower_i``, ``upper_i``; joints ``platform``
+    (free), ``u1_i`` (about k_i), ``u2_i`` (about y_i), ``slide_i``; sites ``tip_i`` (upper
+    leg at P_i) and ``joint_i`` (platform at p_i); equalities ``loop_i``; actuators ``leg_i``
+    (force on the slide, N, within the config's force limits).  i = 0..5.
+    """
+    _require_mujoco()
+    if not isinstance(params, PlatformParams):
+        raise ValueError(f"params: expected PlatformParams, got {type(params).__name__}")
+    if not (np.isfinite(timestep) and timestep > 0):
+        raise ValueError(f"timestep: must be a positive number of seconds, got {timestep!r}")
+    solref = _check_pair("solref", solref, 2)
+    solimp = _check_pair("solimp", solimp, 5)
+    if not 0 < solimp[0] < 1 or not 0 < solimp[1] < 1:
+        raise ValueError(f"solimp: d_min and d_max must lie in (0, 1), got {solimp[:2]}")
+
+    t0, R0 = params.home_position, _home_rotation(params)
+    legs = leg_kinematics(params, t0, R0)
+    lo_f, hi_f = params.limits.leg_force
+    d = params.damping
+    eq = f'solref="{_num(solref)}" solimp="{_num(solimp)}"'
+    out = [
+        f'<mujoco model="stewart_{params.name}">',
+        '  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>',
+        f'  <option timestep="{_num(timestep)}" integrator="{integrator}" gravity="{_num(params.gravity)}" '
+        'solver="Newton" iterations="100" tolerance="1e-12">',
+        '    <flag contact="disable"/>',
+        '  </option>',
+        '  <default><geom contype="0" conaffinity="0" group="1" rgba="0.6 0.6 0.7 1"/></default>',
+        '  <worldbody>',
+    ]
+    width = 0.02 * float(np.mean(legs.lengths))
+    if geometry:
+        b = params.base_joints
+        for i in range(6):
+            out.append(f'    <geom type="capsule" size="{width:.4g}" fromto="{_num(b[i])} {_num(b[(i + 1) % 6])}"/>')
+    for i in range(6):
+        T = legs.frames[i]
+        L = legs.lengths[i]
+        up, lo = params.upper_leg[i], params.lower_leg[i]
+        out += [
+            f'    <body name="lower_{i}" pos="{_num(params.base_joints[i])}" quat="{_num(_quat(T))}">',
+            f'      <joint name="u1_{i}" type="hinge" axis="{_num(T.T @ params.hooke_axes[i])}" damping="{_num(d.universal)}"/>',
+            f'      <joint name="u2_{i}" type="hinge" axis="0 1 0" damping="{_num(d.universal)}"/>',
+            _inertial(lo.mass, lo.com, lo.inertia, "      "),
+        ]
+        if geometry:
+            out.append(f'      <geom type="capsule" size="{1.5 * width:.4g}" fromto="0 0 0 {_num(0.55 * L)} 0 0"/>')
+        out += [
+            '      <body name="upper_{0}">'.format(i),
+            f'        <joint name="slide_{i}" type="slide" axis="1 0 0" damping="{_num(d.prismatic)}"/>',
+            _inertial(up.mass, np.array([L, 0.0, 0.0]) + up.com, up.inertia, "        "),
+            f'        <site name="tip_{i}" pos="{_num(L)} 0 0"/>',
+        ]
+        if geometry:
+            out.append(f'        <geom type="capsule" size="{width:.4g}" fromto="{_num(0.4 * L)} 0 0 {_num(L)} 0 0" '
+                       'rgba="0.8 0.8 0.85 1"/>')
+        out += ['      </body>', '    </body>']
+    p = params.platform
+    out += [
+        f'    <body name="platform" pos="{_num(t0)}" quat="{_num(_quat(R0))}">',
+        '      <freejoint name="platform"/>',
+        _inertial(p.mass, p.com, p.inertia, "      "),
+    ]
+    for i in range(6):
+        out.append(f'      <site name="joint_{i}" pos="{_num(params.platform_joints[i])}"/>')
+        if geometry:
+            pj = params.platform_joints
+            out.append(f'      <geom type="capsule" size="{width:.4g}" fromto="{_num(pj[i])} {_num(pj[(i + 1) % 6])}" '
+                       'rgba="0.3 0.5 0.8 1"/>')
+    out += ['    </body>', '  </worldbody>', '  <equality>']
+    out += [f'    <connect name="loop_{i}" site1="tip_{i}" site2="joint_{i}" {eq}/>' for i in range(6)]
+    out += ['  </equality>', '  <actuator>']
+    out += [f'    <motor name="leg_{i}" joint="slide_{i}" gear="1" ctrlrange="{_num((lo_f, hi_f))}"/>' for i in range(6)]
+    out += ['  </actuator>', '</mujoco>', '']
+    return "\n".join(out)
+
+
+def _home_rotation(params: PlatformParams) -> np.ndarray:
+    return rpy_to_matrix(params.home_rpy)
+
+
+def _inertial(mass: float, com, inertia: np.ndarray, indent: str) -> str:
+    if mass <= 0:
+        raise ValueError("params: a massless leg part cannot be a MuJoCo body (MuJoCo needs mass and inertia "
+                         "on every moving body); give it a small mass")
+    return f'{indent}<inertial pos="{_num(com)}" mass="{_num(mass)}" fullinertia="{_full_inertia(inertia)}"/>'
+
+
+class _Twin:
+    """One compiled MJCF model of a platform, with the addresses the plant reads and writes."""
+
+    def __init__(self, params: PlatformParams, timestep: float, solref, solimp):
+        mj = _require_mujoco()
+        self.params = params
+        self.model = mj.MjModel.from_xml_string(to_mjcf(params, timestep, solref, solimp, geometry=False))
+        m = self.model
+        legs = leg_kinematics(params, params.home_position, _home_rotation(params))
+        self.home_frames = legs.frames.copy()  # T_i at home: the leg bodies' frames at zero joint angles
+        self.home_lengths = legs.lengths.copy()
+        self.hooke = params.hooke_axes
+        # cos and sin of the home angle between k_i and the leg: k' = (kx, 0, kz) at home
+        self.home_kx = np.einsum("ij,ij->i", self.hooke, legs.units)
+
+        def adr(kind, table, name):
+            return int(table[mj.mj_name2id(m, kind, name)])
+
+        J = mj.mjtObj.mjOBJ_JOINT
+        self.q_u1 = np.array([adr(J, m.jnt_qposadr, f"u1_{i}") for i in range(6)])
+        self.q_u2 = np.array([adr(J, m.jnt_qposadr, f"u2_{i}") for i in range(6)])
+        self.q_slide = np.array([adr(J, m.jnt_qposadr, f"slide_{i}") for i in range(6)])
+        self.v_u1 = np.array([adr(J, m.jnt_dofadr, f"u1_{i}") for i in range(6)])
+        self.v_u2 = np.array([adr(J, m.jnt_dofadr, f"u2_{i}") for i in range(6)])
+        self.v_slide = np.array([adr(J, m.jnt_dofadr, f"slide_{i}") for i in range(6)])
+        self.q_free = adr(J, m.jnt_qposadr, "platform")
+        self.v_free = adr(J, m.jnt_dofadr, "platform")
+        self.body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, "platform")
+        self.tips = [mj.mj_name2id(m, mj.mjtObj.mjOBJ_SITE, f"tip_{i}") for i in range(6)]
+        self.joints = [mj.mj_name2id(m, mj.mjtObj.mjOBJ_SITE, f"joint_{i}") for i in range(6)]
+
+    def set_state(self, data, t, R, v, w) -> None:
+        """Platform state (P's origin, R, v, omega in {B}) into ``data``, with the leg joints from
+        inverse kinematics (docs/physics.md section 4), so the loops start closed and at rest
+        relative to the platform: the U-joint angles turn the home frame T_i to the pose's, and
+        the joint rates are the leg's angular velocity on the two hinge axes."""
+        mj = _require_mujoco()
+        mj.mj_resetData(self.model, data)
+        legs = leg_kinematics(self.params, t, R, v, w)
+        e, y = legs.frames[:, :, 0], legs.frames[:, :, 1]
+        k = self.hooke
+        kx = np.einsum("ij,ij->i", k, e)
+        # Second hinge: the angle between k_i and the leg goes from its home value to today's
+        # (the leg turns about y_i, which stays perpendicular to k_i).
+        q2 = np.arccos(np.clip(kx, -1, 1)) - np.arccos(np.clip(self.home_kx, -1, 1))
+        # First hinge: the turn about k_i that brings the leg, tilted by q2, onto e_i.
+        e_home, z_home = self.home_frames[:, :, 0], self.home_frames[:, :, 2]
+        tilted = np.cos(q2)[:, None] * e_home - np.sin(q2)[:, None] * z_home
+        a = tilted - np.einsum("ij,ij->i", k, tilted)[:, None] * k
+        b = e - kx[:, None] * k
+        q1 = np.arctan2(np.einsum("ij,ij->i", k, np.cross(a, b)), np.einsum("ij,ij->i", a, b))
+        qpos, qvel = data.qpos, data.qvel
+        qpos[self.q_u1], qpos[self.q_u2] = q1, q2
+        qpos[self.q_slide] = legs.lengths - self.home_lengths
+        qvel[self.v_u1] = np.einsum("ij,ij->i", k, legs.omega)
+        qvel[self.v_u2] = np.einsum("ij,ij->i", y, legs.omega)
+        qvel[self.v_slide] = legs.rates
+        qpos[self.q_free:self.q_free + 3] = t
+        qpos[self.q_free + 3:self.q_free + 7] = _quat(R)
+        qvel[self.v_free:self.v_free + 3] = v
+        qvel[self.v_free + 3:self.v_free + 6] = R.T @ w  # MuJoCo's free joint: angular velocity in the body frame
+        mj.mj_forward(self.model, data)
+
+    def get_state(self, data, t, R, v, w) -> None:
+        """The platform state of ``data`` written into t (3,), R (3,3), v (3,), w (3,), {B}."""
+        mj = _require_mujoco()
+        q = data.qpos[self.q_free:self.q_free + 7]
+        t[:] = q[:3]
+        quat = q[3:] / np.linalg.norm(q[3:])
+        mat = np.empty(9)
+        mj.mju_quat2Mat(mat, quat)
+        R[:] = mat.reshape(3, 3)
+        v[:] = data.qvel[self.v_free:self.v_free + 3]
+        w[:] = R @ data.qvel[self.v_free + 3:self.v_free + 6]
+
+    def closure_gap(self, data) -> float:
+        """Largest distance |tip_i - joint_i| (m) over the six loops, at data's current qpos."""
+        mj = _require_mujoco()
+        mj.mj_kinematics(self.model, data)
+        x = data.site_xpos
+        return float(max(np.linalg.norm(x[a] - x[b]) for a, b in zip(self.tips, self.joints)))
+
+    def platform_acceleration(self, data, R) -> tuple[np.ndarray, np.ndarray]:
+        """(a, alpha) of the platform in {B} from data.qacc: the free joint's angular part is the
+        rate of the body-frame angular velocity, R times it the spatial angular acceleration."""
+        acc = data.qacc[self.v_free:self.v_free + 6]
+        return acc[:3].copy(), R @ acc[3:]
+
+    def set_wrench(self, data, t, R, leg_forces, wrench) -> None:
+        """Leg forces as controls; the external wrench [force at P; moment] as MuJoCo's applied
+        force at the platform's CoM (moment shifted from P to the CoM)."""
+        data.ctrl[:] = leg_forces
+        com = t + R @ self.params.platform.com
+        data.xfrc_applied[self.body, :3] = wrench[:3]
+        data.xfrc_applied[self.body, 3:] = wrench[3:] + np.cross(t - com, wrench[:3])
+
+
+class MujocoPlant:
+    """MuJoCo simulating a batch of N platforms, stepped like :func:`stewart_env.integrate.rollout_inplace`.
+
+    params_rows: one PlatformParams for every row, or a sequence of N (e.g. domain-randomised);
+    rows with equal parameters share one compiled model.  timestep, solref, solimp: as in
+    :func:`to_mjcf`; :meth:`step_inplace` sets MuJoCo's step to its ``dt`` (RK4 throughout).
+
+    ``closure_error`` (N,), m: the largest loop-closure gap |tip_i - joint_i| of each row after
+    the last :meth:`step_inplace` (NaN for a row that is not finite).
+    """
+
+    def __init__(self, params_rows: PlatformParams | Sequence[PlatformParams], timestep: float = 1e-3,
+                 solref: Sequence[float] = DEFAULT_SOLREF, solimp: Sequence[float] = DEFAULT_SOLIMP):
+        mj = _require_mujoco()
+        rows = [params_rows] if isinstance(params_rows, PlatformParams) else list(params_rows)
+        if not rows or not all(isinstance(p, PlatformParams) for p in rows):
+            raise ValueError("params_rows: expected a PlatformParams or a non-empty sequence of them")
+        twins: dict[PlatformParams, _Twin] = {}
+        for p in rows:
+            if p not in twins:
+                twins[p] = _Twin(p, timestep, solref, solimp)
+        self.params = tuple(rows)
+        self.twins = [twins[p] for p in rows]
+        self.data = [mj.MjData(tw.model) for tw in self.twins]
+        n = len(rows)
+        self.closure_error = np.full(n, np.nan)
+        # The state each row returned last: a row given anything else was reset or set by the caller.
+        self._last = (np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan), np.full((n, 3), np.nan),
+                      np.full((n, 3), np.nan))
+        self._bad = (mj.mjtWarning.mjWARN_BADQPOS, mj.mjtWarning.mjWARN_BADQVEL, mj.mjtWarning.mjWARN_BADQACC)
+
+    def __len__(self) -> int:
+        return len(self.data)
+
+    def step_inplace(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench,
+                     dt: float, steps: int) -> None:
+        """Advance every row by ``steps`` MuJoCo steps of ``dt`` s, leg forces (N,6) and external
+        wrench (N,6) [force at P, N; moment, N m; {B}] held constant; overwrite position (N,3),
+        rotation (N,3,3), velocity (N,3) and angular_velocity (N,3) (platform P's origin, {B},
+        as the closed-form models) with MuJoCo's platform state.  No argument checks (the
+        environment's per-step path).  A row whose state differs from what this plant returned
+        last starts afresh from that state (legs by inverse kinematics, loops closed); a row
+        that is not finite, or that MuJoCo finds diverging, comes back NaN and stays so."""
+        mj = _require_mujoco()
+        lt, lR, lv, lw = self._last
+        for i, (tw, d) in enumerate(zip(self.twins, self.data)):
+            t, R, v, w = position[i], rotation[i], velocity[i], angular_velocity[i]
+            if not (np.isfinite(t).all() and np.isfinite(R).all() and np.isfinite(v).all() and np.isfinite(w).all()):
+                self._fail(i, position, rotation, velocity, angular_velocity)
+                continue
+            if not (np.array_equal(t, lt[i]) and np.array_equal(R, lR[i]) and np.array_equal(v, lv[i])
+                    and np.array_equal(w, lw[i])):
+                tw.set_state(d, t, R, v, w)
+            tw.model.opt.timestep = dt
+            tw.set_wrench(d, t, R, leg_forces[i], external_wrench[i])
+            before = [d.warning[k].number for k in self._bad]
+            mj.mj_step(tw.model, d, nstep=int(steps))
+            if [d.warning[k].number for k in self._bad] != before or not np.isfinite(d.qpos).all():
+                # MuJoCo resets a diverging simulation to its home pose; the plant reports the divergence.
+                self._fail(i, position, rotation, velocity, angular_velocity)
+                continue
+            tw.get_state(d, t, R, v, w)
+            self.closure_error[i] = tw.closure_gap(d)
+            lt[i], lR[i], lv[i], lw[i] = t, R, v, w
+
+    def _fail(self, i, position, rotation, velocity, angular_velocity) -> None:
+        for a in (position, rotation, velocity, angular_velocity, *self._last):
+            a[i] = np.nan
+        self.closure_error[i] = np.nan
+
+
+def _test_state(params: PlatformParams, seed: int):
+    """A valid moving state near home: P's origin within 2 % of the mean leg length, angles within
+    0.1 rad, v up to 0.2 m/s, omega up to 0.3 rad/s; and the leg forces that hold that pose at rest."""
+    rng = np.random.default_rng(seed)
+    scale = float(np.mean(leg_kinematics(params, params.home_position, _home_rotation(params)).lengths))
+    t = params.home_position + rng.uniform(-0.02, 0.02, 3) * scale
+    R = rpy_to_matrix(params.home_rpy + rng.uniform(-0.1, 0.1, 3))
+    v, w = rng.uniform(-0.2, 0.2, 3), rng.uniform(-0.3, 0.3, 3)
+    z = np.zeros(3)
+    F = make_dynamics("improved", params).inverse(t, R, z, z, z, z)
+    return t, R, v, w, F
+
+
+def _without_spherical_friction(params: PlatformParams) -> PlatformParams:
+    d = params.damping
+    return params.replace(damping=Damping(d.universal, d.prismatic, 0.0))
+
+
+def acceleration_error(params: PlatformParams, solref: Sequence[float] = DEFAULT_SOLREF,
+                       solimp: Sequence[float] = DEFAULT_SOLIMP, seed: int = 0, force_scale: float = 1.1) -> float:
+    """Largest difference (m/s^2 and rad/s^2, one number over the six components) between MuJoCo's
+    platform acceleration and the ``improved`` model's (forward dynamics, docs/physics.md section
+    5.4) at a valid moving state near home with the legs set by inverse kinematics, under
+    ``force_scale`` times the holding forces.  The model compared has C_s = 0, as the twin."""
+    mj = _require_mujoco()
+    t, R, v, w, F = _test_state(params, seed)
+    F = F * force_scale
+    tw = _Twin(params, 1e-3, solref, solimp)
+    d = mj.MjData(tw.model)
+    tw.set_state(d, t, R, v, w)
+    tw.set_wrench(d, t, R, F, np.zeros(6))
+    mj.mj_forward(tw.model, d)
+    a, alpha = tw.platform_acceleration(d, R)
+    a0, alpha0 = make_dynamics("improved", _without_spherical_friction(params)).forward(t, R, v, w, F)
+    return float(np.abs(np.concatenate([a - a0, alpha - alpha0])).max())
+
+
+def spherical_friction_effect(params: PlatformParams, seed: int = 0) -> float:
+    """What omitting the spherical joints' friction C_s changes: the largest difference in the
+    ``improved`` model's platform acceleration (m/s^2, rad/s^2) with and without C_s at the
+    moving state of :func:`acceleration_error`."""
+    t, R, v, w, F = _test_state(params, seed)
+    a = make_dynamics("improved", params).forward(t, R, v, w, F)
+    b = make_dynamics("improved", _without_spherical_friction(params)).forward(t, R, v, w, F)
+    return float(np.abs(np.concatenate(a) - np.concatenate(b)).max())
+
+
+def holding_drift(params: PlatformParams, seconds: float = 1.0, timestep: float = 1e-3,
+                  solref: Sequence[float] = DEFAULT_SOLREF, solimp: Sequence[float] = DEFAULT_SOLIMP,
+                  seed: int = 0) -> tuple[float, float]:
+    """(position drift m, rotation drift rad) of MuJoCo's platform over ``seconds`` under the
+    leg forces that ``inverse`` of the ``improved`` model says hold it at rest, from the pose of
+    :func:`acceleration_error`: the exact mechanism would not move at all."""
+    t, R, _, _, F = _test_state(params, seed)
+    plant = MujocoPlant(params, timestep, solref, solimp)
+    state = [t[None].copy(), R[None].copy(), np.zeros((1, 3)), np.zeros((1, 3))]
+    plant.step_inplace(*state, F[None], np.zeros((1, 6)), timestep, int(round(seconds / timestep)))
+    dR = state[1][0] @ R.T
+    sin = np.linalg.norm([dR[2, 1] - dR[1, 2], dR[0, 2] - dR[2, 0], dR[1, 0] - dR[0, 1]]) / 2
+    angle = float(np.arctan2(sin, (np.trace(dR) - 1) / 2))  # accurate for small angles, unlike arccos
+    return float(np.linalg.norm(state[0][0] - t)), angle
+
+
+def trajectory_report(params: PlatformParams, seconds: float = 1.0, timestep: float = 1e-3,
+                      solref: Sequence[float] = DEFAULT_SOLREF, solimp: Sequence[float] = DEFAULT_SOLIMP,
+                      seed: int = 0) -> dict:
+    """Energy and loop closure of MuJoCo's twin over a free motion, beside the exact model.
+
+    The platform starts at the moving state of :func:`acceleration_error` under constant holding
+    forces, with every joint's friction set to zero, so the exact mechanism conserves
+    E = kinetic + gravitational - sum_i F_i L_i (constant leg forces have the potential -F_i L_i).
+    Returns a dict: ``energy_drift`` (J, largest |E - E(0)| along the way), ``kinetic_energy``
+    (J, at the start, the scale of the motion), ``closure_max`` (m, largest loop gap),
+    ``position_difference`` (m, |t_MuJoCo - t_improved| at the end, the ``improved`` model
+    integrated with RK4 at the same step), ``seconds`` and ``timestep``.
+    """
+    mj = _require_mujoco()
+    from stewart_env.integrate import rollout
+
+    free = params.replace(damping=Damping(0.0, 0.0, 0.0))
+    t, R, v, w, F = _test_state(free, seed)
+    tw = _Twin(free, timestep, solref, solimp)
+    m = tw.model
+    m.opt.enableflags |= mj.mjtEnableBit.mjENBL_ENERGY
+    d = mj.MjData(m)
+    tw.set_state(d, t, R, v, w)
+    tw.set_wrench(d, t, R, F, np.zeros(6))
+
+    def energy() -> float:
+        mj.mj_energyPos(m, d)
+        mj.mj_energyVel(m, d)
+        return float(d.energy[0] + d.energy[1] - F @ d.qpos[tw.q_slide])
+
+    e0 = energy()
+    kinetic = float(d.energy[1])
+    drift = closure = 0.0
+    steps = int(round(seconds / timestep))
+    for _ in range(steps):
+        mj.mj_step(m, d)
+        drift = max(drift, abs(energy() - e0))
+        closure = max(closure, tw.closure_gap(d))
+    t_ref = rollout(make_dynamics("improved", free), t, R, v, w, F, dt=timestep, steps=steps)[0]
+    return {"energy_drift": drift, "kinetic_energy": kinetic, "closure_max": closure,
+            "position_difference": float(np.linalg.norm(d.qpos[tw.q_free:tw.q_free + 3] - t_ref)),
+            "seconds": seconds, "timestep": timestep}

@@ -1,0 +1,139 @@
+"""The MuJoCo twin (stewart_env.mujoco) against the exact ``improved`` model."""
+
+import numpy as np
+import pytest
+
+mujoco = pytest.importorskip("mujoco")
+
+import stewart_env as se  # noqa: E402
+from stewart_env import mujoco as twin  # noqa: E402
+from stewart_env.integrate import rollout_inplace  # noqa: E402
+
+PLATFORMS = ["dasgupta1998", "motion_simulator"]
+LOOSE = (0.99, 0.99, 0.001, 0.5, 2.0)
+
+
+@pytest.fixture(scope="module", params=PLATFORMS)
+def params(request):
+    return se.load_platform(request.param)
+
+
+def test_mjcf_loads_with_the_config_masses(params):
+    m = mujoco.MjModel.from_xml_string(twin.to_mjcf(params))
+    assert (m.nq, m.nv, m.neq, m.nu) == (7 + 6 * 3, 6 + 6 * 3, 6, 6)
+    legs = sum(u.mass + d.mass for u, d in zip(params.upper_leg, params.lower_leg))
+    # the bodies carry exactly the config's masses (the viewer geometry is massless)
+    assert m.body_subtreemass[0] == pytest.approx(params.platform.mass + legs, rel=1e-12)
+    np.testing.assert_array_equal(m.actuator_ctrlrange, np.tile(params.limits.leg_force, (6, 1)))
+    assert m.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
+
+
+def test_acceleration_matches_improved_within_the_softness(params):
+    """A soft loop passes through about (1 - d)/d of the unconstrained acceleration (of order g)."""
+    g = np.linalg.norm(params.gravity)
+    errors = {}
+    for solimp in (LOOSE, twin.DEFAULT_SOLIMP):
+        d = solimp[0]
+        errors[d] = twin.acceleration_error(params, solimp=solimp)
+        # measured 0.51-0.77 g (1 - d)/d on both platforms; the bound is the softness itself
+        assert errors[d] < g * (1 - d) / d
+    # 100x less softness: the error falls with it (measured 100x); 50x leaves room for rounding
+    assert errors[twin.DEFAULT_SOLIMP[0]] < errors[LOOSE[0]] / 50
+
+
+def test_holding_forces_hold_mujoco_platform(params):
+    position, angle = twin.holding_drift(params, seconds=1.0)
+    # measured 2.4e-6 m, 3.7e-5 rad (dasgupta1998): the soft loops settle by that much, then hold
+    assert position < 1e-5
+    assert angle < 1e-4
+
+
+def test_trajectory_energy_and_closure(params):
+    r = twin.trajectory_report(params, seconds=1.0)
+    # measured 2e-3 (dasgupta1998) and 3e-6 (motion_simulator) of the kinetic energy: the soft
+    # loops' damping dissipates a little
+    assert r["energy_drift"] < 1e-2 * r["kinetic_energy"]
+    # measured 1.3e-6 m and 9e-8 m
+    assert r["closure_max"] < 1e-5
+    # measured 5e-7 m and 5e-9 m from the improved model after 1 s of motion
+    assert r["position_difference"] < 1e-5
+
+
+def test_mujoco_defaults_open_the_loops(dasgupta):
+    """MuJoCo's own constraint defaults let the loops open by millimetres: why the twin sets its own."""
+    r = twin.trajectory_report(dasgupta, seconds=1.0, solref=(0.02, 1.0), solimp=(0.9, 0.95, 0.001, 0.5, 2.0))
+    assert r["closure_max"] > 1e-3  # measured 5.6 mm
+
+
+def test_spherical_friction_is_what_the_twin_leaves_out(dasgupta):
+    # measured 1.3e-4: the order of C_s times the joint rates over the platform's inertia
+    assert 0 < twin.spherical_friction_effect(dasgupta) < 1e-3
+
+
+def _batch(params, n, seed=0):
+    rng = np.random.default_rng(seed)
+    t = params.home_position + rng.uniform(-0.02, 0.02, (n, 3))
+    R = se.rpy_to_matrix(params.home_rpy + rng.uniform(-0.05, 0.05, (n, 3)))
+    z = np.zeros((n, 3))
+    F = se.make_dynamics("improved", params).inverse(t, R, z, z, z, z)
+    return t, R, z, z.copy(), F
+
+
+def test_plant_follows_rollout_inplace(dasgupta):
+    n = 3
+    t, R, v, w, F = _batch(dasgupta, n)
+    W = np.zeros((n, 6))
+    W[:, 0] = 50.0  # a push along x, so the platform moves
+    W[:, 5] = 5.0
+    mine = [x.copy() for x in (t, R, v, w)]
+    exact = [x.copy() for x in (t, R, v, w)]
+    plant = twin.MujocoPlant([dasgupta] * n)
+    for _ in range(10):
+        plant.step_inplace(*mine, F, W, 1e-3, 10)
+        rollout_inplace(se.make_dynamics("improved", dasgupta), *exact, F, W, 1e-3, 10)
+    moved = np.linalg.norm(exact[0] - t, axis=1)
+    assert moved.min() > 1e-3  # the wrench moved every platform by millimetres
+    # measured 4.7e-8 m over 6 mm of motion: the soft loops' relative error of 1e-4, plus their settling
+    np.testing.assert_allclose(mine[0], exact[0], atol=1e-6)
+    np.testing.assert_allclose(mine[1], exact[1], atol=1e-5)  # measured 4.3e-7
+    assert plant.closure_error.shape == (n,) and (plant.closure_error < 1e-6).all()  # measured 5e-8 m
+    np.testing.assert_allclose(np.einsum("nij,nkj->nik", mine[1], mine[1]), np.tile(np.eye(3), (n, 1, 1)), atol=1e-12)
+
+
+def test_plant_restarts_a_row_set_from_outside_and_keeps_nan_rows(dasgupta):
+    n = 3
+    t, R, v, w, F = _batch(dasgupta, n)
+    W = np.zeros((n, 6))
+    state = [x.copy() for x in (t, R, v, w)]
+    plant = twin.MujocoPlant([dasgupta] * n)
+    plant.step_inplace(*state, F, W, 1e-3, 5)
+    # a reset of row 1 to another pose; row 2 poisoned
+    state[0][1] = dasgupta.home_position
+    state[1][1] = np.eye(3)
+    state[0][2] = np.nan
+    F[1] = se.make_dynamics("improved", dasgupta).inverse(dasgupta.home_position, np.eye(3), *[np.zeros(3)] * 4)
+    plant.step_inplace(*state, F, W, 1e-3, 5)
+    # row 1 restarted at home with its legs by inverse kinematics: it stays put (measured 2.3e-9 m)
+    assert np.linalg.norm(state[0][1] - dasgupta.home_position) < 1e-6
+    assert plant.closure_error[1] < 1e-6  # measured 3e-8 m
+    assert np.isnan(state[0][2]).all() and np.isnan(state[1][2]).all() and np.isnan(plant.closure_error[2])
+    plant.step_inplace(*state, F, W, 1e-3, 5)
+    assert np.isnan(state[0][2]).all()  # stays non-finite
+    assert np.isfinite(state[0][:2]).all()
+
+
+def test_to_mjcf_names_bad_arguments(dasgupta):
+    with pytest.raises(ValueError, match="solimp"):
+        twin.to_mjcf(dasgupta, solimp=(1.0, 0.99, 0.001, 0.5, 2))
+    with pytest.raises(ValueError, match="solref"):
+        twin.to_mjcf(dasgupta, solref=(0.02,))
+    with pytest.raises(ValueError, match="timestep"):
+        twin.to_mjcf(dasgupta, timestep=0.0)
+    with pytest.raises(ValueError, match="params"):
+        twin.to_mjcf("dasgupta1998")
+
+
+def test_missing_mujoco_names_the_extra(dasgupta, monkeypatch):
+    monkeypatch.setattr(twin, "_mj", None)
+    with pytest.raises(ImportError, match=r'pip install -e "\.\[mujoco\]"'):
+        twin.to_mjcf(dasgupta)
