@@ -1,4 +1,4 @@
-"""The ``stewart-env`` command: demo, evaluate, reproduce, train, mismatch, bench.
+"""The ``stewart-env`` command: demo, evaluate, reproduce, train, mismatch, bench, export-mjcf.
 
     stewart-env demo                       PD baseline on the classical and improved models
     stewart-env evaluate --policy pd ct --model classical improved --task tracking --out results/
@@ -6,6 +6,7 @@
     stewart-env reproduce --out figures/   the case study of He et al. (2018), Fig. 6-10
     stewart-env train ... / mismatch ...   stewart_env.agents.training and .mismatch
     stewart-env bench ...                  the benchmark (stewart_env.bench)
+    stewart-env export-mjcf --platform dasgupta1998 --out stewart.xml   the MuJoCo twin as MJCF
 
 Each subcommand has ``--help``.
 """
@@ -109,7 +110,54 @@ def build_parser() -> argparse.ArgumentParser:
     training.add_cli(sub)
     mismatch.add_cli(sub)
     sub.add_parser("bench", add_help=False, help="the benchmark (stewart_env.bench); see stewart-env bench --help")
+
+    mjcf = sub.add_parser(
+        "export-mjcf", help="write a platform's mechanism as a MuJoCo model (MJCF XML)",
+        description="Write the mechanism of a platform config as MJCF for MuJoCo (stewart_env.mujoco.to_mjcf): "
+                    "the platform a free body, each leg a universal joint, a slide and a loop-closure constraint, "
+                    "masses, inertias, joint damping, force actuators, gravity, RK4.  An existing file is "
+                    "overwritten.  Needs the extra: pip install -e \".[mujoco]\".",
+    )
+    mjcf.add_argument("--platform", type=platform_name, required=True, help="platform config name or YAML path")
+    mjcf.add_argument("--out", required=True, help="the XML file to write")
+    mjcf.add_argument("--timestep", type=positive_float, default=1e-3, help="MuJoCo's time step, s (default 1e-3)")
+    mjcf.add_argument("--solref", type=float, nargs=2, metavar=("TIMECONST", "DAMPRATIO"),
+                      help="softness of the loop-closure constraints (default: stewart_env.mujoco.DEFAULT_SOLREF)")
+    mjcf.add_argument("--solimp", type=float, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
+                      help="impedance of the loop-closure constraints (default: stewart_env.mujoco.DEFAULT_SOLIMP)")
     return parser
+
+
+def _export_mjcf(args: argparse.Namespace) -> int:
+    """The export-mjcf subcommand: the MJCF text of --platform into the file --out."""
+    from stewart_env import mujoco as twin
+    from stewart_env.agents.training import TrainingError, check_writable
+    from stewart_env.params import load_platform
+
+    out = Path(args.out)
+
+    def fail(message: str) -> int:
+        print(f"stewart-env export-mjcf: error: {message}", file=sys.stderr)
+        return 2
+
+    if out.is_dir():
+        return fail(f"argument --out: {str(out)!r} is a directory; give the XML file's name")
+    try:
+        check_writable(out.parent, create=False)
+    except TrainingError as err:
+        return fail(f"argument --out: {err}")
+    kwargs = {k: getattr(args, k) for k in ("solref", "solimp") if getattr(args, k) is not None}
+    try:
+        xml = twin.to_mjcf(load_platform(args.platform), timestep=args.timestep, **kwargs)
+    except ImportError as err:
+        return fail(str(err))
+    except ValueError as err:  # --solref or --solimp out of MuJoCo's range, named in the message
+        name, _, problem = str(err).partition(": ")
+        return fail(f"argument --{name}: {problem}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(xml)
+    print(f"wrote {out} (MuJoCo model of {args.platform})")
+    return 0
 
 
 def _controllers(names: Sequence[str], internal_model: str) -> dict:
@@ -200,6 +248,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         return bench.main(argv[1:]) or 0
     args = build_parser().parse_args(argv)
+    if args.command == "export-mjcf":
+        return _export_mjcf(args)
     problem = _preflight(args)
     if problem is not None:
         print(f"stewart-env {args.command}: error: {problem}", file=sys.stderr)

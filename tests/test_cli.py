@@ -28,7 +28,7 @@ def test_top_level_help_lists_the_subcommands(capsys):
     with pytest.raises(SystemExit):
         main(["--help"])
     out = capsys.readouterr().out
-    for command in ("demo", "evaluate", "reproduce", "train", "mismatch", "bench"):
+    for command in ("demo", "evaluate", "reproduce", "train", "mismatch", "bench", "export-mjcf"):
         assert command in out
 
 
@@ -197,3 +197,40 @@ def test_reproduce_refuses_a_platform_whose_stroke_the_case_leaves(tmp_path, cap
     err = capsys.readouterr().err
     assert "leaves the leg stroke" in err and "leg 0" in err and "Traceback" not in err
     assert not (tmp_path / "out").exists()
+
+
+def test_export_mjcf_writes_a_model_mujoco_loads(tmp_path, capsys):
+    mujoco = pytest.importorskip("mujoco")
+    out = tmp_path / "models" / "stewart.xml"
+    assert main(["export-mjcf", "--platform", "motion_simulator", "--out", str(out)]) == 0
+    assert f"wrote {out}" in capsys.readouterr().out
+    model = mujoco.MjModel.from_xml_path(str(out))
+    assert (model.nbody, model.neq, model.nu) == (14, 6, 6)  # world, platform, 6 x 2 leg bodies
+    # an existing file is overwritten, like the reports of the other commands
+    assert main(["export-mjcf", "--platform", "dasgupta1998", "--out", str(out), "--timestep", "0.002"]) == 0
+    assert mujoco.MjModel.from_xml_path(str(out)).opt.timestep == 0.002
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--out", "{tmp}"], "argument --out: '{tmp}' is a directory"),
+    (["--out", "{tmp}/file/model.xml"], "argument --out: output directory '{tmp}/file' is not writable"),
+    (["--out", "{tmp}/m.xml", "--solimp", "1", "1", "0.001", "0.5", "2"], "argument --solimp: d_min and d_max"),
+    (["--out", "{tmp}/m.xml", "--solref", "0.02", "nan"], "argument --solref: expected 2 finite numbers"),
+])
+def test_export_mjcf_errors_name_the_argument(argv, message, tmp_path, capsys):
+    pytest.importorskip("mujoco")
+    (tmp_path / "file").write_text("")
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    assert main(["export-mjcf", "--platform", "dasgupta1998", *argv]) == 2
+    err = capsys.readouterr().err
+    assert message.replace("{tmp}", str(tmp_path)) in err and "Traceback" not in err
+    assert not (tmp_path / "m.xml").exists()
+
+
+def test_export_mjcf_without_mujoco_names_the_extra(tmp_path, monkeypatch, capsys):
+    from stewart_env import mujoco as twin
+
+    monkeypatch.setattr(twin, "_mj", None)
+    assert main(["export-mjcf", "--platform", "dasgupta1998", "--out", str(tmp_path / "m.xml")]) == 2
+    assert 'pip install -e ".[mujoco]"' in capsys.readouterr().err
+    assert not (tmp_path / "m.xml").exists()
