@@ -9,6 +9,11 @@ platform with RK4) for N = 1 and N = 1024.  Also the time a fresh Python process
 start to its first forward evaluation, which shows whether the compiled kernels come from the
 on-disk cache.  Timings are the best of several repeats, so other load on the machine shows
 as little as possible.
+
+With ``--mujoco`` (needs the extra ``mujoco``), MuJoCo times the same mechanism in the same run
+(:func:`bench_mujoco`): one forward evaluation, a 10 ms control step of RK4 substeps for one
+platform and for a batch of 1024, and the vector env's reset with and without domain
+randomisation; the table gives each beside MuJoCo's and their ratio.
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ import numpy as np
 import stewart_env as se
 from stewart_env.dynamics import MODEL_NAMES
 from stewart_env.dynamics import kernels as K
+from stewart_env.progress import on_terminal, progress
 
 _FIRST_CALL = (
     "import time; t0 = time.perf_counter(); import numpy as np, stewart_env as se; "
@@ -82,6 +88,138 @@ def bench_model(name: str, params, sizes=(1, 1024), repeats: int = 5) -> dict:
     return out
 
 
+def _per_call(fn, calls: int, repeats: int) -> float:
+    """Seconds per call of ``fn``: the best of ``repeats`` loops of ``calls`` calls, after one
+    untimed call (which loads or compiles what the first call needs)."""
+    fn()
+
+    def loop():
+        for _ in range(calls):
+            fn()
+
+    return _best_of(loop, repeats) / calls
+
+
+def bench_mujoco(params, n_batch: int = 1024, repeats: int = 5, calls: int = 2000, env_seconds: float = 3.0,
+                 substeps: int = 10, dt: float = 1e-3) -> dict:
+    """MuJoCo and stewart-env side by side on the same mechanism (stewart_env.mujoco's twin of
+    ``params``), the platform at home at rest under its holding forces.  Seconds per call:
+
+    * ``forward_mujoco`` (``mujoco.mj_forward``), ``forward_api`` (``Dynamics.forward``, N = 1,
+      with its checks), ``forward_workspace`` (``Workspace.forward``, N = 1; None when the
+      installed version has no workspace);
+    * one control step of ``substeps`` RK4 steps of ``dt``, one platform: ``step_mujoco``
+      (``mujoco.mj_step``), ``step_plant`` (:class:`stewart_env.mujoco.MujocoPlant`),
+      ``step_env`` (``StewartPlatform-v0`` through ``gymnasium.make``, measured over
+      ``env_seconds``), ``step_rollout`` (``rollout_inplace``, N = 1);
+    * the same step for ``n_batch`` platforms, per platform: ``batch_mujoco`` (``mujoco.rollout``
+      on every core), ``batch_vector_env`` (the native vector env), ``batch_rollout``
+      (``rollout_inplace``, N = ``n_batch``);
+    * ``reset_randomized`` and ``reset_nominal``: ``reset()`` of the vector env of ``n_batch``
+      rows, per row, with :data:`~stewart_env.envs.bench_env.RESET_RANDOMIZATION` and without.
+
+    Each figure is the best of ``repeats`` loops (``calls`` calls for the single-platform figures).
+    """
+    import mujoco
+    from mujoco import rollout as mujoco_rollout
+
+    from stewart_env.envs.bench_env import RESET_RANDOMIZATION, bench_env, bench_reset
+    from stewart_env.integrate import rollout_inplace
+    from stewart_env.mujoco import DEFAULT_SOLIMP, DEFAULT_SOLREF, MujocoPlant, _Twin
+
+    model = se.make_dynamics("improved", params)
+    t, R = params.home_position, se.rpy_to_matrix(params.home_rpy)
+    z = np.zeros(3)
+    F = model.inverse(t, R, z, z, z, z)
+    out = {"n_batch": n_batch, "substeps": substeps, "dt": dt}
+    bar = progress(total=7, desc="bench --mujoco", disable=not on_terminal())
+
+    twin = _Twin(params, dt, DEFAULT_SOLREF, DEFAULT_SOLIMP)
+    m = twin.model
+    d = mujoco.MjData(m)
+    twin.set_state(d, t, R, z, z)
+    twin.set_wrench(d, t, R, F, np.zeros(6))
+    start = mujoco.MjData(m)
+    mujoco.mj_copyData(start, m, d)
+    out["forward_mujoco"] = _per_call(lambda: mujoco.mj_forward(m, d), calls, repeats)
+    out["forward_api"] = _per_call(lambda: model.forward(t, R, z, z, F), calls, repeats)
+    out["forward_workspace"] = None
+    if hasattr(model, "workspace"):
+        ws = model.workspace(1)
+        ws.set_state(t, R, z, z)
+        ws.leg_forces[0] = F
+        out["forward_workspace"] = _per_call(ws.forward, calls, repeats)
+    bar.update()
+
+    step_calls = max(1, calls // substeps)
+    out["step_mujoco"] = _per_call(lambda: mujoco.mj_step(m, d, nstep=substeps), step_calls, repeats)
+    plant = MujocoPlant(params, dt)
+    state = [t[None].copy(), R[None].copy(), np.zeros((1, 3)), np.zeros((1, 3))]
+    forces, wrench = F[None].copy(), np.zeros((1, 6))
+    out["step_plant"] = _per_call(lambda: plant.step_inplace(*state, forces, wrench, dt, substeps),
+                                  step_calls, repeats)
+    state = [t[None].copy(), R[None].copy(), np.zeros((1, 3)), np.zeros((1, 3))]
+    out["step_rollout"] = _per_call(lambda: rollout_inplace(model, *state, forces, wrench, dt, substeps),
+                                    step_calls, repeats)
+    bar.update()
+
+    # the batch: MuJoCo's threaded rollout of n_batch platforms from the same state, open loop
+    nthread = os.cpu_count() or 1
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    initial = np.empty(mujoco.mj_stateSize(m, spec))
+    mujoco.mj_getState(m, start, initial, spec)
+    initial = np.tile(initial, (n_batch, 1))
+    control = np.tile(F, (n_batch, substeps, 1))
+    states = np.empty((n_batch, substeps, initial.shape[1]))
+    datas = [mujoco.MjData(m) for _ in range(nthread)]
+    with mujoco_rollout.Rollout(nthread=nthread) as pool:
+        out["batch_mujoco"] = _per_call(lambda: pool.rollout(m, datas, initial, control, state=states),
+                                        1, max(1, repeats // 2)) / n_batch
+    bar.update()
+    rng = np.random.default_rng(0)
+    bt, bR, bv, bw, bF = _batch_state(model, n_batch, rng)
+    bW = np.zeros((n_batch, 6))
+    out["batch_rollout"] = _per_call(lambda: rollout_inplace(model, bt, bR, bv, bw, bF, bW, dt, substeps),
+                                     1, repeats) / n_batch
+    bar.update()
+
+    env = bench_env(n_vector=n_batch, seconds=env_seconds, platform=params, control_dt=dt * substeps,
+                    physics_dt=dt)
+    out["step_env"] = 1.0 / env["single_steps_per_s"]
+    out["batch_vector_env"] = 1.0 / env["vector_platform_steps_per_s"]
+    bar.update(2)
+    out["reset_randomized"] = bench_reset(n_batch, RESET_RANDOMIZATION, max(1, repeats // 2), platform=params)
+    out["reset_nominal"] = bench_reset(n_batch, None, max(1, repeats // 2), platform=params)
+    bar.update()
+    bar.close()
+    return out
+
+
+def mujoco_table(r: dict) -> str:
+    """The markdown table of :func:`bench_mujoco`'s result: each figure beside MuJoCo's, and the
+    ratio MuJoCo time / stewart-env time (above 1: stewart-env is faster)."""
+    us = lambda s: "n/a" if s is None else f"{s * 1e6:,.1f} us"  # noqa: E731
+    ratio = lambda ours, theirs: "n/a" if ours is None else f"{theirs / ours:.2f}x"  # noqa: E731
+    step = f"{r['substeps'] * r['dt'] * 1e3:g} ms step ({r['substeps']} RK4 substeps)"
+    rows = [
+        ("forward dynamics, 1 platform", "mj_forward", r["forward_mujoco"], [
+            ("Workspace.forward", r["forward_workspace"]), ("Dynamics.forward", r["forward_api"])]),
+        (f"{step}, 1 platform", "mj_step", r["step_mujoco"], [
+            ("env.step (gymnasium.make)", r["step_env"]), ("rollout_inplace", r["step_rollout"])]),
+        (f"{step}, 1 platform, as a plant", "MujocoPlant.step_inplace", r["step_plant"], [
+            ("rollout_inplace", r["step_rollout"])]),
+        (f"{step}, {r['n_batch']} platforms, per platform", "mujoco.rollout", r["batch_mujoco"], [
+            ("vector env step", r["batch_vector_env"]), ("rollout_inplace", r["batch_rollout"])]),
+    ]
+    lines = ["| call | MuJoCo | time | stewart-env | time | MuJoCo / stewart-env |", "|---|---|---|---|---|---|"]
+    for what, theirs_name, theirs, ours in rows:
+        for name, value in ours:
+            lines.append(f"| {what} | {theirs_name} | {us(theirs)} | {name} | {us(value)} | {ratio(value, theirs)} |")
+    lines.append(f"| vector env reset, {r['n_batch']} rows, per row | | | randomised / nominal "
+                 f"| {us(r['reset_randomized'])} / {us(r['reset_nominal'])} | |")
+    return "\n".join(lines)
+
+
 def first_evaluation_seconds() -> float:
     """Seconds from a fresh interpreter's start to its first forward evaluation."""
     res = subprocess.run([sys.executable, "-c", _FIRST_CALL], capture_output=True, text=True, check=True)
@@ -104,8 +242,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--platform", default="dasgupta1998", help="platform config name or YAML path")
     parser.add_argument("--models", default=",".join(MODEL_NAMES), help="comma-separated model names")
     parser.add_argument("--env", action="store_true", help="also benchmark the single and vector environments")
+    parser.add_argument("--mujoco", action="store_true",
+                        help="also time MuJoCo on the same mechanism beside the kernels, the env and the vector env "
+                             '(needs the extra: pip install -e ".[mujoco]")')
     args = parser.parse_args(argv)
     params = se.load_platform(args.platform)
+    if args.mujoco:
+        from stewart_env import mujoco as twin
+
+        try:
+            twin._require_mujoco()
+        except ImportError as err:
+            print(f"stewart-env bench: error: argument --mujoco: {err}", file=sys.stderr)
+            return 2
 
     print(f"machine: {machine()}")
     print(f"platform: {params.name}")
@@ -127,6 +276,12 @@ def main(argv: list[str] | None = None) -> int:
         print()
         print(f"single env (gymnasium.make): {r['single_steps_per_s']:,.0f} steps/s")
         print(f"vector env N={r['n_vector']}: {r['vector_platform_steps_per_s']:,.0f} platform-steps/s")
+    if args.mujoco:
+        import mujoco
+
+        print()
+        print(f"MuJoCo {mujoco.__version__} on the same mechanism (stewart_env.mujoco), platform at rest at home:")
+        print(mujoco_table(bench_mujoco(params)))
     return 0
 
 
