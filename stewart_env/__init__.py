@@ -8,6 +8,7 @@ Public API::
     lin_acc, ang_acc = model.forward(position, rotation, velocity, angular_velocity, leg_forces)
     leg_forces = model.inverse(position, rotation, velocity, angular_velocity, lin_acc, ang_acc)
     state = se.rollout(model, position, rotation, velocity, angular_velocity, leg_forces, dt=1e-3, steps=1000)
+    ws = model.workspace()          # preallocated arrays: ws.position[0] = ...; ws.forward()
 """
 
 from stewart_env import numba_cache
@@ -15,7 +16,7 @@ from stewart_env import numba_cache
 # Before any module with compiled kernels: numba picks their cache directory at import.
 numba_cache.configure()
 
-from stewart_env.dynamics import MODEL_NAMES, Dynamics, make_dynamics
+from stewart_env.dynamics import MODEL_NAMES, Dynamics, Workspace, make_dynamics
 from stewart_env.integrate import rollout
 from stewart_env.kinematics import (
     ConvergenceError,
@@ -41,6 +42,7 @@ __all__ = [
     "PlatformParams",
     "PlatformState",
     "Reference",
+    "Workspace",
     "available_platforms",
     "forward_kinematics",
     "inverse_kinematics",

@@ -1,4 +1,4 @@
-"""Dynamics models of the Stewart platform: compiled kernels and the classes that call them."""
+"""Dynamics models of the Stewart platform: compiled kernels, the model (Dynamics) and its data (Workspace)."""
 
 from stewart_env.dynamics.model import (
     MODEL_NAMES,
@@ -7,5 +7,6 @@ from stewart_env.dynamics.model import (
     make_dynamics,
     pack_params,
 )
+from stewart_env.dynamics.workspace import Workspace
 
-__all__ = ["MODEL_NAMES", "SWITCHES", "Dynamics", "make_dynamics", "pack_params"]
+__all__ = ["MODEL_NAMES", "SWITCHES", "Dynamics", "Workspace", "make_dynamics", "pack_params"]

@@ -95,6 +95,10 @@ def pack_params(params: PlatformParams) -> np.ndarray:
 #: 1e-6; a matrix off by more is not a rotation, and the kernels would treat it as one silently.
 ROTATION_TOLERANCE = 1e-6
 
+# The wrench of a call that gives none, shared: the kernels never write their inputs (and a
+# read-only array would make numba compile every kernel a second time).
+_NO_WRENCH = np.zeros(6)
+
 
 def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray]]:
     """Bring state arguments to one batch size: the argument check of every public entry point.
@@ -104,6 +108,9 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
     with determinant +1 within :data:`ROTATION_TOLERANCE`.  Returns (N, batched, contiguous
     float64 arrays of shape (N,) + tail_shape).  Raises ValueError naming the argument on a
     wrong shape, mismatched batch sizes, a non-finite value or a matrix that is not a rotation.
+
+    An argument that already is a C-contiguous float64 array of the right size is returned as a
+    view, not copied: the kernels only read their inputs.
     """
     sizes = {}
     out = {}
@@ -118,43 +125,84 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
             raise ValueError(f"{name}: expected shape {tail} or (N, *{tail}), got {a.shape}")
         else:
             sizes[name] = a.shape[0]
-        if not np.isfinite(a).all():
-            raise ValueError(f"{name}: contains NaN or inf")
-        if tail == (3, 3):
-            check_rotation(name, a)
         out[name] = a
+    bad = K.first_nonfinite(tuple(out.values()))
+    if bad >= 0:
+        raise ValueError(f"{list(out)[bad]}: contains NaN or inf")
+    for name, (_, tail) in arrays.items():
+        if tail == (3, 3):
+            check_rotation(name, out[name])
+    if not sizes and n_params == 1:
+        # one platform: every argument is a (1, *tail) view already
+        return 1, False, {name: np.ascontiguousarray(a) for name, a in out.items()}
     distinct = set(sizes.values())
     if n_params > 1:
         distinct.add(n_params)
     if len(distinct) > 1:
         raise ValueError(f"batch sizes disagree: {sizes}" + (f", parameters: {n_params}" if n_params > 1 else ""))
     n = distinct.pop() if distinct else 1
-    batched = bool(sizes) or n_params > 1
     for name, a in out.items():
         if a.shape[0] != n:
             a = np.broadcast_to(a, (n,) + a.shape[1:])
         out[name] = np.ascontiguousarray(a)
-    return n, batched, out
+    return n, True, out
 
 
 def check_rotation(name: str, R: np.ndarray) -> None:
     """Raise ValueError naming ``name`` unless every R (N,3,3) is a rotation within
     :data:`ROTATION_TOLERANCE` (orthonormal, determinant +1)."""
-    orth = np.empty(R.shape[0])
-    det = np.empty(R.shape[0])
-    if K.rotation_errors_batch(R, orth, det) > ROTATION_TOLERANCE:
-        rows = np.flatnonzero((orth > ROTATION_TOLERANCE) | (np.abs(det - 1.0) > ROTATION_TOLERANCE))
+    if not K.largest_rotation_error(R) <= ROTATION_TOLERANCE:
+        orth = np.empty(R.shape[0])
+        det = np.empty(R.shape[0])
+        K.rotation_errors_batch(R, orth, det)
+        rows = np.flatnonzero(~((orth <= ROTATION_TOLERANCE) & (np.abs(det - 1.0) <= ROTATION_TOLERANCE)))
         where = f" in batch rows {rows[:10].tolist()}" if R.shape[0] > 1 else ""
         raise ValueError(f"{name}: not a rotation matrix{where} (|R^T R - I| = {orth[rows[0]]:.2e}, "
                          f"det R = {det[rows[0]]:.6g}; tolerance {ROTATION_TOLERANCE:g})")
+
+
+class ParamsRows(Sequence):
+    """The :class:`PlatformParams` of a model's parameter rows, built when first asked for.
+
+    A row set from packed numbers (:meth:`Dynamics.with_packed_rows`) carries a zero-argument
+    function that builds its PlatformParams; ``rows[i]`` calls it once and keeps the result.
+    ``len`` and the packed numbers never need it, so a randomised reset builds no PlatformParams.
+    """
+
+    def __init__(self, items):
+        self._items = list(items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return tuple(self[j] for j in range(*i.indices(len(self))))
+        item = self._items[i]
+        if not isinstance(item, PlatformParams):
+            item = item()
+            if not isinstance(item, PlatformParams):
+                raise TypeError(f"params: the source of row {i} built a {type(item).__name__}, not PlatformParams")
+            self._items[i] = item
+        return item
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, (ParamsRows, tuple)) and tuple(self) == tuple(other)
+
+    __hash__ = None
+
+    def __repr__(self) -> str:
+        return f"ParamsRows({len(self)} rows)"
 
 
 class Dynamics:
     """A dynamics model of one platform, or of a batch of platforms (one parameter set per row).
 
     Attributes: ``name`` (canonical, e.g. ``"improved+c1"``), ``flags`` (kernel switch bits),
-    ``params`` (a tuple of :class:`PlatformParams`, one per row of ``packed``) and ``packed``
-    (Np, N_PARAMS), read-only.
+    ``packed`` (Np, N_PARAMS), read-only, and ``params``: the :class:`PlatformParams` of each row
+    of ``packed`` (a sequence; rows set from packed numbers are built when first read, see
+    :meth:`with_packed_rows`).  The model is immutable: the ``with_*`` methods return new ones.
+    Its :meth:`workspace` holds the preallocated arrays of a controller loop.
     """
 
     def __init__(self, name: str, params: PlatformParams | Sequence[PlatformParams]):
@@ -162,13 +210,17 @@ class Dynamics:
         plist = (params,) if isinstance(params, PlatformParams) else tuple(params)
         if not plist or not all(isinstance(p, PlatformParams) for p in plist):
             raise ValueError("params: expected a PlatformParams or a non-empty sequence of them")
-        self.params = plist
+        self.params = ParamsRows(plist)
         self.packed = np.stack([pack_params(p) for p in plist])
         self.packed.setflags(write=False)
 
     def __repr__(self) -> str:
-        names = sorted({p.name for p in self.params})
-        return f"Dynamics({self.name!r}, platforms={len(self.params)} [{', '.join(names)}])"
+        return f"Dynamics({self.name!r}, platforms={len(self.params)} [{self.params[0].name}, ...])" \
+            if len(self.params) > 1 else f"Dynamics({self.name!r}, platforms=1 [{self.params[0].name}])"
+
+    def params_of(self, row: int) -> PlatformParams:
+        """The PlatformParams of parameter row ``row`` (built now if the row was set from packed numbers)."""
+        return self.params[row]
 
     def with_params(self, params: PlatformParams | Sequence[PlatformParams]) -> "Dynamics":
         """The same model on other parameters (e.g. one randomised set per batch row)."""
@@ -177,23 +229,54 @@ class Dynamics:
     def with_rows(self, rows: Sequence[int], params: Sequence[PlatformParams]) -> "Dynamics":
         """The same model with the parameters of batch rows ``rows`` replaced by ``params`` (one
         each); the other rows keep their packed parameters, so only the new rows are packed."""
-        rows = [int(r) for r in rows]
         if len(rows) != len(params):
             raise ValueError(f"params: expected one per row ({len(rows)}), got {len(params)}")
-        plist = list(self.params)
-        packed = self.packed.copy()
-        for r, p in zip(rows, params):
-            if not 0 <= r < len(plist):
-                raise ValueError(f"rows: {r} is outside the batch of {len(plist)} parameter rows")
+        for p in params:
             if not isinstance(p, PlatformParams):
                 raise ValueError(f"params: expected PlatformParams, got {type(p).__name__}")
-            plist[r] = p
-            packed[r] = pack_params(p)
+        return self.with_packed_rows(rows, [pack_params(p) for p in params], params)
+
+    def with_packed_rows(self, rows: Sequence[int], packed_rows, sources: Sequence) -> "Dynamics":
+        """The same model with parameter rows ``rows`` replaced by packed numbers, no
+        PlatformParams built: the reset of a domain-randomised batch.
+
+        packed_rows (len(rows), N_PARAMS), e.g. from
+        :meth:`stewart_env.randomization.Randomization.scale_packed`; ``sources`` one per row, each
+        a PlatformParams or a zero-argument function returning the PlatformParams the row was
+        packed from (built only when ``params[row]`` is read).  The caller promises the packed
+        numbers are a valid platform's (what ``scale_packed`` checks); they are only checked to
+        be finite.  Raises ValueError naming the argument on wrong rows, shapes or counts.
+        """
+        rows = [int(r) for r in rows]
+        packed_rows = np.asarray(packed_rows, dtype=np.float64)
+        if packed_rows.shape != (len(rows), K.N_PARAMS):
+            raise ValueError(f"packed_rows: expected shape ({len(rows)}, {K.N_PARAMS}), got {packed_rows.shape}")
+        if len(sources) != len(rows):
+            raise ValueError(f"sources: expected one per row ({len(rows)}), got {len(sources)}")
+        if K.first_nonfinite((packed_rows,)) >= 0:
+            raise ValueError("packed_rows: contains NaN or inf")
+        items = list(self.params._items)
+        packed = self.packed.copy()
+        for j, r in enumerate(rows):
+            if not 0 <= r < len(items):
+                raise ValueError(f"rows: {r} is outside the batch of {len(items)} parameter rows")
+            if not (isinstance(sources[j], PlatformParams) or callable(sources[j])):
+                raise ValueError(f"sources: expected PlatformParams or a function returning them, "
+                                 f"got {type(sources[j]).__name__}")
+            items[r] = sources[j]
+            packed[r] = packed_rows[j]
         new = object.__new__(Dynamics)
-        new.name, new.flags, new.params = self.name, self.flags, tuple(plist)
+        new.name, new.flags, new.params = self.name, self.flags, ParamsRows(items)
         packed.setflags(write=False)
         new.packed = packed
         return new
+
+    def workspace(self, n: int = 1):
+        """Preallocated arrays for ``n`` platforms of this model and the calls that use them
+        without checking or allocating: :class:`stewart_env.dynamics.workspace.Workspace`."""
+        from stewart_env.dynamics.workspace import Workspace  # it builds on this module
+
+        return Workspace(self, n)
 
     def forward(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench=None):
         """Forward dynamics: platform accelerations under given leg forces.
@@ -222,7 +305,9 @@ class Dynamics:
         n, batched, a = self._args(position, rotation, velocity, angular_velocity,
                                    lin_acc=(lin_acc, (3,)), ang_acc=(ang_acc, (3,)),
                                    external_wrench=external_wrench)
-        acc = np.concatenate([a["lin_acc"], a["ang_acc"]], axis=1)
+        acc = np.empty((n, 6))
+        acc[:, :3] = a["lin_acc"]
+        acc[:, 3:] = a["ang_acc"]
         out = np.empty((n, 6))
         K.inverse_batch(self.packed, self.flags, a["position"], a["rotation"], a["velocity"],
                         a["angular_velocity"], acc, a["external_wrench"], out)
@@ -259,7 +344,7 @@ class Dynamics:
 
     def _args(self, position, rotation, velocity, angular_velocity, external_wrench=None, **extra):
         if external_wrench is None:
-            external_wrench = np.zeros(6)
+            external_wrench = _NO_WRENCH
         return batch_args(
             self.packed.shape[0],
             position=(position, (3,)), rotation=(rotation, (3, 3)), velocity=(velocity, (3,)),

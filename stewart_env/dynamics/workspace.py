@@ -1,0 +1,148 @@
+"""A model's data: preallocated arrays for a batch of platforms and the calls that use them.
+
+:class:`~stewart_env.dynamics.model.Dynamics` is the model: name, switches and packed parameters,
+immutable.  A :class:`Workspace` is its data for a fixed batch size ``n``, as in Pinocchio's
+model/data split: every array a call reads or writes is allocated once, C-contiguous float64,
+and :meth:`Workspace.forward`, :meth:`~Workspace.inverse`, :meth:`~Workspace.mass_and_bias` and
+:meth:`~Workspace.step` hand those arrays straight to the compiled kernels.  A controller loop
+writes the state into the arrays in place and calls; nothing is allocated, broadcast or
+re-checked per call.
+
+What the workspace checks once, when it is made: that the model is a Dynamics and ``n`` a
+positive integer matching its parameter rows (1 or ``n``); the arrays' shapes, dtype and
+layout then hold by construction (they are read-only attributes, so they cannot be rebound).
+
+What the calls do not check, and the caller promises instead: that the numbers written into the
+arrays are finite and that every ``rotation[b]`` is a rotation (orthonormal, det +1, within
+:data:`~stewart_env.dynamics.model.ROTATION_TOLERANCE`).  :meth:`Workspace.set_state` copies a
+state in with the checks of every other entry point, and :meth:`Workspace.check` runs them on
+what the arrays hold now.  Unchecked garbage in gives garbage (NaN) out, never a crash.
+
+The results equal those of ``model.forward`` / ``inverse`` / ``mass_and_bias`` bit for bit: the
+same kernels run on the same numbers.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stewart_env.dynamics import kernels as K
+from stewart_env.dynamics.model import Dynamics, batch_args
+from stewart_env.rotations import rpy_to_matrix
+
+__all__ = ["Workspace"]
+
+_ARRAYS = {
+    # name: (tail shape, what it is)
+    "position": ((3,), "P's origin in {B}, m"),
+    "rotation": ((3, 3), "the platform's orientation R, columns the {P} axes in {B}"),
+    "velocity": ((3,), "velocity of P's origin, m/s, {B}"),
+    "angular_velocity": ((3,), "angular velocity, rad/s, {B}"),
+    "leg_forces": ((6,), "actuator forces F, N, positive extends the leg"),
+    "external_wrench": ((6,), "[force at P, N; moment, N m], {B}"),
+    "acceleration": ((6,), "[a; alpha]: acceleration of P's origin, m/s^2, and angular acceleration, rad/s^2, {B}"),
+    "mass_matrix": ((6, 6), "M, task space at P, {B}"),
+    "bias": ((6,), "h: velocity products, gravity, friction, minus the external wrench; N, N m, {B}"),
+}
+
+
+class Workspace:
+    """Preallocated arrays for ``n`` platforms of ``model`` (see the module docstring).
+
+    Arrays (read-only attributes; write their contents, e.g. ``ws.position[0] = t``), each with
+    the batch size ``n`` first: ``position`` (n,3), ``rotation`` (n,3,3), ``velocity`` (n,3),
+    ``angular_velocity`` (n,3) the state; ``leg_forces`` (n,6), ``external_wrench`` (n,6);
+    ``acceleration`` (n,6) [a; alpha]; ``mass_matrix`` (n,6,6) and ``bias`` (n,6).  They start
+    at the home pose of the model's first parameter row, at rest, with zero forces and wrench.
+
+    Calls (no checks, no allocation; each returns the arrays it wrote, overwritten by the next):
+
+    * :meth:`forward`: state, leg_forces, external_wrench -> acceleration (docs/physics.md section 5.4);
+    * :meth:`inverse`: state, acceleration, external_wrench -> leg_forces (section 5.5);
+    * :meth:`mass_and_bias`: state, external_wrench -> mass_matrix, bias (section 5.4);
+    * :meth:`step`: RK4 steps with leg_forces and external_wrench held; overwrites the state (section 5.6).
+    """
+
+    __slots__ = ("_model", "_n", "_packed", "_flags", *(f"_{name}" for name in _ARRAYS))
+
+    def __init__(self, model: Dynamics, n: int = 1):
+        if not isinstance(model, Dynamics):
+            raise ValueError(f"model: expected a Dynamics (stewart_env.make_dynamics), got {type(model).__name__}")
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"n: expected a positive integer batch size, got {n!r}")
+        n = int(n)
+        rows = model.packed.shape[0]
+        if rows not in (1, n):
+            raise ValueError(f"n: the model has {rows} parameter rows, so the workspace needs n = {rows}, got {n}")
+        self._model, self._n = model, n
+        self._packed, self._flags = model.packed, model.flags
+        for name, (tail, _) in _ARRAYS.items():
+            object.__setattr__(self, f"_{name}", np.zeros((n,) + tail))
+        home = model.params_of(0)
+        self._position[:] = home.home_position
+        self._rotation[:] = rpy_to_matrix(home.home_rpy)
+
+    model = property(lambda self: self._model, doc="The Dynamics the workspace was made for.")
+    n = property(lambda self: self._n, doc="The batch size.")
+    position = property(lambda self: self._position, doc="(n,3) " + _ARRAYS["position"][1])
+    rotation = property(lambda self: self._rotation, doc="(n,3,3) " + _ARRAYS["rotation"][1])
+    velocity = property(lambda self: self._velocity, doc="(n,3) " + _ARRAYS["velocity"][1])
+    angular_velocity = property(lambda self: self._angular_velocity, doc="(n,3) " + _ARRAYS["angular_velocity"][1])
+    leg_forces = property(lambda self: self._leg_forces, doc="(n,6) " + _ARRAYS["leg_forces"][1])
+    external_wrench = property(lambda self: self._external_wrench, doc="(n,6) " + _ARRAYS["external_wrench"][1])
+    acceleration = property(lambda self: self._acceleration, doc="(n,6) " + _ARRAYS["acceleration"][1])
+    mass_matrix = property(lambda self: self._mass_matrix, doc="(n,6,6) " + _ARRAYS["mass_matrix"][1])
+    bias = property(lambda self: self._bias, doc="(n,6) " + _ARRAYS["bias"][1])
+
+    def __repr__(self) -> str:
+        return f"Workspace({self._model!r}, n={self._n})"
+
+    def set_state(self, position, rotation, velocity, angular_velocity) -> None:
+        """Copy a state into the arrays, with the checks of every entry point
+        (:func:`~stewart_env.dynamics.model.batch_args`): each argument one platform's, broadcast
+        to every row, or the batch's (n, ...).  Raises ValueError naming the argument."""
+        _, _, a = batch_args(self._n, position=(position, (3,)), rotation=(rotation, (3, 3)),
+                             velocity=(velocity, (3,)), angular_velocity=(angular_velocity, (3,)))
+        self._position[:] = a["position"]
+        self._rotation[:] = a["rotation"]
+        self._velocity[:] = a["velocity"]
+        self._angular_velocity[:] = a["angular_velocity"]
+
+    def check(self) -> None:
+        """Run the entry points' checks on what the input arrays hold now: every number finite,
+        every rotation a rotation.  Raises ValueError naming the array."""
+        batch_args(self._n, **{name: (getattr(self, f"_{name}"), tail) for name, (tail, _) in _ARRAYS.items()
+                               if name not in ("acceleration", "mass_matrix", "bias")})
+
+    def forward(self) -> np.ndarray:
+        """Forward dynamics: ``acceleration`` (n,6) [a; alpha] from the state, ``leg_forces`` and
+        ``external_wrench``.  docs/physics.md section 5.4; paper eq. 49 or 55."""
+        K.forward_batch(self._packed, self._flags, self._position, self._rotation, self._velocity,
+                        self._angular_velocity, self._leg_forces, self._external_wrench, self._acceleration)
+        return self._acceleration
+
+    def inverse(self) -> np.ndarray:
+        """Inverse dynamics: ``leg_forces`` (n,6) that produce ``acceleration`` in the state, with
+        ``external_wrench``.  docs/physics.md section 5.5."""
+        K.inverse_batch(self._packed, self._flags, self._position, self._rotation, self._velocity,
+                        self._angular_velocity, self._acceleration, self._external_wrench, self._leg_forces)
+        return self._leg_forces
+
+    def mass_and_bias(self) -> tuple[np.ndarray, np.ndarray]:
+        """``mass_matrix`` (n,6,6) and ``bias`` (n,6) of M [a; alpha] + h = J^T F in the state,
+        ``external_wrench`` moved into h.  docs/physics.md section 5.4."""
+        K.mass_bias_batch(self._packed, self._flags, self._position, self._rotation, self._velocity,
+                          self._angular_velocity, self._external_wrench, self._mass_matrix, self._bias)
+        return self._mass_matrix, self._bias
+
+    def step(self, dt: float, steps: int = 1) -> None:
+        """Advance the state by ``steps`` classical RK4 steps of ``dt`` s, ``leg_forces`` and
+        ``external_wrench`` held, overwriting position, rotation, velocity and angular_velocity.
+        A row whose state stops being finite stays so (see :meth:`check`).
+        docs/physics.md section 5.6."""
+        if not 0.0 < dt < np.inf:
+            raise ValueError(f"dt: must be a positive finite number of seconds, got {dt}")
+        if steps < 0 or int(steps) != steps:
+            raise ValueError(f"steps: must be a non-negative integer, got {steps}")
+        K.rollout_batch(self._packed, self._flags, self._position, self._rotation, self._velocity,
+                        self._angular_velocity, self._leg_forces, self._external_wrench, float(dt), int(steps))

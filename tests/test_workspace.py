@@ -1,0 +1,143 @@
+"""The workspace: a model's preallocated data.  Its calls give the checked API's results bit for
+bit, allocate nothing per call, and its construction refuses what it cannot run, naming the argument."""
+
+import tracemalloc
+
+import numpy as np
+import pytest
+
+import stewart_env as se
+from stewart_env.dynamics.workspace import Workspace
+from physics_reference import random_state
+
+pytestmark = pytest.mark.physics
+
+
+def random_batch(params, rng, n):
+    states = [random_state(params, rng, speed=0.5) for _ in range(n)]
+    t, R, v, w = (np.stack(x) for x in zip(*states))
+    F = rng.normal(size=(n, 6)) * 300 + 180
+    W = np.concatenate([rng.normal(scale=50.0, size=(n, 3)), rng.normal(scale=5.0, size=(n, 3))], axis=1)
+    return t, R, v, w, F, W
+
+
+@pytest.mark.parametrize("name", ["improved", "improved_centroidal", "classical"])
+@pytest.mark.parametrize("n", [1, 3, 40])
+def test_workspace_calls_equal_the_checked_calls_bit_for_bit(dasgupta, rng, name, n):
+    model = se.make_dynamics(name, dasgupta)
+    t, R, v, w, F, W = random_batch(dasgupta, rng, n)
+    ws = model.workspace(n)
+    ws.set_state(t, R, v, w)
+    ws.leg_forces[:] = F
+    ws.external_wrench[:] = W
+    lin, ang = model.forward(t, R, v, w, F, W)
+    assert np.array_equal(ws.forward(), np.hstack([lin, ang]))
+    acc = rng.normal(size=(n, 6))
+    ws.acceleration[:] = acc
+    assert np.array_equal(ws.inverse(), model.inverse(t, R, v, w, acc[:, :3], acc[:, 3:], W))
+    M, h = model.mass_and_bias(t, R, v, w, W)
+    Mw, hw = ws.mass_and_bias()
+    assert np.array_equal(Mw, M) and np.array_equal(hw, h)
+    ws.leg_forces[:] = F
+    ws.step(1e-3, steps=3)
+    for got, want in zip((ws.position, ws.rotation, ws.velocity, ws.angular_velocity),
+                         se.rollout(model, t, R, v, w, F, dt=1e-3, steps=3, external_wrench=W)):
+        assert np.array_equal(got, want)
+
+
+def test_one_platform_workspace_equals_the_unbatched_call(dasgupta, rng):
+    model = se.make_dynamics("improved", dasgupta)
+    t, R, v, w = random_state(dasgupta, rng)
+    F = rng.normal(size=6) * 300
+    ws = model.workspace()
+    ws.position[0], ws.rotation[0], ws.velocity[0], ws.angular_velocity[0] = t, R, v, w
+    ws.leg_forces[0] = F
+    assert ws.n == 1 and ws.model is model
+    assert np.array_equal(ws.forward()[0], np.concatenate(model.forward(t, R, v, w, F)))
+
+
+def test_workspace_starts_at_home_at_rest(dasgupta):
+    ws = Workspace(se.make_dynamics("improved", dasgupta), 2)
+    assert np.array_equal(ws.position, np.stack([dasgupta.home_position] * 2))
+    assert np.array_equal(ws.rotation[1], se.rpy_to_matrix(dasgupta.home_rpy))
+    assert not ws.velocity.any() and not ws.leg_forces.any() and not ws.external_wrench.any()
+    ws.check()
+
+
+def test_workspace_calls_allocate_nothing(dasgupta):
+    ws = se.make_dynamics("improved", dasgupta).workspace(1)
+    calls = (ws.forward, ws.inverse, ws.mass_and_bias, lambda: ws.step(1e-3))
+    for call in calls:
+        call()  # compile and warm every path before measuring
+    tracemalloc.start()
+    try:
+        before = tracemalloc.take_snapshot()
+        for _ in range(1000):
+            for call in calls:
+                call()
+        after = tracemalloc.take_snapshot()
+    finally:
+        tracemalloc.stop()
+    grown = sum(s.size_diff for s in after.compare_to(before, "filename") if s.size_diff > 0)
+    # 4000 calls: any allocation kept per call would show as kilobytes; the snapshots themselves
+    # and the loop's frame objects account for a few hundred bytes
+    assert grown < 2000
+
+
+def test_workspace_arrays_are_preallocated_and_cannot_be_rebound(dasgupta):
+    ws = se.make_dynamics("improved", dasgupta).workspace(4)
+    for name, shape in [("position", (4, 3)), ("rotation", (4, 3, 3)), ("velocity", (4, 3)),
+                        ("angular_velocity", (4, 3)), ("leg_forces", (4, 6)), ("external_wrench", (4, 6)),
+                        ("acceleration", (4, 6)), ("mass_matrix", (4, 6, 6)), ("bias", (4, 6))]:
+        a = getattr(ws, name)
+        assert a.shape == shape and a.dtype == np.float64 and a.flags.c_contiguous
+        with pytest.raises(AttributeError):
+            setattr(ws, name, np.zeros(shape))
+    assert ws.forward() is ws.acceleration
+    assert ws.inverse() is ws.leg_forces
+
+
+@pytest.mark.parametrize("model, n, message", [
+    ("improved", 1, "model: expected a Dynamics"),
+    (None, 0, "n: expected a positive integer"),
+    (None, True, "n: expected a positive integer"),
+    (None, 2.0, "n: expected a positive integer"),
+])
+def test_workspace_construction_names_the_argument(dasgupta, model, n, message):
+    with pytest.raises(ValueError, match=message):
+        Workspace(se.make_dynamics("improved", dasgupta) if model is None else model, n)
+
+
+def test_workspace_batch_must_match_the_parameter_rows(dasgupta):
+    model = se.make_dynamics("improved", [dasgupta] * 3)
+    assert model.workspace(3).n == 3
+    with pytest.raises(ValueError, match=r"n: the model has 3 parameter rows, so the workspace needs n = 3, got 2"):
+        model.workspace(2)
+
+
+def test_set_state_and_check_apply_the_entry_points_checks(dasgupta):
+    ws = se.make_dynamics("improved", dasgupta).workspace(2)
+    t, R = dasgupta.home_position, np.eye(3)
+    with pytest.raises(ValueError, match="rotation: not a rotation matrix"):
+        ws.set_state(t, 2 * R, np.zeros(3), np.zeros(3))
+    with pytest.raises(ValueError, match="velocity: contains NaN or inf"):
+        ws.set_state(t, R, [0.0, np.nan, 0.0], np.zeros(3))
+    with pytest.raises(ValueError, match=r"batch sizes disagree"):
+        ws.set_state(np.zeros((3, 3)), R, np.zeros(3), np.zeros(3))
+    ws.set_state(t, R, np.zeros(3), np.zeros(3))
+    ws.check()
+    ws.leg_forces[1, 2] = np.inf
+    with pytest.raises(ValueError, match="leg_forces: contains NaN or inf"):
+        ws.check()
+    ws.leg_forces[1, 2] = 0.0
+    ws.rotation[0] *= 1.01
+    with pytest.raises(ValueError, match=r"rotation: not a rotation matrix in batch rows \[0\]"):
+        ws.check()
+
+
+@pytest.mark.parametrize("dt, steps, message", [(0.0, 1, "dt:"), (np.nan, 1, "dt:"), (np.inf, 1, "dt:"),
+                                                (1e-3, -1, "steps:"), (1e-3, 1.5, "steps:")])
+def test_step_refuses_a_bad_step(dasgupta, dt, steps, message):
+    ws = se.make_dynamics("improved", dasgupta).workspace()
+    with pytest.raises(ValueError, match=message):
+        ws.step(dt, steps)
