@@ -150,6 +150,7 @@ def to_mjcf(params: PlatformParams, timestep: float = 1e-3, solref: Sequence[flo
     width = 0.02 * float(np.mean(legs.lengths))
     if geometry:
         b = params.base_joints
+        out.append(f'    <light directional="true" pos="{_num(t0 + [0, 0, 3 * np.mean(legs.lengths)])}" dir="0 0 -1"/>')
         for i in range(6):
             out.append(f'    <geom type="capsule" size="{width:.4g}" fromto="{_num(b[i])} {_num(b[(i + 1) % 6])}"/>')
     for i in range(6):
