@@ -479,3 +479,52 @@ def trajectory_report(params: PlatformParams, seconds: float = 1.0, timestep: fl
     return {"energy_drift": drift, "kinetic_energy": kinetic, "closure_max": closure,
             "position_difference": float(np.linalg.norm(d.qpos[tw.q_free:tw.q_free + 3] - t_ref)),
             "seconds": seconds, "timestep": timestep}
+
+
+#: MuJoCo's own defaults for constraint softness, for comparison in :func:`accuracy_report`.
+MUJOCO_SOLREF = (0.02, 1.0)
+MUJOCO_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)
+
+
+def accuracy_report(params: PlatformParams) -> str:
+    """The twin's accuracy on ``params``, as markdown: :func:`acceleration_error` at three
+    softnesses, :func:`holding_drift`, :func:`trajectory_report` with the twin's and MuJoCo's
+    default softness, and :func:`spherical_friction_effect`.  ``python -m stewart_env.mujoco NAME``."""
+    loose = (0.99, 0.99) + DEFAULT_SOLIMP[2:]
+    lines = [f"MuJoCo twin of {params.name} (stewart_env.mujoco), against the improved model:", "",
+             "| loop softness (solref; solimp d) | platform acceleration error | closure, 1 s free motion "
+             "| energy drift / kinetic energy | position vs improved after 1 s |", "|---|---|---|---|---|"]
+    for label, solref, solimp in (("twin default", DEFAULT_SOLREF, DEFAULT_SOLIMP),
+                                  ("d = 0.99", DEFAULT_SOLREF, loose),
+                                  ("MuJoCo default", MUJOCO_SOLREF, MUJOCO_SOLIMP)):
+        acc = acceleration_error(params, solref, solimp)
+        r = trajectory_report(params, solref=solref, solimp=solimp)
+        lines.append(f"| {label} ({_num(solref)}; {solimp[0]:g}) | {acc:.2e} | {r['closure_max']:.2e} m "
+                     f"| {r['energy_drift']:.2e} J / {r['kinetic_energy']:.3g} J | {r['position_difference']:.2e} m |")
+    position, angle = holding_drift(params)
+    lines += ["", f"holding forces of `inverse`, 1 s: platform drifts {position:.2e} m and {angle:.2e} rad",
+              f"spherical-joint friction C_s (left out of the twin) changes the improved model's acceleration by "
+              f"{spherical_friction_effect(params):.2e} (m/s^2, rad/s^2) at the same state"]
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    import argparse
+
+    from stewart_env.params import load_platform
+
+    parser = argparse.ArgumentParser(prog="python -m stewart_env.mujoco", description=accuracy_report.__doc__.split("\n\n")[0])
+    parser.add_argument("platforms", nargs="*", default=["dasgupta1998", "motion_simulator"],
+                        help="platform config names or YAML paths (default: both shipped platforms)")
+    args = parser.parse_args(argv)
+    for i, name in enumerate(args.platforms):
+        try:
+            params = load_platform(name)
+        except (ValueError, OSError) as err:
+            parser.error(f"argument platforms: {err}")
+        print(("\n" if i else "") + accuracy_report(params))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

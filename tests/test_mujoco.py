@@ -137,3 +137,13 @@ def test_missing_mujoco_names_the_extra(dasgupta, monkeypatch):
     monkeypatch.setattr(twin, "_mj", None)
     with pytest.raises(ImportError, match=r'pip install -e "\.\[mujoco\]"'):
         twin.to_mjcf(dasgupta)
+
+
+def test_accuracy_report_command(capsys):
+    assert twin.main(["dasgupta1998"]) == 0
+    out = capsys.readouterr().out
+    assert "| twin default (0.002 1.0; 0.9999) | 5.0" in out  # the figure DEFAULT_SOLIMP's comment quotes
+    assert "| MuJoCo default (0.02 1.0; 0.9) |" in out and "holding forces" in out
+    with pytest.raises(SystemExit):
+        twin.main(["nowhere"])
+    assert "argument platforms: unknown platform 'nowhere'" in capsys.readouterr().err
