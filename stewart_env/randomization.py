@@ -36,7 +36,20 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from stewart_env.params import ConfigError, Damping, PlatformParams, RigidBody, _is_sequence, _key_names, _number, _short
+from stewart_env.dynamics import kernels as K
+from stewart_env.params import (
+    _MAX_MAGNITUDE,
+    _MIN_PLATFORM_INERTIA,
+    _MIN_PLATFORM_MASS,
+    ConfigError,
+    Damping,
+    PlatformParams,
+    RigidBody,
+    _is_sequence,
+    _key_names,
+    _number,
+    _short,
+)
 
 __all__ = ["KEYS", "Randomization"]
 
@@ -96,6 +109,7 @@ class Randomization:
         if unknown:
             raise ConfigError("randomization", f"unknown key(s) {_key_names(unknown)}; valid keys: {', '.join(KEYS)}")
         self.ranges: dict[str, tuple[float, float]] = {key: _range(spec[key], key) for key in KEYS if key in spec}
+        self._moment_cache: tuple[bytes, float] | None = None
 
     def __bool__(self) -> bool:
         return bool(self.ranges)
@@ -109,18 +123,11 @@ class Randomization:
 
     def apply(self, params: PlatformParams, factors: Mapping[str, float]) -> PlatformParams:
         """``params`` with every parameter multiplied by the product of its keys' factors."""
-
-        def factor(*keys: str) -> float:
-            f = 1.0
-            for k in keys:
-                f *= factors.get(k, 1.0)
-            return f
+        scale = dict(zip(_PART_NAMES, _multipliers(factors)))
 
         def body(b: RigidBody, name: str) -> RigidBody:
-            group = ("legs",) if name != "platform" else ()
-            keys = {q: [f"{name}.{q}", *(f"{g}.{q}" for g in group), q] for q in _QUANTITIES}
-            return RigidBody(mass=b.mass * factor(*keys["mass"]), com=b.com * factor(*keys["com"]),
-                             inertia=b.inertia * factor(*keys["inertia"]))
+            return RigidBody(mass=b.mass * scale[f"{name}.mass"], com=b.com * scale[f"{name}.com"],
+                             inertia=b.inertia * scale[f"{name}.inertia"])
 
         def legs(bodies: tuple[RigidBody, ...], name: str) -> tuple[RigidBody, ...]:
             # Legs that share one RigidBody keep sharing it (and it is validated once).
@@ -131,10 +138,94 @@ class Randomization:
             return tuple(scaled[id(b)] for b in bodies)
 
         d = params.damping
-        damping = Damping(**{n: getattr(d, n) * factor("damping", f"damping.{n}") for n in _DAMPING})
+        damping = Damping(**{n: getattr(d, n) * scale[f"damping.{n}"] for n in _DAMPING})
         return params.replace(
             platform=body(params.platform, "platform"),
             upper_leg=legs(params.upper_leg, "upper_leg"),
             lower_leg=legs(params.lower_leg, "lower_leg"),
             damping=damping,
         )
+
+    def check_factors(self, factors: Mapping[str, float]) -> None:
+        """Raise ConfigError naming the key unless ``factors`` holds only keys of this spec, each a
+        number within its range (what :meth:`sample` draws)."""
+        if not isinstance(factors, Mapping):
+            raise ConfigError("factors", f"expected a dict of key -> factor, got {_short(factors)}")
+        for key, f in factors.items():
+            if key not in self.ranges:
+                raise ConfigError("factors", f"key {key!r} is not in the randomisation spec ({', '.join(self.ranges)})")
+            low, high = self.ranges[key]
+            if isinstance(f, bool) or not (isinstance(f, (float, int, np.floating, np.integer)) and low <= f <= high):
+                raise ConfigError(f"factors[{key!r}]", f"expected a number within [{low}, {high}], got {_short(f)}")
+
+    def scale_packed(self, nominal_row: np.ndarray, factors: Mapping[str, float], out_row: np.ndarray) -> None:
+        """Write into ``out_row`` (N_PARAMS,) the packed parameters of ``apply(params, factors)``,
+        given ``nominal_row = pack_params(params)``, without building PlatformParams: the reset of
+        a randomised row.  Equal bit for bit to ``pack_params(self.apply(params, factors))``.
+
+        The factors are checked against the spec (:meth:`check_factors`).  Scaling a valid
+        platform by factors in range changes only what the checks of PlatformParams on masses
+        and inertias see, so only those run again, on the scaled numbers: the platform's mass
+        and smallest principal moment (the nominal's times the inertia factor), and every
+        number's magnitude.  Raises ConfigError
+        naming the parameter, as :meth:`apply` would.  The caller promises ``nominal_row`` is
+        the packed row of a valid PlatformParams (e.g. a model's ``packed[0]``).
+        """
+        self.check_factors(factors)
+        multipliers = _multipliers(factors)
+        np.multiply(nominal_row, np.array([1.0, *multipliers])[_PART_OF], out=out_row)
+        mass = out_row[K.OFF_MP]
+        if not mass >= _MIN_PLATFORM_MASS:
+            raise ConfigError("platform.mass", f"must be >= {_MIN_PLATFORM_MASS:g} kg, got {mass}")
+        if np.abs(out_row).max() > _MAX_MAGNITUDE:  # only scaled entries can grow
+            key = next(name for name, part, _ in _PARTS if np.abs(out_row[part]).max() > _MAX_MAGNITUDE)
+            raise ConfigError(key, f"a randomised value exceeds {_MAX_MAGNITUDE:g} in magnitude")
+        # a positive factor scales every principal moment alike
+        smallest = multipliers[_PART_NAMES.index("platform.inertia")] * self._smallest_moment(nominal_row)
+        if smallest < _MIN_PLATFORM_INERTIA:
+            raise ConfigError("platform.inertia", f"smallest principal moment {smallest:.3g} is "
+                                                  f"below {_MIN_PLATFORM_INERTIA:g} kg m^2")
+
+    def _smallest_moment(self, nominal_row: np.ndarray) -> float:
+        """The smallest principal moment of the platform inertia in ``nominal_row``, kept for the
+        last nominal seen: a randomised batch scales one nominal row again and again."""
+        inertia = nominal_row[K.PACKED_SLICES["platform.inertia"]]
+        key = inertia.tobytes()
+        if self._moment_cache is None or self._moment_cache[0] != key:
+            self._moment_cache = (key, float(np.linalg.eigvalsh(inertia.reshape(3, 3))[0]))
+        return self._moment_cache[1]
+
+
+def _parts() -> tuple[tuple[str, slice, tuple[str, ...]], ...]:
+    """The randomised parts of the packed row (``kernels.PACKED_LAYOUT``): (parameter name, its
+    slice of the row, the keys whose factors multiply it, in the order they are multiplied)."""
+    parts = []
+    for name in _BODIES:
+        group = ("legs",) if name != "platform" else ()
+        for q in _QUANTITIES:
+            parts.append((f"{name}.{q}", K.PACKED_SLICES[f"{name}.{q}"], (f"{name}.{q}", *(f"{g}.{q}" for g in group), q)))
+    for j, coefficient in enumerate(_DAMPING):
+        start = K.OFF_DAMP + j
+        parts.append((f"damping.{coefficient}", slice(start, start + 1), ("damping", f"damping.{coefficient}")))
+    return tuple(parts)
+
+
+_PARTS = _parts()
+_PART_NAMES = [name for name, _, _ in _PARTS]
+# For each number of the packed row, 1 + the index of its part in _PARTS, or 0 if not randomised.
+_PART_OF = np.zeros(K.N_PARAMS, dtype=np.intp)
+for _k, (_, _part, _) in enumerate(_PARTS):
+    _PART_OF[_part] = _k + 1
+
+
+def _multipliers(factors: Mapping[str, float]) -> list[float]:
+    """The multiplier of each part of ``_PARTS``: the product of the factors of every key that
+    covers it, multiplied in one order (body key, leg group, quantity), so that
+    :meth:`Randomization.apply` and :meth:`Randomization.scale_packed` give the same numbers."""
+    out = []
+    for _, _, keys in _PARTS:
+        f = 1.0
+        for k in keys:
+            f *= factors.get(k, 1.0)
+        out.append(f)
+    return out

@@ -147,3 +147,14 @@ def test_readme_switch_table_is_the_code_table():
     rows = re.findall(r"^\| `(c\d)` \| (.+?) \|$", (ROOT / "README.md").read_text(), flags=re.M)
     assert dict(rows) == SIMPLIFICATIONS
     assert len(rows) == len(SIMPLIFICATIONS)  # no switch listed twice
+
+
+def test_the_parameter_table_and_the_packed_layout_name_the_same_keys():
+    from stewart_env.dynamics.kernels import PACKED_LAYOUT
+
+    table = first_column_names(section(PHYSICS.read_text(), "## 2. Parameters"))
+    packed = [key for key, _ in PACKED_LAYOUT]
+    # the table splits damping into its three coefficients; limits and home are the environment's
+    assert [k for k in packed if k not in table and not any(t.startswith(k + ".") for t in table)] == []
+    assert [t for t in table if t not in packed and t.partition(".")[0] not in packed
+            and t not in ("limits", "home")] == []

@@ -420,3 +420,97 @@ def test_dataclasses_validate_on_direct_construction():
         params.replace(upper_leg=params.upper_leg[:5])
     with pytest.raises(ConfigError, match=r"^damping: expected a Damping"):
         params.replace(damping={"universal": 0.0, "prismatic": 0.0, "spherical": 0.0})
+
+
+# ----------------------------------------------------------------------------------------------
+# Domain randomisation on packed rows: the same numbers as building and packing PlatformParams.
+
+
+def _every_key_spec():
+    from stewart_env.randomization import KEYS
+
+    # every key, so that up to three factors multiply one parameter; negative CoM factors mirror
+    return {k: ((-2.0, 2.0) if k.endswith("com") else (0.5, 2.0)) for k in KEYS}
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_scale_packed_equals_packing_the_randomised_params_bit_for_bit(name):
+    from stewart_env.dynamics.model import pack_params
+    from stewart_env.randomization import Randomization
+
+    params = load_platform(name)
+    nominal = pack_params(params)
+    r = Randomization(_every_key_spec())
+    rng = np.random.default_rng(7)
+    out = np.empty_like(nominal)
+    for _ in range(100):
+        factors = r.sample(rng)
+        r.scale_packed(nominal, factors, out)
+        assert np.array_equal(out, pack_params(r.apply(params, factors)))
+
+
+def test_scale_packed_checks_the_factors_against_the_spec():
+    from stewart_env.dynamics.model import pack_params
+    from stewart_env.randomization import Randomization
+
+    r = Randomization({"mass": (0.5, 2.0), "com": (-1.0, 1.0)})
+    nominal = pack_params(load_platform("dasgupta1998"))
+    out = np.empty_like(nominal)
+    for factors, message in [({"mass": 2.5}, r"factors\['mass'\]: expected a number within \[0.5, 2.0\]"),
+                             ({"mass": float("nan")}, r"factors\['mass'\]"),
+                             ({"com": True}, r"factors\['com'\]"),
+                             ({"inertia": 1.0}, "factors: key 'inertia' is not in the randomisation spec"),
+                             ([1.0], "factors: expected a dict")]:
+        with pytest.raises(ConfigError, match=message):
+            r.scale_packed(nominal, factors, out)
+
+
+def test_scale_packed_refuses_what_apply_refuses(config):
+    from stewart_env.dynamics.model import pack_params
+    from stewart_env.randomization import Randomization
+
+    config["platform"]["mass"] = 5e-4
+    params = PlatformParams.from_dict(config)
+    r = Randomization({"platform.mass": (1e-3, 1e-3), "inertia": (1e-3, 1e-3)})
+    factors = r.sample(np.random.default_rng(0))
+    # 5e-4 kg scaled by 1e-3 is below the platform's smallest mass, 1e-6 kg
+    with pytest.raises(ConfigError, match="platform.mass"):
+        r.apply(params, factors)
+    with pytest.raises(ConfigError, match="platform.mass"):
+        r.scale_packed(pack_params(params), factors, np.empty(pack_params(params).shape))
+
+
+def test_rows_set_from_packed_numbers_build_their_params_only_when_read():
+    import stewart_env as se
+    from stewart_env.randomization import Randomization
+
+    params = load_platform("dasgupta1998")
+    model = se.make_dynamics("improved", [params] * 3)
+    r = Randomization(_every_key_spec())
+    factors = r.sample(np.random.default_rng(3))
+    row = np.empty((1, model.packed.shape[1]))
+    r.scale_packed(model.packed[0], factors, row[0])
+    built = []
+
+    def source():
+        built.append(1)
+        return r.apply(params, factors)
+
+    new = model.with_packed_rows([1], row, [source])
+    assert np.array_equal(new.packed[1], row[0]) and np.array_equal(new.packed[0], model.packed[0])
+    assert len(new.params) == 3 and not built  # len and the packed numbers need no PlatformParams
+    assert new.params_of(1) == r.apply(params, factors) and new.params[1] is new.params_of(1)
+    assert len(built) == 1  # built once, then kept
+    reference = se.make_dynamics("improved", [params, r.apply(params, factors), params])
+    t, R = params.home_position, np.eye(3)
+    F = np.full((3, 6), 200.0)
+    assert np.array_equal(new.forward(t, R, np.zeros(3), np.zeros(3), F)[0],
+                          reference.forward(t, R, np.zeros(3), np.zeros(3), F)[0])
+    with pytest.raises(ValueError, match=r"packed_rows: expected shape \(1, 229\)"):
+        model.with_packed_rows([1], row[0], [source])
+    with pytest.raises(ValueError, match="rows: 5 is outside the batch of 3"):
+        model.with_packed_rows([5], row, [source])
+    with pytest.raises(ValueError, match="packed_rows: contains NaN or inf"):
+        model.with_packed_rows([0], np.full_like(row, np.nan), [source])
+    with pytest.raises(ValueError, match="sources: expected PlatformParams or a function"):
+        model.with_packed_rows([0], row, [3.0])

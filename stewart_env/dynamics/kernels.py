@@ -61,8 +61,8 @@ a few per cent more but more than doubles the first compilation, so it stays a f
 Packed parameters
 -----------------
 Kernels take ``prm`` of shape (Np, N_PARAMS), one row per platform (Np == 1 broadcasts over the
-batch).  The layout is given by the ``OFF_*`` offsets below (docs/physics.md section 2) and
-written by :func:`stewart_env.dynamics.model.pack_params`.
+batch).  ``PACKED_LAYOUT`` below lists the entries (docs/physics.md section 2); the ``OFF_*``
+offsets and :func:`stewart_env.dynamics.model.pack_params` follow from it.
 """
 
 import os
@@ -83,21 +83,53 @@ C3 = 4
 C4 = 8
 CENTROIDAL = 16
 
-OFF_B = 0  # (6,3) base joints b_i, {B}
-OFF_P = 18  # (6,3) platform joints p_i, {P}
-OFF_K = 36  # (6,3) unit Hooke axes k_i, {B}
-OFF_MP = 54  # platform mass m_p
-OFF_RHO = 55  # (3,) platform CoM R0, {P}
-OFF_IP = 58  # (3,3) platform inertia about CoM, {P}
-OFF_MU = 67  # (6,) upper leg masses
-OFF_RU = 73  # (6,3) upper leg CoM r_u0 from P_i, {D_i}
-OFF_IU = 91  # (6,3,3) upper leg inertia about CoM, {D_i}
-OFF_MD = 145  # (6,) lower leg masses
-OFF_RD = 151  # (6,3) lower leg CoM r_d0 from B_i, {D_i}
-OFF_ID = 169  # (6,3,3) lower leg inertia about CoM, {D_i}
-OFF_DAMP = 223  # Cu, Cp, Cs
-OFF_G = 226  # (3,) gravity, {B}
-N_PARAMS = 229
+#: The packed parameter row, in order: (config key, shape).  The one source of the layout: the
+#: offsets below, ``model.pack_params`` and ``Randomization.scale_packed`` follow it, and
+#: docs/physics.md section 2 lists each key.  Leg entries hold six legs; frames as in section 2.
+PACKED_LAYOUT = (
+    ("base_joints", (6, 3)),  # b_i, {B}
+    ("platform_joints", (6, 3)),  # p_i, {P}
+    ("hooke_axes", (6, 3)),  # unit k_i, {B}
+    ("platform.mass", ()),  # m_p
+    ("platform.com", (3,)),  # R_0, {P}
+    ("platform.inertia", (3, 3)),  # about the CoM, {P}
+    ("upper_leg.mass", (6,)),  # m_u
+    ("upper_leg.com", (6, 3)),  # r_u0 from P_i, {D_i}
+    ("upper_leg.inertia", (6, 3, 3)),  # about the CoM, {D_i}
+    ("lower_leg.mass", (6,)),  # m_d
+    ("lower_leg.com", (6, 3)),  # r_d0 from B_i, {D_i}
+    ("lower_leg.inertia", (6, 3, 3)),  # about the CoM, {D_i}
+    ("damping", (3,)),  # C_u, C_p, C_s
+    ("gravity", (3,)),  # g, {B}
+)
+
+
+def _offsets(layout):
+    """{key: slice} of each entry of a packed layout, and the row's length (plain Python, run
+    once at import).  docs/physics.md section 2."""
+    slices, start = {}, 0
+    for key, shape in layout:
+        size = int(np.prod(shape, dtype=np.int64))
+        slices[key] = slice(start, start + size)
+        start += size
+    return slices, start
+
+
+PACKED_SLICES, N_PARAMS = _offsets(PACKED_LAYOUT)
+OFF_B = PACKED_SLICES["base_joints"].start
+OFF_P = PACKED_SLICES["platform_joints"].start
+OFF_K = PACKED_SLICES["hooke_axes"].start
+OFF_MP = PACKED_SLICES["platform.mass"].start
+OFF_RHO = PACKED_SLICES["platform.com"].start
+OFF_IP = PACKED_SLICES["platform.inertia"].start
+OFF_MU = PACKED_SLICES["upper_leg.mass"].start
+OFF_RU = PACKED_SLICES["upper_leg.com"].start
+OFF_IU = PACKED_SLICES["upper_leg.inertia"].start
+OFF_MD = PACKED_SLICES["lower_leg.mass"].start
+OFF_RD = PACKED_SLICES["lower_leg.com"].start
+OFF_ID = PACKED_SLICES["lower_leg.inertia"].start
+OFF_DAMP = PACKED_SLICES["damping"].start
+OFF_G = PACKED_SLICES["gravity"].start
 
 # Floating-point licence of every kernel: fused multiply-adds and x / y as x * (1 / y), which
 # change results by rounding only (1e-15 relative).  Nothing that assumes finite values (nnan,

@@ -64,29 +64,27 @@ def parse_model_name(name: str) -> tuple[str, int]:
     return canonical, flags
 
 
+def _packed_value(params: PlatformParams, key: str):
+    """The numbers of one entry of the packed layout (a config key such as ``"upper_leg.com"``)."""
+    head, _, field = key.partition(".")
+    value = getattr(params, head)
+    if head == "damping":
+        return value.universal, value.prismatic, value.spherical
+    if not field:
+        return value
+    if isinstance(value, tuple):  # six legs
+        return [getattr(body, field) for body in value]
+    return getattr(value, field)
+
+
 def pack_params(params: PlatformParams) -> np.ndarray:
-    """Kernel parameter row (N_PARAMS,) of a platform, in the layout of the kernels' ``OFF_*``.
+    """Kernel parameter row (N_PARAMS,) of a platform, in the order of ``kernels.PACKED_LAYOUT``.
 
     docs/physics.md section 2 lists the parameters, their symbols and frames.
     """
-    row = np.zeros(K.N_PARAMS)
-    row[K.OFF_B:K.OFF_B + 18] = params.base_joints.ravel()
-    row[K.OFF_P:K.OFF_P + 18] = params.platform_joints.ravel()
-    row[K.OFF_K:K.OFF_K + 18] = params.hooke_axes.ravel()
-    row[K.OFF_MP] = params.platform.mass
-    row[K.OFF_RHO:K.OFF_RHO + 3] = params.platform.com
-    row[K.OFF_IP:K.OFF_IP + 9] = params.platform.inertia.ravel()
-    for i in range(6):
-        up, lo = params.upper_leg[i], params.lower_leg[i]
-        row[K.OFF_MU + i] = up.mass
-        row[K.OFF_RU + 3 * i:K.OFF_RU + 3 * i + 3] = up.com
-        row[K.OFF_IU + 9 * i:K.OFF_IU + 9 * i + 9] = up.inertia.ravel()
-        row[K.OFF_MD + i] = lo.mass
-        row[K.OFF_RD + 3 * i:K.OFF_RD + 3 * i + 3] = lo.com
-        row[K.OFF_ID + 9 * i:K.OFF_ID + 9 * i + 9] = lo.inertia.ravel()
-    d = params.damping
-    row[K.OFF_DAMP:K.OFF_DAMP + 3] = (d.universal, d.prismatic, d.spherical)
-    row[K.OFF_G:K.OFF_G + 3] = params.gravity
+    row = np.empty(K.N_PARAMS)
+    for key, _ in K.PACKED_LAYOUT:
+        row[K.PACKED_SLICES[key]] = np.ravel(_packed_value(params, key))
     return row
 
 
