@@ -209,7 +209,8 @@ class Dynamics:
         if not plist or not all(isinstance(p, PlatformParams) for p in plist):
             raise ValueError("params: expected a PlatformParams or a non-empty sequence of them")
         self.params = ParamsRows(plist)
-        self.packed = np.stack([pack_params(p) for p in plist])
+        rows = {id(p): pack_params(p) for p in plist}  # a platform repeated over a batch is packed once
+        self.packed = np.stack([rows[id(p)] for p in plist])
         self.packed.setflags(write=False)
 
     def __repr__(self) -> str:
