@@ -30,6 +30,7 @@ C_s**.  :func:`spherical_friction_effect` measures what that leaves out.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 
 import numpy as np
@@ -269,18 +270,6 @@ class _Twin:
         qvel[self.v_free + 3:self.v_free + 6] = R.T @ w  # MuJoCo's free joint: angular velocity in the body frame
         mj.mj_forward(self.model, data)
 
-    def get_state(self, data, t, R, v, w) -> None:
-        """The platform state of ``data`` written into t (3,), R (3,3), v (3,), w (3,), {B}."""
-        mj = _require_mujoco()
-        q = data.qpos[self.q_free:self.q_free + 7]
-        t[:] = q[:3]
-        quat = q[3:] / np.linalg.norm(q[3:])
-        mat = np.empty(9)
-        mj.mju_quat2Mat(mat, quat)
-        R[:] = mat.reshape(3, 3)
-        v[:] = data.qvel[self.v_free:self.v_free + 3]
-        w[:] = R @ data.qvel[self.v_free + 3:self.v_free + 6]
-
     def closure_gap(self, data) -> float:
         """Largest distance |tip_i - joint_i| (m) over the six loops, at data's current qpos."""
         mj = _require_mujoco()
@@ -295,12 +284,17 @@ class _Twin:
         return acc[:3].copy(), R @ acc[3:]
 
     def set_wrench(self, data, t, R, leg_forces, wrench) -> None:
-        """Leg forces as controls; the external wrench [force at P; moment] as MuJoCo's applied
-        force at the platform's CoM (moment shifted from P to the CoM)."""
+        """Leg forces as controls; the external wrench as MuJoCo's applied force (:func:`_wrench_at_com`)."""
         data.ctrl[:] = leg_forces
-        com = t + R @ self.params.platform.com
-        data.xfrc_applied[self.body, :3] = wrench[:3]
-        data.xfrc_applied[self.body, 3:] = wrench[3:] + np.cross(t - com, wrench[:3])
+        data.xfrc_applied[self.body] = _wrench_at_com(R[None], self.params.platform.com[None], wrench[None])[0]
+
+
+def _wrench_at_com(R: np.ndarray, com: np.ndarray, wrench: np.ndarray) -> np.ndarray:
+    """The external wrench [force at P; moment] (N,6), {B}, as the equivalent [force; moment] at
+    the platform's CoM (MuJoCo's ``xfrc_applied``): the moment gains (P - CoM) x force.
+    R (N,3,3); com (N,3), the CoM in {P}."""
+    arm = -np.einsum("nij,nj->ni", R, com)  # P - CoM in {B}
+    return np.concatenate([wrench[:, :3], wrench[:, 3:] + np.cross(arm, wrench[:, :3])], axis=1)
 
 
 class MujocoPlant:
@@ -309,14 +303,19 @@ class MujocoPlant:
     params_rows: one PlatformParams for every row, or a sequence of N (e.g. domain-randomised);
     rows with equal parameters share one compiled model.  timestep, solref, solimp: as in
     :func:`to_mjcf`; :meth:`step_inplace` sets MuJoCo's step to its ``dt`` (RK4 throughout).
+    nthread: threads of ``mujoco.rollout``, which steps the rows (default: every core when N > 1,
+    else the calling thread).
 
     ``closure_error`` (N,), m: the largest loop-closure gap |tip_i - joint_i| of each row after
     the last :meth:`step_inplace` (NaN for a row that is not finite).
     """
 
     def __init__(self, params_rows: PlatformParams | Sequence[PlatformParams], timestep: float = 1e-3,
-                 solref: Sequence[float] = DEFAULT_SOLREF, solimp: Sequence[float] = DEFAULT_SOLIMP):
+                 solref: Sequence[float] = DEFAULT_SOLREF, solimp: Sequence[float] = DEFAULT_SOLIMP,
+                 nthread: int | None = None):
         mj = _require_mujoco()
+        from mujoco import rollout as mj_rollout
+
         rows = [params_rows] if isinstance(params_rows, PlatformParams) else list(params_rows)
         if not rows or not all(isinstance(p, PlatformParams) for p in rows):
             raise ValueError("params_rows: expected a PlatformParams or a non-empty sequence of them")
@@ -324,18 +323,34 @@ class MujocoPlant:
         for p in rows:
             if p not in twins:
                 twins[p] = _Twin(p, timestep, solref, solimp)
+        n = len(rows)
         self.params = tuple(rows)
         self.twins = [twins[p] for p in rows]
-        self.data = [mj.MjData(tw.model) for tw in self.twins]
-        n = len(rows)
+        self.models = [tw.model for tw in self.twins]
+        # one scratch MjData per distinct model: setting a row's state and measuring its loops
+        self._scratch = {id(tw): mj.MjData(tw.model) for tw in twins.values()}
+        if nthread is None:
+            nthread = (os.cpu_count() or 1) if n > 1 else 0
+        self._pool = mj_rollout.Rollout(nthread=nthread)
+        self._datas = [mj.MjData(self.models[0]) for _ in range(max(1, nthread))]
+        first = self.twins[0]
+        m = first.model
+        self._spec = mj.mjtState.mjSTATE_FULLPHYSICS
+        self._control_spec = mj.mjtState.mjSTATE_CTRL | mj.mjtState.mjSTATE_XFRC_APPLIED
+        self._states = np.zeros((n, mj.mj_stateSize(m, self._spec)))
+        self._control = np.zeros((n, 1, mj.mj_stateSize(m, self._control_spec)))
+        # offsets in MuJoCo's state vector (time, qpos, qvel, ...) and control vector (ctrl, xfrc_applied)
+        self._q = 1 + first.q_free
+        self._v = 1 + m.nq + first.v_free
+        self._xfrc = m.nu + 6 * first.body
+        self._com = np.array([p.platform.com for p in rows])
         self.closure_error = np.full(n, np.nan)
         # The state each row returned last: a row given anything else was reset or set by the caller.
         self._last = (np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan), np.full((n, 3), np.nan),
                       np.full((n, 3), np.nan))
-        self._bad = (mj.mjtWarning.mjWARN_BADQPOS, mj.mjtWarning.mjWARN_BADQVEL, mj.mjtWarning.mjWARN_BADQACC)
 
     def __len__(self) -> int:
-        return len(self.data)
+        return len(self.twins)
 
     def step_inplace(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench,
                      dt: float, steps: int) -> None:
@@ -347,31 +362,65 @@ class MujocoPlant:
         last starts afresh from that state (legs by inverse kinematics, loops closed); a row
         that is not finite, or that MuJoCo finds diverging, comes back NaN and stays so."""
         mj = _require_mujoco()
-        lt, lR, lv, lw = self._last
-        for i, (tw, d) in enumerate(zip(self.twins, self.data)):
-            t, R, v, w = position[i], rotation[i], velocity[i], angular_velocity[i]
-            if not (np.isfinite(t).all() and np.isfinite(R).all() and np.isfinite(v).all() and np.isfinite(w).all()):
-                self._fail(i, position, rotation, velocity, angular_velocity)
-                continue
-            if not (np.array_equal(t, lt[i]) and np.array_equal(R, lR[i]) and np.array_equal(v, lv[i])
-                    and np.array_equal(w, lw[i])):
-                tw.set_state(d, t, R, v, w)
-            tw.model.opt.timestep = dt
-            tw.set_wrench(d, t, R, leg_forces[i], external_wrench[i])
-            before = [d.warning[k].number for k in self._bad]
-            mj.mj_step(tw.model, d, nstep=int(steps))
-            if [d.warning[k].number for k in self._bad] != before or not np.isfinite(d.qpos).all():
-                # MuJoCo resets a diverging simulation to its home pose; the plant reports the divergence.
-                self._fail(i, position, rotation, velocity, angular_velocity)
-                continue
-            tw.get_state(d, t, R, v, w)
-            self.closure_error[i] = tw.closure_gap(d)
-            lt[i], lR[i], lv[i], lw[i] = t, R, v, w
+        state = (position, rotation, velocity, angular_velocity)
+        alive = (np.isfinite(position).all(1) & np.isfinite(rotation).all((1, 2)) & np.isfinite(velocity).all(1)
+                 & np.isfinite(angular_velocity).all(1))
+        changed = alive & ~np.all([np.equal(x, y).reshape(len(x), -1).all(1) for x, y in zip(state, self._last)], axis=0)
+        for i in np.flatnonzero(changed):
+            tw = self.twins[i]
+            scratch = self._scratch[id(tw)]
+            tw.set_state(scratch, position[i], rotation[i], velocity[i], angular_velocity[i])
+            mj.mj_getState(tw.model, scratch, self._states[i], self._spec)
+        for m in self.models:
+            m.opt.timestep = dt
+        # leg forces as controls, the wrench as MuJoCo's applied force on the platform
+        control = self._control[:, 0]
+        control[:, :6] = leg_forces
+        control[:, self._xfrc:self._xfrc + 6] = _wrench_at_com(rotation, self._com, external_wrench)
+        rows = np.flatnonzero(alive)
+        if rows.size:
+            every = rows.size == len(self.twins)
+            models = self.models if every else [self.models[i] for i in rows]
+            initial = self._states if every else self._states[rows]
+            out = np.empty((rows.size, int(steps), self._states.shape[1]))
+            if steps > 0:
+                self._pool.rollout(models, self._datas, initial, self._control if every else self._control[rows],
+                                   control_spec=self._control_spec, state=out)
+                end = initial[:, 0] + steps * dt
+                self._states[rows] = out[:, -1]
+                # MuJoCo resets a diverging simulation to its home pose and time 0: the clock tells
+                alive[rows[np.abs(out[:, -1, 0] - end) > 0.5 * dt]] = False
+        self._write(alive, state)
 
-    def _fail(self, i, position, rotation, velocity, angular_velocity) -> None:
-        for a in (position, rotation, velocity, angular_velocity, *self._last):
-            a[i] = np.nan
-        self.closure_error[i] = np.nan
+    def _write(self, alive, state) -> None:
+        """The platform state of every live row from MuJoCo's state vectors; NaN for the others."""
+        mj = _require_mujoco()
+        position, rotation, velocity, angular_velocity = state
+        s = self._states
+        quat = s[:, self._q + 3:self._q + 7]
+        quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+        w, x, y, z = quat.T
+        R = np.stack([
+            1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+            2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+            2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+        ], axis=1).reshape(-1, 3, 3)
+        for i in np.flatnonzero(alive):
+            position[i] = s[i, self._q:self._q + 3]
+            rotation[i] = R[i]
+            velocity[i] = s[i, self._v:self._v + 3]
+            # MuJoCo's free joint carries the angular velocity in the body frame
+            angular_velocity[i] = R[i] @ s[i, self._v + 3:self._v + 6]
+            tw = self.twins[i]
+            scratch = self._scratch[id(tw)]
+            mj.mj_setState(tw.model, scratch, s[i], self._spec)
+            self.closure_error[i] = tw.closure_gap(scratch)
+        dead = ~alive
+        for a in (*state, *self._last):
+            a[dead] = np.nan
+        self.closure_error[dead] = np.nan
+        for a, b in zip(self._last, state):
+            a[alive] = b[alive]
 
 
 def _test_state(params: PlatformParams, seed: int):

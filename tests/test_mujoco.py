@@ -147,3 +147,20 @@ def test_accuracy_report_command(capsys):
     with pytest.raises(SystemExit):
         twin.main(["nowhere"])
     assert "argument platforms: unknown platform 'nowhere'" in capsys.readouterr().err
+
+
+def test_plant_reports_a_diverging_row_as_nan_and_serves_mixed_parameters(dasgupta):
+    heavy = dasgupta.replace(platform=type(dasgupta.platform)(60.0, dasgupta.platform.com, dasgupta.platform.inertia))
+    n = 2
+    t, R, v, w, F = _batch(dasgupta, n)
+    W = np.zeros((n, 6))
+    W[0, 0] = 1e20  # MuJoCo resets a simulation whose accelerations blow up; the plant must not hide it
+    state = [x.copy() for x in (t, R, v, w)]
+    plant = twin.MujocoPlant([dasgupta, heavy])
+    plant.step_inplace(*state, F, W, 1e-3, 10)
+    assert np.isnan(state[0][0]).all() and np.isnan(plant.closure_error[0])
+    # row 1: 50 % heavier than the forces hold, it sinks like the improved model of its own parameters
+    exact = [x[1:].copy() for x in (t, R, v, w)]
+    rollout_inplace(se.make_dynamics("improved", heavy), *exact, F[1:], W[1:], 1e-3, 10)
+    assert exact[0][0, 2] < t[1, 2] - 1e-5  # it moved
+    np.testing.assert_allclose(state[0][1], exact[0][0], atol=1e-7)  # measured 1e-9 m over 10 ms
