@@ -18,7 +18,10 @@ closed-form models assume.  MuJoCo simulates trees, so the six loops are closed 
 joints P_i by ``connect`` equality constraints (a ball joint outside the tree) between a site at
 the upper leg's tip and a site at p_i on the platform.  Those constraints are soft: MuJoCo
 lets them give by an amount set by ``solref``/``solimp`` (see :data:`DEFAULT_SOLIMP`), which is
-the one approximation of the twin besides the spherical-joint friction below.
+the one approximation of the twin besides the spherical-joint friction below.  The legs' stroke
+and the force limits of the config are not joint limits here: the actuators clamp their force to
+the config's range, and the stroke is left to the environment's termination, as for the
+closed-form models.
 
 Joint friction (docs/physics.md section 1, "Signs of forces").  The universal joint's torque
 -C_u omega_l is the two hinges' viscous damping C_u each (the hinge axes k_i and y_i are
@@ -48,8 +51,11 @@ except ImportError:  # the optional extra is missing
 __all__ = [
     "DEFAULT_SOLIMP",
     "DEFAULT_SOLREF",
+    "MUJOCO_SOLIMP",
+    "MUJOCO_SOLREF",
     "MujocoPlant",
     "acceleration_error",
+    "accuracy_report",
     "holding_drift",
     "spherical_friction_effect",
     "to_mjcf",
@@ -66,9 +72,10 @@ DEFAULT_SOLREF = (0.002, 1.0)
 #: Impedance of the loop-closure constraints (MuJoCo's d_min, d_max, width, midpoint, power).  The
 #: constraint force reaches the fraction d of the force that would hold the loop rigidly, so the
 #: platform's accelerations differ from the rigid mechanism's by about (1 - d) / d relative:
-#: d = 0.9999, the largest MuJoCo allows, left 5.1e-4 m/s^2 at 1 g on dasgupta1998
-#: (:func:`acceleration_error`; 5.1e-2 at d = 0.99 and 0.53 at MuJoCo's default 0.9), so the
-#: error scales with 1 - d and stays below g (1 - d) / d (tests/test_mujoco.py).
+#: d = 0.9999, the largest MuJoCo allows, left an error of 5.1e-4 (m/s^2, rad/s^2) on
+#: dasgupta1998 (:func:`acceleration_error`, the platform accelerating at about 0.1 g; 5.1e-2 at
+#: d = 0.99 and 0.53 at MuJoCo's default 0.9): the error scales with 1 - d and stays below
+#: g (1 - d) / d on both shipped platforms (tests/test_mujoco.py).
 DEFAULT_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 
 _INSTALL_HINT = 'the MuJoCo twin needs the optional extra: pip install -e ".[mujoco]"'
