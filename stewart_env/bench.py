@@ -174,7 +174,7 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 5, calls: int = 200
     datas = [mujoco.MjData(m) for _ in range(nthread)]
     with mujoco_rollout.Rollout(nthread=nthread) as pool:
         out["batch_mujoco"] = _per_call(lambda: pool.rollout(m, datas, initial, control, state=states),
-                                        1, max(1, repeats // 2)) / n_batch
+                                        1, repeats) / n_batch
     bar.update()
     rng = np.random.default_rng(0)
     bt, bR, bv, bw, bF = _batch_state(model, n_batch, rng)
