@@ -47,6 +47,10 @@ from matplotlib.figure import Figure
 import stewart_env as se
 from stewart_env.progress import progress as progress_bar
 from stewart_env.registration import ENV_ID
+
+#: The environment id with its module: ``gymnasium.make`` imports stewart_env first, so the id is
+#: known in a fresh process too (a Ray worker, a subprocess) without importing stewart_env by hand.
+QUALIFIED_ENV_ID = f"stewart_env:{ENV_ID}"
 from stewart_env.rotations import rotation_error
 
 #: Default tolerances of settling and success: 2 mm and 0.01 rad (0.57 deg).
@@ -200,7 +204,7 @@ def _make_policy(policy, env_kwargs: dict):
     if hasattr(policy, "predict") and not isinstance(policy, type):
         return policy
     if callable(policy):
-        made = policy(gym.make(ENV_ID, **env_kwargs))
+        made = policy(gym.make(QUALIFIED_ENV_ID, **env_kwargs))
         if not hasattr(made, "predict"):
             raise ValueError(f"policy: the factory returned {type(made).__name__}, which has no predict method")
         return made
@@ -239,7 +243,7 @@ def evaluate(policy, env_kwargs: Mapping | None = None, episodes: int = 5, seed:
     agent = _make_policy(policy, env_kwargs)
     label = label or type(agent).__name__
     vec_kwargs = {} if max_steps is None else {"max_episode_steps": int(max_steps)}
-    env = gym.make_vec(ENV_ID, num_envs=int(episodes), vectorization_mode="vector_entry_point",
+    env = gym.make_vec(QUALIFIED_ENV_ID, num_envs=int(episodes), vectorization_mode="vector_entry_point",
                        **vec_kwargs, **env_kwargs)
     base = env.unwrapped
     n = base.num_envs

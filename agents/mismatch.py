@@ -1,51 +1,70 @@
 """Sim-to-sim model mismatch: what a controller loses when it was designed or trained on a
-simplified dynamics model of the Stewart platform.
+simplified dynamics model of the Stewart platform, as numbers with confidence intervals.
 
 The study is a matrix.  Rows are controllers, each tied to the dynamics model it was built on:
 
+* ``PD + gravity comp. [m]``: the task-space PD law with the holding forces of model ``m``'s
+  statics (the only model term it uses);
 * ``CT [m]``: the computed-torque controller with internal model ``m`` (its inverse dynamics);
-* ``<ALGO> [m]``: an RL agent trained on a plant simulated with model ``m``;
-* ``<ALGO> [improved + DR]`` (optional): an agent trained on the improved model with domain
-  randomisation of the inertial and friction parameters (:data:`DEFAULT_RANDOMIZATION`);
-* ``PD + gravity comp.``: the task-space PD law with gravity compensation, a model-light
-  reference row (its holding forces come from the improved model's statics).
+* ``<ALGO> [m]``: RL agents trained on a plant simulated with model ``m``, one per training seed;
+* ``<ALGO> [improved + DR]`` (optional): agents trained on the improved model with domain
+  randomisation of the inertial and friction parameters (:data:`DEFAULT_RANDOMIZATION`).
 
+The models are the training models and, per simplification, ``improved+cK``: the improved model
+with one of the classical model's simplifications C1-C4 switched on.  PD and CT rows exist for
+the closed-form models only; an agent can be trained on any model the environment simulates.
 Columns are test plants: the environment simulated with each test model (nominal parameters).
-Every cell is :func:`stewart_env.agents.evaluation.evaluate` of the row's controller on the
-column's plant over the same seeded episodes.  A per-simplification block adds the rows
-``improved+c1`` ... ``improved+c4`` (the improved model with one of the classical model's
-simplifications C1-C4 switched on) for the computed-torque controller and the RL agent, so the
-study says which simplification costs most on the true (improved) plant.
 
-Output in DIR: ``matrix.csv`` (one line per row and test plant, every metric, SI units),
-``matrix.md`` (one table per metric, rows x test plants, and the ranking of the
-simplifications, withheld with a warning where a ranked controller fails) and
-``heatmap_<metric>.png`` per metric, failed cells hatched; trained agents in
-``DIR/agents/<name>/`` (a second run with the same DIR loads them instead of training again).
+Every cell runs the row's controller on the column's plant over the same seeded episodes (for
+each training seed of a learned row) and reports a point estimate with a 95 % stratified
+bootstrap interval over seeds and episodes (:mod:`stewart_env.agents.statistics`): the success
+rate as a mean, every other metric as an interquartile mean (a few failed episodes dominate a
+mean).  The cost of a simplification to a controller family is the paired difference, on the
+exact (improved) plant, between the family's row built on the simplified model and its row built
+on the exact one; it is resolved when its interval excludes zero.
+
+Output in DIR: ``matrix.csv`` (one line per row and test plant; every metric with
+``<metric>_ci_low``, ``<metric>_ci_high`` and ``<metric>_n``, the values it rests on),
+``matrix.md`` (tables with intervals, the costs and their ranking), ``differences.csv``,
+``forest.png`` (every cost with its interval) and ``heatmap_<metric>.png``; trained agents in
+``DIR/agents/<name>/seed_<s>/`` and each finished evaluation in ``DIR/cells/`` (a second run with
+the same DIR reuses both and runs only what is missing).  ``study.json`` holds the settings that
+give the cells their meaning; a second run with other settings is refused.
+
+Work runs on a backend: ``local`` (in this process, one job after another) or ``ray`` (every
+training run and every evaluation is a Ray task requesting :data:`CPUS_PER_JOB` CPUs, on a local
+Ray instance or an existing cluster).  Both give the same numbers for the same seeds.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
+import os
+import shutil
 import signal
 import sys
+import tempfile
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from stewart_env.agents.statistics import Interval, paired_difference, stratified_bootstrap
 from stewart_env.agents.training import (
     ALGORITHMS,
     MANIFEST,
     MODEL_FILE,
+    VECNORMALIZE_FILE,
     TrainingError,
     TrainingInterrupted,
     check_writable,
+    jsonable,
     load_agent,
     newest_checkpoint,
     parse_env_kwargs,
@@ -55,9 +74,8 @@ from stewart_env.agents.training import (
 from stewart_env.dynamics.model import SIMPLIFICATIONS as SIMPLIFICATION_TEXT
 from stewart_env.progress import progress as progress_bar
 
-#: Environment steps per RL agent of the quick default study: a smoke-scale budget (the whole
-#: study in about a minute; such agents still lose the platform), --timesteps 1500000 or more for
-#: agents that hold a set point.
+#: Environment steps per RL agent of the quick default study: a smoke-scale budget (such agents
+#: still lose the platform); --timesteps 1500000 or more for agents that hold a set point.
 QUICK_TIMESTEPS = 20_000
 #: The classical model's simplifications, each a switch on the improved model.
 SIMPLIFICATIONS = tuple(SIMPLIFICATION_TEXT)
@@ -73,169 +91,597 @@ DEFAULT_RANDOMIZATION: dict[str, tuple[float, float]] = {
     "legs.com": (0.5, 1.5),
     "damping": (0.0, 2.0),
 }
-#: Evaluation episodes use seeds seed + EVAL_SEED_OFFSET + i, away from the training rows' seeds.
+#: Evaluation episodes use seeds EVAL_SEED_OFFSET + i, away from the training runs' seeds.
 EVAL_SEED_OFFSET = 100_000
-#: The metrics that rank the simplifications, on the true plant: the static error (where the
-#: set-point task shows a wrong model most), the transient error and the force peak.
+#: The metrics whose differences measure a simplification's cost, on the true plant: the static
+#: error (where a wrong model shows most on a set point), the transient error and the force peak.
 RANKING_METRICS = ("steady_state_position_error", "steady_state_orientation_error", "rms_position_error",
                    "peak_leg_force")
 TRUE_MODEL = "improved"
 #: A cell whose controller succeeds in fewer than this share of the episodes is marked failed: its
-#: heatmap cell is hatched grey, not coloured, and it ranks no simplification.
+#: heatmap cell is hatched grey, and its differences are marked, not ranked.
 FAILURE_THRESHOLD = 0.5
+#: The statistic of each metric's cells: the success rate is a share (a mean); every other
+#: metric an interquartile mean.
+STATISTIC = {"success": "mean"}
+DEFAULT_STATISTIC = "iqm"
+#: CPUs each training run and each evaluation requests from Ray: training runs on one torch and
+#: numba thread (training.single_thread), and an evaluation steps one batch of platforms.
+CPUS_PER_JOB = 1
+BACKENDS = ("local", "ray")
+RAY_INSTALL_HINT = 'install the distributed extra: pip install -e ".[distributed]" (ray)'
+#: Settings recorded in study.json: a second run in the same directory must match them.
+STUDY_FILE = "study.json"
+CELLS_DIR = "cells"
+#: The files of an agent folder that loading it needs (and that a Ray worker sends back).
+AGENT_FILES = (MANIFEST, MODEL_FILE, VECNORMALIZE_FILE)
+
+
+def statistic(metric: str) -> str:
+    """The statistic ("mean" or "iqm") a metric's cells report."""
+    return STATISTIC.get(metric, DEFAULT_STATISTIC)
 
 
 @dataclass
 class Row:
-    """One controller of the study: its label, family ("PD", "CT" or the RL algorithm) and the
-    model it was designed or trained on ("" for PD)."""
+    """One controller of the study: its label, family ("PD", "CT" or the RL algorithm), the model
+    it was designed or trained on, and for a learned row its training seeds and agent folders
+    (seed -> path).  ``kind`` is "pd", "ct" or "agent"; ``info`` a note for the tables."""
 
     label: str
     family: str
     model: str
-    policy: Any = None
+    kind: str = "ct"
+    seeds: tuple[int, ...] = ()
+    agents: dict[int, Path] = field(default_factory=dict)
     info: str = ""
+    randomized: bool = False
+
+
+@dataclass
+class Difference:
+    """The cost of one simplification to one controller family on one metric: ``interval`` of
+    (row built on the simplified model) - (row built on the exact model), both on the true plant;
+    ``failed`` if either row succeeds in fewer than :data:`FAILURE_THRESHOLD` of the episodes."""
+
+    family: str
+    simplification: str
+    label: str
+    reference: str
+    metric: str
+    interval: Interval
+    failed: bool
+
+    @property
+    def resolved(self) -> bool:
+        return self.interval.resolved
 
 
 @dataclass
 class MismatchResult:
-    """The study's numbers: ``summary[row label][test model]`` = {metric: mean over episodes};
-    ``rows`` in table order; ``test_models`` the columns; ``files`` what was written."""
+    """The study's numbers: ``summary[row label][test model][metric]`` an :class:`Interval`;
+    ``rows`` in table order; ``test_models`` the columns; ``differences`` the simplifications'
+    costs; ``files`` what was written."""
 
     rows: list[Row]
     test_models: list[str]
-    summary: dict[str, dict[str, dict[str, float]]]
+    summary: dict[str, dict[str, dict[str, Interval]]]
     episodes: int
+    differences: list[Difference] = field(default_factory=list)
     files: dict[str, Path] = field(default_factory=dict)
 
     def matrix(self, metric: str) -> np.ndarray:
-        """(rows, test models) array of one metric's means."""
-        return np.array([[self.summary[r.label][m][metric] for m in self.test_models] for r in self.rows])
+        """(rows, test models) array of one metric's point estimates."""
+        return np.array([[self.summary[r.label][m][metric].estimate for m in self.test_models] for r in self.rows])
 
 
-def _check_models(names: Sequence[str], what: str) -> list[str]:
-    import stewart_env as se
+# -- checks ---------------------------------------------------------------------------------------
 
-    params = se.load_platform("dasgupta1998")
+
+def _check_models(names: Sequence[str], what: str, platform: str) -> list[str]:
+    """The model names, each checked by building the environment on it (one source of truth for
+    what the environment simulates)."""
+    from stewart_env.envs import StewartPlatformEnv
+
     out = []
     for name in names:
         try:
-            se.make_dynamics(name, params)
-        except (ValueError, KeyError) as exc:
-            raise TrainingError(f"{what}: {name!r} is not a dynamics model ({exc})") from None
+            StewartPlatformEnv(model=name, platform=platform).close()
+        except (ValueError, KeyError, ImportError) as exc:
+            raise TrainingError(f"{what}: {name!r} is not a model the environment simulates ({exc})") from None
         out.append(name)
     if not out:
         raise TrainingError(f"{what}: give at least one model")
     return out
 
 
-def _agent(algo: str, directory: Path, env_kwargs: dict[str, Any], timesteps: int, seed: int,
-           n_envs: int | None, progress: bool):
-    """Load the agent in ``directory`` if it was trained for this row (same algorithm, seed and
-    environment kwargs; its budget may differ and is reported), else train it there."""
-    if (directory / MODEL_FILE).exists():
-        manifest = read_manifest(directory)
-        found = (manifest["algo"], manifest["seed"], manifest["env_kwargs"])
-        if found != (algo, seed, env_kwargs):
-            raise TrainingError(
-                f"{directory} holds an agent trained differently (algorithm, seed, env kwargs: {found}) from "
-                f"this study's row ({(algo, seed, env_kwargs)}); use another --out")
-        return load_agent(directory)
-    rest = {k: v for k, v in env_kwargs.items() if k not in ("model", "task")}
-    row = dict(algo=algo, out=directory, model=env_kwargs["model"], task=env_kwargs["task"], seed=seed,
-               n_envs=n_envs, checkpoint_freq=0, env_kwargs=rest, progress_bar=progress)
-    resumable = None
-    if (directory / MANIFEST).exists():
-        resumable = newest_checkpoint(directory, algo, bool(read_manifest(directory).get("normalize")))
-    if resumable:
-        # A study stopped while training this row: continue the row's run for the rest of its budget;
-        # given the row's settings, train() refuses a run trained with another seed or environment.
-        steps, _ = resumable
-        train(**row, timesteps=max(timesteps - steps, 1), resume=True)
+def closed_form(model: str, platform: str) -> bool:
+    """Whether ``model`` is a closed-form dynamics model (one PD and CT rows can be built on)."""
+    import stewart_env as se
+
+    try:
+        se.make_dynamics(model, se.load_platform(platform))
+    except (ValueError, KeyError):
+        return False
+    return True
+
+
+def _check_seeds(seeds: Sequence[int]) -> tuple[int, ...]:
+    seeds = tuple(seeds)
+    bad = [s for s in seeds if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0]
+    if not seeds or bad:
+        raise TrainingError(f"seeds: expected one or more integers >= 0, got {list(seeds)!r}")
+    if len(set(seeds)) != len(seeds):
+        raise TrainingError(f"seeds: each seed once, got {list(seeds)!r}")
+    return tuple(int(s) for s in seeds)
+
+
+def _check_platform(platform: str) -> str:
+    import stewart_env as se
+
+    try:
+        se.load_platform(platform)
+    except (ValueError, OSError) as exc:
+        raise TrainingError(f"platform: {exc}") from None
+    # a config file by its absolute path, so that a later run from elsewhere finds the same one
+    return platform if Path(platform).suffix == "" and not Path(platform).exists() else str(Path(platform).resolve())
+
+
+def _changes(old: Mapping[str, Any], new: Mapping[str, Any]) -> list[str]:
+    return [f"{k}: {old.get(k)!r} -> {new.get(k)!r}" for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]
+
+
+def _check_study(out: Path, settings: dict[str, Any]) -> None:
+    """Refuse a directory holding a study of other settings; record the settings otherwise."""
+    path = out / STUDY_FILE
+    if path.exists():
+        changes = _changes(json.loads(path.read_text()), settings)
+        if changes:
+            raise TrainingError(f"{out} holds a study with other settings; its finished cells and agents would "
+                                "mean something else:\n  " + "\n  ".join(changes) + "\nrun with the study's "
+                                "settings (rows, test models and seeds may be added), or use another --out")
     else:
-        train(**row, timesteps=timesteps)
-    return load_agent(directory)
+        _write_atomic(path, json.dumps(settings, indent=1, sort_keys=True))
 
 
-def build_rows(out: Path, train_models: Sequence[str], task: str, algo: str | None, timesteps: int, seed: int,
-               domain_randomization: bool, simplifications: Sequence[str], env_kwargs: Mapping[str, Any],
-               n_envs: int | None, progress: bool) -> list[Row]:
-    """The study's controllers, training the RL agents that ``out/agents`` does not hold yet."""
-    from stewart_env.agents.computed_torque import ComputedTorquePolicy
+def _write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` under a temporary name, then rename: a reader sees the old file
+    or the whole new one, never a part, whenever the writer is stopped."""
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+# -- backends -------------------------------------------------------------------------------------
+
+
+class LocalBackend:
+    """Runs jobs in this process, one after another, in order."""
+
+    name = "local"
+
+    def run(self, fn: Callable, jobs: Sequence[tuple]) -> Iterator[tuple[int, Any]]:
+        for i, args in enumerate(jobs):
+            yield i, fn(*args)
+
+    def put(self, value):
+        return value
+
+    def close(self) -> None:
+        pass
+
+
+class RayBackend:
+    """Runs every job as a Ray task requesting :data:`CPUS_PER_JOB` CPUs, on the cluster at
+    ``address`` ("auto", "HOST:PORT") or, without one, on a local Ray instance started here (or
+    the one this process already joined)."""
+
+    name = "ray"
+
+    def __init__(self, address: str | None = None):
+        import ray
+
+        self.ray = ray
+        self.started = False
+        if not ray.is_initialized():
+            kwargs = {"address": address} if address else {"include_dashboard": False}
+            try:
+                ray.init(logging_level="ERROR", log_to_driver=False, **kwargs)
+            except (ConnectionError, ValueError, RuntimeError) as exc:
+                raise TrainingError(f"--ray-address {address}: cannot join the Ray cluster ({exc})") from None
+            self.started = True
+
+    def put(self, value):
+        return self.ray.put(value)
+
+    def run(self, fn: Callable, jobs: Sequence[tuple]) -> Iterator[tuple[int, Any]]:
+        ray = self.ray
+        remote = ray.remote(num_cpus=CPUS_PER_JOB, max_retries=0)(fn)
+        pending = {remote.remote(*args): i for i, args in enumerate(jobs)}
+        try:
+            while pending:
+                done, _ = ray.wait(list(pending), num_returns=1)
+                for ref in done:
+                    yield pending.pop(ref), ray.get(ref)
+        finally:  # stopped (Ctrl-C, an error): the unfinished tasks are of no use
+            for ref in pending:
+                ray.cancel(ref, force=True)
+
+    def close(self) -> None:
+        if self.started:
+            self.ray.shutdown()
+
+
+def check_backend(name: str, address: str | None = None) -> None:
+    """Refuse an unknown backend, an address without Ray, and the Ray backend without ray installed."""
+    if name not in BACKENDS:
+        raise TrainingError(f"backend: expected one of {', '.join(BACKENDS)}, got {name!r}")
+    if name == "local" and address is not None:
+        raise TrainingError("--ray-address: only with --backend ray")
+    if name == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise TrainingError(f"--backend ray needs ray: {RAY_INSTALL_HINT}") from None
+
+
+def make_backend(name: str, address: str | None = None):
+    """The backend called ``name`` ("local" or "ray"); ``address`` only with "ray"."""
+    check_backend(name, address)
+    return LocalBackend() if name == "local" else RayBackend(address)
+
+
+# -- jobs (top-level functions: Ray workers import them by name) ----------------------------------
+
+
+def _train_job(row: dict[str, Any], timesteps: int) -> dict[str, bytes]:
+    """Train one agent in a temporary folder of the worker and return its files' bytes (the
+    worker's file system need not be the driver's)."""
+    with tempfile.TemporaryDirectory(prefix="stewart-env-agent-") as tmp:
+        folder = Path(tmp) / "agent"
+        train(**row, out=folder, timesteps=timesteps)
+        return {name: (folder / name).read_bytes() for name in AGENT_FILES if (folder / name).exists()}
+
+
+def _load_agent(agent):
+    """An agent from its folder (a path) or from its files' bytes (a dict), written to a
+    temporary folder first."""
+    if not isinstance(agent, dict):
+        return load_agent(agent)
+    with tempfile.TemporaryDirectory(prefix="stewart-env-agent-") as tmp:
+        for name, data in agent.items():
+            (Path(tmp) / name).write_bytes(data)
+        return load_agent(tmp)
+
+
+def make_policy(kind: str, model: str, agent=None):
+    """A policy (or a factory env -> policy) for :func:`~.evaluation.evaluate`: the PD law with
+    model ``model``'s holding forces, CT with internal model ``model``, or the trained ``agent``
+    (a folder, or its files' bytes)."""
+    if kind == "agent":
+        return _load_agent(agent)
+    if kind == "ct":
+        from stewart_env.agents.computed_torque import ComputedTorquePolicy
+
+        return lambda env: ComputedTorquePolicy(env, model)
+    if kind == "pd":
+        from stewart_env.agents.pd import PDPolicy, TaskSpacePD
+
+        def pd(env):
+            policy = PDPolicy(env, gravity_compensation=True)
+            # PDPolicy's gains, with the holding forces of this row's model
+            policy.controller = TaskSpacePD(env.unwrapped.platform, policy.controller.kp, policy.controller.kd,
+                                            gravity_compensation=True, gravity_model=model)
+            return policy
+
+        return pd
+    raise ValueError(f"kind: expected 'pd', 'ct' or 'agent', got {kind!r}")
+
+
+def _evaluate_job(spec: dict[str, Any], agent=None) -> dict[str, Any]:
+    """One evaluation: the controller of ``spec`` on its plant; every metric per episode, and the
+    episodes' terminations."""
+    from stewart_env.agents.evaluation import METRICS, evaluate
+
+    policy = make_policy(spec["kind"], spec["design_model"], agent)
+    result = evaluate(policy, {**spec["env_kwargs"], "model": spec["plant"], "task": spec["task"]},
+                      episodes=spec["episodes"], seed=spec["eval_seed"], label=spec["controller"],
+                      max_steps=spec["max_steps"], progress=False)
+    return {"metrics": {key: [ep.metrics[key] for ep in result.episodes] for key, *_ in METRICS},
+            "terminations": [ep.termination for ep in result.episodes]}
+
+
+# -- building the rows ------------------------------------------------------------------------------
+
+
+def design_models(train_models: Sequence[str], simplifications: Sequence[str]) -> list[str]:
+    """The models controllers are built on: the training models, then improved+cK per simplification."""
+    return list(train_models) + [f"improved+{c}" for c in simplifications if f"improved+{c}" not in train_models]
+
+
+def build_rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequence[int], domain_randomization: bool,
+               platform: str) -> list[Row]:
+    """The study's controllers; learned rows name their agent folders (trained or not yet)."""
     from stewart_env.agents.evaluation import slug
-    from stewart_env.agents.pd import PDPolicy
 
-    models = list(train_models) + [f"improved+{c}" for c in simplifications if f"improved+{c}" not in train_models]
-    rows = [Row("PD + gravity comp.", "PD", "", lambda env: PDPolicy(env, gravity_compensation=True),
-                "task-space PD, gravity compensation from the improved statics")]
-    rows += [Row(f"CT [{m}]", "CT", m, lambda env, m=m: ComputedTorquePolicy(env, m)) for m in models]
+    analytic = [m for m in models if closed_form(m, platform)]
+    rows = [Row(f"PD + gravity comp. [{m}]", "PD", m, "pd",
+                info="task-space PD, gravity compensation from this model's statics") for m in analytic]
+    rows += [Row(f"CT [{m}]", "CT", m, "ct") for m in analytic]
     if algo is None:
         return rows
-    trainings = [(m, None) for m in models]
-    if domain_randomization:
-        trainings.append(("improved", DEFAULT_RANDOMIZATION))
-    for m, randomization in trainings:
-        name = f"{m} + DR" if randomization else m
-        kwargs = {**env_kwargs, "model": m, "task": task}
-        if randomization:
-            kwargs["randomization"] = {k: list(v) for k, v in randomization.items()}
-        agent = _agent(algo, out / "agents" / slug(name), kwargs, timesteps, seed, n_envs, progress)
-        info = f"{agent.num_timesteps} steps, seed {agent.manifest['seed']}"
-        rows.append(Row(f"{algo.upper()} [{name}]", algo.upper(), m, agent, info))
+    trainings = [(m, False) for m in models] + ([("improved", True)] if domain_randomization else [])
+    for m, randomized in trainings:
+        name = f"{m} + DR" if randomized else m
+        agents = {s: out / "agents" / slug(name) / f"seed_{s}" for s in seeds}
+        rows.append(Row(f"{algo.upper()} [{name}]", algo.upper(), m, "agent", tuple(seeds), agents,
+                        randomized=randomized))
     return rows
+
+
+def _training_row(algo: str, row: Row, seed: int, env_kwargs: Mapping[str, Any], task: str,
+                  n_envs: int | None) -> dict[str, Any]:
+    """The keywords of :func:`~.training.train` for one agent of a learned row."""
+    rest = dict(env_kwargs)
+    if row.randomized:
+        rest["randomization"] = {k: list(v) for k, v in DEFAULT_RANDOMIZATION.items()}
+    return dict(algo=algo, model=row.model, task=task, seed=seed, n_envs=n_envs, checkpoint_freq=0,
+                env_kwargs=rest)
+
+
+def _finished_agent(directory: Path, algo: str, seed: int, env_kwargs: Mapping[str, Any]) -> bool:
+    """Whether ``directory`` holds this agent, trained; refuses one trained differently."""
+    if not (directory / MODEL_FILE).exists():
+        return False
+    manifest = read_manifest(directory)
+    found = (manifest["algo"], manifest["seed"], manifest["env_kwargs"])
+    if found != (algo, seed, env_kwargs):
+        raise TrainingError(
+            f"{directory} holds an agent trained differently (algorithm, seed, env kwargs: {found}) from "
+            f"this study's row ({(algo, seed, env_kwargs)}); use another --out")
+    return True
+
+
+def _train_locally(directory: Path, training: dict[str, Any], timesteps: int, progress: bool) -> None:
+    """Train one agent into ``directory``, continuing it from its newest checkpoint if a stopped
+    study left one (given the row's settings, train() refuses a run trained otherwise)."""
+    resumable = None
+    if (directory / MANIFEST).exists():
+        resumable = newest_checkpoint(directory, training["algo"], bool(read_manifest(directory).get("normalize")))
+    if resumable:
+        steps, _ = resumable
+        train(**training, out=directory, timesteps=max(timesteps - steps, 1), resume=True, progress_bar=progress)
+    else:
+        train(**training, out=directory, timesteps=timesteps, progress_bar=progress)
+
+
+def _publish_agent(directory: Path, files: Mapping[str, bytes]) -> None:
+    """Write an agent's files, sent back by a worker, as ``directory`` in one rename."""
+    tmp = directory.with_name(f".{directory.name}.tmp-{os.getpid()}")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    for name, data in files.items():
+        (tmp / name).write_bytes(data)
+    shutil.rmtree(directory, ignore_errors=True)  # an unfinished local run of this agent
+    os.replace(tmp, directory)
+
+
+# -- the study --------------------------------------------------------------------------------------
+
+
+def _cell_path(out: Path, row: Row, plant: str, seed: int | None) -> Path:
+    from stewart_env.agents.evaluation import slug
+
+    return out / CELLS_DIR / slug(row.label) / slug(plant) / ("model_based.json" if seed is None else f"seed_{seed}.json")
+
+
+def _cell_spec(row: Row, plant: str, seed: int | None, common: Mapping[str, Any]) -> dict[str, Any]:
+    """What an evaluation's numbers depend on; a finished cell is reused only if all of it is equal."""
+    spec = {"controller": row.label, "kind": row.kind, "design_model": row.model, "plant": plant, **common}
+    if seed is not None:
+        spec["agent_seed"] = seed
+        spec["agent_sha256"] = read_manifest(row.agents[seed])["files"][MODEL_FILE]
+    return spec
 
 
 def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "improved"),
                  test_models: Sequence[str] = ("classical", "improved", "improved_centroidal"),
                  task: str = "setpoint", algo: str | None = "ppo", timesteps: int = QUICK_TIMESTEPS,
-                 episodes: int = 5, seed: int = 0, domain_randomization: bool = False,
+                 episodes: int = 5, seeds: Sequence[int] = (0,), domain_randomization: bool = False,
                  simplifications: Sequence[str] = SIMPLIFICATIONS, env_kwargs: Mapping[str, Any] | None = None,
-                 n_envs: int | None = None, max_steps: int | None = None, progress: bool = True) -> MismatchResult:
+                 n_envs: int | None = None, max_steps: int | None = None, platform: str = "dasgupta1998",
+                 backend: str = "local", ray_address: str | None = None, progress: bool = True) -> MismatchResult:
     """Run the mismatch study and write it to ``out`` (see the module docstring).
 
-    train_models: models to build controllers on (CT internal models, RL training plants).
+    train_models: models to build controllers on (PD's statics, CT's internal model, RL plants).
     test_models: the plants every controller is evaluated on (the columns).
+    task: "setpoint", "tracking" or "disturbance"; platform: a platform name or config path.
     algo: the RL algorithm ("ppo", "sac", "td3"), or None for the model-based rows only.
-    timesteps: environment steps per RL agent; seed: training seed of every agent (evaluation
-        episodes use seed + EVAL_SEED_OFFSET + i, the same for every cell).
-    episodes: evaluation episodes per cell.
+    timesteps: environment steps per agent; seeds: one agent per seed and learned row.
+    episodes: evaluation episodes per cell, seeds EVAL_SEED_OFFSET + i, the same for every cell.
     simplifications: which of c1..c4 get an ``improved+cK`` row ([] for none).
     env_kwargs: further environment kwargs shared by training and test plants.
     n_envs: platforms per training batch (default the algorithm config's).
     max_steps: evaluation episode length in control steps (default the registered 500).
+    backend: "local" or "ray"; ray_address: an existing Ray cluster ("auto", "HOST:PORT").
+
+    Every argument is checked before any work starts; errors raise TrainingError naming it.
     """
-    from stewart_env.agents.evaluation import METRICS, evaluate
+    from stewart_env.agents.evaluation import METRICS
+    from stewart_env.tasks import TASKS
 
     if algo is not None and algo not in ALGORITHMS:
-        raise TrainingError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGORITHMS)}")
+        raise TrainingError(f"algo: unknown algorithm {algo!r}; choose one of {', '.join(ALGORITHMS)}")
+    if task not in TASKS:
+        raise TrainingError(f"task: unknown task {task!r}; choose one of {', '.join(TASKS)}")
     unknown = [c for c in simplifications if c not in SIMPLIFICATIONS]
     if unknown:
         raise TrainingError(f"simplifications: unknown {', '.join(unknown)}; choose from {', '.join(SIMPLIFICATIONS)}")
-    train_models = _check_models(train_models, "train models")
-    test_models = _check_models(test_models, "test models")
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
-        raise TrainingError(f"episodes must be a positive integer, got {episodes!r}")
+    platform = _check_platform(platform)
+    train_models = _check_models(train_models, "train models", platform)
+    test_models = _check_models(test_models, "test models", platform)
+    seeds = _check_seeds(seeds)
+    for name, value in (("episodes", episodes), ("timesteps", timesteps), ("n_envs", n_envs), ("max_steps", max_steps)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1):
+            raise TrainingError(f"{name}: expected a positive integer, got {value!r}")
     env_kwargs = dict(env_kwargs or {})
-    clash = [k for k in ("model", "task", "randomization") if k in env_kwargs]
+    clash = [k for k in ("model", "task", "randomization", "platform") if k in env_kwargs]
     if clash:
         raise TrainingError(f"env kwargs: {', '.join(clash)} are set by the study itself "
-                            "(--train-models/--test-models, --task, --domain-randomization)")
+                            "(--train-models/--test-models, --task, --domain-randomization, --platform)")
+    env_kwargs["platform"] = platform
+    env_kwargs = jsonable(env_kwargs)
+    check_backend(backend, ray_address)
     out = check_writable(out)
+    common = {"task": task, "env_kwargs": env_kwargs, "episodes": int(episodes), "eval_seed": EVAL_SEED_OFFSET,
+              "max_steps": max_steps}
+    _check_study(out, {**common, "algo": algo, "timesteps": int(timesteps) if algo else None,
+                       "n_envs": n_envs if algo else None})
+    runner = make_backend(backend, ray_address)
 
     start = time.perf_counter()
-    rows = build_rows(out, train_models, task, algo, timesteps, seed, domain_randomization, simplifications,
-                      env_kwargs, n_envs, progress)
-    summary: dict[str, dict[str, dict[str, float]]] = {r.label: {} for r in rows}
-    cells = [(r, m) for r in rows for m in test_models]
-    for row, model in progress_bar(cells, desc="mismatch matrix", unit="cell", disable=not progress):
-        result = evaluate(row.policy, {**env_kwargs, "model": model, "task": task}, episodes=episodes,
-                          seed=seed + EVAL_SEED_OFFSET, label=row.label, max_steps=max_steps, progress=False)
-        summary[row.label][model] = result.summary()
-    result = MismatchResult(rows, list(test_models), summary, episodes)
-    header = {"task": task, "episodes": episodes, "eval_seed": seed + EVAL_SEED_OFFSET, "algo": algo,
-              "wall_time": time.perf_counter() - start}
+    rows = build_rows(out, design_models(train_models, simplifications), algo, seeds, domain_randomization, platform)
+    try:
+        _run_jobs(runner, out, rows, algo, timesteps, common, test_models, n_envs, progress)
+    finally:
+        runner.close()
+    summary = {r.label: {m: _cell_intervals(out, r, m) for m in test_models} for r in rows}
+    for r in rows:
+        if r.kind == "agent":
+            steps = sorted({read_manifest(d)["num_timesteps"] for d in r.agents.values()})
+            r.info = f"{', '.join(map(str, steps))} steps, seeds {', '.join(map(str, r.seeds))}"
+    result = MismatchResult(rows, list(test_models), summary, int(episodes))
+    result.differences = simplification_costs(result, out)
+    header = {"task": task, "platform": platform, "episodes": episodes, "eval_seed": EVAL_SEED_OFFSET, "algo": algo,
+              "seeds": list(seeds), "backend": backend, "wall_time": time.perf_counter() - start}
     result.files = write_outputs(result, out, METRICS, header)
     return result
+
+
+def _run_jobs(runner, out: Path, rows: list[Row], algo: str | None, timesteps: int, common: Mapping[str, Any],
+              test_models: Sequence[str], n_envs: int | None, progress: bool) -> None:
+    """Train the missing agents, then evaluate the missing cells, on ``runner``; each result is
+    stored as soon as it arrives, so a stopped study keeps what finished."""
+    env_kwargs, task = common["env_kwargs"], common["task"]
+    trainings = []
+    for row in rows:
+        for seed, directory in row.agents.items():
+            training = _training_row(algo, row, seed, env_kwargs, task, n_envs)
+            expected = {**training["env_kwargs"], "model": row.model, "task": task}
+            if not _finished_agent(directory, algo, seed, jsonable({**_config_env_kwargs(algo), **expected})):
+                trainings.append((directory, training))
+    cells = [(row, plant, seed) for row in rows for plant in test_models for seed in (row.seeds or (None,))]
+    bar = progress_bar(total=len(trainings) + len(cells), desc="mismatch study", unit="job", disable=not progress)
+    with bar:
+        if isinstance(runner, LocalBackend):
+            for directory, training in trainings:
+                _train_locally(directory, training, timesteps, progress)
+                bar.update()
+        else:
+            jobs = [(training, timesteps) for _, training in trainings]
+            for i, files in runner.run(_train_job, jobs):
+                _publish_agent(trainings[i][0], files)
+                bar.update()
+
+        todo = []
+        for row, plant, seed in cells:
+            path, spec = _cell_path(out, row, plant, seed), _cell_spec(row, plant, seed, common)
+            if path.exists():
+                stored = json.loads(path.read_text())
+                if stored["spec"] == spec:
+                    bar.update()
+                    continue
+                print(f"stewart-env mismatch: recomputing {row.label} on {plant}"
+                      f"{'' if seed is None else f' (seed {seed})'}: its settings changed: "
+                      + "; ".join(_changes(stored["spec"], spec)), file=sys.stderr)
+            todo.append((path, spec, row, seed))
+        agents = {}  # each agent read (and sent to the workers) once
+        jobs = []
+        for path, spec, row, seed in todo:
+            agent = None
+            if seed is not None:
+                key = row.agents[seed]
+                if key not in agents:
+                    agents[key] = runner.put(key if isinstance(runner, LocalBackend) else
+                                             {name: (key / name).read_bytes() for name in AGENT_FILES
+                                              if (key / name).exists()})
+                agent = agents[key]
+            jobs.append((spec, agent))
+        for i, numbers in runner.run(_evaluate_job, jobs):
+            path, spec = todo[i][0], todo[i][1]
+            path.parent.mkdir(parents=True, exist_ok=True)
+            _write_atomic(path, json.dumps({"spec": spec, **numbers}))
+            bar.update()
+
+
+def _config_env_kwargs(algo: str) -> dict[str, Any]:
+    """The env kwargs the algorithm's config adds to every run (run.json records them)."""
+    from stewart_env.agents.training import parse_hyperparameters, read_hyperparameters
+
+    return dict(parse_hyperparameters(algo, read_hyperparameters(algo)).env_kwargs)
+
+
+def cell_values(out: Path, row: Row, plant: str, metric: str) -> np.ndarray:
+    """A stored cell's values of one metric, (seeds, episodes)."""
+    paths = [_cell_path(out, row, plant, seed) for seed in (row.seeds or (None,))]
+    return np.array([json.loads(p.read_text())["metrics"][metric] for p in paths], dtype=float)
+
+
+def _cell_intervals(out: Path, row: Row, plant: str) -> dict[str, Interval]:
+    from stewart_env.agents.evaluation import METRICS
+
+    paths = [_cell_path(out, row, plant, seed) for seed in (row.seeds or (None,))]
+    stored = [json.loads(p.read_text())["metrics"] for p in paths]
+    return {key: stratified_bootstrap(np.array([s[key] for s in stored], dtype=float), statistic(key))
+            for key, *_ in METRICS}
+
+
+# -- the cost of each simplification ----------------------------------------------------------------
+
+
+def _compared_rows(result: MismatchResult, family: str) -> list[tuple[str, Row]]:
+    """(name, row) of the ``family``'s rows built on a simplified model, or with domain
+    randomisation: the whole classical model, C1..C4, DR."""
+    by_model = {r.model: r for r in result.rows if r.family == family and not r.randomized}
+    out = [("classical model", by_model["classical"])] if "classical" in by_model else []
+    out += [(c.upper(), by_model[f"improved+{c}"]) for c in SIMPLIFICATIONS if f"improved+{c}" in by_model]
+    out += [("domain randomisation", r) for r in result.rows if r.family == family and r.randomized]
+    return out
+
+
+def simplification_costs(result: MismatchResult, out: Path | None = None,
+                         values: Callable[[Row, str, str], np.ndarray] | None = None,
+                         plant: str = TRUE_MODEL) -> list[Difference]:
+    """Per controller family with a row built on the exact model: for each simplification and each
+    of :data:`RANKING_METRICS`, the paired difference on ``plant`` of the row built on the
+    simplified model minus the exact-model row, with its interval.  ``values(row, plant, metric)``
+    gives a cell's values (seeds, episodes); by default those stored in the study's directory."""
+    if plant not in result.test_models:
+        return []
+    if values is None:
+        folder = Path(out) if out is not None else Path(result.files["csv"]).parent if result.files else None
+        values = _stored_values(folder)
+    differences = []
+    for family in dict.fromkeys(r.family for r in result.rows):
+        exact = next((r for r in result.rows if r.family == family and r.model == TRUE_MODEL and not r.randomized),
+                     None)
+        if exact is None:
+            continue
+        for name, row in _compared_rows(result, family):
+            failed = min(result.summary[label][plant]["success"].estimate
+                         for label in (row.label, exact.label)) < FAILURE_THRESHOLD
+            for metric in RANKING_METRICS:
+                interval = paired_difference(values(row, plant, metric), values(exact, plant, metric),
+                                             statistic(metric))
+                differences.append(Difference(family, name, row.label, exact.label, metric, interval, failed))
+    return differences
+
+
+def _stored_values(folder: Path | None) -> Callable[[Row, str, str], np.ndarray]:
+    def values(row: Row, plant: str, metric: str) -> np.ndarray:
+        return cell_values(folder, row, plant, metric)
+
+    return values
 
 
 # -- outputs ---------------------------------------------------------------------------------------
@@ -245,93 +691,165 @@ def _fmt(value: float, factor: float, spec: str) -> str:
     return "-" if not np.isfinite(value) else format(value * factor, spec)
 
 
-def simplification_costs(result: MismatchResult, family: str, plant: str = TRUE_MODEL) -> list[tuple[str, str]]:
-    """(simplification, row label) of the ``family``'s improved+cK rows, for the ranking on
-    ``plant``; [] if ``plant`` is not a column or the family has no exact (improved) row."""
-    if plant not in result.test_models:
-        return []
-    labels = {r.model: r.label for r in result.rows if r.family == family and "DR" not in r.label}
-    if TRUE_MODEL not in labels:
-        return []
-    return [(c, labels[f"improved+{c}"]) for c in SIMPLIFICATIONS if f"improved+{c}" in labels]
+def format_interval(interval: Interval, factor: float, spec: str) -> str:
+    """``estimate [low, high]`` in display units; '-' where undefined."""
+    if not np.isfinite(interval.estimate):
+        return "-"
+    return (f"{_fmt(interval.estimate, factor, spec)} [{_fmt(interval.low, factor, spec)}, "
+            f"{_fmt(interval.high, factor, spec)}]")
 
 
-def _ranking_lines(result: MismatchResult, family: str, metrics) -> list[str]:
-    """The markdown block saying which simplification costs the ``family`` most on the true plant:
-    each simplification's metrics and their ratios to the exact-model row, and per metric the
-    simplifications ordered by that ratio; only a warning line if any of these rows fails on the
-    true plant (success below :data:`FAILURE_THRESHOLD`)."""
-    rows = simplification_costs(result, family)
-    if not rows:
+def _cost_lines(result: MismatchResult, metrics) -> list[str]:
+    """The markdown section of the simplifications' costs: per family a table (rows:
+    simplifications, columns: metrics, entries: difference [interval], resolved in bold, failed
+    marked), then per metric the ranking of the resolved costs that are not failed."""
+    if not result.differences:
         return []
     meta = {m[0]: m for m in metrics}
-    exact_label = f"{family} [{TRUE_MODEL}]"
-    exact = result.summary[exact_label][TRUE_MODEL]
-    heading = [f"## Which simplification costs most: {family} on the {TRUE_MODEL} plant", ""]
-    failed = [label for label in [exact_label] + [label for _, label in rows]
-              if result.summary[label][TRUE_MODEL]["success"] < FAILURE_THRESHOLD]
-    if failed:
-        return heading + [
-            f"**Warning: no ranking.** {', '.join(failed)} succeed{'s' if len(failed) == 1 else ''} in fewer than "
-            f"{FAILURE_THRESHOLD:.0%} of the episodes on the {TRUE_MODEL} plant; their errors measure the failure, "
-            "not the simplification.", ""]
-    lines = heading + [
-        f"Each entry: the metric of {family} [improved+cK] on the {TRUE_MODEL} plant, and in brackets its "
-        f"ratio to {family} [{TRUE_MODEL}] (the controller built on the exact model).", "",
-        "| simplification | " + " | ".join(meta[k][1] for k in RANKING_METRICS) + " |",
-        "|---|" + "---|" * len(RANKING_METRICS)]
-    ratios = {}
-    for c, label in rows:
-        cells = []
+    lines = [f"## The cost of each simplification on the {TRUE_MODEL} plant", "",
+             f"Each entry: (controller built on the simplified model) - (the same controller built on the "
+             f"{TRUE_MODEL} model), both on the {TRUE_MODEL} plant, paired by episode, with its 95 % interval "
+             "(stratified bootstrap over seeds and episodes). **Bold**: resolved (the interval excludes zero). "
+             f"*failed*: one of the two rows succeeds in fewer than {FAILURE_THRESHOLD:.0%} of the episodes, so "
+             "the difference measures the failure and is not ranked.", ""]
+    for family in dict.fromkeys(d.family for d in result.differences):
+        mine = [d for d in result.differences if d.family == family]
+        names = list(dict.fromkeys(d.simplification for d in mine))
+        lines += [f"### {family}", "", "| simplification | " + " | ".join(meta[k][1] for k in RANKING_METRICS) + " |",
+                  "|---|" + "---|" * len(RANKING_METRICS)]
+        for name in names:
+            cells = []
+            for key in RANKING_METRICS:
+                d = next(x for x in mine if x.simplification == name and x.metric == key)
+                text = format_interval(d.interval, meta[key][2], meta[key][3])
+                cells.append(f"*failed* {text}" if d.failed else f"**{text}**" if d.resolved else text)
+            label = f"{name}: {SIMPLIFICATION_TEXT[name.lower()]}" if name.lower() in SIMPLIFICATION_TEXT else name
+            lines.append(f"| {label} | " + " | ".join(cells) + " |")
+        lines.append("")
         for key in RANKING_METRICS:
-            value, base = result.summary[label][TRUE_MODEL][key], exact[key]
-            ratios[c, key] = value / base if base > 0 else math.nan
-            cells.append(f"{_fmt(value, meta[key][2], meta[key][3])} ({ratios[c, key]:.3g})")
-        lines.append(f"| {c.upper()}: {SIMPLIFICATION_TEXT[c]} | " + " | ".join(cells) + " |")
-    lines.append("")
-    for key in RANKING_METRICS:
-        order = sorted((c for c, _ in rows), key=lambda c: -ratios[c, key] if np.isfinite(ratios[c, key]) else math.inf)
-        lines.append(f"- {meta[key][1]}, costliest first: "
-                     + ", ".join(f"{c.upper()} x{ratios[c, key]:.3g}" for c in order) + ".")
-    return lines + [""]
+            ranked = sorted((d for d in mine if d.metric == key and d.resolved and not d.failed),
+                            key=lambda d: -abs(d.interval.estimate))
+            unresolved = [d.simplification for d in mine if d.metric == key and not d.resolved and not d.failed]
+            failed = [d.simplification for d in mine if d.metric == key and d.failed]
+            text = ", ".join(f"{d.simplification} ({_fmt(d.interval.estimate, meta[key][2], '+.3g')})"
+                             for d in ranked) or "none resolved"
+            rest = (f"; not resolved: {', '.join(unresolved)}" if unresolved else "") + (
+                f"; failed, not ranked: {', '.join(failed)}" if failed else "")
+            lines.append(f"- {meta[key][1]}, resolved costs, largest first: {text}{rest}.")
+        lines.append("")
+    return lines
 
 
 def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[str, Any]) -> dict[str, Path]:
-    """matrix.csv, matrix.md and one heatmap PNG per metric into ``out``; returns {name: path}."""
-    files = {"csv": out / "matrix.csv", "markdown": out / "matrix.md"}
+    """matrix.csv, matrix.md, differences.csv, forest.png and one heatmap PNG per metric into
+    ``out``; returns {name: path}."""
+    files = {"csv": out / "matrix.csv", "markdown": out / "matrix.md", "differences": out / "differences.csv"}
     with files["csv"].open("w", newline="") as f:
         writer = csv.writer(f)
-        writer.writerow(["controller", "family", "design_model", "test_model", "episodes"] + [m[0] for m in metrics])
+        writer.writerow(["controller", "family", "design_model", "test_model", "seeds", "episodes"]
+                        + [f"{m[0]}{suffix}" for m in metrics for suffix in ("", "_ci_low", "_ci_high", "_n")])
         for r in result.rows:
             for m in result.test_models:
                 s = result.summary[r.label][m]
-                writer.writerow([r.label, r.family, r.model, m, result.episodes] + [f"{s[k[0]]:.9g}" for k in metrics])
+                first = s[metrics[0][0]]
+                values = []
+                for key, *_ in metrics:
+                    interval = s[key]
+                    n = int(np.isfinite(cell_values(out, r, m, key)).sum()) if (out / CELLS_DIR).exists() else ""
+                    values += [f"{interval.estimate:.9g}", f"{interval.low:.9g}", f"{interval.high:.9g}", n]
+                writer.writerow([r.label, r.family, r.model, m, first.seeds, first.episodes] + values)
+    with files["differences"].open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["family", "simplification", "controller", "reference", "plant", "metric", "statistic",
+                         "difference", "ci_low", "ci_high", "resolved", "failed"])
+        for d in result.differences:
+            writer.writerow([d.family, d.simplification, d.label, d.reference, TRUE_MODEL, d.metric,
+                             statistic(d.metric), f"{d.interval.estimate:.9g}", f"{d.interval.low:.9g}",
+                             f"{d.interval.high:.9g}", int(d.resolved), int(d.failed)])
 
-    lines = [f"# Model mismatch on the {header['task']} task", "",
+    seeds = header.get("seeds", [])
+    lines = [f"# Model mismatch on the {header['task']} task, platform {header.get('platform', 'dasgupta1998')}", "",
              f"Rows: controllers and the dynamics model they were designed or trained on; columns: the plant "
-             f"they run on. Each cell: mean over {result.episodes} episodes (evaluation seeds "
-             f"{header['eval_seed']}..{header['eval_seed'] + result.episodes - 1}, the same for every cell; "
-             "settling time and overshoot over the episodes where they are defined, '-' where none).", ""]
+             f"they run on. Each cell: the point estimate and its 95 % interval, a stratified bootstrap over "
+             f"the training seeds ({', '.join(map(str, seeds))}; one for the model-based rows) and the "
+             f"{result.episodes} episodes (evaluation seeds {header['eval_seed']}..{header['eval_seed'] + result.episodes - 1}, "
+             "the same for every cell). Success: the mean; every other metric: the interquartile mean, over the "
+             "episodes where it is defined ('-' where none).", ""]
     notes = [f"- {r.label}: {r.info}" for r in result.rows if r.info]
     if notes:
-        lines += ["Controllers:", "", *notes, ""]
+        lines += ["Controllers:", "", *dict.fromkeys(notes), ""]
     for key, title, factor, spec in metrics:
         lines += [f"## {title}", "", "| controller | " + " | ".join(result.test_models) + " |",
                   "|---|" + "---|" * len(result.test_models)]
         for r in result.rows:
-            cells = [_fmt(result.summary[r.label][m][key], factor, spec) for m in result.test_models]
+            cells = [format_interval(result.summary[r.label][m][key], factor, spec) for m in result.test_models]
             lines.append(f"| {r.label} | " + " | ".join(cells) + " |")
         lines.append("")
-    for family in dict.fromkeys(r.family for r in result.rows):
-        lines += _ranking_lines(result, family, metrics)
-    lines.append(f"Wall time of the study: {header['wall_time']:.0f} s.")
+    lines += _cost_lines(result, metrics)
+    lines.append(f"Backend: {header.get('backend', 'local')}. Wall time of this run: {header['wall_time']:.0f} s.")
     files["markdown"].write_text("\n".join(lines) + "\n")
 
+    if result.differences:
+        files["forest"] = out / "forest.png"
+        forest_figure(result, metrics).savefig(files["forest"], dpi=110)
     for key, title, factor, spec in metrics:
         path = out / f"heatmap_{key}.png"
         heatmap(result, key, title, factor, spec, path)
         files[f"heatmap {key}"] = path
     return files
+
+
+def forest_figure(result: MismatchResult, metrics):
+    """Every simplification's cost with its 95 % interval, one panel per metric of
+    :data:`RANKING_METRICS`, one line per (family, simplification): filled where resolved,
+    hollow where the interval includes zero, grey crosses where a row failed.  The x axis is
+    symmetric-log: costs to computed torque (micrometres) and to learned agents (millimetres)
+    share it."""
+    from matplotlib.ticker import SymmetricalLogLocator
+
+    from stewart_env.agents.evaluation import new_figure
+
+    meta = {m[0]: m for m in metrics}
+    entries = list(dict.fromkeys((d.family, d.simplification) for d in result.differences))
+    columns = 2
+    fig = new_figure(figsize=(13.0, 1.4 + 0.3 * len(entries) * math.ceil(len(RANKING_METRICS) / columns)),
+                     layout="constrained")
+    axes = fig.subplots(math.ceil(len(RANKING_METRICS) / columns), columns, sharey=True, squeeze=False).ravel()
+    y = {e: len(entries) - 1 - i for i, e in enumerate(entries)}
+    for ax, key in zip(axes, RANKING_METRICS):
+        factor = meta[key][2]
+        mine = [d for d in result.differences if d.metric == key]
+        magnitudes = [abs(v) * factor for d in mine for v in (d.interval.estimate, d.interval.low, d.interval.high)
+                      if np.isfinite(v) and v != 0]
+        ax.axvline(0.0, color="0.3", lw=0.8)
+        for d in mine:
+            i = y[d.family, d.simplification]
+            e, lo, hi = (v * factor for v in (d.interval.estimate, d.interval.low, d.interval.high))
+            if not np.isfinite(e):
+                continue
+            colour = "0.6" if d.failed else ("C3" if d.resolved else "C0")
+            ax.plot([lo, hi], [i, i], color=colour, lw=2.0, solid_capstyle="butt")
+            ax.plot([e], [i], marker="x" if d.failed else "o", ms=7, color=colour,
+                    mfc=colour if d.resolved and not d.failed else "white", mew=1.5)
+        if magnitudes:
+            low, high = (math.floor(math.log10(v)) for v in (min(magnitudes), max(magnitudes)))
+            # at most about four labelled decades a side (more overlap); the linear part around zero
+            # as wide as one labelled step, so that its three labels do not overlap either
+            step = max(1, math.ceil((high - low + 1) / 4))
+            ax.set_xscale("symlog", linthresh=10.0 ** low, linscale=step)
+            ax.xaxis.set_major_locator(SymmetricalLogLocator(linthresh=10.0 ** low, base=10.0 ** step))
+        ax.set_title(meta[key][1], fontsize=10)
+        ax.set_xlabel("difference to the exact-model row")
+        ax.grid(alpha=0.3, axis="x")
+        for i in range(1, len(entries)):
+            if entries[i][0] != entries[i - 1][0]:
+                ax.axhline(y[entries[i]] + 0.5, color="0.75", lw=0.8)
+    for ax in axes[::columns]:
+        ax.set_yticks([y[e] for e in entries], [f"{f}: {s}" for f, s in entries])
+        ax.set_ylim(-0.7, len(entries) - 0.3)
+    fig.suptitle(f"The cost of each simplification on the {TRUE_MODEL} plant, 95 % intervals\n(red filled: resolved; "
+                 f"blue hollow: includes zero; grey x: a row failed, success < {FAILURE_THRESHOLD:.0%})", fontsize=11)
+    return fig
 
 
 def heatmap(result: MismatchResult, key: str, title: str, factor: float, spec: str, path: Path) -> None:
@@ -340,10 +858,10 @@ def heatmap(result: MismatchResult, key: str, title: str, factor: float, spec: s
 
 
 def heatmap_figure(result: MismatchResult, key: str, title: str, factor: float, spec: str):
-    """One metric as a rows x test-plants heatmap with the values written in the cells; a log
-    colour scale when the values span more than two decades (model errors do).  Failed cells
-    (success below :data:`FAILURE_THRESHOLD`) are hatched grey and say so, outside the colour
-    scale, so that a controller that loses the platform is never coloured as the best."""
+    """One metric's point estimates as a rows x test-plants heatmap with the values written in the
+    cells; a log colour scale when the values span more than two decades (model errors do).
+    Failed cells (success below :data:`FAILURE_THRESHOLD`) are hatched grey and say so, outside
+    the colour scale, so that a controller that loses the platform is never coloured as the best."""
     from matplotlib import colormaps
     from matplotlib.colors import LogNorm, Normalize
     from matplotlib.patches import Rectangle
@@ -400,34 +918,65 @@ def _names(text: str) -> list[str]:
     return [t.strip() for t in text.split(",") if t.strip()]
 
 
+def seed_list(text: str) -> list[int]:
+    """argparse type of --seeds: comma-separated integers >= 0, each once."""
+    try:
+        seeds = [int(t) for t in _names(text)]
+    except ValueError:
+        seeds = []
+    if not seeds or min(seeds) < 0 or len(set(seeds)) != len(seeds):
+        raise argparse.ArgumentTypeError(f"expected comma-separated distinct integers >= 0, e.g. 0,1,2, got {text!r}")
+    return seeds
+
+
+def platform_name(text: str) -> str:
+    """argparse type of --platform: a shipped platform's name or a config file that loads."""
+    try:
+        return _check_platform(text)
+    except TrainingError as err:
+        raise argparse.ArgumentTypeError(str(err).removeprefix("platform: ")) from None
+
+
 def add_cli(subparsers) -> argparse.ArgumentParser:
     """Add ``mismatch`` to an argparse subparsers object; its ``func`` returns an exit code."""
+    from stewart_env.agents.arguments import TASKS, positive_int
+
     p = subparsers.add_parser(
         "mismatch", help="model-mismatch study: controllers built on one model, run on another",
-        description="Train (or load) an RL agent per training model, build computed-torque controllers on "
-                    "the same models and on the improved model with each of C1..C4 switched on, evaluate "
-                    "every controller on every test plant, and write DIR/matrix.md, DIR/matrix.csv and "
-                    "DIR/heatmap_<metric>.png.")
+        description="Train (or load) RL agents per training model and seed, build PD and computed-torque "
+                    "controllers on the same models and on the improved model with each of C1..C4 switched on, "
+                    "evaluate every controller on every test plant, and write DIR/matrix.md, DIR/matrix.csv "
+                    "(95 %% intervals), DIR/differences.csv, DIR/forest.png and DIR/heatmap_<metric>.png.")
     p.add_argument("--train-models", default="classical,improved",
-                   help="comma-separated models to train agents on / use as CT internal models "
+                   help="comma-separated models to train agents on / build PD and CT on "
                         "(default: classical,improved)")
     p.add_argument("--test-models", default="classical,improved,improved_centroidal",
                    help="comma-separated plant models (default: classical,improved,improved_centroidal)")
-    p.add_argument("--task", default="setpoint", help="task (default: setpoint)")
+    p.add_argument("--task", default="setpoint", choices=TASKS, help="task (default: setpoint)")
+    p.add_argument("--platform", default="dasgupta1998", type=platform_name,
+                   help="platform name or config file (default: dasgupta1998)")
     p.add_argument("--out", required=True, help="study directory")
-    p.add_argument("--algo", default="ppo", help=f"RL algorithm: {', '.join(ALGORITHMS)}, or 'none' for "
-                                                 "the model-based rows only (default: ppo)")
-    p.add_argument("--timesteps", type=int, default=QUICK_TIMESTEPS,
+    p.add_argument("--algo", default="ppo", choices=(*ALGORITHMS, "none"),
+                   help="RL algorithm, or 'none' for the model-based rows only (default: ppo)")
+    p.add_argument("--timesteps", type=positive_int, default=QUICK_TIMESTEPS,
                    help=f"environment steps per agent (default: {QUICK_TIMESTEPS}, a quick smoke-scale study)")
-    p.add_argument("--n-envs", type=int, default=None, help="platforms per training batch (default: the config's)")
-    p.add_argument("--episodes", type=int, default=5, help="evaluation episodes per cell (default: 5)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the training runs and of the evaluation (default: 0)")
+    p.add_argument("--n-envs", type=positive_int, default=None,
+                   help="platforms per training batch (default: the config's)")
+    p.add_argument("--episodes", type=positive_int, default=5, help="evaluation episodes per cell (default: 5)")
+    p.add_argument("--max-steps", type=positive_int, default=None,
+                   help="evaluation episode length in control steps (default: the registered 500)")
+    p.add_argument("--seeds", type=seed_list, default=[0],
+                   help="training seeds, comma-separated: one agent per seed and learned row (default: 0)")
     p.add_argument("--domain-randomization", action="store_true",
-                   help="add an agent trained on the improved model with domain randomisation")
+                   help="add agents trained on the improved model with domain randomisation")
     p.add_argument("--simplifications", default=",".join(SIMPLIFICATIONS),
                    help="which of c1..c4 get an improved+cK row, comma-separated, or 'none' (default: all)")
     p.add_argument("--env-kwargs", nargs="*", default=None, metavar="KW",
                    help="further environment kwargs for training and testing: JSON or key=value")
+    p.add_argument("--backend", default="local", choices=BACKENDS,
+                   help="local: in this process (default); ray: every training run and evaluation a Ray task")
+    p.add_argument("--ray-address", default=None,
+                   help="with --backend ray: an existing cluster, 'auto' or HOST:PORT (default: a local Ray instance)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=_cli_mismatch)
     return p
@@ -437,16 +986,22 @@ def _cli_mismatch(args: argparse.Namespace) -> int:
     simplifications = [] if args.simplifications.strip().lower() == "none" else _names(args.simplifications)
     try:
         result = run_mismatch(args.out, _names(args.train_models), _names(args.test_models), task=args.task,
-                              algo=None if args.algo.lower() == "none" else args.algo, timesteps=args.timesteps,
-                              episodes=args.episodes, seed=args.seed, domain_randomization=args.domain_randomization,
+                              algo=None if args.algo == "none" else args.algo, timesteps=args.timesteps,
+                              episodes=args.episodes, seeds=args.seeds, domain_randomization=args.domain_randomization,
                               simplifications=simplifications, env_kwargs=parse_env_kwargs(args.env_kwargs),
-                              n_envs=args.n_envs, progress=not args.no_progress)
+                              n_envs=args.n_envs, max_steps=args.max_steps, platform=args.platform,
+                              backend=args.backend, ray_address=args.ray_address, progress=not args.no_progress)
     except (TrainingError, ValueError) as exc:
         print(f"stewart-env mismatch: error: {exc}", file=sys.stderr)
         return 2
     except TrainingInterrupted as stop:
         print(f"stewart-env mismatch: stopped by {signal.Signals(stop.signum).name}; checkpoint saved in "
-              f"{stop.checkpoint} (run the same command again to continue)", file=sys.stderr)
+              f"{stop.checkpoint}; finished agents and cells are kept in {args.out} (run the same command again "
+              "to continue)", file=sys.stderr)
         return stop.exit_code
+    except KeyboardInterrupt:
+        print(f"stewart-env mismatch: interrupted; finished agents and cells are kept in {args.out} (run the same "
+              "command again to continue)", file=sys.stderr)
+        return 130
     print(f"{len(result.rows)} controllers x {len(result.test_models)} plants -> {result.files['markdown']}")
     return 0

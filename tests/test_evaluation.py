@@ -202,9 +202,14 @@ result = EvaluationResult("PD", {}, 0, [Episode(0, t, e, e, np.zeros((10, 6)), n
 result.episodes[0].metrics = {key: 1.0 for key, *_ in METRICS}
 out = Path(tempfile.mkdtemp())
 write_report([result], out)
+from stewart_env.agents.statistics import Interval
 rows = [mismatch.Row("PD", "PD", "")]
-study = mismatch.MismatchResult(rows, ["improved"], {"PD": {"improved": result.summary()}}, 1)
+cell = {key: Interval(v, v, v, 1, 1) for key, v in result.summary().items()}
+study = mismatch.MismatchResult(rows, ["improved"], {"PD": {"improved": cell}}, 1)
+study.differences = [mismatch.Difference("PD", "C2", "PD", "PD", key, Interval(1.0, 0.5, 2.0, 1, 1), False)
+                     for key in mismatch.RANKING_METRICS]
 mismatch.heatmap(study, "success", "success", 1.0, ".0%", out / "heatmap.png")
+mismatch.forest_figure(study, METRICS).savefig(out / "forest.png")
 print(matplotlib.get_backend(), "matplotlib.pyplot" in sys.modules)
 """
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)

@@ -1,9 +1,12 @@
-"""The model-mismatch study on a tiny budget: the matrix's shape, its entries, its files."""
+"""The model-mismatch study on a tiny budget: the matrix with its intervals, the simplifications'
+costs, its files, resuming, and every bad request refused before any work."""
 
 from __future__ import annotations
 
 import argparse
 import csv
+import json
+import sys
 
 import numpy as np
 import pytest
@@ -12,155 +15,313 @@ import pytest
 pytestmark = pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning")
 
 from stewart_env.agents import mismatch  # noqa: E402
-from stewart_env.agents.mismatch import run_mismatch  # noqa: E402
+from stewart_env.agents.evaluation import METRICS  # noqa: E402
+from stewart_env.agents.mismatch import RANKING_METRICS, run_mismatch  # noqa: E402
+from stewart_env.agents.statistics import Interval, stratified_bootstrap  # noqa: E402
 from stewart_env.agents.training import TrainingError  # noqa: E402
-from stewart_env.dynamics.model import SIMPLIFICATIONS  # noqa: E402
 
 TEST_MODELS = ["classical", "improved", "improved_centroidal"]
 # Metrics defined for every episode (settling time and overshoot are NaN by definition when an
 # episode never settles, as in 40 steps of an untrained agent).
 ALWAYS_DEFINED = ("success", "rms_position_error", "rms_orientation_error", "steady_state_position_error",
                   "steady_state_orientation_error", "peak_leg_force", "control_energy")
-EXPECTED_ROWS = ["PD + gravity comp.", "CT [classical]", "CT [improved]", "CT [improved+c2]",
+EXPECTED_ROWS = ["PD + gravity comp. [classical]", "PD + gravity comp. [improved]",
+                 "PD + gravity comp. [improved+c2]", "CT [classical]", "CT [improved]", "CT [improved+c2]",
                  "PPO [classical]", "PPO [improved]", "PPO [improved+c2]", "PPO [improved + DR]"]
+SEEDS = [0, 1]
+# PPO's smallest run: one rollout of 2 platforms x 128 steps per agent; 40-step episodes
+STUDY = dict(train_models=["classical", "improved"], test_models=TEST_MODELS, algo="ppo", timesteps=200, n_envs=2,
+             episodes=3, seeds=SEEDS, domain_randomization=True, simplifications=["c2"], max_steps=40, progress=False)
 
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     out = tmp_path_factory.mktemp("mismatch")
-    # PPO's smallest run: one rollout of 2 platforms x 128 steps per agent; 40-step episodes
-    result = run_mismatch(out, ["classical", "improved"], TEST_MODELS, algo="ppo", timesteps=200, n_envs=2,
-                          episodes=2, seed=0, domain_randomization=True, simplifications=["c2"], max_steps=40,
-                          progress=False)
+    # four PPO rows of two seeds each: eight tiny agents
+    result = run_mismatch(out, **STUDY)
     return out, result
 
 
+def _rows(out):
+    with open(out / "matrix.csv") as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.mark.slow  # the study fixture trains eight agents: about 20 s
 def test_matrix_has_a_row_per_controller_and_a_column_per_plant(study):
     out, result = study
-    assert [r.label for r in result.rows] == EXPECTED_ROWS
+    labels = [r.label for r in result.rows]
+    assert labels == EXPECTED_ROWS
     assert result.test_models == TEST_MODELS
     for key in ALWAYS_DEFINED:
         m = result.matrix(key)
-        assert m.shape == (len(EXPECTED_ROWS), len(TEST_MODELS))
+        assert m.shape == (len(labels), len(TEST_MODELS))
         assert np.all(np.isfinite(m)), key
-
-    with open(out / "matrix.csv") as f:
-        lines = list(csv.DictReader(f))
-    assert len(lines) == len(EXPECTED_ROWS) * len(TEST_MODELS)
-    assert [(x["controller"], x["test_model"]) for x in lines] == [(r, m) for r in EXPECTED_ROWS for m in TEST_MODELS]
+    lines = _rows(out)
+    assert [(x["controller"], x["test_model"]) for x in lines] == [(r, m) for r in labels for m in TEST_MODELS]
     for x in lines:
+        assert x["seeds"] == ("2" if x["family"] == "PPO" else "1")
+        assert x["episodes"] == "3"
         for key in ALWAYS_DEFINED:
-            assert np.isfinite(float(x[key])), (x["controller"], x["test_model"], key)
-
+            low, value, high = (float(x[f"{key}{s}"]) for s in ("_ci_low", "", "_ci_high"))
+            assert low <= value <= high, (x["controller"], x["test_model"], key)
+            assert int(x[f"{key}_n"]) == 3 * int(x["seeds"])
     text = (out / "matrix.md").read_text()
-    for label in EXPECTED_ROWS:
+    for label in labels:
         assert f"| {label} |" in text
-    assert "Which simplification costs most: CT" in text and f"| C2: {SIMPLIFICATIONS['c2']} |" in text
-    for key in ALWAYS_DEFINED:
-        assert (out / f"heatmap_{key}.png").stat().st_size > 10_000, key  # a real figure, not an empty file
-    assert (out / "agents" / "improved_dr" / "run.json").is_file()
+    assert "## The cost of each simplification on the improved plant" in text
+    for name in ["forest.png"] + [f"heatmap_{key}.png" for key in ALWAYS_DEFINED]:
+        assert (out / name).stat().st_size > 10_000, name  # a real figure, not an empty file
+    for seed in SEEDS:
+        assert (out / "agents" / "improved_dr" / f"seed_{seed}" / "run.json").is_file()
 
 
+@pytest.mark.slow  # the study fixture trains eight agents: about 20 s
+def test_every_cell_interval_is_the_bootstrap_of_its_stored_episodes(study):
+    out, result = study
+    row = next(r for r in result.rows if r.label == "PPO [improved]")
+    values = mismatch.cell_values(out, row, "improved", "rms_position_error")
+    assert values.shape == (2, 3)  # two agents, three episodes each
+    assert result.summary[row.label]["improved"]["rms_position_error"] == stratified_bootstrap(values, "iqm")
+    # the two seeds are two agents: not one agent's numbers twice
+    assert not np.array_equal(values[0], values[1])
+
+
+@pytest.mark.slow  # the study fixture trains eight agents: about 20 s
 def test_columns_are_the_plants_they_name(study):
     """improved and improved_centroidal are one dynamics in two forms: equal columns; classical
     differs.  So the columns are neither mixed up nor all the same plant."""
     _, result = study
     ct = result.summary["CT [improved]"]
-    a, b = ct["improved"]["rms_position_error"], ct["improved_centroidal"]["rms_position_error"]
+    a, b = ct["improved"]["rms_position_error"].estimate, ct["improved_centroidal"]["rms_position_error"].estimate
     # the two forms agree to ~1e-13 per evaluation; 40 steps of a stable loop keep that far below 1e-9
     assert a == pytest.approx(b, rel=1e-9)
     # the classical plant's leg dynamics differ by newtons at these accelerations: far above rounding
-    assert abs(ct["classical"]["rms_position_error"] - a) > 1e-6 * a
+    assert abs(ct["classical"]["rms_position_error"].estimate - a) > 1e-6 * a
 
 
-def test_second_run_loads_the_agents_instead_of_training(study):
+@pytest.mark.slow  # the study fixture trains eight agents: about 20 s
+def test_costs_of_the_simplifications(study):
+    out, result = study
+    costs = {(d.family, d.simplification, d.metric): d for d in result.differences}
+    families = {"PD", "CT", "PPO"}
+    names = {"classical model", "C2"}
+    assert set(costs) == {(f, s, m) for f in families for s in names for m in RANKING_METRICS} | {
+        ("PPO", "domain randomisation", m) for m in RANKING_METRICS}
+    # C2 is a static term: CT built on it stops off target, far outside the rounding of the exact CT
+    c2 = costs["CT", "C2", "steady_state_orientation_error"]
+    assert c2.resolved and c2.interval.low > 1e-5 and not c2.failed
+    # untrained agents fail: marked, not ranked
+    assert all(costs["PPO", s, m].failed for s in names for m in RANKING_METRICS)
+    with open(out / "differences.csv") as f:
+        lines = list(csv.DictReader(f))
+    assert len(lines) == len(costs)
+    line = next(x for x in lines if (x["family"], x["simplification"], x["metric"]) ==
+                ("CT", "C2", "steady_state_orientation_error"))
+    assert float(line["difference"]) == pytest.approx(c2.interval.estimate, rel=1e-8)  # printed to 9 digits
+    assert (line["resolved"], line["failed"], line["statistic"]) == ("1", "0", "iqm")
+
+
+@pytest.mark.slow  # the study fixture trains eight agents: about 20 s
+def test_second_run_reuses_agents_and_cells_and_runs_only_what_is_missing(study):
     out, _ = study
-    model = out / "agents" / "classical" / "model.zip"
-    before = model.stat().st_mtime_ns
-    again = run_mismatch(out, ["classical"], ["improved"], algo="ppo", timesteps=200, n_envs=2, episodes=1,
-                         simplifications=[], max_steps=5, progress=False)
-    assert model.stat().st_mtime_ns == before
-    assert [r.label for r in again.rows] == ["PD + gravity comp.", "CT [classical]", "PPO [classical]"]
+    model = out / "agents" / "improved" / "seed_0" / "model.zip"
+    cells = sorted((out / "cells").rglob("*.json"))
+    before = {p: p.stat().st_mtime_ns for p in cells + [model]}
+    removed = out / "cells" / "ct_improved" / "classical" / "model_based.json"
+    removed.unlink()
+    run_mismatch(out, **STUDY)
+    after = {p: p.stat().st_mtime_ns for p in cells + [model]}
+    assert removed.is_file()  # the missing cell ran again
+    assert {p for p in before if before[p] != after[p]} == {removed}
 
 
-@pytest.mark.parametrize("change", [{"env_kwargs": {"observation_noise": 0.01}}, {"seed": 1}, {"algo": "sac"}])
-def test_an_agent_trained_differently_is_not_silently_reused(study, change):
+@pytest.mark.slow  # the study fixture trains eight agents: about 20 s
+def test_a_study_with_other_settings_is_refused(study):
     out, _ = study
-    kwargs = {"algo": "ppo", "episodes": 1, "simplifications": [], "max_steps": 5, "progress": False, **change}
+    with pytest.raises(TrainingError, match=r"other settings(.|\n)*episodes: 3 -> 4"):
+        run_mismatch(out, **{**STUDY, "episodes": 4})
+    with pytest.raises(TrainingError, match="task: 'setpoint' -> 'tracking'"):
+        run_mismatch(out, **{**STUDY, "task": "tracking"})
+
+
+@pytest.mark.slow  # the study fixture trains eight agents: about 20 s
+def test_an_agent_trained_differently_is_not_silently_reused(study, tmp_path):
+    import shutil
+
+    out, _ = study
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    (copy / mismatch.STUDY_FILE).unlink()  # settings forgotten: the agents' own records still say
     with pytest.raises(TrainingError, match="trained differently"):
-        run_mismatch(out, ["classical"], ["improved"], **kwargs)
+        run_mismatch(copy, **{**STUDY, "env_kwargs": {"observation_noise": 0.01}})
 
 
-def test_bad_requests_are_named(tmp_path):
-    with pytest.raises(TrainingError, match="'clasical' is not a dynamics model"):
-        run_mismatch(tmp_path, ["clasical"], ["improved"], algo=None)
-    with pytest.raises(TrainingError, match="unknown c5"):
-        run_mismatch(tmp_path, ["improved"], ["improved"], algo=None, simplifications=["c5"])
-    with pytest.raises(TrainingError, match="set by the study"):
-        run_mismatch(tmp_path, ["improved"], ["improved"], algo=None, env_kwargs={"model": "classical"})
+def test_an_interrupted_study_keeps_its_finished_cells(tmp_path, monkeypatch):
+    """Ctrl-C during the third evaluation: the two finished cells are on disk, whole; the next run
+    computes only the rest."""
+    calls = []
+    job = mismatch._evaluate_job
+
+    def interrupted(spec, agent=None):
+        calls.append(spec["controller"])
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return job(spec, agent)
+
+    kwargs = dict(train_models=["improved"], test_models=["improved"], algo=None, episodes=1, simplifications=["c2"],
+                  max_steps=5, progress=False)
+    monkeypatch.setattr(mismatch, "_evaluate_job", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        run_mismatch(tmp_path, **kwargs)
+    finished = sorted((tmp_path / "cells").rglob("*.json"))
+    assert len(finished) == 2 and all(json.loads(p.read_text())["metrics"] for p in finished)
+    assert not list((tmp_path / "cells").rglob("*.tmp*"))
+    monkeypatch.setattr(mismatch, "_evaluate_job", job)
+    calls.clear()
+    result = run_mismatch(tmp_path, **kwargs)
+    assert len(list((tmp_path / "cells").rglob("*.json"))) == len(result.rows) == 4
 
 
-def test_cli_model_based_rows_only(tmp_path, capsys):
+@pytest.mark.parametrize("kwargs, message", [
+    ({"train_models": ["clasical"]}, "train models: 'clasical' is not a model"),
+    ({"simplifications": ["c5"]}, "simplifications: unknown c5"),
+    ({"env_kwargs": {"model": "classical"}}, "set by the study"),
+    ({"task": "juggling"}, "task: unknown task 'juggling'"),
+    ({"platform": "no_such_platform"}, "platform: "),
+    ({"seeds": [0, 0]}, "seeds: each seed once"),
+    ({"seeds": [-1]}, "seeds: expected one or more integers >= 0"),
+    ({"episodes": 0}, "episodes: expected a positive integer"),
+    ({"max_steps": 0}, "max_steps: expected a positive integer"),
+    ({"backend": "dask"}, "backend: expected one of local, ray"),
+    ({"ray_address": "auto"}, "--ray-address: only with --backend ray"),
+])
+def test_bad_requests_are_named_before_any_work(tmp_path, kwargs, message):
+    out = tmp_path / "study"
+    with pytest.raises(TrainingError, match=message):
+        run_mismatch(out, **{"train_models": ["improved"], "test_models": ["improved"], "algo": None, **kwargs})
+    assert not (out / mismatch.STUDY_FILE).exists()
+
+
+def test_ray_backend_without_ray_names_the_extra(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray fails as if not installed
+    with pytest.raises(TrainingError, match=r"--backend ray needs ray: install the distributed extra"):
+        run_mismatch(tmp_path, ["improved"], ["improved"], algo=None, backend="ray")
+    assert not list(tmp_path.iterdir())
+
+
+def _parser():
     parser = argparse.ArgumentParser()
     mismatch.add_cli(parser.add_subparsers(dest="command"))
-    args = parser.parse_args(["mismatch", "--train-models", "improved", "--test-models", "classical,improved",
-                              "--algo", "none", "--simplifications", "c1", "--episodes", "1", "--out",
-                              str(tmp_path), "--no-progress"])
-    # the full 500-step episodes: the CLI has no episode-length flag
+    return parser
+
+
+@pytest.mark.parametrize("flag, value, message", [
+    ("--seeds", "0,0", "argument --seeds: expected comma-separated distinct integers"),
+    ("--seeds", "a", "argument --seeds: expected comma-separated distinct integers"),
+    ("--task", "juggling", "argument --task: invalid choice: 'juggling'"),
+    ("--platform", "no_such_platform", "argument --platform: "),
+    ("--backend", "dask", "argument --backend: invalid choice: 'dask'"),
+    ("--episodes", "0", "argument --episodes: expected a positive integer"),
+    ("--max-steps", "-3", "argument --max-steps: expected a positive integer"),
+    ("--timesteps", "x", "argument --timesteps: expected a positive integer"),
+    ("--algo", "dqn", "argument --algo: invalid choice: 'dqn'"),
+])
+def test_cli_rejects_bad_flag_values(tmp_path, capsys, flag, value, message):
+    with pytest.raises(SystemExit):
+        _parser().parse_args(["mismatch", "--out", str(tmp_path), flag, value])
+    assert message in capsys.readouterr().err
+
+
+def test_cli_model_based_rows_on_another_task_and_platform(tmp_path, capsys):
+    args = _parser().parse_args(["mismatch", "--train-models", "improved", "--test-models", "classical,improved",
+                                 "--algo", "none", "--simplifications", "c1", "--episodes", "2", "--max-steps", "20",
+                                 "--task", "tracking", "--platform", "motion_simulator", "--out", str(tmp_path),
+                                 "--no-progress"])
     assert args.func(args) == 0
-    assert "3 controllers x 2 plants" in capsys.readouterr().out
-    with open(tmp_path / "matrix.csv") as f:
-        assert len(list(csv.DictReader(f))) == 6
+    assert "4 controllers x 2 plants" in capsys.readouterr().out
+    assert len(_rows(tmp_path)) == 8
+    text = (tmp_path / "matrix.md").read_text()
+    assert text.startswith("# Model mismatch on the tracking task, platform motion_simulator")
+    settings = json.loads((tmp_path / mismatch.STUDY_FILE).read_text())
+    assert settings["env_kwargs"]["platform"] == "motion_simulator" and settings["task"] == "tracking"
 
 
-def _small_study(ppo_success: float) -> mismatch.MismatchResult:
-    """CT and PPO, each on the exact model and with C2, on the improved plant; CT succeeds, PPO
-    succeeds in ``ppo_success`` of the episodes with errors 1000 times CT's."""
-    from stewart_env.agents.evaluation import METRICS
-
-    rows = [mismatch.Row(f"{family} [{model}]", family, model) for family in ("CT", "PPO")
-            for model in ("improved", "improved+c2")]
-    summary = {}
+def _constructed_study(ppo_success: float, shift: float = 1.0):
+    """CT and PPO, each on the exact model and with C2, on the improved plant, 2 seeds x 8
+    episodes.  Episode errors are the same per episode for every row (the episodes' difficulty)
+    plus a row's offset: CT's C2 row ``shift`` micrometres worse than its exact row; PPO's rows
+    1000 times CT's, and PPO succeeds in ``ppo_success`` of the episodes."""
+    rng = np.random.default_rng(0)
+    difficulty = rng.lognormal(0.0, 0.5, size=(2, 8)) * 1e-6
+    rows = [mismatch.Row(f"{family} [{model}]", family, model, "ct" if family == "CT" else "agent",
+                         seeds=() if family == "CT" else (0, 1))
+            for family in ("CT", "PPO") for model in ("improved", "improved+c2")]
+    cells = {}
     for row in rows:
         scale = 1e3 if row.family == "PPO" else 1.0
-        scale *= 2.0 if row.model == "improved+c2" else 1.0
-        metrics = {key: 1e-6 * scale for key, *_ in METRICS}
-        metrics["success"] = ppo_success if row.family == "PPO" else 1.0
-        summary[row.label] = {"improved": metrics}
-    return mismatch.MismatchResult(rows, ["improved"], summary, 4)
+        offset = shift * 1e-6 if row.model == "improved+c2" else 0.0
+        base = difficulty if row.family == "PPO" else difficulty[:1]
+        cells[row.label] = {key: scale * (base + offset) for key, *_ in METRICS}
+        success = ppo_success if row.family == "PPO" else 1.0
+        cells[row.label]["success"] = (np.arange(base.size).reshape(base.shape) < success * base.size).astype(float)
+    summary = {r.label: {"improved": {k: stratified_bootstrap(v, mismatch.statistic(k))
+                                      for k, v in cells[r.label].items()}} for r in rows}
+    result = mismatch.MismatchResult(rows, ["improved"], summary, 8)
+    result.differences = mismatch.simplification_costs(result, values=lambda r, plant, key: cells[r.label][key])
+    return result
+
+
+def test_resolved_costs_on_constructed_cells():
+    resolved = _constructed_study(ppo_success=1.0, shift=1.0)
+    ct = next(d for d in resolved.differences if d.family == "CT" and d.metric == "rms_position_error")
+    # every episode 1 um worse: the paired difference is exactly that, in every resample
+    assert ct.interval.estimate == pytest.approx(1e-6, rel=1e-9) and ct.resolved
+    # no model offset: the same episodes give a difference of exactly zero, not resolved
+    unresolved = _constructed_study(ppo_success=1.0, shift=0.0)
+    assert not any(d.resolved for d in unresolved.differences)
 
 
 def test_failed_agents_rank_no_simplification(tmp_path):
-    from stewart_env.agents.evaluation import METRICS
-
     header = {"task": "setpoint", "eval_seed": 100_000, "wall_time": 1.0}
-    mismatch.write_outputs(_small_study(ppo_success=0.25), tmp_path, METRICS, header)
+    mismatch.write_outputs(_constructed_study(ppo_success=0.25), tmp_path, METRICS, header)
     text = (tmp_path / "matrix.md").read_text()
-    ct, ppo = text.split("## Which simplification costs most: PPO")
-    assert "costliest first: C2 x2" in ct  # CT succeeds: its ranking stands
-    assert "**Warning: no ranking.** PPO [improved], PPO [improved+c2] succeed in fewer than 50%" in ppo
-    assert "costliest first" not in ppo
+    ct, ppo = text.split("### PPO")
+    assert "steady-state pos. (mm), resolved costs, largest first: C2 (+0.001)" in ct  # CT: 1 um = 0.001 mm
+    assert "none resolved; failed, not ranked: C2" in ppo
+    assert "| C2: " in ppo and "*failed*" in ppo
     # at the threshold the agents count as succeeding and are ranked
-    mismatch.write_outputs(_small_study(ppo_success=0.5), tmp_path, METRICS, header)
-    assert "Warning" not in (tmp_path / "matrix.md").read_text()
+    mismatch.write_outputs(_constructed_study(ppo_success=0.5), tmp_path, METRICS, header)
+    ppo = (tmp_path / "matrix.md").read_text().split("### PPO")[1]
+    assert "failed" not in ppo and "resolved costs, largest first: C2 (+1)" in ppo
+
+
+def test_forest_plot_draws_every_cost():
+    result = _constructed_study(ppo_success=0.25)
+    fig = mismatch.forest_figure(result, METRICS)
+    assert len(fig.axes) == len(RANKING_METRICS)
+    ax = fig.axes[0]
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["CT: C2", "PPO: C2"]
+    markers = [line for line in ax.get_lines() if line.get_marker() in ("o", "x")]
+    # CT resolved: a filled red dot; PPO failed: a grey cross
+    assert [(m.get_marker(), m.get_color()) for m in markers] == [("o", "C3"), ("x", "0.6")]
 
 
 def test_heatmap_hatches_failed_cells_outside_the_colour_scale():
-    study = _small_study(ppo_success=0.25)
+    study = _constructed_study(ppo_success=0.25)
     fig = mismatch.heatmap_figure(study, "steady_state_position_error", "steady-state pos. (mm)", 1e3, ".3g")
     ax = fig.axes[0]
     image = ax.get_images()[0]
     failed = np.array([[False], [False], [True], [True]])  # the PPO rows
     np.testing.assert_array_equal(np.ma.getmaskarray(image.get_array()), failed)
-    # the colour scale spans the CT cells only (1e-3 and 2e-3 mm): the failed 1 and 2 mm are not "worst"
-    assert image.norm.vmin == pytest.approx(1e-3) and image.norm.vmax == pytest.approx(2e-3)
-    hatched = [p for p in ax.patches if p.get_hatch()]
-    assert len(hatched) == 2
-    cells = [t.get_text() for t in ax.texts]
-    assert cells == ["0.001", "0.002", "failed (1)", "failed (2)"]
-    assert "hatched: failed (success < 50%)" in ax.get_title()
+    # the colour scale spans the CT cells only: the failed agents' larger errors are not "worst"
+    ct = study.matrix("steady_state_position_error")[:2, 0] * 1e3
+    assert image.norm.vmin == pytest.approx(ct.min()) and image.norm.vmax == pytest.approx(ct.max())
+    assert len([p for p in ax.patches if p.get_hatch()]) == 2
+    assert [t.get_text().startswith("failed (") for t in ax.texts] == [False, False, True, True]
 
 
+@pytest.mark.slow  # the study fixture trains eight agents: about 20 s
 def test_a_row_stopped_while_training_continues_from_its_checkpoint(study, tmp_path):
     import shutil
 
@@ -168,15 +329,23 @@ def test_a_row_stopped_while_training_continues_from_its_checkpoint(study, tmp_p
 
     out, _ = study
     row = tmp_path / "improved"
-    shutil.copytree(out / "agents" / "improved", row)
+    shutil.copytree(out / "agents" / "improved" / "seed_0", row)
     # what a stop during the row's training leaves: the run and its checkpoint, no final model
     (row / MODEL_FILE).unlink()
     (row / VECNORMALIZE_FILE).unlink(missing_ok=True)
     manifest = read_manifest(row)
     steps, _ = newest_checkpoint(row, "ppo", bool(manifest["normalize"]))
+    training = dict(algo="ppo", model=manifest["model"], task=manifest["task"], seed=manifest["seed"], n_envs=2,
+                    checkpoint_freq=0, env_kwargs={k: v for k, v in manifest["env_kwargs"].items()
+                                                   if k not in ("model", "task")})
     with pytest.raises(TrainingError, match="seed"):  # a row of another seed is not continued silently
-        mismatch._agent("ppo", row, manifest["env_kwargs"], steps + 1, manifest["seed"] + 1, None, False)
-    agent = mismatch._agent("ppo", row, manifest["env_kwargs"], steps + 1, manifest["seed"], None, False)
+        mismatch._train_locally(row, {**training, "seed": manifest["seed"] + 1}, steps + 1, False)
+    mismatch._train_locally(row, training, steps + 1, False)
     assert (row / MODEL_FILE).is_file()
-    assert agent.num_timesteps > steps  # it trained on from the checkpoint, not from scratch
+    assert read_manifest(row)["num_timesteps"] > steps  # it trained on from the checkpoint, not from scratch
     assert read_manifest(row)["segments"][-1]["start"] == steps
+
+
+def test_interval_formatting():
+    assert mismatch.format_interval(Interval(1e-3, 5e-4, 2e-3, 1, 5), 1e3, ".3g") == "1 [0.5, 2]"
+    assert mismatch.format_interval(Interval(float("nan"), float("nan"), float("nan"), 1, 5), 1e3, ".3g") == "-"
