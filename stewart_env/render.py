@@ -26,6 +26,8 @@ from matplotlib.patches import Patch
 from mpl_toolkits.mplot3d import proj3d
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
+from stewart_env.validation import integer
+
 __all__ = ["PlatformRenderer", "LEG_FORCE_COLORMAP"]
 
 _RENDER_MODES = ("rgb_array", "human")
@@ -151,9 +153,7 @@ class PlatformRenderer:
         force_min, force_max = _as_array(force_range, (2,), "force_range")
         if not force_min < force_max:
             raise ValueError(f"force_range must be (min, max) with min < max, got {tuple(force_range)}")
-        for name, size in (("width", width), ("height", height)):
-            if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size <= 0:
-                raise ValueError(f"{name} must be a positive integer number of pixels, got {size!r}")
+        width, height = integer("width", width, 1, sys.maxsize), integer("height", height, 1, sys.maxsize)
         if render_mode not in _RENDER_MODES:
             raise ValueError(f"render_mode must be one of {_RENDER_MODES}, got {render_mode!r}")
         self.width, self.height = int(width), int(height)

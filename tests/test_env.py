@@ -1,5 +1,6 @@
 """Tests of the single environment StewartPlatform-v0 (stewart_env.envs.stewart_platform)."""
 
+import dataclasses
 import inspect
 import re
 import subprocess
@@ -13,7 +14,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 
 import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
-from stewart_env.envs import DEFAULTS, StewartPlatformEnv, holding_action
+from stewart_env.envs import DEFAULTS, EnvConfig, StewartPlatformEnv, StewartPlatformVectorEnv, holding_action
+from stewart_env.envs.config import arguments_table
 from stewart_env.params import Limits, load_platform
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.rotations import rotation_error
@@ -171,11 +173,33 @@ def test_readme_env_card_is_the_class_docstring():
     assert inspect.cleandoc(StewartPlatformEnv.__doc__) == _readme_card()
 
 
-def test_env_card_lists_every_argument_with_its_default():
+def test_env_card_arguments_table_is_the_configuration_records():
     card = _readme_card()
+    assert arguments_table() in card
     for name, default in DEFAULTS.items():
         shown = f'"{default}"' if isinstance(default, str) else repr(default)
         assert f"| `{name}` | `{shown}` |" in card, name
+
+
+@pytest.mark.parametrize("cls, own", [(StewartPlatformEnv, ()),
+                                      (StewartPlatformVectorEnv, ("num_envs", "max_episode_steps", "autoreset_mode"))])
+def test_signature_shows_every_argument_of_the_records_with_its_default(cls, own):
+    params = inspect.signature(cls).parameters
+    assert [name for name in params if name not in own] == list(DEFAULTS)
+    for name, default in DEFAULTS.items():
+        assert params[name].default == default and params[name].kind == params[name].KEYWORD_ONLY, name
+
+
+def test_configuration_records_are_frozen_and_checked_once():
+    config = EnvConfig.of(control_dt=0.02, physics_dt=0.004, observation_noise={"position": 1})
+    assert (config.physics.control_dt, config.physics.substeps) == (0.02, 5)
+    assert config.observation.observation_noise == {"position": 1.0}
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        config.physics.control_dt = 0.1
+    with pytest.raises(ValueError, match=r"^observation_delay: expected an integer in \[0, 1000\], got 2.5"):
+        EnvConfig.of(observation_delay=2.5)
+    with pytest.raises(ValueError, match="^unknown environment argument"):
+        EnvConfig.of(frameskip=4)
 
 
 # -- actions ---------------------------------------------------------------------------------------------
@@ -388,7 +412,7 @@ def test_reward_is_the_sum_of_its_terms_and_matches_the_formula():
     weights = dict(position_reward_weight=0.7, position_reward_scale=0.02, orientation_reward_weight=0.3,
                    orientation_reward_scale=0.2, velocity_cost_weight=0.2, velocity_cost_scale=0.4,
                    angular_velocity_cost_scale=2.0, ctrl_cost_weight=0.3, termination_cost=5.0)
-    env = make(task="tracking", **weights)
+    env = make(task="tracking", task_options=weights)
     env.reset(seed=2)
     rng = np.random.default_rng(1)
     for _ in range(20):
@@ -409,6 +433,12 @@ def test_reward_is_the_sum_of_its_terms_and_matches_the_formula():
         assert reward == pytest.approx(expected, abs=1e-9)  # same formula, other rounding order
         if terminated:
             break
+
+
+def test_reward_weights_given_as_environment_arguments_are_refused_pointing_to_task_options():
+    with pytest.raises(TypeError, match=r"unexpected keyword argument 'termination_cost'; the reward weights are "
+                                        r"options of the task: pass task_options=\{'termination_cost': \.\.\.\}"):
+        make(termination_cost=50.0)
 
 
 def test_reward_is_bounded_and_best_on_target():

@@ -6,14 +6,17 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
+from stewart_env.envs import holding_action
 from stewart_env.params import load_platform
 from stewart_env.randomization import KEYS, Randomization
 from stewart_env.rotations import matrix_to_rpy, rotation_error, rpy_to_matrix
 from stewart_env.tasks import (
     DisturbanceTask,
+    HoldTask,
     Reference,
     SetpointTask,
     PlatformState,
+    StepView,
     TrackingTask,
     make_task,
     tracking_errors,
@@ -33,6 +36,12 @@ def dasgupta():
 
 def empty_reference(n):
     return Reference(np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3)))
+
+
+def view(episode, time, state=None):
+    """A StepView of the rows of ``episode`` at ``time`` (N,) for the methods that take one (the
+    fields they do not read are None)."""
+    return StepView(state, None, None, None, None, None, None, None, None, time, None, episode)
 
 
 def batch(episodes):
@@ -216,7 +225,7 @@ def test_disturbance_wrench_delivers_its_exact_impulse(dasgupta):
     total = np.zeros(6)
     out = np.zeros((1, 6))
     for k in range(steps):
-        task.external_wrench(ep, np.array([k * dt]), dt, out)
+        task.external_wrench(view(ep, np.array([k * dt])), dt, out)
         total += out[0] * dt
     T = steps * dt
     A, w, phi = episode["sine_amplitude"], episode["sine_omega"], episode["sine_phase"]
@@ -359,16 +368,19 @@ def test_randomized_dynamics_differ_from_nominal():
 
 
 class _NearTarget(SetpointTask):
-    """A task with a termination of its own: the episode ends once within 2 cm of the target."""
+    """A task with a termination of its own: the episode ends, a success, once within 2 cm of the target."""
 
     name = "near_target"
-    termination_reasons = ("reached",)
+    termination_reasons = (*SetpointTask.termination_reasons, "reached")
+    success_reasons = ("reached",)
 
-    def termination(self, state, errors, time):
-        return (errors.position_norm < 0.02).astype(int)
+    def termination(self, view):
+        code = super().termination(view)
+        self.end(code, view.errors.position_norm < 0.02, "reached")
+        return code
 
 
-def test_a_task_of_ones_own_with_its_own_termination():
+def test_a_task_of_ones_own_ends_an_episode_with_a_success_and_no_termination_cost():
     env = gym.make("StewartPlatform-v0", task=_NearTarget, task_options={"randomize": False})
     env.reset(seed=0)
     u = env.unwrapped
@@ -376,12 +388,109 @@ def test_a_task_of_ones_own_with_its_own_termination():
     # The fixed case starts 5 mm below the target: the first step already ends the episode.
     _, reward, terminated, _, info = env.step(np.full(6, 0.09))
     assert terminated and env.unwrapped.termination_reasons[info["termination"]] == "reached"
-    # The task's reasons follow the environment's four.
+    # The task's reasons follow the platform's limits.
     assert u.termination_reasons == ("", "non_finite", "singularity", "leg_stroke", "workspace", "reached")
     assert info["termination"] == 5
-    assert info["reward_termination"] == -10.0
-    # The environment's own reasons rank first: on the target position but pitched 0.52 rad (past
-    # max_angle 0.5; legs 1.17-1.46 m, in stroke) both apply, and the environment's "workspace" wins.
+    assert info["reward_termination"] == 0.0  # a success: the task pays no termination cost
+    assert reward == sum(v for k, v in info.items() if k.startswith("reward_"))
+    # The limits rank first: on the target position but pitched 0.52 rad (past max_angle 0.5;
+    # legs 1.17-1.46 m, in stroke) both apply, and "workspace" wins, a failure.
     u.set_state([0.1, 0.0, 0.4], rpy_to_matrix([0.0, 0.52, 0.0]))
     _, _, terminated, _, info = env.step(np.full(6, 0.09))
     assert terminated and env.unwrapped.termination_reasons[info["termination"]] == "workspace"
+    assert info["reward_termination"] == -10.0  # the default termination_cost of a failure
+    cheap = gym.make("StewartPlatform-v0", task=_NearTarget, task_options={"randomize": False, "termination_cost": 3.0})
+    cheap.reset(seed=0)
+    cheap.unwrapped.set_state([0.1, 0.0, 0.4], rpy_to_matrix([0.0, 0.52, 0.0]))
+    assert cheap.step(np.full(6, 0.09))[4]["reward_termination"] == -3.0
+
+
+def test_a_task_sees_the_batch_read_only():
+    seen = []
+
+    class Peek(SetpointTask):
+        def reward_terms(self, view):
+            seen.append(view)
+            return super().reward_terms(view)
+
+    env = gym.make("StewartPlatform-v0", task=Peek)
+    env.reset(seed=0)
+    env.step(np.full(6, 0.1))
+    v = seen[-1]
+    u = env.unwrapped
+    np.testing.assert_array_equal(v.leg_lengths[0], u.leg_lengths)
+    np.testing.assert_array_equal(v.leg_forces[0], u.leg_forces)
+    np.testing.assert_array_equal(v.state.position[0], u.state.position)
+    assert v.time[0] == 0.01 and v.episode["target_position"].shape == (1, 3)
+    for array in (v.state.position, v.errors.position, v.errors.position_norm, v.leg_rates, v.condition, v.action,
+                  v.episode["target_rotation"]):
+        with pytest.raises(ValueError, match="read-only"):
+            array[...] = 0.0
+
+
+@pytest.mark.parametrize("bad, message", [
+    ({"termination_reasons": ("reached",)}, "must begin with"),
+    ({"success_reasons": ("landed",)}, "success reason"),
+    ({"episode_fields": lambda self: {"goal": (3,)}}, "fixed target"),
+])
+def test_a_task_that_breaks_the_interface_is_refused_at_construction(dasgupta, bad, message):
+    broken = type("Broken", (SetpointTask,), bad)
+    with pytest.raises(TypeError, match=message):
+        broken(dasgupta, 0.01)
+
+
+def test_a_tasks_flags_follow_from_what_it_overrides(dasgupta):
+    assert not SetpointTask(dasgupta, 0.01).moving_reference
+    assert TrackingTask(dasgupta, 0.01).moving_reference
+    assert not SetpointTask(dasgupta, 0.01).has_external_wrench
+    assert DisturbanceTask(dasgupta, 0.01).has_external_wrench
+    assert HoldTask(dasgupta, 0.01).has_external_wrench and not HoldTask(dasgupta, 0.01).moving_reference
+
+
+# -- hold -----------------------------------------------------------------------------------------------------
+
+
+def test_hold_payload_is_a_dead_weight_at_its_point(dasgupta):
+    task = HoldTask(dasgupta, 0.01, max_payload=10.0)
+    _, episode = task.initialize_episode(np.random.default_rng(3))
+    m, c = episode["payload_mass"], episode["payload_offset"]
+    assert 0.0 <= m <= 10.0 and np.hypot(*c[:2]) <= task.payload_radius and c[2] == 0.0
+    R = rpy_to_matrix(np.array([0.1, -0.2, 0.3]))
+    state = PlatformState(dasgupta.home_position[None], R[None], np.zeros((1, 3)), np.zeros((1, 3)))
+    out = np.zeros((1, 6))
+    task.external_wrench(view(batch([episode]), np.zeros(1), state), 0.01, out)
+    force = m * dasgupta.gravity
+    np.testing.assert_array_equal(out[0, :3], force)
+    # The moment of the weight about P: (R c) x m g, checked against the triple product written out.
+    arm = R @ c
+    np.testing.assert_allclose(out[0, 3:], [arm[1] * force[2] - arm[2] * force[1],
+                                            arm[2] * force[0] - arm[0] * force[2],
+                                            arm[0] * force[1] - arm[1] * force[0]], rtol=1e-15, atol=1e-12)
+
+
+def test_hold_the_holding_forces_of_the_bare_platform_let_the_payload_pull_it_down():
+    env = gym.make("StewartPlatform-v0", task="hold", task_options={"max_payload": 20.0, "payload_radius": 0.0})
+    env.reset(seed=1)
+    u = env.unwrapped
+    p = u.platform
+    np.testing.assert_array_equal(u.state.position, p.home_position)
+    np.testing.assert_array_equal(u.target.position, p.home_position)
+    assert u.termination_reasons == ("", "non_finite", "singularity", "leg_stroke", "workspace")
+    a = holding_action(env)
+    for _ in range(20):
+        _, _, terminated, _, info = env.step(a)
+    assert not terminated
+    mass = u.task.max_payload  # the episode's payload, at most this
+    assert 0.0 < -u.external_wrench[2] <= mass * 9.81 + 1e-9  # a downward weight, no moment at P's origin
+    np.testing.assert_array_equal(u.external_wrench[3:], 0.0)
+    # 0.2 s under a weight the forces do not carry: the platform has sunk, by more than rounding.
+    assert u.state.position[2] < p.home_position[2] - 1e-4
+    assert set(u.observation_layout) == {"position", "orientation", "velocity", "angular_velocity",
+                                         "position_error", "orientation_error"}
+
+
+def test_hold_options_are_checked(dasgupta):
+    with pytest.raises(ValueError, match=r"task_options\['max_payload'\]"):
+        HoldTask(dasgupta, 0.01, max_payload=-1.0)
+    with pytest.raises(ValueError, match=r"task_options\['payload_radius'\]"):
+        HoldTask(dasgupta, 0.01, payload_radius=5.0)

@@ -8,6 +8,7 @@ from gymnasium.vector import AutoresetMode
 import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
 from stewart_env.envs import StewartPlatformVectorEnv
 from stewart_env.envs import core as core_module
+from stewart_env.envs.config import EnvConfig
 
 pytestmark = pytest.mark.env
 
@@ -290,7 +291,7 @@ def test_a_row_that_goes_non_finite_is_marked_alone():
     rows = np.arange(3)
     batches = []
     for _ in range(2):
-        batch = core_module.PlatformBatch(3, task="disturbance")
+        batch = core_module.PlatformBatch(3, EnvConfig.of(task="disturbance"))
         batch.reset_rows(rows, [np.random.default_rng(i) for i in rows])
         batches.append(batch)
     p = batches[1].platform

@@ -4,12 +4,14 @@
 stable-baselines3 (and torch).
 """
 
+from stewart_env.envs.config import EnvConfig
 from stewart_env.envs.core import DEFAULTS, TERMINATION_REASONS
 from stewart_env.envs.stewart_platform import StewartPlatformEnv, holding_action
 from stewart_env.envs.vector import StewartPlatformVectorEnv
 
 __all__ = [
     "DEFAULTS",
+    "EnvConfig",
     "TERMINATION_REASONS",
     "StewartPlatformEnv",
     "StewartPlatformSB3VecEnv",

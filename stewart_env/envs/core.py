@@ -2,8 +2,9 @@
 
 :class:`PlatformBatch` holds the state of N platforms in preallocated arrays and does everything
 of a control step for all of them at once: action to leg forces, actuator lag, the task's
-external wrench, one call of :func:`~stewart_env.integrate.rollout_inplace`, leg sensors,
-termination, reward terms and the observation (noise and delay included).  The single
+external wrench, one call of :func:`~stewart_env.integrate.rollout_inplace`, leg sensors, and the
+observation (noise and delay included); the task, given a read-only
+:class:`~stewart_env.tasks.StepView` of the batch, decides termination and reward.  The single
 environment is a batch of one, the vector environment a batch of N; both give a platform the same
 arithmetic, so a vector row reproduces a single environment bit for bit.  Per-row Python loops
 run only at episode start and for observation noise (each row draws from its own Generator).
@@ -11,104 +12,38 @@ run only at episode start and for observation noise (each row draws from its own
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 from gymnasium.error import ResetNeeded
 from numba import njit
 
-from stewart_env.dynamics import Dynamics, make_dynamics
+from stewart_env.dynamics import Dynamics
+from stewart_env.envs.config import EnvConfig, defaults
 from stewart_env.integrate import rollout_inplace
 from stewart_env.kinematics import leg_sensors_inplace
-from stewart_env.params import PlatformParams, load_platform
-from stewart_env.randomization import Randomization
+from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
-from stewart_env.tasks import RewardWeights, Scales, make_task, tracking_errors
-from stewart_env.validation import check_action, check_keywords, choice, flag, integer, real
+from stewart_env.tasks import LIMIT_REASONS, Scales, StepView, make_task, tracking_errors
+from stewart_env.tasks.base import errors_in, zero_reference
+from stewart_env.validation import check_action
 
-__all__ = ["DEFAULTS", "LIMITS", "OBSERVATION_MODES", "TERMINATION_REASONS", "BatchAttributes", "PlatformBatch",
-           "check_action"]
+__all__ = ["DEFAULTS", "TERMINATION_REASONS", "BatchAttributes", "PlatformBatch", "check_action"]
 
 #: Every keyword argument of the environments and its default (the arguments table of the card).
-DEFAULTS: dict[str, Any] = {
-    "model": "improved",
-    "platform": "dasgupta1998",
-    "task": "setpoint",
-    "task_options": None,
-    "control_dt": 0.01,
-    "physics_dt": 0.001,
-    "actuator_tau": 0.0,
-    "observation_mode": "pose",
-    "normalize_observation": True,
-    "observation_noise": 0.0,
-    "observation_delay": 0,
-    "error_integral": False,
-    "error_integral_limit": 0.1,
-    "error_integral_band": None,
-    "randomization": None,
-    **{name: getattr(RewardWeights, name) for name in RewardWeights.__dataclass_fields__},
-    "width": 480,
-    "height": 480,
-}
-#: The ranges of the numeric keyword arguments (low, high), both included; the reward weights and
-#: scales have theirs in :class:`~stewart_env.tasks.RewardWeights`.  Beyond them a value is no
-#: longer a meaningful setting and can overflow the arithmetic (the card's Arguments table).
-LIMITS: dict[str, tuple[float, float]] = {
-    "control_dt": (1e-6, 10.0),
-    "actuator_tau": (0.0, 100.0),
-    "observation_noise": (0.0, 100.0),
-    "observation_delay": (0, 1000),
-    "error_integral_limit": (1e-6, 1e6),
-    "error_integral_band": (0.0, 1e6),  # > 0
-    "width": (1, 4096),
-    "height": (1, 4096),
-}
-#: At most this many RK4 substeps per control step (control_dt / physics_dt).
-MAX_SUBSTEPS = 10**6
-OBSERVATION_MODES = ("pose", "sensors")
-#: The environment's own reasons to terminate, by priority (a task's reasons come after these).
-TERMINATION_REASONS = ("non_finite", "singularity", "leg_stroke", "workspace")
+DEFAULTS: dict[str, Any] = defaults()
+#: The platform's limits as termination reasons, by priority: every task's reasons begin with them.
+TERMINATION_REASONS = LIMIT_REASONS
 #: The name of termination code 0, a step that does not terminate (``info["termination"]`` is
 #: the code, an index into an environment's ``termination_reasons``).
 NOT_TERMINATED = ""
-# Relative tolerance on control_dt / physics_dt being a whole number (rounding of decimal inputs).
-_DT_TOLERANCE = 1e-9
+#: The code of "non_finite", the first of every task's reasons.
+NON_FINITE = 1
 # The largest float32: an observation entry beyond it would become inf in the returned float32 array.
 _FLOAT32_MAX = float(np.finfo(np.float32).max)
-
-
-@njit(cache=True)
-def _limit_codes(t, R, lengths, condition, non_finite, position_min, position_max, home_rpy, max_angle,
-                 length_min, length_max, max_condition, code):
-    """Termination code of every row, by priority: 1 non-finite state, 2 Jacobian condition number
-    above max_condition, 3 a leg outside its stroke, 4 P outside the workspace box or a
-    roll-pitch-yaw angle (as stewart_env.rotations.matrix_to_rpy, wrapped to [-pi, pi) about home)
-    further than max_angle from home; 0 none."""
-    for b in range(t.shape[0]):
-        c = 0
-        if non_finite[b]:
-            c = 1
-        elif condition[b] > max_condition:
-            c = 2
-        else:
-            for i in range(6):
-                if lengths[b, i] < length_min or lengths[b, i] > length_max:
-                    c = 3
-            if c == 0:
-                for j in range(3):
-                    if t[b, j] < position_min[j] or t[b, j] > position_max[j]:
-                        c = 4
-                s = -R[b, 2, 0]
-                s = min(max(s, -1.0), 1.0)
-                rpy = (np.arctan2(R[b, 2, 1], R[b, 2, 2]), np.arcsin(s), np.arctan2(R[b, 1, 0], R[b, 0, 0]))
-                for j in range(3):
-                    d = (rpy[j] - home_rpy[j] + np.pi) % (2.0 * np.pi) - np.pi
-                    if abs(d) > max_angle:
-                        c = 4
-        code[b] = c
 
 
 @njit(cache=True)
@@ -123,73 +58,55 @@ def _within_float32(raw, reward, largest):
     return True
 
 
-def _limited(name: str, value: Any, *, low_open: bool = False) -> float:
-    """A number keyword argument checked against its :data:`LIMITS`."""
-    return real(name, value, *LIMITS[name], low_open=low_open)
-
-
-def _platform(value: Any) -> PlatformParams:
-    if isinstance(value, PlatformParams):
-        return value
-    if isinstance(value, str) or hasattr(value, "__fspath__"):
-        return load_platform(value)
-    raise ValueError(f"platform: expected a config name, a YAML path or a PlatformParams, got {value!r}")
+def _readonly(array: np.ndarray) -> np.ndarray:
+    """A view of ``array`` that cannot be written (what a task is given)."""
+    view = array.view()
+    view.flags.writeable = False
+    return view
 
 
 class PlatformBatch:
     """N platforms under one dynamics model, one task and one set of options.
 
-    ``n`` rows; keyword arguments as in :data:`DEFAULTS` (validated here, errors name the
-    argument).  Public arrays (row i = platform i, frames and units of the environment card):
-    position (n,3), rotation (n,3,3), velocity (n,3), angular_velocity (n,3), leg_forces (n,6),
-    external_wrench (n,6), time (n,), leg_lengths (n,6), leg_rates (n,6), condition (n,), the
-    reference (a :class:`~stewart_env.tasks.Reference` of (n, ...) arrays), error_integral (n,6)
-    [m s; rad s] (None unless ``error_integral=True``) and observation (n, D), the latest
-    observation of every row (scaled, noisy, delayed as configured).
+    ``n`` rows; ``config`` the validated arguments (:class:`~stewart_env.envs.config.EnvConfig`).
+    Public arrays (row i = platform i, frames and units of the environment card): position (n,3),
+    rotation (n,3,3), velocity (n,3), angular_velocity (n,3), leg_forces (n,6), external_wrench
+    (n,6), time (n,), leg_lengths (n,6), leg_rates (n,6), condition (n,), the reference (a
+    :class:`~stewart_env.tasks.Reference` of (n, ...) arrays), error_integral (n,6) [m s; rad s]
+    (None unless ``error_integral=True``) and observation (n, D), the latest observation of every
+    row (scaled, noisy, delayed as configured).
     """
 
-    def __init__(self, n: int, **kwargs: Any):
-        check_keywords("PlatformBatch.__init__", kwargs, DEFAULTS)
-        cfg = {**DEFAULTS, **kwargs}
-        self.n = n = integer("n", n, 1, 2**31 - 1)
+    def __init__(self, n: int, config: EnvConfig):
+        self.n = n
+        self.config = config
+        self._init_physics(config)
+        self._init_task(config)
+        self._init_state(n)
+        self._init_observation(config.observation, n)
+        self._views()
 
-        # -- physics ------------------------------------------------------------------------------
-        self.platform = _platform(cfg["platform"])
-        self.nominal_model: Dynamics = make_dynamics(cfg["model"], self.platform)
+    def _init_physics(self, config: EnvConfig) -> None:
+        physics = config.physics
+        self.platform: PlatformParams = physics.platform
+        self.nominal_model: Dynamics = physics.dynamics
         self.model: Dynamics = self.nominal_model
-        self.control_dt = _limited("control_dt", cfg["control_dt"])
-        physics_dt = real("physics_dt", cfg["physics_dt"], 0.0, self.control_dt, low_open=True)
-        substeps = round(self.control_dt / physics_dt)
-        if substeps > MAX_SUBSTEPS:
-            raise ValueError(f"physics_dt ({physics_dt}): control_dt / physics_dt is "
-                             f"{self.control_dt / physics_dt:.6g}, more than {MAX_SUBSTEPS} RK4 substeps per step")
-        if abs(substeps * physics_dt - self.control_dt) > _DT_TOLERANCE * self.control_dt:
-            raise ValueError(f"control_dt ({self.control_dt}) must be a whole multiple of physics_dt "
-                             f"({physics_dt}): the ratio is {self.control_dt / physics_dt:.6g}")
-        self.substeps = substeps
-        # Integrate with control_dt / substeps so that n control steps are exactly n control_dt.
-        self.physics_dt = self.control_dt / substeps
-        tau = _limited("actuator_tau", cfg["actuator_tau"])
-        self.actuator_tau = tau
-        self._lag = 1.0 - math.exp(-self.control_dt / tau) if tau > 0 else 0.0
-        lim = self.platform.limits
-        self._force_mid = 0.5 * (lim.leg_force[0] + lim.leg_force[1])
-        self._force_half = 0.5 * (lim.leg_force[1] - lim.leg_force[0])
+        self.control_dt, self.physics_dt, self.substeps = physics.control_dt, physics.physics_dt, physics.substeps
+        self.randomization = physics.randomization
+        self.actuator_tau = config.actuator.actuator_tau
+        self._lag = config.actuator.lag(self.control_dt)
+        lo, hi = self.platform.limits.leg_force
+        self._force_mid = 0.5 * (lo + hi)
+        self._force_half = 0.5 * (hi - lo)
 
-        spec = cfg["randomization"]
-        self.randomization = Randomization(spec) if spec else None
-
-        # -- task and reward ----------------------------------------------------------------------
-        self.task = make_task(cfg["task"], self.platform, self.control_dt, cfg["task_options"])
-        self.weights = RewardWeights(**{k: cfg[k] for k in RewardWeights.__dataclass_fields__})
-        self.termination_reasons: tuple[str, ...] = (NOT_TERMINATED, *TERMINATION_REASONS,
-                                                     *self.task.termination_reasons)
+    def _init_task(self, config: EnvConfig) -> None:
+        self.task = task = make_task(config.task.task, self.platform, self.control_dt, config.task.task_options)
+        self.termination_reasons: tuple[str, ...] = (NOT_TERMINATED, *task.termination_reasons)
         self._reason_array = np.array(self.termination_reasons, dtype=str)
-        self._task_code_offset = 1 + len(TERMINATION_REASONS)
-        self.width = integer("width", cfg["width"], *LIMITS["width"])
-        self.height = integer("height", cfg["height"], *LIMITS["height"])
+        self._moving_reference = task.moving_reference
+        self._has_external_wrench = task.has_external_wrench
 
-        # -- state, preallocated --------------------------------------------------------------------
+    def _init_state(self, n: int) -> None:
         self.position = np.zeros((n, 3))
         self.rotation = np.zeros((n, 3, 3))
         self.velocity = np.zeros((n, 3))
@@ -201,23 +118,26 @@ class PlatformBatch:
         self.leg_lengths = np.zeros((n, 6))
         self.leg_rates = np.zeros((n, 6))
         self.condition = np.zeros(n)
-        self.reference = Reference(np.zeros((n, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3)), np.zeros((n, 3)))
-        self.episode = {k: np.zeros((n, *shape)) for k, shape in self.task.episode_fields.items()}
+        self.reference = zero_reference(n)
+        self.episode = {k: np.zeros((n, *shape)) for k, shape in self.task.episode_fields().items()}
         self.row_params: list[PlatformParams] = [self.platform] * n
         self._backup = PlatformState(*(np.zeros((n, *shape)) for shape in ((3,), (3, 3), (3,), (3,))))
+        # The tracking errors of every row after a step: the vectors and the norms of Errors.
+        self._error_vectors, self._error_norms = np.zeros((4, n, 3)), np.zeros((4, n))
         self._action = np.zeros((n, 6))
         self._command = np.zeros((n, 6))
         self._state_sum = np.zeros(n)
         self._non_finite = np.zeros(n, dtype=bool)
+        self._any_non_finite = False
         # Rows whose start observation was not finite: their first step terminates ("non_finite").
         self._pending = np.zeros(n, dtype=bool)
         self._any_pending = False
-        self._code = np.zeros(n, dtype=np.int64)
-        self._home_rpy = self.platform.home_rpy
         self._home_rotation = rpy_to_matrix(self.platform.home_rpy)
 
-        # -- observation ----------------------------------------------------------------------------
-        self.observation_mode = choice("observation_mode", cfg["observation_mode"], OBSERVATION_MODES)
+    def _init_observation(self, obs, n: int) -> None:
+        """The observation's layout, scaling, noise, delay and error integral (see the card)."""
+        lim = self.platform.limits
+        self.observation_mode = obs.observation_mode
         scales = Scales.of(self.platform)
         box_centre = 0.5 * (lim.position_min + lim.position_max)
         stroke_mid = 0.5 * (lim.leg_length[0] + lim.leg_length[1])
@@ -230,26 +150,24 @@ class PlatformBatch:
         else:
             terms += [("leg_lengths", np.full(6, scales.leg_length), np.full(6, stroke_mid)),
                       ("leg_rates", np.full(6, scales.leg_length), np.zeros(6))]
-        if tau > 0:
+        if self.actuator_tau > 0:
             terms.append(("leg_forces", np.full(6, scales.leg_force), np.full(6, self._force_mid)))
         terms += [(name, scale, np.zeros(scale.size)) for name, scale in self.task.observation_terms(scales)]
-        integral = flag("error_integral", cfg["error_integral"])
-        self.error_integral_limit = _limited("error_integral_limit", cfg["error_integral_limit"])
+        self.error_integral_limit = obs.error_integral_limit
         # Anti-windup bound (6,) [m s; rad s]: error_integral_limit seconds of an error of one
         # observation scale (h, A); the normalised integral is the integral over this bound.
         self.error_integral_bound = self.error_integral_limit * np.concatenate([scales.position, ang])
-        band = cfg["error_integral_band"]
+        band = obs.error_integral_band
         # Conditional integration (6,) [m; rad]: an error component adds to the integral only
         # while within band x its observation scale, so that approaching the target (large
         # errors) does not wind the integral up and it holds mostly the steady-state bias.
-        self.error_integral_band = (None if band is None else _limited("error_integral_band", band, low_open=True)
-                                    * np.concatenate([scales.position, ang]))
+        self.error_integral_band = None if band is None else band * np.concatenate([scales.position, ang])
         # The time integral (n,6) [m s; rad s] of (position_error, orientation_error); None when off.
-        self.error_integral = np.zeros((n, 6)) if integral else None
+        self.error_integral = np.zeros((n, 6)) if obs.error_integral else None
         self._integral_step = np.zeros((n, 6))
-        if integral:
+        if obs.error_integral:
             terms.append(("error_integral", self.error_integral_bound, np.zeros(6)))
-        self.normalize_observation = flag("normalize_observation", cfg["normalize_observation"])
+        self.normalize_observation = obs.normalize_observation
         self.observation_layout: dict[str, slice] = {}
         start = 0
         for name, scale, _ in terms:
@@ -264,22 +182,29 @@ class PlatformBatch:
             self.observation_offset = np.zeros(start)
         self._inv_scale = 1.0 / self.observation_scale
         self._raw = np.zeros((n, start))
-        self.noise_std = self._noise(cfg["observation_noise"])
-        self.observation_delay = integer("observation_delay", cfg["observation_delay"], *LIMITS["observation_delay"])
+        self.noise_std = self._noise(obs.observation_noise)
+        self.observation_delay = obs.observation_delay
         # A ring of the last observation_delay + 1 observations; the slot _head + 1 is the oldest.
         self._history = np.zeros((self.observation_delay + 1, n, start))
         self._head = 0
-        self._views()
 
     def _views(self) -> None:
         """The members that are views of others; made again in a copy (see :meth:`__setstate__`),
-        since a copy of a view is no longer a view."""
+        since a copy of a view is no longer a view.  ``view`` is what the task sees of the batch."""
         self._state = PlatformState(self.position, self.rotation, self.velocity, self.angular_velocity)
         self._raw_views = self._views_of(self._raw)
+        self._errors = errors_in(self._error_vectors, self._error_norms)
+        errors = self._errors[0]
+        self.view = StepView(
+            PlatformState(*map(_readonly, self._state)), Reference(*map(_readonly, self.reference)),
+            type(errors)(*map(_readonly, errors)), _readonly(self._action), _readonly(self.leg_forces),
+            _readonly(self.leg_lengths), _readonly(self.leg_rates), _readonly(self.condition),
+            _readonly(self.external_wrench), _readonly(self.time), _readonly(self._non_finite),
+            MappingProxyType({k: _readonly(v) for k, v in self.episode.items()}))
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
-        del state["_state"], state["_raw_views"]
+        del state["_state"], state["_raw_views"], state["view"], state["_errors"]
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -297,7 +222,8 @@ class PlatformBatch:
         return {name: raw[:, sl] for name, sl in self.observation_layout.items()}
 
     def _noise(self, value: Any) -> np.ndarray | None:
-        """Per-entry noise std (D,) in observation units, or None for no noise."""
+        """Per-entry noise std (D,) in observation units, or None for no noise; ``value`` is the
+        checked number or dict of :class:`~stewart_env.envs.config.ObservationConfig`."""
         std = np.zeros(self.obs_dim)
         if isinstance(value, dict):
             unknown = [k for k in value if k not in self.observation_layout]
@@ -305,10 +231,9 @@ class PlatformBatch:
                 raise ValueError(f"observation_noise: unknown observation term(s) {', '.join(map(repr, unknown))}; "
                                  f"terms: {', '.join(self.observation_layout)}")
             for name, s in value.items():
-                std[self.observation_layout[name]] = real(f"observation_noise[{name!r}]", s,
-                                                          *LIMITS["observation_noise"])
+                std[self.observation_layout[name]] = s
         else:
-            std[:] = _limited("observation_noise", value)
+            std[:] = value
         return std if std.any() else None
 
     @property
@@ -352,32 +277,37 @@ class PlatformBatch:
         if self.error_integral is not None:
             self.error_integral[rows] = 0.0
         self.external_wrench[rows] = 0.0
+        self._action[rows] = 0.0
+        m = len(rows)
         state = PlatformState(*(x[rows] for x in self._state))
-        lengths, rates, cond = np.empty((len(rows), 6)), np.empty((len(rows), 6)), np.empty(len(rows))
+        lengths, rates, cond = np.empty((m, 6)), np.empty((m, 6)), np.empty(m)
         if self._lag:
             # The actuators start holding the start state: the forces of zero acceleration, as far
             # as the actuators reach.
             model = (self.nominal_model if self.randomization is None
                      else self.nominal_model.with_params([self.row_params[i] for i in rows]))
-            zero = np.zeros((len(rows), 3))
+            zero = np.zeros((m, 3))
             lo, hi = self.platform.limits.leg_force
             self.leg_forces[rows] = np.clip(model.inverse(*state, zero, zero), lo, hi)
         else:
             self.leg_forces[rows] = 0.0
         leg_sensors_inplace(self.nominal_model, *state, self.platform.limits.max_condition, lengths, rates, cond)
         self.leg_lengths[rows], self.leg_rates[rows], self.condition[rows] = lengths, rates, cond
-        episode = {k: v[rows] for k, v in self.episode.items()}
-        ref = Reference(*(np.empty_like(x) for x in state))
+        episode = MappingProxyType({k: v[rows] for k, v in self.episode.items()})
+        ref = zero_reference(m)
         self.task.reference(episode, self.time[rows], ref)
         for dst, src in zip(self.reference, ref):
             dst[rows] = src
-        raw = np.empty((len(rows), self.obs_dim))
+        view = StepView(state, ref, tracking_errors(state, ref), self._action[rows], self.leg_forces[rows],
+                        lengths, rates, cond, self.external_wrench[rows], self.time[rows], np.zeros(m, dtype=bool),
+                        episode)
+        raw = np.empty((m, self.obs_dim))
         integral = None if self.error_integral is None else self.error_integral[rows]
-        self._measure(state, lengths, rates, self.leg_forces[rows], ref, episode, self.time[rows], integral, raw)
+        self._measure(view, integral, raw)
         if self.noise_std is not None:
-            for j in range(len(rows)):
+            for j in range(m):
                 raw[j] += rngs[j].normal(size=self.obs_dim) * self.noise_std
-        bad = self._finite_or_marked(raw, np.zeros(len(rows)))
+        bad = self._finite_or_marked(raw, np.zeros(m))
         self._pending[rows] = False if bad is None else bad
         self._any_pending = bool(self._pending.any())
         # A delayed sensor has seen only the start: every slot of the history holds it.
@@ -397,17 +327,17 @@ class PlatformBatch:
         by name, each (n,)); codes index :attr:`termination_reasons` (0: none).
         """
         a = np.clip(action, -1.0, 1.0, out=self._action)
-        cmd = np.multiply(a, self._force_half, out=self._command)
-        cmd += self._force_mid
         if self._lag:
+            cmd = np.multiply(a, self._force_half, out=self._command)
+            cmd += self._force_mid
             self.leg_forces += self._lag * (cmd - self.leg_forces)
         else:
-            self.leg_forces[:] = cmd
+            np.multiply(a, self._force_half, out=self.leg_forces)
+            self.leg_forces += self._force_mid
         if skip is not None:
             self._park(skip)
-        task = self.task
-        if task.has_external_wrench:
-            task.external_wrench(self.episode, self.time, self.control_dt, self.external_wrench)
+        if self._has_external_wrench:
+            self.task.external_wrench(self.view, self.control_dt, self.external_wrench)
         for dst, src in zip(self._backup, self._state):
             np.copyto(dst, src)
         self._physics()
@@ -428,7 +358,8 @@ class PlatformBatch:
         s += self.angular_velocity.sum(axis=1)
         non_finite = self._non_finite
         np.logical_not(np.isfinite(s), out=non_finite)
-        if non_finite.any():
+        self._any_non_finite = bool(non_finite.any())
+        if self._any_non_finite:
             # Keep the last finite state, so that observation, reward and rendering stay finite.
             for dst, src in zip(self._state, self._backup):
                 dst[non_finite] = src[non_finite]
@@ -437,24 +368,25 @@ class PlatformBatch:
                             self.leg_rates, self.condition)
 
     def _outcome(self, rngs, skip) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-        """Reference, termination, reward and observation after the physics of a step."""
-        task = self.task
-        non_finite = self._non_finite
-        a = self._action
-        if task.moving_reference:
-            task.reference(self.episode, self.time, self.reference)
-        errors = tracking_errors(self._state, self.reference)
+        """Reference, then the task's termination and reward, and the observation after the
+        physics of a step."""
+        task, view = self.task, self.view
+        if self._moving_reference:
+            task.reference(view.episode, self.time, self.reference)
+        tracking_errors(self._state, self.reference, self._errors)
 
-        code = self._terminations(non_finite, errors)
-        terms = task.reward_terms(errors, a, self.weights)
-        terms["termination"] = -self.weights.termination_cost * (code > 0)
+        code = task.termination(view)
+        if self._any_non_finite:
+            # The state stopped being finite: whatever the task says, the episode ends so.
+            code[self._non_finite] = NON_FINITE
+        terms = task.reward_terms(view)
+        terms["termination"] = task.termination_reward(code)
         reward = sum(terms.values())
 
         if self.error_integral is not None:
-            self._integrate(errors)
+            self._integrate(view.errors)
         raw = self._raw
-        self._measure(self._state, self.leg_lengths, self.leg_rates, self.leg_forces, self.reference,
-                      self.episode, self.time, self.error_integral, raw, errors)
+        self._measure(view, self.error_integral, raw)
         if self.noise_std is not None:
             for i in range(self.n):
                 if skip is None or not skip[i]:
@@ -466,11 +398,11 @@ class PlatformBatch:
             self._any_pending = False
         if bad is not None:
             # No NaN or inf leaves the environment: the row ends as non-finite, its reward terms
-            # that are not finite count 0 and the termination cost is paid.
-            code[bad] = 1 + TERMINATION_REASONS.index("non_finite")
+            # that are not finite count 0, and its termination term is the task's for the new code.
+            code[bad] = NON_FINITE
             for term in terms.values():
                 term[bad] = np.nan_to_num(term[bad], nan=0.0, posinf=0.0, neginf=0.0)
-            terms["termination"][bad] = -self.weights.termination_cost
+            terms["termination"] = task.termination_reward(code)
             reward = sum(terms.values())
         self._head = (self._head + 1) % (self.observation_delay + 1)
         self._history[self._head] = raw
@@ -509,26 +441,11 @@ class PlatformBatch:
         self.velocity[rows] = 0.0
         self.angular_velocity[rows] = 0.0
 
-    def _terminations(self, non_finite: np.ndarray, errors) -> np.ndarray:
-        lim = self.platform.limits
-        code = self._code
-        _limit_codes(self.position, self.rotation, self.leg_lengths, self.condition, non_finite,
-                     lim.position_min, lim.position_max, self._home_rpy, lim.max_angle,
-                     lim.leg_length[0], lim.leg_length[1], lim.max_condition, code)
-        own = self.task.termination(self._state, errors, self.time)
-        if own is not None:
-            # A task's own reasons rank after the environment's.
-            mine = (own > 0) & (code == 0)
-            code[mine] = own[mine] + self._task_code_offset - 1
-        return code
-
-    def _measure(self, state: PlatformState, lengths, rates, forces, reference: Reference, episode, time,
-                 integral, raw: np.ndarray, errors=None) -> None:
-        """Write the clean observation of a batch (any number of rows) into ``raw``; integral is
-        the batch's error integral (rows, 6), or None when it is not observed."""
+    def _measure(self, view: StepView, integral, raw: np.ndarray) -> None:
+        """Write the clean observation of a batch (any number of rows) seen through ``view`` into
+        ``raw``; integral is the batch's error integral (rows, 6), or None when it is not observed."""
         views = self._raw_views if raw is self._raw else self._views_of(raw)
-        if errors is None:
-            errors = tracking_errors(state, reference)
+        state = view.state
         if self.observation_mode == "pose":
             views["position"][:] = state.position
             o = views["orientation"]
@@ -537,11 +454,11 @@ class PlatformBatch:
             views["velocity"][:] = state.velocity
             views["angular_velocity"][:] = state.angular_velocity
         else:
-            views["leg_lengths"][:] = lengths
-            views["leg_rates"][:] = rates
+            views["leg_lengths"][:] = view.leg_lengths
+            views["leg_rates"][:] = view.leg_rates
         if "leg_forces" in views:
-            views["leg_forces"][:] = forces
-        self.task.observe(state, errors, episode, time, views)
+            views["leg_forces"][:] = view.leg_forces
+        self.task.observe(view, views)
         if integral is not None:
             views["error_integral"][:] = integral
         if self.normalize_observation:
@@ -666,8 +583,9 @@ class BatchAttributes:
             from stewart_env.render import PlatformRenderer  # matplotlib only when rendering
 
             p = core.platform
+            size = core.config.render
             self._renderer = PlatformRenderer(p.base_joints, p.platform_joints, p.home_position,
-                                              p.limits.leg_force, core.width, core.height, self.render_mode)
+                                              p.limits.leg_force, size.width, size.height, self.render_mode)
         position, rotation, forces, target_position, target_rotation, time = scene or self._scene()
         return self._renderer.render(position[row], rotation[row], forces[row], target_position=target_position[row],
                                      target_rotation=target_rotation[row], text=f"{label}t = {time[row]:.2f} s")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 import gymnasium as gym
@@ -9,13 +10,19 @@ import numpy as np
 from gymnasium import spaces
 
 from stewart_env.dynamics.model import check_rotation
-from stewart_env.envs.core import DEFAULTS, BatchAttributes, PlatformBatch
+from stewart_env.envs.config import EnvConfig
+from stewart_env.envs.core import BatchAttributes, PlatformBatch
 from stewart_env.rotations import rpy_to_matrix
-from stewart_env.validation import check_action, check_keywords, real_array
+from stewart_env.params import PlatformParams
+from stewart_env.tasks import RewardWeights, Task
+from stewart_env.validation import check_action, checked_keywords, real_array
 
 __all__ = ["StewartPlatformEnv", "holding_action"]
 
 _ROW0 = np.zeros(1, dtype=np.int64)
+#: Keywords that are no longer environment arguments, and where they went (said in the error).
+MOVED = {name: f"the reward weights are options of the task: pass task_options={{{name!r}: ...}}"
+         for name in RewardWeights.__dataclass_fields__}
 
 
 def term_key(name: str) -> str:
@@ -44,8 +51,8 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     A 6-UPS Stewart platform: a rigid platform carried by six extensible legs, each a lower leg
     (cylinder) hung on a universal joint at the base and an upper leg (piston) that slides in it and
     meets the platform in a spherical joint.  The agent commands the six actuator forces along the
-    legs; the platform moves under them, gravity, viscous joint friction and, in the disturbance task,
-    an external wrench.  The dynamics are closed-form Newton-Euler models of the whole mechanism
+    legs; the platform moves under them, gravity, viscous joint friction and, in the disturbance and
+    hold tasks, an external wrench.  The dynamics are closed-form Newton-Euler models of the whole mechanism
     (platform and twelve leg bodies), chosen by name: `"improved"` (He et al. 2018, exact rigid-body
     dynamics), `"improved_centroidal"` (the same in its centroidal form) and `"classical"`
     (Dasgupta and Mruthyunjaya 1998 as He et al. describe it), or an ablation such as
@@ -53,9 +60,11 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     each control step of `control_dt`.
 
     The default platform, `"dasgupta1998"`, is the published Dasgupta/Tsai test manipulator: a 40 kg
-    platform, legs of 1.26 m at home, stroke 1.0-1.6 m, forces within +-2000 N.  Three tasks:
-    `"setpoint"` (reach a pose and hold it), `"tracking"` (follow a six-axis sinusoidal reference)
-    and `"disturbance"` (hold home against a random external wrench).
+    platform, legs of 1.26 m at home, stroke 1.0-1.6 m, forces within +-2000 N.  Four tasks:
+    `"setpoint"` (reach a pose and hold it), `"tracking"` (follow a six-axis sinusoidal reference),
+    `"disturbance"` (hold home against a random external wrench) and `"hold"` (hold home under a
+    random payload).  The task owns its observation terms, its reward terms and their weights, and
+    its termination; the environment adds nothing to them.
 
     Frames and units: {B} is the base frame (z up, gravity -z), {P} the platform frame with origin P;
     R is the rotation of {P} in {B} (columns = {P} axes); positions in m, angles in rad, velocities of
@@ -136,19 +145,25 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     ## Rewards
 
-    Every step, with the errors e of the observation (reference minus actual; e_o as an angle):
+    The task's reward terms, summed; every shipped task uses the tracking-error reward of its
+    reference.  Every step, with the errors e of the observation (reference minus actual; e_o as
+    an angle):
 
         r = position_reward_weight    * exp(-|e_p| / position_reward_scale)
           + orientation_reward_weight * exp(-|e_o| / orientation_reward_scale)
           - velocity_cost_weight      * (1 - exp(-(|e_v| / velocity_cost_scale
                                                    + |e_w| / angular_velocity_cost_scale)))
           - ctrl_cost_weight          * mean(a_i^2)                  (a clipped to [-1, 1])
-          - termination_cost          on the step that terminates
+          - termination_cost          on the step that terminates with a failure
 
     With the defaults (0.5, 0.05 m, 0.5, 0.1 rad, 0.1, 0.5 m/s, 1 rad/s, 0.1, 10) a step earns at most
     1 (on target, at the target velocity, zero force) and at least -10.2.  Each term is in `info`:
     `reward_position`, `reward_orientation`, `reward_velocity`, `reward_control` and
-    `reward_termination`; they sum to the reward.
+    `reward_termination`; they sum to the reward.  The weights and scales are options of the task,
+    in `task_options` (e.g. `task_options={"termination_cost": 50.0}`), weights in [0, 1e6] and
+    scales in (0, 1e6]; given as environment arguments they raise a `TypeError` that says so.  A
+    task's own termination reason may be a success (`task.success_reasons`), which pays no
+    termination cost; the platform's limits are failures.
 
     ## Starting State
 
@@ -170,6 +185,11 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
       0.2-2 Hz) plus `n_impulses` = 2 pulses of 0.05 s at random times in the first 5 s (force up to
       W, moment up to 0.5 W r, random directions), applied as the external wrench on the platform.
       The wrench is not observed.
+    - `hold`: at rest at home, the target.  Per episode a payload of mass uniform in
+      [0, `max_payload`] (default half the platform's mass, 20 kg) at a point uniform in the disc of
+      radius `payload_radius` (default half the joint radius r, 0.31 m) about P in the {P} x-y
+      plane: a dead weight (its inertia is not modelled) applied as the external wrench, evaluated at
+      the state each step starts from.  The payload is not observed.
 
     Options of a task go in `task_options` (a dict); `env.unwrapped.target` gives the current
     reference (position, rotation, velocity, angular_velocity).
@@ -177,7 +197,8 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     ## Episode End
 
     ### Termination
-    The episode terminates when, after a control step,
+    The task decides.  Every task's reasons begin with the platform's limits, all failures: the
+    episode terminates when, after a control step,
     1. the state is no longer finite (`"non_finite"`; the state is kept at the last finite one),
     2. the leg Jacobian's condition number exceeds `limits.max_condition` (`"singularity"`),
     3. a leg length leaves the stroke `limits.leg_length` (`"leg_stroke"`),
@@ -187,7 +208,8 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     reasons checked in this order.  `info["termination"]` is the reason's code, a numpy int64:
     0 while the episode goes on, else the index of the reason in
     `env.unwrapped.termination_reasons` = `("", "non_finite", "singularity", "leg_stroke",
-    "workspace")` followed by the task's own reasons (so `termination_reasons[code]` is its name).
+    "workspace")` followed by the task's own reasons (so `termination_reasons[code]` is its name);
+    the shipped tasks have none of their own.
     No NaN or inf leaves the environment: a step whose observation or reward is not finite, or
     beyond the float32 range of the returned observation, also terminates as `"non_finite"` and
     returns a finite observation (NaN as 0, the rest clipped to the float32 range) and a finite
@@ -199,19 +221,22 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     ## Arguments
 
-    `gymnasium.make("StewartPlatform-v0", **kwargs)` takes these, each checked at construction
-    against a finite range (outside it, or of the wrong kind, a `ValueError` naming the argument);
-    an unknown keyword raises, as Python does, `StewartPlatformEnv.__init__() got an unexpected
-    keyword argument '...'` (an error that is both a `TypeError` and a `ValueError`):
+    `gymnasium.make("StewartPlatform-v0", **kwargs)` and `StewartPlatformEnv(**kwargs)` take these
+    keyword arguments (`inspect.signature` shows them), grouped into frozen records of
+    `stewart_env.envs.config` (physics, task, actuator, observation, rendering) that check each at
+    construction against a finite range (outside it, or of the wrong kind, a `ValueError` naming
+    the argument); an unknown keyword raises, as Python does, `StewartPlatformEnv.__init__() got
+    an unexpected keyword argument '...'` (an error that is both a `TypeError` and a `ValueError`):
 
     | argument | default | description |
     |---|---|---|
     | `model` | `"improved"` | dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, optionally with switches such as `"+c1"` |
     | `platform` | `"dasgupta1998"` | a shipped config name, a YAML path, or a `PlatformParams` |
-    | `task` | `"setpoint"` | `"setpoint"`, `"tracking"`, `"disturbance"` (or a `Task` subclass) |
-    | `task_options` | `None` | dict of the task's options (see Starting State and `stewart_env.tasks`) |
     | `control_dt` | `0.01` | s per environment step, 1e-6 to 10 |
     | `physics_dt` | `0.001` | s per RK4 substep; `control_dt` must be a whole multiple of it, at most 10^6 substeps |
+    | `randomization` | `None` | domain randomisation spec, e.g. `{"platform.mass": (0.8, 1.2), "legs.mass": (0.9, 1.1), "inertia": (0.9, 1.1), "com": (0.9, 1.1), "damping": (0.5, 2.0)}` |
+    | `task` | `"setpoint"` | `"setpoint"`, `"tracking"`, `"disturbance"`, `"hold"` (or a `Task` subclass) |
+    | `task_options` | `None` | dict of the task's options, its reward weights included (see Starting State, Rewards and `stewart_env.tasks`) |
     | `actuator_tau` | `0.0` | s, first-order actuator lag time constant, 0 to 100; 0 applies the commanded forces directly |
     | `observation_mode` | `"pose"` | `"pose"` (pose and twist) or `"sensors"` (leg lengths and rates) |
     | `normalize_observation` | `True` | scale the observation by the platform's limits (see Observation Space) |
@@ -220,19 +245,9 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     | `error_integral` | `False` | observe the time integral of the pose error (see Observation Space) |
     | `error_integral_limit` | `0.1` | s, anti-windup bound T of the error integral: +-T h (position), +-T A (orientation); 1e-6 to 1e6 |
     | `error_integral_band` | `None` | integrate an error component only within this fraction (0 to 1e6) of its scale (h, A); None: always |
-    | `randomization` | `None` | domain randomisation spec, e.g. `{"platform.mass": (0.8, 1.2), "legs.mass": (0.9, 1.1), "inertia": (0.9, 1.1), "com": (0.9, 1.1), "damping": (0.5, 2.0)}` |
-    | `position_reward_weight` | `0.5` | weight of the position term |
-    | `position_reward_scale` | `0.05` | m, decay length of the position term |
-    | `orientation_reward_weight` | `0.5` | weight of the orientation term |
-    | `orientation_reward_scale` | `0.1` | rad, decay angle of the orientation term |
-    | `velocity_cost_weight` | `0.1` | weight of the velocity-error cost |
-    | `velocity_cost_scale` | `0.5` | m/s, scale of the velocity error in that cost |
-    | `angular_velocity_cost_scale` | `1.0` | rad/s, scale of the angular velocity error in that cost |
-    | `ctrl_cost_weight` | `0.1` | weight of the control cost mean(a^2) |
-    | `termination_cost` | `10.0` | subtracted on the step that terminates |
+    | `render_mode` | `None` | `"rgb_array"` or `"human"` |
     | `width` | `480` | rendered frame width, px, 1 to 4096 |
     | `height` | `480` | rendered frame height, px, 1 to 4096 |
-    | `render_mode` | `None` | `"rgb_array"` or `"human"` |
 
     Domain randomisation (`randomization`) draws, at every reset, one factor per key uniformly in its
     range and scales the nominal parameters by it: keys `platform.`, `upper_leg.`, `lower_leg.` or
@@ -240,8 +255,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     or `damping.universal`, `.prismatic`, `.spherical`.  Unknown keys or bad ranges raise
     `ValueError`.  The reset `info` then holds `randomization` (the factors, name -> number);
     `env.unwrapped.episode_params` is the episode's `PlatformParams` and `env.unwrapped.model` its
-    dynamics model.  Reward weights lie in [0, 1e6] and reward scales in (0, 1e6]; the tasks'
-    options have ranges of their own (see `stewart_env.tasks`).
+    dynamics model.  The tasks' options have ranges of their own (see `stewart_env.tasks`).
 
     Infos hold only numpy numbers (as torchrl's info readers need): a step's `info` has
     `reward_<term>` and `time` as float64 and `termination` as an int64 code.  `step()` before the first `reset()` raises
@@ -280,13 +294,19 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     _rows = 0  # BatchAttributes: the single platform, no batch axis
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 100.0}
 
-    def __init__(self, render_mode: str | None = None, **kwargs: Any):
-        check_keywords(f"{type(self).__name__}.__init__", kwargs, (*DEFAULTS, "render_mode"))
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode: expected one of {self.metadata['render_modes']} or None, "
-                             f"got {render_mode!r}")
-        self._core = core = PlatformBatch(1, **kwargs)
-        self.render_mode = render_mode
+    @checked_keywords(MOVED)
+    def __init__(self, *, model: str = "improved", platform: str | os.PathLike | PlatformParams = "dasgupta1998",
+                 control_dt: float = 0.01, physics_dt: float = 0.001,
+                 randomization: dict[str, tuple[float, float]] | None = None, task: str | type[Task] = "setpoint",
+                 task_options: dict[str, Any] | None = None, actuator_tau: float = 0.0,
+                 observation_mode: str = "pose", normalize_observation: bool = True,
+                 observation_noise: float | dict[str, float] = 0.0, observation_delay: int = 0,
+                 error_integral: bool = False, error_integral_limit: float = 0.1,
+                 error_integral_band: float | None = None, render_mode: str | None = None, width: int = 480,
+                 height: int = 480):
+        config = EnvConfig.of(**{k: v for k, v in locals().items() if k not in ("self", "__class__")})
+        self._core = core = PlatformBatch(1, config)
+        self.render_mode = config.render.render_mode
         self.metadata = {**type(self).metadata, "render_fps": core.render_fps}
         self.action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
         self.observation_space = spaces.Box(-np.inf, np.inf, (core.obs_dim,), np.float32)

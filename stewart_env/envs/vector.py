@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+import os
 from typing import Any
 
 import numpy as np
@@ -11,9 +12,12 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from stewart_env.envs.core import DEFAULTS, BatchAttributes, PlatformBatch
-from stewart_env.envs.stewart_platform import term_key
-from stewart_env.validation import check_action, check_keywords, integer
+from stewart_env.envs.config import EnvConfig
+from stewart_env.envs.core import BatchAttributes, PlatformBatch
+from stewart_env.envs.stewart_platform import MOVED, term_key
+from stewart_env.params import PlatformParams
+from stewart_env.tasks import Task
+from stewart_env.validation import check_action, checked_keywords, integer
 
 __all__ = ["StewartPlatformVectorEnv"]
 
@@ -119,7 +123,7 @@ class _Frames(Sequence):
 class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
     """``num_envs`` Stewart platforms in one batch (see :class:`StewartPlatformEnv` for the card).
 
-    Keyword arguments are those of the single environment, plus:
+    Keyword arguments are those of the single environment (the same signature), plus:
         num_envs: number of platforms N.
         max_episode_steps: truncation after this many steps of a row (``gymnasium.make_vec``
             passes the registered 500); None never truncates.
@@ -146,18 +150,26 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 100.0,
                 "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None, render_mode: str | None = None,
-                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **kwargs: Any):
-        check_keywords(f"{type(self).__name__}.__init__", kwargs, DEFAULTS)
-        self.num_envs = integer("num_envs", num_envs, 1, 2**31 - 1)
+    @checked_keywords(MOVED)
+    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, *, model: str = "improved",
+                 platform: str | os.PathLike | PlatformParams = "dasgupta1998", control_dt: float = 0.01,
+                 physics_dt: float = 0.001, randomization: dict[str, tuple[float, float]] | None = None,
+                 task: str | type[Task] = "setpoint", task_options: dict[str, Any] | None = None,
+                 actuator_tau: float = 0.0, observation_mode: str = "pose", normalize_observation: bool = True,
+                 observation_noise: float | dict[str, float] = 0.0, observation_delay: int = 0,
+                 error_integral: bool = False, error_integral_limit: float = 0.1,
+                 error_integral_band: float | None = None, render_mode: str | None = None, width: int = 480,
+                 height: int = 480):
+        arguments = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
+        self.num_envs = integer("num_envs", arguments.pop("num_envs"), 1, 2**31 - 1)
+        max_episode_steps = arguments.pop("max_episode_steps")
         self.max_episode_steps = (None if max_episode_steps is None
                                   else integer("max_episode_steps", max_episode_steps, 1, 2**62))
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode: expected one of {self.metadata['render_modes']} or None, "
-                             f"got {render_mode!r}")
-        self.render_mode = render_mode
-        self.autoreset_mode = _autoreset_mode(autoreset_mode)
-        self._core = core = PlatformBatch(self.num_envs, **kwargs)
+        self.autoreset_mode = _autoreset_mode(arguments.pop("autoreset_mode"))
+        config = EnvConfig.of(**arguments)
+        self.render_mode = config.render.render_mode
+        self._core = core = PlatformBatch(self.num_envs, config)
         self.metadata = {**type(self).metadata, "render_fps": core.render_fps, "autoreset_mode": self.autoreset_mode}
         self.single_action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
         self.single_observation_space = spaces.Box(-np.inf, np.inf, (core.obs_dim,), np.float32)

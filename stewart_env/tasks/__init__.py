@@ -1,8 +1,9 @@
 """Tasks of the Stewart platform environment: what the platform should do and how it is scored.
 
-``setpoint`` (reach and hold a pose), ``tracking`` (follow a sinusoidal reference) and
-``disturbance`` (hold home against a random external wrench).  See :mod:`stewart_env.tasks.base`
-for the interface a task implements.
+``setpoint`` (reach and hold a pose), ``tracking`` (follow a sinusoidal reference),
+``disturbance`` (hold home against a random external wrench) and ``hold`` (hold home under a
+random payload).  See :mod:`stewart_env.tasks.base` for the interface a task implements; a new
+task is one module with a :class:`Task` subclass, added to :data:`TASKS` here.
 """
 
 from __future__ import annotations
@@ -12,28 +13,34 @@ from typing import Any
 from stewart_env.params import PlatformParams
 from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks.base import (
+    LIMIT_REASONS,
     Errors,
     RewardWeights,
     Scales,
+    StepView,
     Task,
     check_option_names,
     tracking_errors,
 )
 from stewart_env.tasks.disturbance import DisturbanceTask
+from stewart_env.tasks.hold import HoldTask
 from stewart_env.tasks.setpoint import SetpointTask
 from stewart_env.tasks.tracking import TrackingTask
 
-TASKS: dict[str, type[Task]] = {cls.name: cls for cls in (SetpointTask, TrackingTask, DisturbanceTask)}
+TASKS: dict[str, type[Task]] = {cls.name: cls for cls in (SetpointTask, TrackingTask, DisturbanceTask, HoldTask)}
 
 __all__ = [
+    "LIMIT_REASONS",
     "TASKS",
     "DisturbanceTask",
     "Errors",
+    "HoldTask",
     "PlatformState",
     "Reference",
     "RewardWeights",
     "Scales",
     "SetpointTask",
+    "StepView",
     "Task",
     "TrackingTask",
     "make_task",

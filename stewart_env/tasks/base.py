@@ -1,11 +1,14 @@
 """What every task shares: the batched containers, the tracking-error reward and pose checks.
 
-A task says what the platform should do: how an episode starts, the reference pose over time,
-an optional external wrench, its observation terms and its reward terms.  It knows nothing of
-integrators or of the environment around it.  Every per-step method works on a batch (a leading
-dimension N, one row per platform) and is a pure function of its arguments; all randomness is
-drawn once per episode, per row, in :meth:`Task.initialize_episode` from the numpy Generator it
-is given.  So one implementation serves the single environment (N = 1) and the vector
+A task says what the platform should do and owns how it is scored (dm_control's Task, kept
+batched): how an episode starts, the reference pose over time, an optional external wrench, its
+observation terms, its reward terms with their weights, and its termination, each reason a
+success or a failure.  It is given a read-only :class:`StepView` of the batch (state, errors,
+leg lengths, rates and forces, time, its episode arrays) and knows nothing of integrators or of
+the environment around it, which adds nothing to what the task returns.  Every per-step method
+works on a batch (a leading dimension N, one row per platform) and is a pure function of its
+arguments; all randomness is drawn once per episode, per row, in :meth:`Task.initialize_episode`
+from the numpy Generator it is given.  So one implementation serves the single environment (N = 1) and the vector
 environment, and a row of the vector environment reproduces a single environment bit for bit.
 
 Frames and units: {B} is the base frame, z up; positions in m, angles in rad, velocities of P's
@@ -16,6 +19,7 @@ from __future__ import annotations
 
 import inspect
 from dataclasses import dataclass
+from collections.abc import Mapping
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -27,9 +31,11 @@ from stewart_env.state import PlatformState, Reference
 from stewart_env.validation import real, vector
 
 __all__ = [
+    "LIMIT_REASONS",
     "Errors",
     "RewardWeights",
     "Scales",
+    "StepView",
     "Task",
     "check_option_names",
     "motion_ranges",
@@ -37,6 +43,7 @@ __all__ = [
     "pose_margins",
     "sinusoid_reference",
     "tracking_errors",
+    "zero_reference",
 ]
 
 
@@ -88,14 +95,14 @@ MAX_FREQUENCY = 1000.0
 
 @dataclass(frozen=True)
 class RewardWeights:
-    """Weights and scales of the tracking-error reward (the environment's keyword arguments).
+    """Weights and scales of the tracking-error reward: options of every task (``task_options``).
 
     r = position_reward_weight * exp(-|e_p| / position_reward_scale)
       + orientation_reward_weight * exp(-|e_o| / orientation_reward_scale)
       - velocity_cost_weight * (1 - exp(-(|e_v| / velocity_cost_scale
                                           + |e_w| / angular_velocity_cost_scale)))
       - ctrl_cost_weight * mean(a^2)
-      - termination_cost on the step that terminates.
+      - termination_cost on the step that terminates with a failure.
 
     Weights lie in [0, MAX_WEIGHT] (the sign is fixed by the term), scales in (0, MAX_SCALE], so
     that no term and no sum of them overflows.
@@ -113,8 +120,8 @@ class RewardWeights:
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
-            checked = (real(name, value, 0.0, MAX_SCALE, low_open=True) if name.endswith("_scale")
-                       else real(name, value, 0.0, MAX_WEIGHT))
+            checked = (real(option(name), value, 0.0, MAX_SCALE, low_open=True) if name.endswith("_scale")
+                       else real(option(name), value, 0.0, MAX_WEIGHT))
             object.__setattr__(self, name, checked)
 
 
@@ -138,13 +145,30 @@ def _error_rows(t, R, v, w, rt, rR, rv, rw, ep, eo, ev, ew, norms):
         norms[b, 3] = np.sqrt(sw)
 
 
-def tracking_errors(state: PlatformState, reference: Reference) -> Errors:
-    """Reference minus actual, for a batch (see :class:`Errors`); C-contiguous float64 inputs."""
-    n = state.position.shape[0]
-    ep, eo, ev, ew = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
-    norms = np.empty((4, n)).T  # columns contiguous, so each norm below is a contiguous array
-    _error_rows(*state, *reference, ep, eo, ev, ew, norms)
-    return Errors(ep, eo, ev, ew, norms[:, 0], norms[:, 1], norms[:, 2], norms[:, 3])
+def empty_errors(n: int) -> tuple[Errors, np.ndarray]:
+    """Preallocated :class:`Errors` of n rows and the (n, 4) array that holds their norms."""
+    return errors_in(np.empty((4, n, 3)), np.empty((4, n)))
+
+
+def errors_in(vectors: np.ndarray, norms: np.ndarray) -> tuple[Errors, np.ndarray]:
+    """:class:`Errors` whose fields are views of ``vectors`` (4, n, 3) and ``norms`` (4, n), and
+    the (n, 4) view of the norms that :func:`tracking_errors` writes."""
+    return Errors(*vectors, *norms), norms.T
+
+
+def tracking_errors(state: PlatformState, reference: Reference,
+                    out: tuple[Errors, np.ndarray] | None = None) -> Errors:
+    """Reference minus actual, for a batch (see :class:`Errors`); C-contiguous float64 inputs.
+    ``out``: an :func:`empty_errors` pair to write into (else new arrays)."""
+    errors, norms = out if out is not None else empty_errors(state.position.shape[0])
+    _error_rows(state.position, state.rotation, state.velocity, state.angular_velocity, reference.position,
+                reference.rotation, reference.velocity, reference.angular_velocity, *errors[:4], norms)
+    return errors
+
+
+def zero_reference(n: int) -> Reference:
+    """A :class:`Reference` of n rows of zeros (rotation (n,3,3), every other field (n,3))."""
+    return Reference(*(np.zeros((n, 3, 3) if name == "rotation" else (n, 3)) for name in Reference._fields))
 
 
 def pose_margins(params: PlatformParams, position: np.ndarray, rpy: np.ndarray,
@@ -198,9 +222,17 @@ def sinusoid_reference(home_position: np.ndarray, home_rpy: np.ndarray, amplitud
 
 
 def check_option_names(task_cls: type, options: dict[str, Any]) -> None:
-    """Refuse task options the task's constructor does not take, naming them and the valid ones."""
-    params = list(inspect.signature(task_cls.__init__).parameters.values())
-    valid = [p.name for p in params if p.kind == p.KEYWORD_ONLY]
+    """Refuse task options the task's constructor does not take, naming them and the valid ones:
+    its keyword-only arguments and, while a constructor passes ``**options`` on, those of the
+    class it extends (the reward weights of :class:`Task`)."""
+    valid: list[str] = []
+    for cls in task_cls.__mro__:
+        if "__init__" not in vars(cls):
+            continue
+        params = inspect.signature(cls.__init__).parameters.values()
+        valid += [p.name for p in params if p.kind == p.KEYWORD_ONLY and p.name not in valid]
+        if not any(p.kind == p.VAR_KEYWORD for p in params):
+            break
     unknown = [k for k in options if k not in valid]
     if unknown:
         raise ValueError(
@@ -226,48 +258,156 @@ def motion_ranges(params: PlatformParams, position, angle, names: tuple[str, str
             else vector(option(names[1]), angle, 3, 0.0, lim.max_angle))
 
 
-class Task:
-    """Base class of the tasks: a fixed or moving reference pose to reach and hold.
+#: The platform's limits as termination reasons, by priority: the state is no longer finite, the
+#: leg Jacobian's condition number exceeds limits.max_condition, a leg leaves its stroke, P leaves
+#: the workspace box or an angle leaves home +- max_angle (see :meth:`Task.termination`).  Every
+#: task's reasons begin with them, all failures.
+LIMIT_REASONS = ("non_finite", "singularity", "leg_stroke", "workspace")
 
-    Subclasses set ``name`` and ``episode_fields`` and implement :meth:`initialize_episode` and
-    :meth:`reference`; they may add an external wrench, observation terms, reward terms and a
-    termination of their own.  Options are keyword-only arguments of the subclass constructor
-    (the environment's ``task_options``); the platform's nominal parameters come first.
+
+@njit(cache=True)
+def _limit_codes(t, R, lengths, condition, non_finite, position_min, position_max, home_rpy, max_angle,
+                 length_min, length_max, max_condition, code):
+    """Termination code of every row, by priority: 1 non-finite state, 2 Jacobian condition number
+    above max_condition, 3 a leg outside its stroke, 4 P outside the workspace box or a
+    roll-pitch-yaw angle (as stewart_env.rotations.matrix_to_rpy, wrapped to [-pi, pi) about home)
+    further than max_angle from home; 0 none."""
+    for b in range(t.shape[0]):
+        c = 0
+        if non_finite[b]:
+            c = 1
+        elif condition[b] > max_condition:
+            c = 2
+        else:
+            for i in range(6):
+                if lengths[b, i] < length_min or lengths[b, i] > length_max:
+                    c = 3
+            if c == 0:
+                for j in range(3):
+                    if t[b, j] < position_min[j] or t[b, j] > position_max[j]:
+                        c = 4
+                s = -R[b, 2, 0]
+                s = min(max(s, -1.0), 1.0)
+                rpy = (np.arctan2(R[b, 2, 1], R[b, 2, 2]), np.arcsin(s), np.arctan2(R[b, 1, 0], R[b, 0, 0]))
+                for j in range(3):
+                    d = (rpy[j] - home_rpy[j] + np.pi) % (2.0 * np.pi) - np.pi
+                    if abs(d) > max_angle:
+                        c = 4
+        code[b] = c
+
+
+class StepView(NamedTuple):
+    """What a task sees of a batch of N platforms: read-only arrays, frames and units of the
+    environment card.
+
+    state (a :class:`PlatformState` of (N, ...) arrays) after the step; reference at the
+    state's time; errors (reference minus actual, :class:`Errors`); action (N,6) in [-1, 1] as
+    applied over the step; leg_forces (N,6) N applied over the step; leg_lengths (N,6) m;
+    leg_rates (N,6) m/s; condition (N,), the leg Jacobian's condition number (exact above
+    limits.max_condition); external_wrench (N,6) [N; N m] in {B} applied over the step; time (N,)
+    s; non_finite (N,) bool, the rows whose state stopped being finite in the step (the state is
+    then the last finite one); episode: the task's episode arrays by name, (N, *shape).  Before
+    a step (:meth:`Task.external_wrench`) the state, time and episode are those the step starts from.
+    """
+
+    state: PlatformState
+    reference: Reference
+    errors: Errors
+    action: np.ndarray
+    leg_forces: np.ndarray
+    leg_lengths: np.ndarray
+    leg_rates: np.ndarray
+    condition: np.ndarray
+    external_wrench: np.ndarray
+    time: np.ndarray
+    non_finite: np.ndarray
+    episode: Mapping[str, np.ndarray]
+
+
+class Task:
+    """Base class of the tasks: a reference pose to reach and hold, scored by the tracking-error
+    reward (:class:`RewardWeights`) and ended by the platform's limits (:data:`LIMIT_REASONS`).
+
+    A subclass sets ``name`` and implements :meth:`initialize_episode` and
+    :meth:`episode_fields`; it may override :meth:`reference` (a moving reference; the default
+    is a fixed target read from the episode arrays ``target_position`` and ``target_rotation``),
+    :meth:`external_wrench`, :meth:`observation_terms`/:meth:`observe`, :meth:`reward_terms`,
+    :meth:`termination` (extending ``termination_reasons``) and :meth:`termination_reward`.
+    Whether the reference moves and whether there is an external wrench follow from which methods
+    it overrides.  Options are keyword-only arguments of the subclass constructor (the
+    environment's ``task_options``), the reward weights of :class:`RewardWeights` among them
+    (a subclass passes ``**weights`` on to this constructor); the platform's nominal parameters
+    come first.
     """
 
     name = "task"
-    #: Per-row episode parameters, name -> shape without the batch dimension; the environment
-    #: keeps them as (N, *shape) arrays and fills row i from :meth:`initialize_episode`.
-    episode_fields: dict[str, tuple[int, ...]] = {}
-    #: Whether :meth:`external_wrench` produces a wrench (else the environment keeps zeros).
-    has_external_wrench = False
-    #: Whether the reference moves (else the environment computes it at reset only).
-    moving_reference = False
-    #: Names of this task's own termination reasons, codes 1, 2, ... of :meth:`termination`.
-    termination_reasons: tuple[str, ...] = ()
+    #: Names of the termination codes 1, 2, ... of :meth:`termination`: the platform's limits
+    #: first, then a subclass's own reasons.
+    termination_reasons: tuple[str, ...] = LIMIT_REASONS
+    #: The reasons that end an episode with a success: no termination cost is paid.
+    success_reasons: tuple[str, ...] = ()
 
-    def __init__(self, params: PlatformParams, control_dt: float):
+    def __init__(self, params: PlatformParams, control_dt: float, *, position_reward_weight: float = 0.5,
+                 position_reward_scale: float = 0.05, orientation_reward_weight: float = 0.5,
+                 orientation_reward_scale: float = 0.1, velocity_cost_weight: float = 0.1,
+                 velocity_cost_scale: float = 0.5, angular_velocity_cost_scale: float = 1.0,
+                 ctrl_cost_weight: float = 0.1, termination_cost: float = 10.0):
         self.params = params
         self.control_dt = float(control_dt)
+        self.weights = RewardWeights(position_reward_weight, position_reward_scale, orientation_reward_weight,
+                                     orientation_reward_scale, velocity_cost_weight, velocity_cost_scale,
+                                     angular_velocity_cost_scale, ctrl_cost_weight, termination_cost)
+        reasons = self.termination_reasons
+        if reasons[:len(LIMIT_REASONS)] != LIMIT_REASONS or not set(self.success_reasons) <= set(reasons):
+            raise TypeError(f"task {self.name!r}: termination_reasons must begin with {LIMIT_REASONS} and "
+                            f"hold every success reason, got {reasons} and {self.success_reasons}")
+        # Code -> whether it ends the episode with a failure (code 0: no end, no failure).
+        self._failure = np.array([False] + [r not in self.success_reasons for r in reasons])
+        lim = params.limits
+        self._limits = (lim.position_min, lim.position_max, params.home_rpy, lim.max_angle, lim.leg_length[0],
+                        lim.leg_length[1], lim.max_condition)
+        if not self.moving_reference and not {"target_position", "target_rotation"} <= set(self.episode_fields()):
+            raise TypeError(f"task {self.name!r}: a task with a fixed target declares the episode fields "
+                            "'target_position' and 'target_rotation', or overrides reference()")
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(platform={self.params.name!r})"
 
+    @property
+    def moving_reference(self) -> bool:
+        """Whether the reference moves (the task overrides :meth:`reference`); else the
+        environment evaluates it at episode start only."""
+        return type(self).reference is not Task.reference
+
+    @property
+    def has_external_wrench(self) -> bool:
+        """Whether the task applies an external wrench (it overrides :meth:`external_wrench`)."""
+        return type(self).external_wrench is not Task.external_wrench
+
     # -- episode ----------------------------------------------------------------------------------
+
+    def episode_fields(self) -> dict[str, tuple[int, ...]]:
+        """The per-row episode arrays, name -> shape without the batch dimension; the environment
+        keeps them as (N, *shape) arrays and fills row i from :meth:`initialize_episode`."""
+        raise NotImplementedError
 
     def initialize_episode(self, rng: np.random.Generator) -> tuple[PlatformState, dict[str, np.ndarray]]:
         """Draw one row's episode: its initial state and its ``episode_fields`` values."""
         raise NotImplementedError
 
-    def reference(self, episode: dict[str, np.ndarray], time: np.ndarray, out: Reference) -> None:
-        """Write the reference at ``time`` (N,) s into ``out`` (N rows)."""
-        raise NotImplementedError
+    def reference(self, episode: Mapping[str, np.ndarray], time: np.ndarray, out: Reference) -> None:
+        """Write the reference at ``time`` (N,) s into ``out`` (N rows).  This default is a fixed
+        target at rest: the pose ``episode["target_position"]``, ``["target_rotation"]``, every
+        rate zero."""
+        out.position[:] = episode["target_position"]
+        out.rotation[:] = episode["target_rotation"]
+        for name in out._fields[2:]:
+            getattr(out, name)[:] = 0.0
 
-    def external_wrench(self, episode: dict[str, np.ndarray], time: np.ndarray, dt: float,
-                        out: np.ndarray) -> None:
-        """Write the wrench [F_ext at P (3), N; M_ext (3), N m] in {B} held over [time, time + dt]
-        into ``out`` (N,6).  Only called when ``has_external_wrench``."""
-        raise NotImplementedError
+    def external_wrench(self, view: StepView, dt: float, out: np.ndarray) -> None:
+        """Write the wrench [F_ext at P (3), N; M_ext (3), N m] in {B} held over the step
+        [view.time, view.time + dt] from the state ``view.state`` into ``out`` (N,6).  This
+        default applies none (the environment keeps zeros and does not call it)."""
 
     # -- observation ------------------------------------------------------------------------------
 
@@ -276,19 +416,19 @@ class Task:
         angle = np.full(3, scales.angle)
         return [("position_error", scales.position.copy()), ("orientation_error", angle)]
 
-    def observe(self, state: PlatformState, errors: Errors, episode: dict[str, np.ndarray],
-                time: np.ndarray, out: dict[str, np.ndarray]) -> None:
+    def observe(self, view: StepView, out: dict[str, np.ndarray]) -> None:
         """Write each term of :meth:`observation_terms`, in physical units, into ``out[name]``
         (N, size)."""
-        out["position_error"][:] = errors.position
-        out["orientation_error"][:] = errors.orientation
+        out["position_error"][:] = view.errors.position
+        out["orientation_error"][:] = view.errors.orientation
 
     # -- reward and termination -------------------------------------------------------------------
 
-    def reward_terms(self, errors: Errors, action: np.ndarray, weights: RewardWeights) -> dict[str, np.ndarray]:
-        """Reward terms (N,) each, by name (see :class:`RewardWeights`); action (N,6) in [-1, 1]."""
-        w = weights
-        a2 = action * action
+    def reward_terms(self, view: StepView) -> dict[str, np.ndarray]:
+        """Reward terms (N,) each, by name, of a step that does not end (see :class:`RewardWeights`;
+        the end of an episode adds :meth:`termination_reward`)."""
+        w, errors = self.weights, view.errors
+        a2 = view.action * view.action
         return {
             "position": w.position_reward_weight * np.exp(-errors.position_norm / w.position_reward_scale),
             "orientation": w.orientation_reward_weight * np.exp(-errors.orientation_norm / w.orientation_reward_scale),
@@ -298,7 +438,22 @@ class Task:
             "control": -w.ctrl_cost_weight * (a2.sum(axis=1) / 6.0),
         }
 
-    def termination(self, state: PlatformState, errors: Errors, time: np.ndarray) -> np.ndarray | None:
-        """This task's own termination: (N,) int codes (0 none, k for termination_reasons[k-1]),
-        or None when the task never terminates an episode itself."""
-        return None
+    def termination_reward(self, code: np.ndarray) -> np.ndarray:
+        """The reward term ``termination`` (N,) of termination codes ``code``: -termination_cost
+        where the episode ends with a failure, 0 where it goes on or ends with a success."""
+        return -self.weights.termination_cost * self._failure[code]
+
+    def termination(self, view: StepView) -> np.ndarray:
+        """Termination codes (N,) int64: 0 where the episode goes on, else k for the reason
+        ``termination_reasons[k - 1]``.  This default ends an episode at the platform's limits
+        (:data:`LIMIT_REASONS`, by priority); a subclass adds its own reasons after them with
+        :meth:`end`."""
+        code = np.empty(view.time.shape[0], dtype=np.int64)
+        state = view.state
+        _limit_codes(state.position, state.rotation, view.leg_lengths, view.condition, view.non_finite,
+                     *self._limits, code)
+        return code
+
+    def end(self, code: np.ndarray, where: np.ndarray, reason: str) -> None:
+        """Set ``code`` to ``reason`` in the rows ``where`` that do not end for an earlier reason."""
+        code[where & (code == 0)] = self.termination_reasons.index(reason) + 1

@@ -6,7 +6,7 @@ import numpy as np
 
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
-from stewart_env.state import PlatformState, Reference
+from stewart_env.state import PlatformState
 from stewart_env.tasks.base import MAX_FREQUENCY, Task, option
 from stewart_env.validation import integer, interval, real, vector
 
@@ -45,15 +45,14 @@ class DisturbanceTask(Task):
         impulse_duration: s, > 0, default 0.05.
         horizon: s, the span the pulses are placed in, from impulse_duration to 1e6, default 5.0
             (the default episode length).
+        the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
     """
 
     name = "disturbance"
-    has_external_wrench = True
 
     def __init__(self, params: PlatformParams, control_dt: float, *, sine_force=None, sine_moment=None,
                  frequency_range=(0.2, 2.0), n_impulses: int = 2, impulse_force=None, impulse_moment=None,
-                 impulse_duration: float = 0.05, horizon: float = 5.0):
-        super().__init__(params, control_dt)
+                 impulse_duration: float = 0.05, horizon: float = 5.0, **weights):
         weight = params.platform.mass * (float(np.linalg.norm(params.gravity)) or 9.81)
         radius = float(np.mean(np.linalg.norm(params.platform_joints[:, :2], axis=1)))
         max_force, max_moment = MAX_LOAD * weight, MAX_LOAD * weight * radius
@@ -69,9 +68,12 @@ class DisturbanceTask(Task):
                                else real(option("impulse_moment"), impulse_moment, 0.0, max_moment))
         self.impulse_duration = real(option("impulse_duration"), impulse_duration, 0.0, MAX_HORIZON, low_open=True)
         self.horizon = real(option("horizon"), horizon, self.impulse_duration, MAX_HORIZON)
-        self.episode_fields = {"sine_amplitude": (6,), "sine_omega": (6,), "sine_phase": (6,),
-                               "impulse_time": (self.n_impulses,), "impulse_wrench": (self.n_impulses, 6)}
         self._home_rotation = rpy_to_matrix(params.home_rpy)
+        super().__init__(params, control_dt, **weights)
+
+    def episode_fields(self):
+        return {"target_position": (3,), "target_rotation": (3, 3), "sine_amplitude": (6,), "sine_omega": (6,),
+                "sine_phase": (6,), "impulse_time": (self.n_impulses,), "impulse_wrench": (self.n_impulses, 6)}
 
     def initialize_episode(self, rng):
         amplitude = rng.uniform(0.0, 1.0, 6) * np.concatenate([self.sine_force, self.sine_moment])
@@ -85,16 +87,12 @@ class DisturbanceTask(Task):
         wrench = (directions * magnitudes[:, :, None]).reshape(n, 6)
         p = self.params
         start = PlatformState(p.home_position.copy(), self._home_rotation.copy(), np.zeros(3), np.zeros(3))
-        return start, {"sine_amplitude": amplitude, "sine_omega": omega, "sine_phase": phase,
+        return start, {"target_position": p.home_position, "target_rotation": self._home_rotation,
+                       "sine_amplitude": amplitude, "sine_omega": omega, "sine_phase": phase,
                        "impulse_time": times, "impulse_wrench": wrench}
 
-    def reference(self, episode, time, out: Reference) -> None:
-        out.position[:] = self.params.home_position
-        out.rotation[:] = self._home_rotation
-        out.velocity[:] = 0.0
-        out.angular_velocity[:] = 0.0
-
-    def external_wrench(self, episode, time, dt, out) -> None:
+    def external_wrench(self, view, dt, out) -> None:
+        episode, time = view.episode, view.time
         omega, phase = episode["sine_omega"], episode["sine_phase"]
         t0 = omega * time[:, None] + phase
         # Average of A sin(omega t + phi) over [t, t + dt].

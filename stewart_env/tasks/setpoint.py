@@ -9,7 +9,7 @@ import numpy as np
 from stewart_env.kinematics import inverse_kinematics
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
-from stewart_env.state import PlatformState, Reference
+from stewart_env.state import PlatformState
 from stewart_env.tasks.base import Task, motion_ranges, option, pose_margins
 from stewart_env.validation import flag, vector
 
@@ -82,15 +82,15 @@ class SetpointTask(Task):
             target home + (0.1, 0, 0) with the same rpy; for dasgupta1998 exactly the paper's
             start (0.1, 0, 0.395) and target (0.1, 0, 0.4), rpy (0, 0, -0.2).  Each must lie
             inside the platform's limits.
+        the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
     """
 
     name = "setpoint"
-    episode_fields = {"target_position": (3,), "target_rotation": (3, 3)}
 
     def __init__(self, params: PlatformParams, control_dt: float, *, randomize: bool = True,
                  position_range=None, angle_range=None, start_position=None, start_rpy=None,
-                 target_position=None, target_rpy=None):
-        super().__init__(params, control_dt)
+                 target_position=None, target_rpy=None, **weights):
+        super().__init__(params, control_dt, **weights)
         self.randomize = flag(option("randomize"), randomize)
         self.position_range, self.angle_range = motion_ranges(params, position_range, angle_range,
                                                               ("position_range", "angle_range"))
@@ -115,6 +115,9 @@ class SetpointTask(Task):
                         f"rpy {r.tolist()} lies outside the limits of platform {params.name!r}"
                     )
 
+    def episode_fields(self):
+        return {"target_position": (3,), "target_rotation": (3, 3)}
+
     def _draw_pose(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
         p = self.params
         for _ in range(_MAX_DRAWS):
@@ -136,9 +139,3 @@ class SetpointTask(Task):
             target_p, target_r = self.target_position, self.target_rpy
         start = PlatformState(start_p.copy(), rpy_to_matrix(start_r), np.zeros(3), np.zeros(3))
         return start, {"target_position": target_p, "target_rotation": rpy_to_matrix(target_r)}
-
-    def reference(self, episode, time, out: Reference) -> None:
-        out.position[:] = episode["target_position"]
-        out.rotation[:] = episode["target_rotation"]
-        out.velocity[:] = 0.0
-        out.angular_velocity[:] = 0.0

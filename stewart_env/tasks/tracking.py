@@ -9,8 +9,8 @@ import numpy as np
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rotation_error
 from stewart_env.state import PlatformState, Reference
-from stewart_env.tasks.base import (MAX_FREQUENCY, Errors, Scales, Task, motion_ranges, option, pose_margins,
-                                     sinusoid_reference)
+from stewart_env.tasks.base import (MAX_FREQUENCY, Scales, StepView, Task, motion_ranges, option, pose_margins,
+                                     sinusoid_reference, zero_reference)
 from stewart_env.validation import integer, interval, real
 
 # Amplitudes that put a corner of the reference's range outside the limits are scaled down by this
@@ -42,6 +42,7 @@ class TrackingTask(Task):
         frequency_range: (min, max) Hz, 0 < min <= max <= 1000, default (0.1, 0.5).
         preview: number of future reference samples observed (0-100), default 3.
         preview_interval: s between them (at most 100), default 0.1 (samples at t + 0.1, 0.2, 0.3 s).
+        the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
 
     Observation terms beyond position and orientation error: velocity_error (3) m/s,
     angular_velocity_error (3) rad/s, and reference_preview (6 x preview): for each future
@@ -50,13 +51,11 @@ class TrackingTask(Task):
     """
 
     name = "tracking"
-    episode_fields = {"amplitude": (6,), "omega": (6,), "phase": (6,)}
-    moving_reference = True
 
     def __init__(self, params: PlatformParams, control_dt: float, *, position_amplitude=None,
                  angle_amplitude=None, frequency_range=(0.1, 0.5), preview: int = 3,
-                 preview_interval: float = 0.1):
-        super().__init__(params, control_dt)
+                 preview_interval: float = 0.1, **weights):
+        super().__init__(params, control_dt, **weights)
         self.position_amplitude, self.angle_amplitude = motion_ranges(
             params, position_amplitude, angle_amplitude, ("position_amplitude", "angle_amplitude"))
         self.frequency_range = interval(option("frequency_range"), frequency_range, 0.0, MAX_FREQUENCY, low_open=True)
@@ -64,6 +63,9 @@ class TrackingTask(Task):
         self.preview_interval = real(option("preview_interval"), preview_interval, 0.0, MAX_PREVIEW_INTERVAL,
                                      low_open=True)
         self._corners = np.array(list(itertools.product((-1.0, 1.0), repeat=6)))
+
+    def episode_fields(self):
+        return {"amplitude": (6,), "omega": (6,), "phase": (6,)}
 
     def _bounded(self, amplitude: np.ndarray) -> np.ndarray:
         p = self.params
@@ -80,9 +82,9 @@ class TrackingTask(Task):
         omega = 2.0 * np.pi * rng.uniform(*self.frequency_range, 6)
         phase = rng.uniform(0.0, 2.0 * np.pi, 6)
         episode = {"amplitude": amplitude, "omega": omega, "phase": phase}
-        ref = Reference(np.empty((1, 3)), np.empty((1, 3, 3)), np.empty((1, 3)), np.empty((1, 3)))
+        ref = zero_reference(1)
         self.reference({k: v[None] for k, v in episode.items()}, np.zeros(1), ref)
-        return PlatformState(*(x[0] for x in ref)), episode
+        return PlatformState(ref.position[0], ref.rotation[0], ref.velocity[0], ref.angular_velocity[0]), episode
 
     def reference(self, episode, time, out: Reference) -> None:
         p = self.params
@@ -97,17 +99,18 @@ class TrackingTask(Task):
             terms.append(("reference_preview", np.tile(np.concatenate([scales.position, angle]), self.preview)))
         return terms
 
-    def observe(self, state: PlatformState, errors: Errors, episode, time, out) -> None:
-        super().observe(state, errors, episode, time, out)
-        out["velocity_error"][:] = errors.velocity
-        out["angular_velocity_error"][:] = errors.angular_velocity
+    def observe(self, view: StepView, out) -> None:
+        super().observe(view, out)
+        out["velocity_error"][:] = view.errors.velocity
+        out["angular_velocity_error"][:] = view.errors.angular_velocity
         if not self.preview:
             return
+        state, episode, time = view.state, view.episode, view.time
         n, k = time.shape[0], self.preview
         # All preview samples of all rows as one batch of n * k rows (row-major: row i, sample j).
         future = (time[:, None] + self.preview_interval * np.arange(1, k + 1)).reshape(n * k)
         ep = {name: np.repeat(v, k, axis=0) for name, v in episode.items()}
-        ref = Reference(np.empty((n * k, 3)), np.empty((n * k, 3, 3)), np.empty((n * k, 3)), np.empty((n * k, 3)))
+        ref = zero_reference(n * k)
         self.reference(ep, future, ref)
         preview = np.empty((n, k, 6))
         preview[:, :, :3] = ref.position.reshape(n, k, 3) - state.position[:, None, :]

@@ -1,0 +1,227 @@
+"""The environments' configuration: small frozen records, each validated once at construction.
+
+The keyword arguments of :class:`~stewart_env.envs.StewartPlatformEnv` (and of the vector
+environment) are grouped by what they configure: :class:`PhysicsConfig` (model, platform, time
+steps, domain randomisation), :class:`TaskConfig`, :class:`ActuatorConfig`,
+:class:`ObservationConfig` and :class:`RenderConfig`.  A record checks its fields with the shared
+validators of :mod:`stewart_env.validation` (errors name the argument) and keeps them in checked
+form (floats, a loaded :class:`~stewart_env.params.PlatformParams`, a
+:class:`~stewart_env.randomization.Randomization`).  Every field carries its description (field
+metadata ``"doc"``); the environment card's Arguments table is checked against
+:func:`arguments_table`, so the records are the one source of the arguments, their defaults and
+their ranges.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from stewart_env.dynamics import Dynamics, make_dynamics
+from stewart_env.params import PlatformParams, load_platform
+from stewart_env.randomization import Randomization
+from stewart_env.validation import ArgumentError, choice, flag, integer, real
+
+__all__ = ["RECORDS", "ActuatorConfig", "EnvConfig", "ObservationConfig", "PhysicsConfig", "RenderConfig",
+           "TaskConfig", "arguments_table", "defaults"]
+
+#: At most this many RK4 substeps per control step (control_dt / physics_dt).
+MAX_SUBSTEPS = 10**6
+OBSERVATION_MODES = ("pose", "sensors")
+RENDER_MODES = ("rgb_array", "human")
+# Relative tolerance on control_dt / physics_dt being a whole number (rounding of decimal inputs).
+_DT_TOLERANCE = 1e-9
+
+
+def _argument(default: Any, doc: str) -> Any:
+    """A record field that is an environment argument: its default and its card description."""
+    return field(default=default, metadata={"doc": doc})
+
+
+def _derived() -> Any:
+    """A record field computed from the arguments (not an argument itself)."""
+    return field(init=False, repr=False, compare=False)
+
+
+class _Record:
+    """Frozen-dataclass helpers: ``_set`` stores a checked value in ``__post_init__``."""
+
+    def _set(self, name: str, value: Any) -> None:
+        object.__setattr__(self, name, value)
+
+
+def _platform(value: Any) -> PlatformParams:
+    if isinstance(value, PlatformParams):
+        return value
+    if isinstance(value, str) or hasattr(value, "__fspath__"):
+        return load_platform(value)
+    raise ArgumentError(f"platform: expected a config name, a YAML path or a PlatformParams, got {value!r}")
+
+
+@dataclass(frozen=True)
+class PhysicsConfig(_Record):
+    """The simulated mechanism and its time steps.  Derived: ``dynamics`` (the nominal model) and
+    ``substeps`` (RK4 substeps per control step; ``physics_dt`` becomes control_dt / substeps, so
+    that n control steps are exactly n control_dt)."""
+
+    model: str = _argument("improved", 'dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, '
+                                       'optionally with switches such as `"+c1"`')
+    platform: Any = _argument("dasgupta1998", "a shipped config name, a YAML path, or a `PlatformParams`")
+    control_dt: float = _argument(0.01, "s per environment step, 1e-6 to 10")
+    physics_dt: float = _argument(0.001, "s per RK4 substep; `control_dt` must be a whole multiple of it, "
+                                         "at most 10^6 substeps")
+    randomization: Any = _argument(None, 'domain randomisation spec, e.g. `{"platform.mass": (0.8, 1.2), '
+                                         '"legs.mass": (0.9, 1.1), "inertia": (0.9, 1.1), "com": (0.9, 1.1), '
+                                         '"damping": (0.5, 2.0)}`')
+    dynamics: Dynamics = _derived()
+    substeps: int = _derived()
+
+    def __post_init__(self) -> None:
+        self._set("platform", _platform(self.platform))
+        self._set("dynamics", make_dynamics(self.model, self.platform))
+        control_dt = real("control_dt", self.control_dt, 1e-6, 10.0)
+        physics_dt = real("physics_dt", self.physics_dt, 0.0, control_dt, low_open=True)
+        substeps = round(control_dt / physics_dt)
+        if substeps > MAX_SUBSTEPS:
+            raise ValueError(f"physics_dt ({physics_dt}): control_dt / physics_dt is "
+                             f"{control_dt / physics_dt:.6g}, more than {MAX_SUBSTEPS} RK4 substeps per step")
+        if abs(substeps * physics_dt - control_dt) > _DT_TOLERANCE * control_dt:
+            raise ValueError(f"control_dt ({control_dt}) must be a whole multiple of physics_dt "
+                             f"({physics_dt}): the ratio is {control_dt / physics_dt:.6g}")
+        self._set("control_dt", control_dt)
+        self._set("physics_dt", control_dt / substeps)
+        self._set("substeps", substeps)
+        spec = self.randomization
+        if not isinstance(spec, Randomization):
+            spec = Randomization(spec) if spec else None
+        self._set("randomization", spec or None)
+
+
+@dataclass(frozen=True)
+class TaskConfig(_Record):
+    """What the platform should do; the task checks its own options (see :mod:`stewart_env.tasks`)."""
+
+    task: Any = _argument("setpoint", '`"setpoint"`, `"tracking"`, `"disturbance"`, `"hold"` '
+                                      "(or a `Task` subclass)")
+    task_options: Any = _argument(None, "dict of the task's options, its reward weights included "
+                                        "(see Starting State, Rewards and `stewart_env.tasks`)")
+
+    def __post_init__(self) -> None:
+        options = self.task_options
+        if options is not None and not isinstance(options, dict):
+            raise ArgumentError(f"task_options: expected a dict of options, got {options!r}")
+        self._set("task_options", dict(options or {}))
+
+
+@dataclass(frozen=True)
+class ActuatorConfig(_Record):
+    """The legs' actuators."""
+
+    actuator_tau: float = _argument(0.0, "s, first-order actuator lag time constant, 0 to 100; "
+                                         "0 applies the commanded forces directly")
+
+    def __post_init__(self) -> None:
+        self._set("actuator_tau", real("actuator_tau", self.actuator_tau, 0.0, 100.0))
+
+    def lag(self, control_dt: float) -> float:
+        """The fraction of the command error closed per control step of ``control_dt`` (0: none)."""
+        tau = self.actuator_tau
+        return 1.0 - math.exp(-control_dt / tau) if tau > 0 else 0.0
+
+
+@dataclass(frozen=True)
+class ObservationConfig(_Record):
+    """What the agent observes and how.  ``observation_noise`` is kept as a number or a dict of
+    checked numbers; its term names are checked against the observation layout by the batch."""
+
+    observation_mode: str = _argument("pose", '`"pose"` (pose and twist) or `"sensors"` (leg lengths and rates)')
+    normalize_observation: bool = _argument(True, "scale the observation by the platform's limits "
+                                                  "(see Observation Space)")
+    observation_noise: Any = _argument(0.0, "Gaussian noise std in observation units, 0 to 100: a number, "
+                                            "or a dict term name -> std")
+    observation_delay: int = _argument(0, "control steps between measurement and observation, 0 to 1000")
+    error_integral: bool = _argument(False, "observe the time integral of the pose error (see Observation Space)")
+    error_integral_limit: float = _argument(0.1, "s, anti-windup bound T of the error integral: +-T h (position), "
+                                                 "+-T A (orientation); 1e-6 to 1e6")
+    error_integral_band: float | None = _argument(None, "integrate an error component only within this fraction "
+                                                        "(0 to 1e6) of its scale (h, A); None: always")
+
+    def __post_init__(self) -> None:
+        self._set("observation_mode", choice("observation_mode", self.observation_mode, OBSERVATION_MODES))
+        self._set("normalize_observation", flag("normalize_observation", self.normalize_observation))
+        noise = self.observation_noise
+        if isinstance(noise, dict):
+            noise = {name: real(f"observation_noise[{name!r}]", s, 0.0, 100.0) for name, s in noise.items()}
+        else:
+            noise = real("observation_noise", noise, 0.0, 100.0)
+        self._set("observation_noise", noise)
+        self._set("observation_delay", integer("observation_delay", self.observation_delay, 0, 1000))
+        self._set("error_integral", flag("error_integral", self.error_integral))
+        self._set("error_integral_limit", real("error_integral_limit", self.error_integral_limit, 1e-6, 1e6))
+        band = self.error_integral_band
+        self._set("error_integral_band",
+                  None if band is None else real("error_integral_band", band, 0.0, 1e6, low_open=True))
+
+
+@dataclass(frozen=True)
+class RenderConfig(_Record):
+    """How frames are drawn."""
+
+    render_mode: str | None = _argument(None, '`"rgb_array"` or `"human"`')
+    width: int = _argument(480, "rendered frame width, px, 1 to 4096")
+    height: int = _argument(480, "rendered frame height, px, 1 to 4096")
+
+    def __post_init__(self) -> None:
+        if self.render_mode is not None and self.render_mode not in RENDER_MODES:
+            raise ValueError(f"render_mode: expected one of {list(RENDER_MODES)} or None, got {self.render_mode!r}")
+        self._set("width", integer("width", self.width, 1, 4096))
+        self._set("height", integer("height", self.height, 1, 4096))
+
+
+#: The records of the environment's arguments, in the order of its signature and of the card's table.
+RECORDS: tuple[type, ...] = (PhysicsConfig, TaskConfig, ActuatorConfig, ObservationConfig, RenderConfig)
+
+
+def _arguments(record: type) -> list[dataclasses.Field]:
+    return [f for f in dataclasses.fields(record) if f.init]
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Every argument of an environment, validated, by record."""
+
+    physics: PhysicsConfig
+    task: TaskConfig
+    actuator: ActuatorConfig
+    observation: ObservationConfig
+    render: RenderConfig
+
+    @classmethod
+    def of(cls, **arguments: Any) -> EnvConfig:
+        """The configuration of the environment arguments ``arguments`` (the others at their
+        defaults); each record validates its own.  An unknown name raises ArgumentError."""
+        known = {f.name for record in RECORDS for f in _arguments(record)}
+        unknown = [k for k in arguments if k not in known]
+        if unknown:
+            raise ArgumentError(f"unknown environment argument(s) {', '.join(map(repr, unknown))}; "
+                                f"valid: {', '.join(sorted(known))}")
+        records = [record(**{f.name: arguments[f.name] for f in _arguments(record) if f.name in arguments})
+                   for record in RECORDS]
+        return cls(*records)
+
+
+def arguments_table() -> str:
+    """The card's Arguments table (markdown rows, header included) from the records' fields."""
+    rows = ["| argument | default | description |", "|---|---|---|"]
+    for record in RECORDS:
+        for f in _arguments(record):
+            default = f'"{f.default}"' if isinstance(f.default, str) else repr(f.default)
+            rows.append(f"| `{f.name}` | `{default}` | {f.metadata['doc']} |")
+    return "\n".join(rows)
+
+
+def defaults() -> dict[str, Any]:
+    """Every environment argument and its default, in the card's order."""
+    return {f.name: f.default for record in RECORDS for f in _arguments(record)}
