@@ -400,8 +400,9 @@ def design_models(train_models: Sequence[str], simplifications: Sequence[str]) -
 
 
 def build_rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequence[int], domain_randomization: bool,
-               platform: str) -> list[Row]:
-    """The study's controllers; learned rows name their agent folders (trained or not yet)."""
+               platform: str, agent_models: Sequence[str] | None = None) -> list[Row]:
+    """The study's controllers; learned rows (on ``agent_models``, default all ``models``) name
+    their agent folders (trained or not yet)."""
     from stewart_env.agents.evaluation import slug
 
     analytic = [m for m in models if closed_form(m, platform)]
@@ -410,7 +411,8 @@ def build_rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequen
     rows += [Row(f"CT [{m}]", "CT", m, "ct") for m in analytic]
     if algo is None:
         return rows
-    trainings = [(m, False) for m in models] + ([("improved", True)] if domain_randomization else [])
+    agent_models = models if agent_models is None else agent_models
+    trainings = [(m, False) for m in agent_models] + ([("improved", True)] if domain_randomization else [])
     for m, randomized in trainings:
         name = f"{m} + DR" if randomized else m
         agents = {s: out / "agents" / slug(name) / f"seed_{s}" for s in seeds}
@@ -490,7 +492,8 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
                  episodes: int = 5, seeds: Sequence[int] = (0,), domain_randomization: bool = False,
                  simplifications: Sequence[str] = SIMPLIFICATIONS, env_kwargs: Mapping[str, Any] | None = None,
                  n_envs: int | None = None, max_steps: int | None = None, platform: str = "dasgupta1998",
-                 backend: str = "local", ray_address: str | None = None, progress: bool = True) -> MismatchResult:
+                 backend: str = "local", ray_address: str | None = None, agent_models: Sequence[str] | None = None,
+                 progress: bool = True) -> MismatchResult:
     """Run the mismatch study and write it to ``out`` (see the module docstring).
 
     train_models: models to build controllers on (PD's statics, CT's internal model, RL plants).
@@ -504,6 +507,8 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     n_envs: platforms per training batch (default the algorithm config's).
     max_steps: evaluation episode length in control steps (default the registered 500).
     backend: "local" or "ray"; ray_address: an existing Ray cluster ("auto", "HOST:PORT").
+    agent_models: the models RL agents are trained on (default: every model controllers are built
+        on, the improved+cK ones included); any model the environment simulates.
 
     Every argument is checked before any work starts; errors raise TrainingError naming it.
     """
@@ -521,6 +526,8 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     train_models = _check_models(train_models, "train models", platform)
     test_models = _check_models(test_models, "test models", platform)
     seeds = _check_seeds(seeds)
+    if agent_models is not None:
+        agent_models = _check_models(agent_models, "agent models", platform)
     for name, value in (("episodes", episodes), ("timesteps", timesteps), ("n_envs", n_envs), ("max_steps", max_steps)):
         if value is not None and (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1):
             raise TrainingError(f"{name}: expected a positive integer, got {value!r}")
@@ -540,7 +547,8 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     runner = make_backend(backend, ray_address)
 
     start = time.perf_counter()
-    rows = build_rows(out, design_models(train_models, simplifications), algo, seeds, domain_randomization, platform)
+    rows = build_rows(out, design_models(train_models, simplifications), algo, seeds, domain_randomization, platform,
+                      agent_models)
     try:
         _run_jobs(runner, out, rows, algo, timesteps, common, test_models, n_envs, progress)
     finally:
@@ -967,6 +975,9 @@ def add_cli(subparsers) -> argparse.ArgumentParser:
                    help="evaluation episode length in control steps (default: the registered 500)")
     p.add_argument("--seeds", type=seed_list, default=[0],
                    help="training seeds, comma-separated: one agent per seed and learned row (default: 0)")
+    p.add_argument("--agent-models", default=None,
+                   help="comma-separated models to train agents on (default: every model of the study, "
+                        "improved+cK included)")
     p.add_argument("--domain-randomization", action="store_true",
                    help="add agents trained on the improved model with domain randomisation")
     p.add_argument("--simplifications", default=",".join(SIMPLIFICATIONS),
@@ -990,7 +1001,9 @@ def _cli_mismatch(args: argparse.Namespace) -> int:
                               episodes=args.episodes, seeds=args.seeds, domain_randomization=args.domain_randomization,
                               simplifications=simplifications, env_kwargs=parse_env_kwargs(args.env_kwargs),
                               n_envs=args.n_envs, max_steps=args.max_steps, platform=args.platform,
-                              backend=args.backend, ray_address=args.ray_address, progress=not args.no_progress)
+                              backend=args.backend, ray_address=args.ray_address,
+                              agent_models=None if args.agent_models is None else _names(args.agent_models),
+                              progress=not args.no_progress)
     except (TrainingError, ValueError) as exc:
         print(f"stewart-env mismatch: error: {exc}", file=sys.stderr)
         return 2

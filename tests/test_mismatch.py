@@ -185,6 +185,7 @@ def test_an_interrupted_study_keeps_its_finished_cells(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("kwargs, message", [
     ({"train_models": ["clasical"]}, "train models: 'clasical' is not a model"),
+    ({"agent_models": ["nope"]}, "agent models: 'nope' is not a model"),
     ({"simplifications": ["c5"]}, "simplifications: unknown c5"),
     ({"env_kwargs": {"model": "classical"}}, "set by the study"),
     ({"task": "juggling"}, "task: unknown task 'juggling'"),
@@ -349,3 +350,12 @@ def test_a_row_stopped_while_training_continues_from_its_checkpoint(study, tmp_p
 def test_interval_formatting():
     assert mismatch.format_interval(Interval(1e-3, 5e-4, 2e-3, 1, 5), 1e3, ".3g") == "1 [0.5, 2]"
     assert mismatch.format_interval(Interval(float("nan"), float("nan"), float("nan"), 1, 5), 1e3, ".3g") == "-"
+
+
+def test_agent_models_pick_the_learned_rows(tmp_path):
+    rows = mismatch.build_rows(tmp_path, ["classical", "improved", "improved+c2"], "ppo", [0, 3], True,
+                               "dasgupta1998", agent_models=["improved"])
+    assert [r.label for r in rows if r.kind == "agent"] == ["PPO [improved]", "PPO [improved + DR]"]
+    assert [r.label for r in rows if r.kind == "ct"] == ["CT [classical]", "CT [improved]", "CT [improved+c2]"]
+    agent = next(r for r in rows if r.kind == "agent")
+    assert agent.seeds == (0, 3) and agent.agents[3] == tmp_path / "agents" / "improved" / "seed_3"
