@@ -326,16 +326,13 @@ class MujocoPlant:
         rows = [params_rows] if isinstance(params_rows, PlatformParams) else list(params_rows)
         if not rows or not all(isinstance(p, PlatformParams) for p in rows):
             raise ValueError("params_rows: expected a PlatformParams or a non-empty sequence of them")
-        twins: dict[PlatformParams, _Twin] = {}
-        for p in rows:
-            if p not in twins:
-                twins[p] = _Twin(p, timestep, solref, solimp)
         n = len(rows)
+        self._settings = (timestep, solref, solimp)
+        self._twins: dict[PlatformParams, _Twin] = {}
+        self._scratch = {}  # one MjData per compiled model: setting a row's state, measuring its loops
+        self.twins = [self._twin(p) for p in rows]
         self.params = tuple(rows)
-        self.twins = [twins[p] for p in rows]
         self.models = [tw.model for tw in self.twins]
-        # one scratch MjData per distinct model: setting a row's state and measuring its loops
-        self._scratch = {id(tw): mj.MjData(tw.model) for tw in twins.values()}
         if nthread is None:
             nthread = (os.cpu_count() or 1) if n > 1 else 0
         self._pool = mj_rollout.Rollout(nthread=nthread)
@@ -358,6 +355,39 @@ class MujocoPlant:
 
     def __len__(self) -> int:
         return len(self.twins)
+
+    def _twin(self, params: PlatformParams) -> _Twin:
+        """The compiled model of ``params``, shared by every row with equal parameters."""
+        if params not in self._twins:
+            tw = _Twin(params, *self._settings)
+            self._twins[params] = tw
+            self._scratch[id(tw)] = _require_mujoco().MjData(tw.model)
+        return self._twins[params]
+
+    def set_params(self, rows: Sequence[int], params: Sequence[PlatformParams]) -> None:
+        """Give batch rows ``rows`` the parameters ``params`` (one each; e.g. randomised at a reset).
+        The structure of the mechanism must stay that of the first row (six legs, the same joints),
+        which every PlatformParams has; those rows restart at their next step."""
+        rows = [int(r) for r in rows]
+        if len(rows) != len(params):
+            raise ValueError(f"params: expected one per row ({len(rows)}), got {len(params)}")
+        plist = list(self.params)
+        for r, p in zip(rows, params):
+            if not 0 <= r < len(plist):
+                raise ValueError(f"rows: {r} is outside the batch of {len(plist)} rows")
+            if not isinstance(p, PlatformParams):
+                raise ValueError(f"params: expected PlatformParams, got {type(p).__name__}")
+            plist[r] = p
+            self.twins[r] = self._twin(p)
+            self.models[r] = self.twins[r].model
+            self._com[r] = p.platform.com
+            for a in self._last:
+                a[r] = np.nan
+        self.params = tuple(plist)
+        # compiled models nobody uses any more are dropped
+        used = {id(tw) for tw in self.twins}
+        self._twins = {p: tw for p, tw in self._twins.items() if id(tw) in used}
+        self._scratch = {k: d for k, d in self._scratch.items() if k in used}
 
     def step_inplace(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench,
                      dt: float, steps: int) -> None:

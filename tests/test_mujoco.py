@@ -164,3 +164,24 @@ def test_plant_reports_a_diverging_row_as_nan_and_serves_mixed_parameters(dasgup
     rollout_inplace(se.make_dynamics("improved", heavy), *exact, F[1:], W[1:], 1e-3, 10)
     assert exact[0][0, 2] < t[1, 2] - 1e-5  # it moved
     np.testing.assert_allclose(state[0][1], exact[0][0], atol=1e-7)  # measured 1e-9 m over 10 ms
+
+
+def test_plant_rows_take_new_parameters(dasgupta):
+    heavy = dasgupta.replace(platform=type(dasgupta.platform)(60.0, dasgupta.platform.com, dasgupta.platform.inertia))
+    n = 2
+    t, R, v, w, F = _batch(dasgupta, n)
+    W = np.zeros((n, 6))
+    plant = twin.MujocoPlant([dasgupta] * n)
+    state = [x.copy() for x in (t, R, v, w)]
+    plant.step_inplace(*state, F, W, 1e-3, 10)
+    plant.set_params([1], [heavy])
+    assert plant.params == (dasgupta, heavy) and len(plant._twins) == 2
+    state = [x.copy() for x in (t, R, v, w)]
+    plant.step_inplace(*state, F, W, 1e-3, 10)
+    exact = [x.copy() for x in (t, R, v, w)]
+    rollout_inplace(se.make_dynamics("improved", [dasgupta, heavy]), *exact, F, W, 1e-3, 10)
+    np.testing.assert_allclose(state[0], exact[0], atol=1e-7)  # measured 1e-9 m; row 1 sinks 1.5e-4 m
+    plant.set_params([1], [dasgupta])
+    assert len(plant._twins) == 1  # the heavy model is no longer kept
+    with pytest.raises(ValueError, match="rows: 2"):
+        plant.set_params([2], [dasgupta])
