@@ -27,15 +27,18 @@ products and nothing is rotated or allocated.
 
 Map of the kernels
 ------------------
-* Leg kinematics (section 4): ``_leg_frame``, ``_leg_rates``, ``_leg_accel``.
+* Leg kinematics (section 4): ``_leg_frame`` gives a leg's geometry as one value, a
+  ``LegFrame``; ``_leg_state`` adds its rates (``_leg_rates``) and the platform's motion seen in
+  the leg frame, a ``LegState``; ``_leg_accel``; the Jacobian row ``_jacobian_row``.
 * One leg's force on the platform (sections 5.1-5.2): ``_leg_bodies``, ``_leg_inertial_force``,
   ``_leg_rate_force``, ``_leg_split``, ``_leg_force``.  The leg's moment equation about B_i is
   S x F_s + mu h = N; its row along e fixes mu and the rest gives F_s perpendicular to the leg;
   Newton's law for the upper leg along e gives e . F_s.
 * The platform (section 5.3): ``_platform_terms``.
 * Forward dynamics M [a; alpha] + h = J^T F + W (section 5.4): ``_assemble_one`` builds M and
-  h (the columns of each leg's Q_i from ``_unit_inertial_force``), which ``_forward_one`` solves and ``mass_bias_batch`` returns; inverse
-  dynamics (section 5.5): ``_inverse_one``; RK4 (section 5.6): ``rollout_batch``.
+  h (the columns of each leg's Q_i from ``_unit_inertial_force``), which ``_forward_one``
+  solves and ``mass_bias_batch`` returns; inverse dynamics (section 5.5): ``_inverse_one``.
+  Both run the same leg loop body, ``_leg_on_platform``.  RK4 (section 5.6): ``rollout_batch``.
 
 The model switches (switch bits, section 6)
 -------------------------------------------
@@ -66,6 +69,7 @@ offsets and :func:`stewart_env.dynamics.model.pack_params` follow from it.
 """
 
 import os
+from collections import namedtuple
 
 import numba
 import numpy as np
@@ -136,6 +140,16 @@ OFF_G = PACKED_SLICES["gravity"].start
 # ninf), so a state that stops being finite is still seen as such.
 FASTMATH = {"contract", "arcp"}
 
+#: One leg's geometry (docs/physics.md sections 1 and 4.1), the value ``_leg_frame`` returns and
+#: the per-leg helpers take: q = R p_i, length L, the unit vectors e, y, z of the leg frame
+#: {D_i} (3-tuples in {B}), and the fixed U-joint axis k in {D_i}, (kx, 0, kz) with kz > 0.
+LegFrame = namedtuple("LegFrame", ["q", "L", "e", "y", "z", "kx", "kz"])
+#: One leg's motion in the platform's state (sections 4.1-4.2), ``_leg_state``'s value: its
+#: LegFrame; the rates Ldot, spin sigma and angular velocity (w1, w2) about y and z; and in
+#: {D_i} (3-tuples) the platform's angular velocity ``omega``, ``gravity`` and ``a_vel``, the
+#: part w x (w x q) of P_i's acceleration that does not depend on the platform's acceleration.
+LegState = namedtuple("LegState", ["frame", "Ldot", "sigma", "w1", "w2", "omega", "gravity", "a_vel"])
+
 # Batches smaller than this run on the calling thread: for a handful of rows, waking numba's
 # worker threads costs more than it saves, and far more when other processes hold the cores.
 PARALLEL_MIN_ROWS = 16
@@ -148,35 +162,42 @@ def _cross(a0, a1, a2, b0, b1, b2):
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _to_base(u0, u1, u2, e0, e1, e2, y0, y1, y2, z0, z1, z2):
-    """{B} components of a vector given in the leg frame [e y z]: u = T_i u'.
+def _to_base(fr, u0, u1, u2):
+    """{B} components of a vector given in the leg frame fr = [e y z]: u = T_i u'.
 
     docs/physics.md section 1; paper eq. 15 (T_i).
     """
+    e0, e1, e2 = fr.e
+    y0, y1, y2 = fr.y
+    z0, z1, z2 = fr.z
     return u0 * e0 + u1 * y0 + u2 * z0, u0 * e1 + u1 * y1 + u2 * z1, u0 * e2 + u1 * y2 + u2 * z2
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _to_leg(u0, u1, u2, e0, e1, e2, y0, y1, y2, z0, z1, z2):
+def _to_leg(fr, u0, u1, u2):
     """Leg-frame components (u . e, u . y, u . z) of a vector given in {B}: u' = T_i^T u.
 
     docs/physics.md section 1; paper eq. 15 (T_i).
     """
+    e0, e1, e2 = fr.e
+    y0, y1, y2 = fr.y
+    z0, z1, z2 = fr.z
     return u0 * e0 + u1 * e1 + u2 * e2, u0 * y0 + u1 * y1 + u2 * y2, u0 * z0 + u1 * z1 + u2 * z2
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _with_platform_acc(acc, q0, q1, q2, e0, e1, e2, y0, y1, y2, z0, z1, z2, A0, A1, A2):
+def _with_platform_acc(acc, fr, A):
     """P_i's acceleration in {D_i}: the velocity part A' plus a + alpha x q for acc = [a; alpha].
 
     docs/physics.md section 4.1; paper eqs. 10-12 (a_Pi).
     """
+    q0, q1, q2 = fr.q
     x0, x1, x2 = _cross(acc[3], acc[4], acc[5], q0, q1, q2)
     x0 += acc[0]
     x1 += acc[1]
     x2 += acc[2]
-    d0, d1, d2 = _to_leg(x0, x1, x2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
-    return A0 + d0, A1 + d1, A2 + d2
+    d0, d1, d2 = _to_leg(fr, x0, x1, x2)
+    return A[0] + d0, A[1] + d1, A[2] + d2
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
@@ -241,9 +262,8 @@ def _leg_bodies(prm, i, flags, L):
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
 def _leg_frame(prm, i, t, R):
-    """Leg i's geometry: q = R p_i, length L, frame [e y z] and k in that frame (kx, kz).
-
-    Returns (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz), vectors in {B}.
+    """Leg i's geometry as one value, a :data:`LegFrame`: q = R p_i, length L, the frame
+    [e y z] (vectors in {B}) and k in that frame (kx, kz).
     docs/physics.md sections 1 and 4.1; paper eqs. 6-8 (q_i, S_i, L_i, e_i) and 15 (T_i).
     """
     p0 = prm[OFF_P + 3 * i]
@@ -267,33 +287,35 @@ def _leg_frame(prm, i, t, R):
     y0 = c0 / kz
     y1 = c1 / kz
     y2 = c2 / kz
-    z0, z1, z2 = _cross(e0, e1, e2, y0, y1, y2)
+    z = _cross(e0, e1, e2, y0, y1, y2)
     kx = k0 * e0 + k1 * e1 + k2 * e2
-    return q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz
+    return LegFrame((q0, q1, q2), L, (e0, e1, e2), (y0, y1, y2), z, kx, kz)
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _leg_rates(flags, L, kx, kz, u0, u1, u2):
+def _leg_rates(flags, fr, u0, u1, u2):
     """Leg rate and angular velocity from v_P' = (u0, u1, u2), P_i's velocity in {D_i}.
 
     Returns (Ldot, sigma, w1, w2): omega_l' = (sigma, w1, w2) in {D_i}.
     docs/physics.md section 4.2; paper eqs. 13 (Ldot), 20-21 (w_perp) and 22 (the spin sigma);
     C1 sets sigma = 0 (section 6).
     """
-    w1 = -u2 / L
-    w2 = u1 / L
-    sigma = 0.0 if flags & C1 else kx * w2 / kz
+    w1 = -u2 / fr.L
+    w2 = u1 / fr.L
+    sigma = 0.0 if flags & C1 else fr.kx * w2 / fr.kz
     return u0, sigma, w1, w2
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2):
-    """Leg acceleration from a_P' = (A0, A1, A2), P_i's acceleration in {D_i}.
+def _leg_accel(flags, fr, Ldot, sigma, w1, w2, A0, A1, A2):
+    """Leg acceleration from a_P' = (A0, A1, A2), P_i's acceleration in {D_i}, for the leg's
+    rates (Ldot, sigma, w1, w2) of ``_leg_rates``.
 
     Returns (Lddot, al0, al1, al2): alpha_l' in {D_i}.
     docs/physics.md section 4.3; paper eqs. 14 (Lddot), 23-24 (alpha_perp = (al1, al2)), 26
     (alpha_e = al0) and 27; C1 sets al0 = 0 (section 6).
     """
+    L, kx, kz = fr.L, fr.kx, fr.kz
     Lddot = A0 + L * (w1 * w1 + w2 * w2)
     al1 = (-A2 - 2.0 * Ldot * w1) / L + sigma * w2
     al2 = (A1 - 2.0 * Ldot * w2) / L - sigma * w1
@@ -305,7 +327,7 @@ def _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2):
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _leg_split(flags, L, kx, kz, N0, N1, N2, axial):
+def _leg_split(flags, fr, N0, N1, N2, axial):
     """Force of the platform on the leg, in {D_i}, from the leg's moment equation about B_i.
 
     Solves S x F_s + mu h = N for F_s's part perpendicular to the leg: the row along e fixes mu,
@@ -313,12 +335,12 @@ def _leg_split(flags, L, kx, kz, N0, N1, N2, axial):
     ``axial`` is e . F_s from the upper leg's Newton equation.  Linear in (N, axial).
     docs/physics.md sections 5.1 and 6 (C2); paper eqs. 35, 37 (mu), 38 and 40.
     """
-    n2 = N2 if flags & C2 else N2 + N0 * kx / kz
-    return axial, n2 / L, -N1 / L
+    n2 = N2 if flags & C2 else N2 + N0 * fr.kx / fr.kz
+    return axial, n2 / fr.L, -N1 / fr.L
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _leg_inertial_force(flags, bodies, L, kx, kz, Lddot, al0, al1, al2):
+def _leg_inertial_force(flags, bodies, fr, Lddot, al0, al1, al2):
     """The part of F_s that is linear in the leg's accelerations (Lddot, alpha_l'), {D_i}.
 
     The accelerations enter the CoMs' accelerations (a_u = Lddot e + alpha_l x r_u + ...,
@@ -340,17 +362,19 @@ def _leg_inertial_force(flags, bodies, L, kx, kz, Lddot, al0, al1, al2):
         u0, u1, u2 = _cross(ru0, ru1, ru2, m_u * Lddot, 0.0, 0.0)
     d0, d1, d2 = _euler(I_d, al0, al1, al2, 0.0, 0.0, 0.0)
     e0, e1, e2 = _euler(I_u, al0, al1, al2, 0.0, 0.0, 0.0)
-    return _leg_split(flags, L, kx, kz, t0 + u0 + d0 + e0, t1 + u1 + d1 + e1, t2 + u2 + d2 + e2, m_u * au0)
+    return _leg_split(flags, fr, t0 + u0 + d0 + e0, t1 + u1 + d1 + e1, t2 + u2 + d2 + e2, m_u * au0)
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _leg_rate_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2):
+def _leg_rate_force(prm, flags, bodies, leg):
     """The part of F_s that does not depend on accelerations, {D_i}: velocity products
     (Coriolis 2 Ldot omega_l x e, centripetal omega_l x (omega_l x r), gyroscopic
-    omega_l x I omega_l), gravity and joint friction.  ``o`` and ``g``: platform angular velocity
-    and gravity in {D_i}.  docs/physics.md sections 5.1-5.2 and 6 (C3); paper eqs. 30-34, 36 and
+    omega_l x I omega_l), gravity and joint friction, for the leg's :data:`LegState` ``leg``.
+    docs/physics.md sections 5.1-5.2 and 6 (C3); paper eqs. 30-34, 36 and
     39 (their velocity, gravity and friction terms), 41 and, in the centroidal form, 51."""
-    w0 = sigma
+    Ldot, w0, w1, w2 = leg.Ldot, leg.sigma, leg.w1, leg.w2
+    o0, o1, o2 = leg.omega
+    g0, g1, g2 = leg.gravity
     m_u, m_d, r_u, r_d, I_u, I_d = bodies
     ru0, ru1, ru2 = r_u
     rd0, rd1, rd2 = r_d
@@ -377,7 +401,7 @@ def _leg_rate_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, 
     cu = prm[OFF_DAMP]
     cs = prm[OFF_DAMP + 2]
     return _leg_split(
-        flags, L, kx, kz,
+        flags, leg.frame,
         t0 + u0 + d0 + e0 - gd0 - gu0 + cu * w0 + cs * (w0 - o0),
         t1 + u1 + d1 + e1 - gd1 - gu1 + cu * w1 + cs * (w1 - o1),
         t2 + u2 + d2 + e2 - gd2 - gu2 + cu * w2 + cs * (w2 - o2),
@@ -386,48 +410,93 @@ def _leg_rate_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, 
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _leg_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2,
-               A0, A1, A2, F_act):
+def _leg_force(prm, flags, bodies, leg, A0, A1, A2, F_act):
     """Force of the platform on leg i at P_i, in {D_i}, for P_i's acceleration A' in {D_i}.
 
-    ``bodies`` is ``_leg_bodies``' result; ``o`` is the platform's angular velocity and ``g``
-    gravity, both in {D_i}; ``F_act`` the actuator force (N), which pushes the upper leg along e.
+    ``bodies`` is ``_leg_bodies``' result, ``leg`` the leg's :data:`LegState`; ``F_act`` the
+    actuator force (N), which pushes the upper leg along e.
     Returns (F0, F1, F2): the acceleration part plus the rate part.
     docs/physics.md section 5.1; paper eqs. 38-41 (joint form) and 51 (centroidal form).
     """
-    Lddot, al0, al1, al2 = _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2)
-    a0, a1, a2 = _leg_inertial_force(flags, bodies, L, kx, kz, Lddot, al0, al1, al2)
-    r0, r1, r2 = _leg_rate_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2)
+    Lddot, al0, al1, al2 = _leg_accel(flags, leg.frame, leg.Ldot, leg.sigma, leg.w1, leg.w2, A0, A1, A2)
+    a0, a1, a2 = _leg_inertial_force(flags, bodies, leg.frame, Lddot, al0, al1, al2)
+    r0, r1, r2 = _leg_rate_force(prm, flags, bodies, leg)
     return a0 + r0 - F_act, a1 + r1, a2 + r2
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _unit_inertial_force(flags, bodies, L, kx, kz, A0, A1, A2):
+def _unit_inertial_force(flags, bodies, fr, A0, A1, A2):
     """The acceleration part of F_s, {D_i}, for a P_i acceleration A' with all rates zero: one
     column of Q_i when A' is a {B} unit vector in {D_i}.  docs/physics.md section 5.4; paper
     eqs. 41 and 47-48."""
-    Lddot, al0, al1, al2 = _leg_accel(flags, L, kx, kz, 0.0, 0.0, 0.0, 0.0, A0, A1, A2)
-    return _leg_inertial_force(flags, bodies, L, kx, kz, Lddot, al0, al1, al2)
+    Lddot, al0, al1, al2 = _leg_accel(flags, fr, 0.0, 0.0, 0.0, 0.0, A0, A1, A2)
+    return _leg_inertial_force(flags, bodies, fr, Lddot, al0, al1, al2)
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
-def _leg_inputs(prm, i, flags, t, R, v, w):
-    """Per-leg quantities shared by forward and inverse dynamics, all from the platform state.
-
-    Returns the frame of ``_leg_frame``, then (Ldot, sigma, w1, w2), then the platform angular
-    velocity, gravity and a_P0 = w x (w x q) in {D_i}.
+def _leg_state(prm, i, flags, t, R, v, w):
+    """Leg i's :data:`LegState` in the platform state (t, R, v, w): its frame, its rates
+    (Ldot, sigma, w1, w2), and in {D_i} the platform's angular velocity, gravity and the
+    velocity part w x (w x q) of P_i's acceleration.
     docs/physics.md sections 4.1-4.2; paper eqs. 6-13 and 20-22.
     """
-    q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz = _leg_frame(prm, i, t, R)
+    fr = _leg_frame(prm, i, t, R)
+    q0, q1, q2 = fr.q
     c0, c1, c2 = _cross(w[0], w[1], w[2], q0, q1, q2)
-    u0, u1, u2 = _to_leg(v[0] + c0, v[1] + c1, v[2] + c2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
-    Ldot, sigma, w1, w2 = _leg_rates(flags, L, kx, kz, u0, u1, u2)
+    u0, u1, u2 = _to_leg(fr, v[0] + c0, v[1] + c1, v[2] + c2)
+    Ldot, sigma, w1, w2 = _leg_rates(flags, fr, u0, u1, u2)
     a0, a1, a2 = _cross(w[0], w[1], w[2], c0, c1, c2)
-    o0, o1, o2 = _to_leg(w[0], w[1], w[2], e0, e1, e2, y0, y1, y2, z0, z1, z2)
-    g0, g1, g2 = _to_leg(prm[OFF_G], prm[OFF_G + 1], prm[OFF_G + 2], e0, e1, e2, y0, y1, y2, z0, z1, z2)
-    A0, A1, A2 = _to_leg(a0, a1, a2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
-    return (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz, Ldot, sigma, w1, w2,
-            o0, o1, o2, g0, g1, g2, A0, A1, A2)
+    return LegState(fr, Ldot, sigma, w1, w2, _to_leg(fr, w[0], w[1], w[2]),
+                    _to_leg(fr, prm[OFF_G], prm[OFF_G + 1], prm[OFF_G + 2]), _to_leg(fr, a0, a1, a2))
+
+
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
+def _jacobian_row(fr):
+    """Row i of the leg Jacobian, [e_i, q_i x e_i] (dL_i/dt = row . [v; omega]), from the leg's
+    frame.  docs/physics.md section 4.4; paper eq. 13."""
+    q0, q1, q2 = fr.q
+    e0, e1, e2 = fr.e
+    m0, m1, m2 = _cross(q0, q1, q2, e0, e1, e2)
+    return e0, e1, e2, m0, m1, m2
+
+
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
+def _jacobian_one(prm, t, R, J):
+    """The leg Jacobian J (6,6) of one platform at pose (t, R), rows [e_i, (R p_i) x e_i].
+    docs/physics.md section 4.4; paper eq. 13."""
+    for i in range(6):
+        J[i, 0], J[i, 1], J[i, 2], J[i, 3], J[i, 4], J[i, 5] = _jacobian_row(_leg_frame(prm, i, t, R))
+
+
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
+def _leg_on_platform(prm, flags, i, t, R, v, w, acc, h):
+    """Add leg i's pull on the platform to h (6,), {B}: the force of the leg on the platform at
+    P_i (minus the force of the platform on the leg, F_s, actuator force excluded) as a wrench
+    at P, and the spherical joint's friction torque.  The platform's acceleration acc = [a;
+    alpha] enters through P_i's acceleration; ``acc`` None means its velocity part alone (the
+    bias of forward dynamics; numba compiles that case without the term).  Returns the leg's
+    :data:`LegState` and ``_leg_bodies`` for the caller's own use of the leg.
+    The one leg loop body of forward dynamics, its M/h assembly and inverse dynamics.
+    docs/physics.md sections 5.1 and 5.4-5.5; paper eqs. 38-41 and 47-49 (or 51 and 55).
+    """
+    leg = _leg_state(prm, i, flags, t, R, v, w)
+    fr = leg.frame
+    A = leg.a_vel if acc is None else _with_platform_acc(acc, fr, leg.a_vel)
+    bodies = _leg_bodies(prm, i, flags, fr.L)
+    f0, f1, f2 = _leg_force(prm, flags, bodies, leg, A[0], A[1], A[2], 0.0)
+    fs0, fs1, fs2 = _to_base(fr, f0, f1, f2)
+    q0, q1, q2 = fr.q
+    m0, m1, m2 = _cross(q0, q1, q2, fs0, fs1, fs2)
+    # spherical-joint friction acts on the platform: +Cs (omega_l - omega)
+    cs = prm[OFF_DAMP + 2]
+    wl0, wl1, wl2 = _to_base(fr, leg.sigma, leg.w1, leg.w2)
+    h[0] += fs0
+    h[1] += fs1
+    h[2] += fs2
+    h[3] += m0 - cs * (wl0 - w[0])
+    h[4] += m1 - cs * (wl1 - w[1])
+    h[5] += m2 - cs * (wl2 - w[2])
+    return leg, bodies
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
@@ -569,32 +638,22 @@ def _assemble_one(prm, flags, t, R, v, w, F, M, h):
         h[r] = 0.0
         for c in range(6):
             M[r, c] = 0.0
-    cs = prm[OFF_DAMP + 2]
     for i in range(6):
-        (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
-         Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2, A0, A1, A2) = _leg_inputs(prm, i, flags, t, R, v, w)
-        bodies = _leg_bodies(prm, i, flags, L)
-        # bias: the leg force at zero platform acceleration, actuator force excluded
-        f0, f1, f2 = _leg_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2,
-                                g0, g1, g2, A0, A1, A2, 0.0)
-        fb0, fb1, fb2 = _to_base(f0, f1, f2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
-        m0, m1, m2 = _cross(q0, q1, q2, fb0, fb1, fb2)
-        # spherical-joint friction acts on the platform: +Cs (omega_l - omega)
-        wl0, wl1, wl2 = _to_base(sigma, w1, w2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
-        h[0] += fb0
-        h[1] += fb1
-        h[2] += fb2
-        h[3] += m0 - cs * (wl0 - w[0])
-        h[4] += m1 - cs * (wl1 - w[1])
-        h[5] += m2 - cs * (wl2 - w[2])
+        # bias: the leg's pull at zero platform acceleration, actuator force excluded
+        leg, bodies = _leg_on_platform(prm, flags, i, t, R, v, w, None, h)
+        fr = leg.frame
+        e0, e1, e2 = fr.e
+        y0, y1, y2 = fr.y
+        z0, z1, z2 = fr.z
+        q0, q1, q2 = fr.q
         # linear part: Q column j = the acceleration part of the leg force for a_P = unit vector j
         # of {B} (row j of T in {D_i}); with zero rates _leg_accel returns only its linear part
-        qa0, qa1, qa2 = _unit_inertial_force(flags, bodies, L, kx, kz, e0, y0, z0)
-        qb0, qb1, qb2 = _unit_inertial_force(flags, bodies, L, kx, kz, e1, y1, z1)
-        qc0, qc1, qc2 = _unit_inertial_force(flags, bodies, L, kx, kz, e2, y2, z2)
-        Qx0, Qx1, Qx2 = _to_base(qa0, qa1, qa2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
-        Qy0, Qy1, Qy2 = _to_base(qb0, qb1, qb2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
-        Qz0, Qz1, Qz2 = _to_base(qc0, qc1, qc2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
+        qa0, qa1, qa2 = _unit_inertial_force(flags, bodies, fr, e0, y0, z0)
+        qb0, qb1, qb2 = _unit_inertial_force(flags, bodies, fr, e1, y1, z1)
+        qc0, qc1, qc2 = _unit_inertial_force(flags, bodies, fr, e2, y2, z2)
+        Qx0, Qx1, Qx2 = _to_base(fr, qa0, qa1, qa2)
+        Qy0, Qy1, Qy2 = _to_base(fr, qb0, qb1, qb2)
+        Qz0, Qz1, Qz2 = _to_base(fr, qc0, qc1, qc2)
         # a_P = a + alpha x q: column k of a moves P_i by e_k, of alpha by e_k x q
         _add_column(M, 0, q0, q1, q2, Qx0, Qx1, Qx2)
         _add_column(M, 1, q0, q1, q2, Qy0, Qy1, Qy2)
@@ -603,14 +662,14 @@ def _assemble_one(prm, flags, t, R, v, w, F, M, h):
         _add_column(M, 4, q0, q1, q2, Qx0 * q2 - Qz0 * q0, Qx1 * q2 - Qz1 * q0, Qx2 * q2 - Qz2 * q0)
         _add_column(M, 5, q0, q1, q2, Qy0 * q0 - Qx0 * q1, Qy1 * q0 - Qx1 * q1, Qy2 * q0 - Qx2 * q1)
         # actuator force along e_i at P_i moves to the right-hand side J^T F
-        mq0, mq1, mq2 = _cross(q0, q1, q2, e0, e1, e2)
+        j0, j1, j2, j3, j4, j5 = _jacobian_row(fr)
         Fi = F[i]
-        h[0] -= Fi * e0
-        h[1] -= Fi * e1
-        h[2] -= Fi * e2
-        h[3] -= Fi * mq0
-        h[4] -= Fi * mq1
-        h[5] -= Fi * mq2
+        h[0] -= Fi * j0
+        h[1] -= Fi * j1
+        h[2] -= Fi * j2
+        h[3] -= Fi * j3
+        h[4] -= Fi * j4
+        h[5] -= Fi * j5
     _platform_terms(prm, flags, R, w, M, h)
 
 
@@ -640,38 +699,18 @@ def _inverse_one(prm, flags, t, R, v, w, acc, W, M, h, out):
         h[r] = 0.0
         for c in range(6):
             M[r, c] = 0.0
-    cs = prm[OFF_DAMP + 2]
     for i in range(6):
-        (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
-         Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2, A0, A1, A2) = _leg_inputs(prm, i, flags, t, R, v, w)
-        A0, A1, A2 = _with_platform_acc(acc, q0, q1, q2, e0, e1, e2, y0, y1, y2, z0, z1, z2, A0, A1, A2)
-        bodies = _leg_bodies(prm, i, flags, L)
-        f0, f1, f2 = _leg_force(prm, flags, bodies, L, kx, kz, Ldot, sigma, w1, w2, o0, o1, o2,
-                                g0, g1, g2, A0, A1, A2, 0.0)
-        fs0, fs1, fs2 = _to_base(f0, f1, f2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
-        m0, m1, m2 = _cross(q0, q1, q2, fs0, fs1, fs2)
-        h[0] += fs0
-        h[1] += fs1
-        h[2] += fs2
-        wl0, wl1, wl2 = _to_base(sigma, w1, w2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
-        h[3] += m0 - cs * (wl0 - w[0])
-        h[4] += m1 - cs * (wl1 - w[1])
-        h[5] += m2 - cs * (wl2 - w[2])
-        mq0, mq1, mq2 = _cross(q0, q1, q2, e0, e1, e2)
-        M[0, i] = e0
-        M[1, i] = e1
-        M[2, i] = e2
-        M[3, i] = mq0
-        M[4, i] = mq1
-        M[5, i] = mq2
+        leg, _ = _leg_on_platform(prm, flags, i, t, R, v, w, acc, h)
+        # column i of J^T
+        M[0, i], M[1, i], M[2, i], M[3, i], M[4, i], M[5, i] = _jacobian_row(leg.frame)
     # the platform's own inertial and gravity terms at this acceleration, via its M and h
     Mp = np.zeros((6, 6))
     _platform_terms(prm, flags, R, w, Mp, h)
     for r in range(6):
-        s = h[r] - W[r]
+        total = h[r] - W[r]
         for c in range(6):
-            s += Mp[r, c] * acc[c]
-        h[r] = s
+            total += Mp[r, c] * acc[c]
+        h[r] = total
     _solve6(M, h, out)
 
 
@@ -682,31 +721,20 @@ def _leg_kinematics_one(prm, flags, t, R, v, w, acc, frames, lengths, rates, acc
     rates (6,), accels (6,), omega_l (6,3), alpha_l (6,3), jac (6,6) rows [e_i, q_i x e_i].
     docs/physics.md section 4; paper eqs. 6-27."""
     for i in range(6):
-        (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
-         Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2, A0, A1, A2) = _leg_inputs(prm, i, flags, t, R, v, w)
-        A0, A1, A2 = _with_platform_acc(acc, q0, q1, q2, e0, e1, e2, y0, y1, y2, z0, z1, z2, A0, A1, A2)
-        Lddot, al0, al1, al2 = _leg_accel(flags, L, kx, kz, Ldot, sigma, w1, w2, A0, A1, A2)
-        frames[i, 0, 0] = e0
-        frames[i, 1, 0] = e1
-        frames[i, 2, 0] = e2
-        frames[i, 0, 1] = y0
-        frames[i, 1, 1] = y1
-        frames[i, 2, 1] = y2
-        frames[i, 0, 2] = z0
-        frames[i, 1, 2] = z1
-        frames[i, 2, 2] = z2
-        lengths[i] = L
-        rates[i] = Ldot
+        leg = _leg_state(prm, i, flags, t, R, v, w)
+        fr = leg.frame
+        A0, A1, A2 = _with_platform_acc(acc, fr, leg.a_vel)
+        Lddot, al0, al1, al2 = _leg_accel(flags, fr, leg.Ldot, leg.sigma, leg.w1, leg.w2, A0, A1, A2)
+        for r in range(3):
+            frames[i, r, 0] = fr.e[r]
+            frames[i, r, 1] = fr.y[r]
+            frames[i, r, 2] = fr.z[r]
+        lengths[i] = fr.L
+        rates[i] = leg.Ldot
         accels[i] = Lddot
-        omega_l[i, 0], omega_l[i, 1], omega_l[i, 2] = _to_base(sigma, w1, w2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
-        alpha_l[i, 0], alpha_l[i, 1], alpha_l[i, 2] = _to_base(al0, al1, al2, e0, e1, e2, y0, y1, y2, z0, z1, z2)
-        mq0, mq1, mq2 = _cross(q0, q1, q2, e0, e1, e2)
-        jac[i, 0] = e0
-        jac[i, 1] = e1
-        jac[i, 2] = e2
-        jac[i, 3] = mq0
-        jac[i, 4] = mq1
-        jac[i, 5] = mq2
+        omega_l[i, 0], omega_l[i, 1], omega_l[i, 2] = _to_base(fr, leg.sigma, leg.w1, leg.w2)
+        alpha_l[i, 0], alpha_l[i, 1], alpha_l[i, 2] = _to_base(fr, al0, al1, al2)
+        jac[i, 0], jac[i, 1], jac[i, 2], jac[i, 3], jac[i, 4], jac[i, 5] = _jacobian_row(fr)
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath=FASTMATH)
@@ -1015,23 +1043,16 @@ def _leg_sensors_row(prm, t, R, v, w, max_condition, lengths, rates, condition, 
     p = prm[0] if prm.shape[0] == 1 else prm[b]
     jac = np.empty((6, 6))
     for i in range(6):
-        (q0, q1, q2, L, e0, e1, e2, y0, y1, y2, z0, z1, z2, kx, kz,
-         Ldot, sigma, w1, w2, o0, o1, o2, g0, g1, g2, A0, A1, A2) = _leg_inputs(p, i, 0, t[b], R[b], v[b], w[b])
-        lengths[b, i] = L
-        rates[b, i] = Ldot
-        mq0, mq1, mq2 = _cross(q0, q1, q2, e0, e1, e2)
-        jac[i, 0] = e0
-        jac[i, 1] = e1
-        jac[i, 2] = e2
-        jac[i, 3] = mq0
-        jac[i, 4] = mq1
-        jac[i, 5] = mq2
+        leg = _leg_state(p, i, 0, t[b], R[b], v[b], w[b])
+        lengths[b, i] = leg.frame.L
+        rates[b, i] = leg.Ldot
+        jac[i, 0], jac[i, 1], jac[i, 2], jac[i, 3], jac[i, 4], jac[i, 5] = _jacobian_row(leg.frame)
     bound = _frobenius_condition(jac)
     if bound <= max_condition:
         condition[b] = bound
     elif np.isfinite(bound):
-        s = np.linalg.svd(jac)[1]
-        condition[b] = s[0] / s[5] if s[5] > 0.0 else np.inf
+        sv = np.linalg.svd(jac)[1]
+        condition[b] = sv[0] / sv[5] if sv[5] > 0.0 else np.inf
     else:
         condition[b] = np.inf
 
