@@ -58,6 +58,78 @@ def _within_float32(raw, reward, largest):
     return True
 
 
+# The per-step arithmetic of the batch in a few compiled passes (each row as numpy would compute it,
+# operation for operation), so that a step's Python overhead stays small next to the physics.
+
+@njit(cache=True)
+def _drive(action, half, mid, lag, clipped, forces):
+    """Clip the action to [-1, 1] into ``clipped`` and map it onto the force range: the command
+    mid + a half, applied directly (lag 0) or through the exact first-order lag."""
+    for b in range(action.shape[0]):
+        for i in range(6):
+            a = min(max(action[b, i], -1.0), 1.0)
+            clipped[b, i] = a
+            command = a * half + mid
+            if lag:
+                forces[b, i] += lag * (command - forces[b, i])
+            else:
+                forces[b, i] = command
+
+
+@njit(cache=True)
+def _copy_state(t, R, v, w, t_to, R_to, v_to, w_to):
+    """Copy a batch state into another's arrays."""
+    t_to[:] = t
+    R_to[:] = R
+    v_to[:] = v
+    w_to[:] = w
+
+
+@njit(cache=True)
+def _after_physics(t, R, v, w, t0, R0, v0, w0, steps, dt, time, non_finite):
+    """Advance every row's clock one control step (time = steps dt) and find the rows whose
+    state is no longer finite, putting them back to the state they started the step from (t0,
+    R0, v0, w0).  Returns whether any row was."""
+    found = False
+    for b in range(t.shape[0]):
+        steps[b] += 1
+        time[b] = steps[b] * dt
+        ok = True
+        for j in range(3):
+            ok &= np.isfinite(t[b, j]) and np.isfinite(v[b, j]) and np.isfinite(w[b, j])
+            for k in range(3):
+                ok &= np.isfinite(R[b, j, k])
+        non_finite[b] = not ok
+        if not ok:
+            found = True
+            t[b] = t0[b]
+            R[b] = R0[b]
+            v[b] = v0[b]
+            w[b] = w0[b]
+    return found
+
+
+@njit(cache=True)
+def _pose_block(t, R, v, w, raw):
+    """The pose observation's first 15 entries of every row: P, the first two columns of R, the
+    velocity and the angular velocity."""
+    for b in range(t.shape[0]):
+        for j in range(3):
+            raw[b, j] = t[b, j]
+            raw[b, 3 + j] = R[b, j, 0]
+            raw[b, 6 + j] = R[b, j, 1]
+            raw[b, 9 + j] = v[b, j]
+            raw[b, 12 + j] = w[b, j]
+
+
+@njit(cache=True)
+def _normalize(raw, offset, inv_scale):
+    """raw = (raw - offset) * inv_scale, in place."""
+    for b in range(raw.shape[0]):
+        for k in range(raw.shape[1]):
+            raw[b, k] = (raw[b, k] - offset[k]) * inv_scale[k]
+
+
 def _readonly(array: np.ndarray) -> np.ndarray:
     """A view of ``array`` that cannot be written (what a task is given)."""
     view = array.view()
@@ -125,8 +197,6 @@ class PlatformBatch:
         # The tracking errors of every row after a step: the vectors and the norms of Errors.
         self._error_vectors, self._error_norms = np.zeros((4, n, 3)), np.zeros((4, n))
         self._action = np.zeros((n, 6))
-        self._command = np.zeros((n, 6))
-        self._state_sum = np.zeros(n)
         self._non_finite = np.zeros(n, dtype=bool)
         self._any_non_finite = False
         # Rows whose start observation was not finite: their first step terminates ("non_finite").
@@ -326,20 +396,12 @@ class PlatformBatch:
         away) and draw no noise.  Returns (reward (n,), termination code (n,) int, reward terms
         by name, each (n,)); codes index :attr:`termination_reasons` (0: none).
         """
-        a = np.clip(action, -1.0, 1.0, out=self._action)
-        if self._lag:
-            cmd = np.multiply(a, self._force_half, out=self._command)
-            cmd += self._force_mid
-            self.leg_forces += self._lag * (cmd - self.leg_forces)
-        else:
-            np.multiply(a, self._force_half, out=self.leg_forces)
-            self.leg_forces += self._force_mid
+        _drive(action, self._force_half, self._force_mid, self._lag, self._action, self.leg_forces)
         if skip is not None:
             self._park(skip)
         if self._has_external_wrench:
             self.task.external_wrench(self.view, self.control_dt, self.external_wrench)
-        for dst, src in zip(self._backup, self._state):
-            np.copyto(dst, src)
+        _copy_state(*self._state, *self._backup)
         self._physics()
         return self._outcome(rngs, skip)
 
@@ -347,22 +409,10 @@ class PlatformBatch:
         """The rollout of every row, the non-finite check and the leg sensors."""
         rollout_inplace(self.model, self.position, self.rotation, self.velocity, self.angular_velocity,
                         self.leg_forces, self.external_wrench, self.physics_dt, self.substeps)
-        self.steps += 1
-        np.multiply(self.steps, self.control_dt, out=self.time)
-
-        # A NaN or inf anywhere in a row's state makes the row's sum non-finite.
-        s = self._state_sum
-        np.sum(self.position, axis=1, out=s)
-        s += self.rotation.reshape(self.n, 9).sum(axis=1)
-        s += self.velocity.sum(axis=1)
-        s += self.angular_velocity.sum(axis=1)
-        non_finite = self._non_finite
-        np.logical_not(np.isfinite(s), out=non_finite)
-        self._any_non_finite = bool(non_finite.any())
-        if self._any_non_finite:
-            # Keep the last finite state, so that observation, reward and rendering stay finite.
-            for dst, src in zip(self._state, self._backup):
-                dst[non_finite] = src[non_finite]
+        # A row whose state is no longer finite keeps its last finite state, so that observation,
+        # reward and rendering stay finite.
+        self._any_non_finite = _after_physics(*self._state, *self._backup, self.steps, self.control_dt, self.time,
+                                              self._non_finite)
         leg_sensors_inplace(self.nominal_model, self.position, self.rotation, self.velocity,
                             self.angular_velocity, self.platform.limits.max_condition, self.leg_lengths,
                             self.leg_rates, self.condition)
@@ -445,14 +495,8 @@ class PlatformBatch:
         """Write the clean observation of a batch (any number of rows) seen through ``view`` into
         ``raw``; integral is the batch's error integral (rows, 6), or None when it is not observed."""
         views = self._raw_views if raw is self._raw else self._views_of(raw)
-        state = view.state
         if self.observation_mode == "pose":
-            views["position"][:] = state.position
-            o = views["orientation"]
-            o[:, :3] = state.rotation[:, :, 0]
-            o[:, 3:] = state.rotation[:, :, 1]
-            views["velocity"][:] = state.velocity
-            views["angular_velocity"][:] = state.angular_velocity
+            _pose_block(*view.state, raw)
         else:
             views["leg_lengths"][:] = view.leg_lengths
             views["leg_rates"][:] = view.leg_rates
@@ -462,8 +506,7 @@ class PlatformBatch:
         if integral is not None:
             views["error_integral"][:] = integral
         if self.normalize_observation:
-            raw -= self.observation_offset
-            raw *= self._inv_scale
+            _normalize(raw, self.observation_offset, self._inv_scale)
 
     # -- introspection ------------------------------------------------------------------------------------
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import os
 from typing import Any
 
@@ -25,8 +26,9 @@ MOVED = {name: f"the reward weights are options of the task: pass task_options={
          for name in RewardWeights.__dataclass_fields__}
 
 
+@functools.cache
 def term_key(name: str) -> str:
-    """The info key of a reward term: ``reward_<name>``."""
+    """The info key of a reward term: ``reward_<name>`` (made once per name: it is on the step path)."""
     return f"reward_{name}"
 
 
