@@ -125,7 +125,7 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 5, calls: int = 200
 
     from stewart_env.envs.bench_env import RESET_RANDOMIZATION, bench_env, bench_reset
     from stewart_env.integrate import rollout_inplace
-    from stewart_env.mujoco import DEFAULT_SOLIMP, DEFAULT_SOLREF, MujocoPlant, _Twin
+    from stewart_env.mujoco import MujocoPlant, model_and_data
 
     model = se.make_dynamics("improved", params)
     t, R = params.home_position, se.rpy_to_matrix(params.home_rpy)
@@ -134,11 +134,7 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 5, calls: int = 200
     out = {"n_batch": n_batch, "substeps": substeps, "dt": dt}
     bar = progress(total=7, desc="bench --mujoco", disable=not on_terminal())
 
-    twin = _Twin(params, dt, DEFAULT_SOLREF, DEFAULT_SOLIMP)
-    m = twin.model
-    d = mujoco.MjData(m)
-    twin.set_state(d, t, R, z, z)
-    twin.set_wrench(d, t, R, F, np.zeros(6))
+    m, d = model_and_data(params, t, R, z, z, F, timestep=dt)
     start = mujoco.MjData(m)
     mujoco.mj_copyData(start, m, d)
     out["forward_mujoco"] = _per_call(lambda: mujoco.mj_forward(m, d), calls, repeats)

@@ -57,6 +57,8 @@ __all__ = [
     "acceleration_error",
     "accuracy_report",
     "holding_drift",
+    "model_and_data",
+    "platform_acceleration",
     "spherical_friction_effect",
     "to_mjcf",
     "trajectory_report",
@@ -284,12 +286,6 @@ class _Twin:
         x = data.site_xpos
         return float(max(np.linalg.norm(x[a] - x[b]) for a, b in zip(self.tips, self.joints)))
 
-    def platform_acceleration(self, data, R) -> tuple[np.ndarray, np.ndarray]:
-        """(a, alpha) of the platform in {B} from data.qacc: the free joint's angular part is the
-        rate of the body-frame angular velocity, R times it the spatial angular acceleration."""
-        acc = data.qacc[self.v_free:self.v_free + 6]
-        return acc[:3].copy(), R @ acc[3:]
-
     def set_wrench(self, data, t, R, leg_forces, wrench) -> None:
         """Leg forces as controls; the external wrench as MuJoCo's applied force (:func:`_wrench_at_com`)."""
         data.ctrl[:] = leg_forces
@@ -460,6 +456,40 @@ class MujocoPlant:
             a[alive] = b[alive]
 
 
+def model_and_data(params: PlatformParams, position, rotation, velocity=None, angular_velocity=None,
+                   leg_forces=None, external_wrench=None, timestep: float = 1e-3,
+                   solref: Sequence[float] = DEFAULT_SOLREF, solimp: Sequence[float] = DEFAULT_SOLIMP):
+    """MuJoCo's ``(MjModel, MjData)`` of the twin of ``params`` at a platform state, ready for
+    ``mujoco.mj_forward`` or ``mj_step``: position (3,), rotation (3,3), velocity (3,),
+    angular_velocity (3,) of the platform in {B} (rates zero when left out), the legs' joints
+    set by inverse kinematics so the loops are closed; leg_forces (6,) N as the actuators'
+    controls and external_wrench (6,) [force at P; moment] applied (zero when left out).
+    After ``mj_forward``, ``data.qacc`` holds the accelerations: :func:`platform_acceleration`."""
+    mj = _require_mujoco()
+    z = np.zeros(3)
+    t, R = np.asarray(position, float), np.asarray(rotation, float)
+    v = z if velocity is None else np.asarray(velocity, float)
+    w = z if angular_velocity is None else np.asarray(angular_velocity, float)
+    tw = _Twin(params, timestep, solref, solimp)
+    d = mj.MjData(tw.model)
+    tw.set_state(d, t, R, v, w)
+    tw.set_wrench(d, t, R, np.zeros(6) if leg_forces is None else np.asarray(leg_forces, float),
+                  np.zeros(6) if external_wrench is None else np.asarray(external_wrench, float))
+    return tw.model, d
+
+
+def platform_acceleration(model, data) -> tuple[np.ndarray, np.ndarray]:
+    """(a, alpha), (3,) each in {B}: the acceleration of P's origin (m/s^2) and the angular
+    acceleration (rad/s^2) of the twin's platform in ``data`` after ``mujoco.mj_forward`` or
+    ``mj_step``, in the closed-form models' conventions.  MuJoCo's free joint carries the
+    angular velocity in the body frame: the rate of that, turned by R, is the spatial alpha."""
+    mj = _require_mujoco()
+    joint = mj.mj_name2id(model, mj.mjtObj.mjOBJ_JOINT, "platform")
+    body = mj.mj_name2id(model, mj.mjtObj.mjOBJ_BODY, "platform")
+    acc = data.qacc[model.jnt_dofadr[joint]:model.jnt_dofadr[joint] + 6]
+    return acc[:3].copy(), data.xmat[body].reshape(3, 3) @ acc[3:]
+
+
 def _test_state(params: PlatformParams, seed: int):
     """A valid moving state near home: P's origin within 2 % of the mean leg length, angles within
     0.1 rad, v up to 0.2 m/s, omega up to 0.3 rad/s; and the leg forces that hold that pose at rest."""
@@ -487,12 +517,9 @@ def acceleration_error(params: PlatformParams, solref: Sequence[float] = DEFAULT
     mj = _require_mujoco()
     t, R, v, w, F = _test_state(params, seed)
     F = F * force_scale
-    tw = _Twin(params, 1e-3, solref, solimp)
-    d = mj.MjData(tw.model)
-    tw.set_state(d, t, R, v, w)
-    tw.set_wrench(d, t, R, F, np.zeros(6))
-    mj.mj_forward(tw.model, d)
-    a, alpha = tw.platform_acceleration(d, R)
+    m, d = model_and_data(params, t, R, v, w, F, solref=solref, solimp=solimp)
+    mj.mj_forward(m, d)
+    a, alpha = platform_acceleration(m, d)
     a0, alpha0 = make_dynamics("improved", _without_spherical_friction(params)).forward(t, R, v, w, F)
     return float(np.abs(np.concatenate([a - a0, alpha - alpha0])).max())
 
