@@ -534,7 +534,16 @@ def _check_pose(base: np.ndarray, plat: np.ndarray, hooke: np.ndarray,
             angle = np.degrees(np.arcsin(min(sine, 1.0)))
             raise ConfigError(f"hooke_axes[{i}]",
                               f"parallel to leg {i} at the home pose (angle {angle:.1f} deg)")
-    return _Pose(lengths=lengths, jacobian=np.hstack([e, np.cross(q, e)]))
+    # The Jacobian is the kernels' (one implementation); imported here because the dynamics
+    # package imports this module.
+    from stewart_env.dynamics import kernels as K
+
+    row = np.zeros((1, K.N_PARAMS))
+    for key, value in (("base_joints", base), ("platform_joints", plat), ("hooke_axes", hooke)):
+        row[0, K.PACKED_SLICES[key]] = value.ravel()
+    jacobian = np.empty((1, 6, 6))
+    K.jacobian_batch(row, position[None], rpy_to_matrix(rpy)[None], jacobian)
+    return _Pose(lengths=lengths, jacobian=jacobian[0])
 
 
 # ----------------------------------------------------------------------------------------------

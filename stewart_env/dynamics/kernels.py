@@ -818,6 +818,14 @@ def leg_kinematics_batch(prm, flags, t, R, v, w, acc, frames, lengths, rates, ac
                             frames[b], lengths[b], rates[b], accels[b], omega_l[b], alpha_l[b], jac[b])
 
 
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
+def jacobian_batch(prm, t, R, J):
+    """The leg Jacobian J (N,6,6) of each pose (t (N,3), R (N,3,3)): ``_jacobian_one`` over a
+    batch, serial.  docs/physics.md section 4.4; paper eq. 13."""
+    for b in range(t.shape[0]):
+        _jacobian_one(prm[0] if prm.shape[0] == 1 else prm[b], t[b], R[b], J[b])
+
+
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
 def _rotation_error(A):
     """How far one 3x3 matrix A is from a rotation: (largest entry of |A^T A - I|, det A).
