@@ -338,7 +338,7 @@ class MujocoPlant:
         self._spec = mj.mjtState.mjSTATE_FULLPHYSICS
         self._control_spec = mj.mjtState.mjSTATE_CTRL | mj.mjtState.mjSTATE_XFRC_APPLIED
         self._states = np.zeros((n, mj.mj_stateSize(m, self._spec)))
-        self._control = np.zeros((n, 1, mj.mj_stateSize(m, self._control_spec)))
+        self._control = np.zeros((n, mj.mj_stateSize(m, self._control_spec)))
         # offsets in MuJoCo's state vector (time, qpos, qvel, ...) and control vector (ctrl, xfrc_applied)
         self._q = 1 + first.q_free
         self._v = 1 + m.nq + first.v_free
@@ -404,25 +404,28 @@ class MujocoPlant:
             scratch = self._scratch[id(tw)]
             tw.set_state(scratch, position[i], rotation[i], velocity[i], angular_velocity[i])
             mj.mj_getState(tw.model, scratch, self._states[i], self._spec)
-        for m in self.models:
-            m.opt.timestep = dt
+        for tw in self._twins.values():
+            tw.model.opt.timestep = dt
         # leg forces as controls, the wrench as MuJoCo's applied force on the platform
-        control = self._control[:, 0]
+        control = self._control
         control[:, :6] = leg_forces
         control[:, self._xfrc:self._xfrc + 6] = _wrench_at_com(rotation, self._com, external_wrench)
         rows = np.flatnonzero(alive)
-        if rows.size:
+        steps = int(steps)
+        if rows.size and steps > 0:
             every = rows.size == len(self.twins)
             models = self.models if every else [self.models[i] for i in rows]
             initial = self._states if every else self._states[rows]
-            out = np.empty((rows.size, int(steps), self._states.shape[1]))
-            if steps > 0:
-                self._pool.rollout(models, self._datas, initial, self._control if every else self._control[rows],
-                                   control_spec=self._control_spec, state=out)
-                end = initial[:, 0] + steps * dt
-                self._states[rows] = out[:, -1]
-                # MuJoCo resets a diverging simulation to its home pose and time 0: the clock tells
-                alive[rows[np.abs(out[:, -1, 0] - end) > 0.5 * dt]] = False
+            # the same controls at every step; shapes exact, so rollout's own checks are skipped
+            controls = np.empty((rows.size, steps, control.shape[1]))
+            controls[:] = (control if every else control[rows])[:, None, :]
+            out = np.empty((rows.size, steps, self._states.shape[1]))
+            self._pool.rollout(models, self._datas, initial, controls, control_spec=self._control_spec,
+                               state=out, nstep=steps, skip_checks=True)
+            end = initial[:, 0] + steps * dt
+            self._states[rows] = out[:, -1]
+            # MuJoCo resets a diverging simulation to its home pose and time 0: the clock tells
+            alive[rows[np.abs(out[:, -1, 0] - end) > 0.5 * dt]] = False
         self._write(alive, state)
 
     def _write(self, alive, state) -> None:
@@ -438,12 +441,12 @@ class MujocoPlant:
             2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
             2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
         ], axis=1).reshape(-1, 3, 3)
+        position[alive] = s[alive, self._q:self._q + 3]
+        rotation[alive] = R[alive]
+        velocity[alive] = s[alive, self._v:self._v + 3]
+        # MuJoCo's free joint carries the angular velocity in the body frame
+        angular_velocity[alive] = np.einsum("nij,nj->ni", R[alive], s[alive, self._v + 3:self._v + 6])
         for i in np.flatnonzero(alive):
-            position[i] = s[i, self._q:self._q + 3]
-            rotation[i] = R[i]
-            velocity[i] = s[i, self._v:self._v + 3]
-            # MuJoCo's free joint carries the angular velocity in the body frame
-            angular_velocity[i] = R[i] @ s[i, self._v + 3:self._v + 6]
             tw = self.twins[i]
             scratch = self._scratch[id(tw)]
             mj.mj_setState(tw.model, scratch, s[i], self._spec)
