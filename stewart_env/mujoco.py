@@ -228,7 +228,7 @@ class _Twin:
         self.home_frames = legs.frames.copy()  # T_i at home: the leg bodies' frames at zero joint angles
         self.home_lengths = legs.lengths.copy()
         self.hooke = params.hooke_axes
-        # cos and sin of the home angle between k_i and the leg: k' = (kx, 0, kz) at home
+        # cosine of the home angle between k_i and the leg (k' = (kx, 0, kz) in {D_i} at home)
         self.home_kx = np.einsum("ij,ij->i", self.hooke, legs.units)
 
         def adr(kind, table, name):
@@ -249,9 +249,10 @@ class _Twin:
 
     def set_state(self, data, t, R, v, w) -> None:
         """Platform state (P's origin, R, v, omega in {B}) into ``data``, with the leg joints from
-        inverse kinematics (docs/physics.md section 4), so the loops start closed and at rest
-        relative to the platform: the U-joint angles turn the home frame T_i to the pose's, and
-        the joint rates are the leg's angular velocity on the two hinge axes."""
+        inverse kinematics (docs/physics.md section 4), so the loops start closed and moving with
+        the platform: the U-joint angles turn the home frame T_i to the pose's, the slide is
+        L_i - L_i(home), and the joint rates are the leg's angular velocity on the two hinge
+        axes (orthogonal, so each is a dot product) and dL_i/dt."""
         mj = _require_mujoco()
         mj.mj_resetData(self.model, data)
         legs = leg_kinematics(self.params, t, R, v, w)
