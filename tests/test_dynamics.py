@@ -294,6 +294,7 @@ def _entry_points(model, params):
         "leg_kinematics of params": lambda t, R, v: se.leg_kinematics(params, t, R, v),
         "jacobian": lambda t, R, v: se.jacobian(model, t, R),
         "inverse_kinematics": lambda t, R, v: se.inverse_kinematics(params, t, R),
+        "workspace.set_state": lambda t, R, v: model.workspace(len(t) if np.ndim(t) == 2 else 1).set_state(t, R, v, z),
     }
 
 
