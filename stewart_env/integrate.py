@@ -1,16 +1,41 @@
-"""Time integration: classical RK4 over a batch of platforms, in compiled code."""
+"""Time integration: classical RK4 over a batch of platforms, in compiled code, with the leg forces
+held constant or given at every RK4 stage by a compiled control law (docs/physics.md section 5.6)."""
 
 from __future__ import annotations
 
-import numpy as np
+from typing import NamedTuple
 
-from stewart_env.dynamics import kernels as K
+import numpy as np
+from numba.core.dispatcher import Dispatcher
+from numba.core.errors import NumbaError
+
+from stewart_env.dynamics import rk4
 from stewart_env.dynamics.model import Dynamics, batch_args
 
+__all__ = ["Trajectory", "rollout", "rollout_inplace"]
 
-def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg_forces,
-            dt: float = 1e-3, steps: int = 1000, external_wrench=None, check_finite: bool = True):
-    """Integrate the forward dynamics with classical RK4, leg forces and wrench held constant.
+
+class Trajectory(NamedTuple):
+    """A rollout sampled every ``record_every`` steps, the start included (T samples).
+
+    time (T,) s; position (T,3) m, rotation (T,3,3), velocity (T,3) m/s, angular_velocity (T,3)
+    rad/s of the platform in {B}; leg_forces (T,6) N, the forces applied at each sample's state
+    (the control law's there, or the held forces).  A batch carries a leading N: (N,T,...).
+    """
+
+    time: np.ndarray
+    position: np.ndarray
+    rotation: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+    leg_forces: np.ndarray
+
+
+def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg_forces=None,
+            dt: float = 1e-3, steps: int = 1000, external_wrench=None, check_finite: bool = True, *,
+            control_law=None, control_params=None, start_time: float = 0.0, record_every: int | None = None):
+    """Integrate the forward dynamics with classical RK4, the wrench held constant and the leg
+    forces either held constant or given by a compiled control law at every RK4 stage.
 
     position (3,) m, rotation (3,3), velocity (3,) m/s, angular_velocity (3,) rad/s of the
     platform in {B}; leg_forces (6,) N; external_wrench (6,) [force at P; moment] or None; each
@@ -20,25 +45,64 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
     shapes, finite values, and a rotation orthonormal with determinant +1 within
     :data:`~stewart_env.dynamics.model.ROTATION_TOLERANCE`.
 
-    Returns the final (position, rotation, velocity, angular_velocity).  With ``check_finite``
-    a state that stops being finite raises FloatingPointError naming the batch rows; without it
-    those rows come back non-finite for the caller to handle.
+    control_law: a numba ``@njit`` function ``law(time, position, rotation, velocity,
+    angular_velocity, params, forces)`` that writes the six leg forces (N) for the state at
+    ``time`` s (:mod:`stewart_env.dynamics.rk4` gives the contract;
+    :func:`stewart_env.agents.pd.pd_control_law` is an example).  It replaces ``leg_forces``, and
+    ``control_params`` (P,), one parameter row for every platform, or (N, P), one per batch row,
+    is passed to it as ``params``.  ``start_time`` s is the time of the first stage.
+
+    Returns the final (position, rotation, velocity, angular_velocity); with ``record_every``
+    (a positive divisor of ``steps``) a :class:`Trajectory` of every ``record_every``-th state
+    instead, the start and the end included.  With ``check_finite`` a state that stops being
+    finite raises FloatingPointError naming the batch rows; without it those rows come back
+    non-finite (recorded samples too, from the first non-finite one on) for the caller to handle.
     """
     if not (np.isfinite(dt) and dt > 0):
         raise ValueError(f"dt: must be a positive finite number of seconds, got {dt}")
     if int(steps) != steps or steps < 0:
         raise ValueError(f"steps: must be a non-negative integer, got {steps}")
+    if not np.isfinite(start_time):
+        raise ValueError(f"start_time: must be a finite number of seconds, got {start_time}")
+    if record_every is not None and (int(record_every) != record_every or record_every < 1
+                                     or steps % record_every):
+        raise ValueError(f"record_every: must be a positive integer dividing steps = {steps}, got {record_every}")
+    if control_law is None:
+        if control_params is not None:
+            raise ValueError("control_params: given without a control_law")
+        if leg_forces is None:
+            raise ValueError("leg_forces: required without a control_law")
+        control = {"leg_forces": (leg_forces, (6,))}
+    else:
+        _check_law(control_law)
+        if leg_forces is not None:
+            raise ValueError("leg_forces: the control_law gives the leg forces; pass one or the other")
+        params = np.zeros(0) if control_params is None else control_params
+        if np.ndim(params) not in (1, 2):
+            raise ValueError(f"control_params: expected an array (P,) or (N, P), got shape {np.shape(params)}")
+        control = {"control_params": (params, np.shape(params)[-1:])}
     if external_wrench is None:
         external_wrench = np.zeros(6)
-    _, batched, a = batch_args(
+    n, batched, a = batch_args(
         model.packed.shape[0],
         position=(position, (3,)), rotation=(rotation, (3, 3)), velocity=(velocity, (3,)),
-        angular_velocity=(angular_velocity, (3,)), leg_forces=(leg_forces, (6,)),
-        external_wrench=(external_wrench, (6,)),
+        angular_velocity=(angular_velocity, (3,)), external_wrench=(external_wrench, (6,)), **control,
     )
     t, R, v, w = (a[k].copy() for k in ("position", "rotation", "velocity", "angular_velocity"))
-    K.rollout_batch(model.packed, model.flags, t, R, v, w, a["leg_forces"], a["external_wrench"],
-                    float(dt), int(steps))
+    trajectory = None
+    if control_law is None and record_every is None:
+        rk4.rollout_batch(model.packed, model.flags, t, R, v, w, a["leg_forces"], a["external_wrench"],
+                          float(dt), int(steps))
+    else:
+        law, ctrl = (rk4.constant_forces, a["leg_forces"]) if control_law is None else (control_law, a["control_params"])
+        every = 0 if record_every is None else int(record_every)
+        samples = 0 if record_every is None else int(steps) // every + 1
+        rec = (np.empty((n, samples, 3)), np.empty((n, samples, 3, 3)), np.empty((n, samples, 3)),
+               np.empty((n, samples, 3)), np.empty((n, samples, 6)))
+        rk4.law_kernel()(model.packed, model.flags, t, R, v, w, law, ctrl.copy(), a["external_wrench"],
+                         float(start_time), float(dt), int(steps), every, *rec)
+        if record_every is not None:
+            trajectory = Trajectory(start_time + dt * every * np.arange(samples), *(x if batched else x[0] for x in rec))
     if check_finite:
         bad = ~(np.isfinite(t).all(1) & np.isfinite(R).all((1, 2)) & np.isfinite(v).all(1) & np.isfinite(w).all(1))
         if bad.any():
@@ -46,16 +110,33 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
                 f"rollout: state became non-finite in batch rows {np.flatnonzero(bad).tolist()} "
                 "(singular pose or diverging forces)"
             )
+    if trajectory is not None:
+        return trajectory
     return (t, R, v, w) if batched else (t[0], R[0], v[0], w[0])
+
+
+def _check_law(law) -> None:
+    """Refuse, naming ``control_law``, anything that is not a numba function compiling for
+    :data:`stewart_env.dynamics.rk4.LAW_SIGNATURE`; compiles it (once per process, or loads it
+    from numba's cache)."""
+    if not isinstance(law, Dispatcher):
+        raise ValueError(f"control_law: expected a numba @njit function law(time, position, rotation, velocity, "
+                         f"angular_velocity, params, forces), got {type(law).__name__}")
+    try:
+        law.get_compile_result(rk4.LAW_SIGNATURE)
+    except (NumbaError, TypeError) as err:
+        raise ValueError(f"control_law: {law.__name__} does not compile as law(time, position, rotation, velocity, "
+                         f"angular_velocity, params, forces) -> None with {rk4.LAW_SIGNATURE}: {err}") from None
 
 
 def rollout_inplace(model: Dynamics, position, rotation, velocity, angular_velocity, leg_forces,
                     external_wrench, dt: float, steps: int) -> None:
-    """:func:`rollout` without argument checks, overwriting the state arrays in place.
+    """:func:`rollout` with the leg forces held, without argument checks, overwriting the state
+    arrays in place.
 
     For callers that step every control period and keep their own preallocated, C-contiguous
     float64 batch arrays: position (N,3), rotation (N,3,3), velocity (N,3), angular_velocity
     (N,3), leg_forces (N,6), external_wrench (N,6).  Rows that stop being finite stay so.
     """
-    K.rollout_batch(model.packed, model.flags, position, rotation, velocity, angular_velocity,
-                    leg_forces, external_wrench, float(dt), int(steps))
+    rk4.rollout_batch(model.packed, model.flags, position, rotation, velocity, angular_velocity,
+                      leg_forces, external_wrench, float(dt), int(steps))

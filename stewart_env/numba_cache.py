@@ -133,8 +133,9 @@ def configure() -> None:
 
 
 def is_warm(names: Iterable[str] | None = None) -> bool:
-    """Whether kernels of ``stewart_env.dynamics.kernels`` are compiled in the cache in use, so
-    that calling them loads machine code instead of compiling (a first run takes tens of seconds).
+    """Whether the package's kernels (:mod:`stewart_env.dynamics.kernels` and the integrator,
+    :mod:`stewart_env.dynamics.rk4`) are compiled in the cache in use, so that calling them loads
+    machine code instead of compiling (a first run takes tens of seconds).
 
     Args:
         names: kernel names (e.g. ``("rollout_batch", "leg_sensors_batch")``); True only if every
@@ -143,10 +144,10 @@ def is_warm(names: Iterable[str] | None = None) -> bool:
     """
     from numba.core.dispatcher import Dispatcher
 
-    from stewart_env.dynamics import kernels
+    from stewart_env.dynamics import kernels, rk4
 
-    found = {name: obj for name, obj in vars(kernels).items()
-             if isinstance(obj, Dispatcher) and obj.py_func.__module__ == kernels.__name__}
+    found = {name: obj for module in (kernels, rk4) for name, obj in vars(module).items()
+             if isinstance(obj, Dispatcher) and obj.py_func.__module__ == module.__name__}
     if names is None:
         return any(_has_fresh_index(obj) for obj in found.values())
     names = list(names)

@@ -1,0 +1,212 @@
+"""The one RK4 integrator: forces held, or given by a compiled control law at every stage."""
+
+import numpy as np
+import pytest
+from numba import njit
+
+import stewart_env as se
+from stewart_env.dynamics import rk4
+from stewart_env.integrate import Trajectory, rollout_inplace
+
+N_ROWS = 17  # one more than PARALLEL_MIN_ROWS: the batch takes the parallel path
+
+
+@pytest.fixture
+def batch(dasgupta):
+    """A batch of N_ROWS states near home, moving, with forces near the holding ones and a wrench."""
+    rng = np.random.default_rng(7)
+    t = np.tile(dasgupta.home_position, (N_ROWS, 1)) + rng.normal(scale=0.01, size=(N_ROWS, 3))
+    R = np.stack([se.rpy_to_matrix(rng.normal(scale=0.05, size=3)) for _ in range(N_ROWS)])
+    v = rng.normal(scale=0.1, size=(N_ROWS, 3))
+    w = rng.normal(scale=0.1, size=(N_ROWS, 3))
+    z = np.zeros((N_ROWS, 3))
+    model = se.make_dynamics("improved", dasgupta)
+    F = model.inverse(t, R, z, z, z, z) + rng.normal(scale=50, size=(N_ROWS, 6))
+    W = rng.normal(scale=5, size=(N_ROWS, 6))
+    return model, (t, R, v, w), F, W
+
+
+#: Final [t, R (row-major), v, w] after 20 steps of 1 ms of the batch above on ``improved``, as the
+#: rollout computed them before it gained control laws (its kernel then held the forces itself).
+BEFORE_CONTROL_LAWS = [
+    # row 0
+    [0.0003713781220542542, 0.006672712028904253, 0.3956376191009799, 0.9996428562093037, -0.026698682894232675, 0.0011577397887891062, 0.026575575949221768, 0.9977221400818058, 0.062002177006525, -0.0028104790823778206, -0.06194926571231107, 0.9980753426896353, 0.019514897559763163, 0.14421907892201716, -0.07904854229053344, -0.2010502779767351, -0.06018034320603486, -0.19549291857176884],
+    # row 16
+    [-0.00787737606652591, 0.018931076623587582, 0.40669608083951636, 0.998987775598808, 0.04378843981052877, -0.010295471970999944, -0.0425538403691858, 0.9941536888552128, 0.09923514299585007, 0.014580633524638037, -0.09869658289187452, 0.9950107485105314, -0.07681449128672917, -0.07475720810033074, -0.036672973826899026, 0.2072369036592213, 0.0026679632212407147, 0.16003315170468382],
+    # row 3 alone
+    [-0.004863903620884143, 0.0029972046664817897, 0.4031963162312784, 0.9996472441472642, -0.008664153266063266, -0.0251061689025318, 0.008353595047268219, 0.9998876212286248, -0.012448387989965016, 0.025211202243577074, 0.012234269980044359, 0.9996072818459704, 0.08210725247976035, -0.08686427312938795, -0.029402252909733542, 0.06925116337800488, -0.0589828129853196, 0.22559559317367694],
+]
+
+
+def _flat(state):
+    return np.concatenate([np.ravel(x) for x in state])
+
+
+def test_held_forces_give_the_results_of_before_control_laws(batch):
+    model, state, F, W = batch
+    end = se.rollout(model, *state, F, dt=1e-3, steps=20, external_wrench=W)
+    single = se.rollout(model, *(x[3] for x in state), F[3], dt=1e-3, steps=20, external_wrench=W[3])
+    got = [_flat(x[0] for x in end), _flat(x[16] for x in end), _flat(single)]
+    for g, e in zip(got, BEFORE_CONTROL_LAWS):
+        # equal bit for bit when captured; the bound leaves room for the kernels' own rounding
+        # (fused multiply-adds, inlining: 1e-15 per evaluation, 80 evaluations)
+        np.testing.assert_allclose(g, e, rtol=0, atol=1e-13 * np.abs(e).max())
+
+
+@njit(cache=True)
+def _hold(time, position, rotation, velocity, angular_velocity, params, forces):
+    for i in range(6):
+        forces[i] = params[i]
+
+
+@njit(cache=True)
+def _swaying(time, position, rotation, velocity, angular_velocity, params, forces):
+    """params[:6] plus params[6] sin(params[7] t) on every leg: a law that depends on time."""
+    for i in range(6):
+        forces[i] = params[i] + params[6] * np.sin(params[7] * time)
+
+
+def test_a_law_that_holds_the_forces_is_the_held_rollout_bit_for_bit(batch):
+    model, state, F, W = batch
+    held = se.rollout(model, *state, F, dt=1e-3, steps=20, external_wrench=W)
+    for law in (_hold, rk4.constant_forces):
+        by_law = se.rollout(model, *state, dt=1e-3, steps=20, external_wrench=W, control_law=law, control_params=F)
+        for a, b in zip(held, by_law):
+            np.testing.assert_array_equal(a, b)  # the same RK4 row: the law only supplies F
+
+
+def test_rollout_inplace_is_rollout(batch):
+    model, state, F, W = batch
+    held = se.rollout(model, *state, F, dt=1e-3, steps=20, external_wrench=W)
+    arrays = [x.copy() for x in state]
+    rollout_inplace(model, *arrays, F, W, 1e-3, 20)
+    for a, b in zip(held, arrays):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_per_row_parameters_equal_rows_run_alone(batch):
+    model, state, F, W = batch
+    params = np.hstack([F, np.linspace(0, 200, N_ROWS)[:, None], np.full((N_ROWS, 1), 30.0)])
+    end = se.rollout(model, *state, dt=1e-3, steps=20, external_wrench=W, control_law=_swaying, control_params=params)
+    for b in (0, 5, 16):
+        alone = se.rollout(model, *(x[b] for x in state), dt=1e-3, steps=20, external_wrench=W[b],
+                           control_law=_swaying, control_params=params[b])
+        for a, x in zip(alone, end):
+            np.testing.assert_array_equal(a, x[b])  # rows are independent: the parallel path changes nothing
+    # one parameter row (P,) is shared by every platform of the batch
+    shared = se.rollout(model, *state, dt=1e-3, steps=20, external_wrench=W, control_law=_swaying,
+                        control_params=params[5])
+    tiled = se.rollout(model, *state, dt=1e-3, steps=20, external_wrench=W, control_law=_swaying,
+                       control_params=np.tile(params[5], (N_ROWS, 1)))
+    for a, b in zip(shared, tiled):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_a_time_dependent_law_converges_at_fourth_order(dasgupta):
+    """The law sees each stage's own time; were it given the step's start, RK4 would drop to first order."""
+    model = se.make_dynamics("improved", dasgupta)
+    R = se.rpy_to_matrix(dasgupta.home_rpy)
+    zero = np.zeros(3)
+    hold = model.inverse(dasgupta.home_position, R, zero, zero, zero, zero)
+    params = np.concatenate([hold, [300.0, 40.0]])
+    run = lambda dt: se.rollout(model, dasgupta.home_position, R, zero, zero, dt=dt, steps=round(0.2 / dt),  # noqa: E731
+                                control_law=_swaying, control_params=params)[0]
+    reference = run(1e-4)
+    errors = [np.abs(run(dt) - reference).max() for dt in (4e-3, 2e-3)]
+    # halving dt divides a fourth-order error by 16; 10 leaves room for the higher-order terms
+    assert errors[0] / errors[1] > 10
+    assert errors[1] < 1e-8  # observed 2.7e-9 m at dt = 2 ms
+    assert np.abs(reference - dasgupta.home_position).max() > 1e-2  # the sway does move it: 9 cm
+
+
+def test_start_time_continues_a_run(dasgupta):
+    model = se.make_dynamics("improved", dasgupta)
+    R = se.rpy_to_matrix(dasgupta.home_rpy)
+    zero = np.zeros(3)
+    hold = model.inverse(dasgupta.home_position, R, zero, zero, zero, zero)
+    kw = dict(dt=1e-3, control_law=_swaying, control_params=np.concatenate([hold, [300.0, 40.0]]))
+    whole = se.rollout(model, dasgupta.home_position, R, zero, zero, steps=40, **kw)
+    half = se.rollout(model, dasgupta.home_position, R, zero, zero, steps=20, **kw)
+    rest = se.rollout(model, *half, steps=20, start_time=0.02, **kw)
+    for a, b in zip(whole, rest):
+        # the restart goes through the rotation matrix and back to a quaternion: rounding only
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
+
+
+def test_recorded_trajectory(batch):
+    model, state, F, W = batch
+    params = np.hstack([F, np.full((N_ROWS, 1), 100.0), np.full((N_ROWS, 1), 30.0)])
+    kw = dict(dt=1e-3, steps=20, external_wrench=W, control_law=_swaying, control_params=params)
+    end = se.rollout(model, *state, **kw)
+    run = se.rollout(model, *state, record_every=5, **kw)
+    assert isinstance(run, Trajectory)
+    np.testing.assert_allclose(run.time, [0.0, 0.005, 0.01, 0.015, 0.02], rtol=0, atol=1e-18)
+    assert run.position.shape == (N_ROWS, 5, 3) and run.rotation.shape == (N_ROWS, 5, 3, 3)
+    assert run.leg_forces.shape == (N_ROWS, 5, 6)
+    for a, x in zip(state, run[1:5]):
+        # the start, once through the quaternion the integrator carries: rounding only
+        np.testing.assert_allclose(x[:, 0], a, rtol=0, atol=1e-15)
+    for a, x in zip(end, run[1:5]):
+        np.testing.assert_array_equal(x[:, -1], a)  # the end is the unrecorded run's end
+    # the recorded forces are the law's at each sample
+    expected = F[:, None, :] + 100.0 * np.sin(30.0 * run.time)[None, :, None]
+    np.testing.assert_allclose(run.leg_forces, expected, rtol=1e-15, atol=1e-12)
+    # one platform: no batch dimension
+    one = se.rollout(model, *(x[2] for x in state), dt=1e-3, steps=20, external_wrench=W[2], record_every=10,
+                     leg_forces=F[2])
+    assert one.position.shape == (3, 3) and one.leg_forces.shape == (3, 6)
+    np.testing.assert_array_equal(one.leg_forces, np.tile(F[2], (3, 1)))
+
+
+@njit(cache=True)
+def _explode(time, position, rotation, velocity, angular_velocity, params, forces):
+    for i in range(6):
+        forces[i] = params[0]
+
+
+def test_rows_that_diverge_are_named_or_returned(batch):
+    model, state, F, W = batch
+    params = np.zeros((N_ROWS, 1))
+    params[[2, 9], 0] = 1e300  # forces that overflow the accelerations
+    kw = dict(dt=1e-3, steps=10, external_wrench=W, control_law=_explode, control_params=params)
+    with pytest.raises(FloatingPointError, match=r"batch rows \[2, 9\]"):
+        se.rollout(model, *state, **kw)
+    run = se.rollout(model, *state, check_finite=False, record_every=2, **kw)
+    bad = ~np.isfinite(run.position).all(axis=(1, 2))
+    assert bad.tolist() == [b in (2, 9) for b in range(N_ROWS)]
+    assert not np.isfinite(run.position[[2, 9], -1]).any()  # a dead row stays dead to its last sample
+    assert np.isfinite(run.position[0]).all()
+
+
+def _not_a_law(time, position, rotation, velocity, angular_velocity, params, forces):
+    forces[:] = 0.0
+
+
+@njit
+def _two_arguments(time, forces):
+    forces[:] = 0.0
+
+
+def test_bad_arguments_are_named(batch):
+    model, state, F, W = batch
+    one = [x[0] for x in state]
+    with pytest.raises(ValueError, match="^control_law: expected a numba @njit function"):
+        se.rollout(model, *one, control_law=_not_a_law, steps=1)
+    with pytest.raises(ValueError, match="^control_law: _two_arguments does not compile"):
+        se.rollout(model, *one, control_law=_two_arguments, steps=1)
+    with pytest.raises(ValueError, match="^leg_forces: the control_law gives"):
+        se.rollout(model, *one, F[0], control_law=_hold, control_params=F[0], steps=1)
+    with pytest.raises(ValueError, match="^leg_forces: required"):
+        se.rollout(model, *one, steps=1)
+    with pytest.raises(ValueError, match="^control_params: given without"):
+        se.rollout(model, *one, F[0], control_params=F[0], steps=1)
+    with pytest.raises(ValueError, match="^control_params: contains NaN"):
+        se.rollout(model, *one, control_law=_hold, control_params=np.full(6, np.nan), steps=1)
+    with pytest.raises(ValueError, match="^control_params: expected an array"):
+        se.rollout(model, *one, control_law=_hold, control_params=1.0, steps=1)
+    with pytest.raises(ValueError, match="batch sizes disagree"):
+        se.rollout(model, *state, control_law=_hold, control_params=F[:3], steps=1)
+    with pytest.raises(ValueError, match="^record_every: must be a positive integer dividing steps = 10"):
+        se.rollout(model, *one, F[0], steps=10, record_every=3)
+    with pytest.raises(ValueError, match="^start_time"):
+        se.rollout(model, *one, F[0], steps=1, start_time=np.inf)
