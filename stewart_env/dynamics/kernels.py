@@ -61,6 +61,12 @@ as a whole; the helpers take no ``*args`` for that reason), and every kernel com
 compilation takes no longer than before.  Inlining the assembly ``_assemble_one`` as well gains
 a few per cent more but more than doubles the first compilation, so it stays a function.
 
+Each ``*_batch`` function spells out its loop over rows (``prange`` from ``PARALLEL_MIN_ROWS``
+rows on, ``range`` below) and hands the row to a ``_*_row`` function.  One generic row runner
+taking the row function as an argument would say it once, but numba cannot cache a function
+that takes a compiled function as an argument ("uses dynamic globals"), and an uncached kernel
+costs every new process its compilation (tens of seconds), so the four lines stay in each.
+
 Packed parameters
 -----------------
 Kernels take ``prm`` of shape (Np, N_PARAMS), one row per platform (Np == 1 broadcasts over the
@@ -737,6 +743,13 @@ def _leg_kinematics_one(prm, flags, t, R, v, w, acc, frames, lengths, rates, acc
         jac[i, 0], jac[i, 1], jac[i, 2], jac[i, 3], jac[i, 4], jac[i, 5] = _jacobian_row(fr)
 
 
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
+def _params_row(prm, b):
+    """The packed parameters of batch row b: ``prm``'s row b, or its only row, which then serves
+    every row of the batch.  docs/physics.md section 2."""
+    return prm[0] if prm.shape[0] == 1 else prm[b]
+
+
 @njit(cache=True, parallel=True, error_model="numpy", fastmath=FASTMATH)
 def forward_batch(prm, flags, t, R, v, w, F, W, out):
     """Forward dynamics over a batch.  prm (Np, N_PARAMS) with Np in {1, N}; t, v, w (N,3);
@@ -756,7 +769,7 @@ def _forward_row(prm, flags, t, R, v, w, F, W, out, b):
     """Row b of ``forward_batch`` (docs/physics.md section 5.4)."""
     M = np.empty((6, 6))
     h = np.empty(6)
-    _forward_one(prm[0] if prm.shape[0] == 1 else prm[b], flags, t[b], R[b], v[b], w[b], F[b], W[b], M, h, out[b])
+    _forward_one(_params_row(prm, b), flags, t[b], R[b], v[b], w[b], F[b], W[b], M, h, out[b])
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath=FASTMATH)
@@ -777,7 +790,7 @@ def mass_bias_batch(prm, flags, t, R, v, w, W, M, h):
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def _mass_bias_row(prm, flags, t, R, v, w, W, M, h, b):
     """Row b of ``mass_bias_batch`` (docs/physics.md section 5.4)."""
-    _assemble_one(prm[0] if prm.shape[0] == 1 else prm[b], flags, t[b], R[b], v[b], w[b], np.zeros(6), M[b], h[b])
+    _assemble_one(_params_row(prm, b), flags, t[b], R[b], v[b], w[b], np.zeros(6), M[b], h[b])
     for r in range(6):
         h[b, r] -= W[b, r]
 
@@ -802,7 +815,7 @@ def _inverse_row(prm, flags, t, R, v, w, acc, W, out, b):
     """Row b of ``inverse_batch`` (docs/physics.md section 5.5)."""
     M = np.empty((6, 6))
     h = np.empty(6)
-    _inverse_one(prm[0] if prm.shape[0] == 1 else prm[b], flags, t[b], R[b], v[b], w[b], acc[b], W[b], M, h, out[b])
+    _inverse_one(_params_row(prm, b), flags, t[b], R[b], v[b], w[b], acc[b], W[b], M, h, out[b])
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
@@ -814,7 +827,7 @@ def leg_kinematics_batch(prm, flags, t, R, v, w, acc, frames, lengths, rates, ac
     paper eqs. 6-27."""
     n = t.shape[0]
     for b in range(n):
-        _leg_kinematics_one(prm[0] if prm.shape[0] == 1 else prm[b], flags, t[b], R[b], v[b], w[b], acc[b],
+        _leg_kinematics_one(_params_row(prm, b), flags, t[b], R[b], v[b], w[b], acc[b],
                             frames[b], lengths[b], rates[b], accels[b], omega_l[b], alpha_l[b], jac[b])
 
 
@@ -823,7 +836,7 @@ def jacobian_batch(prm, t, R, J):
     """The leg Jacobian J (N,6,6) of each pose (t (N,3), R (N,3,3)): ``_jacobian_one`` over a
     batch, serial.  docs/physics.md section 4.4; paper eq. 13."""
     for b in range(t.shape[0]):
-        _jacobian_one(prm[0] if prm.shape[0] == 1 else prm[b], t[b], R[b], J[b])
+        _jacobian_one(_params_row(prm, b), t[b], R[b], J[b])
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
@@ -986,7 +999,7 @@ def rollout_batch(prm, flags, t, R, v, w, F, W, dt, steps):
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def _rollout_row(prm, flags, t, R, v, w, F, W, dt, steps, b):
     """Row b of ``rollout_batch`` (docs/physics.md section 5.6)."""
-    p = prm[0] if prm.shape[0] == 1 else prm[b]
+    p = _params_row(prm, b)
     x = np.empty(13)
     xs = np.empty(13)
     k = np.empty((4, 13))
@@ -1048,7 +1061,7 @@ def leg_sensors_batch(prm, t, R, v, w, max_condition, lengths, rates, condition)
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def _leg_sensors_row(prm, t, R, v, w, max_condition, lengths, rates, condition, b):
     """Row b of ``leg_sensors_batch`` (docs/physics.md section 4.4)."""
-    p = prm[0] if prm.shape[0] == 1 else prm[b]
+    p = _params_row(prm, b)
     jac = np.empty((6, 6))
     for i in range(6):
         leg = _leg_state(p, i, 0, t[b], R[b], v[b], w[b])
