@@ -12,6 +12,7 @@ run only at episode start and for observation noise (each row draws from its own
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from types import MappingProxyType
 from typing import Any
@@ -165,6 +166,9 @@ class PlatformBatch:
         self.model: Dynamics = self.nominal_model
         self.control_dt, self.physics_dt, self.substeps = physics.control_dt, physics.physics_dt, physics.substeps
         self.randomization = physics.randomization
+        if self.randomization is not None:
+            # One parameter row per platform, each set at its reset from the nominal packed row.
+            self.model = self.nominal_model.with_params([self.platform] * self.n)
         self.actuator_tau = config.actuator.actuator_tau
         self._lag = config.actuator.lag(self.control_dt)
         lo, hi = self.platform.limits.leg_force
@@ -192,7 +196,6 @@ class PlatformBatch:
         self.condition = np.zeros(n)
         self.reference = zero_reference(n)
         self.episode = {k: np.zeros((n, *shape)) for k, shape in self.task.episode_fields().items()}
-        self.row_params: list[PlatformParams] = [self.platform] * n
         self._backup = PlatformState(*(np.zeros((n, *shape)) for shape in ((3,), (3, 3), (3,), (3,))))
         # The tracking errors of every row after a step: the vectors and the norms of Errors.
         self._error_vectors, self._error_norms = np.zeros((4, n, 3)), np.zeros((4, n))
@@ -322,40 +325,45 @@ class PlatformBatch:
 
         Draw order within a row: randomisation factors, the task's episode, observation noise.
         Returns one info dict per row: with randomisation, ``randomization`` (the factors, name ->
-        np.float64); the episode's PlatformParams are ``row_params[i]``.
+        np.float64).  A randomised row's parameters are scaled in packed form; its PlatformParams
+        are built only when read (:meth:`episode_params`).
         """
         infos = []
+        rnd = self.randomization
+        m = len(rows)
+        if rnd is not None:
+            nominal = self.nominal_model.packed[0]
+            packed = np.empty((m, nominal.shape[0]))
+            sources = []
         for j, i in enumerate(rows):
             rng = rngs[j]
             info: dict[str, Any] = {}
-            if self.randomization is not None:
-                factors = self.randomization.sample(rng)
-                self.row_params[i] = self.randomization.apply(self.platform, factors)
+            if rnd is not None:
+                factors = rnd.sample(rng)
+                rnd.scale_packed(nominal, factors, packed[j])
+                sources.append(functools.partial(rnd.apply, self.platform, factors))
                 info["randomization"] = {k: np.float64(v) for k, v in factors.items()}
             start, episode = self.task.initialize_episode(rng)
             self.position[i], self.rotation[i], self.velocity[i], self.angular_velocity[i] = start
             for k, v in episode.items():
                 self.episode[k][i] = v
             infos.append(info)
-        if self.randomization is not None:
-            # repack only the rows that start an episode, once every row has its own parameters
-            self.model = (self.model.with_rows(rows, [self.row_params[i] for i in rows])
-                          if len(self.model.params) == self.n
-                          else self.nominal_model.with_params(self.row_params))
+        if rnd is not None:
+            self.model = self.model.with_packed_rows(rows, packed, sources)
         self.steps[rows] = 0
         self.time[rows] = 0.0
         if self.error_integral is not None:
             self.error_integral[rows] = 0.0
         self.external_wrench[rows] = 0.0
         self._action[rows] = 0.0
-        m = len(rows)
         state = PlatformState(*(x[rows] for x in self._state))
         lengths, rates, cond = np.empty((m, 6)), np.empty((m, 6)), np.empty(m)
         if self._lag:
             # The actuators start holding the start state: the forces of zero acceleration, as far
             # as the actuators reach.
-            model = (self.nominal_model if self.randomization is None
-                     else self.nominal_model.with_params([self.row_params[i] for i in rows]))
+            model = (self.nominal_model if rnd is None
+                     else self.nominal_model.with_params([self.platform] * m).with_packed_rows(range(m), packed,
+                                                                                             sources))
             zero = np.zeros((m, 3))
             lo, hi = self.platform.limits.leg_force
             self.leg_forces[rows] = np.clip(model.inverse(*state, zero, zero), lo, hi)
@@ -510,6 +518,11 @@ class PlatformBatch:
 
     # -- introspection ------------------------------------------------------------------------------------
 
+    def episode_params(self, row: int) -> PlatformParams:
+        """The PlatformParams of row ``row``'s episode: with domain randomisation the nominal ones
+        scaled by the episode's factors (built on first read), else the nominal ones."""
+        return self.platform if self.randomization is None else self.model.params_of(row)
+
     def reasons(self, code: np.ndarray) -> np.ndarray:
         """Termination reason names (str array; "" for code 0) of codes."""
         return self._reason_array[code]
@@ -583,8 +596,10 @@ class BatchAttributes:
         """The PlatformParams of the current episode (with domain randomisation, the nominal ones
         scaled by the episode's factors; else the nominal ones); a tuple of one per row in the
         vector environment."""
-        params = self._core.row_params[self._rows]
-        return tuple(params) if isinstance(params, list) else params
+        core = self._core
+        if isinstance(self._rows, slice):
+            return tuple(core.episode_params(i) for i in range(core.n))
+        return core.episode_params(self._rows)
 
     @property
     def task(self):
