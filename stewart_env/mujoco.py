@@ -38,6 +38,7 @@ them, 1.4e-6 m and 1.6e-5 m with them (``python -m stewart_env.mujoco``).
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Sequence
 
@@ -299,6 +300,22 @@ class _Twin:
         data.xfrc_applied[self.body] = _wrench_at_com(R[None], self.params.platform.com[None], wrench[None])[0]
 
 
+@contextlib.contextmanager
+def _quiet_mujoco():
+    """MuJoCo's default log handler neither prints nor writes MUJOCO_LOG.TXT into the current
+    directory while the plant steps: a diverging row is reported as NaN instead (the previous
+    configuration is restored afterwards)."""
+    mj = _require_mujoco()
+    before = mj.MjLogConfig.get()
+    quiet = mj.MjLogConfig.get()
+    quiet.logto_console = quiet.logto_file = False
+    quiet.set()
+    try:
+        yield
+    finally:
+        before.set()
+
+
 def _wrench_at_com(R: np.ndarray, com: np.ndarray, wrench: np.ndarray) -> np.ndarray:
     """The external wrench [force at P; moment] (N,6), {B}, as the equivalent [force; moment] at
     the platform's CoM (MuJoCo's ``xfrc_applied``): the moment gains (P - CoM) x force.
@@ -434,8 +451,9 @@ class MujocoPlant:
             controls = np.empty((rows.size, steps, control.shape[1]))
             controls[:] = (control if every else control[rows])[:, None, :]
             out = np.empty((rows.size, steps, self._states.shape[1]))
-            self._pool.rollout(models, self._datas, initial, controls, control_spec=self._control_spec,
-                               state=out, nstep=steps, skip_checks=True)
+            with _quiet_mujoco():
+                self._pool.rollout(models, self._datas, initial, controls, control_spec=self._control_spec,
+                                   state=out, nstep=steps, skip_checks=True)
             end = initial[:, 0] + steps * dt
             self._states[rows] = out[:, -1]
             # MuJoCo resets a diverging simulation to its home pose and time 0: the clock tells

@@ -149,7 +149,8 @@ def test_accuracy_report_command(capsys):
     assert "argument platforms: unknown platform 'nowhere'" in capsys.readouterr().err
 
 
-def test_plant_reports_a_diverging_row_as_nan_and_serves_mixed_parameters(dasgupta):
+def test_plant_reports_a_diverging_row_as_nan_and_serves_mixed_parameters(dasgupta, tmp_path, monkeypatch, capfd):
+    monkeypatch.chdir(tmp_path)  # where MuJoCo's default handler would write MUJOCO_LOG.TXT
     heavy = dasgupta.replace(platform=type(dasgupta.platform)(60.0, dasgupta.platform.com, dasgupta.platform.inertia))
     n = 2
     t, R, v, w, F = _batch(dasgupta, n)
@@ -159,6 +160,10 @@ def test_plant_reports_a_diverging_row_as_nan_and_serves_mixed_parameters(dasgup
     plant = twin.MujocoPlant([dasgupta, heavy])
     plant.step_inplace(*state, F, W, 1e-3, 10)
     assert np.isnan(state[0][0]).all() and np.isnan(plant.closure_error[0])
+    # the plant reports the divergence; MuJoCo neither prints it nor litters the working directory
+    assert list(tmp_path.iterdir()) == [] and "WARNING" not in capfd.readouterr().out
+    config = mujoco.MjLogConfig.get()
+    assert config.logto_file and config.logto_console  # MuJoCo's own settings are back
     # row 1: 50 % heavier than the forces hold, it sinks like the improved model of its own parameters
     exact = [x[1:].copy() for x in (t, R, v, w)]
     rollout_inplace(se.make_dynamics("improved", heavy), *exact, F[1:], W[1:], 1e-3, 10)
