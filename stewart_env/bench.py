@@ -106,12 +106,15 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 5, calls: int = 200
     ``params``), the platform at home at rest under its holding forces.  Seconds per call:
 
     * ``forward_mujoco`` (``mujoco.mj_forward``), ``forward_api`` (``Dynamics.forward``, N = 1,
-      with its checks), ``forward_workspace`` (``Workspace.forward``, N = 1; None when the
-      installed version has no workspace);
+      with its checks), ``forward_workspace`` (``Workspace.forward``, N = 1);
+    * ``inverse_mujoco`` (``mujoco.mj_inverse``), ``inverse_api`` (``Dynamics.inverse``),
+      ``inverse_workspace`` (``Workspace.inverse``), and ``mass_and_bias_workspace``
+      (``Workspace.mass_and_bias``, which has no counterpart in MuJoCo's task-space terms);
     * one control step of ``substeps`` RK4 steps of ``dt``, one platform: ``step_mujoco``
       (``mujoco.mj_step``), ``step_plant`` (:class:`stewart_env.mujoco.MujocoPlant`),
       ``step_env`` (``StewartPlatform-v0`` through ``gymnasium.make``, measured over
-      ``env_seconds``), ``step_rollout`` (``rollout_inplace``, N = 1);
+      ``env_seconds``), ``step_rollout`` (``rollout_inplace``, N = 1), ``step_workspace``
+      (``Workspace.step``);
     * the same step for ``n_batch`` platforms, per platform: ``batch_mujoco`` (``mujoco.rollout``
       on every core), ``batch_vector_env`` (the native vector env), ``batch_rollout``
       (``rollout_inplace``, N = ``n_batch``);
@@ -137,14 +140,17 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 5, calls: int = 200
     m, d = model_and_data(params, t, R, z, z, F, timestep=dt)
     start = mujoco.MjData(m)
     mujoco.mj_copyData(start, m, d)
+    ws = model.workspace(1)
+    ws.set_state(t, R, z, z)
+    ws.leg_forces[0] = F
     out["forward_mujoco"] = _per_call(lambda: mujoco.mj_forward(m, d), calls, repeats)
     out["forward_api"] = _per_call(lambda: model.forward(t, R, z, z, F), calls, repeats)
-    out["forward_workspace"] = None
-    if hasattr(model, "workspace"):
-        ws = model.workspace(1)
-        ws.set_state(t, R, z, z)
-        ws.leg_forces[0] = F
-        out["forward_workspace"] = _per_call(ws.forward, calls, repeats)
+    out["forward_workspace"] = _per_call(ws.forward, calls, repeats)
+    out["inverse_mujoco"] = _per_call(lambda: mujoco.mj_inverse(m, d), calls, repeats)  # of mj_forward's qacc
+    out["inverse_api"] = _per_call(lambda: model.inverse(t, R, z, z, z, z), calls, repeats)
+    ws.acceleration[0] = 0.0
+    out["inverse_workspace"] = _per_call(ws.inverse, calls, repeats)  # writes the holding forces back
+    out["mass_and_bias_workspace"] = _per_call(ws.mass_and_bias, calls, repeats)
     bar.update()
 
     step_calls = max(1, calls // substeps)
@@ -157,6 +163,7 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 5, calls: int = 200
     state = [t[None].copy(), R[None].copy(), np.zeros((1, 3)), np.zeros((1, 3))]
     out["step_rollout"] = _per_call(lambda: rollout_inplace(model, *state, forces, wrench, dt, substeps),
                                     step_calls, repeats)
+    out["step_workspace"] = _per_call(lambda: ws.step(dt, substeps), step_calls, repeats)
     bar.update()
 
     # the batch: MuJoCo's threaded rollout of n_batch platforms from the same state, open loop
@@ -194,14 +201,18 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 5, calls: int = 200
 def mujoco_table(r: dict) -> str:
     """The markdown table of :func:`bench_mujoco`'s result: each figure beside MuJoCo's, and the
     ratio MuJoCo time / stewart-env time (above 1: stewart-env is faster)."""
-    us = lambda s: "n/a" if s is None else f"{s * 1e6:,.1f} us"  # noqa: E731
-    ratio = lambda ours, theirs: "n/a" if ours is None else f"{theirs / ours:.2f}x"  # noqa: E731
+    us = lambda s: "" if s is None else f"{s * 1e6:,.1f} us"  # noqa: E731
+    ratio = lambda ours, theirs: "" if theirs is None else f"{theirs / ours:.2f}x"  # noqa: E731
     step = f"{r['substeps'] * r['dt'] * 1e3:g} ms step ({r['substeps']} RK4 substeps)"
     rows = [
         ("forward dynamics, 1 platform", "mj_forward", r["forward_mujoco"], [
             ("Workspace.forward", r["forward_workspace"]), ("Dynamics.forward", r["forward_api"])]),
+        ("inverse dynamics, 1 platform", "mj_inverse", r["inverse_mujoco"], [
+            ("Workspace.inverse", r["inverse_workspace"]), ("Dynamics.inverse", r["inverse_api"])]),
+        ("mass matrix and bias, 1 platform", "", None, [("Workspace.mass_and_bias", r["mass_and_bias_workspace"])]),
         (f"{step}, 1 platform", "mj_step", r["step_mujoco"], [
-            ("env.step (gymnasium.make)", r["step_env"]), ("rollout_inplace", r["step_rollout"])]),
+            ("env.step (gymnasium.make)", r["step_env"]), ("Workspace.step", r["step_workspace"]),
+            ("rollout_inplace", r["step_rollout"])]),
         (f"{step}, 1 platform, as a plant", "MujocoPlant.step_inplace", r["step_plant"], [
             ("rollout_inplace", r["step_rollout"])]),
         (f"{step}, {r['n_batch']} platforms, per platform", "mujoco.rollout", r["batch_mujoco"], [

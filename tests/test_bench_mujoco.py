@@ -7,7 +7,9 @@ import pytest
 import stewart_env as se
 from stewart_env import bench
 
-MEASURES = ("forward_mujoco", "forward_api", "step_mujoco", "step_plant", "step_rollout", "step_env",
+MEASURES = ("forward_mujoco", "forward_api", "forward_workspace", "inverse_mujoco", "inverse_api",
+            "inverse_workspace", "mass_and_bias_workspace", "step_mujoco", "step_plant", "step_rollout",
+            "step_workspace", "step_env",
             "batch_mujoco", "batch_vector_env", "batch_rollout", "reset_randomized", "reset_nominal")
 
 
@@ -20,7 +22,9 @@ def test_bench_mujoco_times_every_call_and_tabulates_the_ratios(dasgupta):
     assert "| forward dynamics, 1 platform | mj_forward |" in table
     assert "| 10 ms step (10 RK4 substeps), 4 platforms, per platform | mujoco.rollout |" in table
     assert "randomised / nominal" in table
-    assert len(table.splitlines()) == 2 + 2 + 2 + 1 + 2 + 1  # header, forward, single step, plant, batch, reset
+    assert "| inverse dynamics, 1 platform | mj_inverse |" in table
+    # header, forward, inverse, mass matrix, single step, plant, batch, reset
+    assert len(table.splitlines()) == 2 + 2 + 2 + 1 + 3 + 1 + 2 + 1
 
 
 def test_bench_mujoco_without_mujoco_names_the_extra(monkeypatch, capsys):
