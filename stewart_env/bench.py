@@ -11,9 +11,9 @@ on-disk cache.  Timings are the best of several repeats, so other load on the ma
 as little as possible.
 
 With ``--mujoco`` (needs the extra ``mujoco``), MuJoCo times the same mechanism in the same run
-(:func:`bench_mujoco`): one forward evaluation, a 10 ms control step of RK4 substeps for one
-platform and for a batch of 1024, and the vector env's reset with and without domain
-randomisation; the table gives each beside MuJoCo's and their ratio.
+(:func:`bench_mujoco`): one forward and one inverse evaluation, a 10 ms control step of RK4
+substeps for one platform and for a batch of 1024, and the vector env's reset with and without
+domain randomisation; the table gives each beside MuJoCo's and their ratio.
 """
 
 from __future__ import annotations
