@@ -30,9 +30,9 @@ import math
 import numpy as np
 
 import stewart_env as se
-from stewart_env.agents.pd import DesiredMotion, EnvPolicy, _gain, _rates
+from stewart_env.agents.pd import EnvPolicy, _gain
 from stewart_env.rotations import rotation_error, rotvec_to_matrix
-from stewart_env.state import PlatformState
+from stewart_env.state import PlatformState, Reference
 from stewart_env.params import PlatformParams
 
 #: Default natural frequency of the error dynamics, rad/s, and its damping ratio.
@@ -61,18 +61,17 @@ class ComputedTorque:
         self.kp = _gain(wn**2 if kp is None else kp, "kp")
         self.kd = _gain(2 * zeta * wn if kd is None else kd, "kd")
 
-    def commanded_acceleration(self, state: PlatformState, reference: DesiredMotion) -> np.ndarray:
+    def commanded_acceleration(self, state: PlatformState, reference: Reference) -> np.ndarray:
         """[a_cmd; alpha_cmd] (6,) or (N,6) in m/s^2 and rad/s^2, {B}."""
         v = np.asarray(state.velocity, float)
         w = np.asarray(state.angular_velocity, float)
         error = np.concatenate([np.asarray(reference.position, float) - state.position,
                                 rotation_error(reference.rotation, state.rotation)[0]], axis=-1)
-        error_rate = np.concatenate([_rates(reference.velocity, v) - v, _rates(reference.angular_velocity, w) - w],
-                                    axis=-1)
-        feedforward = np.concatenate([_rates(reference.lin_acc, v), _rates(reference.ang_acc, w)], axis=-1)
+        error_rate = np.concatenate([reference.velocity - v, reference.angular_velocity - w], axis=-1)
+        feedforward = np.concatenate(np.broadcast_arrays(reference.lin_acc, reference.ang_acc, v)[:2], axis=-1)
         return feedforward + self.kd * error_rate + self.kp * error
 
-    def __call__(self, state: PlatformState, reference: DesiredMotion) -> np.ndarray:
+    def __call__(self, state: PlatformState, reference: Reference) -> np.ndarray:
         """Leg forces (6,) or (N,6), N, from the internal model's inverse dynamics."""
         acc = self.commanded_acceleration(state, reference)
         return self.model.inverse(state.position, state.rotation, state.velocity, state.angular_velocity,
@@ -117,9 +116,9 @@ class ComputedTorquePolicy(EnvPolicy):
         preview = getattr(base.task, "preview", 0) if "reference_preview" in base.observation_layout else 0
         self._horizons = getattr(base.task, "preview_interval", 0.0) * np.arange(1, preview + 1)
 
-    def reference(self, state: PlatformState, part: dict[str, np.ndarray]) -> DesiredMotion:
+    def reference(self, state: PlatformState, part: dict[str, np.ndarray]) -> Reference:
         ref = super().reference(state, part)
-        if not self._horizons.size or ref.velocity is None:
+        if not self._horizons.size or "velocity_error" not in part:
             return ref
         n, k = state.position.shape[0], self._horizons.size
         preview = part["reference_preview"].reshape(n, k, 6)

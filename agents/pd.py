@@ -1,4 +1,5 @@
-"""Task-space PD control of the Stewart platform (He et al. 2018, eq. 56), and its policy face.
+"""Task-space PD control of the Stewart platform (He et al. 2018, eq. 56), as a compiled control
+law and as a policy.
 
 The law: with the pose error e = [t_d - t; theta_d - theta] (position of P's origin in {B}, m;
 roll-pitch-yaw angles, rad) and its rate edot = [v_d - v; thetadot_d - thetadot] (angle rates from
@@ -10,10 +11,14 @@ and realises it with the leg forces F = J^-T W, since leg forces F act on the pl
 wrench J^T F (J the leg Jacobian, dL/dt = J [v; omega]).  Optionally the static holding forces
 of the current pose are added (gravity compensation, see :class:`TaskSpacePD`).
 
-Two faces:
+The law is written once, as :func:`pd_control_law`, a compiled control law for
+:func:`stewart_env.rollout` (evaluated at every RK4 stage: continuous control, as in
+:mod:`stewart_env.agents.reproduce`) and the worked example of a user's compiled controller; its
+parameter row is built by :func:`pd_control_params` (layout: :data:`PD_LAYOUT`).  Two faces
+call it:
 
-* :class:`TaskSpacePD` maps a platform state and a :class:`DesiredMotion` to leg forces; it is a
-  continuous-time law, called at every integrator stage in :mod:`stewart_env.agents.reproduce`.
+* :class:`TaskSpacePD` maps a platform state and a :class:`~stewart_env.state.Reference` to leg
+  forces, for one platform or a batch.
 * :class:`PDPolicy` wraps it for the environment with Stable-Baselines3's ``predict``: it reads
   the state and the target out of the observation, and maps the forces to actions.
 
@@ -37,40 +42,117 @@ actuator lag (``actuator_tau``) or an observation delay.
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 import scipy.linalg
+from numba import njit
 
 import stewart_env as se
+from stewart_env.dynamics.kernels import N_PARAMS
+from stewart_env.dynamics.model import batch_args, pack_params, parse_model_name
+from stewart_env.dynamics.rk4 import inverse_dynamics, jacobian
 from stewart_env.params import PlatformParams
-from stewart_env.rotations import rotvec_to_matrix, rpy_rate_matrix
-from stewart_env.state import PlatformState
+from stewart_env.rotations import rotvec_to_matrix
+from stewart_env.state import PlatformState, Reference
 
 #: Proportional gains of the paper's case study, [x, y, z, roll, pitch, yaw]: N/m and N m/rad.
 PAPER_KP = np.array([4e5, 4e5, 4e6, 5e4, 5e4, 1e5])
 #: Derivative gains of the paper's case study: N s/m and N m s/rad.
 PAPER_KD = np.array([1e4, 1e4, 2e4, 1e3, 1e3, 2e3])
 
+#: The parameter row of :func:`pd_control_law`, in order: (name, size).  kp, kd: gains [x, y, z,
+#: roll, pitch, yaw]; position, rotation (row-major 3x3), velocity, angular_velocity: the
+#: reference in {B} (m, -, m/s, rad/s); gravity_compensation: 1.0 adds the holding forces, 0.0
+#: not; gravity_flags: the kernel switch bits of the model giving them
+#: (:func:`stewart_env.dynamics.model.parse_model_name`); platform: the controller's packed
+#: platform row (:func:`stewart_env.dynamics.model.pack_params`), whose geometry gives J.
+PD_LAYOUT = (("kp", 6), ("kd", 6), ("position", 3), ("rotation", 9), ("velocity", 3), ("angular_velocity", 3),
+             ("gravity_compensation", 1), ("gravity_flags", 1), ("platform", N_PARAMS))
+#: Offset of each entry of :data:`PD_LAYOUT` in the row, and the row's length.
+PD_OFFSETS = {name: int(sum(size for _, size in PD_LAYOUT[:k])) for k, (name, _) in enumerate(PD_LAYOUT)}
+PD_N_PARAMS = sum(size for _, size in PD_LAYOUT)
+#: The pose and twist fields of a state or reference, with the shape of one platform's.
+_STATE_FIELDS = (("position", (3,)), ("rotation", (3, 3)), ("velocity", (3,)), ("angular_velocity", (3,)))
+# numba reads module globals as compile-time constants: the offsets the law uses
+_KP, _KD, _POS, _ROT = PD_OFFSETS["kp"], PD_OFFSETS["kd"], PD_OFFSETS["position"], PD_OFFSETS["rotation"]
+_VEL, _ANG = PD_OFFSETS["velocity"], PD_OFFSETS["angular_velocity"]
+_GRAVITY, _GFLAGS, _PLATFORM = PD_OFFSETS["gravity_compensation"], PD_OFFSETS["gravity_flags"], PD_OFFSETS["platform"]
 
-class DesiredMotion(NamedTuple):
-    """A desired motion of the platform in {B}; fields as in :class:`~stewart_env.state.PlatformState`.
 
-    lin_acc (3,) m/s^2 and ang_acc (3,) rad/s^2 are the reference accelerations (feedforward of
-    the computed-torque law).  Rates and accelerations left as None are zero (a set point).
+@njit(cache=True, error_model="numpy")
+def _rpy_and_rates(R, w, out):
+    """out[:3] = roll, pitch, yaw of R (rad, the convention of :func:`stewart_env.matrix_to_rpy`);
+    out[3:] = their rates thetadot = E(theta)^-1 w (rad/s, E of :func:`stewart_env.rotations.rpy_rate_matrix`,
+    inverted in closed form: E is [[cy cp, -sy, 0], [sy cp, cy, 0], [-sp, 0, 1]])."""
+    pitch = np.arcsin(min(max(-R[2, 0], -1.0), 1.0))
+    out[0] = np.arctan2(R[2, 1], R[2, 2])
+    out[1] = pitch
+    out[2] = np.arctan2(R[1, 0], R[0, 0])
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    cy, sy = np.cos(out[2]), np.sin(out[2])
+    roll_rate = (cy * w[0] + sy * w[1]) / cp
+    out[3] = roll_rate
+    out[4] = -sy * w[0] + cy * w[1]
+    out[5] = w[2] + sp * roll_rate
+
+
+@njit(cache=True, error_model="numpy")
+def pd_control_law(time, position, rotation, velocity, angular_velocity, params, forces):
+    """The task-space PD law F = J^-T (Kp e + Kd edot) [+ holding forces] (paper eq. 56) as a
+    compiled control law for :func:`stewart_env.rollout` (contract: :mod:`stewart_env.dynamics.rk4`).
+
+    params: the row of :func:`pd_control_params` (layout :data:`PD_LAYOUT`); the state in {B};
+    writes the six leg forces, N.  Time-invariant: the reference is fixed in ``params``.
     """
+    now = np.empty(6)
+    ref = np.empty(6)
+    _rpy_and_rates(rotation, angular_velocity, now)
+    _rpy_and_rates(params[_ROT:_ROT + 9].reshape((3, 3)), params[_ANG:_ANG + 3], ref)
+    wrench = np.empty(6)
+    for j in range(3):
+        e = params[_POS + j] - position[j]
+        edot = params[_VEL + j] - velocity[j]
+        wrench[j] = params[_KP + j] * e + params[_KD + j] * edot
+        # the angle error wrapped to [-pi, pi): an error of 2 pi - d is one of -d
+        e = (ref[j] - now[j] + np.pi) % (2.0 * np.pi) - np.pi
+        edot = ref[3 + j] - now[3 + j]
+        wrench[3 + j] = params[_KP + 3 + j] * e + params[_KD + 3 + j] * edot
+    platform = params[_PLATFORM:_PLATFORM + N_PARAMS]
+    jac = np.empty((6, 6))
+    jacobian(platform, position, rotation, jac)
+    forces[:] = np.linalg.solve(jac.T.copy(), wrench)
+    if params[_GRAVITY] != 0.0:
+        zero = np.zeros(6)
+        holding = np.empty(6)
+        inverse_dynamics(platform, int(params[_GFLAGS]), position, rotation, zero[:3], zero[3:], zero, zero, holding)
+        for i in range(6):
+            forces[i] += holding[i]
 
-    position: np.ndarray
-    rotation: np.ndarray
-    velocity: np.ndarray | None = None
-    angular_velocity: np.ndarray | None = None
-    lin_acc: np.ndarray | None = None
-    ang_acc: np.ndarray | None = None
+
+@njit(cache=True, error_model="numpy")
+def _pd_forces_batch(t, R, v, w, params, out):
+    """:func:`pd_control_law` over a batch of states (N rows), params (N,P) or (1,P) shared."""
+    for b in range(t.shape[0]):
+        pd_control_law(0.0, t[b], R[b], v[b], w[b], params[b] if params.shape[0] > 1 else params[0], out[b])
 
 
-def _rates(value, like: np.ndarray) -> np.ndarray:
-    """A reference rate broadcast to the shape of ``like`` (None means zero)."""
-    return np.zeros_like(like) if value is None else np.broadcast_to(np.asarray(value, float), like.shape)
+def pd_control_params(platform: PlatformParams, reference: Reference, kp=PAPER_KP, kd=PAPER_KD,
+                      gravity_compensation: bool = False, gravity_model: str = "improved") -> np.ndarray:
+    """The parameter row (PD_N_PARAMS,) of :func:`pd_control_law`, or (N, PD_N_PARAMS) for a batched
+    reference (fields (N, ...)); arguments as in :class:`TaskSpacePD`, reference in {B} (its
+    accelerations are not used)."""
+    if not isinstance(platform, PlatformParams):
+        raise ValueError(f"platform: expected PlatformParams, got {type(platform).__name__}")
+    _, flags = parse_model_name(gravity_model)
+    n, batched, ref = batch_args(
+        1, position=(reference.position, (3,)), rotation=(reference.rotation, (3, 3)),
+        velocity=(reference.velocity, (3,)), angular_velocity=(reference.angular_velocity, (3,)))
+    row = {"kp": _gain(kp, "kp"), "kd": _gain(kd, "kd"), "gravity_compensation": float(bool(gravity_compensation)),
+           "gravity_flags": float(flags), "platform": pack_params(platform)}
+    params = np.empty((n, PD_N_PARAMS))
+    for name, size in PD_LAYOUT:
+        value = ref[name].reshape(n, size) if name in ref else row[name]
+        params[:, PD_OFFSETS[name]:PD_OFFSETS[name] + size] = value
+    return params if batched else params[0]
 
 
 def _gain(value, name: str) -> np.ndarray:
@@ -79,11 +161,6 @@ def _gain(value, name: str) -> np.ndarray:
     if g.shape != (6,) or not np.all(np.isfinite(g)) or np.any(g < 0):
         raise ValueError(f"{name}: expected six non-negative finite gains [x, y, z, roll, pitch, yaw], got {value!r}")
     return g
-
-
-def wrap_angle(angle):
-    """Angles wrapped to [-pi, pi), rad: an rpy error of 2 pi - d is an error of -d."""
-    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
 
 
 def task_space_inertia(model: se.Dynamics, position, rotation) -> np.ndarray:
@@ -135,7 +212,8 @@ def zoh_spectral_radius(model: se.Dynamics, kp, kd, control_dt: float, inertia_s
 
 
 class TaskSpacePD:
-    """The task-space PD law F = J^-T (Kp e + Kd edot) [+ holding forces] (paper eq. 56).
+    """The task-space PD law F = J^-T (Kp e + Kd edot) [+ holding forces] (paper eq. 56): calls
+    :func:`pd_control_law` on a state and a reference.
 
     Args:
         platform: the platform's parameters (its geometry gives J).
@@ -156,31 +234,24 @@ class TaskSpacePD:
         self.kp = _gain(kp, "kp")
         self.kd = _gain(kd, "kd")
         self.gravity_compensation = bool(gravity_compensation)
-        # the Jacobian needs only the geometry; a Dynamics packs the parameters once, not per call
-        self._geometry = se.make_dynamics("improved", platform)
-        self._gravity = se.make_dynamics(gravity_model, platform) if self.gravity_compensation else None
+        self.gravity_model = parse_model_name(gravity_model)[0]
 
-    def wrench(self, state: PlatformState, reference: DesiredMotion) -> np.ndarray:
-        """The PD wrench W (6,) or (N,6): force at P's origin (N) and moment (N m), in {B}."""
-        rpy = se.matrix_to_rpy(state.rotation)
-        rpy_d = se.matrix_to_rpy(reference.rotation)
-        w = np.asarray(state.angular_velocity, float)
-        rate = np.linalg.solve(rpy_rate_matrix(rpy), w[..., None])[..., 0]
-        w_d = _rates(reference.angular_velocity, w)
-        rate_d = np.linalg.solve(rpy_rate_matrix(rpy_d), w_d[..., None])[..., 0]
-        v = np.asarray(state.velocity, float)
-        error = np.concatenate([np.asarray(reference.position) - state.position, wrap_angle(rpy_d - rpy)], axis=-1)
-        error_rate = np.concatenate([_rates(reference.velocity, v) - v, rate_d - rate], axis=-1)
-        return self.kp * error + self.kd * error_rate
+    def control_params(self, reference: Reference) -> np.ndarray:
+        """:func:`pd_control_law`'s parameter row (PD_N_PARAMS,), or (N, PD_N_PARAMS) for a batched
+        reference: what :func:`stewart_env.rollout` takes as ``control_params`` for this controller."""
+        return pd_control_params(self.platform, reference, self.kp, self.kd, self.gravity_compensation,
+                                 self.gravity_model)
 
-    def __call__(self, state: PlatformState, reference: DesiredMotion) -> np.ndarray:
-        """Leg forces (6,) or (N,6), N, for a state and a reference (see the class docstring)."""
-        jac = se.jacobian(self._geometry, state.position, state.rotation)
-        forces = np.linalg.solve(np.swapaxes(jac, -1, -2), self.wrench(state, reference)[..., None])[..., 0]
-        if self._gravity is not None:
-            zero = np.zeros_like(np.asarray(state.velocity, float))
-            forces = forces + self._gravity.inverse(state.position, state.rotation, zero, zero, zero, zero)
-        return forces
+    def __call__(self, state: PlatformState, reference: Reference) -> np.ndarray:
+        """Leg forces (6,) or (N,6), N, for a state and a reference (see the class docstring);
+        either may be batched, the other is broadcast."""
+        n, batched, a = batch_args(1, **{f"{record}.{name}": (getattr(value, name), tail)
+                                         for record, value in (("state", state), ("reference", reference))
+                                         for name, tail in _STATE_FIELDS})
+        params = self.control_params(Reference(*(a[f"reference.{name}"] for name, _ in _STATE_FIELDS)))
+        out = np.empty((n, 6))
+        _pd_forces_batch(*(a[f"state.{name}"] for name, _ in _STATE_FIELDS), params, out)
+        return out if batched else out[0]
 
 
 def _columns_to_matrix(cols: np.ndarray) -> np.ndarray:
@@ -203,7 +274,7 @@ class EnvPolicy:
     velocity, angular_velocity, position_error, orientation_error; a task's velocity_error and
     angular_velocity_error (tracking) give the reference's twist, which is zero otherwise.
 
-    Subclasses set the controller (a callable (PlatformState, DesiredMotion) -> leg forces) and may
+    Subclasses set the controller (a callable (PlatformState, Reference) -> leg forces) and may
     override :meth:`reference` to add what else the observation tells about the target.
     """
 
@@ -219,19 +290,21 @@ class EnvPolicy:
         low, high = base.platform.limits.leg_force
         self._mid, self._half = 0.5 * (low + high), 0.5 * (high - low)
 
-    def decode(self, observation) -> tuple[PlatformState, DesiredMotion]:
+    def decode(self, observation) -> tuple[PlatformState, Reference]:
         """State and target (batched, N rows) of observations (obs_dim,) or (N, obs_dim)."""
         part = self.env.unwrapped.decode_observation(np.atleast_2d(np.asarray(observation, dtype=float)))
         rotation = _columns_to_matrix(part["orientation"])
         state = PlatformState(part["position"], rotation, part["velocity"], part["angular_velocity"])
         return state, self.reference(state, part)
 
-    def reference(self, state: PlatformState, part: dict[str, np.ndarray]) -> DesiredMotion:
-        """The target of decoded observations ``part`` (name -> (N, size), physical units)."""
-        velocity = state.velocity + part["velocity_error"] if "velocity_error" in part else None
+    def reference(self, state: PlatformState, part: dict[str, np.ndarray]) -> Reference:
+        """The target of decoded observations ``part`` (name -> (N, size), physical units): its
+        twist is zero unless the observation carries the twist errors; its accelerations zero."""
+        zero = np.zeros_like(state.velocity)
+        velocity = state.velocity + part["velocity_error"] if "velocity_error" in part else zero
         angular_velocity = (state.angular_velocity + part["angular_velocity_error"]
-                            if "angular_velocity_error" in part else None)
-        return DesiredMotion(state.position + part["position_error"],
+                            if "angular_velocity_error" in part else zero)
+        return Reference(state.position + part["position_error"],
                          rotvec_to_matrix(part["orientation_error"]) @ state.rotation, velocity, angular_velocity)
 
     def forces_to_action(self, forces) -> np.ndarray:
@@ -250,16 +323,17 @@ class PDPolicy(EnvPolicy):
     """The task-space PD law as a policy on ``StewartPlatform-v0`` (see :class:`EnvPolicy`).
 
     Default gains: :func:`zoh_pd_gains` for the environment's control step.  Gravity compensation
-    (the holding forces of the ``improved`` model) is off by default, as in the law itself; the
+    (the holding forces of ``gravity_model``, default ``improved``) is off by default, as in the law itself; the
     controller knows the platform's geometry and, with the compensation, its statics, nothing of
     the plant's model.
     """
 
     def __init__(self, env, kp=None, kd=None, gravity_compensation: bool = False, bandwidth: float = 0.2,
-                 damping: float = 1.0):
+                 damping: float = 1.0, gravity_model: str = "improved"):
         base = env.unwrapped
         if kp is None or kd is None:
             tuned = zoh_pd_gains(se.make_dynamics("improved", base.platform), base.dt, bandwidth, damping)
             kp = tuned[0] if kp is None else kp
             kd = tuned[1] if kd is None else kd
-        super().__init__(env, TaskSpacePD(base.platform, kp, kd, gravity_compensation=gravity_compensation))
+        super().__init__(env, TaskSpacePD(base.platform, kp, kd, gravity_compensation=gravity_compensation,
+                                          gravity_model=gravity_model))

@@ -3,11 +3,12 @@ the task-space PD law.
 
 The platform starts at rest at t0 = (0.1, 0, 0.395) m, rpy0 = (0, 0, -0.2) rad and is driven to
 td = (0.1, 0, 0.4) m, rpyd = rpy0 (on another platform: the same offsets from its home pose,
-:func:`stewart_env.tasks.setpoint.paper_case`, refused where they leave the leg stroke) by the paper's PD law with its gains (:mod:`.pd`), evaluated as
-a continuous controller: the closed loop (plant dynamics + law) is integrated with a fixed-step
-classical RK4 whose every stage calls the law, not held over a control period as in the
-environment.  The orientation is integrated as a unit quaternion.  The same run is made with the
-``classical``, ``improved`` and ``improved_centroidal`` models.
+:func:`stewart_env.tasks.setpoint.paper_case`, refused where they leave the leg stroke) by the
+paper's PD law with its gains (:mod:`.pd`), evaluated as a continuous controller: the closed loop
+(plant dynamics + law) is integrated by :func:`stewart_env.rollout`, whose RK4 evaluates the
+compiled law :func:`~stewart_env.agents.pd.pd_control_law` at every stage, not held over a
+control period as in the environment.  The same run is made with the ``classical``, ``improved``
+and ``improved_centroidal`` models.
 
 Figures (PNG, like the paper's Fig. 6-10): leg lengths, leg rates, platform displacement and
 velocity, angles and angular velocity, leg forces; each panel overlays classical and improved and
@@ -40,9 +41,9 @@ from matplotlib.ticker import FuncFormatter
 
 import stewart_env as se
 from stewart_env.agents.evaluation import curve_style, new_figure
-from stewart_env.agents.pd import PAPER_KD, PAPER_KP, DesiredMotion, TaskSpacePD
+from stewart_env.agents.pd import PAPER_KD, PAPER_KP, TaskSpacePD, pd_control_law
 from stewart_env.progress import progress as progress_bar
-from stewart_env.state import PlatformState
+from stewart_env.state import Reference
 from stewart_env.tasks.setpoint import paper_case
 
 MODELS = ("classical", "improved", "improved_centroidal")
@@ -84,38 +85,17 @@ class CaseTrajectory:
         return q - q[0] if from_start else q
 
 
-def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a unit quaternion [w, x, y, z]."""
-    w, x, y, z = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
-
-
-def _matrix_to_quat(R: np.ndarray) -> np.ndarray:
-    """Unit quaternion [w, x, y, z] of a rotation matrix away from a half turn (w > 0)."""
-    w = 0.5 * np.sqrt(max(1.0 + np.trace(R), 0.0))
-    return np.array([w, (R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w)])
-
-
-def _unpack(y: np.ndarray) -> PlatformState:
-    """State vector y = [t (3), q (4), v (3), omega (3)] -> PlatformState (q normalised)."""
-    q = y[3:7] / np.linalg.norm(y[3:7])
-    return PlatformState(y[:3], _quat_to_matrix(q), y[7:10], y[10:13])
-
-
-def simulate_case_study(model_name: str, platform: se.PlatformParams, controller, duration: float = 1.0,
+def simulate_case_study(model_name: str, platform: se.PlatformParams, controller: TaskSpacePD, duration: float = 1.0,
                         dt: float = 2e-4, sample_dt: float | None = None,
                         progress=None) -> CaseTrajectory:
     """Integrate the case study's closed loop with RK4, the controller evaluated at every stage.
 
-    model_name: the plant's dynamics; controller: (PlatformState, DesiredMotion) -> leg forces N, for
-    one state or a batch; duration, dt, sample_dt in s (sample_dt a multiple of dt, default dt:
-    the transient under the paper's gains lasts about 50 ms, and coarser samples cut its peaks);
-    ``progress`` (a :func:`stewart_env.progress.progress` bar, or None) is advanced once per
-    step.  Returns the sampled :class:`CaseTrajectory`.
+    model_name: the plant's dynamics; controller: the PD law (its compiled
+    :func:`~stewart_env.agents.pd.pd_control_law` runs inside the integrator); duration, dt,
+    sample_dt in s (sample_dt a multiple of dt, default dt: the transient under the paper's gains
+    lasts about 50 ms, and coarser samples cut its peaks); ``progress`` (a
+    :func:`stewart_env.progress.progress` bar, or None) is advanced by the steps run.  Returns the
+    sampled :class:`CaseTrajectory`.
     """
     sample_dt = dt if sample_dt is None else sample_dt
     if not (np.isfinite(duration) and duration > 0):
@@ -127,38 +107,17 @@ def simulate_case_study(model_name: str, platform: se.PlatformParams, controller
         raise ValueError(f"sample_dt: must be a multiple of dt = {dt} s, got {sample_dt}")
     case = paper_case(platform)
     model = se.make_dynamics(model_name, platform)
-    reference = DesiredMotion(case.target_position, se.rpy_to_matrix(case.target_rpy))
-
-    def rate(y: np.ndarray) -> np.ndarray:
-        s = _unpack(y)
-        lin_acc, ang_acc = model.forward(*s, controller(s, reference))
-        w, q = y[10:13], y[3:7]
-        # dq/dt = 1/2 [0, omega] (x) q for omega in {B}
-        q_rate = 0.5 * np.concatenate([[-w @ q[1:]], q[0] * w + np.cross(w, q[1:])])
-        return np.concatenate([y[7:10], q_rate, lin_acc, ang_acc])
-
-    n_samples = int(round(duration / sample_dt))
-    y = np.concatenate([case.start_position, _matrix_to_quat(se.rpy_to_matrix(case.start_rpy)), np.zeros(6)])
-    samples = np.empty((n_samples + 1, 13))
-    samples[0] = y
-    for k in range(n_samples):
-        for _ in range(every):
-            k1 = rate(y)
-            k2 = rate(y + 0.5 * dt * k1)
-            k3 = rate(y + 0.5 * dt * k2)
-            k4 = rate(y + dt * k3)
-            y = y + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
-            y[3:7] /= np.linalg.norm(y[3:7])
-        if progress is not None:
-            progress.update(every)
-        samples[k + 1] = y
-    # the recorded quantities, computed once over all samples (the core's calls are batched)
-    batch = PlatformState(*(np.stack(x) for x in zip(*(_unpack(s) for s in samples))))
-    legs = se.leg_kinematics(model, batch.position, batch.rotation, batch.velocity, batch.angular_velocity,
-                             model=model_name)
-    forces = controller(batch, reference)
-    return CaseTrajectory(model.name, np.arange(n_samples + 1) * sample_dt, batch.position, batch.velocity,
-                          se.matrix_to_rpy(batch.rotation), batch.angular_velocity, legs.lengths, legs.rates, forces)
+    zero = np.zeros(3)
+    reference = Reference(case.target_position, se.rpy_to_matrix(case.target_rpy), zero, zero)
+    steps = int(round(duration / sample_dt)) * every
+    run = se.rollout(model, case.start_position, se.rpy_to_matrix(case.start_rpy), zero, zero, dt=dt, steps=steps,
+                     control_law=pd_control_law, control_params=controller.control_params(reference),
+                     record_every=every)
+    if progress is not None:
+        progress.update(steps)
+    legs = se.leg_kinematics(model, run.position, run.rotation, run.velocity, run.angular_velocity, model=model_name)
+    return CaseTrajectory(model.name, run.time, run.position, run.velocity, se.matrix_to_rpy(run.rotation),
+                          run.angular_velocity, legs.lengths, legs.rates, run.leg_forces)
 
 
 def transient_peaks(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -18,11 +18,28 @@ class PlatformState(NamedTuple):
     angular_velocity: np.ndarray
 
 
-class Reference(NamedTuple):
-    """A task's reference (target) pose and twist in {B}; fields, shapes and units as in
-    :class:`PlatformState` (velocities zero for a set point)."""
-
+class _ReferenceFields(NamedTuple):
     position: np.ndarray
     rotation: np.ndarray
     velocity: np.ndarray
     angular_velocity: np.ndarray
+    lin_acc: np.ndarray
+    ang_acc: np.ndarray
+
+
+class Reference(_ReferenceFields):
+    """A reference (target) motion in {B}: pose and twist with fields, shapes and units as in
+    :class:`PlatformState` (velocities zero for a set point), and its accelerations lin_acc
+    (3,) or (N,3) m/s^2 of P's origin and ang_acc (3,) or (N,3) rad/s^2 (the feedforward of
+    computed torque).
+
+    The accelerations may be left out: ``Reference(p, R, v, w)`` has zero accelerations, new
+    arrays shaped like ``velocity`` (so a buffer a task fills in place can be made that way too).
+    """
+
+    __slots__ = ()
+
+    def __new__(cls, position, rotation, velocity, angular_velocity, lin_acc=None, ang_acc=None):
+        return super().__new__(cls, position, rotation, velocity, angular_velocity,
+                               np.zeros(np.shape(velocity)) if lin_acc is None else lin_acc,
+                               np.zeros(np.shape(velocity)) if ang_acc is None else ang_acc)
