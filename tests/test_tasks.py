@@ -21,7 +21,7 @@ from stewart_env.tasks import (
     make_task,
     tracking_errors,
 )
-from stewart_env.tasks.base import pose_margins
+from stewart_env.tasks.base import pose_margins, zero_reference
 from stewart_env.tasks.setpoint import paper_case
 
 pytestmark = pytest.mark.env
@@ -32,10 +32,6 @@ PLATFORMS = ("dasgupta1998", "motion_simulator")
 @pytest.fixture(scope="module")
 def dasgupta():
     return load_platform("dasgupta1998")
-
-
-def empty_reference(n):
-    return Reference(np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3)))
 
 
 def view(episode, time, state=None):
@@ -165,7 +161,7 @@ def test_tracking_reference_stays_inside_the_limits(name):
     times = np.linspace(0.0, 20.0, 401)
     ep = batch(episodes)
     for t in times[::20]:
-        ref = empty_reference(len(episodes))
+        ref = zero_reference(len(episodes))
         task.reference(ep, np.full(len(episodes), t), ref)
         assert np.all(pose_margins(p, ref.position, matrix_to_rpy(ref.rotation), margin=0.0))
     amplitudes = ep["amplitude"]
@@ -179,7 +175,7 @@ def test_tracking_reference_twist_is_its_derivative(dasgupta):
     ep = batch([episode] * 3)
     h = 1e-6
     t = 0.73
-    ref = empty_reference(3)
+    ref = zero_reference(3)
     task.reference(ep, np.array([t - h, t, t + h]), ref)
     velocity = (ref.position[2] - ref.position[0]) / (2 * h)
     # Central differences: truncation ~h^2 * |x'''| and rounding ~1e-16 / h.
@@ -188,6 +184,20 @@ def test_tracking_reference_twist_is_its_derivative(dasgupta):
     W = dR @ ref.rotation[1].T  # [omega]x
     omega = np.array([W[2, 1], W[0, 2], W[1, 0]])
     np.testing.assert_allclose(ref.angular_velocity[1], omega, atol=1e-8)
+    # The accelerations likewise, from the twist: the same truncation and rounding bounds.
+    np.testing.assert_allclose(ref.lin_acc[1], (ref.velocity[2] - ref.velocity[0]) / (2 * h), atol=1e-8)
+    np.testing.assert_allclose(ref.ang_acc[1], (ref.angular_velocity[2] - ref.angular_velocity[0]) / (2 * h),
+                               atol=1e-8)
+    assert np.abs(ref.ang_acc[1]).max() > 1e-3  # a moving reference: the check above is not of zeros
+
+
+def test_fixed_targets_have_zero_accelerations():
+    env = gym.make("StewartPlatform-v0", task="hold")
+    env.reset(seed=0)
+    env.step(np.full(6, 0.1))
+    target = env.unwrapped.target
+    assert target.lin_acc.shape == target.ang_acc.shape == (3,)
+    assert not target.lin_acc.any() and not target.ang_acc.any()
 
 
 def test_tracking_starts_on_the_reference_and_previews_it():

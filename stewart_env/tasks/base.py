@@ -25,6 +25,8 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from stewart_env.dynamics import Dynamics, make_dynamics
+from stewart_env.kinematics import leg_sensors_inplace
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rotation_error_rows, rpy_rate_matrix, rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
@@ -171,34 +173,47 @@ def zero_reference(n: int) -> Reference:
     return Reference(*(np.zeros((n, 3, 3) if name == "rotation" else (n, 3)) for name in Reference._fields))
 
 
-def pose_margins(params: PlatformParams, position: np.ndarray, rpy: np.ndarray,
-                 margin: float = 0.1) -> np.ndarray:
+@njit(cache=True)
+def _within_margins(position, rpy, lengths, condition, position_min, position_max, home_rpy, max_angle,
+                    length_min, length_max, max_condition, margin, ok):
+    """The checks of :func:`pose_margins` on poses whose leg lengths and condition numbers are known."""
+    stroke_margin = margin * 0.5 * (length_max - length_min)
+    for m in range(position.shape[0]):
+        safe = condition[m] <= max_condition
+        for j in range(3):
+            half = 0.5 * (position_max[j] - position_min[j])
+            safe &= position_min[j] + margin * half <= position[m, j] <= position_max[j] - margin * half
+            safe &= abs(rpy[m, j] - home_rpy[j]) <= (1.0 - margin) * max_angle
+        for i in range(6):
+            safe &= length_min + stroke_margin <= lengths[m, i] <= length_max - stroke_margin
+        ok[m] = safe
+
+
+def pose_margins(params: PlatformParams | Dynamics, position: np.ndarray, rpy: np.ndarray, margin: float = 0.1,
+                 rotation: np.ndarray | None = None) -> np.ndarray:
     """Whether poses lie safely inside the platform's limits, (M,) bool.
 
-    position (M,3) m, rpy (M,3) rad.  Safe means: position inside the workspace box shrunk by
-    ``margin`` of its half-size on each side, each angle within (1 - margin) max_angle of the home
-    angle, every leg within the stroke shrunk by ``margin`` of its half-length at each end, and the
-    Jacobian's condition number below limits.max_condition.  Used at episode start, never per step.
+    params: the platform, or a :class:`~stewart_env.dynamics.Dynamics` of it (its packed
+    parameters are then not packed again: the fast way for repeated calls).  position (M,3) m,
+    rpy (M,3) rad, rotation (M,3,3) their rotation matrices if already known.  Safe means:
+    position inside the workspace box shrunk by ``margin`` of its half-size on each side, each
+    angle within (1 - margin) max_angle of the home angle, every leg within the stroke shrunk by
+    ``margin`` of its half-length at each end, and the Jacobian's condition number at most
+    limits.max_condition (the leg lengths and the condition number from the kernel's leg sensors).
     """
-    lim = params.limits
-    position = np.atleast_2d(position)
-    rpy = np.atleast_2d(rpy)
-    half = 0.5 * (lim.position_max - lim.position_min)
-    ok = np.all((position >= lim.position_min + margin * half)
-                & (position <= lim.position_max - margin * half), axis=1)
-    ok &= np.all(np.abs(rpy - params.home_rpy) <= (1.0 - margin) * lim.max_angle, axis=1)
-    R = rpy_to_matrix(rpy)
-    q = np.einsum("mij,lj->mli", R, params.platform_joints)  # R p_i, (M,6,3)
-    legs = position[:, None, :] + q - params.base_joints
-    lengths = np.sqrt((legs * legs).sum(axis=2))
-    lo, hi = lim.leg_length
-    stroke_margin = margin * 0.5 * (hi - lo)
-    ok &= np.all((lengths >= lo + stroke_margin) & (lengths <= hi - stroke_margin), axis=1)
-    if not ok.any():
-        return ok  # the condition number (an SVD per pose) is needed only where all else holds
-    e = legs / lengths[..., None]
-    jac = np.concatenate([e, q[..., [1, 2, 0]] * e[..., [2, 0, 1]] - q[..., [2, 0, 1]] * e[..., [1, 2, 0]]], axis=2)
-    ok &= np.linalg.cond(jac) < lim.max_condition
+    model = params if isinstance(params, Dynamics) else make_dynamics("improved", params)
+    p = model.params_of(0)
+    lim = p.limits
+    position = np.ascontiguousarray(np.atleast_2d(position), dtype=np.float64)
+    rpy = np.atleast_2d(np.asarray(rpy, dtype=np.float64))
+    rotation = rpy_to_matrix(rpy) if rotation is None else np.ascontiguousarray(rotation, dtype=np.float64)
+    m = position.shape[0]
+    lengths, rates, condition, rest = np.empty((m, 6)), np.empty((m, 6)), np.empty(m), np.zeros((m, 3))
+    leg_sensors_inplace(model, position, rotation.reshape(m, 3, 3), rest, rest, lim.max_condition, lengths, rates,
+                        condition)
+    ok = np.empty(m, dtype=bool)
+    _within_margins(position, rpy, lengths, condition, lim.position_min, lim.position_max, p.home_rpy,
+                    lim.max_angle, lim.leg_length[0], lim.leg_length[1], lim.max_condition, float(margin), ok)
     return ok
 
 
@@ -206,19 +221,32 @@ def sinusoid_reference(home_position: np.ndarray, home_rpy: np.ndarray, amplitud
                        omega: np.ndarray, phase: np.ndarray, time: np.ndarray, out: Reference) -> None:
     """Pose offsets a_k sin(omega_k t + phi_k) about home on x, y, z, roll, pitch, yaw.
 
-    amplitude, omega (rad/s), phase: (N,6); time (N,) s.  Writes the reference pose and twist into
-    ``out`` (angular velocity = E(rpy) d(rpy)/dt, see :func:`stewart_env.rotations.rpy_rate_matrix`).
+    amplitude, omega (rad/s), phase: (N,6); time (N,) s.  Writes the reference pose, twist and
+    accelerations into ``out``, all analytic: angular velocity = E(rpy) d(rpy)/dt (see
+    :func:`stewart_env.rotations.rpy_rate_matrix`) and angular acceleration = E d2(rpy)/dt2 +
+    (dE/dt) d(rpy)/dt.
     """
     arg = omega * time[:, None] + phase
-    offset = amplitude * np.sin(arg)
+    sin = np.sin(arg)
+    offset = amplitude * sin
     rate = amplitude * omega * np.cos(arg)
+    accel = -(amplitude * omega * omega) * sin
     rpy = home_rpy + offset[:, 3:]
     out.position[:] = home_position + offset[:, :3]
     out.rotation[:] = rpy_to_matrix(rpy)
     out.velocity[:] = rate[:, :3]
+    out.lin_acc[:] = accel[:, :3]
     E = rpy_rate_matrix(rpy)
-    d = rate[:, 3:]
+    d, dd = rate[:, 3:], accel[:, 3:]
     out.angular_velocity[:] = E[:, :, 0] * d[:, 0:1] + E[:, :, 1] * d[:, 1:2] + E[:, :, 2] * d[:, 2:3]
+    # dE/dt: only E's first two columns move, with pitch p and yaw y.
+    cp, sp = np.cos(rpy[:, 1:2]), np.sin(rpy[:, 1:2])
+    cy, sy = np.cos(rpy[:, 2:3]), np.sin(rpy[:, 2:3])
+    dp, dy = d[:, 1:2], d[:, 2:3]
+    e0_dot = np.concatenate([-sy * cp * dy - cy * sp * dp, cy * cp * dy - sy * sp * dp, -cp * dp], axis=1)
+    e1_dot = np.concatenate([-cy * dy, -sy * dy, np.zeros_like(dy)], axis=1)
+    out.ang_acc[:] = (E[:, :, 0] * dd[:, 0:1] + E[:, :, 1] * dd[:, 1:2] + E[:, :, 2] * dd[:, 2:3]
+                      + e0_dot * d[:, 0:1] + e1_dot * d[:, 1:2])
 
 
 def check_option_names(task_cls: type, options: dict[str, Any]) -> None:
@@ -296,6 +324,20 @@ def _limit_codes(t, R, lengths, condition, non_finite, position_min, position_ma
         code[b] = c
 
 
+@njit(cache=True)
+def _tracking_reward(ep, eo, ev, ew, action, wp, sp, wo, so, wv, sv, sw, wc, out):
+    """The four running terms of :class:`RewardWeights` for every row into out (4, N): position,
+    orientation, velocity and control (mean square of the action)."""
+    for b in range(ep.shape[0]):
+        out[0, b] = wp * np.exp(-ep[b] / sp)
+        out[1, b] = wo * np.exp(-eo[b] / so)
+        out[2, b] = -wv * -np.expm1(-(ev[b] / sv + ew[b] / sw))
+        a2 = 0.0
+        for i in range(6):
+            a2 += action[b, i] * action[b, i]
+        out[3, b] = -wc * (a2 / 6.0)
+
+
 class StepView(NamedTuple):
     """What a task sees of a batch of N platforms: read-only arrays, frames and units of the
     environment card.
@@ -354,6 +396,8 @@ class Task:
                  ctrl_cost_weight: float = 0.1, termination_cost: float = 10.0):
         self.params = params
         self.control_dt = float(control_dt)
+        #: The platform's packed parameters for :func:`pose_margins` (packed once).
+        self.kinematics = make_dynamics("improved", params)
         self.weights = RewardWeights(position_reward_weight, position_reward_scale, orientation_reward_weight,
                                      orientation_reward_scale, velocity_cost_weight, velocity_cost_scale,
                                      angular_velocity_cost_scale, ctrl_cost_weight, termination_cost)
@@ -427,16 +471,13 @@ class Task:
     def reward_terms(self, view: StepView) -> dict[str, np.ndarray]:
         """Reward terms (N,) each, by name, of a step that does not end (see :class:`RewardWeights`;
         the end of an episode adds :meth:`termination_reward`)."""
-        w, errors = self.weights, view.errors
-        a2 = view.action * view.action
-        return {
-            "position": w.position_reward_weight * np.exp(-errors.position_norm / w.position_reward_scale),
-            "orientation": w.orientation_reward_weight * np.exp(-errors.orientation_norm / w.orientation_reward_scale),
-            "velocity": -w.velocity_cost_weight * -np.expm1(
-                -(errors.velocity_norm / w.velocity_cost_scale
-                  + errors.angular_velocity_norm / w.angular_velocity_cost_scale)),
-            "control": -w.ctrl_cost_weight * (a2.sum(axis=1) / 6.0),
-        }
+        w, e = self.weights, view.errors
+        out = np.empty((4, view.time.shape[0]))
+        _tracking_reward(e.position_norm, e.orientation_norm, e.velocity_norm, e.angular_velocity_norm, view.action,
+                         w.position_reward_weight, w.position_reward_scale, w.orientation_reward_weight,
+                         w.orientation_reward_scale, w.velocity_cost_weight, w.velocity_cost_scale,
+                         w.angular_velocity_cost_scale, w.ctrl_cost_weight, out)
+        return {"position": out[0], "orientation": out[1], "velocity": out[2], "control": out[3]}
 
     def termination_reward(self, code: np.ndarray) -> np.ndarray:
         """The reward term ``termination`` (N,) of termination codes ``code``: -termination_cost

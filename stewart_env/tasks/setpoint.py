@@ -119,12 +119,14 @@ class SetpointTask(Task):
         return {"target_position": (3,), "target_rotation": (3, 3)}
 
     def _draw_pose(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """A random pose (position, rotation) safely inside the limits."""
         p = self.params
         for _ in range(_MAX_DRAWS):
             position = p.home_position + rng.uniform(-1.0, 1.0, 3) * self.position_range
             rpy = p.home_rpy + rng.uniform(-1.0, 1.0, 3) * self.angle_range
-            if pose_margins(p, position, rpy)[0]:
-                return position, rpy
+            rotation = rpy_to_matrix(rpy)
+            if pose_margins(self.kinematics, position, rpy, rotation=rotation)[0]:
+                return position, rotation
         raise RuntimeError(
             f"setpoint: no pose inside the limits of platform {p.name!r} in {_MAX_DRAWS} draws; "
             "reduce task_options['position_range'] or ['angle_range']"
@@ -135,7 +137,7 @@ class SetpointTask(Task):
             start_p, start_r = self._draw_pose(rng)
             target_p, target_r = self._draw_pose(rng)
         else:
-            start_p, start_r = self.start_position, self.start_rpy
-            target_p, target_r = self.target_position, self.target_rpy
-        start = PlatformState(start_p.copy(), rpy_to_matrix(start_r), np.zeros(3), np.zeros(3))
-        return start, {"target_position": target_p, "target_rotation": rpy_to_matrix(target_r)}
+            start_p, start_r = self.start_position, rpy_to_matrix(self.start_rpy)
+            target_p, target_r = self.target_position, rpy_to_matrix(self.target_rpy)
+        start = PlatformState(start_p.copy(), start_r, np.zeros(3), np.zeros(3))
+        return start, {"target_position": target_p, "target_rotation": target_r}

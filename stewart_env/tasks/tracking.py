@@ -71,7 +71,7 @@ class TrackingTask(Task):
         p = self.params
         for _ in range(_MAX_SHRINKS):
             offsets = self._corners * amplitude
-            if np.all(pose_margins(p, p.home_position + offsets[:, :3], p.home_rpy + offsets[:, 3:])):
+            if np.all(pose_margins(self.kinematics, p.home_position + offsets[:, :3], p.home_rpy + offsets[:, 3:])):
                 return amplitude
             amplitude = _SHRINK * amplitude
         raise RuntimeError(f"tracking: no amplitude fits the limits of platform {p.name!r}")
