@@ -112,7 +112,10 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
     """
     sizes = {}
     out = {}
+    rotations = []
     for name, (value, tail) in arrays.items():
+        if tail == (3, 3):
+            rotations.append(name)
         try:
             a = np.asarray(value, dtype=np.float64)
         except (TypeError, ValueError):
@@ -123,16 +126,14 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
             raise ValueError(f"{name}: expected shape {tail} or (N, *{tail}), got {a.shape}")
         else:
             sizes[name] = a.shape[0]
-        out[name] = a
+        out[name] = np.ascontiguousarray(a)
     bad = K.first_nonfinite(tuple(out.values()))
     if bad >= 0:
         raise ValueError(f"{list(out)[bad]}: contains NaN or inf")
-    for name, (_, tail) in arrays.items():
-        if tail == (3, 3):
-            check_rotation(name, out[name])
+    for name in rotations:
+        check_rotation(name, out[name])
     if not sizes and n_params == 1:
-        # one platform: every argument is a (1, *tail) view already
-        return 1, False, {name: np.ascontiguousarray(a) for name, a in out.items()}
+        return 1, False, out
     distinct = set(sizes.values())
     if n_params > 1:
         distinct.add(n_params)
@@ -141,8 +142,7 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
     n = distinct.pop() if distinct else 1
     for name, a in out.items():
         if a.shape[0] != n:
-            a = np.broadcast_to(a, (n,) + a.shape[1:])
-        out[name] = np.ascontiguousarray(a)
+            out[name] = np.ascontiguousarray(np.broadcast_to(a, (n,) + a.shape[1:]))
     return n, True, out
 
 
@@ -292,8 +292,7 @@ class Dynamics:
         out = np.empty((n, 6))
         K.forward_batch(self.packed, self.flags, a["position"], a["rotation"], a["velocity"],
                         a["angular_velocity"], a["leg_forces"], a["external_wrench"], out)
-        lin, ang = out[:, :3], out[:, 3:]
-        return (lin, ang) if batched else (lin[0], ang[0])
+        return (out[:, :3], out[:, 3:]) if batched else (out[0, :3], out[0, 3:])
 
     def inverse(self, position, rotation, velocity, angular_velocity, lin_acc, ang_acc, external_wrench=None):
         """Inverse dynamics: the leg forces (6,) or (N,6), N, that produce the given accelerations.
