@@ -183,17 +183,12 @@ def rollout_batch(prm, flags, t, R, v, w, F, W, dt, steps):
     docs/physics.md section 5.6 (no paper equation).
     """
     n = t.shape[0]
-    none3 = np.empty((n, 0, 3))
-    none33 = np.empty((n, 0, 3, 3))
-    none6 = np.empty((n, 0, 6))
     if n >= PARALLEL_MIN_ROWS:
         for b in prange(n):
-            _rollout_row(prm, flags, t, R, v, w, None, F, W, 0.0, dt, steps, 0,
-                         none3, none33, none3, none3, none6, b)
+            _rollout_row(prm, flags, t, R, v, w, None, F, W, 0.0, dt, steps, 0, None, b)
     else:
         for b in range(n):
-            _rollout_row(prm, flags, t, R, v, w, None, F, W, 0.0, dt, steps, 0,
-                         none3, none33, none3, none3, none6, b)
+            _rollout_row(prm, flags, t, R, v, w, None, F, W, 0.0, dt, steps, 0, None, b)
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath=FASTMATH)
@@ -213,19 +208,20 @@ def rollout_law_batch(prm, flags, t, R, v, w, law, ctrl, W, time, dt, steps, eve
     docs/physics.md section 5.6 (no paper equation).
     """
     n = t.shape[0]
+    rec = (rec_t, rec_R, rec_v, rec_w, rec_F)
     if n >= PARALLEL_MIN_ROWS:
         for b in prange(n):
-            _rollout_row(prm, flags, t, R, v, w, law, ctrl, W, time, dt, steps, every,
-                         rec_t, rec_R, rec_v, rec_w, rec_F, b)
+            _rollout_row(prm, flags, t, R, v, w, law, ctrl, W, time, dt, steps, every, rec, b)
     else:
         for b in range(n):
-            _rollout_row(prm, flags, t, R, v, w, law, ctrl, W, time, dt, steps, every,
-                         rec_t, rec_R, rec_v, rec_w, rec_F, b)
+            _rollout_row(prm, flags, t, R, v, w, law, ctrl, W, time, dt, steps, every, rec, b)
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
-def _record(law, c, time, x, Rs, F, rec_t, rec_R, rec_v, rec_w, rec_F, b, s):
-    """Sample s of row b: the state x and the law's forces there."""
+def _record(law, c, time, x, Rs, F, rec, b, s):
+    """Sample s of row b into rec = (rec_t, rec_R, rec_v, rec_w, rec_F): the state x and the
+    law's forces there."""
+    rec_t, rec_R, rec_v, rec_w, rec_F = rec
     _quat_to_matrix(x[3:7], Rs)
     forces = _leg_forces(law, c, time, x, Rs, F)
     for j in range(3):
@@ -237,9 +233,9 @@ def _record(law, c, time, x, Rs, F, rec_t, rec_R, rec_v, rec_w, rec_F, b, s):
 
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
-def _rollout_row(prm, flags, t, R, v, w, law, ctrl, W, time, dt, steps, every,
-                 rec_t, rec_R, rec_v, rec_w, rec_F, b):
-    """Row b of :func:`rollout_batch` and :func:`rollout_law_batch` (docs/physics.md section 5.6)."""
+def _rollout_row(prm, flags, t, R, v, w, law, ctrl, W, time, dt, steps, every, rec, b):
+    """Row b of :func:`rollout_batch` and :func:`rollout_law_batch` (docs/physics.md section 5.6);
+    rec the tuple of record arrays, or None (numba then compiles no recording at all)."""
     p = prm[0] if prm.shape[0] == 1 else prm[b]
     c = ctrl[0] if ctrl.shape[0] == 1 else ctrl[b]
     x = np.empty(13)
@@ -256,9 +252,10 @@ def _rollout_row(prm, flags, t, R, v, w, law, ctrl, W, time, dt, steps, every,
         x[10 + j] = w[b, j]
     _matrix_to_quat(R[b], x[3:7])
     recorded = 0
-    if every > 0:
-        _record(law, c, time, x, Rs, F, rec_t, rec_R, rec_v, rec_w, rec_F, b, 0)
-        recorded = 1
+    if rec is not None:
+        if every > 0:
+            _record(law, c, time, x, Rs, F, rec, b, 0)
+            recorded = 1
     for step in range(steps):
         t0 = time + step * dt
         _state_derivative(p, flags, law, c, t0, x, F, W[b], Rs, M, h, acc, k[0])
@@ -278,13 +275,15 @@ def _rollout_row(prm, flags, t, R, v, w, law, ctrl, W, time, dt, steps, every,
         nq = np.sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5] + x[6] * x[6])
         for j in range(3, 7):
             x[j] /= nq
-        if every > 0 and (step + 1) % every == 0:
-            _record(law, c, time + (step + 1) * dt, x, Rs, F, rec_t, rec_R, rec_v, rec_w, rec_F, b, recorded)
-            recorded += 1
+        if rec is not None:
+            if every > 0 and (step + 1) % every == 0:
+                _record(law, c, time + (step + 1) * dt, x, Rs, F, rec, b, recorded)
+                recorded += 1
         if not finite:
             break
-    for s in range(recorded, rec_t.shape[1]):  # after a break: the non-finite state to the end
-        _record(law, c, time + steps * dt, x, Rs, F, rec_t, rec_R, rec_v, rec_w, rec_F, b, s)
+    if rec is not None:
+        for s in range(recorded, rec[0].shape[1]):  # after a break: the non-finite state to the end
+            _record(law, c, time + steps * dt, x, Rs, F, rec, b, s)
     for j in range(3):
         t[b, j] = x[j]
         v[b, j] = x[7 + j]
