@@ -17,6 +17,8 @@ CODE_MODULES = {
     "kernels": "stewart_env.dynamics.kernels",
     "model": "stewart_env.dynamics.model",
     "kinematics": "stewart_env.kinematics",
+    "rk4": "stewart_env.dynamics.rk4",
+    "workspace": "stewart_env.dynamics.workspace",
 }
 # Written in two pieces so that this file does not match its own search.
 OUTSIDE_DOCUMENTS = ["MODEL" + ".md", "../" + "shared", "/work/" + "shared"]

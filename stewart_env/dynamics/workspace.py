@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from stewart_env.dynamics import kernels as K
+from stewart_env.dynamics import rk4
 from stewart_env.dynamics.model import Dynamics, batch_args
 from stewart_env.rotations import rpy_to_matrix
 
@@ -144,5 +145,5 @@ class Workspace:
             raise ValueError(f"dt: must be a positive finite number of seconds, got {dt}")
         if steps < 0 or int(steps) != steps:
             raise ValueError(f"steps: must be a non-negative integer, got {steps}")
-        K.rollout_batch(self._packed, self._flags, self._position, self._rotation, self._velocity,
+        rk4.rollout_batch(self._packed, self._flags, self._position, self._rotation, self._velocity,
                         self._angular_velocity, self._leg_forces, self._external_wrench, float(dt), int(steps))
