@@ -55,6 +55,7 @@ from typing import Any
 
 import numpy as np
 
+from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
 from stewart_env.agents.statistics import Interval, paired_difference, stratified_bootstrap
 from stewart_env.agents.training import (
     ALGORITHMS,
@@ -68,6 +69,7 @@ from stewart_env.agents.training import (
     load_agent,
     newest_checkpoint,
     parse_env_kwargs,
+    read_hyperparameters,
     read_manifest,
     train,
 )
@@ -386,7 +388,8 @@ def _evaluate_job(spec: dict[str, Any], agent=None) -> dict[str, Any]:
     policy = make_policy(spec["kind"], spec["design_model"], agent)
     result = evaluate(policy, {**spec["env_kwargs"], "model": spec["plant"], "task": spec["task"]},
                       episodes=spec["episodes"], seed=spec["eval_seed"], label=spec["controller"],
-                      max_steps=spec["max_steps"], progress=False)
+                      max_steps=spec["max_steps"], position_tolerance=spec["position_tolerance"],
+                      orientation_tolerance=spec["orientation_tolerance"], progress=False)
     return {"metrics": {key: [ep.metrics[key] for ep in result.episodes] for key, *_ in METRICS},
             "terminations": [ep.termination for ep in result.episodes]}
 
@@ -422,13 +425,13 @@ def build_rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequen
 
 
 def _training_row(algo: str, row: Row, seed: int, env_kwargs: Mapping[str, Any], task: str,
-                  n_envs: int | None) -> dict[str, Any]:
+                  n_envs: int | None, config: str | None = None) -> dict[str, Any]:
     """The keywords of :func:`~.training.train` for one agent of a learned row."""
     rest = dict(env_kwargs)
     if row.randomized:
         rest["randomization"] = {k: list(v) for k, v in DEFAULT_RANDOMIZATION.items()}
     return dict(algo=algo, model=row.model, task=task, seed=seed, n_envs=n_envs, checkpoint_freq=0,
-                env_kwargs=rest)
+                env_kwargs=rest, config=config)
 
 
 def _finished_agent(directory: Path, algo: str, seed: int, env_kwargs: Mapping[str, Any]) -> bool:
@@ -493,7 +496,8 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
                  simplifications: Sequence[str] = SIMPLIFICATIONS, env_kwargs: Mapping[str, Any] | None = None,
                  n_envs: int | None = None, max_steps: int | None = None, platform: str = "dasgupta1998",
                  backend: str = "local", ray_address: str | None = None, agent_models: Sequence[str] | None = None,
-                 progress: bool = True) -> MismatchResult:
+                 config: str | os.PathLike | None = None, position_tolerance: float = POSITION_TOLERANCE,
+                 orientation_tolerance: float = ORIENTATION_TOLERANCE, progress: bool = True) -> MismatchResult:
     """Run the mismatch study and write it to ``out`` (see the module docstring).
 
     train_models: models to build controllers on (PD's statics, CT's internal model, RL plants).
@@ -507,6 +511,10 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     n_envs: platforms per training batch (default the algorithm config's).
     max_steps: evaluation episode length in control steps (default the registered 500).
     backend: "local" or "ray"; ray_address: an existing Ray cluster ("auto", "HOST:PORT").
+    position_tolerance (m), orientation_tolerance (rad): the success band of the evaluation
+        (:func:`~.evaluation.evaluate`), which decides the failed cells; widen it on tasks whose
+        errors never settle inside the set-point band (disturbance rejection).
+    config: the agents' zoo hyperparameter file (default configs/agents/<algo>.yml).
     agent_models: the models RL agents are trained on (default: every model controllers are built
         on, the improved+cK ones included); any model the environment simulates.
 
@@ -531,6 +539,9 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     for name, value in (("episodes", episodes), ("timesteps", timesteps), ("n_envs", n_envs), ("max_steps", max_steps)):
         if value is not None and (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1):
             raise TrainingError(f"{name}: expected a positive integer, got {value!r}")
+    for name, value in (("position_tolerance", position_tolerance), ("orientation_tolerance", orientation_tolerance)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
+            raise TrainingError(f"{name}: expected a finite positive number, got {value!r}")
     env_kwargs = dict(env_kwargs or {})
     clash = [k for k in ("model", "task", "randomization", "platform") if k in env_kwargs]
     if clash:
@@ -539,18 +550,26 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     env_kwargs["platform"] = platform
     env_kwargs = jsonable(env_kwargs)
     check_backend(backend, ray_address)
+    if config is not None:
+        if algo is None:
+            raise TrainingError("config: only with an RL algorithm (--algo)")
+        config = str(Path(config).resolve())
+        hyperparameters = jsonable(read_hyperparameters(algo, config))
     out = check_writable(out)
     common = {"task": task, "env_kwargs": env_kwargs, "episodes": int(episodes), "eval_seed": EVAL_SEED_OFFSET,
-              "max_steps": max_steps}
-    _check_study(out, {**common, "algo": algo, "timesteps": int(timesteps) if algo else None,
-                       "n_envs": n_envs if algo else None})
+              "max_steps": max_steps, "position_tolerance": float(position_tolerance),
+              "orientation_tolerance": float(orientation_tolerance)}
+    settings = {**common, "algo": algo, "timesteps": int(timesteps) if algo else None, "n_envs": n_envs if algo else None}
+    if config is not None:  # the hyperparameters themselves: an edited file changes the agents
+        settings["config"] = {"path": config, "hyperparameters": hyperparameters}
+    _check_study(out, settings)
     runner = make_backend(backend, ray_address)
 
     start = time.perf_counter()
     rows = build_rows(out, design_models(train_models, simplifications), algo, seeds, domain_randomization, platform,
                       agent_models)
     try:
-        _run_jobs(runner, out, rows, algo, timesteps, common, test_models, n_envs, progress)
+        _run_jobs(runner, out, rows, algo, timesteps, common, test_models, n_envs, progress, config)
     finally:
         runner.close()
     summary = {r.label: {m: _cell_intervals(out, r, m) for m in test_models} for r in rows}
@@ -561,22 +580,23 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     result = MismatchResult(rows, list(test_models), summary, int(episodes))
     result.differences = simplification_costs(result, out)
     header = {"task": task, "platform": platform, "episodes": episodes, "eval_seed": EVAL_SEED_OFFSET, "algo": algo,
-              "seeds": list(seeds), "backend": backend, "wall_time": time.perf_counter() - start}
+              "seeds": list(seeds), "backend": backend, "wall_time": time.perf_counter() - start,
+              "position_tolerance": position_tolerance, "orientation_tolerance": orientation_tolerance}
     result.files = write_outputs(result, out, METRICS, header)
     return result
 
 
 def _run_jobs(runner, out: Path, rows: list[Row], algo: str | None, timesteps: int, common: Mapping[str, Any],
-              test_models: Sequence[str], n_envs: int | None, progress: bool) -> None:
+              test_models: Sequence[str], n_envs: int | None, progress: bool, config: str | None = None) -> None:
     """Train the missing agents, then evaluate the missing cells, on ``runner``; each result is
     stored as soon as it arrives, so a stopped study keeps what finished."""
     env_kwargs, task = common["env_kwargs"], common["task"]
     trainings = []
     for row in rows:
         for seed, directory in row.agents.items():
-            training = _training_row(algo, row, seed, env_kwargs, task, n_envs)
-            expected = {**training["env_kwargs"], "model": row.model, "task": task}
-            if not _finished_agent(directory, algo, seed, jsonable({**_config_env_kwargs(algo), **expected})):
+            training = _training_row(algo, row, seed, env_kwargs, task, n_envs, config)
+            expected = {**_config_env_kwargs(algo, config), **training["env_kwargs"], "model": row.model, "task": task}
+            if not _finished_agent(directory, algo, seed, jsonable(expected)):
                 trainings.append((directory, training))
     cells = [(row, plant, seed) for row in rows for plant in test_models for seed in (row.seeds or (None,))]
     bar = progress_bar(total=len(trainings) + len(cells), desc="mismatch study", unit="job", disable=not progress)
@@ -592,8 +612,11 @@ def _run_jobs(runner, out: Path, rows: list[Row], algo: str | None, timesteps: i
                 bar.update()
 
         todo = []
+        # agents run on the environment of their config (e.g. an error-integral observation), nominal
+        agent_common = {**common, "env_kwargs": {**_config_env_kwargs(algo, config), **env_kwargs}} if algo else common
         for row, plant, seed in cells:
-            path, spec = _cell_path(out, row, plant, seed), _cell_spec(row, plant, seed, common)
+            path = _cell_path(out, row, plant, seed)
+            spec = _cell_spec(row, plant, seed, agent_common if row.kind == "agent" else common)
             if path.exists():
                 stored = json.loads(path.read_text())
                 if stored["spec"] == spec:
@@ -622,11 +645,11 @@ def _run_jobs(runner, out: Path, rows: list[Row], algo: str | None, timesteps: i
             bar.update()
 
 
-def _config_env_kwargs(algo: str) -> dict[str, Any]:
+def _config_env_kwargs(algo: str, config: str | None = None) -> dict[str, Any]:
     """The env kwargs the algorithm's config adds to every run (run.json records them)."""
     from stewart_env.agents.training import parse_hyperparameters, read_hyperparameters
 
-    return dict(parse_hyperparameters(algo, read_hyperparameters(algo)).env_kwargs)
+    return dict(parse_hyperparameters(algo, read_hyperparameters(algo, config)).env_kwargs)
 
 
 def cell_values(out: Path, row: Row, plant: str, metric: str) -> np.ndarray:
@@ -782,7 +805,10 @@ def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[st
              f"the training seeds ({', '.join(map(str, seeds))}; one for the model-based rows) and the "
              f"{result.episodes} episodes (evaluation seeds {header['eval_seed']}..{header['eval_seed'] + result.episodes - 1}, "
              "the same for every cell). Success: the mean; every other metric: the interquartile mean, over the "
-             "episodes where it is defined ('-' where none).", ""]
+             "episodes where it is defined ('-' where none). An episode succeeds if it runs to its time limit and "
+             f"ends within {1e3 * header.get('position_tolerance', POSITION_TOLERANCE):g} mm and "
+             f"{1e3 * header.get('orientation_tolerance', ORIENTATION_TOLERANCE):g} mrad over its final window; a "
+             f"cell succeeding in fewer than {FAILURE_THRESHOLD:.0%} of its episodes is marked failed.", ""]
     notes = [f"- {r.label}: {r.info}" for r in result.rows if r.info]
     if notes:
         lines += ["Controllers:", "", *dict.fromkeys(notes), ""]
@@ -947,7 +973,7 @@ def platform_name(text: str) -> str:
 
 def add_cli(subparsers) -> argparse.ArgumentParser:
     """Add ``mismatch`` to an argparse subparsers object; its ``func`` returns an exit code."""
-    from stewart_env.agents.arguments import TASKS, positive_int
+    from stewart_env.agents.arguments import TASKS, existing_file, positive_float, positive_int
 
     p = subparsers.add_parser(
         "mismatch", help="model-mismatch study: controllers built on one model, run on another",
@@ -973,11 +999,18 @@ def add_cli(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=positive_int, default=5, help="evaluation episodes per cell (default: 5)")
     p.add_argument("--max-steps", type=positive_int, default=None,
                    help="evaluation episode length in control steps (default: the registered 500)")
+    p.add_argument("--position-tolerance", type=positive_float, default=POSITION_TOLERANCE,
+                   help=f"success band, m (default: {POSITION_TOLERANCE}); a cell succeeding in fewer than "
+                        f"{FAILURE_THRESHOLD:.0%} of its episodes is marked failed")
+    p.add_argument("--orientation-tolerance", type=positive_float, default=ORIENTATION_TOLERANCE,
+                   help=f"success band, rad (default: {ORIENTATION_TOLERANCE})")
     p.add_argument("--seeds", type=seed_list, default=[0],
                    help="training seeds, comma-separated: one agent per seed and learned row (default: 0)")
     p.add_argument("--agent-models", default=None,
                    help="comma-separated models to train agents on (default: every model of the study, "
                         "improved+cK included)")
+    p.add_argument("--config", type=existing_file, default=None,
+                   help="the agents' hyperparameters, a zoo config file (default: configs/agents/<algo>.yml)")
     p.add_argument("--domain-randomization", action="store_true",
                    help="add agents trained on the improved model with domain randomisation")
     p.add_argument("--simplifications", default=",".join(SIMPLIFICATIONS),
@@ -1003,6 +1036,8 @@ def _cli_mismatch(args: argparse.Namespace) -> int:
                               n_envs=args.n_envs, max_steps=args.max_steps, platform=args.platform,
                               backend=args.backend, ray_address=args.ray_address,
                               agent_models=None if args.agent_models is None else _names(args.agent_models),
+                              config=args.config, position_tolerance=args.position_tolerance,
+                              orientation_tolerance=args.orientation_tolerance,
                               progress=not args.no_progress)
     except (TrainingError, ValueError) as exc:
         print(f"stewart-env mismatch: error: {exc}", file=sys.stderr)

@@ -196,6 +196,9 @@ def test_an_interrupted_study_keeps_its_finished_cells(tmp_path, monkeypatch):
     ({"max_steps": 0}, "max_steps: expected a positive integer"),
     ({"backend": "dask"}, "backend: expected one of local, ray"),
     ({"ray_address": "auto"}, "--ray-address: only with --backend ray"),
+    ({"config": "configs/agents/ppo.yml"}, "config: only with an RL algorithm"),
+    ({"position_tolerance": 0.0}, "position_tolerance: expected a finite positive number"),
+    ({"orientation_tolerance": float("nan")}, "orientation_tolerance: expected a finite positive number"),
 ])
 def test_bad_requests_are_named_before_any_work(tmp_path, kwargs, message):
     out = tmp_path / "study"
@@ -227,6 +230,8 @@ def _parser():
     ("--max-steps", "-3", "argument --max-steps: expected a positive integer"),
     ("--timesteps", "x", "argument --timesteps: expected a positive integer"),
     ("--algo", "dqn", "argument --algo: invalid choice: 'dqn'"),
+    ("--position-tolerance", "0", "argument --position-tolerance: expected a finite positive number"),
+    ("--config", "no/such.yml", "argument --config: no such file"),
 ])
 def test_cli_rejects_bad_flag_values(tmp_path, capsys, flag, value, message):
     with pytest.raises(SystemExit):
@@ -244,6 +249,7 @@ def test_cli_model_based_rows_on_another_task_and_platform(tmp_path, capsys):
     assert len(_rows(tmp_path)) == 8
     text = (tmp_path / "matrix.md").read_text()
     assert text.startswith("# Model mismatch on the tracking task, platform motion_simulator")
+    assert "ends within 2 mm and 10 mrad over its final window" in text
     settings = json.loads((tmp_path / mismatch.STUDY_FILE).read_text())
     assert settings["env_kwargs"]["platform"] == "motion_simulator" and settings["task"] == "tracking"
 
@@ -359,3 +365,24 @@ def test_agent_models_pick_the_learned_rows(tmp_path):
     assert [r.label for r in rows if r.kind == "ct"] == ["CT [classical]", "CT [improved]", "CT [improved+c2]"]
     agent = next(r for r in rows if r.kind == "agent")
     assert agent.seeds == (0, 3) and agent.agents[3] == tmp_path / "agents" / "improved" / "seed_3"
+
+
+def test_config_file_is_part_of_the_study(tmp_path):
+    """The agents' hyperparameters go into study.json; a bad config fails before any work."""
+    from stewart_env.agents.training import config_path
+
+    bad = tmp_path / "bad.yml"
+    bad.write_text("SomethingElse-v0: {}\n")
+    with pytest.raises(TrainingError, match="StewartPlatform-v0"):
+        run_mismatch(tmp_path / "study", ["improved"], ["improved"], algo="ppo", config=bad)
+    assert not (tmp_path / "study").exists()
+    parser_args = _parser().parse_args(["mismatch", "--out", str(tmp_path), "--config",
+                                        str(config_path("ppo", None).with_name("ppo_integral.yml"))])
+    assert parser_args.config.endswith("ppo_integral.yml")
+    # the agents train on the config's environment: ppo_integral.yml observes the error integral
+    run_mismatch(tmp_path / "integral", ["improved"], ["improved"], algo="ppo", timesteps=100, n_envs=2, episodes=1,
+                 simplifications=[], max_steps=5, config=parser_args.config, progress=False)
+    manifest = json.loads((tmp_path / "integral" / "agents" / "improved" / "seed_0" / "run.json").read_text())
+    assert manifest["env_kwargs"]["error_integral"] is True
+    settings = json.loads((tmp_path / "integral" / mismatch.STUDY_FILE).read_text())
+    assert settings["config"]["hyperparameters"]["env_kwargs"]["error_integral_band"] == 0.01
