@@ -103,7 +103,11 @@ def jacobian(params: PlatformParams | Dynamics, position, rotation) -> np.ndarra
 
     docs/physics.md section 4.4.
     """
-    return leg_kinematics(params, position, rotation).jacobian
+    packed = _packed(params)
+    n, batched, a = batch_args(packed.shape[0], position=(position, (3,)), rotation=(rotation, (3, 3)))
+    J = np.empty((n, 6, 6))
+    K.jacobian_batch(packed, a["position"], a["rotation"], J)
+    return J if batched else J[0]
 
 
 def forward_kinematics(params: PlatformParams | Dynamics, leg_lengths, position_guess, rotation_guess,

@@ -149,3 +149,12 @@ def test_rotation_vectors_round_trip(rng):
     back, angle = rotation_error(R, np.eye(3))
     np.testing.assert_allclose(back, phi, rtol=1e-12, atol=1e-16)  # the small-angle series keeps digits
     np.testing.assert_allclose(angle, np.linalg.norm(phi, axis=1), rtol=1e-12)
+
+
+def test_jacobian_is_the_leg_kinematics_jacobian_bit_for_bit(dasgupta, rng):
+    t = dasgupta.home_position + rng.uniform(-0.05, 0.05, (4, 3))
+    R = np.stack([se.rpy_to_matrix(rng.uniform(-0.15, 0.15, 3)) for _ in range(4)])
+    J = se.jacobian(dasgupta, t, R)
+    assert J.shape == (4, 6, 6)
+    assert np.array_equal(J, se.leg_kinematics(dasgupta, t, R).jacobian)
+    assert np.array_equal(se.jacobian(dasgupta, t[1], R[1]), J[1])
