@@ -251,8 +251,8 @@ class _Twin:
         self.q_free = adr(J, m.jnt_qposadr, "platform")
         self.v_free = adr(J, m.jnt_dofadr, "platform")
         self.body = mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, "platform")
-        self.tips = [mj.mj_name2id(m, mj.mjtObj.mjOBJ_SITE, f"tip_{i}") for i in range(6)]
-        self.joints = [mj.mj_name2id(m, mj.mjtObj.mjOBJ_SITE, f"joint_{i}") for i in range(6)]
+        self.tips = np.array([mj.mj_name2id(m, mj.mjtObj.mjOBJ_SITE, f"tip_{i}") for i in range(6)])
+        self.joints = np.array([mj.mj_name2id(m, mj.mjtObj.mjOBJ_SITE, f"joint_{i}") for i in range(6)])
 
     def set_state(self, data, t, R, v, w) -> None:
         """Platform state (P's origin, R, v, omega in {B}) into ``data``, with the leg joints from
@@ -291,8 +291,8 @@ class _Twin:
         """Largest distance |tip_i - joint_i| (m) over the six loops, at data's current qpos."""
         mj = _require_mujoco()
         mj.mj_kinematics(self.model, data)
-        x = data.site_xpos
-        return float(max(np.linalg.norm(x[a] - x[b]) for a, b in zip(self.tips, self.joints)))
+        gap = data.site_xpos[self.tips] - data.site_xpos[self.joints]
+        return float(np.sqrt((gap * gap).sum(axis=1).max()))
 
     def set_wrench(self, data, t, R, leg_forces, wrench) -> None:
         """Leg forces as controls; the external wrench as MuJoCo's applied force (:func:`_wrench_at_com`)."""
@@ -320,8 +320,14 @@ def _wrench_at_com(R: np.ndarray, com: np.ndarray, wrench: np.ndarray) -> np.nda
     """The external wrench [force at P; moment] (N,6), {B}, as the equivalent [force; moment] at
     the platform's CoM (MuJoCo's ``xfrc_applied``): the moment gains (P - CoM) x force.
     R (N,3,3); com (N,3), the CoM in {P}."""
-    arm = -np.einsum("nij,nj->ni", R, com)  # P - CoM in {B}
-    return np.concatenate([wrench[:, :3], wrench[:, 3:] + np.cross(arm, wrench[:, :3])], axis=1)
+    a = -np.einsum("nij,nj->ni", R, com)  # P - CoM in {B}
+    f = wrench[:, :3]
+    out = wrench.copy()
+    # the moment of f about the CoM, a x f, written out: numpy's cross costs more than the rest here
+    out[:, 3] += a[:, 1] * f[:, 2] - a[:, 2] * f[:, 1]
+    out[:, 4] += a[:, 2] * f[:, 0] - a[:, 0] * f[:, 2]
+    out[:, 5] += a[:, 0] * f[:, 1] - a[:, 1] * f[:, 0]
+    return out
 
 
 class MujocoPlant:
