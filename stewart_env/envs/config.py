@@ -30,6 +30,8 @@ __all__ = ["RECORDS", "ActuatorConfig", "EnvConfig", "ObservationConfig", "Physi
 #: At most this many RK4 substeps per control step (control_dt / physics_dt).
 MAX_SUBSTEPS = 10**6
 OBSERVATION_MODES = ("pose", "sensors")
+#: The model name that simulates the platform in MuJoCo (stewart_env.mujoco.MujocoPlant).
+MUJOCO = "mujoco"
 RENDER_MODES = ("rgb_array", "human")
 # Relative tolerance on control_dt / physics_dt being a whole number (rounding of decimal inputs).
 _DT_TOLERANCE = 1e-9
@@ -62,12 +64,15 @@ def _platform(value: Any) -> PlatformParams:
 
 @dataclass(frozen=True)
 class PhysicsConfig(_Record):
-    """The simulated mechanism and its time steps.  Derived: ``dynamics`` (the nominal model) and
-    ``substeps`` (RK4 substeps per control step; ``physics_dt`` becomes control_dt / substeps, so
-    that n control steps are exactly n control_dt)."""
+    """The simulated mechanism and its time steps.  Derived: ``dynamics`` (the nominal closed-form
+    model; with ``model="mujoco"`` the improved model of the same platform, for the leg sensors and
+    holding forces), ``mujoco`` (whether MuJoCo simulates the platform) and ``substeps`` (RK4
+    substeps per control step; ``physics_dt`` becomes control_dt / substeps, so that n control
+    steps are exactly n control_dt)."""
 
     model: str = _argument("improved", 'dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, '
-                                       'optionally with switches such as `"+c1"`')
+                                       'optionally with switches such as `"+c1"`; or `"mujoco"` (MuJoCo '
+                                       'simulating the same mechanism, needs the `mujoco` extra)')
     platform: Any = _argument("dasgupta1998", "a shipped config name, a YAML path, or a `PlatformParams`")
     control_dt: float = _argument(0.01, "s per environment step, 1e-6 to 10")
     physics_dt: float = _argument(0.001, "s per RK4 substep; `control_dt` must be a whole multiple of it, "
@@ -76,11 +81,13 @@ class PhysicsConfig(_Record):
                                          '"legs.mass": (0.9, 1.1), "inertia": (0.9, 1.1), "com": (0.9, 1.1), '
                                          '"damping": (0.5, 2.0)}`')
     dynamics: Dynamics = _derived()
+    mujoco: bool = _derived()
     substeps: int = _derived()
 
     def __post_init__(self) -> None:
         self._set("platform", _platform(self.platform))
-        self._set("dynamics", make_dynamics(self.model, self.platform))
+        self._set("mujoco", self.model == MUJOCO)
+        self._set("dynamics", make_dynamics("improved" if self.mujoco else self.model, self.platform))
         control_dt = real("control_dt", self.control_dt, 1e-6, 10.0)
         physics_dt = real("physics_dt", self.physics_dt, 0.0, control_dt, low_open=True)
         substeps = round(control_dt / physics_dt)

@@ -22,7 +22,7 @@ from gymnasium.error import ResetNeeded
 from numba import njit
 
 from stewart_env.dynamics import Dynamics
-from stewart_env.envs.config import EnvConfig, defaults
+from stewart_env.envs.config import MUJOCO, EnvConfig, defaults
 from stewart_env.integrate import rollout_inplace
 from stewart_env.kinematics import leg_sensors_inplace
 from stewart_env.params import PlatformParams
@@ -166,6 +166,8 @@ class PlatformBatch:
         self.model: Dynamics = self.nominal_model
         self.control_dt, self.physics_dt, self.substeps = physics.control_dt, physics.physics_dt, physics.substeps
         self.randomization = physics.randomization
+        #: MuJoCo simulating the rows (model="mujoco"), else None: the compiled rollout does.
+        self.plant = self._mujoco_plant(self.n) if physics.mujoco else None
         if self.randomization is not None:
             # One parameter row per platform, each set at its reset from the nominal packed row.
             self.model = self.nominal_model.with_params([self.platform] * self.n)
@@ -174,6 +176,15 @@ class PlatformBatch:
         lo, hi = self.platform.limits.leg_force
         self._force_mid = 0.5 * (lo + hi)
         self._force_half = 0.5 * (hi - lo)
+
+    def _mujoco_plant(self, n: int):
+        """A MuJoCo plant of n rows of the nominal platform, stepped at physics_dt."""
+        from stewart_env.mujoco import MujocoPlant  # imports without MuJoCo; the plant names the extra
+
+        try:
+            return MujocoPlant([self.platform] * n, timestep=self.physics_dt)
+        except ImportError as error:
+            raise ImportError(f"model={MUJOCO!r}: {error}") from error
 
     def _init_task(self, config: EnvConfig) -> None:
         self.task = task = make_task(config.task.task, self.platform, self.control_dt, config.task.task_options)
@@ -278,11 +289,20 @@ class PlatformBatch:
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         del state["_state"], state["_raw_views"], state["view"], state["_errors"]
+        # MuJoCo's rollout pool cannot be copied: a copy makes its own plant (see __setstate__).
+        state["plant"] = None
+        state["_copied_plant"] = self.plant is not None
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
+        copied_plant = state.pop("_copied_plant", False)
         self.__dict__.update(state)
         self._views()
+        if copied_plant:
+            # A new plant restarts every row from its platform state, legs by inverse kinematics.
+            self.plant = self._mujoco_plant(self.n)
+            if self.randomization is not None:
+                self.plant.set_params(range(self.n), [self.episode_params(i) for i in range(self.n)])
 
     @property
     def observation(self) -> np.ndarray:
@@ -350,6 +370,8 @@ class PlatformBatch:
             infos.append(info)
         if rnd is not None:
             self.model = self.model.with_packed_rows(rows, packed, sources)
+            if self.plant is not None:
+                self.plant.set_params(rows, [self.model.params_of(i) for i in rows])
         self.steps[rows] = 0
         self.time[rows] = 0.0
         if self.error_integral is not None:
@@ -415,8 +437,12 @@ class PlatformBatch:
 
     def _physics(self) -> None:
         """The rollout of every row, the non-finite check and the leg sensors."""
-        rollout_inplace(self.model, self.position, self.rotation, self.velocity, self.angular_velocity,
-                        self.leg_forces, self.external_wrench, self.physics_dt, self.substeps)
+        if self.plant is None:
+            rollout_inplace(self.model, self.position, self.rotation, self.velocity, self.angular_velocity,
+                            self.leg_forces, self.external_wrench, self.physics_dt, self.substeps)
+        else:
+            self.plant.step_inplace(self.position, self.rotation, self.velocity, self.angular_velocity,
+                                    self.leg_forces, self.external_wrench, self.physics_dt, self.substeps)
         # A row whose state is no longer finite keeps its last finite state, so that observation,
         # reward and rendering stay finite.
         self._any_non_finite = _after_physics(*self._state, *self._backup, self.steps, self.control_dt, self.time,

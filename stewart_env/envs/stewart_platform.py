@@ -59,7 +59,11 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     dynamics), `"improved_centroidal"` (the same in its centroidal form) and `"classical"`
     (Dasgupta and Mruthyunjaya 1998 as He et al. describe it), or an ablation such as
     `"improved+c1"`.  They are integrated with RK4 at `physics_dt` while the forces are held over
-    each control step of `control_dt`.
+    each control step of `control_dt`.  `model="mujoco"` (the `mujoco` extra) runs the same tasks,
+    observations and rewards on MuJoCo's simulation of the same mechanism (`stewart_env.mujoco`:
+    the loops closed by soft equality constraints, RK4 at `physics_dt`); the step's `info` then also
+    holds `closure_error`, the largest loop-closure gap in m, and the improved model of the same
+    platform gives the leg sensors and `env.unwrapped.model`.
 
     The default platform, `"dasgupta1998"`, is the published Dasgupta/Tsai test manipulator: a 40 kg
     platform, legs of 1.26 m at home, stroke 1.0-1.6 m, forces within +-2000 N.  Four tasks:
@@ -232,7 +236,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     | argument | default | description |
     |---|---|---|
-    | `model` | `"improved"` | dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, optionally with switches such as `"+c1"` |
+    | `model` | `"improved"` | dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, optionally with switches such as `"+c1"`; or `"mujoco"` (MuJoCo simulating the same mechanism, needs the `mujoco` extra) |
     | `platform` | `"dasgupta1998"` | a shipped config name, a YAML path, or a `PlatformParams` |
     | `control_dt` | `0.01` | s per environment step, 1e-6 to 10 |
     | `physics_dt` | `0.001` | s per RK4 substep; `control_dt` must be a whole multiple of it, at most 10^6 substeps |
@@ -260,9 +264,11 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     dynamics model.  The tasks' options have ranges of their own (see `stewart_env.tasks`).
 
     Infos hold only numpy numbers (as torchrl's info readers need): a step's `info` has
-    `reward_<term>` and `time` as float64 and `termination` as an int64 code.  `step()` before the first `reset()` raises
-    `gymnasium.error.ResetNeeded`.  `copy.deepcopy(env)` and `pickle` give an environment that
-    continues bit for bit as the original, at any point of an episode.
+    `reward_<term>` and `time` (and `closure_error` on MuJoCo) as float64 and `termination` as an
+    int64 code.  `step()` before the first `reset()` raises `gymnasium.error.ResetNeeded`.
+    `copy.deepcopy(env)` and `pickle` give an environment that continues bit for bit as the
+    original, at any point of an episode; on MuJoCo the copy makes its own plant, which restarts
+    from the platform's state with the loops closed, and follows within the loops' give.
 
     Rendering: `render_mode="rgb_array"` returns (height, width, 3) uint8 frames (headless; works with
     `gymnasium.wrappers.RecordVideo`), `"human"` draws in a window.  Legs run from blue (minimum force)
@@ -335,6 +341,8 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
         info = {term_key(k): v[0] for k, v in terms.items()}
         info["termination"] = code[0]
         info["time"] = core.time[0]
+        if core.plant is not None:
+            info["closure_error"] = core.plant.closure_error[0]
         if self.render_mode == "human":
             self.render()
         return core.observation[0].astype(np.float32), float(reward[0]), bool(code[0]), False, info

@@ -269,6 +269,8 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
         values = {term_key(k): v for k, v in terms.items()}
         values["termination"] = code.copy()
         values["time"] = core.time.copy()
+        if core.plant is not None:
+            values["closure_error"] = core.plant.closure_error.copy()
         all_rows = bool(stepped.all())
         infos: dict[str, Any] = {}
         for key, value in values.items():
