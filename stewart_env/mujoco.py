@@ -344,44 +344,64 @@ class MujocoPlant:
     the last :meth:`step_inplace` (NaN for a row that is not finite).
     """
 
+    #: What a copy or pickle carries: the settings and the arrays of the simulation; MuJoCo's
+    #: compiled models, data and thread pool are rebuilt from them (:meth:`__setstate__`).
+    _CARRIED = ("params", "_settings", "_nthread", "spherical_friction", "_states", "_control", "_last",
+                "closure_error")
+
     def __init__(self, params_rows: PlatformParams | Sequence[PlatformParams], timestep: float = 1e-3,
                  solref: Sequence[float] = DEFAULT_SOLREF, solimp: Sequence[float] = DEFAULT_SOLIMP,
                  nthread: int | None = None, spherical_friction: bool = True):
         mj = _require_mujoco()
-        from mujoco import rollout as mj_rollout
-
         rows = [params_rows] if isinstance(params_rows, PlatformParams) else list(params_rows)
         if not rows or not all(isinstance(p, PlatformParams) for p in rows):
             raise ValueError("params_rows: expected a PlatformParams or a non-empty sequence of them")
         n = len(rows)
-        self._settings = (timestep, solref, solimp)
-        self._twins: dict[PlatformParams, _Twin] = {}
-        self._scratch = {}  # one MjData per compiled model: setting a row's state, measuring its loops
-        self.twins = [self._twin(p) for p in rows]
         self.params = tuple(rows)
-        self.models = [tw.model for tw in self.twins]
-        if nthread is None:
-            nthread = (os.cpu_count() or 1) if n > 1 else 0
-        self._pool = mj_rollout.Rollout(nthread=nthread)
-        self._datas = [mj.MjData(self.models[0]) for _ in range(max(1, nthread))]
-        first = self.twins[0]
-        m = first.model
-        self._spec = mj.mjtState.mjSTATE_FULLPHYSICS
-        self._control_spec = mj.mjtState.mjSTATE_CTRL | mj.mjtState.mjSTATE_XFRC_APPLIED
+        self._settings = (timestep, tuple(solref), tuple(solimp))
+        self._nthread = ((os.cpu_count() or 1) if n > 1 else 0) if nthread is None else int(nthread)
+        self.spherical_friction = bool(spherical_friction)
+        self._build()
+        m = self.models[0]
         self._states = np.zeros((n, mj.mj_stateSize(m, self._spec)))
         self._control = np.zeros((n, mj.mj_stateSize(m, self._control_spec)))
-        # offsets in MuJoCo's state vector (time, qpos, qvel, ...) and control vector (ctrl, xfrc_applied)
-        self._q = 1 + first.q_free
-        self._v = 1 + m.nq + first.v_free
-        self._xfrc = m.nu + 6 * first.body
-        self._com = np.array([p.platform.com for p in rows])
-        self.spherical_friction = bool(spherical_friction)
-        self._uppers = m.nu + 6 * np.array([mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, f"upper_{i}") for i in range(6)])
-        self._legs = make_dynamics("improved", list(rows))  # the legs' angular velocities, for C_s
         self.closure_error = np.full(n, np.nan)
         # The state each row returned last: a row given anything else was reset or set by the caller.
         self._last = (np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan), np.full((n, 3), np.nan),
                       np.full((n, 3), np.nan))
+
+    def _build(self) -> None:
+        """MuJoCo's side of the plant from ``params`` and the settings: compiled models (shared by
+        equal rows), scratch data, the rollout pool and the offsets into MuJoCo's vectors."""
+        mj = _require_mujoco()
+        from mujoco import rollout as mj_rollout
+
+        self._twins: dict[PlatformParams, _Twin] = {}
+        self._scratch = {}  # one MjData per compiled model: setting a row's state, measuring its loops
+        self.twins = [self._twin(p) for p in self.params]
+        self.models = [tw.model for tw in self.twins]
+        self._pool = mj_rollout.Rollout(nthread=self._nthread)
+        self._datas = [mj.MjData(self.models[0]) for _ in range(max(1, self._nthread))]
+        first = self.twins[0]
+        m = first.model
+        self._spec = mj.mjtState.mjSTATE_FULLPHYSICS
+        self._control_spec = mj.mjtState.mjSTATE_CTRL | mj.mjtState.mjSTATE_XFRC_APPLIED
+        # offsets in MuJoCo's state vector (time, qpos, qvel, ...) and control vector (ctrl, xfrc_applied)
+        self._q = 1 + first.q_free
+        self._v = 1 + m.nq + first.v_free
+        self._xfrc = m.nu + 6 * first.body
+        self._uppers = m.nu + 6 * np.array([mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, f"upper_{i}") for i in range(6)])
+        self._com = np.array([p.platform.com for p in self.params])
+        self._legs = make_dynamics("improved", list(self.params))  # the legs' angular velocities, for C_s
+
+    def __getstate__(self) -> dict:
+        return {name: getattr(self, name) for name in self._CARRIED}
+
+    def __setstate__(self, state: dict) -> None:
+        """A copy continues bit for bit: MuJoCo starts every call from the carried state vectors
+        with zero warm-start, so rebuilt models and data give the same steps."""
+        self.__dict__.update(state)
+        self._build()
 
     def __len__(self) -> int:
         return len(self.twins)

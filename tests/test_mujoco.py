@@ -198,3 +198,31 @@ def test_plant_holds_the_spherical_friction_the_mjcf_cannot_carry(simulator):
     # measured 1.8e-3 m without C_s (5 N m s/rad on an 8 t platform) and 1.6e-5 m with it held over 10 ms steps
     assert omitted[0] > 1e-3
     assert held[0] < 1e-4 and held[0] < omitted[0] / 50
+
+
+def test_plant_copies_and_pickles_continue_bit_for_bit(dasgupta):
+    import copy
+    import pickle
+
+    heavy = dasgupta.replace(platform=type(dasgupta.platform)(60.0, dasgupta.platform.com, dasgupta.platform.inertia))
+    n = 2
+    t, R, v, w, F = _batch(dasgupta, n)
+    W = np.zeros((n, 6))
+    W[:, 3] = 20.0  # a moment: the platforms move
+    plant = twin.MujocoPlant([dasgupta] * n)
+    plant.set_params([1], [heavy])
+    state = [x.copy() for x in (t, R, v, w)]
+    for _ in range(3):
+        plant.step_inplace(*state, F, W, 1e-3, 10)
+    copies = [(copy.deepcopy(plant), [x.copy() for x in state]),
+              (pickle.loads(pickle.dumps(plant)), [x.copy() for x in state])]
+    for _ in range(5):
+        plant.step_inplace(*state, F, W, 1e-3, 10)
+        for other, other_state in copies:
+            other.step_inplace(*other_state, F, W, 1e-3, 10)
+    for other, other_state in copies:
+        assert other.params == (dasgupta, heavy)
+        for a, b in zip(state, other_state):
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(plant.closure_error, other.closure_error)
+    assert np.abs(state[0] - t).max() > 1e-4  # they did move
