@@ -18,6 +18,7 @@ CONFIGS = [
     {"task": "tracking", "observation_noise": 0.02, "observation_delay": 1,
      "randomization": {"mass": (0.8, 1.2), "inertia": (0.9, 1.1), "damping": (0.5, 2.0)}},
     {"task": "disturbance", "actuator_tau": 0.02, "model": "classical"},
+    {"task": "hold", "error_integral": True, "randomization": {"platform.mass": (0.8, 1.2)}},
 ]
 
 
