@@ -427,3 +427,16 @@ def test_kernels_still_propagate_nan_and_inf(dasgupta):
                         np.zeros((1, 6)), out[b:b + 1])
     # the kernels' floating-point licence assumes nothing about finiteness (kernels.FASTMATH)
     assert not np.isfinite(out).all(axis=1).any()
+
+
+def test_arguments_of_any_layout_and_number_type_give_the_same_result(dasgupta, rng):
+    model = se.make_dynamics("improved", dasgupta)
+    t, R, v, w = random_state(dasgupta, rng)
+    F = (rng.normal(size=6) * 300).astype(np.float32)
+    want = np.concatenate(model.forward(t, R, v, w, F.astype(np.float64)))
+    wide = np.zeros((3, 6))
+    wide[:, 2] = t  # a strided column
+    got = model.forward(wide[:, 2], np.asfortranarray(R), list(v), tuple(w), F)
+    assert np.array_equal(np.concatenate(got), want)
+    assert np.array_equal(np.concatenate(model.forward(t, R, v, w, np.round(F).astype(int))),
+                          np.concatenate(model.forward(t, R, v, w, np.round(F))))
