@@ -67,8 +67,9 @@ PAPER_KD = np.array([1e4, 1e4, 2e4, 1e3, 1e3, 2e3])
 #: platform row (:func:`stewart_env.dynamics.model.pack_params`), whose geometry gives J.
 PD_LAYOUT = (("kp", 6), ("kd", 6), ("position", 3), ("rotation", 9), ("velocity", 3), ("angular_velocity", 3),
              ("gravity_compensation", 1), ("gravity_flags", 1), ("platform", N_PARAMS))
-#: Offset of each entry of :data:`PD_LAYOUT` in the row, and the row's length.
+#: Offset of each entry of :data:`PD_LAYOUT` in the row.
 PD_OFFSETS = {name: int(sum(size for _, size in PD_LAYOUT[:k])) for k, (name, _) in enumerate(PD_LAYOUT)}
+#: Length of the row.
 PD_N_PARAMS = sum(size for _, size in PD_LAYOUT)
 #: The pose and twist fields of a state or reference, with the shape of one platform's.
 _STATE_FIELDS = (("position", (3,)), ("rotation", (3, 3)), ("velocity", (3,)), ("angular_velocity", (3,)))

@@ -50,7 +50,9 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
     ``time`` s (:mod:`stewart_env.dynamics.rk4` gives the contract;
     :func:`stewart_env.agents.pd.pd_control_law` is an example).  It replaces ``leg_forces``, and
     ``control_params`` (P,), one parameter row for every platform, or (N, P), one per batch row,
-    is passed to it as ``params``.  ``start_time`` s is the time of the first stage.
+    is passed to it as ``params``.  ``start_time`` s is the time of the first stage.  Handing the
+    law to the compiled integrator costs about 0.1 ms per call, so a closed loop is best integrated
+    in few calls of many steps.
 
     Returns the final (position, rotation, velocity, angular_velocity); with ``record_every``
     (a positive divisor of ``steps``) a :class:`Trajectory` of every ``record_every``-th state
