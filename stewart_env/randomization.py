@@ -99,7 +99,10 @@ class Randomization:
     """A validated randomisation spec (see the module docstring).
 
     ``sample(rng)`` draws the factors of one episode; ``apply(params, factors)`` builds that
-    episode's :class:`~stewart_env.params.PlatformParams` with ``params.replace``.
+    episode's :class:`~stewart_env.params.PlatformParams` with ``params.replace``, and
+    ``scale_packed(nominal_row, factors, out_row)`` writes the same parameters packed for the
+    kernels (``kernels.PACKED_LAYOUT``) without building them: a randomised reset in ~12 us
+    instead of the 2-4 ms of validating a new PlatformParams.
     """
 
     def __init__(self, spec: Mapping[str, tuple[float, float]]):
@@ -167,9 +170,9 @@ class Randomization:
         platform by factors in range changes only what the checks of PlatformParams on masses
         and inertias see, so only those run again, on the scaled numbers: the platform's mass
         and smallest principal moment (the nominal's times the inertia factor), and every
-        number's magnitude.  Raises ConfigError
-        naming the parameter, as :meth:`apply` would.  The caller promises ``nominal_row`` is
-        the packed row of a valid PlatformParams (e.g. a model's ``packed[0]``).
+        number's magnitude.  Raises ConfigError naming the parameter, as :meth:`apply` would.
+        The caller promises ``nominal_row`` is the packed row of a valid PlatformParams (e.g. a
+        model's ``packed[0]``).
         """
         self.check_factors(factors)
         multipliers = _multipliers(factors)
@@ -212,10 +215,16 @@ def _parts() -> tuple[tuple[str, slice, tuple[str, ...]], ...]:
 
 _PARTS = _parts()
 _PART_NAMES = [name for name, _, _ in _PARTS]
-# For each number of the packed row, 1 + the index of its part in _PARTS, or 0 if not randomised.
-_PART_OF = np.zeros(K.N_PARAMS, dtype=np.intp)
-for _k, (_, _part, _) in enumerate(_PARTS):
-    _PART_OF[_part] = _k + 1
+def _part_of() -> np.ndarray:
+    """For each number of the packed row, 1 + the index of its part in ``_PARTS``, or 0 where
+    nothing is randomised (the multiplier 1)."""
+    index = np.zeros(K.N_PARAMS, dtype=np.intp)
+    for k, (_, part, _) in enumerate(_PARTS):
+        index[part] = k + 1
+    return index
+
+
+_PART_OF = _part_of()
 
 
 def _multipliers(factors: Mapping[str, float]) -> list[float]:
