@@ -289,20 +289,11 @@ class PlatformBatch:
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         del state["_state"], state["_raw_views"], state["view"], state["_errors"]
-        # MuJoCo's rollout pool cannot be copied: a copy makes its own plant (see __setstate__).
-        state["plant"] = None
-        state["_copied_plant"] = self.plant is not None
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        copied_plant = state.pop("_copied_plant", False)
         self.__dict__.update(state)
         self._views()
-        if copied_plant:
-            # A new plant restarts every row from its platform state, legs by inverse kinematics.
-            self.plant = self._mujoco_plant(self.n)
-            if self.randomization is not None:
-                self.plant.set_params(range(self.n), [self.episode_params(i) for i in range(self.n)])
 
     @property
     def observation(self) -> np.ndarray:

@@ -267,8 +267,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     `reward_<term>` and `time` (and `closure_error` on MuJoCo) as float64 and `termination` as an
     int64 code.  `step()` before the first `reset()` raises `gymnasium.error.ResetNeeded`.
     `copy.deepcopy(env)` and `pickle` give an environment that continues bit for bit as the
-    original, at any point of an episode; on MuJoCo the copy makes its own plant, which restarts
-    from the platform's state with the loops closed, and follows within the loops' give.
+    original, at any point of an episode (on MuJoCo too).
 
     Rendering: `render_mode="rgb_array"` returns (height, width, 3) uint8 frames (headless; works with
     `gymnasium.wrappers.RecordVideo`), `"human"` draws in a window.  Legs run from blue (minimum force)
