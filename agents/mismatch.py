@@ -367,16 +367,9 @@ def make_policy(kind: str, model: str, agent=None):
 
         return lambda env: ComputedTorquePolicy(env, model)
     if kind == "pd":
-        from stewart_env.agents.pd import PDPolicy, TaskSpacePD
+        from stewart_env.agents.pd import PDPolicy
 
-        def pd(env):
-            policy = PDPolicy(env, gravity_compensation=True)
-            # PDPolicy's gains, with the holding forces of this row's model
-            policy.controller = TaskSpacePD(env.unwrapped.platform, policy.controller.kp, policy.controller.kd,
-                                            gravity_compensation=True, gravity_model=model)
-            return policy
-
-        return pd
+        return lambda env: PDPolicy(env, gravity_compensation=True, gravity_model=model)
     raise ValueError(f"kind: expected 'pd', 'ct' or 'agent', got {kind!r}")
 
 

@@ -222,3 +222,21 @@ def test_a_half_turn_is_carried_exactly(dasgupta):
         # and the rotation stays a rotation under motion (forces zero: the platform falls a little)
         end = se.rollout(model, dasgupta.home_position, R, zero, [0.0, 0.0, 0.5], np.zeros(6), steps=5)
         np.testing.assert_allclose(end[1].T @ end[1], np.eye(3), rtol=0, atol=1e-15)  # orthonormal to rounding
+
+
+def test_a_law_on_a_model_with_a_parameter_set_per_row(dasgupta):
+    """Domain randomisation: one state and one law row for every platform, a parameter set per row."""
+    d = dasgupta.to_dict()
+    d["platform"]["mass"] = 60.0
+    heavy = se.PlatformParams.from_dict(d)
+    model = se.make_dynamics("improved", [dasgupta, heavy])
+    R = se.rpy_to_matrix(dasgupta.home_rpy)
+    zero = np.zeros(3)
+    params = np.concatenate([np.full(6, -300.0), [50.0, 20.0]])
+    end = se.rollout(model, dasgupta.home_position, R, zero, zero, steps=20, control_law=_swaying, control_params=params)
+    for row, platform in enumerate((dasgupta, heavy)):
+        alone = se.rollout(se.make_dynamics("improved", platform), dasgupta.home_position, R, zero, zero, steps=20,
+                           control_law=_swaying, control_params=params)
+        for a, x in zip(alone, end):
+            np.testing.assert_array_equal(a, x[row])  # row by row the same arithmetic
+    assert not np.allclose(end[0][0], end[0][1])  # and the heavier platform moves differently
