@@ -214,8 +214,8 @@ class Dynamics:
         self.packed.setflags(write=False)
 
     def __repr__(self) -> str:
-        return f"Dynamics({self.name!r}, platforms={len(self.params)} [{self.params[0].name}, ...])" \
-            if len(self.params) > 1 else f"Dynamics({self.name!r}, platforms=1 [{self.params[0].name}])"
+        more = ", ..." if len(self.params) > 1 else ""
+        return f"Dynamics({self.name!r}, platforms={len(self.params)} [{self.params[0].name}{more}])"
 
     def params_of(self, row: int) -> PlatformParams:
         """The PlatformParams of parameter row ``row`` (built now if the row was set from packed numbers)."""
