@@ -265,3 +265,21 @@ def test_computed_torque_with_the_plant_model_beats_pd_on_tracking():
         assert rms["matched"] < rms["pd"] / 5
         # the wrong model leaves a model-error disturbance: about twice the matched error
         assert rms["matched"] < 0.8 * rms["mismatched"]
+
+
+def test_the_compiled_laws_angles_and_rates_are_the_packages(rng):
+    """pd_control_law computes roll-pitch-yaw and their rates in compiled code: the same convention
+    as stewart_env.matrix_to_rpy and rotations.rpy_rate_matrix."""
+    from scipy.spatial.transform import Rotation
+
+    from stewart_env.agents.pd import _rpy_and_rates
+    from stewart_env.rotations import rpy_rate_matrix
+
+    out = np.empty(6)
+    for R in Rotation.random(20, random_state=5).as_matrix():
+        w = rng.normal(size=3)
+        _rpy_and_rates(R, w, out)
+        rpy = se.matrix_to_rpy(R)
+        np.testing.assert_allclose(out[:3], rpy, rtol=0, atol=1e-15)  # the same atan2/asin calls
+        # closed-form inverse of E against a LU solve: rounding, scaled by 1/cos(pitch) (random poses)
+        np.testing.assert_allclose(out[3:], np.linalg.solve(rpy_rate_matrix(rpy), w), rtol=1e-10, atol=1e-12)
