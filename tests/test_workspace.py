@@ -1,5 +1,5 @@
 """The workspace: a model's preallocated data.  Its calls give the checked API's results bit for
-bit, allocate nothing per call, and its construction refuses what it cannot run, naming the argument."""
+bit, allocate no Python objects per call, and its construction refuses what it cannot run, naming the argument."""
 
 import tracemalloc
 
@@ -64,7 +64,7 @@ def test_workspace_starts_at_home_at_rest(dasgupta):
     ws.check()
 
 
-def test_workspace_calls_allocate_nothing(dasgupta):
+def test_workspace_calls_allocate_no_python_objects(dasgupta):
     ws = se.make_dynamics("improved", dasgupta).workspace(1)
     calls = (ws.forward, ws.inverse, ws.mass_and_bias, lambda: ws.step(1e-3))
     for call in calls:

@@ -5,8 +5,9 @@ immutable.  A :class:`Workspace` is its data for a fixed batch size ``n``, as in
 model/data split: every array a call reads or writes is allocated once, C-contiguous float64,
 and :meth:`Workspace.forward`, :meth:`~Workspace.inverse`, :meth:`~Workspace.mass_and_bias` and
 :meth:`~Workspace.step` hand those arrays straight to the compiled kernels.  A controller loop
-writes the state into the arrays in place and calls; nothing is allocated, broadcast or
-re-checked per call.
+writes the state into the arrays in place and calls; nothing is broadcast or re-checked per
+call, and no Python object is allocated (the compiled kernels keep a row's 6x6 scratch on
+numba's own heap).
 
 What the workspace checks once, when it is made: that the model is a Dynamics and ``n`` a
 positive integer matching its parameter rows (1 or ``n``); the arrays' shapes, dtype and
@@ -56,7 +57,7 @@ class Workspace:
     ``acceleration`` (n,6) [a; alpha]; ``mass_matrix`` (n,6,6) and ``bias`` (n,6).  They start
     at the home pose of the model's first parameter row, at rest, with zero forces and wrench.
 
-    Calls (no checks, no allocation; each returns the arrays it wrote, overwritten by the next):
+    Calls (no checks, no Python allocation; each returns the arrays it wrote, overwritten by the next):
 
     * :meth:`forward`: state, leg_forces, external_wrench -> acceleration (docs/physics.md section 5.4);
     * :meth:`inverse`: state, acceleration, external_wrench -> leg_forces (section 5.5);
