@@ -143,7 +143,7 @@ class Row:
 @dataclass
 class Difference:
     """The cost of one simplification to one controller family on one metric: ``interval`` of
-    (row built on the simplified model) - (row built on the exact model), both on the true plant;
+    (row built on the simplified model) - (row built on the exact model), both on ``plant``;
     ``failed`` if either row succeeds in fewer than :data:`FAILURE_THRESHOLD` of the episodes."""
 
     family: str
@@ -153,6 +153,7 @@ class Difference:
     metric: str
     interval: Interval
     failed: bool
+    plant: str = TRUE_MODEL
 
     @property
     def resolved(self) -> bool:
@@ -490,7 +491,8 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
                  n_envs: int | None = None, max_steps: int | None = None, platform: str = "dasgupta1998",
                  backend: str = "local", ray_address: str | None = None, agent_models: Sequence[str] | None = None,
                  config: str | os.PathLike | None = None, position_tolerance: float = POSITION_TOLERANCE,
-                 orientation_tolerance: float = ORIENTATION_TOLERANCE, progress: bool = True) -> MismatchResult:
+                 orientation_tolerance: float = ORIENTATION_TOLERANCE, cost_plant: str = TRUE_MODEL,
+                 progress: bool = True) -> MismatchResult:
     """Run the mismatch study and write it to ``out`` (see the module docstring).
 
     train_models: models to build controllers on (PD's statics, CT's internal model, RL plants).
@@ -507,6 +509,8 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     position_tolerance (m), orientation_tolerance (rad): the success band of the evaluation
         (:func:`~.evaluation.evaluate`), which decides the failed cells; widen it on tasks whose
         errors never settle inside the set-point band (disturbance rejection).
+    cost_plant: the test plant the simplifications' costs are measured on (default the exact
+        improved model; "mujoco" asks what each model costs on MuJoCo's simulation).
     config: the agents' zoo hyperparameter file (default configs/agents/<algo>.yml).
     agent_models: the models RL agents are trained on (default: every model controllers are built
         on, the improved+cK ones included); any model the environment simulates.
@@ -527,6 +531,8 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     train_models = _check_models(train_models, "train models", platform)
     test_models = _check_models(test_models, "test models", platform)
     seeds = _check_seeds(seeds)
+    if cost_plant not in test_models:
+        raise TrainingError(f"cost plant: {cost_plant!r} is not one of the test models ({', '.join(test_models)})")
     if agent_models is not None:
         agent_models = _check_models(agent_models, "agent models", platform)
     for name, value in (("episodes", episodes), ("timesteps", timesteps), ("n_envs", n_envs), ("max_steps", max_steps)):
@@ -571,7 +577,7 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
             steps = sorted({read_manifest(d)["num_timesteps"] for d in r.agents.values()})
             r.info = f"{', '.join(map(str, steps))} steps, seeds {', '.join(map(str, r.seeds))}"
     result = MismatchResult(rows, list(test_models), summary, int(episodes))
-    result.differences = simplification_costs(result, out)
+    result.differences = simplification_costs(result, out, plant=cost_plant)
     header = {"task": task, "platform": platform, "episodes": episodes, "eval_seed": EVAL_SEED_OFFSET, "algo": algo,
               "seeds": list(seeds), "backend": backend, "wall_time": time.perf_counter() - start,
               "position_tolerance": position_tolerance, "orientation_tolerance": orientation_tolerance}
@@ -697,7 +703,7 @@ def simplification_costs(result: MismatchResult, out: Path | None = None,
             for metric in RANKING_METRICS:
                 interval = paired_difference(values(row, plant, metric), values(exact, plant, metric),
                                              statistic(metric))
-                differences.append(Difference(family, name, row.label, exact.label, metric, interval, failed))
+                differences.append(Difference(family, name, row.label, exact.label, metric, interval, failed, plant))
     return differences
 
 
@@ -730,9 +736,10 @@ def _cost_lines(result: MismatchResult, metrics) -> list[str]:
     if not result.differences:
         return []
     meta = {m[0]: m for m in metrics}
-    lines = [f"## The cost of each simplification on the {TRUE_MODEL} plant", "",
+    plant = result.differences[0].plant
+    lines = [f"## The cost of each simplification on the {plant} plant", "",
              f"Each entry: (controller built on the simplified model) - (the same controller built on the "
-             f"{TRUE_MODEL} model), both on the {TRUE_MODEL} plant, paired by episode, with its 95 % interval "
+             f"{TRUE_MODEL} model), both on the {plant} plant, paired by episode, with its 95 % interval "
              "(stratified bootstrap over seeds and episodes). **Bold**: resolved (the interval excludes zero). "
              f"*failed*: one of the two rows succeeds in fewer than {FAILURE_THRESHOLD:.0%} of the episodes, so "
              "the difference measures the failure and is not ranked.", ""]
@@ -787,7 +794,7 @@ def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[st
         writer.writerow(["family", "simplification", "controller", "reference", "plant", "metric", "statistic",
                          "difference", "ci_low", "ci_high", "resolved", "failed"])
         for d in result.differences:
-            writer.writerow([d.family, d.simplification, d.label, d.reference, TRUE_MODEL, d.metric,
+            writer.writerow([d.family, d.simplification, d.label, d.reference, d.plant, d.metric,
                              statistic(d.metric), f"{d.interval.estimate:.9g}", f"{d.interval.low:.9g}",
                              f"{d.interval.high:.9g}", int(d.resolved), int(d.failed)])
 
@@ -874,7 +881,8 @@ def forest_figure(result: MismatchResult, metrics):
     for ax in axes[::columns]:
         ax.set_yticks([y[e] for e in entries], [f"{f}: {s}" for f, s in entries])
         ax.set_ylim(-0.7, len(entries) - 0.3)
-    fig.suptitle(f"The cost of each simplification on the {TRUE_MODEL} plant, 95 % intervals\n(red filled: resolved; "
+    fig.suptitle(f"The cost of each simplification on the {result.differences[0].plant} plant, 95 % intervals\n"
+                 "(red filled: resolved; "
                  f"blue hollow: includes zero; grey x: a row failed, success < {FAILURE_THRESHOLD:.0%})", fontsize=11)
     return fig
 
@@ -997,6 +1005,8 @@ def add_cli(subparsers) -> argparse.ArgumentParser:
                         f"{FAILURE_THRESHOLD:.0%} of its episodes is marked failed")
     p.add_argument("--orientation-tolerance", type=positive_float, default=ORIENTATION_TOLERANCE,
                    help=f"success band, rad (default: {ORIENTATION_TOLERANCE})")
+    p.add_argument("--cost-plant", default=TRUE_MODEL,
+                   help=f"the test plant the simplifications' costs are measured on (default: {TRUE_MODEL})")
     p.add_argument("--seeds", type=seed_list, default=[0],
                    help="training seeds, comma-separated: one agent per seed and learned row (default: 0)")
     p.add_argument("--agent-models", default=None,
@@ -1030,7 +1040,7 @@ def _cli_mismatch(args: argparse.Namespace) -> int:
                               backend=args.backend, ray_address=args.ray_address,
                               agent_models=None if args.agent_models is None else _names(args.agent_models),
                               config=args.config, position_tolerance=args.position_tolerance,
-                              orientation_tolerance=args.orientation_tolerance,
+                              orientation_tolerance=args.orientation_tolerance, cost_plant=args.cost_plant,
                               progress=not args.no_progress)
     except (TrainingError, ValueError) as exc:
         print(f"stewart-env mismatch: error: {exc}", file=sys.stderr)

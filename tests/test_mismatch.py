@@ -198,6 +198,7 @@ def test_an_interrupted_study_keeps_its_finished_cells(tmp_path, monkeypatch):
     ({"ray_address": "auto"}, "--ray-address: only with --backend ray"),
     ({"config": "configs/agents/ppo.yml"}, "config: only with an RL algorithm"),
     ({"position_tolerance": 0.0}, "position_tolerance: expected a finite positive number"),
+    ({"cost_plant": "classical"}, "cost plant: 'classical' is not one of the test models"),
     ({"orientation_tolerance": float("nan")}, "orientation_tolerance: expected a finite positive number"),
 ])
 def test_bad_requests_are_named_before_any_work(tmp_path, kwargs, message):
@@ -386,3 +387,25 @@ def test_config_file_is_part_of_the_study(tmp_path):
     assert manifest["env_kwargs"]["error_integral"] is True
     settings = json.loads((tmp_path / "integral" / mismatch.STUDY_FILE).read_text())
     assert settings["config"]["hyperparameters"]["env_kwargs"]["error_integral_band"] == 0.01
+
+
+@pytest.mark.slow  # trains an agent in MuJoCo and steps MuJoCo plants: about 20-45 s
+def test_mujoco_as_a_test_plant_and_a_training_model(tmp_path):
+    """Cross-engine: CT on each closed-form model and an agent trained in MuJoCo, run on MuJoCo's
+    plant and on the exact one; the costs measured on the MuJoCo plant."""
+    pytest.importorskip("mujoco")
+    result = run_mismatch(tmp_path, ["classical", "improved"], ["improved", "mujoco"], algo="ppo", timesteps=100,
+                          n_envs=2, episodes=2, simplifications=[], max_steps=10, agent_models=["mujoco"],
+                          cost_plant="mujoco", progress=False)
+    labels = [r.label for r in result.rows]
+    # no PD or CT row is built on MuJoCo (it has no closed-form inverse dynamics); an agent is trained in it
+    assert labels == ["PD + gravity comp. [classical]", "PD + gravity comp. [improved]", "CT [classical]",
+                      "CT [improved]", "PPO [mujoco]"]
+    ct = result.summary["CT [improved]"]
+    # MuJoCo is another simulation of the same mechanism: close to the exact plant, not equal to it
+    a, b = ct["improved"]["rms_position_error"].estimate, ct["mujoco"]["rms_position_error"].estimate
+    assert a != b and b == pytest.approx(a, rel=0.05)  # soft loop closure: errors differ by far less than 5 %
+    assert {d.plant for d in result.differences} == {"mujoco"}
+    assert "## The cost of each simplification on the mujoco plant" in (tmp_path / "matrix.md").read_text()
+    manifest = json.loads((tmp_path / "agents" / "mujoco" / "seed_0" / "run.json").read_text())
+    assert manifest["model"] == "mujoco"
