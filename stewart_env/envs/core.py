@@ -2,12 +2,13 @@
 
 :class:`PlatformBatch` holds the state of N platforms in preallocated arrays and does everything
 of a control step for all of them at once: action to leg forces, actuator lag, the task's
-external wrench, one call of :func:`~stewart_env.integrate.rollout_inplace`, leg sensors, and the
-observation (noise and delay included); the task, given a read-only
-:class:`~stewart_env.tasks.StepView` of the batch, decides termination and reward.  The single
-environment is a batch of one, the vector environment a batch of N; both give a platform the same
-arithmetic, so a vector row reproduces a single environment bit for bit.  Per-row Python loops
-run only at episode start and for observation noise (each row draws from its own Generator).
+external wrench, one call of :func:`~stewart_env.integrate.rollout_inplace` (or of the MuJoCo
+plant with ``model="mujoco"``), leg sensors and the observation (noise and delay included); the
+task, given a read-only :class:`~stewart_env.tasks.StepView` of the batch, decides termination
+and reward.  The single environment is a batch of one, the vector environment a batch of N; both
+give a platform the same arithmetic, so a vector row reproduces a single environment bit for bit.
+Per-row Python loops run only at episode start and for observation noise (each row draws from its
+own Generator).
 """
 
 from __future__ import annotations

@@ -378,8 +378,8 @@ class Task:
     Whether the reference moves and whether there is an external wrench follow from which methods
     it overrides.  Options are keyword-only arguments of the subclass constructor (the
     environment's ``task_options``), the reward weights of :class:`RewardWeights` among them
-    (a subclass passes ``**weights`` on to this constructor); the platform's nominal parameters
-    come first.
+    (a subclass passes ``**weights`` on to this constructor, which reads :meth:`episode_fields`,
+    so a subclass sets what those depend on first); the platform's nominal parameters come first.
     """
 
     name = "task"
