@@ -839,7 +839,7 @@ def forest_figure(result: MismatchResult, metrics):
     hollow where the interval includes zero, grey crosses where a row failed.  The x axis is
     symmetric-log: costs to computed torque (micrometres) and to learned agents (millimetres)
     share it."""
-    from matplotlib.ticker import SymmetricalLogLocator
+    from matplotlib.ticker import FixedLocator, NullLocator
 
     from stewart_env.agents.evaluation import new_figure
 
@@ -871,7 +871,10 @@ def forest_figure(result: MismatchResult, metrics):
             # as wide as one labelled step, so that its three labels do not overlap either
             step = max(1, math.ceil((high - low + 1) / 4))
             ax.set_xscale("symlog", linthresh=10.0 ** low, linscale=step)
-            ax.xaxis.set_major_locator(SymmetricalLogLocator(linthresh=10.0 ** low, base=10.0 ** step))
+            # zero and every step-th decade down from the largest, none at the linear part's edges
+            decades = [10.0 ** k for k in range(high + 1, low, -step)]
+            ax.xaxis.set_major_locator(FixedLocator(sorted([0.0] + decades + [-d for d in decades])))
+            ax.xaxis.set_minor_locator(NullLocator())
         ax.set_title(meta[key][1], fontsize=10)
         ax.set_xlabel("difference to the exact-model row")
         ax.grid(alpha=0.3, axis="x")
