@@ -88,19 +88,24 @@ def bench_model(name: str, params, sizes=(1, 1024), repeats: int = 5) -> dict:
     return out
 
 
-def _per_call(fn, calls: int, repeats: int) -> float:
-    """Seconds per call of ``fn``: the best of ``repeats`` loops of ``calls`` calls, after one
-    untimed call (which loads or compiles what the first call needs)."""
-    fn()
+def _per_call(fns: dict, calls: int, repeats: int) -> dict:
+    """Seconds per call of each function in ``fns`` (name -> function): the best of ``repeats``
+    loops of ``calls`` calls, after one untimed call each (which loads or compiles what the first
+    call needs).  The loops take turns, so that load from other work on the machine falls on all
+    of them alike and their ratios hold."""
+    for fn in fns.values():
+        fn()
+    best = dict.fromkeys(fns, np.inf)
+    for _ in range(repeats):
+        for name, fn in fns.items():
+            t0 = time.perf_counter()
+            for _ in range(calls):
+                fn()
+            best[name] = min(best[name], (time.perf_counter() - t0) / calls)
+    return best
 
-    def loop():
-        for _ in range(calls):
-            fn()
 
-    return _best_of(loop, repeats) / calls
-
-
-def bench_mujoco(params, n_batch: int = 1024, repeats: int = 5, calls: int = 2000, env_seconds: float = 3.0,
+def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 1000, env_seconds: float = 3.0,
                  substeps: int = 10, dt: float = 1e-3) -> dict:
     """MuJoCo and stewart-env side by side on the same mechanism (stewart_env.mujoco's twin of
     ``params``), the platform at home at rest under its holding forces.  Seconds per call:
@@ -143,27 +148,27 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 5, calls: int = 200
     ws = model.workspace(1)
     ws.set_state(t, R, z, z)
     ws.leg_forces[0] = F
-    out["forward_mujoco"] = _per_call(lambda: mujoco.mj_forward(m, d), calls, repeats)
-    out["forward_api"] = _per_call(lambda: model.forward(t, R, z, z, F), calls, repeats)
-    out["forward_workspace"] = _per_call(ws.forward, calls, repeats)
-    out["inverse_mujoco"] = _per_call(lambda: mujoco.mj_inverse(m, d), calls, repeats)  # of mj_forward's qacc
-    out["inverse_api"] = _per_call(lambda: model.inverse(t, R, z, z, z, z), calls, repeats)
-    ws.acceleration[0] = 0.0
-    out["inverse_workspace"] = _per_call(ws.inverse, calls, repeats)  # writes the holding forces back
-    out["mass_and_bias_workspace"] = _per_call(ws.mass_and_bias, calls, repeats)
+    out.update(_per_call({"forward_mujoco": lambda: mujoco.mj_forward(m, d),
+                          "forward_api": lambda: model.forward(t, R, z, z, F),
+                          "forward_workspace": ws.forward}, calls, repeats))
+    ws.acceleration[0] = 0.0  # Workspace.inverse then writes the holding forces back into leg_forces
+    out.update(_per_call({"inverse_mujoco": lambda: mujoco.mj_inverse(m, d),  # of mj_forward's qacc
+                          "inverse_api": lambda: model.inverse(t, R, z, z, z, z),
+                          "inverse_workspace": ws.inverse,
+                          "mass_and_bias_workspace": ws.mass_and_bias}, calls, repeats))
     bar.update()
 
     step_calls = max(1, calls // substeps)
-    out["step_mujoco"] = _per_call(lambda: mujoco.mj_step(m, d, nstep=substeps), step_calls, repeats)
     plant = MujocoPlant(params, dt)
-    state = [t[None].copy(), R[None].copy(), np.zeros((1, 3)), np.zeros((1, 3))]
+    plant_state = [t[None].copy(), R[None].copy(), np.zeros((1, 3)), np.zeros((1, 3))]
+    state = [x.copy() for x in plant_state]
     forces, wrench = F[None].copy(), np.zeros((1, 6))
-    out["step_plant"] = _per_call(lambda: plant.step_inplace(*state, forces, wrench, dt, substeps),
-                                  step_calls, repeats)
-    state = [t[None].copy(), R[None].copy(), np.zeros((1, 3)), np.zeros((1, 3))]
-    out["step_rollout"] = _per_call(lambda: rollout_inplace(model, *state, forces, wrench, dt, substeps),
-                                    step_calls, repeats)
-    out["step_workspace"] = _per_call(lambda: ws.step(dt, substeps), step_calls, repeats)
+    out.update(_per_call({
+        "step_mujoco": lambda: mujoco.mj_step(m, d, nstep=substeps),
+        "step_plant": lambda: plant.step_inplace(*plant_state, forces, wrench, dt, substeps),
+        "step_rollout": lambda: rollout_inplace(model, *state, forces, wrench, dt, substeps),
+        "step_workspace": lambda: ws.step(dt, substeps),
+    }, step_calls, repeats))
     bar.update()
 
     # the batch: MuJoCo's threaded rollout of n_batch platforms from the same state, open loop
@@ -175,16 +180,14 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 5, calls: int = 200
     control = np.tile(F, (n_batch, substeps, 1))
     states = np.empty((n_batch, substeps, initial.shape[1]))
     datas = [mujoco.MjData(m) for _ in range(nthread)]
-    with mujoco_rollout.Rollout(nthread=nthread) as pool:
-        out["batch_mujoco"] = _per_call(lambda: pool.rollout(m, datas, initial, control, state=states),
-                                        1, repeats) / n_batch
-    bar.update()
-    rng = np.random.default_rng(0)
-    bt, bR, bv, bw, bF = _batch_state(model, n_batch, rng)
+    bt, bR, bv, bw, bF = _batch_state(model, n_batch, np.random.default_rng(0))
     bW = np.zeros((n_batch, 6))
-    out["batch_rollout"] = _per_call(lambda: rollout_inplace(model, bt, bR, bv, bw, bF, bW, dt, substeps),
-                                     1, repeats) / n_batch
-    bar.update()
+    with mujoco_rollout.Rollout(nthread=nthread) as pool:
+        batch = _per_call({"batch_mujoco": lambda: pool.rollout(m, datas, initial, control, state=states),
+                           "batch_rollout": lambda: rollout_inplace(model, bt, bR, bv, bw, bF, bW, dt, substeps)},
+                          1, repeats)
+    out.update({name: seconds / n_batch for name, seconds in batch.items()})
+    bar.update(2)
 
     env = bench_env(n_vector=n_batch, seconds=env_seconds, platform=params, control_dt=dt * substeps,
                     physics_dt=dt)
