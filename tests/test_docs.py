@@ -162,3 +162,10 @@ def test_the_parameter_table_and_the_packed_layout_name_the_same_keys():
     assert [k for k in packed if k not in table and not any(t.startswith(k + ".") for t in table)] == []
     assert [t for t in table if t not in packed and t.partition(".")[0] not in packed
             and t not in ("limits", "home")] == []
+
+
+def test_every_kernel_names_its_paper_equations_or_says_it_has_none():
+    tree = ast.parse(KERNELS.read_text())
+    silent = [n.name for n in tree.body if isinstance(n, ast.FunctionDef)
+              and not re.search(r"\beqs?\.\s+\d|no\s+paper\s+equation", ast.get_docstring(n) or "")]
+    assert silent == []

@@ -117,7 +117,7 @@ PACKED_LAYOUT = (
 
 def _offsets(layout):
     """{key: slice} of each entry of a packed layout, and the row's length (plain Python, run
-    once at import).  docs/physics.md section 2."""
+    once at import).  docs/physics.md section 2 (no paper equation)."""
     slices, start = {}, 0
     for key, shape in layout:
         size = int(np.prod(shape, dtype=np.int64))
@@ -164,7 +164,7 @@ PARALLEL_MIN_ROWS = 16
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
 def _cross(a0, a1, a2, b0, b1, b2):
-    """Components of a x b (docs/physics.md section 3.2)."""
+    """Components of a x b (docs/physics.md section 3.2; no paper equation)."""
     return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
 
 
@@ -747,7 +747,7 @@ def _leg_kinematics_one(prm, flags, t, R, v, w, acc, frames, lengths, rates, acc
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH, inline="always")
 def _params_row(prm, b):
     """The packed parameters of batch row b: ``prm``'s row b, or its only row, which then serves
-    every row of the batch.  docs/physics.md section 2."""
+    every row of the batch.  docs/physics.md section 2 (no paper equation)."""
     return prm[0] if prm.shape[0] == 1 else prm[b]
 
 
@@ -767,7 +767,7 @@ def forward_batch(prm, flags, t, R, v, w, F, W, out):
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def _forward_row(prm, flags, t, R, v, w, F, W, out, b):
-    """Row b of ``forward_batch`` (docs/physics.md section 5.4)."""
+    """Row b of ``forward_batch`` (docs/physics.md section 5.4; paper eq. 49 or 55)."""
     M = np.empty((6, 6))
     h = np.empty(6)
     _forward_one(_params_row(prm, b), flags, t[b], R[b], v[b], w[b], F[b], W[b], M, h, out[b])
@@ -790,7 +790,7 @@ def mass_bias_batch(prm, flags, t, R, v, w, W, M, h):
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def _mass_bias_row(prm, flags, t, R, v, w, W, M, h, b):
-    """Row b of ``mass_bias_batch`` (docs/physics.md section 5.4)."""
+    """Row b of ``mass_bias_batch`` (docs/physics.md section 5.4; paper eq. 49 or 55)."""
     _assemble_one(_params_row(prm, b), flags, t[b], R[b], v[b], w[b], np.zeros(6), M[b], h[b])
     for r in range(6):
         h[b, r] -= W[b, r]
@@ -813,7 +813,7 @@ def inverse_batch(prm, flags, t, R, v, w, acc, W, out):
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def _inverse_row(prm, flags, t, R, v, w, acc, W, out, b):
-    """Row b of ``inverse_batch`` (docs/physics.md section 5.5)."""
+    """Row b of ``inverse_batch`` (docs/physics.md section 5.5; paper eq. 49 or 55)."""
     M = np.empty((6, 6))
     h = np.empty(6)
     _inverse_one(_params_row(prm, b), flags, t[b], R[b], v[b], w[b], acc[b], W[b], M, h, out[b])
@@ -916,7 +916,7 @@ def leg_sensors_batch(prm, t, R, v, w, max_condition, lengths, rates, condition)
 
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def _leg_sensors_row(prm, t, R, v, w, max_condition, lengths, rates, condition, b):
-    """Row b of ``leg_sensors_batch`` (docs/physics.md section 4.4)."""
+    """Row b of ``leg_sensors_batch`` (docs/physics.md section 4.4; paper eqs. 7 and 13)."""
     p = _params_row(prm, b)
     jac = np.empty((6, 6))
     for i in range(6):
