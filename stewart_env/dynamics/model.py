@@ -247,7 +247,7 @@ class Dynamics:
         be finite.  Raises ValueError naming the argument on wrong rows, shapes or counts.
         """
         rows = [int(r) for r in rows]
-        packed_rows = np.asarray(packed_rows, dtype=np.float64)
+        packed_rows = np.ascontiguousarray(packed_rows, dtype=np.float64)
         if packed_rows.shape != (len(rows), K.N_PARAMS):
             raise ValueError(f"packed_rows: expected shape ({len(rows)}, {K.N_PARAMS}), got {packed_rows.shape}")
         if len(sources) != len(rows):
