@@ -17,10 +17,11 @@ What the calls do not check, and the caller promises instead: that the numbers w
 arrays are finite and that every ``rotation[b]`` is a rotation (orthonormal, det +1, within
 :data:`~stewart_env.dynamics.model.ROTATION_TOLERANCE`).  :meth:`Workspace.set_state` copies a
 state in with the checks of every other entry point, and :meth:`Workspace.check` runs them on
-what the arrays hold now.  Unchecked garbage in gives garbage (NaN) out, never a crash.
+what the arrays hold now.  Numbers that break the promise give wrong or NaN results, never a
+crash.
 
-The results equal those of ``model.forward`` / ``inverse`` / ``mass_and_bias`` bit for bit: the
-same kernels run on the same numbers.
+The results equal those of ``model.forward`` / ``inverse`` / ``mass_and_bias`` and
+:func:`stewart_env.rollout` bit for bit: the same kernels run on the same numbers.
 """
 
 from __future__ import annotations
@@ -147,4 +148,4 @@ class Workspace:
         if steps < 0 or int(steps) != steps:
             raise ValueError(f"steps: must be a non-negative integer, got {steps}")
         rk4.rollout_batch(self._packed, self._flags, self._position, self._rotation, self._velocity,
-                        self._angular_velocity, self._leg_forces, self._external_wrench, float(dt), int(steps))
+                          self._angular_velocity, self._leg_forces, self._external_wrench, float(dt), int(steps))
