@@ -11,7 +11,7 @@ import numpy as np
 from gymnasium import spaces
 
 from stewart_env.dynamics.model import check_rotation
-from stewart_env.envs.config import EnvConfig
+from stewart_env.envs.config import RENDER_MODES, EnvConfig
 from stewart_env.envs.core import BatchAttributes, PlatformBatch
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.params import PlatformParams
@@ -299,7 +299,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     """
 
     _rows = 0  # BatchAttributes: the single platform, no batch axis
-    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 100.0}
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 100.0}
 
     @checked_keywords(MOVED)
     def __init__(self, *, model: str = "improved", platform: str | os.PathLike | PlatformParams = "dasgupta1998",

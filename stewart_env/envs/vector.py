@@ -12,7 +12,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from stewart_env.envs.config import EnvConfig
+from stewart_env.envs.config import RENDER_MODES, EnvConfig
 from stewart_env.envs.core import BatchAttributes, PlatformBatch
 from stewart_env.envs.stewart_platform import MOVED, term_key
 from stewart_env.params import PlatformParams
@@ -147,7 +147,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
     """
 
     _rows = slice(None)  # BatchAttributes: every row
-    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 100.0,
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 100.0,
                 "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     @checked_keywords(MOVED)
