@@ -26,11 +26,11 @@ from matplotlib.patches import Patch
 from mpl_toolkits.mplot3d import proj3d
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
+from stewart_env.envs.config import RENDER_MODES
 from stewart_env.validation import integer
 
 __all__ = ["PlatformRenderer", "LEG_FORCE_COLORMAP"]
 
-_RENDER_MODES = ("rgb_array", "human")
 # Backends that cannot open a window; "human" mode would silently draw nothing with them.
 _NON_INTERACTIVE_BACKENDS = {"agg", "cairo", "pdf", "pgf", "ps", "svg", "template"}
 _DPI = 100
@@ -154,8 +154,8 @@ class PlatformRenderer:
         if not force_min < force_max:
             raise ValueError(f"force_range must be (min, max) with min < max, got {tuple(force_range)}")
         width, height = integer("width", width, 1, sys.maxsize), integer("height", height, 1, sys.maxsize)
-        if render_mode not in _RENDER_MODES:
-            raise ValueError(f"render_mode must be one of {_RENDER_MODES}, got {render_mode!r}")
+        if render_mode not in RENDER_MODES:
+            raise ValueError(f"render_mode must be one of {RENDER_MODES}, got {render_mode!r}")
         self.width, self.height = int(width), int(height)
         self.render_mode = render_mode
         self._closed = False
