@@ -213,6 +213,11 @@ class Dynamics:
         self.packed = np.stack([rows[id(p)] for p in plist])
         self.packed.setflags(write=False)
 
+    def __setstate__(self, state: dict) -> None:
+        # an unpickled model (e.g. sent to a worker process) is as read-only as the original
+        self.__dict__.update(state)
+        self.packed.setflags(write=False)
+
     def __repr__(self) -> str:
         more = ", ..." if len(self.params) > 1 else ""
         return f"Dynamics({self.name!r}, platforms={len(self.params)} [{self.params[0].name}{more}])"
