@@ -440,3 +440,12 @@ def test_arguments_of_any_layout_and_number_type_give_the_same_result(dasgupta, 
     assert np.array_equal(np.concatenate(got), want)
     assert np.array_equal(np.concatenate(model.forward(t, R, v, w, np.round(F).astype(int))),
                           np.concatenate(model.forward(t, R, v, w, np.round(F))))
+
+
+def test_a_pickled_model_keeps_its_rows_and_stays_read_only(dasgupta):
+    import pickle
+
+    model = se.make_dynamics("improved+c1", [dasgupta, dasgupta])
+    copy = pickle.loads(pickle.dumps(model))
+    assert copy.name == model.name and copy.flags == model.flags and copy.params == model.params
+    assert np.array_equal(copy.packed, model.packed) and not copy.packed.flags.writeable

@@ -142,11 +142,3 @@ def test_step_refuses_a_bad_step(dasgupta, dt, steps, message):
     with pytest.raises(ValueError, match=message):
         ws.step(dt, steps)
 
-
-def test_a_pickled_model_keeps_its_rows_and_stays_read_only(dasgupta):
-    import pickle
-
-    model = se.make_dynamics("improved+c1", [dasgupta, dasgupta])
-    copy = pickle.loads(pickle.dumps(model))
-    assert copy.name == model.name and copy.flags == model.flags and copy.params == model.params
-    assert np.array_equal(copy.packed, model.packed) and not copy.packed.flags.writeable
