@@ -61,7 +61,7 @@ def test_trajectory_energy_and_closure(params):
 
 def test_mujoco_defaults_open_the_loops(dasgupta):
     """MuJoCo's own constraint defaults let the loops open by millimetres: why the twin sets its own."""
-    r = twin.trajectory_report(dasgupta, seconds=1.0, solref=(0.02, 1.0), solimp=(0.9, 0.95, 0.001, 0.5, 2.0))
+    r = twin.trajectory_report(dasgupta, seconds=1.0, solref=twin.MUJOCO_SOLREF, solimp=twin.MUJOCO_SOLIMP)
     assert r["closure_max"] > 1e-3  # measured 5.6 mm
 
 
