@@ -52,6 +52,7 @@ from stewart_env.registration import ENV_ID
 #: known in a fresh process too (a Ray worker, a subprocess) without importing stewart_env by hand.
 QUALIFIED_ENV_ID = f"stewart_env:{ENV_ID}"
 from stewart_env.rotations import rotation_error
+from stewart_env.validation import integer
 
 #: Default tolerances of settling and success: 2 mm and 0.01 rad (0.57 deg).
 POSITION_TOLERANCE = 2e-3
@@ -230,10 +231,8 @@ def evaluate(policy, env_kwargs: Mapping | None = None, episodes: int = 5, seed:
         settling and success criteria (module docstring).
     out: if given, a directory for :func:`write_report` of this result.
     """
-    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
-        raise ValueError(f"episodes: expected a positive integer, got {episodes!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-        raise ValueError(f"seed: expected an integer, got {seed!r}")
+    episodes = integer("episodes", episodes, 1, 2**31 - 1)  # the vector env's bound on its batch
+    seed = integer("seed", seed, 0, 2**63 - 1)
     if not (position_tolerance > 0 and orientation_tolerance > 0):
         raise ValueError(f"position_tolerance, orientation_tolerance: must be positive, got "
                          f"{position_tolerance}, {orientation_tolerance}")

@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stewart_env.validation import integer
+
 #: Bootstrap resamples of every interval: percentile bounds of a 95 % interval then move by
 #: about 0.1 of the interval's width between seeds of the resampling (Efron & Tibshirani 1993).
 RESAMPLES = 2000
@@ -124,8 +126,7 @@ def _percentiles(samples: np.ndarray, confidence: float) -> tuple[float, float]:
 def _check(confidence: float, resamples: int) -> None:
     if not 0.0 < confidence < 1.0:
         raise ValueError(f"confidence: expected a number in (0, 1), got {confidence!r}")
-    if isinstance(resamples, bool) or not isinstance(resamples, (int, np.integer)) or resamples < 1:
-        raise ValueError(f"resamples: expected a positive integer, got {resamples!r}")
+    integer("resamples", resamples, 1, 10**7)  # 10^7 resamples of a cell already take minutes
 
 
 def _bootstrap(cells: list[np.ndarray], combine: Callable[..., np.ndarray], statistic: str, confidence: float,
