@@ -919,7 +919,8 @@ def heatmap_figure(result: MismatchResult, key: str, title: str, factor: float, 
         norm = Normalize(*(finite.min(), finite.max()) if finite.size else (0, 1))
     cmap = colormaps["viridis" if key == "success" else "viridis_r"].with_extremes(bad="white")
     n_rows, n_cols = values.shape
-    fig = new_figure(figsize=(2.0 + 1.6 * n_cols, 1.6 + 0.42 * n_rows), layout="constrained")
+    # at least as wide as the two-line title of a study with few plants
+    fig = new_figure(figsize=(max(2.0 + 1.6 * n_cols, 7.0), 1.6 + 0.42 * n_rows), layout="constrained")
     ax = fig.subplots()
     image = ax.imshow(np.ma.masked_where(~np.isfinite(values) | failed, values), cmap=cmap, norm=norm, aspect="auto")
     for i, j in zip(*np.nonzero(failed)):
