@@ -1,0 +1,129 @@
+"""The package's layers import one way: physics <- tasks <- envs <- agents <- cli.
+
+The physics (parameters, kinematics, dynamics, integration, the MuJoCo twin) knows no task and no
+environment; a task knows no integrator; the environment knows no agent; agents reach the rest of
+the package through public names only.  Read from the source with ``ast``, so a lazy import inside
+a function counts as much as one at the top.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# module (dotted, as installed) -> layer; a package name covers its modules
+LAYERS = {
+    "stewart_env.validation": "physics",
+    "stewart_env.state": "physics",
+    "stewart_env.rotations": "physics",
+    "stewart_env.params": "physics",
+    "stewart_env.randomization": "physics",
+    "stewart_env.kinematics": "physics",
+    "stewart_env.dynamics": "physics",
+    "stewart_env.integrate": "physics",
+    "stewart_env.numba_cache": "physics",
+    "stewart_env.progress": "physics",
+    "stewart_env.mujoco": "physics",
+    "stewart_env.tasks": "tasks",
+    "stewart_env.envs": "envs",
+    "stewart_env.registration": "envs",
+    "stewart_env.render": "envs",
+    "stewart_env.agents": "agents",
+    "stewart_env.configs": "agents",
+    "stewart_env.bench": "cli",
+    "stewart_env.cli": "cli",
+}
+# the package's face re-exports the physics API and registers the environment with Gymnasium
+PACKAGE = "stewart_env"
+ORDER = ("physics", "tasks", "envs", "agents", "cli")
+# the integrator: a task gets the state it is given and never advances it
+INTEGRATOR = ("stewart_env.integrate", "stewart_env.dynamics.rk4")
+
+
+def layer_of(module: str) -> str | None:
+    if module == PACKAGE:
+        return "envs"
+    best = max((name for name in LAYERS if module == name or module.startswith(name + ".")), key=len, default=None)
+    return LAYERS.get(best)
+
+
+def source_files() -> list[tuple[str, Path]]:
+    """(dotted module name, path) of every module of the package, agents included."""
+    found = []
+    for folder, package in ((ROOT / "stewart_env", "stewart_env"), (ROOT / "agents", "stewart_env.agents")):
+        for path in sorted(folder.rglob("*.py")):
+            parts = path.relative_to(folder).with_suffix("").parts
+            name = ".".join((package, *parts))
+            found.append((name.removesuffix(".__init__"), path))
+    return found
+
+
+def folder_of(package: str) -> Path:
+    """The source folder of a package of the project (``agents`` and ``configs`` sit at the top)."""
+    parts = package.split(".")[1:]
+    if parts and parts[0] in ("agents", "configs"):
+        return ROOT.joinpath(*parts)
+    return ROOT.joinpath(PACKAGE, *parts)
+
+
+def imports(path: Path) -> list[tuple[str, list[str], int]]:
+    """(module, imported names, line) of every ``import stewart_env...`` in the file."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out += [(a.name, [], node.lineno) for a in node.names if a.name.startswith("stewart_env")]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("stewart_env"):
+            names = [a.name for a in node.names]
+            # `from stewart_env import mujoco` imports the module stewart_env.mujoco, not the package
+            folder = folder_of(node.module)
+            submodules = [n for n in names if (folder / f"{n}.py").exists() or (folder / n).is_dir()]
+            out += [(f"{node.module}.{n}", [], node.lineno) for n in submodules]
+            if len(submodules) < len(names):
+                out.append((node.module, [n for n in names if n not in submodules], node.lineno))
+    return out
+
+
+MODULES = source_files()
+
+
+def test_every_module_has_a_layer():
+    assert len(MODULES) > 30, "the package's modules were not found"
+    assert [name for name, _ in MODULES if layer_of(name) is None] == []
+
+
+@pytest.mark.parametrize("name,path", MODULES, ids=[name for name, _ in MODULES])
+def test_imports_run_one_way(name, path):
+    own = ORDER.index(layer_of(name))
+    upward = [f"line {line}: {module} ({layer_of(module)})" for module, _, line in imports(path)
+              if layer_of(module) and ORDER.index(layer_of(module)) > own]
+    assert upward == [], f"{name} ({layer_of(name)}) imports a layer above it"
+
+
+@pytest.mark.parametrize("name,path", [m for m in MODULES if layer_of(m[0]) == "tasks"],
+                         ids=[n for n, _ in MODULES if layer_of(n) == "tasks"])
+def test_tasks_import_no_integrator(name, path):
+    assert [m for m, _, _ in imports(path) if m.startswith(INTEGRATOR)] == []
+
+
+@pytest.mark.parametrize("name,path", [m for m in MODULES if layer_of(m[0]) == "agents"],
+                         ids=[n for n, _ in MODULES if layer_of(n) == "agents"])
+def test_agents_use_public_names_of_the_package(name, path):
+    private = [f"line {line}: {', '.join(n for n in names if n.startswith('_'))} from {module}"
+               for module, names, line in imports(path)
+               if layer_of(module) != "agents" and any(n.startswith("_") for n in names)]
+    assert private == []
+
+
+def test_the_rule_catches_an_upward_import(tmp_path):
+    """The check itself can fail: a physics module importing the environment is reported."""
+    bad = tmp_path / "bad.py"
+    bad.write_text("def f():\n    from stewart_env.envs import StewartPlatformEnv\n")
+    assert [(m, layer_of(m)) for m, _, _ in imports(bad)] == [("stewart_env.envs", "envs")]
+    bad.write_text("from stewart_env import mujoco, Reference\nfrom stewart_env.dynamics import rk4\n")
+    assert [m for m, _, _ in imports(bad)] == ["stewart_env.mujoco", "stewart_env", "stewart_env.dynamics.rk4"]
+    with pytest.raises(AssertionError):
+        test_imports_run_one_way("stewart_env.kinematics", bad)
