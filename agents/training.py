@@ -73,6 +73,7 @@ import yaml
 from stewart_env.params import config_dir
 from stewart_env.progress import on_terminal
 from stewart_env.registration import ENV_ID
+from stewart_env.validation import integer
 
 ALGORITHMS = ("ppo", "sac", "td3")
 OFF_POLICY = ("sac", "td3")
@@ -105,6 +106,12 @@ _TMP_PREFIX = ".tmp-"
 PAUSE_IN_CHECKPOINT_ENV = "STEWART_ENV_TEST_CHECKPOINT_PAUSE"
 RL_INSTALL_HINT = ('install the RL extra: first torch==2.13.0 (the CPU build, not the default CUDA one), then '
                    'pip install "stewart-env[rl]"')
+
+
+#: Bound of every count (steps, platforms, checkpoints): SB3 keeps its step counters in int64.
+MAX_COUNT = 2**62
+#: Bound of a training seed: SB3 seeds numpy's global generator with it, which takes 32 bits.
+MAX_SEED = 2**32 - 1
 
 
 class TrainingError(ValueError):
@@ -334,8 +341,7 @@ def parse_hyperparameters(algo: str, entry: Mapping[str, Any]) -> Hyperparameter
         normalize = {**normalize, "gamma": entry["gamma"]}  # as the zoo: discount the reward as the agent does
 
     n_envs = entry.get("n_envs", 1)
-    if isinstance(n_envs, bool) or not isinstance(n_envs, int) or n_envs < 1:
-        raise TrainingError(f"{algo}: n_envs must be a positive integer, got {n_envs!r}")
+    _check_count(f"{algo}: n_envs", n_envs, 1)
     if "n_timesteps" not in entry:
         raise TrainingError(f"{algo}: the entry has no n_timesteps")
     env_kwargs = entry.get("env_kwargs") or {}
@@ -749,9 +755,12 @@ def rollout_steps(agent, algo: str) -> int:
     return int(freq.frequency * agent.n_envs) if freq.unit.value == "step" else int(agent.n_envs)
 
 
-def _check_count(name: str, value: Any, minimum: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise TrainingError(f"{name} must be an integer >= {minimum}, got {value!r}")
+def _check_count(name: str, value: Any, minimum: int, maximum: int = MAX_COUNT) -> None:
+    """A count of steps, platforms or checkpoints, through the package's one integer check."""
+    try:
+        integer(name, value, minimum, maximum)
+    except ValueError as err:
+        raise TrainingError(str(err)) from None
 
 
 _UNSET = object()
@@ -841,9 +850,10 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
     :class:`TrainingInterrupted`.
     """
     cls = algorithm_class(algo)
-    for name, value, minimum in (("timesteps", timesteps, 1), ("seed", seed, 0), ("n_envs", n_envs, 1)):
+    for name, value, minimum, maximum in (("timesteps", timesteps, 1, MAX_COUNT), ("seed", seed, 0, MAX_SEED),
+                                          ("n_envs", n_envs, 1, MAX_COUNT)):
         if value is not None:
-            _check_count(name, value, minimum)
+            _check_count(name, value, minimum, maximum)
     _check_count("checkpoint_freq", checkpoint_freq, 0)
     _check_count("keep_checkpoints", keep_checkpoints, 1)
     directory = Path(out)
