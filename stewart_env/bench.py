@@ -118,8 +118,8 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     * one control step of ``substeps`` RK4 steps of ``dt``, one platform: ``step_mujoco``
       (``mujoco.mj_step``), ``step_plant`` (:class:`stewart_env.mujoco.MujocoPlant`),
       ``step_env`` (``StewartPlatform-v0`` through ``gymnasium.make``, measured over
-      ``env_seconds``), ``step_rollout`` (``rollout_inplace``, N = 1), ``step_workspace``
-      (``Workspace.step``);
+      ``env_seconds``), ``step_env_mujoco`` (the same env with ``model="mujoco"``),
+      ``step_rollout`` (``rollout_inplace``, N = 1), ``step_workspace`` (``Workspace.step``);
     * the same step for ``n_batch`` platforms, per platform: ``batch_mujoco`` (``mujoco.rollout``
       on every core), ``batch_vector_env`` (the native vector env), ``batch_rollout``
       (``rollout_inplace``, N = ``n_batch``);
@@ -145,7 +145,7 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     # One platform: the process's CPU time, which other work on a shared machine inflates far less
     # than the wall clock; every call compared runs on this thread (MuJoCo's) or on numba's (ours).
     cpu = time.process_time
-    bar = progress(total=7, desc="bench --mujoco", disable=not on_terminal())
+    bar = progress(total=8, desc="bench --mujoco", disable=not on_terminal())
 
     m, d = model_and_data(params, t, R, z, z, F, timestep=dt)
     start = mujoco.MjData(m)
@@ -199,6 +199,10 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     out["step_env"] = 1.0 / env["single_steps_per_cpu_s"]
     out["batch_vector_env"] = 1.0 / env["vector_platform_steps_per_s"]
     bar.update(2)
+    env = bench_env(n_vector=0, seconds=env_seconds, platform=params, control_dt=dt * substeps, physics_dt=dt,
+                    model="mujoco")
+    out["step_env_mujoco"] = 1.0 / env["single_steps_per_cpu_s"]
+    bar.update()
     out["reset_randomized"] = bench_reset(n_batch, RESET_RANDOMIZATION, max(1, repeats // 2), platform=params)
     out["reset_nominal"] = bench_reset(n_batch, None, max(1, repeats // 2), platform=params)
     bar.update()
@@ -223,6 +227,8 @@ def mujoco_table(r: dict) -> str:
             ("rollout_inplace", r["step_rollout"])]),
         (f"{step}, 1 platform, as a plant", "MujocoPlant.step_inplace", r["step_plant"], [
             ("rollout_inplace", r["step_rollout"])]),
+        (f"{step}, 1 platform, env", 'env.step (model="mujoco")', r["step_env_mujoco"], [
+            ("env.step (improved)", r["step_env"])]),
         (f"{step}, {r['n_batch']} platforms, per platform", "mujoco.rollout", r["batch_mujoco"], [
             ("vector env step", r["batch_vector_env"]), ("rollout_inplace", r["batch_rollout"])]),
     ]

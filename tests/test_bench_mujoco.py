@@ -9,7 +9,7 @@ from stewart_env import bench
 
 MEASURES = ("forward_mujoco", "forward_api", "forward_workspace", "inverse_mujoco", "inverse_api",
             "inverse_workspace", "mass_and_bias_workspace", "step_mujoco", "step_plant", "step_rollout",
-            "step_workspace", "step_env",
+            "step_workspace", "step_env", "step_env_mujoco",
             "batch_mujoco", "batch_vector_env", "batch_rollout", "reset_randomized", "reset_nominal")
 
 
@@ -23,8 +23,8 @@ def test_bench_mujoco_times_every_call_and_tabulates_the_ratios(dasgupta):
     assert "| 10 ms step (10 RK4 substeps), 4 platforms, per platform | mujoco.rollout |" in table
     assert "randomised / nominal" in table
     assert "| inverse dynamics, 1 platform | mj_inverse |" in table
-    # clock note, header, forward, inverse, mass matrix, single step, plant, batch, reset
-    assert len(table.splitlines()) == 2 + 2 + 2 + 2 + 1 + 3 + 1 + 2 + 1
+    # clock note, header, forward, inverse, mass matrix, single step, plant, env, batch, reset
+    assert len(table.splitlines()) == 2 + 2 + 2 + 2 + 1 + 3 + 1 + 1 + 2 + 1
 
 
 def test_bench_mujoco_without_mujoco_names_the_extra(monkeypatch, capsys):

@@ -47,7 +47,8 @@ def bench_env(n_vector: int = 1024, seconds: float = 5.0, **kwargs) -> dict:
     of wall-clock time, and the two rates also per second of this process's CPU time
     (``*_per_cpu_s``), which other load on the machine does not lower (the vector env uses every
     core, so on an idle machine its wall-clock rate approaches cores x its CPU-time rate).  A
-    short warm-up (which includes any first compilation) is not timed.
+    short warm-up (which includes any first compilation) is not timed.  ``n_vector`` = 0
+    measures the single env only (no vector_* keys).
     """
     kwargs = {"task_options": {"randomize": False}, **kwargs}
     env = gym.make(ENV_ID, **kwargs)
@@ -70,6 +71,18 @@ def bench_env(n_vector: int = 1024, seconds: float = 5.0, **kwargs) -> dict:
     single_resets = resets[0]
     env.close()
 
+    u = env.unwrapped
+    out = {
+        "single_steps_per_s": single_calls / single_s,
+        "single_steps_per_cpu_s": single_calls / single_cpu,
+        "single_resets": single_resets,
+        "n_vector": n_vector,
+        "control_dt": u.dt,
+        "model": u.model.name,
+        "task": u.task.name,
+    }
+    if not n_vector:
+        return out
     venv = gym.make_vec(ENV_ID, num_envs=n_vector, vectorization_mode="vector_entry_point", **kwargs)
     actions = np.tile(action, (n_vector, 1))
     venv.reset(seed=0)
@@ -83,19 +96,12 @@ def bench_env(n_vector: int = 1024, seconds: float = 5.0, **kwargs) -> dict:
     vector_resets[0] = 0
     vector_calls, vector_s, vector_cpu = _timed(vector_step, seconds, batch=2)
     venv.close()
-    u = env.unwrapped
     return {
-        "single_steps_per_s": single_calls / single_s,
-        "single_steps_per_cpu_s": single_calls / single_cpu,
-        "single_resets": single_resets,
+        **out,
         "vector_platform_steps_per_s": vector_calls * n_vector / vector_s,
         "vector_platform_steps_per_cpu_s": vector_calls * n_vector / vector_cpu,
         "vector_steps_per_s": vector_calls / vector_s,
         "vector_resets": vector_resets[0],
-        "n_vector": n_vector,
-        "control_dt": u.dt,
-        "model": u.model.name,
-        "task": u.task.name,
     }
 
 
