@@ -135,10 +135,42 @@ def test_set_state_and_check_apply_the_entry_points_checks(dasgupta):
         ws.check()
 
 
-@pytest.mark.parametrize("dt, steps, message", [(0.0, 1, "dt:"), (np.nan, 1, "dt:"), (np.inf, 1, "dt:"),
-                                                (1e-3, -1, "steps:"), (1e-3, 1.5, "steps:")])
+@pytest.mark.parametrize("dt, steps, message", [
+    (0.0, 1, "dt:"), (np.nan, 1, "dt:"), (np.inf, 1, "dt:"), ("0.001", 1, "dt:"), (None, 1, "dt:"),
+    (np.array([1e-3, 1e-3]), 1, "dt:"), (1e-3, -1, "steps:"), (1e-3, 1.5, "steps:"), (1e-3, np.nan, "steps:"),
+    (1e-3, np.inf, "steps:"), (1e-3, "3", "steps:"), (1e-3, 10**30, "steps:"), (1e-3, True, "steps:"),
+])
 def test_step_refuses_a_bad_step(dasgupta, dt, steps, message):
     ws = se.make_dynamics("improved", dasgupta).workspace()
     with pytest.raises(ValueError, match=message):
         ws.step(dt, steps)
 
+
+def test_step_takes_numpy_scalars(dasgupta):
+    ws = se.make_dynamics("improved", dasgupta).workspace()
+    ws.step(np.float64(1e-3), np.int64(2))
+    ws.check()
+
+
+@pytest.mark.parametrize("n", [10**30, 2**63, 10**12])
+def test_a_workspace_too_large_to_allocate_is_refused_naming_n(dasgupta, n):
+    with pytest.raises(ValueError, match=f"n: a workspace of {n} platforms needs .* GiB"):
+        se.make_dynamics("improved", dasgupta).workspace(n)
+
+
+def test_set_state_refuses_a_batch_for_a_workspace_of_one_platform(dasgupta):
+    ws = se.make_dynamics("improved", dasgupta).workspace(1)
+    with pytest.raises(ValueError, match=r"position: expected shape \(3,\) or \(1, ...\) for this workspace of n = 1"):
+        ws.set_state(np.zeros((2, 3)), np.eye(3), np.zeros(3), np.zeros(3))
+
+
+def test_complex_arguments_are_refused_naming_the_argument(dasgupta):
+    model = se.make_dynamics("improved", dasgupta)
+    t = dasgupta.home_position.astype(complex)
+    message = r"position: expected an array of numbers of shape \(3,\), got an array of complex128"
+    with pytest.raises(ValueError, match=message):
+        model.workspace().set_state(t, np.eye(3), np.zeros(3), np.zeros(3))
+    with pytest.raises(ValueError, match=message):
+        model.forward(t, np.eye(3), np.zeros(3), np.zeros(3), np.zeros(6))
+    with pytest.raises(ValueError, match="position: expected an array of numbers of shape \\(3,\\), got an array of <U3"):
+        model.forward(np.array(["0.1", "0", "0.4"]), np.eye(3), np.zeros(3), np.zeros(3), np.zeros(6))

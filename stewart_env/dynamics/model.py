@@ -19,10 +19,12 @@ section 5, the switches c1-c4 and where each enters the equations in its section
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
 
+from stewart_env import validation
 from stewart_env.dynamics import kernels as K
 from stewart_env.params import PlatformParams
 
@@ -117,9 +119,12 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
         if tail == (3, 3):
             rotations.append(name)
         try:
-            a = np.asarray(value, dtype=np.float64)
+            # an array converts only from a kind that holds real numbers: complex parts or text never pass
+            a = (value.astype(np.float64, casting="same_kind", copy=False) if type(value) is np.ndarray
+                 else np.asarray(value, dtype=np.float64))
         except (TypeError, ValueError):
-            raise ValueError(f"{name}: expected an array of numbers of shape {tail}, got {type(value).__name__}") from None
+            got = f"an array of {value.dtype}" if type(value) is np.ndarray else type(value).__name__
+            raise ValueError(f"{name}: expected an array of numbers of shape {tail}, got {got}") from None
         if a.shape == tail:
             a = a[None]
         elif a.ndim != len(tail) + 1 or a.shape[1:] != tail:
@@ -157,6 +162,20 @@ def check_rotation(name: str, R: np.ndarray) -> None:
         where = f" in batch rows {rows[:10].tolist()}" if R.shape[0] > 1 else ""
         raise ValueError(f"{name}: not a rotation matrix{where} (|R^T R - I| = {orth[rows[0]]:.2e}, "
                          f"det R = {det[rows[0]]:.6g}; tolerance {ROTATION_TOLERANCE:g})")
+
+
+#: The most RK4 steps one call may take (numba's int64).
+MAX_STEPS = 2**63 - 1
+
+
+def check_step(dt, steps) -> tuple[float, int]:
+    """The time step and step count of an RK4 call: ``dt`` a positive finite number of seconds
+    and ``steps`` a non-negative integer (not a bool) up to :data:`MAX_STEPS`, returned as a
+    float and an int.  Raises ValueError naming ``dt`` or ``steps`` otherwise."""
+    if type(dt) is float and 0.0 < dt < math.inf and type(steps) is int and 0 <= steps <= MAX_STEPS:
+        return dt, steps
+    return (validation.real("dt", dt, 0.0, math.inf, low_open=True),
+            validation.integer("steps", steps, 0, MAX_STEPS))
 
 
 class ParamsRows(Sequence):

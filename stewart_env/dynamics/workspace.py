@@ -30,7 +30,7 @@ import numpy as np
 
 from stewart_env.dynamics import kernels as K
 from stewart_env.dynamics import rk4
-from stewart_env.dynamics.model import Dynamics, batch_args
+from stewart_env.dynamics.model import Dynamics, batch_args, check_step
 from stewart_env.rotations import rpy_to_matrix
 
 __all__ = ["Workspace"]
@@ -79,8 +79,13 @@ class Workspace:
             raise ValueError(f"n: the model has {rows} parameter rows, so the workspace needs n = {rows}, got {n}")
         self._model, self._n = model, n
         self._packed, self._flags = model.packed, model.flags
-        for name, (tail, _) in _ARRAYS.items():
-            object.__setattr__(self, f"_{name}", np.zeros((n,) + tail))
+        try:
+            for name, (tail, _) in _ARRAYS.items():
+                object.__setattr__(self, f"_{name}", np.zeros((n,) + tail))
+        except (ValueError, MemoryError):
+            size = n * sum(int(np.prod(tail)) for tail, _ in _ARRAYS.values()) * 8
+            raise ValueError(f"n: a workspace of {n} platforms needs {size / 2**30:.3g} GiB, more than "
+                             "can be allocated") from None
         home = model.params_of(0)
         self._position[:] = home.home_position
         self._rotation[:] = rpy_to_matrix(home.home_rpy)
@@ -104,8 +109,12 @@ class Workspace:
         """Copy a state into the arrays, with the checks of every entry point
         (:func:`~stewart_env.dynamics.model.batch_args`): each argument one platform's, broadcast
         to every row, or the batch's (n, ...).  Raises ValueError naming the argument."""
-        _, _, a = batch_args(self._n, position=(position, (3,)), rotation=(rotation, (3, 3)),
+        n, _, a = batch_args(self._n, position=(position, (3,)), rotation=(rotation, (3, 3)),
                              velocity=(velocity, (3,)), angular_velocity=(angular_velocity, (3,)))
+        if n != self._n:  # a batch given to a workspace of one platform
+            name = next(k for k, x in a.items() if x.shape[0] != self._n)
+            raise ValueError(f"{name}: expected shape {a[name].shape[1:]} or ({self._n}, ...) for this workspace "
+                             f"of n = {self._n}, got a batch of {n}")
         self._position[:] = a["position"]
         self._rotation[:] = a["rotation"]
         self._velocity[:] = a["velocity"]
@@ -143,9 +152,6 @@ class Workspace:
         ``external_wrench`` held, overwriting position, rotation, velocity and angular_velocity.
         A row whose state stops being finite stays so (see :meth:`check`).
         docs/physics.md section 5.6."""
-        if not 0.0 < dt < np.inf:
-            raise ValueError(f"dt: must be a positive finite number of seconds, got {dt}")
-        if steps < 0 or int(steps) != steps:
-            raise ValueError(f"steps: must be a non-negative integer, got {steps}")
+        dt, steps = check_step(dt, steps)
         rk4.rollout_batch(self._packed, self._flags, self._position, self._rotation, self._velocity,
-                          self._angular_velocity, self._leg_forces, self._external_wrench, float(dt), int(steps))
+                          self._angular_velocity, self._leg_forces, self._external_wrench, dt, steps)
