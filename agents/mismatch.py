@@ -577,7 +577,8 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
             steps = sorted({read_manifest(d)["num_timesteps"] for d in r.agents.values()})
             r.info = f"{', '.join(map(str, steps))} steps, seeds {', '.join(map(str, r.seeds))}"
     result = MismatchResult(rows, list(test_models), summary, int(episodes))
-    result.differences = simplification_costs(result, out, plant=cost_plant)
+    result.differences = simplification_costs(
+        result, lambda row, plant, metric: cell_values(out, row, plant, metric), plant=cost_plant)
     header = {"task": task, "platform": platform, "episodes": episodes, "eval_seed": EVAL_SEED_OFFSET, "algo": algo,
               "seeds": list(seeds), "backend": backend, "wall_time": time.perf_counter() - start,
               "position_tolerance": position_tolerance, "orientation_tolerance": orientation_tolerance}
@@ -679,18 +680,14 @@ def _compared_rows(result: MismatchResult, family: str) -> list[tuple[str, Row]]
     return out
 
 
-def simplification_costs(result: MismatchResult, out: Path | None = None,
-                         values: Callable[[Row, str, str], np.ndarray] | None = None,
+def simplification_costs(result: MismatchResult, values: Callable[[Row, str, str], np.ndarray],
                          plant: str = TRUE_MODEL) -> list[Difference]:
     """Per controller family with a row built on the exact model: for each simplification and each
     of :data:`RANKING_METRICS`, the paired difference on ``plant`` of the row built on the
     simplified model minus the exact-model row, with its interval.  ``values(row, plant, metric)``
-    gives a cell's values (seeds, episodes); by default those stored in the study's directory."""
+    gives a cell's values (seeds, episodes), e.g. :func:`cell_values` of a study's directory."""
     if plant not in result.test_models:
         return []
-    if values is None:
-        folder = Path(out) if out is not None else Path(result.files["csv"]).parent if result.files else None
-        values = _stored_values(folder)
     differences = []
     for family in dict.fromkeys(r.family for r in result.rows):
         exact = next((r for r in result.rows if r.family == family and r.model == TRUE_MODEL and not r.randomized),
@@ -705,13 +702,6 @@ def simplification_costs(result: MismatchResult, out: Path | None = None,
                                              statistic(metric))
                 differences.append(Difference(family, name, row.label, exact.label, metric, interval, failed, plant))
     return differences
-
-
-def _stored_values(folder: Path | None) -> Callable[[Row, str, str], np.ndarray]:
-    def values(row: Row, plant: str, metric: str) -> np.ndarray:
-        return cell_values(folder, row, plant, metric)
-
-    return values
 
 
 # -- outputs ---------------------------------------------------------------------------------------
@@ -786,7 +776,7 @@ def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[st
                 values = []
                 for key, *_ in metrics:
                     interval = s[key]
-                    n = int(np.isfinite(cell_values(out, r, m, key)).sum()) if (out / CELLS_DIR).exists() else ""
+                    n = "" if interval.n is None else interval.n
                     values += [f"{interval.estimate:.9g}", f"{interval.low:.9g}", f"{interval.high:.9g}", n]
                 writer.writerow([r.label, r.family, r.model, m, first.seeds, first.episodes] + values)
     with files["differences"].open("w", newline="") as f:

@@ -94,13 +94,14 @@ def _resample_indices(shape: tuple[int, int], resamples: int, rng: np.random.Gen
 @dataclass(frozen=True)
 class Interval:
     """A point estimate and its bootstrap interval [low, high]; ``seeds`` and ``episodes``: the
-    sample it was computed from."""
+    sample it was computed from; ``n``: how many of its values were finite (None: not recorded)."""
 
     estimate: float
     low: float
     high: float
     seeds: int
     episodes: int
+    n: int | None = None
 
     @property
     def resolved(self) -> bool:
@@ -141,7 +142,8 @@ def _bootstrap(cells: list[np.ndarray], combine: Callable[..., np.ndarray], stat
     drawn = [_along_last(c[s, k].reshape(int(resamples), -1), statistic) for c in cells]
     estimate = float(combine(*[_along_last(c.ravel(), statistic) for c in cells]))
     low, high = _percentiles(combine(*drawn), confidence)
-    return Interval(estimate, low, high, shape[0], shape[1])
+    n = min(int(np.isfinite(c).sum()) for c in cells)
+    return Interval(estimate, low, high, shape[0], shape[1], n)
 
 
 def stratified_bootstrap(values, statistic: str = "mean", confidence: float = CONFIDENCE,

@@ -45,7 +45,8 @@ def test_bootstrap_matches_a_hand_computed_resampling():
     low, high = np.percentile(means, [2.5, 97.5])
     assert got.estimate == pytest.approx(77.0 / 6.0, rel=1e-15)
     assert (got.low, got.high) == pytest.approx((low, high), rel=1e-12)  # the same numbers summed in another order
-    assert (got.seeds, got.episodes) == (2, 3)
+    assert (got.seeds, got.episodes, got.n) == (2, 3, 6)
+    assert stratified_bootstrap([1.0, np.nan, 3.0]).n == 2  # the values it rests on
 
 
 def test_bootstrap_is_reproducible_and_depends_on_its_seed():
