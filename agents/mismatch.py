@@ -405,7 +405,7 @@ def build_rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequen
     analytic = [m for m in models if closed_form(m, platform)]
     rows = [Row(f"PD + gravity comp. [{m}]", "PD", m, "pd",
                 info="task-space PD, gravity compensation from this model's statics") for m in analytic]
-    rows += [Row(f"CT [{m}]", "CT", m, "ct") for m in analytic]
+    rows += [Row(f"CT [{m}]", "CT", m, "ct", info="computed torque, this model's inverse dynamics") for m in analytic]
     if algo is None:
         return rows
     agent_models = models if agent_models is None else agent_models
@@ -438,7 +438,8 @@ def _finished_agent(directory: Path, algo: str, seed: int, env_kwargs: Mapping[s
         raise TrainingError(
             f"{directory} holds an agent trained differently (algorithm, seed, env kwargs: {found}) from "
             f"this study's row ({(algo, seed, env_kwargs)}); use another --out")
-    return True
+    # a run stopped by a signal saves its model too, unfinished: it is continued, not reused
+    return bool(manifest.get("finished"))
 
 
 def _train_locally(directory: Path, training: dict[str, Any], timesteps: int, progress: bool) -> None:
@@ -793,7 +794,7 @@ def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[st
              f"Rows: controllers and the dynamics model they were designed or trained on; columns: the plant "
              f"they run on. Each cell: the point estimate and its 95 % interval, a stratified bootstrap over "
              f"the training seeds ({', '.join(map(str, seeds))}; one for the model-based rows) and the "
-             f"{result.episodes} episodes (evaluation seeds {header['eval_seed']}..{header['eval_seed'] + result.episodes - 1}, "
+             f"{result.episodes} episode{'s' if result.episodes != 1 else ''} (evaluation seeds {header['eval_seed']}..{header['eval_seed'] + result.episodes - 1}, "
              "the same for every cell). Success: the mean; every other metric: the interquartile mean, over the "
              "episodes where it is defined ('-' where none). An episode succeeds if it runs to its time limit and "
              f"ends within {1e3 * header.get('position_tolerance', POSITION_TOLERANCE):g} mm and "
@@ -996,7 +997,7 @@ def add_cli(subparsers) -> argparse.ArgumentParser:
                    help="evaluation episode length in control steps (default: the registered 500)")
     p.add_argument("--position-tolerance", type=positive_float, default=POSITION_TOLERANCE,
                    help=f"success band, m (default: {POSITION_TOLERANCE}); a cell succeeding in fewer than "
-                        f"{FAILURE_THRESHOLD:.0%} of its episodes is marked failed")
+                        f"{100 * FAILURE_THRESHOLD:g}%% of its episodes is marked failed")
     p.add_argument("--orientation-tolerance", type=positive_float, default=ORIENTATION_TOLERANCE,
                    help=f"success band, rad (default: {ORIENTATION_TOLERANCE})")
     p.add_argument("--cost-plant", default=TRUE_MODEL,

@@ -409,3 +409,28 @@ def test_mujoco_as_a_test_plant_and_a_training_model(tmp_path):
     assert "## The cost of each simplification on the mujoco plant" in (tmp_path / "matrix.md").read_text()
     manifest = json.loads((tmp_path / "agents" / "mujoco" / "seed_0" / "run.json").read_text())
     assert manifest["model"] == "mujoco"
+
+
+def test_help_formats(capsys):
+    with pytest.raises(SystemExit):
+        _parser().parse_args(["mismatch", "--help"])
+    text = capsys.readouterr().out
+    assert "--position-tolerance" in text and "fewer than 50% of its episodes" in text
+
+
+@pytest.mark.slow  # the study fixture trains eight agents: about 20 s
+def test_an_agent_stopped_by_a_signal_is_continued_not_reused(study, tmp_path):
+    """A signal stops training with a checkpoint and a model.zip, and run.json says finished: false;
+    such an agent is trained on, not evaluated as finished."""
+    import shutil
+
+    from stewart_env.agents.training import MANIFEST, read_manifest
+
+    out, _ = study
+    row = tmp_path / "seed_0"
+    shutil.copytree(out / "agents" / "improved" / "seed_0", row)
+    manifest = read_manifest(row)
+    env_kwargs = manifest["env_kwargs"]
+    assert mismatch._finished_agent(row, "ppo", 0, env_kwargs)
+    (row / MANIFEST).write_text(json.dumps({**manifest, "finished": False}))
+    assert not mismatch._finished_agent(row, "ppo", 0, env_kwargs)
