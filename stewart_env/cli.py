@@ -154,8 +154,11 @@ def _export_mjcf(args: argparse.Namespace) -> int:
     except ValueError as err:  # --solref or --solimp out of MuJoCo's range, named in the message
         name, _, problem = str(err).partition(": ")
         return fail(f"argument --{name}: {problem}")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(xml)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(xml)
+    except OSError as err:  # a full disk, a parent that is a file, no permission
+        return fail(f"argument --out: cannot write {str(out)!r}: {err.strerror or err}")
     print(f"wrote {out} (MuJoCo model of {args.platform})")
     return 0
 

@@ -87,7 +87,12 @@ DEFAULT_SOLREF = (0.002, 1.0)
 #: g (1 - d) / d on both shipped platforms (tests/test_mujoco.py).
 DEFAULT_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 
-_INSTALL_HINT = 'the MuJoCo twin needs the optional extra: pip install -e ".[mujoco]"'
+#: The longest MuJoCo step :func:`to_mjcf` writes, s: beyond it RK4 on a mechanism whose legs swing
+#: at several hertz is no simulation at all (the environment's control step is at most 10 s).
+MAX_TIMESTEP = 0.1
+
+_INSTALL_HINT = ('the MuJoCo twin needs the optional extra: pip install "stewart-env[mujoco]" '
+                 '(in a source checkout: pip install -e ".[mujoco]")')
 
 
 def _require_mujoco():
@@ -142,8 +147,8 @@ def to_mjcf(params: PlatformParams, timestep: float = 1e-3, solref: Sequence[flo
     _require_mujoco()
     if not isinstance(params, PlatformParams):
         raise ValueError(f"params: expected PlatformParams, got {type(params).__name__}")
-    if not (np.isfinite(timestep) and timestep > 0):
-        raise ValueError(f"timestep: must be a positive number of seconds, got {timestep!r}")
+    if not (np.isfinite(timestep) and 0 < timestep <= MAX_TIMESTEP):
+        raise ValueError(f"timestep: must be a number of seconds in (0, {MAX_TIMESTEP:g}], got {timestep!r}")
     solref = _check_pair("solref", solref, 2)
     solimp = _check_pair("solimp", solimp, 5)
     if not 0 < solimp[0] < 1 or not 0 < solimp[1] < 1:

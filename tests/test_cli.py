@@ -229,6 +229,7 @@ def test_export_mjcf_writes_a_model_mujoco_loads(tmp_path, capsys):
     (["--out", "{tmp}/file/model.xml"], "argument --out: output directory '{tmp}/file' is not writable"),
     (["--out", "{tmp}/m.xml", "--solimp", "1", "1", "0.001", "0.5", "2"], "argument --solimp: d_min and d_max"),
     (["--out", "{tmp}/m.xml", "--solref", "0.02", "nan"], "argument --solref: expected 2 finite numbers"),
+    (["--out", "{tmp}/m.xml", "--timestep", "1e300"], "argument --timestep: must be a number of seconds in (0, 0.1]"),
 ])
 def test_export_mjcf_errors_name_the_argument(argv, message, tmp_path, capsys):
     pytest.importorskip("mujoco")
@@ -238,6 +239,23 @@ def test_export_mjcf_errors_name_the_argument(argv, message, tmp_path, capsys):
     err = capsys.readouterr().err
     assert message.replace("{tmp}", str(tmp_path)) in err and "Traceback" not in err
     assert not (tmp_path / "m.xml").exists()
+
+
+def test_export_mjcf_write_failure_is_an_error_naming_out(tmp_path, monkeypatch, capsys):
+    pytest.importorskip("mujoco")
+
+    write_text = Path.write_text
+
+    def full(self, *args, **kwargs):
+        if self.name != "m.xml":  # the up-front probe of --out's folder still succeeds
+            return write_text(self, *args, **kwargs)
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(Path, "write_text", full)  # a disk that fills up after the up-front check
+    assert main(["export-mjcf", "--platform", "dasgupta1998", "--out", str(tmp_path / "m.xml")]) == 2
+    err = capsys.readouterr().err
+    assert f"argument --out: cannot write '{tmp_path / 'm.xml'}': No space left on device" in err
+    assert "Traceback" not in err
 
 
 def test_export_mjcf_without_mujoco_names_the_extra(tmp_path, monkeypatch, capsys):
