@@ -36,6 +36,24 @@ def test_workspace_refuses_a_batch_size_that_is_not_a_positive_integer(model, n)
         model.workspace(n)
 
 
+@pytest.mark.parametrize("n", [10**9, 2**62, 2**63, 10**30])
+def test_workspace_too_large_to_allocate_is_refused_naming_n(model, n):
+    with pytest.raises(ValueError, match=r"^n: a workspace of \d+ platforms needs .* GiB"):
+        model.workspace(n)
+
+
+def test_workspace_set_state_refuses_a_batch_of_another_size(model, home):
+    _, R, z = home
+    with pytest.raises(ValueError, match=r"^position: .*n = 1, got a batch of 2"):
+        model.workspace(1).set_state(np.zeros((2, 3)), R, z, z)
+
+
+def test_workspace_set_state_refuses_complex_numbers(model, home):
+    t, R, z = home
+    with pytest.raises(ValueError, match=r"^position: .*complex"):
+        model.workspace(1).set_state(t.astype(complex), R, z, z)
+
+
 def test_workspace_n_must_match_the_models_parameter_rows(model, dasgupta):
     two_rows = model.with_params([dasgupta, dasgupta])
     with pytest.raises(ValueError, match=r"^n: the model has 2 parameter rows"):
@@ -87,13 +105,13 @@ def test_workspace_arrays_cannot_be_rebound(model):
         ws.position = np.zeros((1, 3))
 
 
-@pytest.mark.parametrize("dt", [0.0, -1e-3, np.nan, np.inf])
+@pytest.mark.parametrize("dt", [0.0, -1e-3, np.nan, np.inf, "0.001", None, np.array([1e-3, 1e-3])])
 def test_workspace_step_refuses_a_bad_dt(model, dt):
     with pytest.raises(ValueError, match=r"^dt: "):
         model.workspace(1).step(dt)
 
 
-@pytest.mark.parametrize("steps", [-1, 1.5])
+@pytest.mark.parametrize("steps", [-1, 1.5, np.nan, np.inf, "3", True, 10**30])
 def test_workspace_step_refuses_bad_steps(model, steps):
     with pytest.raises(ValueError, match=r"^steps: "):
         model.workspace(1).step(1e-3, steps)
@@ -352,3 +370,21 @@ def test_mujoco_env_passes_gymnasiums_checker(make):
     env = make(model="mujoco", task="hold")
     with pytest.warns(UserWarning):  # the checker's note on an unbounded observation Box
         check_env(env.unwrapped, skip_render_check=True)
+
+
+# -- the command line ---------------------------------------------------------------------------
+
+
+def _subcommands():
+    import argparse
+
+    from stewart_env.cli import build_parser
+    parser = build_parser()
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return sorted(action.choices.items())
+
+
+@pytest.mark.parametrize("name, parser", _subcommands(), ids=lambda x: x if isinstance(x, str) else "")
+def test_every_subcommands_help_formats(name, parser):
+    text = parser.format_help()  # argparse %-formats every help string: a bare % in one breaks --help
+    assert f"stewart-env {name}" in text
