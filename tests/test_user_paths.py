@@ -6,6 +6,7 @@ import copy
 import pickle
 import subprocess
 import sys
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -319,6 +320,33 @@ def test_export_mjcf_refuses_a_directory_as_out(tmp_path, capsys):
     assert "argument --out" in capsys.readouterr().err
 
 
+def test_export_mjcf_write_failure_names_out_without_a_traceback(tmp_path, capsys):
+    pytest.importorskip("mujoco")
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    for out in ([("/dev/full", "No space left")] if Path("/dev/full").exists() else []) + [(blocker / "x.xml", "")]:
+        assert main(["export-mjcf", "--platform", "dasgupta1998", "--out", str(out[0])]) == 2
+        err = capsys.readouterr().err
+        assert "argument --out" in err and out[1] in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("timestep", ["1e300", "0.5"])
+def test_export_mjcf_refuses_a_timestep_no_simulation_could_use(tmp_path, capsys, timestep):
+    pytest.importorskip("mujoco")
+    assert _exit_code(["export-mjcf", "--platform", "dasgupta1998", "--out", str(tmp_path / "x.xml"),
+                       "--timestep", timestep]) == 2
+    assert "argument --timestep" in capsys.readouterr().err
+    assert not (tmp_path / "x.xml").exists()
+
+
+def _exit_code(argv) -> int:
+    """The command's exit code, whether argparse (SystemExit) or the command (its return) refused."""
+    try:
+        return main(argv)
+    except SystemExit as stop:
+        return stop.code
+
+
 def _run_without(package: str, code: str) -> subprocess.CompletedProcess:
     """Run ``code`` in a fresh interpreter where ``package`` cannot be imported, as for a user
     who did not install its extra."""
@@ -330,7 +358,7 @@ def test_export_mjcf_without_mujoco_names_the_extra_without_a_traceback(tmp_path
     run = _run_without("mujoco", "from stewart_env.cli import main\n"
                                  f"sys.exit(main(['export-mjcf', '--platform', 'dasgupta1998', '--out', {str(tmp_path / 'x.xml')!r}]))")
     assert run.returncode == 2
-    assert "[mujoco]" in run.stderr and "Traceback" not in run.stderr
+    assert 'pip install "stewart-env[mujoco]"' in run.stderr and "Traceback" not in run.stderr
 
 
 def test_mujoco_env_without_mujoco_raises_import_error_naming_the_extra():
