@@ -174,6 +174,11 @@ class Randomization:
         The caller promises ``nominal_row`` is the packed row of a valid PlatformParams (e.g. a
         model's ``packed[0]``).
         """
+        for name, row in (("nominal_row", nominal_row), ("out_row", out_row)):
+            if not (isinstance(row, np.ndarray) and row.dtype == np.float64 and row.shape == (K.N_PARAMS,)):
+                raise ValueError(f"{name}: expected a float64 array of shape ({K.N_PARAMS},), got {_short(row)}")
+        if not out_row.flags.writeable:
+            raise ValueError("out_row: read-only; pass a writeable array (a model's packed rows are read-only)")
         self.check_factors(factors)
         multipliers = _multipliers(factors)
         np.multiply(nominal_row, np.array([1.0, *multipliers])[_PART_OF], out=out_row)

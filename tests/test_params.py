@@ -465,6 +465,21 @@ def test_scale_packed_checks_the_factors_against_the_spec():
             r.scale_packed(nominal, factors, out)
 
 
+def test_scale_packed_names_a_wrong_row():
+    import stewart_env as se
+    from stewart_env.randomization import Randomization
+
+    model = se.make_dynamics("improved", load_platform("dasgupta1998"))
+    r = Randomization({"mass": (0.5, 2.0)})
+    factors = r.sample(np.random.default_rng(0))
+    with pytest.raises(ValueError, match=r"out_row: expected a float64 array of shape \(229,\)"):
+        r.scale_packed(model.packed[0], factors, np.empty(3))
+    with pytest.raises(ValueError, match="out_row: read-only"):
+        r.scale_packed(model.packed[0], factors, model.packed[0])
+    with pytest.raises(ValueError, match=r"nominal_row: expected a float64 array of shape \(229,\)"):
+        r.scale_packed(model.packed, factors, np.empty(229))
+
+
 def test_scale_packed_refuses_what_apply_refuses(config):
     from stewart_env.dynamics.model import pack_params
     from stewart_env.randomization import Randomization

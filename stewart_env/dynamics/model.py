@@ -266,9 +266,11 @@ class Dynamics:
         packed_rows (len(rows), N_PARAMS), e.g. from
         :meth:`stewart_env.randomization.Randomization.scale_packed`; ``sources`` one per row, each
         a PlatformParams or a zero-argument function returning the PlatformParams the row was
-        packed from (built only when ``params[row]`` is read).  The caller promises the packed
-        numbers are a valid platform's (what ``scale_packed`` checks); they are only checked to
-        be finite.  Raises ValueError naming the argument on wrong rows, shapes or counts.
+        packed from (built only when ``params[row]`` is read).  The rows are trusted: the caller
+        promises they are a valid platform's, as ``pack_params`` and ``scale_packed`` write them;
+        only their finiteness is checked, and a row that is no platform's (e.g. a zero platform
+        inertia) gives NaN accelerations.  Raises ValueError naming the argument on wrong rows,
+        shapes, counts or non-finite numbers.
         """
         rows = [int(r) for r in rows]
         packed_rows = np.ascontiguousarray(packed_rows, dtype=np.float64)
