@@ -56,3 +56,17 @@ def model_name(text: str) -> str:
         return parse_model_name(text)[0]
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def plant_model_name(text: str) -> str:
+    """argparse type: a model the environment simulates: a dynamics model name (see
+    :func:`model_name`) or ``"mujoco"``, MuJoCo's simulation of the same mechanism (a plant only:
+    it has no closed-form dynamics for a controller to use)."""
+    from stewart_env.envs.config import MUJOCO
+
+    if text == MUJOCO:
+        return text
+    try:
+        return model_name(text)
+    except argparse.ArgumentTypeError as err:
+        raise argparse.ArgumentTypeError(f"{err}; or {MUJOCO!r} (MuJoCo simulating the same mechanism)") from None

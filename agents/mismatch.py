@@ -95,6 +95,11 @@ DEFAULT_RANDOMIZATION: dict[str, tuple[float, float]] = {
 }
 #: Evaluation episodes use seeds EVAL_SEED_OFFSET + i, away from the training runs' seeds.
 EVAL_SEED_OFFSET = 100_000
+#: The largest training seed: numpy's and torch's seeding of a run take 32-bit seeds.
+MAX_SEED = 2**32 - 1
+#: The longest evaluation episode, in control steps (1e5 s at the default 10 ms step): a longer one
+#: is a typo, not a study.
+MAX_STEPS = 10**7
 #: The metrics whose differences measure a simplification's cost, on the true plant: the static
 #: error (where a wrong model shows most on a set point), the transient error and the force peak.
 RANKING_METRICS = ("steady_state_position_error", "steady_state_orientation_error", "rms_position_error",
@@ -211,9 +216,9 @@ def closed_form(model: str, platform: str) -> bool:
 
 def _check_seeds(seeds: Sequence[int]) -> tuple[int, ...]:
     seeds = tuple(seeds)
-    bad = [s for s in seeds if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0]
+    bad = [s for s in seeds if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or not 0 <= s <= MAX_SEED]
     if not seeds or bad:
-        raise TrainingError(f"seeds: expected one or more integers >= 0, got {list(seeds)!r}")
+        raise TrainingError(f"seeds: expected one or more integers in [0, {MAX_SEED}], got {list(seeds)!r}")
     if len(set(seeds)) != len(seeds):
         raise TrainingError(f"seeds: each seed once, got {list(seeds)!r}")
     return tuple(int(s) for s in seeds)
@@ -533,19 +538,22 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     test_models = _check_models(test_models, "test models", platform)
     seeds = _check_seeds(seeds)
     if cost_plant not in test_models:
-        raise TrainingError(f"cost plant: {cost_plant!r} is not one of the test models ({', '.join(test_models)})")
+        raise TrainingError(f"cost plant: {cost_plant!r} is not one of the test models ({', '.join(test_models)}); "
+                            f"pass --cost-plant with one of them, or add {cost_plant} to --test-models")
     if agent_models is not None:
         agent_models = _check_models(agent_models, "agent models", platform)
     for name, value in (("episodes", episodes), ("timesteps", timesteps), ("n_envs", n_envs), ("max_steps", max_steps)):
         if value is not None and (isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1):
             raise TrainingError(f"{name}: expected a positive integer, got {value!r}")
+    if max_steps is not None and max_steps > MAX_STEPS:
+        raise TrainingError(f"max_steps: at most {MAX_STEPS} control steps per episode, got {max_steps}")
     for name, value in (("position_tolerance", position_tolerance), ("orientation_tolerance", orientation_tolerance)):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
             raise TrainingError(f"{name}: expected a finite positive number, got {value!r}")
     env_kwargs = dict(env_kwargs or {})
     clash = [k for k in ("model", "task", "randomization", "platform") if k in env_kwargs]
     if clash:
-        raise TrainingError(f"env kwargs: {', '.join(clash)} are set by the study itself "
+        raise TrainingError(f"env kwargs: {', '.join(clash)} {'is' if len(clash) == 1 else 'are'} set by the study itself "
                             "(--train-models/--test-models, --task, --domain-randomization, --platform)")
     env_kwargs["platform"] = platform
     env_kwargs = jsonable(env_kwargs)
@@ -954,9 +962,21 @@ def seed_list(text: str) -> list[int]:
         seeds = [int(t) for t in _names(text)]
     except ValueError:
         seeds = []
-    if not seeds or min(seeds) < 0 or len(set(seeds)) != len(seeds):
-        raise argparse.ArgumentTypeError(f"expected comma-separated distinct integers >= 0, e.g. 0,1,2, got {text!r}")
+    if not seeds or min(seeds) < 0 or max(seeds) > MAX_SEED or len(set(seeds)) != len(seeds):
+        raise argparse.ArgumentTypeError(f"expected comma-separated distinct integers in [0, {MAX_SEED}], e.g. 0,1,2, "
+                                         f"got {text!r}")
     return seeds
+
+
+def episode_steps(text: str) -> int:
+    """argparse type of --max-steps: an integer in [1, MAX_STEPS]."""
+    try:
+        steps = int(text)
+    except ValueError:
+        steps = 0
+    if not 1 <= steps <= MAX_STEPS:
+        raise argparse.ArgumentTypeError(f"expected an integer in [1, {MAX_STEPS}], got {text!r}")
+    return steps
 
 
 def platform_name(text: str) -> str:
@@ -993,7 +1013,7 @@ def add_cli(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--n-envs", type=positive_int, default=None,
                    help="platforms per training batch (default: the config's)")
     p.add_argument("--episodes", type=positive_int, default=5, help="evaluation episodes per cell (default: 5)")
-    p.add_argument("--max-steps", type=positive_int, default=None,
+    p.add_argument("--max-steps", type=episode_steps, default=None,
                    help="evaluation episode length in control steps (default: the registered 500)")
     p.add_argument("--position-tolerance", type=positive_float, default=POSITION_TOLERANCE,
                    help=f"success band, m (default: {POSITION_TOLERANCE}); a cell succeeding in fewer than "

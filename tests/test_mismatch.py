@@ -187,18 +187,20 @@ def test_an_interrupted_study_keeps_its_finished_cells(tmp_path, monkeypatch):
     ({"train_models": ["clasical"]}, "train models: 'clasical' is not a model"),
     ({"agent_models": ["nope"]}, "agent models: 'nope' is not a model"),
     ({"simplifications": ["c5"]}, "simplifications: unknown c5"),
-    ({"env_kwargs": {"model": "classical"}}, "set by the study"),
+    ({"env_kwargs": {"model": "classical"}}, "env kwargs: model is set by the study"),
     ({"task": "juggling"}, "task: unknown task 'juggling'"),
     ({"platform": "no_such_platform"}, "platform: "),
     ({"seeds": [0, 0]}, "seeds: each seed once"),
-    ({"seeds": [-1]}, "seeds: expected one or more integers >= 0"),
+    ({"seeds": [-1]}, r"seeds: expected one or more integers in \[0, 4294967295\]"),
+    ({"seeds": [2**32]}, r"seeds: expected one or more integers in \[0, 4294967295\]"),
+    ({"max_steps": 10**7 + 1}, "max_steps: at most 10000000 control steps"),
     ({"episodes": 0}, "episodes: expected a positive integer"),
     ({"max_steps": 0}, "max_steps: expected a positive integer"),
     ({"backend": "dask"}, "backend: expected one of local, ray"),
     ({"ray_address": "auto"}, "--ray-address: only with --backend ray"),
     ({"config": "configs/agents/ppo.yml"}, "config: only with an RL algorithm"),
     ({"position_tolerance": 0.0}, "position_tolerance: expected a finite positive number"),
-    ({"cost_plant": "classical"}, "cost plant: 'classical' is not one of the test models"),
+    ({"cost_plant": "classical"}, "cost plant: 'classical' is not one of the test models .improved.; pass --cost-plant"),
     ({"orientation_tolerance": float("nan")}, "orientation_tolerance: expected a finite positive number"),
 ])
 def test_bad_requests_are_named_before_any_work(tmp_path, kwargs, message):
@@ -223,12 +225,14 @@ def _parser():
 
 @pytest.mark.parametrize("flag, value, message", [
     ("--seeds", "0,0", "argument --seeds: expected comma-separated distinct integers"),
+    ("--seeds", "4294967296", "argument --seeds: expected comma-separated distinct integers in [0, 4294967295]"),
+    ("--max-steps", "99999999999", "argument --max-steps: expected an integer in [1, 10000000]"),
     ("--seeds", "a", "argument --seeds: expected comma-separated distinct integers"),
     ("--task", "juggling", "argument --task: invalid choice: 'juggling'"),
     ("--platform", "no_such_platform", "argument --platform: "),
     ("--backend", "dask", "argument --backend: invalid choice: 'dask'"),
     ("--episodes", "0", "argument --episodes: expected a positive integer"),
-    ("--max-steps", "-3", "argument --max-steps: expected a positive integer"),
+    ("--max-steps", "-3", "argument --max-steps: expected an integer in [1, 10000000]"),
     ("--timesteps", "x", "argument --timesteps: expected a positive integer"),
     ("--algo", "dqn", "argument --algo: invalid choice: 'dqn'"),
     ("--position-tolerance", "0", "argument --position-tolerance: expected a finite positive number"),
@@ -434,3 +438,12 @@ def test_an_agent_stopped_by_a_signal_is_continued_not_reused(study, tmp_path):
     assert mismatch._finished_agent(row, "ppo", 0, env_kwargs)
     (row / MANIFEST).write_text(json.dumps({**manifest, "finished": False}))
     assert not mismatch._finished_agent(row, "ppo", 0, env_kwargs)
+
+
+def test_plant_model_name_takes_mujoco_and_names_it_when_refusing():
+    from stewart_env.agents.arguments import plant_model_name
+
+    assert plant_model_name("mujoco") == "mujoco"
+    assert plant_model_name("improved+c2") == "improved+c2"
+    with pytest.raises(argparse.ArgumentTypeError, match="or 'mujoco' .MuJoCo simulating the same mechanism."):
+        plant_model_name("mujoko")
