@@ -40,7 +40,14 @@ def build_parser() -> argparse.ArgumentParser:
     # matplotlib, which `stewart-env bench` never needs; the training modules import
     # stable-baselines3 only inside the functions that need it
     from stewart_env.agents import mismatch, training
-    from stewart_env.agents.arguments import TASKS, model_name, nonnegative_int, positive_float, positive_int
+    from stewart_env.agents.arguments import (
+        TASKS,
+        model_name,
+        nonnegative_int,
+        plant_model_name,
+        positive_float,
+        positive_int,
+    )
 
     parser = argparse.ArgumentParser(
         prog="stewart-env",
@@ -80,9 +87,10 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--internal-model", type=model_name, default="improved",
                     help="the computed-torque controller's dynamics model, independent of the plant's "
                          "(default improved)")
-    ev.add_argument("--model", nargs="+", type=model_name, default=["improved"],
+    ev.add_argument("--model", nargs="+", type=plant_model_name, default=["improved"],
                     help="the plant's dynamics model(s): classical, improved, improved_centroidal, "
-                         "optionally with switches +c1..+c4 (default improved)")
+                         "optionally with switches +c1..+c4, or mujoco (MuJoCo simulating the same "
+                         "mechanism, needs the extra mujoco) (default improved)")
     ev.add_argument("--task", choices=TASKS,
                     help="default setpoint (for an --agent: the task it was trained on)")
     ev.add_argument("--platform", type=platform_name, help="platform config name or YAML path (default dasgupta1998; for an "

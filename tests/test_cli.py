@@ -265,3 +265,14 @@ def test_export_mjcf_without_mujoco_names_the_extra(tmp_path, monkeypatch, capsy
     assert main(["export-mjcf", "--platform", "dasgupta1998", "--out", str(tmp_path / "m.xml")]) == 2
     assert 'pip install -e ".[mujoco]"' in capsys.readouterr().err
     assert not (tmp_path / "m.xml").exists()
+
+
+def test_evaluate_runs_a_baseline_on_the_mujoco_plant(capsys):
+    pytest.importorskip("mujoco")
+    assert main(["evaluate", "--policy", "pd", "--model", "improved", "mujoco", "--episodes", "1",
+                 "--max-steps", "5"]) == 0
+    out = capsys.readouterr().out
+    assert "| PD | improved | setpoint | 1 |" in out and "| PD | mujoco | setpoint | 1 |" in out
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--policy", "ct", "--internal-model", "mujoco"])  # a controller needs closed-form dynamics
+    assert "argument --internal-model" in capsys.readouterr().err
