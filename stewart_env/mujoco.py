@@ -147,7 +147,11 @@ def to_mjcf(params: PlatformParams, timestep: float = 1e-3, solref: Sequence[flo
     _require_mujoco()
     if not isinstance(params, PlatformParams):
         raise ValueError(f"params: expected PlatformParams, got {type(params).__name__}")
-    if not (np.isfinite(timestep) and 0 < timestep <= MAX_TIMESTEP):
+    try:
+        step = float(timestep)
+    except (TypeError, ValueError):
+        step = np.nan
+    if not (np.isfinite(step) and 0 < step <= MAX_TIMESTEP):
         raise ValueError(f"timestep: must be a number of seconds in (0, {MAX_TIMESTEP:g}], got {timestep!r}")
     solref = _check_pair("solref", solref, 2)
     solimp = _check_pair("solimp", solimp, 5)
@@ -341,8 +345,8 @@ class MujocoPlant:
     params_rows: one PlatformParams for every row, or a sequence of N (e.g. domain-randomised);
     rows with equal parameters share one compiled model.  timestep, solref, solimp: as in
     :func:`to_mjcf`; :meth:`step_inplace` sets MuJoCo's step to its ``dt`` (RK4 throughout).
-    nthread: threads of ``mujoco.rollout``, which steps the rows (default: every core when N > 1,
-    else the calling thread).  spherical_friction: add the spherical joints' friction, which the
+    nthread: threads of ``mujoco.rollout``, which steps the rows (0: the calling thread; default:
+    every core when N > 1, else the calling thread).  spherical_friction: add the spherical joints' friction, which the
     MJCF model cannot carry, as torques held over each call (see the module docstring).
 
     ``closure_error`` (N,), m: the largest loop-closure gap |tip_i - joint_i| of each row after
@@ -364,6 +368,9 @@ class MujocoPlant:
         n = len(rows)
         self.params = tuple(rows)
         self._settings = (timestep, tuple(solref), tuple(solimp))
+        if nthread is not None and (isinstance(nthread, bool) or not isinstance(nthread, (int, np.integer))
+                                    or nthread < 0):
+            raise ValueError(f"nthread: expected a non-negative integer (0: the calling thread) or None, got {nthread!r}")
         self._nthread = ((os.cpu_count() or 1) if n > 1 else 0) if nthread is None else int(nthread)
         self.spherical_friction = bool(spherical_friction)
         self._build()
@@ -450,8 +457,9 @@ class MujocoPlant:
         """Advance every row by ``steps`` MuJoCo steps of ``dt`` s, leg forces (N,6) and external
         wrench (N,6) [force at P, N; moment, N m; {B}] held constant; overwrite position (N,3),
         rotation (N,3,3), velocity (N,3) and angular_velocity (N,3) (platform P's origin, {B},
-        as the closed-form models) with MuJoCo's platform state.  No argument checks (the
-        environment's per-step path).  A row whose state differs from what this plant returned
+        as the closed-form models) with MuJoCo's platform state.  No argument checks, of the
+        arrays nor of ``dt`` and ``steps`` (the environment's per-step path, like
+        ``rollout_inplace``: a NaN ``dt`` turns every row NaN, ``steps`` <= 0 does nothing).  A row whose state differs from what this plant returned
         last starts afresh from that state (legs by inverse kinematics, loops closed); a row
         that is not finite, or that MuJoCo finds diverging, comes back NaN and stays so."""
         mj = _require_mujoco()

@@ -129,6 +129,10 @@ def test_to_mjcf_names_bad_arguments(dasgupta):
         twin.to_mjcf(dasgupta, solref=(0.02,))
     with pytest.raises(ValueError, match="timestep"):
         twin.to_mjcf(dasgupta, timestep=0.0)
+    with pytest.raises(ValueError, match="timestep: must be a number of seconds"):
+        twin.to_mjcf(dasgupta, timestep="x")
+    with pytest.raises(ValueError, match="nthread"):
+        twin.MujocoPlant(dasgupta, nthread=-1)
     with pytest.raises(ValueError, match="params"):
         twin.to_mjcf("dasgupta1998")
 
