@@ -139,6 +139,15 @@ def test_a_copied_model_gives_the_same_numbers(model, home, how):
     np.testing.assert_array_equal(how(model).forward(t, R, z, z, forces)[0], model.forward(t, R, z, z, forces)[0])
 
 
+def test_scale_packed_names_a_wrong_or_read_only_out_row(model):
+    from stewart_env.randomization import Randomization
+    rnd = Randomization({"platform.mass": (0.8, 1.2)})
+    with pytest.raises(ValueError, match=r"^out_row: "):
+        rnd.scale_packed(model.packed[0], {"platform.mass": 1.0}, np.empty(3))
+    with pytest.raises(ValueError, match=r"^out_row: read-only"):
+        rnd.scale_packed(model.packed[0], {"platform.mass": 1.0}, model.packed[0])
+
+
 # -- rollout with a control law -----------------------------------------------------------------
 
 
@@ -345,6 +354,43 @@ def _exit_code(argv) -> int:
         return main(argv)
     except SystemExit as stop:
         return stop.code
+
+
+def test_to_mjcf_and_the_plant_refuse_bad_settings_naming_them(dasgupta):
+    pytest.importorskip("mujoco")
+    from stewart_env.mujoco import MujocoPlant, to_mjcf
+    with pytest.raises(ValueError, match=r"^timestep: "):
+        to_mjcf(dasgupta, timestep="x")
+    with pytest.raises(ValueError, match=r"^nthread: "):
+        MujocoPlant([dasgupta, dasgupta], nthread=-1)
+    with pytest.raises(ValueError, match=r"^params_rows: "):
+        MujocoPlant([])
+
+
+def test_evaluate_runs_controllers_on_the_mujoco_plant(capsys):
+    pytest.importorskip("mujoco")
+    assert main(["evaluate", "--policy", "pd-gc", "--model", "mujoco", "--episodes", "1", "--max-steps", "5"]) == 0
+    assert "| mujoco |" in capsys.readouterr().out
+
+
+def test_evaluate_keeps_the_internal_model_closed_form(capsys):
+    assert _exit_code(["evaluate", "--policy", "ct", "--internal-model", "mujoco", "--episodes", "1"]) == 2
+    assert "argument --internal-model" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("flag, value", [("--seeds", str(2**32)), ("--seeds", "0,0"), ("--max-steps", str(10**11)),
+                                         ("--episodes", "0")])
+def test_mismatch_refuses_a_setting_that_cannot_run_naming_the_flag(tmp_path, capsys, flag, value):
+    assert _exit_code(["mismatch", "--out", str(tmp_path / "study"), "--algo", "none", flag, value]) == 2
+    assert f"argument {flag}" in capsys.readouterr().err
+    assert not (tmp_path / "study").exists()
+
+
+def test_mismatch_says_how_to_fix_a_cost_plant_missing_from_the_test_models(tmp_path, capsys):
+    code = _exit_code(["mismatch", "--out", str(tmp_path / "study"), "--algo", "none", "--test-models", "classical",
+                       "--train-models", "improved", "--simplifications", "none", "--no-progress"])
+    assert code == 2
+    assert "pass --cost-plant" in capsys.readouterr().err
 
 
 def _run_without(package: str, code: str) -> subprocess.CompletedProcess:
