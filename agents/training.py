@@ -1064,7 +1064,7 @@ def _env_kwargs_token(text: str) -> str:
 
 def add_cli(subparsers) -> argparse.ArgumentParser:
     """Add ``train`` to an argparse subparsers object; its ``func`` returns an exit code."""
-    from stewart_env.agents.arguments import TASKS, existing_file, model_name, nonnegative_int, positive_int
+    from stewart_env.agents.arguments import TASKS, existing_file, nonnegative_int, plant_model_name, positive_int
 
     p = subparsers.add_parser(
         "train", help="train an RL agent (stable-baselines3) on StewartPlatform-v0",
@@ -1073,8 +1073,9 @@ def add_cli(subparsers) -> argparse.ArgumentParser:
                     "checkpoints and TensorBoard logs. SIGINT (Ctrl-C) or SIGTERM saves a checkpoint and exits "
                     "with 130 or 143; a second signal exits at once.")
     p.add_argument("--algo", required=True, choices=ALGORITHMS, help=f"algorithm: {', '.join(ALGORITHMS)}")
-    p.add_argument("--model", type=model_name, default=None,
-                   help="plant dynamics model (default: improved; with --resume, the run's)")
+    p.add_argument("--model", type=plant_model_name, default=None,
+                   help="plant: a dynamics model, or mujoco for MuJoCo's simulation of the same mechanism "
+                        "(needs the mujoco extra) (default: improved; with --resume, the run's)")
     p.add_argument("--task", choices=TASKS, default=None,
                    help="task (default: setpoint; with --resume, the run's)")
     p.add_argument("--timesteps", type=positive_int, default=None,
