@@ -373,6 +373,12 @@ def test_evaluate_runs_controllers_on_the_mujoco_plant(capsys):
     assert "| mujoco |" in capsys.readouterr().out
 
 
+def test_train_takes_the_mujoco_plant_as_its_model():
+    from stewart_env.cli import build_parser
+    args = build_parser().parse_args(["train", "--algo", "ppo", "--out", "run", "--model", "mujoco"])
+    assert args.model == "mujoco"
+
+
 def test_evaluate_keeps_the_internal_model_closed_form(capsys):
     assert _exit_code(["evaluate", "--policy", "ct", "--internal-model", "mujoco", "--episodes", "1"]) == 2
     assert "argument --internal-model" in capsys.readouterr().err
