@@ -10,7 +10,8 @@ from numba.core.dispatcher import Dispatcher
 from numba.core.errors import NumbaError
 
 from stewart_env.dynamics import rk4
-from stewart_env.dynamics.model import Dynamics, batch_args
+from stewart_env import validation
+from stewart_env.dynamics.model import Dynamics, batch_args, check_step
 
 __all__ = ["Trajectory", "rollout", "rollout_inplace"]
 
@@ -60,15 +61,12 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
     finite raises FloatingPointError naming the batch rows; without it those rows come back
     non-finite (recorded samples too, from the first non-finite one on) for the caller to handle.
     """
-    if not (np.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt: must be a positive finite number of seconds, got {dt}")
-    if int(steps) != steps or steps < 0:
-        raise ValueError(f"steps: must be a non-negative integer, got {steps}")
-    if not np.isfinite(start_time):
-        raise ValueError(f"start_time: must be a finite number of seconds, got {start_time}")
-    if record_every is not None and (int(record_every) != record_every or record_every < 1
-                                     or steps % record_every):
-        raise ValueError(f"record_every: must be a positive integer dividing steps = {steps}, got {record_every}")
+    dt, steps = check_step(dt, steps)
+    start_time = validation.real("start_time", start_time)
+    if record_every is not None:
+        record_every = validation.integer("record_every", record_every, 1, max(steps, 1))
+        if steps % record_every:
+            raise ValueError(f"record_every: must be a positive integer dividing steps = {steps}, got {record_every}")
     if control_law is None:
         if control_params is not None:
             raise ValueError("control_params: given without a control_law")
@@ -93,16 +91,24 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
     t, R, v, w = (a[k].copy() for k in ("position", "rotation", "velocity", "angular_velocity"))
     trajectory = None
     if control_law is None and record_every is None:
-        rk4.rollout_batch(model.packed, model.flags, t, R, v, w, a["leg_forces"], a["external_wrench"],
-                          float(dt), int(steps))
+        rk4.rollout_batch(model.packed, model.flags, t, R, v, w, a["leg_forces"], a["external_wrench"], dt, steps)
     else:
         law, ctrl = (rk4.constant_forces, a["leg_forces"]) if control_law is None else (control_law, a["control_params"])
         every = 0 if record_every is None else int(record_every)
         samples = 0 if record_every is None else int(steps) // every + 1
-        rec = (np.empty((n, samples, 3)), np.empty((n, samples, 3, 3)), np.empty((n, samples, 3)),
-               np.empty((n, samples, 3)), np.empty((n, samples, 6)))
-        rk4.law_kernel()(model.packed, model.flags, t, R, v, w, law, ctrl.copy(), a["external_wrench"],
-                         float(start_time), float(dt), int(steps), every, *rec)
+        try:
+            rec = (np.empty((n, samples, 3)), np.empty((n, samples, 3, 3)), np.empty((n, samples, 3)),
+                   np.empty((n, samples, 3)), np.empty((n, samples, 6)))
+        except MemoryError:
+            raise ValueError(f"record_every: {samples} samples of {n} platforms need {n * samples * 24 * 8 / 2**30:.1f} "
+                             "GiB; record less often") from None
+        try:
+            rk4.law_kernel()(model.packed, model.flags, t, R, v, w, law, ctrl.copy(), a["external_wrench"],
+                             start_time, dt, steps, every, *rec)
+        except (ValueError, IndexError, ZeroDivisionError) as err:
+            # raised inside the user's compiled law, e.g. a parameter row of the wrong length
+            raise ValueError(f"control_law: {getattr(law, '__name__', law)} failed on control_params of shape "
+                             f"{ctrl.shape}: {err}") from None
         if record_every is not None:
             trajectory = Trajectory(start_time + dt * every * np.arange(samples), *(x if batched else x[0] for x in rec))
     if check_finite:
@@ -110,7 +116,7 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
         if bad.any():
             raise FloatingPointError(
                 f"rollout: state became non-finite in batch rows {np.flatnonzero(bad).tolist()} "
-                "(singular pose or diverging forces)"
+                "(singular pose, diverging forces, or a control law that left a leg force unwritten)"
             )
     if trajectory is not None:
         return trajectory

@@ -240,3 +240,50 @@ def test_a_law_on_a_model_with_a_parameter_set_per_row(dasgupta):
         for a, x in zip(alone, end):
             np.testing.assert_array_equal(a, x[row])  # row by row the same arithmetic
     assert not np.allclose(end[0][0], end[0][1])  # and the heavier platform moves differently
+
+
+@njit(cache=True)
+def _five_forces(time, position, rotation, velocity, angular_velocity, params, forces):
+    for i in range(5):
+        forces[i] = params[i]
+
+
+def test_a_law_that_leaves_a_force_unwritten_stops_the_rollout(batch):
+    """The sixth force is NaN, not whatever the buffer held: the rollout names the rows."""
+    model, state, F, W = batch
+    one = [x[0] for x in state]
+    with pytest.raises(FloatingPointError, match=r"rows \[0\].*left a leg force unwritten"):
+        se.rollout(model, *one, control_law=_five_forces, control_params=F[0], steps=2)
+    run = se.rollout(model, *one, control_law=_five_forces, control_params=F[0], steps=2, record_every=1,
+                     check_finite=False)
+    assert np.isnan(run.leg_forces[1, 5]) and np.isfinite(run.leg_forces[1, :5]).all()
+
+
+@pytest.mark.parametrize("name,value", [
+    ("steps", 2**63), ("steps", 10**30), ("steps", np.inf), ("steps", np.nan), ("steps", 1.5), ("steps", True),
+    ("dt", "1e-3"), ("dt", None), ("dt", np.ones(2)), ("dt", 0.0), ("dt", np.nan),
+    ("start_time", "0"), ("start_time", None), ("start_time", np.ones(2)),
+    ("record_every", np.nan), ("record_every", 0), ("record_every", 2.5),
+])
+def test_step_arguments_are_named(batch, name, value):
+    """dt, steps, start_time and record_every are refused by name, never run (2**63 steps used to
+    return the start unchanged) nor failing inside numba."""
+    model, state, F, W = batch
+    kwargs = {"dt": 1e-3, "steps": 2, name: value}
+    with pytest.raises(ValueError, match=f"^{name}: "):
+        se.rollout(model, *[x[0] for x in state], F[0], **kwargs)
+
+
+def test_a_recording_too_large_to_hold_names_record_every(batch):
+    model, state, F, W = batch
+    with pytest.raises(ValueError, match="^record_every: .* GiB"):
+        se.rollout(model, *[x[0] for x in state], F[0], steps=10**12, record_every=1)
+
+
+def test_a_law_failing_on_its_parameters_names_control_law(batch, dasgupta):
+    """The PD law with a parameter row of the wrong length: the error names the law and the shape."""
+    from stewart_env.agents import pd_control_law
+
+    model, state, F, W = batch
+    with pytest.raises(ValueError, match=r"^control_law: pd_control_law failed on control_params of shape \(1, 5\)"):
+        se.rollout(model, *[x[0] for x in state], control_law=pd_control_law, control_params=np.ones(5), steps=1)

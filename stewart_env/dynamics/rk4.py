@@ -79,10 +79,14 @@ def constant_forces(time, position, rotation, velocity, angular_velocity, params
 @njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def _leg_forces(law, ctrl, time, x, R, F):
     """The leg forces (6,), N, at a stage: the law's at (time, x), R the stage's rotation, written
-    into F; or, when ``law`` is None (the zero-order hold), ctrl itself.  numba drops the branch
-    not taken when it compiles, so the hold costs nothing."""
+    into F (a force it leaves unwritten is NaN); or, when ``law`` is None (the zero-order hold),
+    ctrl itself.  numba drops the branch not taken when it compiles, so the hold costs nothing."""
     if law is None:
         return ctrl
+    # a force the law leaves unwritten is NaN, so the rollout stops as non-finite instead of
+    # integrating whatever the buffer held
+    for i in range(6):
+        F[i] = np.nan
     law(time, x[0:3], R, x[7:10], x[10:13], ctrl, F)
     return F
 
