@@ -468,3 +468,22 @@ def _subcommands():
 def test_every_subcommands_help_formats(name, parser):
     text = parser.format_help()  # argparse %-formats every help string: a bare % in one breaks --help
     assert f"stewart-env {name}" in text
+
+
+def test_model_names_are_case_insensitive_and_mujoco_is_listed():
+    """"MuJoCo" is the MuJoCo plant as "Improved" is the improved model; an unknown name lists both."""
+    pytest.importorskip("mujoco")
+    from stewart_env.envs import StewartPlatformEnv
+
+    env = StewartPlatformEnv(model="MuJoCo")
+    assert env.unwrapped._core.config.physics.mujoco
+    env.close()
+    with pytest.raises(ValueError, match=r"^model: unknown model 'nope'.*or 'mujoco'"):
+        StewartPlatformEnv(model="nope")
+
+
+def test_a_vector_env_too_large_for_memory_names_num_envs():
+    from stewart_env.envs import StewartPlatformVectorEnv
+
+    with pytest.raises(ValueError, match="^num_envs: 2147483647 platforms do not fit"):
+        StewartPlatformVectorEnv(2**31 - 1)

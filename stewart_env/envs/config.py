@@ -86,8 +86,16 @@ class PhysicsConfig(_Record):
 
     def __post_init__(self) -> None:
         self._set("platform", _platform(self.platform))
+        # model names are case-insensitive, as the closed-form models' are
+        if isinstance(self.model, str) and self.model.strip().lower() == MUJOCO:
+            self._set("model", MUJOCO)
         self._set("mujoco", self.model == MUJOCO)
-        self._set("dynamics", make_dynamics("improved" if self.mujoco else self.model, self.platform))
+        try:
+            self._set("dynamics", make_dynamics("improved" if self.mujoco else self.model, self.platform))
+        except ValueError as err:
+            if not str(err).startswith("model: unknown model"):
+                raise
+            raise ValueError(f"{err}; or {MUJOCO!r}, MuJoCo's simulation of the same mechanism") from None
         control_dt = real("control_dt", self.control_dt, 1e-6, 10.0)
         physics_dt = real("physics_dt", self.physics_dt, 0.0, control_dt, low_open=True)
         substeps = round(control_dt / physics_dt)

@@ -169,7 +169,10 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
         self.autoreset_mode = _autoreset_mode(arguments.pop("autoreset_mode"))
         config = EnvConfig.of(**arguments)
         self.render_mode = config.render.render_mode
-        self._core = core = PlatformBatch(self.num_envs, config)
+        try:
+            self._core = core = PlatformBatch(self.num_envs, config)
+        except MemoryError:
+            raise ValueError(f"num_envs: {self.num_envs} platforms do not fit in this machine's memory") from None
         self.metadata = {**type(self).metadata, "render_fps": core.render_fps, "autoreset_mode": self.autoreset_mode}
         self.single_action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
         self.single_observation_space = spaces.Box(-np.inf, np.inf, (core.obs_dim,), np.float32)
