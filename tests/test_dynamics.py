@@ -209,6 +209,22 @@ def test_each_simplification_changes_the_dynamics_of_the_example(dasgupta, rng, 
     assert np.abs(acc - acc_ref).max() > 1e-3 * np.abs(acc_ref).max()
 
 
+def _assert_each_row_equals_its_single_call(model, t, R, v, w, F):
+    """forward, inverse and a 20-step rollout of a batch, row by row against one-row calls on that row's params."""
+    lin, ang = model.forward(t, R, v, w, F)
+    Fi = model.inverse(t, R, v, w, lin, ang)
+    end = se.rollout(model, t, R, v, w, F, dt=1e-3, steps=20)
+    for b in range(len(t)):
+        single = model if len(model.params) == 1 else se.make_dynamics(model.name, model.params[b])
+        l1, a1 = single.forward(t[b], R[b], v[b], w[b], F[b])
+        # the same arithmetic per row, serial or on any thread: bit-identical, no tolerance
+        assert np.array_equal(l1, lin[b]) and np.array_equal(a1, ang[b])
+        assert np.array_equal(single.inverse(t[b], R[b], v[b], w[b], l1, a1), Fi[b])
+        e1 = se.rollout(single, t[b], R[b], v[b], w[b], F[b], dt=1e-3, steps=20)
+        for x, y in zip(e1, end):
+            assert np.array_equal(x, y[b])
+
+
 def test_batched_calls_equal_single_calls(dasgupta, simulator, rng):
     n = 7
     params = [dasgupta.replace(platform=RigidBody(dasgupta.platform.mass * (1 + 0.1 * i), dasgupta.platform.com,
@@ -216,18 +232,7 @@ def test_batched_calls_equal_single_calls(dasgupta, simulator, rng):
     for model in (se.make_dynamics("improved", dasgupta), se.make_dynamics("classical", params)):
         states = [random_state(dasgupta, rng) for _ in range(n)]
         t, R, v, w = (np.array(x) for x in zip(*states))
-        F = rng.normal(size=(n, 6)) * 200 + 180
-        lin, ang = model.forward(t, R, v, w, F)
-        Fi = model.inverse(t, R, v, w, lin, ang)
-        end = se.rollout(model, t, R, v, w, F, dt=1e-3, steps=20)
-        for b in range(n):
-            single = model if len(model.params) == 1 else se.make_dynamics(model.name, model.params[b])
-            l1, a1 = single.forward(t[b], R[b], v[b], w[b], F[b])
-            assert np.array_equal(l1, lin[b]) and np.array_equal(a1, ang[b])  # same code path: bit-identical
-            assert np.array_equal(single.inverse(t[b], R[b], v[b], w[b], l1, a1), Fi[b])
-            e1 = se.rollout(single, t[b], R[b], v[b], w[b], F[b], dt=1e-3, steps=20)
-            for x, y in zip(e1, end):
-                assert np.array_equal(x, y[b])
+        _assert_each_row_equals_its_single_call(model, t, R, v, w, rng.normal(size=(n, 6)) * 200 + 180)
 
 
 @pytest.mark.parametrize("name", ["improved", "classical"])
@@ -237,17 +242,7 @@ def test_parallel_batches_equal_single_calls(dasgupta, rng, name):
     model = se.make_dynamics(name, dasgupta)
     t, R, v, w = (np.array(x) for x in zip(*(random_state(dasgupta, rng) for _ in range(n))))
     F = np.array([holding_forces(model, t[b], R[b]) for b in range(n)]) * rng.uniform(0.9, 1.1, (n, 6))
-    lin, ang = model.forward(t, R, v, w, F)
-    Fi = model.inverse(t, R, v, w, lin, ang)
-    end = se.rollout(model, t, R, v, w, F, dt=1e-3, steps=20)
-    for b in range(n):
-        l1, a1 = model.forward(t[b], R[b], v[b], w[b], F[b])
-        # the same arithmetic per row on every thread: bit-identical, no tolerance
-        assert np.array_equal(l1, lin[b]) and np.array_equal(a1, ang[b])
-        assert np.array_equal(model.inverse(t[b], R[b], v[b], w[b], l1, a1), Fi[b])
-        e1 = se.rollout(model, t[b], R[b], v[b], w[b], F[b], dt=1e-3, steps=20)
-        for x, y in zip(e1, end):
-            assert np.array_equal(x, y[b])
+    _assert_each_row_equals_its_single_call(model, t, R, v, w, F)
 
 
 def test_rk4_converges_at_fourth_order(dasgupta, rng):
