@@ -94,8 +94,8 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
         rk4.rollout_batch(model.packed, model.flags, t, R, v, w, a["leg_forces"], a["external_wrench"], dt, steps)
     else:
         law, ctrl = (rk4.constant_forces, a["leg_forces"]) if control_law is None else (control_law, a["control_params"])
-        every = 0 if record_every is None else int(record_every)
-        samples = 0 if record_every is None else int(steps) // every + 1
+        every = record_every or 0  # 0: record nothing
+        samples = steps // every + 1 if every else 0
         try:
             rec = (np.empty((n, samples, 3)), np.empty((n, samples, 3, 3)), np.empty((n, samples, 3)),
                    np.empty((n, samples, 3)), np.empty((n, samples, 6)))
