@@ -47,7 +47,7 @@ import numpy as np
 from stewart_env.dynamics.model import make_dynamics
 from stewart_env.kinematics import leg_kinematics
 from stewart_env.params import Damping, PlatformParams
-from stewart_env.rotations import rpy_to_matrix
+from stewart_env.rotations import rotation_error, rpy_to_matrix
 
 try:
     import mujoco as _mj
@@ -643,13 +643,7 @@ def plant_difference(params: PlatformParams, seconds: float = 1.0, control_dt: f
     for _ in range(int(round(seconds / control_dt))):
         plant.step_inplace(*mine, F, W, dt, substeps)
         rollout_inplace(model, *exact, F, W, dt, substeps)
-    return float(np.linalg.norm(mine[0][0] - exact[0][0])), _angle(mine[1][0] @ exact[1][0].T)
-
-
-def _angle(dR: np.ndarray) -> float:
-    """The rotation angle (rad) of a rotation matrix, accurate for small angles (unlike arccos)."""
-    sin = np.linalg.norm([dR[2, 1] - dR[1, 2], dR[0, 2] - dR[2, 0], dR[1, 0] - dR[0, 1]]) / 2
-    return float(np.arctan2(sin, (np.trace(dR) - 1) / 2))
+    return float(np.linalg.norm(mine[0][0] - exact[0][0])), float(rotation_error(mine[1][0], exact[1][0])[1])
 
 
 def holding_drift(params: PlatformParams, seconds: float = 1.0, timestep: float = 1e-3,
@@ -662,7 +656,7 @@ def holding_drift(params: PlatformParams, seconds: float = 1.0, timestep: float 
     plant = MujocoPlant(params, timestep, solref, solimp)
     state = [t[None].copy(), R[None].copy(), np.zeros((1, 3)), np.zeros((1, 3))]
     plant.step_inplace(*state, F[None], np.zeros((1, 6)), timestep, int(round(seconds / timestep)))
-    return float(np.linalg.norm(state[0][0] - t)), _angle(state[1][0] @ R.T)
+    return float(np.linalg.norm(state[0][0] - t)), float(rotation_error(state[1][0], R)[1])
 
 
 def trajectory_report(params: PlatformParams, seconds: float = 1.0, timestep: float = 1e-3,
