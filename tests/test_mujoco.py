@@ -97,6 +97,7 @@ def test_plant_follows_rollout_inplace(dasgupta):
     np.testing.assert_allclose(mine[0], exact[0], atol=1e-6)
     np.testing.assert_allclose(mine[1], exact[1], atol=1e-5)  # measured 5.0e-7
     assert plant.closure_error.shape == (n,) and (plant.closure_error < 1e-6).all()  # measured 5e-8 m
+    # R comes from a normalised quaternion, so it is orthonormal to a few ulps
     np.testing.assert_allclose(np.einsum("nij,nkj->nik", mine[1], mine[1]), np.tile(np.eye(3), (n, 1, 1)), atol=1e-12)
 
 
