@@ -348,7 +348,12 @@ def _train_job(row: dict[str, Any], timesteps: int) -> dict[str, bytes]:
     with tempfile.TemporaryDirectory(prefix="stewart-env-agent-") as tmp:
         folder = Path(tmp) / "agent"
         train(**row, out=folder, timesteps=timesteps)
-        return {name: (folder / name).read_bytes() for name in AGENT_FILES if (folder / name).exists()}
+        return _agent_files(folder)
+
+
+def _agent_files(folder: Path) -> dict[str, bytes]:
+    """The bytes of an agent's files in ``folder``, by name (what travels to and from workers)."""
+    return {name: (folder / name).read_bytes() for name in AGENT_FILES if (folder / name).exists()}
 
 
 def _load_agent(agent):
@@ -642,9 +647,7 @@ def _run_jobs(runner, out: Path, rows: list[Row], algo: str | None, timesteps: i
             if seed is not None:
                 key = row.agents[seed]
                 if key not in agents:
-                    agents[key] = runner.put(key if isinstance(runner, LocalBackend) else
-                                             {name: (key / name).read_bytes() for name in AGENT_FILES
-                                              if (key / name).exists()})
+                    agents[key] = runner.put(key if isinstance(runner, LocalBackend) else _agent_files(key))
                 agent = agents[key]
             jobs.append((spec, agent))
         for i, numbers in runner.run(_evaluate_job, jobs):
@@ -661,17 +664,21 @@ def _config_env_kwargs(algo: str, config: str | None = None) -> dict[str, Any]:
     return dict(parse_hyperparameters(algo, read_hyperparameters(algo, config)).env_kwargs)
 
 
+def _stored_metrics(out: Path, row: Row, plant: str) -> list[dict[str, list[float]]]:
+    """A stored cell's metrics per episode, one dict per seed (one for a model-based row)."""
+    paths = [_cell_path(out, row, plant, seed) for seed in (row.seeds or (None,))]
+    return [json.loads(p.read_text())["metrics"] for p in paths]
+
+
 def cell_values(out: Path, row: Row, plant: str, metric: str) -> np.ndarray:
     """A stored cell's values of one metric, (seeds, episodes)."""
-    paths = [_cell_path(out, row, plant, seed) for seed in (row.seeds or (None,))]
-    return np.array([json.loads(p.read_text())["metrics"][metric] for p in paths], dtype=float)
+    return np.array([s[metric] for s in _stored_metrics(out, row, plant)], dtype=float)
 
 
 def _cell_intervals(out: Path, row: Row, plant: str) -> dict[str, Interval]:
     from stewart_env.agents.evaluation import METRICS
 
-    paths = [_cell_path(out, row, plant, seed) for seed in (row.seeds or (None,))]
-    stored = [json.loads(p.read_text())["metrics"] for p in paths]
+    stored = _stored_metrics(out, row, plant)
     return {key: stratified_bootstrap(np.array([s[key] for s in stored], dtype=float), statistic(key))
             for key, *_ in METRICS}
 
