@@ -220,6 +220,8 @@ def _parts() -> tuple[tuple[str, slice, tuple[str, ...]], ...]:
 
 _PARTS = _parts()
 _PART_NAMES = [name for name, _, _ in _PARTS]
+
+
 def _part_of() -> np.ndarray:
     """For each number of the packed row, 1 + the index of its part in ``_PARTS``, or 0 where
     nothing is randomised (the multiplier 1)."""
