@@ -55,6 +55,7 @@ from typing import Any
 
 import numpy as np
 
+from stewart_env.agents.arguments import _checked
 from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
 from stewart_env.agents.statistics import Interval, paired_difference, stratified_bootstrap
 from stewart_env.agents.training import (
@@ -975,15 +976,8 @@ def seed_list(text: str) -> list[int]:
     return seeds
 
 
-def episode_steps(text: str) -> int:
-    """argparse type of --max-steps: an integer in [1, MAX_STEPS]."""
-    try:
-        steps = int(text)
-    except ValueError:
-        steps = 0
-    if not 1 <= steps <= MAX_STEPS:
-        raise argparse.ArgumentTypeError(f"expected an integer in [1, {MAX_STEPS}], got {text!r}")
-    return steps
+episode_steps = _checked(int, lambda steps: 1 <= steps <= MAX_STEPS, f"an integer in [1, {MAX_STEPS}]",
+                         "argparse type of --max-steps: an integer in [1, MAX_STEPS].")
 
 
 def platform_name(text: str) -> str:
