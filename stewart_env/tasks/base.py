@@ -110,15 +110,16 @@ class RewardWeights:
     that no term and no sum of them overflows.
     """
 
-    position_reward_weight: float = 0.5
-    position_reward_scale: float = 0.05
-    orientation_reward_weight: float = 0.5
-    orientation_reward_scale: float = 0.1
-    velocity_cost_weight: float = 0.1
-    velocity_cost_scale: float = 0.5
-    angular_velocity_cost_scale: float = 1.0
-    ctrl_cost_weight: float = 0.1
-    termination_cost: float = 10.0
+    # No defaults here: Task.__init__'s keyword defaults are the one source of them.
+    position_reward_weight: float
+    position_reward_scale: float
+    orientation_reward_weight: float
+    orientation_reward_scale: float
+    velocity_cost_weight: float
+    velocity_cost_scale: float
+    angular_velocity_cost_scale: float
+    ctrl_cost_weight: float
+    termination_cost: float
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
