@@ -43,7 +43,7 @@ def test_bootstrap_matches_a_hand_computed_resampling():
     k = rng.integers(0, 3, size=(50, 2, 3))
     means = [np.mean([cell[s[b, i, 0], k[b, i, j]] for i in range(2) for j in range(3)]) for b in range(50)]
     low, high = np.percentile(means, [2.5, 97.5])
-    assert got.estimate == pytest.approx(77.0 / 6.0, rel=1e-15)
+    assert got.estimate == pytest.approx(77.0 / 6.0, rel=1e-15)  # a mean of six small floats: last-bit rounding
     assert (got.low, got.high) == pytest.approx((low, high), rel=1e-12)  # the same numbers summed in another order
     assert (got.seeds, got.episodes, got.n) == (2, 3, 6)
     assert stratified_bootstrap([1.0, np.nan, 3.0]).n == 2  # the values it rests on
@@ -85,6 +85,7 @@ def test_paired_difference_cancels_what_the_cells_share():
     worse, exact = difficulty + 0.01, difficulty
     d = paired_difference(worse, exact, "mean")
     assert d.estimate == pytest.approx(0.01, rel=1e-9)  # float rounding of sums of order 30
+    # each resample's difference is 0.01 up to rounding of values near 10: percentiles agree far within 1e-6
     assert d.resolved and d.low == pytest.approx(0.01, rel=1e-6) and d.high == pytest.approx(0.01, rel=1e-6)
     # the same values as unrelated samples: their intervals overlap, nothing is resolved
     a, b = stratified_bootstrap(worse), stratified_bootstrap(exact)
