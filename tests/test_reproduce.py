@@ -73,6 +73,7 @@ def test_reproduction_is_unchanged_by_the_compiled_rollout(dasgupta, model, grav
         # the stiff loop (poles near 300 rad/s) grows to 3e-14 of each quantity's size
         np.testing.assert_allclose(getattr(run, key)[samples], expected, rtol=0, atol=1e-12 * np.abs(expected).max(),
                                    err_msg=key)
+    # sample times k * every * dt against k * 2e-3: a few ulps of the 0.02 s end
     np.testing.assert_allclose(run.time, np.arange(11) * 2e-3, rtol=0, atol=1e-15)
 
 
