@@ -48,6 +48,17 @@ def existing_file(text: str) -> str:
     return text
 
 
+def platform_name(text: str) -> str:
+    """argparse type: a shipped platform's name or a platform YAML file that loads."""
+    from stewart_env.params import load_platform
+
+    try:
+        load_platform(text)
+    except (ValueError, OSError, KeyError, TypeError) as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    return text
+
+
 def model_name(text: str) -> str:
     """argparse type: a dynamics model name (classical, improved, ... with +c1..+c4 switches)."""
     from stewart_env.dynamics.model import parse_model_name

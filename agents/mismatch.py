@@ -226,12 +226,12 @@ def _check_seeds(seeds: Sequence[int]) -> tuple[int, ...]:
 
 
 def _check_platform(platform: str) -> str:
-    import stewart_env as se
+    from stewart_env.agents.arguments import platform_name
 
     try:
-        se.load_platform(platform)
-    except (ValueError, OSError) as exc:
-        raise TrainingError(f"platform: {exc}") from None
+        platform_name(platform)
+    except argparse.ArgumentTypeError as err:
+        raise TrainingError(f"platform: {err}") from None
     # a config file by its absolute path, so that a later run from elsewhere finds the same one
     return platform if Path(platform).suffix == "" and not Path(platform).exists() else str(Path(platform).resolve())
 
@@ -980,17 +980,9 @@ episode_steps = _checked(int, lambda steps: 1 <= steps <= MAX_STEPS, f"an intege
                          "argparse type of --max-steps: an integer in [1, MAX_STEPS].")
 
 
-def platform_name(text: str) -> str:
-    """argparse type of --platform: a shipped platform's name or a config file that loads."""
-    try:
-        return _check_platform(text)
-    except TrainingError as err:
-        raise argparse.ArgumentTypeError(str(err).removeprefix("platform: ")) from None
-
-
 def add_cli(subparsers) -> argparse.ArgumentParser:
     """Add ``mismatch`` to an argparse subparsers object; its ``func`` returns an exit code."""
-    from stewart_env.agents.arguments import TASKS, existing_file, positive_float, positive_int
+    from stewart_env.agents.arguments import TASKS, existing_file, platform_name, positive_float, positive_int
 
     p = subparsers.add_parser(
         "mismatch", help="model-mismatch study: controllers built on one model, run on another",

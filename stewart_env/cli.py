@@ -24,17 +24,6 @@ CONTROLLERS = ("pd", "pd-gc", "ct")
 _SIMULATING = ("demo", "evaluate", "reproduce", "train", "mismatch")
 
 
-def platform_name(text: str) -> str:
-    """argparse type: a shipped platform name or a platform YAML file that loads."""
-    from stewart_env.params import load_platform
-
-    try:
-        load_platform(text)
-    except (ValueError, OSError, KeyError, TypeError) as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
-    return text
-
-
 def build_parser() -> argparse.ArgumentParser:
     # imported here, not at module top: stewart_env.agents loads the evaluation harness and
     # matplotlib, which `stewart-env bench` never needs; the training modules import
@@ -45,6 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
         model_name,
         nonnegative_int,
         plant_model_name,
+        platform_name,
         positive_float,
         positive_int,
     )
