@@ -57,7 +57,7 @@ import numpy as np
 
 from stewart_env.agents.arguments import _checked
 from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
-from stewart_env.agents.statistics import Interval, paired_difference, stratified_bootstrap
+from stewart_env.agents.statistics import Interval, paired_difference, seeds_to_resolve, stratified_bootstrap
 from stewart_env.agents.training import (
     ALGORITHMS,
     MANIFEST,
@@ -736,6 +736,13 @@ def format_interval(interval: Interval, factor: float, spec: str) -> str:
             f"{_fmt(interval.high, factor, spec)}]")
 
 
+def _unresolved_text(difference: Difference) -> str:
+    """An unresolved cost's name, with the seeds per row that would resolve it where it rests on
+    several (:func:`~.statistics.seeds_to_resolve`)."""
+    seeds = seeds_to_resolve(difference.interval)
+    return difference.simplification + ("" if seeds is None else f" (about {seeds} seeds a row would resolve it)")
+
+
 def _cost_lines(result: MismatchResult, metrics) -> list[str]:
     """The markdown section of the simplifications' costs: per family a table (rows:
     simplifications, columns: metrics, entries: difference [interval], resolved in bold, failed
@@ -767,7 +774,7 @@ def _cost_lines(result: MismatchResult, metrics) -> list[str]:
         for key in RANKING_METRICS:
             ranked = sorted((d for d in mine if d.metric == key and d.resolved and not d.failed),
                             key=lambda d: -abs(d.interval.estimate))
-            unresolved = [d.simplification for d in mine if d.metric == key and not d.resolved and not d.failed]
+            unresolved = [_unresolved_text(d) for d in mine if d.metric == key and not d.resolved and not d.failed]
             failed = [d.simplification for d in mine if d.metric == key and d.failed]
             text = ", ".join(f"{d.simplification} ({_fmt(d.interval.estimate, meta[key][2], '+.3g')})"
                              for d in ranked) or "none resolved"
@@ -799,11 +806,12 @@ def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[st
     with files["differences"].open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(["family", "simplification", "controller", "reference", "plant", "metric", "statistic",
-                         "difference", "ci_low", "ci_high", "resolved", "failed"])
+                         "difference", "ci_low", "ci_high", "resolved", "failed", "seeds_to_resolve"])
         for d in result.differences:
             writer.writerow([d.family, d.simplification, d.label, d.reference, d.plant, d.metric,
                              statistic(d.metric), f"{d.interval.estimate:.9g}", f"{d.interval.low:.9g}",
-                             f"{d.interval.high:.9g}", int(d.resolved), int(d.failed)])
+                             f"{d.interval.high:.9g}", int(d.resolved), int(d.failed),
+                             seeds_to_resolve(d.interval) or ""])
 
     seeds = header.get("seeds", [])
     lines = [f"# Model mismatch on the {header['task']} task, platform {header.get('platform', 'dasgupta1998')}", "",

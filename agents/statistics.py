@@ -20,6 +20,8 @@ some episodes (NaN, e.g. the settling time of an episode that never settles).
   measured on the same episodes: one set of drawn indices serves both, so what the two cells
   share (the episodes' difficulty) cancels in each resample.
 * :func:`resolved`: whether an interval excludes zero.
+* :func:`seeds_to_resolve`: for an unresolved difference between learned rows, about how many
+  training seeds per row would resolve it, were its estimate to hold.
 """
 
 from __future__ import annotations
@@ -113,6 +115,20 @@ def resolved(low: float, high: float) -> bool:
     """Whether the interval [low, high] excludes zero: a difference whose sign the sample
     determines.  An undefined bound (NaN) resolves nothing."""
     return bool(np.isfinite(low) and np.isfinite(high) and (low > 0 or high < 0))
+
+
+def seeds_to_resolve(interval: Interval) -> int | None:
+    """About how many training seeds per row would make an unresolved interval exclude zero, were
+    its estimate to stay where it is: an interval's width shrinks as 1 / sqrt(seeds) when the
+    seeds dominate it, so seeds (half-width / |estimate|)^2, rounded up.  A planning figure, not a
+    promise: with few seeds the interval and the estimate are both rough.  None where the
+    interval is resolved, rests on one seed (the width then shrinks with episodes), or the
+    estimate is zero or undefined."""
+    half_width = 0.5 * (interval.high - interval.low)
+    if interval.resolved or interval.seeds < 2 or not np.isfinite(half_width) or not interval.estimate:
+        return None
+    # rounded down first where the ratio is a whole number but for the last bits
+    return int(np.ceil(np.round(interval.seeds * (half_width / abs(interval.estimate)) ** 2, 9)))
 
 
 def _percentiles(samples: np.ndarray, confidence: float) -> tuple[float, float]:

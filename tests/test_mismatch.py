@@ -120,6 +120,7 @@ def test_costs_of_the_simplifications(study):
                 ("CT", "C2", "steady_state_orientation_error"))
     assert float(line["difference"]) == pytest.approx(c2.interval.estimate, rel=1e-8)  # printed to 9 digits
     assert (line["resolved"], line["failed"], line["statistic"]) == ("1", "0", "iqm")
+    assert line["seeds_to_resolve"] == ""  # resolved, and on one seed: no planning figure
 
 
 @pytest.mark.slow  # the study fixture trains eight agents: about 20 s

@@ -10,6 +10,7 @@ from stewart_env.agents.statistics import (
     paired_difference,
     point_estimate,
     resolved,
+    seeds_to_resolve,
     stratified_bootstrap,
 )
 
@@ -99,6 +100,34 @@ def test_resolved_decision_on_constructed_intervals():
     assert not resolved(-0.1, 0.3) and not resolved(0.0, 0.3) and not resolved(-0.2, 0.0)
     assert not resolved(np.nan, 1.0)
     assert Interval(0.2, 0.1, 0.3, 1, 5).resolved and not Interval(0.2, -0.1, 0.3, 1, 5).resolved
+
+
+def test_seeds_to_resolve_on_constructed_intervals():
+    # half-width 0.3 around 0.1 at 4 seeds: 4 (0.3 / 0.1)^2 = 36 seeds
+    assert seeds_to_resolve(Interval(0.1, -0.2, 0.4, 4, 50)) == 36
+    assert seeds_to_resolve(Interval(-0.1, -0.35, 0.15, 3, 50)) == 19  # 3 (0.25 / 0.1)^2 = 18.75
+    assert seeds_to_resolve(Interval(0.2, 0.1, 0.3, 4, 50)) is None  # already resolved
+    assert seeds_to_resolve(Interval(0.1, -0.2, 0.4, 1, 50)) is None  # one seed: episodes, not seeds, narrow it
+    assert seeds_to_resolve(Interval(0.0, -0.2, 0.2, 4, 50)) is None  # no estimate to resolve
+    assert seeds_to_resolve(Interval(np.nan, np.nan, np.nan, 4, 50)) is None
+
+
+def test_seeds_to_resolve_follows_the_width_of_more_seeds():
+    """The figure rests on the width shrinking as 1 / sqrt(seeds): the same four seeds repeated k
+    times keep the estimate, narrow the interval about sqrt(k) times, and so keep the figure;
+    repeated to twice the figure, they resolve the difference."""
+    rng = np.random.default_rng(3)
+    values = 0.15 + np.array([-0.3, 0.1, 0.25, -0.05])[:, None] + rng.normal(0.0, 0.05, (4, 30))
+    reference = np.array([0.2, -0.25, 0.0, 0.05])[:, None] + rng.normal(0.0, 0.05, (4, 30))
+
+    def repeated(k):
+        return paired_difference(np.tile(values, (k, 1)), np.tile(reference, (k, 1)))
+
+    needed = seeds_to_resolve(repeated(1))
+    assert needed is not None and needed > 8
+    # the percentile bootstrap's width follows 1 / sqrt(seeds) to within about 15 % here
+    assert seeds_to_resolve(repeated(2)) == pytest.approx(needed, rel=0.3)
+    assert repeated(-(-2 * needed // 4)).resolved
 
 
 @pytest.mark.parametrize("kwargs, message", [
