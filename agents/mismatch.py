@@ -21,7 +21,9 @@ bootstrap interval over seeds and episodes (:mod:`stewart_env.agents.statistics`
 rate as a mean, every other metric as an interquartile mean (a few failed episodes dominate a
 mean).  The cost of a simplification to a controller family is the paired difference, on the
 exact (improved) plant, between the family's row built on the simplified model and its row built
-on the exact one; it is resolved when its interval excludes zero.
+on the exact one; it is resolved when its interval excludes zero.  Where the simplified model is
+a test plant too, the double difference compares each controller with itself on the two plants
+(see :class:`Difference`): the training seeds' own spread cancels in it.
 
 Output in DIR: ``matrix.csv`` (one line per row and test plant; every metric with
 ``<metric>_ci_low``, ``<metric>_ci_high`` and ``<metric>_n``, the values it rests on),
@@ -57,7 +59,13 @@ import numpy as np
 
 from stewart_env.agents.arguments import _checked
 from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
-from stewart_env.agents.statistics import Interval, paired_difference, seeds_to_resolve, stratified_bootstrap
+from stewart_env.agents.statistics import (
+    Interval,
+    double_difference,
+    paired_difference,
+    seeds_to_resolve,
+    stratified_bootstrap,
+)
 from stewart_env.agents.training import (
     ALGORITHMS,
     MANIFEST,
@@ -146,11 +154,22 @@ class Row:
     randomized: bool = False
 
 
+#: The two measures of a simplification's cost: the cost itself, between the rows built on the
+#: simplified and on the exact model, both on the cost plant; and the double difference, each row's
+#: change from the simplified model's plant to the cost plant, the one row's minus the other's.
+COST, DOUBLE_DIFFERENCE = "cost", "double difference"
+
+
 @dataclass
 class Difference:
-    """The cost of one simplification to one controller family on one metric: ``interval`` of
-    (row built on the simplified model) - (row built on the exact model), both on ``plant``;
-    ``failed`` if either row succeeds in fewer than :data:`FAILURE_THRESHOLD` of the episodes."""
+    """The cost of one simplification to one controller family on one metric.  ``measure``
+    :data:`COST`: ``interval`` of (row built on the simplified model) - (row built on the exact
+    model), both on ``plant``.  :data:`DOUBLE_DIFFERENCE`: of [that row on ``plant`` - on the
+    simplified model's plant] - [the exact row on ``plant`` - on the simplified model's plant]; on
+    the exact plant, the sum of the two ways of building on the wrong model (the simplified row on
+    the exact plant, the exact row on the simplified plant), each compared with the row built on
+    that plant's model.  ``failed`` if a row succeeds in fewer than :data:`FAILURE_THRESHOLD` of
+    the episodes on a plant the measure uses."""
 
     family: str
     simplification: str
@@ -160,6 +179,7 @@ class Difference:
     interval: Interval
     failed: bool
     plant: str = TRUE_MODEL
+    measure: str = COST
 
     @property
     def resolved(self) -> bool:
@@ -701,8 +721,10 @@ def simplification_costs(result: MismatchResult, values: Callable[[Row, str, str
                          plant: str = TRUE_MODEL) -> list[Difference]:
     """Per controller family with a row built on the exact model: for each simplification and each
     of :data:`RANKING_METRICS`, the paired difference on ``plant`` of the row built on the
-    simplified model minus the exact-model row, with its interval.  ``values(row, plant, metric)``
-    gives a cell's values (seeds, episodes), e.g. :func:`cell_values` of a study's directory."""
+    simplified model minus the exact-model row, with its interval; and where the simplified model
+    is a test plant too, the double difference (see :class:`Difference`).  ``values(row, plant,
+    metric)`` gives a cell's values (seeds, episodes), e.g. :func:`cell_values` of a study's
+    directory."""
     if plant not in result.test_models:
         return []
     differences = []
@@ -712,13 +734,24 @@ def simplification_costs(result: MismatchResult, values: Callable[[Row, str, str
         if exact is None:
             continue
         for name, row in _compared_rows(result, family):
-            failed = min(result.summary[label][plant]["success"].estimate
-                         for label in (row.label, exact.label)) < FAILURE_THRESHOLD
+            home = row.model if row.model in result.test_models and row.model != plant and not row.randomized else None
             for metric in RANKING_METRICS:
-                interval = paired_difference(values(row, plant, metric), values(exact, plant, metric),
-                                             statistic(metric))
-                differences.append(Difference(family, name, row.label, exact.label, metric, interval, failed, plant))
+                differences.append(Difference(
+                    family, name, row.label, exact.label, metric,
+                    paired_difference(values(row, plant, metric), values(exact, plant, metric), statistic(metric)),
+                    _failed(result, (row, exact), (plant,)), plant))
+                if home is not None:
+                    differences.append(Difference(
+                        family, name, row.label, exact.label, metric,
+                        double_difference(values(row, plant, metric), values(row, home, metric),
+                                          values(exact, plant, metric), values(exact, home, metric), statistic(metric)),
+                        _failed(result, (row, exact), (plant, home)), plant, DOUBLE_DIFFERENCE))
     return differences
+
+
+def _failed(result: MismatchResult, rows: Sequence[Row], plants: Sequence[str]) -> bool:
+    """Whether a row succeeds in fewer than :data:`FAILURE_THRESHOLD` of its episodes on a plant."""
+    return min(result.summary[r.label][p]["success"].estimate for r in rows for p in plants) < FAILURE_THRESHOLD
 
 
 # -- outputs ---------------------------------------------------------------------------------------
@@ -743,34 +776,41 @@ def _unresolved_text(difference: Difference) -> str:
     return difference.simplification + ("" if seeds is None else f" (about {seeds} seeds a row would resolve it)")
 
 
+def _difference_table(differences: Sequence[Difference], meta) -> list[str]:
+    """A markdown table of one family's differences: rows simplifications, columns
+    :data:`RANKING_METRICS`, entries difference [interval], resolved in bold, failed marked."""
+    lines = ["| simplification | " + " | ".join(meta[k][1] for k in RANKING_METRICS) + " |",
+             "|---|" + "---|" * len(RANKING_METRICS)]
+    for name in dict.fromkeys(d.simplification for d in differences):
+        cells = []
+        for key in RANKING_METRICS:
+            d = next(x for x in differences if x.simplification == name and x.metric == key)
+            text = format_interval(d.interval, meta[key][2], meta[key][3])
+            cells.append(f"*failed* {text}" if d.failed else f"**{text}**" if d.resolved else text)
+        label = f"{name}: {SIMPLIFICATION_TEXT[name.lower()]}" if name.lower() in SIMPLIFICATION_TEXT else name
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def _cost_lines(result: MismatchResult, metrics) -> list[str]:
-    """The markdown section of the simplifications' costs: per family a table (rows:
+    """The markdown sections of the simplifications' costs: per family a table (rows:
     simplifications, columns: metrics, entries: difference [interval], resolved in bold, failed
-    marked), then per metric the ranking of the resolved costs that are not failed."""
-    if not result.differences:
+    marked), then per metric the ranking of the resolved costs that are not failed; then the
+    double differences, per family a table."""
+    costs = [d for d in result.differences if d.measure == COST]
+    if not costs:
         return []
     meta = {m[0]: m for m in metrics}
-    plant = result.differences[0].plant
+    plant = costs[0].plant
     lines = [f"## The cost of each simplification on the {plant} plant", "",
              f"Each entry: (controller built on the simplified model) - (the same controller built on the "
              f"{TRUE_MODEL} model), both on the {plant} plant, paired by episode, with its 95 % interval "
              "(stratified bootstrap over seeds and episodes). **Bold**: resolved (the interval excludes zero). "
              f"*failed*: one of the two rows succeeds in fewer than {FAILURE_THRESHOLD:.0%} of the episodes, so "
              "the difference measures the failure and is not ranked.", ""]
-    for family in dict.fromkeys(d.family for d in result.differences):
-        mine = [d for d in result.differences if d.family == family]
-        names = list(dict.fromkeys(d.simplification for d in mine))
-        lines += [f"### {family}", "", "| simplification | " + " | ".join(meta[k][1] for k in RANKING_METRICS) + " |",
-                  "|---|" + "---|" * len(RANKING_METRICS)]
-        for name in names:
-            cells = []
-            for key in RANKING_METRICS:
-                d = next(x for x in mine if x.simplification == name and x.metric == key)
-                text = format_interval(d.interval, meta[key][2], meta[key][3])
-                cells.append(f"*failed* {text}" if d.failed else f"**{text}**" if d.resolved else text)
-            label = f"{name}: {SIMPLIFICATION_TEXT[name.lower()]}" if name.lower() in SIMPLIFICATION_TEXT else name
-            lines.append(f"| {label} | " + " | ".join(cells) + " |")
-        lines.append("")
+    for family in dict.fromkeys(d.family for d in costs):
+        mine = [d for d in costs if d.family == family]
+        lines += [f"### {family}", "", *_difference_table(mine, meta)]
         for key in RANKING_METRICS:
             ranked = sorted((d for d in mine if d.metric == key and d.resolved and not d.failed),
                             key=lambda d: -abs(d.interval.estimate))
@@ -782,6 +822,19 @@ def _cost_lines(result: MismatchResult, metrics) -> list[str]:
                 f"; failed, not ranked: {', '.join(failed)}" if failed else "")
             lines.append(f"- {meta[key][1]}, resolved costs, largest first: {text}{rest}.")
         lines.append("")
+    doubles = [d for d in result.differences if d.measure == DOUBLE_DIFFERENCE]
+    if doubles:
+        lines += [f"## Double differences on the {plant} plant", "",
+                  f"Each entry: [controller built on the simplified model, on the {plant} plant - on the simplified "
+                  f"model's plant] - [the same for the controller built on the {TRUE_MODEL} model], with its 95 % "
+                  "interval. Each controller is compared with itself, seed by seed and episode by episode, so a "
+                  "training seed's own bias cancels, and so does the difference between the two plants. On the "
+                  "exact plant it is the sum of the two costs of building on the wrong model: the simplified "
+                  "controller on the exact plant, and the exact controller on the simplified plant, each against "
+                  "the controller built on its plant's model. Zero where the simplification costs nothing either "
+                  "way; not ranked.", ""]
+        for family in dict.fromkeys(d.family for d in doubles):
+            lines += [f"### {family}", "", *_difference_table([d for d in doubles if d.family == family], meta)]
     return lines
 
 
@@ -805,10 +858,10 @@ def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[st
                 writer.writerow([r.label, r.family, r.model, m, first.seeds, first.episodes] + values)
     with files["differences"].open("w", newline="") as f:
         writer = csv.writer(f)
-        writer.writerow(["family", "simplification", "controller", "reference", "plant", "metric", "statistic",
-                         "difference", "ci_low", "ci_high", "resolved", "failed", "seeds_to_resolve"])
+        writer.writerow(["family", "simplification", "measure", "controller", "reference", "plant", "metric",
+                         "statistic", "difference", "ci_low", "ci_high", "resolved", "failed", "seeds_to_resolve"])
         for d in result.differences:
-            writer.writerow([d.family, d.simplification, d.label, d.reference, d.plant, d.metric,
+            writer.writerow([d.family, d.simplification, d.measure, d.label, d.reference, d.plant, d.metric,
                              statistic(d.metric), f"{d.interval.estimate:.9g}", f"{d.interval.low:.9g}",
                              f"{d.interval.high:.9g}", int(d.resolved), int(d.failed),
                              seeds_to_resolve(d.interval) or ""])
@@ -850,7 +903,8 @@ def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[st
 
 def forest_figure(result: MismatchResult, metrics):
     """Every simplification's cost with its 95 % interval, one panel per metric of
-    :data:`RANKING_METRICS`, one line per (family, simplification): filled where resolved,
+    :data:`RANKING_METRICS`, one line per (family, simplification), and one per double difference
+    where the study has them (labelled "double diff."): filled where resolved,
     hollow where the interval includes zero, grey crosses where a row failed.  The x axis is
     symmetric-log: costs to computed torque (micrometres) and to learned agents (millimetres)
     share it."""
@@ -859,7 +913,7 @@ def forest_figure(result: MismatchResult, metrics):
     from stewart_env.agents.evaluation import new_figure
 
     meta = {m[0]: m for m in metrics}
-    entries = list(dict.fromkeys((d.family, d.simplification) for d in result.differences))
+    entries = list(dict.fromkeys((d.family, d.simplification, d.measure) for d in result.differences))
     columns = 2
     fig = new_figure(figsize=(13.0, 1.4 + 0.3 * len(entries) * math.ceil(len(RANKING_METRICS) / columns)),
                      layout="constrained")
@@ -872,7 +926,7 @@ def forest_figure(result: MismatchResult, metrics):
                       if np.isfinite(v) and v != 0]
         ax.axvline(0.0, color="0.3", lw=0.8)
         for d in mine:
-            i = y[d.family, d.simplification]
+            i = y[d.family, d.simplification, d.measure]
             e, lo, hi = (v * factor for v in (d.interval.estimate, d.interval.low, d.interval.high))
             if not np.isfinite(e):
                 continue
@@ -897,7 +951,8 @@ def forest_figure(result: MismatchResult, metrics):
             if entries[i][0] != entries[i - 1][0]:
                 ax.axhline(y[entries[i]] + 0.5, color="0.75", lw=0.8)
     for ax in axes[::columns]:
-        ax.set_yticks([y[e] for e in entries], [f"{f}: {s}" for f, s in entries])
+        ax.set_yticks([y[e] for e in entries],
+                      [f"{f}: {s}" + (" (double diff.)" if m == DOUBLE_DIFFERENCE else "") for f, s, m in entries])
         ax.set_ylim(-0.7, len(entries) - 0.3)
     fig.suptitle(f"The cost of each simplification on the {result.differences[0].plant} plant, 95 % intervals\n"
                  "(red filled: resolved; "

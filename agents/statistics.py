@@ -19,6 +19,11 @@ some episodes (NaN, e.g. the settling time of an episode that never settles).
 * :func:`paired_difference`: the same for the difference of a statistic between two cells
   measured on the same episodes: one set of drawn indices serves both, so what the two cells
   share (the episodes' difficulty) cancels in each resample.
+* :func:`double_difference`: the same for a difference of two such differences, each within one
+  controller (its cell on one plant minus its cell on another): what a controller built on one
+  model loses moving between plants, beyond what the controller built on another loses on the
+  same move.  Each controller's seeds are paired with themselves, so the spread between
+  training seeds largely cancels.
 * :func:`resolved`: whether an interval excludes zero.
 * :func:`seeds_to_resolve`: for an unresolved difference between learned rows, about how many
   training seeds per row would resolve it, were its estimate to hold.
@@ -160,6 +165,19 @@ def _bootstrap(cells: list[np.ndarray], combine: Callable[..., np.ndarray], stat
     low, high = _percentiles(combine(*drawn), confidence)
     n = min(int(np.isfinite(c).sum()) for c in cells)
     return Interval(estimate, low, high, shape[0], shape[1], n)
+
+
+def double_difference(values, values_home, reference, reference_home, statistic: str = "mean",
+                      confidence: float = CONFIDENCE, resamples: int = RESAMPLES,
+                      seed: int = BOOTSTRAP_SEED) -> Interval:
+    """``(stat(values) - stat(values_home)) - (stat(reference) - stat(reference_home))`` and its
+    stratified bootstrap interval, the four cells (seeds, episodes) resampled with the same
+    indices.  ``values`` and ``values_home`` are one controller's cells (the same seeds, the same
+    episodes) on two plants, ``reference`` and ``reference_home`` another controller's on the same
+    two plants: each controller's change between plants is paired seed by seed and episode by
+    episode, so what a seed shares on both plants (its own bias) cancels."""
+    cells = [_as_cell(c) for c in (values, values_home, reference, reference_home)]
+    return _bootstrap(cells, lambda a, b, c, d: (a - b) - (c - d), statistic, confidence, resamples, seed)
 
 
 def stratified_bootstrap(values, statistic: str = "mean", confidence: float = CONFIDENCE,

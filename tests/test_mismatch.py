@@ -103,11 +103,15 @@ def test_columns_are_the_plants_they_name(study):
 @pytest.mark.slow  # the study fixture trains eight agents: about 20 s
 def test_costs_of_the_simplifications(study):
     out, result = study
-    costs = {(d.family, d.simplification, d.metric): d for d in result.differences}
+    costs = {(d.family, d.simplification, d.metric): d for d in result.differences if d.measure == mismatch.COST}
     families = {"PD", "CT", "PPO"}
     names = {"classical model", "C2"}
     assert set(costs) == {(f, s, m) for f in families for s in names for m in RANKING_METRICS} | {
         ("PPO", "domain randomisation", m) for m in RANKING_METRICS}
+    # a double difference where the simplified model is a test plant: the classical model, not C2 or DR
+    doubles = {(d.family, d.simplification, d.metric) for d in result.differences
+               if d.measure == mismatch.DOUBLE_DIFFERENCE}
+    assert doubles == {(f, "classical model", m) for f in families for m in RANKING_METRICS}
     # C2 is a static term: CT built on it stops off target, far outside the rounding of the exact CT
     c2 = costs["CT", "C2", "steady_state_orientation_error"]
     assert c2.resolved and c2.interval.low > 1e-5 and not c2.failed
@@ -115,9 +119,9 @@ def test_costs_of_the_simplifications(study):
     assert all(costs["PPO", s, m].failed for s in names for m in RANKING_METRICS)
     with open(out / "differences.csv") as f:
         lines = list(csv.DictReader(f))
-    assert len(lines) == len(costs)
-    line = next(x for x in lines if (x["family"], x["simplification"], x["metric"]) ==
-                ("CT", "C2", "steady_state_orientation_error"))
+    assert len(lines) == len(costs) + len(doubles)
+    line = next(x for x in lines if (x["family"], x["simplification"], x["metric"], x["measure"]) ==
+                ("CT", "C2", "steady_state_orientation_error", mismatch.COST))
     assert float(line["difference"]) == pytest.approx(c2.interval.estimate, rel=1e-8)  # printed to 9 digits
     assert (line["resolved"], line["failed"], line["statistic"]) == ("1", "0", "iqm")
     assert line["seeds_to_resolve"] == ""  # resolved, and on one seed: no planning figure
@@ -307,6 +311,56 @@ def test_failed_agents_rank_no_simplification(tmp_path):
     mismatch.write_outputs(_constructed_study(ppo_success=0.5), tmp_path, METRICS, header)
     ppo = (tmp_path / "matrix.md").read_text().split("### PPO")[1]
     assert "failed" not in ppo and "resolved costs, largest first: C2 (+1)" in ppo
+
+
+def _two_plant_study(shift: float):
+    """PPO on the exact model and with C2, 4 seeds x 20 episodes, on the improved and the
+    improved+c2 plant.  Each seed has a bias (within +-1 mm) it keeps on both plants; each agent is
+    ``shift`` mm worse on the other model's plant than on its own, and nothing else differs."""
+    rng = np.random.default_rng(1)
+    plants = ["improved", "improved+c2"]
+    rows = [mismatch.Row(f"PPO [{m}]", "PPO", m, "agent", seeds=(0, 1, 2, 3)) for m in plants]
+    difficulty = rng.lognormal(0.0, 0.3, size=(1, 20)) * 1e-3
+    cells = {}
+    biases = {"improved": [-1.0, -0.3, 0.3, 1.0], "improved+c2": [0.9, -0.9, 0.4, -0.4]}
+    for row in rows:
+        bias = np.array(biases[row.model])[:, None] * 1e-3
+        for plant in plants:
+            values = 5e-3 + difficulty + bias + (shift * 1e-3 if plant != row.model else 0.0)
+            cells[row.label, plant] = {key: values for key, *_ in METRICS} | {"success": np.ones((4, 20))}
+    summary = {r.label: {p: {k: stratified_bootstrap(v, mismatch.statistic(k)) for k, v in cells[r.label, p].items()}
+                         for p in plants} for r in rows}
+    result = mismatch.MismatchResult(rows, plants, summary, 20)
+    result.differences = mismatch.simplification_costs(result, values=lambda r, plant, key: cells[r.label, plant][key])
+    return result
+
+
+def test_double_difference_resolves_what_the_seeds_hide():
+    result = _two_plant_study(shift=0.2)
+    by_measure = {d.measure: d for d in result.differences if d.metric == "rms_position_error"}
+    assert set(by_measure) == {mismatch.COST, mismatch.DOUBLE_DIFFERENCE}
+    cost, double = by_measure[mismatch.COST], by_measure[mismatch.DOUBLE_DIFFERENCE]
+    # the seeds' 1 mm spread hides a 0.2 mm cost ...
+    assert not cost.resolved and cost.interval.high - cost.interval.low > 1e-3
+    # ... which each agent, compared with itself, shows both ways: 0.2 + 0.2 mm, exactly in every resample
+    assert double.resolved and double.interval.estimate == pytest.approx(0.4e-3, rel=1e-9)  # rounding only
+    assert double.interval.low == pytest.approx(0.4e-3, rel=1e-9)
+    # no shift: zero, not resolved
+    assert not any(d.resolved for d in _two_plant_study(shift=0.0).differences)
+
+
+def test_double_differences_are_written_apart_and_not_ranked(tmp_path):
+    header = {"task": "setpoint", "eval_seed": 100_000, "wall_time": 1.0}
+    files = mismatch.write_outputs(_two_plant_study(shift=0.2), tmp_path, METRICS, header)
+    costs, doubles = files["markdown"].read_text().split("## Double differences on the improved plant")
+    assert "resolved costs, largest first: none resolved; not resolved: C2 (about" in costs
+    assert "**0.4 [0.4, 0.4]**" in doubles and "largest first" not in doubles
+    with open(files["differences"]) as f:
+        lines = list(csv.DictReader(f))
+    assert {x["measure"] for x in lines} == {mismatch.COST, mismatch.DOUBLE_DIFFERENCE}
+    assert all(x["seeds_to_resolve"] == "" for x in lines if x["resolved"] == "1")
+    fig = mismatch.forest_figure(_two_plant_study(shift=0.2), METRICS)
+    assert [t.get_text() for t in fig.axes[0].get_yticklabels()] == ["PPO: C2", "PPO: C2 (double diff.)"]
 
 
 def test_forest_plot_draws_every_cost():
