@@ -769,11 +769,40 @@ def format_interval(interval: Interval, factor: float, spec: str) -> str:
             f"{_fmt(interval.high, factor, spec)}]")
 
 
-def _unresolved_text(difference: Difference) -> str:
+#: What a planning figure (:func:`seeds_needed`) is sized for, as the text that follows it.
+PLANNING_BASES = {"estimate": "at its own estimate",
+                  "double difference": "at half the double difference, {effect}",
+                  "double difference bound": "at the most it can be, half the double difference's larger bound, "
+                                             "{effect}; so at least that many"}
+
+
+def seeds_needed(cost: Difference, differences: Sequence[Difference]) -> tuple[int | None, str, float]:
+    """About how many training seeds per row would resolve an unresolved cost
+    (:func:`~.statistics.seeds_to_resolve`), what the figure is sized for (a key of
+    :data:`PLANNING_BASES`) and the size.  Where the study has the double difference of the same
+    family, simplification and metric, it sizes the figure: it is the sum of the costs of the two
+    directions, measured without the seeds' spread, so half of it is a far better guess of the
+    cost than the cost's own estimate, which at few seeds is mostly their spread; where it is not
+    resolved, half its larger bound bounds the cost, and the figure is a lower bound."""
+    double = next((d for d in differences if d.measure == DOUBLE_DIFFERENCE and
+                   (d.family, d.simplification, d.metric) == (cost.family, cost.simplification, cost.metric)), None)
+    if double is None or not np.isfinite(double.interval.estimate):
+        effect, basis = cost.interval.estimate, "estimate"
+    elif double.resolved:
+        effect, basis = 0.5 * double.interval.estimate, "double difference"
+    else:
+        effect, basis = 0.5 * max(abs(double.interval.low), abs(double.interval.high)), "double difference bound"
+    return seeds_to_resolve(cost.interval, effect), basis, abs(effect)
+
+
+def _unresolved_text(cost: Difference, differences: Sequence[Difference], factor: float) -> str:
     """An unresolved cost's name, with the seeds per row that would resolve it where it rests on
-    several (:func:`~.statistics.seeds_to_resolve`)."""
-    seeds = seeds_to_resolve(difference.interval)
-    return difference.simplification + ("" if seeds is None else f" (about {seeds} seeds a row would resolve it)")
+    several (:func:`seeds_needed`); ``factor`` converts SI to the table's units."""
+    seeds, basis, effect = seeds_needed(cost, differences)
+    if seeds is None:
+        return cost.simplification
+    size = PLANNING_BASES[basis].format(effect=_fmt(effect, factor, ".3g"))
+    return f"{cost.simplification} (about {seeds} seeds a row would resolve it, {size})"
 
 
 def _difference_table(differences: Sequence[Difference], meta) -> list[str]:
@@ -814,7 +843,8 @@ def _cost_lines(result: MismatchResult, metrics) -> list[str]:
         for key in RANKING_METRICS:
             ranked = sorted((d for d in mine if d.metric == key and d.resolved and not d.failed),
                             key=lambda d: -abs(d.interval.estimate))
-            unresolved = [_unresolved_text(d) for d in mine if d.metric == key and not d.resolved and not d.failed]
+            unresolved = [_unresolved_text(d, result.differences, meta[key][2]) for d in mine
+                          if d.metric == key and not d.resolved and not d.failed]
             failed = [d.simplification for d in mine if d.metric == key and d.failed]
             text = ", ".join(f"{d.simplification} ({_fmt(d.interval.estimate, meta[key][2], '+.3g')})"
                              for d in ranked) or "none resolved"
@@ -859,12 +889,14 @@ def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[st
     with files["differences"].open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(["family", "simplification", "measure", "controller", "reference", "plant", "metric",
-                         "statistic", "difference", "ci_low", "ci_high", "resolved", "failed", "seeds_to_resolve"])
+                         "statistic", "difference", "ci_low", "ci_high", "resolved", "failed", "seeds_to_resolve",
+                         "seeds_sized_for"])
         for d in result.differences:
+            seeds, basis, _ = seeds_needed(d, result.differences) if d.measure == COST else (None, "", 0.0)
             writer.writerow([d.family, d.simplification, d.measure, d.label, d.reference, d.plant, d.metric,
                              statistic(d.metric), f"{d.interval.estimate:.9g}", f"{d.interval.low:.9g}",
                              f"{d.interval.high:.9g}", int(d.resolved), int(d.failed),
-                             seeds_to_resolve(d.interval) or ""])
+                             *(("", "") if seeds is None else (seeds, basis))])
 
     seeds = header.get("seeds", [])
     lines = [f"# Model mismatch on the {header['task']} task, platform {header.get('platform', 'dasgupta1998')}", "",

@@ -122,18 +122,20 @@ def resolved(low: float, high: float) -> bool:
     return bool(np.isfinite(low) and np.isfinite(high) and (low > 0 or high < 0))
 
 
-def seeds_to_resolve(interval: Interval) -> int | None:
-    """About how many training seeds per row would make an unresolved interval exclude zero, were
-    its estimate to stay where it is: an interval's width shrinks as 1 / sqrt(seeds) when the
-    seeds dominate it, so seeds (half-width / |estimate|)^2, rounded up.  A planning figure, not a
-    promise: with few seeds the interval and the estimate are both rough.  None where the
-    interval is resolved, rests on one seed (the width then shrinks with episodes), or the
-    estimate is zero or undefined."""
+def seeds_to_resolve(interval: Interval, effect: float | None = None) -> int | None:
+    """About how many training seeds per row would make an unresolved interval exclude zero, for a
+    difference of size ``effect`` (default: the interval's own estimate): an interval's width
+    shrinks as 1 / sqrt(seeds) when the seeds dominate it, so seeds (half-width / effect)^2,
+    rounded up.  A planning figure, not a promise: with few seeds the width is rough, and an
+    estimate from few seeds may be mostly their spread (pass a better-measured ``effect`` then).
+    None where the interval is resolved, rests on one seed (the width then shrinks with
+    episodes), or the effect is zero or undefined."""
     half_width = 0.5 * (interval.high - interval.low)
-    if interval.resolved or interval.seeds < 2 or not np.isfinite(half_width) or not interval.estimate:
+    effect = abs(interval.estimate if effect is None else effect)
+    if interval.resolved or interval.seeds < 2 or not np.isfinite(half_width) or not np.isfinite(effect) or not effect:
         return None
     # rounded down first where the ratio is a whole number but for the last bits
-    return int(np.ceil(np.round(interval.seeds * (half_width / abs(interval.estimate)) ** 2, 9)))
+    return int(np.ceil(np.round(interval.seeds * (half_width / effect) ** 2, 9)))
 
 
 def _percentiles(samples: np.ndarray, confidence: float) -> tuple[float, float]:
@@ -170,14 +172,15 @@ def _bootstrap(cells: list[np.ndarray], combine: Callable[..., np.ndarray], stat
 def double_difference(values, values_home, reference, reference_home, statistic: str = "mean",
                       confidence: float = CONFIDENCE, resamples: int = RESAMPLES,
                       seed: int = BOOTSTRAP_SEED) -> Interval:
-    """``(stat(values) - stat(values_home)) - (stat(reference) - stat(reference_home))`` and its
-    stratified bootstrap interval, the four cells (seeds, episodes) resampled with the same
-    indices.  ``values`` and ``values_home`` are one controller's cells (the same seeds, the same
-    episodes) on two plants, ``reference`` and ``reference_home`` another controller's on the same
-    two plants: each controller's change between plants is paired seed by seed and episode by
-    episode, so what a seed shares on both plants (its own bias) cancels."""
-    cells = [_as_cell(c) for c in (values, values_home, reference, reference_home)]
-    return _bootstrap(cells, lambda a, b, c, d: (a - b) - (c - d), statistic, confidence, resamples, seed)
+    """``stat(values - values_home) - stat(reference - reference_home)`` and its stratified
+    bootstrap interval (:func:`paired_difference` of the two changes).  ``values`` and
+    ``values_home`` are one controller's cells (seeds, episodes) on two plants, ``reference`` and
+    ``reference_home`` another controller's on the same two plants.  Each controller's change
+    between plants is taken seed by seed and episode by episode before the statistic, so what an
+    episode of a seed shares on both plants (the seed's own bias, the episode's difficulty)
+    cancels; the statistic is then that of the changes (the IQM: the typical episode's change)."""
+    return paired_difference(_as_cell(values) - _as_cell(values_home), _as_cell(reference) - _as_cell(reference_home),
+                             statistic, confidence, resamples, seed)
 
 
 def stratified_bootstrap(values, statistic: str = "mean", confidence: float = CONFIDENCE,
