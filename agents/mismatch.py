@@ -110,9 +110,12 @@ MAX_SEED = 2**32 - 1
 #: is a typo, not a study.
 MAX_STEPS = 10**7
 #: The metrics whose differences measure a simplification's cost, on the true plant: the static
-#: error (where a wrong model shows most on a set point), the transient error and the force peak.
+#: error (where a wrong model shows most on a set point) and the transient error, each in position
+#: and orientation, and the effort: the force peak and the control energy (a learned agent's peak
+#: is often the actuators' limit, so only its energy shows how hard it pushes).  Settling time and
+#: overshoot are left out: undefined in the episodes that never settle.
 RANKING_METRICS = ("steady_state_position_error", "steady_state_orientation_error", "rms_position_error",
-                   "peak_leg_force")
+                   "rms_orientation_error", "peak_leg_force", "control_energy")
 TRUE_MODEL = "improved"
 #: A cell whose controller succeeds in fewer than this share of the episodes is marked failed: its
 #: heatmap cell is hatched grey, and its differences are marked, not ranked.
