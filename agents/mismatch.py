@@ -303,6 +303,11 @@ class LocalBackend:
         pass
 
 
+class BackendError(TrainingError):
+    """The backend failed while the study ran (a Ray node or worker died, a job crashed): what
+    finished is kept, and the same command continues the study."""
+
+
 class RayBackend:
     """Runs every job as a Ray task requesting :data:`CPUS_PER_JOB` CPUs, on the cluster at
     ``address`` ("auto", "HOST:PORT") or, without one, on a local Ray instance started here (or
@@ -334,10 +339,27 @@ class RayBackend:
             while pending:
                 done, _ = ray.wait(list(pending), num_returns=1)
                 for ref in done:
-                    yield pending.pop(ref), ray.get(ref)
+                    yield pending.pop(ref), self._result(ref)
         finally:  # stopped (Ctrl-C, an error): the unfinished tasks are of no use
             for ref in pending:
-                ray.cancel(ref, force=True)
+                try:
+                    ray.cancel(ref, force=True)
+                except ray.exceptions.RayError:  # the cluster is gone already
+                    break
+
+    def _result(self, ref):
+        """A finished task's value; a job's own error as it would be raised here, and a failure
+        of the cluster (a node, raylet or worker died) as a :class:`BackendError`."""
+        errors = self.ray.exceptions
+        try:
+            return self.ray.get(ref)
+        except errors.RayTaskError as exc:
+            if isinstance(exc.cause, (TrainingError, ValueError)):
+                raise exc.cause from None
+            raise BackendError(f"a job failed on the Ray cluster: {type(exc.cause).__name__}: {exc.cause}") from None
+        except errors.RayError as exc:
+            reason = str(exc).strip().splitlines()[0].rstrip(".") if str(exc).strip() else ""
+            raise BackendError(f"the Ray cluster failed: {type(exc).__name__}: {reason}") from None
 
     def close(self) -> None:
         if self.started:
@@ -1148,6 +1170,10 @@ def _cli_mismatch(args: argparse.Namespace) -> int:
                               config=args.config, position_tolerance=args.position_tolerance,
                               orientation_tolerance=args.orientation_tolerance, cost_plant=args.cost_plant,
                               progress=not args.no_progress)
+    except BackendError as exc:
+        print(f"stewart-env mismatch: error: {exc}; finished agents and cells are kept in {args.out} (run the same "
+              "command again to continue)", file=sys.stderr)
+        return 1
     except (TrainingError, ValueError) as exc:
         print(f"stewart-env mismatch: error: {exc}", file=sys.stderr)
         return 2

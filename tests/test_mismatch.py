@@ -250,6 +250,18 @@ def test_cli_rejects_bad_flag_values(tmp_path, capsys, flag, value, message):
     assert message in capsys.readouterr().err
 
 
+def test_cli_reports_a_failed_cluster_and_how_to_continue(tmp_path, capsys, monkeypatch):
+    def lost(*args, **kwargs):
+        raise mismatch.BackendError("the Ray cluster failed: LocalRayletDiedError: The task's local raylet died")
+
+    monkeypatch.setattr(mismatch, "run_mismatch", lost)
+    args = _parser().parse_args(["mismatch", "--out", str(tmp_path)])
+    assert args.func(args) == 1
+    assert capsys.readouterr().err == (
+        "stewart-env mismatch: error: the Ray cluster failed: LocalRayletDiedError: The task's local raylet died; "
+        f"finished agents and cells are kept in {tmp_path} (run the same command again to continue)\n")
+
+
 def test_cli_model_based_rows_on_another_task_and_platform(tmp_path, capsys):
     args = _parser().parse_args(["mismatch", "--train-models", "improved", "--test-models", "classical,improved",
                                  "--algo", "none", "--simplifications", "c1", "--episodes", "2", "--max-steps", "20",

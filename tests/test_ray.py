@@ -50,3 +50,23 @@ def test_ray_and_local_backends_give_the_same_matrix_and_resume_each_other(local
     assert kept.stat().st_mtime_ns == before  # finished cells are reused, whoever ran them
     assert (tmp_path / "ray" / "agents" / "improved_c2" / "seed_1" / "model.zip").is_file()
     assert _numbers(tmp_path / "ray") == _numbers(tmp_path / "local")
+
+
+def test_a_job_error_arrives_as_itself_and_a_dead_worker_as_a_backend_error(local_ray):
+    from stewart_env.agents.mismatch import BackendError, RayBackend
+    from stewart_env.agents.training import TrainingError
+
+    def refuse():
+        raise TrainingError("timesteps: expected a positive integer, got 0")
+
+    def crash():
+        import os
+
+        os._exit(1)  # the worker process dies, as when its node is lost
+
+    backend = RayBackend()
+    with pytest.raises(TrainingError, match=r"^timesteps: expected a positive integer, got 0$"):
+        list(backend.run(refuse, [()]))
+    with pytest.raises(BackendError, match=r"^the Ray cluster failed: \w+Error"):
+        list(backend.run(crash, [()]))
+    assert list(backend.run(lambda x: 2 * x, [(3,)])) == [(0, 6)]  # the cluster still serves the next study
