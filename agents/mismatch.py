@@ -47,6 +47,7 @@ import math
 import os
 import shutil
 import signal
+import socket
 import sys
 import tempfile
 import time
@@ -128,6 +129,14 @@ DEFAULT_STATISTIC = "iqm"
 #: numba thread (training.single_thread), and an evaluation steps one batch of platforms.
 CPUS_PER_JOB = 1
 BACKENDS = ("local", "ray")
+#: Since Ray 2.59 a cluster started with ``ray start`` checks a token when one exists in
+#: ~/.ray/auth_token (any earlier local Ray instance writes it), and a driver joining it by an
+#: explicit address sends the token only when told to.
+RAY_AUTH_HINT = ("; if the cluster checks a token (Ray 2.59 and later do when ~/.ray/auth_token exists), set "
+                 "RAY_AUTH_MODE=token and give its token in ~/.ray/auth_token or RAY_AUTH_TOKEN (see "
+                 "`ray get-auth-token` on the head node), or join with --ray-address auto on the head node")
+#: Seconds to wait for a Ray head node to accept a connection before refusing its address.
+RAY_CONNECT_TIMEOUT = 5.0
 RAY_INSTALL_HINT = 'install the distributed extra: pip install -e ".[distributed]" (ray)'
 #: Settings recorded in study.json: a second run in the same directory must match them.
 STUDY_FILE = "study.json"
@@ -321,11 +330,19 @@ class RayBackend:
         self.ray = ray
         self.started = False
         if not ray.is_initialized():
+            endpoint = None if address is None else _ray_endpoint(address)
+            if endpoint is not None:  # Ray itself retries an address that does not answer for ever
+                try:
+                    socket.create_connection(endpoint, timeout=RAY_CONNECT_TIMEOUT).close()
+                except OSError as exc:
+                    raise TrainingError(f"--ray-address {address}: nothing answers there "
+                                        f"({exc.strerror or exc}); is the cluster's head node started?") from None
             kwargs = {"address": address} if address else {"include_dashboard": False}
             try:
                 ray.init(logging_level="ERROR", log_to_driver=False, **kwargs)
-            except (ConnectionError, ValueError, RuntimeError) as exc:
-                raise TrainingError(f"--ray-address {address}: cannot join the Ray cluster ({exc})") from None
+            except (ConnectionError, ValueError, RuntimeError, ray.exceptions.RayError) as exc:
+                raise TrainingError(f"--ray-address {address}: cannot join the Ray cluster ({exc}){RAY_AUTH_HINT}") \
+                    from None
             self.started = True
 
     def put(self, value):
@@ -366,12 +383,25 @@ class RayBackend:
             self.ray.shutdown()
 
 
+def _ray_endpoint(address: str) -> tuple[str, int] | None:
+    """(host, port) of a Ray address "HOST:PORT" or "ray://HOST:PORT"; None for "auto"."""
+    if address == "auto":
+        return None
+    host, sep, port = address.split("://", 1)[-1].rpartition(":")
+    if not (sep and host and port.isdigit() and 1 <= int(port) <= 65535):
+        raise TrainingError(f"--ray-address: expected auto, HOST:PORT or ray://HOST:PORT, got {address!r}")
+    return host, int(port)
+
+
 def check_backend(name: str, address: str | None = None) -> None:
-    """Refuse an unknown backend, an address without Ray, and the Ray backend without ray installed."""
+    """Refuse an unknown backend, an address without Ray or of no Ray form, and the Ray backend
+    without ray installed."""
     if name not in BACKENDS:
         raise TrainingError(f"backend: expected one of {', '.join(BACKENDS)}, got {name!r}")
     if name == "local" and address is not None:
         raise TrainingError("--ray-address: only with --backend ray")
+    if address is not None:
+        _ray_endpoint(address)
     if name == "ray":
         try:
             import ray  # noqa: F401

@@ -7,7 +7,9 @@ import argparse
 import csv
 import json
 import math
+import socket
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -204,6 +206,9 @@ def test_an_interrupted_study_keeps_its_finished_cells(tmp_path, monkeypatch):
     ({"max_steps": 0}, "max_steps: expected a positive integer"),
     ({"backend": "dask"}, "backend: expected one of local, ray"),
     ({"ray_address": "auto"}, "--ray-address: only with --backend ray"),
+    ({"backend": "ray", "ray_address": "localhost"}, "--ray-address: expected auto, HOST:PORT or ray://HOST:PORT"),
+    ({"backend": "ray", "ray_address": "head:99999"}, "--ray-address: expected auto, HOST:PORT or ray://HOST:PORT"),
+    ({"backend": "ray", "ray_address": "ray://:10001"}, "--ray-address: expected auto, HOST:PORT or ray://HOST:PORT"),
     ({"config": "configs/agents/ppo.yml"}, "config: only with an RL algorithm"),
     ({"position_tolerance": 0.0}, "position_tolerance: expected a finite positive number"),
     ({"cost_plant": "classical"}, "cost plant: 'classical' is not one of the test models .improved.; pass --cost-plant"),
@@ -214,6 +219,19 @@ def test_bad_requests_are_named_before_any_work(tmp_path, kwargs, message):
     with pytest.raises(TrainingError, match=message):
         run_mismatch(out, **{"train_models": ["improved"], "test_models": ["improved"], "algo": None, **kwargs})
     assert not (out / mismatch.STUDY_FILE).exists()
+
+
+def test_an_address_where_nothing_answers_is_refused_at_once(tmp_path):
+    pytest.importorskip("ray")
+    with socket.socket() as probe:  # a port that was free a moment ago: connections to it are refused
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    start = time.perf_counter()
+    with pytest.raises(TrainingError, match=rf"--ray-address 127.0.0.1:{port}: nothing answers there"):
+        run_mismatch(tmp_path / "study", ["improved"], ["improved"], algo=None, backend="ray",
+                     ray_address=f"127.0.0.1:{port}")
+    # Ray itself would retry for ever; the study gives up after its connect timeout at most
+    assert time.perf_counter() - start < mismatch.RAY_CONNECT_TIMEOUT + 5.0
 
 
 def test_ray_backend_without_ray_names_the_extra(tmp_path, monkeypatch):
