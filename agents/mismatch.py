@@ -805,7 +805,8 @@ def simplification_costs(result: MismatchResult, values: Callable[[Row, str, str
 
 
 def _failed(result: MismatchResult, rows: Sequence[Row], plants: Sequence[str]) -> bool:
-    """Whether a row succeeds in fewer than :data:`FAILURE_THRESHOLD` of its episodes on a plant."""
+    """Whether any of ``rows`` succeeds in fewer than :data:`FAILURE_THRESHOLD` of its episodes on
+    any of ``plants``."""
     return min(result.summary[r.label][p]["success"].estimate for r in rows for p in plants) < FAILURE_THRESHOLD
 
 
