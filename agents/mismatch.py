@@ -64,6 +64,7 @@ from stewart_env.agents.statistics import (
     Interval,
     double_difference,
     paired_difference,
+    point_estimate,
     seeds_to_resolve,
     stratified_bootstrap,
 )
@@ -202,13 +203,15 @@ class Difference:
 class MismatchResult:
     """The study's numbers: ``summary[row label][test model][metric]`` an :class:`Interval`;
     ``rows`` in table order; ``test_models`` the columns; ``differences`` the simplifications'
-    costs; ``files`` what was written."""
+    costs; ``per_seed[row label][metric]`` a learned row's point estimate per training seed on the
+    plant the costs are measured on; ``files`` what was written."""
 
     rows: list[Row]
     test_models: list[str]
     summary: dict[str, dict[str, dict[str, Interval]]]
     episodes: int
     differences: list[Difference] = field(default_factory=list)
+    per_seed: dict[str, dict[str, list[float]]] = field(default_factory=dict)
     files: dict[str, Path] = field(default_factory=dict)
 
     def matrix(self, metric: str) -> np.ndarray:
@@ -669,9 +672,12 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     result = MismatchResult(rows, list(test_models), summary, int(episodes))
     result.differences = simplification_costs(
         result, lambda row, plant, metric: cell_values(out, row, plant, metric), plant=cost_plant)
+    result.per_seed = {r.label: {key: [point_estimate(v, statistic(key)) for v in cell_values(out, r, cost_plant, key)]
+                                 for key in RANKING_METRICS} for r in rows if r.kind == "agent"}
     header = {"task": task, "platform": platform, "episodes": episodes, "eval_seed": EVAL_SEED_OFFSET, "algo": algo,
               "seeds": list(seeds), "backend": backend, "wall_time": time.perf_counter() - start,
-              "position_tolerance": position_tolerance, "orientation_tolerance": orientation_tolerance}
+              "position_tolerance": position_tolerance, "orientation_tolerance": orientation_tolerance,
+              "cost_plant": cost_plant}
     result.files = write_outputs(result, out, METRICS, header)
     return result
 
@@ -924,6 +930,33 @@ def _cost_lines(result: MismatchResult, metrics) -> list[str]:
     return lines
 
 
+def _per_seed_lines(result: MismatchResult, metrics, plant: str) -> list[str]:
+    """The markdown table of the learned rows' estimates per training seed on ``plant``."""
+    if not result.per_seed:
+        return []
+    from scipy.stats import norm, t
+
+    meta = {m[0]: m for m in metrics}
+    seeds = max(len(r.seeds) for r in result.rows if r.label in result.per_seed)
+    # the percentile bootstrap of a mean of n values has the spread of sqrt((n - 1) / n) standard
+    # errors and normal quantiles; a t interval has t quantiles on n - 1 degrees of freedom
+    wider = t.ppf(0.975, seeds - 1) * math.sqrt(seeds / (seeds - 1)) / norm.ppf(0.975) if seeds > 1 else math.nan
+    lines = [f"## Per training seed on the {plant} plant", "",
+             "Each learned row's point estimate for each of its training seeds alone (the cells' statistic). "
+             "With few seeds the bootstrap intervals above cannot reach beyond the seeds at hand, so they are "
+             "narrower than 95 % intervals should be"
+             + (f" (with {seeds} seeds a t interval on a mean of these values would be {wider:.2g} times as wide)"
+                if seeds > 1 else "") + "; these values let any other test be applied.", "",
+             "| controller | seed | " + " | ".join(meta[k][1] for k in RANKING_METRICS) + " |",
+             "|---|---|" + "---|" * len(RANKING_METRICS)]
+    for r in result.rows:
+        if r.label in result.per_seed:
+            for i, seed in enumerate(r.seeds):
+                lines.append(f"| {r.label} | {seed} | " + " | ".join(
+                    _fmt(result.per_seed[r.label][k][i], meta[k][2], meta[k][3]) for k in RANKING_METRICS) + " |")
+    return lines + [""]
+
+
 def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[str, Any]) -> dict[str, Path]:
     """matrix.csv, matrix.md, differences.csv, forest.png and one heatmap PNG per metric into
     ``out``; returns {name: path}."""
@@ -975,7 +1008,7 @@ def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[st
             cells = [format_interval(result.summary[r.label][m][key], factor, spec) for m in result.test_models]
             lines.append(f"| {r.label} | " + " | ".join(cells) + " |")
         lines.append("")
-    lines += _cost_lines(result, metrics)
+    lines += _cost_lines(result, metrics) + _per_seed_lines(result, metrics, header.get("cost_plant", TRUE_MODEL))
     lines.append(f"Backend: {header.get('backend', 'local')}. Wall time of this run: {header['wall_time']:.0f} s.")
     files["markdown"].write_text("\n".join(lines) + "\n")
 

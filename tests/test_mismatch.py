@@ -128,6 +128,15 @@ def test_costs_of_the_simplifications(study):
     assert float(line["difference"]) == pytest.approx(c2.interval.estimate, rel=1e-8)  # printed to 9 digits
     assert (line["resolved"], line["failed"], line["statistic"]) == ("1", "0", "iqm")
     assert line["seeds_to_resolve"] == ""  # resolved, and on one seed: no planning figure
+    # a learned row's estimate per training seed: its cell's statistic on that seed's episodes alone
+    row = next(r for r in result.rows if r.label == "PPO [improved]")
+    values = mismatch.cell_values(out, row, "improved", "rms_position_error")
+    per_seed = result.per_seed[row.label]["rms_position_error"]
+    assert per_seed == [stratified_bootstrap(v, "iqm").estimate for v in values]
+    assert set(result.per_seed) == {r.label for r in result.rows if r.kind == "agent"}
+    text = (out / "matrix.md").read_text().split("## Per training seed on the improved plant")[1]
+    assert "with 2 seeds a t interval on a mean of these values would be 9.2 times as wide" in text  # 12.7 sqrt(2) / 1.96
+    assert text.count("| PPO [improved] |") == 2
 
 
 @pytest.mark.slow  # the study fixture trains eight agents: about 20 s
