@@ -135,7 +135,7 @@ def test_costs_of_the_simplifications(study):
     assert per_seed == [stratified_bootstrap(v, "iqm").estimate for v in values]
     assert set(result.per_seed) == {r.label for r in result.rows if r.kind == "agent"}
     text = (out / "matrix.md").read_text().split("## Per training seed on the improved plant")[1]
-    assert "with 2 seeds a t interval on a mean of these values would be 9.2 times as wide" in text  # 12.7 sqrt(2) / 1.96
+    assert "with 2 seeds a t interval on a mean of these values would be 9.2 times as wide" in text  # t 12.7
     assert text.count("| PPO [improved] |") == 2
 
 
