@@ -51,6 +51,7 @@ import socket
 import sys
 import tempfile
 import time
+import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -193,6 +194,9 @@ class Difference:
     failed: bool
     plant: str = TRUE_MODEL
     measure: str = COST
+    #: two-sided p of Welch's t test between the two rows' per-seed values (for a double
+    #: difference, their per-seed changes between the plants); None with fewer than two seeds
+    seed_p: float | None = None
 
     @property
     def resolved(self) -> bool:
@@ -797,17 +801,35 @@ def simplification_costs(result: MismatchResult, values: Callable[[Row, str, str
         for name, row in _compared_rows(result, family):
             home = row.model if row.model in result.test_models and row.model != plant and not row.randomized else None
             for metric in RANKING_METRICS:
+                mine, theirs = values(row, plant, metric), values(exact, plant, metric)
                 differences.append(Difference(
                     family, name, row.label, exact.label, metric,
-                    paired_difference(values(row, plant, metric), values(exact, plant, metric), statistic(metric)),
-                    _failed(result, (row, exact), (plant,)), plant))
+                    paired_difference(mine, theirs, statistic(metric)), _failed(result, (row, exact), (plant,)),
+                    plant, seed_p=_seed_test(mine, theirs, statistic(metric))))
                 if home is not None:
+                    mine_home, theirs_home = values(row, home, metric), values(exact, home, metric)
                     differences.append(Difference(
                         family, name, row.label, exact.label, metric,
-                        double_difference(values(row, plant, metric), values(row, home, metric),
-                                          values(exact, plant, metric), values(exact, home, metric), statistic(metric)),
-                        _failed(result, (row, exact), (plant, home)), plant, DOUBLE_DIFFERENCE))
+                        double_difference(mine, mine_home, theirs, theirs_home, statistic(metric)),
+                        _failed(result, (row, exact), (plant, home)), plant, DOUBLE_DIFFERENCE,
+                        _seed_test(mine - mine_home, theirs - theirs_home, statistic(metric))))
     return differences
+
+
+def _seed_test(values: np.ndarray, reference: np.ndarray, statistic_name: str) -> float | None:
+    """Two-sided p of Welch's t test between two cells' per-seed point estimates: a check of a
+    difference that does not lean on the bootstrap, which with few seeds is too narrow; None with
+    fewer than two seeds a cell or no spread to test."""
+    from scipy.stats import ttest_ind
+
+    if min(len(values), len(reference)) < 2:
+        return None
+    mine, theirs = ([point_estimate(v, statistic_name) for v in cell] for cell in (values, reference))
+    # seeds that agree to rounding (a deterministic part of the controller): scipy warns, the p stands
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        p = float(ttest_ind(mine, theirs, equal_var=False).pvalue)
+    return p if np.isfinite(p) else None
 
 
 def _failed(result: MismatchResult, rows: Sequence[Row], plants: Sequence[str]) -> bool:
@@ -954,6 +976,18 @@ def _per_seed_lines(result: MismatchResult, metrics, plant: str) -> list[str]:
             for i, seed in enumerate(r.seeds):
                 lines.append(f"| {r.label} | {seed} | " + " | ".join(
                     _fmt(result.per_seed[r.label][k][i], meta[k][2], meta[k][3]) for k in RANKING_METRICS) + " |")
+    tested = [d for d in result.differences if d.seed_p is not None]
+    if tested:
+        lines += ["", "Welch's two-sided t test on these per-seed values, each row against the row built on the "
+                  f"{TRUE_MODEL} model (for a double difference: on each agent's change between the two plants), "
+                  "p per metric ('-': nothing to test):", "",
+                  "| simplification | " + " | ".join(meta[k][1] for k in RANKING_METRICS) + " |",
+                  "|---|" + "---|" * len(RANKING_METRICS)]
+        for family, name, measure in dict.fromkeys((d.family, d.simplification, d.measure) for d in tested):
+            p = {d.metric: d.seed_p for d in tested if (d.family, d.simplification, d.measure) == (family, name, measure)}
+            label = f"{family}: {name}" + (", double diff." if measure == DOUBLE_DIFFERENCE else "")
+            lines.append(f"| {label} | " + " | ".join("-" if p.get(k) is None else f"{p[k]:.2g}"
+                                                      for k in RANKING_METRICS) + " |")
     return lines + [""]
 
 
@@ -979,13 +1013,14 @@ def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[st
         writer = csv.writer(f)
         writer.writerow(["family", "simplification", "measure", "controller", "reference", "plant", "metric",
                          "statistic", "difference", "ci_low", "ci_high", "resolved", "failed", "seeds_to_resolve",
-                         "seeds_sized_for"])
+                         "seeds_sized_for", "seed_welch_p"])
         for d in result.differences:
             seeds, basis, _ = seeds_needed(d, result.differences) if d.measure == COST else (None, "", 0.0)
             writer.writerow([d.family, d.simplification, d.measure, d.label, d.reference, d.plant, d.metric,
                              statistic(d.metric), f"{d.interval.estimate:.9g}", f"{d.interval.low:.9g}",
                              f"{d.interval.high:.9g}", int(d.resolved), int(d.failed),
-                             *(("", "") if seeds is None else (seeds, basis))])
+                             *(("", "") if seeds is None else (seeds, basis)),
+                             "" if d.seed_p is None else f"{d.seed_p:.3g}"])
 
     seeds = header.get("seeds", [])
     lines = [f"# Model mismatch on the {header['task']} task, platform {header.get('platform', 'dasgupta1998')}", "",

@@ -353,21 +353,26 @@ def test_failed_agents_rank_no_simplification(tmp_path):
     assert "failed" not in ppo and "resolved costs, largest first: C2 (+1)" in ppo
 
 
+def _two_plant_cells(shift: float = 0.2) -> dict:
+    """The cells of :func:`_two_plant_study`: {(row label, plant): {metric: (4 seeds, 20 episodes)}}."""
+    rng = np.random.default_rng(1)
+    difficulty = rng.lognormal(0.0, 0.3, size=(1, 20)) * 1e-3
+    biases = {"improved": [-1.0, -0.3, 0.3, 1.0], "improved+c2": [0.9, -0.9, 0.4, -0.4]}
+    cells = {}
+    for model, bias in biases.items():
+        for plant in biases:
+            values = 5e-3 + difficulty + np.array(bias)[:, None] * 1e-3 + (shift * 1e-3 if plant != model else 0.0)
+            cells[f"PPO [{model}]", plant] = {key: values for key, *_ in METRICS} | {"success": np.ones((4, 20))}
+    return cells
+
+
 def _two_plant_study(shift: float):
     """PPO on the exact model and with C2, 4 seeds x 20 episodes, on the improved and the
     improved+c2 plant.  Each seed has a bias (within +-1 mm) it keeps on both plants; each agent is
     ``shift`` mm worse on the other model's plant than on its own, and nothing else differs."""
-    rng = np.random.default_rng(1)
     plants = ["improved", "improved+c2"]
     rows = [mismatch.Row(f"PPO [{m}]", "PPO", m, "agent", seeds=(0, 1, 2, 3)) for m in plants]
-    difficulty = rng.lognormal(0.0, 0.3, size=(1, 20)) * 1e-3
-    cells = {}
-    biases = {"improved": [-1.0, -0.3, 0.3, 1.0], "improved+c2": [0.9, -0.9, 0.4, -0.4]}
-    for row in rows:
-        bias = np.array(biases[row.model])[:, None] * 1e-3
-        for plant in plants:
-            values = 5e-3 + difficulty + bias + (shift * 1e-3 if plant != row.model else 0.0)
-            cells[row.label, plant] = {key: values for key, *_ in METRICS} | {"success": np.ones((4, 20))}
+    cells = _two_plant_cells(shift)
     summary = {r.label: {p: {k: stratified_bootstrap(v, mismatch.statistic(k)) for k, v in cells[r.label, p].items()}
                          for p in plants} for r in rows}
     result = mismatch.MismatchResult(rows, plants, summary, 20)
@@ -387,6 +392,22 @@ def test_double_difference_resolves_what_the_seeds_hide():
     assert double.interval.low == pytest.approx(0.4e-3, rel=1e-9)
     # no shift: zero, not resolved
     assert not any(d.resolved for d in _two_plant_study(shift=0.0).differences)
+
+
+def test_every_learned_difference_gets_a_welch_test_on_its_seeds():
+    from scipy.stats import ttest_ind
+
+    result = _two_plant_study(shift=0.2)
+    cost = next(d for d in result.differences if d.measure == mismatch.COST and d.metric == "rms_position_error")
+    # the per-seed IQMs: 5 mm + the seed's bias + the episodes' common difficulty (+ 0.2 mm for C2 on the exact plant)
+    rows = {r.model: r for r in result.rows}
+    per_seed = {m: [stratified_bootstrap(v, "iqm").estimate for v in
+                    _two_plant_cells()[rows[m].label, "improved"]["rms_position_error"]] for m in rows}
+    expected = ttest_ind(per_seed["improved+c2"], per_seed["improved"], equal_var=False).pvalue
+    assert cost.seed_p == pytest.approx(expected, rel=1e-12)  # the same numbers, the same test
+    assert 0.05 < cost.seed_p  # the seeds' spread hides the 0.2 mm here too
+    ct = _constructed_study(ppo_success=1.0).differences
+    assert all(d.seed_p is None for d in ct if d.family == "CT")  # one "seed": nothing to test
 
 
 def test_double_differences_are_written_apart_and_not_ranked(tmp_path):
