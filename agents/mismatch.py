@@ -382,7 +382,7 @@ class RayBackend:
                 raise exc.cause from None
             raise BackendError(f"a job failed on the Ray cluster: {type(exc.cause).__name__}: {exc.cause}") from None
         except errors.RayError as exc:
-            reason = str(exc).strip().splitlines()[0].rstrip(".") if str(exc).strip() else ""
+            reason = (str(exc).strip().splitlines() or [""])[0].rstrip(".")
             raise BackendError(f"the Ray cluster failed: {type(exc).__name__}: {reason}") from None
 
     def close(self) -> None:
@@ -668,15 +668,20 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
         _run_jobs(runner, out, rows, algo, timesteps, common, test_models, n_envs, progress, config)
     finally:
         runner.close()
-    summary = {r.label: {m: _cell_intervals(out, r, m) for m in test_models} for r in rows}
+    # every cell read once: the summary, the costs and the per-seed values all draw on it
+    stored = {(r.label, m): _stored_metrics(out, r, m) for r in rows for m in test_models}
+
+    def values(row: Row, plant: str, metric: str) -> np.ndarray:
+        return _metric_values(stored[row.label, plant], metric)
+
+    summary = {r.label: {m: _cell_intervals(stored[r.label, m]) for m in test_models} for r in rows}
     for r in rows:
         if r.kind == "agent":
             steps = sorted({read_manifest(d)["num_timesteps"] for d in r.agents.values()})
             r.info = f"{', '.join(map(str, steps))} steps, seeds {', '.join(map(str, r.seeds))}"
     result = MismatchResult(rows, list(test_models), summary, int(episodes))
-    result.differences = simplification_costs(
-        result, lambda row, plant, metric: cell_values(out, row, plant, metric), plant=cost_plant)
-    result.per_seed = {r.label: {key: [point_estimate(v, statistic(key)) for v in cell_values(out, r, cost_plant, key)]
+    result.differences = simplification_costs(result, values, plant=cost_plant)
+    result.per_seed = {r.label: {key: [point_estimate(v, statistic(key)) for v in values(r, cost_plant, key)]
                                  for key in RANKING_METRICS} for r in rows if r.kind == "agent"}
     header = {"task": task, "platform": platform, "episodes": episodes, "eval_seed": EVAL_SEED_OFFSET, "algo": algo,
               "seeds": list(seeds), "backend": backend, "wall_time": time.perf_counter() - start,
@@ -756,17 +761,21 @@ def _stored_metrics(out: Path, row: Row, plant: str) -> list[dict[str, list[floa
     return [json.loads(p.read_text())["metrics"] for p in paths]
 
 
+def _metric_values(stored: list[dict[str, list[float]]], metric: str) -> np.ndarray:
+    """One metric's values, (seeds, episodes), of a cell's :func:`_stored_metrics`."""
+    return np.array([s[metric] for s in stored], dtype=float)
+
+
 def cell_values(out: Path, row: Row, plant: str, metric: str) -> np.ndarray:
     """A stored cell's values of one metric, (seeds, episodes)."""
-    return np.array([s[metric] for s in _stored_metrics(out, row, plant)], dtype=float)
+    return _metric_values(_stored_metrics(out, row, plant), metric)
 
 
-def _cell_intervals(out: Path, row: Row, plant: str) -> dict[str, Interval]:
+def _cell_intervals(stored: list[dict[str, list[float]]]) -> dict[str, Interval]:
+    """Every metric's interval of a cell's :func:`_stored_metrics`."""
     from stewart_env.agents.evaluation import METRICS
 
-    stored = _stored_metrics(out, row, plant)
-    return {key: stratified_bootstrap(np.array([s[key] for s in stored], dtype=float), statistic(key))
-            for key, *_ in METRICS}
+    return {key: stratified_bootstrap(_metric_values(stored, key), statistic(key)) for key, *_ in METRICS}
 
 
 # -- the cost of each simplification ----------------------------------------------------------------

@@ -26,7 +26,7 @@ some episodes (NaN, e.g. the settling time of an episode that never settles).
   training seeds largely cancels.
 * :func:`resolved`: whether an interval excludes zero.
 * :func:`seeds_to_resolve`: for an unresolved difference between learned rows, about how many
-  training seeds per row would resolve it, were its estimate to hold.
+  training seeds per row would resolve a difference of a given size (by default its estimate).
 """
 
 from __future__ import annotations
