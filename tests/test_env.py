@@ -435,6 +435,23 @@ def test_reward_is_the_sum_of_its_terms_and_matches_the_formula():
             break
 
 
+@pytest.mark.parametrize("task, position_scale, orientation_scale", [
+    ("setpoint", 0.05, 0.1), ("hold", 0.05, 0.1), ("tracking", 0.01, 0.02), ("disturbance", 0.01, 0.02)])
+def test_reward_scales_default_per_task_and_give_way_to_options(task, position_scale, orientation_scale):
+    env = make(task=task)
+    env.reset(seed=3)
+    u = env.unwrapped
+    offset = np.array([0.002, 0.0, 0.0])  # the default 2 mm success band
+    u.set_state(u.target.position - offset, u.target.rotation)
+    _, _, _, _, info = env.step(holding_action(env))
+    error = np.linalg.norm(u.target.position - u.state.position)
+    # The position term is 0.5 exp(-|e_p| / scale), of the error after the step.
+    assert info["reward_position"] == pytest.approx(0.5 * np.exp(-error / position_scale), rel=1e-12)
+    assert env.unwrapped.task.weights.orientation_reward_scale == orientation_scale
+    mine = make(task=task, task_options={"position_reward_scale": 0.2, "orientation_reward_scale": 0.3}).unwrapped
+    assert (mine.task.weights.position_reward_scale, mine.task.weights.orientation_reward_scale) == (0.2, 0.3)
+
+
 def test_reward_weights_given_as_environment_arguments_are_refused_pointing_to_task_options():
     with pytest.raises(TypeError, match=r"unexpected keyword argument 'termination_cost'; the reward weights are "
                                         r"options of the task: pass task_options=\{'termination_cost': \.\.\.\}"):

@@ -162,7 +162,9 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
           - ctrl_cost_weight          * mean(a_i^2)                  (a clipped to [-1, 1])
           - termination_cost          on the step that terminates with a failure
 
-    With the defaults (0.5, 0.05 m, 0.5, 0.1 rad, 0.1, 0.5 m/s, 1 rad/s, 0.1, 10) a step earns at most
+    With the defaults (0.5, 0.05 m, 0.5, 0.1 rad, 0.1, 0.5 m/s, 1 rad/s, 0.1, 10; `tracking` and
+    `disturbance` use 0.01 m and 0.02 rad for the two scales, so that the millimetre errors their
+    questions are about weigh in the reward) a step earns at most
     1 (on target, at the target velocity, zero force) and at least -10.2.  Each term is in `info`:
     `reward_position`, `reward_orientation`, `reward_velocity`, `reward_control` and
     `reward_termination`; they sum to the reward.  The weights and scales are options of the task,

@@ -7,7 +7,7 @@ import numpy as np
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState
-from stewart_env.tasks.base import MAX_FREQUENCY, Task, option
+from stewart_env.tasks.base import MAX_FREQUENCY, PRECISE_REWARD_SCALES, Task, option
 from stewart_env.validation import integer, interval, real, vector
 
 #: Bounds of the options: forces at most MAX_LOAD platform weights W (moments MAX_LOAD W r),
@@ -45,14 +45,17 @@ class DisturbanceTask(Task):
         impulse_duration: s, > 0, default 0.05.
         horizon: s, the span the pulses are placed in, from impulse_duration to 1e6, default 5.0
             (the default episode length).
-        the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
+        the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`, with the
+            position and orientation reward scales sharper than the other tasks': 0.01 m and
+            0.02 rad (``PRECISE_REWARD_SCALES``), so that millimetre errors weigh in the reward.
     """
 
     name = "disturbance"
 
     def __init__(self, params: PlatformParams, control_dt: float, *, sine_force=None, sine_moment=None,
                  frequency_range=(0.2, 2.0), n_impulses: int = 2, impulse_force=None, impulse_moment=None,
-                 impulse_duration: float = 0.05, horizon: float = 5.0, **weights):
+                 impulse_duration: float = 0.05, horizon: float = 5.0, position_reward_scale: float = PRECISE_REWARD_SCALES[0],
+                 orientation_reward_scale: float = PRECISE_REWARD_SCALES[1], **weights):
         weight = params.platform.mass * (float(np.linalg.norm(params.gravity)) or 9.81)
         radius = float(np.mean(np.linalg.norm(params.platform_joints[:, :2], axis=1)))
         max_force, max_moment = MAX_LOAD * weight, MAX_LOAD * weight * radius
@@ -69,7 +72,8 @@ class DisturbanceTask(Task):
         self.impulse_duration = real(option("impulse_duration"), impulse_duration, 0.0, MAX_HORIZON, low_open=True)
         self.horizon = real(option("horizon"), horizon, self.impulse_duration, MAX_HORIZON)
         self._home_rotation = rpy_to_matrix(params.home_rpy)
-        super().__init__(params, control_dt, **weights)
+        super().__init__(params, control_dt, position_reward_scale=position_reward_scale,
+                         orientation_reward_scale=orientation_reward_scale, **weights)
 
     def episode_fields(self):
         return {"target_position": (3,), "target_rotation": (3, 3), "sine_amplitude": (6,), "sine_omega": (6,),

@@ -9,7 +9,8 @@ import numpy as np
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rotation_error
 from stewart_env.state import PlatformState, Reference
-from stewart_env.tasks.base import (MAX_FREQUENCY, Scales, StepView, Task, motion_ranges, option, pose_margins,
+from stewart_env.tasks.base import (MAX_FREQUENCY, PRECISE_REWARD_SCALES, Scales, StepView, Task, motion_ranges,
+                                     option, pose_margins,
                                      sinusoid_reference, zero_reference)
 from stewart_env.validation import integer, interval, real
 
@@ -42,7 +43,9 @@ class TrackingTask(Task):
         frequency_range: (min, max) Hz, 0 < min <= max <= 1000, default (0.1, 0.5).
         preview: number of future reference samples observed (0-100), default 3.
         preview_interval: s between them (at most 100), default 0.1 (samples at t + 0.1, 0.2, 0.3 s).
-        the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
+        the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`, with the
+            position and orientation reward scales sharper than the other tasks': 0.01 m and
+            0.02 rad (``PRECISE_REWARD_SCALES``), so that millimetre errors weigh in the reward.
 
     Observation terms beyond position and orientation error: velocity_error (3) m/s,
     angular_velocity_error (3) rad/s, and reference_preview (6 x preview): for each future
@@ -54,8 +57,10 @@ class TrackingTask(Task):
 
     def __init__(self, params: PlatformParams, control_dt: float, *, position_amplitude=None,
                  angle_amplitude=None, frequency_range=(0.1, 0.5), preview: int = 3,
-                 preview_interval: float = 0.1, **weights):
-        super().__init__(params, control_dt, **weights)
+                 preview_interval: float = 0.1, position_reward_scale: float = PRECISE_REWARD_SCALES[0],
+                 orientation_reward_scale: float = PRECISE_REWARD_SCALES[1], **weights):
+        super().__init__(params, control_dt, position_reward_scale=position_reward_scale,
+                         orientation_reward_scale=orientation_reward_scale, **weights)
         self.position_amplitude, self.angle_amplitude = motion_ranges(
             params, position_amplitude, angle_amplitude, ("position_amplitude", "angle_amplitude"))
         self.frequency_range = interval(option("frequency_range"), frequency_range, 0.0, MAX_FREQUENCY, low_open=True)
