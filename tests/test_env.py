@@ -446,6 +446,7 @@ def test_reward_scales_default_per_task_and_give_way_to_options(task, position_s
     _, _, _, _, info = env.step(holding_action(env))
     error = np.linalg.norm(u.target.position - u.state.position)
     # The position term is 0.5 exp(-|e_p| / scale), of the error after the step.
+    # the same formula on the same floats, up to the order of the norm's sum
     assert info["reward_position"] == pytest.approx(0.5 * np.exp(-error / position_scale), rel=1e-12)
     assert env.unwrapped.task.weights.orientation_reward_scale == orientation_scale
     mine = make(task=task, task_options={"position_reward_scale": 0.2, "orientation_reward_scale": 0.3}).unwrapped

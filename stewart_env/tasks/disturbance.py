@@ -54,7 +54,8 @@ class DisturbanceTask(Task):
 
     def __init__(self, params: PlatformParams, control_dt: float, *, sine_force=None, sine_moment=None,
                  frequency_range=(0.2, 2.0), n_impulses: int = 2, impulse_force=None, impulse_moment=None,
-                 impulse_duration: float = 0.05, horizon: float = 5.0, position_reward_scale: float = PRECISE_REWARD_SCALES[0],
+                 impulse_duration: float = 0.05, horizon: float = 5.0,
+                 position_reward_scale: float = PRECISE_REWARD_SCALES[0],
                  orientation_reward_scale: float = PRECISE_REWARD_SCALES[1], **weights):
         weight = params.platform.mass * (float(np.linalg.norm(params.gravity)) or 9.81)
         radius = float(np.mean(np.linalg.norm(params.platform_joints[:, :2], axis=1)))

@@ -10,8 +10,7 @@ from stewart_env.params import PlatformParams
 from stewart_env.rotations import rotation_error
 from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks.base import (MAX_FREQUENCY, PRECISE_REWARD_SCALES, Scales, StepView, Task, motion_ranges,
-                                     option, pose_margins,
-                                     sinusoid_reference, zero_reference)
+                                     option, pose_margins, sinusoid_reference, zero_reference)
 from stewart_env.validation import integer, interval, real
 
 # Amplitudes that put a corner of the reference's range outside the limits are scaled down by this
