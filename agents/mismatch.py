@@ -681,7 +681,7 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
             r.info = f"{', '.join(map(str, steps))} steps, seeds {', '.join(map(str, r.seeds))}"
     result = MismatchResult(rows, list(test_models), summary, int(episodes))
     result.differences = simplification_costs(result, values, plant=cost_plant)
-    result.per_seed = {r.label: {key: [point_estimate(v, statistic(key)) for v in values(r, cost_plant, key)]
+    result.per_seed = {r.label: {key: per_seed_estimates(values(r, cost_plant, key), statistic(key))
                                  for key in RANKING_METRICS} for r in rows if r.kind == "agent"}
     header = {"task": task, "platform": platform, "episodes": episodes, "eval_seed": EVAL_SEED_OFFSET, "algo": algo,
               "seeds": list(seeds), "backend": backend, "wall_time": time.perf_counter() - start,
@@ -825,6 +825,11 @@ def simplification_costs(result: MismatchResult, values: Callable[[Row, str, str
     return differences
 
 
+def per_seed_estimates(values: np.ndarray, statistic_name: str) -> list[float]:
+    """A cell's point estimate for each training seed alone: ``values`` (seeds, episodes)."""
+    return [point_estimate(v, statistic_name) for v in values]
+
+
 def _seed_test(values: np.ndarray, reference: np.ndarray, statistic_name: str) -> float | None:
     """Two-sided p of Welch's t test between two cells' per-seed point estimates: a check of a
     difference that does not lean on the bootstrap, which with few seeds is too narrow; None with
@@ -833,7 +838,7 @@ def _seed_test(values: np.ndarray, reference: np.ndarray, statistic_name: str) -
 
     if min(len(values), len(reference)) < 2:
         return None
-    mine, theirs = ([point_estimate(v, statistic_name) for v in cell] for cell in (values, reference))
+    mine, theirs = per_seed_estimates(values, statistic_name), per_seed_estimates(reference, statistic_name)
     # seeds that agree to rounding (a deterministic part of the controller): scipy warns, the p stands
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
@@ -992,8 +997,10 @@ def _per_seed_lines(result: MismatchResult, metrics, plant: str) -> list[str]:
                   "p per metric ('-': nothing to test):", "",
                   "| simplification | " + " | ".join(meta[k][1] for k in RANKING_METRICS) + " |",
                   "|---|" + "---|" * len(RANKING_METRICS)]
-        for family, name, measure in dict.fromkeys((d.family, d.simplification, d.measure) for d in tested):
-            p = {d.metric: d.seed_p for d in tested if (d.family, d.simplification, d.measure) == (family, name, measure)}
+        p_values: dict[tuple[str, str, str], dict[str, float]] = {}
+        for d in tested:
+            p_values.setdefault((d.family, d.simplification, d.measure), {})[d.metric] = d.seed_p
+        for (family, name, measure), p in p_values.items():
             label = f"{family}: {name}" + (", double diff." if measure == DOUBLE_DIFFERENCE else "")
             lines.append(f"| {label} | " + " | ".join("-" if p.get(k) is None else f"{p[k]:.2g}"
                                                       for k in RANKING_METRICS) + " |")

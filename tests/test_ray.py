@@ -16,7 +16,7 @@ pytestmark = [pytest.mark.filterwarnings("ignore:You have specified a mini-batch
 
 from stewart_env.agents.mismatch import run_mismatch  # noqa: E402
 
-# two tiny agents (one row, two seeds), CT on two models, two plants, 2 episodes of 20 steps
+# four tiny agents (the exact model and C2, two seeds each), CT and PD on two models, two plants, 2 episodes of 20 steps
 STUDY = dict(train_models=["improved"], test_models=["classical", "improved"], algo="ppo", timesteps=100, n_envs=2,
              episodes=2, seeds=[0, 1], simplifications=["c2"], max_steps=20, progress=False)
 

@@ -4,8 +4,6 @@ local backend's."""
 
 from __future__ import annotations
 
-import csv
-
 import pytest
 
 ray = pytest.importorskip("ray")
@@ -16,10 +14,7 @@ pytestmark = [pytest.mark.filterwarnings("ignore:You have specified a mini-batch
               pytest.mark.slow]  # three Ray nodes start in about 10-20 s
 
 from stewart_env.agents.mismatch import run_mismatch  # noqa: E402
-
-# two tiny agents, CT on two models, two plants, 2 episodes of 20 steps
-STUDY = dict(train_models=["improved"], test_models=["classical", "improved"], algo="ppo", timesteps=100, n_envs=2,
-             episodes=2, seeds=[0, 1], simplifications=["c2"], max_steps=20, progress=False)
+from test_ray import STUDY, _numbers  # noqa: E402  the tiny study of the single-node tests
 
 
 @pytest.fixture
@@ -32,11 +27,6 @@ def cluster():
     yield nodes
     ray.shutdown()
     nodes.shutdown()
-
-
-def _numbers(path):
-    with open(path / "matrix.csv") as f:
-        return list(csv.DictReader(f))
 
 
 def test_a_study_on_a_cluster_of_three_nodes_runs_its_jobs_on_the_workers_and_matches_local(cluster, tmp_path):
