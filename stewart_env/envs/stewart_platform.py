@@ -298,6 +298,10 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     ## Version History
 
     * v0: initial version.
+    * v0, 2026-11-24: the `tracking` and `disturbance` tasks' default position and orientation
+      reward scales became 0.01 m and 0.02 rad (they were 0.05 m and 0.1 rad, as the other tasks'
+      still are); `task_options={"position_reward_scale": 0.05, "orientation_reward_scale": 0.1}`
+      gives the earlier reward.  The dynamics, observations and other tasks are unchanged.
     """
 
     _rows = 0  # BatchAttributes: the single platform, no batch axis
