@@ -130,12 +130,12 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     The single-platform figures are CPU time of this process per call (``time.process_time``;
     ``step_env`` too), the batch figures and the resets wall-clock time.
     """
-    import mujoco
-    from mujoco import rollout as mujoco_rollout
-
     from stewart_env.envs.bench_env import RESET_RANDOMIZATION, bench_env, bench_reset
     from stewart_env.integrate import rollout_inplace
-    from stewart_env.mujoco import MujocoPlant, model_and_data
+    from stewart_env.mujoco import MujocoPlant, model_and_data, require_mujoco
+    from stewart_env.mujoco.library import require_rollout
+
+    mujoco, mujoco_rollout = require_mujoco(), require_rollout()
 
     model = se.make_dynamics("improved", params)
     t, R = params.home_position, se.rpy_to_matrix(params.home_rpy)
@@ -273,7 +273,7 @@ def main(argv: list[str] | None = None) -> int:
         from stewart_env import mujoco as twin
 
         try:
-            twin._require_mujoco()
+            twin.require_mujoco()
         except ImportError as err:
             print(f"stewart-env bench: error: argument --mujoco: {err}", file=sys.stderr)
             return 2
@@ -299,10 +299,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"single env (gymnasium.make): {r['single_steps_per_s']:,.0f} steps/s")
         print(f"vector env N={r['n_vector']}: {r['vector_platform_steps_per_s']:,.0f} platform-steps/s")
     if args.mujoco:
-        import mujoco
+        from stewart_env.mujoco import require_mujoco
 
         print()
-        print(f"MuJoCo {mujoco.__version__} on the same mechanism (stewart_env.mujoco), platform at rest at home:")
+        print(f"MuJoCo {require_mujoco().__version__} on the same mechanism (stewart_env.mujoco), platform at rest at home:")
         print(mujoco_table(bench_mujoco(params)))
     return 0
 

@@ -30,7 +30,7 @@ def test_bench_mujoco_times_every_call_and_tabulates_the_ratios(dasgupta):
 def test_bench_mujoco_without_mujoco_names_the_extra(monkeypatch, capsys):
     from stewart_env import mujoco as twin
 
-    monkeypatch.setattr(twin, "_mj", None)
+    monkeypatch.setattr(twin.library, "_mj", None)
     assert bench.main(["--mujoco"]) == 2
     assert 'argument --mujoco' in capsys.readouterr().err
 

@@ -261,7 +261,7 @@ def test_export_mjcf_write_failure_is_an_error_naming_out(tmp_path, monkeypatch,
 def test_export_mjcf_without_mujoco_names_the_extra(tmp_path, monkeypatch, capsys):
     from stewart_env import mujoco as twin
 
-    monkeypatch.setattr(twin, "_mj", None)
+    monkeypatch.setattr(twin.library, "_mj", None)
     assert main(["export-mjcf", "--platform", "dasgupta1998", "--out", str(tmp_path / "m.xml")]) == 2
     assert 'pip install -e ".[mujoco]"' in capsys.readouterr().err
     assert not (tmp_path / "m.xml").exists()

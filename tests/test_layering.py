@@ -31,7 +31,6 @@ LAYERS = {
     "stewart_env.tasks": "tasks",
     "stewart_env.envs": "envs",
     "stewart_env.registration": "envs",
-    "stewart_env.render": "envs",
     "stewart_env.agents": "agents",
     "stewart_env.configs": "agents",
     "stewart_env.bench": "cli",

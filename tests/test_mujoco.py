@@ -139,7 +139,7 @@ def test_to_mjcf_names_bad_arguments(dasgupta):
 
 
 def test_missing_mujoco_names_the_extra(dasgupta, monkeypatch):
-    monkeypatch.setattr(twin, "_mj", None)
+    monkeypatch.setattr(twin.library, "_mj", None)
     with pytest.raises(ImportError, match=r'pip install -e "\.\[mujoco\]"'):
         twin.to_mjcf(dasgupta)
 

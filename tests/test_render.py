@@ -1,4 +1,4 @@
-"""Tests for the headless platform renderer (stewart_env.render)."""
+"""Tests for the headless platform renderer (stewart_env.envs.render)."""
 
 import os
 import subprocess
@@ -8,8 +8,8 @@ import warnings
 import numpy as np
 import pytest
 
-from stewart_env import render
-from stewart_env.render import LEG_FORCE_COLORMAP, PlatformRenderer
+from stewart_env.envs import render
+from stewart_env.envs.render import LEG_FORCE_COLORMAP, PlatformRenderer
 
 # The project's example platform: joints in metres, b_i in {B}, p_i in {P}.
 BASE_JOINTS = np.array(

@@ -656,7 +656,7 @@ class BatchAttributes:
         made on first use (the target pose as a ghost): an RGB frame, or None in human mode."""
         core = self._core
         if self._renderer is None:
-            from stewart_env.render import PlatformRenderer  # matplotlib only when rendering
+            from stewart_env.envs.render import PlatformRenderer  # matplotlib only when rendering
 
             p = core.platform
             size = core.config.render

@@ -1,0 +1,50 @@
+"""The one door to the MuJoCo library: every module of the package reaches ``mujoco`` through here.
+
+Without the optional extra the package still imports; the first call that needs MuJoCo raises
+an ImportError that says how to install it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+
+try:
+    import mujoco as _mj
+except ImportError:  # the optional extra is missing
+    _mj = None
+
+__all__ = ["quiet_mujoco", "require_mujoco", "require_rollout"]
+
+_INSTALL_HINT = ('the MuJoCo twin needs the optional extra: pip install "stewart-env[mujoco]" '
+                 '(in a source checkout: pip install -e ".[mujoco]")')
+
+
+def require_mujoco():
+    """The ``mujoco`` module.  Raises ImportError naming the extra when it is not installed."""
+    if _mj is None:
+        raise ImportError(f"stewart_env.mujoco: the package 'mujoco' is not installed; {_INSTALL_HINT}")
+    return _mj
+
+
+def require_rollout():
+    """The ``mujoco.rollout`` module (batched stepping in MuJoCo's thread pool)."""
+    require_mujoco()
+    from mujoco import rollout
+
+    return rollout
+
+
+@contextlib.contextmanager
+def quiet_mujoco():
+    """MuJoCo's default log handler neither prints nor writes MUJOCO_LOG.TXT into the current
+    directory while the plant steps: a diverging row is reported as NaN instead (the previous
+    configuration is restored afterwards)."""
+    mj = require_mujoco()
+    before = mj.MjLogConfig.get()
+    quiet = mj.MjLogConfig.get()
+    quiet.logto_console = quiet.logto_file = False
+    quiet.set()
+    try:
+        yield
+    finally:
+        before.set()
