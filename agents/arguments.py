@@ -70,14 +70,13 @@ def model_name(text: str) -> str:
 
 
 def plant_model_name(text: str) -> str:
-    """argparse type: a model the environment simulates: a dynamics model name (see
+    """argparse type: a value of the environment's ``model`` argument: a dynamics model name (see
     :func:`model_name`) or ``"mujoco"``, MuJoCo's simulation of the same mechanism (a plant only:
-    it has no closed-form dynamics for a controller to use)."""
-    from stewart_env.envs.config import MUJOCO
+    it has no closed-form dynamics for a controller to use); the environment's configuration
+    checks it (:func:`stewart_env.envs.config.model_argument`)."""
+    from stewart_env.envs.config import model_argument
 
-    if text == MUJOCO:
-        return text
     try:
-        return model_name(text)
-    except argparse.ArgumentTypeError as err:
-        raise argparse.ArgumentTypeError(f"{err}; or {MUJOCO!r} (MuJoCo simulating the same mechanism)") from None
+        return model_argument(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None

@@ -117,6 +117,35 @@ def test_agents_use_public_names_of_the_package(name, path):
     assert private == []
 
 
+def library_imports(path: Path) -> list[tuple[str, int]]:
+    """(module, line) of every import of a module outside the package (``import x.y``, ``from x import``)."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out += [(a.name, node.lineno) for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            out.append((node.module, node.lineno))
+    return [(m, line) for m, line in out if not m.startswith("stewart_env")]
+
+
+# The MuJoCo library is reached through one module; the environments reach the twin through their plant.
+MUJOCO_LIBRARY = "stewart_env.mujoco.library"
+PLANT = "stewart_env.envs.plant"
+
+
+def test_only_the_twins_library_module_imports_mujoco():
+    found = [f"{name} line {line}: {module}" for name, path in MODULES for module, line in library_imports(path)
+             if module.split(".")[0] == "mujoco" and name != MUJOCO_LIBRARY]
+    assert found == [], "import mujoco through stewart_env.mujoco (its library module)"
+
+
+def test_the_environments_reach_mujoco_only_through_their_plant():
+    envs = [(name, path) for name, path in MODULES if layer_of(name) == "envs" and name != PLANT]
+    found = [f"{name} line {line}: {module}" for name, path in envs for module, _, line in imports(path)
+             if module == "stewart_env.mujoco" or module.startswith("stewart_env.mujoco.")]
+    assert found == []
+
+
 def test_the_rule_catches_an_upward_import(tmp_path):
     """The check itself can fail: a physics module importing the environment is reported."""
     bad = tmp_path / "bad.py"
@@ -126,3 +155,5 @@ def test_the_rule_catches_an_upward_import(tmp_path):
     assert [m for m, _, _ in imports(bad)] == ["stewart_env.mujoco", "stewart_env", "stewart_env.dynamics.rk4"]
     with pytest.raises(AssertionError):
         test_imports_run_one_way("stewart_env.kinematics", bad)
+    bad.write_text("import numpy as np\nfrom mujoco import rollout\nimport mujoco.viewer\n")
+    assert library_imports(bad) == [("numpy", 1), ("mujoco", 2), ("mujoco.viewer", 3)]

@@ -476,7 +476,7 @@ def test_model_names_are_case_insensitive_and_mujoco_is_listed():
     from stewart_env.envs import StewartPlatformEnv
 
     env = StewartPlatformEnv(model="MuJoCo")
-    assert env.unwrapped._core.config.physics.mujoco
+    assert env.unwrapped.plant.name == "mujoco"
     env.close()
     with pytest.raises(ValueError, match=r"^model: unknown model 'nope'.*or 'mujoco'"):
         StewartPlatformEnv(model="nope")

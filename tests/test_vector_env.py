@@ -8,6 +8,7 @@ from gymnasium.vector import AutoresetMode
 import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
 from stewart_env.envs import StewartPlatformVectorEnv
 from stewart_env.envs import core as core_module
+from stewart_env.envs import plant as plant_module
 from stewart_env.envs.config import EnvConfig
 
 pytestmark = pytest.mark.env
@@ -84,13 +85,13 @@ def test_same_seed_gives_bit_identical_vector_trajectories():
 
 def test_one_rollout_call_per_step(monkeypatch):
     calls = []
-    original = core_module.rollout_inplace
+    original = plant_module.rollout_inplace
 
     def counting(*args):
         calls.append(args[1].shape[0])
         return original(*args)
 
-    monkeypatch.setattr(core_module, "rollout_inplace", counting)
+    monkeypatch.setattr(plant_module, "rollout_inplace", counting)
     envs = make_vec(16)
     envs.reset(seed=0)
     for a in actions_for(30, 16):

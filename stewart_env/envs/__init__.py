@@ -5,7 +5,8 @@ stable-baselines3 (and torch).
 """
 
 from stewart_env.envs.config import EnvConfig
-from stewart_env.envs.core import DEFAULTS, TERMINATION_REASONS
+from stewart_env.envs.core import TERMINATION_REASONS
+from stewart_env.envs.keywords import DEFAULTS
 from stewart_env.envs.stewart_platform import StewartPlatformEnv, holding_action
 from stewart_env.envs.vector import StewartPlatformVectorEnv
 

@@ -1,37 +1,48 @@
 """The environments' configuration: small frozen records, each validated once at construction.
 
 The keyword arguments of :class:`~stewart_env.envs.StewartPlatformEnv` (and of the vector
-environment) are grouped by what they configure: :class:`PhysicsConfig` (model, platform, time
-steps, domain randomisation), :class:`TaskConfig`, :class:`ActuatorConfig`,
+environment) are grouped by what they configure: :class:`PhysicsConfig` (model, plant, platform,
+time steps, domain randomisation), :class:`TaskConfig`, :class:`ActuatorConfig`,
 :class:`ObservationConfig` and :class:`RenderConfig`.  A record checks its fields with the shared
 validators of :mod:`stewart_env.validation` (errors name the argument) and keeps them in checked
 form (floats, a loaded :class:`~stewart_env.params.PlatformParams`, a
 :class:`~stewart_env.randomization.Randomization`).  Every field carries its description (field
 metadata ``"doc"``); the environment card's Arguments table is checked against
-:func:`arguments_table`, so the records are the one source of the arguments, their defaults and
-their ranges.
+:func:`arguments_table`, and the environments' signatures are made from them
+(:mod:`stewart_env.envs.keywords`), so the records are the one source of the arguments, their
+defaults and their ranges.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from stewart_env.dynamics import Dynamics, make_dynamics
+from stewart_env.dynamics.model import parse_model_name
 from stewart_env.params import PlatformParams, load_platform
 from stewart_env.randomization import Randomization
 from stewart_env.validation import ArgumentError, choice, flag, integer, real
 
-__all__ = ["RECORDS", "ActuatorConfig", "EnvConfig", "ObservationConfig", "PhysicsConfig", "RenderConfig",
-           "TaskConfig", "arguments_table", "defaults"]
+if TYPE_CHECKING:
+    from stewart_env.tasks import Task
+
+__all__ = ["PLANTS", "RECORDS", "ActuatorConfig", "EnvConfig", "ObservationConfig", "PhysicsConfig", "RenderConfig",
+           "TaskConfig", "arguments_table", "defaults", "model_argument"]
 
 #: At most this many RK4 substeps per control step (control_dt / physics_dt).
 MAX_SUBSTEPS = 10**6
 OBSERVATION_MODES = ("pose", "sensors")
-#: The model name that simulates the platform in MuJoCo (stewart_env.mujoco.MujocoPlant).
+#: The plant that integrates the closed-form model ``model`` with RK4 (stewart_env.integrate).
+CLOSED_FORM = "closed_form"
+#: The plant that is MuJoCo simulating the same mechanism (stewart_env.mujoco.MujocoPlant); also
+#: accepted as ``model="mujoco"``, the older spelling of ``plant="mujoco"`` (:func:`model_argument`).
 MUJOCO = "mujoco"
+#: What can simulate the platform (the ``plant`` argument).
+PLANTS = (CLOSED_FORM, MUJOCO)
 RENDER_MODES = ("rgb_array", "human")
 # Relative tolerance on control_dt / physics_dt being a whole number (rounding of decimal inputs).
 _DT_TOLERANCE = 1e-9
@@ -62,40 +73,54 @@ def _platform(value: Any) -> PlatformParams:
     raise ArgumentError(f"platform: expected a config name, a YAML path or a PlatformParams, got {value!r}")
 
 
+def model_argument(model: Any) -> str:
+    """The canonical value of the ``model`` argument: a closed-form model's canonical name (e.g.
+    ``"improved+c1"``), or ``"mujoco"`` (any case), the older spelling of ``plant="mujoco"``.
+    Raises ValueError naming the argument, and the MuJoCo spelling, on an unknown model."""
+    if isinstance(model, str) and model.strip().lower() == MUJOCO:
+        return MUJOCO
+    try:
+        return parse_model_name(model)[0]
+    except ValueError as err:
+        if not str(err).startswith("model: unknown model"):
+            raise
+        raise ValueError(f"{err}; or {MUJOCO!r} (MuJoCo simulating the same mechanism)") from None
+
+
 @dataclass(frozen=True)
 class PhysicsConfig(_Record):
-    """The simulated mechanism and its time steps.  Derived: ``dynamics`` (the nominal closed-form
-    model; with ``model="mujoco"`` the improved model of the same platform, for the leg sensors and
-    holding forces), ``mujoco`` (whether MuJoCo simulates the platform) and ``substeps`` (RK4
-    substeps per control step; ``physics_dt`` becomes control_dt / substeps, so that n control
-    steps are exactly n control_dt)."""
+    """The simulated mechanism, what simulates it, and its time steps.  Derived: ``dynamics`` (the
+    nominal closed-form model ``model``: what the closed-form plant integrates, and what the leg
+    sensors and the actuators' holding forces use on either plant) and ``substeps`` (RK4 substeps
+    per control step; ``physics_dt`` becomes control_dt / substeps, so that n control steps are
+    exactly n control_dt).  ``model="mujoco"`` is stored as ``model="improved", plant="mujoco"``."""
 
     model: str = _argument("improved", 'dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, '
-                                       'optionally with switches such as `"+c1"`; or `"mujoco"` (MuJoCo '
-                                       'simulating the same mechanism, needs the `mujoco` extra)')
-    platform: Any = _argument("dasgupta1998", "a shipped config name, a YAML path, or a `PlatformParams`")
+                                       'optionally with switches such as `"+c1"`; `"mujoco"` is the older '
+                                       'spelling of `plant="mujoco"` (with the `"improved"` model)')
+    plant: str = _argument(CLOSED_FORM, 'what simulates the platform: `"closed_form"` (`model` integrated with '
+                                        'RK4) or `"mujoco"` (MuJoCo simulating the same mechanism, needs the '
+                                        '`mujoco` extra)')
+    platform: str | os.PathLike | PlatformParams = _argument(
+        "dasgupta1998", "a shipped config name, a YAML path, or a `PlatformParams`")
     control_dt: float = _argument(0.01, "s per environment step, 1e-6 to 10")
     physics_dt: float = _argument(0.001, "s per RK4 substep; `control_dt` must be a whole multiple of it, "
                                          "at most 10^6 substeps")
-    randomization: Any = _argument(None, 'domain randomisation spec, e.g. `{"platform.mass": (0.8, 1.2), '
-                                         '"legs.mass": (0.9, 1.1), "inertia": (0.9, 1.1), "com": (0.9, 1.1), '
-                                         '"damping": (0.5, 2.0)}`')
+    randomization: dict[str, tuple[float, float]] | None = _argument(
+        None, 'domain randomisation spec, e.g. `{"platform.mass": (0.8, 1.2), "legs.mass": (0.9, 1.1), '
+              '"inertia": (0.9, 1.1), "com": (0.9, 1.1), "damping": (0.5, 2.0)}`')
     dynamics: Dynamics = _derived()
-    mujoco: bool = _derived()
     substeps: int = _derived()
 
     def __post_init__(self) -> None:
         self._set("platform", _platform(self.platform))
-        # model names are case-insensitive, as the closed-form models' are
-        if isinstance(self.model, str) and self.model.strip().lower() == MUJOCO:
-            self._set("model", MUJOCO)
-        self._set("mujoco", self.model == MUJOCO)
-        try:
-            self._set("dynamics", make_dynamics("improved" if self.mujoco else self.model, self.platform))
-        except ValueError as err:
-            if not str(err).startswith("model: unknown model"):
-                raise
-            raise ValueError(f"{err}; or {MUJOCO!r}, MuJoCo's simulation of the same mechanism") from None
+        model = model_argument(self.model)
+        plant = choice("plant", self.plant.strip().lower() if isinstance(self.plant, str) else self.plant, PLANTS)
+        if model == MUJOCO:  # the older spelling: MuJoCo simulating, the improved model for the rest
+            model, plant = "improved", MUJOCO
+        self._set("model", model)
+        self._set("plant", plant)
+        self._set("dynamics", make_dynamics(model, self.platform))
         control_dt = real("control_dt", self.control_dt, 1e-6, 10.0)
         physics_dt = real("physics_dt", self.physics_dt, 0.0, control_dt, low_open=True)
         substeps = round(control_dt / physics_dt)
@@ -118,9 +143,9 @@ class PhysicsConfig(_Record):
 class TaskConfig(_Record):
     """What the platform should do; the task checks its own options (see :mod:`stewart_env.tasks`)."""
 
-    task: Any = _argument("setpoint", '`"setpoint"`, `"tracking"`, `"disturbance"`, `"hold"` '
+    task: str | type[Task] = _argument("setpoint", '`"setpoint"`, `"tracking"`, `"disturbance"`, `"hold"` '
                                       "(or a `Task` subclass)")
-    task_options: Any = _argument(None, "dict of the task's options, its reward weights included "
+    task_options: dict[str, Any] | None = _argument(None, "dict of the task's options, its reward weights included "
                                         "(see Starting State, Rewards and `stewart_env.tasks`)")
 
     def __post_init__(self) -> None:
@@ -154,8 +179,8 @@ class ObservationConfig(_Record):
     observation_mode: str = _argument("pose", '`"pose"` (pose and twist) or `"sensors"` (leg lengths and rates)')
     normalize_observation: bool = _argument(True, "scale the observation by the platform's limits "
                                                   "(see Observation Space)")
-    observation_noise: Any = _argument(0.0, "Gaussian noise std in observation units, 0 to 100: a number, "
-                                            "or a dict term name -> std")
+    observation_noise: float | dict[str, float] = _argument(
+        0.0, "Gaussian noise std in observation units, 0 to 100: a number, or a dict term name -> std")
     observation_delay: int = _argument(0, "control steps between measurement and observation, 0 to 1000")
     error_integral: bool = _argument(False, "observe the time integral of the pose error (see Observation Space)")
     error_integral_limit: float = _argument(0.1, "s, anti-windup bound T of the error integral: +-T h (position), "

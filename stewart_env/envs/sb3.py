@@ -13,11 +13,9 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env import VecEnv
 
-from stewart_env.envs.core import DEFAULTS
-from stewart_env.envs.stewart_platform import MOVED
+from stewart_env.envs.keywords import check_arguments
 from stewart_env.envs.vector import StewartPlatformVectorEnv
 from stewart_env.registration import MAX_EPISODE_STEPS
-from stewart_env.validation import check_keywords
 
 __all__ = ["StewartPlatformSB3VecEnv"]
 
@@ -43,7 +41,7 @@ class StewartPlatformSB3VecEnv(VecEnv):
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = MAX_EPISODE_STEPS,
                  render_mode: str | None = None, **kwargs: Any):
-        check_keywords(f"{type(self).__name__}.__init__", kwargs, DEFAULTS, MOVED)
+        check_arguments(type(self).__name__, kwargs)
         self.venv = StewartPlatformVectorEnv(num_envs=num_envs, max_episode_steps=max_episode_steps,
                                              render_mode=render_mode, autoreset_mode=AutoresetMode.SAME_STEP,
                                              **kwargs)

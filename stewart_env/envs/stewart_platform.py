@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import functools
-import os
 from typing import Any
 
 import gymnasium as gym
@@ -11,25 +9,17 @@ import numpy as np
 from gymnasium import spaces
 
 from stewart_env.dynamics.model import check_rotation
+from stewart_env.envs.attributes import BatchAttributes
 from stewart_env.envs.config import RENDER_MODES, EnvConfig
-from stewart_env.envs.core import BatchAttributes, PlatformBatch
+from stewart_env.envs.core import PlatformBatch
+from stewart_env.envs.infos import step_values
+from stewart_env.envs.keywords import check_arguments, with_signature
 from stewart_env.rotations import rpy_to_matrix
-from stewart_env.params import PlatformParams
-from stewart_env.tasks import RewardWeights, Task
-from stewart_env.validation import check_action, checked_keywords, real_array
+from stewart_env.validation import check_action, real_array
 
 __all__ = ["StewartPlatformEnv", "holding_action"]
 
 _ROW0 = np.zeros(1, dtype=np.int64)
-#: Keywords that are no longer environment arguments, and where they went (said in the error).
-MOVED = {name: f"the reward weights are options of the task: pass task_options={{{name!r}: ...}}"
-         for name in RewardWeights.__dataclass_fields__}
-
-
-@functools.cache
-def term_key(name: str) -> str:
-    """The info key of a reward term: ``reward_<name>`` (made once per name: it is on the step path)."""
-    return f"reward_{name}"
 
 
 def holding_action(env, position=None, rotation=None) -> np.ndarray:
@@ -59,11 +49,13 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     dynamics), `"improved_centroidal"` (the same in its centroidal form) and `"classical"`
     (Dasgupta and Mruthyunjaya 1998 as He et al. describe it), or an ablation such as
     `"improved+c1"`.  They are integrated with RK4 at `physics_dt` while the forces are held over
-    each control step of `control_dt`.  `model="mujoco"` (the `mujoco` extra) runs the same tasks,
+    each control step of `control_dt`: the `"closed_form"` plant.  `plant="mujoco"` (the `mujoco`
+    extra; also spelled `model="mujoco"`, which keeps the `"improved"` model) runs the same tasks,
     observations and rewards on MuJoCo's simulation of the same mechanism (`stewart_env.mujoco`:
     the loops closed by soft equality constraints, RK4 at `physics_dt`); the step's `info` then also
-    holds `closure_error`, the largest loop-closure gap in m, and the improved model of the same
-    platform gives the leg sensors and `env.unwrapped.model`.
+    holds `closure_error`, the largest loop-closure gap in m.  On either plant `model` gives the
+    leg sensors, the actuators' holding forces and `env.unwrapped.model`; `env.unwrapped.plant.name`
+    says which plant runs.
 
     The default platform, `"dasgupta1998"`, is the published Dasgupta/Tsai test manipulator: a 40 kg
     platform, legs of 1.26 m at home, stroke 1.0-1.6 m, forces within +-2000 N.  Four tasks:
@@ -238,7 +230,8 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     | argument | default | description |
     |---|---|---|
-    | `model` | `"improved"` | dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, optionally with switches such as `"+c1"`; or `"mujoco"` (MuJoCo simulating the same mechanism, needs the `mujoco` extra) |
+    | `model` | `"improved"` | dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, optionally with switches such as `"+c1"`; `"mujoco"` is the older spelling of `plant="mujoco"` (with the `"improved"` model) |
+    | `plant` | `"closed_form"` | what simulates the platform: `"closed_form"` (`model` integrated with RK4) or `"mujoco"` (MuJoCo simulating the same mechanism, needs the `mujoco` extra) |
     | `platform` | `"dasgupta1998"` | a shipped config name, a YAML path, or a `PlatformParams` |
     | `control_dt` | `0.01` | s per environment step, 1e-6 to 10 |
     | `physics_dt` | `0.001` | s per RK4 substep; `control_dt` must be a whole multiple of it, at most 10^6 substeps |
@@ -266,8 +259,8 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     dynamics model.  The tasks' options have ranges of their own (see `stewart_env.tasks`).
 
     Infos hold only numpy numbers (as torchrl's info readers need): a step's `info` has
-    `reward_<term>` and `time` (and `closure_error` on MuJoCo) as float64 and `termination` as an
-    int64 code.  `step()` before the first `reset()` raises `gymnasium.error.ResetNeeded`.
+    `reward_<term>` and `time` (and `closure_error` on the MuJoCo plant) as float64 and
+    `termination` as an int64 code.  `step()` before the first `reset()` raises `gymnasium.error.ResetNeeded`.
     `copy.deepcopy(env)` and `pickle` give an environment that continues bit for bit as the
     original, at any point of an episode (on MuJoCo too).
 
@@ -291,8 +284,9 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     stable-baselines3's `VecEnv` API.
 
     Other attributes of `env.unwrapped`: `state` (position, rotation, velocity, angular_velocity),
-    `target`, `model` (the `Dynamics`), `episode_params`, `leg_forces` (N, applied over the last step),
-    `external_wrench`, `leg_lengths`, `platform`, `task`, `dt`, and `set_state(...)`.  All randomness
+    `target`, `model` (the `Dynamics`), `plant` (what simulates the platform, named by `plant.name`),
+    `episode_params`, `leg_forces` (N, applied over the last step), `external_wrench`,
+    `leg_lengths`, `platform`, `task`, `dt`, and `set_state(...)`.  All randomness
     comes from `env.np_random`, so a seed fixes an episode bit for bit.
 
     ## Version History
@@ -302,22 +296,17 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
       reward scales became 0.01 m and 0.02 rad (they were 0.05 m and 0.1 rad, as the other tasks'
       still are); `task_options={"position_reward_scale": 0.05, "orientation_reward_scale": 0.1}`
       gives the earlier reward.  The dynamics, observations and other tasks are unchanged.
+    * v0, 2026-11-25: the `plant` argument names what simulates the platform (`"closed_form"` or
+      `"mujoco"`); `model="mujoco"` still means `plant="mujoco"` on the `"improved"` model.
     """
 
     _rows = 0  # BatchAttributes: the single platform, no batch axis
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 100.0}
 
-    @checked_keywords(MOVED)
-    def __init__(self, *, model: str = "improved", platform: str | os.PathLike | PlatformParams = "dasgupta1998",
-                 control_dt: float = 0.01, physics_dt: float = 0.001,
-                 randomization: dict[str, tuple[float, float]] | None = None, task: str | type[Task] = "setpoint",
-                 task_options: dict[str, Any] | None = None, actuator_tau: float = 0.0,
-                 observation_mode: str = "pose", normalize_observation: bool = True,
-                 observation_noise: float | dict[str, float] = 0.0, observation_delay: int = 0,
-                 error_integral: bool = False, error_integral_limit: float = 0.1,
-                 error_integral_band: float | None = None, render_mode: str | None = None, width: int = 480,
-                 height: int = 480):
-        config = EnvConfig.of(**{k: v for k, v in locals().items() if k not in ("self", "__class__")})
+    @with_signature()
+    def __init__(self, **arguments: Any):
+        check_arguments(type(self).__name__, arguments)
+        config = EnvConfig.of(**arguments)
         self._core = core = PlatformBatch(1, config)
         self.render_mode = config.render.render_mode
         self.metadata = {**type(self).metadata, "render_fps": core.render_fps}
@@ -343,11 +332,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
         core = self._core
         a = check_action(action, (6,))
         reward, code, terms = core.step(a.reshape(1, 6), self._rngs)
-        info = {term_key(k): v[0] for k, v in terms.items()}
-        info["termination"] = code[0]
-        info["time"] = core.time[0]
-        if core.plant is not None:
-            info["closure_error"] = core.plant.closure_error[0]
+        info = {k: v[0] for k, v in step_values(terms, code, core.time, core.plant.closure_error).items()}
         if self.render_mode == "human":
             self.render()
         return core.observation[0].astype(np.float32), float(reward[0]), bool(code[0]), False, info

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Sequence
-import os
 from typing import Any
 
 import numpy as np
@@ -12,12 +12,12 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from stewart_env.envs.attributes import BatchAttributes
 from stewart_env.envs.config import RENDER_MODES, EnvConfig
-from stewart_env.envs.core import BatchAttributes, PlatformBatch
-from stewart_env.envs.stewart_platform import MOVED, term_key
-from stewart_env.params import PlatformParams
-from stewart_env.tasks import Task
-from stewart_env.validation import check_action, checked_keywords, integer
+from stewart_env.envs.core import PlatformBatch
+from stewart_env.envs.infos import step_values
+from stewart_env.envs.keywords import check_arguments, with_signature
+from stewart_env.validation import check_action, integer
 
 __all__ = ["StewartPlatformVectorEnv"]
 
@@ -150,23 +150,16 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 100.0,
                 "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    @checked_keywords(MOVED)
+    @with_signature(*(inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=default)
+                      for name, default in (("num_envs", 1), ("max_episode_steps", None),
+                                            ("autoreset_mode", AutoresetMode.NEXT_STEP))))
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
-                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, *, model: str = "improved",
-                 platform: str | os.PathLike | PlatformParams = "dasgupta1998", control_dt: float = 0.01,
-                 physics_dt: float = 0.001, randomization: dict[str, tuple[float, float]] | None = None,
-                 task: str | type[Task] = "setpoint", task_options: dict[str, Any] | None = None,
-                 actuator_tau: float = 0.0, observation_mode: str = "pose", normalize_observation: bool = True,
-                 observation_noise: float | dict[str, float] = 0.0, observation_delay: int = 0,
-                 error_integral: bool = False, error_integral_limit: float = 0.1,
-                 error_integral_band: float | None = None, render_mode: str | None = None, width: int = 480,
-                 height: int = 480):
-        arguments = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
-        self.num_envs = integer("num_envs", arguments.pop("num_envs"), 1, 2**31 - 1)
-        max_episode_steps = arguments.pop("max_episode_steps")
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **arguments: Any):
+        check_arguments(type(self).__name__, arguments, ("num_envs", "max_episode_steps", "autoreset_mode"))
+        self.num_envs = integer("num_envs", num_envs, 1, 2**31 - 1)
         self.max_episode_steps = (None if max_episode_steps is None
                                   else integer("max_episode_steps", max_episode_steps, 1, 2**62))
-        self.autoreset_mode = _autoreset_mode(arguments.pop("autoreset_mode"))
+        self.autoreset_mode = _autoreset_mode(autoreset_mode)
         config = EnvConfig.of(**arguments)
         self.render_mode = config.render.render_mode
         try:
@@ -269,11 +262,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
 
     def _step_infos(self, terms: dict[str, np.ndarray], code: np.ndarray, stepped: np.ndarray) -> dict[str, Any]:
         core = self._core
-        values = {term_key(k): v for k, v in terms.items()}
-        values["termination"] = code.copy()
-        values["time"] = core.time.copy()
-        if core.plant is not None:
-            values["closure_error"] = core.plant.closure_error.copy()
+        values = step_values(terms, code, core.time, core.plant.closure_error)
         all_rows = bool(stepped.all())
         infos: dict[str, Any] = {}
         for key, value in values.items():

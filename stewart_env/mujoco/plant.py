@@ -38,6 +38,8 @@ class MujocoPlant:
     the last :meth:`step_inplace` (NaN for a row that is not finite).
     """
 
+    #: The plant's name in the environment's ``plant`` argument (see stewart_env.envs.plant).
+    name = "mujoco"
     #: What a copy or pickle carries: the settings and the arrays of the simulation; MuJoCo's
     #: compiled models, data and thread pool are rebuilt from them (:meth:`__setstate__`).
     _CARRIED = ("params", "_settings", "_nthread", "spherical_friction", "_states", "_control", "_last",
@@ -135,6 +137,12 @@ class MujocoPlant:
         used = {id(tw) for tw in self.twins}
         self._twins = {p: tw for p, tw in self._twins.items() if id(tw) in used}
         self._scratch = {k: d for k, d in self._scratch.items() if k in used}
+
+    def set_model(self, model, rows: Sequence[int]) -> None:
+        """Give batch rows ``rows`` the parameters of those rows of ``model`` (a
+        :class:`~stewart_env.dynamics.Dynamics` with one parameter row per batch row): the
+        environment's plant interface, see :meth:`set_params`."""
+        self.set_params(rows, [model.params_of(i) for i in rows])
 
     def step_inplace(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench,
                      dt: float, steps: int) -> None:

@@ -1,0 +1,84 @@
+"""The plant: what simulates the rows of a batch, chosen once from the configuration.
+
+The batch asks three things of its plant (:class:`Plant`): step the rows' state in place over a
+control step with the leg forces and the external wrench held, take new parameters for some rows
+(domain randomisation at a reset), and say how far its closed loops come apart
+(``closure_error``; None when they cannot).  Two plants answer:
+
+* :class:`ClosedFormPlant` (``plant="closed_form"``, the default): the closed-form Newton-Euler
+  model ``model`` integrated with RK4 (:func:`stewart_env.integrate.rollout_inplace`);
+* :class:`stewart_env.mujoco.MujocoPlant` (``plant="mujoco"``, or ``model="mujoco"``): MuJoCo
+  simulating the same mechanism, its loops closed by soft constraints.
+
+Either way the batch's dynamics model (``env.unwrapped.model``) is the closed-form ``model`` of
+the episode's parameters: the leg sensors, the actuators' holding forces and
+``holding_action`` use it, and the closed-form plant integrates it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from stewart_env.dynamics import Dynamics
+from stewart_env.envs.config import CLOSED_FORM, MUJOCO, PhysicsConfig
+from stewart_env.integrate import rollout_inplace
+
+__all__ = ["ClosedFormPlant", "Plant", "make_plant"]
+
+
+@runtime_checkable
+class Plant(Protocol):
+    """What simulates N platforms for a :class:`~stewart_env.envs.core.PlatformBatch`.
+
+    ``name``: the value of the ``plant`` argument that chose it.  ``closure_error``: (N,) m, the
+    largest loop-closure gap of each row after the last step, or None for a plant whose loops
+    are closed exactly.
+    """
+
+    name: str
+    closure_error: np.ndarray | None
+
+    def step_inplace(self, position: np.ndarray, rotation: np.ndarray, velocity: np.ndarray,
+                     angular_velocity: np.ndarray, leg_forces: np.ndarray, external_wrench: np.ndarray,
+                     dt: float, steps: int) -> None:
+        """Advance every row ``steps`` steps of ``dt`` s, leg forces (N,6) and external wrench
+        (N,6) held; overwrite the state arrays (N,3), (N,3,3), (N,3), (N,3) in place.  No checks:
+        the per-step path.  A row that stops being finite comes back non-finite."""
+
+    def set_model(self, model: Dynamics, rows: Sequence[int]) -> None:
+        """The batch's dynamics model is now ``model`` (one parameter row per platform), whose
+        rows ``rows`` hold new parameters (e.g. randomised at a reset)."""
+
+
+class ClosedFormPlant:
+    """The closed-form model of the batch integrated with RK4, the forces held over each call."""
+
+    name = CLOSED_FORM
+    #: The loops of the closed-form models are closed exactly.
+    closure_error = None
+
+    def __init__(self, model: Dynamics):
+        self.model = model
+
+    def step_inplace(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench,
+                     dt: float, steps: int) -> None:
+        rollout_inplace(self.model, position, rotation, velocity, angular_velocity, leg_forces, external_wrench,
+                        dt, steps)
+
+    def set_model(self, model: Dynamics, rows: Sequence[int]) -> None:
+        self.model = model
+
+
+def make_plant(physics: PhysicsConfig, model: Dynamics, n: int) -> Plant:
+    """The plant that ``physics.plant`` names, for n rows of the batch's dynamics model ``model``."""
+    if physics.plant == MUJOCO:
+        from stewart_env.mujoco import MujocoPlant  # imports without MuJoCo; the plant names the extra
+
+        try:
+            return MujocoPlant([physics.platform] * n, timestep=physics.physics_dt)
+        except ImportError as error:
+            raise ImportError(f"plant={MUJOCO!r} (or model={MUJOCO!r}): {error}") from error
+    return ClosedFormPlant(model)
