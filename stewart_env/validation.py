@@ -10,17 +10,15 @@ wherever a value could otherwise overflow a computation downstream.
 
 from __future__ import annotations
 
-import functools
-import inspect
 import math
 import numbers
 import reprlib
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 import numpy as np
 
-__all__ = ["ArgumentError", "check_action", "check_keywords", "checked_keywords", "choice", "flag", "integer",
+__all__ = ["ArgumentError", "check_action", "check_keywords", "choice", "flag", "integer",
            "interval", "real", "real_array", "vector"]
 
 
@@ -134,25 +132,6 @@ def check_keywords(owner: str, kwargs: Mapping[str, Any], valid: Iterable[str],
             hint = (moved or {}).get(key)
             raise ArgumentError(f"{owner}() got an unexpected keyword argument {key!r}; "
                                 + (hint if hint else f"valid keyword arguments: {', '.join(valid)}"))
-
-
-def checked_keywords(moved: Mapping[str, str] | None = None) -> Callable[[Callable], Callable]:
-    """Decorate an ``__init__`` with explicit keyword arguments so that an unknown keyword raises
-    :class:`ArgumentError` (see :func:`check_keywords`) instead of Python's bare ``TypeError``;
-    ``inspect.signature`` still shows the decorated signature."""
-
-    def decorate(init: Callable) -> Callable:
-        valid = [name for name, p in inspect.signature(init).parameters.items()
-                 if name != "self" and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
-
-        @functools.wraps(init)
-        def checked(self, *args: Any, **kwargs: Any) -> None:
-            check_keywords(f"{type(self).__name__}.__init__", kwargs, valid, moved)
-            init(self, *args, **kwargs)
-
-        return checked
-
-    return decorate
 
 
 def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:

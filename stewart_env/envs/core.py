@@ -232,21 +232,25 @@ class PlatformBatch:
         are built only when read (:meth:`episode_params`).
         """
         infos = [{} for _ in rows]
-        rows_model = self._draw_episodes(rows, rngs, infos)
+        drawn = self._draw_episodes(rows, rngs, infos)
+        if drawn is not None:
+            self.model = self.model.with_packed_rows(rows, *drawn)
+            self.plant.set_model(self.model, rows)
         self.steps[rows] = 0
         self.time[rows] = 0.0
         self.external_wrench[rows] = 0.0
         self._action[rows] = 0.0
         state = PlatformState(*(x[rows] for x in self._state))
-        self.leg_forces[rows] = self._start_forces(rows_model, state)
+        self.leg_forces[rows] = self._start_forces(state, drawn)
         self.observations.reset_rows(rows, self._start_view(rows, state), rngs)
         return infos
 
     def _draw_episodes(self, rows: np.ndarray, rngs: Sequence[np.random.Generator],
-                       infos: list[dict[str, Any]]) -> Dynamics:
+                       infos: list[dict[str, Any]]) -> tuple[np.ndarray, list] | None:
         """Draw each row's randomisation factors (into its info) and the task's episode, and set
-        the start state; returns the dynamics model of the rows alone (the nominal one without
-        randomisation, which broadcasts over them)."""
+        the start state.  Returns the rows' randomised parameters, (packed rows, their sources)
+        as :meth:`~stewart_env.dynamics.Dynamics.with_packed_rows` takes them, or None without
+        randomisation."""
         rnd = self.randomization
         if rnd is not None:
             nominal = self.nominal_model.packed[0]
@@ -262,22 +266,20 @@ class PlatformBatch:
             self.position[i], self.rotation[i], self.velocity[i], self.angular_velocity[i] = start
             for k, v in episode.items():
                 self.episode[k][i] = v
-        if rnd is None:
-            return self.nominal_model
-        self.model = self.model.with_packed_rows(rows, packed, sources)
-        self.plant.set_model(self.model, rows)
-        if not self._lag:
-            return self.nominal_model  # only the holding forces would read the rows' own model
-        return self.nominal_model.with_params([self.platform] * len(rows)).with_packed_rows(range(len(rows)), packed,
-                                                                                           sources)
+        return None if rnd is None else (packed, sources)
 
-    def _start_forces(self, model: Dynamics, state: PlatformState) -> np.ndarray:
-        """The leg forces at the start state: without actuator lag none (the first action sets
-        them); with it, the actuators hold the start state: the forces of zero acceleration of
-        ``model``, as far as the actuators reach."""
+    def _start_forces(self, state: PlatformState, drawn: tuple[np.ndarray, list] | None) -> np.ndarray:
+        """The leg forces at a start state of m rows: without actuator lag none (the first action
+        sets them); with it, the actuators hold the start state: the forces of zero acceleration of
+        the rows' own model (``drawn``, their randomised parameters, or the nominal model), as far
+        as the actuators reach."""
         m = state.position.shape[0]
         if not self._lag:
             return np.zeros((m, 6))
+        model = self.nominal_model
+        if drawn is not None:
+            # the batch's model has n rows; the holding forces need the m reset rows' alone
+            model = model.with_params([self.platform] * m).with_packed_rows(range(m), *drawn)
         zero = np.zeros((m, 3))
         lo, hi = self.platform.limits.leg_force
         return np.clip(model.inverse(*state, zero, zero), lo, hi)
