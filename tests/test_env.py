@@ -190,6 +190,40 @@ def test_signature_shows_every_argument_of_the_records_with_its_default(cls, own
         assert params[name].default == default and params[name].kind == params[name].KEYWORD_ONLY, name
 
 
+def test_the_closed_form_plant_integrates_the_model_and_names_itself():
+    from stewart_env.envs.plant import ClosedFormPlant, Plant
+
+    env = make(model="classical+c1")
+    plant = env.unwrapped.plant
+    assert isinstance(plant, ClosedFormPlant) and isinstance(plant, Plant)
+    assert plant.name == "closed_form" and plant.closure_error is None
+    assert plant.model is env.unwrapped.model and plant.model.name == "classical+c1"
+    env.reset(seed=0)
+    assert "closure_error" not in env.step(np.zeros(6))[4]
+
+
+@pytest.mark.parametrize("plant, message", [("bullet", r"^plant: expected one of 'closed_form', 'mujoco', got 'bullet'"),
+                                            (3, r"^plant: expected one of .*got 3")])
+def test_an_unknown_plant_is_refused_naming_the_argument(plant, message):
+    with pytest.raises(ValueError, match=message):
+        make(plant=plant)
+
+
+def test_a_copy_keeps_the_generated_signature_and_steps_as_the_original():
+    import copy
+    import pickle
+
+    env = make(actuator_tau=0.05, observation_noise=0.01, observation_delay=2, error_integral=True)
+    env.reset(seed=1)
+    copies = [copy.deepcopy(env), pickle.loads(pickle.dumps(env))]
+    a = np.full(6, 0.1)
+    steps = [e.step(a) for e in (env, *copies)]
+    for obs, reward, *_ in steps[1:]:
+        np.testing.assert_array_equal(obs, steps[0][0])
+        assert reward == steps[0][1]
+    assert inspect.signature(type(copies[1].unwrapped)) == inspect.signature(StewartPlatformEnv)
+
+
 def test_configuration_records_are_frozen_and_checked_once():
     config = EnvConfig.of(control_dt=0.02, physics_dt=0.004, observation_noise={"position": 1})
     assert (config.physics.control_dt, config.physics.substeps) == (0.02, 5)

@@ -1,4 +1,4 @@
-"""The environment on MuJoCo's simulation of the same mechanism: model="mujoco"."""
+"""The environment on MuJoCo's simulation of the same mechanism: plant="mujoco" (or model="mujoco")."""
 
 import copy
 import pickle
@@ -101,3 +101,26 @@ def test_without_mujoco_the_error_names_the_model_and_the_extra(monkeypatch):
     monkeypatch.setattr(twin.library, "_mj", None)
     with pytest.raises(ImportError, match=r"plant='mujoco' \(or model='mujoco'\): .*mujoco.* is not installed.*pip install"):
         gym.make(ENV_ID, model="mujoco")
+
+
+def test_plant_mujoco_is_model_mujoco_on_the_improved_model(mujoco):
+    """The two spellings make the same environment: the MuJoCo plant, the improved model, the same steps."""
+    new, old = StewartPlatformEnv(plant="mujoco", **FIXED), StewartPlatformEnv(model="mujoco", **FIXED)
+    for env in (new, old):
+        assert env.plant.name == "mujoco" and isinstance(env.plant, twin.MujocoPlant)
+        assert env.model.name == "improved"
+        env.reset(seed=0)
+    a = holding_action(new)
+    for _ in range(3):
+        obs_new, reward_new, _, _, info_new = new.step(a)
+        obs_old, reward_old, _, _, info_old = old.step(a)
+    np.testing.assert_array_equal(obs_new, obs_old)
+    assert reward_new == reward_old and info_new == info_old
+
+
+def test_the_mujoco_plant_answers_the_plant_interface(mujoco):
+    from stewart_env.envs.plant import Plant
+
+    env = StewartPlatformEnv(plant="mujoco", model="classical")
+    assert isinstance(env.plant, Plant)
+    assert env.model.name == "classical"  # the closed-form model of the sensors and the holding forces

@@ -128,7 +128,8 @@ def library_imports(path: Path) -> list[tuple[str, int]]:
     return [(m, line) for m, line in out if not m.startswith("stewart_env")]
 
 
-# The MuJoCo library is reached through one module; the environments reach the twin through their plant.
+# The MuJoCo library is reached through one module; the environments reach the integrator and the
+# twin through their plant (stewart_env.envs.plant), chosen once from the configuration.
 MUJOCO_LIBRARY = "stewart_env.mujoco.library"
 PLANT = "stewart_env.envs.plant"
 
@@ -139,10 +140,12 @@ def test_only_the_twins_library_module_imports_mujoco():
     assert found == [], "import mujoco through stewart_env.mujoco (its library module)"
 
 
-def test_the_environments_reach_mujoco_only_through_their_plant():
-    envs = [(name, path) for name, path in MODULES if layer_of(name) == "envs" and name != PLANT]
+@pytest.mark.parametrize("simulator", ["stewart_env.mujoco", *INTEGRATOR])
+def test_the_environments_reach_a_simulator_only_through_their_plant(simulator):
+    envs = [(name, path) for name, path in MODULES if name.startswith("stewart_env.envs") and name != PLANT]
+    assert len(envs) > 5
     found = [f"{name} line {line}: {module}" for name, path in envs for module, _, line in imports(path)
-             if module == "stewart_env.mujoco" or module.startswith("stewart_env.mujoco.")]
+             if module == simulator or module.startswith(simulator + ".")]
     assert found == []
 
 
