@@ -1,7 +1,11 @@
 """The Gymnasium environments: the single env, the native vector env and the SB3 VecEnv adapter.
 
 ``StewartPlatformSB3VecEnv`` is imported on first use, so this package imports without
-stable-baselines3 (and torch).
+stable-baselines3 (and torch).  The three are faces of one batch of platforms
+(:mod:`~stewart_env.envs.core`), which a plant simulates (:mod:`~stewart_env.envs.plant`) and
+an observation pipeline observes (:mod:`~stewart_env.envs.observation`); their keyword
+arguments are the configuration records' (:mod:`~stewart_env.envs.config`,
+:mod:`~stewart_env.envs.keywords`).
 """
 
 from stewart_env.envs.config import EnvConfig
