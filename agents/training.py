@@ -896,7 +896,7 @@ def _train(cls, algo: str, directory: Path, held: contextlib.ExitStack, *, model
                                                 checkpoint_freq, keep_checkpoints, progress_bar, verbose)
     except (OSError, WriteError) as err:  # a full disk or a failing device, in our writes or SB3's own
         cause = err if isinstance(err, WriteError) else write_error(err.filename or directory, err)
-        kept = ("the complete checkpoints are kept: continue with --resume" if _step_dirs(directory)
+        kept = ("the complete checkpoints are kept (--resume continues from the newest)" if _step_dirs(directory)
                 else "no checkpoint was complete")
         raise WriteError(cause.path, f"{cause.problem}; {kept}") from None
     if stop.signum is not None:

@@ -36,8 +36,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, BinaryIO
 
-__all__ = ["LOCK_FILE", "FileError", "FolderBusy", "check_not_busy", "NotWritable", "WriteError", "check_writable", "lock_folder", "open_regular",
-           "publish", "publishing", "publishing_folder", "read_json", "read_regular", "sha256_file", "write_error"]
+__all__ = ["LOCK_FILE", "TMP_PREFIX", "FileError", "FolderBusy", "NotWritable", "WriteError", "check_not_busy",
+           "check_writable", "lock_folder", "open_regular", "publish", "publishing", "publishing_folder", "read_json", "read_regular", "sha256_file", "write_error"]
 
 #: The lock file of an output folder (see :func:`lock_folder`).
 LOCK_FILE = ".stewart-env.lock"

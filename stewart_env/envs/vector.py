@@ -17,7 +17,7 @@ from stewart_env.envs.core import BatchAttributes, PlatformBatch
 from stewart_env.envs.stewart_platform import MOVED, term_key
 from stewart_env.params import PlatformParams
 from stewart_env.tasks import Task
-from stewart_env.validation import check_action, checked_keywords, integer
+from stewart_env.validation import check_action, checked_keywords, integer, reset_options
 
 __all__ = ["StewartPlatformVectorEnv"]
 
@@ -186,10 +186,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None):
         n = self.num_envs
-        options = dict(options or {})
-        mask = options.pop("reset_mask", None)
-        if options:
-            raise ValueError(f"reset: unknown option(s) {', '.join(map(repr, options))}; only 'reset_mask'")
+        mask = reset_options(options, ("reset_mask",)).get("reset_mask")
         if mask is None:
             mask = np.ones(n, dtype=bool)
         elif not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_ and mask.shape == (n,)):
