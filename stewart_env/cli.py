@@ -267,7 +267,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         _announce_compilation(args.command)
     start = time.perf_counter()
     if args.command == "demo":
-        table = _run_demo(args)
+        try:
+            table = _run_demo(args)
+        except ValueError as err:  # --out in use by another command, or a write that failed (a full disk)
+            print(f"stewart-env demo: error: {err}", file=sys.stderr)
+            return 2
         print(f"PD baseline on the set-point task of {args.platform}, {args.episodes} seeded episodes per model "
               f"(seed {args.seed}):\n")
         print(table)
