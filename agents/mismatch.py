@@ -91,17 +91,8 @@ from stewart_env.agents.training import (
     train,
 )
 from stewart_env.dynamics.model import SIMPLIFICATIONS as SIMPLIFICATION_TEXT
-from stewart_env.files import (
-    WriteError,
-    check_not_busy,
-    lock_folder,
-    publish,
-    publishing,
-    publishing_folder,
-    read_json,
-    read_regular,
-    write_error,
-)
+from stewart_env.files import (WriteError, check_not_busy, lock_folder, publish, publishing, publishing_folder,
+                               read_json, read_regular, write_error)
 from stewart_env.progress import progress as progress_bar
 
 #: Environment steps per RL agent of the quick default study: a smoke-scale budget (such agents

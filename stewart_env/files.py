@@ -32,6 +32,7 @@ import os
 import shutil
 import stat
 import tempfile
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -45,6 +46,9 @@ LOCK_FILE = ".stewart-env.lock"
 TMP_PREFIX = ".tmp-"
 #: Bytes of the holder's PID read back from a lock file.
 _PID_BYTES = 32
+#: Tries, and seconds between them, to take a lock that :func:`check_not_busy` of another command
+#: may hold for an instant; a lock still held after them belongs to a command that runs.
+_LOCK_ATTEMPTS, _LOCK_RETRY_SECONDS = 20, 0.01
 
 
 class FileError(ValueError):
@@ -139,7 +143,7 @@ def lock_folder(directory: str | os.PathLike, create: bool = True) -> Iterator[P
         FileError: the folder cannot be made or written (see :func:`check_writable`).
     """
     check_not_busy(directory)
-    path = check_writable(directory, create=True) if create else Path(directory)
+    path = check_writable(directory, create=create)
     lock = path / LOCK_FILE
     try:
         fd = os.open(lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0), 0o644)
@@ -148,12 +152,16 @@ def lock_folder(directory: str | os.PathLike, create: bool = True) -> Iterator[P
     try:
         if not stat.S_ISREG(os.fstat(fd).st_mode):
             raise FileError(lock, "not a regular file; remove it")
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as err:
-            if err.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-                raise FileError(lock, f"cannot lock the folder: {_cause(err)}") from None
-            raise FolderBusy(path, _holder(fd)) from None
+        for attempt in range(_LOCK_ATTEMPTS):
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except OSError as err:
+                if err.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    raise FileError(lock, f"cannot lock the folder: {_cause(err)}") from None
+                if attempt == _LOCK_ATTEMPTS - 1:
+                    raise FolderBusy(path, _holder(fd)) from None
+                time.sleep(_LOCK_RETRY_SECONDS)  # perhaps only another command's check_not_busy, a moment long
         with contextlib.suppress(OSError):  # the PID is for the message of a second command only
             os.ftruncate(fd, 0)
             os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
@@ -213,6 +221,28 @@ def _remove(path: Path) -> None:
 
 
 @contextlib.contextmanager
+def _replacing(path: Path, tmp: Path) -> Iterator[Path]:
+    """Yield ``tmp`` (a file or a folder of files); when the block ends, flush it and rename it
+    over ``path`` (a folder replacing a folder removes the old one first); on any error remove
+    it, an OSError raised as :class:`WriteError` naming ``path``."""
+    try:
+        yield tmp
+        for name in os.listdir(tmp) if tmp.is_dir() else ():
+            _fsync(tmp / name)
+        _fsync(tmp)
+        if tmp.is_dir() and path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        os.replace(tmp, path)
+        _fsync(path.parent)
+    except OSError as err:
+        _remove(tmp)
+        raise write_error(path, err) from None
+    except BaseException:
+        _remove(tmp)
+        raise
+
+
+@contextlib.contextmanager
 def publishing(path: str | os.PathLike) -> Iterator[Path]:
     """A temporary path, unique to this call, next to ``path``: whatever the block writes there
     is flushed and renamed over ``path`` when the block ends, and removed if it raises.  An
@@ -224,18 +254,8 @@ def publishing(path: str | os.PathLike) -> Iterator[Path]:
         os.close(fd)
     except OSError as err:
         raise write_error(path, err) from None
-    tmp = Path(name)
-    try:
+    with _replacing(path, Path(name)) as tmp:
         yield tmp
-        _fsync(tmp)
-        os.replace(tmp, path)
-        _fsync(path.parent)
-    except OSError as err:
-        _remove(tmp)
-        raise write_error(path, err) from None
-    except BaseException:
-        _remove(tmp)
-        raise
 
 
 def publish(path: str | os.PathLike, data: bytes | str) -> None:
@@ -255,21 +275,8 @@ def publishing_folder(path: str | os.PathLike) -> Iterator[Path]:
         tmp = Path(tempfile.mkdtemp(prefix=f"{TMP_PREFIX}{path.name}-", dir=path.parent))
     except OSError as err:
         raise write_error(path, err) from None
-    try:
+    with _replacing(path, tmp) as tmp:
         yield tmp
-        for name in os.listdir(tmp):
-            _fsync(tmp / name)
-        _fsync(tmp)
-        if path.is_dir() and not path.is_symlink():
-            shutil.rmtree(path)
-        os.replace(tmp, path)
-        _fsync(path.parent)
-    except OSError as err:
-        _remove(tmp)
-        raise write_error(path, err) from None
-    except BaseException:
-        _remove(tmp)
-        raise
 
 
 # -- reading --------------------------------------------------------------------------------------
