@@ -619,7 +619,10 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     agent_models: the models RL agents are trained on (default: every model controllers are built
         on, the improved+cK ones included); any model the environment simulates.
 
-    Every argument is checked before any work starts; errors raise TrainingError naming it.
+    Every argument is checked before any work starts; errors raise TrainingError naming it.  A
+    second study on ``out`` while one runs raises :class:`~stewart_env.files.FolderBusy`, a failed
+    write (a full disk) :class:`~stewart_env.files.WriteError` naming the file, the finished agents
+    and cells kept.
     """
     from stewart_env.agents.evaluation import METRICS
     from stewart_env.tasks import TASKS

@@ -810,6 +810,13 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
     step; failures raise :class:`TrainingError` (or ValueError from the environment) naming what
     is wrong.  SIGINT or SIGTERM during training saves a checkpoint, then raises
     :class:`TrainingInterrupted`.
+
+    Raises:
+        stewart_env.files.FolderBusy: another command writes ``out`` (its PID in the message);
+            nothing was changed.
+        stewart_env.files.WriteError: a write failed (a full disk), naming the file; the complete
+            checkpoints are kept and ``resume`` continues from the newest.
+        stewart_env.files.FileError: a file of the run is not a regular file, or is too large.
     """
     cls = algorithm_class(algo)
     for name, value, minimum, maximum in (("timesteps", timesteps, 1, MAX_COUNT), ("seed", seed, 0, MAX_SEED),
