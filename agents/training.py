@@ -23,12 +23,13 @@ One run lives in one directory ``DIR``:
 Every file is published atomically (:mod:`stewart_env.files`): a checkpoint is written into
 ``checkpoints/.tmp-step_<steps>-<random>/`` and renamed to ``step_<steps>/`` once complete; the
 final files are written under temporary names and renamed.  A run killed at any moment leaves its
-newest complete checkpoint, which ``--resume`` finds by its manifest and hashes.  One command at a
-time writes a run: ``train`` holds the run directory's lock (:func:`stewart_env.files.lock_folder`)
-and a second one on the same ``--out`` is refused at once.  A full disk or a failing write ends
-training with :class:`~stewart_env.files.WriteError` naming the file; the complete checkpoints
-stay, and ``--resume`` continues from the newest.  SIGINT and SIGTERM stop training at the next step, save a
-checkpoint and raise :class:`TrainingInterrupted`; a second signal exits at once.
+newest complete checkpoint, which ``--resume`` finds by its manifest and hashes.  SIGINT and
+SIGTERM stop training at the next step, save a checkpoint and raise :class:`TrainingInterrupted`;
+a second signal exits at once.  One command at a time writes a run: ``train`` holds the run
+directory's lock (:func:`stewart_env.files.lock_folder`), and a second one on the same ``--out``
+is refused at once.  A full disk or a failing write ends training with
+:class:`~stewart_env.files.WriteError` naming the file; the complete checkpoints stay, and
+``--resume`` continues from the newest.
 
 Hyperparameters come from ``configs/agents/{ppo,sac,td3}.yml`` in rl-baselines3-zoo's format,
 keyed by the environment id, so the same files drive ``python -m rl_zoo3.train``.  The zoo's
@@ -80,7 +81,6 @@ from stewart_env.files import (
     FileError,
     WriteError,
     check_not_busy,
-    check_writable,
     lock_folder,
     publish,
     publishing,
