@@ -5,7 +5,8 @@ Every command that writes a run (``train``, ``mismatch``, ``evaluate --out``) ho
 :func:`lock_folder` on its output folder for as long as it writes: an exclusive ``flock`` on
 ``.stewart-env.lock`` inside it, which the operating system releases when the process ends,
 however it ends, so a killed run never leaves its folder locked.  A second command on the same
-folder is refused at once with :class:`FolderBusy`, naming the folder and the holder's PID.
+folder is refused at once with :class:`FolderBusy`, naming the folder and the holder's PID.  (On
+a system without ``flock``, Windows, folders are not locked.)
 
 Every file is published with :func:`publishing` (or :func:`publish` for bytes and text, and
 :func:`publishing_folder` for a folder of files): written under a temporary name unique to the
@@ -25,7 +26,6 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import fcntl
 import hashlib
 import json
 import os
@@ -36,6 +36,11 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, BinaryIO
+
+try:
+    import fcntl
+except ImportError:  # no flock (Windows): folders are not locked there
+    fcntl = None
 
 __all__ = ["LOCK_FILE", "TMP_PREFIX", "FileError", "FolderBusy", "NotWritable", "WriteError", "check_not_busy",
            "check_writable", "lock_folder", "open_regular", "publish", "publishing", "publishing_folder", "read_json", "read_regular", "sha256_file", "write_error"]
@@ -117,6 +122,8 @@ def check_not_busy(directory: str | os.PathLike) -> None:
     nothing (a missing lock file is nobody's): a command calls it before its first look at the
     folder, so that a busy folder is reported as such and not by what a run in progress left."""
     lock = Path(directory) / LOCK_FILE
+    if fcntl is None:
+        return
     try:
         fd = os.open(lock, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOFOLLOW", 0))
     except (OSError, ValueError):
@@ -144,6 +151,9 @@ def lock_folder(directory: str | os.PathLike, create: bool = True) -> Iterator[P
     """
     check_not_busy(directory)
     path = check_writable(directory, create=create)
+    if fcntl is None:
+        yield path
+        return
     lock = path / LOCK_FILE
     try:
         fd = os.open(lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0), 0o644)
