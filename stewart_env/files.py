@@ -15,7 +15,7 @@ the old file or the whole new one; on any error the temporary file is removed an
 :class:`WriteError` naming the target and the cause (a full disk is "No space left on device").
 
 Every file read from a folder the package did not just write goes through :func:`open_regular`
-(or :func:`read_regular`, :func:`sha256_file`): regular files only, opened without blocking (a
+(or :func:`read_regular`, :func:`read_json`, :func:`sha256_file`): regular files only, opened without blocking (a
 named pipe would wait for a writer for ever), checked by ``fstat`` after opening (a symbolic link
 to ``/dev/zero`` is a device), and bounded in size before a byte is read.
 
@@ -43,7 +43,8 @@ except ImportError:  # no flock (Windows): folders are not locked there
     fcntl = None
 
 __all__ = ["LOCK_FILE", "TMP_PREFIX", "FileError", "FolderBusy", "NotWritable", "WriteError", "check_not_busy",
-           "check_writable", "lock_folder", "open_regular", "publish", "publishing", "publishing_folder", "read_json", "read_regular", "sha256_file", "write_error"]
+           "check_writable", "lock_folder", "open_regular", "publish", "publishing", "publishing_folder", "read_json",
+           "read_regular", "sha256_file", "write_error"]
 
 #: The lock file of an output folder (see :func:`lock_folder`).
 LOCK_FILE = ".stewart-env.lock"

@@ -9,6 +9,7 @@ import errno
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -30,10 +31,11 @@ from stewart_env.cli import main  # noqa: E402
 from stewart_env.files import FileError, FolderBusy, WriteError, lock_folder  # noqa: E402
 
 FILES_MODULE = Path(files.__file__)
-TINY_PPO = {"n_timesteps": 1000, "policy": "MlpPolicy", "n_envs": 2, "normalize": "dict(norm_obs=True, norm_reward=True)",
-            "n_steps": 16, "batch_size": 32, "n_epochs": 1, "policy_kwargs": "dict(net_arch=dict(pi=[16], vf=[16]))"}
-BUSY = re.compile(r"output directory '(?P<folder>[^']+)' is in use by another stewart-env command \(PID (?P<pid>\d+)\); "
-                  r"wait for it to end, or choose another output directory")
+TINY_PPO = {"n_timesteps": 1000, "policy": "MlpPolicy", "n_envs": 2,
+            "normalize": "dict(norm_obs=True, norm_reward=True)", "n_steps": 16, "batch_size": 32, "n_epochs": 1,
+            "policy_kwargs": "dict(net_arch=dict(pi=[16], vf=[16]))"}
+BUSY = re.compile(r"output directory '(?P<folder>[^']+)' is in use by another stewart-env command "
+                  r"\(PID (?P<pid>\d+)\); wait for it to end, or choose another output directory")
 # A hostile file must be refused well within this (a FIFO would block for ever, /dev/zero never ends).
 REFUSAL_SECONDS = 10.0
 
@@ -84,8 +86,6 @@ def tiny_run(tmp_path_factory):
 
 
 def copy_run(run: Path, to: Path) -> Path:
-    import shutil
-
     shutil.copytree(run, to)
     return to
 
@@ -335,8 +335,6 @@ def test_a_full_disk_while_a_study_writes_a_cell_keeps_the_finished_cells(tmp_pa
 
 def _replace(path: Path, kind: str) -> None:
     if path.is_dir():
-        import shutil
-
         shutil.rmtree(path)
     elif path.exists() or path.is_symlink():
         path.unlink()
