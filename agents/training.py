@@ -754,7 +754,9 @@ def run_changes(manifest: Mapping[str, Any], entry: Mapping[str, Any], env_kwarg
 def _check_fresh_directory(directory: Path, algo: str) -> None:
     """Refuse to start a run in a directory that holds anything but a run of ``algo`` that saved
     nothing yet (a start that failed before its first checkpoint)."""
-    if not directory.is_dir() or not [name for name in os.listdir(directory) if name != LOCK_FILE]:
+    # the lock file, and the temporary files of a start killed in its first write, are no run
+    if not directory.is_dir() or not [name for name in os.listdir(directory)
+                                      if name != LOCK_FILE and not name.startswith(TMP_PREFIX)]:
         return
     if not (directory / MANIFEST).is_file():
         raise TrainingError(f"{directory} is not empty and holds no run of `stewart-env train` (no {MANIFEST}); "

@@ -427,3 +427,13 @@ def test_special_hyperparameter_file_is_refused_at_once(tmp_path, kind):
     error = _in_time(lambda: training.read_hyperparameters("ppo", config))
     assert isinstance(error, (FileError, training.TrainingError))
     assert str(config) in str(error)
+
+
+def test_a_start_killed_in_its_first_write_does_not_block_a_new_start(tmp_path):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / ".tmp-run-abc123.json").write_text('{"alg')  # what a kill inside the first run.json write leaves
+    (out / files.LOCK_FILE).write_text("12345\n")  # and its lock file, no longer held
+    train("ppo", out, timesteps=32, config=tiny_config(tmp_path / "ppo.yml"), progress_bar=False)
+    assert not [p for p in out.iterdir() if p.name.startswith(".tmp")]
+    assert load_agent(out).num_timesteps == 32
