@@ -45,6 +45,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import stewart_env as se
+from stewart_env.files import lock_folder, publish, publishing
 from stewart_env.progress import progress as progress_bar
 from stewart_env.registration import ENV_ID
 
@@ -329,15 +330,22 @@ def write_report(results: Sequence[EvaluationResult], out, title: str = "Control
     """Write ``results.md`` (the table and the definitions' source), ``episodes.csv`` (one row per
     episode, SI units), ``error_norms.png`` (every result's error norms over time) and one
     ``trajectory_<label>_<model>.png`` per result (error components and leg forces of its first
-    episode) into the directory ``out``.  Returns {name: path}."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    episode) into the directory ``out``.  Returns {name: path}.
+
+    The directory's lock is held while writing (a second report into it at the same time is
+    refused with :class:`~stewart_env.files.FolderBusy`); each file is published atomically, and a
+    write that fails (a full disk) raises :class:`~stewart_env.files.WriteError` naming it."""
+    with lock_folder(out) as out:
+        return _write_report(results, out, title)
+
+
+def _write_report(results: Sequence[EvaluationResult], out: Path, title: str) -> dict[str, Path]:
     paths = {"markdown": out / "results.md", "csv": out / "episodes.csv", "error_norms": out / "error_norms.png"}
-    paths["markdown"].write_text(
-        f"# {title}\n\n" + markdown_table(results) + "\n\n"
-        "Means over the episodes (settling time and overshoot over the episodes where they are defined; "
-        "'-' where none). Metric definitions: `stewart_env.agents.evaluation`.\n")
-    with paths["csv"].open("w", newline="") as f:
+    publish(paths["markdown"],
+            f"# {title}\n\n" + markdown_table(results) + "\n\n"
+            "Means over the episodes (settling time and overshoot over the episodes where they are defined; "
+            "'-' where none). Metric definitions: `stewart_env.agents.evaluation`.\n")
+    with publishing(paths["csv"]) as tmp, tmp.open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(["controller", "model", "task", "platform", "seed", "termination", "return"]
                         + [m[0] for m in METRICS])
@@ -347,7 +355,8 @@ def write_report(results: Sequence[EvaluationResult], out, title: str = "Control
             for ep in r.episodes:
                 writer.writerow([r.label, r.model, r.task, platform, ep.seed, ep.termination or "", f"{ep.reward:.6g}"]
                                 + [f"{ep.metrics[m[0]]:.9g}" for m in METRICS])
-    error_norms_figure(results).savefig(paths["error_norms"], dpi=110)
+    with publishing(paths["error_norms"]) as tmp:
+        error_norms_figure(results).savefig(tmp, dpi=110)
     for r in results:
         path = out / f"trajectory_{slug(r.label)}_{slug(r.model)}.png"
         _plot_trajectory(r, path)
@@ -451,7 +460,8 @@ def _plot_trajectory(result: EvaluationResult, path: Path) -> None:
         ax.legend(fontsize=8, ncol=6 if ax is axes[2] else 3, loc="upper right")
     end = f", terminated: {ep.termination}" if ep.termination else ""
     fig.suptitle(f"{result.label} on the {result.model} model, {result.task} task, seed {ep.seed}{end}", fontsize=11)
-    fig.savefig(path, dpi=110)
+    with publishing(path) as tmp:
+        fig.savefig(tmp, dpi=110)
 
 
 def compare(policies: Mapping[str, object], env_kwargs_list: Sequence[Mapping], episodes: int = 5, seed: int = 0,

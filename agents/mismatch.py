@@ -31,7 +31,12 @@ Output in DIR: ``matrix.csv`` (one line per row and test plant; every metric wit
 ``forest.png`` (every cost with its interval) and ``heatmap_<metric>.png``; trained agents in
 ``DIR/agents/<name>/seed_<s>/`` and each finished evaluation in ``DIR/cells/`` (a second run with
 the same DIR reuses both and runs only what is missing).  ``study.json`` holds the settings that
-give the cells their meaning; a second run with other settings is refused.
+give the cells their meaning; a second run with other settings is refused.  One command at a time
+works on a study: ``mismatch`` holds the lock of DIR (:func:`stewart_env.files.lock_folder`) until
+it ends, and a second one on the same DIR is refused at once.  A study's agents belong to it: they
+are not shared with another study through a common folder (``DIR/agents`` as a symbolic link is
+refused), since a study's finished cells name the hashes of the agents they ran.  A full disk ends
+the study with the file it could not write; the finished agents and cells are kept.
 
 Work runs on a backend: ``local`` (in this process, one job after another) or ``ray`` (every
 training run and every evaluation is a Ray task requesting :data:`CPUS_PER_JOB` CPUs, on a local
@@ -45,7 +50,6 @@ import csv
 import json
 import math
 import os
-import shutil
 import signal
 import socket
 import sys
@@ -72,11 +76,12 @@ from stewart_env.agents.statistics import (
 from stewart_env.agents.training import (
     ALGORITHMS,
     MANIFEST,
+    MAX_AGENT_FILE_BYTES,
+    MAX_MANIFEST_BYTES,
     MODEL_FILE,
     VECNORMALIZE_FILE,
     TrainingError,
     TrainingInterrupted,
-    check_writable,
     jsonable,
     load_agent,
     newest_checkpoint,
@@ -86,6 +91,8 @@ from stewart_env.agents.training import (
     train,
 )
 from stewart_env.dynamics.model import SIMPLIFICATIONS as SIMPLIFICATION_TEXT
+from stewart_env.files import (WriteError, check_not_busy, lock_folder, publish, publishing, publishing_folder,
+                               read_json, read_regular, write_error)
 from stewart_env.progress import progress as progress_bar
 
 #: Environment steps per RL agent of the quick default study: a smoke-scale budget (such agents
@@ -143,6 +150,9 @@ RAY_INSTALL_HINT = 'install the distributed extra: pip install -e ".[distributed
 #: Settings recorded in study.json: a second run in the same directory must match them.
 STUDY_FILE = "study.json"
 CELLS_DIR = "cells"
+AGENTS_DIR = "agents"
+#: Bound of a finished cell's file read back (every metric of every episode of one evaluation).
+MAX_CELL_BYTES = 256 << 20
 #: The files of an agent folder that loading it needs (and that a Ray worker sends back).
 AGENT_FILES = (MANIFEST, MODEL_FILE, VECNORMALIZE_FILE)
 
@@ -282,22 +292,24 @@ def _changes(old: Mapping[str, Any], new: Mapping[str, Any]) -> list[str]:
 def _check_study(out: Path, settings: dict[str, Any]) -> None:
     """Refuse a directory holding a study of other settings; record the settings otherwise."""
     path = out / STUDY_FILE
-    if path.exists():
-        changes = _changes(json.loads(path.read_text()), settings)
+    if os.path.lexists(path):
+        changes = _changes(read_json(path, MAX_MANIFEST_BYTES, "study file"), settings)
         if changes:
             raise TrainingError(f"{out} holds a study with other settings; its finished cells and agents would "
                                 "mean something else:\n  " + "\n  ".join(changes) + "\nrun with the study's "
                                 "settings (rows, test models and seeds may be added), or use another --out")
     else:
-        _write_atomic(path, json.dumps(settings, indent=1, sort_keys=True))
+        publish(path, json.dumps(settings, indent=1, sort_keys=True))
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` under a temporary name, then rename: a reader sees the old file
-    or the whole new one, never a part, whenever the writer is stopped."""
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+def _check_own_agents(out: Path) -> None:
+    """Refuse agents shared with another study: DIR/agents as a symbolic link (or one below it)."""
+    agents = out / AGENTS_DIR
+    for path in [agents, *agents.glob("*"), *agents.glob("*/*")]:
+        if path.is_symlink():
+            raise TrainingError(f"{path} is a symbolic link: a study's agents are not shared with another study "
+                                f"(its cells record the hashes of the agents they ran); give each study its own "
+                                f"--out, or copy the agents into {agents}")
 
 
 # -- backends -------------------------------------------------------------------------------------
@@ -436,7 +448,8 @@ def _train_job(row: dict[str, Any], timesteps: int) -> dict[str, bytes]:
 
 def _agent_files(folder: Path) -> dict[str, bytes]:
     """The bytes of an agent's files in ``folder``, by name (what travels to and from workers)."""
-    return {name: (folder / name).read_bytes() for name in AGENT_FILES if (folder / name).exists()}
+    return {name: read_regular(folder / name, MAX_AGENT_FILE_BYTES) for name in AGENT_FILES
+            if os.path.lexists(folder / name)}
 
 
 def _load_agent(agent):
@@ -549,14 +562,11 @@ def _train_locally(directory: Path, training: dict[str, Any], timesteps: int, pr
 
 
 def _publish_agent(directory: Path, files: Mapping[str, bytes]) -> None:
-    """Write an agent's files, sent back by a worker, as ``directory`` in one rename."""
-    tmp = directory.with_name(f".{directory.name}.tmp-{os.getpid()}")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    for name, data in files.items():
-        (tmp / name).write_bytes(data)
-    shutil.rmtree(directory, ignore_errors=True)  # an unfinished local run of this agent
-    os.replace(tmp, directory)
+    """Write an agent's files, sent back by a worker, as ``directory`` in one rename (replacing an
+    unfinished local run of this agent)."""
+    with publishing_folder(directory) as tmp:
+        for name, data in files.items():
+            (tmp / name).write_bytes(data)
 
 
 # -- the study --------------------------------------------------------------------------------------
@@ -609,11 +619,15 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     agent_models: the models RL agents are trained on (default: every model controllers are built
         on, the improved+cK ones included); any model the environment simulates.
 
-    Every argument is checked before any work starts; errors raise TrainingError naming it.
+    Every argument is checked before any work starts; errors raise TrainingError naming it.  A
+    second study on ``out`` while one runs raises :class:`~stewart_env.files.FolderBusy`, a failed
+    write (a full disk) :class:`~stewart_env.files.WriteError` naming the file, the finished agents
+    and cells kept.
     """
     from stewart_env.agents.evaluation import METRICS
     from stewart_env.tasks import TASKS
 
+    check_not_busy(out)  # a study in progress is reported at once, not by what it left so far
     if algo is not None and algo not in ALGORITHMS:
         raise TrainingError(f"algo: unknown algorithm {algo!r}; choose one of {', '.join(ALGORITHMS)}")
     if task not in TASKS:
@@ -651,44 +665,47 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
             raise TrainingError("config: only with an RL algorithm (--algo)")
         config = str(Path(config).resolve())
         hyperparameters = jsonable(read_hyperparameters(algo, config))
-    out = check_writable(out)
-    common = {"task": task, "env_kwargs": env_kwargs, "episodes": int(episodes), "eval_seed": EVAL_SEED_OFFSET,
-              "max_steps": max_steps, "position_tolerance": float(position_tolerance),
-              "orientation_tolerance": float(orientation_tolerance)}
-    settings = {**common, "algo": algo, "timesteps": int(timesteps) if algo else None, "n_envs": n_envs if algo else None}
-    if config is not None:  # the hyperparameters themselves: an edited file changes the agents
-        settings["config"] = {"path": config, "hyperparameters": hyperparameters}
-    _check_study(out, settings)
-    runner = make_backend(backend, ray_address)
+    out = Path(out)
+    with lock_folder(out):  # one command at a time on a study, until this one ends
+        _check_own_agents(out)
+        common = {"task": task, "env_kwargs": env_kwargs, "episodes": int(episodes), "eval_seed": EVAL_SEED_OFFSET,
+                  "max_steps": max_steps, "position_tolerance": float(position_tolerance),
+                  "orientation_tolerance": float(orientation_tolerance)}
+        settings = {**common, "algo": algo, "timesteps": int(timesteps) if algo else None,
+                    "n_envs": n_envs if algo else None}
+        if config is not None:  # the hyperparameters themselves: an edited file changes the agents
+            settings["config"] = {"path": config, "hyperparameters": hyperparameters}
+        _check_study(out, settings)
+        runner = make_backend(backend, ray_address)
 
-    start = time.perf_counter()
-    rows = build_rows(out, design_models(train_models, simplifications), algo, seeds, domain_randomization, platform,
-                      agent_models)
-    try:
-        _run_jobs(runner, out, rows, algo, timesteps, common, test_models, n_envs, progress, config)
-    finally:
-        runner.close()
-    # every cell read once: the summary, the costs and the per-seed values all draw on it
-    stored = {(r.label, m): _stored_metrics(out, r, m) for r in rows for m in test_models}
+        start = time.perf_counter()
+        rows = build_rows(out, design_models(train_models, simplifications), algo, seeds, domain_randomization,
+                          platform, agent_models)
+        try:
+            _run_jobs(runner, out, rows, algo, timesteps, common, test_models, n_envs, progress, config)
+        finally:
+            runner.close()
+        # every cell read once: the summary, the costs and the per-seed values all draw on it
+        stored = {(r.label, m): _stored_metrics(out, r, m) for r in rows for m in test_models}
 
-    def values(row: Row, plant: str, metric: str) -> np.ndarray:
-        return _metric_values(stored[row.label, plant], metric)
+        def values(row: Row, plant: str, metric: str) -> np.ndarray:
+            return _metric_values(stored[row.label, plant], metric)
 
-    summary = {r.label: {m: _cell_intervals(stored[r.label, m]) for m in test_models} for r in rows}
-    for r in rows:
-        if r.kind == "agent":
-            steps = sorted({read_manifest(d)["num_timesteps"] for d in r.agents.values()})
-            r.info = f"{', '.join(map(str, steps))} steps, seeds {', '.join(map(str, r.seeds))}"
-    result = MismatchResult(rows, list(test_models), summary, int(episodes))
-    result.differences = simplification_costs(result, values, plant=cost_plant)
-    result.per_seed = {r.label: {key: per_seed_estimates(values(r, cost_plant, key), statistic(key))
-                                 for key in RANKING_METRICS} for r in rows if r.kind == "agent"}
-    header = {"task": task, "platform": platform, "episodes": episodes, "eval_seed": EVAL_SEED_OFFSET, "algo": algo,
-              "seeds": list(seeds), "backend": backend, "wall_time": time.perf_counter() - start,
-              "position_tolerance": position_tolerance, "orientation_tolerance": orientation_tolerance,
-              "cost_plant": cost_plant}
-    result.files = write_outputs(result, out, METRICS, header)
-    return result
+        summary = {r.label: {m: _cell_intervals(stored[r.label, m]) for m in test_models} for r in rows}
+        for r in rows:
+            if r.kind == "agent":
+                steps = sorted({read_manifest(d)["num_timesteps"] for d in r.agents.values()})
+                r.info = f"{', '.join(map(str, steps))} steps, seeds {', '.join(map(str, r.seeds))}"
+        result = MismatchResult(rows, list(test_models), summary, int(episodes))
+        result.differences = simplification_costs(result, values, plant=cost_plant)
+        result.per_seed = {r.label: {key: per_seed_estimates(values(r, cost_plant, key), statistic(key))
+                                     for key in RANKING_METRICS} for r in rows if r.kind == "agent"}
+        header = {"task": task, "platform": platform, "episodes": episodes, "eval_seed": EVAL_SEED_OFFSET, "algo": algo,
+                  "seeds": list(seeds), "backend": backend, "wall_time": time.perf_counter() - start,
+                  "position_tolerance": position_tolerance, "orientation_tolerance": orientation_tolerance,
+                  "cost_plant": cost_plant}
+        result.files = write_outputs(result, out, METRICS, header)
+        return result
 
 
 def _run_jobs(runner, out: Path, rows: list[Row], algo: str | None, timesteps: int, common: Mapping[str, Any],
@@ -722,8 +739,8 @@ def _run_jobs(runner, out: Path, rows: list[Row], algo: str | None, timesteps: i
         for row, plant, seed in cells:
             path = _cell_path(out, row, plant, seed)
             spec = _cell_spec(row, plant, seed, agent_common if row.kind == "agent" else common)
-            if path.exists():
-                stored = json.loads(path.read_text())
+            if os.path.lexists(path):
+                stored = _read_cell(path)
                 if stored["spec"] == spec:
                     bar.update()
                     continue
@@ -743,8 +760,11 @@ def _run_jobs(runner, out: Path, rows: list[Row], algo: str | None, timesteps: i
             jobs.append((spec, agent))
         for i, numbers in runner.run(_evaluate_job, jobs):
             path, spec = todo[i][0], todo[i][1]
-            path.parent.mkdir(parents=True, exist_ok=True)
-            _write_atomic(path, json.dumps({"spec": spec, **numbers}))
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+            except OSError as err:
+                raise write_error(path.parent, err) from None
+            publish(path, json.dumps({"spec": spec, **numbers}))
             bar.update()
 
 
@@ -758,7 +778,16 @@ def _config_env_kwargs(algo: str, config: str | None = None) -> dict[str, Any]:
 def _stored_metrics(out: Path, row: Row, plant: str) -> list[dict[str, list[float]]]:
     """A stored cell's metrics per episode, one dict per seed (one for a model-based row)."""
     paths = [_cell_path(out, row, plant, seed) for seed in (row.seeds or (None,))]
-    return [json.loads(p.read_text())["metrics"] for p in paths]
+    return [_read_cell(p)["metrics"] for p in paths]
+
+
+def _read_cell(path: Path) -> dict[str, Any]:
+    """A finished cell's file: its spec and its metrics per episode."""
+    cell = read_json(path, MAX_CELL_BYTES, "cell file")
+    if not (isinstance(cell, dict) and isinstance(cell.get("spec"), dict) and isinstance(cell.get("metrics"), dict)):
+        raise TrainingError(f"{path}: not a cell of a mismatch study (no spec and metrics); remove it to compute "
+                            "the cell again")
+    return cell
 
 
 def _metric_values(stored: list[dict[str, list[float]]], metric: str) -> np.ndarray:
@@ -1011,7 +1040,7 @@ def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[st
     """matrix.csv, matrix.md, differences.csv, forest.png and one heatmap PNG per metric into
     ``out``; returns {name: path}."""
     files = {"csv": out / "matrix.csv", "markdown": out / "matrix.md", "differences": out / "differences.csv"}
-    with files["csv"].open("w", newline="") as f:
+    with publishing(files["csv"]) as tmp, tmp.open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(["controller", "family", "design_model", "test_model", "seeds", "episodes"]
                         + [f"{m[0]}{suffix}" for m in metrics for suffix in ("", "_ci_low", "_ci_high", "_n")])
@@ -1025,7 +1054,7 @@ def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[st
                     n = "" if interval.n is None else interval.n
                     values += [f"{interval.estimate:.9g}", f"{interval.low:.9g}", f"{interval.high:.9g}", n]
                 writer.writerow([r.label, r.family, r.model, m, first.seeds, first.episodes] + values)
-    with files["differences"].open("w", newline="") as f:
+    with publishing(files["differences"]) as tmp, tmp.open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(["family", "simplification", "measure", "controller", "reference", "plant", "metric",
                          "statistic", "difference", "ci_low", "ci_high", "resolved", "failed", "seeds_to_resolve",
@@ -1061,11 +1090,12 @@ def write_outputs(result: MismatchResult, out: Path, metrics, header: Mapping[st
         lines.append("")
     lines += _cost_lines(result, metrics) + _per_seed_lines(result, metrics, header.get("cost_plant", TRUE_MODEL))
     lines.append(f"Backend: {header.get('backend', 'local')}. Wall time of this run: {header['wall_time']:.0f} s.")
-    files["markdown"].write_text("\n".join(lines) + "\n")
+    publish(files["markdown"], "\n".join(lines) + "\n")
 
     if result.differences:
         files["forest"] = out / "forest.png"
-        forest_figure(result, metrics).savefig(files["forest"], dpi=110)
+        with publishing(files["forest"]) as tmp:
+            forest_figure(result, metrics).savefig(tmp, dpi=110)
     for key, title, factor, spec in metrics:
         path = out / f"heatmap_{key}.png"
         heatmap(result, key, title, factor, spec, path)
@@ -1134,7 +1164,8 @@ def forest_figure(result: MismatchResult, metrics):
 
 def heatmap(result: MismatchResult, key: str, title: str, factor: float, spec: str, path: Path) -> None:
     """Write :func:`heatmap_figure` of one metric to ``path`` (PNG)."""
-    heatmap_figure(result, key, title, factor, spec).savefig(path, dpi=110)
+    with publishing(path) as tmp:
+        heatmap_figure(result, key, title, factor, spec).savefig(tmp, dpi=110)
 
 
 def heatmap_figure(result: MismatchResult, key: str, title: str, factor: float, spec: str):
@@ -1286,6 +1317,10 @@ def _cli_mismatch(args: argparse.Namespace) -> int:
                               orientation_tolerance=args.orientation_tolerance, cost_plant=args.cost_plant,
                               progress=not args.no_progress)
     except BackendError as exc:
+        print(f"stewart-env mismatch: error: {exc}; finished agents and cells are kept in {args.out} (run the same "
+              "command again to continue)", file=sys.stderr)
+        return 1
+    except WriteError as exc:
         print(f"stewart-env mismatch: error: {exc}; finished agents and cells are kept in {args.out} (run the same "
               "command again to continue)", file=sys.stderr)
         return 1

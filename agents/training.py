@@ -20,11 +20,16 @@ One run lives in one directory ``DIR``:
                                       ``resumed_<steps>.monitor.csv`` for a resumed part)
 ====================================  ==========================================================
 
-Every file is published atomically: a checkpoint is written into ``checkpoints/.tmp-<steps>/``
-and renamed to ``step_<steps>/`` once complete; the final files are written under temporary names
-and renamed.  A run killed at any moment leaves its newest complete checkpoint, which ``--resume``
-finds by its manifest and hashes.  SIGINT and SIGTERM stop training at the next step, save a
-checkpoint and raise :class:`TrainingInterrupted`; a second signal exits at once.
+Every file is published atomically (:mod:`stewart_env.files`): a checkpoint is written into
+``checkpoints/.tmp-step_<steps>-<random>/`` and renamed to ``step_<steps>/`` once complete; the
+final files are written under temporary names and renamed.  A run killed at any moment leaves its
+newest complete checkpoint, which ``--resume`` finds by its manifest and hashes.  SIGINT and
+SIGTERM stop training at the next step, save a checkpoint and raise :class:`TrainingInterrupted`;
+a second signal exits at once.  One command at a time writes a run: ``train`` holds the run
+directory's lock (:func:`stewart_env.files.lock_folder`), and a second one on the same ``--out``
+is refused at once.  A full disk or a failing write ends training with
+:class:`~stewart_env.files.WriteError` naming the file; the complete checkpoints stay, and
+``--resume`` continues from the newest.
 
 Hyperparameters come from ``configs/agents/{ppo,sac,td3}.yml`` in rl-baselines3-zoo's format,
 keyed by the environment id, so the same files drive ``python -m rl_zoo3.train``.  The zoo's
@@ -70,7 +75,22 @@ from typing import Any
 import numpy as np
 import yaml
 
-from stewart_env.params import config_dir
+from stewart_env.files import (
+    LOCK_FILE,
+    TMP_PREFIX,
+    FileError,
+    WriteError,
+    check_not_busy,
+    lock_folder,
+    publish,
+    publishing,
+    publishing_folder,
+    read_json,
+    read_regular,
+    sha256_file,
+    write_error,
+)
+from stewart_env.params import MAX_CONFIG_BYTES, config_dir
 from stewart_env.progress import on_terminal
 from stewart_env.registration import ENV_ID
 from stewart_env.validation import integer
@@ -100,7 +120,11 @@ CHECKPOINT_DIR = "checkpoints"
 CHECKPOINT_MANIFEST = "manifest.json"
 DEFAULT_KEEP_CHECKPOINTS = 3
 _STEP_DIR_RE = re.compile(r"^step_(\d+)$")
-_TMP_PREFIX = ".tmp-"
+#: Bound of a run's or a checkpoint's manifest read from disk (they hold settings and hashes).
+MAX_MANIFEST_BYTES = 16 << 20
+#: Bound of a model, statistics or replay-buffer file read from disk: well above a replay buffer
+#: of millions of transitions, far below a file that never ends.
+MAX_AGENT_FILE_BYTES = 16 << 30
 #: Seconds to pause inside every checkpoint write, before its rename: lets the tests signal or kill
 #: a training process while a checkpoint is being written.
 PAUSE_IN_CHECKPOINT_ENV = "STEWART_ENV_TEST_CHECKPOINT_PAUSE"
@@ -189,8 +213,7 @@ def read_hyperparameters(algo: str, config: str | os.PathLike | None = None, env
     """The raw zoo entry for ``env_id`` in the hyperparameter file of ``algo`` (a copy)."""
     path = config_path(algo, config)
     try:
-        with open(path) as f:
-            entries = yaml.safe_load(f)
+        entries = yaml.safe_load(read_regular(path, MAX_CONFIG_BYTES, "config file"))
     except yaml.YAMLError as exc:
         raise TrainingError(f"{path}: not valid YAML: {exc}") from None
     if not isinstance(entries, dict) or env_id not in entries:
@@ -420,79 +443,16 @@ def make_training_env(n_envs: int, env_kwargs: Mapping[str, Any], seed: int, nor
 # -- files: atomic writes and hashes --------------------------------------------------------------
 
 
-def check_writable(directory: str | os.PathLike, create: bool = True) -> Path:
-    """Prove ``directory`` writable by creating it and writing a file in it; TrainingError naming
-    it otherwise.  Without ``create`` nothing is left behind: the probe file and every directory
-    the probe made are removed again.  (Permission bits alone cannot tell: root passes them on a
-    read-only or virtual file system.)"""
-    path = Path(directory)
-    made = []
-    missing = path
-    while not missing.exists() and missing != missing.parent:
-        made.append(missing)
-        missing = missing.parent
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-        probe = path / ".write-test"
-        probe.write_text("")
-        probe.unlink()
-    except OSError as exc:
-        raise TrainingError(f"output directory {str(path)!r} is not writable: {exc.strerror or exc}") from None
-    finally:
-        if not create:
-            for folder in made:  # innermost first
-                with contextlib.suppress(OSError):
-                    folder.rmdir()
-    return path
-
-
-def sha256(path: Path) -> str:
-    """The hex sha256 of a file's bytes."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
-def _fsync(path: Path) -> None:
-    """Flush a file's or a directory's entries to disk: a rename is durable only after both."""
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    except OSError:
-        if not path.is_dir():
-            raise  # some file systems cannot sync a directory: its rename is then as durable as they make it
-    finally:
-        os.close(fd)
-
-
-def _write_json(path: Path, data: Mapping[str, Any]) -> None:
-    """Write ``data`` to ``path`` atomically: a temporary file, flushed, then renamed over it."""
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "w") as f:
-        f.write(json.dumps(data, indent=2) + "\n")
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-    _fsync(path.parent)
-
-
-def _write_agent_files(model, folder: Path, replay_buffer: bool) -> dict[str, str]:
-    """Write ``model``, its VecNormalize statistics and (``replay_buffer``) its replay buffer into
-    ``folder``, each flushed to disk; returns {file name: sha256}."""
-    files = [MODEL_FILE]
-    model.save(folder / MODEL_FILE)
+def _agent_file_writers(model, replay_buffer: bool) -> dict[str, Callable[[Path], None]]:
+    """{file name: a function writing it to a path} for ``model``, its VecNormalize statistics
+    and (``replay_buffer``) its replay buffer."""
+    writers = {MODEL_FILE: model.save}
     vn = model.get_vec_normalize_env()
     if vn is not None:
-        vn.save(str(folder / VECNORMALIZE_FILE))
-        files.append(VECNORMALIZE_FILE)
+        writers[VECNORMALIZE_FILE] = lambda path: vn.save(str(path))
     if replay_buffer and getattr(model, "replay_buffer", None) is not None:
-        model.save_replay_buffer(folder / REPLAY_BUFFER_FILE)
-        files.append(REPLAY_BUFFER_FILE)
-    for name in files:
-        _fsync(folder / name)
-    return {name: sha256(folder / name) for name in files}
+        writers[REPLAY_BUFFER_FILE] = model.save_replay_buffer
+    return writers
 
 
 def _verified_bytes(folder: Path, hashes: Mapping[str, str], name: str, what: str) -> bytes:
@@ -501,10 +461,9 @@ def _verified_bytes(folder: Path, hashes: Mapping[str, str], name: str, what: st
     path = folder / name
     if name not in hashes:
         raise TrainingError(f"{path}: not listed in {what}; refusing to load an unrecorded file")
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise TrainingError(f"{path}: missing ({what} lists it)") from None
+    if not os.path.lexists(path):
+        raise TrainingError(f"{path}: missing ({what} lists it)")
+    data = read_regular(path, MAX_AGENT_FILE_BYTES)
     if hashlib.sha256(data).hexdigest() != hashes[name]:
         raise TrainingError(f"{path}: its sha256 does not match {what}: the file was changed, truncated or "
                             "replaced after it was written; refusing to unpickle it")
@@ -526,12 +485,9 @@ def _unpickle_statistics(data: bytes):
 def read_manifest(directory: str | os.PathLike) -> dict[str, Any]:
     """DIR/run.json as a dict; TrainingError if missing or unreadable."""
     path = Path(directory) / MANIFEST
-    try:
-        manifest = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise TrainingError(f"{directory}: no {MANIFEST}; not a directory written by `stewart-env train`") from None
-    except json.JSONDecodeError as exc:
-        raise TrainingError(f"{path}: not valid JSON ({exc})") from None
+    if not os.path.lexists(path):
+        raise TrainingError(f"{directory}: no {MANIFEST}; not a directory written by `stewart-env train`")
+    manifest = read_json(path, MAX_MANIFEST_BYTES, "run manifest")
     if not isinstance(manifest, dict) or manifest.get("algo") not in ALGORITHMS:
         raise TrainingError(f"{path}: not a run manifest of `stewart-env train` (no known algorithm)")
     for key, kind in (("env_kwargs", dict), ("hyperparameters", dict), ("seed", int), ("n_envs", int)):
@@ -568,12 +524,12 @@ def _required_files(algo: str, normalize: bool) -> list[str]:
 def checkpoint_problem(folder: Path, steps: int, algo: str, normalize: bool) -> str | None:
     """Why the checkpoint in ``folder`` cannot be resumed from (None if it is complete: manifest
     present, its step count and algorithm, every file the run needs, every hash matching)."""
-    try:
-        manifest = json.loads((folder / CHECKPOINT_MANIFEST).read_text())
-    except FileNotFoundError:
+    if not os.path.lexists(folder / CHECKPOINT_MANIFEST):
         return f"no {CHECKPOINT_MANIFEST}"
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        return f"{CHECKPOINT_MANIFEST} is not valid JSON"
+    try:
+        manifest = read_json(folder / CHECKPOINT_MANIFEST, MAX_MANIFEST_BYTES, "checkpoint manifest")
+    except FileError as err:
+        return f"{CHECKPOINT_MANIFEST}: {err.problem}"
     if not isinstance(manifest, dict) or manifest.get("num_timesteps") != steps or manifest.get("algo") != algo:
         return f"{CHECKPOINT_MANIFEST} is not that of a {algo} checkpoint at {steps} steps"
     hashes = manifest.get("files")
@@ -582,9 +538,13 @@ def checkpoint_problem(folder: Path, steps: int, algo: str, normalize: bool) -> 
     for name in _required_files(algo, normalize):
         if name not in hashes:
             return f"{name} missing from its manifest"
-        if not (folder / name).is_file():
+        if not os.path.lexists(folder / name):
             return f"{name} missing"
-        if sha256(folder / name) != hashes[name]:
+        try:
+            digest = sha256_file(folder / name, MAX_AGENT_FILE_BYTES)
+        except FileError as err:
+            return f"{name}: {err.problem}"
+        if digest != hashes[name]:
             return f"{name} does not match its sha256"
     return None
 
@@ -592,7 +552,7 @@ def checkpoint_problem(folder: Path, steps: int, algo: str, normalize: bool) -> 
 def _checkpoint_hashes(folder: Path) -> tuple[dict[str, str], str]:
     """The {file name: sha256} of a checkpoint that :func:`checkpoint_problem` passed, and its
     manifest's name for error messages."""
-    return (json.loads((folder / CHECKPOINT_MANIFEST).read_text())["files"],
+    return (read_json(folder / CHECKPOINT_MANIFEST, MAX_MANIFEST_BYTES, "checkpoint manifest")["files"],
             f"{CHECKPOINT_DIR}/{folder.name}/{CHECKPOINT_MANIFEST}")
 
 
@@ -603,7 +563,7 @@ def newest_checkpoint(directory: str | os.PathLike, algo: str, normalize: bool,
     passed over, each with a line to ``report``."""
     root = Path(directory) / CHECKPOINT_DIR
     for name in sorted(os.listdir(root) if root.is_dir() else ()):
-        if name.startswith(_TMP_PREFIX):
+        if name.startswith(TMP_PREFIX):
             report(f"skipping {CHECKPOINT_DIR}/{name}: a checkpoint write that did not finish")
     for steps, folder in _step_dirs(Path(directory)):
         problem = checkpoint_problem(folder, steps, algo, normalize)
@@ -623,21 +583,23 @@ def save_checkpoint(model, directory: Path, algo: str, keep: int = DEFAULT_KEEP_
     """Save ``model``, its VecNormalize statistics and (off-policy) its replay buffer as the
     checkpoint DIR/checkpoints/step_<num_timesteps>/, atomically: written into a temporary
     folder with a manifest of sha256 hashes, flushed, then renamed.  Only the newest ``keep``
-    checkpoints are kept (each holds its own replay buffer, tens of MB off-policy)."""
+    checkpoints are kept (each holds its own replay buffer, tens of MB off-policy).
+
+    Raises:
+        WriteError: naming the checkpoint, if it cannot be written (a full disk): the temporary
+            folder is removed, the complete checkpoints are kept.
+    """
     steps = int(model.num_timesteps)
     root = directory / CHECKPOINT_DIR
-    root.mkdir(parents=True, exist_ok=True)
-    tmp, final = root / f"{_TMP_PREFIX}{steps}", root / f"step_{steps}"
-    shutil.rmtree(tmp, ignore_errors=True)  # the leftover of a write killed at the same step count
-    tmp.mkdir()
-    files = _write_agent_files(model, tmp, replay_buffer=algo in OFF_POLICY)
-    _pause_for_tests()
-    _write_json(tmp / CHECKPOINT_MANIFEST, {"algo": algo, "num_timesteps": steps, "files": files})
-    _fsync(tmp)
-    if final.exists():  # saved again at the same step count: the new one replaces it
-        shutil.rmtree(final)
-    os.replace(tmp, final)
-    _fsync(root)
+    final = root / f"step_{steps}"
+    with publishing_folder(final) as tmp:
+        files = {}
+        for name, write in _agent_file_writers(model, replay_buffer=algo in OFF_POLICY).items():
+            write(tmp / name)
+            files[name] = sha256_file(tmp / name, MAX_AGENT_FILE_BYTES)
+        _pause_for_tests()
+        (tmp / CHECKPOINT_MANIFEST).write_text(json.dumps({"algo": algo, "num_timesteps": steps, "files": files},
+                                                          indent=2) + "\n")
     for _, old in _step_dirs(directory)[keep:]:
         shutil.rmtree(old)
     return final
@@ -646,14 +608,11 @@ def save_checkpoint(model, directory: Path, algo: str, keep: int = DEFAULT_KEEP_
 def _publish_final(model, directory: Path) -> dict[str, str]:
     """Write DIR/model.zip and DIR/vecnormalize.pkl, each under a temporary name renamed over the
     previous one; returns their hashes for run.json (which, written last, makes them a set)."""
-    tmp = directory / f"{_TMP_PREFIX}final"
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir()
-    files = _write_agent_files(model, tmp, replay_buffer=False)
-    for name in files:
-        os.replace(tmp / name, directory / name)
-    tmp.rmdir()
-    _fsync(directory)
+    files = {}
+    for name, write in _agent_file_writers(model, replay_buffer=False).items():
+        with publishing(directory / name) as tmp:
+            write(tmp)
+            files[name] = sha256_file(tmp, MAX_AGENT_FILE_BYTES)
     return files
 
 
@@ -661,8 +620,11 @@ def log_progress(directory: Path, num_timesteps: int, wall_time: float) -> None:
     """Append a checkpoint's steps and training wall time (s) to DIR/checkpoints/progress.csv."""
     log = directory / CHECKPOINT_DIR / "progress.csv"
     header = "" if log.exists() else "num_timesteps,wall_time_s\n"
-    with log.open("a") as f:
-        f.write(f"{header}{num_timesteps},{wall_time:.1f}\n")
+    try:
+        with log.open("a") as f:
+            f.write(f"{header}{num_timesteps},{wall_time:.1f}\n")
+    except OSError as err:
+        raise write_error(log, err) from None
 
 
 # -- signals --------------------------------------------------------------------------------------
@@ -792,7 +754,9 @@ def run_changes(manifest: Mapping[str, Any], entry: Mapping[str, Any], env_kwarg
 def _check_fresh_directory(directory: Path, algo: str) -> None:
     """Refuse to start a run in a directory that holds anything but a run of ``algo`` that saved
     nothing yet (a start that failed before its first checkpoint)."""
-    if not directory.is_dir() or not os.listdir(directory):
+    # the lock file, and the temporary files of a start killed in its first write, are no run
+    if not directory.is_dir() or not [name for name in os.listdir(directory)
+                                      if name != LOCK_FILE and not name.startswith(TMP_PREFIX)]:
         return
     if not (directory / MANIFEST).is_file():
         raise TrainingError(f"{directory} is not empty and holds no run of `stewart-env train` (no {MANIFEST}); "
@@ -848,6 +812,13 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
     step; failures raise :class:`TrainingError` (or ValueError from the environment) naming what
     is wrong.  SIGINT or SIGTERM during training saves a checkpoint, then raises
     :class:`TrainingInterrupted`.
+
+    Raises:
+        stewart_env.files.FolderBusy: another command writes ``out`` (its PID in the message);
+            nothing was changed.
+        stewart_env.files.WriteError: a write failed (a full disk), naming the file; the complete
+            checkpoints are kept and ``resume`` continues from the newest.
+        stewart_env.files.FileError: a file of the run is not a regular file, or is too large.
     """
     cls = algorithm_class(algo)
     for name, value, minimum, maximum in (("timesteps", timesteps, 1, MAX_COUNT), ("seed", seed, 0, MAX_SEED),
@@ -857,9 +828,33 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
     _check_count("checkpoint_freq", checkpoint_freq, 0)
     _check_count("keep_checkpoints", keep_checkpoints, 1)
     directory = Path(out)
+    with contextlib.ExitStack() as held:
+        return _train(cls, algo, directory, held, model=model, task=task, timesteps=timesteps, seed=seed,
+                      n_envs=n_envs, checkpoint_freq=checkpoint_freq, keep_checkpoints=keep_checkpoints,
+                      env_kwargs=env_kwargs, config=config, resume=resume, progress_bar=progress_bar,
+                      verbose=verbose, report=report)
 
+
+def _remove_unfinished_writes(directory: Path) -> None:
+    """Remove the temporary files and folders of writes that did not finish (a killed run's), in
+    the run directory and its checkpoints; only under the run's lock, when no one else writes."""
+    for folder in (directory, directory / CHECKPOINT_DIR):
+        for name in os.listdir(folder) if folder.is_dir() else ():
+            if name.startswith(TMP_PREFIX):
+                path = folder / name
+                shutil.rmtree(path) if path.is_dir() and not path.is_symlink() else path.unlink()
+
+
+def _train(cls, algo: str, directory: Path, held: contextlib.ExitStack, *, model, task, timesteps, seed, n_envs,
+           checkpoint_freq, keep_checkpoints, env_kwargs, config, resume, progress_bar, verbose,
+           report) -> TrainResult:
+    """The body of :func:`train`: the run directory's lock is entered on ``held`` once every check
+    that needs no file of the run has passed, and the run's state is read under it."""
     steps_done, segments, checkpoint = 0, [], None
+    check_not_busy(directory)  # before any look at the run: a run in progress is reported as such
     if resume:
+        read_manifest(directory)  # a directory without a run is refused before its lock is taken
+        held.enter_context(lock_folder(directory, create=False))
         previous = read_manifest(directory)
         if previous["algo"] != algo:
             raise TrainingError(f"--resume: {directory} holds a {previous['algo']} run, not {algo}")
@@ -884,10 +879,7 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
         report(f"resuming from {CHECKPOINT_DIR}/{checkpoint.name} ({steps_done} steps)")
         hashes, what = _checkpoint_hashes(checkpoint)
         saved = {name: _verified_bytes(checkpoint, hashes, name, what) for name in hashes}
-        check_writable(directory)
-        for name in os.listdir(directory / CHECKPOINT_DIR):
-            if name.startswith(_TMP_PREFIX):
-                shutil.rmtree(directory / CHECKPOINT_DIR / name)
+        _remove_unfinished_writes(directory)
     else:
         cfg_path = str(config_path(algo, config))
         hp = parse_hyperparameters(algo, read_hyperparameters(algo, cfg_path))
@@ -899,12 +891,33 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
         from stewart_env.envs import StewartPlatformEnv
 
         StewartPlatformEnv(**kwargs).close()  # a bad environment keyword fails here, before --out is made
-        check_writable(directory)
+        held.enter_context(lock_folder(directory))
+        _check_fresh_directory(directory, algo)  # again, under the lock: another run may have started meanwhile
+        _remove_unfinished_writes(directory)
     timesteps = hp.n_timesteps if timesteps is None else int(timesteps)
     progress_bar = progress_bar and progress_bar_available()
 
     stop = _StopRequest()
     monitor = "monitor.csv" if not resume else f"resumed_{steps_done}.monitor.csv"
+    try:
+        agent, steps, wall, checkpoint = _learn(cls, algo, directory, hp, kwargs, seed, n_envs, steps_done, segments,
+                                                saved if resume else {}, cfg_path, timesteps, monitor, stop,
+                                                checkpoint_freq, keep_checkpoints, progress_bar, verbose)
+    except (OSError, WriteError) as err:  # a full disk or a failing device, in our writes or SB3's own
+        cause = err if isinstance(err, WriteError) else write_error(err.filename or directory, err)
+        kept = ("the complete checkpoints are kept (--resume continues from the newest)" if _step_dirs(directory)
+                else "no checkpoint was complete")
+        raise WriteError(cause.path, f"{cause.problem}; {kept}") from None
+    if stop.signum is not None:
+        raise TrainingInterrupted(stop.signum, checkpoint)
+    return TrainResult(directory, steps, steps - steps_done, wall, timesteps, rollout_steps(agent, algo))
+
+
+def _learn(cls, algo, directory, hp, kwargs, seed, n_envs, steps_done, segments, saved, cfg_path, timesteps, monitor,
+           stop, checkpoint_freq, keep_checkpoints, progress_bar, verbose):
+    """The training of :func:`_train` once the run's state is known: (agent, steps, wall time,
+    last checkpoint)."""
+    resume = bool(saved)
     with single_thread():
         statistics = _unpickle_statistics(saved[VECNORMALIZE_FILE]) if resume and hp.normalize is not None else None
         env = make_training_env(n_envs, kwargs, seed + steps_done, hp.normalize, monitor_path=directory / monitor,
@@ -920,7 +933,7 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
                 agent.set_random_seed(seed + steps_done)
                 if REPLAY_BUFFER_FILE in saved:
                     agent.load_replay_buffer(io.BytesIO(saved[REPLAY_BUFFER_FILE]))
-                del saved
+                saved.clear()  # the bytes of a replay buffer: tens of MB, not kept while training
             manifest = {
                 "env_id": ENV_ID, "algo": algo, "model": kwargs["model"], "task": kwargs["task"], "seed": seed,
                 "n_envs": int(n_envs), "env_kwargs": jsonable(kwargs), "config": cfg_path,
@@ -929,7 +942,7 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
                 "wall_time": sum(s["wall_time"] for s in segments), "segments": segments, "finished": False,
                 "files": {},
             }
-            _write_json(directory / MANIFEST, manifest)
+            publish(directory / MANIFEST, json.dumps(manifest, indent=2) + "\n")
 
             callback = _checkpoint_callback(directory, algo, int(checkpoint_freq), int(keep_checkpoints),
                                             manifest["wall_time"], stop)
@@ -948,12 +961,10 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
                                              "interrupted": stop.signum is not None})
                 manifest.update(num_timesteps=steps, finished=stop.signum is None, files=files,
                                 wall_time=sum(s["wall_time"] for s in manifest["segments"]))
-                _write_json(directory / MANIFEST, manifest)
+                publish(directory / MANIFEST, json.dumps(manifest, indent=2) + "\n")
         finally:
             env.close()
-    if stop.signum is not None:
-        raise TrainingInterrupted(stop.signum, checkpoint)
-    return TrainResult(directory, steps, steps - steps_done, wall, timesteps, rollout_steps(agent, algo))
+    return agent, steps, wall, checkpoint
 
 
 # -- loading a trained agent ----------------------------------------------------------------------

@@ -129,7 +129,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _export_mjcf(args: argparse.Namespace) -> int:
     """The export-mjcf subcommand: the MJCF text of --platform into the file --out."""
     from stewart_env import mujoco as twin
-    from stewart_env.agents.training import TrainingError, check_writable
+    from stewart_env.files import check_writable
     from stewart_env.params import load_platform
 
     out = Path(args.out)
@@ -142,7 +142,7 @@ def _export_mjcf(args: argparse.Namespace) -> int:
         return fail(f"argument --out: {str(out)!r} is a directory; give the XML file's name")
     try:
         check_writable(out.parent, create=False)
-    except TrainingError as err:
+    except ValueError as err:  # stewart_env.files.NotWritable
         return fail(f"argument --out: {err}")
     kwargs = {k: getattr(args, k) for k in ("solref", "solimp") if getattr(args, k) is not None}
     try:
@@ -216,7 +216,8 @@ def _evaluate_command(args: argparse.Namespace) -> str:
 def _preflight(args: argparse.Namespace) -> str | None:
     """What makes a command impossible before it does any work or writes anything: stable-baselines3
     missing for a command that trains or loads an agent, an --out that cannot be written."""
-    from stewart_env.agents.training import TrainingError, check_rl_installed, check_writable
+    from stewart_env.agents.training import TrainingError, check_rl_installed
+    from stewart_env.files import check_writable
 
     needs_rl = (args.command == "train" or (args.command == "evaluate" and args.agent)
                 or (args.command == "mismatch" and str(args.algo).lower() != "none"))
@@ -228,7 +229,7 @@ def _preflight(args: argparse.Namespace) -> str | None:
     if getattr(args, "out", None) is not None:
         try:
             check_writable(args.out, create=False)
-        except TrainingError as err:
+        except ValueError as err:  # stewart_env.files.NotWritable
             return f"argument --out: {err}"
     return None
 
@@ -266,7 +267,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         _announce_compilation(args.command)
     start = time.perf_counter()
     if args.command == "demo":
-        table = _run_demo(args)
+        try:
+            table = _run_demo(args)
+        except ValueError as err:  # --out in use by another command, or a write that failed (a full disk)
+            print(f"stewart-env demo: error: {err}", file=sys.stderr)
+            return 2
         print(f"PD baseline on the set-point task of {args.platform}, {args.episodes} seeded episodes per model "
               f"(seed {args.seed}):\n")
         print(table)

@@ -57,7 +57,6 @@ import math
 import os
 import re
 import reprlib
-import stat
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -67,6 +66,7 @@ from typing import NamedTuple
 import numpy as np
 import yaml
 
+from stewart_env.files import FileError, read_regular
 from stewart_env.rotations import rpy_to_matrix
 
 __all__ = [
@@ -823,40 +823,19 @@ def _limits_from_config(value: object, lengths: np.ndarray, position: np.ndarray
 
 def _read_config(path: Path) -> str:
     """The text of a config file, after checking that it is a regular *.yaml/*.yml file of at
-    most MAX_CONFIG_BYTES. FIFOs, devices and directories are refused before they are opened
-    (a FIFO would block, /dev/zero never ends)."""
+    most MAX_CONFIG_BYTES (:func:`stewart_env.files.read_regular`: FIFOs, devices and
+    directories are refused before they are read)."""
     source = str(path)
     if path.suffix.lower() not in _CONFIG_SUFFIXES:
         raise ConfigError("", "not a platform config: the file name must end in .yaml or .yml", source)
     try:
-        info = os.stat(path)
-    except (OSError, ValueError) as err:  # ValueError: a NUL character in the path
-        raise ConfigError("", f"cannot read the file: {getattr(err, 'strerror', None) or err}", source) from None
-    _check_regular(info, source)
-    # O_NONBLOCK: should the path have become a FIFO since the stat, opening it does not block.
-    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0)
-    try:
-        fd = os.open(path, flags)
-    except OSError as err:
-        raise ConfigError("", f"cannot read the file: {err.strerror}", source) from None
-    with os.fdopen(fd, "rb") as f:
-        _check_regular(os.fstat(fd), source)
-        data = f.read(MAX_CONFIG_BYTES + 1)  # the file may have grown since the stat
-    if len(data) > MAX_CONFIG_BYTES:
-        raise ConfigError("", f"larger than {MAX_CONFIG_BYTES} bytes", source)
+        data = read_regular(path, MAX_CONFIG_BYTES, "config file")
+    except FileError as err:
+        raise ConfigError("", err.problem, source) from None
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as err:
         raise ConfigError("", f"not UTF-8 text (invalid byte at offset {err.start})", source) from None
-
-
-def _check_regular(info: os.stat_result, source: str) -> None:
-    if stat.S_ISDIR(info.st_mode):
-        raise ConfigError("", "a directory, not a config file", source)
-    if not stat.S_ISREG(info.st_mode):
-        raise ConfigError("", "not a regular file (a FIFO, socket or device)", source)
-    if info.st_size > MAX_CONFIG_BYTES:
-        raise ConfigError("", f"larger than {MAX_CONFIG_BYTES} bytes ({info.st_size} bytes)", source)
 
 
 class _ConfigLoader(yaml.SafeLoader):

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["ArgumentError", "check_action", "check_keywords", "choice", "flag", "integer",
-           "interval", "real", "real_array", "vector"]
+           "interval", "real", "real_array", "reset_options", "vector"]
 
 
 class ArgumentError(TypeError, ValueError):
@@ -139,13 +139,47 @@ def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
     return real_array("action", action, shape)
 
 
+def reset_options(options: Any, valid: Iterable[str] = ()) -> dict[str, Any]:
+    """The ``options`` of ``reset()`` as a dict: None (no options) or a mapping whose keys are
+    among ``valid``; anything else raises an error naming ``options``."""
+    valid = tuple(valid)
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise ArgumentError(f"reset: options: expected a dict (or None), got {_excerpt(options)}")
+    unknown = [key for key in options if key not in valid]
+    if unknown:
+        raise ValueError(f"reset: options: unknown option(s) {', '.join(_excerpt(k, 40) for k in unknown[:5])}; "
+                         + (f"valid: {', '.join(map(repr, valid))}" if valid else "this environment takes none"))
+    return dict(options)
+
+
+def _plain(name: str, value: Any) -> Any:
+    """``value`` with what numpy would misread made plain: a tensor (torch's or any with
+    ``detach``) detached from its autograd graph and moved to the CPU (the simulation is not
+    differentiable: no gradient flows through a step), a masked array without masked entries its
+    data.  A masked array with masked entries is refused: the values under a mask are not data."""
+    if isinstance(value, np.ma.MaskedArray):
+        masked = int(np.count_nonzero(np.ma.getmaskarray(value)))
+        if masked:
+            raise ValueError(f"{name}: a masked array with {masked} masked value(s); give plain numbers, e.g. "
+                             f"{name}.filled(0.0) to choose the value of the masked entries")
+        return np.ma.getdata(value)
+    if callable(getattr(value, "detach", None)) and type(value).__module__.split(".")[0] == "torch":
+        value = value.detach()
+        return value.cpu() if callable(getattr(value, "cpu", None)) else value
+    return value
+
+
 def real_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
     """``value`` as a float64 array of ``shape``: real numbers (integers or floats of any width),
     finite.  Anything else (bools, complex numbers, strings, dates, objects, a Python int beyond
-    every integer type, NaN, inf, another shape) raises an error naming ``name``."""
+    every integer type, NaN, inf, another shape, a masked array with masked entries) raises an
+    error naming ``name``.  A torch tensor is read detached (see :func:`_plain`)."""
+    value = _plain(name, value)
     try:
         a = np.asarray(value)
-    except (TypeError, ValueError, OverflowError):
+    except (TypeError, ValueError, OverflowError, RuntimeError):  # RuntimeError: tensors numpy cannot read
         raise ArgumentError(f"{name}: expected real numbers of shape {shape}, got {_excerpt(value)}") from None
     if a.dtype.kind not in "iuf":
         hint = " (an integer too large for any integer type?)" if a.dtype.kind == "O" else ""

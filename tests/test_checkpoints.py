@@ -22,6 +22,7 @@ pytestmark = pytest.mark.filterwarnings("ignore:You have specified a mini-batch 
 
 import stewart_env  # noqa: E402,F401  (registers the environment)
 from stewart_env.agents import training  # noqa: E402
+from stewart_env.files import sha256_file as _sha256_file  # noqa: E402
 from stewart_env.agents.training import (  # noqa: E402
     CONFIG_DIR,
     ENV_ID,
@@ -42,6 +43,10 @@ TINY = {
             "normalize": "dict(norm_obs=True, norm_reward=False)", "buffer_size": 5000, "batch_size": 16,
             "learning_starts": 0, "policy_kwargs": "dict(net_arch=[16])"},
 }
+
+
+def sha256_file(path: Path) -> str:
+    return _sha256_file(path, training.MAX_AGENT_FILE_BYTES)
 
 
 def tiny_config(path: Path, algo: str, **changes) -> Path:
@@ -130,9 +135,9 @@ def test_checkpoints_are_complete_folders_with_manifests_and_pruned(tiny_run):
     manifest = json.loads((ckpt / "step_96" / "manifest.json").read_text())
     assert manifest["algo"] == "ppo" and manifest["num_timesteps"] == 96
     for name in ("model.zip", "vecnormalize.pkl"):
-        assert manifest["files"][name] == training.sha256(ckpt / "step_96" / name)
+        assert manifest["files"][name] == sha256_file(ckpt / "step_96" / name)
     run = json.loads((out / "run.json").read_text())
-    assert run["files"]["model.zip"] == training.sha256(out / "model.zip")
+    assert run["files"]["model.zip"] == sha256_file(out / "model.zip")
     assert not [p for p in out.iterdir() if p.name.startswith(".tmp") or p.name.endswith(".tmp")]
 
 
@@ -263,8 +268,9 @@ def _start(out: Path, config: Path, algo: str, pause: float) -> subprocess.Popen
 
 
 def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 60) -> None:
+    """Wait for a file or folder matching ``path`` (its name may be a glob pattern)."""
     deadline = time.monotonic() + timeout
-    while not path.exists():
+    while not list(path.parent.glob(path.name)):
         if proc.poll() is not None or time.monotonic() > deadline:
             proc.kill()
             raise AssertionError(f"{path} did not appear; stderr: {proc.communicate()[1][-2000:]}")
@@ -290,14 +296,14 @@ def _signal_during_writes(out: Path, algo: str, pause: float, sig: signal.Signal
 @pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_signal_during_a_checkpoint_write_saves_and_resumes(sig, code, tmp_path):
     out = tmp_path / "run"
-    returncode, err = _signal_during_writes(out, "ppo", 0.5, sig, ".tmp-64", timeout=60)
+    returncode, err = _signal_during_writes(out, "ppo", 0.5, sig, ".tmp-step_64-*", timeout=60)
     assert returncode == code, err[-2000:]
     # the checkpoint being written completes; training stops at the next step (+2) and saves that
     assert (out / "checkpoints" / "step_64" / "manifest.json").is_file()
     assert err.rstrip().endswith(f"checkpoint saved in {out / 'checkpoints' / 'step_66'} (continue with --resume)")
     manifest = json.loads((out / "run.json").read_text())
     assert manifest["num_timesteps"] == 66 and not manifest["finished"]
-    assert manifest["files"]["model.zip"] == training.sha256(out / "model.zip")
+    assert manifest["files"]["model.zip"] == sha256_file(out / "model.zip")
 
     said = []
     resumed = train("ppo", out, timesteps=20, resume=True, progress_bar=False, report=said.append)
@@ -308,11 +314,12 @@ def test_signal_during_a_checkpoint_write_saves_and_resumes(sig, code, tmp_path)
 @pytest.mark.slow
 def test_kill_during_a_checkpoint_write_resumes_from_the_newest_complete(tmp_path):
     out = tmp_path / "run"
-    returncode, _ = _signal_during_writes(out, "sac", 3.0, signal.SIGKILL, "step_64", ".tmp-128", timeout=30)
+    returncode, _ = _signal_during_writes(out, "sac", 3.0, signal.SIGKILL, "step_64", ".tmp-step_128-*", timeout=30)
     assert returncode == -signal.SIGKILL
     ckpt = out / "checkpoints"
     # killed somewhere inside the write of the checkpoint at 128 steps: no manifest, so not a checkpoint
-    assert (ckpt / ".tmp-128").is_dir() and not (ckpt / ".tmp-128" / "manifest.json").exists()
+    (unfinished,) = ckpt.glob(".tmp-step_128-*")
+    assert unfinished.is_dir() and not (unfinished / "manifest.json").exists()
     # a newer checkpoint with a damaged replay buffer, as a failing disk would leave it
     shutil.copytree(ckpt / "step_64", ckpt / "step_100")
     manifest = json.loads((ckpt / "step_100" / "manifest.json").read_text())
@@ -322,11 +329,11 @@ def test_kill_during_a_checkpoint_write_resumes_from_the_newest_complete(tmp_pat
 
     said = []
     resumed = train("sac", out, timesteps=6, resume=True, progress_bar=False, report=said.append)
-    assert said == ["skipping checkpoints/.tmp-128: a checkpoint write that did not finish",
+    assert said == [f"skipping checkpoints/{unfinished.name}: a checkpoint write that did not finish",
                     "skipping checkpoints/step_100: incomplete or corrupt (replay_buffer.pkl does not match its "
                     "sha256)",
                     "resuming from checkpoints/step_64 (64 steps)"]
-    assert resumed.num_timesteps == 70 and not (ckpt / ".tmp-128").exists()
+    assert resumed.num_timesteps == 70 and not unfinished.exists()
     with open(ckpt / "step_70" / "replay_buffer.pkl", "rb") as f:
         assert pickle.load(f).size() == 70 // 2  # rows of 2 platforms: the 64 saved steps and 6 more
 
@@ -336,7 +343,7 @@ def test_a_second_signal_exits_at_once_without_claiming_a_save(tmp_path):
     out = tmp_path / "run"
     proc = _start(out, tiny_config(tmp_path / "ppo.yml", "ppo"), "ppo", pause=60.0)
     try:
-        _wait_for(out / "checkpoints" / ".tmp-64", proc)
+        _wait_for(out / "checkpoints" / ".tmp-step_64-*", proc)
         proc.send_signal(signal.SIGTERM)
         time.sleep(0.5)
         start = time.monotonic()

@@ -130,7 +130,7 @@ def test_out_on_a_file_system_that_refuses_even_root_is_refused(capsys):
 
 
 def test_the_out_probe_leaves_nothing_behind(tmp_path):
-    from stewart_env.agents.training import check_writable
+    from stewart_env.files import check_writable
 
     check_writable(tmp_path / "a" / "b", create=False)
     assert list(tmp_path.iterdir()) == []

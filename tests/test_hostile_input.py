@@ -571,3 +571,72 @@ def test_is_warm_knows_the_kernels():
     assert is_warm(["_cross"]) and is_warm()
     with pytest.raises(ValueError, match=r"^is_warm: unknown kernel\(s\) 'no_such_kernel'$"):
         is_warm(["rollout_batch", "no_such_kernel"])
+
+
+# ---------------------------------------------------------------------------------------------
+# What a step and a reset are given: one check for the single and the vector environment
+
+
+def _faces():
+    """(name, environment, action shape) of the three ways in: the class, gymnasium.make (with
+    its checking wrappers, past their first reset and steps) and the vector environment."""
+    import gymnasium as gym
+
+    from stewart_env.envs import StewartPlatformEnv, StewartPlatformVectorEnv
+
+    made = gym.make("StewartPlatform-v0")
+    made.reset(seed=0)
+    for _ in range(2):  # gymnasium's checker compares its first steps' data; a failed reset before confuses it
+        made.step(np.zeros(6))
+    return [("class", StewartPlatformEnv(), (6,)), ("gymnasium.make", made, (6,)),
+            ("vector", StewartPlatformVectorEnv(num_envs=2), (2, 6))]
+
+
+@pytest.fixture(scope="module")
+def faces():
+    envs = _faces()
+    yield envs
+    for _, env, _ in envs:
+        env.close()
+
+
+@pytest.mark.parametrize("options", [[1, 2], 5, "reset_mask", ("a", 1), np.zeros(3)])
+def test_reset_options_that_are_not_a_mapping_are_named(faces, options):
+    for face, env, _ in faces:
+        with pytest.raises(ValueError, match=r"^reset: options: expected a dict \(or None\), got ") as caught:
+            env.reset(seed=0, options=options)
+        assert isinstance(caught.value, TypeError), face  # a wrong kind, as everywhere in the package
+
+
+def test_unknown_reset_options_are_named(faces):
+    for face, env, _ in faces:
+        valid = "valid: 'reset_mask'" if face == "vector" else "this environment takes none"
+        with pytest.raises(ValueError, match=rf"^reset: options: unknown option\(s\) 'start'; {valid}$"):
+            env.reset(seed=0, options={"start": 1})
+
+
+def test_tensors_that_require_grad_are_read_detached(faces):
+    torch = pytest.importorskip("torch")
+    for face, env, shape in faces:
+        env.reset(seed=3)
+        plain = env.step(np.full(shape, 0.1))[1]
+        env.reset(seed=3)
+        action = torch.full(shape, 0.1, dtype=torch.float64, requires_grad=True)
+        assert np.array_equal(env.step(action)[1], plain), face  # the same numbers, bit for bit
+        assert action.requires_grad and action.grad is None  # the caller's tensor is left as it was
+
+
+def test_masked_arrays_are_refused_with_masked_entries_and_read_without(faces):
+    for face, env, shape in faces:
+        env.reset(seed=3)
+        plain = env.step(np.full(shape, 0.1))[1]
+        env.reset(seed=3)
+        unmasked = np.ma.masked_array(np.full(shape, 0.1), mask=np.zeros(shape, bool))
+        assert np.array_equal(env.step(unmasked)[1], plain), face
+        mask = np.zeros(shape, bool)
+        mask.flat[1] = True
+        hidden = np.ma.masked_array(np.full(shape, 0.1), mask=mask)
+        hidden.data.flat[1] = 1e300  # under the mask: never used
+        with pytest.raises(ValueError, match=r"^action: a masked array with 1 masked value\(s\); give plain numbers, "
+                                             r"e.g. action.filled\(0.0\)"):
+            env.step(hidden)

@@ -18,6 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # module (dotted, as installed) -> layer; a package name covers its modules
 LAYERS = {
     "stewart_env.validation": "physics",
+    "stewart_env.files": "physics",
     "stewart_env.state": "physics",
     "stewart_env.rotations": "physics",
     "stewart_env.params": "physics",

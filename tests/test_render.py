@@ -257,3 +257,16 @@ def test_render_after_close_raises():
     r.close()  # closing twice is harmless
     with pytest.raises(RuntimeError, match="close"):
         r.render(HOME, np.eye(3), np.zeros(6))
+
+
+@pytest.mark.parametrize("width, height", [(1, 1), (4, 4), (16, 16), (1, 4096), (4096, 1), (8, 480), (480, 8),
+                                           (16, 480), (480, 16)])
+def test_every_size_the_env_card_allows_renders(width, height):
+    # The environment takes widths and heights from 1 to 4096 px: tiny and very thin frames have
+    # no room for the margins and the text line, and the scene then fills the frame.
+    r = PlatformRenderer(BASE_JOINTS, PLATFORM_JOINTS, HOME, FORCE_RANGE, width=width, height=height)
+    frame = r.render(HOME, np.eye(3), np.zeros(6), text="t = 0.00 s")
+    r.close()
+    assert frame.shape == (height, width, 3) and frame.dtype == np.uint8
+    if min(width, height) >= 8:  # a frame of a few pixels may fall on the background alone
+        assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 2, "frame looks blank"

@@ -214,7 +214,7 @@ def test_missing_config_file_and_entry(tmp_path):
 def test_unwritable_output_directory(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("")  # a directory cannot be made below a file, even by root
-    with pytest.raises(TrainingError, match="not writable"):
+    with pytest.raises(ValueError, match="not writable"):  # stewart_env.files.NotWritable
         train("ppo", blocker / "run", timesteps=10)
 
 

@@ -266,7 +266,10 @@ class PlatformRenderer:
         right = bar_box.x0 - 4.0
         if right < 0.5 * self.width:
             right, static = 0.5 * self.width, []  # the scene runs under the bar: draw the bar every frame
-        self._fit_view(ax, (4.0, 4.0, right, top))
+        region = (4.0, 4.0, right, top)
+        if min(right, top) < 5.0:  # no room for margins below the text line: the scene fills the frame
+            region = (0.0, 0.0, float(self.width), float(self.height))
+        self._fit_view(ax, region)
 
         # Text is most of the cost of a frame, and the colour bar and the legend never change:
         # in rgb_array mode they are drawn once and their pixels pasted into every frame.

@@ -15,7 +15,7 @@ from stewart_env.envs.core import PlatformBatch
 from stewart_env.envs.infos import step_values
 from stewart_env.envs.keywords import check_arguments, with_signature
 from stewart_env.rotations import rpy_to_matrix
-from stewart_env.validation import check_action, real_array
+from stewart_env.validation import check_action, real_array, reset_options
 
 __all__ = ["StewartPlatformEnv", "holding_action"]
 
@@ -78,7 +78,10 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     A positive force extends the leg.  Values outside [-1, 1] are clipped.  An action must be real
     numbers (integers or floats of any width) of shape (6,), all finite: NaN or inf, another shape,
     or bools, complex numbers, strings, dates or objects raise a `ValueError` naming `action` and
-    saying what is wrong (a wrong kind is also a `TypeError`).  The forces are held
+    saying what is wrong (a wrong kind is also a `TypeError`).  A torch tensor is read detached
+    (one that requires grad included: no gradient flows through the simulation); a numpy masked
+    array with masked entries is refused (fill them first, e.g. `action.filled(0.0)`), one without
+    is read as its data.  The vector environment checks its (N, 6) actions the same way.  The forces are held
     constant over the control step (zero-order hold) while the physics takes
     `control_dt / physics_dt` RK4 substeps.  With `actuator_tau > 0` the applied forces follow the
     commanded ones through a first-order lag, discretised exactly per control step:
@@ -261,6 +264,8 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     Infos hold only numpy numbers (as torchrl's info readers need): a step's `info` has
     `reward_<term>` and `time` (and `closure_error` on the MuJoCo plant) as float64 and
     `termination` as an int64 code.  `step()` before the first `reset()` raises `gymnasium.error.ResetNeeded`.
+    `reset()` takes no `options` (the vector environment one, `reset_mask`): any, or an `options`
+    that is not a dict or None, raises a `ValueError` naming `options`.
     `copy.deepcopy(env)` and `pickle` give an environment that continues bit for bit as the
     original, at any point of an episode (on MuJoCo too).
 
@@ -317,9 +322,8 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     # -- the Gymnasium API --------------------------------------------------------------------------
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        reset_options(options)  # takes none; refused before the seed changes anything
         super().reset(seed=seed)
-        if options:
-            raise ValueError(f"reset: unknown option(s) {', '.join(map(repr, options))}; this environment takes none")
         self._rngs = (self.np_random,)
         info = self._core.reset_rows(_ROW0, self._rngs)[0]
         self._reset_done = True

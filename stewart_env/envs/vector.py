@@ -17,7 +17,7 @@ from stewart_env.envs.config import RENDER_MODES, EnvConfig
 from stewart_env.envs.core import PlatformBatch
 from stewart_env.envs.infos import step_values
 from stewart_env.envs.keywords import check_arguments, with_signature
-from stewart_env.validation import check_action, integer
+from stewart_env.validation import check_action, integer, reset_options
 
 __all__ = ["StewartPlatformVectorEnv"]
 
@@ -179,10 +179,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None):
         n = self.num_envs
-        options = dict(options or {})
-        mask = options.pop("reset_mask", None)
-        if options:
-            raise ValueError(f"reset: unknown option(s) {', '.join(map(repr, options))}; only 'reset_mask'")
+        mask = reset_options(options, ("reset_mask",)).get("reset_mask")
         if mask is None:
             mask = np.ones(n, dtype=bool)
         elif not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_ and mask.shape == (n,)):
