@@ -85,7 +85,7 @@ def episode_figure(path: Path, seed: int = 0, steps: tuple[int, ...] = (0, 10, 3
 
     from stewart_env.agents import PDPolicy
 
-    env = gym.make("StewartPlatform-v0", render_mode="rgb_array", width=360, height=360)
+    env = gym.make("StewartPlatform-v0", render_mode="rgb_array", width=480, height=480)
     policy = PDPolicy(env, gravity_compensation=True)
     obs, _ = env.reset(seed=seed)
     frames = {}
@@ -95,13 +95,12 @@ def episode_figure(path: Path, seed: int = 0, steps: tuple[int, ...] = (0, 10, 3
         action, _ = policy.predict(obs)
         obs, *_ = env.step(action)
     env.close()
-    dt = env.unwrapped.dt
-    fig, axes = plt.subplots(1, len(steps), figsize=(3 * len(steps), 3.2))
+    # each frame carries its own time stamp and force colour bar
+    fig, axes = plt.subplots(1, len(steps), figsize=(4.8 * len(steps), 4.8))
     for ax, step in zip(axes, steps):
         ax.imshow(frames[step])
-        ax.set_title(f"t = {step * dt:.2f} s")
         ax.axis("off")
-    fig.tight_layout()
+    fig.subplots_adjust(left=0, right=1, bottom=0, top=1, wspace=0.02)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=100)
     plt.close(fig)
