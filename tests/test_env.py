@@ -162,19 +162,9 @@ def test_import_stewart_env_registers():
     assert result.returncode == 0, result.stderr
 
 
-def _readme_card() -> str:
-    """The env card as the README shows it, headings raised back to the docstring's level."""
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    card = readme.split("<!-- env card:")[1].split("-->", 1)[1].split("<!-- end of env card -->")[0]
-    return re.sub(r"^#(#+) ", r"\1 ", card.strip(), flags=re.M)
-
-
-def test_readme_env_card_is_the_class_docstring():
-    assert inspect.cleandoc(StewartPlatformEnv.__doc__) == _readme_card()
-
-
 def test_env_card_arguments_table_is_the_configuration_records():
-    card = _readme_card()
+    # the site's environment page is this docstring (tests/test_site.py checks that it shows it)
+    card = inspect.cleandoc(StewartPlatformEnv.__doc__)
     assert arguments_table() in card
     for name, default in DEFAULTS.items():
         shown = f'"{default}"' if isinstance(default, str) else repr(default)

@@ -245,3 +245,26 @@ def test_physics_snippet_numbers(pages_run):
     assert stated, "the physics snippet no longer states the holding forces"
     forces = namespace["F"]
     assert (round(forces.min()), round(forces.max())) == (int(stated.group(1)), int(stated.group(2)))
+
+
+def test_the_environment_page_is_the_env_card(site):
+    """The environment page shows the class docstring, inserted at build time: every section of the
+    card and every argument of the configuration records, and no hand-kept copy in the page's source."""
+    import inspect
+
+    from stewart_env.envs import DEFAULTS, StewartPlatformEnv
+
+    card = inspect.cleandoc(StewartPlatformEnv.__doc__)
+    headings = re.findall(r"^#+ (.+)$", card, flags=re.M)
+    assert len(headings) >= 8  # Description ... Version History
+    source = (DOCS / "environment.md").read_text()
+    assert "<!-- generated: env card -->" in source
+    assert not [h for h in headings if re.search(rf"^#+ {re.escape(h)}$", source, flags=re.M)]
+    html = (site / "environment.html").read_text(encoding="utf-8")
+    parser = _Links()
+    parser.feed(html)
+    for heading in headings:
+        anchor = re.sub(r"[^\w\- ]", "", heading.lower()).replace(" ", "-")
+        assert anchor in parser.ids, f"the environment page has no section {heading!r}"
+    for name in DEFAULTS:
+        assert f'<span class="pre">{name}</span>' in html, f"the environment page does not show the argument {name}"
