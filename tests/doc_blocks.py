@@ -296,7 +296,7 @@ def snippets_write_what_they_say(run: DocumentRun) -> list[tuple[str, str]]:
 def snippet_figures(run: DocumentRun) -> int:
     """A snippet that prints a table states a figure of it as `# <column>: <value>`; the number stated."""
     assert run.failure is None, "an earlier block failed"
-    stated = [(b, m) for b in run.blocks if b.tag == "python"
+    stated = [(b, m) for b in run.blocks if b.tag == "python" and not b.text.startswith(FILE_MARK)
               for m in re.finditer(r"# ([^#\n]+): (\S+)$", b.text, re.M)]
     for block, match in stated:
         (row,) = markdown_tables(block.outputs["python"])[0]

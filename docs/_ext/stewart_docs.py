@@ -76,7 +76,7 @@ def command_line() -> str:
 
 def episode_figure(path: Path, seed: int = 0, steps: tuple[int, ...] = (0, 10, 30, 100)) -> Path:
     """Frames of one seeded set-point episode under the PD baseline with gravity compensation,
-    side by side, drawn by the environment's renderer (``render_mode="rgb_array"``)."""
+    two a row, drawn by the environment's renderer (``render_mode="rgb_array"``)."""
     import gymnasium as gym
     import matplotlib
 
@@ -96,11 +96,13 @@ def episode_figure(path: Path, seed: int = 0, steps: tuple[int, ...] = (0, 10, 3
         obs, *_ = env.step(action)
     env.close()
     # each frame carries its own time stamp and force colour bar
-    fig, axes = plt.subplots(1, len(steps), figsize=(4.8 * len(steps), 4.8))
-    for ax, step in zip(axes, steps):
-        ax.imshow(frames[step])
+    rows = (len(steps) + 1) // 2
+    fig, axes = plt.subplots(rows, 2, figsize=(9.6, 4.8 * rows), squeeze=False)
+    for ax in axes.flat:
         ax.axis("off")
-    fig.subplots_adjust(left=0, right=1, bottom=0, top=1, wspace=0.02)
+    for ax, step in zip(axes.flat, steps):
+        ax.imshow(frames[step])
+    fig.subplots_adjust(left=0, right=1, bottom=0, top=1, wspace=0.02, hspace=0.02)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=100)
     plt.close(fig)
