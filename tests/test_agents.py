@@ -120,7 +120,8 @@ def test_pd_control_params_follow_the_layout(dasgupta, moving_state):
 
 
 def test_pd_control_law_in_a_closed_loop_rollout_holds_a_set_point(dasgupta):
-    """The README's example: the paper's PD law with gravity compensation, compiled, in rollout."""
+    """The example of docs/guides/physics-api.md: the paper's PD law with gravity compensation,
+    compiled, in rollout."""
     model = se.make_dynamics("improved", dasgupta)
     target = Reference(dasgupta.home_position + [0.0, 0.0, 0.01], se.rpy_to_matrix(dasgupta.home_rpy),
                        np.zeros(3), np.zeros(3))

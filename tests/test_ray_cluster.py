@@ -1,6 +1,6 @@
-"""The mismatch study on a Ray cluster of several nodes, joined by its address as the README's
-cluster commands do: every job runs on a node other than the driver's, and the matrix is the
-local backend's."""
+"""The mismatch study on a Ray cluster of several nodes, joined by its address as the cluster
+commands of docs/guides/mismatch.md do: every job runs on a node other than the driver's, and the
+matrix is the local backend's."""
 
 from __future__ import annotations
 
