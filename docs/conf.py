@@ -60,7 +60,7 @@ nitpick_ignore_regex += [
                r"|validation|envs\.core\.BatchAttributes|agents\.pd\.EnvPolicy|agents\.evaluation\.Episode"
                r"|rotations\.rpy_rate_matrix)"),
     (r"py:.*", r"EnvPolicy|TrainingInterrupted|rollout_steps|simulate_case_study|peak_differences|empty_errors"
-               r"|Task\.initialize_episode|Reference|PlatformParams|pose_margins"),
+               r"|Task\.initialize_episode|Reference|PlatformState|PlatformParams|pose_margins"),
     # a description after a colon in a Returns line, read by napoleon as a type
     (r"py:class", r"6|h|a; alpha|The reasons that end an episode with a success|A short label for tables"),
 ]
@@ -69,7 +69,8 @@ autodoc_inherit_docstrings = False
 
 html_theme = "furo"
 html_title = f"stewart-env {release}"
-html_static_path: list[str] = []
+html_static_path = ["_static"]
+html_css_files = ["stewart-env.css"]
 html_theme_options = {
     "source_repository": "https://github.com/stewart-env/stewart-env/",
     "source_branch": "main",

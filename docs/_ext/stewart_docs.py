@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import inspect
 import os
+import re
 from pathlib import Path
 
 ENV_CARD = "<!-- generated: env card -->"
@@ -189,12 +190,64 @@ def _rst_problems(lines: list[str], env) -> list[str]:
     return problems
 
 
+# inline literals and roles, left as they are when plain text is escaped
+_MARKUP = re.compile(r"(``.+?``|:[\w:.-]+:`[^`]+`)")
+
+
+def _indent(line: str) -> int:
+    return len(line) - len(line.lstrip())
+
+
+def _escaped(line: str) -> str:
+    """``|`` and ``*`` outside inline literals and roles escaped: norms and products, not
+    substitutions and emphasis."""
+    parts = _MARKUP.split(line)
+    return "".join(part if i % 2 else part.replace("|", r"\|").replace("*", r"\*") for i, part in enumerate(parts))
+
+
+def _plain_text_repaired(lines: list[str]) -> list[str]:
+    """Plain text made reStructuredText.  An indented block under a line ending in a colon
+    ("Options:" and its entries) becomes a bullet list, one item per line at the block's
+    indentation, deeper lines joined to their item; elsewhere a blank line goes wherever the
+    indentation changes; ``|`` and ``*`` are escaped."""
+    out, i = [], 0
+    while i < len(lines):
+        line = lines[i]
+        following = lines[i + 1] if i + 1 < len(lines) else ""
+        if line.rstrip().endswith(":") and following.strip() and _indent(following) > _indent(line):
+            out += [_escaped(line), ""]
+            base, items, i = _indent(following), [], i + 1
+            while i < len(lines) and lines[i].strip() and _indent(lines[i]) >= base:
+                if _indent(lines[i]) == base:
+                    items.append(lines[i].strip())
+                else:
+                    items[-1] += " " + lines[i].strip()
+                i += 1
+            out += [" " * _indent(line) + "- " + _escaped(item) for item in items] + [""]
+            continue
+        if line.strip() and out and out[-1].strip() and _indent(line) != _indent(out[-1]):
+            out.append("")
+        out.append(_escaped(line) if line.strip() else line)
+        i += 1
+    return out
+
+
 def _docstring(app, what, name, obj, options, lines: list[str]) -> None:
-    """The environment card is a page of its own; a docstring that is not valid reStructuredText
-    (plain text with ``|x|`` norms or ``a * b`` products) is shown as written, preformatted."""
-    if name == "stewart_env.envs.StewartPlatformEnv" or name.endswith(".StewartPlatformEnv") and what == "class":
+    """The environment card is a page of its own; a docstring written as plain text (``|x|``
+    norms, ``a * b`` products, indented lists under a colon) is repaired into reStructuredText,
+    or, where that is not enough, shown as written."""
+    if name.endswith(".StewartPlatformEnv") and what == "class":
         lines[:] = ["The Gymnasium environment ``StewartPlatform-v0``; its card (spaces, rewards, starting state,",
                     "episode end, arguments) is the page :doc:`/environment`."]
         return
-    if lines and _rst_problems(lines, app.env):
-        lines[:] = ["::", ""] + ["   " + line for line in lines] + [""]
+    own = inspect.getdoc(obj) or ""
+    if what in ("data", "attribute") and not callable(obj) and own and lines and lines[0].strip() == own.splitlines()[0].strip():
+        lines[:] = []  # a constant without a doc comment of its own: not its type's docstring (numpy's)
+        return
+    if not lines or not _rst_problems(lines, app.env):
+        return
+    repaired = _plain_text_repaired(lines)
+    if not _rst_problems(repaired, app.env):
+        lines[:] = repaired
+    else:
+        lines[:] = [".. code-block:: text", "   :class: docstring-text", ""] + ["   " + line for line in lines] + [""]
