@@ -208,7 +208,8 @@ def _escaped(line: str) -> str:
 def _plain_text_repaired(lines: list[str]) -> list[str]:
     """Plain text made reStructuredText.  An indented block under a line ending in a colon
     ("Options:" and its entries) becomes a bullet list, one item per line at the block's
-    indentation, deeper lines joined to their item; elsewhere a blank line goes wherever the
+    indentation, deeper lines joined to their item, and one set off by a blank line a literal
+    block, kept as written; elsewhere a blank line goes wherever the
     indentation changes; ``|`` and ``*`` are escaped."""
     out, i = [], 0
     while i < len(lines):
@@ -224,6 +225,16 @@ def _plain_text_repaired(lines: list[str]) -> list[str]:
                     items[-1] += " " + lines[i].strip()
                 i += 1
             out += [" " * _indent(line) + "- " + _escaped(item) for item in items] + [""]
+            continue
+        after = next((later for later in lines[i + 1:] if later.strip()), "")
+        if line.rstrip().endswith(":") and not line.rstrip().endswith("::") and not following.strip() \
+                and _indent(after) > _indent(line):
+            out.append(_escaped(line) + ":")  # a block set off by a blank line: a listing, kept as written
+            out += lines[i + 1:i + 2]
+            i += 2
+            while i < len(lines) and (not lines[i].strip() or _indent(lines[i]) > _indent(line)):
+                out.append(lines[i])
+                i += 1
             continue
         if line.strip() and out and out[-1].strip() and _indent(line) != _indent(out[-1]):
             out.append("")
