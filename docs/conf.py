@@ -57,10 +57,12 @@ nitpick_ignore_regex = [
 nitpick_ignore_regex += [
     (r"py:.*", r"stewart_env\..*\._\w+|_\w+"),
     (r"py:.*", r"stewart_env\.(dynamics\.(rk4|kernels|model\.batch_args|model\.ROTATION_TOLERANCE)"
-               r"|validation|envs\.core\.BatchAttributes|agents\.pd\.EnvPolicy|agents\.evaluation\.Episode"
+               r"|validation|envs\.\w+\.BatchAttributes|agents\.pd\.EnvPolicy|agents\.evaluation\.Episode"
                r"|rotations\.rpy_rate_matrix)"),
     (r"py:.*", r"EnvPolicy|TrainingInterrupted|rollout_steps|simulate_case_study|peak_differences|empty_errors"
                r"|Task\.initialize_episode|Reference|PlatformState|PlatformParams|pose_margins"),
+    # the site documents packages, not each of their modules
+    (r"py:mod", r"stewart_env(\..*)?"),
     # a description after a colon in a Returns line, read by napoleon as a type
     (r"py:class", r"6|h|a; alpha|The reasons that end an episode with a success|A short label for tables"),
 ]
