@@ -6,8 +6,8 @@ For each model: forward-dynamics evaluations per second at N = 1 and N = 1024 pl
 ``Dynamics.forward`` (argument checks included) and through the compiled kernel alone; and
 the wall time of ``rollout`` over 1 s of simulated time at dt = 1 ms (4000 evaluations per
 platform with RK4) for N = 1 and N = 1024.  Also the time a fresh Python process takes from
-start to its first forward evaluation, which shows whether the compiled kernels come from the
-on-disk cache.  Timings are the best of several repeats, so other load on the machine shows
+start to its first forward evaluation (the kernels are compiled when the package is installed,
+so this is the import and the first call).  Timings are the best of several repeats, so other load on the machine shows
 as little as possible.
 
 With ``--mujoco`` (needs the extra ``mujoco``), MuJoCo times the same mechanism in the same run
@@ -143,7 +143,7 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     F = model.inverse(t, R, z, z, z, z)
     out = {"n_batch": n_batch, "substeps": substeps, "dt": dt}
     # One platform: the process's CPU time, which other work on a shared machine inflates far less
-    # than the wall clock; every call compared runs on this thread (MuJoCo's) or on numba's (ours).
+    # than the wall clock; every call compared runs on this thread.
     cpu = time.process_time
     bar = progress(total=8, desc="bench --mujoco", disable=not on_terminal())
 
