@@ -73,7 +73,7 @@ def cpp_functions(path):
     """{name: comment} of every function defined at the top level of a C++ source (its namespace's
     body is not indented), with the ``//`` comment lines right above it joined into one text."""
     text = path.read_text()
-    pattern = r'((?:^//.*\n)*)^(?:extern "C" )?(?:inline|constexpr)\b[^(;={}]*?\b(\w+)\('
+    pattern = r'((?:^//.*\n)*)^(?:template <.*>\n)?(?:extern "C" )?(?:inline|constexpr)\b[^(;={}]*?\b(\w+)\('
     return {m.group(2): " ".join(line[2:].strip() for line in m.group(1).splitlines())
             for m in re.finditer(pattern, text, flags=re.M)}
 

@@ -731,13 +731,19 @@ inline const double* params_row(const double* prm, int64_t n_prm, int64_t b) {
     return n_prm == 1 ? prm : prm + N_PARAMS * b;
 }
 
-// Row b of forward_batch (docs/physics.md section 5.4; paper eq. 49 or 55).
-inline void forward_row(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
-                        const double* v, const double* w, const double* F, const double* W, double* out, int64_t b) {
+//: forward_one or inverse_one: the dynamics of one platform solved for out (6,) from x (6,).
+using SolveOne = void (*)(const double* prm, int64_t flags, const double* t, const double* R, const double* v,
+                          const double* w, const double* x, const double* W, double* M, double* h, double* out);
+
+// Row b of forward_batch or inverse_batch: one (forward_one or inverse_one) on the row, with its
+// 6x6 scratch on the stack.  docs/physics.md sections 5.4-5.5; paper eq. 49 or 55.
+template <SolveOne one>
+inline void solve_row(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
+                      const double* v, const double* w, const double* x, const double* W, double* out, int64_t b) {
     double M[36];
     double h[6];
-    forward_one(params_row(prm, n_prm, b), flags, t + 3 * b, R + 9 * b, v + 3 * b, w + 3 * b, F + 6 * b, W + 6 * b,
-                M, h, out + 6 * b);
+    one(params_row(prm, n_prm, b), flags, t + 3 * b, R + 9 * b, v + 3 * b, w + 3 * b, x + 6 * b, W + 6 * b, M, h,
+        out + 6 * b);
 }
 
 // Forward dynamics over a batch of n rows.  prm (Np, N_PARAMS) with Np in {1, n}; t, v, w (n,3);
@@ -746,7 +752,7 @@ inline void forward_row(const double* prm, int64_t n_prm, int64_t flags, const d
 inline void forward_batch(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
                           const double* v, const double* w, const double* F, const double* W, double* out,
                           int64_t n) {
-    for (int64_t b = 0; b < n; ++b) forward_row(prm, n_prm, flags, t, R, v, w, F, W, out, b);
+    for (int64_t b = 0; b < n; ++b) solve_row<forward_one>(prm, n_prm, flags, t, R, v, w, F, W, out, b);
 }
 
 // Row b of mass_bias_batch (docs/physics.md section 5.4; paper eq. 49 or 55).
@@ -766,22 +772,12 @@ inline void mass_bias_batch(const double* prm, int64_t n_prm, int64_t flags, con
     for (int64_t b = 0; b < n; ++b) mass_bias_row(prm, n_prm, flags, t, R, v, w, W, M, h, b);
 }
 
-// Row b of inverse_batch (docs/physics.md section 5.5; paper eq. 49 or 55).
-inline void inverse_row(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
-                        const double* v, const double* w, const double* acc, const double* W, double* out,
-                        int64_t b) {
-    double M[36];
-    double h[6];
-    inverse_one(params_row(prm, n_prm, b), flags, t + 3 * b, R + 9 * b, v + 3 * b, w + 3 * b, acc + 6 * b, W + 6 * b,
-                M, h, out + 6 * b);
-}
-
 // Inverse dynamics over a batch: acc (n,6) [a; alpha] -> out (n,6) leg forces, N.
 // docs/physics.md section 5.5; paper eq. 49 or 55 solved for the forces.
 inline void inverse_batch(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
                           const double* v, const double* w, const double* acc, const double* W, double* out,
                           int64_t n) {
-    for (int64_t b = 0; b < n; ++b) inverse_row(prm, n_prm, flags, t, R, v, w, acc, W, out, b);
+    for (int64_t b = 0; b < n; ++b) solve_row<inverse_one>(prm, n_prm, flags, t, R, v, w, acc, W, out, b);
 }
 
 // Leg kinematics over a batch (shapes of leg_kinematics_one with a leading n).  Serial: it serves
