@@ -56,6 +56,7 @@
 // the OFF_* offsets and stewart_env.dynamics.model.pack_params follow from it.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -613,10 +614,8 @@ inline void solve6(double* M, double* b, double* x) {
 // docs/physics.md section 5.4; paper eq. 49 (joint form) or 55 (centroidal form).
 inline void assemble_one(const double* prm, int64_t flags, const double* t, const double* R, const double* v,
                          const double* w, const double* F, double* M, double* h) {
-    for (int r = 0; r < 6; ++r) {
-        h[r] = 0.0;
-        for (int c = 0; c < 6; ++c) M[6 * r + c] = 0.0;
-    }
+    std::fill(M, M + 36, 0.0);
+    std::fill(h, h + 6, 0.0);
     LegState leg;
     LegBodies bodies;
     for (int i = 0; i < 6; ++i) {
@@ -672,10 +671,8 @@ inline void forward_one(const double* prm, int64_t flags, const double* t, const
 // form) solved for the forces.
 inline void inverse_one(const double* prm, int64_t flags, const double* t, const double* R, const double* v,
                         const double* w, const double* acc, const double* W, double* M, double* h, double* out) {
-    for (int r = 0; r < 6; ++r) {
-        h[r] = 0.0;
-        for (int c = 0; c < 6; ++c) M[6 * r + c] = 0.0;
-    }
+    std::fill(M, M + 36, 0.0);
+    std::fill(h, h + 6, 0.0);
     LegState leg;
     LegBodies bodies;
     for (int i = 0; i < 6; ++i) {

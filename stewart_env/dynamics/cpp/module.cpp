@@ -61,6 +61,25 @@ void state(const T& t, const R& rot, const V& v, const V& w, int64_t n) {
     expect(w, "angular_velocity", {n, 3});
 }
 
+//: kernels::forward_batch or kernels::inverse_batch: (prm, n_prm, flags, t, R, v, w, x, W, out, n).
+using SolveBatch = void (*)(const double*, int64_t, int64_t, const double*, const double*, const double*,
+                            const double*, const double*, const double*, double*, int64_t);
+
+// Bind a SolveBatch as name(prm, flags, t, R, v, w, x, W, out): x (N,6) is the argument x_arg,
+// named in errors as x_name (the leg forces of forward dynamics, the acceleration of inverse).
+template <SolveBatch solve>
+void def_solve_batch(nb::module_& m, const char* name, const char* x_arg, const char* x_name) {
+    m.def(name, [x_name](In prm, int64_t flags, In t, In R, In v, In w, In x, In W, Out out) {
+        const int64_t n = batch(prm, t);
+        state(t, R, v, w, n);
+        expect(x, x_name, {n, 6});
+        expect(W, "external_wrench", {n, 6});
+        expect(out, "out", {n, 6});
+        solve(prm.data(), prm.shape(0), flags, t.data(), R.data(), v.data(), w.data(), x.data(), W.data(), out.data(),
+              n);
+    }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, nb::arg(x_arg), "W"_a, "out"_a.noconvert());
+}
+
 nb::tuple layout() {
     nb::list entries;
     for (const auto& entry : kernels::PACKED_LAYOUT) {
@@ -95,15 +114,8 @@ NB_MODULE(_core, m) {
     m.attr("LAW_JACOBIAN") = reinterpret_cast<uintptr_t>(&rk4::law_jacobian);
     m.attr("LAW_INVERSE_DYNAMICS") = reinterpret_cast<uintptr_t>(&rk4::law_inverse_dynamics);
 
-    m.def("forward_batch", [](In prm, int64_t flags, In t, In R, In v, In w, In F, In W, Out out) {
-        const int64_t n = batch(prm, t);
-        state(t, R, v, w, n);
-        expect(F, "leg_forces", {n, 6});
-        expect(W, "external_wrench", {n, 6});
-        expect(out, "out", {n, 6});
-        kernels::forward_batch(prm.data(), prm.shape(0), flags, t.data(), R.data(), v.data(), w.data(), F.data(),
-                               W.data(), out.data(), n);
-    }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "F"_a, "W"_a, "out"_a.noconvert());
+    def_solve_batch<kernels::forward_batch>(m, "forward_batch", "F", "leg_forces");
+    def_solve_batch<kernels::inverse_batch>(m, "inverse_batch", "acc", "acceleration");
 
     m.def("mass_bias_batch", [](In prm, int64_t flags, In t, In R, In v, In w, In W, Out M, Out h) {
         const int64_t n = batch(prm, t);
@@ -114,16 +126,6 @@ NB_MODULE(_core, m) {
         kernels::mass_bias_batch(prm.data(), prm.shape(0), flags, t.data(), R.data(), v.data(), w.data(), W.data(),
                                  M.data(), h.data(), n);
     }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "W"_a, "M"_a.noconvert(), "h"_a.noconvert());
-
-    m.def("inverse_batch", [](In prm, int64_t flags, In t, In R, In v, In w, In acc, In W, Out out) {
-        const int64_t n = batch(prm, t);
-        state(t, R, v, w, n);
-        expect(acc, "acceleration", {n, 6});
-        expect(W, "external_wrench", {n, 6});
-        expect(out, "out", {n, 6});
-        kernels::inverse_batch(prm.data(), prm.shape(0), flags, t.data(), R.data(), v.data(), w.data(), acc.data(),
-                               W.data(), out.data(), n);
-    }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "acc"_a, "W"_a, "out"_a.noconvert());
 
     m.def("leg_kinematics_batch", [](In prm, int64_t flags, In t, In R, In v, In w, In acc, Out frames, Out lengths,
                                      Out rates, Out accels, Out omega_l, Out alpha_l, Out jac) {
