@@ -41,11 +41,11 @@ struct Record {
 };
 
 // The simplest control law: forces = params[:6], N, whatever the time and state (the hold of
-// rollout_batch, for a rollout that records its trajectory).  docs/physics.md section 5.6 (no
-// paper equation).
+// rollout_batch, for a rollout that records its trajectory); a row shorter than six leaves the
+// rest NaN.  docs/physics.md section 5.6 (no paper equation).
 extern "C" inline void constant_forces(double, const double*, const double*, const double*, const double*,
-                                       const double* params, int64_t, double* forces) {
-    for (int i = 0; i < 6; ++i) forces[i] = params[i];
+                                       const double* params, int64_t n_params, double* forces) {
+    for (int i = 0; i < 6 && i < n_params; ++i) forces[i] = params[i];
 }
 
 // The leg Jacobian J (6,6), row-major, of one platform, dL/dt = J [v; omega]: row i =
