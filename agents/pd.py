@@ -11,11 +11,10 @@ and realises it with the leg forces F = J^-T W, since leg forces F act on the pl
 wrench J^T F (J the leg Jacobian, dL/dt = J [v; omega]).  Optionally the static holding forces
 of the current pose are added (gravity compensation, see :class:`TaskSpacePD`).
 
-The law is written once, as :func:`pd_control_law`, a compiled control law for
-:func:`stewart_env.rollout` (evaluated at every RK4 stage: continuous control, as in
-:mod:`stewart_env.agents.reproduce`) and the worked example of a user's compiled controller; its
-parameter row is built by :func:`pd_control_params` (layout: :data:`PD_LAYOUT`).  Two faces
-call it:
+The law is written once, as :data:`pd_control_law`, a control law compiled into the package's
+extension for :func:`stewart_env.rollout` (evaluated at every RK4 stage: continuous control, as in
+:mod:`stewart_env.agents.reproduce`); its parameter row is built by :func:`pd_control_params`
+(layout: :data:`PD_LAYOUT`).  Two faces call it:
 
 * :class:`TaskSpacePD` maps a platform state and a :class:`~stewart_env.state.Reference` to leg
   forces, for one platform or a batch.
@@ -44,12 +43,10 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
-from numba import njit
 
 import stewart_env as se
-from stewart_env.dynamics.kernels import N_PARAMS
 from stewart_env.dynamics.model import batch_args, pack_params, parse_model_name
-from stewart_env.dynamics.rk4 import inverse_dynamics, jacobian
+from stewart_env.dynamics.rk4 import PD_CONTROL_LAW, PD_LAYOUT, law_forces
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rotvec_to_matrix
 from stewart_env.state import PlatformState, Reference
@@ -59,86 +56,23 @@ PAPER_KP = np.array([4e5, 4e5, 4e6, 5e4, 5e4, 1e5])
 #: Derivative gains of the paper's case study: N s/m and N m s/rad.
 PAPER_KD = np.array([1e4, 1e4, 2e4, 1e3, 1e3, 2e3])
 
-#: The parameter row of :func:`pd_control_law`, in order: (name, size).  kp, kd: gains [x, y, z,
-#: roll, pitch, yaw]; position, rotation (row-major 3x3), velocity, angular_velocity: the
-#: reference in {B} (m, -, m/s, rad/s); gravity_compensation: 1.0 adds the holding forces, 0.0
-#: not; gravity_flags: the kernel switch bits of the model giving them
-#: (:func:`stewart_env.dynamics.model.parse_model_name`); platform: the controller's packed
-#: platform row (:func:`stewart_env.dynamics.model.pack_params`), whose geometry gives J.
-PD_LAYOUT = (("kp", 6), ("kd", 6), ("position", 3), ("rotation", 9), ("velocity", 3), ("angular_velocity", 3),
-             ("gravity_compensation", 1), ("gravity_flags", 1), ("platform", N_PARAMS))
+#: The task-space PD law F = J^-T (Kp e + Kd edot) [+ holding forces] (paper eq. 56), compiled: a
+#: :class:`stewart_env.dynamics.rk4.ControlLaw` for :func:`stewart_env.rollout`.  params: the row
+#: of :func:`pd_control_params` (layout :data:`PD_LAYOUT`: kp, kd, the reference's position,
+#: rotation (row-major), velocity and angular velocity in {B}, gravity_compensation 1.0 or 0.0,
+#: gravity_flags (the switch bits of the model giving the holding forces) and the controller's
+#: packed platform row, whose geometry gives J).  Time-invariant: the reference is fixed in params.
+pd_control_law = PD_CONTROL_LAW
 #: Offset of each entry of :data:`PD_LAYOUT` in the row.
 PD_OFFSETS = {name: int(sum(size for _, size in PD_LAYOUT[:k])) for k, (name, _) in enumerate(PD_LAYOUT)}
 #: Length of the row.
 PD_N_PARAMS = sum(size for _, size in PD_LAYOUT)
 #: The pose and twist fields of a state or reference, with the shape of one platform's.
 _STATE_FIELDS = (("position", (3,)), ("rotation", (3, 3)), ("velocity", (3,)), ("angular_velocity", (3,)))
-# numba reads module globals as compile-time constants: the offsets the law uses
-_KP, _KD, _POS, _ROT = PD_OFFSETS["kp"], PD_OFFSETS["kd"], PD_OFFSETS["position"], PD_OFFSETS["rotation"]
-_VEL, _ANG = PD_OFFSETS["velocity"], PD_OFFSETS["angular_velocity"]
-_GRAVITY, _GFLAGS, _PLATFORM = PD_OFFSETS["gravity_compensation"], PD_OFFSETS["gravity_flags"], PD_OFFSETS["platform"]
-
-
-@njit(cache=True, error_model="numpy")
-def _rpy_and_rates(R, w, out):
-    """out[:3] = roll, pitch, yaw of R (rad, the convention of :func:`stewart_env.matrix_to_rpy`);
-    out[3:] = their rates thetadot = E(theta)^-1 w (rad/s, E of :func:`stewart_env.rotations.rpy_rate_matrix`,
-    inverted in closed form: E is [[cy cp, -sy, 0], [sy cp, cy, 0], [-sp, 0, 1]])."""
-    pitch = np.arcsin(min(max(-R[2, 0], -1.0), 1.0))
-    out[0] = np.arctan2(R[2, 1], R[2, 2])
-    out[1] = pitch
-    out[2] = np.arctan2(R[1, 0], R[0, 0])
-    cp, sp = np.cos(pitch), np.sin(pitch)
-    cy, sy = np.cos(out[2]), np.sin(out[2])
-    roll_rate = (cy * w[0] + sy * w[1]) / cp
-    out[3] = roll_rate
-    out[4] = -sy * w[0] + cy * w[1]
-    out[5] = w[2] + sp * roll_rate
-
-
-@njit(cache=True, error_model="numpy")
-def pd_control_law(time, position, rotation, velocity, angular_velocity, params, forces):
-    """The task-space PD law F = J^-T (Kp e + Kd edot) [+ holding forces] (paper eq. 56) as a
-    compiled control law for :func:`stewart_env.rollout` (contract: :mod:`stewart_env.dynamics.rk4`).
-
-    params: the row of :func:`pd_control_params` (layout :data:`PD_LAYOUT`); the state in {B};
-    writes the six leg forces, N.  Time-invariant: the reference is fixed in ``params``.
-    """
-    now = np.empty(6)
-    ref = np.empty(6)
-    _rpy_and_rates(rotation, angular_velocity, now)
-    _rpy_and_rates(params[_ROT:_ROT + 9].reshape((3, 3)), params[_ANG:_ANG + 3], ref)
-    wrench = np.empty(6)
-    for j in range(3):
-        e = params[_POS + j] - position[j]
-        edot = params[_VEL + j] - velocity[j]
-        wrench[j] = params[_KP + j] * e + params[_KD + j] * edot
-        # the angle error wrapped to [-pi, pi): an error of 2 pi - d is one of -d
-        e = (ref[j] - now[j] + np.pi) % (2.0 * np.pi) - np.pi
-        edot = ref[3 + j] - now[3 + j]
-        wrench[3 + j] = params[_KP + 3 + j] * e + params[_KD + 3 + j] * edot
-    platform = params[_PLATFORM:_PLATFORM + N_PARAMS]
-    jac = np.empty((6, 6))
-    jacobian(platform, position, rotation, jac)
-    forces[:] = np.linalg.solve(jac.T.copy(), wrench)
-    if params[_GRAVITY] != 0.0:
-        zero = np.zeros(6)
-        holding = np.empty(6)
-        inverse_dynamics(platform, int(params[_GFLAGS]), position, rotation, zero[:3], zero[3:], zero, zero, holding)
-        for i in range(6):
-            forces[i] += holding[i]
-
-
-@njit(cache=True, error_model="numpy")
-def _pd_forces_batch(t, R, v, w, params, out):
-    """:func:`pd_control_law` over a batch of states (N rows), params (N,P) or (1,P) shared."""
-    for b in range(t.shape[0]):
-        pd_control_law(0.0, t[b], R[b], v[b], w[b], params[b] if params.shape[0] > 1 else params[0], out[b])
-
 
 def pd_control_params(platform: PlatformParams, reference: Reference, kp=PAPER_KP, kd=PAPER_KD,
                       gravity_compensation: bool = False, gravity_model: str = "improved") -> np.ndarray:
-    """The parameter row (PD_N_PARAMS,) of :func:`pd_control_law`, or (N, PD_N_PARAMS) for a batched
+    """The parameter row (PD_N_PARAMS,) of :data:`pd_control_law`, or (N, PD_N_PARAMS) for a batched
     reference (fields (N, ...)); arguments as in :class:`TaskSpacePD`, reference in {B} (its
     accelerations are not used)."""
     if not isinstance(platform, PlatformParams):
@@ -214,7 +148,7 @@ def zoh_spectral_radius(model: se.Dynamics, kp, kd, control_dt: float, inertia_s
 
 class TaskSpacePD:
     """The task-space PD law F = J^-T (Kp e + Kd edot) [+ holding forces] (paper eq. 56): calls
-    :func:`pd_control_law` on a state and a reference.
+    :data:`pd_control_law` on a state and a reference.
 
     Args:
         platform: the platform's parameters (its geometry gives J).
@@ -238,7 +172,7 @@ class TaskSpacePD:
         self.gravity_model = parse_model_name(gravity_model)[0]
 
     def control_params(self, reference: Reference) -> np.ndarray:
-        """:func:`pd_control_law`'s parameter row (PD_N_PARAMS,), or (N, PD_N_PARAMS) for a batched
+        """:data:`pd_control_law`'s parameter row (PD_N_PARAMS,), or (N, PD_N_PARAMS) for a batched
         reference: what :func:`stewart_env.rollout` takes as ``control_params`` for this controller."""
         return pd_control_params(self.platform, reference, self.kp, self.kd, self.gravity_compensation,
                                  self.gravity_model)
@@ -250,8 +184,7 @@ class TaskSpacePD:
                                          for record, value in (("state", state), ("reference", reference))
                                          for name, tail in _STATE_FIELDS})
         params = self.control_params(Reference(*(a[f"reference.{name}"] for name, _ in _STATE_FIELDS)))
-        out = np.empty((n, 6))
-        _pd_forces_batch(*(a[f"state.{name}"] for name, _ in _STATE_FIELDS), params, out)
+        out = law_forces(pd_control_law, np.atleast_2d(params), *(a[f"state.{name}"] for name, _ in _STATE_FIELDS))
         return out if batched else out[0]
 
 

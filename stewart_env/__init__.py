@@ -8,15 +8,18 @@ Public API::
     lin_acc, ang_acc = model.forward(position, rotation, velocity, angular_velocity, leg_forces)
     leg_forces = model.inverse(position, rotation, velocity, angular_velocity, lin_acc, ang_acc)
     state = se.rollout(model, position, rotation, velocity, angular_velocity, leg_forces, dt=1e-3, steps=1000)
+    state = se.rollout(model, ..., control_law=law, control_params=row)   # law: a compiled se.ControlLaw
     ws = model.workspace()          # preallocated arrays: ws.position[0] = ...; ws.forward()
 """
 
 from stewart_env import numba_cache
 
-# Before any module with compiled kernels: numba picks their cache directory at import.
+# Before any module with numba kernels (rotations, the tasks', the environment's): numba picks their
+# cache directory at import.  The physics is compiled at install time (stewart_env.dynamics._core).
 numba_cache.configure()
 
 from stewart_env.dynamics import MODEL_NAMES, Dynamics, Workspace, make_dynamics
+from stewart_env.dynamics.rk4 import ControlLaw
 from stewart_env.integrate import rollout
 from stewart_env.kinematics import (
     ConvergenceError,
@@ -36,6 +39,7 @@ __version__ = "0.1.0"
 __all__ = [
     "MODEL_NAMES",
     "ConfigError",
+    "ControlLaw",
     "ConvergenceError",
     "Dynamics",
     "LegKinematics",

@@ -6,8 +6,8 @@ For each model: forward-dynamics evaluations per second at N = 1 and N = 1024 pl
 ``Dynamics.forward`` (argument checks included) and through the compiled kernel alone; and
 the wall time of ``rollout`` over 1 s of simulated time at dt = 1 ms (4000 evaluations per
 platform with RK4) for N = 1 and N = 1024.  Also the time a fresh Python process takes from
-start to its first forward evaluation, which shows whether the compiled kernels come from the
-on-disk cache.  Timings are the best of several repeats, so other load on the machine shows
+start to its first forward evaluation (the kernels are compiled when the package is installed,
+so this is the import and the first call).  Timings are the best of several repeats, so other load on the machine shows
 as little as possible.
 
 With ``--mujoco`` (needs the extra ``mujoco``), MuJoCo times the same mechanism in the same run
@@ -88,16 +88,19 @@ def bench_model(name: str, params, sizes=(1, 1024), repeats: int = 5) -> dict:
     return out
 
 
-def _per_call(fns: dict, calls: int, repeats: int, clock=time.perf_counter) -> dict:
+def _per_call(fns: dict, calls: int, repeats: int, clock=time.perf_counter, reset=None) -> dict:
     """Seconds per call of each function in ``fns`` (name -> function) by ``clock``: the best of
     ``repeats`` loops of ``calls`` calls, after one untimed call each (which loads or compiles what
     the first call needs).  The loops take turns, so that load from other work on the machine
-    falls on all of them alike and their ratios hold."""
+    falls on all of them alike and their ratios hold.  ``reset``, if given, runs untimed before
+    every loop (e.g. to put a simulation that drifts back at its start)."""
     for fn in fns.values():
         fn()
     best = dict.fromkeys(fns, np.inf)
     for _ in range(repeats):
         for name, fn in fns.items():
+            if reset is not None:
+                reset()
             t0 = clock()
             for _ in range(calls):
                 fn()
@@ -143,7 +146,7 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     F = model.inverse(t, R, z, z, z, z)
     out = {"n_batch": n_batch, "substeps": substeps, "dt": dt}
     # One platform: the process's CPU time, which other work on a shared machine inflates far less
-    # than the wall clock; every call compared runs on this thread (MuJoCo's) or on numba's (ours).
+    # than the wall clock; every call compared runs on this thread.
     cpu = time.process_time
     bar = progress(total=8, desc="bench --mujoco", disable=not on_terminal())
 
@@ -168,12 +171,24 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     plant_state = [t[None].copy(), R[None].copy(), np.zeros((1, 3)), np.zeros((1, 3))]
     state = [x.copy() for x in plant_state]
     forces, wrench = F[None].copy(), np.zeros((1, 6))
+    start_state = [x.copy() for x in plant_state]
+
+    def back_to_start():
+        # the platform at rest under its holding forces is an unstable equilibrium: the rounding
+        # error grows about 1e5-fold per simulated second, and a few seconds end it in a singular
+        # pose, where a step stops early; each loop of step_calls steps starts at rest again
+        mujoco.mj_copyData(d, m, start)
+        for x0, *xs in zip(start_state, plant_state, state):
+            for x in xs:
+                x[...] = x0
+        ws.set_state(t, R, z, z)
+
     out.update(_per_call({
         "step_mujoco": lambda: mujoco.mj_step(m, d, nstep=substeps),
         "step_plant": lambda: plant.step_inplace(*plant_state, forces, wrench, dt, substeps),
         "step_rollout": lambda: rollout_inplace(model, *state, forces, wrench, dt, substeps),
         "step_workspace": lambda: ws.step(dt, substeps),
-    }, step_calls, repeats, cpu))
+    }, step_calls, repeats, cpu, reset=back_to_start))
     bar.update()
 
     # the batch: MuJoCo's threaded rollout of n_batch platforms from the same state, open loop

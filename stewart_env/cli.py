@@ -234,18 +234,13 @@ def _preflight(args: argparse.Namespace) -> str | None:
     return None
 
 
-#: Kernels a command needs beyond those every simulation compiles: reproduce runs its PD law inside
-#: the RK4 kernel with a control law, compiled on its own (tens of seconds when the cache is cold).
-_OWN_KERNELS = {"reproduce": ("rollout_law_batch",)}
-
-
 def _announce_compilation(command: str | None = None) -> None:
     """One line before the kernels' first compilation, which takes tens of seconds: when no kernel
-    is cached yet, or one that ``command`` needs (:data:`_OWN_KERNELS`) is not."""
+    is cached yet."""
+    import stewart_env.envs  # noqa: F401  (numba compiles the environment's and the tasks' kernels)
     from stewart_env.numba_cache import is_warm
 
-    own = _OWN_KERNELS.get(command)
-    if not is_warm() or (own and not is_warm(own)):
+    if not is_warm():
         print("compiling kernels, first run only (~30 s)", file=sys.stderr)
 
 

@@ -1,15 +1,13 @@
 """Time integration: classical RK4 over a batch of platforms, in compiled code, with the leg forces
-held constant or given at every RK4 stage by a compiled control law (docs/physics.md section 5.6)."""
+held constant or given at every RK4 stage by a compiled control law (docs/physics.md section 5.6;
+the laws: :mod:`stewart_env.dynamics.rk4`)."""
 
 from __future__ import annotations
 
 from typing import NamedTuple
 
 import numpy as np
-from numba.core.dispatcher import Dispatcher
-from numba.core.errors import NumbaError
-
-from stewart_env.dynamics import rk4
+from stewart_env.dynamics import _core, rk4
 from stewart_env import validation
 from stewart_env.dynamics.model import Dynamics, batch_args, check_step
 
@@ -46,14 +44,14 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
     shapes, finite values, and a rotation orthonormal with determinant +1 within
     :data:`~stewart_env.dynamics.model.ROTATION_TOLERANCE`.
 
-    control_law: a numba ``@njit`` function ``law(time, position, rotation, velocity,
-    angular_velocity, params, forces)`` that writes the six leg forces (N) for the state at
-    ``time`` s (:mod:`stewart_env.dynamics.rk4` gives the contract;
-    :func:`stewart_env.agents.pd.pd_control_law` is an example).  It replaces ``leg_forces``, and
-    ``control_params`` (P,), one parameter row for every platform, or (N, P), one per batch row,
-    is passed to it as ``params``.  ``start_time`` s is the time of the first stage.  Handing the
-    law to the compiled integrator costs about 0.1 ms per call, so a closed loop is best integrated
-    in few calls of many steps.
+    control_law: a compiled control law, :class:`stewart_env.dynamics.rk4.ControlLaw` (or a numba
+    ``cfunc`` or ctypes function it wraps), ``law(time, position, rotation, velocity,
+    angular_velocity, params, n_params, forces)``, that writes the six leg forces (N) for the state
+    at ``time`` s (:mod:`stewart_env.dynamics.rk4` gives the contract;
+    :data:`stewart_env.agents.pd.pd_control_law` is the package's PD law).  It replaces
+    ``leg_forces``, and ``control_params`` (P,), one parameter row for every platform, or (N, P),
+    one per batch row, is passed to it as ``params``.  ``start_time`` s is the time of the first
+    stage.
 
     Returns the final (position, rotation, velocity, angular_velocity); with ``record_every``
     (a positive divisor of ``steps``) a :class:`Trajectory` of every ``record_every``-th state
@@ -74,7 +72,7 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
             raise ValueError("leg_forces: required without a control_law")
         control = {"leg_forces": (leg_forces, (6,))}
     else:
-        _check_law(control_law)
+        control_law = rk4.as_control_law(control_law)
         if leg_forces is not None:
             raise ValueError("leg_forces: the control_law gives the leg forces; pass one or the other")
         params = np.zeros(0) if control_params is None else control_params
@@ -91,9 +89,10 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
     t, R, v, w = (a[k].copy() for k in ("position", "rotation", "velocity", "angular_velocity"))
     trajectory = None
     if control_law is None and record_every is None:
-        rk4.rollout_batch(model.packed, model.flags, t, R, v, w, a["leg_forces"], a["external_wrench"], dt, steps)
+        _core.rollout_batch(model.packed, model.flags, t, R, v, w, a["leg_forces"], a["external_wrench"], dt, steps)
     else:
-        law, ctrl = (rk4.constant_forces, a["leg_forces"]) if control_law is None else (control_law, a["control_params"])
+        law, ctrl = (rk4.CONSTANT_FORCES, a["leg_forces"]) if control_law is None else (control_law, a["control_params"])
+        rk4.check_law_params(law, ctrl)
         every = record_every or 0  # 0: record nothing
         samples = steps // every + 1 if every else 0
         try:
@@ -102,13 +101,8 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
         except MemoryError:
             raise ValueError(f"record_every: {samples} samples of {n} platforms need {n * samples * 24 * 8 / 2**30:.1f} "
                              "GiB; record less often") from None
-        try:
-            rk4.law_kernel()(model.packed, model.flags, t, R, v, w, law, ctrl.copy(), a["external_wrench"],
-                             start_time, dt, steps, every, *rec)
-        except (ValueError, IndexError, ZeroDivisionError) as err:
-            # raised inside the user's compiled law, e.g. a parameter row of the wrong length
-            raise ValueError(f"control_law: {getattr(law, '__name__', law)} failed on control_params of shape "
-                             f"{ctrl.shape}: {err}") from None
+        _core.rollout_law_batch(model.packed, model.flags, t, R, v, w, law.address, ctrl, a["external_wrench"],
+                                start_time, dt, steps, every, *rec)
         if record_every is not None:
             trajectory = Trajectory(start_time + dt * every * np.arange(samples), *(x if batched else x[0] for x in rec))
     if check_finite:
@@ -123,20 +117,6 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
     return (t, R, v, w) if batched else (t[0], R[0], v[0], w[0])
 
 
-def _check_law(law) -> None:
-    """Refuse, naming ``control_law``, anything that is not a numba function compiling for
-    :data:`stewart_env.dynamics.rk4.LAW_SIGNATURE`; compiles it (once per process, or loads it
-    from numba's cache)."""
-    if not isinstance(law, Dispatcher):
-        raise ValueError(f"control_law: expected a numba @njit function law(time, position, rotation, velocity, "
-                         f"angular_velocity, params, forces), got {type(law).__name__}")
-    try:
-        law.get_compile_result(rk4.LAW_SIGNATURE)
-    except (NumbaError, TypeError) as err:
-        raise ValueError(f"control_law: {law.__name__} does not compile as law(time, position, rotation, velocity, "
-                         f"angular_velocity, params, forces) -> None with {rk4.LAW_SIGNATURE}: {err}") from None
-
-
 def rollout_inplace(model: Dynamics, position, rotation, velocity, angular_velocity, leg_forces,
                     external_wrench, dt: float, steps: int) -> None:
     """:func:`rollout` with the leg forces held, without argument checks, overwriting the state
@@ -146,5 +126,5 @@ def rollout_inplace(model: Dynamics, position, rotation, velocity, angular_veloc
     float64 batch arrays: position (N,3), rotation (N,3,3), velocity (N,3), angular_velocity
     (N,3), leg_forces (N,6), external_wrench (N,6).  Rows that stop being finite stay so.
     """
-    rk4.rollout_batch(model.packed, model.flags, position, rotation, velocity, angular_velocity,
-                      leg_forces, external_wrench, float(dt), int(steps))
+    _core.rollout_batch(model.packed, model.flags, position, rotation, velocity, angular_velocity,
+                        leg_forces, external_wrench, float(dt), int(steps))

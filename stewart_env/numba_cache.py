@@ -1,5 +1,9 @@
-"""Where numba keeps the compiled kernels, chosen so that ``import stewart_env`` works from any
+"""Where numba keeps the kernels it compiles, chosen so that ``import stewart_env`` works from any
 install, read-only ones included.
+
+The physics is compiled when the package is installed (the extension
+``stewart_env.dynamics._core``); numba compiles the tasks' and the environment's own kernels
+(``stewart_env.tasks``, ``stewart_env.envs``) on their first call and caches them on disk.
 
 numba picks the cache directory of a ``@njit(cache=True)`` function when the function is
 decorated, that is when its module is imported.  ``numba.core.caching.CacheImpl`` tries its
@@ -133,20 +137,21 @@ def configure() -> None:
 
 
 def is_warm(names: Iterable[str] | None = None) -> bool:
-    """Whether the package's kernels (:mod:`stewart_env.dynamics.kernels` and the integrator,
-    :mod:`stewart_env.dynamics.rk4`) are compiled in the cache in use, so that calling them loads
-    machine code instead of compiling (a first run takes tens of seconds).
+    """Whether the numba kernels of the package's modules imported so far (import
+    ``stewart_env.envs`` first for the environment's and the tasks') are compiled in the cache in
+    use, so that calling them loads machine code instead of compiling.
 
     Args:
-        names: kernel names (e.g. ``("rollout_batch", "leg_sensors_batch")``); True only if every
-            one has a cache index for the current source.  None: True if any kernel has one,
-            i.e. the package has compiled and cached kernels before.
+        names: kernel names (e.g. ``("_error_rows",)``); True only if every one has a cache index
+            for the current source.  None: True if any kernel has one, i.e. the package has
+            compiled and cached kernels before.
     """
+    import sys
+
     from numba.core.dispatcher import Dispatcher
 
-    from stewart_env.dynamics import kernels, rk4
-
-    found = {name: obj for module in (kernels, rk4) for name, obj in vars(module).items()
+    modules = [m for name, m in list(sys.modules.items()) if name.startswith(_PACKAGE + ".") and m is not None]
+    found = {name: obj for module in modules for name, obj in vars(module).items()
              if isinstance(obj, Dispatcher) and obj.py_func.__module__ == module.__name__}
     if names is None:
         return any(_has_fresh_index(obj) for obj in found.values())

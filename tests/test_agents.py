@@ -268,19 +268,22 @@ def test_computed_torque_with_the_plant_model_beats_pd_on_tracking():
         assert rms["matched"] < 0.8 * rms["mismatched"]
 
 
-def test_the_compiled_laws_angles_and_rates_are_the_packages(rng):
+def test_the_compiled_laws_angles_and_rates_are_the_packages(dasgupta, rng):
     """pd_control_law computes roll-pitch-yaw and their rates in compiled code: the same convention
-    as stewart_env.matrix_to_rpy and rotations.rpy_rate_matrix."""
-    from scipy.spatial.transform import Rotation
-
-    from stewart_env.agents.pd import _rpy_and_rates
+    as stewart_env.matrix_to_rpy and rotations.rpy_rate_matrix.  With gains on the angles alone and
+    the reference at zero angles and rates, the law's wrench is -Kp rpy - Kd E^-1 w, realised by J^-T."""
+    from stewart_env.agents.pd import pd_control_law, pd_control_params
+    from stewart_env.dynamics.rk4 import law_forces
     from stewart_env.rotations import rpy_rate_matrix
 
-    out = np.empty(6)
-    for R in Rotation.random(20, random_state=5).as_matrix():
-        w = rng.normal(size=3)
-        _rpy_and_rates(R, w, out)
-        rpy = se.matrix_to_rpy(R)
-        np.testing.assert_allclose(out[:3], rpy, rtol=0, atol=1e-15)  # the same atan2/asin calls
-        # closed-form inverse of E against a LU solve: rounding, scaled by 1/cos(pitch) (random poses)
-        np.testing.assert_allclose(out[3:], np.linalg.solve(rpy_rate_matrix(rpy), w), rtol=1e-10, atol=1e-12)
+    kp, kd = np.array([0, 0, 0, 300.0, 200.0, 100.0]), np.array([0, 0, 0, 30.0, 20.0, 10.0])
+    z = np.zeros(3)
+    row = pd_control_params(dasgupta, se.Reference(dasgupta.home_position, np.eye(3), z, z), kp, kd)
+    for _ in range(20):
+        rpy = rng.uniform(-0.3, 0.3, size=3)
+        R, w = se.rpy_to_matrix(rpy), rng.normal(size=3)
+        got = law_forces(pd_control_law, row[None], dasgupta.home_position[None], R[None], z[None], w[None])[0]
+        wrench = np.concatenate([z, -kp[3:] * se.matrix_to_rpy(R) - kd[3:] * np.linalg.solve(rpy_rate_matrix(rpy), w)])
+        want = np.linalg.solve(se.jacobian(dasgupta, dasgupta.home_position, R).T, wrench)
+        # closed-form inverse of E and the law's own 6x6 solve against LU solves: rounding, scaled by cond(J) ~ 10
+        np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10 * np.abs(want).max())

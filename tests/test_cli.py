@@ -174,19 +174,6 @@ def test_first_run_announces_the_kernel_compilation_once(monkeypatch, capsys):
         assert capsys.readouterr().err == expected
 
 
-def test_reproduce_announces_its_own_control_law_kernel(monkeypatch, capsys):
-    import stewart_env.cli as cli
-
-    fake = types.ModuleType("stewart_env.numba_cache")
-    # the shared kernels are cached, the RK4 kernel with a control law is not
-    fake.is_warm = lambda names=None: names is None or "rollout_law_batch" not in names
-    monkeypatch.setitem(sys.modules, "stewart_env.numba_cache", fake)
-    cli._announce_compilation("demo")
-    assert capsys.readouterr().err == ""
-    cli._announce_compilation("reproduce")
-    assert capsys.readouterr().err == "compiling kernels, first run only (~30 s)\n"
-
-
 def test_train_cli_says_how_many_steps_it_ran(tmp_path, capsys):
     config = tmp_path / "ppo.yml"
     config.write_text("StewartPlatform-v0:\n  n_timesteps: 1000\n  policy: MlpPolicy\n  n_envs: 2\n  n_steps: 16\n"

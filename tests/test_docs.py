@@ -13,6 +13,10 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PHYSICS = ROOT / "docs" / "physics.md"
 KERNELS = ROOT / "stewart_env" / "dynamics" / "kernels.py"
+#: The compiled kernels' sources by the module name the physics page's function table gives them:
+#: the one implementation of the physics (kernels.hpp) and of the integrator (rk4.hpp).
+CPP_SOURCES = {"kernels": ROOT / "stewart_env" / "dynamics" / "cpp" / "kernels.hpp",
+               "rk4": ROOT / "stewart_env" / "dynamics" / "cpp" / "rk4.hpp"}
 CODE_MODULES = {
     "kernels": "stewart_env.dynamics.kernels",
     "model": "stewart_env.dynamics.model",
@@ -68,6 +72,28 @@ def first_column_names(table):
     return names
 
 
+def cpp_functions(path):
+    """{name: comment} of every function defined at the top level of a C++ source (its namespace's
+    body is not indented), with the ``//`` comment lines right above it joined into one text."""
+    text = path.read_text()
+    pattern = r'((?:^//.*\n)*)^(?:template <.*>\n)?(?:extern "C" )?(?:inline|constexpr)\b[^(;={}]*?\b(\w+)\('
+    return {m.group(2): " ".join(line[2:].strip() for line in m.group(1).splitlines())
+            for m in re.finditer(pattern, text, flags=re.M)}
+
+
+def cpp_structs(path):
+    """Names of the structs a C++ source defines."""
+    return re.findall(r"^struct (\w+) \{", path.read_text(), flags=re.M)
+
+
+def test_cpp_functions_are_found():
+    """The parser of the C++ sources finds their functions, comments included."""
+    functions = cpp_functions(CPP_SOURCES["kernels"])
+    assert {"cross", "leg_frame", "forward_one", "forward_batch", "offset_of"} <= set(functions)
+    assert "paper eq. 13" in functions["jacobian_row"]
+    assert {"rollout_row", "constant_forces", "law_jacobian"} <= set(cpp_functions(CPP_SOURCES["rk4"]))
+
+
 def test_no_tracked_file_points_at_a_document_outside_the_repository():
     offenders = []
     for path in tracked_files():
@@ -96,18 +122,24 @@ def test_relative_links_resolve(page):
 
 
 def test_every_function_in_the_physics_table_exists_and_every_kernel_is_listed():
-    """Every function of kernels.py and rk4.py has a row in the physics page's function table."""
+    """Every function of the compiled kernels (kernels.hpp, rk4.hpp) and of their Python faces
+    (kernels.py, rk4.py) has a row in the physics page's function table, and every row names a
+    function or struct of those sources or an attribute of the module it names."""
     table = section(PHYSICS.read_text(), "### 3.2 Functions")
     listed = first_column_names(table)
     assert len(listed) > 30  # the table was found and parsed
     missing = []
     for name in listed:
         module, _, attr = name.partition(".")
+        cpp = CPP_SOURCES.get(module)
+        if cpp is not None and (attr in cpp_functions(cpp) or attr in cpp_structs(cpp)):
+            continue
         if not hasattr(importlib.import_module(CODE_MODULES[module]), attr):
             missing.append(name)
     assert not missing
     for module, path in (("kernels", KERNELS), ("rk4", KERNELS.with_name("rk4.py"))):
         functions = [n.name for n in ast.parse(path.read_text()).body if isinstance(n, ast.FunctionDef)]
+        functions += list(cpp_functions(CPP_SOURCES[module]))
         assert sorted(set(functions) - {n.partition(".")[2] for n in listed if n.startswith(module + ".")}) == []
 
 
@@ -116,6 +148,7 @@ def test_every_code_name_in_the_symbol_table_occurs_in_the_code():
     names = first_column_names(table)
     assert len(names) > 50  # the table was found and parsed
     source = "".join(importlib.import_module(m).__loader__.get_source(m) for m in CODE_MODULES.values())
+    source += "".join(path.read_text() for path in CPP_SOURCES.values())
 
     def occurs(word):
         return re.search(rf"(?<![\w']){re.escape(word)}(?![\w'])", source) is not None
@@ -137,10 +170,15 @@ def test_code_docstrings_cite_sections_that_exist():
     tree = ast.parse(KERNELS.read_text())
     undocumented = [n.name for n in tree.body
                     if isinstance(n, ast.FunctionDef) and "docs/physics.md" not in (ast.get_docstring(n) or "")]
+    undocumented += [f"{module}.{name}" for module, path in CPP_SOURCES.items()
+                     for name, comment in cpp_functions(path).items() if "docs/physics.md" not in comment]
     assert not undocumented
     cited = []
-    for module in CODE_MODULES.values():
-        source = importlib.import_module(module).__loader__.get_source(module)
+    sources = [importlib.import_module(m).__loader__.get_source(m) for m in CODE_MODULES.values()]
+    # a C++ comment's lines joined, so that a citation broken over two lines is read whole
+    sources += [" ".join(re.sub(r"^\s*// ?", "", line) for line in path.read_text().splitlines())
+                for path in CPP_SOURCES.values()]
+    for source in sources:
         for ref in re.findall(r"docs/physics\.md\)? (sections? [0-9][0-9.,\- and]*)", source):
             cited += re.findall(r"(?<![\w.])\d+(?:\.\d+)?", ref)
     assert len(cited) > 30
@@ -171,4 +209,7 @@ def test_every_kernel_names_its_paper_equations_or_says_it_has_none():
     tree = ast.parse(KERNELS.read_text())
     silent = [n.name for n in tree.body if isinstance(n, ast.FunctionDef)
               and not re.search(r"\beqs?\.\s+\d|no\s+paper\s+equation", ast.get_docstring(n) or "")]
+    silent += [f"{module}.{name}" for module, path in CPP_SOURCES.items()
+               for name, comment in cpp_functions(path).items()
+               if not re.search(r"\beqs?\.\s+\d|no\s+paper\s+equation", comment)]
     assert silent == []

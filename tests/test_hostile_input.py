@@ -487,6 +487,10 @@ def read_only_install(tmp_path):
     install = tmp_path / "install"
     package_dir = Path(stewart_env.__file__).resolve().parent
     shutil.copytree(package_dir, install / "stewart_env", ignore=shutil.ignore_patterns("__pycache__"))
+    # the compiled extension: beside the sources in a normal install, elsewhere in an editable one
+    extension = Path(stewart_env.dynamics._core.__file__)
+    if not (install / "stewart_env" / "dynamics" / extension.name).exists():
+        shutil.copy2(extension, install / "stewart_env" / "dynamics" / extension.name)
     shutil.copytree(package_dir.parent / "configs", install / "configs", ignore=shutil.ignore_patterns("__pycache__"))
     home = tmp_path / "home"
     home.mkdir()
@@ -499,12 +503,16 @@ def read_only_install(tmp_path):
                 os.chmod(os.path.join(root, name), 0o444)
             os.chmod(root, 0o555)
     env = {k: v for k, v in os.environ.items() if not k.startswith(("NUMBA_", "PYTHON", "XDG_"))}
-    env.update(HOME=str(home), PYTHONPATH=str(install), TMPDIR=str(writable_tmp), PYTHONDONTWRITEBYTECODE="1")
+    # the child starts without site (-S), so no editable install's path hook can point it at a
+    # checkout: it finds stewart_env in the copy and the other packages in this Python's site dirs
+    site_dirs = [p for p in sys.path if Path(p).name in ("site-packages", "dist-packages")]
+    env.update(HOME=str(home), PYTHONPATH=os.pathsep.join([str(install), *site_dirs]), TMPDIR=str(writable_tmp),
+               PYTHONDONTWRITEBYTECODE="1")
 
     def run(code: str, tempdir: Path | None = None) -> subprocess.CompletedProcess:
         setup = f"import tempfile; tempfile.tempdir = {str(tempdir)!r}\n" if tempdir else ""
         script = setup + textwrap.dedent(code)
-        return subprocess.run([*prefix, sys.executable, "-W", "always", "-c", script], env=env, cwd=str(home),
+        return subprocess.run([*prefix, sys.executable, "-S", "-W", "always", "-c", script], env=env, cwd=str(home),
                               capture_output=True, text=True, timeout=300)
 
     yield run, tmp_path
@@ -518,13 +526,15 @@ import warnings
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
     import stewart_env
-from stewart_env import numba_cache
-from stewart_env.dynamics import kernels
+import numpy as np
+from stewart_env import numba_cache, rotations
 print("FILE", stewart_env.__file__)
 print("WARNINGS", json.dumps([str(w.message) for w in caught if w.category is numba_cache.CacheWarning]))
-print("WARM_BEFORE", numba_cache.is_warm(["_cross"]))
-print("CROSS", kernels._cross(1.0, 0.0, 0.0, 0.0, 1.0, 0.0))
-print("WARM_AFTER", numba_cache.is_warm(["_cross"]), numba_cache.is_warm())
+print("WARM_BEFORE", numba_cache.is_warm(["rotation_error_rows"]))
+phi, angle = np.empty((1, 3)), np.empty(1)
+rotations.rotation_error_rows(rotations.rpy_to_matrix([[0.0, 0.0, 0.5]]), np.eye(3)[None], phi, angle)
+print("ANGLE", round(float(angle[0]), 12))
+print("WARM_AFTER", numba_cache.is_warm(["rotation_error_rows"]), numba_cache.is_warm())
 print("MASS", stewart_env.load_platform("dasgupta1998").platform.mass)
 """
 
@@ -542,12 +552,12 @@ def test_import_from_a_read_only_install_caches_in_a_private_temp_dir(read_only_
     assert len(warnings) == 1 and "numba cannot cache compiled kernels" in warnings[0]
     assert str(root / "tmp" / "stewart_env-numba-cache-") in warnings[0]
     assert first["WARM_BEFORE"] == "False"
-    assert first["CROSS"] == "(0.0, 0.0, 1.0)"  # x cross y = z
+    assert first["ANGLE"] == "0.5"  # a yaw of 0.5 rad
     assert first["WARM_AFTER"] == "True True"
     assert first["MASS"] == "40.0"
     caches = list(root.glob("tmp/stewart_env-numba-cache-*"))
     assert len(caches) == 1 and stat.S_IMODE(caches[0].stat().st_mode) == 0o700
-    assert list(caches[0].glob("*/kernels._cross-*.nbi")), "the kernel was not cached"
+    assert list(caches[0].glob("*/rotations.rotation_error_rows-*.nbi")), "the kernel was not cached"
     second = child_output(run(CHILD))
     assert second["WARM_BEFORE"] == "True"  # compiled by the first process, loaded by the second
     assert not list(root.glob("install/**/__pycache__")) and not list(root.glob("home/*"))
@@ -558,19 +568,19 @@ def test_import_without_any_writable_directory_compiles_in_memory(read_only_inst
     out = child_output(run(CHILD, tempdir=root / "home"))
     warnings = json.loads(out["WARNINGS"])
     assert len(warnings) == 1 and "kernels are compiled in memory" in warnings[0]
-    assert out["CROSS"] == "(0.0, 0.0, 1.0)"  # x cross y = z
+    assert out["ANGLE"] == "0.5"  # a yaw of 0.5 rad
     assert out["WARM_AFTER"] == "False False"  # nothing can be cached
     assert out["MASS"] == "40.0"
 
 
 def test_is_warm_knows_the_kernels():
-    from stewart_env.dynamics import kernels
     from stewart_env.numba_cache import is_warm
+    from stewart_env.rotations import rotation_error_rows
 
-    kernels._cross(1.0, 0.0, 0.0, 0.0, 1.0, 0.0)  # compiled (and so cached) at the latest here
-    assert is_warm(["_cross"]) and is_warm()
+    rotation_error_rows(np.eye(3)[None], np.eye(3)[None], np.empty((1, 3)), np.empty(1))  # compiled and cached
+    assert is_warm(["rotation_error_rows"]) and is_warm()
     with pytest.raises(ValueError, match=r"^is_warm: unknown kernel\(s\) 'no_such_kernel'$"):
-        is_warm(["rollout_batch", "no_such_kernel"])
+        is_warm(["rotation_error_rows", "no_such_kernel"])
 
 
 # ---------------------------------------------------------------------------------------------

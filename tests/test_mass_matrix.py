@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 
 import stewart_env as se
-from stewart_env.dynamics.kernels import PARALLEL_MIN_ROWS
 from stewart_env.params import RigidBody
 from physics_reference import kinetic_energy, random_state
 
@@ -90,7 +89,7 @@ def test_mass_matrix_does_not_depend_on_the_rates(dasgupta, rng):
 
 
 def test_batched_mass_matrix_and_bias_equal_single_calls(dasgupta, rng):
-    n = PARALLEL_MIN_ROWS + 4  # enough rows for the threaded kernel path
+    n = 20  # a batch of many rows: each row as the single call
     params = [dasgupta.replace(platform=RigidBody(dasgupta.platform.mass * (1 + 0.05 * i), dasgupta.platform.com,
                                                   dasgupta.platform.inertia)) for i in range(n)]
     for model in (se.make_dynamics("improved", dasgupta), se.make_dynamics("classical", params)):

@@ -51,3 +51,26 @@ def test_config_dir_falls_back_to_the_source_tree(installed, monkeypatch, tmp_pa
     monkeypatch.setattr(importlib.resources, "files", files)
     assert config_dir("platforms") == REPOSITORY / "configs" / "platforms"
     assert "dasgupta1998" in params_module.available_platforms()
+
+
+@pytest.mark.slow
+def test_the_wheel_holds_the_compiled_extension_and_the_configs(tmp_path):
+    """``pip wheel .`` compiles the physics into the wheel and ships the configs and agents inside
+    the package, and not the C++ sources (about a minute: it compiles the extension)."""
+    import subprocess
+    import sys
+    import zipfile
+
+    pytest.importorskip("scikit_build_core")  # the build backend, from the extra "test"
+    pytest.importorskip("nanobind")
+    result = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-w",
+                             str(tmp_path), str(REPOSITORY)], capture_output=True, text=True, timeout=900)
+    assert result.returncode == 0, result.stderr[-3000:]
+    (wheel,) = tmp_path.glob("stewart_env-*.whl")
+    names = zipfile.ZipFile(wheel).namelist()
+    extensions = [n for n in names if n.startswith("stewart_env/dynamics/_core.") and n.endswith((".so", ".pyd"))]
+    assert len(extensions) == 1
+    for shipped in ("stewart_env/configs/platforms/dasgupta1998.yaml", "stewart_env/configs/agents/ppo.yml",
+                    "stewart_env/agents/pd.py", "stewart_env/dynamics/kernels.py"):
+        assert shipped in names
+    assert not [n for n in names if "/cpp/" in n or n.endswith((".hpp", ".cpp"))]

@@ -1,14 +1,26 @@
 """The one RK4 integrator: forces held, or given by a compiled control law at every stage."""
 
+import ctypes
+
 import numpy as np
 import pytest
-from numba import njit
 
 import stewart_env as se
 from stewart_env.dynamics import rk4
 from stewart_env.integrate import Trajectory, rollout_inplace
 
-N_ROWS = 17  # one more than PARALLEL_MIN_ROWS: the batch takes the parallel path
+try:
+    import numba
+except ImportError:  # a user's laws as numba cfuncs need the optional extra "laws"
+    numba = None
+needs_numba = pytest.mark.skipif(numba is None, reason="numba (the extra 'laws') is not installed")
+
+N_ROWS = 17  # a batch of many rows
+
+
+def _law(body):
+    """``body`` compiled as a numba cfunc control law (None without numba; its tests skip)."""
+    return None if numba is None else rk4.ControlLaw(numba.cfunc(rk4.numba_law_signature(), cache=True)(body))
 
 
 @pytest.fixture
@@ -53,23 +65,24 @@ def test_held_forces_give_the_results_of_before_control_laws(batch):
         np.testing.assert_allclose(g, e, rtol=0, atol=1e-13 * np.abs(e).max())
 
 
-@njit(cache=True)
-def _hold(time, position, rotation, velocity, angular_velocity, params, forces):
+@_law
+def _hold(time, position, rotation, velocity, angular_velocity, params, n_params, forces):
     for i in range(6):
         forces[i] = params[i]
 
 
-@njit(cache=True)
-def _swaying(time, position, rotation, velocity, angular_velocity, params, forces):
+@_law
+def _swaying(time, position, rotation, velocity, angular_velocity, params, n_params, forces):
     """params[:6] plus params[6] sin(params[7] t) on every leg: a law that depends on time."""
     for i in range(6):
         forces[i] = params[i] + params[6] * np.sin(params[7] * time)
 
 
+@needs_numba
 def test_a_law_that_holds_the_forces_is_the_held_rollout_bit_for_bit(batch):
     model, state, F, W = batch
     held = se.rollout(model, *state, F, dt=1e-3, steps=20, external_wrench=W)
-    for law in (_hold, rk4.constant_forces):
+    for law in (_hold, rk4.CONSTANT_FORCES):
         by_law = se.rollout(model, *state, dt=1e-3, steps=20, external_wrench=W, control_law=law, control_params=F)
         for a, b in zip(held, by_law):
             np.testing.assert_array_equal(a, b)  # the same RK4 row: the law only supplies F
@@ -84,6 +97,7 @@ def test_rollout_inplace_is_rollout(batch):
         np.testing.assert_array_equal(a, b)
 
 
+@needs_numba
 def test_per_row_parameters_equal_rows_run_alone(batch):
     model, state, F, W = batch
     params = np.hstack([F, np.linspace(0, 200, N_ROWS)[:, None], np.full((N_ROWS, 1), 30.0)])
@@ -92,7 +106,7 @@ def test_per_row_parameters_equal_rows_run_alone(batch):
         alone = se.rollout(model, *(x[b] for x in state), dt=1e-3, steps=20, external_wrench=W[b],
                            control_law=_swaying, control_params=params[b])
         for a, x in zip(alone, end):
-            np.testing.assert_array_equal(a, x[b])  # rows are independent: the parallel path changes nothing
+            np.testing.assert_array_equal(a, x[b])  # rows are independent: the batch changes nothing
     # one parameter row (P,) is shared by every platform of the batch
     shared = se.rollout(model, *state, dt=1e-3, steps=20, external_wrench=W, control_law=_swaying,
                         control_params=params[5])
@@ -102,6 +116,7 @@ def test_per_row_parameters_equal_rows_run_alone(batch):
         np.testing.assert_array_equal(a, b)
 
 
+@needs_numba
 def test_a_time_dependent_law_converges_at_fourth_order(dasgupta):
     """The law sees each stage's own time; were it given the step's start, RK4 would drop to first order."""
     model = se.make_dynamics("improved", dasgupta)
@@ -119,6 +134,7 @@ def test_a_time_dependent_law_converges_at_fourth_order(dasgupta):
     assert np.abs(reference - dasgupta.home_position).max() > 1e-2  # the sway does move it: 9 cm
 
 
+@needs_numba
 def test_start_time_continues_a_run(dasgupta):
     model = se.make_dynamics("improved", dasgupta)
     R = se.rpy_to_matrix(dasgupta.home_rpy)
@@ -133,6 +149,7 @@ def test_start_time_continues_a_run(dasgupta):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-14)
 
 
+@needs_numba
 def test_recorded_trajectory(batch):
     model, state, F, W = batch
     params = np.hstack([F, np.full((N_ROWS, 1), 100.0), np.full((N_ROWS, 1), 30.0)])
@@ -160,12 +177,13 @@ def test_recorded_trajectory(batch):
     np.testing.assert_array_equal(one.leg_forces, np.tile(F[2], (3, 1)))
 
 
-@njit(cache=True)
-def _explode(time, position, rotation, velocity, angular_velocity, params, forces):
+@_law
+def _explode(time, position, rotation, velocity, angular_velocity, params, n_params, forces):
     for i in range(6):
         forces[i] = params[0]
 
 
+@needs_numba
 def test_rows_that_diverge_are_named_or_returned(batch):
     model, state, F, W = batch
     params = np.zeros((N_ROWS, 1))
@@ -184,18 +202,21 @@ def _not_a_law(time, position, rotation, velocity, angular_velocity, params, for
     forces[:] = 0.0
 
 
-@njit
 def _two_arguments(time, forces):
-    forces[:] = 0.0
+    forces[0] = 0.0
 
 
+@needs_numba
 def test_bad_arguments_are_named(batch):
     model, state, F, W = batch
     one = [x[0] for x in state]
-    with pytest.raises(ValueError, match="^control_law: expected a numba @njit function"):
+    with pytest.raises(ValueError, match="^control_law: expected a compiled control law"):
         se.rollout(model, *one, control_law=_not_a_law, steps=1)
-    with pytest.raises(ValueError, match="^control_law: _two_arguments does not compile"):
-        se.rollout(model, *one, control_law=_two_arguments, steps=1)
+    with pytest.raises(ValueError, match="^control_law: expected a compiled control law"):
+        se.rollout(model, *one, control_law=numba.njit(_not_a_law), steps=1)  # a jitted function is no C function
+    two = numba.cfunc("void(float64, CPointer(float64))")(_two_arguments)
+    with pytest.raises(ValueError, match="^control_law: _two_arguments does not have the signature of a control law"):
+        se.rollout(model, *one, control_law=two, steps=1)
     with pytest.raises(ValueError, match="^leg_forces: the control_law gives"):
         se.rollout(model, *one, F[0], control_law=_hold, control_params=F[0], steps=1)
     with pytest.raises(ValueError, match="^leg_forces: required"):
@@ -226,6 +247,7 @@ def test_a_half_turn_is_carried_exactly(dasgupta):
         np.testing.assert_allclose(end[1].T @ end[1], np.eye(3), rtol=0, atol=1e-15)  # orthonormal to rounding
 
 
+@needs_numba
 def test_a_law_on_a_model_with_a_parameter_set_per_row(dasgupta):
     """Domain randomisation: one state and one law row for every platform, a parameter set per row."""
     d = dasgupta.to_dict()
@@ -244,12 +266,13 @@ def test_a_law_on_a_model_with_a_parameter_set_per_row(dasgupta):
     assert not np.allclose(end[0][0], end[0][1])  # and the heavier platform moves differently
 
 
-@njit(cache=True)
-def _five_forces(time, position, rotation, velocity, angular_velocity, params, forces):
+@_law
+def _five_forces(time, position, rotation, velocity, angular_velocity, params, n_params, forces):
     for i in range(5):
         forces[i] = params[i]
 
 
+@needs_numba
 def test_a_law_that_leaves_a_force_unwritten_stops_the_rollout(batch):
     """The sixth force is NaN, not whatever the buffer held: the rollout names the rows."""
     model, state, F, W = batch
@@ -289,3 +312,36 @@ def test_a_law_failing_on_its_parameters_names_control_law(batch, dasgupta):
     model, state, F, W = batch
     with pytest.raises(ValueError, match=r"^control_law: pd_control_law failed on control_params of shape \(1, 5\)"):
         se.rollout(model, *[x[0] for x in state], control_law=pd_control_law, control_params=np.ones(5), steps=1)
+
+
+def test_a_ctypes_function_is_a_control_law(batch):
+    """A law reaches the integrator as a C function pointer: here a Python function behind ctypes,
+    called with the GIL taken back; it gives the held forces' rollout bit for bit."""
+    model, state, F, W = batch
+    one = [x[0] for x in state]
+    seen = []
+
+    def hold(time, position, rotation, velocity, angular_velocity, params, n_params, forces):
+        seen.append(n_params)
+        for i in range(6):
+            forces[i] = params[i]
+
+    law = rk4.ControlLaw(rk4.LAW_CTYPES(hold), name="hold")
+    by_law = se.rollout(model, *one, dt=1e-3, steps=3, external_wrench=W[0], control_law=law, control_params=F[0])
+    held = se.rollout(model, *one, F[0], dt=1e-3, steps=3, external_wrench=W[0])
+    for a, b in zip(held, by_law):
+        np.testing.assert_array_equal(a, b)
+    assert seen == [6] * 12  # four stages of three steps, each given the row's length
+    untyped = ctypes.CFUNCTYPE(None, ctypes.c_double)(lambda time: None)
+    with pytest.raises(ValueError, match="^control_law: .* does not have the signature of a control law"):
+        se.rollout(model, *one, control_law=untyped, steps=1)
+
+
+def test_a_law_declaring_its_row_length_refuses_other_rows(batch):
+    model, state, F, W = batch
+    law = rk4.ControlLaw(rk4.LAW_CTYPES(lambda *args: None), n_params=8, name="eight")
+    with pytest.raises(ValueError, match=r"^control_law: eight failed on control_params of shape \(1, 6\): it reads "
+                                         r"rows of 8 numbers"):
+        se.rollout(model, *[x[0] for x in state], control_law=law, control_params=F[0], steps=1)
+    with pytest.raises(ValueError, match="^n_params: "):
+        rk4.ControlLaw(rk4.LAW_CTYPES(lambda *args: None), n_params=-1)

@@ -151,18 +151,20 @@ def test_scale_packed_names_a_wrong_or_read_only_out_row(model):
 # -- rollout with a control law -----------------------------------------------------------------
 
 
-@numba.njit
 def _wrong_signature(time, position):
     pass
 
 
 @numba.njit
-def _returns_a_value(time, position, rotation, velocity, angular_velocity, params, forces):
+def _jitted(time, position, rotation, velocity, angular_velocity, params, forces):
+    forces[0] = 0.0
+
+
+def _returns_a_value(time, position, rotation, velocity, angular_velocity, params, n_params, forces):
     return 1.0
 
 
-@numba.njit
-def _nan_forces(time, position, rotation, velocity, angular_velocity, params, forces):
+def _nan_forces(time, position, rotation, velocity, angular_velocity, params, n_params, forces):
     for i in range(6):
         forces[i] = np.nan
 
@@ -171,8 +173,11 @@ def _python_law(time, position, rotation, velocity, angular_velocity, params, fo
     forces[:] = 0.0
 
 
-@pytest.mark.parametrize("law", [_python_law, lambda *a: None, _wrong_signature, _returns_a_value],
-                         ids=["python", "lambda", "wrong-signature", "returns-a-value"])
+@pytest.mark.parametrize("law", [
+    _python_law, lambda *a: None, _jitted, numba.cfunc("void(float64, CPointer(float64))")(_wrong_signature),
+    numba.cfunc("float64(float64, CPointer(float64), CPointer(float64), CPointer(float64), CPointer(float64), "
+                "CPointer(float64), int64, CPointer(float64))")(_returns_a_value),
+], ids=["python", "lambda", "njit", "wrong-signature", "returns-a-value"])
 def test_rollout_refuses_a_law_that_is_not_a_compiled_law_naming_control_law(model, home, law):
     t, R, z = home
     with pytest.raises(ValueError, match=r"^control_law: "):
@@ -181,9 +186,10 @@ def test_rollout_refuses_a_law_that_is_not_a_compiled_law_naming_control_law(mod
 
 def test_rollout_law_giving_nan_forces_raises_naming_the_rows(model, home):
     t, R, z = home
+    nan_forces = numba.cfunc(se.dynamics.rk4.numba_law_signature())(_nan_forces)
     with pytest.raises(FloatingPointError, match=r"non-finite in batch rows \[0\]"):
-        se.rollout(model, t, R, z, z, steps=10, control_law=_nan_forces)
-    final = se.rollout(model, t, R, z, z, steps=10, control_law=_nan_forces, check_finite=False)[0]
+        se.rollout(model, t, R, z, z, steps=10, control_law=nan_forces)
+    final = se.rollout(model, t, R, z, z, steps=10, control_law=nan_forces, check_finite=False)[0]
     assert np.isnan(final).all()  # unchecked, the rows come back NaN for the caller to see
 
 

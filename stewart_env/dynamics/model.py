@@ -95,8 +95,7 @@ def pack_params(params: PlatformParams) -> np.ndarray:
 #: 1e-6; a matrix off by more is not a rotation, and the kernels would treat it as one silently.
 ROTATION_TOLERANCE = 1e-6
 
-# The wrench of a call that gives none, shared: the kernels never write their inputs (and a
-# read-only array would make numba compile every kernel a second time).
+# The wrench of a call that gives none, shared: the kernels never write their inputs.
 _NO_WRENCH = np.zeros(6)
 
 
@@ -164,7 +163,7 @@ def check_rotation(name: str, R: np.ndarray) -> None:
                          f"det R = {det[rows[0]]:.6g}; tolerance {ROTATION_TOLERANCE:g})")
 
 
-#: The most RK4 steps one call may take (numba's int64).
+#: The most RK4 steps one call may take (the kernels' int64).
 MAX_STEPS = 2**63 - 1
 
 

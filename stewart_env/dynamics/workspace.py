@@ -6,8 +6,8 @@ model/data split: every array a call reads or writes is allocated once, C-contig
 and :meth:`Workspace.forward`, :meth:`~Workspace.inverse`, :meth:`~Workspace.mass_and_bias` and
 :meth:`~Workspace.step` hand those arrays straight to the compiled kernels.  A controller loop
 writes the state into the arrays in place and calls; nothing is broadcast or re-checked per
-call, and no Python object is allocated (the compiled kernels keep a row's 6x6 scratch on
-numba's own heap).
+call, and no Python object is allocated (the compiled kernels keep a row's 6x6 scratch on the
+stack).
 
 What the workspace checks once, when it is made: that the model is a Dynamics and ``n`` a
 positive integer matching its parameter rows (1 or ``n``); the arrays' shapes, dtype and
@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from stewart_env.dynamics import _core
 from stewart_env.dynamics import kernels as K
-from stewart_env.dynamics import rk4
 from stewart_env.dynamics.model import Dynamics, batch_args, check_step
 from stewart_env.rotations import rpy_to_matrix
 
@@ -153,5 +153,5 @@ class Workspace:
         A row whose state stops being finite stays so (see :meth:`check`).
         docs/physics.md section 5.6."""
         dt, steps = check_step(dt, steps)
-        rk4.rollout_batch(self._packed, self._flags, self._position, self._rotation, self._velocity,
-                          self._angular_velocity, self._leg_forces, self._external_wrench, dt, steps)
+        _core.rollout_batch(self._packed, self._flags, self._position, self._rotation, self._velocity,
+                            self._angular_velocity, self._leg_forces, self._external_wrench, dt, steps)
