@@ -37,6 +37,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, BinaryIO
 
+from stewart_env.errors import UsageError
+
 try:
     import fcntl
 except ImportError:  # no flock (Windows): folders are not locked there
@@ -57,7 +59,7 @@ _PID_BYTES = 32
 _LOCK_ATTEMPTS, _LOCK_RETRY_SECONDS = 20, 0.01
 
 
-class FileError(ValueError):
+class FileError(UsageError):
     """A file or folder that cannot be read or written as asked; the message names the path and
     the cause.  A ValueError, as every request the command line reports in one line."""
 

@@ -66,6 +66,7 @@ from typing import NamedTuple
 import numpy as np
 import yaml
 
+from stewart_env.errors import UsageError
 from stewart_env.files import FileError, read_regular
 from stewart_env.rotations import rpy_to_matrix
 
@@ -108,7 +109,7 @@ _MAX_INT_LITERAL = 1000
 _EXCERPT = 60
 
 
-class ConfigError(ValueError):
+class ConfigError(UsageError):
     """An invalid platform parameter or config file (also raised for an invalid domain
     randomisation spec).
 

@@ -18,8 +18,13 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ArgumentError", "check_action", "check_keywords", "choice", "flag", "integer",
-           "interval", "real", "real_array", "reset_options", "vector"]
+__all__ = ["MAX_SEED", "ArgumentError", "check_action", "check_keywords", "choice", "flag", "integer",
+           "interval", "real", "real_array", "reset_options", "seed", "vector"]
+
+
+#: Largest seed: numpy's SeedSequence takes any non-negative int, but the seeds a run records
+#: and passes on to outside libraries (SB3, torch, Gymnasium's spaces) must fit 32 bits.
+MAX_SEED = 2**32 - 1
 
 
 class ArgumentError(TypeError, ValueError):
@@ -71,6 +76,11 @@ def integer(name: str, value: Any, low: int, high: int) -> int:
     if not low <= value <= high:
         raise ValueError(f"{name}: expected an integer in [{low}, {high}], got {_excerpt(value)}")
     return int(value)
+
+
+def seed(name: str, value: Any) -> int:
+    """``value`` as a seed: an integer (not a bool) in [0, :data:`MAX_SEED`]."""
+    return integer(name, value, 0, MAX_SEED)
 
 
 def flag(name: str, value: Any) -> bool:

@@ -19,6 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 LAYERS = {
     "stewart_env.validation": "physics",
     "stewart_env.files": "physics",
+    "stewart_env.errors": "physics",
     "stewart_env.state": "physics",
     "stewart_env.rotations": "physics",
     "stewart_env.params": "physics",
