@@ -241,7 +241,9 @@ class Dynamics:
     ``packed`` (Np, N_PARAMS), read-only, and ``params``: the :class:`PlatformParams` of each row
     of ``packed`` (a sequence; rows set from packed numbers are built when first read, see
     :meth:`with_packed_rows`).  The model is immutable: the ``with_*`` methods return new ones.
-    Its :meth:`workspace` holds the preallocated arrays of a controller loop.
+    Its :meth:`workspace` holds the preallocated arrays of a controller loop.  A platform whose
+    home pose is conditioned beyond its limits.max_condition raises ConfigError
+    (``check_home_condition``).
     """
 
     def __init__(self, name: str, params: PlatformParams | Sequence[PlatformParams]):

@@ -1,12 +1,13 @@
 """The parts of a platform's parameters as immutable value objects: :class:`RigidBody` (one body's
 inertial parameters), :class:`Damping` (the joints' viscous friction) and :class:`Limits` (the
-environment's operating limits), on :class:`ValueObject`, their equality, hashing and pickling.
+environment's operating limits), compared, hashed and pickled by value (as is PlatformParams).
 
 Each validates its values when built (directly, by ``from_dict`` or by ``dataclasses.replace``)
-and raises :class:`~stewart_env.params.checks.ConfigError` naming the field.
+and raises :class:`~stewart_env.params.ConfigError` naming the field.
 """
 
-from __future__ import annotations
+# Annotations are evaluated here, not postponed: the classes are shown and pickled under
+# stewart_env.params, whose namespace could not resolve their names for typing.get_type_hints.
 
 import dataclasses
 from collections.abc import Mapping
@@ -16,10 +17,10 @@ import numpy as np
 
 from stewart_env.params.checks import ConfigError, array, frozen_array, interval, mapping, number
 
-__all__ = ["ValueObject", "set_field", "RigidBody", "Damping", "Limits"]
+__all__ = ["set_field", "RigidBody", "Damping", "Limits"]
 
 
-class ValueObject:
+class _ValueObject:
     """Equality, hashing and pickling by value for frozen dataclasses whose fields may be numpy
     arrays (the dataclass defaults would compare arrays elementwise)."""
 
@@ -61,7 +62,7 @@ def _symmetric_eigenvalues(matrix: np.ndarray, key: str) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class RigidBody(ValueObject):
+class RigidBody(_ValueObject):
     """Inertial parameters of one rigid body.
 
     Attributes:
@@ -99,7 +100,7 @@ class RigidBody(ValueObject):
         set_field(self, "inertia", frozen_array(0.5 * (inertia + inertia.T)))
 
     @classmethod
-    def from_dict(cls, d: Mapping) -> RigidBody:
+    def from_dict(cls, d: Mapping) -> "RigidBody":
         """From a config mapping {mass, com, inertia}."""
         d = mapping(d, "", ("mass", "com", "inertia"))
         return cls(mass=d["mass"], com=d["com"], inertia=d["inertia"])
@@ -109,7 +110,7 @@ class RigidBody(ValueObject):
 
 
 @dataclass(frozen=True, eq=False)
-class Damping(ValueObject):
+class Damping(_ValueObject):
     """Viscous joint friction coefficients (the paper's model).
 
     Attributes:
@@ -131,7 +132,7 @@ class Damping(ValueObject):
             set_field(self, field.name, value)
 
     @classmethod
-    def from_dict(cls, d: Mapping) -> Damping:
+    def from_dict(cls, d: Mapping) -> "Damping":
         d = mapping(d, "", ("universal", "prismatic", "spherical"))
         return cls(**d)
 
@@ -140,7 +141,7 @@ class Damping(ValueObject):
 
 
 @dataclass(frozen=True, eq=False)
-class Limits(ValueObject):
+class Limits(_ValueObject):
     """Operating limits used by the environment (the dynamics ignores them).
 
     Attributes:

@@ -6,7 +6,8 @@ Jacobian there is checked where a platform becomes a model
 (:class:`stewart_env.dynamics.Dynamics`), by the kernels' Jacobian.
 """
 
-from __future__ import annotations
+# Annotations are evaluated here, not postponed: the classes are shown and pickled under
+# stewart_env.params, whose namespace could not resolve their names for typing.get_type_hints.
 
 import dataclasses
 import os
@@ -16,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from stewart_env.params.bodies import Damping, Limits, RigidBody, ValueObject, set_field
+from stewart_env.params.bodies import Damping, Limits, RigidBody, _ValueObject, set_field
 from stewart_env.params.checks import ConfigError, array, describe, frozen_array, mapping, number, within
 from stewart_env.params.reader import parse_config, read_config_text
 from stewart_env.rotations import rpy_to_matrix
@@ -42,7 +43,7 @@ _TOP_KEYS_OPTIONAL = ("gravity", "limits", "home")
 
 
 @dataclass(frozen=True, eq=False)
-class PlatformParams(ValueObject):
+class PlatformParams(_ValueObject):
     """All parameters of one 6-UPS Stewart platform. Immutable: arrays are float64 and read-only.
 
     Attributes:
@@ -130,7 +131,7 @@ class PlatformParams(ValueObject):
         set_field(self, "home_rpy", frozen_array(rpy))
 
     @classmethod
-    def from_dict(cls, d: Mapping, name: str = "custom") -> PlatformParams:
+    def from_dict(cls, d: Mapping, name: str = "custom") -> "PlatformParams":
         """Build from a config mapping (the schema of :mod:`stewart_env.params`), filling the
         documented defaults for `gravity`, `home` and `limits`."""
         d = mapping(d, "", _TOP_KEYS_REQUIRED, _TOP_KEYS_OPTIONAL)
@@ -185,7 +186,7 @@ class PlatformParams(ValueObject):
         )
 
     @classmethod
-    def from_yaml(cls, path: str | os.PathLike) -> PlatformParams:
+    def from_yaml(cls, path: str | os.PathLike) -> "PlatformParams":
         """Load a YAML config file (a regular *.yaml or *.yml file of at most MAX_CONFIG_BYTES);
         the platform's name is the file stem. Errors are ConfigErrors naming the file."""
         path = Path(path)
@@ -214,7 +215,7 @@ class PlatformParams(ValueObject):
             "home": {"position": self.home_position.tolist(), "rpy": self.home_rpy.tolist()},
         }
 
-    def replace(self, **changes) -> PlatformParams:
+    def replace(self, **changes) -> "PlatformParams":
         """A copy with some fields changed (dataclass field names), validated again."""
         return dataclasses.replace(self, **changes)
 

@@ -5,7 +5,7 @@ devices and directories are refused before they are read, by
 :func:`stewart_env.files.read_regular`), UTF-8 text, read with YAML's safe loader, nesting at most
 32 levels deep and holding at most 5000 values once aliases are expanded; a key given twice in
 one mapping is an error (a merge, <<: *anchor, may still be overridden). Every problem is a
-:class:`~stewart_env.params.checks.ConfigError` naming the file, and its message quotes no line
+:class:`~stewart_env.params.ConfigError` naming the file, and its message quotes no line
 of the file.
 """
 
