@@ -252,9 +252,11 @@ class Dynamics:
         if not plist or not all(isinstance(p, PlatformParams) for p in plist):
             raise ValueError("params: expected a PlatformParams or a non-empty sequence of them")
         self.params = ParamsRows(plist)
-        rows = {id(p): pack_params(p) for p in plist}  # a platform repeated over a batch is packed once
-        for p in {id(p): p for p in plist}.values():
-            check_home_condition(p, rows[id(p)])
+        rows: dict[int, np.ndarray] = {}
+        for p in plist:  # a platform repeated over a batch is packed and checked once
+            if id(p) not in rows:
+                rows[id(p)] = pack_params(p)
+                check_home_condition(p, rows[id(p)])
         self.packed = np.stack([rows[id(p)] for p in plist])
         self.packed.setflags(write=False)
 
