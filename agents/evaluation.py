@@ -64,7 +64,7 @@ FINAL_WINDOW = 0.1
 
 
 class Metric(NamedTuple):
-    """One metric of an episode as the reports show it: ``key`` in :attr:`Episode.metrics`,
+    """One metric of an episode as the reports show it: ``key`` in ``Episode.metrics``,
     ``title`` of its table column, ``factor`` from SI to the display unit, ``spec`` its format."""
 
     key: str

@@ -83,7 +83,7 @@ class MismatchSettings:
     position_tolerance: float = POSITION_TOLERANCE
     orientation_tolerance: float = ORIENTATION_TOLERANCE
     cost_plant: str = TRUE_MODEL
-    hyperparameters: Any = field(default=None, init=False, compare=False)
+    hyperparameters: Any = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         from stewart_env.tasks import TASKS
