@@ -398,7 +398,7 @@ def test_settings_are_one_checked_frozen_record():
         MismatchSettings(test_models=["improved"], episodes=0)
 
 
-@pytest.mark.slow  # draws the forest plot and ten heatmaps: about 10 s
+@pytest.mark.slow  # draws the forest plot and ten heatmaps (the text-only report is tested fast above)
 def test_report_with_figures_draws_the_forest_and_a_heatmap_per_metric(tmp_path):
     settings = MismatchSettings(test_models=["improved"], algo=None)
     files = mismatch.write_outputs(_constructed_study(ppo_success=0.25), tmp_path, settings)
