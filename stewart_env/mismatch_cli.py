@@ -114,7 +114,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     """Run the study the parsed ``args`` ask for; print one line of result or error; the exit code."""
     simplifications = [] if args.simplifications.strip().lower() == "none" else name_list(args.simplifications)
-    kept = (f"; finished agents and cells are kept in {args.out} (run the same command again to continue)")
+    kept = f"; finished agents and cells are kept in {args.out} (run the same command again to continue)"
     try:
         result = run_mismatch(args.out, name_list(args.train_models), name_list(args.test_models), task=args.task,
                               algo=None if args.algo == "none" else args.algo, timesteps=args.timesteps,

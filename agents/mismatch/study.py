@@ -161,6 +161,7 @@ def run_jobs(runner: LocalBackend | RayBackend, out: Path, rows: list[Row], sett
                 path.parent.mkdir(parents=True, exist_ok=True)
             except OSError as err:
                 raise write_error(path.parent, err) from None
+            # files.publish looked up at the call, so that a fault test can make the disk fill here
             files.publish(path, json.dumps({"spec": spec, **numbers}))
             bar.update()
 
