@@ -165,7 +165,7 @@ def test_a_study_refuses_agents_shared_through_a_symbolic_link(tmp_path):
     out = tmp_path / "study"
     out.mkdir()
     (out / "agents").symlink_to(shared)
-    with pytest.raises(training.TrainingError, match=r"agents is a symbolic link: a study's agents are not shared"):
+    with pytest.raises(mismatch.MismatchError, match=r"agents is a symbolic link: a study's agents are not shared"):
         mismatch.run_mismatch(out, ["improved"], ["improved"], algo=None, episodes=1, max_steps=5, simplifications=[],
                               progress=False)
     assert not (out / mismatch.STUDY_FILE).exists()
@@ -316,7 +316,7 @@ def test_a_full_disk_while_a_study_writes_a_cell_keeps_the_finished_cells(tmp_pa
         if is_cell:
             written.append(path)
 
-    monkeypatch.setattr(mismatch, "publish", full_after_two)
+    monkeypatch.setattr(files, "publish", full_after_two)
     assert main(kwargs) == 1
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert re.fullmatch(rf"stewart-env mismatch: error: cannot write {re.escape(str(tmp_path))}/cells/\S+\.json: No "

@@ -37,6 +37,7 @@ LAYERS = {
     "stewart_env.configs": "agents",
     "stewart_env.bench": "cli",
     "stewart_env.cli": "cli",
+    "stewart_env.mismatch_cli": "cli",
 }
 # the package's face re-exports the physics API and registers the environment with Gymnasium
 PACKAGE = "stewart_env"
@@ -169,6 +170,19 @@ def test_the_environments_reach_a_simulator_only_through_their_plant(simulator):
     found = [f"{name} line {line}: {module}" for name, path in envs for module, _, line in imports(path)
              if module == simulator or module.startswith(simulator + ".")]
     assert found == []
+
+
+# The mismatch study's work modules; its command line (argparse) is stewart_env.mismatch_cli.
+MISMATCH = [(name, path) for name, path in MODULES if name.startswith("stewart_env.agents.mismatch")]
+
+
+@pytest.mark.parametrize("name,path", MISMATCH, ids=[name for name, _ in MISMATCH])
+def test_the_mismatch_study_s_work_modules_import_no_argparse(name, path):
+    assert len(MISMATCH) > 5, "the study's modules were not found"
+    assert [f"line {line}: {module}" for module, line in library_imports(path)
+            if module.split(".")[0] == "argparse"] == []
+    assert [f"line {line}: {module}" for module, _, line in imports(path)
+            if module == "stewart_env.agents.arguments"] == [], "argparse types belong to the command line"
 
 
 def test_the_rule_catches_an_upward_import(tmp_path):
