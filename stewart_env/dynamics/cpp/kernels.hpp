@@ -781,9 +781,12 @@ struct ParamRows {
 #ifdef STEWART_ENV_VECTOR_EXTENSIONS
     std::vector<lanes::Lanes> shared;
 #endif
-    ParamRows(const double* prm, int64_t n_prm) : prm(prm), n_prm(n_prm) {
+    // n: the batch size (a batch smaller than a block needs no broadcast row)
+    ParamRows(const double* prm, int64_t n_prm, int64_t n) : prm(prm), n_prm(n_prm) {
 #ifdef STEWART_ENV_VECTOR_EXTENSIONS
-        if (n_prm == 1) shared.assign(prm, prm + N_PARAMS);
+        if (n_prm == 1 && n >= lanes::LANES) shared.assign(prm, prm + N_PARAMS);
+#else
+        (void)n;
 #endif
     }
     const double* rows(int64_t b, double*) const { return params_row(prm, n_prm, b); }
@@ -832,7 +835,7 @@ inline void solve_row(const ParamRows& prm, int64_t flags, const double* t, cons
 inline void forward_batch(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
                           const double* v, const double* w, const double* F, const double* W, double* out,
                           int64_t n) {
-    const ParamRows rows(prm, n_prm);
+    const ParamRows rows(prm, n_prm, n);
     lanes::for_rows(n, 1, [&](int64_t b, auto tag) {
         solve_row<decltype(tag), true>(rows, flags, t, R, v, w, F, W, out, b);
     });
@@ -862,7 +865,7 @@ inline void mass_bias_row(const ParamRows& prm, int64_t flags, const double* t, 
 // docs/physics.md section 5.4; paper eq. 49 or 55.
 inline void mass_bias_batch(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
                             const double* v, const double* w, const double* W, double* M, double* h, int64_t n) {
-    const ParamRows rows(prm, n_prm);
+    const ParamRows rows(prm, n_prm, n);
     lanes::for_rows(n, 1, [&](int64_t b, auto tag) {
         mass_bias_row<decltype(tag)>(rows, flags, t, R, v, w, W, M, h, b);
     });
@@ -874,7 +877,7 @@ inline void mass_bias_batch(const double* prm, int64_t n_prm, int64_t flags, con
 inline void inverse_batch(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
                           const double* v, const double* w, const double* acc, const double* W, double* out,
                           int64_t n) {
-    const ParamRows rows(prm, n_prm);
+    const ParamRows rows(prm, n_prm, n);
     lanes::for_rows(n, 1, [&](int64_t b, auto tag) {
         solve_row<decltype(tag), false>(rows, flags, t, R, v, w, acc, W, out, b);
     });

@@ -294,7 +294,7 @@ inline void rollout_law_batch(const double* prm, int64_t n_prm, int64_t flags, d
                               double* w, ControlLaw law, const double* ctrl, int64_t n_ctrl_rows, int64_t n_ctrl,
                               const double* W, double time, double dt, int64_t steps, int64_t every,
                               const Record* rec, int64_t n) {
-    const kernels::ParamRows rows(prm, n_prm);
+    const kernels::ParamRows rows(prm, n_prm, n);
     lanes::for_rows(n, 4 * steps, [&](int64_t b, auto tag) {
         rollout_row<decltype(tag)>(rows, flags, t, R, v, w, law, ctrl, n_ctrl_rows, n_ctrl, W, time, dt, steps,
                                    every, every > 0 ? rec : nullptr, b);
