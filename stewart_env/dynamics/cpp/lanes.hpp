@@ -9,15 +9,22 @@
 // the lane it falls in or the thread that computes it.
 //
 // The batch loops (for_rows) hand blocks of LANES rows to the Lanes kernels and the rows left
-// over to the double ones, and spread the blocks over the processor's cores with OpenMP.
+// over to the double ones, and spread the blocks over the processor's cores (Helpers).
 #pragma once
 
 #include <cmath>
 #include <cstdint>
 
-#ifdef _OPENMP
-#include <omp.h>
+#ifndef _WIN32
+#include <pthread.h>
 #endif
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdlib>
+#include <mutex>
+#include <thread>
+#include <vector>
 
 namespace lanes {
 
@@ -96,6 +103,30 @@ inline bool all(bool m) { return m; }
 inline bool lane(bool m, int) { return m; }
 inline bool finite(double a) { return std::isfinite(a); }
 
+//: A double that counts the floating-point operations done on it (+, -, *, / and sqrt; not sign
+//: changes, absolute values, comparisons or selects): the flop count of a kernel, run once on it.
+struct Counted {
+    double v;
+    static inline thread_local int64_t flops = 0;
+    Counted() = default;
+    Counted(double x) : v(x) {}  // NOLINT: implicit, as Lanes
+};
+inline Counted operator+(Counted a, Counted b) { return ++Counted::flops, Counted(a.v + b.v); }
+inline Counted operator-(Counted a, Counted b) { return ++Counted::flops, Counted(a.v - b.v); }
+inline Counted operator*(Counted a, Counted b) { return ++Counted::flops, Counted(a.v * b.v); }
+inline Counted operator/(Counted a, Counted b) { return ++Counted::flops, Counted(a.v / b.v); }
+inline Counted operator-(Counted a) { return Counted(-a.v); }
+inline Counted& operator+=(Counted& a, Counted b) { return a = a + b; }
+inline Counted& operator-=(Counted& a, Counted b) { return a = a - b; }
+inline Counted& operator*=(Counted& a, Counted b) { return a = a * b; }
+inline Counted& operator/=(Counted& a, Counted b) { return a = a / b; }
+inline bool operator>(Counted a, Counted b) { return a.v > b.v; }
+inline bool operator==(Counted a, Counted b) { return a.v == b.v; }
+inline bool operator!=(Counted a, Counted b) { return a.v != b.v; }
+inline Counted sqrt_of(Counted a) { return ++Counted::flops, Counted(std::sqrt(a.v)); }
+inline Counted abs_of(Counted a) { return Counted(std::fabs(a.v)); }
+inline Counted select(bool m, Counted a, Counted b) { return m ? a : b; }
+
 //: Number of platforms a number type carries.
 template <typename T>
 constexpr int width = 1;
@@ -132,12 +163,112 @@ inline void store(const T* from, int size, double* to, int64_t stride, int64_t b
     }
 }
 
-//: Rows of work below which a batch runs on one thread (starting threads costs more).
+//: Rows of work below which a batch runs on the calling thread alone (waking a helper costs more).
 constexpr int64_t MIN_PARALLEL_WORK = 2048;
 
+//: Helper threads, one per processor core beyond the caller's (STEWART_ENV_THREADS, if set, is the
+//: total thread count; 1 leaves the caller alone), that share the blocks of a batch with the
+//: calling thread.  The caller works through the blocks itself and only waits for blocks a helper
+//: has started, so a helper the operating system does not schedule in time (a busy machine) costs
+//: nothing: it finds no block left.  Which thread computes a block never changes its numbers.
+class Helpers {
+public:
+    // The process's pool, its threads started on first use (again in a child after fork).
+    static Helpers& pool() {
+        static std::once_flag registered;
+#ifndef _WIN32
+        // a child of fork has none of the parent's threads: it starts its own
+        std::call_once(registered, [] { pthread_atfork(nullptr, nullptr, [] { instance() = nullptr; }); });
+#endif
+        std::lock_guard<std::mutex> lock(creation());
+        if (instance() == nullptr) instance() = new Helpers();  // never deleted: threads outlive exit
+        return *instance();
+    }
+
+    int threads() const { return static_cast<int>(threads_.size()) + 1; }
+
+    // Call body(u) for u = 0 .. units - 1, on this thread and the helpers.
+    template <typename Body>
+    void run(int64_t units, Body& body) {
+        std::lock_guard<std::mutex> one_job(caller_);
+        Job job{&call<Body>, &body, units, {0}};
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            job_ = &job;
+            ++generation_;
+        }
+        wake_.notify_all();
+        work(job);
+        std::unique_lock<std::mutex> lock(mutex_);
+        job_ = nullptr;
+        idle_.wait(lock, [this] { return active_ == 0; });
+    }
+
+private:
+    struct Job {
+        void (*invoke)(void*, int64_t);
+        void* body;
+        int64_t units;
+        std::atomic<int64_t> next;
+    };
+
+    template <typename Body>
+    static void call(void* body, int64_t u) {
+        (*static_cast<Body*>(body))(u);
+    }
+
+    static void work(Job& job) {
+        for (int64_t u = job.next.fetch_add(1); u < job.units; u = job.next.fetch_add(1)) job.invoke(job.body, u);
+    }
+
+    static Helpers*& instance() {
+        static Helpers* pool = nullptr;
+        return pool;
+    }
+
+    static std::mutex& creation() {
+        static std::mutex m;
+        return m;
+    }
+
+    Helpers() {
+        int total = static_cast<int>(std::thread::hardware_concurrency());
+        if (const char* env = std::getenv("STEWART_ENV_THREADS")) total = std::atoi(env);
+        for (int k = 1; k < total; ++k) {
+            threads_.emplace_back([this] { help(); });
+            threads_.back().detach();
+        }
+    }
+
+    void help() {
+        uint64_t seen = 0;
+        std::unique_lock<std::mutex> lock(mutex_);
+        for (;;) {
+            wake_.wait(lock, [&] { return job_ != nullptr && generation_ != seen; });
+            seen = generation_;
+            Job* job = job_;
+            ++active_;
+            lock.unlock();
+            work(*job);
+            lock.lock();
+            if (--active_ == 0) idle_.notify_all();
+        }
+    }
+
+    std::vector<std::thread> threads_;
+    std::mutex caller_;
+    std::mutex mutex_;
+    std::condition_variable wake_;
+    std::condition_variable idle_;
+    Job* job_ = nullptr;
+    uint64_t generation_ = 0;
+    int active_ = 0;
+};
+
 // Run row_block(b, tag) over the n rows of a batch: tag is a Lanes for each block of LANES rows
-// starting at b, a double for each row left over; blocks are spread over the cores when the batch
-// holds at least MIN_PARALLEL_WORK rows times `work` (the cost of a row, in forward evaluations).
+// starting at b, a double for each row left over; the blocks are shared with the Helpers when the
+// batch holds at least MIN_PARALLEL_WORK rows times `work` (the cost of a row, in forward
+// evaluations).
 template <typename RowBlock>
 inline void for_rows(int64_t n, int64_t work, RowBlock row_block) {
 #ifdef STEWART_ENV_VECTOR_EXTENSIONS
@@ -148,20 +279,23 @@ inline void for_rows(int64_t n, int64_t work, RowBlock row_block) {
     const int64_t rows_in_blocks = 0;
 #endif
     const int64_t units = blocks + (n - rows_in_blocks);
-    const bool parallel = n * work >= MIN_PARALLEL_WORK && units > 1;
-    (void)parallel;
-#ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 1) if (parallel)
-#endif
-    for (int64_t u = 0; u < units; ++u) {
+    auto unit = [&](int64_t u) {
 #ifdef STEWART_ENV_VECTOR_EXTENSIONS
         if (u < blocks) {
             row_block(u * LANES, Lanes{});
-            continue;
+            return;
         }
 #endif
         row_block(rows_in_blocks + (u - blocks), 0.0);
+    };
+    if (units > 1 && n * work >= MIN_PARALLEL_WORK) {
+        Helpers& helpers = Helpers::pool();
+        if (helpers.threads() > 1) {
+            helpers.run(units, unit);
+            return;
+        }
     }
+    for (int64_t u = 0; u < units; ++u) unit(u);
 }
 
 }  // namespace lanes

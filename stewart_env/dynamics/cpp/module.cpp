@@ -202,6 +202,26 @@ NB_MODULE(_core, m) {
     }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "lin_acc"_a, "ang_acc"_a, "W"_a, "tolerance"_a, "out"_a,
        "Inverse dynamics of one platform into out (6,), on the terms of forward_one_checked.");
 
+    m.def("forward_flops", [](In prm, int64_t flags, In t, In R, In v, In w, In F) {
+        expect(prm, "prm", {1, kernels::N_PARAMS});
+        expect(t, "position", {3});
+        expect(R, "rotation", {3, 3});
+        expect(v, "velocity", {3});
+        expect(w, "angular_velocity", {3});
+        expect(F, "leg_forces", {6});
+        using lanes::Counted;
+        Counted P[kernels::N_PARAMS], tc[3], Rc[9], vc[3], wc[3], Fc[6], Wc[6], M[36], h[6], out[6];
+        for (int k = 0; k < kernels::N_PARAMS; ++k) P[k] = prm.data()[k];
+        for (int k = 0; k < 3; ++k) tc[k] = t.data()[k], vc[k] = v.data()[k], wc[k] = w.data()[k];
+        for (int k = 0; k < 9; ++k) Rc[k] = R.data()[k];
+        for (int k = 0; k < 6; ++k) Fc[k] = F.data()[k], Wc[k] = 0.0;
+        Counted::flops = 0;
+        kernels::forward_one<Counted>(P, flags, tc, Rc, vc, wc, Fc, Wc, M, h, out);
+        return Counted::flops;
+    }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "F"_a,
+       "The floating-point operations (+, -, *, /, sqrt) of one forward evaluation at this state: the kernel run on "
+       "a number type that counts them.");
+
     nb::class_<BoundWorkspace>(m, "BoundWorkspace",
                                "The arrays of a Workspace bound once, for its calls without argument conversion.")
         .def("__init__", [](BoundWorkspace* self, nb::tuple arrays, In prm, int64_t flags, Out t, Out R, Out v, Out w,
