@@ -61,6 +61,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <type_traits>
 #include <vector>
 
 #include "lanes.hpp"
@@ -647,6 +648,88 @@ inline void solve6(T* M, T* b, T* x) {
     }
 }
 
+// Leg i's share of the equations of motion, {B}: into h_leg (6,) its pull on the platform
+// (leg_on_platform: the velocity part, or with acc the whole), into M_leg (36,) (when not nullptr)
+// the columns it adds to the mass matrix, and its Jacobian row into jac.  Each entry is the number
+// leg_on_platform and add_column would add (the buffers start at -0.0, which adding leaves every
+// number as it is, signed zeros included).  docs/physics.md sections 5.1 and 5.4-5.5; paper eqs.
+// 38-41 and 47-49 (or 51 and 55).
+template <typename T>
+inline void leg_share(const T* prm, int64_t flags, int i, const T* t, const T* R, const T* v, const T* w,
+                      const T* acc, T* h_leg, T* M_leg, Row6<T>& jac) {
+    std::fill(h_leg, h_leg + 6, -0.0);
+    LegState<T> leg;
+    LegBodies<T> bodies;
+    leg_on_platform<T>(prm, flags, i, t, R, v, w, acc, h_leg, leg, bodies);
+    const LegFrame<T>& fr = leg.frame;
+    jac = jacobian_row<T>(fr);
+    if (M_leg == nullptr) return;
+    std::fill(M_leg, M_leg + 36, -0.0);
+    const auto& [e0, e1, e2] = fr.e;
+    const auto& [y0, y1, y2] = fr.y;
+    const auto& [z0, z1, z2] = fr.z;
+    const auto& [q0, q1, q2] = fr.q;
+    // linear part: Q column j = the acceleration part of the leg force for a_P = unit vector j
+    // of {B} (row j of T in {D_i}); with zero rates leg_accel returns only its linear part
+    const auto [qa0, qa1, qa2] = unit_inertial_force<T>(flags, bodies, fr, e0, y0, z0);
+    const auto [qb0, qb1, qb2] = unit_inertial_force<T>(flags, bodies, fr, e1, y1, z1);
+    const auto [qc0, qc1, qc2] = unit_inertial_force<T>(flags, bodies, fr, e2, y2, z2);
+    const auto [Qx0, Qx1, Qx2] = to_base<T>(fr, qa0, qa1, qa2);
+    const auto [Qy0, Qy1, Qy2] = to_base<T>(fr, qb0, qb1, qb2);
+    const auto [Qz0, Qz1, Qz2] = to_base<T>(fr, qc0, qc1, qc2);
+    // a_P = a + alpha x q: column k of a moves P_i by e_k, of alpha by e_k x q
+    add_column<T>(M_leg, 0, q0, q1, q2, Qx0, Qx1, Qx2);
+    add_column<T>(M_leg, 1, q0, q1, q2, Qy0, Qy1, Qy2);
+    add_column<T>(M_leg, 2, q0, q1, q2, Qz0, Qz1, Qz2);
+    add_column<T>(M_leg, 3, q0, q1, q2, Qz0 * q1 - Qy0 * q2, Qz1 * q1 - Qy1 * q2, Qz2 * q1 - Qy2 * q2);
+    add_column<T>(M_leg, 4, q0, q1, q2, Qx0 * q2 - Qz0 * q0, Qx1 * q2 - Qz1 * q0, Qx2 * q2 - Qz2 * q0);
+    add_column<T>(M_leg, 5, q0, q1, q2, Qy0 * q0 - Qx0 * q1, Qy1 * q0 - Qx1 * q1, Qy2 * q0 - Qx2 * q1);
+}
+
+// The six legs' shares (leg_share) of one platform, or of one platform per lane: h_leg (6,6),
+// M_leg (6,36) (nullptr: no columns), jac (6,) rows.  One platform (T = double) on a processor
+// with vector lanes runs its six legs side by side, one per lane, with the same numbers as one by
+// one.  docs/physics.md sections 5.1 and 5.4-5.5; paper eqs. 38-41 and 47-49 (or 51 and 55).
+template <typename T>
+inline void leg_shares(const T* prm, int64_t flags, const T* t, const T* R, const T* v, const T* w, const T* acc,
+                       T (*h_leg)[6], T (*M_leg)[36], Row6<T>* jac) {
+#ifdef STEWART_ENV_VECTOR_EXTENSIONS
+    if constexpr (std::is_same_v<T, double>) {
+        using lanes::Lanes;
+        // lane l reads leg l's numbers where the kernels read leg 0's (lanes 6 and 7 repeat leg 5);
+        // the platform's numbers the legs read (damping, gravity) in every lane
+        Lanes P[N_PARAMS];
+        for (int k = 0; k < N_LAYOUT; ++k) {
+            const LayoutEntry& entry = PACKED_LAYOUT[k];
+            const int off = offset_of(k);
+            if (entry.ndim >= 1 && entry.shape[0] == 6) {
+                const int per_leg = entry_size(entry) / 6;
+                for (int j = 0; j < per_leg; ++j)
+                    for (int l = 0; l < lanes::LANES; ++l) P[off + j].set(l, prm[off + per_leg * std::min(l, 5) + j]);
+            } else {
+                for (int j = 0; j < entry_size(entry); ++j) P[off + j] = prm[off + j];
+            }
+        }
+        Lanes tl[3], Rl[9], vl[3], wl[3], al[6], hl[6], Ml[36];
+        for (int j = 0; j < 3; ++j) tl[j] = t[j], vl[j] = v[j], wl[j] = w[j];
+        for (int j = 0; j < 9; ++j) Rl[j] = R[j];
+        if (acc != nullptr)
+            for (int j = 0; j < 6; ++j) al[j] = acc[j];
+        Row6<Lanes> jl;
+        leg_share<Lanes>(P, flags, 0, tl, Rl, vl, wl, acc == nullptr ? nullptr : al, hl,
+                         M_leg == nullptr ? nullptr : Ml, jl);
+        for (int i = 0; i < 6; ++i) {
+            for (int r = 0; r < 6; ++r) h_leg[i][r] = hl[r][i], jac[i][r] = jl[r][i];
+            if (M_leg != nullptr)
+                for (int k = 0; k < 36; ++k) M_leg[i][k] = Ml[k][i];
+        }
+        return;
+    }
+#endif
+    for (int i = 0; i < 6; ++i)
+        leg_share<T>(prm, flags, i, t, R, v, w, acc, h_leg[i], M_leg == nullptr ? nullptr : M_leg[i], jac[i]);
+}
+
 // The equations of motion of one platform, {B}: M (6,6) and h (6,) overwritten with the mass
 // matrix and h - J^T F, so that M [a; alpha] + h = W.
 // With F = 0, h is the bias: velocity products, gravity and joint friction.  The actuator forces
@@ -655,42 +738,18 @@ inline void solve6(T* M, T* b, T* x) {
 template <typename T>
 inline void assemble_one(const T* prm, int64_t flags, const T* t, const T* R, const T* v,
                          const T* w, const T* F, T* M, T* h) {
+    T h_leg[6][6], M_leg[6][36];
+    Row6<T> jac[6];
+    // bias: each leg's pull at zero platform acceleration, actuator force excluded
+    leg_shares<T>(prm, flags, t, R, v, w, nullptr, h_leg, M_leg, jac);
     std::fill(M, M + 36, 0.0);
     std::fill(h, h + 6, 0.0);
-    LegState<T> leg;
-    LegBodies<T> bodies;
     for (int i = 0; i < 6; ++i) {
-        // bias: the leg's pull at zero platform acceleration, actuator force excluded
-        leg_on_platform<T>(prm, flags, i, t, R, v, w, nullptr, h, leg, bodies);
-        const LegFrame<T>& fr = leg.frame;
-        const auto& [e0, e1, e2] = fr.e;
-        const auto& [y0, y1, y2] = fr.y;
-        const auto& [z0, z1, z2] = fr.z;
-        const auto& [q0, q1, q2] = fr.q;
-        // linear part: Q column j = the acceleration part of the leg force for a_P = unit vector j
-        // of {B} (row j of T in {D_i}); with zero rates leg_accel returns only its linear part
-        const auto [qa0, qa1, qa2] = unit_inertial_force<T>(flags, bodies, fr, e0, y0, z0);
-        const auto [qb0, qb1, qb2] = unit_inertial_force<T>(flags, bodies, fr, e1, y1, z1);
-        const auto [qc0, qc1, qc2] = unit_inertial_force<T>(flags, bodies, fr, e2, y2, z2);
-        const auto [Qx0, Qx1, Qx2] = to_base<T>(fr, qa0, qa1, qa2);
-        const auto [Qy0, Qy1, Qy2] = to_base<T>(fr, qb0, qb1, qb2);
-        const auto [Qz0, Qz1, Qz2] = to_base<T>(fr, qc0, qc1, qc2);
-        // a_P = a + alpha x q: column k of a moves P_i by e_k, of alpha by e_k x q
-        add_column<T>(M, 0, q0, q1, q2, Qx0, Qx1, Qx2);
-        add_column<T>(M, 1, q0, q1, q2, Qy0, Qy1, Qy2);
-        add_column<T>(M, 2, q0, q1, q2, Qz0, Qz1, Qz2);
-        add_column<T>(M, 3, q0, q1, q2, Qz0 * q1 - Qy0 * q2, Qz1 * q1 - Qy1 * q2, Qz2 * q1 - Qy2 * q2);
-        add_column<T>(M, 4, q0, q1, q2, Qx0 * q2 - Qz0 * q0, Qx1 * q2 - Qz1 * q0, Qx2 * q2 - Qz2 * q0);
-        add_column<T>(M, 5, q0, q1, q2, Qy0 * q0 - Qx0 * q1, Qy1 * q0 - Qx1 * q1, Qy2 * q0 - Qx2 * q1);
+        for (int r = 0; r < 6; ++r) h[r] += h_leg[i][r];
+        for (int k = 0; k < 36; ++k) M[k] += M_leg[i][k];
         // actuator force along e_i at P_i moves to the right-hand side J^T F
-        const auto [j0, j1, j2, j3, j4, j5] = jacobian_row<T>(fr);
         const T Fi = F[i];
-        h[0] -= Fi * j0;
-        h[1] -= Fi * j1;
-        h[2] -= Fi * j2;
-        h[3] -= Fi * j3;
-        h[4] -= Fi * j4;
-        h[5] -= Fi * j5;
+        for (int r = 0; r < 6; ++r) h[r] -= Fi * jac[i][r];
     }
     platform_terms<T>(prm, flags, R, w, M, h);
 }
@@ -714,15 +773,15 @@ inline void forward_one(const T* prm, int64_t flags, const T* t, const T* R, con
 template <typename T>
 inline void inverse_one(const T* prm, int64_t flags, const T* t, const T* R, const T* v,
                         const T* w, const T* acc, const T* W, T* M, T* h, T* out) {
+    T h_leg[6][6];
+    Row6<T> jac[6];
+    leg_shares<T>(prm, flags, t, R, v, w, acc, h_leg, nullptr, jac);
     std::fill(M, M + 36, 0.0);
     std::fill(h, h + 6, 0.0);
-    LegState<T> leg;
-    LegBodies<T> bodies;
     for (int i = 0; i < 6; ++i) {
-        leg_on_platform<T>(prm, flags, i, t, R, v, w, acc, h, leg, bodies);
+        for (int r = 0; r < 6; ++r) h[r] += h_leg[i][r];
         // column i of J^T
-        const Row6<T> row = jacobian_row<T>(leg.frame);
-        for (int r = 0; r < 6; ++r) M[6 * r + i] = row[r];
+        for (int r = 0; r < 6; ++r) M[6 * r + i] = jac[i][r];
     }
     // the platform's own inertial and gravity terms at this acceleration, via its M and h
     T Mp[36] = {0.0};

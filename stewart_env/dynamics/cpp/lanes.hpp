@@ -43,7 +43,7 @@ typedef int64_t MaskVec __attribute__((vector_size(LANES * sizeof(int64_t))));
 struct Lanes {
     DoubleVec v;
     Lanes() = default;
-    Lanes(double x) : v(DoubleVec{} + x) {}  // NOLINT: implicit, so literals mix with lanes
+    Lanes(double x) : v(x - DoubleVec{}) {}  // NOLINT: implicit, so literals mix with lanes (x - 0 is x, -0 too)
     explicit Lanes(DoubleVec x) : v(x) {}
     double operator[](int k) const { return v[k]; }
     void set(int k, double x) { v[k] = x; }
