@@ -1113,12 +1113,14 @@ inline void leg_sensors_row(const double* prm, int64_t n_prm, const double* t, c
 // condition is the 2-norm condition number wherever it exceeds max_condition (inf when singular or
 // non-finite); below it, the cheaper bound ||J||_F ||J^-1||_F >= cond_2, itself at most
 // max_condition.  So condition > max_condition holds exactly when cond_2 does.
-// docs/physics.md section 4.4; paper eqs. 7 and 13.
+// Rows run on every core (lanes::for_each_row).  docs/physics.md section 4.4; paper eqs. 7 and 13.
 inline void leg_sensors_batch(const double* prm, int64_t n_prm, const double* t, const double* R, const double* v,
                               const double* w, double max_condition, double* lengths, double* rates,
                               double* condition, int64_t n) {
-    for (int64_t b = 0; b < n; ++b)
+    // a row costs about as much as one forward evaluation in a lane: rows shared with the helpers
+    lanes::for_each_row(n, 1, [&](int64_t b) {
         leg_sensors_row(prm, n_prm, t, R, v, w, max_condition, lengths, rates, condition, b);
+    });
 }
 
 }  // namespace kernels

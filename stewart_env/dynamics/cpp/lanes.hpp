@@ -164,7 +164,7 @@ inline void store(const T* from, int size, double* to, int64_t stride, int64_t b
 }
 
 //: Rows of work below which a batch runs on the calling thread alone (waking a helper costs more).
-constexpr int64_t MIN_PARALLEL_WORK = 2048;
+constexpr int64_t MIN_PARALLEL_WORK = 512;
 
 //: Helper threads, one per processor core beyond the caller's (STEWART_ENV_THREADS, if set, is the
 //: total thread count; 1 leaves the caller alone), that share the blocks of a batch with the
@@ -296,6 +296,20 @@ inline void for_rows(int64_t n, int64_t work, RowBlock row_block) {
         }
     }
     for (int64_t u = 0; u < units; ++u) unit(u);
+}
+
+// Run row(b) for each of the n rows of a batch on the calling thread and the Helpers, when the
+// batch holds at least MIN_PARALLEL_WORK rows times `work` (for kernels of one platform at a time).
+template <typename Row>
+inline void for_each_row(int64_t n, int64_t work, Row row) {
+    if (n > 1 && n * work >= MIN_PARALLEL_WORK) {
+        Helpers& helpers = Helpers::pool();
+        if (helpers.threads() > 1) {
+            helpers.run(n, row);
+            return;
+        }
+    }
+    for (int64_t b = 0; b < n; ++b) row(b);
 }
 
 }  // namespace lanes
