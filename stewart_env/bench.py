@@ -297,12 +297,15 @@ def bench_scaling(params, model_name: str = "improved", sizes=SCALING_SIZES, rep
                   seconds: float = 0.05, substeps: int = 10, dt: float = 1e-3) -> dict:
     """Throughput of the batched kernels over batch sizes: for each N in ``sizes``, forward
     evaluations/s (``Workspace.forward``) and control steps of ``substeps`` RK4 steps of ``dt``
-    per second and platform (``Workspace.step``), wall clock, the best of ``repeats`` loops of
-    about ``seconds`` each; and the fraction of :func:`vector_peak_flops` each reaches at
-    :func:`forward_flops` flops per evaluation (4 evaluations per RK4 step; the integrator's own
-    few hundred flops per step are not counted).  Returns {"flops", "peak", "rows": [...]}."""
+    per second and platform (``Workspace.step``), by the wall clock and per second of CPU time
+    of this process (all its threads: what each busy core delivers, which other work on a shared
+    machine changes far less); the best of ``repeats`` loops of about ``seconds`` each.  The
+    fraction of :func:`vector_peak_flops` each reaches counts :func:`forward_flops` flops per
+    evaluation, 4 evaluations per RK4 step (the integrator's own few hundred flops per step are
+    not counted); per CPU second, against one core's peak.  Returns {"flops", "peak", "rows"}."""
     model = se.make_dynamics(model_name, params)
     flops, peak = forward_flops(model), vector_peak_flops()
+    core_peak = peak / (os.cpu_count() or 1)
     rows = []
     for n in sizes:
         t, R, v, w, F = _batch_state(model, n, np.random.default_rng(0))
@@ -313,37 +316,41 @@ def bench_scaling(params, model_name: str = "improved", sizes=SCALING_SIZES, rep
             ws.set_state(*start)
             ws.leg_forces[:] = F
 
+        def step():
+            ws.step(dt, substeps)
+
         back_to_start()
-        ws.forward()
-        t0 = time.perf_counter()
-        ws.forward()
-        calls = max(1, int(seconds / max(time.perf_counter() - t0, 1e-7)))
-        evals = _per_call({"forward": ws.forward}, calls, repeats)["forward"]
-        ws.step(dt, substeps)
-        t0 = time.perf_counter()
-        ws.step(dt, substeps)
-        step_calls = max(1, int(seconds / max(time.perf_counter() - t0, 1e-7)))
-        step = _per_call({"step": lambda: ws.step(dt, substeps)}, step_calls, repeats, reset=back_to_start)["step"]
-        evals_per_s = n / evals
-        steps_per_s = n / step
-        rows.append({"n": n, "evals_per_s": evals_per_s, "steps_per_s": steps_per_s,
-                     "forward_peak": evals_per_s * flops / peak,
-                     "step_peak": steps_per_s * 4 * substeps * flops / peak})
+        row = {"n": n}
+        for name, fn, evals in (("evals", ws.forward, 1), ("steps", step, 4 * substeps)):
+            fn()
+            t0 = time.perf_counter()
+            fn()
+            calls = max(1, int(seconds / max(time.perf_counter() - t0, 1e-7)))
+            for clock, suffix in ((time.perf_counter, "per_s"), (time.process_time, "per_cpu_s")):
+                per_call = _per_call({name: fn}, calls, repeats, clock, reset=back_to_start)[name]
+                row[f"{name}_{suffix}"] = n / per_call
+            row[f"{name}_peak"] = row[f"{name}_per_s"] * evals * flops / peak
+            row[f"{name}_core_peak"] = row[f"{name}_per_cpu_s"] * evals * flops / core_peak
+        rows.append(row)
     return {"model": model.name, "flops": flops, "peak": peak, "substeps": substeps, "dt": dt, "rows": rows}
 
 
 def scaling_table(r: dict) -> str:
     """The markdown table of :func:`bench_scaling`'s result, with the flop count and peak it assumes."""
     step = f"{r['substeps'] * r['dt'] * 1e3:g} ms"
+    cores = os.cpu_count() or 1
     lines = [f"model {r['model']}: {r['flops']:,} flops per forward evaluation (counted); vector peak "
-             f"{r['peak'] / 1e9:.1f} GFLOP/s ({os.cpu_count()} cores x clock x {PEAK_FLOPS_PER_CYCLE} flops/cycle)",
+             f"{r['peak'] / 1e9:.1f} GFLOP/s ({cores} cores x clock x {PEAK_FLOPS_PER_CYCLE} flops/cycle), "
+             f"{r['peak'] / cores / 1e9:.1f} GFLOP/s per core",
              "",
-             f"| platforms N | forward evaluations/s | fraction of peak | {step} platform-steps/s "
-             "| fraction of peak |",
-             "|---|---|---|---|---|"]
+             f"| platforms N | forward evaluations/s | of peak | per CPU second | of a core's peak "
+             f"| {step} platform-steps/s | of peak | per CPU second | of a core's peak |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for row in r["rows"]:
-        lines.append(f"| {row['n']:,} | {row['evals_per_s']:,.0f} | {row['forward_peak']:.1%} "
-                     f"| {row['steps_per_s']:,.0f} | {row['step_peak']:.1%} |")
+        lines.append(f"| {row['n']:,} | {row['evals_per_s']:,.0f} | {row['evals_peak']:.1%} "
+                     f"| {row['evals_per_cpu_s']:,.0f} | {row['evals_core_peak']:.1%} "
+                     f"| {row['steps_per_s']:,.0f} | {row['steps_peak']:.1%} "
+                     f"| {row['steps_per_cpu_s']:,.0f} | {row['steps_core_peak']:.1%} |")
     return "\n".join(lines)
 
 
@@ -356,19 +363,23 @@ def plot_scaling(r: dict, path) -> None:
     import matplotlib.pyplot as plt
 
     n = [row["n"] for row in r["rows"]]
-    fig, ax = plt.subplots(figsize=(6.4, 4.2), layout="constrained")
-    ax.loglog(n, [row["evals_per_s"] for row in r["rows"]], "o-", label="forward evaluations/s")
-    ax.loglog(n, [row["steps_per_s"] for row in r["rows"]], "s-",
+    fig, ax = plt.subplots(figsize=(7.0, 4.8), layout="constrained")
+    ax.loglog(n, [row["evals_per_s"] for row in r["rows"]], "o-", color="C0", label="forward evaluations/s")
+    ax.loglog(n, [row["evals_per_cpu_s"] for row in r["rows"]], "o:", color="C0", mfc="none",
+              label="forward evaluations per CPU second")
+    ax.loglog(n, [row["steps_per_s"] for row in r["rows"]], "s-", color="C1",
               label=f"{r['substeps'] * r['dt'] * 1e3:g} ms platform-steps/s ({4 * r['substeps']} evaluations)")
-    ax.axhline(r["peak"] / r["flops"], color="0.4", ls="--", lw=1,
+    ax.loglog(n, [row["steps_per_cpu_s"] for row in r["rows"]], "s:", color="C1", mfc="none",
+              label="platform-steps per CPU second")
+    ax.axhline(r["peak"] / r["flops"], color="C0", ls="--", lw=0.8,
                label=f"vector peak / {r['flops']:,} flops = {r['peak'] / r['flops'] / 1e6:.1f} M evaluations/s")
-    ax.axhline(r["peak"] / (4 * r["substeps"] * r["flops"]), color="0.4", ls=":", lw=1,
+    ax.axhline(r["peak"] / (4 * r["substeps"] * r["flops"]), color="C1", ls="--", lw=0.8,
                label="vector peak in platform-steps/s")
     ax.set_xlabel("platforms in the batch, N")
     ax.set_ylabel("per second")
     ax.set_title(f"stewart-env batched physics ({r['model']}), {machine().split(',')[0]}", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8, loc="lower right")
+    ax.legend(fontsize=7, loc="lower right")
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
