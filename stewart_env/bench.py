@@ -363,7 +363,7 @@ def plot_scaling(r: dict, path) -> None:
     import matplotlib.pyplot as plt
 
     n = [row["n"] for row in r["rows"]]
-    fig, ax = plt.subplots(figsize=(7.0, 4.8), layout="constrained")
+    fig, ax = plt.subplots(figsize=(7.0, 5.4), layout="constrained")
     ax.loglog(n, [row["evals_per_s"] for row in r["rows"]], "o-", color="C0", label="forward evaluations/s")
     ax.loglog(n, [row["evals_per_cpu_s"] for row in r["rows"]], "o:", color="C0", mfc="none",
               label="forward evaluations per CPU second")
@@ -379,7 +379,7 @@ def plot_scaling(r: dict, path) -> None:
     ax.set_ylabel("per second")
     ax.set_title(f"stewart-env batched physics ({r['model']}), {machine().split(',')[0]}", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncols=2)
     fig.savefig(path, dpi=120)
     plt.close(fig)
 

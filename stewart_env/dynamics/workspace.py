@@ -109,6 +109,10 @@ class Workspace:
     def __repr__(self) -> str:
         return f"Workspace({self._model!r}, n={self._n})"
 
+    def __reduce__(self):
+        # a copy (copy, deepcopy, pickle) is a new workspace, its arrays bound anew, holding these numbers
+        return _workspace_holding, (self._model, self._n, {name: getattr(self, f"_{name}") for name in _ARRAYS})
+
     def set_state(self, position, rotation, velocity, angular_velocity) -> None:
         """Copy a state into the arrays, with the checks of every entry point
         (:func:`~stewart_env.dynamics.model.batch_args`): each argument one platform's, broadcast
@@ -155,3 +159,12 @@ class Workspace:
         docs/physics.md section 5.6."""
         dt, steps = check_step(dt, steps)
         self._bound.step(dt, steps)
+
+
+def _workspace_holding(model: Dynamics, n: int, arrays: dict) -> Workspace:
+    """A workspace of ``model`` for ``n`` platforms whose arrays hold ``arrays`` (name -> array):
+    how a copied or unpickled workspace is made."""
+    ws = Workspace(model, n)
+    for name, value in arrays.items():
+        getattr(ws, f"_{name}")[...] = value
+    return ws

@@ -48,8 +48,9 @@
 // (platform).
 //
 // Arrays are C-contiguous float64: a vector of three is a pointer to three doubles, a 3x3 or 6x6
-// matrix is row-major.  Each *_batch function loops over the rows of a batch and hands the row to
-// a *_row function; the row's arithmetic does not depend on the batch size.
+// matrix is row-major.  Each *_batch function loops over the rows of a batch and hands them to a
+// *_row function, eight at a time in the lanes of a vector where it can (lanes.hpp: the kernels are
+// templates over their number type); a row's arithmetic does not depend on the batch size.
 //
 // Packed parameters: kernels take prm of shape (Np, N_PARAMS), one row per platform (Np == 1
 // broadcasts over the batch).  PACKED_LAYOUT below lists the entries (docs/physics.md section 2);
