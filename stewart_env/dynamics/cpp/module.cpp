@@ -96,6 +96,59 @@ nb::tuple pd_layout() {
     return nb::tuple(entries);
 }
 
+// A float64 C-contiguous buffer of a given shape, borrowed from a Python object for one call (the
+// fast path of the checked single-platform calls): take() says whether the object is one, and
+// leaves no Python error behind when it is not.
+class Doubles {
+public:
+    Doubles() = default;
+    Doubles(const Doubles&) = delete;
+    Doubles& operator=(const Doubles&) = delete;
+    ~Doubles() {
+        if (held_) PyBuffer_Release(&view_);
+    }
+    bool take(nb::handle obj, std::initializer_list<Py_ssize_t> shape, bool writable = false) {
+        if (!PyObject_CheckBuffer(obj.ptr())) return false;
+        const int want = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+        if (PyObject_GetBuffer(obj.ptr(), &view_, want) != 0) {
+            PyErr_Clear();
+            return false;
+        }
+        held_ = true;
+        if (view_.itemsize != 8 || view_.format == nullptr || view_.format[0] != 'd' || view_.format[1] != 0 ||
+            view_.ndim != static_cast<int>(shape.size()))
+            return false;
+        int d = 0;
+        for (Py_ssize_t s : shape)
+            if (view_.shape[d++] != s) return false;
+        return true;
+    }
+    double* data() const { return static_cast<double*>(view_.buf); }
+
+private:
+    Py_buffer view_{};
+    bool held_ = false;
+};
+
+// Whether the state and the 6-vector x of one platform are all finite numbers and R a rotation
+// within tolerance: the checks of model.batch_args, passed.
+bool checked(const Doubles& t, const Doubles& R, const Doubles& v, const Doubles& w, const Doubles& x,
+             const Doubles& W, double tolerance) {
+    return kernels::all_finite(t.data(), 3) && kernels::all_finite(R.data(), 9) && kernels::all_finite(v.data(), 3) &&
+           kernels::all_finite(w.data(), 3) && kernels::all_finite(x.data(), 6) && kernels::all_finite(W.data(), 6) &&
+           kernels::largest_rotation_error(R.data(), 1) <= tolerance;
+}
+
+//: The arrays of a Workspace (stewart_env.dynamics.workspace), bound once: its calls hand the
+//: kernels these pointers with no argument to convert.  keep holds the arrays (a tuple), so they
+//: live as long as it does.
+struct BoundWorkspace {
+    nb::object keep;
+    const double* prm;
+    int64_t n_prm, flags, n;
+    double *t, *R, *v, *w, *F, *W, *acc, *M, *h;
+};
+
 }  // namespace
 
 NB_MODULE(_core, m) {
@@ -113,6 +166,92 @@ NB_MODULE(_core, m) {
     m.attr("PD_CONTROL_LAW") = reinterpret_cast<uintptr_t>(&laws::pd_control_law);
     m.attr("LAW_JACOBIAN") = reinterpret_cast<uintptr_t>(&rk4::law_jacobian);
     m.attr("LAW_INVERSE_DYNAMICS") = reinterpret_cast<uintptr_t>(&rk4::law_inverse_dynamics);
+
+    m.def("forward_one_checked", [](nb::handle prm, int64_t flags, nb::handle t, nb::handle R, nb::handle v,
+                                    nb::handle w, nb::handle F, nb::handle W, double tolerance, nb::handle out) {
+        Doubles P, tv, Rv, vv, wv, Fv, Wv, ov;
+        if (!(P.take(prm, {1, kernels::N_PARAMS}) && tv.take(t, {3}) && Rv.take(R, {3, 3}) && vv.take(v, {3}) &&
+              wv.take(w, {3}) && Fv.take(F, {6}) && Wv.take(W, {6}) && ov.take(out, {6}, true) &&
+              checked(tv, Rv, vv, wv, Fv, Wv, tolerance)))
+            return false;
+        double M[36], h[6];
+        kernels::forward_one<double>(P.data(), flags, tv.data(), Rv.data(), vv.data(), wv.data(), Fv.data(), Wv.data(),
+                                     M, h, ov.data());
+        return true;
+    }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "F"_a, "W"_a, "tolerance"_a, "out"_a,
+       "Forward dynamics of one platform into out (6,) when every argument is a float64 C-contiguous array of one "
+       "platform's shape, finite, and R a rotation within tolerance; otherwise False and nothing computed (the "
+       "caller then checks the arguments itself and reports what is wrong).");
+
+    m.def("inverse_one_checked", [](nb::handle prm, int64_t flags, nb::handle t, nb::handle R, nb::handle v,
+                                    nb::handle w, nb::handle lin, nb::handle ang, nb::handle W, double tolerance,
+                                    nb::handle out) {
+        Doubles P, tv, Rv, vv, wv, lv, av, Wv, ov;
+        if (!(P.take(prm, {1, kernels::N_PARAMS}) && tv.take(t, {3}) && Rv.take(R, {3, 3}) && vv.take(v, {3}) &&
+              wv.take(w, {3}) && lv.take(lin, {3}) && av.take(ang, {3}) && Wv.take(W, {6}) && ov.take(out, {6}, true)))
+            return false;
+        const double acc[6] = {lv.data()[0], lv.data()[1], lv.data()[2], av.data()[0], av.data()[1], av.data()[2]};
+        if (!(kernels::all_finite(acc, 6) && kernels::all_finite(tv.data(), 3) && kernels::all_finite(Rv.data(), 9) &&
+              kernels::all_finite(vv.data(), 3) && kernels::all_finite(wv.data(), 3) &&
+              kernels::all_finite(Wv.data(), 6) && kernels::largest_rotation_error(Rv.data(), 1) <= tolerance))
+            return false;
+        double M[36], h[6];
+        kernels::inverse_one<double>(P.data(), flags, tv.data(), Rv.data(), vv.data(), wv.data(), acc, Wv.data(), M, h,
+                                     ov.data());
+        return true;
+    }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "lin_acc"_a, "ang_acc"_a, "W"_a, "tolerance"_a, "out"_a,
+       "Inverse dynamics of one platform into out (6,), on the terms of forward_one_checked.");
+
+    m.def("forward_flops", [](In prm, int64_t flags, In t, In R, In v, In w, In F) {
+        expect(prm, "prm", {1, kernels::N_PARAMS});
+        expect(t, "position", {3});
+        expect(R, "rotation", {3, 3});
+        expect(v, "velocity", {3});
+        expect(w, "angular_velocity", {3});
+        expect(F, "leg_forces", {6});
+        using lanes::Counted;
+        Counted P[kernels::N_PARAMS], tc[3], Rc[9], vc[3], wc[3], Fc[6], Wc[6], M[36], h[6], out[6];
+        for (int k = 0; k < kernels::N_PARAMS; ++k) P[k] = prm.data()[k];
+        for (int k = 0; k < 3; ++k) tc[k] = t.data()[k], vc[k] = v.data()[k], wc[k] = w.data()[k];
+        for (int k = 0; k < 9; ++k) Rc[k] = R.data()[k];
+        for (int k = 0; k < 6; ++k) Fc[k] = F.data()[k], Wc[k] = 0.0;
+        Counted::flops = 0;
+        kernels::forward_one<Counted>(P, flags, tc, Rc, vc, wc, Fc, Wc, M, h, out);
+        return Counted::flops;
+    }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "F"_a,
+       "The floating-point operations (+, -, *, /, sqrt) of one forward evaluation at this state: the kernel run on "
+       "a number type that counts them.");
+
+    nb::class_<BoundWorkspace>(m, "BoundWorkspace",
+                               "The arrays of a Workspace bound once, for its calls without argument conversion.")
+        .def("__init__", [](BoundWorkspace* self, nb::tuple arrays, In prm, int64_t flags, Out t, Out R, Out v, Out w,
+                            Out F, Out W, Out acc, Out M, Out h) {
+            const int64_t n = batch(prm, In(t));
+            state(t, R, v, w, n);
+            expect(F, "leg_forces", {n, 6});
+            expect(W, "external_wrench", {n, 6});
+            expect(acc, "acceleration", {n, 6});
+            expect(M, "mass_matrix", {n, 6, 6});
+            expect(h, "bias", {n, 6});
+            new (self) BoundWorkspace{arrays, prm.data(), static_cast<int64_t>(prm.shape(0)), flags, n, t.data(),
+                                      R.data(), v.data(), w.data(), F.data(), W.data(), acc.data(), M.data(),
+                                      h.data()};
+        }, "arrays"_a, "prm"_a, "flags"_a, "t"_a.noconvert(), "R"_a.noconvert(), "v"_a.noconvert(),
+           "w"_a.noconvert(), "F"_a.noconvert(), "W"_a.noconvert(), "acc"_a.noconvert(), "M"_a.noconvert(),
+           "h"_a.noconvert())
+        .def("forward", [](BoundWorkspace& s) {
+            kernels::forward_batch(s.prm, s.n_prm, s.flags, s.t, s.R, s.v, s.w, s.F, s.W, s.acc, s.n);
+        })
+        .def("inverse", [](BoundWorkspace& s) {
+            kernels::inverse_batch(s.prm, s.n_prm, s.flags, s.t, s.R, s.v, s.w, s.acc, s.W, s.F, s.n);
+        })
+        .def("mass_and_bias", [](BoundWorkspace& s) {
+            kernels::mass_bias_batch(s.prm, s.n_prm, s.flags, s.t, s.R, s.v, s.w, s.W, s.M, s.h, s.n);
+        })
+        .def("step", [](BoundWorkspace& s, double dt, int64_t steps) {
+            nb::gil_scoped_release release;
+            rk4::rollout_batch(s.prm, s.n_prm, s.flags, s.t, s.R, s.v, s.w, s.F, s.W, dt, steps, s.n);
+        }, "dt"_a, "steps"_a);
 
     def_solve_batch<kernels::forward_batch>(m, "forward_batch", "F", "leg_forces");
     def_solve_batch<kernels::inverse_batch>(m, "inverse_batch", "acc", "acceleration");
