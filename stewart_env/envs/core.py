@@ -20,12 +20,11 @@ from types import MappingProxyType
 from typing import Any
 
 import numpy as np
-from numba import njit
 
-from stewart_env.dynamics import Dynamics
+from stewart_env.dynamics import Dynamics, _core
 from stewart_env.envs.config import EnvConfig
 from stewart_env.envs.observation import ObservationPipeline
-from stewart_env.envs.plant import Plant, make_plant
+from stewart_env.envs.plant import ClosedFormPlant, Plant, make_plant
 from stewart_env.kinematics import leg_sensors_inplace
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
@@ -42,57 +41,6 @@ TERMINATION_REASONS = LIMIT_REASONS
 NOT_TERMINATED = ""
 #: The code of "non_finite", the first of every task's reasons.
 NON_FINITE = 1
-
-
-# The per-step arithmetic of the batch in a few compiled passes (each row as numpy would compute it,
-# operation for operation), so that a step's Python overhead stays small next to the physics.
-
-@njit(cache=True)
-def _drive(action, half, mid, lag, clipped, forces):
-    """Clip the action to [-1, 1] into ``clipped`` and map it onto the force range: the command
-    mid + a half, applied directly (lag 0) or through the exact first-order lag."""
-    for b in range(action.shape[0]):
-        for i in range(6):
-            a = min(max(action[b, i], -1.0), 1.0)
-            clipped[b, i] = a
-            command = a * half + mid
-            if lag:
-                forces[b, i] += lag * (command - forces[b, i])
-            else:
-                forces[b, i] = command
-
-
-@njit(cache=True)
-def _copy_state(t, R, v, w, t_to, R_to, v_to, w_to):
-    """Copy a batch state into another's arrays."""
-    t_to[:] = t
-    R_to[:] = R
-    v_to[:] = v
-    w_to[:] = w
-
-
-@njit(cache=True)
-def _after_physics(t, R, v, w, t0, R0, v0, w0, steps, dt, time, non_finite):
-    """Advance every row's clock one control step (time = steps dt) and find the rows whose
-    state is no longer finite, putting them back to the state they started the step from (t0,
-    R0, v0, w0).  Returns whether any row was."""
-    found = False
-    for b in range(t.shape[0]):
-        steps[b] += 1
-        time[b] = steps[b] * dt
-        ok = True
-        for j in range(3):
-            ok &= np.isfinite(t[b, j]) and np.isfinite(v[b, j]) and np.isfinite(w[b, j])
-            for k in range(3):
-                ok &= np.isfinite(R[b, j, k])
-        non_finite[b] = not ok
-        if not ok:
-            found = True
-            t[b] = t0[b]
-            R[b] = R0[b]
-            v[b] = v0[b]
-            w[b] = w0[b]
-    return found
 
 
 def _readonly(array: np.ndarray) -> np.ndarray:
@@ -312,26 +260,45 @@ class PlatformBatch:
         (their outcome is thrown away) and draw no noise.  Returns (reward (n,), termination code
         (n,) int, reward terms by name, each (n,)); codes index :attr:`termination_reasons` (0: none).
         """
-        _drive(action, self._force_half, self._force_mid, self._lag, self._action, self.leg_forces)
         if skip is not None:
             self._park(skip)
+        driven = False
         if self._has_external_wrench:
+            # the task's wrench sees the action and the leg forces of this step
+            self._drive(action)
+            driven = True
             self.task.external_wrench(self.view, self.control_dt, self.external_wrench)
-        _copy_state(*self._state, *self._backup)
-        self._physics()
+        self._physics(action, driven)
         return self._outcome(rngs, skip)
 
-    def _physics(self) -> None:
-        """The plant's step of every row, the non-finite check and the leg sensors."""
+    def _drive(self, action: np.ndarray) -> None:
+        """The actuators: the action clipped to [-1, 1] (kept as the applied action) and mapped
+        onto the force range, applied directly or through the first-order lag."""
+        _core.drive(action, self._force_half, self._force_mid, self._lag, self._action, self.leg_forces)
+
+    def _physics(self, action: np.ndarray, driven: bool) -> None:
+        """The actuators (unless ``driven`` already), the plant's step of every row, the clock and
+        the non-finite check, and the leg sensors.  A row whose state is no longer finite keeps
+        its last finite state, so that observation, reward and rendering stay finite."""
+        max_condition = self.platform.limits.max_condition
+        if isinstance(self.plant, ClosedFormPlant):
+            # the whole control step in one compiled call
+            model = self.plant.model
+            self._any_non_finite = _core.control_step(
+                model.packed, model.flags, self.nominal_model.packed, self._force_half, self._force_mid, self._lag,
+                not driven, self.physics_dt, self.substeps, self.control_dt, max_condition, action, self._action,
+                self.leg_forces, self.external_wrench, *self._state, *self._backup, self.steps, self.time,
+                self._non_finite, self.leg_lengths, self.leg_rates, self.condition)
+            return
+        if not driven:
+            self._drive(action)
+        _core.copy_state(*self._state, *self._backup)
         self.plant.step_inplace(self.position, self.rotation, self.velocity, self.angular_velocity,
                                 self.leg_forces, self.external_wrench, self.physics_dt, self.substeps)
-        # A row whose state is no longer finite keeps its last finite state, so that observation,
-        # reward and rendering stay finite.
-        self._any_non_finite = _after_physics(*self._state, *self._backup, self.steps, self.control_dt, self.time,
-                                              self._non_finite)
+        self._any_non_finite = _core.after_physics(*self._state, *self._backup, self.steps, self.control_dt,
+                                                   self.time, self._non_finite)
         leg_sensors_inplace(self.nominal_model, self.position, self.rotation, self.velocity,
-                            self.angular_velocity, self.platform.limits.max_condition, self.leg_lengths,
-                            self.leg_rates, self.condition)
+                            self.angular_velocity, max_condition, self.leg_lengths, self.leg_rates, self.condition)
 
     def _outcome(self, rngs, skip) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         """Reference, then the task's termination and reward, and the observation after the

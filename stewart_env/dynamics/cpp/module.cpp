@@ -8,15 +8,20 @@
 #include <string>
 #include <vector>
 
+#include "env_step.hpp"
 #include "kernels.hpp"
 #include "laws.hpp"
 #include "rk4.hpp"
+#include "task_kernels.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
 
 using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
 using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
+using Flags = nb::ndarray<bool, nb::c_contig, nb::device::cpu>;
+using InFlags = nb::ndarray<const bool, nb::c_contig, nb::device::cpu>;
+using Codes = nb::ndarray<int64_t, nb::c_contig, nb::device::cpu>;
 
 namespace {
 
@@ -97,6 +102,8 @@ nb::tuple pd_layout() {
 }
 
 }  // namespace
+
+void def_env_kernels(nb::module_& m);
 
 NB_MODULE(_core, m) {
     m.doc() = "The compiled kernels of the Stewart platform's kinematics, dynamics and integrator.";
@@ -239,4 +246,197 @@ NB_MODULE(_core, m) {
         laws::law_forces_batch(reinterpret_cast<rk4::ControlLaw>(law), time, t.data(), R.data(), v.data(), w.data(),
                                params.data(), params.shape(0), params.shape(1), out.data(), n);
     }, "law"_a, "time"_a, "t"_a, "R"_a, "v"_a, "w"_a, "params"_a, "out"_a.noconvert());
+
+    def_env_kernels(m);
+}
+
+// ---- The tasks' and the environment's per-step kernels (task_kernels.hpp, env_step.hpp) ----------
+
+namespace {
+
+task_kernels::Limits limits_of(const In& position_min, const In& position_max, const In& home_rpy, double max_angle,
+                               double length_min, double length_max, double max_condition) {
+    expect(position_min, "position_min", {3});
+    expect(position_max, "position_max", {3});
+    expect(home_rpy, "home_rpy", {3});
+    return {position_min.data(), position_max.data(), home_rpy.data(), max_angle, length_min, length_max,
+            max_condition};
+}
+
+env_step::State state_of(Out& t, Out& R, Out& v, Out& w) { return {t.data(), R.data(), v.data(), w.data()}; }
+
+}  // namespace
+
+void def_env_kernels(nb::module_& m) {
+    m.def("rotation_error_rows", [](In r, In c, Out phi, Out angle) {
+        expect(c, "rotation", {-1, 3, 3});
+        const int64_t n = static_cast<int64_t>(c.shape(0));
+        expect(r, "rotation_ref", {n, 3, 3});
+        expect(phi, "phi", {n, 3});
+        expect(angle, "angle", {n});
+        task_kernels::rotation_error_rows(r.data(), c.data(), phi.data(), angle.data(), 1, n);
+    }, "r"_a, "c"_a, "phi"_a.noconvert(), "angle"_a.noconvert(),
+       "Rotation vector phi (N,3) of r c^T and its angle (N,), row by row (rotations.rotation_error).");
+
+    m.def("tracking_errors", [](In t, In R, In v, In w, In rt, In rR, In rv, In rw, Out ep, Out eo, Out ev, Out ew,
+                                Out norms) {
+        expect(t, "position", {-1, 3});
+        const int64_t n = static_cast<int64_t>(t.shape(0));
+        state(t, R, v, w, n);
+        state(rt, rR, rv, rw, n);
+        expect(ep, "ep", {n, 3});
+        expect(eo, "eo", {n, 3});
+        expect(ev, "ev", {n, 3});
+        expect(ew, "ew", {n, 3});
+        expect(norms, "norms", {4, n});
+        task_kernels::tracking_errors(t.data(), R.data(), v.data(), w.data(), rt.data(), rR.data(), rv.data(),
+                                      rw.data(), ep.data(), eo.data(), ev.data(), ew.data(), norms.data(), 1, n, n);
+    }, "t"_a, "R"_a, "v"_a, "w"_a, "rt"_a, "rR"_a, "rv"_a, "rw"_a, "ep"_a.noconvert(), "eo"_a.noconvert(),
+       "ev"_a.noconvert(), "ew"_a.noconvert(), "norms"_a.noconvert(),
+       "Reference minus actual of a batch: position, orientation, velocity, angular velocity (N,3) each, and "
+       "their norms (4,N).");
+
+    m.def("limit_codes", [](In t, In R, In lengths, In condition, InFlags non_finite, In position_min,
+                            In position_max, In home_rpy, double max_angle, double length_min, double length_max,
+                            double max_condition, Codes code) {
+        expect(t, "position", {-1, 3});
+        const int64_t n = static_cast<int64_t>(t.shape(0));
+        expect(R, "rotation", {n, 3, 3});
+        expect(lengths, "leg_lengths", {n, 6});
+        expect(condition, "condition", {n});
+        expect(non_finite, "non_finite", {n});
+        expect(code, "code", {n});
+        const auto lim = limits_of(position_min, position_max, home_rpy, max_angle, length_min, length_max,
+                                   max_condition);
+        task_kernels::limit_codes(t.data(), R.data(), lengths.data(), condition.data(), non_finite.data(), lim,
+                                  code.data(), n);
+    }, "t"_a, "R"_a, "lengths"_a, "condition"_a, "non_finite"_a, "position_min"_a, "position_max"_a, "home_rpy"_a,
+       "max_angle"_a, "length_min"_a, "length_max"_a, "max_condition"_a, "code"_a.noconvert(),
+       "Termination codes (N,) of the platform's limits, by priority (tasks.LIMIT_REASONS).");
+
+    m.def("tracking_reward", [](In ep, In eo, In ev, In ew, In action, double wp, double sp, double wo, double so,
+                                double wv, double sv, double sw, double wc, Out out) {
+        expect(ep, "position_norm", {-1});
+        const int64_t n = static_cast<int64_t>(ep.shape(0));
+        expect(eo, "orientation_norm", {n});
+        expect(ev, "velocity_norm", {n});
+        expect(ew, "angular_velocity_norm", {n});
+        expect(action, "action", {n, 6});
+        expect(out, "out", {4, n});
+        task_kernels::tracking_reward(ep.data(), eo.data(), ev.data(), ew.data(), 1, action.data(),
+                                      {wp, sp, wo, so, wv, sv, sw, wc}, out.data(), n);
+    }, "ep"_a, "eo"_a, "ev"_a, "ew"_a, "action"_a, "wp"_a, "sp"_a, "wo"_a, "so"_a, "wv"_a, "sv"_a, "sw"_a, "wc"_a, "out"_a.noconvert(),
+       "The four running terms (4,N) of the tracking-error reward (tasks.RewardWeights).");
+
+    m.def("within_margins", [](In position, In rpy, In lengths, In condition, In position_min, In position_max,
+                               In home_rpy, double max_angle, double length_min, double length_max,
+                               double max_condition, double margin, Flags ok) {
+        expect(position, "position", {-1, 3});
+        const int64_t n = static_cast<int64_t>(position.shape(0));
+        expect(rpy, "rpy", {n, 3});
+        expect(lengths, "leg_lengths", {n, 6});
+        expect(condition, "condition", {n});
+        expect(ok, "ok", {n});
+        const auto lim = limits_of(position_min, position_max, home_rpy, max_angle, length_min, length_max,
+                                   max_condition);
+        task_kernels::within_margins(position.data(), rpy.data(), lengths.data(), condition.data(), lim, margin,
+                                     ok.data(), n);
+    }, "position"_a, "rpy"_a, "lengths"_a, "condition"_a, "position_min"_a, "position_max"_a, "home_rpy"_a,
+       "max_angle"_a, "length_min"_a, "length_max"_a, "max_condition"_a, "margin"_a, "ok"_a.noconvert(),
+       "Whether poses lie inside the limits shrunk by margin (tasks.pose_margins).");
+
+    m.def("drive", [](In action, double half, double mid, double lag, Out clipped, Out forces) {
+        expect(action, "action", {-1, 6});
+        const int64_t n = static_cast<int64_t>(action.shape(0));
+        expect(clipped, "clipped", {n, 6});
+        expect(forces, "leg_forces", {n, 6});
+        env_step::drive(action.data(), half, mid, lag, clipped.data(), forces.data(), n);
+    }, "action"_a, "half"_a, "mid"_a, "lag"_a, "clipped"_a.noconvert(), "forces"_a.noconvert(),
+       "The actuators: the action clipped to [-1, 1] and mapped onto the force range, through the lag.");
+
+    m.def("after_physics", [](Out t, Out R, Out v, Out w, Out t0, Out R0, Out v0, Out w0, Codes steps, double dt,
+                              Out time, Flags non_finite) {
+        expect(t, "position", {-1, 3});
+        const int64_t n = static_cast<int64_t>(t.shape(0));
+        state(t, R, v, w, n);
+        state(t0, R0, v0, w0, n);
+        expect(steps, "steps", {n});
+        expect(time, "time", {n});
+        expect(non_finite, "non_finite", {n});
+        return env_step::after_physics(state_of(t, R, v, w), state_of(t0, R0, v0, w0), steps.data(), dt,
+                                       time.data(), non_finite.data(), n);
+    }, "t"_a.noconvert(), "R"_a.noconvert(), "v"_a.noconvert(), "w"_a.noconvert(), "t0"_a.noconvert(),
+       "R0"_a.noconvert(), "v0"_a.noconvert(), "w0"_a.noconvert(), "steps"_a.noconvert(), "dt"_a,
+       "time"_a.noconvert(), "non_finite"_a.noconvert(),
+       "Advance the clock; put rows whose state stopped being finite back to their start state.");
+
+    m.def("copy_state", [](Out t, Out R, Out v, Out w, Out t0, Out R0, Out v0, Out w0) {
+        expect(t, "position", {-1, 3});
+        const int64_t n = static_cast<int64_t>(t.shape(0));
+        state(t, R, v, w, n);
+        state(t0, R0, v0, w0, n);
+        env_step::copy_state(state_of(t, R, v, w), state_of(t0, R0, v0, w0), n);
+    }, "t"_a, "R"_a, "v"_a, "w"_a, "t0"_a.noconvert(), "R0"_a.noconvert(), "v0"_a.noconvert(), "w0"_a.noconvert(),
+       "Copy a batch state (t, R, v, w) into another's arrays (t0, R0, v0, w0).");
+
+    m.def("control_step", [](In prm, int64_t flags, In sensor_prm, double half, double mid, double lag, bool drive,
+                             double physics_dt, int64_t substeps, double control_dt, double max_condition, In action,
+                             Out clipped, Out F, In W, Out t, Out R, Out v, Out w, Out t0, Out R0, Out v0, Out w0,
+                             Codes steps, Out time, Flags non_finite, Out lengths, Out rates, Out condition) {
+        const int64_t n = batch(prm, In(t));
+        state(t, R, v, w, n);
+        state(t0, R0, v0, w0, n);
+        expect(sensor_prm, "sensor_prm", {-1, kernels::N_PARAMS});
+        if (!(sensor_prm.shape(0) == 1 || static_cast<int64_t>(sensor_prm.shape(0)) == n))
+            throw nb::value_error("sensor_prm: expected 1 or N parameter rows");
+        expect(action, "action", {n, 6});
+        expect(clipped, "clipped", {n, 6});
+        expect(F, "leg_forces", {n, 6});
+        expect(W, "external_wrench", {n, 6});
+        expect(steps, "steps", {n});
+        expect(time, "time", {n});
+        expect(non_finite, "non_finite", {n});
+        expect(lengths, "lengths", {n, 6});
+        expect(rates, "rates", {n, 6});
+        expect(condition, "condition", {n});
+        if (substeps < 0) throw nb::value_error("substeps: expected a non-negative integer");
+        const env_step::ControlStep c{prm.data(), static_cast<int64_t>(prm.shape(0)), flags, sensor_prm.data(),
+                                      static_cast<int64_t>(sensor_prm.shape(0)), half, mid, lag, drive, physics_dt,
+                                      substeps, control_dt, max_condition};
+        nb::gil_scoped_release release;
+        return env_step::control_step(c, action.data(), clipped.data(), F.data(), W.data(), state_of(t, R, v, w),
+                                      state_of(t0, R0, v0, w0), steps.data(), time.data(), non_finite.data(),
+                                      lengths.data(), rates.data(), condition.data(), n);
+    }, "prm"_a, "flags"_a, "sensor_prm"_a, "half"_a, "mid"_a, "lag"_a, "drive"_a, "physics_dt"_a, "substeps"_a,
+       "control_dt"_a, "max_condition"_a, "action"_a, "clipped"_a.noconvert(), "F"_a.noconvert(), "W"_a,
+       "t"_a.noconvert(), "R"_a.noconvert(), "v"_a.noconvert(), "w"_a.noconvert(), "t0"_a.noconvert(),
+       "R0"_a.noconvert(), "v0"_a.noconvert(), "w0"_a.noconvert(), "steps"_a.noconvert(), "time"_a.noconvert(),
+       "non_finite"_a.noconvert(), "lengths"_a.noconvert(), "rates"_a.noconvert(), "condition"_a.noconvert(),
+       "One control step of the closed-form plant for every row: actuators, RK4 substeps, clock and non-finite "
+       "check, leg sensors (env_step.hpp).  Returns whether any row stopped being finite.");
+
+    m.def("pose_block", [](In t, In R, In v, In w, Out raw) {
+        expect(t, "position", {-1, 3});
+        const int64_t n = static_cast<int64_t>(t.shape(0));
+        state(t, R, v, w, n);
+        expect(raw, "raw", {n, -1});
+        const int64_t dim = static_cast<int64_t>(raw.shape(1));
+        if (dim < 15) throw nb::value_error("raw: expected at least 15 columns");
+        env_step::pose_block(t.data(), R.data(), v.data(), w.data(), raw.data(), dim, n);
+    }, "t"_a, "R"_a, "v"_a, "w"_a, "raw"_a.noconvert(),
+       "The pose observation's first 15 entries of every row: P, R's first two columns, v, omega.");
+
+    m.def("normalize", [](Out raw, In offset, In inv_scale) {
+        expect(raw, "raw", {-1, -1});
+        const int64_t dim = static_cast<int64_t>(raw.shape(1));
+        expect(offset, "offset", {dim});
+        expect(inv_scale, "inv_scale", {dim});
+        env_step::normalize(raw.data(), offset.data(), inv_scale.data(), dim, static_cast<int64_t>(raw.shape(0)));
+    }, "raw"_a.noconvert(), "offset"_a, "inv_scale"_a, "raw = (raw - offset) * inv_scale, in place.");
+
+    m.def("within_float32", [](In raw, In reward, double largest) {
+        return env_step::within_float32(raw.data(), static_cast<int64_t>(raw.size()), reward.data(),
+                                        static_cast<int64_t>(reward.size()), largest);
+    }, "raw"_a, "reward"_a, "largest"_a,
+       "Whether every entry of raw is within +-largest and every reward finite.");
 }
