@@ -84,15 +84,16 @@ def test_same_seed_gives_bit_identical_vector_trajectories():
 
 
 def test_one_compiled_control_step_per_step(monkeypatch):
-    """The whole batch's actuators, RK4 substeps, clock and leg sensors in one compiled call."""
+    """The whole batch's control step (actuators, RK4 substeps, sensors, errors, termination,
+    reward, observation) in one compiled call."""
     calls = []
-    original = core_module._core.control_step
+    original = core_module._core.BatchStep.step
 
-    def counting(*args):
-        calls.append(args[11].shape[0])  # the action (n,6)
-        return original(*args)
+    def counting(self, action, *args):
+        calls.append(action.shape[0])
+        return original(self, action, *args)
 
-    monkeypatch.setattr(core_module._core, "control_step", counting)
+    monkeypatch.setattr(core_module._core.BatchStep, "step", counting)
     monkeypatch.setattr(plant_module, "rollout_inplace", None)  # the plant's own path is not taken
     envs = make_vec(16)
     envs.reset(seed=0)

@@ -30,7 +30,7 @@ from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks import LIMIT_REASONS, StepView, make_task, tracking_errors
-from stewart_env.tasks.base import errors_in, zero_reference
+from stewart_env.tasks.base import Task, errors_in, zero_reference
 
 __all__ = ["TERMINATION_REASONS", "PlatformBatch"]
 
@@ -132,10 +132,36 @@ class PlatformBatch:
             _readonly(self.leg_lengths), _readonly(self.leg_rates), _readonly(self.condition),
             _readonly(self.external_wrench), _readonly(self.time), _readonly(self._non_finite),
             MappingProxyType({k: _readonly(v) for k, v in self.episode.items()}))
+        self._kernel = self._compiled_step()
+
+    def _compiled_step(self) -> _core.BatchStep | None:
+        """The whole control step as one compiled call over the batch's arrays, or None when the
+        step needs Python between its parts: a plant other than the closed-form one, or a task with
+        its own termination or reward.  The observation is made in the same call unless the task
+        observes terms of its own (then :meth:`ObservationPipeline.step` makes it after the call)."""
+        task = self.task
+        if not isinstance(self.plant, ClosedFormPlant) or any(
+                getattr(type(task), name) is not getattr(Task, name)
+                for name in ("termination", "reward_terms", "termination_reward")):
+            return None
+        model = self.plant.model
+        lim = self.platform.limits
+        arrays = dict(
+            n=self.n, prm=model.packed, flags=model.flags, sensor_prm=self.nominal_model.packed,
+            force_half=self._force_half, force_mid=self._force_mid, lag=self._lag, physics_dt=self.physics_dt,
+            substeps=self.substeps, control_dt=self.control_dt, max_condition=lim.max_condition,
+            **dict(zip(PlatformState._fields, self._state)),
+            **{"start_" + k: v for k, v in zip(PlatformState._fields, self._backup)},
+            action=self._action, leg_forces=self.leg_forces, external_wrench=self.external_wrench, steps=self.steps,
+            time=self.time, non_finite=self._non_finite, leg_lengths=self.leg_lengths, leg_rates=self.leg_rates,
+            condition=self.condition, error_vectors=self._error_vectors, error_norms=self._error_norms,
+            **{"ref_" + k: getattr(self.reference, k) for k in PlatformState._fields},
+            **task.kernel_arguments(), **self.observations.kernel_arguments())
+        return _core.BatchStep(arrays)
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
-        del state["_state"], state["view"], state["_errors"]
+        del state["_state"], state["view"], state["_errors"], state["_kernel"]
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -184,6 +210,8 @@ class PlatformBatch:
         if drawn is not None:
             self.model = self.model.with_packed_rows(rows, *drawn)
             self.plant.set_model(self.model, rows)
+            if self._kernel is not None:
+                self._kernel.set_model(self.model.packed, self.model.flags)
         self.steps[rows] = 0
         self.time[rows] = 0.0
         self.external_wrench[rows] = 0.0
@@ -268,8 +296,45 @@ class PlatformBatch:
             self._drive(action)
             driven = True
             self.task.external_wrench(self.view, self.control_dt, self.external_wrench)
+        if self._kernel is not None:
+            return self._compiled_outcome(action, driven, rngs, skip)
         self._physics(action, driven)
         return self._outcome(rngs, skip)
+
+    def _compiled_outcome(self, action, driven, rngs, skip) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """:meth:`step` by the compiled batch: the reference at the step's end, then one call for
+        the actuators, the plant, the sensors, the errors, the termination, the reward and (unless
+        the task observes terms of its own) the observation."""
+        task, obs, n = self.task, self.observations, self.n
+        if self._moving_reference:
+            # the reference at the end of the step, the time the call will set (it depends on no state)
+            task.reference(self.view.episode, (self.steps + 1) * self.control_dt, self.reference)
+        code, terms, reward, bad = np.empty(n, dtype=np.int64), np.empty((5, n)), np.empty(n), np.empty(n, dtype=bool)
+        observed = obs.compiled
+        noise = obs.draw_noise(rngs, skip) if observed else None
+        head = (obs._head + 1) % (obs.delay + 1)
+        found = self._kernel.step(action, not driven, noise, skip, head, code, terms, reward, bad)
+        self._any_non_finite = bool(found & _core.NON_FINITE_STATE)
+        terms = dict(zip(("position", "orientation", "velocity", "control", "termination"), terms))
+        if observed:
+            obs._head = head
+            obs._any_pending = False
+            bad = bad if found & _core.BAD_ROWS else None
+        else:
+            bad = obs.step(self.view, reward, rngs, skip)
+        if bad is not None:
+            reward = self._end_non_finite(bad, code, terms)
+        return reward, code, terms
+
+    def _end_non_finite(self, bad: np.ndarray, code: np.ndarray, terms: dict[str, np.ndarray]) -> np.ndarray:
+        """End the rows ``bad`` whose observation or reward was not finite: no NaN or inf leaves the
+        environment, the row ends as non-finite, its reward terms that are not finite count 0, and
+        its termination term is the task's for the new code.  Returns the rows' reward."""
+        code[bad] = NON_FINITE
+        for term in terms.values():
+            term[bad] = np.nan_to_num(term[bad], nan=0.0, posinf=0.0, neginf=0.0)
+        terms["termination"] = self.task.termination_reward(code)
+        return sum(terms.values())
 
     def _drive(self, action: np.ndarray) -> None:
         """The actuators: the action clipped to [-1, 1] (kept as the applied action) and mapped
@@ -318,13 +383,7 @@ class PlatformBatch:
 
         bad = self.observations.step(view, reward, rngs, skip)
         if bad is not None:
-            # No NaN or inf leaves the environment: the row ends as non-finite, its reward terms
-            # that are not finite count 0, and its termination term is the task's for the new code.
-            code[bad] = NON_FINITE
-            for term in terms.values():
-                term[bad] = np.nan_to_num(term[bad], nan=0.0, posinf=0.0, neginf=0.0)
-            terms["termination"] = task.termination_reward(code)
-            reward = sum(terms.values())
+            reward = self._end_non_finite(bad, code, terms)
         return reward, code, terms
 
     def _park(self, rows: np.ndarray) -> None:

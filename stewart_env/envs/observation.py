@@ -138,6 +138,37 @@ class ObservationPipeline:
         return std if std.any() else None
 
     @property
+    def compiled(self) -> bool:
+        """Whether the environment's compiled step makes the observation (:meth:`kernel_arguments`):
+        the task observes only the position and orientation errors, as :class:`Task` does."""
+        task = type(self._task)
+        return task.observe is Task.observe and task.observation_terms is Task.observation_terms
+
+    def kernel_arguments(self) -> dict[str, Any]:
+        """The layout, scaling, error integral and arrays of the observation, for the environment's
+        compiled step (see :meth:`compiled`)."""
+        if not self.compiled:
+            return {"observe": False}
+        at = {name: self.layout[name].start if name in self.layout else -1
+              for name in ("leg_lengths", "leg_rates", "leg_forces", "position_error", "orientation_error",
+                           "error_integral")}
+        return dict(observe=True, pose=self.mode == "pose", **{k + "_at": v for k, v in at.items()}, raw=self._raw,
+                    history=self._history, normalize=self.normalize, offset=self.offset, inv_scale=self._inv_scale,
+                    error_integral=self.error_integral, error_integral_bound=self.error_integral_bound,
+                    error_integral_band=self.error_integral_band, pending=self._pending, largest=_FLOAT32_MAX)
+
+    def draw_noise(self, rngs: Sequence[np.random.Generator], skip: np.ndarray | None) -> np.ndarray | None:
+        """This step's observation noise (n, D), drawn from rngs[i] for every row i not in ``skip``
+        (the others' rows are left unset), or None without noise."""
+        if self.noise_std is None:
+            return None
+        noise = np.empty(self._raw.shape)
+        for i in range(noise.shape[0]):
+            if skip is None or not skip[i]:
+                noise[i] = rngs[i].normal(size=self.dim) * self.noise_std
+        return noise
+
+    @property
     def latest(self) -> np.ndarray:
         """The observation every row returns now (n, D): scaled, noisy and delayed as configured."""
         return self._history[(self._head + 1) % (self.delay + 1)]

@@ -267,7 +267,179 @@ env_step::State state_of(Out& t, Out& R, Out& v, Out& w) { return {t.data(), R.d
 
 }  // namespace
 
+// The compiled batch of the environment (env_step::Batch): the numpy arrays it works on, taken
+// from a dict by name once, shape-checked and kept alive while it lives; the per-step call then
+// passes only the action and the step's fresh outputs.
+class BatchStep {
+public:
+    explicit BatchStep(nb::dict a) {
+        const int64_t n = nb::cast<int64_t>(a["n"]);
+        if (n < 1) throw nb::value_error("n: expected a positive batch size");
+        env_step::Batch& B = b_;
+        B.n = n;
+        set_model(a["prm"], nb::cast<int64_t>(a["flags"]));
+        const In sensor = keep<In>(a["sensor_prm"], "sensor_prm", {-1, kernels::N_PARAMS});
+        if (!(sensor.shape(0) == 1 || static_cast<int64_t>(sensor.shape(0)) == n))
+            throw nb::value_error("sensor_prm: expected 1 or N parameter rows");
+        B.c.sensor_prm = sensor.data();
+        B.c.n_sensor_prm = static_cast<int64_t>(sensor.shape(0));
+        B.c.force_half = nb::cast<double>(a["force_half"]);
+        B.c.force_mid = nb::cast<double>(a["force_mid"]);
+        B.c.lag = nb::cast<double>(a["lag"]);
+        B.c.physics_dt = nb::cast<double>(a["physics_dt"]);
+        B.c.substeps = nb::cast<int64_t>(a["substeps"]);
+        if (B.c.substeps < 0) throw nb::value_error("substeps: expected a non-negative integer");
+        B.c.control_dt = nb::cast<double>(a["control_dt"]);
+        B.c.max_condition = nb::cast<double>(a["max_condition"]);
+        B.s = state_arrays(a, "", n);
+        B.start = state_arrays(a, "start_", n);
+        B.clipped = keep<Out>(a["action"], "action", {n, 6}).data();
+        B.F = keep<Out>(a["leg_forces"], "leg_forces", {n, 6}).data();
+        B.W = keep<Out>(a["external_wrench"], "external_wrench", {n, 6}).data();
+        B.steps = keep<Codes>(a["steps"], "steps", {n}).data();
+        B.time = keep<Out>(a["time"], "time", {n}).data();
+        B.non_finite = keep<Flags>(a["non_finite"], "non_finite", {n}).data();
+        B.lengths = keep<Out>(a["leg_lengths"], "leg_lengths", {n, 6}).data();
+        B.rates = keep<Out>(a["leg_rates"], "leg_rates", {n, 6}).data();
+        B.condition = keep<Out>(a["condition"], "condition", {n}).data();
+        B.rt = keep<Out>(a["ref_position"], "ref_position", {n, 3}).data();
+        B.rR = keep<Out>(a["ref_rotation"], "ref_rotation", {n, 3, 3}).data();
+        B.rv = keep<Out>(a["ref_velocity"], "ref_velocity", {n, 3}).data();
+        B.rw = keep<Out>(a["ref_angular_velocity"], "ref_angular_velocity", {n, 3}).data();
+        B.errors = keep<Out>(a["error_vectors"], "error_vectors", {4, n, 3}).data();
+        B.norms = keep<Out>(a["error_norms"], "error_norms", {4, n}).data();
+        B.limits = {keep<In>(a["position_min"], "position_min", {3}).data(),
+                    keep<In>(a["position_max"], "position_max", {3}).data(),
+                    keep<In>(a["home_rpy"], "home_rpy", {3}).data(), nb::cast<double>(a["max_angle"]),
+                    nb::cast<double>(a["length_min"]), nb::cast<double>(a["length_max"]), B.c.max_condition};
+        const In w = keep<In>(a["weights"], "weights", {8});
+        B.weights = {w.data()[0], w.data()[1], w.data()[2], w.data()[3], w.data()[4], w.data()[5], w.data()[6],
+                     w.data()[7]};
+        B.termination_cost = nb::cast<double>(a["termination_cost"]);
+        const auto failure = keep<InFlags>(a["failure"], "failure", {-1});
+        n_codes_ = static_cast<int64_t>(failure.shape(0));
+        B.failure = failure.data();
+        B.observe = nb::cast<bool>(a["observe"]);
+        if (!B.observe) return;
+        env_step::Layout& L = B.layout;
+        L.pose = nb::cast<bool>(a["pose"]);
+        L.leg_lengths = nb::cast<int64_t>(a["leg_lengths_at"]);
+        L.leg_rates = nb::cast<int64_t>(a["leg_rates_at"]);
+        L.leg_forces = nb::cast<int64_t>(a["leg_forces_at"]);
+        L.position_error = nb::cast<int64_t>(a["position_error_at"]);
+        L.orientation_error = nb::cast<int64_t>(a["orientation_error_at"]);
+        L.error_integral = nb::cast<int64_t>(a["error_integral_at"]);
+        const Out raw = keep<Out>(a["raw"], "raw", {n, -1});
+        L.dim = static_cast<int64_t>(raw.shape(1));
+        const int64_t D = L.dim;
+        // every term's columns inside the row
+        const auto fits = [D](int64_t at, int64_t size, bool on) { return !on || (at >= 0 && at + size <= D); };
+        if (!(fits(0, 15, L.pose) && fits(L.leg_lengths, 6, !L.pose) && fits(L.leg_rates, 6, !L.pose) &&
+              fits(L.leg_forces, 6, L.leg_forces >= 0) && fits(L.position_error, 3, true) &&
+              fits(L.orientation_error, 3, true) && fits(L.error_integral, 6, L.error_integral >= 0)))
+            throw nb::value_error("layout: a term outside the observation row");
+        B.raw = raw.data();
+        const Out history = keep<Out>(a["history"], "history", {-1, n, D});
+        B.history = history.data();
+        B.slots = static_cast<int64_t>(history.shape(0));
+        B.normalize = nb::cast<bool>(a["normalize"]);
+        B.offset = keep<In>(a["offset"], "offset", {D}).data();
+        B.inv_scale = keep<In>(a["inv_scale"], "inv_scale", {D}).data();
+        B.integral = nullptr;
+        B.band = nullptr;
+        if (L.error_integral >= 0) {
+            B.integral = keep<Out>(a["error_integral"], "error_integral", {n, 6}).data();
+            B.bound = keep<In>(a["error_integral_bound"], "error_integral_bound", {6}).data();
+            if (!a["error_integral_band"].is_none())
+                B.band = keep<In>(a["error_integral_band"], "error_integral_band", {6}).data();
+        }
+        B.pending = keep<Flags>(a["pending"], "pending", {n}).data();
+        B.largest = nb::cast<double>(a["largest"]);
+    }
+
+    // New packed parameters of the plant (domain randomisation at a reset): prm (1 or n rows).
+    void set_model(nb::handle packed, int64_t flags) {
+        In prm;
+        if (!nb::try_cast<In>(packed, prm, false))
+            throw nb::value_error("prm: expected a C-contiguous float64 array");
+        expect(prm, "prm", {-1, kernels::N_PARAMS});
+        if (!(prm.shape(0) == 1 || static_cast<int64_t>(prm.shape(0)) == b_.n))
+            throw nb::value_error("prm: expected 1 or N parameter rows");
+        prm_ = nb::borrow(packed);
+        b_.c.prm = prm.data();
+        b_.c.n_prm = static_cast<int64_t>(prm.shape(0));
+        b_.c.flags = flags;
+    }
+
+    int64_t step(In action, bool drive, nb::object noise, nb::object skip, int64_t head, Codes code, Out terms,
+                 Out reward, Flags bad) {
+        const int64_t n = b_.n;
+        expect(action, "action", {n, 6});
+        expect(code, "code", {n});
+        expect(terms, "terms", {5, n});
+        expect(reward, "reward", {n});
+        expect(bad, "bad", {n});
+        if (head < 0 || (b_.observe && head >= b_.slots)) throw nb::value_error("head: outside the history ring");
+        const double* noise_data = nullptr;
+        const bool* skip_data = nullptr;
+        In noise_array;
+        InFlags skip_array;
+        if (!noise.is_none()) {
+            noise_array = nb::cast<In>(noise);
+            expect(noise_array, "noise", {n, b_.observe ? b_.layout.dim : -1});
+            noise_data = noise_array.data();
+        }
+        if (!skip.is_none()) {
+            skip_array = nb::cast<InFlags>(skip);
+            expect(skip_array, "skip", {n});
+            skip_data = skip_array.data();
+        }
+        nb::gil_scoped_release release;
+        return env_step::step(b_, action.data(), drive, noise_data, skip_data, head, code.data(), terms.data(),
+                              reward.data(), bad.data());
+    }
+
+    int64_t n_codes() const { return n_codes_; }
+
+private:
+    // An array of the dict, checked and kept alive; never converted (the batch writes into it).
+    template <typename A>
+    A keep(nb::handle h, const char* name, std::initializer_list<int64_t> shape) {
+        A a;
+        if (!nb::try_cast<A>(h, a, false))
+            throw nb::value_error((std::string(name) + ": expected a C-contiguous array of the batch's dtype").c_str());
+        expect(a, name, shape);
+        kept_.push_back(nb::borrow(h));
+        return a;
+    }
+
+    env_step::State state_arrays(nb::dict a, const std::string& prefix, int64_t n) {
+        const auto name = [&prefix](const char* field) { return prefix + field; };
+        return {keep<Out>(a[name("position").c_str()], "position", {n, 3}).data(),
+                keep<Out>(a[name("rotation").c_str()], "rotation", {n, 3, 3}).data(),
+                keep<Out>(a[name("velocity").c_str()], "velocity", {n, 3}).data(),
+                keep<Out>(a[name("angular_velocity").c_str()], "angular_velocity", {n, 3}).data()};
+    }
+
+    env_step::Batch b_{};
+    std::vector<nb::object> kept_;
+    nb::object prm_;
+    int64_t n_codes_ = 0;
+};
+
 void def_env_kernels(nb::module_& m) {
+    m.attr("NON_FINITE_STATE") = env_step::NON_FINITE_STATE;
+    m.attr("BAD_ROWS") = env_step::BAD_ROWS;
+    nb::class_<BatchStep>(m, "BatchStep",
+        "The compiled control step of a batch of the environment (env_step.hpp): built once from the batch's "
+        "arrays by name, then one call per control step.")
+        .def(nb::init<nb::dict>(), "arrays"_a)
+        .def("set_model", &BatchStep::set_model, "prm"_a, "flags"_a)
+        .def("step", &BatchStep::step, "action"_a, "drive"_a, "noise"_a.none(), "skip"_a.none(), "head"_a,
+             "code"_a.noconvert(), "terms"_a.noconvert(), "reward"_a.noconvert(), "bad"_a.noconvert(),
+             "One control step of every row; returns 1 | 2 as a row's state stopped being finite | a row's "
+             "observation or reward was not (the rows in bad).");
+
     m.def("rotation_error_rows", [](In r, In c, Out phi, Out angle) {
         expect(c, "rotation", {-1, 3, 3});
         const int64_t n = static_cast<int64_t>(c.shape(0));
