@@ -1,11 +1,15 @@
-"""The batched core of the environments: N platforms, a task, and one plant call per step.
+"""The batched core of the environments: N platforms, a task, and one compiled call per step.
 
 :class:`PlatformBatch` holds the state of N platforms in preallocated arrays and does everything
 of a control step for all of them at once: action to leg forces, actuator lag, the task's
 external wrench, one call of its plant (:mod:`stewart_env.envs.plant`: the compiled closed-form
 rollout, or MuJoCo), the leg sensors; the task, given a read-only
 :class:`~stewart_env.tasks.StepView` of the batch, decides termination and reward, and the
-observation pipeline (:mod:`stewart_env.envs.observation`) makes every row's observation.  The
+observation pipeline (:mod:`stewart_env.envs.observation`) makes every row's observation.  With
+the closed-form plant and a task that keeps :class:`~stewart_env.tasks.Task`'s termination and
+reward, all of that but the task's Python hooks (a moving reference, an external wrench, its own
+observation terms) is one call of the compiled batch (``_core.BatchStep``,
+``stewart_env/dynamics/cpp/env_step.hpp``), the same arithmetic as the step of parts.  The
 single environment is a batch of one, the vector environment a batch of N; both give a platform
 the same arithmetic, so a vector row reproduces a single environment bit for bit.  Per-row
 Python loops run only at episode start and for observation noise (each row draws from its own
