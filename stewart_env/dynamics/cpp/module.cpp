@@ -497,7 +497,8 @@ void def_env_kernels(nb::module_& m) {
         expect(out, "out", {4, n});
         task_kernels::tracking_reward(ep.data(), eo.data(), ev.data(), ew.data(), 1, action.data(),
                                       {wp, sp, wo, so, wv, sv, sw, wc}, out.data(), n);
-    }, "ep"_a, "eo"_a, "ev"_a, "ew"_a, "action"_a, "wp"_a, "sp"_a, "wo"_a, "so"_a, "wv"_a, "sv"_a, "sw"_a, "wc"_a, "out"_a.noconvert(),
+    }, "ep"_a, "eo"_a, "ev"_a, "ew"_a, "action"_a, "wp"_a, "sp"_a, "wo"_a, "so"_a, "wv"_a, "sv"_a, "sw"_a, "wc"_a,
+       "out"_a.noconvert(),
        "The four running terms (4,N) of the tracking-error reward (tasks.RewardWeights).");
 
     m.def("within_margins", [](In position, In rpy, In lengths, In condition, In position_min, In position_max,

@@ -143,7 +143,8 @@ inline void tracking_reward(const double* ep, const double* eo, const double* ev
         const int64_t k = norm_stride * b;
         out[b] = wt.position_weight * std::exp(-ep[k] / wt.position_scale);
         out[n + b] = wt.orientation_weight * std::exp(-eo[k] / wt.orientation_scale);
-        out[2 * n + b] = -wt.velocity_weight * -std::expm1(-(ev[k] / wt.velocity_scale + ew[k] / wt.angular_velocity_scale));
+        const double rates = ev[k] / wt.velocity_scale + ew[k] / wt.angular_velocity_scale;
+        out[2 * n + b] = -wt.velocity_weight * -std::expm1(-rates);
         double a2 = 0.0;
         for (int i = 0; i < 6; ++i) a2 += action[6 * b + i] * action[6 * b + i];
         out[3 * n + b] = -wt.ctrl_weight * (a2 / 6.0);
