@@ -318,6 +318,8 @@ public:
         B.termination_cost = nb::cast<double>(a["termination_cost"]);
         const auto failure = keep<InFlags>(a["failure"], "failure", {-1});
         n_codes_ = static_cast<int64_t>(failure.shape(0));
+        // code 0 and the four limits' codes that limit_codes gives
+        if (n_codes_ < 5) throw nb::value_error("failure: expected an entry for code 0 and each limit's code");
         B.failure = failure.data();
         B.observe = nb::cast<bool>(a["observe"]);
         if (!B.observe) return;
