@@ -37,6 +37,7 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import gymnasium as gym
 import numpy as np
@@ -61,8 +62,19 @@ ORIENTATION_TOLERANCE = 1e-2
 #: Default final window, as a fraction of the episode's duration.
 FINAL_WINDOW = 0.1
 
-#: Metrics of an episode, in the order of the CSV columns: key, table header, display factor, format.
-METRICS = (
+
+class Metric(NamedTuple):
+    """One metric of an episode as the reports show it: ``key`` in ``Episode.metrics``,
+    ``title`` of its table column, ``factor`` from SI to the display unit, ``spec`` its format."""
+
+    key: str
+    title: str
+    factor: float
+    spec: str
+
+
+#: Metrics of an episode, in the order of the CSV columns.
+METRICS = tuple(Metric(*m) for m in (
     ("success", "success", 1.0, ".0%"),
     ("rms_position_error", "RMS pos. err. (mm)", 1e3, ".3g"),
     ("rms_orientation_error", "RMS ori. err. (mrad)", 1e3, ".3g"),
@@ -73,7 +85,7 @@ METRICS = (
     ("steady_state_orientation_error", "steady-state ori. (mrad)", 1e3, ".3g"),
     ("peak_leg_force", "peak leg force (N)", 1.0, ".4g"),
     ("control_energy", "energy (J)", 1.0, ".4g"),
-)
+))
 
 
 # -- metrics of one episode ------------------------------------------------------------------------
@@ -188,7 +200,7 @@ class EvaluationResult:
         """Mean of every metric over the episodes (NaN-ignoring: settling time and overshoot are
         averaged over the episodes where they are defined; NaN if none)."""
         out = {}
-        for key, *_ in METRICS:
+        for key in (m.key for m in METRICS):
             values = np.array([ep.metrics[key] for ep in self.episodes], dtype=float)
             out[key] = float(np.mean(values[np.isfinite(values)])) if np.isfinite(values).any() else math.nan
         return out
@@ -310,12 +322,12 @@ def _fmt(value: float, factor: float, spec: str) -> str:
 
 def markdown_table(results: Sequence[EvaluationResult]) -> str:
     """A markdown table of the mean metrics of each result (one row per result)."""
-    head = ["controller", "model", "task", "episodes"] + [m[1] for m in METRICS]
+    head = ["controller", "model", "task", "episodes"] + [m.title for m in METRICS]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in results:
         s = r.summary()
         cells = [r.label, r.model, r.task, str(len(r.episodes))]
-        cells += [_fmt(s[key], factor, spec) for key, _, factor, spec in METRICS]
+        cells += [_fmt(s[m.key], m.factor, m.spec) for m in METRICS]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -348,13 +360,13 @@ def _write_report(results: Sequence[EvaluationResult], out: Path, title: str) ->
     with publishing(paths["csv"]) as tmp, tmp.open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(["controller", "model", "task", "platform", "seed", "termination", "return"]
-                        + [m[0] for m in METRICS])
+                        + [m.key for m in METRICS])
         for r in results:
             platform = r.env_kwargs.get("platform", "dasgupta1998")
             platform = platform.name if isinstance(platform, se.PlatformParams) else str(platform)
             for ep in r.episodes:
                 writer.writerow([r.label, r.model, r.task, platform, ep.seed, ep.termination or "", f"{ep.reward:.6g}"]
-                                + [f"{ep.metrics[m[0]]:.9g}" for m in METRICS])
+                                + [f"{ep.metrics[m.key]:.9g}" for m in METRICS])
     with publishing(paths["error_norms"]) as tmp:
         error_norms_figure(results).savefig(tmp, dpi=110)
     for r in results:

@@ -4,7 +4,7 @@
     stewart-env evaluate --policy pd ct --model classical improved --task tracking --out results/
     stewart-env evaluate --agent runs/ppo --model classical improved
     stewart-env reproduce --out figures/   the case study of He et al. (2018), Fig. 6-10
-    stewart-env train ... / mismatch ...   stewart_env.agents.training and .mismatch
+    stewart-env train ... / mismatch ...   stewart_env.agents.training, stewart_env.mismatch_cli
     stewart-env bench ...                  the benchmark (stewart_env.bench)
     stewart-env export-mjcf --platform dasgupta1998 --out stewart.xml   the MuJoCo twin as MJCF
 
@@ -28,7 +28,8 @@ def build_parser() -> argparse.ArgumentParser:
     # imported here, not at module top: stewart_env.agents loads the evaluation harness and
     # matplotlib, which `stewart-env bench` never needs; the training modules import
     # stable-baselines3 only inside the functions that need it
-    from stewart_env.agents import mismatch, training
+    from stewart_env import mismatch_cli
+    from stewart_env.agents import training
     from stewart_env.agents.arguments import (
         TASKS,
         model_name,
@@ -106,7 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="add the static holding forces to the PD law (the paper's law as we have it has none)")
 
     training.add_cli(sub)
-    mismatch.add_cli(sub)
+    mismatch_cli.add_parser(sub)
     sub.add_parser("bench", add_help=False, help="the benchmark (stewart_env.bench); see stewart-env bench --help")
 
     mjcf = sub.add_parser(

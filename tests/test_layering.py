@@ -36,6 +36,7 @@ LAYERS = {
     "stewart_env.configs": "agents",
     "stewart_env.bench": "cli",
     "stewart_env.cli": "cli",
+    "stewart_env.mismatch_cli": "cli",
 }
 # the package's face re-exports the physics API and registers the environment with Gymnasium
 PACKAGE = "stewart_env"
@@ -118,6 +119,26 @@ def test_agents_use_public_names_of_the_package(name, path):
     assert private == []
 
 
+# The parameters are the physics' lowest floor: values, their checks, the config reader and the
+# shipped configs. The models are built on them (a check that needs the kernels runs where a
+# platform becomes a model), never the other way round.
+PARAMETERS = "stewart_env.params"
+ABOVE_PARAMETERS = ("stewart_env.dynamics", "stewart_env.kinematics", "stewart_env.integrate",
+                    "stewart_env.randomization", "stewart_env.mujoco", "stewart_env.tasks", "stewart_env.envs")
+
+
+def imports_above_the_parameters(path: Path) -> list[str]:
+    """``line n: module`` of every import of a module the parameters must not know."""
+    return [f"line {line}: {module}" for module, _, line in imports(path)
+            if module == PACKAGE or module.startswith(ABOVE_PARAMETERS)]
+
+
+def test_the_parameters_import_no_model_task_or_environment():
+    modules = [(name, path) for name, path in MODULES if name == PARAMETERS or name.startswith(PARAMETERS + ".")]
+    assert len(modules) >= 5, "the parameter package's modules were not found"
+    assert [f"{name} {hit}" for name, path in modules for hit in imports_above_the_parameters(path)] == []
+
+
 def library_imports(path: Path) -> list[tuple[str, int]]:
     """(module, line) of every import of a module outside the package (``import x.y``, ``from x import``)."""
     out = []
@@ -150,6 +171,19 @@ def test_the_environments_reach_a_simulator_only_through_their_plant(simulator):
     assert found == []
 
 
+# The mismatch study's work modules; its command line (argparse) is stewart_env.mismatch_cli.
+MISMATCH = [(name, path) for name, path in MODULES if name.startswith("stewart_env.agents.mismatch")]
+
+
+@pytest.mark.parametrize("name,path", MISMATCH, ids=[name for name, _ in MISMATCH])
+def test_the_mismatch_study_s_work_modules_import_no_argparse(name, path):
+    assert len(MISMATCH) > 5, "the study's modules were not found"
+    assert [f"line {line}: {module}" for module, line in library_imports(path)
+            if module.split(".")[0] == "argparse"] == []
+    assert [f"line {line}: {module}" for module, _, line in imports(path)
+            if module == "stewart_env.agents.arguments"] == [], "argparse types belong to the command line"
+
+
 def test_the_rule_catches_an_upward_import(tmp_path):
     """The check itself can fail: a physics module importing the environment is reported."""
     bad = tmp_path / "bad.py"
@@ -159,5 +193,8 @@ def test_the_rule_catches_an_upward_import(tmp_path):
     assert [m for m, _, _ in imports(bad)] == ["stewart_env.mujoco", "stewart_env", "stewart_env.dynamics.rk4"]
     with pytest.raises(AssertionError):
         test_imports_run_one_way("stewart_env.kinematics", bad)
+    # within the physics layer, a parameter module importing a kernel is reported
+    bad.write_text("def f():\n    from stewart_env.dynamics import kernels as K\n")
+    assert imports_above_the_parameters(bad) == ["line 2: stewart_env.dynamics.kernels"]
     bad.write_text("import numpy as np\nfrom mujoco import rollout\nimport mujoco.viewer\n")
     assert library_imports(bad) == [("numpy", 1), ("mujoco", 2), ("mujoco.viewer", 3)]
