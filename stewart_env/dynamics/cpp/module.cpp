@@ -15,6 +15,8 @@
 namespace nb = nanobind;
 using namespace nb::literals;
 
+void bind_regressor(nb::module_& m);  // regressor_bindings.cpp
+
 using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
 using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
 
@@ -114,6 +116,7 @@ NB_MODULE(_core, m) {
     m.attr("LAW_JACOBIAN") = reinterpret_cast<uintptr_t>(&rk4::law_jacobian);
     m.attr("LAW_INVERSE_DYNAMICS") = reinterpret_cast<uintptr_t>(&rk4::law_inverse_dynamics);
 
+    bind_regressor(m);
     def_solve_batch<kernels::forward_batch>(m, "forward_batch", "F", "leg_forces");
     def_solve_batch<kernels::inverse_batch>(m, "inverse_batch", "acc", "acceleration");
 
