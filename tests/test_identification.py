@@ -80,3 +80,29 @@ def test_theta_round_trips_through_the_bodies(dasgupta, rng):
         # com = (m c) / m and the parallel-axis term taken off again: rounding
         assert np.allclose(com, params.platform.com, rtol=0, atol=1e-14)
         assert np.allclose(inertia, params.platform.inertia, rtol=0, atol=1e-13)
+
+
+@pytest.mark.parametrize("name", ["improved", "classical", "improved+c1"])
+def test_base_parameters_reproduce_the_regressor_and_leave_a_clear_rank_gap(simulator, rng, name):
+    from stewart_env.identification import base
+
+    model = se.make_dynamics(name, simulator)
+    b = base.base_parameters(model)
+    r = b.rank
+    assert 40 < r < reg.N_THETA
+    # identifiable columns stay far above the tolerance, the dependent ones at rounding
+    assert b.diagonal[r - 1] > 1e3 * base.RANK_TOLERANCE and b.diagonal[r] < 1e-3 * base.RANK_TOLERANCE
+    # Y theta == Y_base beta on fresh states, for random parameters: the base parameters carry
+    # everything the leg forces see (products of a few hundred terms: rounding)
+    params = random_params(simulator, rng)
+    theta = reg.theta_of(params, model.flags)
+    states = base.random_states(simulator, 20, rng)
+    Y = reg.regressor_matrix(model, *states)
+    full = Y @ theta
+    assert np.abs(b.columns(Y) @ b.of_theta(theta) - full).max() < 1e-10 * np.abs(full).max()
+    # and the base parameters map back to a theta with the nominal's unidentifiable part
+    nominal = reg.theta_of(simulator, model.flags)
+    back = b.theta_from(b.of_theta(theta), nominal)
+    assert np.allclose(b.of_theta(back), b.of_theta(theta), rtol=1e-12, atol=1e-12)
+    assert np.array_equal(back[b.dependent], nominal[b.dependent])
+    assert len(b.names) == r and all(n.split(" ")[0] in reg.THETA_NAMES for n in b.names)

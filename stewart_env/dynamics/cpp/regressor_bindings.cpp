@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <string>
 
+#include "excitation_law.hpp"
 #include "regressor.hpp"
 
 namespace nb = nanobind;
@@ -33,6 +34,15 @@ void expect_shape(const A& a, const char* name, std::initializer_list<int64_t> s
 
 void bind_regressor(nb::module_& m) {
     m.attr("N_THETA") = regressor::N_THETA;
+    m.attr("FOURIER_COMPUTED_TORQUE") = reinterpret_cast<uintptr_t>(&excitation::fourier_computed_torque);
+    m.def("fourier_reference", [](In params, double time, Out out) {
+        expect_shape(params, "params", {-1});
+        expect_shape(out, "out (3, 6)", {3, 6});
+        if (params.shape(0) < excitation::COEF ||
+            static_cast<int64_t>(params.shape(0)) != excitation::row_length(static_cast<int64_t>(params.data()[excitation::NH])))
+            throw nb::value_error("params: not a Fourier excitation row");
+        excitation::reference(params.data(), time, out.data(), out.data() + 6, out.data() + 12);
+    }, "params"_a, "time"_a, "out"_a.noconvert());
     m.def("regressor_batch", [](In prm, int64_t flags, In t, In R, In v, In w, In acc, Out Y) {
         expect_shape(t, "position (N, 3)", {-1, 3});
         const int64_t n = static_cast<int64_t>(t.shape(0));
