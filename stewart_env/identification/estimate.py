@@ -113,35 +113,38 @@ def wls(A: np.ndarray, F: np.ndarray) -> Estimate:
     return Estimate(beta, np.sqrt(np.diag(cov)), np.sqrt(np.mean(res ** 2, axis=0)), cov)
 
 
-def _pseudo_body(phi: np.ndarray, shifts: float) -> np.ndarray:
-    """A body's 10 parameters from 10 unconstrained numbers: mass exp(phi0), CoM phi1:4 and the
-    second moment about the CoM Sigma = L L^T (L lower triangular from phi4:10); the inertia
-    about the CoM tr(Sigma) E - Sigma then is positive semidefinite and its principal moments
-    satisfy the triangle inequalities (they are those of a real mass distribution)."""
-    m = np.exp(phi[0])
+def _physical_body(phi: np.ndarray, shifts: float) -> np.ndarray:
+    """A body's 10 parameters from mass phi0 (>= 0 by the solver's bounds), first moment phi1:4
+    and the lower triangle L of the CoM's second moment Sigma = L L^T (phi4:10): the inertia about
+    the CoM, tr(Sigma) E - Sigma, is then positive semidefinite and its principal moments satisfy
+    the triangle inequalities, those of a real mass distribution."""
+    m = max(phi[0], 1e-12)
     L = np.zeros((3, 3))
     L[np.tril_indices(3)] = phi[4:10]
     S = L @ L.T
-    return reg.body_theta(m, phi[1:4], np.trace(S) * np.eye(3) - S, shifts)
+    return reg.body_theta(m, phi[1:4] / m, np.trace(S) * np.eye(3) - S, shifts)
 
 
-def _pseudo_of(theta_body: np.ndarray, shifts: float) -> np.ndarray:
-    """Unconstrained numbers of a body (inverse of :func:`_pseudo_body`, nearest valid body)."""
+def _physical_of(theta_body: np.ndarray, shifts: float, mass_floor: float) -> np.ndarray:
+    """The numbers of :func:`_physical_body` of the nearest real body to 10 parameters (mass at
+    least ``mass_floor``, second moment clipped to positive semidefinite)."""
     m, com, inertia = reg.body_from_theta(theta_body, shifts)
-    m = max(m, 1e-6)
+    if not m >= mass_floor:
+        m, com = mass_floor, np.zeros(3)
     S = 0.5 * np.trace(inertia) * np.eye(3) - inertia
     w, V = np.linalg.eigh(0.5 * (S + S.T))
-    S = (V * np.maximum(w, 1e-10)) @ V.T
+    S = (V * np.maximum(w, 1e-12 + 1e-6 * max(w.max(), 0.0))) @ V.T
     L = np.linalg.cholesky(S)
-    return np.concatenate([[np.log(m)], com, L[np.tril_indices(3)]])
+    return np.concatenate([[m], m * com, L[np.tril_indices(3)]])
 
 
 def consistent(A: np.ndarray, F: np.ndarray, base: BaseParameters, nominal_theta: np.ndarray,
                start_theta: np.ndarray, prior_weight: float = 1e-3) -> np.ndarray:
     """A physically consistent full theta: positive masses, inertias of real bodies (see
-    :func:`_pseudo_body`) and non-negative friction, fitting the leg forces in the least-squares
-    sense (``scipy.optimize.least_squares``).  The directions the data do not determine are held
-    near the nominal theta by a weak prior (``prior_weight`` relative to the data's scale)."""
+    :func:`_physical_body`) and non-negative friction, fitting the leg forces in the
+    least-squares sense (``scipy.optimize.least_squares`` with bounds).  The directions the data
+    do not determine are held near the nominal theta by a weak prior (``prior_weight`` relative
+    to the data's scale)."""
     rows, y = A.reshape(-1, A.shape[-1]), F.ravel()
     # the data term through the triangular factor: |rows beta - y|^2 = |R beta - Q^T y|^2 + const
     Q, R = np.linalg.qr(rows)
@@ -152,14 +155,21 @@ def consistent(A: np.ndarray, F: np.ndarray, base: BaseParameters, nominal_theta
     weight = prior_weight * np.linalg.norm(R, 2)
 
     def theta_of(phi):
-        bodies = [_pseudo_body(phi[10 * k:10 * k + 10], shifts[k]) for k in range(13)]
-        return np.concatenate(bodies + [phi[130:133] ** 2])
+        bodies = [_physical_body(phi[10 * k:10 * k + 10], shifts[k]) for k in range(13)]
+        return np.concatenate(bodies + [phi[130:133]])
 
     def residual(phi):
         theta = theta_of(phi)
         return np.concatenate([R @ base.of_theta(theta) - qy, weight * (theta - nominal_theta) / scale_theta])
 
-    phi0 = np.concatenate([_pseudo_of(start_theta[10 * k:10 * k + 10], shifts[k]) for k in range(13)]
-                          + [np.sqrt(np.maximum(start_theta[130:133], 0.0))])
-    result = scipy.optimize.least_squares(residual, phi0, method="trf", x_scale="jac", max_nfev=200)
+    floors = [1e-3 * max(nominal_theta[10 * k], 1e-3) for k in range(13)]
+    phi0 = np.concatenate([_physical_of(start_theta[10 * k:10 * k + 10], shifts[k], floors[k]) for k in range(13)]
+                          + [np.maximum(start_theta[130:133], 0.0)])
+    lower = np.full(133, -np.inf)
+    lower[0:130:10] = 0.0
+    lower[130:] = 0.0
+    phi0 = np.maximum(phi0, lower + 1e-12)
+    x_scale = np.maximum(np.abs(phi0), 1e-3 * np.abs(phi0).max())
+    result = scipy.optimize.least_squares(residual, phi0, bounds=(lower, np.inf), method="trf", x_scale=x_scale,
+                                          max_nfev=100)
     return theta_of(result.x)
