@@ -106,3 +106,145 @@ def test_base_parameters_reproduce_the_regressor_and_leave_a_clear_rank_gap(simu
     assert np.allclose(b.of_theta(back), b.of_theta(theta), rtol=1e-12, atol=1e-12)
     assert np.array_equal(back[b.dependent], nominal[b.dependent])
     assert len(b.names) == r and all(n.split(" ")[0] in reg.THETA_NAMES for n in b.names)
+
+
+# -- estimators and the experiment ------------------------------------------------------------------
+
+from stewart_env.identification import base as base_mod  # noqa: E402
+from stewart_env.identification import estimate as est  # noqa: E402
+from stewart_env.identification import excitation as exc  # noqa: E402
+from stewart_env.identification import experiment  # noqa: E402
+from stewart_env.identification.base import IdentificationError  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def noise_free(dasgupta):
+    """One noise-free record on a perturbed plant: the model, base parameters, the record's
+    leg-force rows A and forces, and the truth's base parameters."""
+    settings = experiment.Settings(excitation="random", duration=6.0, period=3.0, derivatives="exact", perturb=0.3)
+    rng = np.random.default_rng(3)
+    truth = experiment.perturbed(dasgupta, settings.perturb, rng)
+    plant = se.make_dynamics("improved", truth)
+    model = se.make_dynamics("improved", dasgupta)
+    base = base_mod.base_parameters(model)
+    series = exc.random_excitation(dasgupta, model, rng, period=settings.period)
+    record = experiment.measure(plant, experiment.simulate(plant, model, series, settings.duration), settings, rng)
+    A = experiment.rows_of(model, base, record)
+    return model, base, A, record, base.of_theta(reg.theta_of(truth, model.flags))
+
+
+def test_noise_free_data_recover_the_base_parameters_exactly(noise_free):
+    model, base, A, record, truth = noise_free
+    est.check_rank(A, base)
+    for fit in (est.ols(A, record.forces), est.wls(A, record.forces)):
+        # exact data and exact derivatives: only rounding, amplified by the regressor's condition
+        # number (~1e5 for a random series), separates the estimate from the truth
+        scale = np.maximum(np.abs(truth), 1e-6 * np.abs(truth).max())
+        assert np.max(np.abs(fit.beta - truth) / scale) < 1e-8
+
+
+def test_standard_deviations_cover_the_truth_at_their_stated_rate(noise_free):
+    model, base, A, record, truth = noise_free
+    rng = np.random.default_rng(7)
+    T = 300  # a part of the record keeps the repeated fits fast
+    A, F = A[-T:], record.true_forces[-T:]
+    z = []
+    for _ in range(100):
+        fit = est.ols(A, F + rng.normal(scale=2.0, size=F.shape))
+        z.append((fit.beta - truth) / fit.std)
+    z = np.abs(np.array(z))
+    # Gaussian force noise: |z| < 1 for 68.3 % and < 2 for 95.4 %; 100 repetitions of 79
+    # correlated parameters leave a few percent of sampling error
+    assert abs(np.mean(z < 1) - 0.683) < 0.04
+    assert abs(np.mean(z < 2) - 0.954) < 0.02
+
+
+def test_savitzky_golay_derivatives_of_a_smooth_motion(dasgupta):
+    model = se.make_dynamics("improved", dasgupta)
+    series = exc.random_excitation(dasgupta, model, np.random.default_rng(0), period=10.0)
+    times = np.arange(0, 10.0, experiment.SAMPLE_DT)
+    exact = exc.task_states(*series.sample(times))
+    got = est.derivatives(experiment.SAMPLE_DT, exact[0], exact[1])
+    inner = slice(est.SAVGOL_WINDOW, -est.SAVGOL_WINDOW)
+    for g, e in zip(got, exact):
+        # a cubic over 0.1 s of a series of 0.1-0.5 Hz (the command's default): the filter's bias, under 1 %
+        assert np.abs(g[inner] - e[inner]).max() < 1e-2 * np.abs(e).max()
+
+
+@pytest.mark.slow  # the constrained fit of 133 parameters by finite differences: about 20 s
+def test_physically_consistent_estimate_has_real_bodies_and_fits_the_data(noise_free, dasgupta):
+    model, base, A, record, truth = noise_free
+    rng = np.random.default_rng(2)
+    F = record.true_forces + rng.normal(scale=1.0, size=record.true_forces.shape)
+    fit = est.wls(A, F)
+    nominal = reg.theta_of(dasgupta, model.flags)
+    theta = est.consistent(A, F, base, nominal, base.theta_from(fit.beta, nominal))
+    params = base_mod.params_from_theta(theta, dasgupta, model.flags)  # raises unless every body is real
+    for body in (params.platform, *params.upper_leg, *params.lower_leg):
+        moments = np.linalg.eigvalsh(body.inertia)
+        assert body.mass > 0 and moments.min() >= -1e-12
+        # triangle inequalities of the principal moments, to rounding
+        assert moments[0] + moments[1] >= moments[2] - 1e-9 * moments.max()
+    res_wls = np.sqrt(np.mean((np.einsum("tir,r->ti", A, fit.beta) - F) ** 2))
+    res_c = np.sqrt(np.mean((np.einsum("tir,r->ti", A, base.of_theta(theta)) - F) ** 2))
+    # the constraints cost little fit on a plant whose truth is itself a real body: under 10 %
+    assert res_c < 1.1 * res_wls
+
+
+def test_bad_inputs_end_in_clear_errors(noise_free, dasgupta):
+    model, base, A, record, truth = noise_free
+    with pytest.raises(IdentificationError, match="rank-deficient"):
+        est.check_rank(A[:, :, :1] * np.ones((1, 1, base.rank)), base)
+    with pytest.raises(IdentificationError, match="equations"):
+        est.check_rank(A[:5], base)
+    with pytest.raises(IdentificationError, match="too short"):
+        experiment.Settings(duration=1.0).check()
+    with pytest.raises(IdentificationError, match="--noise-force"):
+        experiment.Settings(noise_force=float("nan")).check()
+    with pytest.raises(IdentificationError, match="--plant"):
+        experiment.Settings(plant="newton").check()
+    # a series far beyond the workspace: the legs leave their stroke
+    big = exc.Excitation(np.concatenate([dasgupta.home_position, dasgupta.home_rpy]),
+                         np.zeros((6, 1)), np.zeros((6, 1)), 2.0)
+    big = exc.Excitation(big.q0, big.a + np.array([[1.5], [0], [0], [0], [0], [0]]), big.b, 2.0)
+    with pytest.raises(IdentificationError, match="stroke|diverged"):
+        experiment.simulate(model, model, big, 3.0)
+    with pytest.raises(IdentificationError, match="filter"):
+        est.derivatives(0.01, np.zeros((5, 3)), np.broadcast_to(np.eye(3), (5, 3, 3)))
+
+
+def run_cli(args, capsys):
+    from stewart_env.cli import main
+
+    code = main(["identify", *args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_identify_command_rejects_bad_settings_before_writing(tmp_path, capsys):
+    out = tmp_path / "run"
+    code, _, err = run_cli(["--duration", "1", "--excitation", "random", "--out", str(out)], capsys)
+    assert code == 2 and "--duration" in err and "too short" in err
+    assert not out.exists() or not any(p.name != ".stewart-env.lock" for p in out.iterdir())
+    with pytest.raises(SystemExit):
+        run_cli(["--plant", "mujoco", "--out", str(out)], capsys)
+    assert "MuJoCo plant is not available" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # a 6 s simulation, two estimates and the constrained fit: about 20 s
+def test_identify_command_writes_a_platform_other_commands_load(tmp_path, capsys):
+    out = tmp_path / "run"
+    code, text, err = run_cli(["--excitation", "random", "--duration", "6", "--period", "3", "--noise-force", "0.5",
+                               "--out", str(out)], capsys)
+    assert code == 0, err
+    assert "held-out leg-force RMS error" in text
+    params = se.load_platform(str(out / "platform.yaml"))
+    assert params.platform.mass > 0
+    import json
+
+    report = json.loads((out / "report.json").read_text())
+    err = report["held_out_force_error"]
+    # identified from noisy forces, it predicts the held-out forces far better than the nominal
+    assert err["wls"] < 0.2 * err["nominal"] and err["consistent"] < 0.2 * err["nominal"]
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["platform.yaml", "report.json",
+                                                                                   "report.md"]
