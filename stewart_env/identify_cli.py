@@ -20,12 +20,17 @@ def _plant(text: str) -> str:
     from stewart_env.dynamics.model import parse_model_name
 
     if text.strip().lower() == "mujoco":
-        raise argparse.ArgumentTypeError("the MuJoCo plant is not available to identify yet; use a model name "
-                                         "(improved, classical, improved+c2, ...)")
+        return "mujoco"
     try:
         return parse_model_name(text)[0]
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err).partition(": ")[2]) from None
+
+
+def _model(text: str) -> str:
+    if text.strip().lower() == "mujoco":
+        raise argparse.ArgumentTypeError("the identified structure is a closed-form model (improved, classical, ...)")
+    return _plant(text)
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -50,8 +55,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "platform.yaml (the identified platform), report.json and report.md into --out.",
     )
     p.add_argument("--plant", type=_plant, default="improved",
-                   help="the plant's dynamics model: improved, classical or a name with switches (default improved)")
-    p.add_argument("--model", type=_plant, default="improved",
+                   help="the plant: a dynamics model (improved, classical or a name with switches) or mujoco, the MuJoCo "
+                        "twin (needs the extra mujoco; default improved)")
+    p.add_argument("--model", type=_model, default="improved",
                    help="the model structure identified (default improved)")
     p.add_argument("--platform", type=platform_name, default="dasgupta1998",
                    help="nominal platform config name or YAML path (default dasgupta1998)")

@@ -14,6 +14,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import yaml
@@ -25,6 +26,7 @@ from stewart_env.identification import estimate as est
 from stewart_env.identification import excitation as exc
 from stewart_env.identification import regressor as reg
 from stewart_env.identification.base import IdentificationError
+from stewart_env.dynamics.rk4 import law_forces
 from stewart_env.integrate import rollout
 from stewart_env.kinematics import inverse_kinematics, jacobian
 from stewart_env.params import Damping, PlatformParams, RigidBody
@@ -39,7 +41,8 @@ SETTLE = 0.5
 
 @dataclass
 class Settings:
-    """One experiment.  plant: a model name (``improved``, ``classical``, ``improved+c2``...);
+    """One experiment.  plant: a model name (``improved``, ``classical``, ``improved+c2``...) or
+    ``mujoco``, the MuJoCo twin of the truth (stewart_env.mujoco);
     model: the structure identified (a model name); excitation: ``optimized`` or ``random``;
     duration (s) of the identification record; noise: standard deviations of the position (m),
     angle (rad) and leg force (N) measurements; perturb: relative size of the random change of
@@ -63,6 +66,10 @@ class Settings:
 
     def check(self) -> None:
         for name in ("plant", "model"):
+            if name == "plant" and self.plant == "mujoco":
+                if self.derivatives == "exact":
+                    raise IdentificationError("--derivatives exact: the MuJoCo plant gives no accelerations; use filter")
+                continue
             try:
                 parse_model_name(getattr(self, name))
             except ValueError as err:
@@ -125,22 +132,63 @@ def perturbed(params: PlatformParams, size: float, rng: np.random.Generator) -> 
                           damping=Damping(d.universal * fd[0], d.prismatic * fd[1], d.spherical * fd[2]))
 
 
-def simulate(plant: Dynamics, controller: Dynamics, series: exc.Excitation, duration: float) -> tuple:
-    """Drive the plant along the series by the compiled computed-torque law; returns the
-    recorded Trajectory.  IdentificationError when the plant diverges or leaves the stroke."""
+class _Recorded(NamedTuple):
+    """A recorded run, as :class:`stewart_env.integrate.Trajectory`."""
+
+    time: np.ndarray
+    position: np.ndarray
+    rotation: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+    leg_forces: np.ndarray
+
+
+def _simulate_mujoco(truth: PlatformParams, row: np.ndarray, start: tuple, steps: int, every: int) -> _Recorded:
+    """MuJoCo stepping the truth, the law's forces held over each sampling period (zero-order
+    hold, as a digital controller applies them)."""
+    from stewart_env.mujoco import MujocoPlant
+
+    plant = MujocoPlant(truth, timestep=PLANT_DT, nthread=0)
+    t, R, v, w = (np.ascontiguousarray(x.copy()) for x in start)
+    n = steps // every + 1
+    rec = _Recorded(np.arange(n) * every * PLANT_DT, np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 3)),
+                    np.empty((n, 3)), np.empty((n, 6)))
+    wrench = np.zeros((1, 6))
+    for k in range(n):
+        F = law_forces(exc.FOURIER_COMPUTED_TORQUE, row[None], t, R, v, w, time=float(rec.time[k]))
+        for arr, x in zip(rec[1:], (t[0], R[0], v[0], w[0], F[0])):
+            arr[k] = x
+        if not np.isfinite(F).all():
+            raise IdentificationError("plant: the MuJoCo simulation diverged along the excitation")
+        if k < n - 1:
+            plant.step_inplace(t, R, v, w, F, wrench, PLANT_DT, every)
+    return rec
+
+
+def simulate(plant: Dynamics | str, truth: PlatformParams, controller: Dynamics, series: exc.Excitation,
+             duration: float):
+    """Drive the plant (a closed-form model, or ``"mujoco"`` on the truth) along the series by
+    the compiled computed-torque law; returns the recorded Trajectory.  IdentificationError
+    when the plant diverges or leaves the stroke."""
     q, qd, qdd = series.sample([0.0])
     t0, R0, v0, w0, _, _ = exc.task_states(q, qd, qdd)
     steps = int(round(duration / PLANT_DT))
     every = int(round(SAMPLE_DT / PLANT_DT))
     steps -= steps % every
-    try:
-        traj = rollout(plant, t0[0], R0[0], v0[0], w0[0], dt=PLANT_DT, steps=steps,
-                       control_law=exc.FOURIER_COMPUTED_TORQUE, control_params=series.law_row(controller),
-                       record_every=every)
-    except FloatingPointError:
-        raise IdentificationError("plant: the simulation diverged along the excitation (state no longer finite)") from None
-    lim = plant.params[0].limits
-    L, _ = inverse_kinematics(plant.params[0], traj.position, traj.rotation)
+    row = series.law_row(controller)
+    if isinstance(plant, str):
+        traj = _simulate_mujoco(truth, row, (t0, R0, v0, w0), steps, every)
+    else:
+        try:
+            traj = rollout(plant, t0[0], R0[0], v0[0], w0[0], dt=PLANT_DT, steps=steps,
+                           control_law=exc.FOURIER_COMPUTED_TORQUE, control_params=row, record_every=every)
+        except FloatingPointError:
+            raise IdentificationError("plant: the simulation diverged along the excitation "
+                                      "(state no longer finite)") from None
+    if not (np.isfinite(traj.position).all() and np.isfinite(traj.rotation).all()):
+        raise IdentificationError("plant: the simulation diverged along the excitation (state no longer finite)")
+    lim = truth.limits
+    L, _ = inverse_kinematics(truth, traj.position, traj.rotation)
     if L.min() < lim.leg_length[0] or L.max() > lim.leg_length[1]:
         raise IdentificationError(f"excitation: the plant's legs leave the stroke {list(lim.leg_length)} m "
                                   f"(lengths {L.min():.4f}-{L.max():.4f} m)")
@@ -179,7 +227,7 @@ def run(settings: Settings, nominal: PlatformParams) -> Result:
     settings.check()
     rng = np.random.default_rng(settings.seed)
     truth = perturbed(nominal, settings.perturb, rng)
-    plant = Dynamics(settings.plant, truth)
+    plant = "mujoco" if settings.plant == "mujoco" else Dynamics(settings.plant, truth)
     model = Dynamics(settings.model, nominal)
     base = base_mod.base_parameters(model)
     period = min(settings.period, settings.duration)
@@ -191,7 +239,7 @@ def run(settings: Settings, nominal: PlatformParams) -> Result:
         series, info = exc.optimized_excitation(start, model, base, max_iterations=settings.max_iterations)
     info["condition"] = info.get("condition", info["condition_start"])
 
-    record = measure(plant, simulate(plant, model, series, settings.duration), settings, rng)
+    record = measure(plant, simulate(plant, truth, model, series, settings.duration), settings, rng)
     A = rows_of(model, base, record)
     est.check_rank(A, base)
     o = est.ols(A, record.forces)
@@ -204,7 +252,7 @@ def run(settings: Settings, nominal: PlatformParams) -> Result:
 
     # held out: a second, random series on the same plant, its forces predicted by each model
     held_series = exc.random_excitation(nominal, model, rng, period=period, harmonics=settings.harmonics)
-    held = measure(plant, simulate(plant, model, held_series, min(settings.duration, 2 * period)),
+    held = measure(plant, simulate(plant, truth, model, held_series, min(settings.duration, 2 * period)),
                    settings, rng)
     A_held = rows_of(model, base, held)
 
@@ -214,7 +262,8 @@ def run(settings: Settings, nominal: PlatformParams) -> Result:
 
     beta_nominal = base.of_theta(nominal_theta)
     truth_beta = base.of_theta(reg.theta_of(truth, model.flags))
-    exact_structure = parse_model_name(settings.plant)[1] == model.flags
+    plant_flags = 0 if settings.plant == "mujoco" else parse_model_name(settings.plant)[1]  # MuJoCo: exact
+    exact_structure = plant_flags == model.flags
     rms_force = float(np.sqrt(np.mean(held.true_forces ** 2)))
     names = base.names
     params_rows = []
