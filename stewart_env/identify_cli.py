@@ -5,7 +5,8 @@
 
 drives the plant along an excitation by computed torque, estimates the base parameters from the
 noisy measurements and writes into ``--out``: ``platform.yaml``, the identified platform (a config
-every command's ``--platform`` accepts as a path), ``report.json`` and ``report.md``
+every command's ``--platform`` accepts as a path), ``truth.yaml`` (the plant's parameters),
+``report.json`` and ``report.md``
 (stewart_env.identification.experiment; docs/guides/identification.md).
 """
 
@@ -52,7 +53,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "optimised for the condition number of the base regressor, or random) by computed torque, "
                     "add sensor noise, recover velocities and accelerations by a Savitzky-Golay filter, and "
                     "estimate the base parameters by OLS, WLS and a physically consistent least squares.  Writes "
-                    "platform.yaml (the identified platform), report.json and report.md into --out.",
+                    "platform.yaml (the identified platform), truth.yaml (the plant's), report.json and report.md "
+                    "into --out.",
     )
     p.add_argument("--plant", type=_plant, default="improved",
                    help="the plant: a dynamics model (improved, classical or a name with switches) or mujoco, the MuJoCo "

@@ -246,4 +246,4 @@ def test_identify_command_writes_a_platform_other_commands_load(tmp_path, capsys
     # identified from noisy forces, it predicts the held-out forces far better than the nominal
     assert err["wls"] < 0.2 * err["nominal"] and err["consistent"] < 0.2 * err["nominal"]
     assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["platform.yaml", "report.json",
-                                                                                   "report.md"]
+                                                                                   "report.md", "truth.yaml"]

@@ -334,12 +334,14 @@ def _markdown(report: dict) -> str:
 
 def write(result: Result, out: str | Path) -> Path:
     """Publish ``platform.yaml`` (the identified platform, a config every command accepts as
-    ``--platform``), ``report.json`` and ``report.md`` into the folder ``out``, which is locked
+    ``--platform``), ``truth.yaml`` (the plant's), ``report.json`` and ``report.md`` into the folder ``out``, which is locked
     while it is written; each file appears whole or not at all."""
     with files.lock_folder(out) as folder:
         text = yaml.safe_dump(result.identified.to_dict(), sort_keys=False)
         PlatformParams.from_dict(yaml.safe_load(text), result.identified.name)  # it loads back
         files.publish(folder / "platform.yaml", "# identified by stewart-env identify; see report.md\n" + text)
+        truth = yaml.safe_dump(result.truth.to_dict(), sort_keys=False)
+        files.publish(folder / "truth.yaml", "# the plant's parameters (the unknown truth) of this experiment\n" + truth)
         files.publish(folder / "report.json", json.dumps(result.report, indent=1) + "\n")
         files.publish(folder / "report.md", _markdown(result.report))
     return Path(folder)
