@@ -247,3 +247,11 @@ def test_identify_command_writes_a_platform_other_commands_load(tmp_path, capsys
     assert err["wls"] < 0.2 * err["nominal"] and err["consistent"] < 0.2 * err["nominal"]
     assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["platform.yaml", "report.json",
                                                                                    "report.md", "truth.yaml"]
+
+
+def test_mujoco_plant_without_the_extra_is_named(monkeypatch):
+    import stewart_env.mujoco.library as library
+
+    monkeypatch.setattr(library, "_mj", None)
+    with pytest.raises(IdentificationError, match="--plant mujoco: .*not installed"):
+        experiment.Settings(plant="mujoco").check()

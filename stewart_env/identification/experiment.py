@@ -69,6 +69,12 @@ class Settings:
             if name == "plant" and self.plant == "mujoco":
                 if self.derivatives == "exact":
                     raise IdentificationError("--derivatives exact: the MuJoCo plant gives no accelerations; use filter")
+                from stewart_env.mujoco.library import require_mujoco
+
+                try:
+                    require_mujoco()
+                except ImportError as err:
+                    raise IdentificationError(f"--plant mujoco: {err}") from None
                 continue
             try:
                 parse_model_name(getattr(self, name))
