@@ -19,6 +19,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from stewart_env import identify_cli
+
 CONTROLLERS = ("pd", "pd-gc", "ct")
 #: Commands that run the compiled kernels (bench announces its own compilation).
 _SIMULATING = ("demo", "evaluate", "reproduce", "train", "mismatch")
@@ -124,6 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="softness of the loop-closure constraints (default: stewart_env.mujoco.DEFAULT_SOLREF)")
     mjcf.add_argument("--solimp", type=float, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
                       help="impedance of the loop-closure constraints (default: stewart_env.mujoco.DEFAULT_SOLIMP)")
+    identify_cli.add_parser(sub)
     return parser
 
 
@@ -255,6 +258,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.command == "export-mjcf":
         return _export_mjcf(args)
+    if args.command == "identify":
+        return identify_cli.run(args)
     problem = _preflight(args)
     if problem is not None:
         print(f"stewart-env {args.command}: error: {problem}", file=sys.stderr)

@@ -16,13 +16,15 @@ KERNELS = ROOT / "stewart_env" / "dynamics" / "kernels.py"
 #: The compiled kernels' sources by the module name the physics page's function table gives them:
 #: the one implementation of the physics (kernels.hpp) and of the integrator (rk4.hpp).
 CPP_SOURCES = {"kernels": ROOT / "stewart_env" / "dynamics" / "cpp" / "kernels.hpp",
-               "rk4": ROOT / "stewart_env" / "dynamics" / "cpp" / "rk4.hpp"}
+               "rk4": ROOT / "stewart_env" / "dynamics" / "cpp" / "rk4.hpp",
+               "regressor": ROOT / "stewart_env" / "dynamics" / "cpp" / "regressor.hpp"}
 CODE_MODULES = {
     "kernels": "stewart_env.dynamics.kernels",
     "model": "stewart_env.dynamics.model",
     "kinematics": "stewart_env.kinematics",
     "rk4": "stewart_env.dynamics.rk4",
     "workspace": "stewart_env.dynamics.workspace",
+    "regressor": "stewart_env.identification.regressor",
 }
 # Written in two pieces so that this file does not match its own search.
 OUTSIDE_DOCUMENTS = ["MODEL" + ".md", "../" + "shared", "/work/" + "shared"]

@@ -29,6 +29,7 @@ LAYERS = {
     "stewart_env.integrate": "physics",
     "stewart_env.progress": "physics",
     "stewart_env.mujoco": "physics",
+    "stewart_env.identification": "physics",
     "stewart_env.tasks": "tasks",
     "stewart_env.envs": "envs",
     "stewart_env.registration": "envs",
@@ -37,6 +38,7 @@ LAYERS = {
     "stewart_env.bench": "cli",
     "stewart_env.cli": "cli",
     "stewart_env.mismatch_cli": "cli",
+    "stewart_env.identify_cli": "cli",
 }
 # the package's face re-exports the physics API and registers the environment with Gymnasium
 PACKAGE = "stewart_env"

@@ -17,6 +17,8 @@
 namespace nb = nanobind;
 using namespace nb::literals;
 
+void bind_regressor(nb::module_& m);  // regressor_bindings.cpp
+
 using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
 using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
 using Flags = nb::ndarray<bool, nb::c_contig, nb::device::cpu>;
@@ -260,6 +262,8 @@ NB_MODULE(_core, m) {
             rk4::rollout_batch(s.prm, s.n_prm, s.flags, s.t, s.R, s.v, s.w, s.F, s.W, dt, steps, s.n);
         }, "dt"_a, "steps"_a);
 
+
+    bind_regressor(m);
     def_solve_batch<kernels::forward_batch>(m, "forward_batch", "F", "leg_forces");
     def_solve_batch<kernels::inverse_batch>(m, "inverse_batch", "acc", "acceleration");
 

@@ -1,0 +1,175 @@
+"""Estimators: motion derivatives from noisy poses, ordinary and weighted least squares with
+standard deviations, and a physically consistent estimate.
+
+The equations are written in leg-force space: with A = J^-T Y_base (rows one per leg and sample)
+the measured leg forces are F = A beta + noise.  Noise on the measured forces is then noise on the
+rows themselves, so the least-squares covariance sigma^2 (A^T A)^-1 is the estimate's own
+(errors in the regressor from filtered positions are not in it: the report's comparison with the
+truth shows them).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+import scipy.optimize
+import scipy.signal
+
+from stewart_env.identification import regressor as reg
+from stewart_env.identification.base import BaseParameters, IdentificationError
+
+#: Savitzky-Golay filter: polynomial order and window length (samples, odd) of the default.
+SAVGOL_ORDER = 3
+SAVGOL_WINDOW = 21
+
+
+def _vee(S: np.ndarray) -> np.ndarray:
+    """The vector of the skew part of S (..., 3, 3)."""
+    return 0.5 * np.stack([S[..., 2, 1] - S[..., 1, 2], S[..., 0, 2] - S[..., 2, 0], S[..., 1, 0] - S[..., 0, 1]], -1)
+
+
+def derivatives(dt: float, position: np.ndarray, rotation: np.ndarray, window: int = SAVGOL_WINDOW,
+                order: int = SAVGOL_ORDER):
+    """(t, R, v, w, a, alpha) from poses sampled every ``dt`` s, by a Savitzky-Golay filter
+    (``scipy.signal.savgol_filter``, polynomial ``order`` over ``window`` samples, its zeroth,
+    first and second derivatives).  The rotation's nine entries are filtered alike and the
+    smoothed matrix taken back to the nearest rotation (polar decomposition); omega and alpha are
+    the skew parts of Rdot R^T and Rddot R^T ({B}).  The first and last window // 2 samples are
+    the filter's own extrapolation: callers drop them."""
+    n = position.shape[0]
+    if window % 2 == 0 or window <= order or n < window:
+        raise IdentificationError(f"filter: {n} samples are too few for a window of {window} (odd, > order {order})")
+
+    def sg(x, d):
+        return scipy.signal.savgol_filter(x, window, order, deriv=d, delta=dt, axis=0, mode="interp")
+
+    t, v, a = sg(position, 0), sg(position, 1), sg(position, 2)
+    flat = rotation.reshape(n, 9)
+    Rs, Rd, Rdd = (sg(flat, d).reshape(n, 3, 3) for d in (0, 1, 2))
+    U, _, Vt = np.linalg.svd(Rs)
+    R = U @ Vt
+    Rt = np.swapaxes(R, 1, 2)
+    return t, R, v, _vee(Rd @ Rt), a, _vee(Rdd @ Rt)
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A least-squares estimate of the base parameters: beta (r,), std (r,) its standard
+    deviations, sigma (6,) the residual standard deviation of each leg's force (N), and cov (r, r)."""
+
+    beta: np.ndarray
+    std: np.ndarray
+    sigma: np.ndarray
+    cov: np.ndarray
+
+
+def leg_force_rows(Y_base: np.ndarray, J: np.ndarray) -> np.ndarray:
+    """A = J^-T Y_base (T, 6, r): leg i's force row of each sample."""
+    return np.linalg.solve(np.swapaxes(J, 1, 2), Y_base)
+
+
+def check_rank(A: np.ndarray, base: BaseParameters) -> None:
+    """Raise IdentificationError when the stacked rows cannot determine every base parameter."""
+    rows = A.reshape(-1, A.shape[-1])
+    if rows.shape[0] <= rows.shape[1]:
+        raise IdentificationError(f"data: {rows.shape[0]} equations for {rows.shape[1]} base parameters; "
+                                  "record longer (--duration)")
+    d = np.abs(np.diag(scipy.linalg.qr(rows, mode="r", pivoting=True)[0]))
+    if d[-1] < 1e-10 * d[0]:
+        weak = int(np.sum(d < 1e-10 * d[0]))
+        raise IdentificationError(f"data: rank-deficient, {weak} of {rows.shape[1]} base parameters are not "
+                                  "excited by this trajectory; record longer or use --excitation optimized")
+
+
+def ols(A: np.ndarray, F: np.ndarray) -> Estimate:
+    """Ordinary least squares of F (T, 6) = A (T, 6, r) beta, with the standard deviations from
+    one common residual variance."""
+    rows, y = A.reshape(-1, A.shape[-1]), F.ravel()
+    beta, *_ = np.linalg.lstsq(rows, y, rcond=None)
+    res = (y - rows @ beta).reshape(F.shape)
+    dof = rows.shape[0] - rows.shape[1]
+    s2 = float(np.sum(res ** 2) / dof)
+    cov = s2 * np.linalg.inv(rows.T @ rows)
+    return Estimate(beta, np.sqrt(np.diag(cov)), np.sqrt(np.mean(res ** 2, axis=0)), cov)
+
+
+def wls(A: np.ndarray, F: np.ndarray) -> Estimate:
+    """Weighted least squares: each leg's equations weighted by the inverse of that leg's
+    residual standard deviation in the ordinary estimate (Gautier's two-step WLS), with the
+    covariance (A^T W A)^-1."""
+    first = ols(A, F)
+    T = F.shape[0]
+    dof = (T * 6 - A.shape[-1]) / 6  # residual degrees of freedom per leg
+    sigma = np.sqrt(np.sum((F - np.einsum("tir,r->ti", A, first.beta)) ** 2, axis=0) / dof)
+    if np.any(sigma <= 0):
+        return first  # noise-free data: every weight equal
+    Aw, yw = A / sigma[None, :, None], F / sigma[None, :]
+    rows, y = Aw.reshape(-1, A.shape[-1]), yw.ravel()
+    beta, *_ = np.linalg.lstsq(rows, y, rcond=None)
+    res = (F - np.einsum("tir,r->ti", A, beta))
+    cov = np.linalg.inv(rows.T @ rows)
+    return Estimate(beta, np.sqrt(np.diag(cov)), np.sqrt(np.mean(res ** 2, axis=0)), cov)
+
+
+def _physical_body(phi: np.ndarray, shifts: float) -> np.ndarray:
+    """A body's 10 parameters from mass phi0 (>= 0 by the solver's bounds), first moment phi1:4
+    and the lower triangle L of the CoM's second moment Sigma = L L^T (phi4:10): the inertia about
+    the CoM, tr(Sigma) E - Sigma, is then positive semidefinite and its principal moments satisfy
+    the triangle inequalities, those of a real mass distribution."""
+    m = max(phi[0], 1e-12)
+    L = np.zeros((3, 3))
+    L[np.tril_indices(3)] = phi[4:10]
+    S = L @ L.T
+    return reg.body_theta(m, phi[1:4] / m, np.trace(S) * np.eye(3) - S, shifts)
+
+
+def _physical_of(theta_body: np.ndarray, shifts: float, mass_floor: float) -> np.ndarray:
+    """The numbers of :func:`_physical_body` of the nearest real body to 10 parameters (mass at
+    least ``mass_floor``, second moment clipped to positive semidefinite)."""
+    m, com, inertia = reg.body_from_theta(theta_body, shifts)
+    if not m >= mass_floor:
+        m, com = mass_floor, np.zeros(3)
+    S = 0.5 * np.trace(inertia) * np.eye(3) - inertia
+    w, V = np.linalg.eigh(0.5 * (S + S.T))
+    S = (V * np.maximum(w, 1e-12 + 1e-6 * max(w.max(), 0.0))) @ V.T
+    L = np.linalg.cholesky(S)
+    return np.concatenate([[m], m * com, L[np.tril_indices(3)]])
+
+
+def consistent(A: np.ndarray, F: np.ndarray, base: BaseParameters, nominal_theta: np.ndarray,
+               start_theta: np.ndarray, prior_weight: float = 1e-3) -> np.ndarray:
+    """A physically consistent full theta: positive masses, inertias of real bodies (see
+    :func:`_physical_body`) and non-negative friction, fitting the leg forces in the
+    least-squares sense (``scipy.optimize.least_squares`` with bounds).  The directions the data
+    do not determine are held near the nominal theta by a weak prior (``prior_weight`` relative
+    to the data's scale)."""
+    rows, y = A.reshape(-1, A.shape[-1]), F.ravel()
+    # the data term through the triangular factor: |rows beta - y|^2 = |R beta - Q^T y|^2 + const
+    Q, R = np.linalg.qr(rows)
+    qy = Q.T @ y
+    leg_shift, plat_shift = reg.shifts_of(base.flags)
+    shifts = [plat_shift] + [leg_shift] * 12
+    scale_theta = np.maximum(np.abs(nominal_theta), 1e-3 * np.abs(nominal_theta).max())
+    weight = prior_weight * np.linalg.norm(R, 2)
+
+    def theta_of(phi):
+        bodies = [_physical_body(phi[10 * k:10 * k + 10], shifts[k]) for k in range(13)]
+        return np.concatenate(bodies + [phi[130:133]])
+
+    def residual(phi):
+        theta = theta_of(phi)
+        return np.concatenate([R @ base.of_theta(theta) - qy, weight * (theta - nominal_theta) / scale_theta])
+
+    floors = [1e-3 * max(nominal_theta[10 * k], 1e-3) for k in range(13)]
+    phi0 = np.concatenate([_physical_of(start_theta[10 * k:10 * k + 10], shifts[k], floors[k]) for k in range(13)]
+                          + [np.maximum(start_theta[130:133], 0.0)])
+    lower = np.full(133, -np.inf)
+    lower[0:130:10] = 0.0
+    lower[130:] = 0.0
+    phi0 = np.maximum(phi0, lower + 1e-12)
+    x_scale = np.maximum(np.abs(phi0), 1e-3 * np.abs(phi0).max())
+    result = scipy.optimize.least_squares(residual, phi0, bounds=(lower, np.inf), method="trf", x_scale=x_scale,
+                                          max_nfev=100)
+    return theta_of(result.x)

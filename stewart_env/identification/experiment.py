@@ -1,0 +1,357 @@
+"""The identification experiment on a stand-in plant: excite, measure, estimate, report.
+
+:func:`run` drives a plant (a closed-form model, optionally with perturbed parameters as the
+unknown truth) along an excitation by the compiled computed-torque law, adds sensor noise to the
+recorded poses and leg forces, recovers velocities and accelerations by a Savitzky-Golay filter,
+estimates the base parameters (OLS, WLS, physically consistent), and measures the leg-force
+prediction error on a second, held-out trajectory.  :func:`write` publishes the identified
+platform config and the report.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+import yaml
+
+from stewart_env import files
+from stewart_env.dynamics.model import Dynamics, parse_model_name
+from stewart_env.identification import base as base_mod
+from stewart_env.identification import estimate as est
+from stewart_env.identification import excitation as exc
+from stewart_env.identification import regressor as reg
+from stewart_env.identification.base import IdentificationError
+from stewart_env.dynamics.rk4 import law_forces
+from stewart_env.integrate import rollout
+from stewart_env.kinematics import inverse_kinematics, jacobian
+from stewart_env.params import Damping, PlatformParams, RigidBody
+from stewart_env.rotations import rotvec_to_matrix
+
+#: Integration step of the plant (s) and sampling period of the measurements (s).
+PLANT_DT = 1e-3
+SAMPLE_DT = 5e-3
+#: The start of each record the filter and the controller's transient spoil (s).
+SETTLE = 0.5
+
+
+@dataclass
+class Settings:
+    """One experiment.  plant: a model name (``improved``, ``classical``, ``improved+c2``...) or
+    ``mujoco``, the MuJoCo twin of the truth (stewart_env.mujoco);
+    model: the structure identified (a model name); excitation: ``optimized`` or ``random``;
+    duration (s) of the identification record; noise: standard deviations of the position (m),
+    angle (rad) and leg force (N) measurements; perturb: relative size of the random change of
+    every inertial and friction parameter that makes the plant's truth differ from the nominal
+    platform (0: the truth is the nominal); derivatives: ``filter`` (Savitzky-Golay of the
+    noisy poses) or ``exact`` (the plant's own, a simulation-only check); seed."""
+
+    plant: str = "improved"
+    model: str = "improved"
+    excitation: str = "optimized"
+    duration: float = 20.0
+    noise_position: float = 0.0
+    noise_angle: float = 0.0
+    noise_force: float = 0.0
+    perturb: float = 0.0
+    derivatives: str = "filter"
+    seed: int = 0
+    period: float = 10.0
+    harmonics: int = 5
+    max_iterations: int = 30
+
+    def check(self) -> None:
+        for name in ("plant", "model"):
+            if name == "plant" and self.plant == "mujoco":
+                if self.derivatives == "exact":
+                    raise IdentificationError("--derivatives exact: the MuJoCo plant gives no accelerations; use filter")
+                from stewart_env.mujoco.library import require_mujoco
+
+                try:
+                    require_mujoco()
+                except ImportError as err:
+                    raise IdentificationError(f"--plant mujoco: {err}") from None
+                continue
+            try:
+                parse_model_name(getattr(self, name))
+            except ValueError as err:
+                raise IdentificationError(f"--{name}: {str(err).partition(': ')[2]}") from None
+        if self.excitation not in ("optimized", "random"):
+            raise IdentificationError(f"--excitation: expected optimized or random, got {self.excitation!r}")
+        if self.derivatives not in ("filter", "exact"):
+            raise IdentificationError(f"--derivatives: expected filter or exact, got {self.derivatives!r}")
+        for name in ("duration", "period"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise IdentificationError(f"--{name}: expected a positive number of seconds, got {value!r}")
+        if self.duration > 3600:
+            raise IdentificationError(f"--duration: at most 3600 s, got {self.duration}")
+        if self.duration < 2 * SETTLE + 0.5:
+            raise IdentificationError(f"--duration: {self.duration} s is too short; at least {2 * SETTLE + 0.5} s")
+        for name in ("noise_position", "noise_angle", "noise_force", "perturb"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise IdentificationError(f"--{name.replace('_', '-')}: expected a number >= 0, got {value!r}")
+        if self.perturb >= 1:
+            raise IdentificationError(f"--perturb: expected a relative change below 1, got {self.perturb}")
+
+
+@dataclass
+class Record:
+    """Measured samples: time (T,), pose, leg forces, and the derivatives used."""
+
+    time: np.ndarray
+    states: tuple  # (t, R, v, w, a, alpha), each (T, ...)
+    forces: np.ndarray  # (T, 6) measured
+    true_forces: np.ndarray  # (T, 6) applied
+
+
+@dataclass
+class Result:
+    settings: Settings
+    truth: PlatformParams
+    identified: PlatformParams
+    report: dict = field(default_factory=dict)
+
+
+def perturbed(params: PlatformParams, size: float, rng: np.random.Generator) -> PlatformParams:
+    """``params`` with every body's mass, CoM and inertia and every friction coefficient changed
+    by a random relative amount up to ``size`` (each leg part on its own)."""
+    if size == 0:
+        return params
+
+    def body(b: RigidBody) -> RigidBody:
+        if b.mass == 0:
+            return b
+        f = 1 + rng.uniform(-size, size, 3)
+        com = b.com + rng.uniform(-size, size, 3) * max(np.abs(b.com).max(), 0.01)
+        return RigidBody(mass=b.mass * f[0], com=com, inertia=b.inertia * f[2])
+
+    d = params.damping
+    fd = 1 + rng.uniform(-size, size, 3)
+    return params.replace(platform=body(params.platform), upper_leg=tuple(body(b) for b in params.upper_leg),
+                          lower_leg=tuple(body(b) for b in params.lower_leg),
+                          damping=Damping(d.universal * fd[0], d.prismatic * fd[1], d.spherical * fd[2]))
+
+
+class _Recorded(NamedTuple):
+    """A recorded run, as :class:`stewart_env.integrate.Trajectory`."""
+
+    time: np.ndarray
+    position: np.ndarray
+    rotation: np.ndarray
+    velocity: np.ndarray
+    angular_velocity: np.ndarray
+    leg_forces: np.ndarray
+
+
+def _simulate_mujoco(truth: PlatformParams, row: np.ndarray, start: tuple, steps: int, every: int) -> _Recorded:
+    """MuJoCo stepping the truth, the law's forces held over each sampling period (zero-order
+    hold, as a digital controller applies them)."""
+    from stewart_env.mujoco import MujocoPlant
+
+    plant = MujocoPlant(truth, timestep=PLANT_DT, nthread=0)
+    t, R, v, w = (np.ascontiguousarray(x.copy()) for x in start)
+    n = steps // every + 1
+    rec = _Recorded(np.arange(n) * every * PLANT_DT, np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 3)),
+                    np.empty((n, 3)), np.empty((n, 6)))
+    wrench = np.zeros((1, 6))
+    for k in range(n):
+        F = law_forces(exc.FOURIER_COMPUTED_TORQUE, row[None], t, R, v, w, time=float(rec.time[k]))
+        for arr, x in zip(rec[1:], (t[0], R[0], v[0], w[0], F[0])):
+            arr[k] = x
+        if not np.isfinite(F).all():
+            raise IdentificationError("plant: the MuJoCo simulation diverged along the excitation")
+        if k < n - 1:
+            plant.step_inplace(t, R, v, w, F, wrench, PLANT_DT, every)
+    return rec
+
+
+def simulate(plant: Dynamics | str, truth: PlatformParams, controller: Dynamics, series: exc.Excitation,
+             duration: float):
+    """Drive the plant (a closed-form model, or ``"mujoco"`` on the truth) along the series by
+    the compiled computed-torque law; returns the recorded Trajectory.  IdentificationError
+    when the plant diverges or leaves the stroke."""
+    q, qd, qdd = series.sample([0.0])
+    t0, R0, v0, w0, _, _ = exc.task_states(q, qd, qdd)
+    steps = int(round(duration / PLANT_DT))
+    every = int(round(SAMPLE_DT / PLANT_DT))
+    steps -= steps % every
+    row = series.law_row(controller)
+    if isinstance(plant, str):
+        traj = _simulate_mujoco(truth, row, (t0, R0, v0, w0), steps, every)
+    else:
+        try:
+            traj = rollout(plant, t0[0], R0[0], v0[0], w0[0], dt=PLANT_DT, steps=steps,
+                           control_law=exc.FOURIER_COMPUTED_TORQUE, control_params=row, record_every=every)
+        except FloatingPointError:
+            raise IdentificationError("plant: the simulation diverged along the excitation "
+                                      "(state no longer finite)") from None
+    if not (np.isfinite(traj.position).all() and np.isfinite(traj.rotation).all()):
+        raise IdentificationError("plant: the simulation diverged along the excitation (state no longer finite)")
+    lim = truth.limits
+    L, _ = inverse_kinematics(truth, traj.position, traj.rotation)
+    if L.min() < lim.leg_length[0] or L.max() > lim.leg_length[1]:
+        raise IdentificationError(f"excitation: the plant's legs leave the stroke {list(lim.leg_length)} m "
+                                  f"(lengths {L.min():.4f}-{L.max():.4f} m)")
+    return traj
+
+
+def measure(plant: Dynamics, traj, settings: Settings, rng: np.random.Generator) -> Record:
+    """Noisy measurements of a recorded trajectory and the motion derivatives the estimators use."""
+    n = traj.time.size
+    pos = traj.position + rng.normal(scale=settings.noise_position, size=(n, 3))
+    rot = rotvec_to_matrix(rng.normal(scale=settings.noise_angle, size=(n, 3))) @ traj.rotation
+    forces = traj.leg_forces + rng.normal(scale=settings.noise_force, size=(n, 6))
+    if not (np.isfinite(pos).all() and np.isfinite(rot).all() and np.isfinite(forces).all()):
+        raise IdentificationError("measurements: non-finite poses or leg forces")
+    if settings.derivatives == "exact":
+        t, R, v, w = traj.position, traj.rotation, traj.velocity, traj.angular_velocity
+        a, alpha = plant.forward(t, R, v, w, traj.leg_forces)
+        states = (t, R, v, w, a, alpha)
+    else:
+        states = est.derivatives(SAMPLE_DT, pos, rot)
+    keep = traj.time >= SETTLE
+    keep[-(est.SAVGOL_WINDOW // 2 + 1):] = False
+    return Record(traj.time[keep], tuple(np.ascontiguousarray(x[keep]) for x in states), forces[keep],
+                  traj.leg_forces[keep])
+
+
+def rows_of(model: Dynamics, base: base_mod.BaseParameters, record: Record) -> np.ndarray:
+    """Leg-force rows A (T, 6, r) of a record."""
+    Y = reg.regressor_matrix(model, *record.states)
+    J = jacobian(model.params[0], record.states[0], record.states[1])
+    return est.leg_force_rows(base.columns(Y), J)
+
+
+def run(settings: Settings, nominal: PlatformParams) -> Result:
+    """The whole experiment (see the module docstring)."""
+    settings.check()
+    rng = np.random.default_rng(settings.seed)
+    truth = perturbed(nominal, settings.perturb, rng)
+    plant = "mujoco" if settings.plant == "mujoco" else Dynamics(settings.plant, truth)
+    model = Dynamics(settings.model, nominal)
+    base = base_mod.base_parameters(model)
+    period = min(settings.period, settings.duration)
+    start = exc.random_excitation(nominal, model, rng, period=period, harmonics=settings.harmonics)
+    times = np.linspace(0, period, 100, endpoint=False)
+    info = {"condition_start": exc.condition_number(start, model, base, times)}
+    series = start
+    if settings.excitation == "optimized":
+        series, info = exc.optimized_excitation(start, model, base, max_iterations=settings.max_iterations)
+    info["condition"] = info.get("condition", info["condition_start"])
+
+    record = measure(plant, simulate(plant, truth, model, series, settings.duration), settings, rng)
+    A = rows_of(model, base, record)
+    est.check_rank(A, base)
+    o = est.ols(A, record.forces)
+    w = est.wls(A, record.forces)
+    nominal_theta = reg.theta_of(nominal, model.flags)
+    theta_wls = base.theta_from(w.beta, nominal_theta)
+    theta_c = est.consistent(A, record.forces, base, nominal_theta, theta_wls)
+    beta_c = base.of_theta(theta_c)
+    identified = base_mod.params_from_theta(theta_c, nominal, model.flags, name=f"{nominal.name}_identified")
+
+    # held out: a second, random series on the same plant, its forces predicted by each model
+    held_series = exc.random_excitation(nominal, model, rng, period=period, harmonics=settings.harmonics)
+    held = measure(plant, simulate(plant, truth, model, held_series, min(settings.duration, 2 * period)),
+                   settings, rng)
+    A_held = rows_of(model, base, held)
+
+    def prediction_error(beta):
+        F = np.einsum("tir,r->ti", A_held, beta)
+        return float(np.sqrt(np.mean((F - held.true_forces) ** 2)))
+
+    beta_nominal = base.of_theta(nominal_theta)
+    truth_beta = base.of_theta(reg.theta_of(truth, model.flags))
+    plant_flags = 0 if settings.plant == "mujoco" else parse_model_name(settings.plant)[1]  # MuJoCo: exact
+    exact_structure = plant_flags == model.flags
+    rms_force = float(np.sqrt(np.mean(held.true_forces ** 2)))
+    names = base.names
+    params_rows = []
+    for k in range(base.rank):
+        row = {"name": names[k], "ols": float(o.beta[k]), "ols_std": float(o.std[k]), "wls": float(w.beta[k]),
+               "wls_std": float(w.std[k]), "consistent": float(beta_c[k]), "nominal": float(beta_nominal[k])}
+        if exact_structure:
+            row["truth"] = float(truth_beta[k])
+        params_rows.append(row)
+    rel_std = np.abs(w.std) / np.maximum(np.abs(w.beta), 1e-300)
+    report = {
+        "settings": settings.__dict__.copy(),
+        "platform": nominal.name,
+        "samples": int(record.time.size),
+        "rank": base.rank,
+        "n_theta": reg.N_THETA,
+        "rank_tolerance": base_mod.RANK_TOLERANCE,
+        "condition_number": float(info["condition"]),
+        "condition_number_start": float(info["condition_start"]),
+        "residual_sigma_wls": w.sigma.tolist(),
+        "base_parameters_under_10pct_rel_std": int(np.sum(rel_std < 0.1)),
+        "held_out_rms_force": rms_force,
+        "held_out_force_error": {"nominal": prediction_error(beta_nominal), "ols": prediction_error(o.beta),
+                                 "wls": prediction_error(w.beta), "consistent": prediction_error(beta_c)},
+        "excitation": series.to_dict(),
+        "base_parameters": params_rows,
+    }
+    if exact_structure:
+        err = np.abs(w.beta - truth_beta)
+        rel = err / np.maximum(np.abs(truth_beta), 1e-12)
+        report["truth_error"] = {
+            "max_rel_wls": float(np.max(rel)),
+            "median_rel_wls": float(np.median(rel)),
+            "within_10pct_wls": int(np.sum(rel < 0.1)),
+            "within_3_std_wls": float(np.mean(err <= 3 * w.std)),
+        }
+    return Result(settings, truth, identified, report)
+
+
+def _markdown(report: dict) -> str:
+    s = report["settings"]
+    e = report["held_out_force_error"]
+    lines = [
+        f"# Identification of {report['platform']}",
+        "",
+        f"plant `{s['plant']}`, model `{s['model']}`, excitation `{s['excitation']}`, {s['duration']} s, "
+        f"noise: position {s['noise_position']} m, angle {s['noise_angle']} rad, force {s['noise_force']} N; "
+        f"truth perturbed by {s['perturb']}; seed {s['seed']}",
+        "",
+        f"- base parameters: {report['rank']} of {report['n_theta']} (QR tolerance {report['rank_tolerance']:g})",
+        f"- condition number of the stacked base regressor: {report['condition_number']:.4g} "
+        f"(random start {report['condition_number_start']:.4g})",
+        f"- base parameters under 10 % relative standard deviation (WLS): "
+        f"{report['base_parameters_under_10pct_rel_std']} of {report['rank']}",
+        f"- held-out leg-force RMS error (N; RMS force {report['held_out_rms_force']:.4g} N): nominal "
+        f"{e['nominal']:.4g}, OLS {e['ols']:.4g}, WLS {e['wls']:.4g}, consistent {e['consistent']:.4g}",
+    ]
+    if "truth_error" in report:
+        t = report["truth_error"]
+        lines.append(f"- WLS against the truth: {t['within_10pct_wls']} of {report['rank']} base parameters within "
+                     f"10 %, median relative error {t['median_rel_wls']:.3g}, largest {t['max_rel_wls']:.3g} (a "
+                     f"combination near zero); {100 * t['within_3_std_wls']:.1f} % within 3 standard deviations")
+    lines += ["", "| base parameter | WLS | std | consistent | nominal |" + (" truth |" if "truth_error" in report else ""),
+              "|---|---|---|---|---|" + ("---|" if "truth_error" in report else "")]
+    for p in report["base_parameters"]:
+        row = f"| `{p['name']}` | {p['wls']:.6g} | {p['wls_std']:.3g} | {p['consistent']:.6g} | {p['nominal']:.6g} |"
+        if "truth" in p:
+            row += f" {p['truth']:.6g} |"
+        lines.append(row)
+    return "\n".join(lines) + "\n"
+
+
+def write(result: Result, out: str | Path) -> Path:
+    """Publish ``platform.yaml`` (the identified platform, a config every command accepts as
+    ``--platform``), ``truth.yaml`` (the plant's), ``report.json`` and ``report.md`` into the folder ``out``, which is locked
+    while it is written; each file appears whole or not at all."""
+    with files.lock_folder(out) as folder:
+        text = yaml.safe_dump(result.identified.to_dict(), sort_keys=False)
+        PlatformParams.from_dict(yaml.safe_load(text), result.identified.name)  # it loads back
+        files.publish(folder / "platform.yaml", "# identified by stewart-env identify; see report.md\n" + text)
+        truth = yaml.safe_dump(result.truth.to_dict(), sort_keys=False)
+        files.publish(folder / "truth.yaml", "# the plant's parameters (the unknown truth) of this experiment\n" + truth)
+        files.publish(folder / "report.json", json.dumps(result.report, indent=1) + "\n")
+        files.publish(folder / "report.md", _markdown(result.report))
+    return Path(folder)
