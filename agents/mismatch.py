@@ -63,7 +63,7 @@ from typing import Any
 
 import numpy as np
 
-from stewart_env.agents.arguments import _checked
+from stewart_env.cli.arguments import _checked
 from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
 from stewart_env.agents.statistics import (
     Interval,
@@ -275,7 +275,7 @@ def _check_seeds(seeds: Sequence[int]) -> tuple[int, ...]:
 
 
 def _check_platform(platform: str) -> str:
-    from stewart_env.agents.arguments import platform_name
+    from stewart_env.cli.arguments import platform_name
 
     try:
         platform_name(platform)
@@ -1248,7 +1248,7 @@ episode_steps = _checked(int, lambda steps: 1 <= steps <= MAX_STEPS, f"an intege
 
 def add_cli(subparsers) -> argparse.ArgumentParser:
     """Add ``mismatch`` to an argparse subparsers object; its ``func`` returns an exit code."""
-    from stewart_env.agents.arguments import TASKS, existing_file, platform_name, positive_float, positive_int
+    from stewart_env.cli.arguments import TASKS, existing_file, platform_name, positive_float, positive_int
 
     p = subparsers.add_parser(
         "mismatch", help="model-mismatch study: controllers built on one model, run on another",
