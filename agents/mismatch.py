@@ -63,7 +63,7 @@ from typing import Any
 
 import numpy as np
 
-from stewart_env.cli.arguments import _checked
+from stewart_env.cli.arguments import checked as _checked
 from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
 from stewart_env.agents.statistics import (
     Interval,

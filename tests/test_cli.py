@@ -33,15 +33,23 @@ def test_top_level_help_lists_the_subcommands(capsys):
 
 
 def test_bench_is_dispatched_with_its_arguments(monkeypatch):
-    seen = []
-    fake = types.ModuleType("stewart_env.bench")
-    fake.main = lambda argv: seen.append(argv) or 0
-    monkeypatch.setitem(sys.modules, "stewart_env.bench", fake)
-    import stewart_env
+    import stewart_env.bench
 
-    monkeypatch.setattr(stewart_env, "bench", fake, raising=False)
-    assert main(["bench", "--help", "--num-envs", "4"]) == 0
-    assert seen == [["--help", "--num-envs", "4"]]
+    seen = []
+    monkeypatch.setattr(stewart_env.bench, "run_bench", lambda *args, **kwargs: seen.append((args, kwargs)))
+    assert main(["bench", "--models", "improved", "--env"]) == 0
+    assert seen == [(("dasgupta1998", "improved"), {"env": True, "mujoco": False})]
+
+
+def test_bench_is_a_subparser_with_its_own_help(capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["bench", "--help"])
+    assert stop.value.code == 0
+    assert "usage: stewart-env bench" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as stop:
+        main(["bench", "--num-envs", "4"])
+    assert stop.value.code == 2
+    assert "unrecognized arguments: --num-envs 4" in capsys.readouterr().err
 
 
 def test_demo_prints_the_comparison_table(capsys):
@@ -105,7 +113,8 @@ def test_commands_that_need_stable_baselines3_say_which_extra_before_writing(arg
     out = tmp_path / "out"
     assert main(argv + ["--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert 'pip install "stewart-env[rl]"' in err and "torch==2.13.0" in err
+    assert 'pip install -e ".[rl]"' in err and "torch==2.13.0" in err and "stewart-env[" not in err
+    assert len(err.strip().splitlines()) == 1 and err.startswith(f"stewart-env {argv[0]}: error: ")
     assert not out.exists()
 
 
@@ -164,13 +173,13 @@ def test_bad_flag_values_are_argparse_errors_naming_the_flag(argv, flag, tmp_pat
 
 
 def test_first_run_announces_the_kernel_compilation_once(monkeypatch, capsys):
-    import stewart_env.cli as cli
+    from stewart_env.cli import common
 
     fake = types.ModuleType("stewart_env.numba_cache")
     monkeypatch.setitem(sys.modules, "stewart_env.numba_cache", fake)
     for warm, expected in ((False, "compiling kernels, first run only (~30 s)\n"), (True, "")):
         fake.is_warm = lambda names=None, warm=warm: warm
-        cli._announce_compilation()
+        common.announce_compilation()
         assert capsys.readouterr().err == expected
 
 

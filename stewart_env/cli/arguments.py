@@ -14,7 +14,7 @@ from stewart_env.tasks import TASKS as _TASK_CLASSES
 TASKS = tuple(_TASK_CLASSES)
 
 
-def _checked(cast: Callable[[str], float], ok: Callable[[float], bool], expected: str, doc: str):
+def checked(cast: Callable[[str], float], ok: Callable[[float], bool], expected: str, doc: str):
     """An argparse type: ``cast(text)`` if it converts and passes ``ok``, else an error saying
     what was expected."""
 
@@ -31,10 +31,10 @@ def _checked(cast: Callable[[str], float], ok: Callable[[float], bool], expected
     return parse
 
 
-positive_int = _checked(int, lambda v: v >= 1, "a positive integer", "argparse type: an integer >= 1.")
-nonnegative_int = _checked(int, lambda v: v >= 0, "an integer >= 0",
+positive_int = checked(int, lambda v: v >= 1, "a positive integer", "argparse type: an integer >= 1.")
+nonnegative_int = checked(int, lambda v: v >= 0, "an integer >= 0",
                            "argparse type: an integer >= 0 (seeds, step counts that may be 0).")
-positive_float = _checked(float, lambda v: v > 0 and math.isfinite(v), "a finite positive number",
+positive_float = checked(float, lambda v: v > 0 and math.isfinite(v), "a finite positive number",
                           "argparse type: a finite number > 0.")
 
 
