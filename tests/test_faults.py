@@ -240,7 +240,9 @@ def test_two_mismatch_commands_on_one_folder_one_runs_the_other_is_refused(tmp_p
 def _full_disk_at_checkpoint(monkeypatch, failing_step: int) -> None:
     """The statistics' writer of the checkpoint at ``failing_step`` writes a little, then finds
     the disk full, as a real writer would."""
-    writers = training._agent_file_writers
+    from stewart_env.agents.training import rundir
+
+    writers = rundir.agent_file_writers
 
     def failing(model, replay_buffer):
         found = writers(model, replay_buffer)
@@ -252,7 +254,7 @@ def _full_disk_at_checkpoint(monkeypatch, failing_step: int) -> None:
             found[training.VECNORMALIZE_FILE] = full
         return found
 
-    monkeypatch.setattr(training, "_agent_file_writers", failing)
+    monkeypatch.setattr(rundir, "agent_file_writers", failing)
 
 
 def test_a_full_disk_during_a_checkpoint_is_one_line_and_resume_continues(tmp_path, monkeypatch, capsys):
