@@ -563,7 +563,7 @@ def test_an_agent_stopped_by_a_signal_is_continued_not_reused(study, tmp_path):
 
 
 def test_plant_model_name_takes_mujoco_and_names_it_when_refusing():
-    from stewart_env.agents.arguments import plant_model_name
+    from stewart_env.cli.arguments import plant_model_name
 
     assert plant_model_name("mujoco") == "mujoco"
     assert plant_model_name("improved+c2") == "improved+c2"
