@@ -32,7 +32,7 @@ from stewart_env.agents.training import (  # noqa: E402
 )
 
 # Keys rl_zoo3 consumes itself before the rest goes to the algorithm's constructor (rl_zoo3
-# ExperimentManager._preprocess_hyperparameters), written out here independently of training.py.
+# ExperimentManager._preprocess_hyperparameters), written out here independently of the training package.
 ZOO_OWN_KEYS = {"n_timesteps", "policy", "normalize", "n_envs", "frame_stack", "env_wrapper", "vec_env_wrapper",
                 "callback", "env_kwargs", "monitor_kwargs", "noise_type", "noise_std"}
 
