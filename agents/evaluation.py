@@ -325,7 +325,7 @@ def ended_early(result: EvaluationResult) -> str:
 
 def markdown_table(results: Sequence[EvaluationResult]) -> str:
     """A markdown table of the mean metrics of each result (one row per result), with the count
-    of episodes ended early and their most common reason (:func:`ended_early`) after the success
+    of episodes ended early and their most common reason (``ended_early``) after the success
     rate: a controller that loses the platform at once has no overshoot to show, but shows here."""
     labels = [m[1] for m in METRICS]
     at = labels.index("success") + 1

@@ -282,7 +282,7 @@ def reproduce(out, duration: float = 1.0, dt: float = 2e-4, sample_dt: float | N
     against improved (:func:`peak_differences`, improved the reference), "centroidal_difference":
     the largest relative pointwise difference improved vs improved_centroidal, "seconds": run time}.
 
-    ``out`` is locked for the whole run (:func:`stewart_env.files.lock_folder`: a second command
+    ``out`` is locked for the whole run (``stewart_env.files.lock_folder``: a second command
     on it is refused at once with :class:`~stewart_env.files.FolderBusy`) and every file is
     published atomically; a write that fails (a full disk) raises
     :class:`~stewart_env.files.WriteError` naming it.

@@ -20,7 +20,7 @@ __all__ = ["quiet_mujoco", "require_mujoco", "require_rollout"]
 
 
 def require_mujoco():
-    """The ``mujoco`` module.  Raises :class:`~stewart_env.extras.MissingExtra` (an ImportError)
+    """The ``mujoco`` module.  Raises ``stewart_env.extras.MissingExtra`` (an ImportError)
     naming the extra when it is not installed."""
     if _mj is None:
         raise MissingExtra(f"stewart_env.mujoco: the package 'mujoco' is not installed; the MuJoCo twin needs the "
