@@ -354,6 +354,8 @@ def test_config_takes_a_shipped_config_by_name(name, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # no file of that name here: the shipped one is meant
     args = build_parser().parse_args(["train", "--algo", "ppo", "--config", name, "--out", "run"])
     assert Path(args.config) == CONFIG_DIR / "ppo_integral.yml" and Path(args.config).is_file()
+    args = build_parser().parse_args(["mismatch", "--config", name, "--out", "study"])
+    assert Path(args.config) == CONFIG_DIR / "ppo_integral.yml"
     assert config_path("ppo", name) == CONFIG_DIR / "ppo_integral.yml"
     (tmp_path / name).write_text("StewartPlatform-v0: {}\n")  # a file of the name in the working directory wins
     assert config_path("ppo", name) == Path(name)
