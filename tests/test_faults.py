@@ -431,6 +431,16 @@ def test_special_hyperparameter_file_is_refused_at_once(tmp_path, kind):
     assert str(config) in str(error)
 
 
+def test_a_huge_hyperparameter_file_is_refused_before_it_is_read(tmp_path):
+    from stewart_env.params import MAX_CONFIG_BYTES
+
+    config = tmp_path / "ppo.yml"
+    with open(config, "wb") as f:
+        f.truncate(1 << 40)  # 1 TB on paper, no blocks on disk
+    with pytest.raises(FileError, match=rf"ppo.yml: larger than {MAX_CONFIG_BYTES} bytes"):
+        training.read_hyperparameters("ppo", config)
+
+
 def test_a_start_killed_in_its_first_write_does_not_block_a_new_start(tmp_path):
     out = tmp_path / "run"
     out.mkdir()
