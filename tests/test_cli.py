@@ -368,3 +368,12 @@ def test_config_by_an_unknown_name_lists_the_shipped_ones(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "argument --config: hyperparameter file not found: ppo_fast" in err
     assert "ppo, ppo_integral, sac, td3" in err
+
+
+@pytest.mark.parametrize("module, usage", [("stewart_env.bench", "usage: stewart-env bench"),
+                                           ("stewart_env.mujoco", "usage: python -m stewart_env.mujoco"),
+                                           ("stewart_env.cli", "usage: stewart-env [-h]")])
+def test_the_modules_run_with_python_m_go_through_the_command_line(module, usage):
+    done = subprocess.run([sys.executable, "-m", module, "--help"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith(usage)
