@@ -10,6 +10,7 @@ from stewart_env.agents.computed_torque import ComputedTorque, ComputedTorquePol
 from stewart_env.agents.evaluation import (
     METRICS,
     EvaluationResult,
+    Metric,
     compare,
     episode_metrics,
     evaluate,
@@ -38,6 +39,7 @@ __all__ = [
     "ComputedTorque",
     "ComputedTorquePolicy",
     "EvaluationResult",
+    "Metric",
     "PDPolicy",
     "TaskSpacePD",
     "compare",

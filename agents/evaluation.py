@@ -38,6 +38,7 @@ from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import gymnasium as gym
 import numpy as np
@@ -62,8 +63,19 @@ ORIENTATION_TOLERANCE = 1e-2
 #: Default final window, as a fraction of the episode's duration.
 FINAL_WINDOW = 0.1
 
-#: Metrics of an episode, in the order of the CSV columns: key, table header, display factor, format.
-METRICS = (
+
+class Metric(NamedTuple):
+    """One metric of an episode as the reports show it: ``key`` in ``Episode.metrics``,
+    ``title`` of its table column, ``factor`` from SI to the display unit, ``spec`` its format."""
+
+    key: str
+    title: str
+    factor: float
+    spec: str
+
+
+#: Metrics of an episode, in the order of the CSV columns.
+METRICS = tuple(Metric(*m) for m in (
     ("success", "success", 1.0, ".0%"),
     ("rms_position_error", "RMS pos. err. (mm)", 1e3, ".3g"),
     ("rms_orientation_error", "RMS ori. err. (mrad)", 1e3, ".3g"),
@@ -74,7 +86,7 @@ METRICS = (
     ("steady_state_orientation_error", "steady-state ori. (mrad)", 1e3, ".3g"),
     ("peak_leg_force", "peak leg force (N)", 1.0, ".4g"),
     ("control_energy", "energy (J)", 1.0, ".4g"),
-)
+))
 
 
 # -- metrics of one episode ------------------------------------------------------------------------
@@ -189,7 +201,7 @@ class EvaluationResult:
         """Mean of every metric over the episodes (NaN-ignoring: settling time and overshoot are
         averaged over the episodes where they are defined; NaN if none)."""
         out = {}
-        for key, *_ in METRICS:
+        for key in (m.key for m in METRICS):
             values = np.array([ep.metrics[key] for ep in self.episodes], dtype=float)
             out[key] = float(np.mean(values[np.isfinite(values)])) if np.isfinite(values).any() else math.nan
         return out
@@ -327,13 +339,13 @@ def markdown_table(results: Sequence[EvaluationResult]) -> str:
     """A markdown table of the mean metrics of each result (one row per result), with the count
     of episodes ended early and their most common reason (``ended_early``) after the success
     rate: a controller that loses the platform at once has no overshoot to show, but shows here."""
-    labels = [m[1] for m in METRICS]
-    at = labels.index("success") + 1
-    head = ["controller", "model", "task", "episodes"] + labels[:at] + [ENDED_EARLY] + labels[at:]
+    titles = [m.title for m in METRICS]
+    at = [m.key for m in METRICS].index("success") + 1
+    head = ["controller", "model", "task", "episodes"] + titles[:at] + [ENDED_EARLY] + titles[at:]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in results:
         s = r.summary()
-        metrics = [_fmt(s[key], factor, spec) for key, _, factor, spec in METRICS]
+        metrics = [_fmt(s[m.key], m.factor, m.spec) for m in METRICS]
         cells = [r.label, r.model, r.task, str(len(r.episodes))] + metrics[:at] + [ended_early(r)] + metrics[at:]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
@@ -367,13 +379,13 @@ def _write_report(results: Sequence[EvaluationResult], out: Path, title: str) ->
     with publishing(paths["csv"]) as tmp, tmp.open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(["controller", "model", "task", "platform", "seed", "termination", "return"]
-                        + [m[0] for m in METRICS])
+                        + [m.key for m in METRICS])
         for r in results:
             platform = r.env_kwargs.get("platform", "dasgupta1998")
             platform = platform.name if isinstance(platform, se.PlatformParams) else str(platform)
             for ep in r.episodes:
                 writer.writerow([r.label, r.model, r.task, platform, ep.seed, ep.termination or "", f"{ep.reward:.6g}"]
-                                + [f"{ep.metrics[m[0]]:.9g}" for m in METRICS])
+                                + [f"{ep.metrics[m.key]:.9g}" for m in METRICS])
     with publishing(paths["error_norms"]) as tmp:
         error_norms_figure(results).savefig(tmp, dpi=110)
     for r in results:

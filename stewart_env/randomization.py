@@ -37,19 +37,9 @@ from collections.abc import Mapping
 import numpy as np
 
 from stewart_env.dynamics import kernels as K
-from stewart_env.params import (
-    _MAX_MAGNITUDE,
-    _MIN_PLATFORM_INERTIA,
-    _MIN_PLATFORM_MASS,
-    ConfigError,
-    Damping,
-    PlatformParams,
-    RigidBody,
-    _is_sequence,
-    _key_names,
-    _number,
-    _short,
-)
+from stewart_env.params import ConfigError, Damping, PlatformParams, RigidBody
+from stewart_env.params.checks import MAX_MAGNITUDE, is_sequence, key_names, number, short
+from stewart_env.params.platform import MIN_PLATFORM_INERTIA, MIN_PLATFORM_MASS
 
 __all__ = ["KEYS", "Randomization"]
 
@@ -84,9 +74,9 @@ def _bounds(key: str) -> tuple[float, float, str]:
 def _range(value: object, key: str) -> tuple[float, float]:
     """A checked (low, high) range of the factors of ``key``."""
     name = f"randomization[{key!r}]"
-    if not _is_sequence(value) or getattr(value, "ndim", 1) != 1 or len(value) != 2:
-        raise ConfigError(name, f"expected (low, high), got {_short(value)}")
-    low, high = (_number(v, f"{name}[{i}]") for i, v in enumerate(value))
+    if not is_sequence(value) or getattr(value, "ndim", 1) != 1 or len(value) != 2:
+        raise ConfigError(name, f"expected (low, high), got {short(value)}")
+    low, high = (number(v, f"{name}[{i}]") for i, v in enumerate(value))
     if not low <= high:
         raise ConfigError(name, f"expected low <= high, got ({low}, {high})")
     lowest, highest, wording = _bounds(key)
@@ -107,10 +97,10 @@ class Randomization:
 
     def __init__(self, spec: Mapping[str, tuple[float, float]]):
         if not isinstance(spec, Mapping):
-            raise ConfigError("randomization", f"expected a dict of key -> (low, high), got {_short(spec)}")
+            raise ConfigError("randomization", f"expected a dict of key -> (low, high), got {short(spec)}")
         unknown = [k for k in spec if k not in KEYS]
         if unknown:
-            raise ConfigError("randomization", f"unknown key(s) {_key_names(unknown)}; valid keys: {', '.join(KEYS)}")
+            raise ConfigError("randomization", f"unknown key(s) {key_names(unknown)}; valid keys: {', '.join(KEYS)}")
         self.ranges: dict[str, tuple[float, float]] = {key: _range(spec[key], key) for key in KEYS if key in spec}
         self._moment_cache: tuple[bytes, float] | None = None
 
@@ -153,13 +143,13 @@ class Randomization:
         """Raise ConfigError naming the key unless ``factors`` holds only keys of this spec, each a
         number within its range (what :meth:`sample` draws)."""
         if not isinstance(factors, Mapping):
-            raise ConfigError("factors", f"expected a dict of key -> factor, got {_short(factors)}")
+            raise ConfigError("factors", f"expected a dict of key -> factor, got {short(factors)}")
         for key, f in factors.items():
             if key not in self.ranges:
                 raise ConfigError("factors", f"key {key!r} is not in the randomisation spec ({', '.join(self.ranges)})")
             low, high = self.ranges[key]
             if isinstance(f, bool) or not (isinstance(f, (float, int, np.floating, np.integer)) and low <= f <= high):
-                raise ConfigError(f"factors[{key!r}]", f"expected a number within [{low}, {high}], got {_short(f)}")
+                raise ConfigError(f"factors[{key!r}]", f"expected a number within [{low}, {high}], got {short(f)}")
 
     def scale_packed(self, nominal_row: np.ndarray, factors: Mapping[str, float], out_row: np.ndarray) -> None:
         """Write into ``out_row`` (N_PARAMS,) the packed parameters of ``apply(params, factors)``,
@@ -176,23 +166,23 @@ class Randomization:
         """
         for name, row in (("nominal_row", nominal_row), ("out_row", out_row)):
             if not (isinstance(row, np.ndarray) and row.dtype == np.float64 and row.shape == (K.N_PARAMS,)):
-                raise ValueError(f"{name}: expected a float64 array of shape ({K.N_PARAMS},), got {_short(row)}")
+                raise ValueError(f"{name}: expected a float64 array of shape ({K.N_PARAMS},), got {short(row)}")
         if not out_row.flags.writeable:
             raise ValueError("out_row: read-only; pass a writeable array (a model's packed rows are read-only)")
         self.check_factors(factors)
         multipliers = _multipliers(factors)
         np.multiply(nominal_row, np.array([1.0, *multipliers])[_PART_OF], out=out_row)
         mass = out_row[K.OFF_MP]
-        if not mass >= _MIN_PLATFORM_MASS:
-            raise ConfigError("platform.mass", f"must be >= {_MIN_PLATFORM_MASS:g} kg, got {mass}")
-        if np.abs(out_row).max() > _MAX_MAGNITUDE:  # only scaled entries can grow
-            key = next(name for name, part, _ in _PARTS if np.abs(out_row[part]).max() > _MAX_MAGNITUDE)
-            raise ConfigError(key, f"a randomised value exceeds {_MAX_MAGNITUDE:g} in magnitude")
+        if not mass >= MIN_PLATFORM_MASS:
+            raise ConfigError("platform.mass", f"must be >= {MIN_PLATFORM_MASS:g} kg, got {mass}")
+        if np.abs(out_row).max() > MAX_MAGNITUDE:  # only scaled entries can grow
+            key = next(name for name, part, _ in _PARTS if np.abs(out_row[part]).max() > MAX_MAGNITUDE)
+            raise ConfigError(key, f"a randomised value exceeds {MAX_MAGNITUDE:g} in magnitude")
         # a positive factor scales every principal moment alike
         smallest = multipliers[_PART_NAMES.index("platform.inertia")] * self._smallest_moment(nominal_row)
-        if smallest < _MIN_PLATFORM_INERTIA:
+        if smallest < MIN_PLATFORM_INERTIA:
             raise ConfigError("platform.inertia", f"smallest principal moment {smallest:.3g} is "
-                                                  f"below {_MIN_PLATFORM_INERTIA:g} kg m^2")
+                                                  f"below {MIN_PLATFORM_INERTIA:g} kg m^2")
 
     def _smallest_moment(self, nominal_row: np.ndarray) -> float:
         """The smallest principal moment of the platform inertia in ``nominal_row``, kept for the

@@ -26,6 +26,28 @@ def foreign_modules(repository: Path = REPOSITORY) -> list[str]:
     return foreign
 
 
+#: The optional modules behind each extra, as ``@pytest.mark.extra("rl")`` names them.
+EXTRA_MODULES = {
+    "rl": ("stable_baselines3", "moviepy"),
+    "mujoco": ("mujoco",),
+    "distributed": ("ray",),
+    "integration": ("torchrl", "tianshou", "skrl", "rl_zoo3"),
+    "docs": ("sphinx", "furo", "myst_parser"),
+    "laws": ("numba",),
+}
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    """Skip a test marked ``extra(name, ...)`` when an extra it needs is not installed, before its
+    fixtures are set up (a core install runs the rest of the suite and passes)."""
+    for mark in item.iter_markers("extra"):
+        for extra in mark.args:
+            for module in EXTRA_MODULES[extra]:
+                if importlib.util.find_spec(module) is None:
+                    pytest.skip(f"needs the {extra} extra ({module} is not installed)")
+
+
 def pytest_configure(config):
     """Refuse to run, before collecting any test, when the tests would not test this checkout."""
     if foreign := foreign_modules():

@@ -74,6 +74,7 @@ def test_gymnasium_check_env(model, task):
         gym_check_env(env.unwrapped, skip_render_check=True)
 
 
+@pytest.mark.extra("rl")
 @pytest.mark.parametrize("model", MODELS)
 @pytest.mark.parametrize("task", TASKS)
 def test_sb3_check_env(model, task):
@@ -85,6 +86,7 @@ def test_sb3_check_env(model, task):
         sb3_check_env(env.unwrapped, warn=True)
 
 
+@pytest.mark.extra("rl")
 @pytest.mark.parametrize("kwargs", [
     {"task": "tracking", "randomization": {"mass": (0.9, 1.1)}, "observation_noise": 0.01,
      "observation_delay": 2, "actuator_tau": 0.02},
@@ -124,6 +126,7 @@ def test_render_fps_follows_control_dt():
     assert env.metadata["render_fps"] == pytest.approx(50.0)  # 1 / 0.02 in floating point
 
 
+@pytest.mark.extra("rl")
 def test_record_video(tmp_path):
     env = make(render_mode="rgb_array", width=96, height=96, max_episode_steps=8)
     folder = tmp_path / "videos"

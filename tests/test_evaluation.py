@@ -208,7 +208,7 @@ cell = {key: Interval(v, v, v, 1, 1) for key, v in result.summary().items()}
 study = mismatch.MismatchResult(rows, ["improved"], {"PD": {"improved": cell}}, 1)
 study.differences = [mismatch.Difference("PD", "C2", "PD", "PD", key, Interval(1.0, 0.5, 2.0, 1, 1), False)
                      for key in mismatch.RANKING_METRICS]
-mismatch.heatmap(study, "success", "success", 1.0, ".0%", out / "heatmap.png")
+mismatch.heatmap(study, METRICS[0], out / "heatmap.png")
 mismatch.forest_figure(study, METRICS).savefig(out / "forest.png")
 print(matplotlib.get_backend(), "matplotlib.pyplot" in sys.modules)
 """

@@ -165,7 +165,7 @@ def test_a_study_refuses_agents_shared_through_a_symbolic_link(tmp_path):
     out = tmp_path / "study"
     out.mkdir()
     (out / "agents").symlink_to(shared)
-    with pytest.raises(training.TrainingError, match=r"agents is a symbolic link: a study's agents are not shared"):
+    with pytest.raises(mismatch.MismatchError, match=r"agents is a symbolic link: a study's agents are not shared"):
         mismatch.run_mismatch(out, ["improved"], ["improved"], algo=None, episodes=1, max_steps=5, simplifications=[],
                               progress=False)
     assert not (out / mismatch.STUDY_FILE).exists()
@@ -176,7 +176,12 @@ def _cli(*args: str, env: dict | None = None) -> subprocess.Popen:
                             stderr=subprocess.PIPE, text=True, env={**os.environ, "MPLBACKEND": "Agg", **(env or {})})
 
 
-def _wait_for_holder(folder: Path, proc: subprocess.Popen, timeout: float = 120) -> None:
+#: Seconds a command may take before a test calls it hung: a guard against a hang, not a speed
+#: check (two training processes on a loaded 2-core machine take minutes).
+HANG = 600
+
+
+def _wait_for_holder(folder: Path, proc: subprocess.Popen, timeout: float = HANG) -> None:
     """Until ``proc`` holds ``folder``'s lock (its PID written into the lock file)."""
     deadline = time.monotonic() + timeout
     lock = folder / files.LOCK_FILE
@@ -196,8 +201,8 @@ def test_two_train_commands_on_one_folder_one_runs_the_other_is_refused(tmp_path
     first = _cli(*common, "--seed", "1", env={PAUSE_IN_CHECKPOINT_ENV: "10"})
     _wait_for_holder(out, first)
     second = _cli(*common, "--seed", "2")
-    _, err2 = second.communicate(timeout=120)
-    _, err1 = first.communicate(timeout=120)
+    _, err2 = second.communicate(timeout=HANG)
+    _, err1 = first.communicate(timeout=HANG)
     assert first.returncode == 0, err1[-2000:]
     assert second.returncode == 2
     last = err2.strip().splitlines()[-1]
@@ -220,8 +225,8 @@ def test_two_mismatch_commands_on_one_folder_one_runs_the_other_is_refused(tmp_p
     first = _cli(*common, env={PAUSE_IN_CHECKPOINT_ENV: "15"})
     _wait_for_holder(out, first)
     second = _cli(*common)
-    _, err2 = second.communicate(timeout=120)
-    _, err1 = first.communicate(timeout=180)
+    _, err2 = second.communicate(timeout=HANG)
+    _, err1 = first.communicate(timeout=HANG)
     assert first.returncode == 0, err1[-2000:]
     assert second.returncode == 2
     last = err2.strip().splitlines()[-1]
@@ -318,7 +323,7 @@ def test_a_full_disk_while_a_study_writes_a_cell_keeps_the_finished_cells(tmp_pa
         if is_cell:
             written.append(path)
 
-    monkeypatch.setattr(mismatch, "publish", full_after_two)
+    monkeypatch.setattr(files, "publish", full_after_two)
     assert main(kwargs) == 1
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert re.fullmatch(rf"stewart-env mismatch: error: cannot write {re.escape(str(tmp_path))}/cells/\S+\.json: No "

@@ -625,6 +625,34 @@ def test_unknown_reset_options_are_named(faces):
             env.reset(seed=0, options={"start": 1})
 
 
+@pytest.mark.parametrize("options, message", [
+    (5, r"expected a dict \(or None\) per row, got int"),
+    (["a", "b"], r"expected a dict \(or None\) per row, got str"),
+    ([{}, {}, {}], r"expected one dict for every row or a list of 2, got a list of 3"),
+])
+def test_sb3_set_options_that_cannot_be_options_are_named(options, message):
+    pytest.importorskip("stable_baselines3")
+    from stewart_env.envs import StewartPlatformSB3VecEnv
+
+    venv = StewartPlatformSB3VecEnv(num_envs=2)
+    with pytest.raises(ValueError, match=rf"^set_options: options: {message}$"):
+        venv.set_options(options)
+    venv.close()
+
+
+def test_sb3_reset_with_options_set_names_them():
+    pytest.importorskip("stable_baselines3")
+    from stewart_env.envs import StewartPlatformSB3VecEnv
+
+    venv = StewartPlatformSB3VecEnv(num_envs=2)
+    venv.set_options({"start": 1})
+    with pytest.raises(ValueError, match=r"^reset: options: unknown option\(s\) 'start'; this environment takes none$"):
+        venv.reset()
+    venv.set_options(None)  # cleared: the next reset takes none
+    assert venv.reset().shape[0] == 2
+    venv.close()
+
+
 def test_tensors_that_require_grad_are_read_detached(faces):
     torch = pytest.importorskip("torch")
     for face, env, shape in faces:

@@ -45,11 +45,8 @@ LAYERS = {
 # the package's face re-exports the physics API and registers the environment with Gymnasium
 PACKAGE = "stewart_env"
 ORDER = ("physics", "tasks", "envs", "agents", "cli")
-# The study's command line is still written in its module: it reaches the argparse types of the
-# command line and imports argparse, until its parser joins the others in stewart_env/cli/.
-STUDY_PARSER = "stewart_env.agents.mismatch"
 # The environments' benchmark keeps its own `python -m stewart_env.envs.bench_env` parser for now.
-OWN_PARSERS = (STUDY_PARSER, "stewart_env.envs.bench_env")
+OWN_PARSERS = ("stewart_env.envs.bench_env",)
 # the integrator: a task gets the state it is given and never advances it
 INTEGRATOR = ("stewart_env.integrate", "stewart_env.dynamics.rk4")
 
@@ -109,8 +106,7 @@ def test_every_module_has_a_layer():
 def test_imports_run_one_way(name, path):
     own = ORDER.index(layer_of(name))
     upward = [f"line {line}: {module} ({layer_of(module)})" for module, _, line in imports(path)
-              if layer_of(module) and ORDER.index(layer_of(module)) > own
-              and not (name == STUDY_PARSER and module == "stewart_env.cli.arguments")]
+              if layer_of(module) and ORDER.index(layer_of(module)) > own]
     assert upward == [], f"{name} ({layer_of(name)}) imports a layer above it"
 
 
@@ -127,6 +123,26 @@ def test_agents_use_public_names_of_the_package(name, path):
                for module, names, line in imports(path)
                if layer_of(module) != "agents" and any(n.startswith("_") for n in names)]
     assert private == []
+
+
+# The parameters are the physics' lowest floor: values, their checks, the config reader and the
+# shipped configs. The models are built on them (a check that needs the kernels runs where a
+# platform becomes a model), never the other way round.
+PARAMETERS = "stewart_env.params"
+ABOVE_PARAMETERS = ("stewart_env.dynamics", "stewart_env.kinematics", "stewart_env.integrate",
+                    "stewart_env.randomization", "stewart_env.mujoco", "stewart_env.tasks", "stewart_env.envs")
+
+
+def imports_above_the_parameters(path: Path) -> list[str]:
+    """``line n: module`` of every import of a module the parameters must not know."""
+    return [f"line {line}: {module}" for module, _, line in imports(path)
+            if module == PACKAGE or module.startswith(ABOVE_PARAMETERS)]
+
+
+def test_the_parameters_import_no_model_task_or_environment():
+    modules = [(name, path) for name, path in MODULES if name == PARAMETERS or name.startswith(PARAMETERS + ".")]
+    assert len(modules) >= 5, "the parameter package's modules were not found"
+    assert [f"{name} {hit}" for name, path in modules for hit in imports_above_the_parameters(path)] == []
 
 
 def library_imports(path: Path) -> list[tuple[str, int]]:
@@ -161,6 +177,19 @@ def test_the_environments_reach_a_simulator_only_through_their_plant(simulator):
     assert found == []
 
 
+# The mismatch study's work modules; its command line (argparse) is stewart_env.cli.mismatch.
+MISMATCH = [(name, path) for name, path in MODULES if name.startswith("stewart_env.agents.mismatch")]
+
+
+@pytest.mark.parametrize("name,path", MISMATCH, ids=[name for name, _ in MISMATCH])
+def test_the_mismatch_study_s_work_modules_import_no_argparse(name, path):
+    assert len(MISMATCH) > 5, "the study's modules were not found"
+    assert [f"line {line}: {module}" for module, line in library_imports(path)
+            if module.split(".")[0] == "argparse"] == []
+    assert [f"line {line}: {module}" for module, _, line in imports(path)
+            if module.startswith("stewart_env.cli")] == [], "argparse types belong to the command line"
+
+
 def test_the_rule_catches_an_upward_import(tmp_path):
     """The check itself can fail: a physics module importing the environment is reported."""
     bad = tmp_path / "bad.py"
@@ -170,6 +199,9 @@ def test_the_rule_catches_an_upward_import(tmp_path):
     assert [m for m, _, _ in imports(bad)] == ["stewart_env.mujoco", "stewart_env", "stewart_env.dynamics.rk4"]
     with pytest.raises(AssertionError):
         test_imports_run_one_way("stewart_env.kinematics", bad)
+    # within the physics layer, a parameter module importing a kernel is reported
+    bad.write_text("def f():\n    from stewart_env.dynamics import kernels as K\n")
+    assert imports_above_the_parameters(bad) == ["line 2: stewart_env.dynamics.kernels"]
     bad.write_text("import numpy as np\nfrom mujoco import rollout\nimport mujoco.viewer\n")
     assert library_imports(bad) == [("numpy", 1), ("mujoco", 2), ("mujoco.viewer", 3)]
 

@@ -17,11 +17,13 @@ import pytest
 # PPO runs here are a rollout or two of 2 platforms, smaller than the config's minibatch on purpose.
 pytestmark = pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning")
 
-from stewart_env.agents import mismatch  # noqa: E402
+from stewart_env.cli import mismatch as mismatch_cli  # noqa: E402
+from stewart_env.agents import evaluation, mismatch  # noqa: E402
 from stewart_env.agents.evaluation import METRICS  # noqa: E402
-from stewart_env.agents.mismatch import RANKING_METRICS, run_mismatch  # noqa: E402
+from stewart_env.agents.mismatch import RANKING_METRICS, MismatchError, MismatchSettings, run_mismatch  # noqa: E402
 from stewart_env.agents.statistics import Interval, stratified_bootstrap  # noqa: E402
 from stewart_env.agents.training import TrainingError  # noqa: E402
+from stewart_env.errors import UsageError  # noqa: E402
 
 TEST_MODELS = ["classical", "improved", "improved_centroidal"]
 # Metrics defined for every episode (settling time and overshoot are NaN by definition when an
@@ -156,9 +158,9 @@ def test_second_run_reuses_agents_and_cells_and_runs_only_what_is_missing(study)
 @pytest.mark.slow  # the study fixture trains eight agents: about 20 s
 def test_a_study_with_other_settings_is_refused(study):
     out, _ = study
-    with pytest.raises(TrainingError, match=r"other settings(.|\n)*episodes: 3 -> 4"):
+    with pytest.raises(MismatchError, match=r"other settings(.|\n)*episodes: 3 -> 4"):
         run_mismatch(out, **{**STUDY, "episodes": 4})
-    with pytest.raises(TrainingError, match="task: 'setpoint' -> 'tracking'"):
+    with pytest.raises(MismatchError, match="task: 'setpoint' -> 'tracking'"):
         run_mismatch(out, **{**STUDY, "task": "tracking"})
 
 
@@ -170,7 +172,7 @@ def test_an_agent_trained_differently_is_not_silently_reused(study, tmp_path):
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
     (copy / mismatch.STUDY_FILE).unlink()  # settings forgotten: the agents' own records still say
-    with pytest.raises(TrainingError, match="trained differently"):
+    with pytest.raises(MismatchError, match="trained differently"):
         run_mismatch(copy, **{**STUDY, "env_kwargs": {"observation_noise": 0.01}})
 
 
@@ -178,23 +180,23 @@ def test_an_interrupted_study_keeps_its_finished_cells(tmp_path, monkeypatch):
     """Ctrl-C during the third evaluation: the two finished cells are on disk, whole; the next run
     computes only the rest."""
     calls = []
-    job = mismatch._evaluate_job
+    evaluate = evaluation.evaluate
 
-    def interrupted(spec, agent=None):
-        calls.append(spec["controller"])
+    def interrupted(policy, env_kwargs, **kwargs):
+        calls.append(kwargs["label"])
         if len(calls) == 3:
             raise KeyboardInterrupt
-        return job(spec, agent)
+        return evaluate(policy, env_kwargs, **kwargs)
 
     kwargs = dict(train_models=["improved"], test_models=["improved"], algo=None, episodes=1, simplifications=["c2"],
                   max_steps=5, progress=False)
-    monkeypatch.setattr(mismatch, "_evaluate_job", interrupted)
+    monkeypatch.setattr(evaluation, "evaluate", interrupted)
     with pytest.raises(KeyboardInterrupt):
         run_mismatch(tmp_path, **kwargs)
     finished = sorted((tmp_path / "cells").rglob("*.json"))
     assert len(finished) == 2 and all(json.loads(p.read_text())["metrics"] for p in finished)
     assert not list((tmp_path / "cells").rglob("*.tmp*"))
-    monkeypatch.setattr(mismatch, "_evaluate_job", job)
+    monkeypatch.undo()
     calls.clear()
     result = run_mismatch(tmp_path, **kwargs)
     assert len(list((tmp_path / "cells").rglob("*.json"))) == len(result.rows) == 4
@@ -225,7 +227,7 @@ def test_an_interrupted_study_keeps_its_finished_cells(tmp_path, monkeypatch):
 ])
 def test_bad_requests_are_named_before_any_work(tmp_path, kwargs, message):
     out = tmp_path / "study"
-    with pytest.raises(TrainingError, match=message):
+    with pytest.raises(MismatchError, match=message):
         run_mismatch(out, **{"train_models": ["improved"], "test_models": ["improved"], "algo": None, **kwargs})
     assert not (out / mismatch.STUDY_FILE).exists()
 
@@ -236,7 +238,7 @@ def test_an_address_where_nothing_answers_is_refused_at_once(tmp_path):
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
     start = time.perf_counter()
-    with pytest.raises(TrainingError, match=rf"--ray-address 127.0.0.1:{port}: nothing answers there"):
+    with pytest.raises(MismatchError, match=rf"--ray-address 127.0.0.1:{port}: nothing answers there"):
         run_mismatch(tmp_path / "study", ["improved"], ["improved"], algo=None, backend="ray",
                      ray_address=f"127.0.0.1:{port}")
     # Ray itself would retry for ever; the study gives up after its connect timeout at most
@@ -245,14 +247,14 @@ def test_an_address_where_nothing_answers_is_refused_at_once(tmp_path):
 
 def test_ray_backend_without_ray_names_the_extra(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)  # import ray fails as if not installed
-    with pytest.raises(TrainingError, match=r"--backend ray needs ray: install the distributed extra"):
+    with pytest.raises(MismatchError, match=r"--backend ray needs ray: install the distributed extra"):
         run_mismatch(tmp_path, ["improved"], ["improved"], algo=None, backend="ray")
     assert not list(tmp_path.iterdir())
 
 
 def _parser():
     parser = argparse.ArgumentParser()
-    mismatch.add_cli(parser.add_subparsers(dest="command"))
+    mismatch_cli.add_parser(parser.add_subparsers(dest="command"))
     return parser
 
 
@@ -281,7 +283,7 @@ def test_cli_reports_a_failed_cluster_and_how_to_continue(tmp_path, capsys, monk
     def lost(*args, **kwargs):
         raise mismatch.BackendError("the Ray cluster failed: LocalRayletDiedError: The task's local raylet died")
 
-    monkeypatch.setattr(mismatch, "run_mismatch", lost)
+    monkeypatch.setattr(mismatch_cli, "run_mismatch", lost)
     args = _parser().parse_args(["mismatch", "--out", str(tmp_path)])
     assert args.func(args) == 1
     assert capsys.readouterr().err == (
@@ -340,17 +342,69 @@ def test_resolved_costs_on_constructed_cells():
 
 
 def test_failed_agents_rank_no_simplification(tmp_path):
-    header = {"task": "setpoint", "eval_seed": 100_000, "wall_time": 1.0}
-    mismatch.write_outputs(_constructed_study(ppo_success=0.25), tmp_path, METRICS, header)
+    settings = MismatchSettings(test_models=["improved"], algo=None)
+    mismatch.write_tables(_constructed_study(ppo_success=0.25), tmp_path, settings)
     text = (tmp_path / "matrix.md").read_text()
     ct, ppo = text.split("### PPO")
     assert "steady-state pos. (mm), resolved costs, largest first: C2 (+0.001)" in ct  # CT: 1 um = 0.001 mm
     assert "none resolved; failed, not ranked: C2" in ppo
     assert "| C2: " in ppo and "*failed*" in ppo
     # at the threshold the agents count as succeeding and are ranked
-    mismatch.write_outputs(_constructed_study(ppo_success=0.5), tmp_path, METRICS, header)
+    mismatch.write_tables(_constructed_study(ppo_success=0.5), tmp_path, settings)
     ppo = (tmp_path / "matrix.md").read_text().split("### PPO")[1]
     assert "failed" not in ppo and "resolved costs, largest first: C2 (+1)" in ppo
+
+
+def test_text_report_draws_no_figure(tmp_path, monkeypatch):
+    """matrix.md, matrix.csv and differences.csv alone: no figure is drawn (any attempt fails here)."""
+    def no_figure(*args, **kwargs):
+        raise AssertionError("a figure was drawn")
+
+    monkeypatch.setattr(evaluation, "new_figure", no_figure)
+    study = _constructed_study(ppo_success=1.0)
+    settings = MismatchSettings(test_models=["improved"], algo=None, seeds=[0, 1])
+    files = mismatch.write_outputs(study, tmp_path, settings, wall_time=3.0, figures=False)
+    assert set(files) == {"csv", "markdown", "differences"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["differences.csv", "matrix.csv", "matrix.md"]
+    text = files["markdown"].read_text()
+    assert text.startswith("# Model mismatch on the setpoint task, platform dasgupta1998")
+    assert "training seeds (0, 1; one for the model-based rows) and the 8 episodes (evaluation seeds " \
+           "100000..100007" in text
+    assert text.endswith("Backend: local. Wall time of this run: 3 s.\n")
+    lines = _rows(tmp_path)
+    assert [(x["controller"], x["test_model"]) for x in lines] == [(r.label, "improved") for r in study.rows]
+    ct = next(x for x in lines if x["controller"] == "CT [improved+c2]")
+    # the CSV holds the interval in SI units to 9 digits
+    interval = study.summary["CT [improved+c2]"]["improved"]["rms_position_error"]
+    assert float(ct["rms_position_error"]) == pytest.approx(interval.estimate, rel=1e-8)
+    assert ct["rms_position_error_n"] == "8" and ct["seeds"] == "1"
+    with open(files["differences"]) as f:
+        assert len(list(csv.DictReader(f))) == len(study.differences)
+
+
+def test_the_study_s_errors_are_usage_errors():
+    assert issubclass(MismatchError, UsageError) and issubclass(mismatch.BackendError, UsageError)
+    assert not issubclass(MismatchError, TrainingError)
+
+
+def test_settings_are_one_checked_frozen_record():
+    settings = MismatchSettings(test_models=["improved"], algo=None, seeds=[3, 1], episodes=np.int64(2))
+    assert settings.seeds == (3, 1) and type(settings.episodes) is int
+    assert settings.env_kwargs == {"platform": "dasgupta1998"}
+    assert settings.recorded() == {**settings.evaluation(), "algo": None, "timesteps": None, "n_envs": None}
+    with pytest.raises(AttributeError):
+        settings.episodes = 3  # frozen
+    with pytest.raises(MismatchError, match="episodes: expected a positive integer"):
+        MismatchSettings(test_models=["improved"], episodes=0)
+
+
+@pytest.mark.slow  # draws the forest plot and ten heatmaps (the text-only report is tested fast above)
+def test_report_with_figures_draws_the_forest_and_a_heatmap_per_metric(tmp_path):
+    settings = MismatchSettings(test_models=["improved"], algo=None)
+    files = mismatch.write_outputs(_constructed_study(ppo_success=0.25), tmp_path, settings)
+    assert set(files) == {"csv", "markdown", "differences", "forest"} | {f"heatmap {m.key}" for m in METRICS}
+    for name in ["forest.png"] + [f"heatmap_{m.key}.png" for m in METRICS]:
+        assert (tmp_path / name).stat().st_size > 10_000, name  # a real figure, not an empty file
 
 
 def _two_plant_cells(shift: float = 0.2) -> dict:
@@ -411,8 +465,8 @@ def test_every_learned_difference_gets_a_welch_test_on_its_seeds():
 
 
 def test_double_differences_are_written_apart_and_not_ranked(tmp_path):
-    header = {"task": "setpoint", "eval_seed": 100_000, "wall_time": 1.0}
-    files = mismatch.write_outputs(_two_plant_study(shift=0.2), tmp_path, METRICS, header)
+    settings = MismatchSettings(test_models=["improved", "improved+c2"], algo=None)
+    files = mismatch.write_tables(_two_plant_study(shift=0.2), tmp_path, settings)
     costs, doubles = files["markdown"].read_text().split("## Double differences on the improved plant")
     # the cost's interval at 4 seeds, sized for half the double difference, 0.2 mm
     line = next(x for x in costs.splitlines() if x.startswith("- RMS pos. err. (mm), resolved costs"))
@@ -443,7 +497,8 @@ def test_forest_plot_draws_every_cost():
 
 def test_heatmap_hatches_failed_cells_outside_the_colour_scale():
     study = _constructed_study(ppo_success=0.25)
-    fig = mismatch.heatmap_figure(study, "steady_state_position_error", "steady-state pos. (mm)", 1e3, ".3g")
+    metric = next(m for m in METRICS if m.key == "steady_state_position_error")
+    fig = mismatch.heatmap_figure(study, metric)
     ax = fig.axes[0]
     image = ax.get_images()[0]
     failed = np.array([[False], [False], [True], [True]])  # the PPO rows
@@ -473,8 +528,8 @@ def test_a_row_stopped_while_training_continues_from_its_checkpoint(study, tmp_p
                     checkpoint_freq=0, env_kwargs={k: v for k, v in manifest["env_kwargs"].items()
                                                    if k not in ("model", "task")})
     with pytest.raises(TrainingError, match="seed"):  # a row of another seed is not continued silently
-        mismatch._train_locally(row, {**training, "seed": manifest["seed"] + 1}, steps + 1, False)
-    mismatch._train_locally(row, training, steps + 1, False)
+        mismatch.train_agent(row, {**training, "seed": manifest["seed"] + 1}, steps + 1)
+    mismatch.train_agent(row, training, steps + 1)
     assert (row / MODEL_FILE).is_file()
     assert read_manifest(row)["num_timesteps"] > steps  # it trained on from the checkpoint, not from scratch
     assert read_manifest(row)["segments"][-1]["start"] == steps
@@ -540,8 +595,9 @@ def test_mujoco_as_a_test_plant_and_a_training_model(tmp_path):
 def test_help_formats(capsys):
     with pytest.raises(SystemExit):
         _parser().parse_args(["mismatch", "--help"])
-    text = capsys.readouterr().out
+    text = " ".join(capsys.readouterr().out.split())
     assert "--position-tolerance" in text and "fewer than 50% of its episodes" in text
+    assert "(95 % intervals)" in text and "%%" not in text
 
 
 @pytest.mark.slow  # the study fixture trains eight agents: about 20 s
@@ -557,9 +613,9 @@ def test_an_agent_stopped_by_a_signal_is_continued_not_reused(study, tmp_path):
     shutil.copytree(out / "agents" / "improved" / "seed_0", row)
     manifest = read_manifest(row)
     env_kwargs = manifest["env_kwargs"]
-    assert mismatch._finished_agent(row, "ppo", 0, env_kwargs)
+    assert mismatch.finished_agent(row, "ppo", 0, env_kwargs)
     (row / MANIFEST).write_text(json.dumps({**manifest, "finished": False}))
-    assert not mismatch._finished_agent(row, "ppo", 0, env_kwargs)
+    assert not mismatch.finished_agent(row, "ppo", 0, env_kwargs)
 
 
 def test_plant_model_name_takes_mujoco_and_names_it_when_refusing():

@@ -34,10 +34,10 @@ def test_a_study_on_a_cluster_of_three_nodes_runs_its_jobs_on_the_workers_and_ma
 
     on_cluster = run_mismatch(tmp_path / "cluster", backend="ray", ray_address=cluster.address, **STUDY)
     ray.init(address=cluster.address, logging_level="ERROR", log_to_driver=False)
-    jobs = [t for t in list_tasks(limit=1000) if t.name in ("_train_job", "_evaluate_job")]
+    jobs = [t for t in list_tasks(limit=1000) if t.name in ("train_job", "evaluate_job")]
     # one job per agent (two rows, two seeds) and one per stored cell
     cells = list((tmp_path / "cluster" / "cells").rglob("*.json"))
-    assert [t.name for t in jobs].count("_train_job") == 4 and len(jobs) == 4 + len(cells) > 4
+    assert [t.name for t in jobs].count("train_job") == 4 and len(jobs) == 4 + len(cells) > 4
     assert all(t.state == "FINISHED" for t in jobs)
     # on the worker nodes, never the head (it has no CPU): what the jobs need travelled to them
     workers = {n["NodeID"] for n in ray.nodes() if n["Resources"].get("CPU")}

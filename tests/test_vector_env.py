@@ -226,9 +226,7 @@ def test_vector_exposes_state_target_model_and_forces():
 
 @pytest.fixture(scope="module")
 def sb3():
-    import stable_baselines3
-
-    return stable_baselines3
+    return pytest.importorskip("stable_baselines3", reason="needs the rl extra")
 
 
 def test_sb3_adapter_rows_equal_single_envs(sb3):

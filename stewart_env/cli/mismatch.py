@@ -1,30 +1,122 @@
-"""``stewart-env mismatch``: the model-mismatch study (:mod:`stewart_env.agents.mismatch`), whose
-parser and run function the study's module provides."""
+"""``stewart-env mismatch``: the model-mismatch study (:mod:`stewart_env.agents.mismatch`) from
+the command line.  :func:`add_parser` registers the verb with its options, :func:`run` runs it
+and returns the exit code: 0 done, 1 stopped by a failed backend or write (what finished is
+kept), 2 a bad request, 128 + N stopped by signal N."""
 
 from __future__ import annotations
 
 import argparse
+import signal
+import sys
 
-from stewart_env.cli.arguments import agent_config
+from stewart_env.cli.arguments import (
+    TASKS,
+    agent_config,
+    checked,
+    platform_name,
+    positive_float,
+    positive_int,
+)
 from stewart_env.cli.common import announce_compilation, check_extras, check_out, error
+from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
+from stewart_env.agents.mismatch import (
+    BACKENDS,
+    FAILURE_THRESHOLD,
+    MAX_STEPS,
+    QUICK_TIMESTEPS,
+    SIMPLIFICATIONS,
+    TRUE_MODEL,
+    BackendError,
+    run_mismatch,
+)
+from stewart_env.agents.training import ALGORITHMS, TrainingError, TrainingInterrupted, parse_env_kwargs
+from stewart_env.files import WriteError
+from stewart_env.validation import MAX_SEED
+
+__all__ = ["add_parser", "episode_steps", "name_list", "run", "seed_list"]
 
 VERB = "mismatch"
 
 
-def add_parser(subparsers) -> argparse.ArgumentParser:
-    from stewart_env.agents import mismatch
+def name_list(text: str) -> list[str]:
+    """argparse type of the model lists: comma-separated names, blanks dropped."""
+    return [t.strip() for t in text.split(",") if t.strip()]
 
-    p = mismatch.add_cli(subparsers)
-    # a description is not %-formatted by argparse (help strings are): one percent sign, as printed
-    p.description = p.description.replace("%%", "%")
-    config = next(action for action in p._actions if action.dest == "config")
-    config.type = agent_config
-    config.help = ("the agents' hyperparameters: a zoo config file, or the name of a shipped config (e.g. "
-                   "ppo_integral) (default: configs/agents/<algo>.yml)")
+
+def seed_list(text: str) -> list[int]:
+    """argparse type of --seeds: comma-separated integers in [0, MAX_SEED], each once."""
+    try:
+        seeds = [int(t) for t in name_list(text)]
+    except ValueError:
+        seeds = []
+    if not seeds or min(seeds) < 0 or max(seeds) > MAX_SEED or len(set(seeds)) != len(seeds):
+        raise argparse.ArgumentTypeError(f"expected comma-separated distinct integers in [0, {MAX_SEED}], e.g. 0,1,2, "
+                                         f"got {text!r}")
+    return seeds
+
+
+episode_steps = checked(int, lambda steps: 1 <= steps <= MAX_STEPS, f"an integer in [1, {MAX_STEPS}]",
+                         "argparse type of --max-steps: an integer in [1, MAX_STEPS].")
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add ``mismatch`` to an argparse subparsers object; its ``func`` is :func:`run`."""
+    p = subparsers.add_parser(
+        VERB, help="model-mismatch study: controllers built on one model, run on another",
+        description="Train (or load) RL agents per training model and seed, build PD and computed-torque "
+                    "controllers on the same models and on the improved model with each of C1..C4 switched on, "
+                    "evaluate every controller on every test plant, and write DIR/matrix.md, DIR/matrix.csv "
+                    "(95 % intervals), DIR/differences.csv, DIR/forest.png and DIR/heatmap_<metric>.png.")
+    p.add_argument("--train-models", default="classical,improved",
+                   help="comma-separated models to train agents on / build PD and CT on "
+                        "(default: classical,improved)")
+    p.add_argument("--test-models", default="classical,improved,improved_centroidal",
+                   help="comma-separated plant models (default: classical,improved,improved_centroidal)")
+    p.add_argument("--task", default="setpoint", choices=TASKS, help="task (default: setpoint)")
+    p.add_argument("--platform", default="dasgupta1998", type=platform_name,
+                   help="platform name or config file (default: dasgupta1998)")
+    p.add_argument("--out", required=True, help="study directory")
+    p.add_argument("--algo", default="ppo", choices=(*ALGORITHMS, "none"),
+                   help="RL algorithm, or 'none' for the model-based rows only (default: ppo)")
+    p.add_argument("--timesteps", type=positive_int, default=QUICK_TIMESTEPS,
+                   help=f"environment steps per agent (default: {QUICK_TIMESTEPS}, a quick smoke-scale study)")
+    p.add_argument("--n-envs", type=positive_int, default=None,
+                   help="platforms per training batch (default: the config's)")
+    p.add_argument("--episodes", type=positive_int, default=5, help="evaluation episodes per cell (default: 5)")
+    p.add_argument("--max-steps", type=episode_steps, default=None,
+                   help="evaluation episode length in control steps (default: the registered 500)")
+    p.add_argument("--position-tolerance", type=positive_float, default=POSITION_TOLERANCE,
+                   help=f"success band, m (default: {POSITION_TOLERANCE}); a cell succeeding in fewer than "
+                        f"{100 * FAILURE_THRESHOLD:g}%% of its episodes is marked failed")
+    p.add_argument("--orientation-tolerance", type=positive_float, default=ORIENTATION_TOLERANCE,
+                   help=f"success band, rad (default: {ORIENTATION_TOLERANCE})")
+    p.add_argument("--cost-plant", default=TRUE_MODEL,
+                   help=f"the test plant the simplifications' costs are measured on (default: {TRUE_MODEL})")
+    p.add_argument("--seeds", type=seed_list, default=[0],
+                   help="training seeds, comma-separated: one agent per seed and learned row (default: 0)")
+    p.add_argument("--agent-models", default=None,
+                   help="comma-separated models to train agents on (default: every model of the study, "
+                        "improved+cK included)")
+    p.add_argument("--config", type=agent_config, default=None,
+                   help="the agents' hyperparameters: a zoo config file, or the name of a shipped config (e.g. "
+                        "ppo_integral) (default: configs/agents/<algo>.yml)")
+    p.add_argument("--domain-randomization", action="store_true",
+                   help="add agents trained on the improved model with domain randomisation")
+    p.add_argument("--simplifications", default=",".join(SIMPLIFICATIONS),
+                   help="which of c1..c4 get an improved+cK row, comma-separated, or 'none' (default: all)")
+    p.add_argument("--env-kwargs", nargs="*", default=None, metavar="KW",
+                   help="further environment kwargs for training and testing: JSON or key=value")
+    p.add_argument("--backend", default="local", choices=BACKENDS,
+                   help="local: in this process (default); ray: every training run and evaluation a Ray task")
+    p.add_argument("--ray-address", default=None,
+                   help="with --backend ray: an existing cluster, 'auto' or HOST:PORT (default: a local Ray instance)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=run)
     return p
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the study the parsed ``args`` ask for; print one line of result or error; the exit code."""
     needs = [("rl", "training agents (--algo none runs the model-based rows only)")] if args.algo != "none" else []
     if args.backend == "ray":
         needs.append(("distributed", "--backend ray"))
@@ -32,4 +124,31 @@ def run(args: argparse.Namespace) -> int:
     if problem is not None:
         return error(VERB, problem)
     announce_compilation()
-    return args.func(args)
+    simplifications = [] if args.simplifications.strip().lower() == "none" else name_list(args.simplifications)
+    kept = f"; finished agents and cells are kept in {args.out} (run the same command again to continue)"
+    try:
+        result = run_mismatch(args.out, name_list(args.train_models), name_list(args.test_models), task=args.task,
+                              algo=None if args.algo == "none" else args.algo, timesteps=args.timesteps,
+                              episodes=args.episodes, seeds=args.seeds, domain_randomization=args.domain_randomization,
+                              simplifications=simplifications, env_kwargs=parse_env_kwargs(args.env_kwargs),
+                              n_envs=args.n_envs, max_steps=args.max_steps, platform=args.platform,
+                              backend=args.backend, ray_address=args.ray_address,
+                              agent_models=None if args.agent_models is None else name_list(args.agent_models),
+                              config=args.config, position_tolerance=args.position_tolerance,
+                              orientation_tolerance=args.orientation_tolerance, cost_plant=args.cost_plant,
+                              progress=not args.no_progress)
+    except (BackendError, WriteError) as exc:
+        print(f"stewart-env mismatch: error: {exc}{kept}", file=sys.stderr)
+        return 1
+    except (TrainingError, ValueError) as exc:
+        print(f"stewart-env mismatch: error: {exc}", file=sys.stderr)
+        return 2
+    except TrainingInterrupted as stop:
+        print(f"stewart-env mismatch: stopped by {signal.Signals(stop.signum).name}; checkpoint saved in "
+              f"{stop.checkpoint}{kept}", file=sys.stderr)
+        return stop.exit_code
+    except KeyboardInterrupt:
+        print(f"stewart-env mismatch: interrupted{kept}", file=sys.stderr)
+        return 130
+    print(f"{len(result.rows)} controllers x {len(result.test_models)} plants -> {result.files['markdown']}")
+    return 0

@@ -26,7 +26,8 @@ import numpy as np
 
 from stewart_env import validation
 from stewart_env.dynamics import kernels as K
-from stewart_env.params import PlatformParams
+from stewart_env.params import ConfigError, PlatformParams
+from stewart_env.rotations import rpy_to_matrix
 
 SWITCHES = {"c1": K.C1, "c2": K.C2, "c3": K.C3, "c4": K.C4}
 #: The classical model's simplifications, each a switch on the improved model: switch -> what it assumes.
@@ -88,6 +89,28 @@ def pack_params(params: PlatformParams) -> np.ndarray:
     for key, _ in K.PACKED_LAYOUT:
         row[K.PACKED_SLICES[key]] = np.ravel(_packed_value(params, key))
     return row
+
+
+def check_home_condition(params: PlatformParams, packed: np.ndarray | None = None) -> None:
+    """Raise ConfigError naming ``limits.max_condition`` unless the leg Jacobian (rows
+    [e_i, (R p_i) x e_i], docs/physics.md section 4.4) at the platform's home pose has a
+    condition number of at most ``params.limits.max_condition``: a model starts where the
+    environment does not stop at once for a singularity.
+
+    PlatformParams checks the rest of the home pose itself; this part needs the kernels'
+    Jacobian (the one implementation), so the model checks it when a platform becomes a model.
+    ``packed`` is the platform's :func:`pack_params` row when already at hand.
+    """
+    row = pack_params(params) if packed is None else packed
+    jacobian = np.empty((1, 6, 6))
+    K.jacobian_batch(row[None], params.home_position[None], rpy_to_matrix(params.home_rpy)[None], jacobian)
+    condition = float(np.linalg.cond(jacobian[0]))
+    if not condition <= params.limits.max_condition:
+        raise ConfigError(
+            "limits.max_condition",
+            f"the Jacobian's condition number at the home pose is {condition:.4g}, "
+            f"above {params.limits.max_condition}",
+        )
 
 
 #: Largest deviation |R^T R - I| (any entry) and |det R - 1| a rotation argument may show.  Products
@@ -218,7 +241,9 @@ class Dynamics:
     ``packed`` (Np, N_PARAMS), read-only, and ``params``: the :class:`PlatformParams` of each row
     of ``packed`` (a sequence; rows set from packed numbers are built when first read, see
     :meth:`with_packed_rows`).  The model is immutable: the ``with_*`` methods return new ones.
-    Its :meth:`workspace` holds the preallocated arrays of a controller loop.
+    Its :meth:`workspace` holds the preallocated arrays of a controller loop.  A platform whose
+    home pose is conditioned beyond its limits.max_condition raises ConfigError
+    (``check_home_condition``).
     """
 
     def __init__(self, name: str, params: PlatformParams | Sequence[PlatformParams]):
@@ -227,7 +252,11 @@ class Dynamics:
         if not plist or not all(isinstance(p, PlatformParams) for p in plist):
             raise ValueError("params: expected a PlatformParams or a non-empty sequence of them")
         self.params = ParamsRows(plist)
-        rows = {id(p): pack_params(p) for p in plist}  # a platform repeated over a batch is packed once
+        rows: dict[int, np.ndarray] = {}
+        for p in plist:  # a platform repeated over a batch is packed and checked once
+            if id(p) not in rows:
+                rows[id(p)] = pack_params(p)
+                check_home_condition(p, rows[id(p)])
         self.packed = np.stack([rows[id(p)] for p in plist])
         self.packed.setflags(write=False)
 
@@ -256,7 +285,10 @@ class Dynamics:
         for p in params:
             if not isinstance(p, PlatformParams):
                 raise ValueError(f"params: expected PlatformParams, got {type(p).__name__}")
-        return self.with_packed_rows(rows, [pack_params(p) for p in params], params)
+        packed = [pack_params(p) for p in params]
+        for p, row in zip(params, packed):
+            check_home_condition(p, row)
+        return self.with_packed_rows(rows, packed, params)
 
     def with_packed_rows(self, rows: Sequence[int], packed_rows, sources: Sequence) -> "Dynamics":
         """The same model with parameter rows ``rows`` replaced by packed numbers, no

@@ -6,7 +6,7 @@ when ``StewartPlatformSB3VecEnv`` is first used.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -16,6 +16,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from stewart_env.envs.keywords import check_arguments
 from stewart_env.envs.vector import StewartPlatformVectorEnv
 from stewart_env.registration import MAX_EPISODE_STEPS
+from stewart_env.validation import ArgumentError, reset_options
 
 __all__ = ["StewartPlatformSB3VecEnv"]
 
@@ -50,13 +51,26 @@ class StewartPlatformSB3VecEnv(VecEnv):
 
     def reset(self) -> np.ndarray:
         seed = None if all(s is None for s in self._seeds) else list(self._seeds)
-        if any(self._options):
-            raise ValueError("reset: this environment takes no reset options")
+        for options in self._options:
+            reset_options(options)  # takes none: set_options refused here, naming options
         obs, infos = self.venv.reset(seed=seed)
         self.reset_infos = self._row_infos(infos, range(self.num_envs))
         self._reset_seeds()
         self._reset_options()
         return obs
+
+    def set_options(self, options: dict | Sequence[dict | None] | None = None) -> None:
+        """SB3's ``set_options``: one dict for every row or a list of one per row (this
+        environment takes none, so only empty ones pass the next ``reset()``); anything else is
+        refused now, naming ``options``."""
+        rows = options if isinstance(options, (list, tuple)) else [options] * self.num_envs
+        if len(rows) != self.num_envs:
+            raise ArgumentError(f"set_options: options: expected one dict for every row or a list of {self.num_envs}, "
+                                f"got a list of {len(rows)}")
+        for row in rows:
+            if row is not None and not isinstance(row, Mapping):
+                raise ArgumentError(f"set_options: options: expected a dict (or None) per row, got {type(row).__name__}")
+        super().set_options(options)
 
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = actions

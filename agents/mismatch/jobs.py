@@ -1,0 +1,73 @@
+"""The study's two jobs, training one agent and running one evaluation: top-level functions,
+since Ray workers import them by name, that take and return plain values (an agent travels as
+its files' bytes: a worker's file system need not be the driver's)."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from stewart_env.agents.mismatch.constants import AGENT_FILES
+from stewart_env.agents.training import MAX_AGENT_FILE_BYTES, load_agent, train
+from stewart_env.files import read_regular
+
+__all__ = ["agent_files", "evaluate_job", "make_policy", "train_job"]
+
+
+def train_job(training: dict[str, Any], timesteps: int) -> dict[str, bytes]:
+    """Train one agent (``training``: the keywords of :func:`~stewart_env.agents.training.train`)
+    in a temporary folder of the worker and return its files' bytes."""
+    with tempfile.TemporaryDirectory(prefix="stewart-env-agent-") as tmp:
+        folder = Path(tmp) / "agent"
+        train(**training, out=folder, timesteps=timesteps)
+        return agent_files(folder)
+
+
+def agent_files(folder: Path) -> dict[str, bytes]:
+    """The bytes of an agent's files in ``folder``, by name (what travels to and from workers)."""
+    return {name: read_regular(folder / name, MAX_AGENT_FILE_BYTES) for name in AGENT_FILES
+            if os.path.lexists(folder / name)}
+
+
+def _load_agent(agent):
+    """An agent from its folder (a path) or from its files' bytes (a dict), written to a
+    temporary folder first."""
+    if not isinstance(agent, dict):
+        return load_agent(agent)
+    with tempfile.TemporaryDirectory(prefix="stewart-env-agent-") as tmp:
+        for name, data in agent.items():
+            (Path(tmp) / name).write_bytes(data)
+        return load_agent(tmp)
+
+
+def make_policy(kind: str, model: str, agent=None):
+    """A policy (or a factory env -> policy) for :func:`~stewart_env.agents.evaluation.evaluate`:
+    the PD law with model ``model``'s holding forces, CT with internal model ``model``, or the
+    trained ``agent`` (a folder, or its files' bytes)."""
+    if kind == "agent":
+        return _load_agent(agent)
+    if kind == "ct":
+        from stewart_env.agents.computed_torque import ComputedTorquePolicy
+
+        return lambda env: ComputedTorquePolicy(env, model)
+    if kind == "pd":
+        from stewart_env.agents.pd import PDPolicy
+
+        return lambda env: PDPolicy(env, gravity_compensation=True, gravity_model=model)
+    raise ValueError(f"kind: expected 'pd', 'ct' or 'agent', got {kind!r}")
+
+
+def evaluate_job(spec: dict[str, Any], agent=None) -> dict[str, Any]:
+    """One evaluation: the controller of ``spec`` (a cell's spec) on its plant; every metric per
+    episode, and the episodes' terminations."""
+    from stewart_env.agents.evaluation import METRICS, evaluate
+
+    policy = make_policy(spec["kind"], spec["design_model"], agent)
+    result = evaluate(policy, {**spec["env_kwargs"], "model": spec["plant"], "task": spec["task"]},
+                      episodes=spec["episodes"], seed=spec["eval_seed"], label=spec["controller"],
+                      max_steps=spec["max_steps"], position_tolerance=spec["position_tolerance"],
+                      orientation_tolerance=spec["orientation_tolerance"], progress=False)
+    return {"metrics": {metric.key: [ep.metrics[metric.key] for ep in result.episodes] for metric in METRICS},
+            "terminations": [ep.termination for ep in result.episodes]}

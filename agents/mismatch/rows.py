@@ -1,0 +1,98 @@
+"""The study's controllers (its rows) and their agents: which rows a study has, the training of
+each agent, whether a folder already holds it, and publishing one a worker sent back."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from stewart_env.agents.mismatch.constants import AGENTS_DIR, DEFAULT_RANDOMIZATION, MismatchError
+from stewart_env.agents.mismatch.results import Row
+from stewart_env.agents.mismatch.settings import closed_form
+from stewart_env.agents.training import (
+    MANIFEST,
+    MODEL_FILE,
+    newest_checkpoint,
+    parse_hyperparameters,
+    read_hyperparameters,
+    read_manifest,
+    train,
+)
+from stewart_env.files import publishing_folder
+
+__all__ = ["build_rows", "config_env_kwargs", "finished_agent", "publish_agent", "train_agent", "training_keywords"]
+
+
+def build_rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequence[int], domain_randomization: bool,
+               platform: str, agent_models: Sequence[str] | None = None) -> list[Row]:
+    """The study's controllers; learned rows (on ``agent_models``, default all ``models``) name
+    their agent folders (trained or not yet)."""
+    from stewart_env.agents.evaluation import slug
+
+    analytic = [m for m in models if closed_form(m, platform)]
+    rows = [Row(f"PD + gravity comp. [{m}]", "PD", m, "pd",
+                info="task-space PD, gravity compensation from this model's statics") for m in analytic]
+    rows += [Row(f"CT [{m}]", "CT", m, "ct", info="computed torque, this model's inverse dynamics") for m in analytic]
+    if algo is None:
+        return rows
+    agent_models = models if agent_models is None else agent_models
+    trainings = [(m, False) for m in agent_models] + ([("improved", True)] if domain_randomization else [])
+    for m, randomized in trainings:
+        name = f"{m} + DR" if randomized else m
+        agents = {s: out / AGENTS_DIR / slug(name) / f"seed_{s}" for s in seeds}
+        rows.append(Row(f"{algo.upper()} [{name}]", algo.upper(), m, "agent", tuple(seeds), agents,
+                        randomized=randomized))
+    return rows
+
+
+def training_keywords(algo: str, row: Row, seed: int, env_kwargs: Mapping[str, Any], task: str,
+                      n_envs: int | None, config: str | None = None) -> dict[str, Any]:
+    """The keywords of :func:`~stewart_env.agents.training.train` for one agent of a learned row."""
+    rest = dict(env_kwargs)
+    if row.randomized:
+        rest["randomization"] = {k: list(v) for k, v in DEFAULT_RANDOMIZATION.items()}
+    return dict(algo=algo, model=row.model, task=task, seed=seed, n_envs=n_envs, checkpoint_freq=0,
+                env_kwargs=rest, config=config)
+
+
+def config_env_kwargs(algo: str, config: str | None = None) -> dict[str, Any]:
+    """The env kwargs the algorithm's config adds to every run (run.json records them)."""
+    return dict(parse_hyperparameters(algo, read_hyperparameters(algo, config)).env_kwargs)
+
+
+def finished_agent(directory: Path, algo: str, seed: int, env_kwargs: Mapping[str, Any]) -> bool:
+    """Whether ``directory`` holds this agent, trained to the end; refuses one trained
+    differently (another algorithm, seed or environment) with a :class:`~.constants.MismatchError`."""
+    if not (directory / MODEL_FILE).exists():
+        return False
+    manifest = read_manifest(directory)
+    found = (manifest["algo"], manifest["seed"], manifest["env_kwargs"])
+    if found != (algo, seed, env_kwargs):
+        raise MismatchError(
+            f"{directory} holds an agent trained differently (algorithm, seed, env kwargs: {found}) from "
+            f"this study's row ({(algo, seed, env_kwargs)}); use another --out")
+    # a run stopped by a signal saves its model too, unfinished: it is continued, not reused
+    return bool(manifest.get("finished"))
+
+
+def train_agent(directory: Path, training: Mapping[str, Any], timesteps: int, progress: bool = False) -> None:
+    """Train one agent into ``directory`` (``training``: :func:`training_keywords`), continuing it
+    from its newest checkpoint if a stopped study left one (given the row's settings,
+    :func:`~stewart_env.agents.training.train` refuses a run trained otherwise)."""
+    resumable = None
+    if (directory / MANIFEST).exists():
+        resumable = newest_checkpoint(directory, training["algo"], bool(read_manifest(directory).get("normalize")))
+    if resumable:
+        steps, _ = resumable
+        train(**training, out=directory, timesteps=max(timesteps - steps, 1), resume=True, progress_bar=progress)
+    else:
+        train(**training, out=directory, timesteps=timesteps, progress_bar=progress)
+
+
+def publish_agent(directory: Path, files: Mapping[str, bytes]) -> None:
+    """Write an agent's files, sent back by a worker, as ``directory`` in one rename (replacing an
+    unfinished local run of this agent)."""
+    with publishing_folder(directory) as tmp:
+        for name, data in files.items():
+            (tmp / name).write_bytes(data)
