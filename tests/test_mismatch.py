@@ -271,7 +271,7 @@ def _parser():
     ("--timesteps", "x", "argument --timesteps: expected a positive integer"),
     ("--algo", "dqn", "argument --algo: invalid choice: 'dqn'"),
     ("--position-tolerance", "0", "argument --position-tolerance: expected a finite positive number"),
-    ("--config", "no/such.yml", "argument --config: no such file"),
+    ("--config", "no/such.yml", "argument --config: hyperparameter file not found: no/such.yml"),
 ])
 def test_cli_rejects_bad_flag_values(tmp_path, capsys, flag, value, message):
     with pytest.raises(SystemExit):
