@@ -13,7 +13,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     from stewart_env.bench import MODEL_NAMES, __doc__ as description
 
     p = subparsers.add_parser(VERB, help="the benchmark of the compiled core (stewart_env.bench)",
-                              description=description.split("\n\n")[0])
+                              description=description.split("\n\n")[0].replace("``", ""))
     p.add_argument("--platform", default="dasgupta1998", help="platform config name or YAML path")
     p.add_argument("--models", default=",".join(MODEL_NAMES), help="comma-separated model names")
     p.add_argument("--env", action="store_true", help="also benchmark the single and vector environments")
