@@ -42,7 +42,6 @@ def single_thread(numba: bool = True) -> Iterator[None]:
             nb.set_num_threads(before_numba)
 
 
-
 def make_training_env(n_envs: int, env_kwargs: Mapping[str, Any], seed: int, normalize: dict[str, Any] | None,
                       monitor_path: str | os.PathLike | None = None, statistics=None):
     """The training VecEnv: ``n_envs`` platforms in one native batch, VecMonitor (episode

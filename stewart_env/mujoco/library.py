@@ -18,13 +18,12 @@ except ImportError:  # the optional extra is missing
 __all__ = ["quiet_mujoco", "require_mujoco", "require_rollout"]
 
 
-
 def require_mujoco():
     """The ``mujoco`` module.  Raises ``stewart_env.extras.MissingExtra`` (an ImportError)
     naming the extra when it is not installed."""
     if _mj is None:
-        raise MissingExtra(f"stewart_env.mujoco: the package 'mujoco' is not installed; the MuJoCo twin needs the "
-                           f"optional extra mujoco: {install_hint('mujoco')}", "mujoco")
+        raise MissingExtra(f"stewart_env.mujoco: the package 'mujoco' is not installed; {install_hint('mujoco')}",
+                           "mujoco")
     return _mj
 
 
