@@ -12,12 +12,6 @@ Public API::
     ws = model.workspace()          # preallocated arrays: ws.position[0] = ...; ws.forward()
 """
 
-from stewart_env import numba_cache
-
-# Before any module with numba kernels (rotations, the tasks', the environment's): numba picks their
-# cache directory at import.  The physics is compiled at install time (stewart_env.dynamics._core).
-numba_cache.configure()
-
 from stewart_env.dynamics import MODEL_NAMES, Dynamics, Workspace, make_dynamics
 from stewart_env.dynamics.rk4 import ControlLaw
 from stewart_env.integrate import rollout

@@ -10,6 +10,12 @@ start to its first forward evaluation (the kernels are compiled when the package
 so this is the import and the first call).  Timings are the best of several repeats, so other load on the machine shows
 as little as possible.
 
+The scaling table (:func:`bench_scaling`) gives, for N = 1, 16, 256, 1024 and 8192 platforms, the
+batched forward evaluations per second, the 10 ms platform-steps per second (10 RK4 substeps of
+1 ms, 40 evaluations) and the fraction of the machine's vector peak each reaches, with the flop
+count of one evaluation it assumes (counted by running the kernel once on a number type that counts
+its operations); ``--plot PATH`` draws it to a PNG.
+
 With ``--mujoco`` (needs the extra ``mujoco``), MuJoCo times the same mechanism in the same run
 (:func:`bench_mujoco`): one forward and one inverse evaluation, a 10 ms control step of RK4
 substeps for one platform and for a batch of 1024, and the vector env's reset with and without
@@ -27,7 +33,7 @@ import time
 import numpy as np
 
 import stewart_env as se
-from stewart_env.dynamics import MODEL_NAMES
+from stewart_env.dynamics import MODEL_NAMES, _core
 from stewart_env.dynamics import kernels as K
 from stewart_env.progress import on_terminal, progress
 
@@ -256,6 +262,127 @@ def mujoco_table(r: dict) -> str:
     return "\n".join(lines)
 
 
+#: Batch sizes of the scaling table.
+SCALING_SIZES = (1, 16, 256, 1024, 8192)
+#: Double-precision flops one core retires per cycle at most: one 8-lane fused multiply-add
+#: (AVX-512) per cycle, 2 flops per lane.  Without fused multiply-adds (the kernels are compiled
+#: with -ffp-contract=off, so that every platform gets the same rounding) half of it is the most
+#: a mix of additions and multiplications reaches.
+PEAK_FLOPS_PER_CYCLE = 16
+
+
+def vector_peak_flops() -> float:
+    """The machine's double-precision vector peak, flop/s: cores x clock (the ``cpu MHz`` of
+    /proc/cpuinfo, 2.5 GHz where it is not found) x :data:`PEAK_FLOPS_PER_CYCLE`."""
+    mhz = 2500.0
+    try:
+        with open("/proc/cpuinfo") as f:
+            mhz = max(float(line.split(":", 1)[1]) for line in f if line.startswith("cpu MHz"))
+    except (OSError, ValueError):
+        pass
+    return (os.cpu_count() or 1) * mhz * 1e6 * PEAK_FLOPS_PER_CYCLE
+
+
+def forward_flops(model) -> int:
+    """Floating-point operations (+, -, *, /, sqrt) of one forward evaluation of ``model``, at
+    home at rest under its holding forces: the compiled kernel run once on a counting number type."""
+    params = model.params_of(0)
+    t, R = params.home_position, se.rpy_to_matrix(params.home_rpy)
+    z = np.zeros(3)
+    return _core.forward_flops(model.packed[:1], model.flags, t, R, z, z, model.inverse(t, R, z, z, z, z))
+
+
+def bench_scaling(params, model_name: str = "improved", sizes=SCALING_SIZES, repeats: int = 5,
+                  seconds: float = 0.05, substeps: int = 10, dt: float = 1e-3) -> dict:
+    """Throughput of the batched kernels over batch sizes: for each N in ``sizes``, forward
+    evaluations/s (``Workspace.forward``) and control steps of ``substeps`` RK4 steps of ``dt``
+    per second and platform (``Workspace.step``), by the wall clock and per second of CPU time
+    of this process (all its threads: what each busy core delivers, which other work on a shared
+    machine changes far less); the best of ``repeats`` loops of about ``seconds`` each.  The
+    fraction of :func:`vector_peak_flops` each reaches counts :func:`forward_flops` flops per
+    evaluation, 4 evaluations per RK4 step (the integrator's own few hundred flops per step are
+    not counted); per CPU second, against one core's peak.  Returns {"flops", "peak", "rows"}."""
+    model = se.make_dynamics(model_name, params)
+    flops, peak = forward_flops(model), vector_peak_flops()
+    core_peak = peak / (os.cpu_count() or 1)
+    rows = []
+    for n in sizes:
+        t, R, v, w, F = _batch_state(model, n, np.random.default_rng(0))
+        ws = model.workspace(n)
+        start = (t, R, v, w)
+
+        def back_to_start():
+            ws.set_state(*start)
+            ws.leg_forces[:] = F
+
+        def step():
+            ws.step(dt, substeps)
+
+        back_to_start()
+        row = {"n": n}
+        for name, fn, evals in (("evals", ws.forward, 1), ("steps", step, 4 * substeps)):
+            fn()
+            t0 = time.perf_counter()
+            fn()
+            calls = max(1, int(seconds / max(time.perf_counter() - t0, 1e-7)))
+            for clock, suffix in ((time.perf_counter, "per_s"), (time.process_time, "per_cpu_s")):
+                per_call = _per_call({name: fn}, calls, repeats, clock, reset=back_to_start)[name]
+                row[f"{name}_{suffix}"] = n / per_call
+            row[f"{name}_peak"] = row[f"{name}_per_s"] * evals * flops / peak
+            row[f"{name}_core_peak"] = row[f"{name}_per_cpu_s"] * evals * flops / core_peak
+        rows.append(row)
+    return {"model": model.name, "flops": flops, "peak": peak, "substeps": substeps, "dt": dt, "rows": rows}
+
+
+def scaling_table(r: dict) -> str:
+    """The markdown table of :func:`bench_scaling`'s result, with the flop count and peak it assumes."""
+    step = f"{r['substeps'] * r['dt'] * 1e3:g} ms"
+    cores = os.cpu_count() or 1
+    lines = [f"model {r['model']}: {r['flops']:,} flops per forward evaluation (counted); vector peak "
+             f"{r['peak'] / 1e9:.1f} GFLOP/s ({cores} cores x clock x {PEAK_FLOPS_PER_CYCLE} flops/cycle), "
+             f"{r['peak'] / cores / 1e9:.1f} GFLOP/s per core",
+             "",
+             f"| platforms N | forward evaluations/s | of peak | per CPU second | of a core's peak "
+             f"| {step} platform-steps/s | of peak | per CPU second | of a core's peak |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for row in r["rows"]:
+        lines.append(f"| {row['n']:,} | {row['evals_per_s']:,.0f} | {row['evals_peak']:.1%} "
+                     f"| {row['evals_per_cpu_s']:,.0f} | {row['evals_core_peak']:.1%} "
+                     f"| {row['steps_per_s']:,.0f} | {row['steps_peak']:.1%} "
+                     f"| {row['steps_per_cpu_s']:,.0f} | {row['steps_core_peak']:.1%} |")
+    return "\n".join(lines)
+
+
+def plot_scaling(r: dict, path) -> None:
+    """Draw :func:`bench_scaling`'s result to the PNG ``path``: evaluations/s and platform-steps/s
+    over N, log-log, with the peak's evaluation rate for reference."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = [row["n"] for row in r["rows"]]
+    fig, ax = plt.subplots(figsize=(7.0, 5.4), layout="constrained")
+    ax.loglog(n, [row["evals_per_s"] for row in r["rows"]], "o-", color="C0", label="forward evaluations/s")
+    ax.loglog(n, [row["evals_per_cpu_s"] for row in r["rows"]], "o:", color="C0", mfc="none",
+              label="forward evaluations per CPU second")
+    ax.loglog(n, [row["steps_per_s"] for row in r["rows"]], "s-", color="C1",
+              label=f"{r['substeps'] * r['dt'] * 1e3:g} ms platform-steps/s ({4 * r['substeps']} evaluations)")
+    ax.loglog(n, [row["steps_per_cpu_s"] for row in r["rows"]], "s:", color="C1", mfc="none",
+              label="platform-steps per CPU second")
+    ax.axhline(r["peak"] / r["flops"], color="C0", ls="--", lw=0.8,
+               label=f"vector peak / {r['flops']:,} flops = {r['peak'] / r['flops'] / 1e6:.1f} M evaluations/s")
+    ax.axhline(r["peak"] / (4 * r["substeps"] * r["flops"]), color="C1", ls="--", lw=0.8,
+               label="vector peak in platform-steps/s")
+    ax.set_xlabel("platforms in the batch, N")
+    ax.set_ylabel("per second")
+    ax.set_title(f"stewart-env batched physics ({r['model']}), {machine().split(',')[0]}", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncols=2)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def first_evaluation_seconds() -> float:
     """Seconds from a fresh interpreter's start to its first forward evaluation."""
     res = subprocess.run([sys.executable, "-c", _FIRST_CALL], capture_output=True, text=True, check=True)
@@ -274,11 +401,11 @@ def machine() -> str:
 
 
 def run_bench(platform: str = "dasgupta1998", models: str = ",".join(MODEL_NAMES), env: bool = False,
-              mujoco: bool = False) -> None:
+              mujoco: bool = False, plot: str | None = None) -> None:
     """Print the benchmark's tables: the machine, the first evaluation of a fresh process, each of
-    the comma-separated ``models`` on ``platform``; with ``env`` the environments, with ``mujoco``
-    MuJoCo beside the kernels (:class:`stewart_env.extras.MissingExtra` before any timing if the
-    extra is not installed)."""
+    the comma-separated ``models`` on ``platform``, the scaling table (drawn to the PNG file
+    ``plot`` if given); with ``env`` the environments, with ``mujoco`` MuJoCo beside the kernels
+    (``stewart_env.extras.MissingExtra`` before any timing if the extra is not installed)."""
     params = se.load_platform(platform)
     if mujoco:
         from stewart_env import mujoco as twin
@@ -298,6 +425,12 @@ def run_bench(platform: str = "dasgupta1998", models: str = ",".join(MODEL_NAMES
         print(f"| {name} | {r['forward_per_s_N1']:,.0f} / {r['kernel_per_s_N1']:,.0f} "
               f"| {r['forward_per_s_N1024']:,.0f} / {r['kernel_per_s_N1024']:,.0f} "
               f"| {r['rollout_1s_N1'] * 1e3:.2f} ms | {r['rollout_1s_N1024']:.2f} s |")
+    print()
+    scaling = bench_scaling(params)
+    print(scaling_table(scaling))
+    if plot:
+        plot_scaling(scaling, plot)
+        print(f"scaling plot: {plot}")
     if env:
         from stewart_env.envs.bench_env import bench_env
 

@@ -6,7 +6,8 @@ rotation vector between two orientations.
 """
 
 import numpy as np
-from numba import njit
+
+from stewart_env.dynamics import _core
 
 
 def rpy_to_matrix(rpy):
@@ -80,34 +81,6 @@ def rotvec_to_matrix(phi):
     return np.eye(3) + s * k + c * k @ k
 
 
-@njit(cache=True)
-def rotation_error_rows(r, c, phi, angle):
-    """Rotation vector phi (N,3) of r c^T and its angle (N,), row by row; see :func:`rotation_error`."""
-    for b in range(c.shape[0]):
-        trace = 0.0
-        for i in range(3):
-            for k in range(3):
-                trace += r[b, i, k] * c[b, i, k]
-        # Half the axial vector of M - M^T, M = sum_k r_k c_k^T: 0.5 sum_k c_k x r_k.
-        s0 = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        for k in range(3):
-            s0 += c[b, 1, k] * r[b, 2, k] - c[b, 2, k] * r[b, 1, k]
-            s1 += c[b, 2, k] * r[b, 0, k] - c[b, 0, k] * r[b, 2, k]
-            s2 += c[b, 0, k] * r[b, 1, k] - c[b, 1, k] * r[b, 0, k]
-        s0 *= 0.5
-        s1 *= 0.5
-        s2 *= 0.5
-        sin = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
-        a = np.arctan2(sin, 0.5 * (trace - 1.0))
-        ratio = a / sin if sin > 1e-12 else 1.0  # angle / sin -> 1 as the rotation vanishes
-        phi[b, 0] = s0 * ratio
-        phi[b, 1] = s1 * ratio
-        phi[b, 2] = s2 * ratio
-        angle[b] = a
-
-
 def rotation_error(rotation_ref: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rotation vector phi (N,3) of R_ref R^T and its angle |phi| (N,), rad, in {B}: the rotation
     that takes R to R_ref.  Rotations (3,3) or (N,3,3); one pair gives (3,) and a scalar.
@@ -123,5 +96,5 @@ def rotation_error(rotation_ref: np.ndarray, rotation: np.ndarray) -> tuple[np.n
     ref, cur = np.broadcast_arrays(ref.reshape(-1, 3, 3), cur.reshape(-1, 3, 3))
     n = cur.shape[0]
     phi, angle = np.empty((n, 3)), np.empty(n)
-    rotation_error_rows(np.ascontiguousarray(ref), np.ascontiguousarray(cur), phi, angle)
+    _core.rotation_error_rows(np.ascontiguousarray(ref), np.ascontiguousarray(cur), phi, angle)
     return (phi[0], angle[0]) if single and ref.shape[0] == 1 else (phi, angle)

@@ -5,7 +5,6 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-import types
 
 import pytest
 
@@ -38,7 +37,7 @@ def test_bench_is_dispatched_with_its_arguments(monkeypatch):
     seen = []
     monkeypatch.setattr(stewart_env.bench, "run_bench", lambda *args, **kwargs: seen.append((args, kwargs)))
     assert main(["bench", "--models", "improved", "--env"]) == 0
-    assert seen == [(("dasgupta1998", "improved"), {"env": True, "mujoco": False})]
+    assert seen == [(("dasgupta1998", "improved"), {"env": True, "mujoco": False, "plot": None})]
 
 
 def test_bench_is_a_subparser_with_its_own_help(capsys):
@@ -170,17 +169,6 @@ def test_bad_flag_values_are_argparse_errors_naming_the_flag(argv, flag, tmp_pat
     assert stop.value.code == 2
     assert f"argument {flag}" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
-
-
-def test_first_run_announces_the_kernel_compilation_once(monkeypatch, capsys):
-    from stewart_env.cli import common
-
-    fake = types.ModuleType("stewart_env.numba_cache")
-    monkeypatch.setitem(sys.modules, "stewart_env.numba_cache", fake)
-    for warm, expected in ((False, "compiling kernels, first run only (~30 s)\n"), (True, "")):
-        fake.is_warm = lambda names=None, warm=warm: warm
-        common.announce_compilation()
-        assert capsys.readouterr().err == expected
 
 
 def test_train_cli_says_how_many_steps_it_ran(tmp_path, capsys):

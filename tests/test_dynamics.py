@@ -244,6 +244,22 @@ def test_large_batches_equal_single_calls(dasgupta, rng, name):
     _assert_each_row_equals_its_single_call(model, t, R, v, w, F)
 
 
+def test_single_platform_calls_agree_whatever_the_argument_types(dasgupta, rng):
+    """float64 arrays (checked and solved in one compiled call) and lists (checked in Python, then
+    the batch kernel) give the same numbers bit for bit."""
+    model = se.make_dynamics("improved", dasgupta)
+    t, R, v, w = random_state(dasgupta, rng, speed=0.5)
+    F = holding_forces(model, t, R) * 1.1
+    W = rng.normal(size=6)
+    lin, ang = model.forward(t, R, v, w, F, W)
+    lin_l, ang_l = model.forward(t.tolist(), R.tolist(), v.tolist(), w.tolist(), F.tolist(), W.tolist())
+    assert np.array_equal(lin, lin_l) and np.array_equal(ang, ang_l)
+    Fi = model.inverse(t, R, v, w, lin, ang, W)
+    assert np.array_equal(Fi, model.inverse(t.tolist(), R.tolist(), v.tolist(), w.tolist(), lin.tolist(),
+                                            ang.tolist(), W.tolist()))
+    np.testing.assert_allclose(Fi, F, rtol=0, atol=1e-9 * np.abs(F).max())  # solving both ways: rounding
+
+
 def test_rk4_converges_at_fourth_order(dasgupta, rng):
     model = se.make_dynamics("improved", dasgupta)
     state = random_state(dasgupta, rng, speed=0.3)

@@ -28,7 +28,6 @@ LAYERS = {
     "stewart_env.kinematics": "physics",
     "stewart_env.dynamics": "physics",
     "stewart_env.integrate": "physics",
-    "stewart_env.numba_cache": "physics",
     "stewart_env.progress": "physics",
     "stewart_env.mujoco": "physics",
     "stewart_env.tasks": "tasks",

@@ -83,15 +83,18 @@ def test_same_seed_gives_bit_identical_vector_trajectories():
     np.testing.assert_array_equal(runs[0], runs[1])
 
 
-def test_one_rollout_call_per_step(monkeypatch):
+def test_one_compiled_control_step_per_step(monkeypatch):
+    """The whole batch's control step (actuators, RK4 substeps, sensors, errors, termination,
+    reward, observation) in one compiled call."""
     calls = []
-    original = plant_module.rollout_inplace
+    original = core_module._core.BatchStep.step
 
-    def counting(*args):
-        calls.append(args[1].shape[0])
-        return original(*args)
+    def counting(self, action, *args):
+        calls.append(action.shape[0])
+        return original(self, action, *args)
 
-    monkeypatch.setattr(plant_module, "rollout_inplace", counting)
+    monkeypatch.setattr(core_module._core.BatchStep, "step", counting)
+    monkeypatch.setattr(plant_module, "rollout_inplace", None)  # the plant's own path is not taken
     envs = make_vec(16)
     envs.reset(seed=0)
     for a in actions_for(30, 16):

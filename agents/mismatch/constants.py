@@ -55,8 +55,8 @@ FAILURE_THRESHOLD = 0.5
 #: metric an interquartile mean.
 STATISTIC = {"success": "mean"}
 DEFAULT_STATISTIC = "iqm"
-#: CPUs each training run and each evaluation requests from Ray: training runs on one torch and
-#: numba thread (training.single_thread), and an evaluation steps one batch of platforms.
+#: CPUs each training run and each evaluation requests from Ray: training runs on one torch
+#: thread (training.single_thread), and an evaluation steps one batch of platforms.
 CPUS_PER_JOB = 1
 BACKENDS = ("local", "ray")
 #: A cluster started with ``ray start`` checks a token when one exists in ~/.ray/auth_token (any

@@ -74,7 +74,7 @@ class TrainedAgent:
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
         """SB3's interface on raw observations: (action (6,) or (N,6) in [-1, 1], None).  The
         network runs on one torch thread; the caller's thread count is restored after."""
-        with single_thread(numba=False):
+        with single_thread():
             return self.model.predict(self.normalize(observation), state=state, episode_start=episode_start,
                                       deterministic=deterministic)
 

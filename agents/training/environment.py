@@ -21,25 +21,18 @@ def progress_bar_available() -> bool:
 
 
 @contextlib.contextmanager
-def single_thread(numba: bool = True) -> Iterator[None]:
-    """One thread for torch (and, with ``numba``, the compiled kernels) inside the block, the
-    previous counts restored after it: for small MLPs and batches of tens of platforms a second
-    thread gains little, and on a shared machine it slows everyone else."""
+def single_thread() -> Iterator[None]:
+    """One torch thread inside the block, the previous count restored after it: for small MLPs and
+    batches of tens of platforms a second thread gains little, and on a shared machine it slows
+    everyone else."""
     import torch
 
-    before_torch = torch.get_num_threads()
-    if numba:
-        import numba as nb
-
-        before_numba = nb.get_num_threads()
-        nb.set_num_threads(1)
+    before = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
         yield
     finally:
-        torch.set_num_threads(before_torch)
-        if numba:
-            nb.set_num_threads(before_numba)
+        torch.set_num_threads(before)
 
 
 def make_training_env(n_envs: int, env_kwargs: Mapping[str, Any], seed: int, normalize: dict[str, Any] | None,

@@ -17,6 +17,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--platform", default="dasgupta1998", help="platform config name or YAML path")
     p.add_argument("--models", default=",".join(MODEL_NAMES), help="comma-separated model names")
     p.add_argument("--env", action="store_true", help="also benchmark the single and vector environments")
+    p.add_argument("--plot", metavar="PATH", help="also draw the scaling table to this PNG file")
     p.add_argument("--mujoco", action="store_true",
                    help="also time MuJoCo on the same mechanism beside the kernels, the env and the vector env "
                         '(needs the extra: pip install -e ".[mujoco]")')
@@ -30,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     if problem is not None:
         return error(VERB, f"argument --mujoco: {problem}")
     try:
-        run_bench(args.platform, args.models, env=args.env, mujoco=args.mujoco)
+        run_bench(args.platform, args.models, env=args.env, mujoco=args.mujoco, plot=args.plot)
     except ImportError as err:  # the MuJoCo library present but failing to load
         return error(VERB, f"argument --mujoco: {err}")
     return 0

@@ -1,5 +1,5 @@
-"""What the verbs share: the one-line error, the checks made before any work, the compilation
-notice and the baseline controllers by name."""
+"""What the verbs share: the one-line error, the checks made before any work and the baseline
+controllers by name."""
 
 from __future__ import annotations
 
@@ -45,16 +45,6 @@ def check_extras(needs: Iterable[tuple[str, str]]) -> str | None:
 def plant_extras(models: Sequence[str] | None, flag: str = "--model") -> list[tuple[str, str]]:
     """The extra a plant of ``models`` needs: MuJoCo's plant needs ``mujoco``."""
     return [("mujoco", f"{flag} mujoco")] if models and "mujoco" in models else []
-
-
-def announce_compilation() -> None:
-    """One line before the kernels' first compilation, which takes tens of seconds: when no kernel
-    is cached yet."""
-    import stewart_env.envs  # noqa: F401  (numba compiles the environment's and the tasks' kernels)
-    from stewart_env.numba_cache import is_warm
-
-    if not is_warm():
-        print("compiling kernels, first run only (~30 s)", file=sys.stderr)
 
 
 def controllers(names: Sequence[str], internal_model: str) -> dict:

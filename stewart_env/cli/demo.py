@@ -7,7 +7,7 @@ import sys
 import time
 
 from stewart_env.cli.arguments import nonnegative_int, platform_name, positive_int
-from stewart_env.cli.common import announce_compilation, check_out, controllers, error
+from stewart_env.cli.common import check_out, controllers, error
 
 VERB = "demo"
 
@@ -34,7 +34,6 @@ def run(args: argparse.Namespace) -> int:
     problem = check_out(args)
     if problem is not None:
         return error(VERB, problem)
-    announce_compilation()
     start = time.perf_counter()
     configs = [{"model": m, "task": "setpoint", "platform": args.platform} for m in ("classical", "improved")]
     try:

@@ -10,7 +10,6 @@ from pathlib import Path
 from stewart_env.cli.arguments import TASKS, model_name, nonnegative_int, plant_model_name, platform_name, positive_int
 from stewart_env.cli.common import (
     CONTROLLERS,
-    announce_compilation,
     check_extras,
     check_out,
     controllers,
@@ -88,7 +87,6 @@ def run(args: argparse.Namespace) -> int:
     problem = check_extras(needs) or check_out(args)
     if problem is not None:
         return error(VERB, problem)
-    announce_compilation()
     start = time.perf_counter()
     try:
         print(_evaluate(args))

@@ -17,7 +17,7 @@ from stewart_env.cli.arguments import (
     positive_float,
     positive_int,
 )
-from stewart_env.cli.common import announce_compilation, check_extras, check_out, error
+from stewart_env.cli.common import check_extras, check_out, error
 from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
 from stewart_env.agents.mismatch import (
     BACKENDS,
@@ -123,7 +123,6 @@ def run(args: argparse.Namespace) -> int:
     problem = check_extras(needs) or check_out(args)
     if problem is not None:
         return error(VERB, problem)
-    announce_compilation()
     simplifications = [] if args.simplifications.strip().lower() == "none" else name_list(args.simplifications)
     kept = f"; finished agents and cells are kept in {args.out} (run the same command again to continue)"
     try:

@@ -7,7 +7,7 @@ import sys
 import time
 
 from stewart_env.cli.arguments import platform_name, positive_float
-from stewart_env.cli.common import announce_compilation, check_out, error
+from stewart_env.cli.common import check_out, error
 
 VERB = "reproduce"
 
@@ -37,7 +37,6 @@ def run(args: argparse.Namespace) -> int:
     problem = check_out(args)
     if problem is not None:
         return error(VERB, problem)
-    announce_compilation()
     start = time.perf_counter()
     try:
         result = reproduce(args.out, duration=args.duration, dt=args.dt, platform=args.platform,

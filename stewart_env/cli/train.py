@@ -16,7 +16,7 @@ from stewart_env.cli.arguments import (
     plant_model_name,
     positive_int,
 )
-from stewart_env.cli.common import announce_compilation, check_extras, check_out, error, plant_extras
+from stewart_env.cli.common import check_extras, check_out, error, plant_extras
 
 VERB = "train"
 
@@ -65,7 +65,6 @@ def run(args: argparse.Namespace) -> int:
         return error(VERB, problem)
     from stewart_env.agents.training import TrainingInterrupted, parse_env_kwargs, train
 
-    announce_compilation()
     try:
         result = train(args.algo, args.out, model=args.model, task=args.task, timesteps=args.timesteps,
                        seed=args.seed, n_envs=args.n_envs, checkpoint_freq=args.checkpoint_freq,

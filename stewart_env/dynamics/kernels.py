@@ -3,7 +3,9 @@
 The one implementation of the Stewart platform's kinematics and dynamics is C++, compiled into
 the extension ``stewart_env.dynamics._core`` when the package is installed; its sources are
 ``stewart_env/dynamics/cpp/kernels.hpp`` (kinematics and dynamics), ``rk4.hpp`` (the integrator)
-and ``laws.hpp`` (the compiled control laws).  ``docs/physics.md`` in the repository is the full
+and ``laws.hpp`` (the compiled control laws); beside them ``task_kernels.hpp`` (the tasks' errors,
+termination and reward) and ``env_step.hpp`` (the environment's control step) compile the
+per-step work of the tasks and the environment.  ``docs/physics.md`` in the repository is the full
 account of the physics, with a table of every function of those files (its section 3.2).
 
 Kernels take ``prm`` of shape (Np, N_PARAMS), one row per platform (Np == 1 broadcasts over the

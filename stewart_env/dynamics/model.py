@@ -25,6 +25,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from stewart_env import validation
+from stewart_env.dynamics import _core
 from stewart_env.dynamics import kernels as K
 from stewart_env.params import ConfigError, PlatformParams
 from stewart_env.rotations import rpy_to_matrix
@@ -344,6 +345,12 @@ class Dynamics:
         P's origin (m/s^2) and angular acceleration (rad/s^2), each (3,) or (N,3).
         Solves M [a; alpha] + h = J^T F + W (docs/physics.md section 5.4).
         """
+        out = np.empty(6)
+        # one platform's float64 arrays, valid: checked and solved in one compiled call
+        if _core.forward_one_checked(self.packed, self.flags, position, rotation, velocity, angular_velocity, leg_forces,
+                                     _NO_WRENCH if external_wrench is None else external_wrench, ROTATION_TOLERANCE,
+                                     out):
+            return out[:3], out[3:]
         n, batched, a = self._args(position, rotation, velocity, angular_velocity,
                                    leg_forces=(leg_forces, (6,)), external_wrench=external_wrench)
         out = np.empty((n, 6))
@@ -357,6 +364,11 @@ class Dynamics:
         Arguments as in :meth:`forward`, with lin_acc (3,) m/s^2 and ang_acc (3,) rad/s^2 in {B}.
         docs/physics.md section 5.5.
         """
+        out = np.empty(6)
+        if _core.inverse_one_checked(self.packed, self.flags, position, rotation, velocity, angular_velocity, lin_acc,
+                                     ang_acc, _NO_WRENCH if external_wrench is None else external_wrench,
+                                     ROTATION_TOLERANCE, out):
+            return out
         n, batched, a = self._args(position, rotation, velocity, angular_velocity,
                                    lin_acc=(lin_acc, (3,)), ang_acc=(ang_acc, (3,)),
                                    external_wrench=external_wrench)

@@ -29,7 +29,6 @@ from __future__ import annotations
 import numpy as np
 
 from stewart_env.dynamics import _core
-from stewart_env.dynamics import kernels as K
 from stewart_env.dynamics.model import Dynamics, batch_args, check_step
 from stewart_env.rotations import rpy_to_matrix
 
@@ -66,7 +65,7 @@ class Workspace:
     * :meth:`step`: RK4 steps with leg_forces and external_wrench held; overwrites the state (section 5.6).
     """
 
-    __slots__ = ("_model", "_n", "_packed", "_flags", *(f"_{name}" for name in _ARRAYS))
+    __slots__ = ("_model", "_n", "_packed", "_flags", "_bound", *(f"_{name}" for name in _ARRAYS))
 
     def __init__(self, model: Dynamics, n: int = 1):
         if not isinstance(model, Dynamics):
@@ -86,6 +85,11 @@ class Workspace:
             size = n * sum(int(np.prod(tail)) for tail, _ in _ARRAYS.values()) * 8
             raise ValueError(f"n: a workspace of {n} platforms needs {size / 2**30:.3g} GiB, more than "
                              "can be allocated") from None
+        arrays = tuple(getattr(self, f"_{name}") for name in _ARRAYS)
+        # the kernels get the arrays' addresses once, here; the arrays are never replaced
+        self._bound = _core.BoundWorkspace((model.packed, *arrays), model.packed, model.flags, self._position,
+                                           self._rotation, self._velocity, self._angular_velocity, self._leg_forces,
+                                           self._external_wrench, self._acceleration, self._mass_matrix, self._bias)
         home = model.params_of(0)
         self._position[:] = home.home_position
         self._rotation[:] = rpy_to_matrix(home.home_rpy)
@@ -104,6 +108,10 @@ class Workspace:
 
     def __repr__(self) -> str:
         return f"Workspace({self._model!r}, n={self._n})"
+
+    def __reduce__(self):
+        # a copy (copy, deepcopy, pickle) is a new workspace, its arrays bound anew, holding these numbers
+        return _workspace_holding, (self._model, self._n, {name: getattr(self, f"_{name}") for name in _ARRAYS})
 
     def set_state(self, position, rotation, velocity, angular_velocity) -> None:
         """Copy a state into the arrays, with the checks of every entry point
@@ -129,22 +137,19 @@ class Workspace:
     def forward(self) -> np.ndarray:
         """Forward dynamics: ``acceleration`` (n,6) [a; alpha] from the state, ``leg_forces`` and
         ``external_wrench``.  docs/physics.md section 5.4; paper eq. 49 or 55."""
-        K.forward_batch(self._packed, self._flags, self._position, self._rotation, self._velocity,
-                        self._angular_velocity, self._leg_forces, self._external_wrench, self._acceleration)
+        self._bound.forward()
         return self._acceleration
 
     def inverse(self) -> np.ndarray:
         """Inverse dynamics: ``leg_forces`` (n,6) that produce ``acceleration`` in the state, with
         ``external_wrench``.  docs/physics.md section 5.5."""
-        K.inverse_batch(self._packed, self._flags, self._position, self._rotation, self._velocity,
-                        self._angular_velocity, self._acceleration, self._external_wrench, self._leg_forces)
+        self._bound.inverse()
         return self._leg_forces
 
     def mass_and_bias(self) -> tuple[np.ndarray, np.ndarray]:
         """``mass_matrix`` (n,6,6) and ``bias`` (n,6) of M [a; alpha] + h = J^T F in the state,
         ``external_wrench`` moved into h.  docs/physics.md section 5.4."""
-        K.mass_bias_batch(self._packed, self._flags, self._position, self._rotation, self._velocity,
-                          self._angular_velocity, self._external_wrench, self._mass_matrix, self._bias)
+        self._bound.mass_and_bias()
         return self._mass_matrix, self._bias
 
     def step(self, dt: float, steps: int = 1) -> None:
@@ -153,5 +158,13 @@ class Workspace:
         A row whose state stops being finite stays so (see :meth:`check`).
         docs/physics.md section 5.6."""
         dt, steps = check_step(dt, steps)
-        _core.rollout_batch(self._packed, self._flags, self._position, self._rotation, self._velocity,
-                            self._angular_velocity, self._leg_forces, self._external_wrench, dt, steps)
+        self._bound.step(dt, steps)
+
+
+def _workspace_holding(model: Dynamics, n: int, arrays: dict) -> Workspace:
+    """A workspace of ``model`` for ``n`` platforms whose arrays hold ``arrays`` (name -> array):
+    how a copied or unpickled workspace is made."""
+    ws = Workspace(model, n)
+    for name, value in arrays.items():
+        getattr(ws, f"_{name}")[...] = value
+    return ws

@@ -1,11 +1,15 @@
-"""The batched core of the environments: N platforms, a task, and one plant call per step.
+"""The batched core of the environments: N platforms, a task, and one compiled call per step.
 
 :class:`PlatformBatch` holds the state of N platforms in preallocated arrays and does everything
 of a control step for all of them at once: action to leg forces, actuator lag, the task's
 external wrench, one call of its plant (:mod:`stewart_env.envs.plant`: the compiled closed-form
 rollout, or MuJoCo), the leg sensors; the task, given a read-only
 :class:`~stewart_env.tasks.StepView` of the batch, decides termination and reward, and the
-observation pipeline (:mod:`stewart_env.envs.observation`) makes every row's observation.  The
+observation pipeline (:mod:`stewart_env.envs.observation`) makes every row's observation.  With
+the closed-form plant and a task that keeps :class:`~stewart_env.tasks.Task`'s termination and
+reward, all of that but the task's Python hooks (a moving reference, an external wrench, its own
+observation terms) is one call of the compiled batch (``_core.BatchStep``,
+``stewart_env/dynamics/cpp/env_step.hpp``), the same arithmetic as the step of parts.  The
 single environment is a batch of one, the vector environment a batch of N; both give a platform
 the same arithmetic, so a vector row reproduces a single environment bit for bit.  Per-row
 Python loops run only at episode start and for observation noise (each row draws from its own
@@ -20,18 +24,17 @@ from types import MappingProxyType
 from typing import Any
 
 import numpy as np
-from numba import njit
 
-from stewart_env.dynamics import Dynamics
+from stewart_env.dynamics import Dynamics, _core
 from stewart_env.envs.config import EnvConfig
 from stewart_env.envs.observation import ObservationPipeline
-from stewart_env.envs.plant import Plant, make_plant
+from stewart_env.envs.plant import ClosedFormPlant, Plant, make_plant
 from stewart_env.kinematics import leg_sensors_inplace
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks import LIMIT_REASONS, StepView, make_task, tracking_errors
-from stewart_env.tasks.base import errors_in, zero_reference
+from stewart_env.tasks.base import Task, errors_in, zero_reference
 
 __all__ = ["TERMINATION_REASONS", "PlatformBatch"]
 
@@ -42,57 +45,6 @@ TERMINATION_REASONS = LIMIT_REASONS
 NOT_TERMINATED = ""
 #: The code of "non_finite", the first of every task's reasons.
 NON_FINITE = 1
-
-
-# The per-step arithmetic of the batch in a few compiled passes (each row as numpy would compute it,
-# operation for operation), so that a step's Python overhead stays small next to the physics.
-
-@njit(cache=True)
-def _drive(action, half, mid, lag, clipped, forces):
-    """Clip the action to [-1, 1] into ``clipped`` and map it onto the force range: the command
-    mid + a half, applied directly (lag 0) or through the exact first-order lag."""
-    for b in range(action.shape[0]):
-        for i in range(6):
-            a = min(max(action[b, i], -1.0), 1.0)
-            clipped[b, i] = a
-            command = a * half + mid
-            if lag:
-                forces[b, i] += lag * (command - forces[b, i])
-            else:
-                forces[b, i] = command
-
-
-@njit(cache=True)
-def _copy_state(t, R, v, w, t_to, R_to, v_to, w_to):
-    """Copy a batch state into another's arrays."""
-    t_to[:] = t
-    R_to[:] = R
-    v_to[:] = v
-    w_to[:] = w
-
-
-@njit(cache=True)
-def _after_physics(t, R, v, w, t0, R0, v0, w0, steps, dt, time, non_finite):
-    """Advance every row's clock one control step (time = steps dt) and find the rows whose
-    state is no longer finite, putting them back to the state they started the step from (t0,
-    R0, v0, w0).  Returns whether any row was."""
-    found = False
-    for b in range(t.shape[0]):
-        steps[b] += 1
-        time[b] = steps[b] * dt
-        ok = True
-        for j in range(3):
-            ok &= np.isfinite(t[b, j]) and np.isfinite(v[b, j]) and np.isfinite(w[b, j])
-            for k in range(3):
-                ok &= np.isfinite(R[b, j, k])
-        non_finite[b] = not ok
-        if not ok:
-            found = True
-            t[b] = t0[b]
-            R[b] = R0[b]
-            v[b] = v0[b]
-            w[b] = w0[b]
-    return found
 
 
 def _readonly(array: np.ndarray) -> np.ndarray:
@@ -184,10 +136,36 @@ class PlatformBatch:
             _readonly(self.leg_lengths), _readonly(self.leg_rates), _readonly(self.condition),
             _readonly(self.external_wrench), _readonly(self.time), _readonly(self._non_finite),
             MappingProxyType({k: _readonly(v) for k, v in self.episode.items()}))
+        self._kernel = self._compiled_step()
+
+    def _compiled_step(self) -> _core.BatchStep | None:
+        """The whole control step as one compiled call over the batch's arrays, or None when the
+        step needs Python between its parts: a plant other than the closed-form one, or a task with
+        its own termination or reward.  The observation is made in the same call unless the task
+        observes terms of its own (then :meth:`ObservationPipeline.step` makes it after the call)."""
+        task = self.task
+        if not isinstance(self.plant, ClosedFormPlant) or any(
+                getattr(type(task), name) is not getattr(Task, name)
+                for name in ("termination", "reward_terms", "termination_reward")):
+            return None
+        model = self.plant.model
+        lim = self.platform.limits
+        arrays = dict(
+            n=self.n, prm=model.packed, flags=model.flags, sensor_prm=self.nominal_model.packed,
+            force_half=self._force_half, force_mid=self._force_mid, lag=self._lag, physics_dt=self.physics_dt,
+            substeps=self.substeps, control_dt=self.control_dt, max_condition=lim.max_condition,
+            **dict(zip(PlatformState._fields, self._state)),
+            **{"start_" + k: v for k, v in zip(PlatformState._fields, self._backup)},
+            action=self._action, leg_forces=self.leg_forces, external_wrench=self.external_wrench, steps=self.steps,
+            time=self.time, non_finite=self._non_finite, leg_lengths=self.leg_lengths, leg_rates=self.leg_rates,
+            condition=self.condition, error_vectors=self._error_vectors, error_norms=self._error_norms,
+            **{"ref_" + k: getattr(self.reference, k) for k in PlatformState._fields},
+            **task.kernel_arguments(), **self.observations.kernel_arguments())
+        return _core.BatchStep(arrays)
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
-        del state["_state"], state["view"], state["_errors"]
+        del state["_state"], state["view"], state["_errors"], state["_kernel"]
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -236,6 +214,8 @@ class PlatformBatch:
         if drawn is not None:
             self.model = self.model.with_packed_rows(rows, *drawn)
             self.plant.set_model(self.model, rows)
+            if self._kernel is not None:
+                self._kernel.set_model(self.model.packed, self.model.flags)
         self.steps[rows] = 0
         self.time[rows] = 0.0
         self.external_wrench[rows] = 0.0
@@ -312,26 +292,82 @@ class PlatformBatch:
         (their outcome is thrown away) and draw no noise.  Returns (reward (n,), termination code
         (n,) int, reward terms by name, each (n,)); codes index :attr:`termination_reasons` (0: none).
         """
-        _drive(action, self._force_half, self._force_mid, self._lag, self._action, self.leg_forces)
         if skip is not None:
             self._park(skip)
+        driven = False
         if self._has_external_wrench:
+            # the task's wrench sees the action and the leg forces of this step
+            self._drive(action)
+            driven = True
             self.task.external_wrench(self.view, self.control_dt, self.external_wrench)
-        _copy_state(*self._state, *self._backup)
-        self._physics()
+        if self._kernel is not None:
+            return self._compiled_outcome(action, driven, rngs, skip)
+        self._physics(action, driven)
         return self._outcome(rngs, skip)
 
-    def _physics(self) -> None:
-        """The plant's step of every row, the non-finite check and the leg sensors."""
+    def _compiled_outcome(self, action, driven, rngs, skip) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """:meth:`step` by the compiled batch: the reference at the step's end, then one call for
+        the actuators, the plant, the sensors, the errors, the termination, the reward and (unless
+        the task observes terms of its own) the observation."""
+        task, obs, n = self.task, self.observations, self.n
+        if self._moving_reference:
+            # the reference at the end of the step, the time the call will set (it depends on no state)
+            task.reference(self.view.episode, (self.steps + 1) * self.control_dt, self.reference)
+        code, terms, reward, bad = np.empty(n, dtype=np.int64), np.empty((5, n)), np.empty(n), np.empty(n, dtype=bool)
+        observed = obs.compiled
+        noise = obs.draw_noise(rngs, skip) if observed else None
+        head = (obs._head + 1) % (obs.delay + 1)
+        found = self._kernel.step(action, not driven, noise, skip, head, code, terms, reward, bad)
+        self._any_non_finite = bool(found & _core.NON_FINITE_STATE)
+        terms = dict(zip(("position", "orientation", "velocity", "control", "termination"), terms))
+        if observed:
+            obs._head = head
+            obs._any_pending = False
+            bad = bad if found & _core.BAD_ROWS else None
+        else:
+            bad = obs.step(self.view, reward, rngs, skip)
+        if bad is not None:
+            reward = self._end_non_finite(bad, code, terms)
+        return reward, code, terms
+
+    def _end_non_finite(self, bad: np.ndarray, code: np.ndarray, terms: dict[str, np.ndarray]) -> np.ndarray:
+        """End the rows ``bad`` whose observation or reward was not finite: no NaN or inf leaves the
+        environment, the row ends as non-finite, its reward terms that are not finite count 0, and
+        its termination term is the task's for the new code.  Returns the rows' reward."""
+        code[bad] = NON_FINITE
+        for term in terms.values():
+            term[bad] = np.nan_to_num(term[bad], nan=0.0, posinf=0.0, neginf=0.0)
+        terms["termination"] = self.task.termination_reward(code)
+        return sum(terms.values())
+
+    def _drive(self, action: np.ndarray) -> None:
+        """The actuators: the action clipped to [-1, 1] (kept as the applied action) and mapped
+        onto the force range, applied directly or through the first-order lag."""
+        _core.drive(action, self._force_half, self._force_mid, self._lag, self._action, self.leg_forces)
+
+    def _physics(self, action: np.ndarray, driven: bool) -> None:
+        """The actuators (unless ``driven`` already), the plant's step of every row, the clock and
+        the non-finite check, and the leg sensors.  A row whose state is no longer finite keeps
+        its last finite state, so that observation, reward and rendering stay finite."""
+        max_condition = self.platform.limits.max_condition
+        if isinstance(self.plant, ClosedFormPlant):
+            # the whole control step in one compiled call
+            model = self.plant.model
+            self._any_non_finite = _core.control_step(
+                model.packed, model.flags, self.nominal_model.packed, self._force_half, self._force_mid, self._lag,
+                not driven, self.physics_dt, self.substeps, self.control_dt, max_condition, action, self._action,
+                self.leg_forces, self.external_wrench, *self._state, *self._backup, self.steps, self.time,
+                self._non_finite, self.leg_lengths, self.leg_rates, self.condition)
+            return
+        if not driven:
+            self._drive(action)
+        _core.copy_state(*self._state, *self._backup)
         self.plant.step_inplace(self.position, self.rotation, self.velocity, self.angular_velocity,
                                 self.leg_forces, self.external_wrench, self.physics_dt, self.substeps)
-        # A row whose state is no longer finite keeps its last finite state, so that observation,
-        # reward and rendering stay finite.
-        self._any_non_finite = _after_physics(*self._state, *self._backup, self.steps, self.control_dt, self.time,
-                                              self._non_finite)
+        self._any_non_finite = _core.after_physics(*self._state, *self._backup, self.steps, self.control_dt,
+                                                   self.time, self._non_finite)
         leg_sensors_inplace(self.nominal_model, self.position, self.rotation, self.velocity,
-                            self.angular_velocity, self.platform.limits.max_condition, self.leg_lengths,
-                            self.leg_rates, self.condition)
+                            self.angular_velocity, max_condition, self.leg_lengths, self.leg_rates, self.condition)
 
     def _outcome(self, rngs, skip) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         """Reference, then the task's termination and reward, and the observation after the
@@ -351,13 +387,7 @@ class PlatformBatch:
 
         bad = self.observations.step(view, reward, rngs, skip)
         if bad is not None:
-            # No NaN or inf leaves the environment: the row ends as non-finite, its reward terms
-            # that are not finite count 0, and its termination term is the task's for the new code.
-            code[bad] = NON_FINITE
-            for term in terms.values():
-                term[bad] = np.nan_to_num(term[bad], nan=0.0, posinf=0.0, neginf=0.0)
-            terms["termination"] = task.termination_reward(code)
-            reward = sum(terms.values())
+            reward = self._end_non_finite(bad, code, terms)
         return reward, code, terms
 
     def _park(self, rows: np.ndarray) -> None:

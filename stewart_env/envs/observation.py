@@ -15,8 +15,8 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from numba import njit
 
+from stewart_env.dynamics import _core
 from stewart_env.envs.config import ObservationConfig
 from stewart_env.params import PlatformParams
 from stewart_env.tasks import Scales, StepView
@@ -28,44 +28,11 @@ __all__ = ["ObservationPipeline"]
 _FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
-@njit(cache=True)
-def _within_float32(raw, reward, largest):
-    """Whether every entry of raw (rows, D) is within +-largest (so finite) and every reward finite."""
-    for v in raw.flat:
-        if not abs(v) <= largest:
-            return False
-    for r in reward:
-        if not abs(r) < np.inf:
-            return False
-    return True
-
-
-@njit(cache=True)
-def _pose_block(t, R, v, w, raw):
-    """The pose observation's first 15 entries of every row: P, the first two columns of R, the
-    velocity and the angular velocity."""
-    for b in range(t.shape[0]):
-        for j in range(3):
-            raw[b, j] = t[b, j]
-            raw[b, 3 + j] = R[b, j, 0]
-            raw[b, 6 + j] = R[b, j, 1]
-            raw[b, 9 + j] = v[b, j]
-            raw[b, 12 + j] = w[b, j]
-
-
-@njit(cache=True)
-def _normalize(raw, offset, inv_scale):
-    """raw = (raw - offset) * inv_scale, in place."""
-    for b in range(raw.shape[0]):
-        for k in range(raw.shape[1]):
-            raw[b, k] = (raw[b, k] - offset[k]) * inv_scale[k]
-
-
 def finite_or_marked(raw: np.ndarray, reward: np.ndarray) -> np.ndarray | None:
     """The rows (bool (rows,)) of an observation batch or its reward with an entry that is not
     finite or beyond the float32 range, their observation entries made finite in place (NaN 0,
     the rest clipped to the float32 range); None when every row is fine (one compiled pass)."""
-    if _within_float32(raw, reward, _FLOAT32_MAX):
+    if _core.within_float32(raw, reward, _FLOAT32_MAX):
         return None
     bad = ~((np.abs(raw) <= _FLOAT32_MAX).all(axis=1) & np.isfinite(reward))
     raw[bad] = np.clip(np.nan_to_num(raw[bad], nan=0.0), -_FLOAT32_MAX, _FLOAT32_MAX)
@@ -171,6 +138,37 @@ class ObservationPipeline:
         return std if std.any() else None
 
     @property
+    def compiled(self) -> bool:
+        """Whether the environment's compiled step makes the observation (:meth:`kernel_arguments`):
+        the task observes only the position and orientation errors, as :class:`Task` does."""
+        task = type(self._task)
+        return task.observe is Task.observe and task.observation_terms is Task.observation_terms
+
+    def kernel_arguments(self) -> dict[str, Any]:
+        """The layout, scaling, error integral and arrays of the observation, for the environment's
+        compiled step (see :meth:`compiled`)."""
+        if not self.compiled:
+            return {"observe": False}
+        at = {name: self.layout[name].start if name in self.layout else -1
+              for name in ("leg_lengths", "leg_rates", "leg_forces", "position_error", "orientation_error",
+                           "error_integral")}
+        return dict(observe=True, pose=self.mode == "pose", **{k + "_at": v for k, v in at.items()}, raw=self._raw,
+                    history=self._history, normalize=self.normalize, offset=self.offset, inv_scale=self._inv_scale,
+                    error_integral=self.error_integral, error_integral_bound=self.error_integral_bound,
+                    error_integral_band=self.error_integral_band, pending=self._pending, largest=_FLOAT32_MAX)
+
+    def draw_noise(self, rngs: Sequence[np.random.Generator], skip: np.ndarray | None) -> np.ndarray | None:
+        """This step's observation noise (n, D), drawn from rngs[i] for every row i not in ``skip``
+        (the others' rows are left unset), or None without noise."""
+        if self.noise_std is None:
+            return None
+        noise = np.empty(self._raw.shape)
+        for i in range(noise.shape[0]):
+            if skip is None or not skip[i]:
+                noise[i] = rngs[i].normal(size=self.dim) * self.noise_std
+        return noise
+
+    @property
     def latest(self) -> np.ndarray:
         """The observation every row returns now (n, D): scaled, noisy and delayed as configured."""
         return self._history[(self._head + 1) % (self.delay + 1)]
@@ -247,7 +245,7 @@ class ObservationPipeline:
         ``raw``; integral is the batch's error integral (rows, 6), or None when it is not observed."""
         views = self._raw_views if raw is self._raw else self._views_of(raw)
         if self.mode == "pose":
-            _pose_block(*view.state, raw)
+            _core.pose_block(*view.state, raw)
         else:
             views["leg_lengths"][:] = view.leg_lengths
             views["leg_rates"][:] = view.leg_rates
@@ -257,4 +255,4 @@ class ObservationPipeline:
         if integral is not None:
             views["error_integral"][:] = integral
         if self.normalize:
-            _normalize(raw, self.offset, self._inv_scale)
+            _core.normalize(raw, self.offset, self._inv_scale)

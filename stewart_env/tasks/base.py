@@ -23,12 +23,11 @@ from collections.abc import Mapping
 from typing import Any, NamedTuple
 
 import numpy as np
-from numba import njit
 
-from stewart_env.dynamics import Dynamics, make_dynamics
+from stewart_env.dynamics import Dynamics, _core, make_dynamics
 from stewart_env.kinematics import leg_sensors_inplace
 from stewart_env.params import PlatformParams
-from stewart_env.rotations import rotation_error_rows, rpy_rate_matrix, rpy_to_matrix
+from stewart_env.rotations import rpy_rate_matrix, rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
 from stewart_env.validation import real, vector
 
@@ -136,26 +135,6 @@ class RewardWeights:
             object.__setattr__(self, name, checked)
 
 
-@njit(cache=True)
-def _error_rows(t, R, v, w, rt, rR, rv, rw, ep, eo, ev, ew, norms):
-    """Reference minus actual for every row; norms (N,4): |ep|, angle, |ev|, |ew|."""
-    rotation_error_rows(rR, R, eo, norms[:, 1])
-    for b in range(t.shape[0]):
-        sp = 0.0
-        sv = 0.0
-        sw = 0.0
-        for j in range(3):
-            ep[b, j] = rt[b, j] - t[b, j]
-            ev[b, j] = rv[b, j] - v[b, j]
-            ew[b, j] = rw[b, j] - w[b, j]
-            sp += ep[b, j] * ep[b, j]
-            sv += ev[b, j] * ev[b, j]
-            sw += ew[b, j] * ew[b, j]
-        norms[b, 0] = np.sqrt(sp)
-        norms[b, 2] = np.sqrt(sv)
-        norms[b, 3] = np.sqrt(sw)
-
-
 def empty_errors(n: int) -> tuple[Errors, np.ndarray]:
     """Preallocated :class:`Errors` of n rows and the (n, 4) array that holds their norms."""
     return errors_in(np.empty((4, n, 3)), np.empty((4, n)))
@@ -172,30 +151,14 @@ def tracking_errors(state: PlatformState, reference: Reference,
     """Reference minus actual, for a batch (see :class:`Errors`); C-contiguous float64 inputs.
     ``out``: an :func:`empty_errors` pair to write into (else new arrays)."""
     errors, norms = out if out is not None else empty_errors(state.position.shape[0])
-    _error_rows(state.position, state.rotation, state.velocity, state.angular_velocity, reference.position,
-                reference.rotation, reference.velocity, reference.angular_velocity, *errors[:4], norms)
+    _core.tracking_errors(*state, reference.position, reference.rotation, reference.velocity,
+                          reference.angular_velocity, *errors[:4], norms.T)
     return errors
 
 
 def zero_reference(n: int) -> Reference:
     """A :class:`Reference` of n rows of zeros (rotation (n,3,3), every other field (n,3))."""
     return Reference(*(np.zeros((n, 3, 3) if name == "rotation" else (n, 3)) for name in Reference._fields))
-
-
-@njit(cache=True)
-def _within_margins(position, rpy, lengths, condition, position_min, position_max, home_rpy, max_angle,
-                    length_min, length_max, max_condition, margin, ok):
-    """The checks of :func:`pose_margins` on poses whose leg lengths and condition numbers are known."""
-    stroke_margin = margin * 0.5 * (length_max - length_min)
-    for m in range(position.shape[0]):
-        safe = condition[m] <= max_condition
-        for j in range(3):
-            half = 0.5 * (position_max[j] - position_min[j])
-            safe &= position_min[j] + margin * half <= position[m, j] <= position_max[j] - margin * half
-            safe &= abs(rpy[m, j] - home_rpy[j]) <= (1.0 - margin) * max_angle
-        for i in range(6):
-            safe &= length_min + stroke_margin <= lengths[m, i] <= length_max - stroke_margin
-        ok[m] = safe
 
 
 def pose_margins(params: PlatformParams | Dynamics, position: np.ndarray, rpy: np.ndarray, margin: float = 0.1,
@@ -221,8 +184,9 @@ def pose_margins(params: PlatformParams | Dynamics, position: np.ndarray, rpy: n
     leg_sensors_inplace(model, position, rotation.reshape(m, 3, 3), rest, rest, lim.max_condition, lengths, rates,
                         condition)
     ok = np.empty(m, dtype=bool)
-    _within_margins(position, rpy, lengths, condition, lim.position_min, lim.position_max, p.home_rpy,
-                    lim.max_angle, lim.leg_length[0], lim.leg_length[1], lim.max_condition, float(margin), ok)
+    _core.within_margins(position, np.ascontiguousarray(rpy), lengths, condition, lim.position_min, lim.position_max,
+                         p.home_rpy, lim.max_angle, lim.leg_length[0], lim.leg_length[1], lim.max_condition,
+                         float(margin), ok)
     return ok
 
 
@@ -300,51 +264,6 @@ def motion_ranges(params: PlatformParams, position, angle, names: tuple[str, str
 #: the workspace box or an angle leaves home +- max_angle (see :meth:`Task.termination`).  Every
 #: task's reasons begin with them, all failures.
 LIMIT_REASONS = ("non_finite", "singularity", "leg_stroke", "workspace")
-
-
-@njit(cache=True)
-def _limit_codes(t, R, lengths, condition, non_finite, position_min, position_max, home_rpy, max_angle,
-                 length_min, length_max, max_condition, code):
-    """Termination code of every row, by priority: 1 non-finite state, 2 Jacobian condition number
-    above max_condition, 3 a leg outside its stroke, 4 P outside the workspace box or a
-    roll-pitch-yaw angle (as stewart_env.rotations.matrix_to_rpy, wrapped to [-pi, pi) about home)
-    further than max_angle from home; 0 none."""
-    for b in range(t.shape[0]):
-        c = 0
-        if non_finite[b]:
-            c = 1
-        elif condition[b] > max_condition:
-            c = 2
-        else:
-            for i in range(6):
-                if lengths[b, i] < length_min or lengths[b, i] > length_max:
-                    c = 3
-            if c == 0:
-                for j in range(3):
-                    if t[b, j] < position_min[j] or t[b, j] > position_max[j]:
-                        c = 4
-                s = -R[b, 2, 0]
-                s = min(max(s, -1.0), 1.0)
-                rpy = (np.arctan2(R[b, 2, 1], R[b, 2, 2]), np.arcsin(s), np.arctan2(R[b, 1, 0], R[b, 0, 0]))
-                for j in range(3):
-                    d = (rpy[j] - home_rpy[j] + np.pi) % (2.0 * np.pi) - np.pi
-                    if abs(d) > max_angle:
-                        c = 4
-        code[b] = c
-
-
-@njit(cache=True)
-def _tracking_reward(ep, eo, ev, ew, action, wp, sp, wo, so, wv, sv, sw, wc, out):
-    """The four running terms of :class:`RewardWeights` for every row into out (4, N): position,
-    orientation, velocity and control (mean square of the action)."""
-    for b in range(ep.shape[0]):
-        out[0, b] = wp * np.exp(-ep[b] / sp)
-        out[1, b] = wo * np.exp(-eo[b] / so)
-        out[2, b] = -wv * -np.expm1(-(ev[b] / sv + ew[b] / sw))
-        a2 = 0.0
-        for i in range(6):
-            a2 += action[b, i] * action[b, i]
-        out[3, b] = -wc * (a2 / 6.0)
 
 
 class StepView(NamedTuple):
@@ -482,16 +401,29 @@ class Task:
         the end of an episode adds :meth:`termination_reward`)."""
         w, e = self.weights, view.errors
         out = np.empty((4, view.time.shape[0]))
-        _tracking_reward(e.position_norm, e.orientation_norm, e.velocity_norm, e.angular_velocity_norm, view.action,
-                         w.position_reward_weight, w.position_reward_scale, w.orientation_reward_weight,
-                         w.orientation_reward_scale, w.velocity_cost_weight, w.velocity_cost_scale,
-                         w.angular_velocity_cost_scale, w.ctrl_cost_weight, out)
+        _core.tracking_reward(e.position_norm, e.orientation_norm, e.velocity_norm, e.angular_velocity_norm,
+                              view.action, w.position_reward_weight, w.position_reward_scale,
+                              w.orientation_reward_weight, w.orientation_reward_scale, w.velocity_cost_weight,
+                              w.velocity_cost_scale, w.angular_velocity_cost_scale, w.ctrl_cost_weight, out)
         return {"position": out[0], "orientation": out[1], "velocity": out[2], "control": out[3]}
 
     def termination_reward(self, code: np.ndarray) -> np.ndarray:
         """The reward term ``termination`` (N,) of termination codes ``code``: -termination_cost
         where the episode ends with a failure, 0 where it goes on or ends with a success."""
         return -self.weights.termination_cost * self._failure[code]
+
+    def kernel_arguments(self) -> dict[str, Any]:
+        """What the environment's compiled step needs of this task's :meth:`termination`,
+        :meth:`reward_terms` and :meth:`termination_reward` (used while a subclass keeps them):
+        the platform's limits, the reward weights and which termination codes are failures."""
+        w = self.weights
+        position_min, position_max, home_rpy, max_angle, length_min, length_max, _ = self._limits
+        return dict(position_min=position_min, position_max=position_max, home_rpy=home_rpy, max_angle=max_angle,
+                    length_min=length_min, length_max=length_max,
+                    weights=np.array([w.position_reward_weight, w.position_reward_scale, w.orientation_reward_weight,
+                                      w.orientation_reward_scale, w.velocity_cost_weight, w.velocity_cost_scale,
+                                      w.angular_velocity_cost_scale, w.ctrl_cost_weight]),
+                    termination_cost=w.termination_cost, failure=self._failure)
 
     def termination(self, view: StepView) -> np.ndarray:
         """Termination codes (N,) int64: 0 where the episode goes on, else k for the reason
@@ -500,8 +432,8 @@ class Task:
         :meth:`end`."""
         code = np.empty(view.time.shape[0], dtype=np.int64)
         state = view.state
-        _limit_codes(state.position, state.rotation, view.leg_lengths, view.condition, view.non_finite,
-                     *self._limits, code)
+        _core.limit_codes(state.position, state.rotation, view.leg_lengths, view.condition, view.non_finite,
+                          *self._limits, code)
         return code
 
     def end(self, code: np.ndarray, where: np.ndarray, reason: str) -> None:

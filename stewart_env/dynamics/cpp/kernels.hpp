@@ -48,8 +48,9 @@
 // (platform).
 //
 // Arrays are C-contiguous float64: a vector of three is a pointer to three doubles, a 3x3 or 6x6
-// matrix is row-major.  Each *_batch function loops over the rows of a batch and hands the row to
-// a *_row function; the row's arithmetic does not depend on the batch size.
+// matrix is row-major.  Each *_batch function loops over the rows of a batch and hands them to a
+// *_row function, eight at a time in the lanes of a vector where it can (lanes.hpp: the kernels are
+// templates over their number type); a row's arithmetic does not depend on the batch size.
 //
 // Packed parameters: kernels take prm of shape (Np, N_PARAMS), one row per platform (Np == 1
 // broadcasts over the batch).  PACKED_LAYOUT below lists the entries (docs/physics.md section 2);
@@ -61,13 +62,20 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <type_traits>
+#include <vector>
+
+#include "lanes.hpp"
 
 namespace kernels {
 
-using V3 = std::array<double, 3>;
+template <typename T = double>
+using V3 = std::array<T, 3>;
 //: A symmetric inertia (xx, yy, zz, xy, xz, yz).
-using Inertia = std::array<double, 6>;
-using Row6 = std::array<double, 6>;
+template <typename T = double>
+using Inertia = std::array<T, 6>;
+template <typename T = double>
+using Row6 = std::array<T, 6>;
 
 constexpr int64_t C1 = 1;
 constexpr int64_t C2 = 2;
@@ -137,49 +145,56 @@ constexpr int OFF_G = offset_of(13);
 //: One leg's geometry (docs/physics.md sections 1 and 4.1), the value leg_frame returns and the
 //: per-leg helpers take: q = R p_i, length L, the unit vectors e, y, z of the leg frame {D_i}
 //: (in {B}), and the fixed U-joint axis k in {D_i}, (kx, 0, kz) with kz > 0.
+template <typename T = double>
 struct LegFrame {
-    V3 q;
-    double L;
-    V3 e, y, z;
-    double kx, kz;
+    V3<T> q;
+    T L;
+    V3<T> e, y, z;
+    T kx, kz;
 };
 
-//: One leg's motion in the platform's state (sections 4.1-4.2), leg_state's value: its LegFrame;
+//: One leg's motion in the platform's state (sections 4.1-4.2), leg_state's value: its LegFrame<T>;
 //: the rates Ldot, spin sigma and angular velocity (w1, w2) about y and z; and in {D_i} the
 //: platform's angular velocity omega, gravity and a_vel, the part w x (w x q) of P_i's
 //: acceleration that does not depend on the platform's acceleration.
+template <typename T = double>
 struct LegState {
-    LegFrame frame;
-    double Ldot, sigma, w1, w2;
-    V3 omega, gravity, a_vel;
+    LegFrame<T> frame;
+    T Ldot, sigma, w1, w2;
+    V3<T> omega, gravity, a_vel;
 };
 
 //: One leg's mass properties (leg_bodies' value): m_u, m_d, the CoMs r_u, r_d from B_i and the
 //: inertias I_u, I_d, all in {D_i}.
+template <typename T = double>
 struct LegBodies {
-    double m_u, m_d;
-    V3 r_u, r_d;
-    Inertia I_u, I_d;
+    T m_u, m_d;
+    V3<T> r_u, r_d;
+    Inertia<T> I_u, I_d;
 };
 
 //: The leg's rates (leg_rates' value): Ldot, sigma, w1, w2.
+template <typename T = double>
 struct LegRates {
-    double Ldot, sigma, w1, w2;
+    T Ldot, sigma, w1, w2;
 };
 
 //: The leg's accelerations (leg_accel's value): Lddot and alpha_l' = (al0, al1, al2) in {D_i}.
+template <typename T = double>
 struct LegAccel {
-    double Lddot, al0, al1, al2;
+    T Lddot, al0, al1, al2;
 };
 
 // Components of a x b (docs/physics.md section 3.2; no paper equation).
-inline V3 cross(double a0, double a1, double a2, double b0, double b1, double b2) {
+template <typename T>
+inline V3<T> cross(T a0, T a1, T a2, T b0, T b1, T b2) {
     return {a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0};
 }
 
 // {B} components of a vector given in the leg frame fr = [e y z]: u = T_i u'.
 // docs/physics.md section 1; paper eq. 15 (T_i).
-inline V3 to_base(const LegFrame& fr, double u0, double u1, double u2) {
+template <typename T>
+inline V3<T> to_base(const LegFrame<T>& fr, T u0, T u1, T u2) {
     const auto& [e0, e1, e2] = fr.e;
     const auto& [y0, y1, y2] = fr.y;
     const auto& [z0, z1, z2] = fr.z;
@@ -188,7 +203,8 @@ inline V3 to_base(const LegFrame& fr, double u0, double u1, double u2) {
 
 // Leg-frame components (u . e, u . y, u . z) of a vector given in {B}: u' = T_i^T u.
 // docs/physics.md section 1; paper eq. 15 (T_i).
-inline V3 to_leg(const LegFrame& fr, double u0, double u1, double u2) {
+template <typename T>
+inline V3<T> to_leg(const LegFrame<T>& fr, T u0, T u1, T u2) {
     const auto& [e0, e1, e2] = fr.e;
     const auto& [y0, y1, y2] = fr.y;
     const auto& [z0, z1, z2] = fr.z;
@@ -197,23 +213,25 @@ inline V3 to_leg(const LegFrame& fr, double u0, double u1, double u2) {
 
 // P_i's acceleration in {D_i}: the velocity part A' plus a + alpha x q for acc = [a; alpha].
 // docs/physics.md section 4.1; paper eqs. 10-12 (a_Pi).
-inline V3 with_platform_acc(const double* acc, const LegFrame& fr, const V3& A) {
+template <typename T>
+inline V3<T> with_platform_acc(const T* acc, const LegFrame<T>& fr, const V3<T>& A) {
     const auto& [q0, q1, q2] = fr.q;
-    auto [x0, x1, x2] = cross(acc[3], acc[4], acc[5], q0, q1, q2);
+    auto [x0, x1, x2] = cross<T>(acc[3], acc[4], acc[5], q0, q1, q2);
     x0 += acc[0];
     x1 += acc[1];
     x2 += acc[2];
-    const auto [d0, d1, d2] = to_leg(fr, x0, x1, x2);
+    const auto [d0, d1, d2] = to_leg<T>(fr, x0, x1, x2);
     return {A[0] + d0, A[1] + d1, A[2] + d2};
 }
 
-// Inertia I = I_c + s m (|r|^2 E - r r^T) as (Ixx, Iyy, Izz, Ixy, Ixz, Iyz).
+// Inertia<T> I = I_c + s m (|r|^2 E - r r^T) as (Ixx, Iyy, Izz, Ixy, Ixz, Iyz).
 // I_c is the 3x3 at prm[off:off+9]; s counts parallel-axis shifts (the callers pass 0 or 1).
 // docs/physics.md sections 5.2 and 6 (C3, C4); the paper's shifted inertias before eq. 32 and
 // eq. 44, its CoM inertias eqs. 50 and 52.
-inline Inertia inertia(const double* prm, int off, double s, double m, double r0, double r1, double r2) {
-    const double rr = r0 * r0 + r1 * r1 + r2 * r2;
-    const double sm = s * m;
+template <typename T>
+inline Inertia<T> inertia(const T* prm, int off, T s, T m, T r0, T r1, T r2) {
+    const T rr = r0 * r0 + r1 * r1 + r2 * r2;
+    const T sm = s * m;
     return {
         prm[off + 0] + sm * (rr - r0 * r0),
         prm[off + 4] + sm * (rr - r1 * r1),
@@ -226,12 +244,13 @@ inline Inertia inertia(const double* prm, int off, double s, double m, double r0
 
 // Inertial moment I alpha + w x (I w) of a symmetric inertia I = (xx, yy, zz, xy, xz, yz).
 // docs/physics.md sections 5.2-5.3; the Euler terms of paper eqs. 32, 46, 50 and 53.
-inline V3 euler(const Inertia& I, double a0, double a1, double a2, double w0, double w1, double w2) {
+template <typename T>
+inline V3<T> euler(const Inertia<T>& I, T a0, T a1, T a2, T w0, T w1, T w2) {
     const auto& [i00, i11, i22, i01, i02, i12] = I;
-    const double iw0 = i00 * w0 + i01 * w1 + i02 * w2;
-    const double iw1 = i01 * w0 + i11 * w1 + i12 * w2;
-    const double iw2 = i02 * w0 + i12 * w1 + i22 * w2;
-    const auto [c0, c1, c2] = cross(w0, w1, w2, iw0, iw1, iw2);
+    const T iw0 = i00 * w0 + i01 * w1 + i02 * w2;
+    const T iw1 = i01 * w0 + i11 * w1 + i12 * w2;
+    const T iw2 = i02 * w0 + i12 * w1 + i22 * w2;
+    const auto [c0, c1, c2] = cross<T>(w0, w1, w2, iw0, iw1, iw2);
     return {
         i00 * a0 + i01 * a1 + i02 * a2 + c0,
         i01 * a0 + i11 * a1 + i12 * a2 + c1,
@@ -244,49 +263,51 @@ inline V3 euler(const Inertia& I, double a0, double a1, double a2, double w0, do
 // about the CoM (centroidal form), shifted to B_i (eq. 49 form), or shifted once more than the
 // form needs (C3).  docs/physics.md sections 4.3 (CoMs), 5.2 and 6 (C3); paper eqs. 28-29
 // (r_u, r_d), the inertias about B_i before eq. 32 and about the CoM in eq. 50.
-inline LegBodies leg_bodies(const double* prm, int i, int64_t flags, double L) {
-    const double m_u = prm[OFF_MU + i];
-    const double m_d = prm[OFF_MD + i];
-    const V3 r_u = {L + prm[OFF_RU + 3 * i], prm[OFF_RU + 3 * i + 1], prm[OFF_RU + 3 * i + 2]};
-    const V3 r_d = {prm[OFF_RD + 3 * i], prm[OFF_RD + 3 * i + 1], prm[OFF_RD + 3 * i + 2]};
-    double shifts;
+template <typename T>
+inline LegBodies<T> leg_bodies(const T* prm, int i, int64_t flags, T L) {
+    const T m_u = prm[OFF_MU + i];
+    const T m_d = prm[OFF_MD + i];
+    const V3<T> r_u = {L + prm[OFF_RU + 3 * i], prm[OFF_RU + 3 * i + 1], prm[OFF_RU + 3 * i + 2]};
+    const V3<T> r_d = {prm[OFF_RD + 3 * i], prm[OFF_RD + 3 * i + 1], prm[OFF_RD + 3 * i + 2]};
+    T shifts;
     if (flags & (CENTROIDAL | C3)) {
         shifts = (flags & C3) ? 1.0 : 0.0;
     } else {
         shifts = 1.0;
     }
-    const Inertia I_u = inertia(prm, OFF_IU + 9 * i, shifts, m_u, r_u[0], r_u[1], r_u[2]);
-    const Inertia I_d = inertia(prm, OFF_ID + 9 * i, shifts, m_d, r_d[0], r_d[1], r_d[2]);
+    const Inertia<T> I_u = inertia<T>(prm, OFF_IU + 9 * i, shifts, m_u, r_u[0], r_u[1], r_u[2]);
+    const Inertia<T> I_d = inertia<T>(prm, OFF_ID + 9 * i, shifts, m_d, r_d[0], r_d[1], r_d[2]);
     return {m_u, m_d, r_u, r_d, I_u, I_d};
 }
 
-// Leg i's geometry as one value, a LegFrame: q = R p_i, length L, the frame [e y z] (vectors in
+// Leg i's geometry as one value, a LegFrame<T>: q = R p_i, length L, the frame [e y z] (vectors in
 // {B}) and k in that frame (kx, kz).
 // docs/physics.md sections 1 and 4.1; paper eqs. 6-8 (q_i, S_i, L_i, e_i) and 15 (T_i).
-inline LegFrame leg_frame(const double* prm, int i, const double* t, const double* R) {
-    const double p0 = prm[OFF_P + 3 * i];
-    const double p1 = prm[OFF_P + 3 * i + 1];
-    const double p2 = prm[OFF_P + 3 * i + 2];
-    const double q0 = R[0] * p0 + R[1] * p1 + R[2] * p2;
-    const double q1 = R[3] * p0 + R[4] * p1 + R[5] * p2;
-    const double q2 = R[6] * p0 + R[7] * p1 + R[8] * p2;
-    const double s0 = t[0] + q0 - prm[OFF_B + 3 * i];
-    const double s1 = t[1] + q1 - prm[OFF_B + 3 * i + 1];
-    const double s2 = t[2] + q2 - prm[OFF_B + 3 * i + 2];
-    const double L = std::sqrt(s0 * s0 + s1 * s1 + s2 * s2);
-    const double e0 = s0 / L;
-    const double e1 = s1 / L;
-    const double e2 = s2 / L;
-    const double k0 = prm[OFF_K + 3 * i];
-    const double k1 = prm[OFF_K + 3 * i + 1];
-    const double k2 = prm[OFF_K + 3 * i + 2];
-    const auto [c0, c1, c2] = cross(k0, k1, k2, e0, e1, e2);
-    const double kz = std::sqrt(c0 * c0 + c1 * c1 + c2 * c2);  // = |k x e| = k . z
-    const double y0 = c0 / kz;
-    const double y1 = c1 / kz;
-    const double y2 = c2 / kz;
-    const V3 z = cross(e0, e1, e2, y0, y1, y2);
-    const double kx = k0 * e0 + k1 * e1 + k2 * e2;
+template <typename T>
+inline LegFrame<T> leg_frame(const T* prm, int i, const T* t, const T* R) {
+    const T p0 = prm[OFF_P + 3 * i];
+    const T p1 = prm[OFF_P + 3 * i + 1];
+    const T p2 = prm[OFF_P + 3 * i + 2];
+    const T q0 = R[0] * p0 + R[1] * p1 + R[2] * p2;
+    const T q1 = R[3] * p0 + R[4] * p1 + R[5] * p2;
+    const T q2 = R[6] * p0 + R[7] * p1 + R[8] * p2;
+    const T s0 = t[0] + q0 - prm[OFF_B + 3 * i];
+    const T s1 = t[1] + q1 - prm[OFF_B + 3 * i + 1];
+    const T s2 = t[2] + q2 - prm[OFF_B + 3 * i + 2];
+    const T L = lanes::sqrt_of(s0 * s0 + s1 * s1 + s2 * s2);
+    const T e0 = s0 / L;
+    const T e1 = s1 / L;
+    const T e2 = s2 / L;
+    const T k0 = prm[OFF_K + 3 * i];
+    const T k1 = prm[OFF_K + 3 * i + 1];
+    const T k2 = prm[OFF_K + 3 * i + 2];
+    const auto [c0, c1, c2] = cross<T>(k0, k1, k2, e0, e1, e2);
+    const T kz = lanes::sqrt_of(c0 * c0 + c1 * c1 + c2 * c2);  // = |k x e| = k . z
+    const T y0 = c0 / kz;
+    const T y1 = c1 / kz;
+    const T y2 = c2 / kz;
+    const V3<T> z = cross<T>(e0, e1, e2, y0, y1, y2);
+    const T kx = k0 * e0 + k1 * e1 + k2 * e2;
     return {{q0, q1, q2}, L, {e0, e1, e2}, {y0, y1, y2}, z, kx, kz};
 }
 
@@ -294,10 +315,11 @@ inline LegFrame leg_frame(const double* prm, int i, const double* t, const doubl
 // Returns (Ldot, sigma, w1, w2): omega_l' = (sigma, w1, w2) in {D_i}.
 // docs/physics.md section 4.2; paper eqs. 13 (Ldot), 20-21 (w_perp) and 22 (the spin sigma);
 // C1 sets sigma = 0 (section 6).
-inline LegRates leg_rates(int64_t flags, const LegFrame& fr, double u0, double u1, double u2) {
-    const double w1 = -u2 / fr.L;
-    const double w2 = u1 / fr.L;
-    const double sigma = (flags & C1) ? 0.0 : fr.kx * w2 / fr.kz;
+template <typename T>
+inline LegRates<T> leg_rates(int64_t flags, const LegFrame<T>& fr, T u0, T u1, T u2) {
+    const T w1 = -u2 / fr.L;
+    const T w2 = u1 / fr.L;
+    const T sigma = (flags & C1) ? 0.0 : fr.kx * w2 / fr.kz;
     return {u0, sigma, w1, w2};
 }
 
@@ -306,13 +328,14 @@ inline LegRates leg_rates(int64_t flags, const LegFrame& fr, double u0, double u
 // Returns (Lddot, al0, al1, al2): alpha_l' in {D_i}.
 // docs/physics.md section 4.3; paper eqs. 14 (Lddot), 23-24 (alpha_perp = (al1, al2)), 26
 // (alpha_e = al0) and 27; C1 sets al0 = 0 (section 6).
-inline LegAccel leg_accel(int64_t flags, const LegFrame& fr, double Ldot, double sigma, double w1, double w2,
-                          double A0, double A1, double A2) {
-    const double L = fr.L, kx = fr.kx, kz = fr.kz;
-    const double Lddot = A0 + L * (w1 * w1 + w2 * w2);
-    const double al1 = (-A2 - 2.0 * Ldot * w1) / L + sigma * w2;
-    const double al2 = (A1 - 2.0 * Ldot * w2) / L - sigma * w1;
-    double al0;
+template <typename T>
+inline LegAccel<T> leg_accel(int64_t flags, const LegFrame<T>& fr, T Ldot, T sigma, T w1, T w2,
+                          T A0, T A1, T A2) {
+    const T L = fr.L, kx = fr.kx, kz = fr.kz;
+    const T Lddot = A0 + L * (w1 * w1 + w2 * w2);
+    const T al1 = (-A2 - 2.0 * Ldot * w1) / L + sigma * w2;
+    const T al2 = (A1 - 2.0 * Ldot * w2) / L - sigma * w1;
+    T al0;
     if (flags & C1) {
         al0 = 0.0;
     } else {
@@ -326,8 +349,9 @@ inline LegAccel leg_accel(int64_t flags, const LegFrame& fr, double Ldot, double
 // with h' = (-kz, 0, kx).  With C2 the reaction moment lies along e and that row is dropped.
 // axial is e . F_s from the upper leg's Newton equation.  Linear in (N, axial).
 // docs/physics.md sections 5.1 and 6 (C2); paper eqs. 35, 37 (mu), 38 and 40.
-inline V3 leg_split(int64_t flags, const LegFrame& fr, double N0, double N1, double N2, double axial) {
-    const double n2 = (flags & C2) ? N2 : N2 + N0 * fr.kx / fr.kz;
+template <typename T>
+inline V3<T> leg_split(int64_t flags, const LegFrame<T>& fr, T N0, T N1, T N2, T axial) {
+    const T n2 = (flags & C2) ? N2 : N2 + N0 * fr.kx / fr.kz;
     return {axial, n2 / fr.L, -N1 / fr.L};
 }
 
@@ -336,63 +360,65 @@ inline V3 leg_split(int64_t flags, const LegFrame& fr, double N0, double N1, dou
 // a_d = alpha_l x r_d + ..., a_D = Lddot e + ...) and the Euler terms I alpha_l.
 // docs/physics.md sections 5.1-5.2 and 6 (C3); paper eqs. 30-31, 33, 36 and 39 (their
 // acceleration terms), 41 and, in the centroidal form, 51.
-inline V3 leg_inertial_force(int64_t flags, const LegBodies& bodies, const LegFrame& fr, double Lddot,
-                             double al0, double al1, double al2) {
-    const double m_u = bodies.m_u, m_d = bodies.m_d;
+template <typename T>
+inline V3<T> leg_inertial_force(int64_t flags, const LegBodies<T>& bodies, const LegFrame<T>& fr, T Lddot,
+                             T al0, T al1, T al2) {
+    const T m_u = bodies.m_u, m_d = bodies.m_d;
     const auto& [ru0, ru1, ru2] = bodies.r_u;
     const auto& [rd0, rd1, rd2] = bodies.r_d;
-    const auto [x0, x1, x2] = cross(al0, al1, al2, ru0, ru1, ru2);
-    const double au0 = Lddot + x0;
-    V3 t, u;
+    const auto [x0, x1, x2] = cross<T>(al0, al1, al2, ru0, ru1, ru2);
+    const T au0 = Lddot + x0;
+    V3<T> t, u;
     if (flags & (CENTROIDAL | C3)) {
-        const auto [ad0, ad1, ad2] = cross(al0, al1, al2, rd0, rd1, rd2);
-        t = cross(rd0, rd1, rd2, m_d * ad0, m_d * ad1, m_d * ad2);
-        u = cross(ru0, ru1, ru2, m_u * au0, m_u * x1, m_u * x2);
+        const auto [ad0, ad1, ad2] = cross<T>(al0, al1, al2, rd0, rd1, rd2);
+        t = cross<T>(rd0, rd1, rd2, m_d * ad0, m_d * ad1, m_d * ad2);
+        u = cross<T>(ru0, ru1, ru2, m_u * au0, m_u * x1, m_u * x2);
     } else {
         t = {0.0, 0.0, 0.0};
-        u = cross(ru0, ru1, ru2, m_u * Lddot, 0.0, 0.0);
+        u = cross<T>(ru0, ru1, ru2, m_u * Lddot, 0.0, 0.0);
     }
-    const auto [d0, d1, d2] = euler(bodies.I_d, al0, al1, al2, 0.0, 0.0, 0.0);
-    const auto [e0, e1, e2] = euler(bodies.I_u, al0, al1, al2, 0.0, 0.0, 0.0);
-    return leg_split(flags, fr, t[0] + u[0] + d0 + e0, t[1] + u[1] + d1 + e1, t[2] + u[2] + d2 + e2, m_u * au0);
+    const auto [d0, d1, d2] = euler<T>(bodies.I_d, al0, al1, al2, 0.0, 0.0, 0.0);
+    const auto [e0, e1, e2] = euler<T>(bodies.I_u, al0, al1, al2, 0.0, 0.0, 0.0);
+    return leg_split<T>(flags, fr, t[0] + u[0] + d0 + e0, t[1] + u[1] + d1 + e1, t[2] + u[2] + d2 + e2, m_u * au0);
 }
 
 // The part of F_s that does not depend on accelerations, {D_i}: velocity products (Coriolis
 // 2 Ldot omega_l x e, centripetal omega_l x (omega_l x r), gyroscopic omega_l x I omega_l),
-// gravity and joint friction, for the leg's LegState leg.
+// gravity and joint friction, for the leg's LegState<T> leg.
 // docs/physics.md sections 5.1-5.2 and 6 (C3); paper eqs. 30-34, 36 and 39 (their velocity,
 // gravity and friction terms), 41 and, in the centroidal form, 51.
-inline V3 leg_rate_force(const double* prm, int64_t flags, const LegBodies& bodies, const LegState& leg) {
-    const double Ldot = leg.Ldot, w0 = leg.sigma, w1 = leg.w1, w2 = leg.w2;
+template <typename T>
+inline V3<T> leg_rate_force(const T* prm, int64_t flags, const LegBodies<T>& bodies, const LegState<T>& leg) {
+    const T Ldot = leg.Ldot, w0 = leg.sigma, w1 = leg.w1, w2 = leg.w2;
     const auto& [o0, o1, o2] = leg.omega;
     const auto& [g0, g1, g2] = leg.gravity;
-    const double m_u = bodies.m_u, m_d = bodies.m_d;
+    const T m_u = bodies.m_u, m_d = bodies.m_d;
     const auto& [ru0, ru1, ru2] = bodies.r_u;
     const auto& [rd0, rd1, rd2] = bodies.r_d;
-    const double ww = w0 * w0 + w1 * w1 + w2 * w2;
+    const T ww = w0 * w0 + w1 * w1 + w2 * w2;
     // a_D: the upper-leg point at B_i; w x (w x r) = w (w.r) - r |w|^2
-    const double aD1 = 2.0 * Ldot * w2;
-    const double aD2 = -2.0 * Ldot * w1;
-    double wr = w0 * ru0 + w1 * ru1 + w2 * ru2;
-    const double au0 = w0 * wr - ru0 * ww;
-    const double au1 = aD1 + w1 * wr - ru1 * ww;
-    const double au2 = aD2 + w2 * wr - ru2 * ww;
-    V3 t, u;
+    const T aD1 = 2.0 * Ldot * w2;
+    const T aD2 = -2.0 * Ldot * w1;
+    T wr = w0 * ru0 + w1 * ru1 + w2 * ru2;
+    const T au0 = w0 * wr - ru0 * ww;
+    const T au1 = aD1 + w1 * wr - ru1 * ww;
+    const T au2 = aD2 + w2 * wr - ru2 * ww;
+    V3<T> t, u;
     if (flags & (CENTROIDAL | C3)) {
         wr = w0 * rd0 + w1 * rd1 + w2 * rd2;
-        t = cross(rd0, rd1, rd2, m_d * (w0 * wr - rd0 * ww), m_d * (w1 * wr - rd1 * ww), m_d * (w2 * wr - rd2 * ww));
-        u = cross(ru0, ru1, ru2, m_u * au0, m_u * au1, m_u * au2);
+        t = cross<T>(rd0, rd1, rd2, m_d * (w0 * wr - rd0 * ww), m_d * (w1 * wr - rd1 * ww), m_d * (w2 * wr - rd2 * ww));
+        u = cross<T>(ru0, ru1, ru2, m_u * au0, m_u * au1, m_u * au2);
     } else {
         t = {0.0, 0.0, 0.0};
-        u = cross(ru0, ru1, ru2, 0.0, m_u * aD1, m_u * aD2);
+        u = cross<T>(ru0, ru1, ru2, 0.0, m_u * aD1, m_u * aD2);
     }
-    const auto [d0, d1, d2] = euler(bodies.I_d, 0.0, 0.0, 0.0, w0, w1, w2);
-    const auto [e0, e1, e2] = euler(bodies.I_u, 0.0, 0.0, 0.0, w0, w1, w2);
-    const auto [gd0, gd1, gd2] = cross(rd0, rd1, rd2, m_d * g0, m_d * g1, m_d * g2);
-    const auto [gu0, gu1, gu2] = cross(ru0, ru1, ru2, m_u * g0, m_u * g1, m_u * g2);
-    const double cu = prm[OFF_DAMP];
-    const double cs = prm[OFF_DAMP + 2];
-    return leg_split(
+    const auto [d0, d1, d2] = euler<T>(bodies.I_d, 0.0, 0.0, 0.0, w0, w1, w2);
+    const auto [e0, e1, e2] = euler<T>(bodies.I_u, 0.0, 0.0, 0.0, w0, w1, w2);
+    const auto [gd0, gd1, gd2] = cross<T>(rd0, rd1, rd2, m_d * g0, m_d * g1, m_d * g2);
+    const auto [gu0, gu1, gu2] = cross<T>(ru0, ru1, ru2, m_u * g0, m_u * g1, m_u * g2);
+    const T cu = prm[OFF_DAMP];
+    const T cs = prm[OFF_DAMP + 2];
+    return leg_split<T>(
         flags, leg.frame,
         t[0] + u[0] + d0 + e0 - gd0 - gu0 + cu * w0 + cs * (w0 - o0),
         t[1] + u[1] + d1 + e1 - gd1 - gu1 + cu * w1 + cs * (w1 - o1),
@@ -401,56 +427,61 @@ inline V3 leg_rate_force(const double* prm, int64_t flags, const LegBodies& bodi
 }
 
 // Force of the platform on leg i at P_i, in {D_i}, for P_i's acceleration A' in {D_i}.
-// bodies is leg_bodies' result, leg the leg's LegState; F_act the actuator force (N), which
+// bodies is leg_bodies' result, leg the leg's LegState<T>; F_act the actuator force (N), which
 // pushes the upper leg along e.  Returns (F0, F1, F2): the acceleration part plus the rate part.
 // docs/physics.md section 5.1; paper eqs. 38-41 (joint form) and 51 (centroidal form).
-inline V3 leg_force(const double* prm, int64_t flags, const LegBodies& bodies, const LegState& leg, double A0,
-                    double A1, double A2, double F_act) {
-    const LegAccel acc = leg_accel(flags, leg.frame, leg.Ldot, leg.sigma, leg.w1, leg.w2, A0, A1, A2);
-    const auto [a0, a1, a2] = leg_inertial_force(flags, bodies, leg.frame, acc.Lddot, acc.al0, acc.al1, acc.al2);
-    const auto [r0, r1, r2] = leg_rate_force(prm, flags, bodies, leg);
+template <typename T>
+inline V3<T> leg_force(const T* prm, int64_t flags, const LegBodies<T>& bodies, const LegState<T>& leg, T A0,
+                    T A1, T A2, T F_act) {
+    const LegAccel<T> acc = leg_accel<T>(flags, leg.frame, leg.Ldot, leg.sigma, leg.w1, leg.w2, A0, A1, A2);
+    const auto [a0, a1, a2] = leg_inertial_force<T>(flags, bodies, leg.frame, acc.Lddot, acc.al0, acc.al1, acc.al2);
+    const auto [r0, r1, r2] = leg_rate_force<T>(prm, flags, bodies, leg);
     return {a0 + r0 - F_act, a1 + r1, a2 + r2};
 }
 
 // The acceleration part of F_s, {D_i}, for a P_i acceleration A' with all rates zero: one column
 // of Q_i when A' is a {B} unit vector in {D_i}.  docs/physics.md section 5.4; paper eqs. 41 and
 // 47-48.
-inline V3 unit_inertial_force(int64_t flags, const LegBodies& bodies, const LegFrame& fr, double A0, double A1,
-                              double A2) {
-    const LegAccel acc = leg_accel(flags, fr, 0.0, 0.0, 0.0, 0.0, A0, A1, A2);
-    return leg_inertial_force(flags, bodies, fr, acc.Lddot, acc.al0, acc.al1, acc.al2);
+template <typename T>
+inline V3<T> unit_inertial_force(int64_t flags, const LegBodies<T>& bodies, const LegFrame<T>& fr, T A0, T A1,
+                              T A2) {
+    const LegAccel<T> acc = leg_accel<T>(flags, fr, 0.0, 0.0, 0.0, 0.0, A0, A1, A2);
+    return leg_inertial_force<T>(flags, bodies, fr, acc.Lddot, acc.al0, acc.al1, acc.al2);
 }
 
-// Leg i's LegState in the platform state (t, R, v, w): its frame, its rates (Ldot, sigma, w1,
+// Leg i's LegState<T> in the platform state (t, R, v, w): its frame, its rates (Ldot, sigma, w1,
 // w2), and in {D_i} the platform's angular velocity, gravity and the velocity part w x (w x q) of
 // P_i's acceleration.
 // docs/physics.md sections 4.1-4.2; paper eqs. 6-13 and 20-22.
-inline LegState leg_state(const double* prm, int i, int64_t flags, const double* t, const double* R,
-                          const double* v, const double* w) {
-    const LegFrame fr = leg_frame(prm, i, t, R);
+template <typename T>
+inline LegState<T> leg_state(const T* prm, int i, int64_t flags, const T* t, const T* R,
+                          const T* v, const T* w) {
+    const LegFrame<T> fr = leg_frame<T>(prm, i, t, R);
     const auto& [q0, q1, q2] = fr.q;
-    const auto [c0, c1, c2] = cross(w[0], w[1], w[2], q0, q1, q2);
-    const auto [u0, u1, u2] = to_leg(fr, v[0] + c0, v[1] + c1, v[2] + c2);
-    const LegRates rates = leg_rates(flags, fr, u0, u1, u2);
-    const auto [a0, a1, a2] = cross(w[0], w[1], w[2], c0, c1, c2);
-    return {fr, rates.Ldot, rates.sigma, rates.w1, rates.w2, to_leg(fr, w[0], w[1], w[2]),
-            to_leg(fr, prm[OFF_G], prm[OFF_G + 1], prm[OFF_G + 2]), to_leg(fr, a0, a1, a2)};
+    const auto [c0, c1, c2] = cross<T>(w[0], w[1], w[2], q0, q1, q2);
+    const auto [u0, u1, u2] = to_leg<T>(fr, v[0] + c0, v[1] + c1, v[2] + c2);
+    const LegRates<T> rates = leg_rates<T>(flags, fr, u0, u1, u2);
+    const auto [a0, a1, a2] = cross<T>(w[0], w[1], w[2], c0, c1, c2);
+    return {fr, rates.Ldot, rates.sigma, rates.w1, rates.w2, to_leg<T>(fr, w[0], w[1], w[2]),
+            to_leg<T>(fr, prm[OFF_G], prm[OFF_G + 1], prm[OFF_G + 2]), to_leg<T>(fr, a0, a1, a2)};
 }
 
 // Row i of the leg Jacobian, [e_i, q_i x e_i] (dL_i/dt = row . [v; omega]), from the leg's frame.
 // docs/physics.md section 4.4; paper eq. 13.
-inline Row6 jacobian_row(const LegFrame& fr) {
+template <typename T>
+inline Row6<T> jacobian_row(const LegFrame<T>& fr) {
     const auto& [q0, q1, q2] = fr.q;
     const auto& [e0, e1, e2] = fr.e;
-    const auto [m0, m1, m2] = cross(q0, q1, q2, e0, e1, e2);
+    const auto [m0, m1, m2] = cross<T>(q0, q1, q2, e0, e1, e2);
     return {e0, e1, e2, m0, m1, m2};
 }
 
 // The leg Jacobian J (6,6) of one platform at pose (t, R), rows [e_i, (R p_i) x e_i].
 // docs/physics.md section 4.4; paper eq. 13.
-inline void jacobian_one(const double* prm, const double* t, const double* R, double* J) {
+template <typename T>
+inline void jacobian_one(const T* prm, const T* t, const T* R, T* J) {
     for (int i = 0; i < 6; ++i) {
-        const Row6 row = jacobian_row(leg_frame(prm, i, t, R));
+        const Row6<T> row = jacobian_row<T>(leg_frame<T>(prm, i, t, R));
         for (int c = 0; c < 6; ++c) J[6 * i + c] = row[c];
     }
 }
@@ -459,23 +490,24 @@ inline void jacobian_one(const double* prm, const double* t, const double* R, do
 // (minus the force of the platform on the leg, F_s, actuator force excluded) as a wrench at P,
 // and the spherical joint's friction torque.  The platform's acceleration acc = [a; alpha] enters
 // through P_i's acceleration; acc nullptr means its velocity part alone (the bias of forward
-// dynamics).  Writes the leg's LegState and leg_bodies into leg and bodies for the caller's own
+// dynamics).  Writes the leg's LegState<T> and leg_bodies into leg and bodies for the caller's own
 // use of the leg.  The one leg loop body of forward dynamics, its M/h assembly and inverse
 // dynamics.  docs/physics.md sections 5.1 and 5.4-5.5; paper eqs. 38-41 and 47-49 (or 51 and 55).
-inline void leg_on_platform(const double* prm, int64_t flags, int i, const double* t, const double* R,
-                            const double* v, const double* w, const double* acc, double* h, LegState& leg,
-                            LegBodies& bodies) {
-    leg = leg_state(prm, i, flags, t, R, v, w);
-    const LegFrame& fr = leg.frame;
-    const V3 A = acc == nullptr ? leg.a_vel : with_platform_acc(acc, fr, leg.a_vel);
-    bodies = leg_bodies(prm, i, flags, fr.L);
-    const auto [f0, f1, f2] = leg_force(prm, flags, bodies, leg, A[0], A[1], A[2], 0.0);
-    const auto [fs0, fs1, fs2] = to_base(fr, f0, f1, f2);
+template <typename T>
+inline void leg_on_platform(const T* prm, int64_t flags, int i, const T* t, const T* R,
+                            const T* v, const T* w, const T* acc, T* h, LegState<T>& leg,
+                            LegBodies<T>& bodies) {
+    leg = leg_state<T>(prm, i, flags, t, R, v, w);
+    const LegFrame<T>& fr = leg.frame;
+    const V3<T> A = acc == nullptr ? leg.a_vel : with_platform_acc<T>(acc, fr, leg.a_vel);
+    bodies = leg_bodies<T>(prm, i, flags, fr.L);
+    const auto [f0, f1, f2] = leg_force<T>(prm, flags, bodies, leg, A[0], A[1], A[2], 0.0);
+    const auto [fs0, fs1, fs2] = to_base<T>(fr, f0, f1, f2);
     const auto& [q0, q1, q2] = fr.q;
-    const auto [m0, m1, m2] = cross(q0, q1, q2, fs0, fs1, fs2);
+    const auto [m0, m1, m2] = cross<T>(q0, q1, q2, fs0, fs1, fs2);
     // spherical-joint friction acts on the platform: +Cs (omega_l - omega)
-    const double cs = prm[OFF_DAMP + 2];
-    const auto [wl0, wl1, wl2] = to_base(fr, leg.sigma, leg.w1, leg.w2);
+    const T cs = prm[OFF_DAMP + 2];
+    const auto [wl0, wl1, wl2] = to_base<T>(fr, leg.sigma, leg.w1, leg.w2);
     h[0] += fs0;
     h[1] += fs1;
     h[2] += fs2;
@@ -488,18 +520,19 @@ inline void leg_on_platform(const double* prm, int64_t flags, int i, const doubl
 // Newton rows: m_p a_c - m_p g.  Euler rows (about P): the inertial moment in the chosen form
 // minus rho x m_p g.  docs/physics.md sections 5.3-5.4 and 6 (C4); paper eqs. 42-46 (joint form)
 // and 52-53 (centroidal form).
-inline void platform_terms(const double* prm, int64_t flags, const double* R, const double* w, double* M,
-                           double* h) {
-    const double m = prm[OFF_MP];
-    const double r0 = R[0] * prm[OFF_RHO] + R[1] * prm[OFF_RHO + 1] + R[2] * prm[OFF_RHO + 2];
-    const double r1 = R[3] * prm[OFF_RHO] + R[4] * prm[OFF_RHO + 1] + R[5] * prm[OFF_RHO + 2];
-    const double r2 = R[6] * prm[OFF_RHO] + R[7] * prm[OFF_RHO + 1] + R[8] * prm[OFF_RHO + 2];
-    const double g0 = prm[OFF_G];
-    const double g1 = prm[OFF_G + 1];
-    const double g2 = prm[OFF_G + 2];
+template <typename T>
+inline void platform_terms(const T* prm, int64_t flags, const T* R, const T* w, T* M,
+                           T* h) {
+    const T m = prm[OFF_MP];
+    const T r0 = R[0] * prm[OFF_RHO] + R[1] * prm[OFF_RHO + 1] + R[2] * prm[OFF_RHO + 2];
+    const T r1 = R[3] * prm[OFF_RHO] + R[4] * prm[OFF_RHO + 1] + R[5] * prm[OFF_RHO + 2];
+    const T r2 = R[6] * prm[OFF_RHO] + R[7] * prm[OFF_RHO + 1] + R[8] * prm[OFF_RHO + 2];
+    const T g0 = prm[OFF_G];
+    const T g1 = prm[OFF_G + 1];
+    const T g2 = prm[OFF_G + 2];
     // centripetal acceleration of the CoM relative to P: w x (w x rho)
-    const auto [c0, c1, c2] = cross(w[0], w[1], w[2], r0, r1, r2);
-    const auto [cc0, cc1, cc2] = cross(w[0], w[1], w[2], c0, c1, c2);
+    const auto [c0, c1, c2] = cross<T>(w[0], w[1], w[2], r0, r1, r2);
+    const auto [cc0, cc1, cc2] = cross<T>(w[0], w[1], w[2], c0, c1, c2);
     // Newton: m (a + alpha x rho + w x (w x rho)) - m g; alpha x rho = -[rho]x alpha
     for (int j = 0; j < 3; ++j) M[6 * j + j] += m;
     M[6 * 0 + 4] += m * r2;
@@ -514,20 +547,20 @@ inline void platform_terms(const double* prm, int64_t flags, const double* R, co
 
     // Euler about P.  In {P} the inertia is constant; shifts counts parallel-axis shifts of I_pc.
     const bool use_com_acc = (flags & (CENTROIDAL | C4)) != 0;
-    const double shifts = ((flags & C4) || !(flags & CENTROIDAL)) ? 1.0 : 0.0;
+    const T shifts = ((flags & C4) || !(flags & CENTROIDAL)) ? 1.0 : 0.0;
     // inertia column j in {B}: R I (R^T e_j); bias w x I w via euler in {P}
-    const double wp0 = R[0] * w[0] + R[3] * w[1] + R[6] * w[2];
-    const double wp1 = R[1] * w[0] + R[4] * w[1] + R[7] * w[2];
-    const double wp2 = R[2] * w[0] + R[5] * w[1] + R[8] * w[2];
-    const double rp0 = prm[OFF_RHO];
-    const double rp1 = prm[OFF_RHO + 1];
-    const double rp2 = prm[OFF_RHO + 2];
-    const Inertia I_p = inertia(prm, OFF_IP, shifts, m, rp0, rp1, rp2);
+    const T wp0 = R[0] * w[0] + R[3] * w[1] + R[6] * w[2];
+    const T wp1 = R[1] * w[0] + R[4] * w[1] + R[7] * w[2];
+    const T wp2 = R[2] * w[0] + R[5] * w[1] + R[8] * w[2];
+    const T rp0 = prm[OFF_RHO];
+    const T rp1 = prm[OFF_RHO + 1];
+    const T rp2 = prm[OFF_RHO + 2];
+    const Inertia<T> I_p = inertia<T>(prm, OFF_IP, shifts, m, rp0, rp1, rp2);
     for (int j = 0; j < 3; ++j) {
-        const auto [i0, i1, i2] = euler(I_p, R[3 * j + 0], R[3 * j + 1], R[3 * j + 2], 0.0, 0.0, 0.0);
+        const auto [i0, i1, i2] = euler<T>(I_p, R[3 * j + 0], R[3 * j + 1], R[3 * j + 2], 0.0, 0.0, 0.0);
         for (int k = 0; k < 3; ++k) M[6 * (3 + k) + 3 + j] += R[3 * k + 0] * i0 + R[3 * k + 1] * i1 + R[3 * k + 2] * i2;
     }
-    const auto [b0, b1, b2] = euler(I_p, 0.0, 0.0, 0.0, wp0, wp1, wp2);
+    const auto [b0, b1, b2] = euler<T>(I_p, 0.0, 0.0, 0.0, wp0, wp1, wp2);
     h[3] += R[0] * b0 + R[1] * b1 + R[2] * b2;
     h[4] += R[3] * b0 + R[4] * b1 + R[5] * b2;
     h[5] += R[6] * b0 + R[7] * b1 + R[8] * b2;
@@ -540,16 +573,16 @@ inline void platform_terms(const double* prm, int64_t flags, const double* R, co
     M[6 * 5 + 1] += m * r0;
     if (use_com_acc) {
         // -m [rho]x [rho]x = m (|rho|^2 E - rho rho^T)
-        const double rr = r0 * r0 + r1 * r1 + r2 * r2;
-        const double rv[3] = {r0, r1, r2};
+        const T rr = r0 * r0 + r1 * r1 + r2 * r2;
+        const T rv[3] = {r0, r1, r2};
         for (int a = 0; a < 3; ++a)
             for (int b = 0; b < 3; ++b) M[6 * (3 + a) + 3 + b] += m * ((a == b ? rr : 0.0) - rv[a] * rv[b]);
-        const auto [x0, x1, x2] = cross(r0, r1, r2, cc0, cc1, cc2);
+        const auto [x0, x1, x2] = cross<T>(r0, r1, r2, cc0, cc1, cc2);
         h[3] += m * x0;
         h[4] += m * x1;
         h[5] += m * x2;
     }
-    const auto [x0, x1, x2] = cross(r0, r1, r2, g0, g1, g2);
+    const auto [x0, x1, x2] = cross<T>(r0, r1, r2, g0, g1, g2);
     h[3] -= m * x0;
     h[4] -= m * x1;
     h[5] -= m * x2;
@@ -557,8 +590,9 @@ inline void platform_terms(const double* prm, int64_t flags, const double* R, co
 
 // Add the wrench at P of a force f at P_i (q = P_i - P) to column c of M: [f; q x f].
 // docs/physics.md section 5.4; paper eqs. 47-48.
-inline void add_column(double* M, int c, double q0, double q1, double q2, double f0, double f1, double f2) {
-    const auto [n0, n1, n2] = cross(q0, q1, q2, f0, f1, f2);
+template <typename T>
+inline void add_column(T* M, int c, T q0, T q1, T q2, T f0, T f1, T f2) {
+    const auto [n0, n1, n2] = cross<T>(q0, q1, q2, f0, f1, f2);
     M[6 * 0 + c] += f0;
     M[6 * 1 + c] += f1;
     M[6 * 2 + c] += f2;
@@ -570,41 +604,131 @@ inline void add_column(double* M, int c, double q0, double q1, double q2, double
 // Solve M x = b (6x6) by Gaussian elimination with partial pivoting; M and b are overwritten.
 // A singular M gives non-finite x, which callers report.  docs/physics.md section 5.4 (no paper
 // equation).
-inline void solve6(double* M, double* b, double* x) {
+template <typename T>
+inline void solve6(T* M, T* b, T* x) {
     constexpr int n = 6;
     for (int c = 0; c < n; ++c) {
-        int p = c;
-        double big = std::abs(M[n * c + c]);
+        // the pivot row p: the first of rows c.. with the largest |M[r][c]| (in each lane its own)
+        T big = lanes::abs_of(M[n * c + c]);
+        T p = T(c);
         for (int r = c + 1; r < n; ++r) {
-            if (std::abs(M[n * r + c]) > big) {
-                big = std::abs(M[n * r + c]);
-                p = r;
-            }
+            const T a = lanes::abs_of(M[n * r + c]);
+            const auto larger = a > big;
+            big = lanes::select(larger, a, big);
+            p = lanes::select(larger, T(r), p);
         }
-        if (p != c) {
+        // rows c and p trade places
+        for (int r = c + 1; r < n; ++r) {
+            const auto swap = p == T(r);
+            if (!lanes::any(swap)) continue;
             for (int k = c; k < n; ++k) {
-                const double tmp = M[n * c + k];
-                M[n * c + k] = M[n * p + k];
-                M[n * p + k] = tmp;
+                const T mine = M[n * c + k];
+                const T theirs = M[n * r + k];
+                M[n * c + k] = lanes::select(swap, theirs, mine);
+                M[n * r + k] = lanes::select(swap, mine, theirs);
             }
-            const double tmp = b[c];
-            b[c] = b[p];
-            b[p] = tmp;
+            const T mine = b[c];
+            const T theirs = b[r];
+            b[c] = lanes::select(swap, theirs, mine);
+            b[r] = lanes::select(swap, mine, theirs);
         }
-        const double piv = M[n * c + c];
+        const T piv = M[n * c + c];
         for (int r = c + 1; r < n; ++r) {
-            const double f = M[n * r + c] / piv;
-            if (f != 0.0) {
-                for (int k = c + 1; k < n; ++k) M[n * r + k] -= f * M[n * c + k];
-                b[r] -= f * b[c];
-            }
+            const T f = M[n * r + c] / piv;
+            // a zero factor leaves the row as it is (not even 0 * inf = NaN)
+            const auto nonzero = f != T(0.0);
+            if (!lanes::any(nonzero)) continue;
+            for (int k = c + 1; k < n; ++k) M[n * r + k] = lanes::select(nonzero, M[n * r + k] - f * M[n * c + k], M[n * r + k]);
+            b[r] = lanes::select(nonzero, b[r] - f * b[c], b[r]);
         }
     }
     for (int c = n - 1; c >= 0; --c) {
-        double s = b[c];
+        T s = b[c];
         for (int k = c + 1; k < n; ++k) s -= M[n * c + k] * x[k];
         x[c] = s / M[n * c + c];
     }
+}
+
+// Leg i's share of the equations of motion, {B}: into h_leg (6,) its pull on the platform
+// (leg_on_platform: the velocity part, or with acc the whole), into M_leg (36,) (when not nullptr)
+// the columns it adds to the mass matrix, and its Jacobian row into jac.  Each entry is the number
+// leg_on_platform and add_column would add (the buffers start at -0.0, which adding leaves every
+// number as it is, signed zeros included).  docs/physics.md sections 5.1 and 5.4-5.5; paper eqs.
+// 38-41 and 47-49 (or 51 and 55).
+template <typename T>
+inline void leg_share(const T* prm, int64_t flags, int i, const T* t, const T* R, const T* v, const T* w,
+                      const T* acc, T* h_leg, T* M_leg, Row6<T>& jac) {
+    std::fill(h_leg, h_leg + 6, -0.0);
+    LegState<T> leg;
+    LegBodies<T> bodies;
+    leg_on_platform<T>(prm, flags, i, t, R, v, w, acc, h_leg, leg, bodies);
+    const LegFrame<T>& fr = leg.frame;
+    jac = jacobian_row<T>(fr);
+    if (M_leg == nullptr) return;
+    std::fill(M_leg, M_leg + 36, -0.0);
+    const auto& [e0, e1, e2] = fr.e;
+    const auto& [y0, y1, y2] = fr.y;
+    const auto& [z0, z1, z2] = fr.z;
+    const auto& [q0, q1, q2] = fr.q;
+    // linear part: Q column j = the acceleration part of the leg force for a_P = unit vector j
+    // of {B} (row j of T in {D_i}); with zero rates leg_accel returns only its linear part
+    const auto [qa0, qa1, qa2] = unit_inertial_force<T>(flags, bodies, fr, e0, y0, z0);
+    const auto [qb0, qb1, qb2] = unit_inertial_force<T>(flags, bodies, fr, e1, y1, z1);
+    const auto [qc0, qc1, qc2] = unit_inertial_force<T>(flags, bodies, fr, e2, y2, z2);
+    const auto [Qx0, Qx1, Qx2] = to_base<T>(fr, qa0, qa1, qa2);
+    const auto [Qy0, Qy1, Qy2] = to_base<T>(fr, qb0, qb1, qb2);
+    const auto [Qz0, Qz1, Qz2] = to_base<T>(fr, qc0, qc1, qc2);
+    // a_P = a + alpha x q: column k of a moves P_i by e_k, of alpha by e_k x q
+    add_column<T>(M_leg, 0, q0, q1, q2, Qx0, Qx1, Qx2);
+    add_column<T>(M_leg, 1, q0, q1, q2, Qy0, Qy1, Qy2);
+    add_column<T>(M_leg, 2, q0, q1, q2, Qz0, Qz1, Qz2);
+    add_column<T>(M_leg, 3, q0, q1, q2, Qz0 * q1 - Qy0 * q2, Qz1 * q1 - Qy1 * q2, Qz2 * q1 - Qy2 * q2);
+    add_column<T>(M_leg, 4, q0, q1, q2, Qx0 * q2 - Qz0 * q0, Qx1 * q2 - Qz1 * q0, Qx2 * q2 - Qz2 * q0);
+    add_column<T>(M_leg, 5, q0, q1, q2, Qy0 * q0 - Qx0 * q1, Qy1 * q0 - Qx1 * q1, Qy2 * q0 - Qx2 * q1);
+}
+
+// The six legs' shares (leg_share) of one platform, or of one platform per lane: h_leg (6,6),
+// M_leg (6,36) (nullptr: no columns), jac (6,) rows.  One platform (T = double) on a processor
+// with vector lanes runs its six legs side by side, one per lane, with the same numbers as one by
+// one.  docs/physics.md sections 5.1 and 5.4-5.5; paper eqs. 38-41 and 47-49 (or 51 and 55).
+template <typename T>
+inline void leg_shares(const T* prm, int64_t flags, const T* t, const T* R, const T* v, const T* w, const T* acc,
+                       T (*h_leg)[6], T (*M_leg)[36], Row6<T>* jac) {
+#ifdef STEWART_ENV_VECTOR_EXTENSIONS
+    if constexpr (std::is_same_v<T, double>) {
+        using lanes::Lanes;
+        // lane l reads leg l's numbers where the kernels read leg 0's (lanes 6 and 7 repeat leg 5);
+        // the platform's numbers the legs read (damping, gravity) in every lane
+        Lanes P[N_PARAMS];
+        for (int k = 0; k < N_LAYOUT; ++k) {
+            const LayoutEntry& entry = PACKED_LAYOUT[k];
+            const int off = offset_of(k);
+            if (entry.ndim >= 1 && entry.shape[0] == 6) {
+                const int per_leg = entry_size(entry) / 6;
+                for (int j = 0; j < per_leg; ++j)
+                    for (int l = 0; l < lanes::LANES; ++l) P[off + j].set(l, prm[off + per_leg * std::min(l, 5) + j]);
+            } else {
+                for (int j = 0; j < entry_size(entry); ++j) P[off + j] = prm[off + j];
+            }
+        }
+        Lanes tl[3], Rl[9], vl[3], wl[3], al[6], hl[6], Ml[36];
+        for (int j = 0; j < 3; ++j) tl[j] = t[j], vl[j] = v[j], wl[j] = w[j];
+        for (int j = 0; j < 9; ++j) Rl[j] = R[j];
+        if (acc != nullptr)
+            for (int j = 0; j < 6; ++j) al[j] = acc[j];
+        Row6<Lanes> jl;
+        leg_share<Lanes>(P, flags, 0, tl, Rl, vl, wl, acc == nullptr ? nullptr : al, hl,
+                         M_leg == nullptr ? nullptr : Ml, jl);
+        for (int i = 0; i < 6; ++i) {
+            for (int r = 0; r < 6; ++r) h_leg[i][r] = hl[r][i], jac[i][r] = jl[r][i];
+            if (M_leg != nullptr)
+                for (int k = 0; k < 36; ++k) M_leg[i][k] = Ml[k][i];
+        }
+        return;
+    }
+#endif
+    for (int i = 0; i < 6; ++i)
+        leg_share<T>(prm, flags, i, t, R, v, w, acc, h_leg[i], M_leg == nullptr ? nullptr : M_leg[i], jac[i]);
 }
 
 // The equations of motion of one platform, {B}: M (6,6) and h (6,) overwritten with the mass
@@ -612,56 +736,34 @@ inline void solve6(double* M, double* b, double* x) {
 // With F = 0, h is the bias: velocity products, gravity and joint friction.  The actuator forces
 // are folded in leg by leg, so forward dynamics needs no second pass over the legs.
 // docs/physics.md section 5.4; paper eq. 49 (joint form) or 55 (centroidal form).
-inline void assemble_one(const double* prm, int64_t flags, const double* t, const double* R, const double* v,
-                         const double* w, const double* F, double* M, double* h) {
+template <typename T>
+inline void assemble_one(const T* prm, int64_t flags, const T* t, const T* R, const T* v,
+                         const T* w, const T* F, T* M, T* h) {
+    T h_leg[6][6], M_leg[6][36];
+    Row6<T> jac[6];
+    // bias: each leg's pull at zero platform acceleration, actuator force excluded
+    leg_shares<T>(prm, flags, t, R, v, w, nullptr, h_leg, M_leg, jac);
     std::fill(M, M + 36, 0.0);
     std::fill(h, h + 6, 0.0);
-    LegState leg;
-    LegBodies bodies;
     for (int i = 0; i < 6; ++i) {
-        // bias: the leg's pull at zero platform acceleration, actuator force excluded
-        leg_on_platform(prm, flags, i, t, R, v, w, nullptr, h, leg, bodies);
-        const LegFrame& fr = leg.frame;
-        const auto& [e0, e1, e2] = fr.e;
-        const auto& [y0, y1, y2] = fr.y;
-        const auto& [z0, z1, z2] = fr.z;
-        const auto& [q0, q1, q2] = fr.q;
-        // linear part: Q column j = the acceleration part of the leg force for a_P = unit vector j
-        // of {B} (row j of T in {D_i}); with zero rates leg_accel returns only its linear part
-        const auto [qa0, qa1, qa2] = unit_inertial_force(flags, bodies, fr, e0, y0, z0);
-        const auto [qb0, qb1, qb2] = unit_inertial_force(flags, bodies, fr, e1, y1, z1);
-        const auto [qc0, qc1, qc2] = unit_inertial_force(flags, bodies, fr, e2, y2, z2);
-        const auto [Qx0, Qx1, Qx2] = to_base(fr, qa0, qa1, qa2);
-        const auto [Qy0, Qy1, Qy2] = to_base(fr, qb0, qb1, qb2);
-        const auto [Qz0, Qz1, Qz2] = to_base(fr, qc0, qc1, qc2);
-        // a_P = a + alpha x q: column k of a moves P_i by e_k, of alpha by e_k x q
-        add_column(M, 0, q0, q1, q2, Qx0, Qx1, Qx2);
-        add_column(M, 1, q0, q1, q2, Qy0, Qy1, Qy2);
-        add_column(M, 2, q0, q1, q2, Qz0, Qz1, Qz2);
-        add_column(M, 3, q0, q1, q2, Qz0 * q1 - Qy0 * q2, Qz1 * q1 - Qy1 * q2, Qz2 * q1 - Qy2 * q2);
-        add_column(M, 4, q0, q1, q2, Qx0 * q2 - Qz0 * q0, Qx1 * q2 - Qz1 * q0, Qx2 * q2 - Qz2 * q0);
-        add_column(M, 5, q0, q1, q2, Qy0 * q0 - Qx0 * q1, Qy1 * q0 - Qx1 * q1, Qy2 * q0 - Qx2 * q1);
+        for (int r = 0; r < 6; ++r) h[r] += h_leg[i][r];
+        for (int k = 0; k < 36; ++k) M[k] += M_leg[i][k];
         // actuator force along e_i at P_i moves to the right-hand side J^T F
-        const auto [j0, j1, j2, j3, j4, j5] = jacobian_row(fr);
-        const double Fi = F[i];
-        h[0] -= Fi * j0;
-        h[1] -= Fi * j1;
-        h[2] -= Fi * j2;
-        h[3] -= Fi * j3;
-        h[4] -= Fi * j4;
-        h[5] -= Fi * j5;
+        const T Fi = F[i];
+        for (int r = 0; r < 6; ++r) h[r] -= Fi * jac[i][r];
     }
-    platform_terms(prm, flags, R, w, M, h);
+    platform_terms<T>(prm, flags, R, w, M, h);
 }
 
 // Forward dynamics of one platform: out[:3] = a, out[3:] = alpha, {B}.
 // M (6,6) and h (6,) are scratch.  Assembles M [a; alpha] + h = J^T F + W and solves it.
 // docs/physics.md section 5.4; paper eq. 49 (joint form) or 55 (centroidal form).
-inline void forward_one(const double* prm, int64_t flags, const double* t, const double* R, const double* v,
-                        const double* w, const double* F, const double* W, double* M, double* h, double* out) {
-    assemble_one(prm, flags, t, R, v, w, F, M, h);
+template <typename T>
+inline void forward_one(const T* prm, int64_t flags, const T* t, const T* R, const T* v,
+                        const T* w, const T* F, const T* W, T* M, T* h, T* out) {
+    assemble_one<T>(prm, flags, t, R, v, w, F, M, h);
     for (int r = 0; r < 6; ++r) h[r] = W[r] - h[r];
-    solve6(M, h, out);
+    solve6<T>(M, h, out);
 }
 
 // Inverse dynamics of one platform: leg forces out (6,) for acc = [a; alpha], {B}.
@@ -669,27 +771,28 @@ inline void forward_one(const double* prm, int64_t flags, const double* t, const
 // platform's six equations then fix the six actuator forces through J^T F = wrench.  M (6,6) and
 // h (6,) are scratch.  docs/physics.md section 5.5; paper eq. 49 (joint form) or 55 (centroidal
 // form) solved for the forces.
-inline void inverse_one(const double* prm, int64_t flags, const double* t, const double* R, const double* v,
-                        const double* w, const double* acc, const double* W, double* M, double* h, double* out) {
+template <typename T>
+inline void inverse_one(const T* prm, int64_t flags, const T* t, const T* R, const T* v,
+                        const T* w, const T* acc, const T* W, T* M, T* h, T* out) {
+    T h_leg[6][6];
+    Row6<T> jac[6];
+    leg_shares<T>(prm, flags, t, R, v, w, acc, h_leg, nullptr, jac);
     std::fill(M, M + 36, 0.0);
     std::fill(h, h + 6, 0.0);
-    LegState leg;
-    LegBodies bodies;
     for (int i = 0; i < 6; ++i) {
-        leg_on_platform(prm, flags, i, t, R, v, w, acc, h, leg, bodies);
+        for (int r = 0; r < 6; ++r) h[r] += h_leg[i][r];
         // column i of J^T
-        const Row6 row = jacobian_row(leg.frame);
-        for (int r = 0; r < 6; ++r) M[6 * r + i] = row[r];
+        for (int r = 0; r < 6; ++r) M[6 * r + i] = jac[i][r];
     }
     // the platform's own inertial and gravity terms at this acceleration, via its M and h
-    double Mp[36] = {0.0};
-    platform_terms(prm, flags, R, w, Mp, h);
+    T Mp[36] = {0.0};
+    platform_terms<T>(prm, flags, R, w, Mp, h);
     for (int r = 0; r < 6; ++r) {
-        double total = h[r] - W[r];
+        T total = h[r] - W[r];
         for (int c = 0; c < 6; ++c) total += Mp[6 * r + c] * acc[c];
         h[r] = total;
     }
-    solve6(M, h, out);
+    solve6<T>(M, h, out);
 }
 
 // Leg kinematics of one platform, {B}: frames (6,3,3) T_i = [e y z] as columns, lengths (6,),
@@ -699,10 +802,10 @@ inline void leg_kinematics_one(const double* prm, int64_t flags, const double* t
                                const double* w, const double* acc, double* frames, double* lengths, double* rates,
                                double* accels, double* omega_l, double* alpha_l, double* jac) {
     for (int i = 0; i < 6; ++i) {
-        const LegState leg = leg_state(prm, i, flags, t, R, v, w);
-        const LegFrame& fr = leg.frame;
+        const auto leg = leg_state(prm, i, flags, t, R, v, w);
+        const auto& fr = leg.frame;
         const auto [A0, A1, A2] = with_platform_acc(acc, fr, leg.a_vel);
-        const LegAccel la = leg_accel(flags, fr, leg.Ldot, leg.sigma, leg.w1, leg.w2, A0, A1, A2);
+        const auto la = leg_accel<double>(flags, fr, leg.Ldot, leg.sigma, leg.w1, leg.w2, A0, A1, A2);
         for (int r = 0; r < 3; ++r) {
             frames[9 * i + 3 * r + 0] = fr.e[r];
             frames[9 * i + 3 * r + 1] = fr.y[r];
@@ -711,9 +814,9 @@ inline void leg_kinematics_one(const double* prm, int64_t flags, const double* t
         lengths[i] = fr.L;
         rates[i] = leg.Ldot;
         accels[i] = la.Lddot;
-        const V3 om = to_base(fr, leg.sigma, leg.w1, leg.w2);
-        const V3 al = to_base(fr, la.al0, la.al1, la.al2);
-        const Row6 row = jacobian_row(fr);
+        const auto om = to_base(fr, leg.sigma, leg.w1, leg.w2);
+        const auto al = to_base(fr, la.al0, la.al1, la.al2);
+        const auto row = jacobian_row(fr);
         for (int r = 0; r < 3; ++r) {
             omega_l[3 * i + r] = om[r];
             alpha_l[3 * i + r] = al[r];
@@ -728,37 +831,93 @@ inline const double* params_row(const double* prm, int64_t n_prm, int64_t b) {
     return n_prm == 1 ? prm : prm + N_PARAMS * b;
 }
 
-//: forward_one or inverse_one: the dynamics of one platform solved for out (6,) from x (6,).
-using SolveOne = void (*)(const double* prm, int64_t flags, const double* t, const double* R, const double* v,
-                          const double* w, const double* x, const double* W, double* M, double* h, double* out);
+//: The packed parameter rows of a batch, prm (n_prm, N_PARAMS) with n_prm 1 or the batch size, as
+//: the kernels of each number type read them: a row of doubles for one platform, N_PARAMS Lanes
+//: for a block of rows (the one parameter row broadcast to every lane once for the whole batch, or
+//: the block's own rows gathered into the caller's scratch).
+struct ParamRows {
+    const double* prm;
+    int64_t n_prm;
+#ifdef STEWART_ENV_VECTOR_EXTENSIONS
+    std::vector<lanes::Lanes> shared;
+#endif
+    // n: the batch size (a batch smaller than a block needs no broadcast row)
+    ParamRows(const double* prm, int64_t n_prm, int64_t n) : prm(prm), n_prm(n_prm) {
+#ifdef STEWART_ENV_VECTOR_EXTENSIONS
+        if (n_prm == 1 && n >= lanes::LANES) shared.assign(prm, prm + N_PARAMS);
+#else
+        (void)n;
+#endif
+    }
+    const double* rows(int64_t b, double*) const { return params_row(prm, n_prm, b); }
+#ifdef STEWART_ENV_VECTOR_EXTENSIONS
+    const lanes::Lanes* rows(int64_t b, lanes::Lanes* scratch) const {
+        if (n_prm == 1) return shared.data();
+        lanes::load(prm, N_PARAMS, b, N_PARAMS, scratch);
+        return scratch;
+    }
+#endif
+};
 
-// Row b of forward_batch or inverse_batch: one (forward_one or inverse_one) on the row, with its
-// 6x6 scratch on the stack.  docs/physics.md sections 5.4-5.5; paper eq. 49 or 55.
-template <SolveOne one>
-inline void solve_row(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
-                      const double* v, const double* w, const double* x, const double* W, double* out, int64_t b) {
-    double M[36];
-    double h[6];
-    one(params_row(prm, n_prm, b), flags, t + 3 * b, R + 9 * b, v + 3 * b, w + 3 * b, x + 6 * b, W + 6 * b, M, h,
-        out + 6 * b);
+//: Scratch for the parameters of a block of rows of number type T (none for one platform).
+template <typename T>
+struct ParamScratch {
+    T rows[(lanes::width<T> > 1) ? N_PARAMS : 1];
+};
+
+// Rows b, b + 1, ... of forward_batch (forward true) or inverse_batch, as many as T carries:
+// forward_one or inverse_one on the rows' numbers loaded into T, out written back.  x (n,6) are
+// the leg forces or the accelerations.  docs/physics.md sections 5.4-5.5; paper eq. 49 or 55.
+template <typename T, bool forward>
+inline void solve_row(const ParamRows& prm, int64_t flags, const double* t, const double* R, const double* v,
+                      const double* w, const double* x, const double* W, double* out, int64_t b) {
+    ParamScratch<T> scratch;
+    T tl[3], Rl[9], vl[3], wl[3], xl[6], Wl[6], M[36], h[6], o[6];
+    lanes::load(t, 3, b, 3, tl);
+    lanes::load(R, 9, b, 9, Rl);
+    lanes::load(v, 3, b, 3, vl);
+    lanes::load(w, 3, b, 3, wl);
+    lanes::load(x, 6, b, 6, xl);
+    lanes::load(W, 6, b, 6, Wl);
+    const T* p = prm.rows(b, scratch.rows);
+    if constexpr (forward) {
+        forward_one<T>(p, flags, tl, Rl, vl, wl, xl, Wl, M, h, o);
+    } else {
+        inverse_one<T>(p, flags, tl, Rl, vl, wl, xl, Wl, M, h, o);
+    }
+    lanes::store(o, 6, out, 6, b);
 }
 
 // Forward dynamics over a batch of n rows.  prm (Np, N_PARAMS) with Np in {1, n}; t, v, w (n,3);
 // R (n,3,3); F (n,6) N; W (n,6) external wrench [F_ext; M_ext] at P, {B}; out (n,6) [a; alpha].
-// docs/physics.md section 5.4; paper eq. 49 or 55.
+// Blocks of rows run in the lanes of a vector and on every core (lanes.hpp): each row's numbers
+// are those of forward_one alone.  docs/physics.md section 5.4; paper eq. 49 or 55.
 inline void forward_batch(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
                           const double* v, const double* w, const double* F, const double* W, double* out,
                           int64_t n) {
-    for (int64_t b = 0; b < n; ++b) solve_row<forward_one>(prm, n_prm, flags, t, R, v, w, F, W, out, b);
+    const ParamRows rows(prm, n_prm, n);
+    lanes::for_rows(n, 1, [&](int64_t b, auto tag) {
+        solve_row<decltype(tag), true>(rows, flags, t, R, v, w, F, W, out, b);
+    });
 }
 
-// Row b of mass_bias_batch (docs/physics.md section 5.4; paper eq. 49 or 55).
-inline void mass_bias_row(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
-                          const double* v, const double* w, const double* W, double* M, double* h, int64_t b) {
-    const double zero[6] = {0.0};
-    assemble_one(params_row(prm, n_prm, b), flags, t + 3 * b, R + 9 * b, v + 3 * b, w + 3 * b, zero, M + 36 * b,
-                 h + 6 * b);
-    for (int r = 0; r < 6; ++r) h[6 * b + r] -= W[6 * b + r];
+// Rows b, b + 1, ... of mass_bias_batch, as many as T carries (docs/physics.md section 5.4;
+// paper eq. 49 or 55).
+template <typename T>
+inline void mass_bias_row(const ParamRows& prm, int64_t flags, const double* t, const double* R, const double* v,
+                          const double* w, const double* W, double* M, double* h, int64_t b) {
+    ParamScratch<T> scratch;
+    T tl[3], Rl[9], vl[3], wl[3], Wl[6], Ml[36], hl[6];
+    const T zero[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    lanes::load(t, 3, b, 3, tl);
+    lanes::load(R, 9, b, 9, Rl);
+    lanes::load(v, 3, b, 3, vl);
+    lanes::load(w, 3, b, 3, wl);
+    lanes::load(W, 6, b, 6, Wl);
+    assemble_one<T>(prm.rows(b, scratch.rows), flags, tl, Rl, vl, wl, zero, Ml, hl);
+    for (int r = 0; r < 6; ++r) hl[r] -= Wl[r];
+    lanes::store(Ml, 36, M, 36, b);
+    lanes::store(hl, 6, h, 6, b);
 }
 
 // Mass matrix M (n,6,6) and bias h (n,6) over a batch, so that M [a; alpha] + h = J^T F: the
@@ -766,15 +925,22 @@ inline void mass_bias_row(const double* prm, int64_t n_prm, int64_t flags, const
 // docs/physics.md section 5.4; paper eq. 49 or 55.
 inline void mass_bias_batch(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
                             const double* v, const double* w, const double* W, double* M, double* h, int64_t n) {
-    for (int64_t b = 0; b < n; ++b) mass_bias_row(prm, n_prm, flags, t, R, v, w, W, M, h, b);
+    const ParamRows rows(prm, n_prm, n);
+    lanes::for_rows(n, 1, [&](int64_t b, auto tag) {
+        mass_bias_row<decltype(tag)>(rows, flags, t, R, v, w, W, M, h, b);
+    });
 }
 
-// Inverse dynamics over a batch: acc (n,6) [a; alpha] -> out (n,6) leg forces, N.
-// docs/physics.md section 5.5; paper eq. 49 or 55 solved for the forces.
+// Inverse dynamics over a batch: acc (n,6) [a; alpha] -> out (n,6) leg forces, N; blocks of rows
+// in vector lanes and on every core, as forward_batch.  docs/physics.md section 5.5; paper eq. 49
+// or 55 solved for the forces.
 inline void inverse_batch(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
                           const double* v, const double* w, const double* acc, const double* W, double* out,
                           int64_t n) {
-    for (int64_t b = 0; b < n; ++b) solve_row<inverse_one>(prm, n_prm, flags, t, R, v, w, acc, W, out, b);
+    const ParamRows rows(prm, n_prm, n);
+    lanes::for_rows(n, 1, [&](int64_t b, auto tag) {
+        solve_row<decltype(tag), false>(rows, flags, t, R, v, w, acc, W, out, b);
+    });
 }
 
 // Leg kinematics over a batch (shapes of leg_kinematics_one with a leading n).  Serial: it serves
@@ -927,10 +1093,10 @@ inline void leg_sensors_row(const double* prm, int64_t n_prm, const double* t, c
     const double* p = params_row(prm, n_prm, b);
     double jac[36];
     for (int i = 0; i < 6; ++i) {
-        const LegState leg = leg_state(p, i, 0, t + 3 * b, R + 9 * b, v + 3 * b, w + 3 * b);
+        const auto leg = leg_state(p, i, 0, t + 3 * b, R + 9 * b, v + 3 * b, w + 3 * b);
         lengths[6 * b + i] = leg.frame.L;
         rates[6 * b + i] = leg.Ldot;
-        const Row6 row = jacobian_row(leg.frame);
+        const auto row = jacobian_row(leg.frame);
         for (int c = 0; c < 6; ++c) jac[6 * i + c] = row[c];
     }
     const double bound = frobenius_condition(jac);
@@ -948,12 +1114,14 @@ inline void leg_sensors_row(const double* prm, int64_t n_prm, const double* t, c
 // condition is the 2-norm condition number wherever it exceeds max_condition (inf when singular or
 // non-finite); below it, the cheaper bound ||J||_F ||J^-1||_F >= cond_2, itself at most
 // max_condition.  So condition > max_condition holds exactly when cond_2 does.
-// docs/physics.md section 4.4; paper eqs. 7 and 13.
+// Rows run on every core (lanes::for_each_row).  docs/physics.md section 4.4; paper eqs. 7 and 13.
 inline void leg_sensors_batch(const double* prm, int64_t n_prm, const double* t, const double* R, const double* v,
                               const double* w, double max_condition, double* lengths, double* rates,
                               double* condition, int64_t n) {
-    for (int64_t b = 0; b < n; ++b)
+    // a row costs about as much as one forward evaluation in a lane: rows shared with the helpers
+    lanes::for_each_row(n, 1, [&](int64_t b) {
         leg_sensors_row(prm, n_prm, t, R, v, w, max_condition, lengths, rates, condition, b);
+    });
 }
 
 }  // namespace kernels

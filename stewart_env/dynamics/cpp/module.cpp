@@ -8,15 +8,20 @@
 #include <string>
 #include <vector>
 
+#include "env_step.hpp"
 #include "kernels.hpp"
 #include "laws.hpp"
 #include "rk4.hpp"
+#include "task_kernels.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
 
 using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
 using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
+using Flags = nb::ndarray<bool, nb::c_contig, nb::device::cpu>;
+using InFlags = nb::ndarray<const bool, nb::c_contig, nb::device::cpu>;
+using Codes = nb::ndarray<int64_t, nb::c_contig, nb::device::cpu>;
 
 namespace {
 
@@ -96,7 +101,62 @@ nb::tuple pd_layout() {
     return nb::tuple(entries);
 }
 
+// A float64 C-contiguous buffer of a given shape, borrowed from a Python object for one call (the
+// fast path of the checked single-platform calls): take() says whether the object is one, and
+// leaves no Python error behind when it is not.
+class Doubles {
+public:
+    Doubles() = default;
+    Doubles(const Doubles&) = delete;
+    Doubles& operator=(const Doubles&) = delete;
+    ~Doubles() {
+        if (held_) PyBuffer_Release(&view_);
+    }
+    bool take(nb::handle obj, std::initializer_list<Py_ssize_t> shape, bool writable = false) {
+        if (!PyObject_CheckBuffer(obj.ptr())) return false;
+        const int want = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+        if (PyObject_GetBuffer(obj.ptr(), &view_, want) != 0) {
+            PyErr_Clear();
+            return false;
+        }
+        held_ = true;
+        if (view_.itemsize != 8 || view_.format == nullptr || view_.format[0] != 'd' || view_.format[1] != 0 ||
+            view_.ndim != static_cast<int>(shape.size()))
+            return false;
+        int d = 0;
+        for (Py_ssize_t s : shape)
+            if (view_.shape[d++] != s) return false;
+        return true;
+    }
+    double* data() const { return static_cast<double*>(view_.buf); }
+
+private:
+    Py_buffer view_{};
+    bool held_ = false;
+};
+
+// Whether the state and the 6-vector x of one platform are all finite numbers and R a rotation
+// within tolerance: the checks of model.batch_args, passed.
+bool checked(const Doubles& t, const Doubles& R, const Doubles& v, const Doubles& w, const Doubles& x,
+             const Doubles& W, double tolerance) {
+    return kernels::all_finite(t.data(), 3) && kernels::all_finite(R.data(), 9) && kernels::all_finite(v.data(), 3) &&
+           kernels::all_finite(w.data(), 3) && kernels::all_finite(x.data(), 6) && kernels::all_finite(W.data(), 6) &&
+           kernels::largest_rotation_error(R.data(), 1) <= tolerance;
+}
+
+//: The arrays of a Workspace (stewart_env.dynamics.workspace), bound once: its calls hand the
+//: kernels these pointers with no argument to convert.  keep holds the arrays (a tuple), so they
+//: live as long as it does.
+struct BoundWorkspace {
+    nb::object keep;
+    const double* prm;
+    int64_t n_prm, flags, n;
+    double *t, *R, *v, *w, *F, *W, *acc, *M, *h;
+};
+
 }  // namespace
+
+void def_env_kernels(nb::module_& m);
 
 NB_MODULE(_core, m) {
     m.doc() = "The compiled kernels of the Stewart platform's kinematics, dynamics and integrator.";
@@ -113,6 +173,92 @@ NB_MODULE(_core, m) {
     m.attr("PD_CONTROL_LAW") = reinterpret_cast<uintptr_t>(&laws::pd_control_law);
     m.attr("LAW_JACOBIAN") = reinterpret_cast<uintptr_t>(&rk4::law_jacobian);
     m.attr("LAW_INVERSE_DYNAMICS") = reinterpret_cast<uintptr_t>(&rk4::law_inverse_dynamics);
+
+    m.def("forward_one_checked", [](nb::handle prm, int64_t flags, nb::handle t, nb::handle R, nb::handle v,
+                                    nb::handle w, nb::handle F, nb::handle W, double tolerance, nb::handle out) {
+        Doubles P, tv, Rv, vv, wv, Fv, Wv, ov;
+        if (!(P.take(prm, {1, kernels::N_PARAMS}) && tv.take(t, {3}) && Rv.take(R, {3, 3}) && vv.take(v, {3}) &&
+              wv.take(w, {3}) && Fv.take(F, {6}) && Wv.take(W, {6}) && ov.take(out, {6}, true) &&
+              checked(tv, Rv, vv, wv, Fv, Wv, tolerance)))
+            return false;
+        double M[36], h[6];
+        kernels::forward_one<double>(P.data(), flags, tv.data(), Rv.data(), vv.data(), wv.data(), Fv.data(), Wv.data(),
+                                     M, h, ov.data());
+        return true;
+    }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "F"_a, "W"_a, "tolerance"_a, "out"_a,
+       "Forward dynamics of one platform into out (6,) when every argument is a float64 C-contiguous array of one "
+       "platform's shape, finite, and R a rotation within tolerance; otherwise False and nothing computed (the "
+       "caller then checks the arguments itself and reports what is wrong).");
+
+    m.def("inverse_one_checked", [](nb::handle prm, int64_t flags, nb::handle t, nb::handle R, nb::handle v,
+                                    nb::handle w, nb::handle lin, nb::handle ang, nb::handle W, double tolerance,
+                                    nb::handle out) {
+        Doubles P, tv, Rv, vv, wv, lv, av, Wv, ov;
+        if (!(P.take(prm, {1, kernels::N_PARAMS}) && tv.take(t, {3}) && Rv.take(R, {3, 3}) && vv.take(v, {3}) &&
+              wv.take(w, {3}) && lv.take(lin, {3}) && av.take(ang, {3}) && Wv.take(W, {6}) && ov.take(out, {6}, true)))
+            return false;
+        const double acc[6] = {lv.data()[0], lv.data()[1], lv.data()[2], av.data()[0], av.data()[1], av.data()[2]};
+        if (!(kernels::all_finite(acc, 6) && kernels::all_finite(tv.data(), 3) && kernels::all_finite(Rv.data(), 9) &&
+              kernels::all_finite(vv.data(), 3) && kernels::all_finite(wv.data(), 3) &&
+              kernels::all_finite(Wv.data(), 6) && kernels::largest_rotation_error(Rv.data(), 1) <= tolerance))
+            return false;
+        double M[36], h[6];
+        kernels::inverse_one<double>(P.data(), flags, tv.data(), Rv.data(), vv.data(), wv.data(), acc, Wv.data(), M, h,
+                                     ov.data());
+        return true;
+    }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "lin_acc"_a, "ang_acc"_a, "W"_a, "tolerance"_a, "out"_a,
+       "Inverse dynamics of one platform into out (6,), on the terms of forward_one_checked.");
+
+    m.def("forward_flops", [](In prm, int64_t flags, In t, In R, In v, In w, In F) {
+        expect(prm, "prm", {1, kernels::N_PARAMS});
+        expect(t, "position", {3});
+        expect(R, "rotation", {3, 3});
+        expect(v, "velocity", {3});
+        expect(w, "angular_velocity", {3});
+        expect(F, "leg_forces", {6});
+        using lanes::Counted;
+        Counted P[kernels::N_PARAMS], tc[3], Rc[9], vc[3], wc[3], Fc[6], Wc[6], M[36], h[6], out[6];
+        for (int k = 0; k < kernels::N_PARAMS; ++k) P[k] = prm.data()[k];
+        for (int k = 0; k < 3; ++k) tc[k] = t.data()[k], vc[k] = v.data()[k], wc[k] = w.data()[k];
+        for (int k = 0; k < 9; ++k) Rc[k] = R.data()[k];
+        for (int k = 0; k < 6; ++k) Fc[k] = F.data()[k], Wc[k] = 0.0;
+        Counted::flops = 0;
+        kernels::forward_one<Counted>(P, flags, tc, Rc, vc, wc, Fc, Wc, M, h, out);
+        return Counted::flops;
+    }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "F"_a,
+       "The floating-point operations (+, -, *, /, sqrt) of one forward evaluation at this state: the kernel run on "
+       "a number type that counts them.");
+
+    nb::class_<BoundWorkspace>(m, "BoundWorkspace",
+                               "The arrays of a Workspace bound once, for its calls without argument conversion.")
+        .def("__init__", [](BoundWorkspace* self, nb::tuple arrays, In prm, int64_t flags, Out t, Out R, Out v, Out w,
+                            Out F, Out W, Out acc, Out M, Out h) {
+            const int64_t n = batch(prm, In(t));
+            state(t, R, v, w, n);
+            expect(F, "leg_forces", {n, 6});
+            expect(W, "external_wrench", {n, 6});
+            expect(acc, "acceleration", {n, 6});
+            expect(M, "mass_matrix", {n, 6, 6});
+            expect(h, "bias", {n, 6});
+            new (self) BoundWorkspace{arrays, prm.data(), static_cast<int64_t>(prm.shape(0)), flags, n, t.data(),
+                                      R.data(), v.data(), w.data(), F.data(), W.data(), acc.data(), M.data(),
+                                      h.data()};
+        }, "arrays"_a, "prm"_a, "flags"_a, "t"_a.noconvert(), "R"_a.noconvert(), "v"_a.noconvert(),
+           "w"_a.noconvert(), "F"_a.noconvert(), "W"_a.noconvert(), "acc"_a.noconvert(), "M"_a.noconvert(),
+           "h"_a.noconvert())
+        .def("forward", [](BoundWorkspace& s) {
+            kernels::forward_batch(s.prm, s.n_prm, s.flags, s.t, s.R, s.v, s.w, s.F, s.W, s.acc, s.n);
+        })
+        .def("inverse", [](BoundWorkspace& s) {
+            kernels::inverse_batch(s.prm, s.n_prm, s.flags, s.t, s.R, s.v, s.w, s.acc, s.W, s.F, s.n);
+        })
+        .def("mass_and_bias", [](BoundWorkspace& s) {
+            kernels::mass_bias_batch(s.prm, s.n_prm, s.flags, s.t, s.R, s.v, s.w, s.W, s.M, s.h, s.n);
+        })
+        .def("step", [](BoundWorkspace& s, double dt, int64_t steps) {
+            nb::gil_scoped_release release;
+            rk4::rollout_batch(s.prm, s.n_prm, s.flags, s.t, s.R, s.v, s.w, s.F, s.W, dt, steps, s.n);
+        }, "dt"_a, "steps"_a);
 
     def_solve_batch<kernels::forward_batch>(m, "forward_batch", "F", "leg_forces");
     def_solve_batch<kernels::inverse_batch>(m, "inverse_batch", "acc", "acceleration");
@@ -239,4 +385,372 @@ NB_MODULE(_core, m) {
         laws::law_forces_batch(reinterpret_cast<rk4::ControlLaw>(law), time, t.data(), R.data(), v.data(), w.data(),
                                params.data(), params.shape(0), params.shape(1), out.data(), n);
     }, "law"_a, "time"_a, "t"_a, "R"_a, "v"_a, "w"_a, "params"_a, "out"_a.noconvert());
+
+    def_env_kernels(m);
+}
+
+// ---- The tasks' and the environment's per-step kernels (task_kernels.hpp, env_step.hpp) ----------
+
+namespace {
+
+task_kernels::Limits limits_of(const In& position_min, const In& position_max, const In& home_rpy, double max_angle,
+                               double length_min, double length_max, double max_condition) {
+    expect(position_min, "position_min", {3});
+    expect(position_max, "position_max", {3});
+    expect(home_rpy, "home_rpy", {3});
+    return {position_min.data(), position_max.data(), home_rpy.data(), max_angle, length_min, length_max,
+            max_condition};
+}
+
+env_step::State state_of(Out& t, Out& R, Out& v, Out& w) { return {t.data(), R.data(), v.data(), w.data()}; }
+
+}  // namespace
+
+// The compiled batch of the environment (env_step::Batch): the numpy arrays it works on, taken
+// from a dict by name once, shape-checked and kept alive while it lives; the per-step call then
+// passes only the action and the step's fresh outputs.
+class BatchStep {
+public:
+    explicit BatchStep(nb::dict a) {
+        const int64_t n = nb::cast<int64_t>(a["n"]);
+        if (n < 1) throw nb::value_error("n: expected a positive batch size");
+        env_step::Batch& B = b_;
+        B.n = n;
+        set_model(a["prm"], nb::cast<int64_t>(a["flags"]));
+        const In sensor = keep<In>(a["sensor_prm"], "sensor_prm", {-1, kernels::N_PARAMS});
+        if (!(sensor.shape(0) == 1 || static_cast<int64_t>(sensor.shape(0)) == n))
+            throw nb::value_error("sensor_prm: expected 1 or N parameter rows");
+        B.c.sensor_prm = sensor.data();
+        B.c.n_sensor_prm = static_cast<int64_t>(sensor.shape(0));
+        B.c.force_half = nb::cast<double>(a["force_half"]);
+        B.c.force_mid = nb::cast<double>(a["force_mid"]);
+        B.c.lag = nb::cast<double>(a["lag"]);
+        B.c.physics_dt = nb::cast<double>(a["physics_dt"]);
+        B.c.substeps = nb::cast<int64_t>(a["substeps"]);
+        if (B.c.substeps < 0) throw nb::value_error("substeps: expected a non-negative integer");
+        B.c.control_dt = nb::cast<double>(a["control_dt"]);
+        B.c.max_condition = nb::cast<double>(a["max_condition"]);
+        B.s = state_arrays(a, "", n);
+        B.start = state_arrays(a, "start_", n);
+        B.clipped = keep<Out>(a["action"], "action", {n, 6}).data();
+        B.F = keep<Out>(a["leg_forces"], "leg_forces", {n, 6}).data();
+        B.W = keep<Out>(a["external_wrench"], "external_wrench", {n, 6}).data();
+        B.steps = keep<Codes>(a["steps"], "steps", {n}).data();
+        B.time = keep<Out>(a["time"], "time", {n}).data();
+        B.non_finite = keep<Flags>(a["non_finite"], "non_finite", {n}).data();
+        B.lengths = keep<Out>(a["leg_lengths"], "leg_lengths", {n, 6}).data();
+        B.rates = keep<Out>(a["leg_rates"], "leg_rates", {n, 6}).data();
+        B.condition = keep<Out>(a["condition"], "condition", {n}).data();
+        B.rt = keep<Out>(a["ref_position"], "ref_position", {n, 3}).data();
+        B.rR = keep<Out>(a["ref_rotation"], "ref_rotation", {n, 3, 3}).data();
+        B.rv = keep<Out>(a["ref_velocity"], "ref_velocity", {n, 3}).data();
+        B.rw = keep<Out>(a["ref_angular_velocity"], "ref_angular_velocity", {n, 3}).data();
+        B.errors = keep<Out>(a["error_vectors"], "error_vectors", {4, n, 3}).data();
+        B.norms = keep<Out>(a["error_norms"], "error_norms", {4, n}).data();
+        B.limits = {keep<In>(a["position_min"], "position_min", {3}).data(),
+                    keep<In>(a["position_max"], "position_max", {3}).data(),
+                    keep<In>(a["home_rpy"], "home_rpy", {3}).data(), nb::cast<double>(a["max_angle"]),
+                    nb::cast<double>(a["length_min"]), nb::cast<double>(a["length_max"]), B.c.max_condition};
+        const In w = keep<In>(a["weights"], "weights", {8});
+        B.weights = {w.data()[0], w.data()[1], w.data()[2], w.data()[3], w.data()[4], w.data()[5], w.data()[6],
+                     w.data()[7]};
+        B.termination_cost = nb::cast<double>(a["termination_cost"]);
+        const auto failure = keep<InFlags>(a["failure"], "failure", {-1});
+        n_codes_ = static_cast<int64_t>(failure.shape(0));
+        // code 0 and the four limits' codes that limit_codes gives
+        if (n_codes_ < 5) throw nb::value_error("failure: expected an entry for code 0 and each limit's code");
+        B.failure = failure.data();
+        B.observe = nb::cast<bool>(a["observe"]);
+        if (!B.observe) return;
+        env_step::Layout& L = B.layout;
+        L.pose = nb::cast<bool>(a["pose"]);
+        L.leg_lengths = nb::cast<int64_t>(a["leg_lengths_at"]);
+        L.leg_rates = nb::cast<int64_t>(a["leg_rates_at"]);
+        L.leg_forces = nb::cast<int64_t>(a["leg_forces_at"]);
+        L.position_error = nb::cast<int64_t>(a["position_error_at"]);
+        L.orientation_error = nb::cast<int64_t>(a["orientation_error_at"]);
+        L.error_integral = nb::cast<int64_t>(a["error_integral_at"]);
+        const Out raw = keep<Out>(a["raw"], "raw", {n, -1});
+        L.dim = static_cast<int64_t>(raw.shape(1));
+        const int64_t D = L.dim;
+        // every term's columns inside the row
+        const auto fits = [D](int64_t at, int64_t size, bool on) { return !on || (at >= 0 && at + size <= D); };
+        if (!(fits(0, 15, L.pose) && fits(L.leg_lengths, 6, !L.pose) && fits(L.leg_rates, 6, !L.pose) &&
+              fits(L.leg_forces, 6, L.leg_forces >= 0) && fits(L.position_error, 3, true) &&
+              fits(L.orientation_error, 3, true) && fits(L.error_integral, 6, L.error_integral >= 0)))
+            throw nb::value_error("layout: a term outside the observation row");
+        B.raw = raw.data();
+        const Out history = keep<Out>(a["history"], "history", {-1, n, D});
+        B.history = history.data();
+        B.slots = static_cast<int64_t>(history.shape(0));
+        B.normalize = nb::cast<bool>(a["normalize"]);
+        B.offset = keep<In>(a["offset"], "offset", {D}).data();
+        B.inv_scale = keep<In>(a["inv_scale"], "inv_scale", {D}).data();
+        B.integral = nullptr;
+        B.band = nullptr;
+        if (L.error_integral >= 0) {
+            B.integral = keep<Out>(a["error_integral"], "error_integral", {n, 6}).data();
+            B.bound = keep<In>(a["error_integral_bound"], "error_integral_bound", {6}).data();
+            if (!a["error_integral_band"].is_none())
+                B.band = keep<In>(a["error_integral_band"], "error_integral_band", {6}).data();
+        }
+        B.pending = keep<Flags>(a["pending"], "pending", {n}).data();
+        B.largest = nb::cast<double>(a["largest"]);
+    }
+
+    // New packed parameters of the plant (domain randomisation at a reset): prm (1 or n rows).
+    void set_model(nb::handle packed, int64_t flags) {
+        In prm;
+        if (!nb::try_cast<In>(packed, prm, false))
+            throw nb::value_error("prm: expected a C-contiguous float64 array");
+        expect(prm, "prm", {-1, kernels::N_PARAMS});
+        if (!(prm.shape(0) == 1 || static_cast<int64_t>(prm.shape(0)) == b_.n))
+            throw nb::value_error("prm: expected 1 or N parameter rows");
+        prm_ = nb::borrow(packed);
+        b_.c.prm = prm.data();
+        b_.c.n_prm = static_cast<int64_t>(prm.shape(0));
+        b_.c.flags = flags;
+    }
+
+    int64_t step(In action, bool drive, nb::object noise, nb::object skip, int64_t head, Codes code, Out terms,
+                 Out reward, Flags bad) {
+        const int64_t n = b_.n;
+        expect(action, "action", {n, 6});
+        expect(code, "code", {n});
+        expect(terms, "terms", {5, n});
+        expect(reward, "reward", {n});
+        expect(bad, "bad", {n});
+        if (head < 0 || (b_.observe && head >= b_.slots)) throw nb::value_error("head: outside the history ring");
+        const double* noise_data = nullptr;
+        const bool* skip_data = nullptr;
+        In noise_array;
+        InFlags skip_array;
+        if (!noise.is_none()) {
+            noise_array = nb::cast<In>(noise);
+            expect(noise_array, "noise", {n, b_.observe ? b_.layout.dim : -1});
+            noise_data = noise_array.data();
+        }
+        if (!skip.is_none()) {
+            skip_array = nb::cast<InFlags>(skip);
+            expect(skip_array, "skip", {n});
+            skip_data = skip_array.data();
+        }
+        nb::gil_scoped_release release;
+        return env_step::step(b_, action.data(), drive, noise_data, skip_data, head, code.data(), terms.data(),
+                              reward.data(), bad.data());
+    }
+
+    int64_t n_codes() const { return n_codes_; }
+
+private:
+    // An array of the dict, checked and kept alive; never converted (the batch writes into it).
+    template <typename A>
+    A keep(nb::handle h, const char* name, std::initializer_list<int64_t> shape) {
+        A a;
+        if (!nb::try_cast<A>(h, a, false))
+            throw nb::value_error((std::string(name) + ": expected a C-contiguous array of the batch's dtype").c_str());
+        expect(a, name, shape);
+        kept_.push_back(nb::borrow(h));
+        return a;
+    }
+
+    env_step::State state_arrays(nb::dict a, const std::string& prefix, int64_t n) {
+        const auto name = [&prefix](const char* field) { return prefix + field; };
+        return {keep<Out>(a[name("position").c_str()], "position", {n, 3}).data(),
+                keep<Out>(a[name("rotation").c_str()], "rotation", {n, 3, 3}).data(),
+                keep<Out>(a[name("velocity").c_str()], "velocity", {n, 3}).data(),
+                keep<Out>(a[name("angular_velocity").c_str()], "angular_velocity", {n, 3}).data()};
+    }
+
+    env_step::Batch b_{};
+    std::vector<nb::object> kept_;
+    nb::object prm_;
+    int64_t n_codes_ = 0;
+};
+
+void def_env_kernels(nb::module_& m) {
+    m.attr("NON_FINITE_STATE") = env_step::NON_FINITE_STATE;
+    m.attr("BAD_ROWS") = env_step::BAD_ROWS;
+    nb::class_<BatchStep>(m, "BatchStep",
+        "The compiled control step of a batch of the environment (env_step.hpp): built once from the batch's "
+        "arrays by name, then one call per control step.")
+        .def(nb::init<nb::dict>(), "arrays"_a)
+        .def("set_model", &BatchStep::set_model, "prm"_a, "flags"_a)
+        .def("step", &BatchStep::step, "action"_a, "drive"_a, "noise"_a.none(), "skip"_a.none(), "head"_a,
+             "code"_a.noconvert(), "terms"_a.noconvert(), "reward"_a.noconvert(), "bad"_a.noconvert(),
+             "One control step of every row; returns 1 | 2 as a row's state stopped being finite | a row's "
+             "observation or reward was not (the rows in bad).");
+
+    m.def("rotation_error_rows", [](In r, In c, Out phi, Out angle) {
+        expect(c, "rotation", {-1, 3, 3});
+        const int64_t n = static_cast<int64_t>(c.shape(0));
+        expect(r, "rotation_ref", {n, 3, 3});
+        expect(phi, "phi", {n, 3});
+        expect(angle, "angle", {n});
+        task_kernels::rotation_error_rows(r.data(), c.data(), phi.data(), angle.data(), 1, n);
+    }, "r"_a, "c"_a, "phi"_a.noconvert(), "angle"_a.noconvert(),
+       "Rotation vector phi (N,3) of r c^T and its angle (N,), row by row (rotations.rotation_error).");
+
+    m.def("tracking_errors", [](In t, In R, In v, In w, In rt, In rR, In rv, In rw, Out ep, Out eo, Out ev, Out ew,
+                                Out norms) {
+        expect(t, "position", {-1, 3});
+        const int64_t n = static_cast<int64_t>(t.shape(0));
+        state(t, R, v, w, n);
+        state(rt, rR, rv, rw, n);
+        expect(ep, "ep", {n, 3});
+        expect(eo, "eo", {n, 3});
+        expect(ev, "ev", {n, 3});
+        expect(ew, "ew", {n, 3});
+        expect(norms, "norms", {4, n});
+        task_kernels::tracking_errors(t.data(), R.data(), v.data(), w.data(), rt.data(), rR.data(), rv.data(),
+                                      rw.data(), ep.data(), eo.data(), ev.data(), ew.data(), norms.data(), 1, n, n);
+    }, "t"_a, "R"_a, "v"_a, "w"_a, "rt"_a, "rR"_a, "rv"_a, "rw"_a, "ep"_a.noconvert(), "eo"_a.noconvert(),
+       "ev"_a.noconvert(), "ew"_a.noconvert(), "norms"_a.noconvert(),
+       "Reference minus actual of a batch: position, orientation, velocity, angular velocity (N,3) each, and "
+       "their norms (4,N).");
+
+    m.def("limit_codes", [](In t, In R, In lengths, In condition, InFlags non_finite, In position_min,
+                            In position_max, In home_rpy, double max_angle, double length_min, double length_max,
+                            double max_condition, Codes code) {
+        expect(t, "position", {-1, 3});
+        const int64_t n = static_cast<int64_t>(t.shape(0));
+        expect(R, "rotation", {n, 3, 3});
+        expect(lengths, "leg_lengths", {n, 6});
+        expect(condition, "condition", {n});
+        expect(non_finite, "non_finite", {n});
+        expect(code, "code", {n});
+        const auto lim = limits_of(position_min, position_max, home_rpy, max_angle, length_min, length_max,
+                                   max_condition);
+        task_kernels::limit_codes(t.data(), R.data(), lengths.data(), condition.data(), non_finite.data(), lim,
+                                  code.data(), n);
+    }, "t"_a, "R"_a, "lengths"_a, "condition"_a, "non_finite"_a, "position_min"_a, "position_max"_a, "home_rpy"_a,
+       "max_angle"_a, "length_min"_a, "length_max"_a, "max_condition"_a, "code"_a.noconvert(),
+       "Termination codes (N,) of the platform's limits, by priority (tasks.LIMIT_REASONS).");
+
+    m.def("tracking_reward", [](In ep, In eo, In ev, In ew, In action, double wp, double sp, double wo, double so,
+                                double wv, double sv, double sw, double wc, Out out) {
+        expect(ep, "position_norm", {-1});
+        const int64_t n = static_cast<int64_t>(ep.shape(0));
+        expect(eo, "orientation_norm", {n});
+        expect(ev, "velocity_norm", {n});
+        expect(ew, "angular_velocity_norm", {n});
+        expect(action, "action", {n, 6});
+        expect(out, "out", {4, n});
+        task_kernels::tracking_reward(ep.data(), eo.data(), ev.data(), ew.data(), 1, action.data(),
+                                      {wp, sp, wo, so, wv, sv, sw, wc}, out.data(), n);
+    }, "ep"_a, "eo"_a, "ev"_a, "ew"_a, "action"_a, "wp"_a, "sp"_a, "wo"_a, "so"_a, "wv"_a, "sv"_a, "sw"_a, "wc"_a,
+       "out"_a.noconvert(),
+       "The four running terms (4,N) of the tracking-error reward (tasks.RewardWeights).");
+
+    m.def("within_margins", [](In position, In rpy, In lengths, In condition, In position_min, In position_max,
+                               In home_rpy, double max_angle, double length_min, double length_max,
+                               double max_condition, double margin, Flags ok) {
+        expect(position, "position", {-1, 3});
+        const int64_t n = static_cast<int64_t>(position.shape(0));
+        expect(rpy, "rpy", {n, 3});
+        expect(lengths, "leg_lengths", {n, 6});
+        expect(condition, "condition", {n});
+        expect(ok, "ok", {n});
+        const auto lim = limits_of(position_min, position_max, home_rpy, max_angle, length_min, length_max,
+                                   max_condition);
+        task_kernels::within_margins(position.data(), rpy.data(), lengths.data(), condition.data(), lim, margin,
+                                     ok.data(), n);
+    }, "position"_a, "rpy"_a, "lengths"_a, "condition"_a, "position_min"_a, "position_max"_a, "home_rpy"_a,
+       "max_angle"_a, "length_min"_a, "length_max"_a, "max_condition"_a, "margin"_a, "ok"_a.noconvert(),
+       "Whether poses lie inside the limits shrunk by margin (tasks.pose_margins).");
+
+    m.def("drive", [](In action, double half, double mid, double lag, Out clipped, Out forces) {
+        expect(action, "action", {-1, 6});
+        const int64_t n = static_cast<int64_t>(action.shape(0));
+        expect(clipped, "clipped", {n, 6});
+        expect(forces, "leg_forces", {n, 6});
+        env_step::drive(action.data(), half, mid, lag, clipped.data(), forces.data(), n);
+    }, "action"_a, "half"_a, "mid"_a, "lag"_a, "clipped"_a.noconvert(), "forces"_a.noconvert(),
+       "The actuators: the action clipped to [-1, 1] and mapped onto the force range, through the lag.");
+
+    m.def("after_physics", [](Out t, Out R, Out v, Out w, Out t0, Out R0, Out v0, Out w0, Codes steps, double dt,
+                              Out time, Flags non_finite) {
+        expect(t, "position", {-1, 3});
+        const int64_t n = static_cast<int64_t>(t.shape(0));
+        state(t, R, v, w, n);
+        state(t0, R0, v0, w0, n);
+        expect(steps, "steps", {n});
+        expect(time, "time", {n});
+        expect(non_finite, "non_finite", {n});
+        return env_step::after_physics(state_of(t, R, v, w), state_of(t0, R0, v0, w0), steps.data(), dt,
+                                       time.data(), non_finite.data(), n);
+    }, "t"_a.noconvert(), "R"_a.noconvert(), "v"_a.noconvert(), "w"_a.noconvert(), "t0"_a.noconvert(),
+       "R0"_a.noconvert(), "v0"_a.noconvert(), "w0"_a.noconvert(), "steps"_a.noconvert(), "dt"_a,
+       "time"_a.noconvert(), "non_finite"_a.noconvert(),
+       "Advance the clock; put rows whose state stopped being finite back to their start state.");
+
+    m.def("copy_state", [](Out t, Out R, Out v, Out w, Out t0, Out R0, Out v0, Out w0) {
+        expect(t, "position", {-1, 3});
+        const int64_t n = static_cast<int64_t>(t.shape(0));
+        state(t, R, v, w, n);
+        state(t0, R0, v0, w0, n);
+        env_step::copy_state(state_of(t, R, v, w), state_of(t0, R0, v0, w0), n);
+    }, "t"_a, "R"_a, "v"_a, "w"_a, "t0"_a.noconvert(), "R0"_a.noconvert(), "v0"_a.noconvert(), "w0"_a.noconvert(),
+       "Copy a batch state (t, R, v, w) into another's arrays (t0, R0, v0, w0).");
+
+    m.def("control_step", [](In prm, int64_t flags, In sensor_prm, double half, double mid, double lag, bool drive,
+                             double physics_dt, int64_t substeps, double control_dt, double max_condition, In action,
+                             Out clipped, Out F, In W, Out t, Out R, Out v, Out w, Out t0, Out R0, Out v0, Out w0,
+                             Codes steps, Out time, Flags non_finite, Out lengths, Out rates, Out condition) {
+        const int64_t n = batch(prm, In(t));
+        state(t, R, v, w, n);
+        state(t0, R0, v0, w0, n);
+        expect(sensor_prm, "sensor_prm", {-1, kernels::N_PARAMS});
+        if (!(sensor_prm.shape(0) == 1 || static_cast<int64_t>(sensor_prm.shape(0)) == n))
+            throw nb::value_error("sensor_prm: expected 1 or N parameter rows");
+        expect(action, "action", {n, 6});
+        expect(clipped, "clipped", {n, 6});
+        expect(F, "leg_forces", {n, 6});
+        expect(W, "external_wrench", {n, 6});
+        expect(steps, "steps", {n});
+        expect(time, "time", {n});
+        expect(non_finite, "non_finite", {n});
+        expect(lengths, "lengths", {n, 6});
+        expect(rates, "rates", {n, 6});
+        expect(condition, "condition", {n});
+        if (substeps < 0) throw nb::value_error("substeps: expected a non-negative integer");
+        const env_step::ControlStep c{prm.data(), static_cast<int64_t>(prm.shape(0)), flags, sensor_prm.data(),
+                                      static_cast<int64_t>(sensor_prm.shape(0)), half, mid, lag, drive, physics_dt,
+                                      substeps, control_dt, max_condition};
+        nb::gil_scoped_release release;
+        return env_step::control_step(c, action.data(), clipped.data(), F.data(), W.data(), state_of(t, R, v, w),
+                                      state_of(t0, R0, v0, w0), steps.data(), time.data(), non_finite.data(),
+                                      lengths.data(), rates.data(), condition.data(), n);
+    }, "prm"_a, "flags"_a, "sensor_prm"_a, "half"_a, "mid"_a, "lag"_a, "drive"_a, "physics_dt"_a, "substeps"_a,
+       "control_dt"_a, "max_condition"_a, "action"_a, "clipped"_a.noconvert(), "F"_a.noconvert(), "W"_a,
+       "t"_a.noconvert(), "R"_a.noconvert(), "v"_a.noconvert(), "w"_a.noconvert(), "t0"_a.noconvert(),
+       "R0"_a.noconvert(), "v0"_a.noconvert(), "w0"_a.noconvert(), "steps"_a.noconvert(), "time"_a.noconvert(),
+       "non_finite"_a.noconvert(), "lengths"_a.noconvert(), "rates"_a.noconvert(), "condition"_a.noconvert(),
+       "One control step of the closed-form plant for every row: actuators, RK4 substeps, clock and non-finite "
+       "check, leg sensors (env_step.hpp).  Returns whether any row stopped being finite.");
+
+    m.def("pose_block", [](In t, In R, In v, In w, Out raw) {
+        expect(t, "position", {-1, 3});
+        const int64_t n = static_cast<int64_t>(t.shape(0));
+        state(t, R, v, w, n);
+        expect(raw, "raw", {n, -1});
+        const int64_t dim = static_cast<int64_t>(raw.shape(1));
+        if (dim < 15) throw nb::value_error("raw: expected at least 15 columns");
+        env_step::pose_block(t.data(), R.data(), v.data(), w.data(), raw.data(), dim, n);
+    }, "t"_a, "R"_a, "v"_a, "w"_a, "raw"_a.noconvert(),
+       "The pose observation's first 15 entries of every row: P, R's first two columns, v, omega.");
+
+    m.def("normalize", [](Out raw, In offset, In inv_scale) {
+        expect(raw, "raw", {-1, -1});
+        const int64_t dim = static_cast<int64_t>(raw.shape(1));
+        expect(offset, "offset", {dim});
+        expect(inv_scale, "inv_scale", {dim});
+        env_step::normalize(raw.data(), offset.data(), inv_scale.data(), dim, static_cast<int64_t>(raw.shape(0)));
+    }, "raw"_a.noconvert(), "offset"_a, "inv_scale"_a, "raw = (raw - offset) * inv_scale, in place.");
+
+    m.def("within_float32", [](In raw, In reward, double largest) {
+        return env_step::within_float32(raw.data(), static_cast<int64_t>(raw.size()), reward.data(),
+                                        static_cast<int64_t>(reward.size()), largest);
+    }, "raw"_a, "reward"_a, "largest"_a,
+       "Whether every entry of raw is within +-largest and every reward finite.");
 }

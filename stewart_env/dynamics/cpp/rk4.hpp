@@ -22,6 +22,7 @@
 #include <limits>
 
 #include "kernels.hpp"
+#include "lanes.hpp"
 
 namespace rk4 {
 
@@ -67,27 +68,50 @@ extern "C" inline void law_inverse_dynamics(const double* prm, int64_t flags, co
     kernels::inverse_one(prm, flags, t, R, v, w, acc, W, M, h, out);
 }
 
-// The leg forces (6,), N, at a stage: the law's at (time, x), R the stage's rotation, written
-// into F (a force it leaves unwritten is NaN); or, when law is nullptr (the zero-order hold),
-// ctrl itself.  docs/physics.md section 5.6 (no paper equation).
-inline const double* leg_forces(ControlLaw law, const double* ctrl, int64_t n_ctrl, double time, const double* x,
-                                const double* R, double* F) {
-    if (law == nullptr) return ctrl;
-    // a force the law leaves unwritten is NaN, so the rollout stops as non-finite instead of
-    // integrating whatever the buffer held
-    for (int i = 0; i < 6; ++i) F[i] = std::numeric_limits<double>::quiet_NaN();
-    law(time, x, R, x + 7, x + 10, ctrl, n_ctrl, F);
+//: Where the leg forces of rows b, b + 1, ... come from (leg_forces' source): the control law and
+//: its parameter rows ctrl (row r at ctrl + stride * r, stride 0 when one row serves the batch,
+//: n_ctrl numbers each), or, when law is nullptr, the held forces (6,) of the rows.
+template <typename T>
+struct LawRows {
+    ControlLaw law;
+    const double* ctrl;
+    int64_t stride;
+    int64_t n_ctrl;
+    int64_t b;
+    const T* held;
+};
+
+// The leg forces (6,), N, at a stage of the rows of src (one per lane of T): the law's at (time,
+// x), R the stage's rotation, written into F (a force it leaves unwritten is NaN; a lane in skip
+// is not evaluated and gets NaN); or, when there is no law (the zero-order hold), the held forces.
+// docs/physics.md section 5.6 (no paper equation).
+template <typename T, typename Mask>
+inline const T* leg_forces(const LawRows<T>& src, double time, const T* x, const T* R, Mask skip, T* F) {
+    if (src.law == nullptr) return src.held;
+    for (int k = 0; k < lanes::width<T>; ++k) {
+        // a force the law leaves unwritten is NaN, so the rollout stops as non-finite instead of
+        // integrating whatever the buffer held
+        double xs[13], Rs[9], Fs[6];
+        for (int i = 0; i < 6; ++i) Fs[i] = std::numeric_limits<double>::quiet_NaN();
+        if (!lanes::lane(skip, k)) {
+            for (int j = 0; j < 13; ++j) xs[j] = lanes::get(x[j], k);
+            for (int j = 0; j < 9; ++j) Rs[j] = lanes::get(R[j], k);
+            src.law(time, xs, Rs, xs + 7, xs + 10, src.ctrl + src.stride * (src.b + k), src.n_ctrl, Fs);
+        }
+        for (int i = 0; i < 6; ++i) lanes::put(F[i], k, Fs[i]);
+    }
     return F;
 }
 
 // Unit quaternion q = (w, x, y, z) to rotation matrix R (3,3), normalising q first.
 // docs/physics.md section 5.6 (no paper equation).
-inline void quat_to_matrix(const double* q, double* R) {
-    const double n = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    const double a = q[0] / n;
-    const double b = q[1] / n;
-    const double c = q[2] / n;
-    const double d = q[3] / n;
+template <typename T>
+inline void quat_to_matrix(const T* q, T* R) {
+    const T n = lanes::sqrt_of(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    const T a = q[0] / n;
+    const T b = q[1] / n;
+    const T c = q[2] / n;
+    const T d = q[3] / n;
     R[0] = a * a + b * b - c * c - d * d;
     R[1] = 2.0 * (b * c - a * d);
     R[2] = 2.0 * (b * d + a * c);
@@ -134,24 +158,24 @@ inline void matrix_to_quat(const double* R, double* q) {
 }
 
 // dx/dt for x = [t (3), quaternion (4), v (3), w (3)] under the leg forces of leg_forces at
-// (time, x); quaternion rate 0.5 (0, w) * q.  F, R, M, h, acc are scratch.
-// docs/physics.md section 5.6; the accelerations from paper eq. 49 or 55.
-inline void state_derivative(const double* prm, int64_t flags, ControlLaw law, const double* ctrl, int64_t n_ctrl,
-                             double time, const double* x, double* F, const double* W, double* R, double* M,
-                             double* h, double* acc, double* dx) {
-    quat_to_matrix(x + 3, R);
-    const double* forces = leg_forces(law, ctrl, n_ctrl, time, x, R, F);
-    kernels::forward_one(prm, flags, x, R, x + 7, x + 10, forces, W, M, h, acc);
+// (time, x) (lanes in skip not evaluated); quaternion rate 0.5 (0, w) * q.  F, R, M, h, acc are
+// scratch.  docs/physics.md section 5.6; the accelerations from paper eq. 49 or 55.
+template <typename T, typename Mask>
+inline void state_derivative(const T* prm, int64_t flags, const LawRows<T>& src, double time, const T* x, T* F,
+                             const T* W, T* R, T* M, T* h, T* acc, Mask skip, T* dx) {
+    quat_to_matrix<T>(x + 3, R);
+    const T* forces = leg_forces<T>(src, time, x, R, skip, F);
+    kernels::forward_one<T>(prm, flags, x, R, x + 7, x + 10, forces, W, M, h, acc);
     dx[0] = x[7];
     dx[1] = x[8];
     dx[2] = x[9];
-    const double w0 = x[10];
-    const double w1 = x[11];
-    const double w2 = x[12];
-    const double qa = x[3];
-    const double qb = x[4];
-    const double qc = x[5];
-    const double qd = x[6];
+    const T w0 = x[10];
+    const T w1 = x[11];
+    const T w2 = x[12];
+    const T qa = x[3];
+    const T qb = x[4];
+    const T qc = x[5];
+    const T qd = x[6];
     dx[3] = 0.5 * (-w0 * qb - w1 * qc - w2 * qd);
     dx[4] = 0.5 * (w0 * qa + w1 * qd - w2 * qc);
     dx[5] = 0.5 * (-w0 * qd + w1 * qa + w2 * qb);
@@ -159,93 +183,100 @@ inline void state_derivative(const double* prm, int64_t flags, ControlLaw law, c
     for (int j = 0; j < 6; ++j) dx[7 + j] = acc[j];
 }
 
-// Sample s of row b into rec: the state x and the law's forces there.  docs/physics.md section
-// 5.6 (no paper equation).
-inline void record(ControlLaw law, const double* c, int64_t n_ctrl, double time, const double* x, double* Rs,
-                   double* F, const Record& rec, int64_t b, int64_t s) {
-    quat_to_matrix(x + 3, Rs);
-    const double* forces = leg_forces(law, c, n_ctrl, time, x, Rs, F);
-    const int64_t k = b * rec.samples + s;
+// Sample s of lane k of the rows of src (batch row src.b + k) into rec: the lane's state x and
+// the forces there.  docs/physics.md section 5.6 (no paper equation).
+template <typename T>
+inline void record(const LawRows<T>& src, double time, const T* x, int k, const Record& rec, int64_t s) {
+    double xs[13], Rs[9], Fs[6];
+    for (int j = 0; j < 13; ++j) xs[j] = lanes::get(x[j], k);
+    quat_to_matrix<double>(xs + 3, Rs);
+    double held[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    if (src.held != nullptr)
+        for (int i = 0; i < 6; ++i) held[i] = lanes::get(src.held[i], k);
+    const LawRows<double> one{src.law, src.ctrl, src.stride, src.n_ctrl, src.b + k, held};
+    const double* forces = leg_forces<double>(one, time, xs, Rs, false, Fs);
+    const int64_t row = (src.b + k) * rec.samples + s;
     for (int j = 0; j < 3; ++j) {
-        rec.t[3 * k + j] = x[j];
-        rec.v[3 * k + j] = x[7 + j];
-        rec.w[3 * k + j] = x[10 + j];
+        rec.t[3 * row + j] = xs[j];
+        rec.v[3 * row + j] = xs[7 + j];
+        rec.w[3 * row + j] = xs[10 + j];
     }
-    for (int j = 0; j < 9; ++j) rec.R[9 * k + j] = Rs[j];
-    for (int j = 0; j < 6; ++j) rec.F[6 * k + j] = forces[j];
+    for (int j = 0; j < 9; ++j) rec.R[9 * row + j] = Rs[j];
+    for (int j = 0; j < 6; ++j) rec.F[6 * row + j] = forces[j];
 }
 
-// Row b of rollout_batch and rollout_law_batch (docs/physics.md section 5.6; no paper equation);
-// rec the record arrays, or nullptr (nothing recorded).  ctrl (n_ctrl_rows, n_ctrl): the law's
-// parameter rows, or the held forces (n_ctrl = 6).
-inline void rollout_row(const double* prm, int64_t n_prm, int64_t flags, double* t, double* R, double* v, double* w,
+// Rows b, b + 1, ... of rollout_batch and rollout_law_batch, as many as T carries
+// (docs/physics.md section 5.6; no paper equation); rec the record arrays, or nullptr (nothing
+// recorded).  ctrl (n_ctrl_rows, n_ctrl): the law's parameter rows, or the held forces
+// (n_ctrl = 6).  A lane whose state stops being finite keeps that state while the others go on.
+template <typename T>
+inline void rollout_row(const kernels::ParamRows& prm, int64_t flags, double* t, double* R, double* v, double* w,
                         ControlLaw law, const double* ctrl, int64_t n_ctrl_rows, int64_t n_ctrl, const double* W,
                         double time, double dt, int64_t steps, int64_t every, const Record* rec, int64_t b) {
-    const double* p = kernels::params_row(prm, n_prm, b);
-    const double* c = n_ctrl_rows == 1 ? ctrl : ctrl + n_ctrl * b;
-    const double* Wb = W + 6 * b;
-    double x[13];
-    double xs[13];
-    double k[4][13];
-    double F[6];
-    double Rs[9];
-    double M[36];
-    double h[6];
-    double acc[6];
-    for (int j = 0; j < 3; ++j) {
-        x[j] = t[3 * b + j];
-        x[7 + j] = v[3 * b + j];
-        x[10 + j] = w[3 * b + j];
+    constexpr int width = lanes::width<T>;
+    using Mask = decltype(lanes::finite(T{}));
+    kernels::ParamScratch<T> scratch;
+    const T* p = prm.rows(b, scratch.rows);
+    T held[6];
+    const int64_t stride = n_ctrl_rows == 1 ? 0 : n_ctrl;
+    if (law == nullptr) lanes::load(ctrl, stride, b, 6, held);
+    const LawRows<T> src{law, ctrl, stride, n_ctrl, b, law == nullptr ? held : nullptr};
+    T Wb[6];
+    lanes::load(W, 6, b, 6, Wb);
+    T x[13], xs[13], xn[13], k[4][13], F[6], Rs[9], M[36], h[6], acc[6];
+    lanes::load(t, 3, b, 3, x);
+    lanes::load(v, 3, b, 3, x + 7);
+    lanes::load(w, 3, b, 3, x + 10);
+    for (int lane = 0; lane < width; ++lane) {
+        double q[4];
+        matrix_to_quat(R + 9 * (b + lane), q);
+        for (int j = 0; j < 4; ++j) lanes::put(x[3 + j], lane, q[j]);
     }
-    matrix_to_quat(R + 9 * b, x + 3);
-    int64_t recorded = 0;
-    if (rec != nullptr && every > 0) {
-        record(law, c, n_ctrl, time, x, Rs, F, *rec, b, 0);
-        recorded = 1;
+    const bool recording = rec != nullptr && every > 0;
+    int64_t recorded[width];
+    for (int lane = 0; lane < width; ++lane) {
+        recorded[lane] = 0;
+        if (recording) record<T>(src, time, x, lane, *rec, recorded[lane]++);
     }
+    const Mask none = T(0.0) != T(0.0);
+    Mask stopped = none;
     for (int64_t step = 0; step < steps; ++step) {
         const double t0 = time + static_cast<double>(step) * dt;
-        state_derivative(p, flags, law, c, n_ctrl, t0, x, F, Wb, Rs, M, h, acc, k[0]);
+        state_derivative<T>(p, flags, src, t0, x, F, Wb, Rs, M, h, acc, stopped, k[0]);
         for (int j = 0; j < 13; ++j) xs[j] = x[j] + 0.5 * dt * k[0][j];
-        state_derivative(p, flags, law, c, n_ctrl, t0 + 0.5 * dt, xs, F, Wb, Rs, M, h, acc, k[1]);
+        state_derivative<T>(p, flags, src, t0 + 0.5 * dt, xs, F, Wb, Rs, M, h, acc, stopped, k[1]);
         for (int j = 0; j < 13; ++j) xs[j] = x[j] + 0.5 * dt * k[1][j];
-        state_derivative(p, flags, law, c, n_ctrl, t0 + 0.5 * dt, xs, F, Wb, Rs, M, h, acc, k[2]);
+        state_derivative<T>(p, flags, src, t0 + 0.5 * dt, xs, F, Wb, Rs, M, h, acc, stopped, k[2]);
         for (int j = 0; j < 13; ++j) xs[j] = x[j] + dt * k[2][j];
-        state_derivative(p, flags, law, c, n_ctrl, t0 + dt, xs, F, Wb, Rs, M, h, acc, k[3]);
-        bool finite = true;
+        state_derivative<T>(p, flags, src, t0 + dt, xs, F, Wb, Rs, M, h, acc, stopped, k[3]);
+        Mask finite = !none;
         for (int j = 0; j < 13; ++j) {
-            x[j] += dt / 6.0 * (k[0][j] + 2.0 * k[1][j] + 2.0 * k[2][j] + k[3][j]);
-            finite = finite && std::isfinite(x[j]);
+            xn[j] = x[j] + dt / 6.0 * (k[0][j] + 2.0 * k[1][j] + 2.0 * k[2][j] + k[3][j]);
+            finite = finite && lanes::finite(xn[j]);
         }
-        const double nq = std::sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5] + x[6] * x[6]);
-        for (int j = 3; j < 7; ++j) x[j] /= nq;
-        if (rec != nullptr && every > 0 && (step + 1) % every == 0) {
-            record(law, c, n_ctrl, time + static_cast<double>(step + 1) * dt, x, Rs, F, *rec, b, recorded);
-            recorded += 1;
+        const T nq = lanes::sqrt_of(xn[3] * xn[3] + xn[4] * xn[4] + xn[5] * xn[5] + xn[6] * xn[6]);
+        for (int j = 3; j < 7; ++j) xn[j] /= nq;
+        // a lane stopped at an earlier step keeps its first non-finite state
+        for (int j = 0; j < 13; ++j) x[j] = lanes::select(stopped, x[j], xn[j]);
+        if (recording && (step + 1) % every == 0) {
+            for (int lane = 0; lane < width; ++lane)
+                if (!lanes::lane(stopped, lane))
+                    record<T>(src, time + static_cast<double>(step + 1) * dt, x, lane, *rec, recorded[lane]++);
         }
-        if (!finite) break;
+        stopped = stopped || !finite;
+        if (lanes::all(stopped)) break;
     }
     if (rec != nullptr) {
-        // after a break: the non-finite state to the end
-        for (int64_t s = recorded; s < rec->samples; ++s)
-            record(law, c, n_ctrl, time + static_cast<double>(steps) * dt, x, Rs, F, *rec, b, s);
+        // after a stop: the non-finite state to the end
+        for (int lane = 0; lane < width; ++lane)
+            for (int64_t s = recorded[lane]; s < rec->samples; ++s)
+                record<T>(src, time + static_cast<double>(steps) * dt, x, lane, *rec, s);
     }
-    for (int j = 0; j < 3; ++j) {
-        t[3 * b + j] = x[j];
-        v[3 * b + j] = x[7 + j];
-        w[3 * b + j] = x[10 + j];
-    }
-    quat_to_matrix(x + 3, R + 9 * b);
-}
-
-// Integrate steps classical RK4 steps of dt seconds with F (n,6) and W (n,6) held constant:
-// rollout_law_batch without a law (the zero-order hold), nothing recorded.  t (n,3), R (n,3,3),
-// v (n,3), w (n,3) are overwritten with the final state.  The env's step.
-// docs/physics.md section 5.6 (no paper equation).
-inline void rollout_batch(const double* prm, int64_t n_prm, int64_t flags, double* t, double* R, double* v,
-                          double* w, const double* F, const double* W, double dt, int64_t steps, int64_t n) {
-    for (int64_t b = 0; b < n; ++b)
-        rollout_row(prm, n_prm, flags, t, R, v, w, nullptr, F, n, 6, W, 0.0, dt, steps, 0, nullptr, b);
+    lanes::store(x, 3, t, 3, b);
+    lanes::store(x + 7, 3, v, 3, b);
+    lanes::store(x + 10, 3, w, 3, b);
+    quat_to_matrix<T>(x + 3, Rs);
+    lanes::store(Rs, 9, R, 9, b);
 }
 
 // Integrate steps classical RK4 steps of dt seconds from time s, the leg forces given by law (see
@@ -256,14 +287,27 @@ inline void rollout_batch(const double* prm, int64_t n_prm, int64_t flags, doubl
 // > 0 the state after every every steps, the start included, is written into rec (T = steps /
 // every + 1 samples per row), and the law's forces at that state into rec.F; with every == 0
 // nothing is recorded.  A row whose state stops being finite is left at its first non-finite
-// value (its later samples too).  docs/physics.md section 5.6 (no paper equation).
+// value (its later samples too).  Blocks of rows run in vector lanes and on every core
+// (lanes.hpp), each row's numbers those it has alone; the law may be called from several threads
+// at once.  docs/physics.md section 5.6 (no paper equation).
 inline void rollout_law_batch(const double* prm, int64_t n_prm, int64_t flags, double* t, double* R, double* v,
                               double* w, ControlLaw law, const double* ctrl, int64_t n_ctrl_rows, int64_t n_ctrl,
                               const double* W, double time, double dt, int64_t steps, int64_t every,
                               const Record* rec, int64_t n) {
-    for (int64_t b = 0; b < n; ++b)
-        rollout_row(prm, n_prm, flags, t, R, v, w, law, ctrl, n_ctrl_rows, n_ctrl, W, time, dt, steps, every,
-                    every > 0 ? rec : nullptr, b);
+    const kernels::ParamRows rows(prm, n_prm, n);
+    lanes::for_rows(n, 4 * steps, [&](int64_t b, auto tag) {
+        rollout_row<decltype(tag)>(rows, flags, t, R, v, w, law, ctrl, n_ctrl_rows, n_ctrl, W, time, dt, steps,
+                                   every, every > 0 ? rec : nullptr, b);
+    });
+}
+
+// Integrate steps classical RK4 steps of dt seconds with F (n,6) and W (n,6) held constant:
+// rollout_law_batch without a law (the zero-order hold), nothing recorded.  t (n,3), R (n,3,3),
+// v (n,3), w (n,3) are overwritten with the final state.  The env's step.
+// docs/physics.md section 5.6 (no paper equation).
+inline void rollout_batch(const double* prm, int64_t n_prm, int64_t flags, double* t, double* R, double* v,
+                          double* w, const double* F, const double* W, double dt, int64_t steps, int64_t n) {
+    rollout_law_batch(prm, n_prm, flags, t, R, v, w, nullptr, F, n, 6, W, 0.0, dt, steps, 0, nullptr, n);
 }
 
 }  // namespace rk4

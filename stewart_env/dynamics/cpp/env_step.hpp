@@ -1,0 +1,295 @@
+// The environment's per-step work over a batch of platforms (stewart_env/envs/core.py and
+// observation.py): the actuators (action clipping and the first-order lag), the control step of
+// the closed-form plant (the RK4 substeps of rk4.hpp with the forces held), the clock and the
+// non-finite check, the leg sensors, and the observation's own passes.  control_step fuses the
+// first four into one call, and step() a whole control step of the environment's Batch: those,
+// the tracking errors, the termination codes, the reward and the observation.  Each row is
+// computed as numpy would compute it, operation for operation, so a batch row equals a batch of
+// one bit for bit.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+#include "kernels.hpp"
+#include "rk4.hpp"
+#include "task_kernels.hpp"
+
+namespace env_step {
+
+// The actuators: clip the action (n,6) to [-1, 1] into clipped and map it onto the force range,
+// command = a half + mid N, applied directly (lag 0) or through the exact first-order lag
+// F += lag (command - F) (lag = 1 - exp(-control_dt / actuator_tau)).
+inline void drive(const double* action, double half, double mid, double lag, double* clipped, double* forces,
+                  int64_t n) {
+    for (int64_t k = 0; k < 6 * n; ++k) {
+        const double a = std::fmin(std::fmax(action[k], -1.0), 1.0);
+        clipped[k] = a;
+        const double command = a * half + mid;
+        if (lag != 0.0)
+            forces[k] += lag * (command - forces[k]);
+        else
+            forces[k] = command;
+    }
+}
+
+// A batch state t (n,3), R (n,3,3), v (n,3), w (n,3) (each C-contiguous).
+struct State {
+    double* t;
+    double* R;
+    double* v;
+    double* w;
+};
+
+// Copy the state of a batch into another's arrays.
+inline void copy_state(const State& from, const State& to, int64_t n) {
+    std::memcpy(to.t, from.t, sizeof(double) * 3 * n);
+    std::memcpy(to.R, from.R, sizeof(double) * 9 * n);
+    std::memcpy(to.v, from.v, sizeof(double) * 3 * n);
+    std::memcpy(to.w, from.w, sizeof(double) * 3 * n);
+}
+
+// Advance every row's clock one control step (time = steps dt) and find the rows whose state is
+// no longer finite (non_finite (n,)), putting them back to the state they started the step from
+// (start).  Returns whether any row was.
+inline bool after_physics(const State& s, const State& start, int64_t* steps, double dt, double* time,
+                          bool* non_finite, int64_t n) {
+    bool found = false;
+    for (int64_t b = 0; b < n; ++b) {
+        steps[b] += 1;
+        time[b] = static_cast<double>(steps[b]) * dt;
+        bool ok = kernels::all_finite(s.t + 3 * b, 3) && kernels::all_finite(s.v + 3 * b, 3) &&
+                  kernels::all_finite(s.w + 3 * b, 3) && kernels::all_finite(s.R + 9 * b, 9);
+        non_finite[b] = !ok;
+        if (!ok) {
+            found = true;
+            std::memcpy(s.t + 3 * b, start.t + 3 * b, sizeof(double) * 3);
+            std::memcpy(s.R + 9 * b, start.R + 9 * b, sizeof(double) * 9);
+            std::memcpy(s.v + 3 * b, start.v + 3 * b, sizeof(double) * 3);
+            std::memcpy(s.w + 3 * b, start.w + 3 * b, sizeof(double) * 3);
+        }
+    }
+    return found;
+}
+
+// What a control step of the closed-form plant works on: the plant's packed parameters (n_prm
+// rows) and model flags, the nominal parameters of the leg sensors, the actuators, the clock.
+struct ControlStep {
+    const double* prm;
+    int64_t n_prm;
+    int64_t flags;
+    const double* sensor_prm;  // the nominal model's packed row(s), n_sensor_prm of them
+    int64_t n_sensor_prm;
+    double force_half, force_mid, lag;  // drive()
+    bool drive;                          // false: the forces were set before the call
+    double physics_dt;
+    int64_t substeps;
+    double control_dt;
+    double max_condition;
+};
+
+// One control step of every row of the closed-form plant: drive the actuators (unless already
+// driven), remember the start state, integrate substeps RK4 steps of physics_dt with the leg
+// forces F (n,6) and the external wrench W (n,6) held (rk4::rollout_batch), advance the clock
+// and put rows that stopped being finite back to their start state (after_physics), and
+// measure the leg lengths (n,6), rates (n,6) and condition numbers (n,).  Returns whether any
+// row stopped being finite.
+inline bool control_step(const ControlStep& c, const double* action, double* clipped, double* F, const double* W,
+                         const State& s, const State& start, int64_t* steps, double* time, bool* non_finite,
+                         double* lengths, double* rates, double* condition, int64_t n) {
+    if (c.drive) drive(action, c.force_half, c.force_mid, c.lag, clipped, F, n);
+    copy_state(s, start, n);
+    rk4::rollout_batch(c.prm, c.n_prm, c.flags, s.t, s.R, s.v, s.w, F, W, c.physics_dt, c.substeps, n);
+    const bool found = after_physics(s, start, steps, c.control_dt, time, non_finite, n);
+    kernels::leg_sensors_batch(c.sensor_prm, c.n_sensor_prm, s.t, s.R, s.v, s.w, c.max_condition, lengths, rates,
+                               condition, n);
+    return found;
+}
+
+// The pose observation's first 15 entries of every row into raw (n, dim): P, the first two
+// columns of R, the velocity and the angular velocity.
+inline void pose_block(const double* t, const double* R, const double* v, const double* w, double* raw, int64_t dim,
+                       int64_t n) {
+    for (int64_t b = 0; b < n; ++b) {
+        double* o = raw + dim * b;
+        for (int j = 0; j < 3; ++j) {
+            o[j] = t[3 * b + j];
+            o[3 + j] = R[9 * b + 3 * j];
+            o[6 + j] = R[9 * b + 3 * j + 1];
+            o[9 + j] = v[3 * b + j];
+            o[12 + j] = w[3 * b + j];
+        }
+    }
+}
+
+// The observation's normalisation, raw = (raw - offset) * inv_scale, in place: raw (n, dim),
+// offset and inv_scale (dim,).
+inline void normalize(double* raw, const double* offset, const double* inv_scale, int64_t dim, int64_t n) {
+    for (int64_t b = 0; b < n; ++b)
+        for (int64_t k = 0; k < dim; ++k) raw[dim * b + k] = (raw[dim * b + k] - offset[k]) * inv_scale[k];
+}
+
+// Whether every entry of raw (size entries) is within +-largest (so finite) and every reward
+// (n_reward,) finite.
+inline bool within_float32(const double* raw, int64_t size, const double* reward, int64_t n_reward, double largest) {
+    for (int64_t k = 0; k < size; ++k)
+        if (!(std::fabs(raw[k]) <= largest)) return false;
+    for (int64_t b = 0; b < n_reward; ++b)
+        if (!std::isfinite(reward[b])) return false;
+    return true;
+}
+
+
+// The observation's finite guard of one row (n_bad of them marked): an entry that is NaN becomes
+// 0 and one beyond +-largest becomes +-largest (the float32 range).
+inline void make_finite(double* row, int64_t dim, double largest) {
+    for (int64_t k = 0; k < dim; ++k) {
+        const double x = row[k];
+        row[k] = std::isnan(x) ? 0.0 : std::fmin(std::fmax(x, -largest), largest);
+    }
+}
+
+// The error integral's step (observation.ObservationPipeline._integrate): every component of
+// (position error, orientation error) within its band (band null: no band) times control_dt
+// added to the integral s (n,6), clipped to +-bound (anti-windup).
+inline void integrate_errors(const double* ep, const double* eo, const double* band, const double* bound,
+                             double control_dt, double* s, int64_t n) {
+    for (int64_t b = 0; b < n; ++b)
+        for (int k = 0; k < 6; ++k) {
+            double e = k < 3 ? ep[3 * b + k] : eo[3 * b + k - 3];
+            if (band != nullptr && std::fabs(e) > band[k]) e = 0.0;
+            e *= control_dt;
+            double& x = s[6 * b + k];
+            x += e;
+            x = std::fmin(std::fmax(x, -bound[k]), bound[k]);
+        }
+}
+
+// Where the observation's terms sit in a row of D entries (-1: not observed).  pose: the pose
+// block at 0 (else leg_lengths and leg_rates); the rest as the ObservationPipeline lays them out.
+struct Layout {
+    int64_t dim;
+    bool pose;
+    int64_t leg_lengths, leg_rates, leg_forces, position_error, orientation_error, error_integral;
+};
+
+// A whole batch of the environment (envs/core.py PlatformBatch and its ObservationPipeline), its
+// arrays as pointers; everything a control step reads and writes.
+struct Batch {
+    int64_t n;
+    ControlStep c;
+    // state, start state, actuators, clock, sensors
+    State s, start;
+    double *clipped, *F, *W;
+    int64_t* steps;
+    double* time;
+    bool* non_finite;
+    double *lengths, *rates, *condition;
+    // the reference (n, ...) and the tracking errors: vectors (4,n,3), norms (4,n)
+    const double *rt, *rR, *rv, *rw;
+    double *errors, *norms;
+    // the task: its limits, reward weights, and whether each termination code is a failure
+    task_kernels::Limits limits;
+    task_kernels::RewardWeights weights;
+    double termination_cost;
+    const bool* failure;  // (n_codes,)
+    bool observe;         // whether the observation is made here (the task's terms are the errors)
+    // the observation
+    Layout layout;
+    double* raw;            // (n, D)
+    double* history;        // (delay + 1, n, D)
+    int64_t slots;          // delay + 1
+    bool normalize;
+    const double *offset, *inv_scale;  // (D,)
+    double* integral;                  // (n,6) or null
+    const double *band, *bound;        // (6,): band may be null
+    bool* pending;                     // (n,) rows whose start observation was not finite
+    double largest;                    // the float32 range
+};
+
+// The clean observation of every row into raw: the pose block or the leg sensors, the lagged leg
+// forces, the position and orientation errors, the error integral, normalised.
+inline void measure(const Batch& B) {
+    const Layout& L = B.layout;
+    const int64_t n = B.n, D = L.dim;
+    if (L.pose) pose_block(B.s.t, B.s.R, B.s.v, B.s.w, B.raw, D, n);
+    const double* ep = B.errors;
+    const double* eo = B.errors + 3 * n;
+    for (int64_t b = 0; b < n; ++b) {
+        double* o = B.raw + D * b;
+        for (int i = 0; i < 6; ++i) {
+            if (!L.pose) {
+                o[L.leg_lengths + i] = B.lengths[6 * b + i];
+                o[L.leg_rates + i] = B.rates[6 * b + i];
+            }
+            if (L.leg_forces >= 0) o[L.leg_forces + i] = B.F[6 * b + i];
+            if (L.error_integral >= 0) o[L.error_integral + i] = B.integral[6 * b + i];
+        }
+        for (int j = 0; j < 3; ++j) {
+            o[L.position_error + j] = ep[3 * b + j];
+            o[L.orientation_error + j] = eo[3 * b + j];
+        }
+    }
+    if (B.normalize) env_step::normalize(B.raw, B.offset, B.inv_scale, D, n);
+}
+
+// What Batch::step found: bit 0 a row's state stopped being finite, bit 1 a row's observation or
+// reward was not finite (or its start observation was not): the rows in bad (n,).
+constexpr int64_t NON_FINITE_STATE = 1;
+constexpr int64_t BAD_ROWS = 2;
+
+// One control step of the whole batch: control_step (the actuators unless drive is false, the RK4
+// substeps, the clock, the leg sensors), the tracking errors against the reference (set before the
+// call for the step's end time), the termination codes of the platform's limits (code (n,)), the
+// tracking-error reward's terms (terms (5,n): position, orientation, velocity, control,
+// termination) and their sum (reward (n,)); then, when B.observe, the error integral, the
+// observation with the noise (n,D) added to the rows not in skip (noise or skip null: none) and
+// its finite guard (bad (n,)), pushed into history slot head.  Returns NON_FINITE_STATE | BAD_ROWS
+// as found.
+inline int64_t step(Batch& B, const double* action, bool drive, const double* noise, const bool* skip, int64_t head,
+                    int64_t* code, double* terms, double* reward, bool* bad) {
+    const int64_t n = B.n;
+    B.c.drive = drive;
+    int64_t found = control_step(B.c, action, B.clipped, B.F, B.W, B.s, B.start, B.steps, B.time, B.non_finite,
+                                 B.lengths, B.rates, B.condition, n)
+                        ? NON_FINITE_STATE
+                        : 0;
+    double* e = B.errors;
+    task_kernels::tracking_errors(B.s.t, B.s.R, B.s.v, B.s.w, B.rt, B.rR, B.rv, B.rw, e, e + 3 * n, e + 6 * n,
+                                  e + 9 * n, B.norms, 1, n, n);
+    task_kernels::limit_codes(B.s.t, B.s.R, B.lengths, B.condition, B.non_finite, B.limits, code, n);
+    task_kernels::tracking_reward(B.norms, B.norms + n, B.norms + 2 * n, B.norms + 3 * n, 1, B.clipped, B.weights,
+                                  terms, n);
+    for (int64_t b = 0; b < n; ++b) {
+        // as the Python sum of the terms in their order, from 0
+        const double termination = -B.termination_cost * (B.failure[code[b]] ? 1.0 : 0.0);
+        terms[4 * n + b] = termination;
+        reward[b] = 0.0 + terms[b] + terms[n + b] + terms[2 * n + b] + terms[3 * n + b] + termination;
+    }
+    if (!B.observe) return found;
+    if (B.integral != nullptr) integrate_errors(e, e + 3 * n, B.band, B.bound, B.c.control_dt, B.integral, n);
+    measure(B);
+    const int64_t D = B.layout.dim;
+    if (noise != nullptr)
+        for (int64_t b = 0; b < n; ++b)
+            if (skip == nullptr || !skip[b])
+                for (int64_t k = 0; k < D; ++k) B.raw[D * b + k] += noise[D * b + k];
+    const bool fine = within_float32(B.raw, n * D, reward, n, B.largest);
+    for (int64_t b = 0; b < n; ++b) {
+        bool row_bad = false;
+        if (!fine) {
+            row_bad = !std::isfinite(reward[b]);
+            for (int64_t k = 0; k < D; ++k) row_bad = row_bad || !(std::fabs(B.raw[D * b + k]) <= B.largest);
+            if (row_bad) make_finite(B.raw + D * b, D, B.largest);
+        }
+        row_bad = row_bad || B.pending[b];
+        B.pending[b] = false;
+        bad[b] = row_bad;
+        if (row_bad) found |= BAD_ROWS;
+    }
+    std::memcpy(B.history + head * n * D, B.raw, sizeof(double) * n * D);
+    return found;
+}
+
+}  // namespace env_step
