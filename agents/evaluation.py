@@ -34,6 +34,7 @@ from __future__ import annotations
 import csv
 import math
 import re
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -320,14 +321,32 @@ def _fmt(value: float, factor: float, spec: str) -> str:
     return "-" if not np.isfinite(value) else format(value * factor, spec)
 
 
+#: The column of :func:`markdown_table` that counts the episodes ended before their time limit.
+ENDED_EARLY = "ended early"
+
+
+def ended_early(result: EvaluationResult) -> str:
+    """The episodes of ``result`` that the environment terminated before their time limit, and
+    the most common reason: ``"0"``, or e.g. ``"3 (leg_limit)"`` (the reason met first among
+    equally common ones)."""
+    reasons = Counter(ep.termination for ep in result.episodes if ep.termination is not None)
+    if not reasons:
+        return "0"
+    return f"{sum(reasons.values())} ({reasons.most_common(1)[0][0]})"
+
+
 def markdown_table(results: Sequence[EvaluationResult]) -> str:
-    """A markdown table of the mean metrics of each result (one row per result)."""
-    head = ["controller", "model", "task", "episodes"] + [m.title for m in METRICS]
+    """A markdown table of the mean metrics of each result (one row per result), with the count
+    of episodes ended early and their most common reason (``ended_early``) after the success
+    rate: a controller that loses the platform at once has no overshoot to show, but shows here."""
+    titles = [m.title for m in METRICS]
+    at = [m.key for m in METRICS].index("success") + 1
+    head = ["controller", "model", "task", "episodes"] + titles[:at] + [ENDED_EARLY] + titles[at:]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in results:
         s = r.summary()
-        cells = [r.label, r.model, r.task, str(len(r.episodes))]
-        cells += [_fmt(s[m.key], m.factor, m.spec) for m in METRICS]
+        metrics = [_fmt(s[m.key], m.factor, m.spec) for m in METRICS]
+        cells = [r.label, r.model, r.task, str(len(r.episodes))] + metrics[:at] + [ended_early(r)] + metrics[at:]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

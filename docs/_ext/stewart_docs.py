@@ -63,10 +63,7 @@ def command_line() -> str:
         parts = ["```text", parser.format_help().rstrip(), "```", ""]
         for verb, summary, sub in _subcommands(parser):
             parts += [f"## `stewart-env {verb}`", "", summary[:1].upper() + summary[1:] + ".", ""]
-            if any(a.option_strings for a in sub._actions):
-                parts += ["```text", sub.format_help().rstrip(), "```", ""]
-            else:  # a verb that parses its own arguments (add_help=False): its --help is its own
-                parts += [f"Its options: `stewart-env {verb} --help`.", ""]
+            parts += ["```text", sub.format_help().rstrip(), "```", ""]
     finally:
         if old is None:
             del os.environ["COLUMNS"]
