@@ -307,7 +307,8 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
       given in `task_options` win over either version's defaults, so
       `task_options={"position_reward_scale": 0.05, "orientation_reward_scale": 0.1}` on v1 is v0's
       reward.  The dynamics, observations, terminations and the other tasks are those of v0.
-      (From 2026-11-24 to the release of v1 this reward was served under the id v0.)
+      From 2026-11-24 until v1 was registered, the id v0 gave this reward: agents trained and
+      results measured in those days on these two tasks are of v1's reward.
     * v0: initial version, with every task's reward scales 0.05 m and 0.1 rad.  Since 2026-11-25
       the `plant` argument names what simulates the platform (`"closed_form"` or `"mujoco"`;
       `model="mujoco"` still means `plant="mujoco"` on the `"improved"` model), on both ids.
