@@ -11,7 +11,7 @@ and realises it with the leg forces F = J^-T W, since leg forces F act on the pl
 wrench J^T F (J the leg Jacobian, dL/dt = J [v; omega]).  Optionally the static holding forces
 of the current pose are added (gravity compensation, see :class:`TaskSpacePD`).
 
-The law is written once, as :data:`pd_control_law`, a control law compiled into the package's
+The law is written once, as ``pd_control_law``, a control law compiled into the package's
 extension for :func:`stewart_env.rollout` (evaluated at every RK4 stage: continuous control, as in
 :mod:`stewart_env.agents.reproduce`); its parameter row is built by :func:`pd_control_params`
 (layout: :data:`PD_LAYOUT`).  Two faces call it:
@@ -72,7 +72,7 @@ _STATE_FIELDS = (("position", (3,)), ("rotation", (3, 3)), ("velocity", (3,)), (
 
 def pd_control_params(platform: PlatformParams, reference: Reference, kp=PAPER_KP, kd=PAPER_KD,
                       gravity_compensation: bool = False, gravity_model: str = "improved") -> np.ndarray:
-    """The parameter row (PD_N_PARAMS,) of :data:`pd_control_law`, or (N, PD_N_PARAMS) for a batched
+    """The parameter row (PD_N_PARAMS,) of ``pd_control_law``, or (N, PD_N_PARAMS) for a batched
     reference (fields (N, ...)); arguments as in :class:`TaskSpacePD`, reference in {B} (its
     accelerations are not used)."""
     if not isinstance(platform, PlatformParams):
@@ -148,7 +148,7 @@ def zoh_spectral_radius(model: se.Dynamics, kp, kd, control_dt: float, inertia_s
 
 class TaskSpacePD:
     """The task-space PD law F = J^-T (Kp e + Kd edot) [+ holding forces] (paper eq. 56): calls
-    :data:`pd_control_law` on a state and a reference.
+    ``pd_control_law`` on a state and a reference.
 
     Args:
         platform: the platform's parameters (its geometry gives J).
@@ -172,7 +172,7 @@ class TaskSpacePD:
         self.gravity_model = parse_model_name(gravity_model)[0]
 
     def control_params(self, reference: Reference) -> np.ndarray:
-        """:data:`pd_control_law`'s parameter row (PD_N_PARAMS,), or (N, PD_N_PARAMS) for a batched
+        """``pd_control_law``'s parameter row (PD_N_PARAMS,), or (N, PD_N_PARAMS) for a batched
         reference: what :func:`stewart_env.rollout` takes as ``control_params`` for this controller."""
         return pd_control_params(self.platform, reference, self.kp, self.kd, self.gravity_compensation,
                                  self.gravity_model)

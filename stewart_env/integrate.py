@@ -48,7 +48,7 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
     ``cfunc`` or ctypes function it wraps), ``law(time, position, rotation, velocity,
     angular_velocity, params, n_params, forces)``, that writes the six leg forces (N) for the state
     at ``time`` s (:mod:`stewart_env.dynamics.rk4` gives the contract;
-    :data:`stewart_env.agents.pd.pd_control_law` is the package's PD law).  It replaces
+    ``stewart_env.agents.pd_control_law`` is the package's PD law).  It replaces
     ``leg_forces``, and ``control_params`` (P,), one parameter row for every platform, or (N, P),
     one per batch row, is passed to it as ``params``.  ``start_time`` s is the time of the first
     stage.

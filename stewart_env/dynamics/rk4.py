@@ -110,8 +110,8 @@ class ControlLaw:
         return f"ControlLaw({self.name!r}, n_params={self.n_params})"
 
 
-#: The simplest control law: forces = params[:6], N, whatever the time and state (the hold of a
-#: rollout without a law, for one that records its trajectory).
+#: The simplest control law, the first six numbers of params as the forces, N, whatever the time
+#: and state (the hold of a rollout without a law, for one that records its trajectory).
 CONSTANT_FORCES = ControlLaw._compiled(_core.CONSTANT_FORCES, 6, "constant_forces")
 #: The task-space PD law F = J^-T (Kp e + Kd edot) [+ holding forces] (He et al. 2018, eq. 56);
 #: its parameter row follows :data:`PD_LAYOUT`.

@@ -403,9 +403,9 @@ class Task:
     termination_reasons: tuple[str, ...] = LIMIT_REASONS
     #: The reasons that end an episode with a success: no termination cost is paid.
     success_reasons: tuple[str, ...] = ()
-    #: Options whose defaults differ under an earlier version of the environment: version ->
-    #: {option: its default under that version} (the environment's ``version`` argument; an
-    #: option the user gives wins).  Empty: the task is the same under every version.
+    #: The options whose defaults differ under an earlier version of the environment (its
+    #: ``version`` argument), as version -> {option: its default under that version}; an option
+    #: the user gives wins.  Empty when the task is the same under every version.
     version_defaults: Mapping[int, Mapping[str, Any]] = {}
 
     def __init__(self, params: PlatformParams, control_dt: float, *, position_reward_weight: float = 0.5,
