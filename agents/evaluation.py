@@ -1,4 +1,4 @@
-"""Evaluation harness: run a policy for seeded episodes of ``StewartPlatform-v0`` and score it.
+"""Evaluation harness: run a policy for seeded episodes of ``StewartPlatform-v1`` and score it.
 
 :func:`evaluate` runs K episodes of one environment configuration (task, model, platform and
 any other keyword of the environment) for one policy, as the K rows of the vector environment
@@ -236,7 +236,7 @@ def evaluate(policy, env_kwargs: Mapping | None = None, episodes: int = 5, seed:
     policy: anything with Stable-Baselines3's ``predict(observation, state, episode_start,
         deterministic) -> (action, state)`` that accepts a batch of observations (N, obs_dim), or
         a callable that builds one from an environment (e.g. :class:`~.pd.PDPolicy`); the callable
-        gets ``gymnasium.make("StewartPlatform-v0", **env_kwargs)``.
+        gets ``gymnasium.make("StewartPlatform-v1", **env_kwargs)``.
     env_kwargs: keywords of the environment (model, platform, task, task_options, control_dt, ...).
     episodes, seed: episode i is the environment reset with seed + i; the run is deterministic
         given the seed (for a deterministic policy).

@@ -125,7 +125,7 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
       (``Workspace.mass_and_bias``, which has no counterpart in MuJoCo's task-space terms);
     * one control step of ``substeps`` RK4 steps of ``dt``, one platform: ``step_mujoco``
       (``mujoco.mj_step``), ``step_plant`` (:class:`stewart_env.mujoco.MujocoPlant`),
-      ``step_env`` (``StewartPlatform-v0`` through ``gymnasium.make``, measured over
+      ``step_env`` (``StewartPlatform-v1`` through ``gymnasium.make``, measured over
       ``env_seconds``), ``step_env_mujoco`` (the same env with ``model="mujoco"``),
       ``step_rollout`` (``rollout_inplace``, N = 1), ``step_workspace`` (``Workspace.step``);
     * the same step for ``n_batch`` platforms, per platform: ``batch_mujoco`` (``mujoco.rollout``

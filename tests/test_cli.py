@@ -173,7 +173,7 @@ def test_bad_flag_values_are_argparse_errors_naming_the_flag(argv, flag, tmp_pat
 
 def test_train_cli_says_how_many_steps_it_ran(tmp_path, capsys):
     config = tmp_path / "ppo.yml"
-    config.write_text("StewartPlatform-v0:\n  n_timesteps: 1000\n  policy: MlpPolicy\n  n_envs: 2\n  n_steps: 16\n"
+    config.write_text("StewartPlatform-v1:\n  n_timesteps: 1000\n  policy: MlpPolicy\n  n_envs: 2\n  n_steps: 16\n"
                       "  batch_size: 32\n  n_epochs: 1\n  policy_kwargs: \"dict(net_arch=[8])\"\n")
     assert main(["train", "--algo", "ppo", "--config", str(config), "--timesteps", "40", "--out",
                  str(tmp_path / "run")]) == 0

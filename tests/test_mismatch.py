@@ -555,7 +555,7 @@ def test_config_file_is_part_of_the_study(tmp_path):
 
     bad = tmp_path / "bad.yml"
     bad.write_text("SomethingElse-v0: {}\n")
-    with pytest.raises(TrainingError, match="StewartPlatform-v0"):
+    with pytest.raises(TrainingError, match="StewartPlatform-v1"):
         run_mismatch(tmp_path / "study", ["improved"], ["improved"], algo="ppo", config=bad)
     assert not (tmp_path / "study").exists()
     parser_args = _parser().parse_args(["mismatch", "--out", str(tmp_path), "--config",

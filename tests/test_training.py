@@ -1,4 +1,4 @@
-"""Training on StewartPlatform-v0: zoo configs, runs that load and evaluate, resuming, errors."""
+"""Training on StewartPlatform-v1: zoo configs, runs that load and evaluate, resuming, errors."""
 
 from __future__ import annotations
 
@@ -206,7 +206,7 @@ def test_missing_config_file_and_entry(tmp_path):
         train("sac", tmp_path / "a", timesteps=10, config=tmp_path / "nope.yml")
     other = tmp_path / "other.yml"
     other.write_text("Pendulum-v1:\n  n_timesteps: 100\n  policy: MlpPolicy\n")
-    with pytest.raises(TrainingError, match="no entry for 'StewartPlatform-v0'.*Pendulum-v1"):
+    with pytest.raises(TrainingError, match="no entry for 'StewartPlatform-v1'.*Pendulum-v1"):
         train("sac", tmp_path / "b", timesteps=10, config=other)
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 

@@ -259,7 +259,7 @@ def make():
     gym = pytest.importorskip("gymnasium")
 
     def make(**kwargs):
-        env = gym.make("StewartPlatform-v0", **kwargs)
+        env = gym.make("StewartPlatform-v1", **kwargs)
         env.reset(seed=0)
         return env
     return make
@@ -422,7 +422,7 @@ def test_export_mjcf_without_mujoco_names_the_extra_without_a_traceback(tmp_path
 
 def test_mujoco_env_without_mujoco_raises_import_error_naming_the_extra():
     run = _run_without("mujoco", "import gymnasium as gym, stewart_env\n"
-                                 "try:\n    gym.make('StewartPlatform-v0', model='mujoco')\n"
+                                 "try:\n    gym.make('StewartPlatform-v1', model='mujoco')\n"
                                  "except ImportError as e:\n    print(e)\n    sys.exit(3)\n")
     assert run.returncode == 3, run.stderr
     assert "model='mujoco'" in run.stdout and "[mujoco]" in run.stdout
