@@ -1,4 +1,4 @@
-"""Training reinforcement-learning agents on ``StewartPlatform-v0`` with stable-baselines3.
+"""Training reinforcement-learning agents on ``StewartPlatform-v1`` with stable-baselines3.
 
 The package, one module per job:
 

@@ -79,7 +79,7 @@ class TrainedAgent:
                                       deterministic=deterministic)
 
     def make_env(self, **overrides: Any):
-        """``gymnasium.make("StewartPlatform-v0")`` with the training kwargs and ``overrides``."""
+        """``gymnasium.make("StewartPlatform-v1")`` with the training kwargs and ``overrides``."""
         import gymnasium
 
         import stewart_env  # noqa: F401  (registers the environment)

@@ -150,7 +150,7 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
           env_kwargs: Mapping[str, Any] | None = None, config: str | os.PathLike | None = None,
           resume: bool = False, progress_bar: bool = True, verbose: int = 0,
           report: Callable[[str], None] = _stderr_report) -> TrainResult:
-    """Train (or, with ``resume``, continue training) an SB3 agent on StewartPlatform-v0.
+    """Train (or, with ``resume``, continue training) an SB3 agent on StewartPlatform-v1.
 
     Args:
         algo: "ppo", "sac" or "td3".

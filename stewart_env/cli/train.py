@@ -1,4 +1,4 @@
-"""``stewart-env train``: a stable-baselines3 agent trained on ``StewartPlatform-v0``
+"""``stewart-env train``: a stable-baselines3 agent trained on ``StewartPlatform-v1``
 (:func:`stewart_env.agents.training.train`)."""
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ VERB = "train"
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
-        VERB, help="train an RL agent (stable-baselines3) on StewartPlatform-v0",
+        VERB, help="train an RL agent (stable-baselines3) on StewartPlatform-v1",
         description="Train a stable-baselines3 agent with the hyperparameters of configs/agents/<algo>.yml "
                     "(rl-baselines3-zoo format). Writes DIR/model.zip, DIR/vecnormalize.pkl, DIR/run.json, "
                     "checkpoints and TensorBoard logs. SIGINT (Ctrl-C) or SIGTERM saves a checkpoint and exits "
