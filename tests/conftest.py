@@ -37,6 +37,17 @@ EXTRA_MODULES = {
 }
 
 
+def exit_code(argv) -> int:
+    """The exit code of ``stewart-env argv``, whether argparse (SystemExit) or the command (its
+    return value) refused it."""
+    from stewart_env.cli import main
+
+    try:
+        return main(argv)
+    except SystemExit as stop:
+        return stop.code
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item):
     """Skip a test marked ``extra(name, ...)`` when an extra it needs is not installed, before its

@@ -25,7 +25,7 @@ pytestmark = pytest.mark.env
 ENV_ID = "StewartPlatform-v1"
 MODELS = ("improved", "classical", "improved_centroidal")
 TASKS = ("setpoint", "tracking", "disturbance")
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def make(**kwargs):
@@ -166,7 +166,7 @@ def test_import_stewart_env_registers():
 
 
 def test_env_card_arguments_table_is_the_configuration_records():
-    # the site's environment page is this docstring (tests/test_site.py checks that it shows it)
+    # the site's environment page is this docstring (tests/docs/test_site.py checks that it shows it)
     card = inspect.cleandoc(StewartPlatformEnv.__doc__)
     assert arguments_table() in card
     for name, default in DEFAULTS.items():

@@ -1,6 +1,8 @@
 """The workspace: a model's preallocated data.  Its calls give the checked API's results bit for
 bit, allocate no Python objects per call, and its construction refuses what it cannot run, naming the argument."""
 
+import copy
+import pickle
 import tracemalloc
 
 import numpy as np
@@ -174,3 +176,135 @@ def test_complex_arguments_are_refused_naming_the_argument(dasgupta):
         model.forward(t, np.eye(3), np.zeros(3), np.zeros(3), np.zeros(6))
     with pytest.raises(ValueError, match="position: expected an array of numbers of shape \\(3,\\), got an array of <U3"):
         model.forward(np.array(["0.1", "0", "0.4"]), np.eye(3), np.zeros(3), np.zeros(3), np.zeros(6))
+
+
+# -- the Workspace as an outside user meets it: bad arguments named, copies independent --------
+
+
+@pytest.fixture(scope="module")
+def model(dasgupta):
+    return se.make_dynamics("improved", dasgupta)
+
+
+@pytest.fixture
+def home(model):
+    """The home pose (position, rotation) and a zero rate."""
+    ws = model.workspace(1)
+    return ws.position[0].copy(), ws.rotation[0].copy(), np.zeros(3)
+
+
+@pytest.mark.parametrize("n", [0, -1, True, 1.0, 2.5, "2", None, np.float64(2.0)])
+def test_workspace_refuses_a_batch_size_that_is_not_a_positive_integer(model, n):
+    with pytest.raises(ValueError, match=r"^n: "):
+        model.workspace(n)
+
+
+@pytest.mark.parametrize("n", [10**9, 2**62, 2**63, 10**30])
+def test_workspace_too_large_to_allocate_is_refused_naming_n(model, n):
+    with pytest.raises(ValueError, match=r"^n: a workspace of \d+ platforms needs .* GiB"):
+        model.workspace(n)
+
+
+def test_workspace_set_state_refuses_a_batch_of_another_size(model, home):
+    _, R, z = home
+    with pytest.raises(ValueError, match=r"^position: .*n = 1, got a batch of 2"):
+        model.workspace(1).set_state(np.zeros((2, 3)), R, z, z)
+
+
+def test_workspace_set_state_refuses_complex_numbers(model, home):
+    t, R, z = home
+    with pytest.raises(ValueError, match=r"^position: .*complex"):
+        model.workspace(1).set_state(t.astype(complex), R, z, z)
+
+
+def test_workspace_n_must_match_the_models_parameter_rows(model, dasgupta):
+    two_rows = model.with_params([dasgupta, dasgupta])
+    with pytest.raises(ValueError, match=r"^n: the model has 2 parameter rows"):
+        two_rows.workspace(3)
+
+
+@pytest.mark.parametrize("argument, value, message", [
+    ("position", [np.nan, 0.0, 0.4], r"^position: contains NaN or inf"),
+    ("velocity", [np.inf, 0.0, 0.0], r"^velocity: contains NaN or inf"),
+    ("rotation", 2 * np.eye(3), r"^rotation: not a rotation matrix"),
+    ("rotation", -np.eye(3), r"^rotation: not a rotation matrix"),
+    ("position", np.zeros(4), r"^position: expected shape \(3,\)"),
+    ("position", "abc", r"^position: expected an array of numbers"),
+])
+def test_workspace_set_state_refuses_naming_the_argument(model, home, argument, value, message):
+    t, R, z = home
+    ws = model.workspace(1)
+    state = {**dict(position=t, rotation=R, velocity=z, angular_velocity=z), argument: value}
+    before = ws.position.copy()
+    with pytest.raises(ValueError, match=message):
+        ws.set_state(**state)
+    np.testing.assert_array_equal(ws.position, before)  # a refused state leaves the arrays as they were
+
+
+def test_workspace_set_state_takes_float32_and_integer_arrays(model, home):
+    _, R, z = home
+    ws = model.workspace(1)
+    ws.set_state(np.array([0, 0, 1]), np.eye(3, dtype=int), np.zeros(3, int), z.astype(np.float32))
+    assert ws.position.dtype == np.float64
+    np.testing.assert_array_equal(ws.position, [[0.0, 0.0, 1.0]])
+    ws.set_state(np.array([0.0, 0.0, 0.4], np.float32), R.astype(np.float32), z, z)
+    np.testing.assert_array_equal(ws.position, [[0.0, 0.0, np.float32(0.4)]])
+
+
+def test_workspace_check_finds_what_was_written_in_place(model):
+    ws = model.workspace(1)
+    ws.position[0, 0] = np.nan
+    with pytest.raises(ValueError, match=r"^position: contains NaN"):
+        ws.check()
+    ws.position[0, 0] = 0.0
+    ws.rotation[0] = 2 * np.eye(3)
+    with pytest.raises(ValueError, match=r"^rotation: not a rotation matrix"):
+        ws.check()
+
+
+def test_workspace_arrays_cannot_be_rebound(model):
+    ws = model.workspace(1)
+    with pytest.raises(AttributeError):
+        ws.position = np.zeros((1, 3))
+
+
+@pytest.mark.parametrize("dt", [0.0, -1e-3, np.nan, np.inf, "0.001", None, np.array([1e-3, 1e-3])])
+def test_workspace_step_refuses_a_bad_dt(model, dt):
+    with pytest.raises(ValueError, match=r"^dt: "):
+        model.workspace(1).step(dt)
+
+
+@pytest.mark.parametrize("steps", [-1, 1.5, np.nan, np.inf, "3", True, 10**30])
+def test_workspace_step_refuses_bad_steps(model, steps):
+    with pytest.raises(ValueError, match=r"^steps: "):
+        model.workspace(1).step(1e-3, steps)
+
+
+@pytest.mark.parametrize("how", [copy.deepcopy, lambda ws: pickle.loads(pickle.dumps(ws))], ids=["deepcopy", "pickle"])
+def test_a_copied_workspace_is_independent_and_bit_identical(model, how):
+    ws = model.workspace(1)
+    ws.leg_forces[0] = 1000.0
+    expected = ws.forward().copy()
+    twin = how(ws)
+    assert not np.shares_memory(twin.position, ws.position)
+    np.testing.assert_array_equal(twin.forward(), expected)
+    twin.position[0, 2] += 0.01
+    twin.forward()
+    np.testing.assert_array_equal(ws.forward(), expected)
+    assert not twin.model.packed.flags.writeable  # the copy's model stays immutable
+
+
+@pytest.mark.parametrize("how", [copy.deepcopy, lambda m: pickle.loads(pickle.dumps(m))], ids=["deepcopy", "pickle"])
+def test_a_copied_model_gives_the_same_numbers(model, home, how):
+    t, R, z = home
+    forces = np.full(6, 1000.0)
+    np.testing.assert_array_equal(how(model).forward(t, R, z, z, forces)[0], model.forward(t, R, z, z, forces)[0])
+
+
+def test_scale_packed_names_a_wrong_or_read_only_out_row(model):
+    from stewart_env.randomization import Randomization
+    rnd = Randomization({"platform.mass": (0.8, 1.2)})
+    with pytest.raises(ValueError, match=r"^out_row: "):
+        rnd.scale_packed(model.packed[0], {"platform.mass": 1.0}, np.empty(3))
+    with pytest.raises(ValueError, match=r"^out_row: read-only"):
+        rnd.scale_packed(model.packed[0], {"platform.mass": 1.0}, model.packed[0])

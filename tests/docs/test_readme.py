@@ -1,6 +1,6 @@
 """The README runs as written: every fenced block, in order, in one temporary working directory
 (the rules are those of ``tests/doc_blocks.py``).  What the README used to hold beyond its quick
-starts lives on the site, whose pages ``tests/test_site.py`` runs the same way."""
+starts lives on the site, whose pages ``tests/docs/test_site.py`` runs the same way."""
 
 from __future__ import annotations
 

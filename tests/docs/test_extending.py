@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 GUIDE = ROOT / "docs" / "guides" / "extending.md"
 ENV_ID = "my_stewart/LiftPlatform-v0"
 # a fresh interpreter imports stewart_env and loads the cached kernels in a few seconds

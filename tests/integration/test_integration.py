@@ -35,7 +35,7 @@ N_ENVS = 2
 #: Gymnasium's "module:id" form imports stewart_env wherever the id is made, so a fresh worker
 #: process (forkserver or spawn) finds the environment without the user importing it there.
 QUALIFIED_ENV_ID = f"stewart_env:{ENV_ID}"
-CONFIG_DIR = os.path.join(os.path.dirname(__file__), os.pardir, "configs", "agents")
+CONFIG_DIR = os.path.join(os.path.dirname(__file__), os.pardir, os.pardir, "configs", "agents")
 
 
 @pytest.fixture(autouse=True)

@@ -175,7 +175,7 @@ def test_every_block_runs(pages_run):
 
 
 def test_the_long_convention_is_stated(pages_run):
-    states_the_long_convention(pages_run, "tests/test_site.py")
+    states_the_long_convention(pages_run, "tests/docs/test_site.py")
 
 
 def test_snippets_write_what_they_say(pages_run):

@@ -336,3 +336,13 @@ def test_native_vector_env_matches_gymnasiums_sync_vector_env(mode):
             assert a_info["_final_obs"].tolist() == b_info["_final_obs"].tolist()
             for i in np.flatnonzero(b_info["_final_obs"]):
                 np.testing.assert_array_equal(a_info["final_obs"][i], b_info["final_obs"][i])
+
+
+# -- a batch too large for memory --------------------------------------------------------------
+
+
+def test_a_vector_env_too_large_for_memory_names_num_envs():
+    from stewart_env.envs import StewartPlatformVectorEnv
+
+    with pytest.raises(ValueError, match="^num_envs: 2147483647 platforms do not fit"):
+        StewartPlatformVectorEnv(2**31 - 1)

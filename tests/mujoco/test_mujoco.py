@@ -1,7 +1,12 @@
 """The MuJoCo twin (stewart_env.mujoco) against the exact ``improved`` model."""
 
+import copy
+import pickle
+from pathlib import Path
+
 import numpy as np
 import pytest
+from conftest import exit_code
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -233,3 +238,118 @@ def test_plant_copies_and_pickles_continue_bit_for_bit(dasgupta):
             np.testing.assert_array_equal(a, b)
         np.testing.assert_array_equal(plant.closure_error, other.closure_error)
     assert np.abs(state[0] - t).max() > 1e-4  # they did move
+
+
+# -- export-mjcf and the MuJoCo plant as a user meets them -------------------------------------
+
+
+from stewart_env.cli import main  # noqa: E402
+
+
+@pytest.fixture
+def make():
+    gym = pytest.importorskip("gymnasium")
+
+    def make(**kwargs):
+        env = gym.make("StewartPlatform-v1", **kwargs)
+        env.reset(seed=0)
+        return env
+    return make
+
+
+def test_export_mjcf_writes_a_model_mujoco_loads_into_a_new_folder(tmp_path, capsys):
+    mujoco = pytest.importorskip("mujoco")
+    out = tmp_path / "missing" / "folder" / "x.xml"
+    assert main(["export-mjcf", "--platform", "dasgupta1998", "--out", str(out)]) == 0
+    m = mujoco.MjModel.from_xml_path(str(out))
+    assert m.neq == 6  # one connect constraint closes each leg's loop
+
+
+@pytest.mark.parametrize("content, message", [
+    ("hello: [\n", "not valid YAML"),
+    ("gravity: !!python/object/apply:os.system ['echo hi']\n", "not valid YAML"),
+    ("[]\n", "expected a mapping"),
+    ("", "expected a mapping"),
+])
+def test_export_mjcf_refuses_a_hostile_platform_file_in_one_line(tmp_path, capsys, content, message):
+    pytest.importorskip("mujoco")
+    platform = tmp_path / "hostile.yaml"
+    platform.write_text(content)
+    with pytest.raises(SystemExit) as stop:
+        main(["export-mjcf", "--platform", str(platform), "--out", str(tmp_path / "x.xml")])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert "argument --platform" in err and message in err and "Traceback" not in err
+    assert not (tmp_path / "x.xml").exists()
+
+
+def test_export_mjcf_refuses_a_directory_as_out(tmp_path, capsys):
+    pytest.importorskip("mujoco")
+    assert main(["export-mjcf", "--platform", "dasgupta1998", "--out", str(tmp_path)]) == 2
+    assert "argument --out" in capsys.readouterr().err
+
+
+def test_export_mjcf_write_failure_names_out_without_a_traceback(tmp_path, capsys):
+    pytest.importorskip("mujoco")
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    for out in ([("/dev/full", "No space left")] if Path("/dev/full").exists() else []) + [(blocker / "x.xml", "")]:
+        assert main(["export-mjcf", "--platform", "dasgupta1998", "--out", str(out[0])]) == 2
+        err = capsys.readouterr().err
+        assert "argument --out" in err and out[1] in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("timestep", ["1e300", "0.5"])
+def test_export_mjcf_refuses_a_timestep_no_simulation_could_use(tmp_path, capsys, timestep):
+    pytest.importorskip("mujoco")
+    assert exit_code(["export-mjcf", "--platform", "dasgupta1998", "--out", str(tmp_path / "x.xml"),
+                       "--timestep", timestep]) == 2
+    assert "argument --timestep" in capsys.readouterr().err
+    assert not (tmp_path / "x.xml").exists()
+
+
+def test_to_mjcf_and_the_plant_refuse_bad_settings_naming_them(dasgupta):
+    pytest.importorskip("mujoco")
+    from stewart_env.mujoco import MujocoPlant, to_mjcf
+    with pytest.raises(ValueError, match=r"^timestep: "):
+        to_mjcf(dasgupta, timestep="x")
+    with pytest.raises(ValueError, match=r"^nthread: "):
+        MujocoPlant([dasgupta, dasgupta], nthread=-1)
+    with pytest.raises(ValueError, match=r"^params_rows: "):
+        MujocoPlant([])
+
+
+@pytest.mark.parametrize("how", [copy.deepcopy, lambda e: pickle.loads(pickle.dumps(e))], ids=["deepcopy", "pickle"])
+def test_mujoco_env_copies_continue_bit_for_bit(make, how):
+    pytest.importorskip("mujoco")
+    env = make(model="mujoco")
+    action = np.full(6, 0.1, np.float32)
+    for _ in range(3):
+        env.step(action)
+    twin = how(env)
+    for _ in range(3):
+        a, b = env.step(action), twin.step(action)
+        np.testing.assert_array_equal(a[0], b[0])
+        assert a[1] == b[1] and a[4]["closure_error"] == b[4]["closure_error"]
+    env.close()
+    twin.close()
+
+
+def test_mujoco_env_passes_gymnasiums_checker(make):
+    pytest.importorskip("mujoco")
+    from gymnasium.utils.env_checker import check_env
+    env = make(model="mujoco", task="hold")
+    with pytest.warns(UserWarning):  # the checker's note on an unbounded observation Box
+        check_env(env.unwrapped, skip_render_check=True)
+
+
+def test_model_names_are_case_insensitive_and_mujoco_is_listed():
+    """"MuJoCo" is the MuJoCo plant as "Improved" is the improved model; an unknown name lists both."""
+    pytest.importorskip("mujoco")
+    from stewart_env.envs import StewartPlatformEnv
+
+    env = StewartPlatformEnv(model="MuJoCo")
+    assert env.unwrapped.plant.name == "mujoco"
+    env.close()
+    with pytest.raises(ValueError, match=r"^model: unknown model 'nope'.*or 'mujoco'"):
+        StewartPlatformEnv(model="nope")

@@ -506,3 +506,52 @@ def test_hold_options_are_checked(dasgupta):
         HoldTask(dasgupta, 0.01, max_payload=-1.0)
     with pytest.raises(ValueError, match=r"task_options\['payload_radius'\]"):
         HoldTask(dasgupta, 0.01, payload_radius=5.0)
+
+
+# -- the environment's keywords for the tasks --------------------------------------------------
+
+
+@pytest.fixture
+def make():
+    gym = pytest.importorskip("gymnasium")
+
+    def make(**kwargs):
+        env = gym.make("StewartPlatform-v1", **kwargs)
+        env.reset(seed=0)
+        return env
+    return make
+
+
+@pytest.mark.parametrize("name", ["termination_cost", "ctrl_cost_weight", "position_reward_scale"])
+def test_old_reward_keywords_say_they_moved_to_task_options(make, name):
+    with pytest.raises(TypeError, match=rf"the reward weights are options of the task: pass task_options=\{{'{name}'"):
+        make(**{name: 1.0})
+
+
+@pytest.mark.parametrize("name, value", [
+    ("termination_cost", np.nan), ("termination_cost", np.inf), ("ctrl_cost_weight", -1.0),
+    ("ctrl_cost_weight", 1e300), ("position_reward_scale", 0.0), ("velocity_cost_weight", "1"),
+])
+def test_hostile_reward_weights_are_refused_naming_the_option(make, name, value):
+    with pytest.raises((ValueError, TypeError), match=rf"task_options\['{name}'\]"):
+        make(task_options={name: value})
+
+
+@pytest.mark.parametrize("options", [{"max_payload": -1.0}, {"max_payload": np.nan}, {"max_payload": 401.0},
+                                     {"max_payload": True}, {"payload_radius": np.inf}])
+def test_hold_task_refuses_hostile_payload_options(make, options):
+    name = next(iter(options))
+    with pytest.raises((ValueError, TypeError), match=rf"task_options\['{name}'\]"):
+        make(task="hold", task_options=options)
+
+
+def test_an_option_of_another_task_is_refused_listing_the_valid_ones(make):
+    with pytest.raises(ValueError, match=r"unknown option\(s\) 'max_payload' for task 'setpoint'; valid options: "):
+        make(task="setpoint", task_options={"max_payload": 3.0})
+
+
+def test_hold_task_runs_and_rewards_are_finite(make):
+    env = make(task="hold")
+    for _ in range(5):
+        _, reward, terminated, truncated, _ = env.step(np.zeros(6, np.float32))
+        assert np.isfinite(reward)

@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import exit_code
 
 from stewart_env.cli import main
 
@@ -365,3 +366,84 @@ def test_the_modules_run_with_python_m_go_through_the_command_line(module, usage
     done = subprocess.run([sys.executable, "-m", module, "--help"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith(usage)
+
+
+# -- the command line: the MuJoCo plant, the study's flags, missing extras, every verb's help ---
+
+
+
+def test_evaluate_runs_controllers_on_the_mujoco_plant(capsys):
+    pytest.importorskip("mujoco")
+    assert main(["evaluate", "--policy", "pd-gc", "--model", "mujoco", "--episodes", "1", "--max-steps", "5"]) == 0
+    assert "| mujoco |" in capsys.readouterr().out
+
+
+def test_train_takes_the_mujoco_plant_as_its_model():
+    from stewart_env.cli import build_parser
+    args = build_parser().parse_args(["train", "--algo", "ppo", "--out", "run", "--model", "mujoco"])
+    assert args.model == "mujoco"
+
+
+def test_evaluate_keeps_the_internal_model_closed_form(capsys):
+    assert exit_code(["evaluate", "--policy", "ct", "--internal-model", "mujoco", "--episodes", "1"]) == 2
+    assert "argument --internal-model" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("flag, value", [("--seeds", str(2**32)), ("--seeds", "0,0"), ("--max-steps", str(10**11)),
+                                         ("--episodes", "0")])
+def test_mismatch_refuses_a_setting_that_cannot_run_naming_the_flag(tmp_path, capsys, flag, value):
+    assert exit_code(["mismatch", "--out", str(tmp_path / "study"), "--algo", "none", flag, value]) == 2
+    assert f"argument {flag}" in capsys.readouterr().err
+    assert not (tmp_path / "study").exists()
+
+
+def test_mismatch_says_how_to_fix_a_cost_plant_missing_from_the_test_models(tmp_path, capsys):
+    code = exit_code(["mismatch", "--out", str(tmp_path / "study"), "--algo", "none", "--test-models", "classical",
+                       "--train-models", "improved", "--simplifications", "none", "--no-progress"])
+    assert code == 2
+    assert "pass --cost-plant" in capsys.readouterr().err
+
+
+def _run_without(package: str, code: str) -> subprocess.CompletedProcess:
+    """Run ``code`` in a fresh interpreter where ``package`` cannot be imported, as for a user
+    who did not install its extra."""
+    block = f"import sys; sys.modules[{package!r}] = None\n"
+    return subprocess.run([sys.executable, "-c", block + code], capture_output=True, text=True, timeout=120)
+
+
+def test_export_mjcf_without_mujoco_names_the_extra_without_a_traceback(tmp_path):
+    run = _run_without("mujoco", "from stewart_env.cli import main\n"
+                                 f"sys.exit(main(['export-mjcf', '--platform', 'dasgupta1998', '--out', {str(tmp_path / 'x.xml')!r}]))")
+    assert run.returncode == 2
+    assert run.stderr.startswith("stewart-env export-mjcf: error: ") and len(run.stderr.splitlines()) == 1
+    assert 'pip install -e ".[mujoco]"' in run.stderr and "stewart-env[" not in run.stderr
+
+
+def test_mujoco_env_without_mujoco_raises_import_error_naming_the_extra():
+    run = _run_without("mujoco", "import gymnasium as gym, stewart_env\n"
+                                 "try:\n    gym.make('StewartPlatform-v1', model='mujoco')\n"
+                                 "except ImportError as e:\n    print(e)\n    sys.exit(3)\n")
+    assert run.returncode == 3, run.stderr
+    assert "model='mujoco'" in run.stdout and "[mujoco]" in run.stdout
+
+
+def test_mismatch_ray_backend_without_ray_names_the_extra(tmp_path):
+    run = _run_without("ray", "from stewart_env.cli import main\n"
+                              f"sys.exit(main(['mismatch', '--backend', 'ray', '--algo', 'none', '--out', {str(tmp_path)!r}]))")
+    assert run.returncode == 2
+    assert "[distributed]" in run.stderr and "Traceback" not in run.stderr
+
+
+def _subcommands():
+    import argparse
+
+    from stewart_env.cli import build_parser
+    parser = build_parser()
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return sorted(action.choices.items())
+
+
+@pytest.mark.parametrize("name, parser", _subcommands(), ids=lambda x: x if isinstance(x, str) else "")
+def test_every_subcommands_help_formats(name, parser):
+    text = parser.format_help()  # argparse %-formats every help string: a bare % in one breaks --help
+    assert f"stewart-env {name}" in text

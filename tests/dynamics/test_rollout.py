@@ -345,3 +345,126 @@ def test_a_law_declaring_its_row_length_refuses_other_rows(batch):
         se.rollout(model, *[x[0] for x in state], control_law=law, control_params=F[0], steps=1)
     with pytest.raises(ValueError, match="^n_params: "):
         rk4.ControlLaw(rk4.LAW_CTYPES(lambda *args: None), n_params=-1)
+
+
+# -- rollout with a control law: what is not a compiled law, bad parameters --------------------
+
+
+@pytest.fixture(scope="module")
+def model(dasgupta):
+    return se.make_dynamics("improved", dasgupta)
+
+
+@pytest.fixture
+def home(model):
+    """The home pose (position, rotation) and a zero rate."""
+    ws = model.workspace(1)
+    return ws.position[0].copy(), ws.rotation[0].copy(), np.zeros(3)
+
+
+def _wrong_signature(time, position):
+    pass
+
+
+def _jitted(time, position, rotation, velocity, angular_velocity, params, forces):
+    forces[0] = 0.0
+
+
+def _returns_a_value(time, position, rotation, velocity, angular_velocity, params, n_params, forces):
+    return 1.0
+
+
+def _nan_forces(time, position, rotation, velocity, angular_velocity, params, n_params, forces):
+    for i in range(6):
+        forces[i] = np.nan
+
+
+def _python_law(time, position, rotation, velocity, angular_velocity, params, forces):
+    forces[:] = 0.0
+
+
+#: What is not a compiled control law: plain Python, and (with numba) an njit function and cfuncs of
+#: the wrong signature.
+NOT_LAWS = {"python": _python_law, "lambda": lambda *a: None}
+if numba is not None:
+    NOT_LAWS.update({
+        "njit": numba.njit(_jitted),
+        "wrong-signature": numba.cfunc("void(float64, CPointer(float64))")(_wrong_signature),
+        "returns-a-value": numba.cfunc("float64(float64, CPointer(float64), CPointer(float64), CPointer(float64), "
+                                       "CPointer(float64), CPointer(float64), int64, CPointer(float64))")(_returns_a_value),
+    })
+
+
+@pytest.mark.parametrize("law", list(NOT_LAWS.values()), ids=list(NOT_LAWS))
+def test_rollout_refuses_a_law_that_is_not_a_compiled_law_naming_control_law(model, home, law):
+    t, R, z = home
+    with pytest.raises(ValueError, match=r"^control_law: "):
+        se.rollout(model, t, R, z, z, steps=10, control_law=law)
+
+
+@needs_numba
+def test_rollout_law_giving_nan_forces_raises_naming_the_rows(model, home):
+    t, R, z = home
+    nan_forces = numba.cfunc(se.dynamics.rk4.numba_law_signature())(_nan_forces)
+    with pytest.raises(FloatingPointError, match=r"non-finite in batch rows \[0\]"):
+        se.rollout(model, t, R, z, z, steps=10, control_law=nan_forces)
+    final = se.rollout(model, t, R, z, z, steps=10, control_law=nan_forces, check_finite=False)[0]
+    assert np.isnan(final).all()  # unchecked, the rows come back NaN for the caller to see
+
+
+@pytest.fixture(scope="module")
+def pd_row(dasgupta, model):
+    from stewart_env.agents.pd import pd_control_params
+    ws = model.workspace(1)
+    z = np.zeros(3)
+    return pd_control_params(dasgupta, se.Reference(ws.position[0].copy(), ws.rotation[0].copy(), z, z))
+
+
+@pytest.mark.parametrize("params, message", [
+    ("nan", r"^control_params: contains NaN or inf"),
+    ("3d", r"^control_params: expected an array \(P,\) or \(N, P\)"),
+    ("str", r"^control_params: "),
+])
+def test_rollout_refuses_bad_control_params_naming_them(model, home, pd_row, params, message):
+    from stewart_env.agents.pd import pd_control_law
+    t, R, z = home
+    value = {"nan": np.full_like(pd_row, np.nan), "3d": pd_row[None, None], "str": "abc"}[params]
+    with pytest.raises(ValueError, match=message):
+        se.rollout(model, t, R, z, z, steps=10, control_law=pd_control_law, control_params=value)
+
+
+def test_rollout_takes_leg_forces_or_a_law_not_both(model, home, pd_row):
+    from stewart_env.agents.pd import pd_control_law
+    t, R, z = home
+    with pytest.raises(ValueError, match=r"^leg_forces: "):
+        se.rollout(model, t, R, z, z, np.zeros(6), steps=10, control_law=pd_control_law, control_params=pd_row)
+    with pytest.raises(ValueError, match=r"^control_params: given without a control_law"):
+        se.rollout(model, t, R, z, z, np.zeros(6), steps=10, control_params=pd_row)
+
+
+@pytest.mark.parametrize("every", [0, -1, 3, 2.5, "2", 10**30])
+def test_rollout_refuses_a_record_every_that_does_not_divide_steps(model, home, every):
+    t, R, z = home
+    with pytest.raises(ValueError, match=r"^record_every: "):
+        se.rollout(model, t, R, z, z, np.zeros(6), steps=100, record_every=every)
+
+
+def test_rollout_records_the_pd_law_every_tenth_step(model, home, pd_row):
+    from stewart_env.agents.pd import pd_control_law
+    t, R, z = home
+    trajectory = se.rollout(model, t, R, z, z, dt=1e-3, steps=100, control_law=pd_control_law,
+                            control_params=pd_row, record_every=10)
+    assert trajectory.time.shape == (11,) and trajectory.position.shape == (11, 3)
+    assert trajectory.leg_forces.shape == (11, 6)
+    np.testing.assert_allclose(trajectory.time[[0, 1, -1]], [0.0, 0.01, 0.1], rtol=0, atol=1e-15)  # 10 * 1e-3 sums
+    np.testing.assert_array_equal(trajectory.position[0], t)  # the start is recorded as given
+    # the PD law held at home keeps the platform within 0.2 mm over 0.1 s (it sags ~0.12 mm under gravity)
+    assert np.abs(trajectory.position - t).max() < 2e-4
+    assert np.isfinite(trajectory.leg_forces).all()
+
+
+@pytest.mark.parametrize("dt", [0, -1e-3, np.inf, np.nan])
+def test_rollout_refuses_a_bad_dt(model, home, dt):
+    t, R, z = home
+    with pytest.raises(ValueError, match=r"^dt: "):
+        se.rollout(model, t, R, z, z, np.zeros(6), dt=dt, steps=1)

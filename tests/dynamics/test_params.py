@@ -22,7 +22,7 @@ from stewart_env.rotations import rpy_to_matrix
 
 pytestmark = pytest.mark.physics
 
-CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs" / "platforms"
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs" / "platforms"
 SHIPPED = ("dasgupta1998", "motion_simulator")
 
 

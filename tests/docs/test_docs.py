@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PHYSICS = ROOT / "docs" / "physics.md"
 KERNELS = ROOT / "stewart_env" / "dynamics" / "kernels.py"
 #: The compiled kernels' sources by the module name the physics page's function table gives them:
@@ -117,7 +117,7 @@ def test_relative_links_resolve(page):
             continue  # http(s), mailto: outside the repository by intent
         path, _, anchor = target.partition("#")
         if path.startswith("_generated/"):
-            continue  # drawn when the site is built; tests/test_site.py checks the built page's images
+            continue  # drawn when the site is built; tests/docs/test_site.py checks the built page's images
         if path and not (page.parent / path).exists():
             broken.append(target)
         elif not path and anchor not in anchors:

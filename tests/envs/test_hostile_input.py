@@ -25,7 +25,7 @@ import stewart_env
 from stewart_env.params import MAX_CONFIG_BYTES, ConfigError, PlatformParams, load_platform
 from stewart_env.randomization import Randomization
 
-CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs" / "platforms"
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs" / "platforms"
 DASGUPTA = CONFIG_DIR / "dasgupta1998.yaml"
 # Longest message a hostile input may produce: the path, the key list of an unknown-key error
 # (about 140 characters) and a 60-character excerpt fit well within it.
