@@ -45,8 +45,7 @@ LAYERS = {
 # the package's face re-exports the physics API and registers the environment with Gymnasium
 PACKAGE = "stewart_env"
 ORDER = ("physics", "tasks", "envs", "agents", "cli")
-# The environments' benchmark keeps its own `python -m stewart_env.envs.bench_env` parser for now.
-OWN_PARSERS = ("stewart_env.envs.bench_env",)
+OWN_PARSERS = ()
 # the integrator: a task gets the state it is given and never advances it
 INTEGRATOR = ("stewart_env.integrate", "stewart_env.dynamics.rk4")
 

@@ -1,12 +1,10 @@
 """Speed of the environments: single-env steps/s through ``gymnasium.make`` and vector platform-steps/s.
 
-Run ``python -m stewart_env.envs.bench_env`` (options: ``--n-vector``, ``--seconds``).
+``stewart-env bench --env`` prints what these measure.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import time
 
 import gymnasium as gym
@@ -120,15 +118,3 @@ def bench_reset(n: int = 1024, randomization: dict | None = RESET_RANDOMIZATION,
         best = min(best, time.perf_counter() - start)
     venv.close()
     return best / n
-
-
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n-vector", type=int, default=1024)
-    parser.add_argument("--seconds", type=float, default=5.0)
-    args = parser.parse_args(argv)
-    print(json.dumps(bench_env(args.n_vector, args.seconds), indent=2))
-
-
-if __name__ == "__main__":
-    main()
