@@ -75,8 +75,7 @@ def test_the_sb3_adapter_steps_a_mujoco_batch(mujoco):
 def test_randomised_rows_give_the_plant_their_parameters(mujoco):
     env = StewartPlatformEnv(model="mujoco", task="hold", randomization={"platform.mass": (1.5, 2.0)})
     env.reset(seed=0)
-    core = env._core
-    assert core.plant.params[0] is env.episode_params
+    assert env.plant.params[0] is env.episode_params
     assert 1.5 * env.platform.platform.mass <= env.episode_params.platform.mass <= 2.0 * env.platform.platform.mass
     env.step(holding_action(env))
 
@@ -89,7 +88,7 @@ def test_a_copy_on_mujoco_continues_bit_for_bit(mujoco, how):
     for _ in range(3):
         env.step(a)
     twin_env = how(env)
-    assert twin_env._core.plant is not env._core.plant
+    assert twin_env.plant is not env.plant
     for _ in range(5):
         obs, reward, _, _, info = env.step(a)
         obs_twin, reward_twin, _, _, info_twin = twin_env.step(a)
