@@ -91,8 +91,8 @@ class Randomization:
     ``sample(rng)`` draws the factors of one episode; ``apply(params, factors)`` builds that
     episode's :class:`~stewart_env.params.PlatformParams` with ``params.replace``, and
     ``scale_packed(nominal_row, factors, out_row)`` writes the same parameters packed for the
-    kernels (``kernels.PACKED_LAYOUT``) without building them: a randomised reset in ~12 us
-    instead of the 2-4 ms of validating a new PlatformParams.
+    kernels (``kernels.PACKED_LAYOUT``) without building them, so a randomised reset does not
+    pay for validating a new PlatformParams.
     """
 
     def __init__(self, spec: Mapping[str, tuple[float, float]]):

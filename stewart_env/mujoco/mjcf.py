@@ -41,9 +41,9 @@ __all__ = ["DEFAULT_SOLIMP", "DEFAULT_SOLREF", "MAX_TIMESTEP", "home_rotation", 
 #: Time constant (s) and damping ratio of the loop-closure constraints' error correction.
 #: 0.002 s is the smallest MuJoCo accepts at a 1 ms step (it raises any smaller value to twice
 #: the step), so a gap is pulled shut within a few steps; critical damping (1) avoids ringing.
-#: Over 1 s of free motion of dasgupta1998 (:func:`~stewart_env.mujoco.trajectory_report`) it keeps the loops closed
-#: to 1.3 um and the energy to 1.6 mJ of 0.79 J kinetic, against 11 um and 27 mJ at MuJoCo's
-#: default time constant 0.02 s (and 5.6 mm and 13 J with MuJoCo's default solimp as well).
+#: Against MuJoCo's default time constant and impedance it keeps the loops closed and the energy
+#: conserved far better over free motion (:func:`~stewart_env.mujoco.trajectory_report`; the
+#: figures are in the MuJoCo guide, docs/guides/mujoco.md).
 DEFAULT_SOLREF = (0.002, 1.0)
 #: Impedance of the loop-closure constraints (MuJoCo's d_min, d_max, width, midpoint, power).  The
 #: constraint force reaches the fraction d of the force that would hold the loop rigidly, so the

@@ -95,10 +95,9 @@ MAX_FREQUENCY = 1000.0
 
 
 #: Reward scales (m, rad) of the tasks whose question is millimetre precision all episode long
-#: (tracking, disturbance).  With the base task's 0.05 m and 0.1 rad, a 2 mm error (the default
-#: success band) costs 2 % of the position reward, and PPO agents of 1M steps miss the band (3.2 mm
-#: RMS on tracking); with these scales the same budget holds it (0.78 mm RMS on tracking, 0.70 mm
-#: under the disturbance; README).
+#: (tracking, disturbance).  At the base task's scales an error inside the default success band
+#: barely changes the reward, so a learned agent has little to gain from closing it; these sharper
+#: scales make the band worth holding (results: docs/results/mismatch-tracking-disturbance.md).
 PRECISE_REWARD_SCALES = (0.01, 0.02)
 
 
