@@ -159,6 +159,23 @@ class TaskSpacePD:
             as we have it.  With it the PD terms only have to produce accelerations, so a set
             point is reached without the droop weight / Kp.
         gravity_model: dynamics model name for the holding forces; ``"improved"`` is exact at rest.
+
+    Raises:
+        ValueError: ``platform`` not PlatformParams, a gain not six finite numbers or a scalar,
+            or an unknown ``gravity_model``.
+
+    Examples:
+        At the reference, the law gives the holding forces alone:
+
+        >>> import numpy as np, stewart_env as se
+        >>> from stewart_env.state import PlatformState, Reference
+        >>> from agents.pd import TaskSpacePD
+        >>> params = se.load_platform("dasgupta1998")
+        >>> at_home = (params.home_position, np.eye(3), np.zeros(3), np.zeros(3))
+        >>> pd = TaskSpacePD(params, gravity_compensation=True)
+        >>> forces = pd(PlatformState(*at_home), Reference(*at_home, np.zeros(3), np.zeros(3)))
+        >>> print(np.round(forces, 1))
+        [193.9 145.4 153.1 172.3 159.6 188.9]
     """
 
     def __init__(self, platform: PlatformParams, kp=PAPER_KP, kd=PAPER_KD, gravity_compensation: bool = False,

@@ -185,11 +185,35 @@ def double_difference(values, values_home, reference, reference_home, statistic:
 
 def stratified_bootstrap(values, statistic: str = "mean", confidence: float = CONFIDENCE,
                          resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> Interval:
-    """Point estimate and percentile bootstrap interval of ``statistic`` ("mean" or "iqm") of a
-    cell ``values`` (seeds, episodes), or (episodes,) for one seed.  Each of ``resamples``
-    resamples draws the seeds with replacement and, within each drawn seed, its episodes with
-    replacement; NaN values are left out of each resample's statistic.  Reproducible: the same
-    ``seed`` gives the same interval."""
+    """Point estimate and percentile bootstrap interval of a statistic of one cell.
+
+    Each of ``resamples`` resamples draws the seeds with replacement and, within each drawn seed,
+    its episodes with replacement; NaN values are left out of each resample's statistic.
+
+    Args:
+        values: the cell, (seeds, episodes), or (episodes,) for one seed.
+        statistic: ``"mean"`` or ``"iqm"`` (:data:`STATISTICS`).
+        confidence: the interval's confidence level, in (0, 1).
+        resamples: the number of bootstrap resamples.
+        seed: the resampling's seed: the same seed gives the same interval.
+
+    Returns:
+        The :class:`Interval` (estimate, low, high and the cell's sizes).
+
+    Raises:
+        ValueError: an unknown statistic, a confidence outside (0, 1) or a resamples count
+            outside [1, 10^7].
+
+    Examples:
+        >>> import numpy as np
+        >>> from agents.statistics import stratified_bootstrap
+        >>> cell = np.arange(12.0).reshape(3, 4)       # 3 training seeds, 4 episodes each
+        >>> interval = stratified_bootstrap(cell, "iqm")
+        >>> print(round(interval.estimate, 2), interval.seeds, interval.episodes)
+        5.5 3 4
+        >>> bool(interval.low < interval.estimate < interval.high)
+        True
+    """
     return _bootstrap([_as_cell(values)], lambda a: a, statistic, confidence, resamples, seed)
 
 

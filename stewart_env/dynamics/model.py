@@ -338,12 +338,35 @@ class Dynamics:
     def forward(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench=None):
         """Forward dynamics: platform accelerations under given leg forces.
 
-        position (3,) of P's origin, m; rotation (3,3); velocity (3,) of P's origin, m/s;
-        angular_velocity (3,) rad/s; leg_forces (6,) N, positive extends the leg;
-        external_wrench (6,) [force at P, N; moment, N m] or None.  All in {B}; every argument
-        may carry a leading batch dimension N.  Returns (lin_acc, ang_acc): acceleration of
-        P's origin (m/s^2) and angular acceleration (rad/s^2), each (3,) or (N,3).
-        Solves M [a; alpha] + h = J^T F + W (docs/physics.md section 5.4).
+        Solves M [a; alpha] + h = J^T F + W (docs/physics.md section 5.4).  All quantities are in
+        {B}; every argument may carry a leading batch dimension N.
+
+        Args:
+            position: (3,) position of P's origin, m.
+            rotation: (3,3) rotation matrix of {P} in {B}.
+            velocity: (3,) velocity of P's origin, m/s.
+            angular_velocity: (3,) angular velocity, rad/s.
+            leg_forces: (6,) actuator forces F along the legs, N, positive extends the leg.
+            external_wrench: (6,) [force at P, N; moment, N m], or None for none.
+
+        Returns:
+            (lin_acc, ang_acc): acceleration a of P's origin (m/s^2) and angular acceleration
+            alpha (rad/s^2), each (3,) or (N,3).
+
+        Raises:
+            ValueError: a wrong shape, a non-finite value or a rotation that is not orthonormal.
+
+        Examples:
+            The holding forces of :meth:`inverse` keep the platform at rest:
+
+            >>> import numpy as np, stewart_env as se
+            >>> params = se.load_platform("dasgupta1998")
+            >>> model = se.make_dynamics("improved", params)
+            >>> pose = (params.home_position, np.eye(3), np.zeros(3), np.zeros(3))
+            >>> forces = model.inverse(*pose, np.zeros(3), np.zeros(3))
+            >>> lin_acc, ang_acc = model.forward(*pose, forces)
+            >>> bool(np.abs(lin_acc).max() < 1e-9 and np.abs(ang_acc).max() < 1e-9)
+            True
         """
         out = np.empty(6)
         # one platform's float64 arrays, valid: checked and solved in one compiled call
@@ -359,10 +382,33 @@ class Dynamics:
         return (out[:, :3], out[:, 3:]) if batched else (out[0, :3], out[0, 3:])
 
     def inverse(self, position, rotation, velocity, angular_velocity, lin_acc, ang_acc, external_wrench=None):
-        """Inverse dynamics: the leg forces (6,) or (N,6), N, that produce the given accelerations.
+        """Inverse dynamics: the leg forces that produce the given accelerations.
 
-        Arguments as in :meth:`forward`, with lin_acc (3,) m/s^2 and ang_acc (3,) rad/s^2 in {B}.
-        docs/physics.md section 5.5.
+        docs/physics.md section 5.5.  All quantities are in {B}; every argument may carry a
+        leading batch dimension N.
+
+        Args:
+            position, rotation, velocity, angular_velocity: the state, as in :meth:`forward`.
+            lin_acc: (3,) acceleration a of P's origin, m/s^2.
+            ang_acc: (3,) angular acceleration alpha, rad/s^2.
+            external_wrench: (6,) [force at P, N; moment, N m], or None for none.
+
+        Returns:
+            The leg forces F (6,) or (N,6), N.
+
+        Raises:
+            ValueError: a wrong shape, a non-finite value or a rotation that is not orthonormal.
+
+        Examples:
+            The forces that hold the 40 kg platform at rest at its home pose:
+
+            >>> import numpy as np, stewart_env as se
+            >>> params = se.load_platform("dasgupta1998")
+            >>> model = se.make_dynamics("improved", params)
+            >>> forces = model.inverse(params.home_position, np.eye(3), np.zeros(3), np.zeros(3),
+            ...                        np.zeros(3), np.zeros(3))
+            >>> print(np.round(forces, 1))
+            [193.9 145.4 153.1 172.3 159.6 188.9]
         """
         out = np.empty(6)
         if _core.inverse_one_checked(self.packed, self.flags, position, rotation, velocity, angular_velocity, lin_acc,
@@ -421,5 +467,24 @@ class Dynamics:
 
 
 def make_dynamics(name: str, params: PlatformParams | Sequence[PlatformParams]) -> Dynamics:
-    """The dynamics model ``name`` (see the module docstring) on ``params``."""
+    """The dynamics model ``name`` (see the module docstring) on ``params``.
+
+    Args:
+        name: the model's name, ``"improved"``, ``"improved_centroidal"`` or ``"classical"``,
+            optionally with switches such as ``"+c1"`` (any case).
+        params: one platform's parameters, or a sequence of them (one per batch row).
+
+    Returns:
+        The :class:`Dynamics` model.
+
+    Raises:
+        ValueError: an unknown name or switch, or ``params`` not PlatformParams.
+        ConfigError: a platform whose home pose is conditioned beyond its limits.
+
+    Examples:
+        >>> import stewart_env as se
+        >>> model = se.make_dynamics("classical+c1", se.load_platform("dasgupta1998"))
+        >>> model.name
+        'classical+c1'
+    """
     return Dynamics(name, params)

@@ -63,6 +63,24 @@ class Workspace:
     * :meth:`inverse`: state, acceleration, external_wrench -> leg_forces (section 5.5);
     * :meth:`mass_and_bias`: state, external_wrench -> mass_matrix, bias (section 5.4);
     * :meth:`step`: RK4 steps with leg_forces and external_wrench held; overwrites the state (section 5.6).
+
+    Args:
+        model: the :class:`Dynamics` whose parameter rows the workspace uses.
+        n: the batch size (the model's number of parameter rows, or any if it has one).
+
+    Raises:
+        ValueError: ``model`` not a Dynamics, or ``n`` not a positive integer that fits the model.
+
+    Examples:
+        >>> import numpy as np, stewart_env as se
+        >>> model = se.make_dynamics("improved", se.load_platform("dasgupta1998"))
+        >>> ws = model.workspace()
+        >>> ws.acceleration[0] = 0.0           # at rest at home: the holding forces
+        >>> print(np.round(ws.inverse()[0], 1))
+        [193.9 145.4 153.1 172.3 159.6 188.9]
+        >>> ws.leg_forces[0] += 10.0           # 10 N more on every leg: the platform rises
+        >>> bool(ws.forward()[0, 2] > 0)
+        True
     """
 
     __slots__ = ("_model", "_n", "_packed", "_flags", "_bound", *(f"_{name}" for name in _ARRAYS))

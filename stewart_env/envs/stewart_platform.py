@@ -294,6 +294,21 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     `leg_lengths`, `platform`, `task`, `dt`, and `set_state(...)`.  All randomness
     comes from `env.np_random`, so a seed fixes an episode bit for bit.
 
+    ## Example
+
+    ```pycon
+    >>> import gymnasium as gym, numpy as np
+    >>> env = gym.make("StewartPlatform-v0", task="setpoint")
+    >>> observation, info = env.reset(seed=0)
+    >>> observation.shape, env.action_space.shape
+    ((21,), (6,))
+    >>> observation, reward, terminated, truncated, info = env.step(np.zeros(6, np.float32))
+    >>> terminated, truncated, int(info["termination"])
+    (False, False, 0)
+    >>> env.close()
+
+    ```
+
     ## Version History
 
     * v0: initial version.

@@ -144,6 +144,18 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
     semantics: a tuple of one result per row), e.g. ``get_attr("state")`` or ``call("render")``;
     ``render()`` gives one frame per row in ``rgb_array`` mode (each drawn when first indexed),
     and draws row 0 in ``human`` mode.
+
+    Examples:
+        >>> import numpy as np
+        >>> from stewart_env.envs import StewartPlatformVectorEnv
+        >>> envs = StewartPlatformVectorEnv(num_envs=4, task="setpoint")
+        >>> observations, infos = envs.reset(seed=0)
+        >>> observations.shape
+        (4, 21)
+        >>> observations, rewards, terminated, truncated, infos = envs.step(np.zeros((4, 6), np.float32))
+        >>> rewards.shape, terminated.tolist()
+        ((4,), [False, False, False, False])
+        >>> envs.close()
     """
 
     _rows = slice(None)  # BatchAttributes: every row

@@ -1,0 +1,57 @@
+"""The runnable examples (``Examples:`` sections with ``>>>`` lines) of the main entry points run
+as written, and every entry point listed here has one.
+
+Each object's own docstring is run with :mod:`doctest` (``ELLIPSIS | NORMALIZE_WHITESPACE``),
+without recursing into its members: a method with an example is listed by its own name.
+"""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+
+import pytest
+
+#: The main entry points, by dotted name: each must carry an example that runs.
+ENTRY_POINTS = [
+    "stewart_env.make_dynamics",
+    "stewart_env.Dynamics.forward",
+    "stewart_env.Dynamics.inverse",
+    "stewart_env.Workspace",
+    "stewart_env.rollout",
+    "stewart_env.params.load_platform",
+    "stewart_env.envs.StewartPlatformEnv",
+    "stewart_env.envs.StewartPlatformVectorEnv",
+    "agents.pd.TaskSpacePD",
+    "agents.computed_torque.ComputedTorque",
+    "agents.statistics.stratified_bootstrap",
+    pytest.param("stewart_env.mujoco.MujocoPlant", marks=pytest.mark.extra("mujoco")),
+]
+
+OPTIONS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
+
+
+def resolve(dotted: str):
+    """The object a dotted name names: the longest importable module prefix, then attributes."""
+    parts = dotted.split(".")
+    for split in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:split]))
+        except ModuleNotFoundError:
+            continue
+        for attribute in parts[split:]:
+            obj = getattr(obj, attribute)
+        return obj
+    raise ImportError(dotted)
+
+
+@pytest.mark.parametrize("name", ENTRY_POINTS)
+def test_the_example_runs(name):
+    tests = [test for test in doctest.DocTestFinder(recurse=False).find(resolve(name), name, globs={})
+             if test.examples]
+    assert tests, f"{name} has no example (an Examples: section with >>> lines)"
+    runner = doctest.DocTestRunner(optionflags=OPTIONS)
+    for test in tests:
+        runner.run(test)
+    result = runner.summarize(verbose=False)
+    assert result.failed == 0, f"{name}: {result.failed} of {result.attempted} example lines failed (see the output above)"
