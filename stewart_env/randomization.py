@@ -93,6 +93,22 @@ class Randomization:
     ``scale_packed(nominal_row, factors, out_row)`` writes the same parameters packed for the
     kernels (``kernels.PACKED_LAYOUT``) without building them, so a randomised reset does not
     pay for validating a new PlatformParams.
+
+    Args:
+        spec: a dict from a key of :data:`KEYS` to a (low, high) range of its factors.
+
+    Raises:
+        ConfigError: an unknown key or an invalid range (the message names the key).
+
+    Examples:
+        >>> import numpy as np, stewart_env as se
+        >>> from stewart_env.randomization import Randomization
+        >>> spec = Randomization({"platform.mass": (0.8, 1.2)})
+        >>> factors = spec.sample(np.random.default_rng(0))
+        >>> params = se.load_platform("dasgupta1998")
+        >>> heavier = spec.apply(params, factors)
+        >>> bool(heavier.platform.mass == params.platform.mass * factors["platform.mass"])
+        True
     """
 
     def __init__(self, spec: Mapping[str, tuple[float, float]]):
@@ -111,11 +127,29 @@ class Randomization:
         return f"Randomization({self.ranges})"
 
     def sample(self, rng: np.random.Generator) -> dict[str, float]:
-        """One factor per key, uniform in its range, drawn in the order of KEYS."""
+        """One factor per key, uniform in its range, drawn in the order of KEYS.
+
+        Args:
+            rng: the generator to draw from (the environment's ``np_random``).
+
+        Returns:
+            A dict from each key of the spec to its factor.
+        """
         return {key: float(rng.uniform(low, high)) for key, (low, high) in self.ranges.items()}
 
     def apply(self, params: PlatformParams, factors: Mapping[str, float]) -> PlatformParams:
-        """``params`` with every parameter multiplied by the product of its keys' factors."""
+        """``params`` with every parameter multiplied by the product of its keys' factors.
+
+        Args:
+            params: the nominal platform.
+            factors: a factor per key of the spec (what :meth:`sample` draws).
+
+        Returns:
+            The episode's :class:`~stewart_env.params.PlatformParams`.
+
+        Raises:
+            ConfigError: factors that :meth:`check_factors` refuses.
+        """
         scale = dict(zip(_PART_NAMES, _multipliers(factors)))
 
         def body(b: RigidBody, name: str) -> RigidBody:
@@ -140,8 +174,15 @@ class Randomization:
         )
 
     def check_factors(self, factors: Mapping[str, float]) -> None:
-        """Raise ConfigError naming the key unless ``factors`` holds only keys of this spec, each a
-        number within its range (what :meth:`sample` draws)."""
+        """Check factors against the spec.
+
+        Args:
+            factors: a factor per key of the spec.
+
+        Raises:
+            ConfigError: a key not of this spec, or a factor that is not a number within its range
+                (what :meth:`sample` draws); the message names the key.
+        """
         if not isinstance(factors, Mapping):
             raise ConfigError("factors", f"expected a dict of key -> factor, got {short(factors)}")
         for key, f in factors.items():

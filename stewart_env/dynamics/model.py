@@ -350,8 +350,8 @@ class Dynamics:
             external_wrench: (6,) [force at P, N; moment, N m], or None for none.
 
         Returns:
-            (lin_acc, ang_acc): acceleration a of P's origin (m/s^2) and angular acceleration
-            alpha (rad/s^2), each (3,) or (N,3).
+            The pair (lin_acc, ang_acc), acceleration a of P's origin (m/s^2) and angular
+            acceleration alpha (rad/s^2), each (3,) or (N,3).
 
         Raises:
             ValueError: a wrong shape, a non-finite value or a rotation that is not orthonormal.
