@@ -193,17 +193,24 @@ class Randomization:
                 raise ConfigError(f"factors[{key!r}]", f"expected a number within [{low}, {high}], got {short(f)}")
 
     def scale_packed(self, nominal_row: np.ndarray, factors: Mapping[str, float], out_row: np.ndarray) -> None:
-        """Write into ``out_row`` (N_PARAMS,) the packed parameters of ``apply(params, factors)``,
-        given ``nominal_row = pack_params(params)``, without building PlatformParams: the reset of
-        a randomised row.  Equal bit for bit to ``pack_params(self.apply(params, factors))``.
+        """Write the packed parameters of ``apply(params, factors)`` without building PlatformParams:
+        the reset of a randomised row.
 
-        The factors are checked against the spec (:meth:`check_factors`).  Scaling a valid
-        platform by factors in range changes only what the checks of PlatformParams on masses
-        and inertias see, so only those run again, on the scaled numbers: the platform's mass
-        and smallest principal moment (the nominal's times the inertia factor), and every
-        number's magnitude.  Raises ConfigError naming the parameter, as :meth:`apply` would.
-        The caller promises ``nominal_row`` is the packed row of a valid PlatformParams (e.g. a
-        model's ``packed[0]``).
+        Equal bit for bit to ``pack_params(self.apply(params, factors))``.  The factors are checked
+        against the spec (:meth:`check_factors`).  Scaling a valid platform by factors in range changes
+        only what the checks of PlatformParams on masses and inertias see, so only those run again, on
+        the scaled numbers: the platform's mass and smallest principal moment (the nominal's times the
+        inertia factor), and every number's magnitude.
+
+        Args:
+            nominal_row: ``pack_params(params)`` (N_PARAMS,); the caller promises it is the packed
+                row of a valid PlatformParams (e.g. a model's ``packed[0]``).
+            factors: a factor per key of the spec.
+            out_row: (N_PARAMS,) float64, overwritten.
+
+        Raises:
+            ConfigError: factors out of the spec, or a scaled parameter PlatformParams would refuse
+                (the message names it, as :meth:`apply` would).
         """
         for name, row in (("nominal_row", nominal_row), ("out_row", out_row)):
             if not (isinstance(row, np.ndarray) and row.dtype == np.float64 and row.shape == (K.N_PARAMS,)):

@@ -238,13 +238,25 @@ class ParamsRows(Sequence):
 class Dynamics:
     """A dynamics model of one platform, or of a batch of platforms (one parameter set per row).
 
-    Attributes: ``name`` (canonical, e.g. ``"improved+c1"``), ``flags`` (kernel switch bits),
-    ``packed`` (Np, N_PARAMS), read-only, and ``params``: the :class:`PlatformParams` of each row
-    of ``packed`` (a sequence; rows set from packed numbers are built when first read, see
-    :meth:`with_packed_rows`).  The model is immutable: the ``with_*`` methods return new ones.
-    Its :meth:`workspace` holds the preallocated arrays of a controller loop.  A platform whose
-    home pose is conditioned beyond its limits.max_condition raises ConfigError
-    (``check_home_condition``).
+    The model is immutable: the ``with_*`` methods return new ones.  Its :meth:`workspace` holds
+    the preallocated arrays of a controller loop.  :func:`~stewart_env.make_dynamics` is the usual
+    way to make one.
+
+    Args:
+        name: the model's name (see the module docstring), e.g. ``"improved+c1"``.
+        params: one platform's parameters, or a non-empty sequence of them (one per batch row).
+
+    Attributes:
+        name: the canonical name, e.g. ``"improved+c1"``.
+        flags: the kernel switch bits.
+        packed: (Np, N_PARAMS), read-only: the packed parameter rows.
+        params: the :class:`PlatformParams` of each row of ``packed`` (a sequence; rows set from
+            packed numbers are built when first read, see :meth:`with_packed_rows`).
+
+    Raises:
+        ValueError: an unknown name or switch, or ``params`` not PlatformParams.
+        ConfigError: a platform whose home pose is conditioned beyond its limits.max_condition
+            (``check_home_condition``).
     """
 
     def __init__(self, name: str, params: PlatformParams | Sequence[PlatformParams]):
@@ -292,17 +304,25 @@ class Dynamics:
         return self.with_packed_rows(rows, packed, params)
 
     def with_packed_rows(self, rows: Sequence[int], packed_rows, sources: Sequence) -> "Dynamics":
-        """The same model with parameter rows ``rows`` replaced by packed numbers, no
-        PlatformParams built: the reset of a domain-randomised batch.
+        """The same model with parameter rows ``rows`` replaced by packed numbers, no PlatformParams
+        built: the reset of a domain-randomised batch.
 
-        packed_rows (len(rows), N_PARAMS), e.g. from
-        :meth:`stewart_env.randomization.Randomization.scale_packed`; ``sources`` one per row, each
-        a PlatformParams or a zero-argument function returning the PlatformParams the row was
-        packed from (built only when ``params[row]`` is read).  The rows are trusted: the caller
-        promises they are a valid platform's, as ``pack_params`` and ``scale_packed`` write them;
-        only their finiteness is checked, and a row that is no platform's (e.g. a zero platform
-        inertia) gives NaN accelerations.  Raises ValueError naming the argument on wrong rows,
-        shapes, counts or non-finite numbers.
+        The rows are trusted: the caller promises they are a valid platform's, as ``pack_params`` and
+        ``scale_packed`` write them; only their finiteness is checked, and a row that is no
+        platform's (e.g. a zero platform inertia) gives NaN accelerations.
+
+        Args:
+            rows: the batch rows to replace.
+            packed_rows: (len(rows), N_PARAMS), e.g. from
+                :meth:`stewart_env.randomization.Randomization.scale_packed`.
+            sources: one per row, each a PlatformParams or a zero-argument function returning the
+                PlatformParams the row was packed from (built only when ``params[row]`` is read).
+
+        Returns:
+            The new :class:`Dynamics`.
+
+        Raises:
+            ValueError: wrong rows, shapes, counts or non-finite numbers (the message names the argument).
         """
         rows = [int(r) for r in rows]
         packed_rows = np.ascontiguousarray(packed_rows, dtype=np.float64)
@@ -429,13 +449,21 @@ class Dynamics:
     def mass_and_bias(self, position, rotation, velocity, angular_velocity, external_wrench=None):
         """Mass matrix and bias of the equations of motion M [a; alpha] + h = J^T F.
 
-        Arguments as in :meth:`forward`.  Returns (M, h): M (6,6) or (N,6,6) maps
-        [a; alpha] (acceleration of P's origin, m/s^2; angular acceleration, rad/s^2; {B}) to the
-        wrench at P it takes (N; N m; {B}), legs included; it depends on the pose only.  h (6,)
-        or (N,6), N and N m in {B}: the wrench the legs must supply at zero acceleration, i.e.
-        the velocity products (Coriolis, centripetal, gyroscopic), gravity and joint friction,
-        minus ``external_wrench``.  Both come from the assembly :meth:`forward` solves
-        (docs/physics.md section 5.4; paper eq. 49 or 55), so forward(F) = M^-1 (J^T F - h).
+        Both come from the assembly :meth:`forward` solves (docs/physics.md section 5.4; paper eq. 49
+        or 55), so forward(F) = M^-1 (J^T F - h).
+
+        Args:
+            position, rotation, velocity, angular_velocity, external_wrench: as in :meth:`forward`.
+
+        Returns:
+            The pair (M, h).  M (6,6) or (N,6,6) maps [a; alpha] (acceleration of P's origin, m/s^2;
+            angular acceleration, rad/s^2; {B}) to the wrench at P it takes (N; N m; {B}), legs
+            included; it depends on the pose only.  h (6,) or (N,6), N and N m in {B}, is the wrench
+            the legs must supply at zero acceleration, i.e. the velocity products (Coriolis,
+            centripetal, gyroscopic), gravity and joint friction, minus ``external_wrench``.
+
+        Raises:
+            ValueError: a wrong shape, a non-finite value or a rotation that is not orthonormal.
         """
         n, batched, a = self._args(position, rotation, velocity, angular_velocity, external_wrench=external_wrench)
         M = np.empty((n, 6, 6))
