@@ -230,7 +230,15 @@ def _arguments(record: type) -> list[dataclasses.Field]:
 
 @dataclass(frozen=True)
 class EnvConfig:
-    """Every argument of an environment, validated, by record."""
+    """Every argument of an environment, validated, by record.
+
+    Attributes:
+        physics: the :class:`PhysicsConfig`.
+        task: the :class:`TaskConfig`.
+        actuator: the :class:`ActuatorConfig`.
+        observation: the :class:`ObservationConfig`.
+        render: the :class:`RenderConfig`.
+    """
 
     physics: PhysicsConfig
     task: TaskConfig
@@ -240,8 +248,24 @@ class EnvConfig:
 
     @classmethod
     def of(cls, **arguments: Any) -> EnvConfig:
-        """The configuration of the environment arguments ``arguments`` (the others at their
-        defaults); each record validates its own.  An unknown name raises ArgumentError."""
+        """The configuration of the given environment arguments, the others at their defaults.
+
+        Args:
+            **arguments: environment arguments by name; each record validates its own.
+
+        Returns:
+            The :class:`EnvConfig`.
+
+        Raises:
+            ValueError: an unknown name (an ArgumentError) or a value out of its range; the message
+            names the argument.
+
+        Examples:
+            >>> from stewart_env.envs import EnvConfig
+            >>> config = EnvConfig.of(task="tracking", control_dt=0.02)
+            >>> config.task.task, config.physics.control_dt
+            ('tracking', 0.02)
+        """
         known = {f.name for record in RECORDS for f in _arguments(record)}
         unknown = [k for k in arguments if k not in known]
         if unknown:

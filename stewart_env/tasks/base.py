@@ -105,15 +105,29 @@ PRECISE_REWARD_SCALES = (0.01, 0.02)
 class RewardWeights:
     """Weights and scales of the tracking-error reward: options of every task (``task_options``).
 
-    r = position_reward_weight * exp(-|e_p| / position_reward_scale)
-      + orientation_reward_weight * exp(-|e_o| / orientation_reward_scale)
-      - velocity_cost_weight * (1 - exp(-(|e_v| / velocity_cost_scale
-                                          + |e_w| / angular_velocity_cost_scale)))
-      - ctrl_cost_weight * mean(a^2)
-      - termination_cost on the step that terminates with a failure.
+        r = position_reward_weight * exp(-|e_p| / position_reward_scale)
+          + orientation_reward_weight * exp(-|e_o| / orientation_reward_scale)
+          - velocity_cost_weight * (1 - exp(-(|e_v| / velocity_cost_scale
+                                              + |e_w| / angular_velocity_cost_scale)))
+          - ctrl_cost_weight * mean(a^2)
+          - termination_cost on the step that terminates with a failure.
 
     Weights lie in [0, MAX_WEIGHT] (the sign is fixed by the term), scales in (0, MAX_SCALE], so
-    that no term and no sum of them overflows.
+    that no term and no sum of them overflows.  The defaults are those of :class:`Task`.
+
+    Attributes:
+        position_reward_weight: weight of the position term.
+        position_reward_scale: scale of the position error e_p, m.
+        orientation_reward_weight: weight of the orientation term.
+        orientation_reward_scale: scale of the orientation error e_o, rad.
+        velocity_cost_weight: weight of the velocity cost.
+        velocity_cost_scale: scale of the velocity error e_v, m/s.
+        angular_velocity_cost_scale: scale of the angular velocity error e_w, rad/s.
+        ctrl_cost_weight: weight of the control cost, on the actions a in [-1, 1].
+        termination_cost: the cost of a failure.
+
+    Raises:
+        ValueError: a weight or scale out of its range (the message names the option).
     """
 
     # No defaults here: Task.__init__'s keyword defaults are the one source of them.
@@ -307,6 +321,19 @@ class Task:
     environment's ``task_options``), the reward weights of :class:`RewardWeights` among them
     (a subclass passes ``**weights`` on to this constructor, which reads :meth:`episode_fields`,
     so a subclass sets what those depend on first); the platform's nominal parameters come first.
+
+    Args:
+        params: the platform's nominal parameters.
+        control_dt: the control step, s.
+        position_reward_weight, position_reward_scale, orientation_reward_weight,
+            orientation_reward_scale, velocity_cost_weight, velocity_cost_scale,
+            angular_velocity_cost_scale, ctrl_cost_weight, termination_cost: the reward's weights
+            and scales (:class:`RewardWeights`), keyword-only.
+
+    Raises:
+        ValueError: a weight or scale out of its range (the message names the option).
+        TypeError: a subclass whose ``termination_reasons`` do not begin with
+            :data:`LIMIT_REASONS` or do not hold every success reason.
     """
 
     name = "task"
