@@ -40,8 +40,10 @@ class Reference(_ReferenceFields):
     arrays shaped like ``velocity`` (so a buffer a task fills in place can be made that way too).
 
     Attributes:
-        position, rotation, velocity, angular_velocity: fields, shapes and units as in
-            :class:`PlatformState` (velocities zero for a set point).
+        position: (3,) or (N,3) position of P's origin, m, as in :class:`PlatformState`.
+        rotation: (3,3) or (N,3,3) rotation matrix, columns = {P} axes.
+        velocity: (3,) or (N,3) velocity of P's origin, m/s (zero for a set point).
+        angular_velocity: (3,) or (N,3) angular velocity, rad/s (zero for a set point).
         lin_acc: (3,) or (N,3) acceleration of P's origin, m/s^2 (the feedforward of computed
             torque).
         ang_acc: (3,) or (N,3) angular acceleration, rad/s^2.
