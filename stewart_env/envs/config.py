@@ -233,11 +233,11 @@ class EnvConfig:
     """Every argument of an environment, validated, by record.
 
     Attributes:
-        physics: the :class:`PhysicsConfig`.
-        task: the :class:`TaskConfig`.
-        actuator: the :class:`ActuatorConfig`.
-        observation: the :class:`ObservationConfig`.
-        render: the :class:`RenderConfig`.
+        physics: the :class:`~stewart_env.envs.config.PhysicsConfig`.
+        task: the :class:`~stewart_env.envs.config.TaskConfig`.
+        actuator: the :class:`~stewart_env.envs.config.ActuatorConfig`.
+        observation: the :class:`~stewart_env.envs.config.ObservationConfig`.
+        render: the :class:`~stewart_env.envs.config.RenderConfig`.
     """
 
     physics: PhysicsConfig
@@ -258,7 +258,7 @@ class EnvConfig:
 
         Raises:
             ValueError: an unknown name (an ArgumentError) or a value out of its range; the message
-            names the argument.
+                names the argument.
 
         Examples:
             >>> from stewart_env.envs import EnvConfig
