@@ -22,10 +22,21 @@ ENTRY_POINTS = [
     "stewart_env.params.load_platform",
     "stewart_env.envs.StewartPlatformEnv",
     "stewart_env.envs.StewartPlatformVectorEnv",
+    pytest.param("stewart_env.envs.StewartPlatformSB3VecEnv", marks=pytest.mark.extra("rl")),
+    "stewart_env.envs.EnvConfig.of",
+    "stewart_env.envs.holding_action",
+    "stewart_env.tasks.make_task",
+    "stewart_env.leg_kinematics",
+    "stewart_env.forward_kinematics",
+    "stewart_env.rpy_to_matrix",
+    "stewart_env.randomization.Randomization",
+    "stewart_env.validation.real",
+    "stewart_env.files.publish",
     "agents.pd.TaskSpacePD",
     "agents.computed_torque.ComputedTorque",
     "agents.statistics.stratified_bootstrap",
     pytest.param("stewart_env.mujoco.MujocoPlant", marks=pytest.mark.extra("mujoco")),
+    pytest.param("stewart_env.mujoco.to_mjcf", marks=pytest.mark.extra("mujoco")),
 ]
 
 OPTIONS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
