@@ -20,6 +20,7 @@ ENTRY_POINTS = [
     "stewart_env.Workspace",
     "stewart_env.rollout",
     "stewart_env.params.load_platform",
+    "stewart_env.params.PlatformParams",
     "stewart_env.envs.StewartPlatformEnv",
     "stewart_env.envs.StewartPlatformVectorEnv",
     pytest.param("stewart_env.envs.StewartPlatformSB3VecEnv", marks=pytest.mark.extra("rl")),
