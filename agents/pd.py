@@ -120,7 +120,7 @@ def task_space_inertia(model: se.Dynamics, position, rotation) -> np.ndarray:
         rotation: (3,3) rotation of {P} in {B}.
 
     Returns:
-        M, (6,6): kg, kg m, kg m^2; moments about P.
+        The mass matrix M (6,6) in kg, kg m, kg m^2, moments about P.
     """
     return model.mass_matrix(position, rotation)
 
@@ -241,7 +241,7 @@ class TaskSpacePD:
             reference: the target in {B} (fields (N, ...) for a batch).
 
         Returns:
-            The row (PD_N_PARAMS,), or (N, PD_N_PARAMS) for a batched reference: what
+            The row (PD_N_PARAMS,), or (N, PD_N_PARAMS) for a batched reference, which
             :func:`stewart_env.rollout` takes as ``control_params`` for this controller.
         """
         return pd_control_params(self.platform, reference, self.kp, self.kd, self.gravity_compensation,
