@@ -17,9 +17,16 @@ __all__ = ["Trajectory", "rollout", "rollout_inplace"]
 class Trajectory(NamedTuple):
     """A rollout sampled every ``record_every`` steps, the start included (T samples).
 
-    time (T,) s; position (T,3) m, rotation (T,3,3), velocity (T,3) m/s, angular_velocity (T,3)
-    rad/s of the platform in {B}; leg_forces (T,6) N, the forces applied at each sample's state
-    (the control law's there, or the held forces).  A batch carries a leading N: (N,T,...).
+    A batch carries a leading N: (N,T,...).  All in {B}.
+
+    Attributes:
+        time: (T,) s.
+        position: (T,3) position of P's origin, m.
+        rotation: (T,3,3) rotation of {P}.
+        velocity: (T,3) m/s.
+        angular_velocity: (T,3) rad/s.
+        leg_forces: (T,6) N, the forces applied at each sample's state (the control law's there, or
+            the held forces).
     """
 
     time: np.ndarray
@@ -152,8 +159,18 @@ def rollout_inplace(model: Dynamics, position, rotation, velocity, angular_veloc
     arrays in place.
 
     For callers that step every control period and keep their own preallocated, C-contiguous
-    float64 batch arrays: position (N,3), rotation (N,3,3), velocity (N,3), angular_velocity
-    (N,3), leg_forces (N,6), external_wrench (N,6).  Rows that stop being finite stay so.
+    float64 batch arrays.  Rows that stop being finite stay so.
+
+    Args:
+        model: the dynamics model.
+        position: (N,3), m, overwritten.
+        rotation: (N,3,3), overwritten.
+        velocity: (N,3), m/s, overwritten.
+        angular_velocity: (N,3), rad/s, overwritten.
+        leg_forces: (N,6), N, held.
+        external_wrench: (N,6) [force at P, N; moment, N m], held.
+        dt: the step, s.
+        steps: the number of steps.
     """
     _core.rollout_batch(model.packed, model.flags, position, rotation, velocity, angular_velocity,
                         leg_forces, external_wrench, float(dt), int(steps))

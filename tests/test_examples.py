@@ -35,9 +35,15 @@ ENTRY_POINTS = [
     "stewart_env.files.publish",
     "agents.pd.TaskSpacePD",
     "agents.computed_torque.ComputedTorque",
+    "agents.pd.zoh_pd_gains",
+    "agents.pd.PDPolicy",
+    "agents.computed_torque.preview_acceleration",
+    "agents.statistics.iqm",
+    "agents.statistics.paired_difference",
     "agents.statistics.stratified_bootstrap",
     pytest.param("stewart_env.mujoco.MujocoPlant", marks=pytest.mark.extra("mujoco")),
     pytest.param("stewart_env.mujoco.to_mjcf", marks=pytest.mark.extra("mujoco")),
+    pytest.param("stewart_env.mujoco.platform_acceleration", marks=pytest.mark.extra("mujoco")),
 ]
 
 OPTIONS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE

@@ -82,9 +82,15 @@ def _packed_value(params: PlatformParams, key: str):
 
 
 def pack_params(params: PlatformParams) -> np.ndarray:
-    """Kernel parameter row (N_PARAMS,) of a platform, in the order of ``kernels.PACKED_LAYOUT``.
+    """Kernel parameter row of a platform, in the order of ``kernels.PACKED_LAYOUT``.
 
     docs/physics.md section 2 lists the parameters, their symbols and frames.
+
+    Args:
+        params: the platform's parameters.
+
+    Returns:
+        The row (N_PARAMS,), float64.
     """
     row = np.empty(K.N_PARAMS)
     for key, _ in K.PACKED_LAYOUT:

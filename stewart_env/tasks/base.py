@@ -51,10 +51,16 @@ __all__ = [
 class Errors(NamedTuple):
     """Tracking errors of a batch, reference minus actual, in {B}.
 
-    position (N,3) m; orientation (N,3) rad, the rotation vector of R_ref R^T (the rotation that
-    takes the platform to the reference); velocity (N,3) m/s; angular_velocity (N,3) rad/s; and
-    their norms position_norm, orientation_norm (the angle), velocity_norm,
-    angular_velocity_norm, each (N,).
+    Attributes:
+        position: (N,3) position error, m.
+        orientation: (N,3) rotation vector of R_ref R^T (the rotation that takes the platform to
+            the reference), rad.
+        velocity: (N,3) velocity error, m/s.
+        angular_velocity: (N,3) angular velocity error, rad/s.
+        position_norm: (N,) norm of the position error, m.
+        orientation_norm: (N,) the orientation error's angle, rad.
+        velocity_norm: (N,) m/s.
+        angular_velocity_norm: (N,) rad/s.
     """
 
     position: np.ndarray
@@ -70,8 +76,13 @@ class Errors(NamedTuple):
 class Scales(NamedTuple):
     """Observation scales of a platform, from its limits (see the environment's card).
 
-    position (3,) m: half the workspace box; angle rad: limits.max_angle; leg_length m: half the
-    stroke; leg_force N: half the force range.  Rates use the same scales per second.
+    Rates use the same scales per second.  ``Scales.of(params)`` makes them.
+
+    Attributes:
+        position: (3,) half the workspace box, m.
+        angle: limits.max_angle, rad.
+        leg_length: half the stroke, m.
+        leg_force: half the force range, N.
     """
 
     position: np.ndarray
@@ -161,8 +172,16 @@ def errors_in(vectors: np.ndarray, norms: np.ndarray) -> tuple[Errors, np.ndarra
 
 def tracking_errors(state: PlatformState, reference: Reference,
                     out: tuple[Errors, np.ndarray] | None = None) -> Errors:
-    """Reference minus actual, for a batch (see :class:`Errors`); C-contiguous float64 inputs.
-    ``out``: an :func:`empty_errors` pair to write into (else new arrays)."""
+    """Reference minus actual, for a batch (see :class:`Errors`).
+
+    Args:
+        state: the platform states, C-contiguous float64 (N, ...) arrays.
+        reference: the references, likewise.
+        out: an :func:`empty_errors` pair to write into (else new arrays).
+
+    Returns:
+        The :class:`Errors`.
+    """
     errors, norms = out if out is not None else empty_errors(state.position.shape[0])
     _core.tracking_errors(*state, reference.position, reference.rotation, reference.velocity,
                           reference.angular_velocity, *errors[:4], norms.T)
@@ -283,14 +302,23 @@ class StepView(NamedTuple):
     """What a task sees of a batch of N platforms: read-only arrays, frames and units of the
     environment card.
 
-    state (a :class:`PlatformState` of (N, ...) arrays) after the step; reference at the
-    state's time; errors (reference minus actual, :class:`Errors`); action (N,6) in [-1, 1] as
-    applied over the step; leg_forces (N,6) N applied over the step; leg_lengths (N,6) m;
-    leg_rates (N,6) m/s; condition (N,), the leg Jacobian's condition number (exact above
-    limits.max_condition); external_wrench (N,6) [N; N m] in {B} applied over the step; time (N,)
-    s; non_finite (N,) bool, the rows whose state stopped being finite in the step (the state is
-    then the last finite one); episode: the task's episode arrays by name, (N, *shape).  Before
-    a step (:meth:`Task.external_wrench`) the state, time and episode are those the step starts from.
+    Before a step (:meth:`Task.external_wrench`) the state, time and episode are those the step
+    starts from.
+
+    Attributes:
+        state: a :class:`PlatformState` of (N, ...) arrays after the step.
+        reference: the reference at the state's time.
+        errors: reference minus actual, :class:`Errors`.
+        action: (N,6) in [-1, 1] as applied over the step.
+        leg_forces: (N,6) N applied over the step.
+        leg_lengths: (N,6) m.
+        leg_rates: (N,6) m/s.
+        condition: (N,) the leg Jacobian's condition number (exact above limits.max_condition).
+        external_wrench: (N,6) [N; N m] in {B} applied over the step.
+        time: (N,) s.
+        non_finite: (N,) bool, the rows whose state stopped being finite in the step (the state is
+            then the last finite one).
+        episode: the task's episode arrays by name, (N, *shape).
     """
 
     state: PlatformState
