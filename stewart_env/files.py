@@ -384,8 +384,15 @@ def open_regular(path: str | os.PathLike, limit: int, what: str = "file") -> Ite
 
     FIFOs, sockets, devices (a symbolic link to one included) and directories are refused before
     they are opened, and again after (``fstat`` of the open file, should the path have changed
-    since): opened with ``O_NONBLOCK``, a FIFO never blocks.  ``what`` names the expected kind of
-    file in the message about a directory.
+    since): opened with ``O_NONBLOCK``, a FIFO never blocks.
+
+    Args:
+        path: the file to open.
+        limit: its largest size, bytes.
+        what: the expected kind of file, named in the message about a directory.
+
+    Yields:
+        The open binary file.
 
     Raises:
         FileError: naming ``path``: missing, unreadable, not a regular file or too large.
