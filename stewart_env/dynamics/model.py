@@ -289,16 +289,43 @@ class Dynamics:
         return f"Dynamics({self.name!r}, platforms={len(self.params)} [{self.params[0].name}{more}])"
 
     def params_of(self, row: int) -> PlatformParams:
-        """The PlatformParams of parameter row ``row`` (built now if the row was set from packed numbers)."""
+        """The PlatformParams of a parameter row (built now if the row was set from packed numbers).
+
+        Args:
+            row: the parameter row.
+
+        Returns:
+            The row's :class:`PlatformParams`.
+        """
         return self.params[row]
 
     def with_params(self, params: PlatformParams | Sequence[PlatformParams]) -> "Dynamics":
-        """The same model on other parameters (e.g. one randomised set per batch row)."""
+        """The same model on other parameters (e.g. one randomised set per batch row).
+
+        Args:
+            params: one platform's parameters, or a sequence (one per batch row).
+
+        Returns:
+            The new :class:`Dynamics`.
+        """
         return Dynamics(self.name, params)
 
     def with_rows(self, rows: Sequence[int], params: Sequence[PlatformParams]) -> "Dynamics":
-        """The same model with the parameters of batch rows ``rows`` replaced by ``params`` (one
-        each); the other rows keep their packed parameters, so only the new rows are packed."""
+        """The same model with the parameters of some batch rows replaced.
+
+        The other rows keep their packed parameters, so only the new rows are packed.
+
+        Args:
+            rows: the batch rows to replace.
+            params: their new parameters, one each.
+
+        Returns:
+            The new :class:`Dynamics`.
+
+        Raises:
+            ValueError: not one PlatformParams per row.
+            ConfigError: a platform whose home pose is conditioned beyond its limits.
+        """
         if len(rows) != len(params):
             raise ValueError(f"params: expected one per row ({len(rows)}), got {len(params)}")
         for p in params:
@@ -355,8 +382,15 @@ class Dynamics:
         return new
 
     def workspace(self, n: int = 1):
-        """Preallocated arrays for ``n`` platforms of this model and the calls that use them
-        without checking or allocating: :class:`stewart_env.dynamics.workspace.Workspace`."""
+        """Preallocated arrays for ``n`` platforms of this model, and the calls that use them without
+        checking or allocating.
+
+        Args:
+            n: the batch size.
+
+        Returns:
+            The :class:`stewart_env.dynamics.workspace.Workspace`.
+        """
         from stewart_env.dynamics.workspace import Workspace  # it builds on this module
 
         return Workspace(self, n)
@@ -479,14 +513,29 @@ class Dynamics:
         return (M, h) if batched else (M[0], h[0])
 
     def mass_matrix(self, position, rotation, velocity=None, angular_velocity=None):
-        """The mass matrix M (6,6) or (N,6,6) of :meth:`mass_and_bias` (kg, kg m, kg m^2; {B},
-        moments about P).  It does not depend on the rates, which may be left out."""
+        """The mass matrix M of :meth:`mass_and_bias`.
+
+        It does not depend on the rates, which may be left out.
+
+        Args:
+            position, rotation, velocity, angular_velocity: as in :meth:`forward`.
+
+        Returns:
+            M (6,6) or (N,6,6) in kg, kg m, kg m^2; {B}, moments about P.
+        """
         zero = np.zeros(3)
         return self.mass_and_bias(position, rotation, zero if velocity is None else velocity,
                                   zero if angular_velocity is None else angular_velocity)[0]
 
     def bias(self, position, rotation, velocity, angular_velocity, external_wrench=None):
-        """The bias h (6,) or (N,6) of :meth:`mass_and_bias`: [force, N; moment about P, N m], {B}."""
+        """The bias h of :meth:`mass_and_bias`.
+
+        Args:
+            position, rotation, velocity, angular_velocity, external_wrench: as in :meth:`forward`.
+
+        Returns:
+            h (6,) or (N,6), [force, N; moment about P, N m] in {B}.
+        """
         return self.mass_and_bias(position, rotation, velocity, angular_velocity, external_wrench)[1]
 
     def _args(self, position, rotation, velocity, angular_velocity, external_wrench=None, **extra):
