@@ -28,12 +28,12 @@ zero-order hold cannot follow (the sampled loop is unstable, see :func:`zoh_spec
 Kd_j = 2 zeta M_jj wn, with M the task-space inertia at the home pose and wn = bandwidth /
 control_dt.  The default bandwidth 0.2 (wn = 20 rad/s at 10 ms) and zeta = 1 give a sampled loop
 with spectral radius 0.88 on the dasgupta1998 platform, still stable if the inertia is halved
-or doubled, and settle the set-point task to 2 mm in about 0.3 s.  As the law is specified, the
-environment policy has no gravity compensation by default, and the weight carried by the legs
-(480 N) makes the platform sag by 480 N / Kp_z = 27 mm at these gains (4.3 mm at bandwidth 0.5,
+or doubled (settling times measured on the set-point task: docs/results/mismatch-setpoint.md).
+As the law is specified, the environment policy has no gravity compensation by default, and the
+weight carried by the legs (480 N) makes the platform sag by 480 N / Kp_z = 27 mm at these gains (4.3 mm at bandwidth 0.5,
 where the sampled loop contracts fastest, spectral radius 0.74).  ``gravity_compensation=True``
-adds the holding forces: the sag goes, and what is left on a plant whose statics differ from the
-compensation's (the classical model) is about 0.02 mm.
+adds the holding forces: the sag goes, and what is left is the difference between the plant's
+statics and the compensation's (measured in the evaluation guide, docs/guides/evaluation.md).
 
 The policies take the environment's observation as the current state: they do not model an
 actuator lag (``actuator_tau``) or an observation delay.
