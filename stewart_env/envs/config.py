@@ -39,7 +39,7 @@ OBSERVATION_MODES = ("pose", "sensors")
 #: The plant that integrates the closed-form model ``model`` with RK4 (stewart_env.integrate).
 CLOSED_FORM = "closed_form"
 #: The plant that is MuJoCo simulating the same mechanism (stewart_env.mujoco.MujocoPlant); also
-#: accepted as ``model="mujoco"``, the older spelling of ``plant="mujoco"`` (:func:`model_argument`).
+#: accepted as ``model="mujoco"``, another spelling of ``plant="mujoco"`` (:func:`model_argument`).
 MUJOCO = "mujoco"
 #: What can simulate the platform (the ``plant`` argument).
 PLANTS = (CLOSED_FORM, MUJOCO)
@@ -75,7 +75,7 @@ def _platform(value: Any) -> PlatformParams:
 
 def model_argument(model: Any) -> str:
     """The canonical value of the ``model`` argument: a closed-form model's canonical name (e.g.
-    ``"improved+c1"``), or ``"mujoco"`` (any case), the older spelling of ``plant="mujoco"``.
+    ``"improved+c1"``), or ``"mujoco"`` (any case), another spelling of ``plant="mujoco"``.
     Raises ValueError naming the argument, and the MuJoCo spelling, on an unknown model."""
     if isinstance(model, str) and model.strip().lower() == MUJOCO:
         return MUJOCO
@@ -96,7 +96,7 @@ class PhysicsConfig(_Record):
     exactly n control_dt).  ``model="mujoco"`` is stored as ``model="improved", plant="mujoco"``."""
 
     model: str = _argument("improved", 'dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, '
-                                       'optionally with switches such as `"+c1"`; `"mujoco"` is the older '
+                                       'optionally with switches such as `"+c1"`; `"mujoco"` is another '
                                        'spelling of `plant="mujoco"` (with the `"improved"` model)')
     plant: str = _argument(CLOSED_FORM, 'what simulates the platform: `"closed_form"` (`model` integrated with '
                                         'RK4) or `"mujoco"` (MuJoCo simulating the same mechanism, needs the '
@@ -116,7 +116,7 @@ class PhysicsConfig(_Record):
         self._set("platform", _platform(self.platform))
         model = model_argument(self.model)
         plant = choice("plant", self.plant.strip().lower() if isinstance(self.plant, str) else self.plant, PLANTS)
-        if model == MUJOCO:  # the older spelling: MuJoCo simulating, the improved model for the rest
+        if model == MUJOCO:  # the other spelling: MuJoCo simulating, the improved model for the rest
             model, plant = "improved", MUJOCO
         self._set("model", model)
         self._set("plant", plant)

@@ -252,7 +252,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     | argument | default | description |
     |---|---|---|
-    | `model` | `"improved"` | dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, optionally with switches such as `"+c1"`; `"mujoco"` is the older spelling of `plant="mujoco"` (with the `"improved"` model) |
+    | `model` | `"improved"` | dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, optionally with switches such as `"+c1"`; `"mujoco"` is another spelling of `plant="mujoco"` (with the `"improved"` model) |
     | `plant` | `"closed_form"` | what simulates the platform: `"closed_form"` (`model` integrated with RK4) or `"mujoco"` (MuJoCo simulating the same mechanism, needs the `mujoco` extra) |
     | `platform` | `"dasgupta1998"` | a shipped config name, a YAML path, or a `PlatformParams` |
     | `control_dt` | `0.01` | s per environment step, 1e-6 to 10 |
