@@ -91,7 +91,8 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
         >>> model = se.make_dynamics("improved", params)
         >>> state = (params.home_position, np.eye(3), np.zeros(3), np.zeros(3))
         >>> forces = model.inverse(*state, np.zeros(3), np.zeros(3))
-        >>> position, rotation, velocity, angular_velocity = se.rollout(model, *state, forces, dt=1e-3, steps=100)
+        >>> position, rotation, velocity, angular_velocity = se.rollout(
+        ...     model, *state, forces, dt=1e-3, steps=100)
         >>> print(np.round(position, 6) + 0.0)
         [0.  0.  0.4]
     """
