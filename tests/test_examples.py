@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import doctest
 import importlib
+import pkgutil
 
 import pytest
 
@@ -73,3 +74,30 @@ def test_the_example_runs(name):
         runner.run(test)
     result = runner.summarize(verbose=False)
     assert result.failed == 0, f"{name}: {result.failed} of {result.attempted} example lines failed (see the output above)"
+
+
+#: Modules whose examples are listed above: the physics, the environments, the tasks, the MuJoCo
+#: twin and the baseline controllers (training, studies and commands keep their own lists).
+LISTED_PACKAGES = ("stewart_env.dynamics", "stewart_env.envs", "stewart_env.tasks", "stewart_env.params",
+                   "stewart_env.mujoco")
+LISTED_MODULES = ("stewart_env", "stewart_env.integrate", "stewart_env.kinematics", "stewart_env.rotations",
+                  "stewart_env.state", "stewart_env.randomization", "stewart_env.validation", "stewart_env.files",
+                  "stewart_env.errors", "agents.pd", "agents.computed_torque", "agents.statistics")
+
+
+def examples_in(modules) -> set[tuple[str, int]]:
+    """(file, line) of every docstring with an example in ``modules`` and their members."""
+    return {(test.filename, test.lineno) for module in modules for test in doctest.DocTestFinder().find(module)
+            if test.examples}
+
+
+def test_every_example_of_the_public_modules_is_listed():
+    modules = [importlib.import_module(name) for name in LISTED_MODULES]
+    for package in LISTED_PACKAGES:
+        root = importlib.import_module(package)
+        modules += [root] + [importlib.import_module(info.name)
+                             for info in pkgutil.walk_packages(root.__path__, package + ".")
+                             if not info.name.endswith(("__main__", ".cli"))]
+    listed = examples_in(resolve(getattr(entry, "values", (entry,))[0]) for entry in ENTRY_POINTS)
+    unlisted = examples_in(modules) - listed
+    assert not unlisted, f"examples not run by this test (add their objects to ENTRY_POINTS): {sorted(unlisted)}"
