@@ -50,9 +50,10 @@ class DisturbanceTask(Task):
         impulse_duration: s, > 0, default 0.05.
         horizon: s, the span the pulses are placed in, from impulse_duration to 1e6, default 5.0
             (the default episode length).
-        **weights: the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`, with the
-            position and orientation reward scales sharper than the other tasks': 0.01 m and
-            0.02 rad (``PRECISE_REWARD_SCALES``), so that millimetre errors weigh in the reward.
+        position_reward_scale, orientation_reward_scale: sharper than the other tasks' by
+            default, 0.01 m and 0.02 rad (``PRECISE_REWARD_SCALES``), so that millimetre errors
+            weigh in the reward.
+        **weights: the other reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
 
     Raises:
         ValueError: an unknown option or one out of its range (the message names it).

@@ -51,9 +51,10 @@ class TrackingTask(Task):
         frequency_range: (min, max) Hz, 0 < min <= max <= 1000, default (0.1, 0.5).
         preview: number of future reference samples observed (0-100), default 3.
         preview_interval: s between them (at most 100), default 0.1 (samples at t + 0.1, 0.2, 0.3 s).
-        **weights: the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`, with the
-            position and orientation reward scales sharper than the other tasks': 0.01 m and
-            0.02 rad (``PRECISE_REWARD_SCALES``), so that millimetre errors weigh in the reward.
+        position_reward_scale, orientation_reward_scale: sharper than the other tasks' by
+            default, 0.01 m and 0.02 rad (``PRECISE_REWARD_SCALES``), so that millimetre errors
+            weigh in the reward.
+        **weights: the other reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
 
     Raises:
         ValueError: an unknown option or one out of its range (the message names it).
