@@ -28,12 +28,12 @@ zero-order hold cannot follow (the sampled loop is unstable, see :func:`zoh_spec
 Kd_j = 2 zeta M_jj wn, with M the task-space inertia at the home pose and wn = bandwidth /
 control_dt.  The default bandwidth 0.2 (wn = 20 rad/s at 10 ms) and zeta = 1 give a sampled loop
 with spectral radius 0.88 on the dasgupta1998 platform, still stable if the inertia is halved
-or doubled, and settle the set-point task to 2 mm in about 0.3 s.  As the law is specified, the
-environment policy has no gravity compensation by default, and the weight carried by the legs
-(480 N) makes the platform sag by 480 N / Kp_z = 27 mm at these gains (4.3 mm at bandwidth 0.5,
+or doubled (settling times measured on the set-point task: docs/results/mismatch-setpoint.md).
+As the law is specified, the environment policy has no gravity compensation by default, and the
+weight carried by the legs (480 N) makes the platform sag by 480 N / Kp_z = 27 mm at these gains (4.3 mm at bandwidth 0.5,
 where the sampled loop contracts fastest, spectral radius 0.74).  ``gravity_compensation=True``
-adds the holding forces: the sag goes, and what is left on a plant whose statics differ from the
-compensation's (the classical model) is about 0.02 mm.
+adds the holding forces: the sag goes, and what is left is the difference between the plant's
+statics and the compensation's (measured in the evaluation guide, docs/guides/evaluation.md).
 
 The policies take the environment's observation as the current state: they do not model an
 actuator lag (``actuator_tau``) or an observation delay.
@@ -72,9 +72,19 @@ _STATE_FIELDS = (("position", (3,)), ("rotation", (3, 3)), ("velocity", (3,)), (
 
 def pd_control_params(platform: PlatformParams, reference: Reference, kp=PAPER_KP, kd=PAPER_KD,
                       gravity_compensation: bool = False, gravity_model: str = "improved") -> np.ndarray:
-    """The parameter row (PD_N_PARAMS,) of ``pd_control_law``, or (N, PD_N_PARAMS) for a batched
-    reference (fields (N, ...)); arguments as in :class:`TaskSpacePD`, reference in {B} (its
-    accelerations are not used)."""
+    """The parameter row of ``pd_control_law`` for a reference.
+
+    Args:
+        platform: the platform's parameters (its geometry gives J).
+        reference: the target in {B}, fields (N, ...) for a batch (its accelerations are not used).
+        kp, kd, gravity_compensation, gravity_model: as in :class:`TaskSpacePD`.
+
+    Returns:
+        The row (PD_N_PARAMS,), or (N, PD_N_PARAMS) for a batched reference.
+
+    Raises:
+        ValueError: ``platform`` not PlatformParams, bad gains, an unknown model or a bad reference.
+    """
     if not isinstance(platform, PlatformParams):
         raise ValueError(f"platform: expected PlatformParams, got {type(platform).__name__}")
     _, flags = parse_model_name(gravity_model)
@@ -103,7 +113,14 @@ def task_space_inertia(model: se.Dynamics, position, rotation) -> np.ndarray:
 
     M maps [lin_acc of P's origin; ang_acc] (m/s^2, rad/s^2, in {B}) to the wrench the legs must
     add to the one they supply at rest (see :meth:`stewart_env.Dynamics.mass_and_bias`).
-    position (3,) m, rotation (3,3).
+
+    Args:
+        model: the dynamics model.
+        position: (3,) position of P's origin in {B}, m.
+        rotation: (3,3) rotation of {P} in {B}.
+
+    Returns:
+        The mass matrix M (6,6) in kg, kg m, kg m^2, moments about P.
     """
     return model.mass_matrix(position, rotation)
 
@@ -115,7 +132,27 @@ def zoh_pd_gains(model: se.Dynamics, control_dt: float, bandwidth: float = 0.2, 
     the platform's home pose) and given the closed-loop poles of s^2 + 2 zeta wn s + wn^2 with
     wn = bandwidth / control_dt, rad/s: Kp_j = M_jj wn^2, Kd_j = 2 zeta M_jj wn.  A bandwidth of
     0.2 keeps the poles well inside what a hold of ``control_dt`` s can realise.
-    Returns (kp, kd), each (6,) [x, y, z, roll, pitch, yaw] in N/m, N m/rad and N s/m, N m s/rad.
+
+    Args:
+        model: the dynamics model (its first parameter row is used).
+        control_dt: the hold, s.
+        bandwidth: wn * control_dt, in (0, 1).
+        damping: the damping ratio zeta, > 0.
+
+    Returns:
+        The pair (kp, kd), each (6,) [x, y, z, roll, pitch, yaw] in N/m, N m/rad and N s/m,
+        N m s/rad.
+
+    Raises:
+        ValueError: a bad ``control_dt``, ``bandwidth`` or ``damping``.
+
+    Examples:
+        >>> import numpy as np, stewart_env as se
+        >>> from agents.pd import zoh_pd_gains, zoh_spectral_radius
+        >>> model = se.make_dynamics("improved", se.load_platform("dasgupta1998"))
+        >>> kp, kd = zoh_pd_gains(model, control_dt=0.01)
+        >>> bool(zoh_spectral_radius(model, kp, kd, control_dt=0.01) < 1)    # the sampled loop is stable
+        True
     """
     if not (np.isfinite(control_dt) and control_dt > 0):
         raise ValueError(f"control_dt: must be a positive number of seconds, got {control_dt}")
@@ -135,6 +172,15 @@ def zoh_spectral_radius(model: se.Dynamics, kp, kd, control_dt: float, inertia_s
     The plant is M [a; alpha] = W with M the task-space inertia (times ``inertia_scale``, for
     robustness checks), discretised exactly with a zero-order hold of ``control_dt`` s; the
     controller is W = -Kp dx - Kd dxdot on the sampled state.
+
+    Args:
+        model: the dynamics model (its first parameter row is used).
+        kp, kd: six gains or a scalar, as in :class:`TaskSpacePD`.
+        control_dt: the hold, s.
+        inertia_scale: factor on M.
+
+    Returns:
+        The largest modulus of the closed loop's eigenvalues.
     """
     params = model.params[0]
     inertia = inertia_scale * task_space_inertia(model, params.home_position, se.rpy_to_matrix(params.home_rpy))
@@ -159,6 +205,23 @@ class TaskSpacePD:
             as we have it.  With it the PD terms only have to produce accelerations, so a set
             point is reached without the droop weight / Kp.
         gravity_model: dynamics model name for the holding forces; ``"improved"`` is exact at rest.
+
+    Raises:
+        ValueError: ``platform`` not PlatformParams, a gain not six finite numbers or a scalar,
+            or an unknown ``gravity_model``.
+
+    Examples:
+        At the reference, the law gives the holding forces alone:
+
+        >>> import numpy as np, stewart_env as se
+        >>> from stewart_env.state import PlatformState, Reference
+        >>> from agents.pd import TaskSpacePD
+        >>> params = se.load_platform("dasgupta1998")
+        >>> at_home = (params.home_position, np.eye(3), np.zeros(3), np.zeros(3))
+        >>> pd = TaskSpacePD(params, gravity_compensation=True)
+        >>> forces = pd(PlatformState(*at_home), Reference(*at_home, np.zeros(3), np.zeros(3)))
+        >>> print(np.round(forces, 1))
+        [193.9 145.4 153.1 172.3 159.6 188.9]
     """
 
     def __init__(self, platform: PlatformParams, kp=PAPER_KP, kd=PAPER_KD, gravity_compensation: bool = False,
@@ -172,14 +235,28 @@ class TaskSpacePD:
         self.gravity_model = parse_model_name(gravity_model)[0]
 
     def control_params(self, reference: Reference) -> np.ndarray:
-        """``pd_control_law``'s parameter row (PD_N_PARAMS,), or (N, PD_N_PARAMS) for a batched
-        reference: what :func:`stewart_env.rollout` takes as ``control_params`` for this controller."""
+        """``pd_control_law``'s parameter row for this controller and a reference.
+
+        Args:
+            reference: the target in {B} (fields (N, ...) for a batch).
+
+        Returns:
+            The row (PD_N_PARAMS,), or (N, PD_N_PARAMS) for a batched reference, which
+            :func:`stewart_env.rollout` takes as ``control_params`` for this controller.
+        """
         return pd_control_params(self.platform, reference, self.kp, self.kd, self.gravity_compensation,
                                  self.gravity_model)
 
     def __call__(self, state: PlatformState, reference: Reference) -> np.ndarray:
-        """Leg forces (6,) or (N,6), N, for a state and a reference (see the class docstring);
-        either may be batched, the other is broadcast."""
+        """Leg forces for a state and a reference (see the class docstring).
+
+        Args:
+            state: the platform's state; may be batched.
+            reference: the target; may be batched (the other is broadcast).
+
+        Returns:
+            The leg forces (6,) or (N,6), N.
+        """
         n, batched, a = batch_args(1, **{f"{record}.{name}": (getattr(value, name), tail)
                                          for record, value in (("state", state), ("reference", reference))
                                          for name, tail in _STATE_FIELDS})
@@ -256,10 +333,27 @@ class EnvPolicy:
 class PDPolicy(EnvPolicy):
     """The task-space PD law as a policy on ``StewartPlatform-v1`` (see :class:`EnvPolicy`).
 
-    Default gains: :func:`zoh_pd_gains` for the environment's control step.  Gravity compensation
-    (the holding forces of ``gravity_model``, default ``improved``) is off by default, as in the law itself; the
-    controller knows the platform's geometry and, with the compensation, its statics, nothing of
-    the plant's model.
+    The controller knows the platform's geometry and, with the compensation, its statics, nothing
+    of the plant's model.
+
+    Args:
+        env: the environment (or its vector environment) with ``observation_mode="pose"``.
+        kp, kd: six gains or a scalar; default :func:`zoh_pd_gains` for the environment's control
+            step.
+        gravity_compensation: add the holding forces of ``gravity_model``; off by default, as in
+            the law itself.
+        bandwidth, damping: of :func:`zoh_pd_gains`, for the default gains.
+        gravity_model: dynamics model name for the holding forces.
+
+    Examples:
+        >>> import gymnasium as gym
+        >>> from agents.pd import PDPolicy
+        >>> env = gym.make("StewartPlatform-v0", task="setpoint")
+        >>> policy = PDPolicy(env, gravity_compensation=True)
+        >>> observation, info = env.reset(seed=0)
+        >>> action, _ = policy.predict(observation)
+        >>> action.shape
+        (6,)
     """
 
     def __init__(self, env, kp=None, kd=None, gravity_compensation: bool = False, bandwidth: float = 0.2,

@@ -80,12 +80,32 @@ def _along_last(values: np.ndarray, statistic: str) -> np.ndarray:
 
 
 def iqm(values) -> float:
-    """Interquartile mean of the finite values (all seeds and episodes pooled); NaN if none."""
+    """Interquartile mean of the finite values (all seeds and episodes pooled).
+
+    Args:
+        values: the values, of any shape.
+
+    Returns:
+        The mean of the middle half of the finite values; NaN if none.
+
+    Examples:
+        >>> from agents.statistics import iqm
+        >>> iqm([1.0, 2.0, 3.0, 4.0, 100.0, float("nan")])
+        3.0
+    """
     return float(_along_last(np.asarray(values, dtype=float).ravel(), "iqm"))
 
 
 def point_estimate(values, statistic: str) -> float:
-    """``statistic`` ("mean" or "iqm") of a cell's finite values, seeds and episodes pooled."""
+    """A statistic of a cell's finite values, seeds and episodes pooled.
+
+    Args:
+        values: the cell (seeds, episodes), or (episodes,).
+        statistic: ``"mean"`` or ``"iqm"``.
+
+    Returns:
+        The statistic (NaN if no value is finite).
+    """
     return float(_along_last(_as_cell(values).ravel(), statistic))
 
 
@@ -100,8 +120,14 @@ def _resample_indices(shape: tuple[int, int], resamples: int, rng: np.random.Gen
 
 @dataclass(frozen=True)
 class Interval:
-    """A point estimate and its bootstrap interval [low, high]; ``seeds`` and ``episodes``: the
-    sample it was computed from; ``n``: how many of its values were finite (None: not recorded)."""
+    """A point estimate and its bootstrap interval [low, high].
+
+    Attributes:
+        estimate: the statistic of the whole sample.
+        low, high: the interval's bounds.
+        seeds, episodes: the sample it was computed from.
+        n: how many of its values were finite (None: not recorded).
+    """
 
     estimate: float
     low: float
@@ -117,19 +143,33 @@ class Interval:
 
 
 def resolved(low: float, high: float) -> bool:
-    """Whether the interval [low, high] excludes zero: a difference whose sign the sample
-    determines.  An undefined bound (NaN) resolves nothing."""
+    """Whether the interval [low, high] excludes zero: a difference whose sign the sample determines.
+
+    Args:
+        low, high: the interval's bounds; an undefined bound (NaN) resolves nothing.
+
+    Returns:
+        True if both bounds are finite and of one sign.
+    """
     return bool(np.isfinite(low) and np.isfinite(high) and (low > 0 or high < 0))
 
 
 def seeds_to_resolve(interval: Interval, effect: float | None = None) -> int | None:
-    """About how many training seeds per row would make an unresolved interval exclude zero, for a
-    difference of size ``effect`` (default: the interval's own estimate): an interval's width
-    shrinks as 1 / sqrt(seeds) when the seeds dominate it, so seeds (half-width / effect)^2,
-    rounded up.  A planning figure, not a promise: with few seeds the width is rough, and an
-    estimate from few seeds may be mostly their spread (pass a better-measured ``effect`` then).
-    None where the interval is resolved, rests on one seed (the width then shrinks with
-    episodes), or the effect is zero or undefined."""
+    """About how many training seeds per row would make an unresolved interval exclude zero.
+
+    An interval's width shrinks as 1 / sqrt(seeds) when the seeds dominate it, so seeds
+    (half-width / effect)^2, rounded up.  A planning figure, not a promise: with few seeds the width
+    is rough, and an estimate from few seeds may be mostly their spread (pass a better-measured
+    ``effect`` then).
+
+    Args:
+        interval: the unresolved interval.
+        effect: the size of the difference to resolve (default: the interval's own estimate).
+
+    Returns:
+        The number of seeds; None where the interval is resolved, rests on one seed (the width
+        then shrinks with episodes), or the effect is zero or undefined.
+    """
     half_width = 0.5 * (interval.high - interval.low)
     effect = abs(interval.estimate if effect is None else effect)
     if interval.resolved or interval.seeds < 2 or not np.isfinite(half_width) or not np.isfinite(effect) or not effect:
@@ -172,30 +212,92 @@ def _bootstrap(cells: list[np.ndarray], combine: Callable[..., np.ndarray], stat
 def double_difference(values, values_home, reference, reference_home, statistic: str = "mean",
                       confidence: float = CONFIDENCE, resamples: int = RESAMPLES,
                       seed: int = BOOTSTRAP_SEED) -> Interval:
-    """``stat(values - values_home) - stat(reference - reference_home)`` and its stratified
-    bootstrap interval (:func:`paired_difference` of the two changes).  ``values`` and
-    ``values_home`` are one controller's cells (seeds, episodes) on two plants, ``reference`` and
-    ``reference_home`` another controller's on the same two plants.  Each controller's change
-    between plants is taken seed by seed and episode by episode before the statistic, so what an
-    episode of a seed shares on both plants (the seed's own bias, the episode's difficulty)
-    cancels; the statistic is then that of the changes (the IQM: the typical episode's change)."""
+    """``stat(values - values_home) - stat(reference - reference_home)`` and its stratified bootstrap
+    interval (:func:`paired_difference` of the two changes).
+
+    Each controller's change between plants is taken seed by seed and episode by episode before
+    the statistic, so what an episode of a seed shares on both plants (the seed's own bias, the
+    episode's difficulty) cancels; the statistic is then that of the changes (the IQM: the typical
+    episode's change).
+
+    Args:
+        values, values_home: one controller's cells (seeds, episodes) on two plants.
+        reference, reference_home: another controller's cells on the same two plants.
+        statistic: ``"mean"`` or ``"iqm"`` (:data:`STATISTICS`).
+        confidence: the interval's confidence level, in (0, 1).
+        resamples: the number of bootstrap resamples.
+        seed: the resampling's seed: the same seed gives the same interval.
+
+    Returns:
+        The :class:`Interval`.
+
+    Raises:
+        ValueError: an unknown statistic, or a bad confidence or resamples count.
+    """
     return paired_difference(_as_cell(values) - _as_cell(values_home), _as_cell(reference) - _as_cell(reference_home),
                              statistic, confidence, resamples, seed)
 
 
 def stratified_bootstrap(values, statistic: str = "mean", confidence: float = CONFIDENCE,
                          resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> Interval:
-    """Point estimate and percentile bootstrap interval of ``statistic`` ("mean" or "iqm") of a
-    cell ``values`` (seeds, episodes), or (episodes,) for one seed.  Each of ``resamples``
-    resamples draws the seeds with replacement and, within each drawn seed, its episodes with
-    replacement; NaN values are left out of each resample's statistic.  Reproducible: the same
-    ``seed`` gives the same interval."""
+    """Point estimate and percentile bootstrap interval of a statistic of one cell.
+
+    Each of ``resamples`` resamples draws the seeds with replacement and, within each drawn seed,
+    its episodes with replacement; NaN values are left out of each resample's statistic.
+
+    Args:
+        values: the cell, (seeds, episodes), or (episodes,) for one seed.
+        statistic: ``"mean"`` or ``"iqm"`` (:data:`STATISTICS`).
+        confidence: the interval's confidence level, in (0, 1).
+        resamples: the number of bootstrap resamples.
+        seed: the resampling's seed: the same seed gives the same interval.
+
+    Returns:
+        The :class:`Interval` (estimate, low, high and the cell's sizes).
+
+    Raises:
+        ValueError: an unknown statistic, a confidence outside (0, 1) or a resamples count
+            outside [1, 10^7].
+
+    Examples:
+        >>> import numpy as np
+        >>> from agents.statistics import stratified_bootstrap
+        >>> cell = np.arange(12.0).reshape(3, 4)       # 3 training seeds, 4 episodes each
+        >>> interval = stratified_bootstrap(cell, "iqm")
+        >>> print(round(interval.estimate, 2), interval.seeds, interval.episodes)
+        5.5 3 4
+        >>> bool(interval.low < interval.estimate < interval.high)
+        True
+    """
     return _bootstrap([_as_cell(values)], lambda a: a, statistic, confidence, resamples, seed)
 
 
 def paired_difference(values, reference, statistic: str = "mean", confidence: float = CONFIDENCE,
                       resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> Interval:
-    """``statistic(values) - statistic(reference)`` and its stratified bootstrap interval, the
-    two cells (seeds, episodes) resampled with the same indices: episode k of ``values`` and of
-    ``reference`` are the same seeded episode, and seed s of each is drawn together."""
+    """``statistic(values) - statistic(reference)`` and its stratified bootstrap interval.
+
+    The two cells are resampled with the same indices: episode k of ``values`` and of
+    ``reference`` are the same seeded episode, and seed s of each is drawn together.
+
+    Args:
+        values, reference: the two cells (seeds, episodes).
+        statistic: ``"mean"`` or ``"iqm"`` (:data:`STATISTICS`).
+        confidence: the interval's confidence level, in (0, 1).
+        resamples: the number of bootstrap resamples.
+        seed: the resampling's seed: the same seed gives the same interval.
+
+    Returns:
+        The :class:`Interval`.
+
+    Raises:
+        ValueError: an unknown statistic, or a bad confidence or resamples count.
+
+    Examples:
+        >>> import numpy as np
+        >>> from agents.statistics import paired_difference
+        >>> reference = np.arange(12.0).reshape(3, 4)
+        >>> interval = paired_difference(reference + 1.0, reference)
+        >>> round(interval.estimate, 6), round(interval.low, 6), round(interval.high, 6), interval.resolved
+        (1.0, 1.0, 1.0, True)
+    """
     return _bootstrap([_as_cell(values), _as_cell(reference)], np.subtract, statistic, confidence, resamples, seed)

@@ -40,6 +40,9 @@ myst_heading_anchors = 4
 # Google-style docstrings (Args, Returns, Raises).
 napoleon_google_docstring = True
 napoleon_numpy_docstring = False
+# Attributes: sections as fields of their class, so that a record's fields (NamedTuple, dataclass)
+# documented there and by autodoc are not described twice.
+napoleon_use_ivar = True
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"
 autodoc_default_options = {"members": True, "show-inheritance": False}

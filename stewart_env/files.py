@@ -104,7 +104,15 @@ def _cause(err: OSError) -> str:
 
 
 def write_error(path: str | os.PathLike, err: OSError) -> WriteError:
-    """The :class:`WriteError` of an OSError met while writing ``path``."""
+    """The :class:`WriteError` of an OSError met while writing ``path``.
+
+    Args:
+        path: the file being written.
+        err: the OSError met.
+
+    Returns:
+        The WriteError, naming ``path`` and the cause.
+    """
     return WriteError(path, _cause(err))
 
 
@@ -121,9 +129,17 @@ def _holder(fd: int) -> int | None:
 
 
 def check_not_busy(directory: str | os.PathLike) -> None:
-    """Raise :class:`FolderBusy` if another process holds the lock of ``directory``, changing
-    nothing (a missing lock file is nobody's): a command calls it before its first look at the
-    folder, so that a busy folder is reported as such and not by what a run in progress left."""
+    """Raise :class:`FolderBusy` if another process holds the lock of ``directory``, changing nothing.
+
+    A missing lock file is nobody's.  A command calls it before its first look at the folder, so
+    that a busy folder is reported as such and not by what a run in progress left.
+
+    Args:
+        directory: the output folder.
+
+    Raises:
+        FolderBusy: another process holds the folder's lock.
+    """
     lock = Path(directory) / LOCK_FILE
     if fcntl is None:
         return
@@ -144,9 +160,17 @@ def check_not_busy(directory: str | os.PathLike) -> None:
 
 @contextlib.contextmanager
 def lock_folder(directory: str | os.PathLike, create: bool = True) -> Iterator[Path]:
-    """Hold the exclusive lock of ``directory`` inside the block: a lock file in it, locked with
-    ``flock``, which the system releases when the process ends however it ends.  The folder is
-    made with ``create``, and must exist without it.
+    """Hold the exclusive lock of ``directory`` inside the block.
+
+    A lock file in the folder, locked with ``flock``, which the system releases when the process
+    ends however it ends.
+
+    Args:
+        directory: the output folder.
+        create: make the folder if it is missing; without it, it must exist.
+
+    Yields:
+        The folder's path.
 
     Raises:
         FolderBusy: another process holds it; nothing in the folder was changed.
@@ -187,11 +211,23 @@ def lock_folder(directory: str | os.PathLike, create: bool = True) -> Iterator[P
 
 
 def check_writable(directory: str | os.PathLike, create: bool = True) -> Path:
-    """Prove ``directory`` writable by creating it and writing a file in it; FileError naming it
-    otherwise.  Without ``create`` nothing is left behind: the probe file and every directory the
-    probe made are removed again.  (Permission bits alone cannot tell: root passes them on a
-    read-only or virtual file system.)  The probe's name is unique, so processes probing one
-    folder at once do not remove each other's."""
+    """Prove ``directory`` writable by creating it and writing a file in it.
+
+    Without ``create`` nothing is left behind: the probe file and every directory the probe made
+    are removed again.  (Permission bits alone cannot tell: root passes them on a read-only or
+    virtual file system.)  The probe's name is unique, so processes probing one folder at once do
+    not remove each other's.
+
+    Args:
+        directory: the folder to probe.
+        create: keep the folder (and the folders above it) the probe made.
+
+    Returns:
+        The folder's path.
+
+    Raises:
+        FileError: the folder cannot be made or written (the message names it).
+    """
     path = Path(directory)
     made = []
     missing = path
@@ -257,9 +293,20 @@ def _replacing(path: Path, tmp: Path) -> Iterator[Path]:
 
 @contextlib.contextmanager
 def publishing(path: str | os.PathLike) -> Iterator[Path]:
-    """A temporary path, unique to this call, next to ``path``: whatever the block writes there
-    is flushed and renamed over ``path`` when the block ends, and removed if it raises.  An
-    OSError of the block or of the publication is raised as :class:`WriteError` naming ``path``."""
+    """A temporary path, unique to this call, next to ``path``, published over ``path`` at the end.
+
+    Whatever the block writes there is flushed and renamed over ``path`` when the block ends, and
+    removed if it raises.
+
+    Args:
+        path: the file to publish.
+
+    Yields:
+        The temporary path to write.
+
+    Raises:
+        WriteError: an OSError of the block or of the publication, naming ``path``.
+    """
     path = Path(path)
     try:
         # the target's suffix kept: some writers (SB3's save) append theirs to a name without it
@@ -272,16 +319,43 @@ def publishing(path: str | os.PathLike) -> Iterator[Path]:
 
 
 def publish(path: str | os.PathLike, data: bytes | str) -> None:
-    """Write ``data`` (text as UTF-8) to ``path`` atomically (see :func:`publishing`)."""
+    """Write ``data`` to ``path`` atomically (see :func:`publishing`).
+
+    Args:
+        path: the file to write.
+        data: bytes, or text (written as UTF-8).
+
+    Raises:
+        WriteError: the file cannot be written (the message names it).
+
+    Examples:
+        >>> import tempfile, pathlib
+        >>> from stewart_env.files import publish
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     publish(pathlib.Path(folder) / "note.txt", "hello")
+        ...     print((pathlib.Path(folder) / "note.txt").read_text())
+        hello
+    """
     with publishing(path) as tmp:
         tmp.write_bytes(data.encode() if isinstance(data, str) else data)
 
 
 @contextlib.contextmanager
 def publishing_folder(path: str | os.PathLike) -> Iterator[Path]:
-    """A temporary folder, unique to this call, next to ``path``: when the block ends its files
-    are flushed and the folder replaces ``path`` (an existing one is removed first); if the block
-    raises it is removed.  OSErrors are raised as :class:`WriteError` naming ``path``."""
+    """A temporary folder, unique to this call, next to ``path``, published over ``path`` at the end.
+
+    When the block ends its files are flushed and the folder replaces ``path`` (an existing one is
+    removed first); if the block raises it is removed.
+
+    Args:
+        path: the folder to publish.
+
+    Yields:
+        The temporary folder to fill.
+
+    Raises:
+        WriteError: an OSError, naming ``path``.
+    """
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -310,8 +384,15 @@ def open_regular(path: str | os.PathLike, limit: int, what: str = "file") -> Ite
 
     FIFOs, sockets, devices (a symbolic link to one included) and directories are refused before
     they are opened, and again after (``fstat`` of the open file, should the path have changed
-    since): opened with ``O_NONBLOCK``, a FIFO never blocks.  ``what`` names the expected kind of
-    file in the message about a directory.
+    since): opened with ``O_NONBLOCK``, a FIFO never blocks.
+
+    Args:
+        path: the file to open.
+        limit: its largest size, bytes.
+        what: the expected kind of file, named in the message about a directory.
+
+    Yields:
+        The open binary file.
 
     Raises:
         FileError: naming ``path``: missing, unreadable, not a regular file or too large.
@@ -330,8 +411,19 @@ def open_regular(path: str | os.PathLike, limit: int, what: str = "file") -> Ite
 
 
 def read_regular(path: str | os.PathLike, limit: int, what: str = "file") -> bytes:
-    """The bytes of ``path`` through :func:`open_regular`; a file grown past ``limit`` since its
-    check is refused too."""
+    """The bytes of ``path`` through :func:`open_regular`.
+
+    Args:
+        path: the file to read.
+        limit: its largest size, bytes; a file grown past it since its check is refused too.
+        what: the expected kind of file, named in the message about a directory.
+
+    Returns:
+        The file's bytes.
+
+    Raises:
+        FileError: not a regular file, too large, or unreadable (the message names it).
+    """
     with open_regular(path, limit, what) as f:
         try:
             data = f.read(limit + 1)
@@ -343,7 +435,18 @@ def read_regular(path: str | os.PathLike, limit: int, what: str = "file") -> byt
 
 
 def sha256_file(path: str | os.PathLike, limit: int) -> str:
-    """The hex sha256 of a regular file's bytes (read through :func:`open_regular`)."""
+    """The hex sha256 of a regular file's bytes (read through :func:`open_regular`).
+
+    Args:
+        path: the file.
+        limit: its largest size, bytes.
+
+    Returns:
+        The digest, 64 hex digits.
+
+    Raises:
+        FileError: not a regular file, too large, or unreadable (the message names it).
+    """
     digest = hashlib.sha256()
     with open_regular(path, limit) as f:
         try:
@@ -355,8 +458,19 @@ def sha256_file(path: str | os.PathLike, limit: int) -> str:
 
 
 def read_json(path: str | os.PathLike, limit: int, what: str = "JSON file") -> Any:
-    """The JSON document in ``path``, read through :func:`read_regular`; FileError naming the
-    file if it is not UTF-8 JSON."""
+    """The JSON document in ``path``, read through :func:`read_regular`.
+
+    Args:
+        path: the file.
+        limit: its largest size, bytes.
+        what: the expected kind of file, named in messages.
+
+    Returns:
+        The decoded document.
+
+    Raises:
+        FileError: not a regular UTF-8 JSON file of at most ``limit`` bytes (the message names it).
+    """
     data = read_regular(path, limit, what)
     try:
         return json.loads(data.decode("utf-8"))

@@ -17,9 +17,16 @@ __all__ = ["Trajectory", "rollout", "rollout_inplace"]
 class Trajectory(NamedTuple):
     """A rollout sampled every ``record_every`` steps, the start included (T samples).
 
-    time (T,) s; position (T,3) m, rotation (T,3,3), velocity (T,3) m/s, angular_velocity (T,3)
-    rad/s of the platform in {B}; leg_forces (T,6) N, the forces applied at each sample's state
-    (the control law's there, or the held forces).  A batch carries a leading N: (N,T,...).
+    A batch carries a leading N: (N,T,...).  All in {B}.
+
+    Attributes:
+        time: (T,) s.
+        position: (T,3) position of P's origin, m.
+        rotation: (T,3,3) rotation of {P}.
+        velocity: (T,3) m/s.
+        angular_velocity: (T,3) rad/s.
+        leg_forces: (T,6) N, the forces applied at each sample's state (the control law's there, or
+            the held forces).
     """
 
     time: np.ndarray
@@ -36,28 +43,58 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
     """Integrate the forward dynamics with classical RK4, the wrench held constant and the leg
     forces either held constant or given by a compiled control law at every RK4 stage.
 
-    position (3,) m, rotation (3,3), velocity (3,) m/s, angular_velocity (3,) rad/s of the
-    platform in {B}; leg_forces (6,) N; external_wrench (6,) [force at P; moment] or None; each
-    may carry a leading batch dimension N.  ``dt`` s, ``steps`` >= 0.  The orientation is
-    integrated as a unit quaternion, so the returned rotation is orthonormal to rounding.  The
-    arguments are checked as every entry point checks them (:func:`stewart_env.dynamics.model.batch_args`):
-    shapes, finite values, and a rotation orthonormal with determinant +1 within
-    :data:`~stewart_env.dynamics.model.ROTATION_TOLERANCE`.
+    The orientation is integrated as a unit quaternion, so the returned rotation is orthonormal to
+    rounding.  The arguments are checked as every entry point checks them
+    (:func:`stewart_env.dynamics.model.batch_args`): shapes, finite values, and a rotation
+    orthonormal with determinant +1 within :data:`~stewart_env.dynamics.model.ROTATION_TOLERANCE`.
+    Each state, force and wrench argument may carry a leading batch dimension N.
 
-    control_law: a compiled control law, :class:`stewart_env.dynamics.rk4.ControlLaw` (or a numba
-    ``cfunc`` or ctypes function it wraps), ``law(time, position, rotation, velocity,
-    angular_velocity, params, n_params, forces)``, that writes the six leg forces (N) for the state
-    at ``time`` s (:mod:`stewart_env.dynamics.rk4` gives the contract;
-    :data:`stewart_env.dynamics.rk4.PD_CONTROL_LAW` is the package's PD law).  It replaces
-    ``leg_forces``, and ``control_params`` (P,), one parameter row for every platform, or (N, P),
-    one per batch row, is passed to it as ``params``.  ``start_time`` s is the time of the first
-    stage.
+    Args:
+        model: the :class:`~stewart_env.dynamics.Dynamics` to integrate.
+        position: (3,) position of P's origin in {B}, m.
+        rotation: (3,3) rotation matrix of {P} in {B}.
+        velocity: (3,) velocity of P's origin, m/s.
+        angular_velocity: (3,) angular velocity, rad/s.
+        leg_forces: (6,) leg forces F, N, held over the steps (None with a ``control_law``).
+        dt: the step, s.
+        steps: the number of steps, >= 0.
+        external_wrench: (6,) [force at P, N; moment, N m], or None for none.
+        check_finite: raise FloatingPointError when a state stops being finite; without it
+            those rows come back non-finite (recorded samples too, from the first non-finite
+            one on) for the caller to handle.
+        control_law: a compiled control law, :class:`stewart_env.dynamics.rk4.ControlLaw` (or a
+            numba ``cfunc`` or ctypes function it wraps), ``law(time, position, rotation,
+            velocity, angular_velocity, params, n_params, forces)``, that writes the six leg
+            forces (N) for the state at ``time`` s (:mod:`stewart_env.dynamics.rk4` gives the
+            contract; :data:`stewart_env.dynamics.rk4.PD_CONTROL_LAW` is the package's PD law).
+            It replaces ``leg_forces``.
+        control_params: the law's ``params``: (P,), one parameter row for every platform, or
+            (N, P), one per batch row.
+        start_time: the time of the first stage, s.
+        record_every: a positive divisor of ``steps``: return every ``record_every``-th state.
 
-    Returns the final (position, rotation, velocity, angular_velocity); with ``record_every``
-    (a positive divisor of ``steps``) a :class:`Trajectory` of every ``record_every``-th state
-    instead, the start and the end included.  With ``check_finite`` a state that stops being
-    finite raises FloatingPointError naming the batch rows; without it those rows come back
-    non-finite (recorded samples too, from the first non-finite one on) for the caller to handle.
+    Returns:
+        The final (position, rotation, velocity, angular_velocity); with ``record_every`` a
+        :class:`Trajectory` of every ``record_every``-th state instead, the start and the end
+        included.
+
+    Raises:
+        ValueError: a bad argument (named in the message).
+        FloatingPointError: with ``check_finite``, a state that stops being finite (the message
+            names the batch rows).
+
+    Examples:
+        Held at its holding forces, the platform stays at home:
+
+        >>> import numpy as np, stewart_env as se
+        >>> params = se.load_platform("dasgupta1998")
+        >>> model = se.make_dynamics("improved", params)
+        >>> state = (params.home_position, np.eye(3), np.zeros(3), np.zeros(3))
+        >>> forces = model.inverse(*state, np.zeros(3), np.zeros(3))
+        >>> position, rotation, velocity, angular_velocity = se.rollout(
+        ...     model, *state, forces, dt=1e-3, steps=100)
+        >>> print(np.round(position, 6) + 0.0)
+        [0.  0.  0.4]
     """
     dt, steps = check_step(dt, steps)
     start_time = validation.real("start_time", start_time)
@@ -123,8 +160,18 @@ def rollout_inplace(model: Dynamics, position, rotation, velocity, angular_veloc
     arrays in place.
 
     For callers that step every control period and keep their own preallocated, C-contiguous
-    float64 batch arrays: position (N,3), rotation (N,3,3), velocity (N,3), angular_velocity
-    (N,3), leg_forces (N,6), external_wrench (N,6).  Rows that stop being finite stay so.
+    float64 batch arrays.  Rows that stop being finite stay so.
+
+    Args:
+        model: the dynamics model.
+        position: (N,3), m, overwritten.
+        rotation: (N,3,3), overwritten.
+        velocity: (N,3), m/s, overwritten.
+        angular_velocity: (N,3), rad/s, overwritten.
+        leg_forces: (N,6), N, held.
+        external_wrench: (N,6) [force at P, N; moment, N m], held.
+        dt: the step, s.
+        steps: the number of steps.
     """
     _core.rollout_batch(model.packed, model.flags, position, rotation, velocity, angular_velocity,
                         leg_forces, external_wrench, float(dt), int(steps))

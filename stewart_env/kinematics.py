@@ -21,11 +21,18 @@ from stewart_env.rotations import rotvec_to_matrix
 class LegKinematics(NamedTuple):
     """Leg quantities of a platform state, all in {B}; a leading batch dimension N if batched.
 
-    vectors (6,3) S_i = t + R p_i - b_i, m; lengths (6,) L_i, m; units (6,3) e_i;
-    frames (6,3,3) U-joint leg frames T_i = [e_i y_i z_i] (columns); rates (6,) dL_i/dt, m/s;
-    accelerations (6,) d2L_i/dt2, m/s^2; omega (6,3) leg angular velocities, rad/s (spin about
-    e_i included); alpha (6,3) leg angular accelerations, rad/s^2; jacobian (6,6) J with
-    dL/dt = J [v; omega], rows [e_i, (R p_i) x e_i].  Symbols as in docs/physics.md section 3.
+    Symbols as in docs/physics.md section 3.
+
+    Attributes:
+        vectors: (6,3) leg vectors S_i = t + R p_i - b_i, m.
+        lengths: (6,) leg lengths L_i, m.
+        units: (6,3) leg unit vectors e_i.
+        frames: (6,3,3) U-joint leg frames T_i = [e_i y_i z_i] (columns).
+        rates: (6,) leg rates dL_i/dt, m/s.
+        accelerations: (6,) leg accelerations d2L_i/dt2, m/s^2.
+        omega: (6,3) leg angular velocities, rad/s (spin about e_i included).
+        alpha: (6,3) leg angular accelerations, rad/s^2.
+        jacobian: (6,6) J with dL/dt = J [v; omega], rows [e_i, (R p_i) x e_i].
     """
 
     vectors: np.ndarray
@@ -66,11 +73,34 @@ def leg_kinematics(params: PlatformParams | Dynamics, position, rotation, veloci
     """Inverse kinematics to second order: leg vectors, lengths, frames, rates, accelerations,
     leg angular velocities and accelerations, and the Jacobian.
 
-    position (3,), rotation (3,3), velocity (3,), angular_velocity (3,), lin_acc (3,),
-    ang_acc (3,) of the platform in {B} (missing rates are zero).  The model's switches decide
-    whether the leg spin is included (``"classical"`` or a ``+c1`` name leaves it out): those
-    of ``params`` when it is a Dynamics, else those of ``model`` (default ``"improved"``).
-    docs/physics.md section 4 derives every quantity.
+    docs/physics.md section 4 derives every quantity.  Every state argument may carry a leading
+    batch dimension N; missing rates are zero.
+
+    Args:
+        params: the platform's parameters, or a :class:`~stewart_env.dynamics.Dynamics` (its
+            parameter rows and switches).
+        position: (3,) position t of P's origin in {B}, m.
+        rotation: (3,3) rotation R of {P} in {B}.
+        velocity: (3,) velocity v of P's origin, m/s, or None.
+        angular_velocity: (3,) angular velocity omega, rad/s, or None.
+        lin_acc: (3,) acceleration a of P's origin, m/s^2, or None.
+        ang_acc: (3,) angular acceleration alpha, rad/s^2, or None.
+        model: the model whose switches decide whether the leg spin is included
+            (``"classical"`` or a ``+c1`` name leaves it out); default ``"improved"``, or the
+            switches of ``params`` when it is a Dynamics (a ``model`` disagreeing with them raises).
+
+    Returns:
+        The :class:`LegKinematics`.
+
+    Raises:
+        ValueError: a bad argument, named in the message.
+
+    Examples:
+        >>> import numpy as np, stewart_env as se
+        >>> params = se.load_platform("dasgupta1998")
+        >>> legs = se.leg_kinematics(params, params.home_position, np.eye(3))
+        >>> legs.lengths.shape, legs.jacobian.shape
+        ((6,), (6, 6))
     """
     flags = _flags(params, model)
     packed = _packed(params)
@@ -93,15 +123,37 @@ def leg_kinematics(params: PlatformParams | Dynamics, position, rotation, veloci
 
 
 def inverse_kinematics(params: PlatformParams | Dynamics, position, rotation):
-    """Leg lengths (6,) m and unit vectors (6,3) of a pose; batched like :func:`leg_kinematics`."""
+    """Leg lengths and unit vectors of a pose.
+
+    Args:
+        params: the platform's parameters, or a :class:`~stewart_env.dynamics.Dynamics`.
+        position: (3,) position of P's origin in {B}, m; (N,3) for a batch.
+        rotation: (3,3) rotation of {P} in {B}; (N,3,3) for a batch.
+
+    Returns:
+        The pair (lengths, units), leg lengths L_i (6,) m and unit vectors e_i (6,3), batched like
+    the pose.
+
+    Raises:
+        ValueError: a bad argument, named in the message.
+    """
     k = leg_kinematics(params, position, rotation)
     return k.lengths, k.units
 
 
 def jacobian(params: PlatformParams | Dynamics, position, rotation) -> np.ndarray:
-    """The 6x6 leg Jacobian J (dL/dt = J [v; omega]) of a pose; batched like the others.
+    """The 6x6 leg Jacobian J of a pose, dL/dt = J [v; omega] (docs/physics.md section 4.4).
 
-    docs/physics.md section 4.4.
+    Args:
+        params: the platform's parameters, or a :class:`~stewart_env.dynamics.Dynamics`.
+        position: (3,) position of P's origin in {B}, m; (N,3) for a batch.
+        rotation: (3,3) rotation of {P} in {B}; (N,3,3) for a batch.
+
+    Returns:
+        J, (6,6) or (N,6,6), rows [e_i, (R p_i) x e_i].
+
+    Raises:
+        ValueError: a bad argument, named in the message.
     """
     packed = _packed(params)
     n, batched, a = batch_args(packed.shape[0], position=(position, (3,)), rotation=(rotation, (3, 3)))
@@ -114,10 +166,33 @@ def forward_kinematics(params: PlatformParams | Dynamics, leg_lengths, position_
                        tol: float = 1e-12, max_iter: int = 50):
     """The platform pose with the given leg lengths, by Newton-Raphson from a guess.
 
-    leg_lengths (6,) m; position_guess (3,) and rotation_guess (3,3) in {B}.  Each iteration
-    solves J [dt; dphi] = L - L(pose) and updates t += dt, R = exp([dphi]x) R.  Returns
-    (position, rotation) once max |L - L(pose)| < tol (m); raises ConvergenceError otherwise.
-    docs/physics.md section 4.4.
+    Each iteration solves J [dt; dphi] = L - L(pose) and updates t += dt, R = exp([dphi]x) R
+    (docs/physics.md section 4.4).  One platform at a time.
+
+    Args:
+        params: the platform's parameters, or a :class:`~stewart_env.dynamics.Dynamics`.
+        leg_lengths: (6,) leg lengths L, m.
+        position_guess: (3,) starting position of P's origin in {B}, m.
+        rotation_guess: (3,3) starting rotation of {P} in {B}.
+        tol: the largest leg length residual accepted, m.
+        max_iter: the most Newton-Raphson iterations.
+
+    Returns:
+        (position, rotation), once max |L - L(pose)| < tol.
+
+    Raises:
+        ConvergenceError: no pose within ``max_iter`` iterations, or a singular Jacobian.
+        ValueError: a bad argument (a batch, a non-positive length), named in the message.
+
+    Examples:
+        The leg lengths of the home pose give the home pose back:
+
+        >>> import numpy as np, stewart_env as se
+        >>> params = se.load_platform("dasgupta1998")
+        >>> lengths, _ = se.inverse_kinematics(params, params.home_position, np.eye(3))
+        >>> position, rotation = se.forward_kinematics(params, lengths, params.home_position + 0.01, np.eye(3))
+        >>> print(np.round(position, 9) + 0.0)
+        [0.  0.  0.4]
     """
     _, batched, a = batch_args(1, leg_lengths=(leg_lengths, (6,)), position_guess=(position_guess, (3,)),
                                rotation_guess=(rotation_guess, (3, 3)))

@@ -91,8 +91,24 @@ class Randomization:
     ``sample(rng)`` draws the factors of one episode; ``apply(params, factors)`` builds that
     episode's :class:`~stewart_env.params.PlatformParams` with ``params.replace``, and
     ``scale_packed(nominal_row, factors, out_row)`` writes the same parameters packed for the
-    kernels (``kernels.PACKED_LAYOUT``) without building them: a randomised reset in ~12 us
-    instead of the 2-4 ms of validating a new PlatformParams.
+    kernels (``kernels.PACKED_LAYOUT``) without building them, so a randomised reset does not
+    pay for validating a new PlatformParams.
+
+    Args:
+        spec: a dict from a key of :data:`KEYS` to a (low, high) range of its factors.
+
+    Raises:
+        ConfigError: an unknown key or an invalid range (the message names the key).
+
+    Examples:
+        >>> import numpy as np, stewart_env as se
+        >>> from stewart_env.randomization import Randomization
+        >>> spec = Randomization({"platform.mass": (0.8, 1.2)})
+        >>> factors = spec.sample(np.random.default_rng(0))
+        >>> params = se.load_platform("dasgupta1998")
+        >>> heavier = spec.apply(params, factors)
+        >>> bool(heavier.platform.mass == params.platform.mass * factors["platform.mass"])
+        True
     """
 
     def __init__(self, spec: Mapping[str, tuple[float, float]]):
@@ -111,11 +127,29 @@ class Randomization:
         return f"Randomization({self.ranges})"
 
     def sample(self, rng: np.random.Generator) -> dict[str, float]:
-        """One factor per key, uniform in its range, drawn in the order of KEYS."""
+        """One factor per key, uniform in its range, drawn in the order of KEYS.
+
+        Args:
+            rng: the generator to draw from (the environment's ``np_random``).
+
+        Returns:
+            A dict from each key of the spec to its factor.
+        """
         return {key: float(rng.uniform(low, high)) for key, (low, high) in self.ranges.items()}
 
     def apply(self, params: PlatformParams, factors: Mapping[str, float]) -> PlatformParams:
-        """``params`` with every parameter multiplied by the product of its keys' factors."""
+        """``params`` with every parameter multiplied by the product of its keys' factors.
+
+        Args:
+            params: the nominal platform.
+            factors: a factor per key of the spec (what :meth:`sample` draws).
+
+        Returns:
+            The episode's :class:`~stewart_env.params.PlatformParams`.
+
+        Raises:
+            ConfigError: factors that :meth:`check_factors` refuses.
+        """
         scale = dict(zip(_PART_NAMES, _multipliers(factors)))
 
         def body(b: RigidBody, name: str) -> RigidBody:
@@ -140,8 +174,15 @@ class Randomization:
         )
 
     def check_factors(self, factors: Mapping[str, float]) -> None:
-        """Raise ConfigError naming the key unless ``factors`` holds only keys of this spec, each a
-        number within its range (what :meth:`sample` draws)."""
+        """Check factors against the spec.
+
+        Args:
+            factors: a factor per key of the spec.
+
+        Raises:
+            ConfigError: a key not of this spec, or a factor that is not a number within its range
+                (what :meth:`sample` draws); the message names the key.
+        """
         if not isinstance(factors, Mapping):
             raise ConfigError("factors", f"expected a dict of key -> factor, got {short(factors)}")
         for key, f in factors.items():
@@ -152,17 +193,24 @@ class Randomization:
                 raise ConfigError(f"factors[{key!r}]", f"expected a number within [{low}, {high}], got {short(f)}")
 
     def scale_packed(self, nominal_row: np.ndarray, factors: Mapping[str, float], out_row: np.ndarray) -> None:
-        """Write into ``out_row`` (N_PARAMS,) the packed parameters of ``apply(params, factors)``,
-        given ``nominal_row = pack_params(params)``, without building PlatformParams: the reset of
-        a randomised row.  Equal bit for bit to ``pack_params(self.apply(params, factors))``.
+        """Write the packed parameters of ``apply(params, factors)`` without building PlatformParams:
+        the reset of a randomised row.
 
-        The factors are checked against the spec (:meth:`check_factors`).  Scaling a valid
-        platform by factors in range changes only what the checks of PlatformParams on masses
-        and inertias see, so only those run again, on the scaled numbers: the platform's mass
-        and smallest principal moment (the nominal's times the inertia factor), and every
-        number's magnitude.  Raises ConfigError naming the parameter, as :meth:`apply` would.
-        The caller promises ``nominal_row`` is the packed row of a valid PlatformParams (e.g. a
-        model's ``packed[0]``).
+        Equal bit for bit to ``pack_params(self.apply(params, factors))``.  The factors are checked
+        against the spec (:meth:`check_factors`).  Scaling a valid platform by factors in range changes
+        only what the checks of PlatformParams on masses and inertias see, so only those run again, on
+        the scaled numbers: the platform's mass and smallest principal moment (the nominal's times the
+        inertia factor), and every number's magnitude.
+
+        Args:
+            nominal_row: ``pack_params(params)`` (N_PARAMS,); the caller promises it is the packed
+                row of a valid PlatformParams (e.g. a model's ``packed[0]``).
+            factors: a factor per key of the spec.
+            out_row: (N_PARAMS,) float64, overwritten.
+
+        Raises:
+            ConfigError: factors out of the spec, or a scaled parameter PlatformParams would refuse
+                (the message names it, as :meth:`apply` would).
         """
         for name, row in (("nominal_row", nominal_row), ("out_row", out_row)):
             if not (isinstance(row, np.ndarray) and row.dtype == np.float64 and row.shape == (K.N_PARAMS,)):

@@ -11,9 +11,23 @@ from stewart_env.dynamics import _core
 
 
 def rpy_to_matrix(rpy):
-    """Rotation matrix of roll-pitch-yaw angles.
+    """Rotation matrix of roll-pitch-yaw angles, R = Rz(yaw) Ry(pitch) Rx(roll).
 
-    rpy (..., 3) rad [roll, pitch, yaw] -> R (..., 3, 3), columns = {P} axes in {B}.
+    Args:
+        rpy: (..., 3) angles [roll, pitch, yaw], rad.
+
+    Returns:
+        R (..., 3, 3), columns = {P} axes in {B}.
+
+    Raises:
+        ValueError: ``rpy`` whose last dimension is not 3.
+
+    Examples:
+        >>> import numpy as np
+        >>> from stewart_env import rpy_to_matrix, matrix_to_rpy
+        >>> R = rpy_to_matrix([0.1, -0.2, 0.3])
+        >>> print(np.round(matrix_to_rpy(R), 6))
+        [ 0.1 -0.2  0.3]
     """
     rpy = np.asarray(rpy, dtype=float)
     if rpy.shape[-1:] != (3,):
@@ -37,7 +51,16 @@ def rpy_to_matrix(rpy):
 def matrix_to_rpy(R):
     """Roll-pitch-yaw angles of a rotation matrix, pitch in [-pi/2, pi/2].
 
-    R (..., 3, 3) -> rpy (..., 3) rad.  At pitch = +-pi/2 (gimbal lock) roll is set to 0.
+    At pitch = +-pi/2 (gimbal lock) roll is set to 0.
+
+    Args:
+        R: (..., 3, 3) rotation matrices.
+
+    Returns:
+        rpy (..., 3) [roll, pitch, yaw], rad.
+
+    Raises:
+        ValueError: ``R`` whose last two dimensions are not (3, 3).
     """
     R = np.asarray(R, dtype=float)
     if R.shape[-2:] != (3, 3):
@@ -52,6 +75,12 @@ def rpy_rate_matrix(rpy):
     """E (..., 3, 3) with omega = E(rpy) d(rpy)/dt, omega in {B}.
 
     Used to turn angular velocity into angle rates (the PD law's error rate).
+
+    Args:
+        rpy: (..., 3) angles [roll, pitch, yaw], rad.
+
+    Returns:
+        E, (..., 3, 3).
     """
     rpy = np.asarray(rpy, dtype=float)
     cp, sp = np.cos(rpy[..., 1]), np.sin(rpy[..., 1])
@@ -82,13 +111,20 @@ def rotvec_to_matrix(phi):
 
 
 def rotation_error(rotation_ref: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation vector phi (N,3) of R_ref R^T and its angle |phi| (N,), rad, in {B}: the rotation
-    that takes R to R_ref.  Rotations (3,3) or (N,3,3); one pair gives (3,) and a scalar.
+    """The rotation that takes R to R_ref: rotation vector phi of R_ref R^T and its angle, in {B}.
 
     With M = R_ref R^T = sum_k r_k c_k^T (r_k, c_k the k-th columns of R_ref and R), trace(M) =
     sum(R_ref * R) and the axial vector of M - M^T is sum_k c_k x r_k = 2 sin(angle) axis; so
     angle = atan2(|s|, (trace - 1) / 2) with s the half axial vector.  Accurate for angles below
     pi (at pi the axis is undefined and phi comes back zero).
+
+    Args:
+        rotation_ref: R_ref, (3,3) or (N,3,3).
+        rotation: R, (3,3) or (N,3,3).
+
+    Returns:
+        The pair (phi, angle), phi (N,3) rad and |phi| (N,) rad; one pair of rotations gives (3,)
+    and a scalar.
     """
     ref = np.ascontiguousarray(rotation_ref, dtype=np.float64)
     cur = np.ascontiguousarray(rotation, dtype=np.float64)

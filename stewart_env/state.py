@@ -9,8 +9,14 @@ import numpy as np
 
 
 class PlatformState(NamedTuple):
-    """The platform's state in {B}: position (3,) m of P's origin, rotation (3,3) (columns = {P}
-    axes), velocity (3,) m/s of P's origin, angular_velocity (3,) rad/s; (N, ...) for a batch."""
+    """The platform's state in {B}; (N, ...) for a batch.
+
+    Attributes:
+        position: (3,) position of P's origin, m.
+        rotation: (3,3) rotation matrix, columns = {P} axes.
+        velocity: (3,) velocity of P's origin, m/s.
+        angular_velocity: (3,) angular velocity, rad/s.
+    """
 
     position: np.ndarray
     rotation: np.ndarray
@@ -28,13 +34,19 @@ class _ReferenceFields(NamedTuple):
 
 
 class Reference(_ReferenceFields):
-    """A reference (target) motion in {B}: pose and twist with fields, shapes and units as in
-    :class:`PlatformState` (velocities zero for a set point), and its accelerations lin_acc
-    (3,) or (N,3) m/s^2 of P's origin and ang_acc (3,) or (N,3) rad/s^2 (the feedforward of
-    computed torque).
+    """A reference (target) motion in {B}: a pose, its twist and its accelerations.
 
     The accelerations may be left out: ``Reference(p, R, v, w)`` has zero accelerations, new
     arrays shaped like ``velocity`` (so a buffer a task fills in place can be made that way too).
+
+    Attributes:
+        position: (3,) or (N,3) position of P's origin, m, as in :class:`PlatformState`.
+        rotation: (3,3) or (N,3,3) rotation matrix, columns = {P} axes.
+        velocity: (3,) or (N,3) velocity of P's origin, m/s (zero for a set point).
+        angular_velocity: (3,) or (N,3) angular velocity, rad/s (zero for a set point).
+        lin_acc: (3,) or (N,3) acceleration of P's origin, m/s^2 (the feedforward of computed
+            torque).
+        ang_acc: (3,) or (N,3) angular acceleration, rad/s^2.
     """
 
     __slots__ = ()

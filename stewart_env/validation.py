@@ -59,8 +59,30 @@ def _span(low: float, high: float, low_open: bool) -> str:
 
 
 def real(name: str, value: Any, low: float = -math.inf, high: float = math.inf, *, low_open: bool = False) -> float:
-    """``value`` as a float: a real number (not a bool), finite, in [low, high] ((low, high] if
-    ``low_open``)."""
+    """``value`` as a float: a real number (not a bool), finite, in [low, high].
+
+    Args:
+        name: the argument's name, which the error message gives.
+        value: the value to check.
+        low, high: the bounds.
+        low_open: exclude ``low``: (low, high].
+
+    Returns:
+        The float.
+
+    Raises:
+        ArgumentError: a value of the wrong kind.
+        ValueError: a value outside the range.
+
+    Examples:
+        >>> from stewart_env.validation import real
+        >>> real("control_dt", 0.01, 0.0, 1.0, low_open=True)
+        0.01
+        >>> real("control_dt", 0.0, 0.0, 1.0, low_open=True)
+        Traceback (most recent call last):
+        ...
+        ValueError: control_dt: expected a finite number in (0, 1], got 0.0
+    """
     if not _is_real(value):
         raise ArgumentError(f"{name}: expected a finite number {_span(low, high, low_open)}, got {_excerpt(value)}")
     x = _as_float(value)
@@ -70,7 +92,20 @@ def real(name: str, value: Any, low: float = -math.inf, high: float = math.inf, 
 
 
 def integer(name: str, value: Any, low: int, high: int) -> int:
-    """``value`` as an int: an integer (not a bool) in [low, high]."""
+    """``value`` as an int: an integer (not a bool) in [low, high].
+
+    Args:
+        name: the argument's name, which the error message gives.
+        value: the value to check.
+        low, high: the bounds.
+
+    Returns:
+        The int.
+
+    Raises:
+        ArgumentError: a value of the wrong kind.
+        ValueError: a value outside the range.
+    """
     if not isinstance(value, numbers.Integral) or isinstance(value, (bool, np.bool_)):
         raise ArgumentError(f"{name}: expected an integer in [{low}, {high}], got {_excerpt(value)}")
     if not low <= value <= high:
@@ -79,19 +114,54 @@ def integer(name: str, value: Any, low: int, high: int) -> int:
 
 
 def seed(name: str, value: Any) -> int:
-    """``value`` as a seed: an integer (not a bool) in [0, :data:`MAX_SEED`]."""
+    """``value`` as a seed: an integer (not a bool) in [0, :data:`MAX_SEED`].
+
+    Args:
+        name: the argument's name, which the error message gives.
+        value: the value to check.
+
+    Returns:
+        The int.
+
+    Raises:
+        ArgumentError: a value of the wrong kind.
+        ValueError: a value outside the range.
+    """
     return integer(name, value, 0, MAX_SEED)
 
 
 def flag(name: str, value: Any) -> bool:
-    """``value`` as a bool: True or False (Python's or numpy's), nothing else."""
+    """``value`` as a bool: True or False (Python's or numpy's), nothing else.
+
+    Args:
+        name: the argument's name, which the error message gives.
+        value: the value to check.
+
+    Returns:
+        The bool.
+
+    Raises:
+        ArgumentError: anything but a bool.
+    """
     if not isinstance(value, (bool, np.bool_)):
         raise ArgumentError(f"{name}: expected True or False, got {_excerpt(value)}")
     return bool(value)
 
 
 def choice(name: str, value: Any, choices: Iterable[Any]) -> Any:
-    """``value`` if it is one of ``choices``."""
+    """``value`` if it is one of ``choices``.
+
+    Args:
+        name: the argument's name, which the error message gives.
+        value: the value to check (a string).
+        choices: the accepted strings.
+
+    Returns:
+        ``value``.
+
+    Raises:
+        ValueError: a value not among the choices.
+    """
     choices = tuple(choices)
     if not isinstance(value, str) or value not in choices:
         raise ValueError(f"{name}: expected one of {', '.join(map(repr, choices))}, got {_excerpt(value)}")
@@ -99,8 +169,22 @@ def choice(name: str, value: Any, choices: Iterable[Any]) -> Any:
 
 
 def vector(name: str, value: Any, size: int, low: float = -math.inf, high: Any = math.inf) -> np.ndarray:
-    """A float vector (size,) from one number (for every entry) or ``size`` numbers, each finite
-    and in [low, high] (``high`` a number or a (size,) array)."""
+    """A float vector (size,) from one number (for every entry) or ``size`` numbers.
+
+    Args:
+        name: the argument's name, which the error message gives.
+        value: one number or ``size`` numbers.
+        size: the vector's length.
+        low: the lower bound of every entry.
+        high: the upper bound, a number or a (size,) array.
+
+    Returns:
+        The (size,) float array.
+
+    Raises:
+        ArgumentError: a value of the wrong kind.
+        ValueError: an entry not finite or outside [low, high].
+    """
     items = [value] if _is_real(value) else value
     try:
         items = list(items)
@@ -117,7 +201,21 @@ def vector(name: str, value: Any, size: int, low: float = -math.inf, high: Any =
 
 
 def interval(name: str, value: Any, low: float, high: float, *, low_open: bool = False) -> tuple[float, float]:
-    """(min, max) of two real numbers with low <= min <= max <= high (low < min if ``low_open``)."""
+    """(min, max) of two real numbers with low <= min <= max <= high.
+
+    Args:
+        name: the argument's name, which the error message gives.
+        value: the pair to check.
+        low, high: the bounds.
+        low_open: require low < min.
+
+    Returns:
+        The pair (min, max) as floats.
+
+    Raises:
+        ArgumentError: not a pair of numbers.
+        ValueError: numbers not finite, out of order or outside the bounds.
+    """
     try:
         lo, hi = value
     except (TypeError, ValueError):
@@ -134,8 +232,17 @@ def interval(name: str, value: Any, low: float, high: float, *, low_open: bool =
 
 def check_keywords(owner: str, kwargs: Mapping[str, Any], valid: Iterable[str],
                    moved: Mapping[str, str] | None = None) -> None:
-    """Refuse keywords not in ``valid`` as Python refuses them in a call of ``owner``; ``moved``
-    maps a keyword that is no longer taken to where it went (said in the error)."""
+    """Refuse keywords not in ``valid`` as Python refuses them in a call of ``owner``.
+
+    Args:
+        owner: the callable's name, which the message gives.
+        kwargs: the keyword arguments given.
+        valid: the accepted names.
+        moved: a keyword that is no longer taken, mapped to where it went (said in the error).
+
+    Raises:
+        ArgumentError: an unknown keyword.
+    """
     valid = tuple(valid)
     for key in kwargs:
         if key not in valid:
@@ -145,13 +252,36 @@ def check_keywords(owner: str, kwargs: Mapping[str, Any], valid: Iterable[str],
 
 
 def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
-    """The action as a float64 array of ``shape`` (see :func:`real_array`)."""
+    """The action as a float64 array of ``shape`` (see :func:`real_array`).
+
+    Args:
+        action: the action given to ``step``.
+        shape: the action's shape.
+
+    Returns:
+        The float64 array.
+
+    Raises:
+        ArgumentError: not real numbers.
+        ValueError: another shape, or a value not finite.
+    """
     return real_array("action", action, shape)
 
 
 def reset_options(options: Any, valid: Iterable[str] = ()) -> dict[str, Any]:
-    """The ``options`` of ``reset()`` as a dict: None (no options) or a mapping whose keys are
-    among ``valid``; anything else raises an error naming ``options``."""
+    """The ``options`` of ``reset()`` as a dict.
+
+    Args:
+        options: None (no options) or a mapping whose keys are among ``valid``.
+        valid: the accepted option names.
+
+    Returns:
+        The options as a dict (empty for None).
+
+    Raises:
+        ArgumentError: not a mapping.
+        ValueError: an unknown option; the message names ``options``.
+    """
     valid = tuple(valid)
     if options is None:
         return {}
@@ -182,10 +312,23 @@ def _plain(name: str, value: Any) -> Any:
 
 
 def real_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
-    """``value`` as a float64 array of ``shape``: real numbers (integers or floats of any width),
-    finite.  Anything else (bools, complex numbers, strings, dates, objects, a Python int beyond
-    every integer type, NaN, inf, another shape, a masked array with masked entries) raises an
-    error naming ``name``.  A torch tensor is read detached (see :func:`_plain`)."""
+    """``value`` as a float64 array of ``shape``: real numbers (integers or floats of any width), finite.
+
+    A torch tensor is read detached (see :func:`_plain`).
+
+    Args:
+        name: the argument's name, which the error message gives.
+        value: the value to check.
+        shape: the required shape.
+
+    Returns:
+        The float64 array.
+
+    Raises:
+        ArgumentError: bools, complex numbers, strings, dates, objects, or a Python int beyond
+            every integer type.
+        ValueError: NaN, inf, another shape, or a masked array with masked entries.
+    """
     value = _plain(name, value)
     try:
         a = np.asarray(value)

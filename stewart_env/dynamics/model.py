@@ -82,9 +82,15 @@ def _packed_value(params: PlatformParams, key: str):
 
 
 def pack_params(params: PlatformParams) -> np.ndarray:
-    """Kernel parameter row (N_PARAMS,) of a platform, in the order of ``kernels.PACKED_LAYOUT``.
+    """Kernel parameter row of a platform, in the order of ``kernels.PACKED_LAYOUT``.
 
     docs/physics.md section 2 lists the parameters, their symbols and frames.
+
+    Args:
+        params: the platform's parameters.
+
+    Returns:
+        The row (N_PARAMS,), float64.
     """
     row = np.empty(K.N_PARAMS)
     for key, _ in K.PACKED_LAYOUT:
@@ -238,13 +244,25 @@ class ParamsRows(Sequence):
 class Dynamics:
     """A dynamics model of one platform, or of a batch of platforms (one parameter set per row).
 
-    Attributes: ``name`` (canonical, e.g. ``"improved+c1"``), ``flags`` (kernel switch bits),
-    ``packed`` (Np, N_PARAMS), read-only, and ``params``: the :class:`PlatformParams` of each row
-    of ``packed`` (a sequence; rows set from packed numbers are built when first read, see
-    :meth:`with_packed_rows`).  The model is immutable: the ``with_*`` methods return new ones.
-    Its :meth:`workspace` holds the preallocated arrays of a controller loop.  A platform whose
-    home pose is conditioned beyond its limits.max_condition raises ConfigError
-    (``check_home_condition``).
+    The model is immutable: the ``with_*`` methods return new ones.  Its :meth:`workspace` holds
+    the preallocated arrays of a controller loop.  :func:`~stewart_env.make_dynamics` is the usual
+    way to make one.
+
+    Args:
+        name: the model's name (see the module docstring), e.g. ``"improved+c1"``.
+        params: one platform's parameters, or a non-empty sequence of them (one per batch row).
+
+    Attributes:
+        name: the canonical name, e.g. ``"improved+c1"``.
+        flags: the kernel switch bits.
+        packed: (Np, N_PARAMS), read-only: the packed parameter rows.
+        params: the :class:`PlatformParams` of each row of ``packed`` (a sequence; rows set from
+            packed numbers are built when first read, see :meth:`with_packed_rows`).
+
+    Raises:
+        ValueError: an unknown name or switch, or ``params`` not PlatformParams.
+        ConfigError: a platform whose home pose is conditioned beyond its limits.max_condition
+            (``check_home_condition``).
     """
 
     def __init__(self, name: str, params: PlatformParams | Sequence[PlatformParams]):
@@ -271,16 +289,43 @@ class Dynamics:
         return f"Dynamics({self.name!r}, platforms={len(self.params)} [{self.params[0].name}{more}])"
 
     def params_of(self, row: int) -> PlatformParams:
-        """The PlatformParams of parameter row ``row`` (built now if the row was set from packed numbers)."""
+        """The PlatformParams of a parameter row (built now if the row was set from packed numbers).
+
+        Args:
+            row: the parameter row.
+
+        Returns:
+            The row's :class:`PlatformParams`.
+        """
         return self.params[row]
 
     def with_params(self, params: PlatformParams | Sequence[PlatformParams]) -> "Dynamics":
-        """The same model on other parameters (e.g. one randomised set per batch row)."""
+        """The same model on other parameters (e.g. one randomised set per batch row).
+
+        Args:
+            params: one platform's parameters, or a sequence (one per batch row).
+
+        Returns:
+            The new :class:`Dynamics`.
+        """
         return Dynamics(self.name, params)
 
     def with_rows(self, rows: Sequence[int], params: Sequence[PlatformParams]) -> "Dynamics":
-        """The same model with the parameters of batch rows ``rows`` replaced by ``params`` (one
-        each); the other rows keep their packed parameters, so only the new rows are packed."""
+        """The same model with the parameters of some batch rows replaced.
+
+        The other rows keep their packed parameters, so only the new rows are packed.
+
+        Args:
+            rows: the batch rows to replace.
+            params: their new parameters, one each.
+
+        Returns:
+            The new :class:`Dynamics`.
+
+        Raises:
+            ValueError: not one PlatformParams per row.
+            ConfigError: a platform whose home pose is conditioned beyond its limits.
+        """
         if len(rows) != len(params):
             raise ValueError(f"params: expected one per row ({len(rows)}), got {len(params)}")
         for p in params:
@@ -292,17 +337,25 @@ class Dynamics:
         return self.with_packed_rows(rows, packed, params)
 
     def with_packed_rows(self, rows: Sequence[int], packed_rows, sources: Sequence) -> "Dynamics":
-        """The same model with parameter rows ``rows`` replaced by packed numbers, no
-        PlatformParams built: the reset of a domain-randomised batch.
+        """The same model with parameter rows ``rows`` replaced by packed numbers, no PlatformParams
+        built: the reset of a domain-randomised batch.
 
-        packed_rows (len(rows), N_PARAMS), e.g. from
-        :meth:`stewart_env.randomization.Randomization.scale_packed`; ``sources`` one per row, each
-        a PlatformParams or a zero-argument function returning the PlatformParams the row was
-        packed from (built only when ``params[row]`` is read).  The rows are trusted: the caller
-        promises they are a valid platform's, as ``pack_params`` and ``scale_packed`` write them;
-        only their finiteness is checked, and a row that is no platform's (e.g. a zero platform
-        inertia) gives NaN accelerations.  Raises ValueError naming the argument on wrong rows,
-        shapes, counts or non-finite numbers.
+        The rows are trusted: the caller promises they are a valid platform's, as ``pack_params`` and
+        ``scale_packed`` write them; only their finiteness is checked, and a row that is no
+        platform's (e.g. a zero platform inertia) gives NaN accelerations.
+
+        Args:
+            rows: the batch rows to replace.
+            packed_rows: (len(rows), N_PARAMS), e.g. from
+                :meth:`stewart_env.randomization.Randomization.scale_packed`.
+            sources: one per row, each a PlatformParams or a zero-argument function returning the
+                PlatformParams the row was packed from (built only when ``params[row]`` is read).
+
+        Returns:
+            The new :class:`Dynamics`.
+
+        Raises:
+            ValueError: wrong rows, shapes, counts or non-finite numbers (the message names the argument).
         """
         rows = [int(r) for r in rows]
         packed_rows = np.ascontiguousarray(packed_rows, dtype=np.float64)
@@ -329,8 +382,15 @@ class Dynamics:
         return new
 
     def workspace(self, n: int = 1):
-        """Preallocated arrays for ``n`` platforms of this model and the calls that use them
-        without checking or allocating: :class:`stewart_env.dynamics.workspace.Workspace`."""
+        """Preallocated arrays for ``n`` platforms of this model, and the calls that use them without
+        checking or allocating.
+
+        Args:
+            n: the batch size.
+
+        Returns:
+            The :class:`stewart_env.dynamics.workspace.Workspace`.
+        """
         from stewart_env.dynamics.workspace import Workspace  # it builds on this module
 
         return Workspace(self, n)
@@ -338,12 +398,35 @@ class Dynamics:
     def forward(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench=None):
         """Forward dynamics: platform accelerations under given leg forces.
 
-        position (3,) of P's origin, m; rotation (3,3); velocity (3,) of P's origin, m/s;
-        angular_velocity (3,) rad/s; leg_forces (6,) N, positive extends the leg;
-        external_wrench (6,) [force at P, N; moment, N m] or None.  All in {B}; every argument
-        may carry a leading batch dimension N.  Returns (lin_acc, ang_acc): acceleration of
-        P's origin (m/s^2) and angular acceleration (rad/s^2), each (3,) or (N,3).
-        Solves M [a; alpha] + h = J^T F + W (docs/physics.md section 5.4).
+        Solves M [a; alpha] + h = J^T F + W (docs/physics.md section 5.4).  All quantities are in
+        {B}; every argument may carry a leading batch dimension N.
+
+        Args:
+            position: (3,) position of P's origin, m.
+            rotation: (3,3) rotation matrix of {P} in {B}.
+            velocity: (3,) velocity of P's origin, m/s.
+            angular_velocity: (3,) angular velocity, rad/s.
+            leg_forces: (6,) actuator forces F along the legs, N, positive extends the leg.
+            external_wrench: (6,) [force at P, N; moment, N m], or None for none.
+
+        Returns:
+            The pair (lin_acc, ang_acc), acceleration a of P's origin (m/s^2) and angular
+            acceleration alpha (rad/s^2), each (3,) or (N,3).
+
+        Raises:
+            ValueError: a wrong shape, a non-finite value or a rotation that is not orthonormal.
+
+        Examples:
+            The holding forces of :meth:`inverse` keep the platform at rest:
+
+            >>> import numpy as np, stewart_env as se
+            >>> params = se.load_platform("dasgupta1998")
+            >>> model = se.make_dynamics("improved", params)
+            >>> pose = (params.home_position, np.eye(3), np.zeros(3), np.zeros(3))
+            >>> forces = model.inverse(*pose, np.zeros(3), np.zeros(3))
+            >>> lin_acc, ang_acc = model.forward(*pose, forces)
+            >>> bool(np.abs(lin_acc).max() < 1e-9 and np.abs(ang_acc).max() < 1e-9)
+            True
         """
         out = np.empty(6)
         # one platform's float64 arrays, valid: checked and solved in one compiled call
@@ -359,10 +442,33 @@ class Dynamics:
         return (out[:, :3], out[:, 3:]) if batched else (out[0, :3], out[0, 3:])
 
     def inverse(self, position, rotation, velocity, angular_velocity, lin_acc, ang_acc, external_wrench=None):
-        """Inverse dynamics: the leg forces (6,) or (N,6), N, that produce the given accelerations.
+        """Inverse dynamics: the leg forces that produce the given accelerations.
 
-        Arguments as in :meth:`forward`, with lin_acc (3,) m/s^2 and ang_acc (3,) rad/s^2 in {B}.
-        docs/physics.md section 5.5.
+        docs/physics.md section 5.5.  All quantities are in {B}; every argument may carry a
+        leading batch dimension N.
+
+        Args:
+            position, rotation, velocity, angular_velocity: the state, as in :meth:`forward`.
+            lin_acc: (3,) acceleration a of P's origin, m/s^2.
+            ang_acc: (3,) angular acceleration alpha, rad/s^2.
+            external_wrench: (6,) [force at P, N; moment, N m], or None for none.
+
+        Returns:
+            The leg forces F (6,) or (N,6), N.
+
+        Raises:
+            ValueError: a wrong shape, a non-finite value or a rotation that is not orthonormal.
+
+        Examples:
+            The forces that hold the 40 kg platform at rest at its home pose:
+
+            >>> import numpy as np, stewart_env as se
+            >>> params = se.load_platform("dasgupta1998")
+            >>> model = se.make_dynamics("improved", params)
+            >>> forces = model.inverse(params.home_position, np.eye(3), np.zeros(3), np.zeros(3),
+            ...                        np.zeros(3), np.zeros(3))
+            >>> print(np.round(forces, 1))
+            [193.9 145.4 153.1 172.3 159.6 188.9]
         """
         out = np.empty(6)
         if _core.inverse_one_checked(self.packed, self.flags, position, rotation, velocity, angular_velocity, lin_acc,
@@ -383,13 +489,21 @@ class Dynamics:
     def mass_and_bias(self, position, rotation, velocity, angular_velocity, external_wrench=None):
         """Mass matrix and bias of the equations of motion M [a; alpha] + h = J^T F.
 
-        Arguments as in :meth:`forward`.  Returns (M, h): M (6,6) or (N,6,6) maps
-        [a; alpha] (acceleration of P's origin, m/s^2; angular acceleration, rad/s^2; {B}) to the
-        wrench at P it takes (N; N m; {B}), legs included; it depends on the pose only.  h (6,)
-        or (N,6), N and N m in {B}: the wrench the legs must supply at zero acceleration, i.e.
-        the velocity products (Coriolis, centripetal, gyroscopic), gravity and joint friction,
-        minus ``external_wrench``.  Both come from the assembly :meth:`forward` solves
-        (docs/physics.md section 5.4; paper eq. 49 or 55), so forward(F) = M^-1 (J^T F - h).
+        Both come from the assembly :meth:`forward` solves (docs/physics.md section 5.4; paper eq. 49
+        or 55), so forward(F) = M^-1 (J^T F - h).
+
+        Args:
+            position, rotation, velocity, angular_velocity, external_wrench: as in :meth:`forward`.
+
+        Returns:
+            The pair (M, h).  M (6,6) or (N,6,6) maps [a; alpha] (acceleration of P's origin, m/s^2;
+            angular acceleration, rad/s^2; {B}) to the wrench at P it takes (N; N m; {B}), legs
+            included; it depends on the pose only.  h (6,) or (N,6), N and N m in {B}, is the wrench
+            the legs must supply at zero acceleration, i.e. the velocity products (Coriolis,
+            centripetal, gyroscopic), gravity and joint friction, minus ``external_wrench``.
+
+        Raises:
+            ValueError: a wrong shape, a non-finite value or a rotation that is not orthonormal.
         """
         n, batched, a = self._args(position, rotation, velocity, angular_velocity, external_wrench=external_wrench)
         M = np.empty((n, 6, 6))
@@ -399,14 +513,29 @@ class Dynamics:
         return (M, h) if batched else (M[0], h[0])
 
     def mass_matrix(self, position, rotation, velocity=None, angular_velocity=None):
-        """The mass matrix M (6,6) or (N,6,6) of :meth:`mass_and_bias` (kg, kg m, kg m^2; {B},
-        moments about P).  It does not depend on the rates, which may be left out."""
+        """The mass matrix M of :meth:`mass_and_bias`.
+
+        It does not depend on the rates, which may be left out.
+
+        Args:
+            position, rotation, velocity, angular_velocity: as in :meth:`forward`.
+
+        Returns:
+            M (6,6) or (N,6,6) in kg, kg m, kg m^2; {B}, moments about P.
+        """
         zero = np.zeros(3)
         return self.mass_and_bias(position, rotation, zero if velocity is None else velocity,
                                   zero if angular_velocity is None else angular_velocity)[0]
 
     def bias(self, position, rotation, velocity, angular_velocity, external_wrench=None):
-        """The bias h (6,) or (N,6) of :meth:`mass_and_bias`: [force, N; moment about P, N m], {B}."""
+        """The bias h of :meth:`mass_and_bias`.
+
+        Args:
+            position, rotation, velocity, angular_velocity, external_wrench: as in :meth:`forward`.
+
+        Returns:
+            h (6,) or (N,6), [force, N; moment about P, N m] in {B}.
+        """
         return self.mass_and_bias(position, rotation, velocity, angular_velocity, external_wrench)[1]
 
     def _args(self, position, rotation, velocity, angular_velocity, external_wrench=None, **extra):
@@ -421,5 +550,24 @@ class Dynamics:
 
 
 def make_dynamics(name: str, params: PlatformParams | Sequence[PlatformParams]) -> Dynamics:
-    """The dynamics model ``name`` (see the module docstring) on ``params``."""
+    """The dynamics model ``name`` (see the module docstring) on ``params``.
+
+    Args:
+        name: the model's name, ``"improved"``, ``"improved_centroidal"`` or ``"classical"``,
+            optionally with switches such as ``"+c1"`` (any case).
+        params: one platform's parameters, or a sequence of them (one per batch row).
+
+    Returns:
+        The :class:`Dynamics` model.
+
+    Raises:
+        ValueError: an unknown name or switch, or ``params`` not PlatformParams.
+        ConfigError: a platform whose home pose is conditioned beyond its limits.
+
+    Examples:
+        >>> import stewart_env as se
+        >>> model = se.make_dynamics("classical+c1", se.load_platform("dasgupta1998"))
+        >>> model.name
+        'classical+c1'
+    """
     return Dynamics(name, params)

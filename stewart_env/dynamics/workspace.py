@@ -63,6 +63,24 @@ class Workspace:
     * :meth:`inverse`: state, acceleration, external_wrench -> leg_forces (section 5.5);
     * :meth:`mass_and_bias`: state, external_wrench -> mass_matrix, bias (section 5.4);
     * :meth:`step`: RK4 steps with leg_forces and external_wrench held; overwrites the state (section 5.6).
+
+    Args:
+        model: the :class:`Dynamics` whose parameter rows the workspace uses.
+        n: the batch size (the model's number of parameter rows, or any if it has one).
+
+    Raises:
+        ValueError: ``model`` not a Dynamics, or ``n`` not a positive integer that fits the model.
+
+    Examples:
+        >>> import numpy as np, stewart_env as se
+        >>> model = se.make_dynamics("improved", se.load_platform("dasgupta1998"))
+        >>> ws = model.workspace()
+        >>> ws.acceleration[0] = 0.0           # at rest at home: the holding forces
+        >>> print(np.round(ws.inverse()[0], 1))
+        [193.9 145.4 153.1 172.3 159.6 188.9]
+        >>> ws.leg_forces[0] += 10.0           # 10 N more on every leg: the platform rises
+        >>> bool(ws.forward()[0, 2] > 0)
+        True
     """
 
     __slots__ = ("_model", "_n", "_packed", "_flags", "_bound", *(f"_{name}" for name in _ARRAYS))
@@ -115,8 +133,17 @@ class Workspace:
 
     def set_state(self, position, rotation, velocity, angular_velocity) -> None:
         """Copy a state into the arrays, with the checks of every entry point
-        (:func:`~stewart_env.dynamics.model.batch_args`): each argument one platform's, broadcast
-        to every row, or the batch's (n, ...).  Raises ValueError naming the argument."""
+        (:func:`~stewart_env.dynamics.model.batch_args`).
+
+        Args:
+            position: (3,) m, or (n,3).
+            rotation: (3,3), or (n,3,3).
+            velocity: (3,) m/s, or (n,3).
+            angular_velocity: (3,) rad/s, or (n,3).  One platform's values are broadcast to every row.
+
+        Raises:
+            ValueError: a bad argument (the message names it).
+        """
         n, _, a = batch_args(self._n, position=(position, (3,)), rotation=(rotation, (3, 3)),
                              velocity=(velocity, (3,)), angular_velocity=(angular_velocity, (3,)))
         if n != self._n:  # a batch given to a workspace of one platform
@@ -129,34 +156,60 @@ class Workspace:
         self._angular_velocity[:] = a["angular_velocity"]
 
     def check(self) -> None:
-        """Run the entry points' checks on what the input arrays hold now: every number finite,
-        every rotation a rotation.  Raises ValueError naming the array."""
+        """Run the entry points' checks on what the input arrays hold now.
+
+        Raises:
+            ValueError: a number not finite or a rotation that is not one (the message names the array).
+        """
         batch_args(self._n, **{name: (getattr(self, f"_{name}"), tail) for name, (tail, _) in _ARRAYS.items()
                                if name not in ("acceleration", "mass_matrix", "bias")})
 
     def forward(self) -> np.ndarray:
-        """Forward dynamics: ``acceleration`` (n,6) [a; alpha] from the state, ``leg_forces`` and
-        ``external_wrench``.  docs/physics.md section 5.4; paper eq. 49 or 55."""
+        """Forward dynamics from the state, ``leg_forces`` and ``external_wrench``.
+
+        docs/physics.md section 5.4; paper eq. 49 or 55.
+
+        Returns:
+            ``acceleration`` (n,6) [a; alpha], overwritten by the next call.
+        """
         self._bound.forward()
         return self._acceleration
 
     def inverse(self) -> np.ndarray:
-        """Inverse dynamics: ``leg_forces`` (n,6) that produce ``acceleration`` in the state, with
-        ``external_wrench``.  docs/physics.md section 5.5."""
+        """Inverse dynamics: the leg forces that produce ``acceleration`` in the state, with ``external_wrench``.
+
+        docs/physics.md section 5.5.
+
+        Returns:
+            ``leg_forces`` (n,6), overwritten by the next call.
+        """
         self._bound.inverse()
         return self._leg_forces
 
     def mass_and_bias(self) -> tuple[np.ndarray, np.ndarray]:
-        """``mass_matrix`` (n,6,6) and ``bias`` (n,6) of M [a; alpha] + h = J^T F in the state,
-        ``external_wrench`` moved into h.  docs/physics.md section 5.4."""
+        """Mass matrix and bias of M [a; alpha] + h = J^T F in the state, ``external_wrench`` moved into h.
+
+        docs/physics.md section 5.4.
+
+        Returns:
+            The pair (``mass_matrix`` (n,6,6), ``bias`` (n,6)), overwritten by the next call.
+        """
         self._bound.mass_and_bias()
         return self._mass_matrix, self._bias
 
     def step(self, dt: float, steps: int = 1) -> None:
-        """Advance the state by ``steps`` classical RK4 steps of ``dt`` s, ``leg_forces`` and
-        ``external_wrench`` held, overwriting position, rotation, velocity and angular_velocity.
-        A row whose state stops being finite stays so (see :meth:`check`).
-        docs/physics.md section 5.6."""
+        """Advance the state by classical RK4 steps, ``leg_forces`` and ``external_wrench`` held.
+
+        Overwrites position, rotation, velocity and angular_velocity.  A row whose state stops being
+        finite stays so (see :meth:`check`).  docs/physics.md section 5.6.
+
+        Args:
+            dt: the step, s.
+            steps: the number of steps.
+
+        Raises:
+            ValueError: a bad ``dt`` or ``steps``.
+        """
         dt, steps = check_step(dt, steps)
         self._bound.step(dt, steps)
 

@@ -40,7 +40,7 @@ OBSERVATION_MODES = ("pose", "sensors")
 #: The plant that integrates the closed-form model ``model`` with RK4 (stewart_env.integrate).
 CLOSED_FORM = "closed_form"
 #: The plant that is MuJoCo simulating the same mechanism (stewart_env.mujoco.MujocoPlant); also
-#: accepted as ``model="mujoco"``, the older spelling of ``plant="mujoco"`` (:func:`model_argument`).
+#: accepted as ``model="mujoco"``, another spelling of ``plant="mujoco"`` (:func:`model_argument`).
 MUJOCO = "mujoco"
 #: What can simulate the platform (the ``plant`` argument).
 PLANTS = (CLOSED_FORM, MUJOCO)
@@ -76,7 +76,7 @@ def _platform(value: Any) -> PlatformParams:
 
 def model_argument(model: Any) -> str:
     """The canonical value of the ``model`` argument: a closed-form model's canonical name (e.g.
-    ``"improved+c1"``), or ``"mujoco"`` (any case), the older spelling of ``plant="mujoco"``.
+    ``"improved+c1"``), or ``"mujoco"`` (any case), another spelling of ``plant="mujoco"``.
     Raises ValueError naming the argument, and the MuJoCo spelling, on an unknown model."""
     if isinstance(model, str) and model.strip().lower() == MUJOCO:
         return MUJOCO
@@ -97,7 +97,7 @@ class PhysicsConfig(_Record):
     exactly n control_dt).  ``model="mujoco"`` is stored as ``model="improved", plant="mujoco"``."""
 
     model: str = _argument("improved", 'dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, '
-                                       'optionally with switches such as `"+c1"`; `"mujoco"` is the older '
+                                       'optionally with switches such as `"+c1"`; `"mujoco"` is another '
                                        'spelling of `plant="mujoco"` (with the `"improved"` model)')
     plant: str = _argument(CLOSED_FORM, 'what simulates the platform: `"closed_form"` (`model` integrated with '
                                         'RK4) or `"mujoco"` (MuJoCo simulating the same mechanism, needs the '
@@ -117,7 +117,7 @@ class PhysicsConfig(_Record):
         self._set("platform", _platform(self.platform))
         model = model_argument(self.model)
         plant = choice("plant", self.plant.strip().lower() if isinstance(self.plant, str) else self.plant, PLANTS)
-        if model == MUJOCO:  # the older spelling: MuJoCo simulating, the improved model for the rest
+        if model == MUJOCO:  # the other spelling: MuJoCo simulating, the improved model for the rest
             model, plant = "improved", MUJOCO
         self._set("model", model)
         self._set("plant", plant)
@@ -234,7 +234,15 @@ def _arguments(record: type) -> list[dataclasses.Field]:
 
 @dataclass(frozen=True)
 class EnvConfig:
-    """Every argument of an environment, validated, by record."""
+    """Every argument of an environment, validated, by record.
+
+    Attributes:
+        physics: the :class:`~stewart_env.envs.config.PhysicsConfig`.
+        task: the :class:`~stewart_env.envs.config.TaskConfig`.
+        actuator: the :class:`~stewart_env.envs.config.ActuatorConfig`.
+        observation: the :class:`~stewart_env.envs.config.ObservationConfig`.
+        render: the :class:`~stewart_env.envs.config.RenderConfig`.
+    """
 
     physics: PhysicsConfig
     task: TaskConfig
@@ -244,8 +252,24 @@ class EnvConfig:
 
     @classmethod
     def of(cls, **arguments: Any) -> EnvConfig:
-        """The configuration of the environment arguments ``arguments`` (the others at their
-        defaults); each record validates its own.  An unknown name raises ArgumentError."""
+        """The configuration of the given environment arguments, the others at their defaults.
+
+        Args:
+            **arguments: environment arguments by name; each record validates its own.
+
+        Returns:
+            The :class:`EnvConfig`.
+
+        Raises:
+            ValueError: an unknown name (an ArgumentError) or a value out of its range; the message
+                names the argument.
+
+        Examples:
+            >>> from stewart_env.envs import EnvConfig
+            >>> config = EnvConfig.of(task="tracking", control_dt=0.02)
+            >>> config.task.task, config.physics.control_dt
+            ('tracking', 0.02)
+        """
         known = {f.name for record in RECORDS for f in _arguments(record)}
         unknown = [k for k in arguments if k not in known]
         if unknown:

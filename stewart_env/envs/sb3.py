@@ -24,9 +24,7 @@ __all__ = ["StewartPlatformSB3VecEnv"]
 class StewartPlatformSB3VecEnv(VecEnv):
     """``num_envs`` platforms behind stable-baselines3's VecEnv API.
 
-    Keyword arguments are the environment's (see :class:`StewartPlatformEnv`; passed on to
-    :class:`StewartPlatformVectorEnv`), plus
-    ``max_episode_steps`` (default 500, as registered; None never truncates).  SB3 semantics: a
+    SB3 semantics: a
     row that ends is reset in the same step, its last observation in
     ``infos[i]["terminal_observation"]``, ``infos[i]["TimeLimit.truncated"]`` True when the time
     limit (and not a termination) ended it, and ``infos[i]["termination"]`` the reason's code, as
@@ -38,6 +36,30 @@ class StewartPlatformSB3VecEnv(VecEnv):
     vector environment's ``get_attr``, ``set_attr`` and ``call`` do (a row's state, target,
     ``np_random``...; other names are the batch's, shared by every row, and set only for all rows
     at once); ``render()``/``get_images()`` draw row 0.
+
+    Args:
+        num_envs: number of platforms N.
+        max_episode_steps: truncation after this many steps of a row (default 500, as
+            registered; None never truncates).
+        render_mode: as the environment's.
+        **kwargs: the environment's keyword arguments (see :class:`StewartPlatformEnv`; passed
+            on to :class:`StewartPlatformVectorEnv`).
+
+    Raises:
+        ValueError: an argument out of its range or of the wrong kind (the message names it).
+
+    Examples:
+        >>> import numpy as np
+        >>> from stewart_env.envs import StewartPlatformSB3VecEnv
+        >>> venv = StewartPlatformSB3VecEnv(num_envs=2, task="hold")
+        >>> venv.seed(0)
+        [0, 1]
+        >>> observations = venv.reset()
+        >>> observations.shape
+        (2, 21)
+        >>> observations, rewards, dones, infos = venv.step(np.zeros((2, 6), np.float32))
+        >>> dones.tolist()
+        [False, False]
     """
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = MAX_EPISODE_STEPS,

@@ -23,10 +23,29 @@ _ROW0 = np.zeros(1, dtype=np.int64)
 
 
 def holding_action(env, position=None, rotation=None) -> np.ndarray:
-    """The action (6,) whose leg forces hold the env's platform at rest at a pose in {B}: position
-    (3,) m and rotation (3,3), the platform's home pose by default.  The env's model at zero rates
-    and accelerations gives the forces; the inverse of the action's affine map to the force range
-    gives the action (not clipped)."""
+    """The action whose leg forces hold the env's platform at rest at a pose in {B}.
+
+    The env's model at zero rates and accelerations gives the forces; the inverse of the
+    action's affine map to the force range gives the action (not clipped).
+
+    Args:
+        env: a StewartPlatform environment (wrapped or not).
+        position: (3,) position of P's origin, m; default the platform's home position.
+        rotation: (3,3) rotation of {P}; default the platform's home orientation.
+
+    Returns:
+        The action (6,).
+
+    Examples:
+        >>> import gymnasium as gym, numpy as np
+        >>> from stewart_env.envs import holding_action
+        >>> env = gym.make("StewartPlatform-v0", task="hold", task_options={"max_payload": 0.0})
+        >>> _ = env.reset(seed=0)
+        >>> for _ in range(10):
+        ...     observation, reward, terminated, truncated, info = env.step(holding_action(env))
+        >>> print(np.round(env.unwrapped.state.position, 6) + 0.0)
+        [0.  0.  0.4]
+    """
     u = env.unwrapped
     p = u.platform
     position = p.home_position if position is None else position
@@ -233,7 +252,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     | argument | default | description |
     |---|---|---|
-    | `model` | `"improved"` | dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, optionally with switches such as `"+c1"`; `"mujoco"` is the older spelling of `plant="mujoco"` (with the `"improved"` model) |
+    | `model` | `"improved"` | dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, optionally with switches such as `"+c1"`; `"mujoco"` is another spelling of `plant="mujoco"` (with the `"improved"` model) |
     | `plant` | `"closed_form"` | what simulates the platform: `"closed_form"` (`model` integrated with RK4) or `"mujoco"` (MuJoCo simulating the same mechanism, needs the `mujoco` extra) |
     | `platform` | `"dasgupta1998"` | a shipped config name, a YAML path, or a `PlatformParams` |
     | `control_dt` | `0.01` | s per environment step, 1e-6 to 10 |
@@ -294,6 +313,21 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     `episode_params`, `leg_forces` (N, applied over the last step), `external_wrench`,
     `leg_lengths`, `platform`, `task`, `dt`, and `set_state(...)`.  All randomness
     comes from `env.np_random`, so a seed fixes an episode bit for bit.
+
+    ## Example
+
+    ```pycon
+    >>> import gymnasium as gym, numpy as np
+    >>> env = gym.make("StewartPlatform-v0", task="setpoint")
+    >>> observation, info = env.reset(seed=0)
+    >>> observation.shape, env.action_space.shape
+    ((21,), (6,))
+    >>> observation, reward, terminated, truncated, info = env.step(np.zeros(6, np.float32))
+    >>> terminated, truncated, int(info["termination"])
+    (False, False, 0)
+    >>> env.close()
+
+    ```
 
     ## Version History
 

@@ -123,14 +123,6 @@ class _Frames(Sequence):
 class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
     """``num_envs`` Stewart platforms in one batch (see :class:`StewartPlatformEnv` for the card).
 
-    Keyword arguments are those of the single environment (the same signature), plus:
-        num_envs: number of platforms N.
-        max_episode_steps: truncation after this many steps of a row (``gymnasium.make_vec``
-            passes the registered 500); None never truncates.
-        autoreset_mode: ``AutoresetMode.NEXT_STEP`` (default, Gymnasium's), ``SAME_STEP`` or
-            ``DISABLED`` (reset rows with ``reset(options={"reset_mask": mask})``), as in
-            Gymnasium's vector API; also ``metadata["autoreset_mode"]``.
-
     Seeding follows Gymnasium's SyncVectorEnv: ``reset(seed=s)`` seeds row i with s + i (a list
     seeds row by row), so row i reproduces ``gymnasium.make("StewartPlatform-v1")`` reset with
     seed s + i, step for step, across autoresets.  Every step is one call of the compiled rollout
@@ -144,6 +136,31 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
     semantics: a tuple of one result per row), e.g. ``get_attr("state")`` or ``call("render")``;
     ``render()`` gives one frame per row in ``rgb_array`` mode (each drawn when first indexed),
     and draws row 0 in ``human`` mode.
+
+    Args:
+        num_envs: number of platforms N.
+        max_episode_steps: truncation after this many steps of a row (``gymnasium.make_vec``
+            passes the registered 500); None never truncates.
+        autoreset_mode: ``AutoresetMode.NEXT_STEP`` (default, Gymnasium's), ``SAME_STEP`` or
+            ``DISABLED`` (reset rows with ``reset(options={"reset_mask": mask})``), as in
+            Gymnasium's vector API; also ``metadata["autoreset_mode"]``.
+        **arguments: the keyword arguments of the single environment (the same signature, see
+            :class:`StewartPlatformEnv`).
+
+    Raises:
+        ValueError: an argument out of its range or of the wrong kind (the message names it).
+
+    Examples:
+        >>> import numpy as np
+        >>> from stewart_env.envs import StewartPlatformVectorEnv
+        >>> envs = StewartPlatformVectorEnv(num_envs=4, task="setpoint")
+        >>> observations, infos = envs.reset(seed=0)
+        >>> observations.shape
+        (4, 21)
+        >>> observations, rewards, terminated, truncated, infos = envs.step(np.zeros((4, 6), np.float32))
+        >>> rewards.shape, terminated.tolist()
+        ((4,), [False, False, False, False])
+        >>> envs.close()
     """
 
     _rows = slice(None)  # BatchAttributes: every row

@@ -44,10 +44,21 @@ def _without_spherical_friction(params: PlatformParams) -> PlatformParams:
 
 def acceleration_error(params: PlatformParams, solref: Sequence[float] = DEFAULT_SOLREF,
                        solimp: Sequence[float] = DEFAULT_SOLIMP, seed: int = 0, force_scale: float = 1.1) -> float:
-    """Largest difference (m/s^2 and rad/s^2, one number over the six components) between MuJoCo's
-    platform acceleration and the ``improved`` model's (forward dynamics, docs/physics.md section
-    5.4) at a valid moving state near home with the legs set by inverse kinematics, under
-    ``force_scale`` times the holding forces.  The model compared has C_s = 0, as the twin."""
+    """Largest difference between MuJoCo's platform acceleration and the ``improved`` model's.
+
+    The forward dynamics (docs/physics.md section 5.4) at a valid moving state near home with the
+    legs set by inverse kinematics, under ``force_scale`` times the holding forces.  The model
+    compared has C_s = 0, as the twin.
+
+    Args:
+        params: the platform's parameters.
+        solref, solimp: the loops' softness, as in :func:`~stewart_env.mujoco.to_mjcf`.
+        seed: the seed of the moving state near home.
+        force_scale: the factor on the holding forces.
+
+    Returns:
+        One number over the six components, m/s^2 and rad/s^2.
+    """
     mj = require_mujoco()
     t, R, v, w, F = _test_state(params, seed)
     F = F * force_scale
@@ -59,9 +70,16 @@ def acceleration_error(params: PlatformParams, solref: Sequence[float] = DEFAULT
 
 
 def spherical_friction_effect(params: PlatformParams, seed: int = 0) -> float:
-    """What omitting the spherical joints' friction C_s changes: the largest difference in the
-    ``improved`` model's platform acceleration (m/s^2, rad/s^2) with and without C_s at the
-    moving state of :func:`acceleration_error`."""
+    """What omitting the spherical joints' friction C_s changes.
+
+    Args:
+        params: the platform's parameters.
+        seed: the seed of the moving state near home.
+
+    Returns:
+        The largest difference in the ``improved`` model's platform acceleration (m/s^2, rad/s^2)
+        with and without C_s at the moving state of :func:`acceleration_error`.
+    """
     t, R, v, w, F = _test_state(params, seed)
     a = make_dynamics("improved", params).forward(t, R, v, w, F)
     b = make_dynamics("improved", _without_spherical_friction(params)).forward(t, R, v, w, F)
@@ -70,10 +88,23 @@ def spherical_friction_effect(params: PlatformParams, seed: int = 0) -> float:
 
 def plant_difference(params: PlatformParams, seconds: float = 1.0, control_dt: float = 0.01, dt: float = 1e-3,
                      spherical_friction: bool = True, seed: int = 0) -> tuple[float, float]:
-    """(position m, rotation rad): how far :class:`MujocoPlant`'s platform ends from the
-    ``improved`` model's (every friction included, RK4 at ``dt``) after ``seconds`` of motion from
-    the moving state of :func:`acceleration_error` under its holding forces, stepped in calls of
-    ``control_dt`` as an environment does, with or without the plant's held spherical friction."""
+    """How far :class:`MujocoPlant`'s platform ends from the ``improved`` model's.
+
+    The ``improved`` model has every friction included, RK4 at ``dt``; both start from the moving
+    state of :func:`acceleration_error` under its holding forces, stepped in calls of
+    ``control_dt`` as an environment does.
+
+    Args:
+        params: the platform's parameters.
+        seconds: the length of the motion, s.
+        control_dt: the length of each call, s.
+        dt: the step of both, s.
+        spherical_friction: with the plant's held spherical friction.
+        seed: the seed of the moving state near home.
+
+    Returns:
+        The pair (position m, rotation rad) of the differences at the end.
+    """
     from stewart_env.integrate import rollout_inplace
 
     t, R, v, w, F = _test_state(params, seed)
@@ -92,9 +123,21 @@ def plant_difference(params: PlatformParams, seconds: float = 1.0, control_dt: f
 def holding_drift(params: PlatformParams, seconds: float = 1.0, timestep: float = 1e-3,
                   solref: Sequence[float] = DEFAULT_SOLREF, solimp: Sequence[float] = DEFAULT_SOLIMP,
                   seed: int = 0) -> tuple[float, float]:
-    """(position drift m, rotation drift rad) of MuJoCo's platform over ``seconds`` under the
-    leg forces that ``inverse`` of the ``improved`` model says hold it at rest, from the pose of
-    :func:`acceleration_error`: the exact mechanism would not move at all."""
+    """Drift of MuJoCo's platform under the forces that hold the exact mechanism at rest.
+
+    The leg forces that ``inverse`` of the ``improved`` model says hold the platform at rest at
+    the pose of :func:`acceleration_error`: the exact mechanism would not move at all.
+
+    Args:
+        params: the platform's parameters.
+        seconds: the length of the motion, s.
+        timestep: MuJoCo's step, s.
+        solref, solimp: the loops' softness, as in :func:`~stewart_env.mujoco.to_mjcf`.
+        seed: the seed of the moving state near home.
+
+    Returns:
+        The pair (position drift m, rotation drift rad) over ``seconds``.
+    """
     t, R, _, _, F = _test_state(params, seed)
     plant = MujocoPlant(params, timestep, solref, solimp)
     state = [t[None].copy(), R[None].copy(), np.zeros((1, 3)), np.zeros((1, 3))]
@@ -110,10 +153,19 @@ def trajectory_report(params: PlatformParams, seconds: float = 1.0, timestep: fl
     The platform starts at the moving state of :func:`acceleration_error` under constant holding
     forces, with every joint's friction set to zero, so the exact mechanism conserves
     E = kinetic + gravitational - sum_i F_i L_i (constant leg forces have the potential -F_i L_i).
-    Returns a dict: ``energy_drift`` (J, largest |E - E(0)| along the way), ``kinetic_energy``
-    (J, at the start, the scale of the motion), ``closure_max`` (m, largest loop gap),
-    ``position_difference`` (m, |t_MuJoCo - t_improved| at the end, the ``improved`` model
-    integrated with RK4 at the same step), ``seconds`` and ``timestep``.
+
+    Args:
+        params: the platform's parameters.
+        seconds: the length of the motion, s.
+        timestep: MuJoCo's step, s.
+        solref, solimp: the loops' softness, as in :func:`~stewart_env.mujoco.to_mjcf`.
+        seed: the seed of the moving state near home.
+
+    Returns:
+        A dict of ``energy_drift`` (J, largest |E - E(0)| along the way), ``kinetic_energy`` (J, at
+        the start, the scale of the motion), ``closure_max`` (m, largest loop gap),
+        ``position_difference`` (m, |t_MuJoCo - t_improved| at the end, the ``improved`` model
+        integrated with RK4 at the same step), ``seconds`` and ``timestep``.
     """
     mj = require_mujoco()
     from stewart_env.integrate import rollout
@@ -152,9 +204,18 @@ MUJOCO_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)
 
 
 def accuracy_report(params: PlatformParams) -> str:
-    """The twin's accuracy on ``params``, as markdown: :func:`acceleration_error` at three
-    softnesses, :func:`holding_drift`, :func:`trajectory_report` with the twin's and MuJoCo's
-    default softness, and :func:`spherical_friction_effect`.  ``python -m stewart_env.mujoco NAME``."""
+    """How close the MuJoCo twin comes to the exact model on a platform, as markdown.
+
+    :func:`acceleration_error` at three softnesses, :func:`holding_drift`,
+    :func:`trajectory_report` with the twin's and MuJoCo's default softness, and
+    :func:`spherical_friction_effect`; ``python -m stewart_env.mujoco NAME`` prints it.
+
+    Args:
+        params: the platform's parameters.
+
+    Returns:
+        The report's markdown.
+    """
     loose = (0.99, 0.99) + DEFAULT_SOLIMP[2:]
     lines = [f"MuJoCo twin of {params.name} (stewart_env.mujoco), against the improved model:", "",
              "| loop softness (solref; solimp d) | platform acceleration error | closure, 1 s free motion "

@@ -41,9 +41,9 @@ __all__ = ["DEFAULT_SOLIMP", "DEFAULT_SOLREF", "MAX_TIMESTEP", "home_rotation", 
 #: Time constant (s) and damping ratio of the loop-closure constraints' error correction.
 #: 0.002 s is the smallest MuJoCo accepts at a 1 ms step (it raises any smaller value to twice
 #: the step), so a gap is pulled shut within a few steps; critical damping (1) avoids ringing.
-#: Over 1 s of free motion of dasgupta1998 (:func:`~stewart_env.mujoco.trajectory_report`) it keeps the loops closed
-#: to 1.3 um and the energy to 1.6 mJ of 0.79 J kinetic, against 11 um and 27 mJ at MuJoCo's
-#: default time constant 0.02 s (and 5.6 mm and 13 J with MuJoCo's default solimp as well).
+#: Against MuJoCo's default time constant and impedance it keeps the loops closed and the energy
+#: conserved far better over free motion (:func:`~stewart_env.mujoco.trajectory_report`; the
+#: figures are in the MuJoCo guide, docs/guides/mujoco.md).
 DEFAULT_SOLREF = (0.002, 1.0)
 #: Impedance of the loop-closure constraints (MuJoCo's d_min, d_max, width, midpoint, power).  The
 #: constraint force reaches the fraction d of the force that would hold the loop rigidly, so the
@@ -90,18 +90,37 @@ def to_mjcf(params: PlatformParams, timestep: float = 1e-3, solref: Sequence[flo
             solimp: Sequence[float] = DEFAULT_SOLIMP, integrator: str = "RK4", geometry: bool = True) -> str:
     """MJCF text of the mechanism of ``params`` (see the module docstring), at its home pose.
 
-    timestep: MuJoCo's step, s.  solref (time constant s, damping ratio) and solimp (d_min, d_max,
-    width m, midpoint, power): softness of the six loop-closure constraints, MuJoCo's own
-    parameters (its documentation, "Solver parameters"); the defaults :data:`DEFAULT_SOLREF`
-    and :data:`DEFAULT_SOLIMP` are explained there.  integrator: MuJoCo's ("RK4",
-    "implicitfast", "Euler", ...).  geometry: add massless, non-colliding shapes (legs as
-    capsules, the platform and base as outlines) so the model shows in MuJoCo's viewer; they
-    carry no mass (inertias are explicit) and never collide.
-
     Names in the model: bodies ``platform``, ``lower_i``, ``upper_i``; joints ``platform``
     (free), ``u1_i`` (about k_i), ``u2_i`` (about y_i), ``slide_i``; sites ``tip_i`` (upper
     leg at P_i) and ``joint_i`` (platform at p_i); equalities ``loop_i``; actuators ``leg_i``
     (force on the slide, N, within the config's force limits).  i = 0..5.
+
+    Args:
+        params: the platform's parameters.
+        timestep: MuJoCo's step, s.
+        solref: (time constant s, damping ratio) of the six loop-closure constraints, MuJoCo's own
+            parameter (its documentation, "Solver parameters"); the default
+            :data:`DEFAULT_SOLREF` is explained there.
+        solimp: (d_min, d_max, width m, midpoint, power) of the same constraints; the default
+            :data:`DEFAULT_SOLIMP` is explained there.
+        integrator: MuJoCo's integrator ("RK4", "implicitfast", "Euler", ...).
+        geometry: add massless, non-colliding shapes (legs as capsules, the platform and base as
+            outlines) so the model shows in MuJoCo's viewer; they carry no mass (inertias are
+            explicit) and never collide.
+
+    Returns:
+        The MJCF document, text that ``mujoco.MjModel.from_xml_string`` loads.
+
+    Raises:
+        ImportError: the ``mujoco`` extra is not installed.
+        ValueError: a bad argument, named in the message.
+
+    Examples:
+        >>> import stewart_env as se
+        >>> from stewart_env.mujoco import to_mjcf
+        >>> xml = to_mjcf(se.load_platform("dasgupta1998"))
+        >>> xml.lstrip().startswith("<mujoco")
+        True
     """
     require_mujoco()
     if not isinstance(params, PlatformParams):

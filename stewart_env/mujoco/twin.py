@@ -113,12 +113,28 @@ def wrench_at_com(R: np.ndarray, com: np.ndarray, wrench: np.ndarray) -> np.ndar
 def model_and_data(params: PlatformParams, position, rotation, velocity=None, angular_velocity=None,
                    leg_forces=None, external_wrench=None, timestep: float = 1e-3,
                    solref: Sequence[float] = DEFAULT_SOLREF, solimp: Sequence[float] = DEFAULT_SOLIMP):
-    """MuJoCo's ``(MjModel, MjData)`` of the twin of ``params`` at a platform state, ready for
-    ``mujoco.mj_forward`` or ``mj_step``: position (3,), rotation (3,3), velocity (3,),
-    angular_velocity (3,) of the platform in {B} (rates zero when left out), the legs' joints
-    set by inverse kinematics so the loops are closed; leg_forces (6,) N as the actuators'
-    controls and external_wrench (6,) [force at P; moment] applied (zero when left out).
-    After ``mj_forward``, ``data.qacc`` holds the accelerations: :func:`platform_acceleration`."""
+    """MuJoCo's ``(MjModel, MjData)`` of the twin of ``params`` at a platform state.
+
+    Ready for ``mujoco.mj_forward`` or ``mj_step``: the legs' joints set by inverse kinematics so
+    the loops are closed.  After ``mj_forward``, ``data.qacc`` holds the accelerations:
+    :func:`platform_acceleration`.
+
+    Args:
+        params: the platform's parameters.
+        position: (3,) position of P's origin in {B}, m.
+        rotation: (3,3) rotation of {P} in {B}.
+        velocity: (3,) m/s, zero when left out.
+        angular_velocity: (3,) rad/s, zero when left out.
+        leg_forces: (6,) N, the actuators' controls, zero when left out.
+        external_wrench: (6,) [force at P; moment] applied, zero when left out.
+        timestep, solref, solimp: as in :func:`~stewart_env.mujoco.to_mjcf`.
+
+    Returns:
+        The pair (MjModel, MjData).
+
+    Raises:
+        ImportError: the ``mujoco`` extra is not installed.
+    """
     mj = require_mujoco()
     z = np.zeros(3)
     t, R = np.asarray(position, float), np.asarray(rotation, float)
@@ -133,10 +149,33 @@ def model_and_data(params: PlatformParams, position, rotation, velocity=None, an
 
 
 def platform_acceleration(model, data) -> tuple[np.ndarray, np.ndarray]:
-    """(a, alpha), (3,) each in {B}: the acceleration of P's origin (m/s^2) and the angular
-    acceleration (rad/s^2) of the twin's platform in ``data`` after ``mujoco.mj_forward`` or
-    ``mj_step``, in the closed-form models' conventions.  MuJoCo's free joint carries the
-    angular velocity in the body frame: the rate of that, turned by R, is the spatial alpha."""
+    """The twin's platform acceleration in the closed-form models' conventions.
+
+    MuJoCo's free joint carries the angular velocity in the body frame: the rate of that, turned
+    by R, is the spatial alpha.
+
+    Args:
+        model: the twin's MjModel.
+        data: its MjData after ``mujoco.mj_forward`` or ``mj_step``.
+
+    Returns:
+        The pair (a, alpha), (3,) each in {B}, the acceleration of P's origin (m/s^2) and the
+        angular acceleration (rad/s^2).
+
+    Examples:
+        The holding forces of the exact model hold the twin too, to its loops' softness:
+
+        >>> import numpy as np, mujoco, stewart_env as se
+        >>> from stewart_env.mujoco import model_and_data, platform_acceleration
+        >>> params = se.load_platform("dasgupta1998")
+        >>> pose = (params.home_position, np.eye(3))
+        >>> forces = se.make_dynamics("improved", params).inverse(*pose, np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3))
+        >>> model, data = model_and_data(params, *pose, leg_forces=forces)
+        >>> mujoco.mj_forward(model, data)
+        >>> a, alpha = platform_acceleration(model, data)
+        >>> bool(np.abs(a).max() < 1e-2 and np.abs(alpha).max() < 1e-2)
+        True
+    """
     mj = require_mujoco()
     joint = mj.mj_name2id(model, mj.mjtObj.mjOBJ_JOINT, "platform")
     body = mj.mj_name2id(model, mj.mjtObj.mjOBJ_BODY, "platform")

@@ -73,6 +73,9 @@ class RigidBody(_ValueObject):
 
     Positive definiteness, needed for the platform, is checked by PlatformParams; a leg part may
     be a point mass or a slender rod (a zero moment about its axis).
+
+    Raises:
+        ConfigError: a value that fails its check (the message names the config key).
     """
 
     mass: float
@@ -118,6 +121,9 @@ class Damping(_ValueObject):
         prismatic: Cp >= 0, N s/m: force -Cp dL/dt on the upper leg along e_i.
         spherical: Cs >= 0, N m s/rad: torque -Cs (omega_l - omega) on the leg, the opposite on
             the platform.
+
+    Raises:
+        ConfigError: a value that fails its check (the message names the config key).
     """
 
     universal: float
@@ -154,6 +160,9 @@ class Limits(_ValueObject):
         max_condition: bound on the condition number of the 6x6 leg Jacobian, > 1.
 
     Error messages use the config's key names (``workspace.position_min``).
+
+    Raises:
+        ConfigError: a value that fails its check (the message names the config key).
     """
 
     leg_length: tuple[float, float]

@@ -68,6 +68,22 @@ class PlatformParams(_ValueObject):
     inside the workspace box. The model built on the platform
     (:class:`stewart_env.dynamics.Dynamics`) also requires the Jacobian (rows
     [e_i, (R p_i) x e_i]) at the home pose to be conditioned within limits.max_condition.
+
+    Raises:
+        ConfigError: a value that fails its check, or an invalid home pose (the message names
+            the config key).
+
+    Examples:
+        >>> import stewart_env as se
+        >>> from stewart_env.params import Damping
+        >>> params = se.load_platform("dasgupta1998")
+        >>> frictionless = params.replace(damping=Damping(universal=0.0, prismatic=0.0, spherical=0.0))
+        >>> frictionless.damping.prismatic, frictionless.name
+        (0.0, 'dasgupta1998')
+        >>> params.replace(gravity=[0.0, 0.0, float("nan")])
+        Traceback (most recent call last):
+        ...
+        stewart_env.params.ConfigError: gravity[2]: not a finite number (nan)
     """
 
     name: str

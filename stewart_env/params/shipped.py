@@ -50,7 +50,23 @@ def load_platform(name_or_path: str | os.PathLike) -> PlatformParams:
     A string without a suffix or directory part that is not an existing path is a name, e.g.
     ``"dasgupta1998"``; anything else (``"my.yaml"``, ``"dir/robot"``, a Path) is read as a file,
     which must be a regular *.yaml or *.yml file of at most MAX_CONFIG_BYTES (see
-    `PlatformParams.from_yaml`). Every error is a ConfigError naming the file or the key.
+    `PlatformParams.from_yaml`).
+
+    Args:
+        name_or_path: a shipped platform's name, or the path of a YAML config.
+
+    Returns:
+        The platform's validated :class:`PlatformParams`.
+
+    Raises:
+        ConfigError: an unknown name, or a file that cannot be read or is not a valid config
+            (the message names the file or the key).
+
+    Examples:
+        >>> import stewart_env as se
+        >>> params = se.load_platform("dasgupta1998")
+        >>> params.name, params.home_position.tolist()
+        ('dasgupta1998', [0.0, 0.0, 0.4])
     """
     # a bytes path (or a PathLike giving one) is refused too: names and messages are text
     text = os.fspath(name_or_path) if isinstance(name_or_path, (str, os.PathLike)) else None

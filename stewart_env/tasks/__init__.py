@@ -50,9 +50,31 @@ __all__ = [
 
 def make_task(task: str | type[Task], params: PlatformParams, control_dt: float,
               options: dict[str, Any] | None = None, version: int | None = None) -> Task:
-    """The task ``task`` (a name in TASKS or a Task subclass) on ``params`` with ``options``, as
-    under the environment's ``version`` (None: the current one): the defaults the task's class
-    gives for that version (``Task.version_defaults``) for the options ``options`` leaves out."""
+    """The task ``task`` on ``params`` with ``options``, as under the environment's ``version``.
+
+    Args:
+        task: a name in :data:`TASKS` or a :class:`Task` subclass.
+        params: the platform's parameters.
+        control_dt: the control step, s.
+        options: the task's options (``task_options`` of the environment), or None for none.
+        version: the environment's version (None: the current one); the defaults the task's
+            class gives for that version (``Task.version_defaults``) fill the options
+            ``options`` leaves out.
+
+    Returns:
+        The :class:`Task`.
+
+    Raises:
+        ValueError: an unknown task, an unknown option or an option out of its range (the message
+            names it).
+
+    Examples:
+        >>> import stewart_env as se
+        >>> from stewart_env.tasks import make_task
+        >>> task = make_task("tracking", se.load_platform("dasgupta1998"), control_dt=0.01)
+        >>> type(task).__name__
+        'TrackingTask'
+    """
     if isinstance(task, str):
         if task not in TASKS:
             raise ValueError(f"task: unknown task {task!r}; choose one of {', '.join(TASKS)}")

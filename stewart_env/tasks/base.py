@@ -51,10 +51,16 @@ __all__ = [
 class Errors(NamedTuple):
     """Tracking errors of a batch, reference minus actual, in {B}.
 
-    position (N,3) m; orientation (N,3) rad, the rotation vector of R_ref R^T (the rotation that
-    takes the platform to the reference); velocity (N,3) m/s; angular_velocity (N,3) rad/s; and
-    their norms position_norm, orientation_norm (the angle), velocity_norm,
-    angular_velocity_norm, each (N,).
+    Attributes:
+        position: (N,3) position error, m.
+        orientation: (N,3) rotation vector of R_ref R^T (the rotation that takes the platform to
+            the reference), rad.
+        velocity: (N,3) velocity error, m/s.
+        angular_velocity: (N,3) angular velocity error, rad/s.
+        position_norm: (N,) norm of the position error, m.
+        orientation_norm: (N,) the orientation error's angle, rad.
+        velocity_norm: (N,) m/s.
+        angular_velocity_norm: (N,) rad/s.
     """
 
     position: np.ndarray
@@ -70,8 +76,13 @@ class Errors(NamedTuple):
 class Scales(NamedTuple):
     """Observation scales of a platform, from its limits (see the environment's card).
 
-    position (3,) m: half the workspace box; angle rad: limits.max_angle; leg_length m: half the
-    stroke; leg_force N: half the force range.  Rates use the same scales per second.
+    Rates use the same scales per second.  ``Scales.of(params)`` makes them.
+
+    Attributes:
+        position: (3,) half the workspace box, m.
+        angle: limits.max_angle, rad.
+        leg_length: half the stroke, m.
+        leg_force: half the force range, N.
     """
 
     position: np.ndarray
@@ -98,9 +109,9 @@ MAX_FREQUENCY = 1000.0
 #: the tracking and disturbance tasks of the environment's version 1 (``PRECISE_REWARD_SCALES``).
 BASE_REWARD_SCALES = (0.05, 0.1)
 #: Reward scales (m, rad) of the tasks whose question is millimetre precision all episode long
-#: (tracking, disturbance) since the environment's version 1.  With BASE_REWARD_SCALES a 2 mm error
-#: (the default success band) costs 2 % of the position reward, and PPO agents miss the band; with
-#: these the same training budget holds it (docs/results).
+#: (tracking, disturbance) since the environment's version 1.  At the base task's scales an error inside the default success band
+#: barely changes the reward, so a learned agent has little to gain from closing it; these sharper
+#: scales make the band worth holding (results: docs/results/mismatch-tracking-disturbance.md).
 PRECISE_REWARD_SCALES = (0.01, 0.02)
 #: The options of a precise task whose defaults were BASE_REWARD_SCALES under version 0 of the
 #: environment (``StewartPlatform-v0``): its ``Task.version_defaults`` entry.
@@ -112,15 +123,29 @@ BASE_SCALE_OPTIONS = {"position_reward_scale": BASE_REWARD_SCALES[0],
 class RewardWeights:
     """Weights and scales of the tracking-error reward: options of every task (``task_options``).
 
-    r = position_reward_weight * exp(-|e_p| / position_reward_scale)
-      + orientation_reward_weight * exp(-|e_o| / orientation_reward_scale)
-      - velocity_cost_weight * (1 - exp(-(|e_v| / velocity_cost_scale
-                                          + |e_w| / angular_velocity_cost_scale)))
-      - ctrl_cost_weight * mean(a^2)
-      - termination_cost on the step that terminates with a failure.
+        r = position_reward_weight * exp(-|e_p| / position_reward_scale)
+          + orientation_reward_weight * exp(-|e_o| / orientation_reward_scale)
+          - velocity_cost_weight * (1 - exp(-(|e_v| / velocity_cost_scale
+                                              + |e_w| / angular_velocity_cost_scale)))
+          - ctrl_cost_weight * mean(a^2)
+          - termination_cost on the step that terminates with a failure.
 
     Weights lie in [0, MAX_WEIGHT] (the sign is fixed by the term), scales in (0, MAX_SCALE], so
-    that no term and no sum of them overflows.
+    that no term and no sum of them overflows.  The defaults are those of :class:`Task`.
+
+    Attributes:
+        position_reward_weight: weight of the position term.
+        position_reward_scale: scale of the position error e_p, m.
+        orientation_reward_weight: weight of the orientation term.
+        orientation_reward_scale: scale of the orientation error e_o, rad.
+        velocity_cost_weight: weight of the velocity cost.
+        velocity_cost_scale: scale of the velocity error e_v, m/s.
+        angular_velocity_cost_scale: scale of the angular velocity error e_w, rad/s.
+        ctrl_cost_weight: weight of the control cost, on the actions a in [-1, 1].
+        termination_cost: the cost of a failure.
+
+    Raises:
+        ValueError: a weight or scale out of its range (the message names the option).
     """
 
     # No defaults here: Task.__init__'s keyword defaults are the one source of them.
@@ -154,8 +179,16 @@ def errors_in(vectors: np.ndarray, norms: np.ndarray) -> tuple[Errors, np.ndarra
 
 def tracking_errors(state: PlatformState, reference: Reference,
                     out: tuple[Errors, np.ndarray] | None = None) -> Errors:
-    """Reference minus actual, for a batch (see :class:`Errors`); C-contiguous float64 inputs.
-    ``out``: an :func:`empty_errors` pair to write into (else new arrays)."""
+    """Reference minus actual, for a batch (see :class:`Errors`).
+
+    Args:
+        state: the platform states, C-contiguous float64 (N, ...) arrays.
+        reference: the references, likewise.
+        out: an :func:`empty_errors` pair to write into (else new arrays).
+
+    Returns:
+        The :class:`Errors`.
+    """
     errors, norms = out if out is not None else empty_errors(state.position.shape[0])
     _core.tracking_errors(*state, reference.position, reference.rotation, reference.velocity,
                           reference.angular_velocity, *errors[:4], norms.T)
@@ -276,14 +309,23 @@ class StepView(NamedTuple):
     """What a task sees of a batch of N platforms: read-only arrays, frames and units of the
     environment card.
 
-    state (a :class:`PlatformState` of (N, ...) arrays) after the step; reference at the
-    state's time; errors (reference minus actual, :class:`Errors`); action (N,6) in [-1, 1] as
-    applied over the step; leg_forces (N,6) N applied over the step; leg_lengths (N,6) m;
-    leg_rates (N,6) m/s; condition (N,), the leg Jacobian's condition number (exact above
-    limits.max_condition); external_wrench (N,6) [N; N m] in {B} applied over the step; time (N,)
-    s; non_finite (N,) bool, the rows whose state stopped being finite in the step (the state is
-    then the last finite one); episode: the task's episode arrays by name, (N, *shape).  Before
-    a step (:meth:`Task.external_wrench`) the state, time and episode are those the step starts from.
+    Before a step (:meth:`Task.external_wrench`) the state, time and episode are those the step
+    starts from.
+
+    Attributes:
+        state: a :class:`PlatformState` of (N, ...) arrays after the step.
+        reference: the reference at the state's time.
+        errors: reference minus actual, :class:`Errors`.
+        action: (N,6) in [-1, 1] as applied over the step.
+        leg_forces: (N,6) N applied over the step.
+        leg_lengths: (N,6) m.
+        leg_rates: (N,6) m/s.
+        condition: (N,) the leg Jacobian's condition number (exact above limits.max_condition).
+        external_wrench: (N,6) [N; N m] in {B} applied over the step.
+        time: (N,) s.
+        non_finite: (N,) bool, the rows whose state stopped being finite in the step (the state is
+            then the last finite one).
+        episode: the task's episode arrays by name, (N, *shape).
     """
 
     state: PlatformState
@@ -314,6 +356,19 @@ class Task:
     environment's ``task_options``), the reward weights of :class:`RewardWeights` among them
     (a subclass passes ``**weights`` on to this constructor, which reads :meth:`episode_fields`,
     so a subclass sets what those depend on first); the platform's nominal parameters come first.
+
+    Args:
+        params: the platform's nominal parameters.
+        control_dt: the control step, s.
+        position_reward_weight, position_reward_scale, orientation_reward_weight,
+            orientation_reward_scale, velocity_cost_weight, velocity_cost_scale,
+            angular_velocity_cost_scale, ctrl_cost_weight, termination_cost: the reward's weights
+            and scales (:class:`RewardWeights`), keyword-only.
+
+    Raises:
+        ValueError: a weight or scale out of its range (the message names the option).
+        TypeError: a subclass whose ``termination_reasons`` do not begin with
+            :data:`LIMIT_REASONS` or do not hold every success reason.
     """
 
     name = "task"

@@ -33,9 +33,14 @@ class DisturbanceTask(Task):
     control step (as it holds the leg forces) at its average over that step, computed exactly, so
     a pulse shorter than a control step still delivers its full impulse.
 
-    Options (``task_options``), with W = platform.mass |g| the platform's weight and r the mean
-    distance of the platform joints from P's origin in the {P} x-y plane (dasgupta1998: W = 392 N,
-    r = 0.62 m); forces at most 100 W, moments at most 100 W r:
+    The options are the environment's ``task_options``.  Below, W = platform.mass |g| is the
+    platform's weight and r the mean distance of the platform joints from P's origin in the {P}
+    x-y plane (dasgupta1998: W = 392 N, r = 0.62 m); forces are at most 100 W, moments at most
+    100 W r.
+
+    Args:
+        params: the platform's nominal parameters.
+        control_dt: the control step, s.
         sine_force: (3,) N or one number, default 0.2 W.
         sine_moment: (3,) N m or one number, default 0.2 W r.
         frequency_range: (min, max) Hz, 0 < min <= max <= 1000, default (0.2, 2.0).
@@ -45,11 +50,14 @@ class DisturbanceTask(Task):
         impulse_duration: s, > 0, default 0.05.
         horizon: s, the span the pulses are placed in, from impulse_duration to 1e6, default 5.0
             (the default episode length).
-        the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`, with the
-            position and orientation reward scales sharper than the other tasks': 0.01 m and
-            0.02 rad (``PRECISE_REWARD_SCALES``), so that millimetre errors weigh in the reward;
-            under the environment's version 0 (``StewartPlatform-v0``) the other tasks' 0.05 m
-            and 0.1 rad (``version_defaults``).
+        position_reward_scale, orientation_reward_scale: sharper than the other tasks' by
+            default, 0.01 m and 0.02 rad (``PRECISE_REWARD_SCALES``), so that millimetre errors
+            weigh in the reward; under the environment's version 0 (``StewartPlatform-v0``) the
+            other tasks' 0.05 m and 0.1 rad (``version_defaults``).
+        **weights: the other reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
+
+    Raises:
+        ValueError: an unknown option or one out of its range (the message names it).
     """
 
     name = "disturbance"

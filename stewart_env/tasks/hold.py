@@ -23,11 +23,18 @@ class HoldTask(Task):
     force m g at the point R c, the wrench [m g; (R c) x m g] in {B}, evaluated at the state each
     control step starts from and held over the step.  The payload is not observed.
 
-    Options (``task_options``), with m_p the platform's mass and r the mean distance of the
-    platform joints from P's origin in the {P} x-y plane (dasgupta1998: 40 kg, 0.62 m):
+    The options are the environment's ``task_options``.  Below, m_p is the platform's mass and r
+    the mean distance of the platform joints from P's origin in the {P} x-y plane (dasgupta1998:
+    40 kg, 0.62 m).
+
+    Args:
+        params: the platform's nominal parameters.
+        control_dt: the control step, s.
         max_payload: kg, 0 to 10 m_p, default 0.5 m_p.
         payload_radius: m, 0 to r, default r / 2.
-        the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
+        **weights: the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
+    Raises:
+        ValueError: an unknown option or one out of its range (the message names it).
     """
 
     name = "hold"

@@ -66,7 +66,11 @@ def paper_case(params: PlatformParams, *, check_stroke: bool = True) -> PaperCas
 class SetpointTask(Task):
     """Reach a target pose from a start pose at rest, then hold it.
 
-    Options (``task_options``):
+    The options are the environment's ``task_options``.
+
+    Args:
+        params: the platform's nominal parameters.
+        control_dt: the control step, s.
         randomize: True (default) draws the start and the target pose of every episode
             independently and uniformly: positions in home +- position_range, angles in home rpy
             +- angle_range, each pose redrawn until it lies safely inside the limits (10 %
@@ -82,7 +86,9 @@ class SetpointTask(Task):
             target home + (0.1, 0, 0) with the same rpy; for dasgupta1998 exactly the paper's
             start (0.1, 0, 0.395) and target (0.1, 0, 0.4), rpy (0, 0, -0.2).  Each must lie
             inside the platform's limits.
-        the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
+        **weights: the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
+    Raises:
+        ValueError: an unknown option or one out of its range (the message names it).
     """
 
     name = "setpoint"

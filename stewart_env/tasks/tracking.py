@@ -34,7 +34,16 @@ class TrackingTask(Task):
     inside the workspace, the stroke and the condition bound (10 % margins), all amplitudes are
     scaled by 0.8.  The platform starts on the reference (pose and twist at t = 0).
 
-    Options (``task_options``):
+    Observation terms beyond position and orientation error: velocity_error (3) m/s,
+    angular_velocity_error (3) rad/s, and reference_preview (6 x preview): for each future
+    sample j, the position of the reference minus the platform's position (3, m, {B}) and the
+    rotation vector of R_ref(t + j dt) R^T (3, rad, {B}).
+
+    The options are the environment's ``task_options``.
+
+    Args:
+        params: the platform's nominal parameters.
+        control_dt: the control step, s.
         position_amplitude: (3,) m or one number: max amplitude on x, y, z, at most the
             workspace half-size; default 0.4 x the workspace half-size (dasgupta1998: 0.1, 0.1, 0.06).
         angle_amplitude: (3,) rad or one number: max amplitude on roll, pitch, yaw, at most
@@ -42,16 +51,14 @@ class TrackingTask(Task):
         frequency_range: (min, max) Hz, 0 < min <= max <= 1000, default (0.1, 0.5).
         preview: number of future reference samples observed (0-100), default 3.
         preview_interval: s between them (at most 100), default 0.1 (samples at t + 0.1, 0.2, 0.3 s).
-        the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`, with the
-            position and orientation reward scales sharper than the other tasks': 0.01 m and
-            0.02 rad (``PRECISE_REWARD_SCALES``), so that millimetre errors weigh in the reward;
-            under the environment's version 0 (``StewartPlatform-v0``) the other tasks' 0.05 m
-            and 0.1 rad (``version_defaults``).
+        position_reward_scale, orientation_reward_scale: sharper than the other tasks' by
+            default, 0.01 m and 0.02 rad (``PRECISE_REWARD_SCALES``), so that millimetre errors
+            weigh in the reward; under the environment's version 0 (``StewartPlatform-v0``) the
+            other tasks' 0.05 m and 0.1 rad (``version_defaults``).
+        **weights: the other reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
 
-    Observation terms beyond position and orientation error: velocity_error (3) m/s,
-    angular_velocity_error (3) rad/s, and reference_preview (6 x preview): for each future
-    sample j, the position of the reference minus the platform's position (3, m, {B}) and the
-    rotation vector of R_ref(t + j dt) R^T (3, rad, {B}).
+    Raises:
+        ValueError: an unknown option or one out of its range (the message names it).
     """
 
     name = "tracking"
