@@ -14,7 +14,6 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 import yaml
@@ -27,7 +26,7 @@ from stewart_env.identification import excitation as exc
 from stewart_env.identification import regressor as reg
 from stewart_env.identification.base import IdentificationError
 from stewart_env.dynamics.rk4 import law_forces
-from stewart_env.integrate import rollout
+from stewart_env.integrate import Trajectory, rollout
 from stewart_env.kinematics import inverse_kinematics, jacobian
 from stewart_env.params import Damping, PlatformParams, RigidBody
 from stewart_env.rotations import rotvec_to_matrix
@@ -138,18 +137,7 @@ def perturbed(params: PlatformParams, size: float, rng: np.random.Generator) -> 
                           damping=Damping(d.universal * fd[0], d.prismatic * fd[1], d.spherical * fd[2]))
 
 
-class _Recorded(NamedTuple):
-    """A recorded run, as :class:`stewart_env.integrate.Trajectory`."""
-
-    time: np.ndarray
-    position: np.ndarray
-    rotation: np.ndarray
-    velocity: np.ndarray
-    angular_velocity: np.ndarray
-    leg_forces: np.ndarray
-
-
-def _simulate_mujoco(truth: PlatformParams, row: np.ndarray, start: tuple, steps: int, every: int) -> _Recorded:
+def _simulate_mujoco(truth: PlatformParams, row: np.ndarray, start: tuple, steps: int, every: int) -> Trajectory:
     """MuJoCo stepping the truth, the law's forces held over each sampling period (zero-order
     hold, as a digital controller applies them)."""
     from stewart_env.mujoco import MujocoPlant
@@ -157,7 +145,7 @@ def _simulate_mujoco(truth: PlatformParams, row: np.ndarray, start: tuple, steps
     plant = MujocoPlant(truth, timestep=PLANT_DT, nthread=0)
     t, R, v, w = (np.ascontiguousarray(x.copy()) for x in start)
     n = steps // every + 1
-    rec = _Recorded(np.arange(n) * every * PLANT_DT, np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 3)),
+    rec = Trajectory(np.arange(n) * every * PLANT_DT, np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 3)),
                     np.empty((n, 3)), np.empty((n, 6)))
     wrench = np.zeros((1, 6))
     for k in range(n):

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "array_checks.hpp"
 #include "env_step.hpp"
 #include "kernels.hpp"
 #include "laws.hpp"
@@ -27,27 +28,7 @@ using Codes = nb::ndarray<int64_t, nb::c_contig, nb::device::cpu>;
 
 namespace {
 
-// Raise ValueError naming the array unless its shape is `shape` (-1: any size).
-template <typename A>
-void expect(const A& a, const char* name, std::initializer_list<int64_t> shape) {
-    bool ok = a.ndim() == shape.size();
-    size_t d = 0;
-    for (int64_t s : shape) {
-        if (!ok) break;
-        ok = s < 0 || static_cast<int64_t>(a.shape(d)) == s;
-        ++d;
-    }
-    if (!ok) {
-        std::string got = "(";
-        for (size_t k = 0; k < a.ndim(); ++k) got += (k ? ", " : "") + std::to_string(a.shape(k));
-        got += ")";
-        std::string want = "(";
-        d = 0;
-        for (int64_t s : shape) want += (d++ ? ", " : "") + (s < 0 ? std::string("N") : std::to_string(s));
-        want += ")";
-        throw nb::value_error((std::string(name) + ": expected shape " + want + ", got " + got).c_str());
-    }
-}
+using array_checks::expect;
 
 // The batch size of t (n,3) and the row count of prm (1 or n, N_PARAMS), checked.
 int64_t batch(const In& prm, const In& t) {
