@@ -28,7 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
     # imported here, not at module top: stewart_env.agents loads the evaluation harness and
     # matplotlib, which `stewart-env bench` never needs; the training modules import
     # stable-baselines3 only inside the functions that need it
-    from stewart_env import mismatch_cli
+    from stewart_env import mismatch_cli, time_to_agent_cli
     from stewart_env.agents import training
     from stewart_env.agents.arguments import (
         TASKS,
@@ -108,6 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     training.add_cli(sub)
     mismatch_cli.add_parser(sub)
+    time_to_agent_cli.add_parser(sub)
     sub.add_parser("bench", add_help=False, help="the benchmark (stewart_env.bench); see stewart-env bench --help")
 
     mjcf = sub.add_parser(
@@ -277,7 +278,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         except ValueError as err:  # a bad agent directory or environment setting, named in the message
             print(f"stewart-env evaluate: error: {err}", file=sys.stderr)
             return 2
-    elif args.command in ("train", "mismatch"):
+    elif args.command in ("train", "mismatch", "time-to-agent"):
         return args.func(args)
     elif args.command == "reproduce":
         from stewart_env.agents.reproduce import reproduce

@@ -38,6 +38,7 @@ LAYERS = {
     "stewart_env.bench": "cli",
     "stewart_env.cli": "cli",
     "stewart_env.mismatch_cli": "cli",
+    "stewart_env.time_to_agent_cli": "cli",
 }
 # the package's face re-exports the physics API and registers the environment with Gymnasium
 PACKAGE = "stewart_env"
