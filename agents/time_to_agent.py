@@ -1,7 +1,7 @@
 """Time to a precise agent: the wall time a training run takes to reach a target on held-out episodes.
 
 :func:`time_to_agent` trains one stable-baselines3 agent per seed with a zoo config (the reader of
-``stewart-env train``: :func:`~stewart_env.agents.training.read_hyperparameters`) and, every
+``stewart-env train``: ``read_hyperparameters`` of :mod:`stewart_env.agents.training`) and, every
 ``interval`` seconds of training wall time, pauses training and evaluates the current policy
 deterministically on ``episodes`` held-out episodes with :func:`~stewart_env.agents.evaluation.evaluate`
 (episode i reset with :data:`EVALUATION_SEED` + i: the same episodes at every point and for every
