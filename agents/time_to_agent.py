@@ -19,9 +19,9 @@ environment steps per second of collection and of learning separately.
 The learning-rate schedule of a ``lin_<x>`` config anneals over the config's ``n_timesteps``, as in
 ``stewart-env train`` with that config: a run stopped at its target has annealed only part way.
 
-Files in ``out`` (locked while written, each published atomically, rewritten after every seed so a
-run stopped between seeds keeps the seeds done): ``time_to_agent.json`` (settings, every seed's
-points and throughputs, the summary), ``points.csv`` (one row per point), ``summary.md`` (the table
+Files in ``out`` (locked while written, each published atomically, rewritten after every point,
+with training paused and the writing left out of the clock, so a run stopped keeps every point
+taken): ``time_to_agent.json`` (settings, every seed's points and throughputs, the summary), ``points.csv`` (one row per point), ``summary.md`` (the table
 of :func:`summary_table`) and ``learning_curve.png`` (:func:`learning_curve_figure`).
 """
 
@@ -101,6 +101,7 @@ class SeedResult:
     learning_time: float = 0.0
     learning_steps: int = 0
     evaluation_time: float = 0.0
+    finished: bool = False
 
     @property
     def collection_rate(self) -> float:
@@ -137,10 +138,15 @@ class TimeToAgentResult:
         """How many seeds reached the target."""
         return sum(s.reached for s in self.seeds)
 
+    def done(self) -> list[SeedResult]:
+        """The seeds that finished (a seed still training is written with its points so far)."""
+        return [s for s in self.seeds if s.finished or s.reached]
+
     def median_time(self) -> float:
-        """Median over seeds of the wall time to target, a seed that did not reach it counting as
-        infinite: inf when half the seeds or more did not reach it."""
-        return float(np.median([s.wall_time if s.reached else math.inf for s in self.seeds]))
+        """Median over the finished seeds of the wall time to target, a seed that did not reach it
+        counting as infinite: inf when half of them or more did not reach it (NaN if none finished)."""
+        done = self.done()
+        return float(np.median([s.wall_time if s.reached else math.inf for s in done])) if done else math.nan
 
 
 # -- checks ----------------------------------------------------------------------------------------
@@ -236,13 +242,19 @@ def _timer_callback(clock: Callable[[], float], on_point: Callable[[], bool]):
 
 
 def _run_seed(cls, algo, hp, env_kwargs, seed, n_envs, *, target_success, target_error, budget, interval,
-              episodes, bar) -> SeedResult:
-    """Train one seed until the target or the budget; the points and throughputs of the run."""
+              episodes, bar, publish_point: Callable[[SeedResult], None]) -> SeedResult:
+    """Train one seed until the target or the budget; the points and throughputs of the run.
+    ``publish_point`` gets the seed's result so far after every point (training paused)."""
     result = SeedResult(seed)
-    evaluation = {"time": 0.0}
+    paused = {"evaluation": 0.0, "writing": 0.0}
 
-    def clock() -> float:  # training wall time: evaluation excluded
-        return time.perf_counter() - start - evaluation["time"]
+    def clock() -> float:  # training wall time: evaluation and the writing of points excluded
+        return time.perf_counter() - start - paused["evaluation"] - paused["writing"]
+
+    def take_times() -> None:
+        result.evaluation_time = paused["evaluation"]
+        result.collection_time, result.collection_steps = timer.collection_time, timer.collection_steps
+        result.learning_time, result.learning_steps = timer.learning_time, timer.learning_steps
 
     next_point = interval
     env = make_training_env(n_envs, env_kwargs, seed, hp.normalize)
@@ -260,7 +272,7 @@ def _run_seed(cls, algo, hp, env_kwargs, seed, n_envs, *, target_success, target
             begin = time.perf_counter()
             episodes_run = evaluate(policy, env_kwargs, episodes, EVALUATION_SEED, progress=False).episodes
             spent = time.perf_counter() - begin
-            evaluation["time"] += spent
+            paused["evaluation"] += spent
             success = float(np.mean([ep.metrics["success"] for ep in episodes_run]))
             error = 1e3 * float(np.median([ep.metrics["steady_state_position_error"] for ep in episodes_run]))
             point = Point(now, int(agent.num_timesteps), success, error, spent)
@@ -268,10 +280,15 @@ def _run_seed(cls, algo, hp, env_kwargs, seed, n_envs, *, target_success, target
             bar.set_postfix_str(f"success {success:.0%}, error {error:.3g} mm")
             while next_point <= now:
                 next_point += interval
-            if success >= target_success and error <= target_error:
+            reached = success >= target_success and error <= target_error
+            if reached:
                 result.reached, result.wall_time, result.steps = True, now, point.steps
-                return True
-            return now >= budget
+            begin = time.perf_counter()
+            take_times()
+            result.training_time, result.total_steps = now, point.steps
+            publish_point(result)
+            paused["writing"] += time.perf_counter() - begin
+            return reached or now >= budget
 
         timer = _timer_callback(clock, on_point)
         start = time.perf_counter()
@@ -285,9 +302,8 @@ def _run_seed(cls, algo, hp, env_kwargs, seed, n_envs, *, target_success, target
         result.total_steps = int(agent.num_timesteps)
     finally:
         env.close()
-    result.evaluation_time = evaluation["time"]
-    result.collection_time, result.collection_steps = timer.collection_time, timer.collection_steps
-    result.learning_time, result.learning_steps = timer.learning_time, timer.learning_steps
+    take_times()
+    result.finished = True
     return result
 
 
@@ -371,7 +387,9 @@ def time_to_agent(algo: str, out: str | os.PathLike, *, config: str | os.PathLik
                               disable=not (progress_bar and on_terminal()), leave=False) as bar:
                     done = _run_seed(cls, algo, hp, kwargs, seed, n_envs, target_success=target_success,
                                      target_error=target_error_mm, budget=budget, interval=interval,
-                                     episodes=int(episodes), bar=bar)
+                                     episodes=int(episodes), bar=bar,
+                                     publish_point=lambda partial: write_files(
+                                         TimeToAgentResult(settings, [*result.seeds, partial]), folder))
                 result.seeds.append(done)
                 result.files = write_files(result, folder)
                 if report is not None:
@@ -404,19 +422,20 @@ def summary_table(result: TimeToAgentResult) -> str:
     for r in result.seeds:
         p = last(r)
         lines.append("| " + " | ".join([
-            str(r.seed), f"{r.wall_time:.0f}" if r.reached else f"not reached (> {s['budget_s']:g})",
+            str(r.seed), f"{r.wall_time:.0f}" if r.reached else (
+                f"not reached (> {s['budget_s']:g})" if r.finished else "running"),
             f"{r.steps}" if r.reached else "-", "-" if p is None else f"{p.success:.0%}",
             "-" if p is None else f"{p.median_error_mm:.3g}", f"{r.collection_rate:.0f}", f"{r.learning_rate:.0f}",
             f"{r.rate:.0f}", f"{r.evaluation_time:.0f}"]) + " |")
-    if len(result.seeds) > 1:
+    if len(result.done()) > 1:
         median = result.median_time()
         reached = [r for r in result.seeds if r.reached]
         time_cell = (f"{median:.0f}" if math.isfinite(median) else f"not reached (> {s['budget_s']:g})")
         if reached:
             times = [r.wall_time for r in reached]
-            time_cell += f" (reached {len(reached)}/{len(result.seeds)}: {min(times):.0f}-{max(times):.0f})"
+            time_cell += f" (reached {len(reached)}/{len(result.done())}: {min(times):.0f}-{max(times):.0f})"
         else:
-            time_cell += f" (reached 0/{len(result.seeds)})"
+            time_cell += f" (reached 0/{len(result.done())})"
         points = [last(r) for r in result.seeds if r.points]
         lines.append("| " + " | ".join([
             "median (range)", time_cell, _median_range([r.steps for r in reached], ".0f"),
@@ -466,7 +485,8 @@ def write_files(result: TimeToAgentResult, out: Path) -> dict[str, Path]:
     """Write the four files of ``result`` into ``out`` (held locked by the caller), each atomically."""
     paths = {key: out / name for key, name in FILES.items()}
     median = result.median_time()
-    summary = {"reached": result.reached, "seeds": len(result.seeds),
+    summary = {"reached": result.reached, "seeds": len(result.done()),
+               "running": len(result.seeds) - len(result.done()),
                "median_time_to_target_s": median if math.isfinite(median) else None}
     publish(paths["json"], json.dumps(_finite({"settings": result.settings, "summary": summary,
                                                "seeds": [r.as_dict() for r in result.seeds]}), indent=2) + "\n")

@@ -1,8 +1,8 @@
 """``stewart-env time-to-agent``: the training wall time to a precise agent
 (:mod:`stewart_env.agents.time_to_agent`) from the command line.  :func:`add_parser` registers the
 verb with its options, :func:`run` runs it and returns the exit code: 0 measured (whether or not
-the target was reached: the table says), 1 stopped by a failing write (the seeds done are kept),
-2 a bad request, 130 interrupted (Ctrl-C; the seeds done are kept)."""
+the target was reached: the table says), 1 stopped by a failing write (the points taken are kept),
+2 a bad request, 130 interrupted (Ctrl-C; the points taken are kept)."""
 
 from __future__ import annotations
 
@@ -77,10 +77,10 @@ def run(args: argparse.Namespace) -> int:
                                budget=args.budget, interval=args.interval, episodes=args.episodes,
                                progress_bar=not args.no_progress, report=_seed_line)
     except WriteError as exc:
-        print(f"{prog}: error: {exc}; the seeds done are kept in {args.out}", file=sys.stderr)
+        print(f"{prog}: error: {exc}; the points taken are kept in {args.out}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print(f"{prog}: interrupted; the seeds done are kept in {args.out}", file=sys.stderr)
+        print(f"{prog}: interrupted; the points taken are kept in {args.out}", file=sys.stderr)
         return 130
     except ValueError as exc:  # TrainingError, TimeToAgentError, FolderBusy, a bad environment keyword
         message = str(exc)

@@ -45,7 +45,8 @@ def test_a_target_met_at_once_is_reached_at_the_first_point(tiny, tmp_path):
     assert seed.evaluation_time == pytest.approx(seed.points[0].evaluation_time)
     assert result.median_time() == seed.wall_time
     saved = json.loads((out / FILES["json"]).read_text())
-    assert saved["summary"] == {"reached": 1, "seeds": 1, "median_time_to_target_s": seed.wall_time}
+    assert saved["summary"] == {"reached": 1, "seeds": 1, "running": 0,
+                                "median_time_to_target_s": seed.wall_time}
     assert saved["settings"]["config"] == str(tiny) and saved["seeds"][0]["steps"] == ROLLOUT
     rows = list(csv.DictReader((out / FILES["csv"]).open()))
     assert [(r["seed"], r["steps"], r["target_met"]) for r in rows] == [("3", str(ROLLOUT), "1")]
@@ -55,7 +56,7 @@ def test_a_target_met_at_once_is_reached_at_the_first_point(tiny, tmp_path):
 
 def test_an_unreachable_target_stops_at_the_budget_and_writes_the_files(tiny, tmp_path):
     out = tmp_path / "out"
-    budget, interval = 2.0, 0.5
+    budget, interval = 1.5, 0.4
     result = time_to_agent("ppo", out, config=tiny, seeds=[0, 1], target_success=1.0, target_error_mm=0.0,
                            budget=budget, interval=interval, episodes=2, progress_bar=False)
     assert result.reached == 0 and result.median_time() == math.inf
@@ -71,7 +72,7 @@ def test_an_unreachable_target_stops_at_the_budget_and_writes_the_files(tiny, tm
     assert saved["summary"]["median_time_to_target_s"] is None and saved["summary"]["reached"] == 0
     rows = list(csv.DictReader((out / FILES["csv"]).open()))
     assert len(rows) == sum(len(s.points) for s in result.seeds) and {r["target_met"] for r in rows} == {"0"}
-    assert "not reached (> 2)" in (out / FILES["markdown"]).read_text()
+    assert "not reached (> 1.5)" in (out / FILES["markdown"]).read_text()
 
 
 @pytest.mark.parametrize("kwargs, name", [
@@ -119,3 +120,23 @@ def test_the_command_s_exit_codes(tiny, tmp_path, capsys):
         assert exit_.value.code == 2
         assert f"error: argument {flag}: " in capsys.readouterr().err
     assert not (tmp_path / "other").exists()
+
+
+def test_the_files_hold_every_point_while_a_seed_trains(tiny, tmp_path, monkeypatch):
+    """A run stopped in the middle of a seed keeps its points: the files are written at each one."""
+    from stewart_env.agents import time_to_agent as module
+
+    seen = []
+    write = module.write_files
+
+    def spy(result, out):
+        seen.append([(r.seed, r.finished, len(r.points)) for r in result.seeds])
+        return write(result, out)
+
+    monkeypatch.setattr(module, "write_files", spy)
+    result = time_to_agent("ppo", tmp_path / "out", config=tiny, seeds=[0], target_success=1.0,
+                           target_error_mm=0.0, budget=1.0, interval=0.3, episodes=1, progress_bar=False)
+    n = len(result.seeds[0].points)
+    assert n >= 2
+    # one write per point while training, then the finished seed
+    assert seen == [[(0, False, k)] for k in range(1, n + 1)] + [[(0, True, n)]]
