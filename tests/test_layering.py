@@ -208,7 +208,8 @@ def test_the_rule_catches_an_upward_import(tmp_path):
 # -- the command line ------------------------------------------------------------------------------
 
 CLI = "stewart_env.cli"
-VERB_MODULES = ("demo", "evaluate", "reproduce", "train", "mismatch", "identify", "bench", "export_mjcf")
+VERB_MODULES = ("demo", "evaluate", "reproduce", "train", "time_to_agent", "mismatch", "identify", "bench",
+                "export_mjcf")
 
 
 def test_only_the_command_line_imports_argparse():

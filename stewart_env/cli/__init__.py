@@ -1,4 +1,5 @@
-"""The ``stewart-env`` command: demo, evaluate, reproduce, train, mismatch, identify, bench, export-mjcf.
+"""The ``stewart-env`` command: demo, evaluate, reproduce, train, time-to-agent, mismatch, identify, bench,
+export-mjcf.
 
     stewart-env demo                       PD baseline on the classical and improved models
     stewart-env evaluate --policy pd ct --model classical improved --task tracking --out results/
@@ -24,7 +25,7 @@ import sys
 from collections.abc import Sequence
 from types import ModuleType
 
-from stewart_env.cli import bench, demo, evaluate, export_mjcf, identify, mismatch, reproduce, train
+from stewart_env.cli import bench, demo, evaluate, export_mjcf, identify, mismatch, reproduce, time_to_agent, train
 from stewart_env.cli.common import error
 from stewart_env.errors import UsageError
 from stewart_env.extras import extra_of, install_hint
@@ -33,7 +34,8 @@ __all__ = ["VERBS", "build_parser", "main"]
 
 #: Each verb's module, in the order ``--help`` lists them.
 VERBS: dict[str, ModuleType] = {module.VERB: module for module in
-                                (demo, evaluate, reproduce, train, mismatch, identify, bench, export_mjcf)}
+                                (demo, evaluate, reproduce, train, time_to_agent, mismatch, identify, bench,
+                                 export_mjcf)}
 
 
 def _version() -> str:
