@@ -102,16 +102,18 @@ def preview_acceleration(position_step, rotation_step, velocity, angular_velocit
 class ComputedTorquePolicy(EnvPolicy):
     """The computed-torque law as a policy on ``StewartPlatform-v0`` (see :class:`EnvPolicy`).
 
-    The internal model runs on the environment's nominal platform parameters; ``internal_model``
-    names it (default ``"improved"``).  Feedforward: the environment does not expose the
+    The internal model runs on the environment's nominal platform parameters, or on ``platform``
+    (a :class:`~stewart_env.PlatformParams`, e.g. an identified one) when given;
+    ``internal_model`` names it (default ``"improved"``).  Feedforward: the environment does not expose the
     reference's acceleration, so on the tracking task the policy estimates it from the
     observation itself, fitting the reference preview (future reference poses at t + k dt_preview)
     and the reference twist with :func:`preview_acceleration`; without a preview (set point,
     disturbance: a fixed reference) the feedforward is zero.
     """
 
-    def __init__(self, env, internal_model: str = "improved", kp=None, kd=None):
-        super().__init__(env, ComputedTorque(env.unwrapped.platform, internal_model, kp, kd))
+    def __init__(self, env, internal_model: str = "improved", kp=None, kd=None, platform: PlatformParams | None = None):
+        believed = env.unwrapped.platform if platform is None else platform
+        super().__init__(env, ComputedTorque(believed, internal_model, kp, kd))
         base = env.unwrapped
         preview = getattr(base.task, "preview", 0) if "reference_preview" in base.observation_layout else 0
         self._horizons = getattr(base.task, "preview_interval", 0.0) * np.arange(1, preview + 1)

@@ -259,15 +259,17 @@ class PDPolicy(EnvPolicy):
     Default gains: :func:`zoh_pd_gains` for the environment's control step.  Gravity compensation
     (the holding forces of ``gravity_model``, default ``improved``) is off by default, as in the law itself; the
     controller knows the platform's geometry and, with the compensation, its statics, nothing of
-    the plant's model.
+    the plant's model: those of the environment's nominal platform, or of ``platform`` (a
+    :class:`~stewart_env.PlatformParams`, e.g. an identified one) when given.
     """
 
     def __init__(self, env, kp=None, kd=None, gravity_compensation: bool = False, bandwidth: float = 0.2,
-                 damping: float = 1.0, gravity_model: str = "improved"):
+                 damping: float = 1.0, gravity_model: str = "improved", platform: PlatformParams | None = None):
         base = env.unwrapped
+        believed = base.platform if platform is None else platform
         if kp is None or kd is None:
-            tuned = zoh_pd_gains(se.make_dynamics("improved", base.platform), base.dt, bandwidth, damping)
+            tuned = zoh_pd_gains(se.make_dynamics("improved", believed), base.dt, bandwidth, damping)
             kp = tuned[0] if kp is None else kp
             kd = tuned[1] if kd is None else kd
-        super().__init__(env, TaskSpacePD(base.platform, kp, kd, gravity_compensation=gravity_compensation,
+        super().__init__(env, TaskSpacePD(believed, kp, kd, gravity_compensation=gravity_compensation,
                                           gravity_model=gravity_model))

@@ -199,3 +199,14 @@ def paired_difference(values, reference, statistic: str = "mean", confidence: fl
     two cells (seeds, episodes) resampled with the same indices: episode k of ``values`` and of
     ``reference`` are the same seeded episode, and seed s of each is drawn together."""
     return _bootstrap([_as_cell(values), _as_cell(reference)], np.subtract, statistic, confidence, resamples, seed)
+
+
+def share_removed(values, remaining, reference, statistic: str = "mean", confidence: float = CONFIDENCE,
+                  resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> Interval:
+    """``[stat(values) - stat(remaining)] / [stat(values) - stat(reference)]`` and its stratified
+    bootstrap interval, the three cells (seeds, episodes) resampled with the same indices: the share
+    of the cost ``values - reference`` that a controller with ``remaining`` removes (1: all of it,
+    0: none, negative: it costs more).  Unstable where the cost's own interval includes zero."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return _bootstrap([_as_cell(values), _as_cell(remaining), _as_cell(reference)],
+                          lambda c, r, e: (c - r) / (c - e), statistic, confidence, resamples, seed)
