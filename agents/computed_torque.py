@@ -100,7 +100,7 @@ def preview_acceleration(position_step, rotation_step, velocity, angular_velocit
 
 
 class ComputedTorquePolicy(EnvPolicy):
-    """The computed-torque law as a policy on ``StewartPlatform-v0`` (see :class:`EnvPolicy`).
+    """The computed-torque law as a policy on ``StewartPlatform-v1`` (see :class:`EnvPolicy`).
 
     The internal model runs on the environment's nominal platform parameters, or on ``platform``
     (a :class:`~stewart_env.PlatformParams`, e.g. an identified one) when given;

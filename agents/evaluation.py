@@ -1,4 +1,4 @@
-"""Evaluation harness: run a policy for seeded episodes of ``StewartPlatform-v0`` and score it.
+"""Evaluation harness: run a policy for seeded episodes of ``StewartPlatform-v1`` and score it.
 
 :func:`evaluate` runs K episodes of one environment configuration (task, model, platform and
 any other keyword of the environment) for one policy, as the K rows of the vector environment
@@ -34,6 +34,7 @@ from __future__ import annotations
 import csv
 import math
 import re
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -235,7 +236,7 @@ def evaluate(policy, env_kwargs: Mapping | None = None, episodes: int = 5, seed:
     policy: anything with Stable-Baselines3's ``predict(observation, state, episode_start,
         deterministic) -> (action, state)`` that accepts a batch of observations (N, obs_dim), or
         a callable that builds one from an environment (e.g. :class:`~.pd.PDPolicy`); the callable
-        gets ``gymnasium.make("StewartPlatform-v0", **env_kwargs)``.
+        gets ``gymnasium.make("StewartPlatform-v1", **env_kwargs)``.
     env_kwargs: keywords of the environment (model, platform, task, task_options, control_dt, ...).
     episodes, seed: episode i is the environment reset with seed + i; the run is deterministic
         given the seed (for a deterministic policy).
@@ -320,14 +321,32 @@ def _fmt(value: float, factor: float, spec: str) -> str:
     return "-" if not np.isfinite(value) else format(value * factor, spec)
 
 
+#: The column of :func:`markdown_table` that counts the episodes ended before their time limit.
+ENDED_EARLY = "ended early"
+
+
+def ended_early(result: EvaluationResult) -> str:
+    """The episodes of ``result`` that the environment terminated before their time limit, and
+    the most common reason: ``"0"``, or e.g. ``"3 (leg_limit)"`` (the reason met first among
+    equally common ones)."""
+    reasons = Counter(ep.termination for ep in result.episodes if ep.termination is not None)
+    if not reasons:
+        return "0"
+    return f"{sum(reasons.values())} ({reasons.most_common(1)[0][0]})"
+
+
 def markdown_table(results: Sequence[EvaluationResult]) -> str:
-    """A markdown table of the mean metrics of each result (one row per result)."""
-    head = ["controller", "model", "task", "episodes"] + [m.title for m in METRICS]
+    """A markdown table of the mean metrics of each result (one row per result), with the count
+    of episodes ended early and their most common reason (``ended_early``) after the success
+    rate: a controller that loses the platform at once has no overshoot to show, but shows here."""
+    titles = [m.title for m in METRICS]
+    at = [m.key for m in METRICS].index("success") + 1
+    head = ["controller", "model", "task", "episodes"] + titles[:at] + [ENDED_EARLY] + titles[at:]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in results:
         s = r.summary()
-        cells = [r.label, r.model, r.task, str(len(r.episodes))]
-        cells += [_fmt(s[m.key], m.factor, m.spec) for m in METRICS]
+        metrics = [_fmt(s[m.key], m.factor, m.spec) for m in METRICS]
+        cells = [r.label, r.model, r.task, str(len(r.episodes))] + metrics[:at] + [ended_early(r)] + metrics[at:]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

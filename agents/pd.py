@@ -200,7 +200,7 @@ def _columns_to_matrix(cols: np.ndarray) -> np.ndarray:
 class EnvPolicy:
     """Base of the controllers' environment face, with Stable-Baselines3's ``predict``.
 
-    It reads the platform state and the target out of observations of ``StewartPlatform-v0`` (or
+    It reads the platform state and the target out of observations of ``StewartPlatform-v1`` (or
     of its vector environment) in physical units, through the environment's
     ``decode_observation``, asks the controller for leg forces and maps them to actions with the
     environment's affine map F = mid + a half (mid, half of ``limits.leg_force``), clipped to
@@ -254,7 +254,7 @@ class EnvPolicy:
 
 
 class PDPolicy(EnvPolicy):
-    """The task-space PD law as a policy on ``StewartPlatform-v0`` (see :class:`EnvPolicy`).
+    """The task-space PD law as a policy on ``StewartPlatform-v1`` (see :class:`EnvPolicy`).
 
     Default gains: :func:`zoh_pd_gains` for the environment's control step.  Gravity compensation
     (the holding forces of ``gravity_model``, default ``improved``) is off by default, as in the law itself; the

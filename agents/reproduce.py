@@ -42,6 +42,7 @@ from matplotlib.ticker import FuncFormatter
 import stewart_env as se
 from stewart_env.agents.evaluation import curve_style, new_figure
 from stewart_env.agents.pd import PAPER_KD, PAPER_KP, TaskSpacePD, pd_control_law
+from stewart_env.files import lock_folder, publish, publishing
 from stewart_env.progress import progress as progress_bar
 from stewart_env.state import Reference
 from stewart_env.tasks.setpoint import paper_case
@@ -200,7 +201,8 @@ def plot_comparison(path: Path, keys: tuple[str, ...], classical: CaseTrajectory
         if n == 0:
             top.legend(fontsize=9, loc="best")
     fig.suptitle(title + "  (lower axes: improved - classical)", fontsize=12)
-    fig.savefig(path, dpi=110)
+    with publishing(path) as tmp:
+        fig.savefig(tmp, dpi=110)
 
 
 FIGURES = (
@@ -279,28 +281,32 @@ def reproduce(out, duration: float = 1.0, dt: float = 2e-4, sample_dt: float | N
     we have it).  Returns {"runs": {model: CaseTrajectory}, "differences": per quantity, classical
     against improved (:func:`peak_differences`, improved the reference), "centroidal_difference":
     the largest relative pointwise difference improved vs improved_centroidal, "seconds": run time}.
+
+    ``out`` is locked for the whole run (``stewart_env.files.lock_folder``: a second command
+    on it is refused at once with :class:`~stewart_env.files.FolderBusy`) and every file is
+    published atomically; a write that fails (a full disk) raises
+    :class:`~stewart_env.files.WriteError` naming it.
     """
     start = time.perf_counter()
     params = se.load_platform(platform)
     case = paper_case(params)  # refuses, before any work, a platform whose stroke the case leaves
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    controller = TaskSpacePD(params, PAPER_KP, PAPER_KD, gravity_compensation=gravity_compensation)
-    sample_dt = dt if sample_dt is None else sample_dt
-    steps = int(round(duration / sample_dt)) * int(round(sample_dt / dt))
-    runs = {}
-    with progress_bar(total=steps * len(MODELS), desc="case study", unit="step", disable=not progress) as bar:
-        for name in MODELS:
-            bar.set_postfix_str(name)
-            runs[name] = simulate_case_study(name, params, controller, duration, dt, sample_dt, bar)
-    diff = peak_differences(runs["improved"], runs["classical"])
-    same = peak_differences(runs["improved"], runs["improved_centroidal"])
-    centroidal = max(d["pointwise_difference"] for d in same.values())
-    for filename, keys, title in FIGURES:
-        plot_comparison(out / filename, keys, runs["classical"], runs["improved"], title)
-    seconds = time.perf_counter() - start
-    settings = {"platform": platform, "gravity": "on" if gravity_compensation else "off", "dt": dt,
-                "duration": duration, "sample_dt": sample_dt, "seconds": seconds,
-                "case": case}
-    (out / "summary.md").write_text(_summary_markdown(runs, diff, centroidal, settings))
+    with lock_folder(out) as out:
+        controller = TaskSpacePD(params, PAPER_KP, PAPER_KD, gravity_compensation=gravity_compensation)
+        sample_dt = dt if sample_dt is None else sample_dt
+        steps = int(round(duration / sample_dt)) * int(round(sample_dt / dt))
+        runs = {}
+        with progress_bar(total=steps * len(MODELS), desc="case study", unit="step", disable=not progress) as bar:
+            for name in MODELS:
+                bar.set_postfix_str(name)
+                runs[name] = simulate_case_study(name, params, controller, duration, dt, sample_dt, bar)
+        diff = peak_differences(runs["improved"], runs["classical"])
+        same = peak_differences(runs["improved"], runs["improved_centroidal"])
+        centroidal = max(d["pointwise_difference"] for d in same.values())
+        for filename, keys, title in FIGURES:
+            plot_comparison(out / filename, keys, runs["classical"], runs["improved"], title)
+        seconds = time.perf_counter() - start
+        settings = {"platform": platform, "gravity": "on" if gravity_compensation else "off", "dt": dt,
+                    "duration": duration, "sample_dt": sample_dt, "seconds": seconds,
+                    "case": case}
+        publish(out / "summary.md", _summary_markdown(runs, diff, centroidal, settings))
     return {"runs": runs, "differences": diff, "centroidal_difference": centroidal, "seconds": seconds}

@@ -26,7 +26,7 @@ from stewart_env.kinematics import (
 from stewart_env.params import ConfigError, PlatformParams, available_platforms, load_platform
 from stewart_env.rotations import matrix_to_rpy, rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
-from stewart_env import registration  # noqa: F401  (registers StewartPlatform-v0 with Gymnasium)
+from stewart_env import registration  # noqa: F401  (registers StewartPlatform-v0 and -v1 with Gymnasium)
 
 __version__ = "0.1.0"
 

@@ -1,6 +1,6 @@
 """Benchmark of the compiled core (and, with ``--env``, of the environments).
 
-    python -m stewart_env.bench            # or: stewart-env bench
+    stewart-env bench            # or: python -m stewart_env.bench
 
 For each model: forward-dynamics evaluations per second at N = 1 and N = 1024 platforms, through
 ``Dynamics.forward`` (argument checks included) and through the compiled kernel alone; and
@@ -24,7 +24,6 @@ domain randomisation; the table gives each beside MuJoCo's and their ratio.
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform as _platform
 import subprocess
@@ -126,7 +125,7 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
       (``Workspace.mass_and_bias``, which has no counterpart in MuJoCo's task-space terms);
     * one control step of ``substeps`` RK4 steps of ``dt``, one platform: ``step_mujoco``
       (``mujoco.mj_step``), ``step_plant`` (:class:`stewart_env.mujoco.MujocoPlant`),
-      ``step_env`` (``StewartPlatform-v0`` through ``gymnasium.make``, measured over
+      ``step_env`` (``StewartPlatform-v1`` through ``gymnasium.make``, measured over
       ``env_seconds``), ``step_env_mujoco`` (the same env with ``model="mujoco"``),
       ``step_rollout`` (``rollout_inplace``, N = 1), ``step_workspace`` (``Workspace.step``);
     * the same step for ``n_batch`` platforms, per platform: ``batch_mujoco`` (``mujoco.rollout``
@@ -401,25 +400,17 @@ def machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores, Python {_platform.python_version()}, numpy {np.__version__}"
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="stewart-env bench", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--platform", default="dasgupta1998", help="platform config name or YAML path")
-    parser.add_argument("--models", default=",".join(MODEL_NAMES), help="comma-separated model names")
-    parser.add_argument("--env", action="store_true", help="also benchmark the single and vector environments")
-    parser.add_argument("--plot", metavar="PATH", help="also draw the scaling table to this PNG file")
-    parser.add_argument("--mujoco", action="store_true",
-                        help="also time MuJoCo on the same mechanism beside the kernels, the env and the vector env "
-                             '(needs the extra: pip install -e ".[mujoco]")')
-    args = parser.parse_args(argv)
-    params = se.load_platform(args.platform)
-    if args.mujoco:
+def run_bench(platform: str = "dasgupta1998", models: str = ",".join(MODEL_NAMES), env: bool = False,
+              mujoco: bool = False, plot: str | None = None) -> None:
+    """Print the benchmark's tables: the machine, the first evaluation of a fresh process, each of
+    the comma-separated ``models`` on ``platform``, the scaling table (drawn to the PNG file
+    ``plot`` if given); with ``env`` the environments, with ``mujoco`` MuJoCo beside the kernels
+    (``stewart_env.extras.MissingExtra`` before any timing if the extra is not installed)."""
+    params = se.load_platform(platform)
+    if mujoco:
         from stewart_env import mujoco as twin
 
-        try:
-            twin.require_mujoco()
-        except ImportError as err:
-            print(f"stewart-env bench: error: argument --mujoco: {err}", file=sys.stderr)
-            return 2
+        twin.require_mujoco()
 
     print(f"machine: {machine()}")
     print(f"platform: {params.name}")
@@ -429,7 +420,7 @@ def main(argv: list[str] | None = None) -> int:
     print("| model | forward/s N=1 (API / kernel) | forward/s N=1024 (API / kernel) "
           "| rollout 1 s N=1 | rollout 1 s N=1024 |")
     print("|---|---|---|---|---|")
-    for name in args.models.split(","):
+    for name in models.split(","):
         r = bench_model(name.strip(), params)
         print(f"| {name} | {r['forward_per_s_N1']:,.0f} / {r['kernel_per_s_N1']:,.0f} "
               f"| {r['forward_per_s_N1024']:,.0f} / {r['kernel_per_s_N1024']:,.0f} "
@@ -437,24 +428,25 @@ def main(argv: list[str] | None = None) -> int:
     print()
     scaling = bench_scaling(params)
     print(scaling_table(scaling))
-    if args.plot:
-        plot_scaling(scaling, args.plot)
-        print(f"scaling plot: {args.plot}")
-    if args.env:
+    if plot:
+        plot_scaling(scaling, plot)
+        print(f"scaling plot: {plot}")
+    if env:
         from stewart_env.envs.bench_env import bench_env
 
         r = bench_env()
         print()
         print(f"single env (gymnasium.make): {r['single_steps_per_s']:,.0f} steps/s")
         print(f"vector env N={r['n_vector']}: {r['vector_platform_steps_per_s']:,.0f} platform-steps/s")
-    if args.mujoco:
+    if mujoco:
         from stewart_env.mujoco import require_mujoco
 
         print()
         print(f"MuJoCo {require_mujoco().__version__} on the same mechanism (stewart_env.mujoco), platform at rest at home:")
         print(mujoco_table(bench_mujoco(params)))
-    return 0
 
 
-if __name__ == "__main__":
-    raise SystemExit(main())
+if __name__ == "__main__":  # python -m stewart_env.bench: the command line's bench verb
+    from stewart_env.cli import main
+
+    raise SystemExit(main(["bench", *sys.argv[1:]]))

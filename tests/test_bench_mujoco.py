@@ -31,7 +31,9 @@ def test_bench_mujoco_without_mujoco_names_the_extra(monkeypatch, capsys):
     from stewart_env import mujoco as twin
 
     monkeypatch.setattr(twin.library, "_mj", None)
-    assert bench.main(["--mujoco"]) == 2
+    from stewart_env.cli import main
+
+    assert main(["bench", "--mujoco"]) == 2
     assert 'argument --mujoco' in capsys.readouterr().err
 
 

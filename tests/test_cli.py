@@ -5,7 +5,6 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-import types
 
 import pytest
 
@@ -33,15 +32,23 @@ def test_top_level_help_lists_the_subcommands(capsys):
 
 
 def test_bench_is_dispatched_with_its_arguments(monkeypatch):
-    seen = []
-    fake = types.ModuleType("stewart_env.bench")
-    fake.main = lambda argv: seen.append(argv) or 0
-    monkeypatch.setitem(sys.modules, "stewart_env.bench", fake)
-    import stewart_env
+    import stewart_env.bench
 
-    monkeypatch.setattr(stewart_env, "bench", fake, raising=False)
-    assert main(["bench", "--help", "--num-envs", "4"]) == 0
-    assert seen == [["--help", "--num-envs", "4"]]
+    seen = []
+    monkeypatch.setattr(stewart_env.bench, "run_bench", lambda *args, **kwargs: seen.append((args, kwargs)))
+    assert main(["bench", "--models", "improved", "--env"]) == 0
+    assert seen == [(("dasgupta1998", "improved"), {"env": True, "mujoco": False, "plot": None})]
+
+
+def test_bench_is_a_subparser_with_its_own_help(capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["bench", "--help"])
+    assert stop.value.code == 0
+    assert "usage: stewart-env bench" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as stop:
+        main(["bench", "--num-envs", "4"])
+    assert stop.value.code == 2
+    assert "unrecognized arguments: --num-envs 4" in capsys.readouterr().err
 
 
 def test_demo_prints_the_comparison_table(capsys):
@@ -105,7 +112,8 @@ def test_commands_that_need_stable_baselines3_say_which_extra_before_writing(arg
     out = tmp_path / "out"
     assert main(argv + ["--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert 'pip install "stewart-env[rl]"' in err and "torch==2.13.0" in err
+    assert 'pip install -e ".[rl]"' in err and "torch==2.13.0" in err and "stewart-env[" not in err
+    assert len(err.strip().splitlines()) == 1 and err.startswith(f"stewart-env {argv[0]}: error: ")
     assert not out.exists()
 
 
@@ -163,20 +171,9 @@ def test_bad_flag_values_are_argparse_errors_naming_the_flag(argv, flag, tmp_pat
     assert not (tmp_path / "out").exists()
 
 
-def test_first_run_announces_the_kernel_compilation_once(monkeypatch, capsys):
-    import stewart_env.cli as cli
-
-    fake = types.ModuleType("stewart_env.numba_cache")
-    monkeypatch.setitem(sys.modules, "stewart_env.numba_cache", fake)
-    for warm, expected in ((False, "compiling kernels, first run only (~30 s)\n"), (True, "")):
-        fake.is_warm = lambda names=None, warm=warm: warm
-        cli._announce_compilation()
-        assert capsys.readouterr().err == expected
-
-
 def test_train_cli_says_how_many_steps_it_ran(tmp_path, capsys):
     config = tmp_path / "ppo.yml"
-    config.write_text("StewartPlatform-v0:\n  n_timesteps: 1000\n  policy: MlpPolicy\n  n_envs: 2\n  n_steps: 16\n"
+    config.write_text("StewartPlatform-v1:\n  n_timesteps: 1000\n  policy: MlpPolicy\n  n_envs: 2\n  n_steps: 16\n"
                       "  batch_size: 32\n  n_epochs: 1\n  policy_kwargs: \"dict(net_arch=[8])\"\n")
     assert main(["train", "--algo", "ppo", "--config", str(config), "--timesteps", "40", "--out",
                  str(tmp_path / "run")]) == 0
@@ -263,3 +260,108 @@ def test_evaluate_runs_a_baseline_on_the_mujoco_plant(capsys):
     with pytest.raises(SystemExit):
         main(["evaluate", "--policy", "ct", "--internal-model", "mujoco"])  # a controller needs closed-form dynamics
     assert "argument --internal-model" in capsys.readouterr().err
+
+
+# -- first contact ---------------------------------------------------------------------------------
+
+
+def test_version(capsys):
+    import stewart_env
+
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0
+    assert capsys.readouterr().out == f"stewart-env {stewart_env.__version__}\n"
+
+
+@pytest.mark.parametrize("argv, expected", [(["--help"], "usage: stewart-env [-h] [--version] COMMAND"),
+                                            (["evaluate", "--help"], "usage: stewart-env evaluate")])
+def test_python_m_stewart_env_is_the_command(argv, expected):
+    done = subprocess.run([sys.executable, "-m", "stewart_env", *argv], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith(expected)
+
+
+def test_help_texts_say_what_the_user_needs(capsys):
+    for verb in ("mismatch", "evaluate"):
+        with pytest.raises(SystemExit):
+            main([verb, "--help"])
+        text = capsys.readouterr().out
+        assert "%%" not in text
+        if verb == "evaluate":
+            assert "--agent" in text.split("options:")[0]  # the description names trained agents
+
+
+def _without(module: str, argv: list[str]) -> subprocess.CompletedProcess:
+    """``stewart-env argv`` in a fresh interpreter where ``module`` cannot be imported, as for a
+    user who did not install its extra."""
+    code = (f"import sys; sys.modules[{module!r}] = None\n"
+            f"from stewart_env.cli import main\nsys.exit(main({argv!r}))")
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.parametrize("module, argv, extra", [
+    ("mujoco", ["evaluate", "--model", "mujoco", "--episodes", "1"], "mujoco"),
+    ("mujoco", ["train", "--algo", "ppo", "--model", "mujoco", "--out", "OUT"], "mujoco"),
+    ("mujoco", ["bench", "--mujoco"], "mujoco"),
+    ("mujoco", ["export-mjcf", "--platform", "dasgupta1998", "--out", "OUT/m.xml"], "mujoco"),
+    ("stable_baselines3", ["evaluate", "--agent", "OUT"], "rl"),
+    ("torch", ["train", "--algo", "ppo", "--out", "OUT"], "rl"),
+    ("stable_baselines3", ["mismatch", "--out", "OUT"], "rl"),
+    ("ray", ["mismatch", "--backend", "ray", "--algo", "none", "--out", "OUT"], "distributed"),
+], ids=lambda x: x if isinstance(x, str) else None)
+def test_a_missing_extra_is_one_line_naming_it(module, argv, extra, tmp_path):
+    out = tmp_path / "out"
+    done = _without(module, [str(out) if a == "OUT" else a.replace("OUT", str(out)) for a in argv])
+    verb = argv[0]
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.startswith(f"stewart-env {verb}: error: ") and len(done.stderr.splitlines()) == 1, done.stderr
+    assert f'pip install -e ".[{extra}]"' in done.stderr and "stewart-env[" not in done.stderr
+    assert not out.exists()
+
+
+def test_a_failed_import_of_an_extra_deep_in_a_command_is_one_line(monkeypatch, capsys):
+    """Whatever the command, an ImportError of an extra's module that escapes it is one line."""
+    from stewart_env.cli import demo
+
+    def fails(args):
+        import ray  # noqa: F401
+
+    monkeypatch.setitem(sys.modules, "ray", None)
+    monkeypatch.setattr(demo, "run", fails)
+    assert main(["demo"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("stewart-env demo: error: ") and err.rstrip().endswith('pip install -e ".[distributed]"')
+
+
+@pytest.mark.parametrize("name", ["ppo_integral", "ppo_integral.yml"])
+def test_config_takes_a_shipped_config_by_name(name, tmp_path, monkeypatch):
+    from stewart_env.agents.training import CONFIG_DIR, config_path
+    from stewart_env.cli import build_parser
+
+    monkeypatch.chdir(tmp_path)  # no file of that name here: the shipped one is meant
+    args = build_parser().parse_args(["train", "--algo", "ppo", "--config", name, "--out", "run"])
+    assert Path(args.config) == CONFIG_DIR / "ppo_integral.yml" and Path(args.config).is_file()
+    args = build_parser().parse_args(["mismatch", "--config", name, "--out", "study"])
+    assert Path(args.config) == CONFIG_DIR / "ppo_integral.yml"
+    assert config_path("ppo", name) == CONFIG_DIR / "ppo_integral.yml"
+    (tmp_path / name).write_text("StewartPlatform-v0: {}\n")  # a file of the name in the working directory wins
+    assert config_path("ppo", name) == Path(name)
+
+
+def test_config_by_an_unknown_name_lists_the_shipped_ones(tmp_path, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["train", "--algo", "ppo", "--config", "ppo_fast", "--out", str(tmp_path / "run")])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert "argument --config: hyperparameter file not found: ppo_fast" in err
+    assert "ppo, ppo_integral, sac, td3" in err
+
+
+@pytest.mark.parametrize("module, usage", [("stewart_env.bench", "usage: stewart-env bench"),
+                                           ("stewart_env.mujoco", "usage: python -m stewart_env.mujoco"),
+                                           ("stewart_env.cli", "usage: stewart-env [-h]")])
+def test_the_modules_run_with_python_m_go_through_the_command_line(module, usage):
+    done = subprocess.run([sys.executable, "-m", module, "--help"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith(usage)

@@ -1,4 +1,4 @@
-"""Tests of the single environment StewartPlatform-v0 (stewart_env.envs.stewart_platform)."""
+"""Tests of the single environment StewartPlatform-v1 (stewart_env.envs.stewart_platform)."""
 
 import dataclasses
 import inspect
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
 
-import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
+import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v1)
 from stewart_env.envs import DEFAULTS, EnvConfig, StewartPlatformEnv, StewartPlatformVectorEnv, holding_action
 from stewart_env.envs.config import arguments_table
 from stewart_env.params import Limits, load_platform
@@ -22,7 +22,7 @@ from stewart_env.rotations import rotation_error
 
 pytestmark = pytest.mark.env
 
-ENV_ID = "StewartPlatform-v0"
+ENV_ID = "StewartPlatform-v1"
 MODELS = ("improved", "classical", "improved_centroidal")
 TASKS = ("setpoint", "tracking", "disturbance")
 ROOT = Path(__file__).resolve().parent.parent
@@ -160,7 +160,7 @@ def test_registration_spec():
 
 
 def test_import_stewart_env_registers():
-    code = "import gymnasium, stewart_env; assert 'StewartPlatform-v0' in gymnasium.registry"
+    code = "import gymnasium, stewart_env; assert 'StewartPlatform-v1' in gymnasium.registry"
     result = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
 

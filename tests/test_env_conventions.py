@@ -13,14 +13,14 @@ from gymnasium.error import ResetNeeded
 from gymnasium.utils.env_checker import check_env
 from gymnasium.vector import AutoresetMode
 
-import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
+import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v1)
 from stewart_env.envs import StewartPlatformEnv, StewartPlatformVectorEnv
 from stewart_env.tasks import SetpointTask
 from stewart_env.validation import ArgumentError
 
 pytestmark = pytest.mark.env
 
-ENV_ID = "StewartPlatform-v0"
+ENV_ID = "StewartPlatform-v1"
 # Every option that keeps state between steps: noise Generators, the delay ring, the actuator lag,
 # the error integral, per-episode parameters.
 STATEFUL = {"task": "tracking", "observation_noise": 0.02, "observation_delay": 2, "actuator_tau": 0.02,
@@ -385,7 +385,7 @@ def test_a_non_finite_start_gives_a_finite_observation_and_ends_at_the_first_ste
 def test_set_state_refuses_what_the_physics_api_refuses():
     import stewart_env as se
 
-    env = gym.make("StewartPlatform-v0").unwrapped
+    env = gym.make("StewartPlatform-v1").unwrapped
     env.reset(seed=0)
     model = env.model
     t, v = np.array([0.0, 0.0, 0.4]), np.zeros(3)
@@ -400,7 +400,7 @@ def test_set_state_refuses_what_the_physics_api_refuses():
 @pytest.mark.parametrize("action", [[10**400] * 6, [10**5000] * 6, "abc" * 10_000],
                          ids=["huge-ints", "ints-beyond-repr", "long-string"])
 def test_errors_quote_a_hostile_value_briefly(action):
-    env = gym.make("StewartPlatform-v0")
+    env = gym.make("StewartPlatform-v1")
     env.reset(seed=0)
     with pytest.raises(ValueError, match="^action: ") as err:
         env.step(action)

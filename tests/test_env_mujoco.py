@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 import stewart_env.mujoco as twin
-import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
+import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v1)
 from stewart_env.envs import StewartPlatformEnv, holding_action
 
 pytestmark = pytest.mark.env
 
-ENV_ID = "StewartPlatform-v0"
+ENV_ID = "StewartPlatform-v1"
 FIXED = {"task": "setpoint", "task_options": {"randomize": False}}
 
 

@@ -6,11 +6,11 @@ import pytest
 from gymnasium.vector import AutoresetMode
 from scipy.spatial.transform import Rotation
 
-import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
+import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v1)
 
 pytestmark = pytest.mark.env
 
-ENV_ID = "StewartPlatform-v0"
+ENV_ID = "StewartPlatform-v1"
 DT = 0.01
 # dasgupta1998: h (half the workspace box, m) and A (max_angle, rad), the observation scales.
 H = np.array([0.25, 0.25, 0.15])

@@ -221,3 +221,27 @@ def test_no_progress_bar_in_a_log(capsys):
     """Under pytest stderr is captured, not a terminal: a short run writes no bar and no line."""
     evaluate(PDPolicy, {}, episodes=1, max_steps=5, progress=True)
     assert capsys.readouterr().err == ""
+
+
+class _FullThrust:
+    """Every leg pushed to its force limit: the platform leaves the workspace within the episode."""
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        return np.ones((len(observation), 6), np.float32), None
+
+
+def test_the_table_counts_the_episodes_ended_early_with_their_most_common_reason():
+    from stewart_env.agents.evaluation import ENDED_EARLY, ended_early
+
+    crashed = evaluate(_FullThrust(), {"model": "improved"}, episodes=2, seed=0, label="thrust", max_steps=200,
+                       progress=False)
+    assert [ep.termination for ep in crashed.episodes] == ["leg_stroke", "leg_stroke"]  # within a few steps
+    held = evaluate(PDPolicy, {"model": "improved"}, episodes=1, seed=0, label="PD", max_steps=20, progress=False)
+    assert ended_early(held) == "0"
+    assert ended_early(crashed) == "2 (leg_stroke)"
+    from stewart_env.agents import markdown_table
+
+    header, _, *rows = markdown_table([crashed, held]).splitlines()
+    columns = [c.strip() for c in header.strip("|").split("|")]
+    assert columns[4:6] == ["success", ENDED_EARLY]
+    assert [[c.strip() for c in row.strip("|").split("|")][5] for row in rows] == [ended_early(crashed), "0"]

@@ -70,7 +70,7 @@ def test_the_users_id_steps_with_the_users_task_and_platform(package):
             obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
             assert np.isfinite(obs).all() and -10.2 <= reward <= 1.0  # the reward's bounds (env card)
         # the vector environment and the evaluation harness take the same task
-        envs = gym.make_vec("StewartPlatform-v0", num_envs=4, vectorization_mode="vector_entry_point", task=LiftTask,
+        envs = gym.make_vec("StewartPlatform-v1", num_envs=4, vectorization_mode="vector_entry_point", task=LiftTask,
                             platform=u.platform)
         envs.reset(seed=0)
         envs.step(envs.action_space.sample())

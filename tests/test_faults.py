@@ -245,7 +245,9 @@ def test_two_mismatch_commands_on_one_folder_one_runs_the_other_is_refused(tmp_p
 def _full_disk_at_checkpoint(monkeypatch, failing_step: int) -> None:
     """The statistics' writer of the checkpoint at ``failing_step`` writes a little, then finds
     the disk full, as a real writer would."""
-    writers = training._agent_file_writers
+    from stewart_env.agents.training import rundir
+
+    writers = rundir.agent_file_writers
 
     def failing(model, replay_buffer):
         found = writers(model, replay_buffer)
@@ -257,7 +259,7 @@ def _full_disk_at_checkpoint(monkeypatch, failing_step: int) -> None:
             found[training.VECNORMALIZE_FILE] = full
         return found
 
-    monkeypatch.setattr(training, "_agent_file_writers", failing)
+    monkeypatch.setattr(rundir, "agent_file_writers", failing)
 
 
 def test_a_full_disk_during_a_checkpoint_is_one_line_and_resume_continues(tmp_path, monkeypatch, capsys):
@@ -432,6 +434,16 @@ def test_special_hyperparameter_file_is_refused_at_once(tmp_path, kind):
     error = _in_time(lambda: training.read_hyperparameters("ppo", config))
     assert isinstance(error, (FileError, training.TrainingError))
     assert str(config) in str(error)
+
+
+def test_a_huge_hyperparameter_file_is_refused_before_it_is_read(tmp_path):
+    from stewart_env.params import MAX_CONFIG_BYTES
+
+    config = tmp_path / "ppo.yml"
+    with open(config, "wb") as f:
+        f.truncate(1 << 40)  # 1 TB on paper, no blocks on disk
+    with pytest.raises(FileError, match=rf"ppo.yml: larger than {MAX_CONFIG_BYTES} bytes"):
+        training.read_hyperparameters("ppo", config)
 
 
 def test_a_start_killed_in_its_first_write_does_not_block_a_new_start(tmp_path):

@@ -1,4 +1,4 @@
-"""Outside RL libraries drive StewartPlatform-v0 unchanged, each through its users' normal path.
+"""Outside RL libraries drive StewartPlatform-v1 unchanged, each through its users' normal path.
 
 Every test here needs the `integration` extra (``pip install -e ".[rl,test,integration]"``); run
 only the fast suite with ``python -m pytest -q -m "not slow and not integration"``.  Budgets are

@@ -20,6 +20,7 @@ LAYERS = {
     "stewart_env.validation": "physics",
     "stewart_env.files": "physics",
     "stewart_env.errors": "physics",
+    "stewart_env.extras": "physics",
     "stewart_env.state": "physics",
     "stewart_env.rotations": "physics",
     "stewart_env.params": "physics",
@@ -37,12 +38,15 @@ LAYERS = {
     "stewart_env.configs": "agents",
     "stewart_env.bench": "cli",
     "stewart_env.cli": "cli",
-    "stewart_env.mismatch_cli": "cli",
-    "stewart_env.identify_cli": "cli",
+    # `python -m stewart_env` and `python -m stewart_env.mujoco`: entry points into the command line
+    "stewart_env.__main__": "cli",
+    "stewart_env.mujoco.__main__": "cli",
 }
 # the package's face re-exports the physics API and registers the environment with Gymnasium
 PACKAGE = "stewart_env"
 ORDER = ("physics", "tasks", "envs", "agents", "cli")
+# The environments' benchmark keeps its own `python -m stewart_env.envs.bench_env` parser for now.
+OWN_PARSERS = ("stewart_env.envs.bench_env",)
 # the integrator: a task gets the state it is given and never advances it
 INTEGRATOR = ("stewart_env.integrate", "stewart_env.dynamics.rk4")
 
@@ -173,7 +177,7 @@ def test_the_environments_reach_a_simulator_only_through_their_plant(simulator):
     assert found == []
 
 
-# The mismatch study's work modules; its command line (argparse) is stewart_env.mismatch_cli.
+# The mismatch study's work modules; its command line (argparse) is stewart_env.cli.mismatch.
 MISMATCH = [(name, path) for name, path in MODULES if name.startswith("stewart_env.agents.mismatch")]
 
 
@@ -183,7 +187,7 @@ def test_the_mismatch_study_s_work_modules_import_no_argparse(name, path):
     assert [f"line {line}: {module}" for module, line in library_imports(path)
             if module.split(".")[0] == "argparse"] == []
     assert [f"line {line}: {module}" for module, _, line in imports(path)
-            if module == "stewart_env.agents.arguments"] == [], "argparse types belong to the command line"
+            if module.startswith("stewart_env.cli")] == [], "argparse types belong to the command line"
 
 
 def test_the_rule_catches_an_upward_import(tmp_path):
@@ -200,3 +204,38 @@ def test_the_rule_catches_an_upward_import(tmp_path):
     assert imports_above_the_parameters(bad) == ["line 2: stewart_env.dynamics.kernels"]
     bad.write_text("import numpy as np\nfrom mujoco import rollout\nimport mujoco.viewer\n")
     assert library_imports(bad) == [("numpy", 1), ("mujoco", 2), ("mujoco.viewer", 3)]
+
+
+# -- the command line ------------------------------------------------------------------------------
+
+CLI = "stewart_env.cli"
+VERB_MODULES = ("demo", "evaluate", "reproduce", "train", "mismatch", "identify", "bench", "export_mjcf")
+
+
+def test_only_the_command_line_imports_argparse():
+    """The modules that do the work take values, not parsed arguments: argparse, its types and
+    its parsers live in stewart_env/cli/."""
+    found = [f"{name} line {line}" for name, path in MODULES for module, line in library_imports(path)
+             if module == "argparse" and not (name == CLI or name.startswith(CLI + ".")) and name not in OWN_PARSERS]
+    assert found == []
+
+
+def test_every_verb_is_a_module_of_the_command_line_with_its_two_functions():
+    import importlib
+
+    from stewart_env.cli import VERBS
+
+    assert [module.__name__ for module in VERBS.values()] == [f"{CLI}.{name}" for name in VERB_MODULES]
+    for module in VERBS.values():
+        assert layer_of(module.__name__) == "cli"
+        assert callable(module.add_parser) and callable(module.run)
+    for name in ("agents.training.hyperparameters", "agents.training.rundir", "agents.training.trainer",
+                 "agents.training.agent", "agents.training.signals", "agents.training.env_kwargs"):
+        assert layer_of(importlib.import_module(f"stewart_env.{name}").__name__) == "agents"
+    assert layer_of("stewart_env.extras") == "physics"
+
+
+def test_the_argparse_rule_catches_an_import(tmp_path):
+    bad = tmp_path / "bad.py"
+    bad.write_text("def f():\n    import argparse\n")
+    assert library_imports(bad) == [("argparse", 2)]

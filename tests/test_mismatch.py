@@ -17,7 +17,7 @@ import pytest
 # PPO runs here are a rollout or two of 2 platforms, smaller than the config's minibatch on purpose.
 pytestmark = pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning")
 
-from stewart_env import mismatch_cli  # noqa: E402
+from stewart_env.cli import mismatch as mismatch_cli  # noqa: E402
 from stewart_env.agents import evaluation, mismatch  # noqa: E402
 from stewart_env.agents.evaluation import METRICS  # noqa: E402
 from stewart_env.agents.mismatch import RANKING_METRICS, MismatchError, MismatchSettings, run_mismatch  # noqa: E402
@@ -271,7 +271,7 @@ def _parser():
     ("--timesteps", "x", "argument --timesteps: expected a positive integer"),
     ("--algo", "dqn", "argument --algo: invalid choice: 'dqn'"),
     ("--position-tolerance", "0", "argument --position-tolerance: expected a finite positive number"),
-    ("--config", "no/such.yml", "argument --config: no such file"),
+    ("--config", "no/such.yml", "argument --config: hyperparameter file not found: no/such.yml"),
 ])
 def test_cli_rejects_bad_flag_values(tmp_path, capsys, flag, value, message):
     with pytest.raises(SystemExit):
@@ -555,7 +555,7 @@ def test_config_file_is_part_of_the_study(tmp_path):
 
     bad = tmp_path / "bad.yml"
     bad.write_text("SomethingElse-v0: {}\n")
-    with pytest.raises(TrainingError, match="StewartPlatform-v0"):
+    with pytest.raises(TrainingError, match="StewartPlatform-v1"):
         run_mismatch(tmp_path / "study", ["improved"], ["improved"], algo="ppo", config=bad)
     assert not (tmp_path / "study").exists()
     parser_args = _parser().parse_args(["mismatch", "--out", str(tmp_path), "--config",
@@ -619,7 +619,7 @@ def test_an_agent_stopped_by_a_signal_is_continued_not_reused(study, tmp_path):
 
 
 def test_plant_model_name_takes_mujoco_and_names_it_when_refusing():
-    from stewart_env.agents.arguments import plant_model_name
+    from stewart_env.cli.arguments import plant_model_name
 
     assert plant_model_name("mujoco") == "mujoco"
     assert plant_model_name("improved+c2") == "improved+c2"

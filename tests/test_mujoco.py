@@ -145,12 +145,14 @@ def test_missing_mujoco_names_the_extra(dasgupta, monkeypatch):
 
 
 def test_accuracy_report_command(capsys):
-    assert twin.main(["dasgupta1998"]) == 0
+    from stewart_env.cli.mujoco_accuracy import main
+
+    assert main(["dasgupta1998"]) == 0
     out = capsys.readouterr().out
     assert "| twin default (0.002 1.0; 0.9999) | 5.0" in out  # the figure DEFAULT_SOLIMP's comment quotes
     assert "| MuJoCo default (0.02 1.0; 0.9) |" in out and "holding forces" in out
     with pytest.raises(SystemExit):
-        twin.main(["nowhere"])
+        main(["nowhere"])
     assert "argument platforms: unknown platform 'nowhere'" in capsys.readouterr().err
 
 

@@ -209,7 +209,7 @@ def test_check_env_passes_headless(environ):
         "from gymnasium.utils.env_checker import check_env\n"
         "with warnings.catch_warnings(record=True) as record:\n"
         "    warnings.simplefilter('always')\n"
-        "    check_env(gym.make('StewartPlatform-v0').unwrapped)\n"
+        "    check_env(gym.make('StewartPlatform-v1').unwrapped)\n"
         "print(sum('no display is available' in str(w.message) for w in record))\n"
     )
     done = subprocess.run([sys.executable, "-c", script], env=env | environ, capture_output=True, text=True, timeout=120)

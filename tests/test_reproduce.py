@@ -1,5 +1,6 @@
 """The reproduction of the case study of He et al. (2018)."""
 
+import os
 import numpy as np
 import pytest
 import yaml
@@ -154,3 +155,20 @@ def test_case_outside_the_stroke_is_refused_naming_platform_and_legs(dasgupta, t
     with pytest.raises(ValueError, match="leaves the leg stroke"):
         reproduce(tmp_path / "out", platform=str(path), progress=False)
     assert not (tmp_path / "out").exists()
+
+
+def test_reproduce_holds_its_out_and_publishes_whole_files(tmp_path, capsys):
+    from stewart_env.cli import main
+    from stewart_env.files import LOCK_FILE, lock_folder
+
+    out = tmp_path / "out"
+    with lock_folder(out):  # another command writing into --out
+        assert main(["reproduce", "--out", str(out), "--duration", "0.01"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"stewart-env reproduce: error: output directory '{out}' is in use by another "
+                          f"stewart-env command (PID {os.getpid()})")
+    assert sorted(p.name for p in out.iterdir()) == [LOCK_FILE]  # refused before any file was written
+    reproduce(out, duration=0.01, progress=False)
+    names = sorted(p.name for p in out.iterdir())
+    assert [n for n in names if n.startswith(".tmp")] == []  # every file renamed into place, none left half-written
+    assert "summary.md" in names and len([n for n in names if n.endswith(".png")]) == 5

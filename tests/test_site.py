@@ -183,6 +183,15 @@ def test_snippets_write_what_they_say(pages_run):
     assert any(path.endswith(".mp4") for _, path in promised), "no snippet records a video"
 
 
+def test_the_quick_start_video_shows_a_controller_holding_the_platform(pages_run):
+    # getting-started.md records the PD baseline for a whole set-point episode: 500 frames at the
+    # environment's 100 fps, where the 20k-step agent's video ends with its first failure.
+    imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
+    assert pages_run.failure is None, "an earlier block failed"
+    frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(pages_run.cwd / "videos/pd/rl-video-episode-0.mp4"))
+    assert frames == 500 and seconds == pytest.approx(5.0, abs=0.05)  # the container's rounding of 500/100 s
+
+
 def test_snippet_figures(pages_run):
     assert snippet_figures(pages_run) > 0, "no snippet states a figure of its table"
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
+import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v1)
 from stewart_env.envs import holding_action
 from stewart_env.params import load_platform
 from stewart_env.randomization import KEYS, Randomization
@@ -118,7 +118,7 @@ def test_setpoint_fixed_case_is_the_reproductions(name):
 
 
 def test_setpoint_fixed_case_through_the_env():
-    env = gym.make("StewartPlatform-v0", task_options={"randomize": False})
+    env = gym.make("StewartPlatform-v1", task_options={"randomize": False})
     env.reset(seed=0)
     np.testing.assert_allclose(env.unwrapped.state.position, [0.1, 0.0, 0.395], atol=1e-15)  # float64 offsets
     np.testing.assert_allclose(env.unwrapped.target.position, [0.1, 0.0, 0.4], atol=1e-15)
@@ -192,7 +192,7 @@ def test_tracking_reference_twist_is_its_derivative(dasgupta):
 
 
 def test_fixed_targets_have_zero_accelerations():
-    env = gym.make("StewartPlatform-v0", task="hold")
+    env = gym.make("StewartPlatform-v1", task="hold")
     env.reset(seed=0)
     env.step(np.full(6, 0.1))
     target = env.unwrapped.target
@@ -201,7 +201,7 @@ def test_fixed_targets_have_zero_accelerations():
 
 
 def test_tracking_starts_on_the_reference_and_previews_it():
-    env = gym.make("StewartPlatform-v0", task="tracking", normalize_observation=False,
+    env = gym.make("StewartPlatform-v1", task="tracking", normalize_observation=False,
                    task_options={"preview": 2, "preview_interval": 0.05})
     env.reset(seed=9)
     u = env.unwrapped
@@ -247,7 +247,7 @@ def test_disturbance_wrench_delivers_its_exact_impulse(dasgupta):
 
 
 def test_disturbance_holds_home_under_a_wrench_it_does_not_observe():
-    env = gym.make("StewartPlatform-v0", task="disturbance")
+    env = gym.make("StewartPlatform-v1", task="disturbance")
     obs, _ = env.reset(seed=4)
     u = env.unwrapped
     p = u.platform
@@ -260,9 +260,9 @@ def test_disturbance_holds_home_under_a_wrench_it_does_not_observe():
 
 
 def test_disturbance_wrench_moves_the_platform():
-    calm = gym.make("StewartPlatform-v0", task="disturbance", task_options={"sine_force": 0.0, "sine_moment": 0.0,
+    calm = gym.make("StewartPlatform-v1", task="disturbance", task_options={"sine_force": 0.0, "sine_moment": 0.0,
                                                                             "n_impulses": 0})
-    pushed = gym.make("StewartPlatform-v0", task="disturbance")
+    pushed = gym.make("StewartPlatform-v1", task="disturbance")
     for env in (calm, pushed):
         env.reset(seed=1)
     a = np.full(6, 0.08)
@@ -344,7 +344,7 @@ def test_randomization_order_does_not_depend_on_the_dict_order():
 def test_randomized_env_draws_new_params_each_episode_and_reports_them():
     spec = {"platform.mass": (0.8, 1.2), "legs.mass": (0.9, 1.1), "inertia": (0.8, 1.2), "com": (0.9, 1.1),
             "damping": (0.5, 2.0)}
-    env = gym.make("StewartPlatform-v0", randomization=spec)
+    env = gym.make("StewartPlatform-v1", randomization=spec)
     _, info1 = env.reset(seed=0)
     params1 = env.unwrapped.model.params[0]
     assert env.unwrapped.episode_params == params1
@@ -366,8 +366,8 @@ def test_randomized_env_draws_new_params_each_episode_and_reports_them():
 
 
 def test_randomized_dynamics_differ_from_nominal():
-    nominal = gym.make("StewartPlatform-v0", task="disturbance")
-    heavy = gym.make("StewartPlatform-v0", task="disturbance", randomization={"platform.mass": (1.5, 1.5)})
+    nominal = gym.make("StewartPlatform-v1", task="disturbance")
+    heavy = gym.make("StewartPlatform-v1", task="disturbance", randomization={"platform.mass": (1.5, 1.5)})
     for env in (nominal, heavy):
         env.reset(seed=0)
         for _ in range(3):
@@ -391,7 +391,7 @@ class _NearTarget(SetpointTask):
 
 
 def test_a_task_of_ones_own_ends_an_episode_with_a_success_and_no_termination_cost():
-    env = gym.make("StewartPlatform-v0", task=_NearTarget, task_options={"randomize": False})
+    env = gym.make("StewartPlatform-v1", task=_NearTarget, task_options={"randomize": False})
     env.reset(seed=0)
     u = env.unwrapped
     assert u.task.name == "near_target"
@@ -409,7 +409,7 @@ def test_a_task_of_ones_own_ends_an_episode_with_a_success_and_no_termination_co
     _, _, terminated, _, info = env.step(np.full(6, 0.09))
     assert terminated and env.unwrapped.termination_reasons[info["termination"]] == "workspace"
     assert info["reward_termination"] == -10.0  # the default termination_cost of a failure
-    cheap = gym.make("StewartPlatform-v0", task=_NearTarget, task_options={"randomize": False, "termination_cost": 3.0})
+    cheap = gym.make("StewartPlatform-v1", task=_NearTarget, task_options={"randomize": False, "termination_cost": 3.0})
     cheap.reset(seed=0)
     cheap.unwrapped.set_state([0.1, 0.0, 0.4], rpy_to_matrix([0.0, 0.52, 0.0]))
     assert cheap.step(np.full(6, 0.09))[4]["reward_termination"] == -3.0
@@ -423,7 +423,7 @@ def test_a_task_sees_the_batch_read_only():
             seen.append(view)
             return super().reward_terms(view)
 
-    env = gym.make("StewartPlatform-v0", task=Peek)
+    env = gym.make("StewartPlatform-v1", task=Peek)
     env.reset(seed=0)
     env.step(np.full(6, 0.1))
     v = seen[-1]
@@ -480,7 +480,7 @@ def test_hold_payload_is_a_dead_weight_at_its_point(dasgupta):
 
 
 def test_hold_the_holding_forces_of_the_bare_platform_let_the_payload_pull_it_down():
-    env = gym.make("StewartPlatform-v0", task="hold", task_options={"max_payload": 20.0, "payload_radius": 0.0})
+    env = gym.make("StewartPlatform-v1", task="hold", task_options={"max_payload": 20.0, "payload_radius": 0.0})
     env.reset(seed=1)
     u = env.unwrapped
     p = u.platform

@@ -1,4 +1,4 @@
-"""Training on StewartPlatform-v0: zoo configs, runs that load and evaluate, resuming, errors."""
+"""Training on StewartPlatform-v1: zoo configs, runs that load and evaluate, resuming, errors."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ from stewart_env.agents.training import (  # noqa: E402
 )
 
 # Keys rl_zoo3 consumes itself before the rest goes to the algorithm's constructor (rl_zoo3
-# ExperimentManager._preprocess_hyperparameters), written out here independently of training.py.
+# ExperimentManager._preprocess_hyperparameters), written out here independently of the training package.
 ZOO_OWN_KEYS = {"n_timesteps", "policy", "normalize", "n_envs", "frame_stack", "env_wrapper", "vec_env_wrapper",
                 "callback", "env_kwargs", "monitor_kwargs", "noise_type", "noise_std"}
 
@@ -206,7 +206,7 @@ def test_missing_config_file_and_entry(tmp_path):
         train("sac", tmp_path / "a", timesteps=10, config=tmp_path / "nope.yml")
     other = tmp_path / "other.yml"
     other.write_text("Pendulum-v1:\n  n_timesteps: 100\n  policy: MlpPolicy\n")
-    with pytest.raises(TrainingError, match="no entry for 'StewartPlatform-v0'.*Pendulum-v1"):
+    with pytest.raises(TrainingError, match="no entry for 'StewartPlatform-v1'.*Pendulum-v1"):
         train("sac", tmp_path / "b", timesteps=10, config=other)
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
@@ -237,14 +237,16 @@ def test_bad_environment_kwarg_is_named_before_training(tmp_path):
 
 
 def test_cli_reports_errors_with_exit_code(tmp_path, capsys):
+    from stewart_env.cli import train as train_verb
+
     parser = argparse.ArgumentParser()
-    training.add_cli(parser.add_subparsers(dest="command"))
+    train_verb.add_parser(parser.add_subparsers(dest="command"))
     with pytest.raises(SystemExit) as stop:
         parser.parse_args(["train", "--algo", "a2c", "--out", str(tmp_path / "run")])
     assert stop.value.code == 2
     assert "argument --algo: invalid choice: 'a2c'" in capsys.readouterr().err
     args = parser.parse_args(["train", "--algo", "ppo", "--out", str(tmp_path / "run"),
                               "--env-kwargs", "contol_dt=0.02", "--timesteps", "10"])
-    assert args.func(args) == 2
+    assert train_verb.run(args) == 2
     assert "contol_dt" in capsys.readouterr().err
     assert not (tmp_path / "run" / "run.json").exists()

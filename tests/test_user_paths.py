@@ -259,7 +259,7 @@ def make():
     gym = pytest.importorskip("gymnasium")
 
     def make(**kwargs):
-        env = gym.make("StewartPlatform-v0", **kwargs)
+        env = gym.make("StewartPlatform-v1", **kwargs)
         env.reset(seed=0)
         return env
     return make
@@ -416,12 +416,13 @@ def test_export_mjcf_without_mujoco_names_the_extra_without_a_traceback(tmp_path
     run = _run_without("mujoco", "from stewart_env.cli import main\n"
                                  f"sys.exit(main(['export-mjcf', '--platform', 'dasgupta1998', '--out', {str(tmp_path / 'x.xml')!r}]))")
     assert run.returncode == 2
-    assert 'pip install "stewart-env[mujoco]"' in run.stderr and "Traceback" not in run.stderr
+    assert run.stderr.startswith("stewart-env export-mjcf: error: ") and len(run.stderr.splitlines()) == 1
+    assert 'pip install -e ".[mujoco]"' in run.stderr and "stewart-env[" not in run.stderr
 
 
 def test_mujoco_env_without_mujoco_raises_import_error_naming_the_extra():
     run = _run_without("mujoco", "import gymnasium as gym, stewart_env\n"
-                                 "try:\n    gym.make('StewartPlatform-v0', model='mujoco')\n"
+                                 "try:\n    gym.make('StewartPlatform-v1', model='mujoco')\n"
                                  "except ImportError as e:\n    print(e)\n    sys.exit(3)\n")
     assert run.returncode == 3, run.stderr
     assert "model='mujoco'" in run.stdout and "[mujoco]" in run.stdout

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
 
-import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v0)
+import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v1)
 from stewart_env.envs import StewartPlatformVectorEnv
 from stewart_env.envs import core as core_module
 from stewart_env.envs import plant as plant_module
@@ -13,7 +13,7 @@ from stewart_env.envs.config import EnvConfig
 
 pytestmark = pytest.mark.env
 
-ENV_ID = "StewartPlatform-v0"
+ENV_ID = "StewartPlatform-v1"
 CONFIGS = [
     {},
     {"task": "tracking", "observation_noise": 0.02, "observation_delay": 1,

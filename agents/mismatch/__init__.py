@@ -55,7 +55,7 @@ The package by job: :mod:`.constants` (the study's constants and its error),
 and their agents), :mod:`.cells` (the finished evaluations on disk), :mod:`.study` (the
 orchestration, :func:`run_mismatch`), :mod:`.costs` (the simplifications' costs and statistics),
 :mod:`.tables` (matrix.md and the CSV files) and :mod:`.figures` (the PNG figures, drawn only
-when asked).  The command line is :mod:`stewart_env.mismatch_cli`.
+when asked).  The command line is :mod:`stewart_env.cli.mismatch`.
 """
 
 from stewart_env.agents.mismatch.backends import (

@@ -63,10 +63,7 @@ def command_line() -> str:
         parts = ["```text", parser.format_help().rstrip(), "```", ""]
         for verb, summary, sub in _subcommands(parser):
             parts += [f"## `stewart-env {verb}`", "", summary[:1].upper() + summary[1:] + ".", ""]
-            if any(a.option_strings for a in sub._actions):
-                parts += ["```text", sub.format_help().rstrip(), "```", ""]
-            else:  # a verb that parses its own arguments (add_help=False): its --help is its own
-                parts += [f"Its options: `stewart-env {verb} --help`.", ""]
+            parts += ["```text", sub.format_help().rstrip(), "```", ""]
     finally:
         if old is None:
             del os.environ["COLUMNS"]
@@ -86,7 +83,7 @@ def episode_figure(path: Path, seed: int = 0, steps: tuple[int, ...] = (0, 10, 3
 
     from stewart_env.agents import PDPolicy
 
-    env = gym.make("StewartPlatform-v0", render_mode="rgb_array", width=480, height=480)
+    env = gym.make("StewartPlatform-v1", render_mode="rgb_array", width=480, height=480)
     policy = PDPolicy(env, gravity_compensation=True)
     obs, _ = env.reset(seed=seed)
     frames = {}
@@ -248,7 +245,7 @@ def _docstring(app, what, name, obj, options, lines: list[str]) -> None:
     norms, ``a * b`` products, indented lists under a colon) is repaired into reStructuredText,
     or, where that is not enough, shown as written."""
     if name.endswith(".StewartPlatformEnv") and what == "class":
-        lines[:] = ["The Gymnasium environment ``StewartPlatform-v0``; its card (spaces, rewards, starting state,",
+        lines[:] = ["The Gymnasium environment ``StewartPlatform-v1``; its card (spaces, rewards, starting state,",
                     "episode end, arguments) is the page :doc:`/environment`."]
         return
     own = inspect.getdoc(obj) or ""

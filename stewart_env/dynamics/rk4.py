@@ -16,7 +16,7 @@ A :class:`ControlLaw` wraps such a function for :func:`stewart_env.rollout`.  Th
 * the package's compiled laws: :data:`PD_CONTROL_LAW` (the task-space PD law of He et al. 2018,
   eq. 56, parameter layout :data:`PD_LAYOUT`) and :data:`CONSTANT_FORCES` (forces = params[:6]);
 * a numba ``cfunc`` compiled for :func:`numba_law_signature` (numba is the optional extra
-  ``laws``: ``pip install "stewart-env[laws]"``);
+  ``laws``: ``pip install -e ".[laws]"`` from a clone);
 * a ctypes function of type :data:`LAW_CTYPES`, e.g. from a shared library of your own:
   ``ctypes.cast(lib.my_law, LAW_CTYPES)``.
 

@@ -25,6 +25,7 @@ from stewart_env.dynamics import Dynamics, make_dynamics
 from stewart_env.dynamics.model import parse_model_name
 from stewart_env.params import PlatformParams, load_platform
 from stewart_env.randomization import Randomization
+from stewart_env.registration import CURRENT_VERSION
 from stewart_env.validation import ArgumentError, choice, flag, integer, real
 
 if TYPE_CHECKING:
@@ -147,12 +148,15 @@ class TaskConfig(_Record):
                                       "(or a `Task` subclass)")
     task_options: dict[str, Any] | None = _argument(None, "dict of the task's options, its reward weights included "
                                         "(see Starting State, Rewards and `stewart_env.tasks`)")
+    version: int = _argument(CURRENT_VERSION, f"the environment's version, 0 to {CURRENT_VERSION}, set by the id "
+                                              "`StewartPlatform-v<version>`: its tasks' defaults (see Version History)")
 
     def __post_init__(self) -> None:
         options = self.task_options
         if options is not None and not isinstance(options, dict):
             raise ArgumentError(f"task_options: expected a dict of options, got {options!r}")
         self._set("task_options", dict(options or {}))
+        self._set("version", integer("version", self.version, 0, CURRENT_VERSION))
 
 
 @dataclass(frozen=True)

@@ -96,7 +96,8 @@ class PlatformBatch:
         self._force_half = 0.5 * (hi - lo)
 
     def _init_task(self, config: EnvConfig) -> None:
-        self.task = task = make_task(config.task.task, self.platform, self.control_dt, config.task.task_options)
+        self.task = task = make_task(config.task.task, self.platform, self.control_dt, config.task.task_options,
+                                     config.task.version)
         self.termination_reasons: tuple[str, ...] = (NOT_TERMINATED, *task.termination_reasons)
         self._reason_array = np.array(self.termination_reasons, dtype=str)
         self._moving_reference = task.moving_reference

@@ -31,7 +31,7 @@ class StewartPlatformSB3VecEnv(VecEnv):
     ``infos[i]["terminal_observation"]``, ``infos[i]["TimeLimit.truncated"]`` True when the time
     limit (and not a termination) ended it, and ``infos[i]["termination"]`` the reason's code, as
     the environment's (an index into ``termination_reasons``; 0 when truncated).  ``seed(s)`` seeds row i with s + i at the next ``reset()``, as SB3's own VecEnvs
-    do, so row i reproduces ``gymnasium.make("StewartPlatform-v0")`` reset with seed s + i.
+    do, so row i reproduces ``gymnasium.make("StewartPlatform-v1")`` reset with seed s + i.
     Wrap in ``VecMonitor`` for episode statistics.
 
     ``get_attr``, ``set_attr`` and ``env_method`` reach the rows as sub-environments, as the

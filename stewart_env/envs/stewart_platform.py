@@ -1,4 +1,4 @@
-"""The single Stewart platform environment, ``StewartPlatform-v0``."""
+"""The single Stewart platform environment, ``StewartPlatform-v1`` (and its earlier version ``-v0``)."""
 
 from __future__ import annotations
 
@@ -157,9 +157,9 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
           - ctrl_cost_weight          * mean(a_i^2)                  (a clipped to [-1, 1])
           - termination_cost          on the step that terminates with a failure
 
-    With the defaults (0.5, 0.05 m, 0.5, 0.1 rad, 0.1, 0.5 m/s, 1 rad/s, 0.1, 10; `tracking` and
-    `disturbance` use 0.01 m and 0.02 rad for the two scales, so that the millimetre errors their
-    questions are about weigh in the reward) a step earns at most
+    With the defaults (0.5, 0.05 m, 0.5, 0.1 rad, 0.1, 0.5 m/s, 1 rad/s, 0.1, 10; in v1
+    `tracking` and `disturbance` use 0.01 m and 0.02 rad for the two scales, so that the
+    millimetre errors their questions are about weigh in the reward) a step earns at most
     1 (on target, at the target velocity, zero force) and at least -10.2.  Each term is in `info`:
     `reward_position`, `reward_orientation`, `reward_velocity`, `reward_control` and
     `reward_termination`; they sum to the reward.  The weights and scales are options of the task,
@@ -224,7 +224,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     ## Arguments
 
-    `gymnasium.make("StewartPlatform-v0", **kwargs)` and `StewartPlatformEnv(**kwargs)` take these
+    `gymnasium.make("StewartPlatform-v1", **kwargs)` and `StewartPlatformEnv(**kwargs)` take these
     keyword arguments (`inspect.signature` shows them), grouped into frozen records of
     `stewart_env.envs.config` (physics, task, actuator, observation, rendering) that check each at
     construction against a finite range (outside it, or of the wrong kind, a `ValueError` naming
@@ -241,6 +241,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     | `randomization` | `None` | domain randomisation spec, e.g. `{"platform.mass": (0.8, 1.2), "legs.mass": (0.9, 1.1), "inertia": (0.9, 1.1), "com": (0.9, 1.1), "damping": (0.5, 2.0)}` |
     | `task` | `"setpoint"` | `"setpoint"`, `"tracking"`, `"disturbance"`, `"hold"` (or a `Task` subclass) |
     | `task_options` | `None` | dict of the task's options, its reward weights included (see Starting State, Rewards and `stewart_env.tasks`) |
+    | `version` | `1` | the environment's version, 0 to 1, set by the id `StewartPlatform-v<version>`: its tasks' defaults (see Version History) |
     | `actuator_tau` | `0.0` | s, first-order actuator lag time constant, 0 to 100; 0 applies the commanded forces directly |
     | `observation_mode` | `"pose"` | `"pose"` (pose and twist) or `"sensors"` (leg lengths and rates) |
     | `normalize_observation` | `True` | scale the observation by the platform's limits (see Observation Space) |
@@ -276,7 +277,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     Gymnasium's logger) and draws nothing, and `render()` returns None.  `metadata["render_fps"]`
     is `1 / control_dt`.
 
-    Vector environment: `gymnasium.make_vec("StewartPlatform-v0", num_envs=N,
+    Vector environment: `gymnasium.make_vec("StewartPlatform-v1", num_envs=N,
     vectorization_mode="vector_entry_point", **kwargs)` steps all N platforms in one compiled call,
     with Gymnasium's next-step autoreset (`autoreset_mode` also takes `"SameStep"` and `"Disabled"`);
     `reset(seed=s)` seeds row i with s + i, so row i reproduces the single environment reset with
@@ -296,13 +297,21 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     ## Version History
 
-    * v0: initial version.
-    * v0, 2026-11-24: the `tracking` and `disturbance` tasks' default position and orientation
-      reward scales became 0.01 m and 0.02 rad (they were 0.05 m and 0.1 rad, as the other tasks'
-      still are); `task_options={"position_reward_scale": 0.05, "orientation_reward_scale": 0.1}`
-      gives the earlier reward.  The dynamics, observations and other tasks are unchanged.
-    * v0, 2026-11-25: the `plant` argument names what simulates the platform (`"closed_form"` or
-      `"mujoco"`); `model="mujoco"` still means `plant="mujoco"` on the `"improved"` model.
+    Both ids stay registered: `gymnasium.make("StewartPlatform-v0", ...)` gives the earlier
+    reward (Gymnasium warns that the id is out of date), and so do the vector environment and
+    `StewartPlatformSB3VecEnv` with `version=0`.  The classes give the current version.
+
+    * v1: the `tracking` and `disturbance` tasks' default position and orientation reward scales
+      are 0.01 m and 0.02 rad, so that the millimetre errors these tasks are about weigh in the
+      reward (0.05 m and 0.1 rad in v0, as the `setpoint` and `hold` tasks' still are).  Options
+      given in `task_options` win over either version's defaults, so
+      `task_options={"position_reward_scale": 0.05, "orientation_reward_scale": 0.1}` on v1 is v0's
+      reward.  The dynamics, observations, terminations and the other tasks are those of v0.
+      From 2026-11-24 until v1 was registered, the id v0 gave this reward: agents trained and
+      results measured in those days on these two tasks are of v1's reward.
+    * v0: initial version, with every task's reward scales 0.05 m and 0.1 rad.  Since 2026-11-25
+      the `plant` argument names what simulates the platform (`"closed_form"` or `"mujoco"`;
+      `model="mujoco"` still means `plant="mujoco"` on the `"improved"` model), on both ids.
     """
 
     _rows = 0  # BatchAttributes: the single platform, no batch axis

@@ -132,7 +132,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
             Gymnasium's vector API; also ``metadata["autoreset_mode"]``.
 
     Seeding follows Gymnasium's SyncVectorEnv: ``reset(seed=s)`` seeds row i with s + i (a list
-    seeds row by row), so row i reproduces ``gymnasium.make("StewartPlatform-v0")`` reset with
+    seeds row by row), so row i reproduces ``gymnasium.make("StewartPlatform-v1")`` reset with
     seed s + i, step for step, across autoresets.  Every step is one call of the compiled rollout
     for all rows; with domain randomisation each row has its own parameter set.
 

@@ -14,8 +14,7 @@ first call that needs MuJoCo says how to install it.  Its modules, one job each:
 * :mod:`~stewart_env.mujoco.plant`: :class:`MujocoPlant`, N platforms stepped as the environment
   steps them (the environment's plant with ``plant="mujoco"``);
 * :mod:`~stewart_env.mujoco.accuracy`: how close the twin comes to the exact model
-  (:func:`accuracy_report`), and :mod:`~stewart_env.mujoco.cli` its command line,
-  ``python -m stewart_env.mujoco``.
+  (:func:`accuracy_report`), printed by ``python -m stewart_env.mujoco``.
 """
 
 from stewart_env.mujoco.accuracy import (
@@ -28,7 +27,6 @@ from stewart_env.mujoco.accuracy import (
     spherical_friction_effect,
     trajectory_report,
 )
-from stewart_env.mujoco.cli import main
 from stewart_env.mujoco.library import require_mujoco
 from stewart_env.mujoco.mjcf import DEFAULT_SOLIMP, DEFAULT_SOLREF, to_mjcf
 from stewart_env.mujoco.plant import MujocoPlant
@@ -43,7 +41,6 @@ __all__ = [
     "acceleration_error",
     "accuracy_report",
     "holding_drift",
-    "main",
     "model_and_data",
     "plant_difference",
     "platform_acceleration",

@@ -1,12 +1,14 @@
 """The one door to the MuJoCo library: every module of the package reaches ``mujoco`` through here.
 
 Without the optional extra the package still imports; the first call that needs MuJoCo raises
-an ImportError that says how to install it.
+:class:`~stewart_env.extras.MissingExtra`, an ImportError that says how to install it.
 """
 
 from __future__ import annotations
 
 import contextlib
+
+from stewart_env.extras import MissingExtra, install_hint
 
 try:
     import mujoco as _mj
@@ -15,14 +17,13 @@ except ImportError:  # the optional extra is missing
 
 __all__ = ["quiet_mujoco", "require_mujoco", "require_rollout"]
 
-_INSTALL_HINT = ('the MuJoCo twin needs the optional extra: pip install "stewart-env[mujoco]" '
-                 '(in a source checkout: pip install -e ".[mujoco]")')
-
 
 def require_mujoco():
-    """The ``mujoco`` module.  Raises ImportError naming the extra when it is not installed."""
+    """The ``mujoco`` module.  Raises ``stewart_env.extras.MissingExtra`` (an ImportError)
+    naming the extra when it is not installed."""
     if _mj is None:
-        raise ImportError(f"stewart_env.mujoco: the package 'mujoco' is not installed; {_INSTALL_HINT}")
+        raise MissingExtra(f"stewart_env.mujoco: the package 'mujoco' is not installed; {install_hint('mujoco')}",
+                           "mujoco")
     return _mj
 
 

@@ -49,8 +49,10 @@ __all__ = [
 
 
 def make_task(task: str | type[Task], params: PlatformParams, control_dt: float,
-              options: dict[str, Any] | None = None) -> Task:
-    """The task ``task`` (a name in TASKS or a Task subclass) on ``params`` with ``options``."""
+              options: dict[str, Any] | None = None, version: int | None = None) -> Task:
+    """The task ``task`` (a name in TASKS or a Task subclass) on ``params`` with ``options``, as
+    under the environment's ``version`` (None: the current one): the defaults the task's class
+    gives for that version (``Task.version_defaults``) for the options ``options`` leaves out."""
     if isinstance(task, str):
         if task not in TASKS:
             raise ValueError(f"task: unknown task {task!r}; choose one of {', '.join(TASKS)}")
@@ -63,5 +65,7 @@ def make_task(task: str | type[Task], params: PlatformParams, control_dt: float,
         options = {}
     if not isinstance(options, dict):
         raise ValueError(f"task_options: expected a dict of options, got {options!r}")
+    if version is not None:
+        options = {**cls.version_defaults.get(version, {}), **options}
     check_option_names(cls, options)
     return cls(params, control_dt, **options)

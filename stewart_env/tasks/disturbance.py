@@ -7,7 +7,7 @@ import numpy as np
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState
-from stewart_env.tasks.base import MAX_FREQUENCY, PRECISE_REWARD_SCALES, Task, option
+from stewart_env.tasks.base import BASE_SCALE_OPTIONS, MAX_FREQUENCY, PRECISE_REWARD_SCALES, Task, option
 from stewart_env.validation import integer, interval, real, vector
 
 #: Bounds of the options: forces at most MAX_LOAD platform weights W (moments MAX_LOAD W r),
@@ -47,10 +47,13 @@ class DisturbanceTask(Task):
             (the default episode length).
         the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`, with the
             position and orientation reward scales sharper than the other tasks': 0.01 m and
-            0.02 rad (``PRECISE_REWARD_SCALES``), so that millimetre errors weigh in the reward.
+            0.02 rad (``PRECISE_REWARD_SCALES``), so that millimetre errors weigh in the reward;
+            under the environment's version 0 (``StewartPlatform-v0``) the other tasks' 0.05 m
+            and 0.1 rad (``version_defaults``).
     """
 
     name = "disturbance"
+    version_defaults = {0: BASE_SCALE_OPTIONS}
 
     def __init__(self, params: PlatformParams, control_dt: float, *, sine_force=None, sine_moment=None,
                  frequency_range=(0.2, 2.0), n_impulses: int = 2, impulse_force=None, impulse_moment=None,

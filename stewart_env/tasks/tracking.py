@@ -9,8 +9,8 @@ import numpy as np
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rotation_error
 from stewart_env.state import PlatformState, Reference
-from stewart_env.tasks.base import (MAX_FREQUENCY, PRECISE_REWARD_SCALES, Scales, StepView, Task, motion_ranges,
-                                     option, pose_margins, sinusoid_reference, zero_reference)
+from stewart_env.tasks.base import (BASE_SCALE_OPTIONS, MAX_FREQUENCY, PRECISE_REWARD_SCALES, Scales, StepView, Task,
+                                     motion_ranges, option, pose_margins, sinusoid_reference, zero_reference)
 from stewart_env.validation import integer, interval, real
 
 # Amplitudes that put a corner of the reference's range outside the limits are scaled down by this
@@ -44,7 +44,9 @@ class TrackingTask(Task):
         preview_interval: s between them (at most 100), default 0.1 (samples at t + 0.1, 0.2, 0.3 s).
         the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`, with the
             position and orientation reward scales sharper than the other tasks': 0.01 m and
-            0.02 rad (``PRECISE_REWARD_SCALES``), so that millimetre errors weigh in the reward.
+            0.02 rad (``PRECISE_REWARD_SCALES``), so that millimetre errors weigh in the reward;
+            under the environment's version 0 (``StewartPlatform-v0``) the other tasks' 0.05 m
+            and 0.1 rad (``version_defaults``).
 
     Observation terms beyond position and orientation error: velocity_error (3) m/s,
     angular_velocity_error (3) rad/s, and reference_preview (6 x preview): for each future
@@ -53,6 +55,7 @@ class TrackingTask(Task):
     """
 
     name = "tracking"
+    version_defaults = {0: BASE_SCALE_OPTIONS}
 
     def __init__(self, params: PlatformParams, control_dt: float, *, position_amplitude=None,
                  angle_amplitude=None, frequency_range=(0.1, 0.5), preview: int = 3,

@@ -16,6 +16,11 @@ import argparse
 import sys
 import time
 
+from stewart_env.cli.arguments import nonnegative_int, platform_name, positive_float, positive_int
+from stewart_env.cli.common import check_extras, error
+
+VERB = "identify"
+
 
 def _plant(text: str) -> str:
     from stewart_env.dynamics.model import parse_model_name
@@ -36,8 +41,6 @@ def _model(text: str) -> str:
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add the ``identify`` subcommand to ``subparsers``."""
-    from stewart_env.agents.arguments import nonnegative_int, platform_name, positive_float, positive_int
-
     def nonnegative_float(text: str) -> float:
         try:
             value = float(text)
@@ -48,7 +51,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         return value
 
     p = subparsers.add_parser(
-        "identify", help="identify a platform's inertial and friction parameters on a stand-in plant",
+        VERB, help="identify a platform's inertial and friction parameters on a stand-in plant",
         description="Drive a plant along an excitation trajectory (a finite Fourier series in task space, "
                     "optimised for the condition number of the base regressor, or random) by computed torque, "
                     "add sensor noise, recover velocities and accelerations by a Savitzky-Golay filter, and "
@@ -91,6 +94,8 @@ def run(args: argparse.Namespace) -> int:
     from stewart_env.identification import experiment
     from stewart_env.params import load_platform
 
+    if missing := check_extras([("mujoco", "--plant mujoco")] if args.plant == "mujoco" else []):
+        return error(VERB, missing)
     start = time.perf_counter()
     try:
         check_writable(args.out, create=False)
@@ -102,8 +107,7 @@ def run(args: argparse.Namespace) -> int:
         result = experiment.run(settings, load_platform(args.platform))
         folder = experiment.write(result, args.out)
     except ValueError as err:  # IdentificationError, a busy or unwritable --out: the message names the cause
-        print(f"stewart-env identify: error: {err}", file=sys.stderr)
-        return 2
+        return error(VERB, err)
     print((folder / "report.md").read_text().split("\n| base parameter")[0].rstrip())
     print(f"\nidentified platform: {folder / 'platform.yaml'}")
     print(f"({time.perf_counter() - start:.1f} s)", file=sys.stderr)

@@ -1,8 +1,5 @@
-"""argparse types shared by the command-line verbs (``stewart-env`` and the agents' own parsers).
-
-They live below the command line so that the agents' parsers can use them without importing
-``stewart_env.cli`` (imports run physics <- tasks <- envs <- agents <- cli).
-"""
+"""argparse types shared by the command-line verbs: each turns a bad value into argparse's error
+naming the argument (``stewart-env <verb>: error: argument --x: ...``, exit status 2)."""
 
 from __future__ import annotations
 
@@ -17,7 +14,7 @@ from stewart_env.tasks import TASKS as _TASK_CLASSES
 TASKS = tuple(_TASK_CLASSES)
 
 
-def _checked(cast: Callable[[str], float], ok: Callable[[float], bool], expected: str, doc: str):
+def checked(cast: Callable[[str], float], ok: Callable[[float], bool], expected: str, doc: str):
     """An argparse type: ``cast(text)`` if it converts and passes ``ok``, else an error saying
     what was expected."""
 
@@ -34,10 +31,10 @@ def _checked(cast: Callable[[str], float], ok: Callable[[float], bool], expected
     return parse
 
 
-positive_int = _checked(int, lambda v: v >= 1, "a positive integer", "argparse type: an integer >= 1.")
-nonnegative_int = _checked(int, lambda v: v >= 0, "an integer >= 0",
+positive_int = checked(int, lambda v: v >= 1, "a positive integer", "argparse type: an integer >= 1.")
+nonnegative_int = checked(int, lambda v: v >= 0, "an integer >= 0",
                            "argparse type: an integer >= 0 (seeds, step counts that may be 0).")
-positive_float = _checked(float, lambda v: v > 0 and math.isfinite(v), "a finite positive number",
+positive_float = checked(float, lambda v: v > 0 and math.isfinite(v), "a finite positive number",
                           "argparse type: a finite number > 0.")
 
 
@@ -80,3 +77,25 @@ def plant_model_name(text: str) -> str:
         return model_argument(text)
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def env_kwargs_token(text: str) -> str:
+    """argparse type of one --env-kwargs token: checked here, so that a bad one is an argparse error."""
+    from stewart_env.agents.training import TrainingError, parse_env_kwargs
+
+    try:
+        parse_env_kwargs([text])
+    except TrainingError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--env-kwargs: ")) from None
+    return text
+
+
+def agent_config(text: str) -> str:
+    """argparse type of --config: a hyperparameter file's path, or a shipped config's name
+    (``ppo_integral`` or ``ppo_integral.yml``), as the path of that file."""
+    from stewart_env.agents.training import TrainingError, config_path
+
+    try:
+        return str(config_path("", text))
+    except TrainingError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None

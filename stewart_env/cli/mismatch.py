@@ -9,14 +9,15 @@ import argparse
 import signal
 import sys
 
-from stewart_env.agents.arguments import (
+from stewart_env.cli.arguments import (
     TASKS,
-    _checked,
-    existing_file,
+    agent_config,
+    checked,
     platform_name,
     positive_float,
     positive_int,
 )
+from stewart_env.cli.common import check_extras, check_out, error
 from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
 from stewart_env.agents.mismatch import (
     BACKENDS,
@@ -33,6 +34,8 @@ from stewart_env.files import WriteError
 from stewart_env.validation import MAX_SEED
 
 __all__ = ["add_parser", "episode_steps", "name_list", "run", "seed_list"]
+
+VERB = "mismatch"
 
 
 def name_list(text: str) -> list[str]:
@@ -52,14 +55,14 @@ def seed_list(text: str) -> list[int]:
     return seeds
 
 
-episode_steps = _checked(int, lambda steps: 1 <= steps <= MAX_STEPS, f"an integer in [1, {MAX_STEPS}]",
+episode_steps = checked(int, lambda steps: 1 <= steps <= MAX_STEPS, f"an integer in [1, {MAX_STEPS}]",
                          "argparse type of --max-steps: an integer in [1, MAX_STEPS].")
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add ``mismatch`` to an argparse subparsers object; its ``func`` is :func:`run`."""
     p = subparsers.add_parser(
-        "mismatch", help="model-mismatch study: controllers built on one model, run on another",
+        VERB, help="model-mismatch study: controllers built on one model, run on another",
         description="Train (or load) RL agents per training model and seed, build PD and computed-torque "
                     "controllers on the same models and on the improved model with each of C1..C4 switched on, "
                     "evaluate every controller on every test plant, and write DIR/matrix.md, DIR/matrix.csv "
@@ -99,8 +102,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--agent-models", default=None,
                    help="comma-separated models to train agents on (default: every model of the study, "
                         "improved+cK included)")
-    p.add_argument("--config", type=existing_file, default=None,
-                   help="the agents' hyperparameters, a zoo config file (default: configs/agents/<algo>.yml)")
+    p.add_argument("--config", type=agent_config, default=None,
+                   help="the agents' hyperparameters: a zoo config file, or the name of a shipped config (e.g. "
+                        "ppo_integral) (default: configs/agents/<algo>.yml)")
     p.add_argument("--domain-randomization", action="store_true",
                    help="add agents trained on the improved model with domain randomisation")
     p.add_argument("--simplifications", default=",".join(SIMPLIFICATIONS),
@@ -118,6 +122,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Run the study the parsed ``args`` ask for; print one line of result or error; the exit code."""
+    needs = [("rl", "training agents (--algo none runs the model-based rows only)")] if args.algo != "none" else []
+    if args.backend == "ray":
+        needs.append(("distributed", "--backend ray"))
+    problem = check_extras(needs) or check_out(args)
+    if problem is not None:
+        return error(VERB, problem)
     simplifications = [] if args.simplifications.strip().lower() == "none" else name_list(args.simplifications)
     kept = f"; finished agents and cells are kept in {args.out} (run the same command again to continue)"
     try:

@@ -1,0 +1,259 @@
+"""The hyperparameters: rl-baselines3-zoo's YAML format, read and split as rl_zoo3 splits it.
+
+Hyperparameters come from ``configs/agents/{ppo,sac,td3}.yml`` in rl-baselines3-zoo's format,
+keyed by the environment id, so the same files drive ``python -m rl_zoo3.train``.  The file is
+read with the package's bounded reader of regular files (:func:`stewart_env.files.read_regular`).
+The zoo's string-valued entries (``policy_kwargs: "dict(net_arch=[64, 64])"``) are read by a
+parser of that vocabulary (:func:`zoo_eval`), never evaluated as Python.
+"""
+
+from __future__ import annotations
+
+import ast
+import inspect
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from stewart_env.agents.training.errors import TrainingError, check_rl_installed
+from stewart_env.files import read_regular
+from stewart_env.params import MAX_CONFIG_BYTES, config_dir
+from stewart_env.registration import ENV_ID
+from stewart_env.validation import integer
+
+__all__ = ["ACTIVATIONS", "ALGORITHMS", "CONFIG_DIR", "MAX_COUNT", "OFF_POLICY", "ZOO_EVALUATED_KEYS",
+           "ZOO_KEYS_HANDLED", "ZOO_KEYS_ZOO_ONLY", "ZOO_SCHEDULE_KEYS", "Hyperparameters", "algorithm_class",
+           "check_count", "check_hyperparameter_names", "config_path", "parse_hyperparameters", "read_hyperparameters",
+           "shipped_configs", "zoo_eval"]
+
+ALGORITHMS = ("ppo", "sac", "td3")
+OFF_POLICY = ("sac", "td3")
+#: Where the zoo-format hyperparameter files live: configs/agents, shipped as stewart_env.configs.
+CONFIG_DIR = config_dir("agents")
+
+#: Keys of a zoo hyperparameter entry that are not constructor arguments of the algorithm.
+#: rl_zoo3 consumes them itself; ``stewart-env train`` handles the first group and refuses the
+#: second with a pointer to rl_zoo3.
+ZOO_KEYS_HANDLED = ("n_timesteps", "policy", "normalize", "n_envs", "env_kwargs", "noise_type", "noise_std")
+ZOO_KEYS_ZOO_ONLY = ("frame_stack", "env_wrapper", "vec_env_wrapper", "callback", "monitor_kwargs")
+#: Zoo keys whose string value is a Python expression to rl_zoo3; here, data in that syntax.
+ZOO_EVALUATED_KEYS = ("policy_kwargs", "replay_buffer_class", "replay_buffer_kwargs")
+#: Zoo keys that accept a schedule string "lin_<initial value>".
+ZOO_SCHEDULE_KEYS = ("learning_rate", "clip_range", "clip_range_vf")
+#: The torch.nn activation classes a config may name, as ``nn.<Name>`` or ``th.nn.<Name>``.
+ACTIVATIONS = ("ReLU", "Tanh", "ELU", "LeakyReLU", "GELU", "SiLU", "SELU", "Sigmoid", "Softplus", "Mish")
+
+
+#: Bound of every count (steps, platforms, checkpoints): SB3 keeps its step counters in int64.
+MAX_COUNT = 2**62
+
+
+def algorithm_class(algo: str):
+    """The stable-baselines3 class of ``algo`` (one of :data:`ALGORITHMS`)."""
+    if algo not in ALGORITHMS:
+        raise TrainingError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGORITHMS)}")
+    check_rl_installed()
+    import stable_baselines3
+
+    return getattr(stable_baselines3, algo.upper())
+
+
+def shipped_configs() -> list[str]:
+    """The names of the hyperparameter files shipped with the package (configs/agents)."""
+    return sorted(path.stem for path in CONFIG_DIR.glob("*.yml"))
+
+
+def config_path(algo: str, config: str | os.PathLike | None = None) -> Path:
+    """The hyperparameter file of ``algo``: ``config`` if given, else configs/agents/<algo>.yml.
+
+    ``config`` is a file's path, or the name of a shipped config with or without ``.yml``
+    (``ppo_integral``, ``ppo_integral.yml``); a file of that name in the working directory wins."""
+    if config is None:
+        return CONFIG_DIR / f"{algo}.yml"
+    path = Path(config)
+    if path.is_file():
+        return path
+    if len(path.parts) == 1 and not os.path.lexists(path):
+        shipped = CONFIG_DIR / (path.name if path.suffix in (".yml", ".yaml") else f"{path.name}.yml")
+        if shipped.is_file():
+            return shipped
+    raise TrainingError(f"hyperparameter file not found: {path} (neither a file nor a shipped config: "
+                        f"{', '.join(shipped_configs())})")
+
+
+def read_hyperparameters(algo: str, config: str | os.PathLike | None = None, env_id: str = ENV_ID) -> dict[str, Any]:
+    """The raw zoo entry for ``env_id`` in the hyperparameter file of ``algo`` (a copy)."""
+    path = config_path(algo, config)
+    try:
+        entries = yaml.safe_load(read_regular(path, MAX_CONFIG_BYTES, "config file"))
+    except yaml.YAMLError as exc:
+        raise TrainingError(f"{path}: not valid YAML: {exc}") from None
+    if not isinstance(entries, dict) or env_id not in entries:
+        found = ", ".join(map(str, entries)) if isinstance(entries, dict) else ""
+        raise TrainingError(f"{path}: no entry for {env_id!r} (found: {found or 'nothing'})")
+    entry = entries[env_id]
+    if not isinstance(entry, dict):
+        raise TrainingError(f"{path}: the entry for {env_id!r} must be a mapping of hyperparameters")
+    return dict(entry)
+
+
+def _describe(node: ast.AST) -> str:
+    """What a refused piece of a zoo expression is, for the error message."""
+    if isinstance(node, ast.Call):
+        return f"the call {ast.unparse(node.func)}(...)"
+    if isinstance(node, (ast.Attribute, ast.Name)):
+        return f"the name {ast.unparse(node)}"
+    if isinstance(node, ast.Lambda):
+        return "a lambda"
+    if isinstance(node, (ast.ListComp, ast.SetComp, ast.DictComp, ast.GeneratorExp)):
+        return "a comprehension"
+    if isinstance(node, ast.Constant):
+        return f"the constant {node.value!r}"
+    return f"the expression {ast.unparse(node)!r}"
+
+
+def _zoo_value(node: ast.AST, key: str, text: str) -> Any:
+    """The data of one node of a zoo expression; TrainingError naming ``key`` for anything else."""
+    if isinstance(node, ast.Constant) and (node.value is None or type(node.value) in (bool, int, float, str)):
+        return node.value
+    if (isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd))
+            and isinstance(node.operand, ast.Constant) and type(node.operand.value) in (int, float)):
+        return -node.operand.value if isinstance(node.op, ast.USub) else node.operand.value
+    if isinstance(node, (ast.List, ast.Tuple)):
+        items = [_zoo_value(e, key, text) for e in node.elts]
+        return items if isinstance(node, ast.List) else tuple(items)
+    if isinstance(node, ast.Dict) and None not in node.keys:  # a None key is a ** unpacking
+        keys = [_zoo_value(k, key, text) for k in node.keys]
+        if not all(isinstance(k, (str, int, float, bool)) or k is None for k in keys):
+            raise TrainingError(f"hyperparameter {key}: dict keys must be names or numbers in {text!r}")
+        return dict(zip(keys, (_zoo_value(v, key, text) for v in node.values)))
+    if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "dict" and not node.args
+            and all(k.arg is not None for k in node.keywords)):
+        return {k.arg: _zoo_value(k.value, key, text) for k in node.keywords}
+    if isinstance(node, ast.Attribute):
+        dotted = ast.unparse(node)
+        if dotted in {f"{prefix}.{name}" for prefix in ("nn", "th.nn") for name in ACTIVATIONS}:
+            import torch
+
+            return getattr(torch.nn, node.attr)
+    raise TrainingError(f"hyperparameter {key}: {_describe(node)} is not allowed in {text!r}; a config holds data "
+                        "only: dict(key=value, ...), {...}, [...], (...), numbers, strings, True/False/None and "
+                        f"nn.<activation> ({', '.join(ACTIVATIONS)})")
+
+
+def zoo_eval(text: str, key: str) -> Any:
+    """Read a zoo hyperparameter string (e.g. ``policy_kwargs: "dict(net_arch=[64, 64])"``) as
+    data: the subset of Python that rl-zoo configs use (see :func:`_zoo_value`), parsed, never
+    evaluated, so that a config from a stranger cannot run code."""
+    try:
+        tree = ast.parse(text.strip(), mode="eval")
+    except SyntaxError as exc:
+        raise TrainingError(f"hyperparameter {key}: not an expression: {text!r} ({exc.msg})") from None
+    return _zoo_value(tree.body, key, text)
+
+
+def _schedule(value: Any, key: str):
+    """A zoo schedule ("lin_<x>": linear from x to 0 over training) or a constant, as SB3 takes it."""
+    if isinstance(value, str):
+        kind, _, initial = value.partition("_")
+        try:
+            start = float(initial)
+        except ValueError:
+            start = None
+        if kind != "lin" or start is None:
+            raise TrainingError(f"hyperparameter {key}: expected a number or 'lin_<number>', got {value!r}")
+        from stable_baselines3.common.utils import LinearSchedule
+
+        return LinearSchedule(start, 0.0, 1.0)
+    return value
+
+
+@dataclass
+class Hyperparameters:
+    """A zoo entry split the way rl_zoo3 splits it.
+
+    algorithm_kwargs go to the algorithm's constructor (policy included); n_envs rows of the
+    native batch; n_timesteps the default budget; normalize the VecNormalize keyword arguments
+    (None: no normalisation); env_kwargs the entry's environment keyword arguments.
+    """
+
+    algorithm_kwargs: dict[str, Any]
+    n_envs: int
+    n_timesteps: int
+    normalize: dict[str, Any] | None
+    env_kwargs: dict[str, Any]
+    raw: dict[str, Any]
+
+
+def check_hyperparameter_names(algo: str, entry: Mapping[str, Any]) -> None:
+    """Refuse keys that are neither zoo keys nor constructor arguments of the algorithm."""
+    cls = algorithm_class(algo)
+    valid = set(inspect.signature(cls.__init__).parameters) - {"self", "env"}
+    zoo = set(ZOO_KEYS_HANDLED) | set(ZOO_KEYS_ZOO_ONLY)
+    unknown = sorted(k for k in entry if k not in valid and k not in zoo)
+    if unknown:
+        raise TrainingError(f"{algo}: unknown hyperparameter(s) {', '.join(unknown)}; valid: "
+                            f"{', '.join(sorted(valid | zoo))}")
+
+
+def parse_hyperparameters(algo: str, entry: Mapping[str, Any]) -> Hyperparameters:
+    """Turn a zoo entry into SB3 arguments, as rl_zoo3's ExperimentManager does."""
+    check_hyperparameter_names(algo, entry)
+    zoo_only = [k for k in ZOO_KEYS_ZOO_ONLY if k in entry]
+    if zoo_only:
+        raise TrainingError(f"{algo}: hyperparameter(s) {', '.join(zoo_only)} are handled by rl_zoo3 only; "
+                            "train with `python -m rl_zoo3.train` or remove them")
+    kwargs = {k: v for k, v in entry.items() if k not in ZOO_KEYS_HANDLED}
+    kwargs["policy"] = entry.get("policy", "MlpPolicy")
+    for key in ZOO_EVALUATED_KEYS:
+        if isinstance(kwargs.get(key), str):
+            kwargs[key] = zoo_eval(kwargs[key], key)
+    for key in ZOO_SCHEDULE_KEYS:
+        if key in kwargs:
+            kwargs[key] = _schedule(kwargs[key], key)
+    if isinstance(kwargs.get("train_freq"), list):
+        kwargs["train_freq"] = tuple(kwargs["train_freq"])
+    if entry.get("noise_type") is not None:
+        from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
+
+        noise = {"normal": NormalActionNoise, "ornstein-uhlenbeck": OrnsteinUhlenbeckActionNoise}
+        kind = str(entry["noise_type"]).strip()
+        if kind not in noise:
+            raise TrainingError(f"{algo}: noise_type must be one of {', '.join(noise)}, got {kind!r}")
+        std = float(entry.get("noise_std", 0.1))
+        kwargs["action_noise"] = noise[kind](mean=np.zeros(6), sigma=std * np.ones(6))
+
+    normalize = entry.get("normalize", False)
+    if isinstance(normalize, str):
+        normalize = zoo_eval(normalize, "normalize")
+    if normalize is True:
+        normalize = {}
+    elif normalize is False:
+        normalize = None
+    elif not isinstance(normalize, dict):
+        raise TrainingError(f"{algo}: normalize must be true, false or a dict (or its string), got {normalize!r}")
+    if normalize is not None and "gamma" in entry:
+        normalize = {**normalize, "gamma": entry["gamma"]}  # as the zoo: discount the reward as the agent does
+
+    n_envs = entry.get("n_envs", 1)
+    check_count(f"{algo}: n_envs", n_envs, 1)
+    if "n_timesteps" not in entry:
+        raise TrainingError(f"{algo}: the entry has no n_timesteps")
+    env_kwargs = entry.get("env_kwargs") or {}
+    if not isinstance(env_kwargs, dict):
+        raise TrainingError(f"{algo}: env_kwargs must be a mapping, got {env_kwargs!r}")
+    return Hyperparameters(kwargs, n_envs, int(float(entry["n_timesteps"])), normalize, dict(env_kwargs), dict(entry))
+
+
+def check_count(name: str, value: Any, minimum: int, maximum: int = MAX_COUNT) -> None:
+    """A count of steps, platforms or checkpoints, through the package's one integer check."""
+    try:
+        integer(name, value, minimum, maximum)
+    except ValueError as err:
+        raise TrainingError(str(err)) from None
+

@@ -1,0 +1,292 @@
+"""The run directory of ``stewart-env train``: its files, manifest, checkpoints and their hashes.
+
+One run lives in one directory ``DIR``:
+
+====================================  ==========================================================
+``DIR/run.json``                      the run manifest: algorithm, dynamics model, task, seed,
+                                      steps, environment kwargs, hyperparameters, versions and
+                                      the sha256 of the final model and statistics
+``DIR/model.zip``                     the trained model (SB3 ``save``)
+``DIR/vecnormalize.pkl``              the VecNormalize statistics the model was trained with
+``DIR/checkpoints/step_<steps>/``     one checkpoint: ``model.zip``, ``vecnormalize.pkl``, the
+                                      replay buffer ``replay_buffer.pkl`` (off-policy algorithms)
+                                      and ``manifest.json`` (step count, algorithm, sha256 of
+                                      each file); the last ``keep_checkpoints`` are kept
+``DIR/checkpoints/progress.csv``      steps and wall time of each checkpoint
+``DIR/tensorboard/``                  TensorBoard logs (``tensorboard --logdir DIR/tensorboard``)
+``DIR/monitor.csv``                   per-episode return, length, wall time and termination code
+                                      (the environment's ``info["termination"]``: 0 for the time
+                                      limit, else an index into its ``termination_reasons``;
+                                      ``resumed_<steps>.monitor.csv`` for a resumed part)
+====================================  ==========================================================
+
+Every file is published atomically through :mod:`stewart_env.files` (temporary name, flush,
+rename), and every file read back goes through its bounded reader of regular files.  A checkpoint
+is written into ``checkpoints/.tmp-step_<steps>-<random>/`` and renamed to ``step_<steps>/`` once
+complete, so a run killed at any moment leaves its newest complete checkpoint, which
+:func:`newest_checkpoint` finds by its manifest and hashes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import pickle
+import platform as _platform
+import re
+import shutil
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from stewart_env.agents.training.errors import TrainingError
+from stewart_env.agents.training.hyperparameters import ALGORITHMS, OFF_POLICY
+from stewart_env.files import (
+    LOCK_FILE,
+    TMP_PREFIX,
+    FileError,
+    publishing,
+    publishing_folder,
+    read_json,
+    read_regular,
+    sha256_file,
+    write_error,
+)
+
+__all__ = ["CHECKPOINT_DIR", "CHECKPOINT_MANIFEST", "DEFAULT_KEEP_CHECKPOINTS", "MANIFEST", "MAX_AGENT_FILE_BYTES",
+           "MAX_MANIFEST_BYTES", "MODEL_FILE", "PAUSE_IN_CHECKPOINT_ENV", "REPLAY_BUFFER_FILE", "VECNORMALIZE_FILE",
+           "agent_file_writers", "check_fresh_directory", "checkpoint_hashes", "checkpoint_problem", "log_progress",
+           "newest_checkpoint", "publish_final", "read_manifest", "remove_unfinished_writes", "save_checkpoint",
+           "step_dirs", "unpickle_statistics", "verified_bytes", "versions"]
+
+MANIFEST = "run.json"
+MODEL_FILE = "model.zip"
+VECNORMALIZE_FILE = "vecnormalize.pkl"
+REPLAY_BUFFER_FILE = "replay_buffer.pkl"
+CHECKPOINT_DIR = "checkpoints"
+CHECKPOINT_MANIFEST = "manifest.json"
+DEFAULT_KEEP_CHECKPOINTS = 3
+_STEP_DIR_RE = re.compile(r"^step_(\d+)$")
+#: Bound of a run's or a checkpoint's manifest read from disk (they hold settings and hashes).
+MAX_MANIFEST_BYTES = 16 << 20
+#: Bound of a model, statistics or replay-buffer file read from disk: well above a replay buffer
+#: of millions of transitions, far below a file that never ends.
+MAX_AGENT_FILE_BYTES = 16 << 30
+#: Seconds to pause inside every checkpoint write, before its rename: lets the tests signal or kill
+#: a training process while a checkpoint is being written.
+PAUSE_IN_CHECKPOINT_ENV = "STEWART_ENV_TEST_CHECKPOINT_PAUSE"
+
+
+def agent_file_writers(model, replay_buffer: bool) -> dict[str, Callable[[Path], None]]:
+    """{file name: a function writing it to a path} for ``model``, its VecNormalize statistics
+    and (``replay_buffer``) its replay buffer."""
+    writers = {MODEL_FILE: model.save}
+    vn = model.get_vec_normalize_env()
+    if vn is not None:
+        writers[VECNORMALIZE_FILE] = lambda path: vn.save(str(path))
+    if replay_buffer and getattr(model, "replay_buffer", None) is not None:
+        writers[REPLAY_BUFFER_FILE] = model.save_replay_buffer
+    return writers
+
+
+def verified_bytes(folder: Path, hashes: Mapping[str, str], name: str, what: str) -> bytes:
+    """The bytes of ``folder/name`` if their sha256 is ``hashes[name]``; TrainingError otherwise.
+    Reading once and unpickling these bytes leaves no gap between the check and the load."""
+    path = folder / name
+    if name not in hashes:
+        raise TrainingError(f"{path}: not listed in {what}; refusing to load an unrecorded file")
+    if not os.path.lexists(path):
+        raise TrainingError(f"{path}: missing ({what} lists it)")
+    data = read_regular(path, MAX_AGENT_FILE_BYTES)
+    if hashlib.sha256(data).hexdigest() != hashes[name]:
+        raise TrainingError(f"{path}: its sha256 does not match {what}: the file was changed, truncated or "
+                            "replaced after it was written; refusing to unpickle it")
+    return data
+
+
+def unpickle_statistics(data: bytes):
+    normalizer = pickle.loads(data)  # SB3's VecNormalize.save format; the bytes' hash was checked
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    if not isinstance(normalizer, VecNormalize):
+        raise TrainingError(f"{VECNORMALIZE_FILE} does not hold VecNormalize statistics")
+    return normalizer
+
+
+def read_manifest(directory: str | os.PathLike) -> dict[str, Any]:
+    """DIR/run.json as a dict; TrainingError if missing or unreadable."""
+    path = Path(directory) / MANIFEST
+    if not os.path.lexists(path):
+        raise TrainingError(f"{directory}: no {MANIFEST}; not a directory written by `stewart-env train`")
+    manifest = read_json(path, MAX_MANIFEST_BYTES, "run manifest")
+    if not isinstance(manifest, dict) or manifest.get("algo") not in ALGORITHMS:
+        raise TrainingError(f"{path}: not a run manifest of `stewart-env train` (no known algorithm)")
+    for key, kind in (("env_kwargs", dict), ("hyperparameters", dict), ("seed", int), ("n_envs", int)):
+        if not isinstance(manifest.get(key), kind):
+            raise TrainingError(f"{path}: not a run manifest of `stewart-env train` ({key} missing or not a "
+                                f"{kind.__name__})")
+    return manifest
+
+
+def versions() -> dict[str, str]:
+    import gymnasium
+    import stable_baselines3
+    import torch
+
+    import stewart_env
+
+    return {"stewart_env": stewart_env.__version__, "stable_baselines3": stable_baselines3.__version__,
+            "torch": torch.__version__, "gymnasium": gymnasium.__version__, "numpy": np.__version__,
+            "python": _platform.python_version()}
+
+
+def step_dirs(directory: Path) -> list[tuple[int, Path]]:
+    """The published checkpoint directories, newest first."""
+    root = directory / CHECKPOINT_DIR
+    found = [(int(m.group(1)), root / name) for name in (os.listdir(root) if root.is_dir() else ())
+             if (m := _STEP_DIR_RE.match(name))]
+    return sorted(found, reverse=True)
+
+
+def _required_files(algo: str, normalize: bool) -> list[str]:
+    return [MODEL_FILE] + [VECNORMALIZE_FILE] * normalize + [REPLAY_BUFFER_FILE] * (algo in OFF_POLICY)
+
+
+def checkpoint_problem(folder: Path, steps: int, algo: str, normalize: bool) -> str | None:
+    """Why the checkpoint in ``folder`` cannot be resumed from (None if it is complete: manifest
+    present, its step count and algorithm, every file the run needs, every hash matching)."""
+    if not os.path.lexists(folder / CHECKPOINT_MANIFEST):
+        return f"no {CHECKPOINT_MANIFEST}"
+    try:
+        manifest = read_json(folder / CHECKPOINT_MANIFEST, MAX_MANIFEST_BYTES, "checkpoint manifest")
+    except FileError as err:
+        return f"{CHECKPOINT_MANIFEST}: {err.problem}"
+    if not isinstance(manifest, dict) or manifest.get("num_timesteps") != steps or manifest.get("algo") != algo:
+        return f"{CHECKPOINT_MANIFEST} is not that of a {algo} checkpoint at {steps} steps"
+    hashes = manifest.get("files")
+    if not isinstance(hashes, dict):
+        return f"{CHECKPOINT_MANIFEST} lists no file hashes"
+    for name in _required_files(algo, normalize):
+        if name not in hashes:
+            return f"{name} missing from its manifest"
+        if not os.path.lexists(folder / name):
+            return f"{name} missing"
+        try:
+            digest = sha256_file(folder / name, MAX_AGENT_FILE_BYTES)
+        except FileError as err:
+            return f"{name}: {err.problem}"
+        if digest != hashes[name]:
+            return f"{name} does not match its sha256"
+    return None
+
+
+def checkpoint_hashes(folder: Path) -> tuple[dict[str, str], str]:
+    """The {file name: sha256} of a checkpoint that :func:`checkpoint_problem` passed, and its
+    manifest's name for error messages."""
+    return (read_json(folder / CHECKPOINT_MANIFEST, MAX_MANIFEST_BYTES, "checkpoint manifest")["files"],
+            f"{CHECKPOINT_DIR}/{folder.name}/{CHECKPOINT_MANIFEST}")
+
+
+def newest_checkpoint(directory: str | os.PathLike, algo: str, normalize: bool,
+                      report: Callable[[str], None] = lambda message: None) -> tuple[int, Path] | None:
+    """The step count and folder of the newest complete checkpoint in DIR/checkpoints (None if
+    there is none).  Unfinished writes (``.tmp-*``) and incomplete or corrupt checkpoints are
+    passed over, each with a line to ``report``."""
+    root = Path(directory) / CHECKPOINT_DIR
+    for name in sorted(os.listdir(root) if root.is_dir() else ()):
+        if name.startswith(TMP_PREFIX):
+            report(f"skipping {CHECKPOINT_DIR}/{name}: a checkpoint write that did not finish")
+    for steps, folder in step_dirs(Path(directory)):
+        problem = checkpoint_problem(folder, steps, algo, normalize)
+        if problem is None:
+            return steps, folder
+        report(f"skipping {CHECKPOINT_DIR}/{folder.name}: incomplete or corrupt ({problem})")
+    return None
+
+
+def _pause_for_tests() -> None:
+    pause = os.environ.get(PAUSE_IN_CHECKPOINT_ENV)
+    if pause:
+        time.sleep(float(pause))
+
+
+def save_checkpoint(model, directory: Path, algo: str, keep: int = DEFAULT_KEEP_CHECKPOINTS) -> Path:
+    """Save ``model``, its VecNormalize statistics and (off-policy) its replay buffer as the
+    checkpoint DIR/checkpoints/step_<num_timesteps>/, atomically: written into a temporary
+    folder with a manifest of sha256 hashes, flushed, then renamed.  Only the newest ``keep``
+    checkpoints are kept (each holds its own replay buffer, tens of MB off-policy).
+
+    Raises:
+        WriteError: naming the checkpoint, if it cannot be written (a full disk): the temporary
+            folder is removed, the complete checkpoints are kept.
+    """
+    steps = int(model.num_timesteps)
+    root = directory / CHECKPOINT_DIR
+    final = root / f"step_{steps}"
+    with publishing_folder(final) as tmp:
+        files = {}
+        for name, write in agent_file_writers(model, replay_buffer=algo in OFF_POLICY).items():
+            write(tmp / name)
+            files[name] = sha256_file(tmp / name, MAX_AGENT_FILE_BYTES)
+        _pause_for_tests()
+        (tmp / CHECKPOINT_MANIFEST).write_text(json.dumps({"algo": algo, "num_timesteps": steps, "files": files},
+                                                          indent=2) + "\n")
+    for _, old in step_dirs(directory)[keep:]:
+        shutil.rmtree(old)
+    return final
+
+
+def publish_final(model, directory: Path) -> dict[str, str]:
+    """Write DIR/model.zip and DIR/vecnormalize.pkl, each under a temporary name renamed over the
+    previous one; returns their hashes for run.json (which, written last, makes them a set)."""
+    files = {}
+    for name, write in agent_file_writers(model, replay_buffer=False).items():
+        with publishing(directory / name) as tmp:
+            write(tmp)
+            files[name] = sha256_file(tmp, MAX_AGENT_FILE_BYTES)
+    return files
+
+
+def log_progress(directory: Path, num_timesteps: int, wall_time: float) -> None:
+    """Append a checkpoint's steps and training wall time (s) to DIR/checkpoints/progress.csv."""
+    log = directory / CHECKPOINT_DIR / "progress.csv"
+    header = "" if log.exists() else "num_timesteps,wall_time_s\n"
+    try:
+        with log.open("a") as f:
+            f.write(f"{header}{num_timesteps},{wall_time:.1f}\n")
+    except OSError as err:
+        raise write_error(log, err) from None
+
+
+def check_fresh_directory(directory: Path, algo: str) -> None:
+    """Refuse to start a run in a directory that holds anything but a run of ``algo`` that saved
+    nothing yet (a start that failed before its first checkpoint)."""
+    # the lock file, and the temporary files of a start killed in its first write, are no run
+    if not directory.is_dir() or not [name for name in os.listdir(directory)
+                                      if name != LOCK_FILE and not name.startswith(TMP_PREFIX)]:
+        return
+    if not (directory / MANIFEST).is_file():
+        raise TrainingError(f"{directory} is not empty and holds no run of `stewart-env train` (no {MANIFEST}); "
+                            "refusing to write into it: choose a new or empty output directory")
+    manifest = read_manifest(directory)
+    if manifest["algo"] != algo:
+        raise TrainingError(f"{directory} holds a {manifest['algo']} run; refusing to overwrite it with a {algo} "
+                            "run: choose another output directory")
+    if (directory / MODEL_FILE).exists() or step_dirs(directory):
+        raise TrainingError(f"{directory} already holds a trained agent; pass --resume to continue it, "
+                            "or choose another output directory")
+
+
+def remove_unfinished_writes(directory: Path) -> None:
+    """Remove the temporary files and folders of writes that did not finish (a killed run's), in
+    the run directory and its checkpoints; only under the run's lock, when no one else writes."""
+    for folder in (directory, directory / CHECKPOINT_DIR):
+        for name in os.listdir(folder) if folder.is_dir() else ():
+            if name.startswith(TMP_PREFIX):
+                path = folder / name
+                shutil.rmtree(path) if path.is_dir() and not path.is_symlink() else path.unlink()
+

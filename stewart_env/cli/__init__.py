@@ -1,0 +1,72 @@
+"""The ``stewart-env`` command: demo, evaluate, reproduce, train, mismatch, identify, bench, export-mjcf.
+
+    stewart-env demo                       PD baseline on the classical and improved models
+    stewart-env evaluate --policy pd ct --model classical improved --task tracking --out results/
+    stewart-env evaluate --agent runs/ppo --model classical improved
+    stewart-env reproduce --out figures/   the case study of He et al. (2018), Fig. 6-10
+    stewart-env train ... / mismatch ...   stewart_env.agents.training and .mismatch
+    stewart-env identify --platform dasgupta1998 --out runs/ident   identification on a stand-in plant
+    stewart-env bench ...                  the benchmark (stewart_env.bench)
+    stewart-env export-mjcf --platform dasgupta1998 --out stewart.xml   the MuJoCo twin as MJCF
+
+Each subcommand has ``--help``.  One module per verb in this package, each with
+``add_parser(subparsers)`` and ``run(args) -> int``; :data:`VERBS` is the table :func:`main`
+dispatches on.  The argparse types live in :mod:`stewart_env.cli.arguments`; no module that does
+the work imports argparse.  Every error a user can correct
+(:class:`stewart_env.errors.UsageError`), and every missing optional extra, is one line
+``stewart-env <verb>: error: ...`` with exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from types import ModuleType
+
+from stewart_env.cli import bench, demo, evaluate, export_mjcf, identify, mismatch, reproduce, train
+from stewart_env.cli.common import error
+from stewart_env.errors import UsageError
+from stewart_env.extras import extra_of, install_hint
+
+__all__ = ["VERBS", "build_parser", "main"]
+
+#: Each verb's module, in the order ``--help`` lists them.
+VERBS: dict[str, ModuleType] = {module.VERB: module for module in
+                                (demo, evaluate, reproduce, train, mismatch, identify, bench, export_mjcf)}
+
+
+def _version() -> str:
+    import stewart_env
+
+    return f"stewart-env {stewart_env.__version__}"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The parser of ``stewart-env``, every verb a subparser (the site's command reference is
+    generated from it)."""
+    parser = argparse.ArgumentParser(
+        prog="stewart-env",
+        description="The 6-UPS Stewart platform on closed-form Newton-Euler dynamics: baselines, "
+                    "evaluation and the reproduction of He et al. (2018).",
+    )
+    parser.add_argument("--version", action="version", version=_version())
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for module in VERBS.values():
+        module.add_parser(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``stewart-env`` with ``argv`` (default the process's arguments); the exit status."""
+    args = build_parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+    try:
+        return VERBS[args.command].run(args)
+    except UsageError as err:
+        return error(args.command, err)
+    except ImportError as err:
+        extra = extra_of(err)
+        if extra is None:
+            raise
+        message = str(err) if "pip install" in str(err) else f"{err}; {install_hint(extra)}"
+        return error(args.command, message)

@@ -1,0 +1,37 @@
+"""``stewart-env bench``: the benchmark of the compiled core (:mod:`stewart_env.bench`)."""
+
+from __future__ import annotations
+
+import argparse
+
+from stewart_env.cli.common import check_extras, error
+
+VERB = "bench"
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    from stewart_env.bench import MODEL_NAMES, __doc__ as description
+
+    p = subparsers.add_parser(VERB, help="the benchmark of the compiled core (stewart_env.bench)",
+                              description=description.split("\n\n")[0].replace("``", ""))
+    p.add_argument("--platform", default="dasgupta1998", help="platform config name or YAML path")
+    p.add_argument("--models", default=",".join(MODEL_NAMES), help="comma-separated model names")
+    p.add_argument("--env", action="store_true", help="also benchmark the single and vector environments")
+    p.add_argument("--plot", metavar="PATH", help="also draw the scaling table to this PNG file")
+    p.add_argument("--mujoco", action="store_true",
+                   help="also time MuJoCo on the same mechanism beside the kernels, the env and the vector env "
+                        '(needs the extra: pip install -e ".[mujoco]")')
+    return p
+
+
+def run(args: argparse.Namespace) -> int:
+    from stewart_env.bench import run_bench
+
+    problem = check_extras([("mujoco", "--mujoco")] if args.mujoco else [])
+    if problem is not None:
+        return error(VERB, f"argument --mujoco: {problem}")
+    try:
+        run_bench(args.platform, args.models, env=args.env, mujoco=args.mujoco, plot=args.plot)
+    except ImportError as err:  # the MuJoCo library present but failing to load
+        return error(VERB, f"argument --mujoco: {err}")
+    return 0

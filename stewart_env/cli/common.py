@@ -1,0 +1,63 @@
+"""What the verbs share: the one-line error, the checks made before any work and the baseline
+controllers by name."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Iterable, Sequence
+
+from stewart_env.extras import require
+
+#: The baseline controllers ``--policy`` offers.
+CONTROLLERS = ("pd", "pd-gc", "ct")
+
+
+def error(verb: str, message: object) -> int:
+    """Print ``stewart-env <verb>: error: <message>`` to stderr; the exit status of a usage error, 2."""
+    print(f"stewart-env {verb}: error: {message}", file=sys.stderr)
+    return 2
+
+
+def check_out(args: argparse.Namespace) -> str | None:
+    """Why ``--out`` cannot be written (None if it can), before any work is done."""
+    from stewart_env.files import check_writable
+
+    if getattr(args, "out", None) is None:
+        return None
+    try:
+        check_writable(args.out, create=False)
+    except ValueError as err:  # stewart_env.files.NotWritable
+        return f"argument --out: {err}"
+    return None
+
+
+def check_extras(needs: Iterable[tuple[str, str]]) -> str | None:
+    """The first missing extra of ``needs`` ((extra, what needs it), ...) as its one-line message."""
+    for extra, what in needs:
+        try:
+            require(extra, what)
+        except ValueError as err:  # stewart_env.extras.MissingExtra
+            return str(err)
+    return None
+
+
+def plant_extras(models: Sequence[str] | None, flag: str = "--model") -> list[tuple[str, str]]:
+    """The extra a plant of ``models`` needs: MuJoCo's plant needs ``mujoco``."""
+    return [("mujoco", f"{flag} mujoco")] if models and "mujoco" in models else []
+
+
+def controllers(names: Sequence[str], internal_model: str) -> dict:
+    """{table label: policy factory} of the baseline controllers ``names`` (see :data:`CONTROLLERS`)."""
+    from stewart_env.agents.computed_torque import ComputedTorquePolicy
+    from stewart_env.agents.pd import PDPolicy
+
+    out = {}
+    for name in names:
+        if name == "pd":
+            out["PD"] = PDPolicy
+        elif name == "pd-gc":
+            out["PD + gravity comp."] = lambda env: PDPolicy(env, gravity_compensation=True)
+        else:
+            out[f"CT ({internal_model})"] = lambda env, m=internal_model: ComputedTorquePolicy(env, m)
+    return out

@@ -1,0 +1,98 @@
+"""``stewart-env evaluate``: baselines and trained agents on every ``--model``, the same seeds."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from stewart_env.cli.arguments import TASKS, model_name, nonnegative_int, plant_model_name, platform_name, positive_int
+from stewart_env.cli.common import (
+    CONTROLLERS,
+    check_extras,
+    check_out,
+    controllers,
+    error,
+    plant_extras,
+)
+
+VERB = "evaluate"
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    p = subparsers.add_parser(
+        VERB, help="evaluate baseline controllers and trained agents (--agent) on a task and dynamics model(s)",
+        description="Run seeded episodes of the baseline controllers (--policy) and of agents trained by "
+                    "`stewart-env train` (--agent) and report RMS errors, settling time, overshoot, steady-state "
+                    "error, peak leg force, control energy, success rate and early terminations (definitions: "
+                    "stewart_env.agents.evaluation).  Every controller runs on every model, with the same seeds.",
+    )
+    p.add_argument("--policy", nargs="+", choices=CONTROLLERS,
+                   help="pd: task-space PD (paper eq. 56, gains tuned for the control step); pd-gc: the same "
+                        "with gravity compensation (the improved model's holding forces); ct: computed "
+                        "torque with its own internal model (default pd, unless --agent is given)")
+    p.add_argument("--agent", nargs="+", metavar="DIR",
+                   help="run directories of agents trained by `stewart-env train` (model.zip with its "
+                        "VecNormalize statistics); each is evaluated with its training environment "
+                        "settings, the plant model replaced by --model (needs the extra rl)")
+    p.add_argument("--internal-model", type=model_name, default="improved",
+                   help="the computed-torque controller's dynamics model, independent of the plant's "
+                        "(default improved)")
+    p.add_argument("--model", nargs="+", type=plant_model_name, default=["improved"],
+                   help="the plant's dynamics model(s): classical, improved, improved_centroidal, "
+                        "optionally with switches +c1..+c4, or mujoco (MuJoCo simulating the same "
+                        "mechanism, needs the extra mujoco) (default improved)")
+    p.add_argument("--task", choices=TASKS,
+                   help="default setpoint (for an --agent: the task it was trained on)")
+    p.add_argument("--platform", type=platform_name, help="platform config name or YAML path (default dasgupta1998; "
+                   "for an --agent: the platform it was trained on)")
+    p.add_argument("--episodes", type=positive_int, default=5, help="episodes per configuration (default 5)")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="episode i uses seed + i (default 0)")
+    p.add_argument("--max-steps", type=positive_int, help="episode length in control steps "
+                   "(default the registered 500)")
+    p.add_argument("--out", help="write the report (results.md, episodes.csv, PNG plots) into this directory")
+    return p
+
+
+def _evaluate(args: argparse.Namespace) -> str:
+    """The table of every controller and agent on every --model."""
+    from stewart_env.agents.evaluation import evaluate, markdown_table, write_report
+
+    runs = []  # (label, policy or factory, environment kwargs without the model)
+    baseline_kwargs = {"task": args.task or "setpoint", "platform": args.platform or "dasgupta1998"}
+    names = args.policy or ([] if args.agent else ["pd"])
+    runs += [(label, policy, baseline_kwargs) for label, policy in controllers(names, args.internal_model).items()]
+    if args.agent:
+        from stewart_env.agents.training import load_agent
+
+        agents = [load_agent(directory) for directory in args.agent]
+        names = [agent.name for agent in agents]
+        for directory, agent in zip(args.agent, agents):
+            kwargs = dict(agent.env_kwargs)
+            kwargs.update({k: v for k, v in (("task", args.task), ("platform", args.platform)) if v is not None})
+            # agents of one algorithm and model are told apart by their run directory
+            label = agent.name if names.count(agent.name) == 1 else f"{agent.name} {Path(directory).name}"
+            runs.append((label, agent, kwargs))
+    results = [evaluate(policy, {**kwargs, "model": model}, args.episodes, args.seed, label=label,
+                        max_steps=args.max_steps)
+               for model in args.model for label, policy, kwargs in runs]
+    if args.out is not None:
+        write_report(results, args.out)
+    return markdown_table(results)
+
+
+def run(args: argparse.Namespace) -> int:
+    needs = ([("rl", "--agent")] if args.agent else []) + plant_extras(args.model)
+    problem = check_extras(needs) or check_out(args)
+    if problem is not None:
+        return error(VERB, problem)
+    start = time.perf_counter()
+    try:
+        print(_evaluate(args))
+    except ValueError as err:  # a bad agent directory or environment setting, named in the message
+        return error(VERB, err)
+    if args.out is not None:
+        print(f"\nreport written to {args.out}")
+    print(f"({time.perf_counter() - start:.1f} s)", file=sys.stderr)
+    return 0

@@ -1,0 +1,39 @@
+"""``python -m stewart_env.mujoco [PLATFORM ...]``: the accuracy report of MuJoCo's twin
+(:func:`stewart_env.mujoco.accuracy_report`).  Not a verb of ``stewart-env``: the module's own
+entry point, whose parser lives here with the others."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+
+from stewart_env.cli.common import check_extras
+
+PROG = "python -m stewart_env.mujoco"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from stewart_env.mujoco import accuracy_report
+
+    parser = argparse.ArgumentParser(prog=PROG, description=accuracy_report.__doc__.split("\n\n")[0])
+    parser.add_argument("platforms", nargs="*", default=["dasgupta1998", "motion_simulator"],
+                        help="platform config names or YAML paths (default: both shipped platforms)")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from stewart_env.mujoco import accuracy_report
+    from stewart_env.params import load_platform
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    problem = check_extras([("mujoco", PROG)])
+    if problem is not None:
+        parser.error(problem)
+    for i, name in enumerate(args.platforms):
+        try:
+            params = load_platform(name)
+        except (ValueError, OSError) as err:
+            parser.error(f"argument platforms: {err}")
+        print(("\n" if i else "") + accuracy_report(params))
+    return 0
