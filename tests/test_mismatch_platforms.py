@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stewart_env import mismatch_cli
+from stewart_env.cli import mismatch as mismatch_cli
 from stewart_env.agents import mismatch
 from stewart_env.agents.mismatch import MismatchError, MismatchSettings, run_mismatch
 from stewart_env.agents.mismatch.rows import build_rows, training_keywords
