@@ -132,6 +132,7 @@ def test_cli_refuses_a_controller_platform_that_does_not_load_in_one_line(tmp_pa
     ([(".hidden", "dasgupta1998")], "cannot name a platform"),
     ("dasgupta1998", "expected a list of platforms"),
     ([3], "expected NAME=PLATFORM or PLATFORM"),
+    (["c2=dasgupta1998"], "makes the rows of improved on it share their files"),  # [improved @ c2], [improved+c2]
 ])
 def test_controller_platforms_are_checked(platforms, message):
     with pytest.raises(MismatchError, match=message):

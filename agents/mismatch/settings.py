@@ -134,6 +134,13 @@ class MismatchSettings:
                 raise MismatchError(f"{name}: expected a finite positive number, got {value!r}")
             set_(name, float(value))
         set_("controller_platforms", _check_controller_platforms(self.controller_platforms))
+        # rows' cells and agents live in folders named by the slugs of their labels
+        own = {slug(m) for m in [*self.design_models, "improved + DR"]}
+        for name, _ in self.controller_platforms:
+            clash = [m for m in self.train_models if slug(f"{m} @ {name}") in own]
+            if clash:
+                raise MismatchError(f"controller platform: the name {name!r} makes the rows of {clash[0]} on it "
+                                    "share their files with another row's; name it otherwise with NAME=PLATFORM")
         env_kwargs = dict(self.env_kwargs or {})
         clash = [k for k in ("model", "task", "randomization", "platform") if k in env_kwargs]
         if clash:
