@@ -155,3 +155,23 @@ def test_share_removed_on_constructed_cells():
     # the classical row 2 above the exact one in every episode, the identified one 0.5 above
     share = share_removed(exact + 2.0, exact + 0.5, exact, "iqm")
     assert (share.estimate, share.low, share.high) == pytest.approx((0.75, 0.75, 0.75), rel=1e-12)  # rounding only
+
+
+@pytest.mark.slow  # trains two tiny PPO agents: about 15 s
+@pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning")
+def test_an_agent_on_a_controller_platform_runs_on_the_truth_s_plant(tmp_path, platforms):
+    truth, identified, _ = platforms
+    out = tmp_path / "study"
+    kwargs = dict(platform=str(truth), controller_platforms=[f"identified={identified}"], train_models=["improved"],
+                  test_models=["improved"], algo="ppo", timesteps=200, n_envs=2, simplifications=(), episodes=1,
+                  max_steps=10, progress=False)
+    result = run_mismatch(out, **kwargs)
+    assert [r.label for r in result.rows if r.kind == "agent"] == ["PPO [improved]", "PPO [improved @ identified]"]
+    run = json.loads((out / "agents" / "improved_identified" / "seed_0" / "run.json").read_text())
+    assert run["env_kwargs"]["platform"] == str(identified)
+    cell = json.loads((out / "cells" / "ppo_improved_identified" / "improved" / "seed_0.json").read_text())
+    assert cell["spec"]["env_kwargs"]["platform"] == str(truth)
+    # a second run finds the agent trained on the controller platform finished: nothing is trained again
+    before = (out / "agents" / "improved_identified" / "seed_0" / "model.zip").stat().st_mtime_ns
+    run_mismatch(out, **kwargs)
+    assert (out / "agents" / "improved_identified" / "seed_0" / "model.zip").stat().st_mtime_ns == before
