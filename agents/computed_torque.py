@@ -60,7 +60,7 @@ class ComputedTorque:
 
         >>> import numpy as np, stewart_env as se
         >>> from stewart_env.state import PlatformState, Reference
-        >>> from agents.computed_torque import ComputedTorque
+        >>> from stewart_env.agents.computed_torque import ComputedTorque
         >>> params = se.load_platform("dasgupta1998")
         >>> controller = ComputedTorque(params, internal_model="classical")
         >>> state = PlatformState(params.home_position, np.eye(3), np.zeros(3), np.zeros(3))
@@ -137,7 +137,7 @@ def preview_acceleration(position_step, rotation_step, velocity, angular_velocit
         A uniformly accelerated reference, 2 m/s^2 along x:
 
         >>> import numpy as np
-        >>> from agents.computed_torque import preview_acceleration
+        >>> from stewart_env.agents.computed_torque import preview_acceleration
         >>> h = np.array([0.1, 0.2, 0.3])
         >>> position_step = np.zeros((1, 3, 3)); position_step[0, :, 0] = h**2
         >>> acc = preview_acceleration(position_step, np.zeros((1, 3, 3)), np.zeros((1, 3)), np.zeros((1, 3)), h)
@@ -156,7 +156,8 @@ def preview_acceleration(position_step, rotation_step, velocity, angular_velocit
 class ComputedTorquePolicy(EnvPolicy):
     """The computed-torque law as a policy on ``StewartPlatform-v1`` (see :class:`EnvPolicy`).
 
-    The internal model runs on the environment's nominal platform parameters.  Feedforward: the
+    The internal model runs on the environment's nominal platform parameters, or on ``platform``
+    when given.  Feedforward: the
     environment does not expose the reference's acceleration, so on the tracking task the policy
     estimates it from the observation itself, fitting the reference preview (future reference
     poses at t + k dt_preview) and the reference twist with :func:`preview_acceleration`; without
@@ -165,11 +166,14 @@ class ComputedTorquePolicy(EnvPolicy):
     Args:
         env: the environment (or its vector environment) with ``observation_mode="pose"``.
         internal_model: the controller's dynamics model name (default ``"improved"``).
+        platform: the platform the controller believes (a :class:`~stewart_env.PlatformParams`,
+            e.g. an identified one); default the environment's nominal platform.
         kp, kd: gains as in :class:`ComputedTorque`.
     """
 
-    def __init__(self, env, internal_model: str = "improved", kp=None, kd=None):
-        super().__init__(env, ComputedTorque(env.unwrapped.platform, internal_model, kp, kd))
+    def __init__(self, env, internal_model: str = "improved", kp=None, kd=None, platform: PlatformParams | None = None):
+        believed = env.unwrapped.platform if platform is None else platform
+        super().__init__(env, ComputedTorque(believed, internal_model, kp, kd))
         base = env.unwrapped
         preview = getattr(base.task, "preview", 0) if "reference_preview" in base.observation_layout else 0
         self._horizons = getattr(base.task, "preview_interval", 0.0) * np.arange(1, preview + 1)

@@ -148,7 +148,7 @@ def zoh_pd_gains(model: se.Dynamics, control_dt: float, bandwidth: float = 0.2, 
 
     Examples:
         >>> import numpy as np, stewart_env as se
-        >>> from agents.pd import zoh_pd_gains, zoh_spectral_radius
+        >>> from stewart_env.agents.pd import zoh_pd_gains, zoh_spectral_radius
         >>> model = se.make_dynamics("improved", se.load_platform("dasgupta1998"))
         >>> kp, kd = zoh_pd_gains(model, control_dt=0.01)
         >>> bool(zoh_spectral_radius(model, kp, kd, control_dt=0.01) < 1)    # the sampled loop is stable
@@ -215,7 +215,7 @@ class TaskSpacePD:
 
         >>> import numpy as np, stewart_env as se
         >>> from stewart_env.state import PlatformState, Reference
-        >>> from agents.pd import TaskSpacePD
+        >>> from stewart_env.agents.pd import TaskSpacePD
         >>> params = se.load_platform("dasgupta1998")
         >>> at_home = (params.home_position, np.eye(3), np.zeros(3), np.zeros(3))
         >>> pd = TaskSpacePD(params, gravity_compensation=True)
@@ -334,7 +334,8 @@ class PDPolicy(EnvPolicy):
     """The task-space PD law as a policy on ``StewartPlatform-v1`` (see :class:`EnvPolicy`).
 
     The controller knows the platform's geometry and, with the compensation, its statics, nothing
-    of the plant's model.
+    of the plant's model: those of the environment's nominal platform, or of ``platform`` when
+    given.
 
     Args:
         env: the environment (or its vector environment) with ``observation_mode="pose"``.
@@ -344,11 +345,13 @@ class PDPolicy(EnvPolicy):
             the law itself.
         bandwidth, damping: of :func:`zoh_pd_gains`, for the default gains.
         gravity_model: dynamics model name for the holding forces.
+        platform: the platform the controller believes (a :class:`~stewart_env.PlatformParams`,
+            e.g. an identified one); default the environment's nominal platform.
 
     Examples:
         >>> import gymnasium as gym
-        >>> from agents.pd import PDPolicy
-        >>> env = gym.make("StewartPlatform-v0", task="setpoint")
+        >>> from stewart_env.agents.pd import PDPolicy
+        >>> env = gym.make("StewartPlatform-v1", task="setpoint")
         >>> policy = PDPolicy(env, gravity_compensation=True)
         >>> observation, info = env.reset(seed=0)
         >>> action, _ = policy.predict(observation)
@@ -357,11 +360,12 @@ class PDPolicy(EnvPolicy):
     """
 
     def __init__(self, env, kp=None, kd=None, gravity_compensation: bool = False, bandwidth: float = 0.2,
-                 damping: float = 1.0, gravity_model: str = "improved"):
+                 damping: float = 1.0, gravity_model: str = "improved", platform: PlatformParams | None = None):
         base = env.unwrapped
+        believed = base.platform if platform is None else platform
         if kp is None or kd is None:
-            tuned = zoh_pd_gains(se.make_dynamics("improved", base.platform), base.dt, bandwidth, damping)
+            tuned = zoh_pd_gains(se.make_dynamics("improved", believed), base.dt, bandwidth, damping)
             kp = tuned[0] if kp is None else kp
             kd = tuned[1] if kd is None else kd
-        super().__init__(env, TaskSpacePD(base.platform, kp, kd, gravity_compensation=gravity_compensation,
+        super().__init__(env, TaskSpacePD(believed, kp, kd, gravity_compensation=gravity_compensation,
                                           gravity_model=gravity_model))

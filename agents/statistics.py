@@ -89,7 +89,7 @@ def iqm(values) -> float:
         The mean of the middle half of the finite values; NaN if none.
 
     Examples:
-        >>> from agents.statistics import iqm
+        >>> from stewart_env.agents.statistics import iqm
         >>> iqm([1.0, 2.0, 3.0, 4.0, 100.0, float("nan")])
         3.0
     """
@@ -261,7 +261,7 @@ def stratified_bootstrap(values, statistic: str = "mean", confidence: float = CO
 
     Examples:
         >>> import numpy as np
-        >>> from agents.statistics import stratified_bootstrap
+        >>> from stewart_env.agents.statistics import stratified_bootstrap
         >>> cell = np.arange(12.0).reshape(3, 4)       # 3 training seeds, 4 episodes each
         >>> interval = stratified_bootstrap(cell, "iqm")
         >>> print(round(interval.estimate, 2), interval.seeds, interval.episodes)
@@ -294,10 +294,21 @@ def paired_difference(values, reference, statistic: str = "mean", confidence: fl
 
     Examples:
         >>> import numpy as np
-        >>> from agents.statistics import paired_difference
+        >>> from stewart_env.agents.statistics import paired_difference
         >>> reference = np.arange(12.0).reshape(3, 4)
         >>> interval = paired_difference(reference + 1.0, reference)
         >>> round(interval.estimate, 6), round(interval.low, 6), round(interval.high, 6), interval.resolved
         (1.0, 1.0, 1.0, True)
     """
     return _bootstrap([_as_cell(values), _as_cell(reference)], np.subtract, statistic, confidence, resamples, seed)
+
+
+def share_removed(values, remaining, reference, statistic: str = "mean", confidence: float = CONFIDENCE,
+                  resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> Interval:
+    """``[stat(values) - stat(remaining)] / [stat(values) - stat(reference)]`` and its stratified
+    bootstrap interval, the three cells (seeds, episodes) resampled with the same indices: the share
+    of the cost ``values - reference`` that a controller with ``remaining`` removes (1: all of it,
+    0: none, negative: it costs more).  Unstable where the cost's own interval includes zero."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return _bootstrap([_as_cell(values), _as_cell(remaining), _as_cell(reference)],
+                          lambda c, r, e: (c - r) / (c - e), statistic, confidence, resamples, seed)

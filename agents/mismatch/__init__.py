@@ -15,6 +15,13 @@ with one of the classical model's simplifications C1-C4 switched on.  PD and CT 
 the closed-form models only; an agent can be trained on any model the environment simulates.
 Columns are test plants: the environment simulated with each test model (nominal parameters).
 
+Controllers are built on the study's platform, the plants' own.  Each controller platform
+(``controller_platforms``, e.g. a platform identified from the plant's data by ``stewart-env
+identify``) adds the rows of every training model built (and trained) on it, labelled
+``[m @ NAME]`` and run on the same plants; their cost is against the row built on the exact model
+and the plants' platform, and for the exact model's structure the share of the classical model's
+cost they remove (:data:`SHARE_REMOVED`).
+
 Every cell runs the row's controller on the column's plant over the same seeded episodes (for
 each training seed of a learned row) and reports a point estimate with a 95 % stratified
 bootstrap interval over seeds and episodes (:mod:`stewart_env.agents.statistics`): the success
@@ -88,7 +95,7 @@ from stewart_env.agents.mismatch.constants import (
 from stewart_env.agents.mismatch.costs import PLANNING_BASES, per_seed_estimates, seeds_needed, simplification_costs
 from stewart_env.agents.mismatch.figures import forest_figure, heatmap, heatmap_figure, write_figures
 from stewart_env.agents.mismatch.jobs import agent_files, evaluate_job, make_policy, train_job
-from stewart_env.agents.mismatch.results import COST, DOUBLE_DIFFERENCE, Difference, MismatchResult, Row
+from stewart_env.agents.mismatch.results import COST, DOUBLE_DIFFERENCE, SHARE_REMOVED, Difference, MismatchResult, Row
 from stewart_env.agents.mismatch.rows import (
     build_rows,
     config_env_kwargs,
@@ -111,7 +118,7 @@ __all__ = [
     "AGENTS_DIR", "AGENT_FILES", "BACKENDS", "CELLS_DIR", "COST", "CPUS_PER_JOB", "DEFAULT_RANDOMIZATION",
     "DEFAULT_STATISTIC", "DOUBLE_DIFFERENCE", "EVAL_SEED_OFFSET", "FAILURE_THRESHOLD", "MAX_CELL_BYTES", "MAX_STEPS",
     "PLANNING_BASES", "QUICK_TIMESTEPS", "RANKING_METRICS", "RAY_AUTH_HINT", "RAY_CONNECT_TIMEOUT",
-    "RAY_INSTALL_HINT", "SIMPLIFICATIONS", "SIMPLIFICATION_TEXT", "STATISTIC", "STUDY_FILE", "TRUE_MODEL",
+    "RAY_INSTALL_HINT", "SHARE_REMOVED", "SIMPLIFICATIONS", "SIMPLIFICATION_TEXT", "STATISTIC", "STUDY_FILE", "TRUE_MODEL",
     "BackendError", "Difference", "LocalBackend", "MismatchError", "MismatchResult", "MismatchSettings",
     "RayBackend", "Row", "agent_files", "build_rows", "cell_path", "cell_spec", "cell_values", "check_backend",
     "check_own_agents", "check_study", "closed_form", "config_env_kwargs", "design_models", "evaluate_job",

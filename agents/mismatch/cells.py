@@ -30,6 +30,8 @@ def cell_spec(row: Row, plant: str, seed: int | None, common: Mapping[str, Any])
     :meth:`~.settings.MismatchSettings.evaluation`, with the agents' env kwargs for a learned row);
     a finished cell is reused only if all of it is equal."""
     spec = {"controller": row.label, "kind": row.kind, "design_model": row.model, "plant": plant, **common}
+    if row.platform is not None:  # only then: the cells of studies without controller platforms stay valid
+        spec["design_platform"] = row.platform
     if seed is not None:
         spec["agent_seed"] = seed
         spec["agent_sha256"] = read_manifest(row.agents[seed])["files"][MODEL_FILE]

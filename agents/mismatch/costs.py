@@ -15,19 +15,29 @@ from stewart_env.agents.mismatch.constants import (
     TRUE_MODEL,
     statistic,
 )
-from stewart_env.agents.mismatch.results import DOUBLE_DIFFERENCE, Difference, MismatchResult, Row
-from stewart_env.agents.statistics import double_difference, paired_difference, point_estimate, seeds_to_resolve
+from stewart_env.agents.mismatch.results import DOUBLE_DIFFERENCE, SHARE_REMOVED, Difference, MismatchResult, Row
+from stewart_env.agents.statistics import (
+    double_difference,
+    paired_difference,
+    point_estimate,
+    seeds_to_resolve,
+    share_removed,
+)
 
 __all__ = ["PLANNING_BASES", "per_seed_estimates", "seeds_needed", "simplification_costs"]
 
 
 def _compared_rows(result: MismatchResult, family: str) -> list[tuple[str, Row]]:
     """(name, row) of the ``family``'s rows built on a simplified model, or with domain
-    randomisation: the whole classical model, C1..C4, DR."""
-    by_model = {r.model: r for r in result.rows if r.family == family and not r.randomized}
+    randomisation, or on a controller platform: the whole classical model, C1..C4, DR, then each
+    row built on a controller platform (named by its platform, and its model where that is not the
+    exact one)."""
+    by_model = {r.model: r for r in result.rows if r.family == family and not r.randomized and r.platform is None}
     out = [("classical model", by_model["classical"])] if "classical" in by_model else []
     out += [(c.upper(), by_model[f"improved+{c}"]) for c in SIMPLIFICATIONS if f"improved+{c}" in by_model]
     out += [("domain randomisation", r) for r in result.rows if r.family == family and r.randomized]
+    out += [(f"platform {r.platform_name}" if r.model == TRUE_MODEL else f"{r.model} model, platform {r.platform_name}",
+             r) for r in result.rows if r.family == family and r.platform is not None]
     return out
 
 
@@ -36,19 +46,22 @@ def simplification_costs(result: MismatchResult, values: Callable[[Row, str, str
     """Per controller family with a row built on the exact model: for each simplification and each
     of :data:`~.constants.RANKING_METRICS`, the paired difference on ``plant`` of the row built on
     the simplified model minus the exact-model row, with its interval; and where the simplified
-    model is a test plant too, the double difference (see :class:`~.results.Difference`).
+    model is a test plant too, the double difference (see :class:`~.results.Difference`); and for
+    each row built on the exact model's structure on a controller platform, the share of the
+    classical row's cost it removes (:data:`~.results.SHARE_REMOVED`).
     ``values(row, plant, metric)`` gives a cell's values (seeds, episodes), e.g.
     :func:`~.cells.cell_values` of a study's directory."""
     if plant not in result.test_models:
         return []
     differences = []
     for family in dict.fromkeys(r.family for r in result.rows):
-        exact = next((r for r in result.rows if r.family == family and r.model == TRUE_MODEL and not r.randomized),
-                     None)
+        exact = next((r for r in result.rows if r.family == family and r.model == TRUE_MODEL and not r.randomized
+                      and r.platform is None), None)
         if exact is None:
             continue
         for name, row in _compared_rows(result, family):
-            home = row.model if row.model in result.test_models and row.model != plant and not row.randomized else None
+            home = (row.model if row.model in result.test_models and row.model != plant and not row.randomized
+                    and row.platform is None else None)
             for metric in RANKING_METRICS:
                 mine, theirs = values(row, plant, metric), values(exact, plant, metric)
                 differences.append(Difference(
@@ -62,6 +75,16 @@ def simplification_costs(result: MismatchResult, values: Callable[[Row, str, str
                         double_difference(mine, mine_home, theirs, theirs_home, statistic(metric)),
                         _failed(result, (row, exact), (plant, home)), plant, DOUBLE_DIFFERENCE,
                         _seed_test(mine - mine_home, theirs - theirs_home, statistic(metric))))
+        classical = next((r for name, r in _compared_rows(result, family) if name == "classical model"), None)
+        for row in result.rows:
+            if classical is None or row.family != family or row.platform is None or row.model != TRUE_MODEL:
+                continue
+            for metric in RANKING_METRICS:
+                differences.append(Difference(
+                    family, f"platform {row.platform_name}", row.label, classical.label, metric,
+                    share_removed(values(classical, plant, metric), values(row, plant, metric),
+                                  values(exact, plant, metric), statistic(metric)),
+                    _failed(result, (row, classical, exact), (plant,)), plant, SHARE_REMOVED))
     return differences
 
 

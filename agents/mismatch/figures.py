@@ -11,7 +11,7 @@ import numpy as np
 
 from stewart_env.agents.evaluation import METRICS, Metric
 from stewart_env.agents.mismatch.constants import FAILURE_THRESHOLD, RANKING_METRICS
-from stewart_env.agents.mismatch.results import DOUBLE_DIFFERENCE, MismatchResult
+from stewart_env.agents.mismatch.results import DOUBLE_DIFFERENCE, SHARE_REMOVED, MismatchResult
 from stewart_env.files import publishing
 
 __all__ = ["forest_figure", "heatmap", "heatmap_figure", "write_figures"]
@@ -44,7 +44,9 @@ def forest_figure(result: MismatchResult, metrics: Sequence[Metric] = METRICS):
     from stewart_env.agents.evaluation import new_figure
 
     meta = {m.key: m for m in metrics}
-    entries = list(dict.fromkeys((d.family, d.simplification, d.measure) for d in result.differences))
+    # the shares of the classical cost removed are ratios, not costs: in the tables only
+    shown = [d for d in result.differences if d.measure != SHARE_REMOVED]
+    entries = list(dict.fromkeys((d.family, d.simplification, d.measure) for d in shown))
     columns = 2
     fig = new_figure(figsize=(13.0, 1.4 + 0.3 * len(entries) * math.ceil(len(RANKING_METRICS) / columns)),
                      layout="constrained")
@@ -52,7 +54,7 @@ def forest_figure(result: MismatchResult, metrics: Sequence[Metric] = METRICS):
     y = {e: len(entries) - 1 - i for i, e in enumerate(entries)}
     for ax, key in zip(axes, RANKING_METRICS):
         factor = meta[key].factor
-        mine = [d for d in result.differences if d.metric == key]
+        mine = [d for d in shown if d.metric == key]
         magnitudes = [abs(v) * factor for d in mine for v in (d.interval.estimate, d.interval.low, d.interval.high)
                       if np.isfinite(v) and v != 0]
         ax.axvline(0.0, color="0.3", lw=0.8)

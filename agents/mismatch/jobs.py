@@ -42,20 +42,26 @@ def _load_agent(agent):
         return load_agent(tmp)
 
 
-def make_policy(kind: str, model: str, agent=None):
+def make_policy(kind: str, model: str, agent=None, platform: str | None = None):
     """A policy (or a factory env -> policy) for :func:`~stewart_env.agents.evaluation.evaluate`:
     the PD law with model ``model``'s holding forces, CT with internal model ``model``, or the
-    trained ``agent`` (a folder, or its files' bytes)."""
+    trained ``agent`` (a folder, or its files' bytes).  PD and CT are built on ``platform`` (a
+    platform name or config path) when given, on the plant's nominal platform otherwise."""
     if kind == "agent":
         return _load_agent(agent)
+    believed = None
+    if platform is not None:
+        from stewart_env.params import load_platform
+
+        believed = load_platform(platform)
     if kind == "ct":
         from stewart_env.agents.computed_torque import ComputedTorquePolicy
 
-        return lambda env: ComputedTorquePolicy(env, model)
+        return lambda env: ComputedTorquePolicy(env, model, platform=believed)
     if kind == "pd":
         from stewart_env.agents.pd import PDPolicy
 
-        return lambda env: PDPolicy(env, gravity_compensation=True, gravity_model=model)
+        return lambda env: PDPolicy(env, gravity_compensation=True, gravity_model=model, platform=believed)
     raise ValueError(f"kind: expected 'pd', 'ct' or 'agent', got {kind!r}")
 
 
@@ -64,7 +70,7 @@ def evaluate_job(spec: dict[str, Any], agent=None) -> dict[str, Any]:
     episode, and the episodes' terminations."""
     from stewart_env.agents.evaluation import METRICS, evaluate
 
-    policy = make_policy(spec["kind"], spec["design_model"], agent)
+    policy = make_policy(spec["kind"], spec["design_model"], agent, spec.get("design_platform"))
     result = evaluate(policy, {**spec["env_kwargs"], "model": spec["plant"], "task": spec["task"]},
                       episodes=spec["episodes"], seed=spec["eval_seed"], label=spec["controller"],
                       max_steps=spec["max_steps"], position_tolerance=spec["position_tolerance"],

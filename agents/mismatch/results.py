@@ -11,14 +11,17 @@ import numpy as np
 from stewart_env.agents.mismatch.constants import TRUE_MODEL
 from stewart_env.agents.statistics import Interval
 
-__all__ = ["COST", "DOUBLE_DIFFERENCE", "Difference", "MismatchResult", "Row"]
+__all__ = ["COST", "DOUBLE_DIFFERENCE", "SHARE_REMOVED", "Difference", "MismatchResult", "Row"]
 
 
 @dataclass
 class Row:
     """One controller of the study: its label, family ("PD", "CT" or the RL algorithm), the model
     it was designed or trained on, and for a learned row its training seeds and agent folders
-    (seed -> path).  ``kind`` is "pd", "ct" or "agent"; ``info`` a note for the tables."""
+    (seed -> path).  ``kind`` is "pd", "ct" or "agent"; ``info`` a note for the tables.
+    ``platform`` is the platform it was designed or trained on when that is not the study's (a
+    controller platform, e.g. an identified one: a name or a config's absolute path), and
+    ``platform_name`` its name in the row's label; None for the study's platform."""
 
     label: str
     family: str
@@ -28,12 +31,18 @@ class Row:
     agents: dict[int, Path] = field(default_factory=dict)
     info: str = ""
     randomized: bool = False
+    platform: str | None = None
+    platform_name: str | None = None
 
 
 #: The two measures of a simplification's cost: the cost itself, between the rows built on the
 #: simplified and on the exact model, both on the cost plant; and the double difference, each row's
 #: change from the simplified model's plant to the cost plant, the one row's minus the other's.
 COST, DOUBLE_DIFFERENCE = "cost", "double difference"
+#: The third measure, of a row built on the exact model's structure on a controller platform (e.g.
+#: an identified one): the share of the classical model's cost that it removes,
+#: [(classical row) - (this row)] / [(classical row) - (exact row)], all on the cost plant.
+SHARE_REMOVED = "share of classical cost removed"
 
 
 @dataclass

@@ -25,24 +25,44 @@ __all__ = ["build_rows", "config_env_kwargs", "finished_agent", "publish_agent",
 
 
 def build_rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequence[int], domain_randomization: bool,
-               platform: str, agent_models: Sequence[str] | None = None) -> list[Row]:
+               platform: str, agent_models: Sequence[str] | None = None,
+               controller_platforms: Sequence[tuple[str, str]] = (), platform_models: Sequence[str] = ()) -> list[Row]:
     """The study's controllers; learned rows (on ``agent_models``, default all ``models``) name
-    their agent folders (trained or not yet)."""
+    their agent folders (trained or not yet).  Each of ``controller_platforms`` (name, platform)
+    adds the rows of ``platform_models`` (those of ``agent_models`` for the learned rows) built on
+    it, labelled ``[model @ name]``."""
+    rows = _rows(out, models, algo, seeds, domain_randomization, platform, agent_models)
+    for name, other in controller_platforms:
+        learned = [m for m in platform_models if agent_models is None or m in agent_models]
+        rows += _rows(out, platform_models, algo, seeds, False, other, learned, name)
+    return rows
+
+
+def _rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequence[int], domain_randomization: bool,
+          platform: str, agent_models: Sequence[str] | None, platform_name: str | None = None) -> list[Row]:
+    """The rows of ``models`` built on ``platform``; ``platform_name`` None for the study's own."""
     from stewart_env.agents.evaluation import slug
 
+    def on(m: str) -> str:
+        return m if platform_name is None else f"{m} @ {platform_name}"
+
+    built = {} if platform_name is None else {"platform": platform, "platform_name": platform_name}
+    where = "" if platform_name is None else f", on platform {platform_name}"
     analytic = [m for m in models if closed_form(m, platform)]
-    rows = [Row(f"PD + gravity comp. [{m}]", "PD", m, "pd",
-                info="task-space PD, gravity compensation from this model's statics") for m in analytic]
-    rows += [Row(f"CT [{m}]", "CT", m, "ct", info="computed torque, this model's inverse dynamics") for m in analytic]
+    rows = [Row(f"PD + gravity comp. [{on(m)}]", "PD", m, "pd",
+                info=f"task-space PD, gravity compensation from this model's statics{where}", **built)
+            for m in analytic]
+    rows += [Row(f"CT [{on(m)}]", "CT", m, "ct", info=f"computed torque, this model's inverse dynamics{where}",
+                 **built) for m in analytic]
     if algo is None:
         return rows
     agent_models = models if agent_models is None else agent_models
     trainings = [(m, False) for m in agent_models] + ([("improved", True)] if domain_randomization else [])
     for m, randomized in trainings:
-        name = f"{m} + DR" if randomized else m
+        name = f"{m} + DR" if randomized else on(m)
         agents = {s: out / AGENTS_DIR / slug(name) / f"seed_{s}" for s in seeds}
         rows.append(Row(f"{algo.upper()} [{name}]", algo.upper(), m, "agent", tuple(seeds), agents,
-                        randomized=randomized))
+                        randomized=randomized, **built))
     return rows
 
 
@@ -50,6 +70,8 @@ def training_keywords(algo: str, row: Row, seed: int, env_kwargs: Mapping[str, A
                       n_envs: int | None, config: str | None = None) -> dict[str, Any]:
     """The keywords of :func:`~stewart_env.agents.training.train` for one agent of a learned row."""
     rest = dict(env_kwargs)
+    if row.platform is not None:  # trained on the platform the row is built on, e.g. an identified one
+        rest["platform"] = row.platform
     if row.randomized:
         rest["randomization"] = {k: list(v) for k, v in DEFAULT_RANDOMIZATION.items()}
     return dict(algo=algo, model=row.model, task=task, seed=seed, n_envs=n_envs, checkpoint_freq=0,

@@ -3,9 +3,11 @@ study's folder (its recorded settings, its own agents)."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -13,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
+from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE, slug
 from stewart_env.agents.mismatch.backends import check_backend
 from stewart_env.agents.mismatch.constants import (
     AGENTS_DIR,
@@ -60,6 +62,11 @@ class MismatchSettings:
         position_tolerance (m), orientation_tolerance (rad): the success band of the evaluation
             (:func:`~stewart_env.agents.evaluation.evaluate`), which decides the failed cells.
         cost_plant: the test plant the simplifications' costs are measured on.
+        controller_platforms: further platforms controllers are built on (e.g. an identified one),
+            each ``"NAME=PLATFORM"`` or ``"PLATFORM"`` (a platform name or config path; its name in
+            the rows then the shipped name or the file's stem); each adds the rows of every
+            training model built and trained on it, run on the plants of ``platform``.  Once
+            made, ((name, platform), ...), a config by its absolute path.
         hyperparameters: read from ``config`` when it is given (an edited file changes the agents).
     """
 
@@ -83,6 +90,7 @@ class MismatchSettings:
     position_tolerance: float = POSITION_TOLERANCE
     orientation_tolerance: float = ORIENTATION_TOLERANCE
     cost_plant: str = TRUE_MODEL
+    controller_platforms: Sequence[Any] = ()
     hyperparameters: Any = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -125,6 +133,14 @@ class MismatchSettings:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
                 raise MismatchError(f"{name}: expected a finite positive number, got {value!r}")
             set_(name, float(value))
+        set_("controller_platforms", _check_controller_platforms(self.controller_platforms))
+        # rows' cells and agents live in folders named by the slugs of their labels
+        own = {slug(m) for m in [*self.design_models, "improved + DR"]}
+        for name, _ in self.controller_platforms:
+            clash = [m for m in self.train_models if slug(f"{m} @ {name}") in own]
+            if clash:
+                raise MismatchError(f"controller platform: the name {name!r} makes the rows of {clash[0]} on it "
+                                    "share their files with another row's; name it otherwise with NAME=PLATFORM")
         env_kwargs = dict(self.env_kwargs or {})
         clash = [k for k in ("model", "task", "randomization", "platform") if k in env_kwargs]
         if clash:
@@ -159,6 +175,10 @@ class MismatchSettings:
                "n_envs": self.n_envs if self.algo else None}
         if self.config is not None:  # the hyperparameters themselves: an edited file changes the agents
             out["config"] = {"path": self.config, "hyperparameters": self.hyperparameters}
+        if self.controller_platforms:  # recorded only when given: studies without them resume as before
+            # a config's content too: an identification written again to the same file changes the rows
+            out["controller_platforms"] = [{"name": name, "platform": platform, "sha256": _file_hash(platform)}
+                                           for name, platform in self.controller_platforms]
         return out
 
 
@@ -218,6 +238,45 @@ def _check_platform(platform: str) -> str:
         raise MismatchError(f"platform: {err}") from None
     # a config file by its absolute path, so that a later run from elsewhere finds the same one
     return platform if Path(platform).suffix == "" and not Path(platform).exists() else str(Path(platform).resolve())
+
+
+#: What may name a controller platform in the rows' labels.
+_PLATFORM_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]*")
+
+
+def _check_controller_platforms(items: Sequence[Any]) -> tuple[tuple[str, str], ...]:
+    """((name, platform), ...) of the controller platforms: each loads, each name once."""
+    if isinstance(items, (str, bytes)):
+        raise MismatchError(f"controller platforms: expected a list of platforms, got {items!r}")
+    out: list[tuple[str, str]] = []
+    for item in items:
+        if isinstance(item, (tuple, list)) and len(item) == 2:
+            name, platform = item
+        elif isinstance(item, (str, os.PathLike)):
+            text = os.fspath(item)
+            head, sep, tail = text.partition("=")
+            name, platform = (head, tail) if sep and _PLATFORM_NAME.fullmatch(head) else (None, text)
+        else:
+            raise MismatchError(f"controller platform: expected NAME=PLATFORM or PLATFORM, got {item!r}")
+        try:
+            checked = _check_platform(str(platform))
+        except MismatchError as err:
+            raise MismatchError(f"controller {err}") from None
+        name = Path(checked).stem if name is None else name
+        if not isinstance(name, str) or not _PLATFORM_NAME.fullmatch(name):
+            raise MismatchError(f"controller platform: {name!r} cannot name a platform in the rows; give "
+                                "NAME=PLATFORM with NAME letters, digits and _.+-")
+        if slug(name) in (slug(n) for n, _ in out):  # the rows' files are named by the slug
+            raise MismatchError(f"controller platform: two platforms named {name!r}; name them apart with "
+                                "NAME=PLATFORM")
+        out.append((name, checked))
+    return tuple(out)
+
+
+def _file_hash(platform: str) -> str | None:
+    """The SHA-256 of a platform config file, None for a shipped platform's name."""
+    path = Path(platform)
+    return hashlib.sha256(path.read_bytes()).hexdigest() if path.is_absolute() and path.is_file() else None
 
 
 def changes(old: Mapping[str, Any], new: Mapping[str, Any]) -> list[str]:

@@ -59,7 +59,7 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
                  backend: str = "local", ray_address: str | None = None, agent_models: Sequence[str] | None = None,
                  config: str | os.PathLike | None = None, position_tolerance: float = POSITION_TOLERANCE,
                  orientation_tolerance: float = ORIENTATION_TOLERANCE, cost_plant: str = TRUE_MODEL,
-                 progress: bool = True) -> MismatchResult:
+                 controller_platforms: Sequence[Any] = (), progress: bool = True) -> MismatchResult:
     """Run the mismatch study and write it to ``out`` (see :mod:`stewart_env.agents.mismatch`).
 
     The arguments but ``out`` and ``progress`` are those of
@@ -79,7 +79,7 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
         episodes=episodes, seeds=seeds, domain_randomization=domain_randomization, simplifications=simplifications,
         env_kwargs=env_kwargs, n_envs=n_envs, max_steps=max_steps, platform=platform, backend=backend,
         ray_address=ray_address, agent_models=agent_models, config=config, position_tolerance=position_tolerance,
-        orientation_tolerance=orientation_tolerance, cost_plant=cost_plant)
+        orientation_tolerance=orientation_tolerance, cost_plant=cost_plant, controller_platforms=controller_platforms)
     return run_study(out, settings, progress=progress)
 
 
@@ -94,7 +94,8 @@ def run_study(out: str | Path, settings: MismatchSettings, progress: bool = True
         runner = make_backend(settings.backend, settings.ray_address)
         start = time.perf_counter()
         rows = build_rows(out, settings.design_models, settings.algo, settings.seeds, settings.domain_randomization,
-                          settings.platform, settings.agent_models)
+                          settings.platform, settings.agent_models, settings.controller_platforms,
+                          settings.train_models)
         try:
             run_jobs(runner, out, rows, settings, progress)
         finally:

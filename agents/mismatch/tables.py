@@ -20,7 +20,7 @@ from stewart_env.agents.mismatch.constants import (
     statistic,
 )
 from stewart_env.agents.mismatch.costs import PLANNING_BASES, seeds_needed
-from stewart_env.agents.mismatch.results import COST, DOUBLE_DIFFERENCE, Difference, MismatchResult
+from stewart_env.agents.mismatch.results import COST, DOUBLE_DIFFERENCE, SHARE_REMOVED, Difference, MismatchResult
 from stewart_env.agents.mismatch.settings import MismatchSettings
 from stewart_env.agents.statistics import Interval
 from stewart_env.files import publish, publishing
@@ -117,6 +117,32 @@ def _cost_lines(result: MismatchResult) -> list[str]:
                   "way; not ranked.", ""]
         for family in dict.fromkeys(d.family for d in doubles):
             lines += [f"### {family}", "", *_difference_table([d for d in doubles if d.family == family])]
+    return lines + _share_lines(result, plant)
+
+
+def _share_lines(result: MismatchResult, plant: str) -> list[str]:
+    """The markdown section of the shares of the classical model's cost that the rows built on a
+    controller platform (with the exact model's structure) remove."""
+    shares = [d for d in result.differences if d.measure == SHARE_REMOVED]
+    if not shares:
+        return []
+    lines = [f"## Share of the classical model's cost removed on the {plant} plant", "",
+             f"Each entry: [(controller built on the classical model) - (this one)] / [(controller built on the "
+             f"classical model) - (the same controller built on the {TRUE_MODEL} model)], all on the {plant} plant "
+             "and paired by episode, in per cent, with its 95 % interval: 100 % where the controller built on "
+             "this platform is as good as the one built on the plant's own model, 0 % where it is no better than "
+             "the classical one. Meaningful where the classical model's cost above is resolved.", ""]
+    for family in dict.fromkeys(d.family for d in shares):
+        mine = [d for d in shares if d.family == family]
+        lines += [f"### {family}", "", "| platform | " + _titles() + " |", "|---|" + "---|" * len(RANKING_METRICS)]
+        for name in dict.fromkeys(d.simplification for d in mine):
+            cells = []
+            for key in RANKING_METRICS:
+                d = next(x for x in mine if x.simplification == name and x.metric == key)
+                text = format_interval(d.interval, 100.0, ".3g")
+                cells.append(f"*failed* {text}" if d.failed else text)
+            lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        lines.append("")
     return lines
 
 

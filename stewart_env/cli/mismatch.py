@@ -74,7 +74,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="comma-separated plant models (default: classical,improved,improved_centroidal)")
     p.add_argument("--task", default="setpoint", choices=TASKS, help="task (default: setpoint)")
     p.add_argument("--platform", default="dasgupta1998", type=platform_name,
-                   help="platform name or config file (default: dasgupta1998)")
+                   help="platform name or config file: the plants' (the truth), and the controllers' but those of "
+                        "--controller-platform (default: dasgupta1998)")
+    p.add_argument("--controller-platform", action="append", default=[], metavar="[NAME=]PLATFORM",
+                   help="a further platform the controllers are built on (e.g. an identified platform.yaml), "
+                        "its rows labelled [model @ NAME] (default NAME: the config's name or file stem), run on "
+                        "--platform's plants; repeat for several")
     p.add_argument("--out", required=True, help="study directory")
     p.add_argument("--algo", default="ppo", choices=(*ALGORITHMS, "none"),
                    help="RL algorithm, or 'none' for the model-based rows only (default: ppo)")
@@ -135,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
                               agent_models=None if args.agent_models is None else name_list(args.agent_models),
                               config=args.config, position_tolerance=args.position_tolerance,
                               orientation_tolerance=args.orientation_tolerance, cost_plant=args.cost_plant,
-                              progress=not args.no_progress)
+                              controller_platforms=args.controller_platform, progress=not args.no_progress)
     except (BackendError, WriteError) as exc:
         print(f"stewart-env mismatch: error: {exc}{kept}", file=sys.stderr)
         return 1
