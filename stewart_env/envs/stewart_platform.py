@@ -39,7 +39,7 @@ def holding_action(env, position=None, rotation=None) -> np.ndarray:
     Examples:
         >>> import gymnasium as gym, numpy as np
         >>> from stewart_env.envs import holding_action
-        >>> env = gym.make("StewartPlatform-v0", task="hold", task_options={"max_payload": 0.0})
+        >>> env = gym.make("StewartPlatform-v1", task="hold", task_options={"max_payload": 0.0})
         >>> _ = env.reset(seed=0)
         >>> for _ in range(10):
         ...     observation, reward, terminated, truncated, info = env.step(holding_action(env))
@@ -318,7 +318,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     ```pycon
     >>> import gymnasium as gym, numpy as np
-    >>> env = gym.make("StewartPlatform-v0", task="setpoint")
+    >>> env = gym.make("StewartPlatform-v1", task="setpoint")
     >>> observation, info = env.reset(seed=0)
     >>> observation.shape, env.action_space.shape
     ((21,), (6,))
