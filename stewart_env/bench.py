@@ -1,6 +1,6 @@
 """Benchmark of the compiled core (and, with ``--env``, of the environments).
 
-    stewart-env bench            # or: python -m stewart_env.bench
+    stewart-env bench
 
 For each model: forward-dynamics evaluations per second at N = 1 and N = 1024 platforms, through
 ``Dynamics.forward`` (argument checks included) and through the compiled kernel alone; and
@@ -444,9 +444,3 @@ def run_bench(platform: str = "dasgupta1998", models: str = ",".join(MODEL_NAMES
         print()
         print(f"MuJoCo {require_mujoco().__version__} on the same mechanism (stewart_env.mujoco), platform at rest at home:")
         print(mujoco_table(bench_mujoco(params)))
-
-
-if __name__ == "__main__":  # python -m stewart_env.bench: the command line's bench verb
-    from stewart_env.cli import main
-
-    raise SystemExit(main(["bench", *sys.argv[1:]]))

@@ -359,8 +359,7 @@ def test_config_by_an_unknown_name_lists_the_shipped_ones(tmp_path, capsys):
     assert "ppo, ppo_integral, sac, td3" in err
 
 
-@pytest.mark.parametrize("module, usage", [("stewart_env.bench", "usage: stewart-env bench"),
-                                           ("stewart_env.mujoco", "usage: python -m stewart_env.mujoco"),
+@pytest.mark.parametrize("module, usage", [("stewart_env.mujoco", "usage: python -m stewart_env.mujoco"),
                                            ("stewart_env.cli", "usage: stewart-env [-h]")])
 def test_the_modules_run_with_python_m_go_through_the_command_line(module, usage):
     done = subprocess.run([sys.executable, "-m", module, "--help"], capture_output=True, text=True, timeout=120)
@@ -369,7 +368,6 @@ def test_the_modules_run_with_python_m_go_through_the_command_line(module, usage
 
 
 # -- the command line: the MuJoCo plant, the study's flags, missing extras, every verb's help ---
-
 
 
 def test_evaluate_runs_controllers_on_the_mujoco_plant(capsys):
