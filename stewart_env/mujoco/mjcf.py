@@ -51,7 +51,7 @@ DEFAULT_SOLREF = (0.002, 1.0)
 #: d = 0.9999, the largest MuJoCo allows, left an error of 5.1e-4 (m/s^2, rad/s^2) on
 #: dasgupta1998 (:func:`~stewart_env.mujoco.acceleration_error`, the platform accelerating at about 0.1 g; 5.1e-2 at
 #: d = 0.99 and 0.53 at MuJoCo's default 0.9): the error scales with 1 - d and stays below
-#: g (1 - d) / d on both shipped platforms (tests/mujoco/test_mujoco.py).
+#: g (1 - d) / d on both shipped platforms (tests/twin/test_mujoco.py).
 DEFAULT_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 
 #: The longest MuJoCo step :func:`to_mjcf` writes, s: beyond it RK4 on a mechanism whose legs swing

@@ -18,7 +18,9 @@ import pytest
 import yaml
 
 # PPO runs here are rollouts of 2 platforms x 16 steps, smaller than any sensible minibatch on purpose.
-pytestmark = pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning")
+# Every test here trains or loads an agent: stable-baselines3 and torch (the rl extra).
+pytestmark = [pytest.mark.extra("rl"),
+              pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning")]
 
 import stewart_env  # noqa: E402,F401  (registers the environment)
 from stewart_env.agents import training  # noqa: E402

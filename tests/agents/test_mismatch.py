@@ -279,6 +279,7 @@ def test_cli_rejects_bad_flag_values(tmp_path, capsys, flag, value, message):
     assert message in capsys.readouterr().err
 
 
+@pytest.mark.extra("rl")
 def test_cli_reports_a_failed_cluster_and_how_to_continue(tmp_path, capsys, monkeypatch):
     def lost(*args, **kwargs):
         raise mismatch.BackendError("the Ray cluster failed: LocalRayletDiedError: The task's local raylet died")
@@ -549,6 +550,7 @@ def test_agent_models_pick_the_learned_rows(tmp_path):
     assert agent.seeds == (0, 3) and agent.agents[3] == tmp_path / "agents" / "improved" / "seed_3"
 
 
+@pytest.mark.extra("rl")
 def test_config_file_is_part_of_the_study(tmp_path):
     """The agents' hyperparameters go into study.json; a bad config fails before any work."""
     from stewart_env.agents.training import config_path

@@ -88,6 +88,7 @@ def test_ct_on_an_identified_platform_is_compared_on_the_truth_s_plant(tmp_path,
     assert [(p["name"], p["platform"]) for p in recorded] == [("identified", str(identified)), ("nominal", str(nominal))]
 
 
+@pytest.mark.extra("rl")
 def test_resuming_with_another_controller_platform_is_refused(tmp_path, platforms):
     truth, identified, nominal = platforms
     out = tmp_path / "study"

@@ -14,7 +14,9 @@ import pytest
 import yaml
 
 # PPO runs here are a rollout or two of 2 platforms, smaller than the config's minibatch on purpose.
-pytestmark = pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning")
+# Every test here trains or loads an agent: stable-baselines3 and torch (the rl extra).
+pytestmark = [pytest.mark.extra("rl"),
+              pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning")]
 
 import stewart_env  # noqa: E402,F401  (registers the environment)
 from stewart_env.agents import training  # noqa: E402

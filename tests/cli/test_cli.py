@@ -70,6 +70,7 @@ def test_evaluate_writes_a_report(tmp_path, capsys):
     assert (tmp_path / "error_norms.png").exists()
 
 
+@pytest.mark.extra("rl")
 @pytest.mark.filterwarnings("ignore:You have specified a mini-batch size")  # the config's batch, our tiny run
 def test_evaluate_a_trained_agent_beside_a_baseline(tmp_path, capsys):
     from stewart_env.agents.training import train
@@ -119,7 +120,8 @@ def test_commands_that_need_stable_baselines3_say_which_extra_before_writing(arg
 
 
 @pytest.mark.parametrize("argv", [
-    ["demo"], ["evaluate"], ["reproduce"], ["train", "--algo", "ppo"], ["mismatch", "--algo", "none"],
+    ["demo"], ["evaluate"], ["reproduce"], pytest.param(["train", "--algo", "ppo"], marks=pytest.mark.extra("rl")),
+    ["mismatch", "--algo", "none"],
 ])
 def test_unwritable_out_is_refused_before_any_work(argv, tmp_path, capsys):
     blocker = tmp_path / "file"
@@ -172,6 +174,7 @@ def test_bad_flag_values_are_argparse_errors_naming_the_flag(argv, flag, tmp_pat
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.extra("rl")
 def test_train_cli_says_how_many_steps_it_ran(tmp_path, capsys):
     config = tmp_path / "ppo.yml"
     config.write_text("StewartPlatform-v1:\n  n_timesteps: 1000\n  policy: MlpPolicy\n  n_envs: 2\n  n_steps: 16\n"

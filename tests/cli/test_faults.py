@@ -111,6 +111,7 @@ def test_a_locked_folder_is_refused_naming_the_holder_and_released_when_it_dies(
                 pass
 
 
+@pytest.mark.extra("rl")
 def test_train_on_a_locked_folder_touches_nothing(held):
     folder, pid = held
     before = snapshot(folder)
@@ -121,6 +122,7 @@ def test_train_on_a_locked_folder_touches_nothing(held):
     assert snapshot(folder) == before
 
 
+@pytest.mark.extra("rl")
 @pytest.mark.parametrize("command", [
     ["train", "--algo", "ppo", "--timesteps", "10", "--no-progress"],
     ["train", "--algo", "ppo", "--timesteps", "10", "--resume", "--no-progress"],
@@ -262,6 +264,7 @@ def _full_disk_at_checkpoint(monkeypatch, failing_step: int) -> None:
     monkeypatch.setattr(rundir, "agent_file_writers", failing)
 
 
+@pytest.mark.extra("rl")
 def test_a_full_disk_during_a_checkpoint_is_one_line_and_resume_continues(tmp_path, monkeypatch, capsys):
     out, config = tmp_path / "run", tiny_config(tmp_path / "ppo.yml")
     _full_disk_at_checkpoint(monkeypatch, 64)
@@ -281,6 +284,7 @@ def test_a_full_disk_during_a_checkpoint_is_one_line_and_resume_continues(tmp_pa
     assert resumed.num_timesteps == 64 and load_agent(out).num_timesteps == 64
 
 
+@pytest.mark.extra("rl")
 def test_a_full_disk_at_the_final_save_keeps_the_checkpoint_and_resume_continues(tmp_path, monkeypatch):
     out, config = tmp_path / "run", tiny_config(tmp_path / "ppo.yml")
     train("ppo", out, timesteps=32, checkpoint_freq=32, config=config, progress_bar=False)
@@ -379,6 +383,7 @@ PROBLEM = {"fifo": "not a regular file (a FIFO, socket or device)", "zero": "not
            "device)", "directory": "a directory, not a"}
 
 
+@pytest.mark.extra("rl")
 @pytest.mark.parametrize("kind", ["fifo", "zero", "directory"])
 @pytest.mark.parametrize("name", ["run.json", "model.zip", "vecnormalize.pkl"])
 def test_special_files_in_an_agent_folder_are_refused_at_once(tiny_run, tmp_path, name, kind, capsys):
@@ -392,6 +397,7 @@ def test_special_files_in_an_agent_folder_are_refused_at_once(tiny_run, tmp_path
     assert capsys.readouterr().err.strip().splitlines()[-1] == f"stewart-env evaluate: error: {error}"
 
 
+@pytest.mark.extra("rl")
 @pytest.mark.parametrize("kind", ["fifo", "zero", "directory"])
 def test_special_files_in_a_checkpoint_are_passed_over_when_resuming(tiny_run, tmp_path, kind):
     run = copy_run(tiny_run, tmp_path / "run")
@@ -406,6 +412,7 @@ def test_special_files_in_a_checkpoint_are_passed_over_when_resuming(tiny_run, t
     assert said[2:] == ["resuming from checkpoints/step_32 (32 steps)"]
 
 
+@pytest.mark.extra("rl")
 def test_oversized_run_manifest_is_refused_before_reading(tiny_run, tmp_path):
     run = copy_run(tiny_run, tmp_path / "run")
     with open(run / "run.json", "r+b") as f:
@@ -446,6 +453,7 @@ def test_a_huge_hyperparameter_file_is_refused_before_it_is_read(tmp_path):
         training.read_hyperparameters("ppo", config)
 
 
+@pytest.mark.extra("rl")
 def test_a_start_killed_in_its_first_write_does_not_block_a_new_start(tmp_path):
     out = tmp_path / "run"
     out.mkdir()
