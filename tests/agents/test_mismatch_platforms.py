@@ -18,7 +18,7 @@ from stewart_env.agents.mismatch import MismatchError, MismatchSettings, run_mis
 from stewart_env.agents.mismatch.rows import build_rows, training_keywords
 from stewart_env.agents.statistics import share_removed
 
-CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs" / "platforms"
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs" / "platforms"
 # CT only, on the truth's plant: 2 episodes of 40 steps per cell
 TINY = dict(train_models=["classical", "improved"], test_models=["improved"], task="tracking", algo=None,
             simplifications=(), episodes=2, max_steps=40, progress=False)
