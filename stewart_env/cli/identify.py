@@ -17,7 +17,7 @@ import sys
 import time
 
 from stewart_env.cli.arguments import nonnegative_int, platform_name, positive_float, positive_int
-from stewart_env.cli.common import check_extras, error
+from stewart_env.cli.common import error
 
 VERB = "identify"
 
@@ -94,16 +94,14 @@ def run(args: argparse.Namespace) -> int:
     from stewart_env.identification import experiment
     from stewart_env.params import load_platform
 
-    if missing := check_extras([("mujoco", "--plant mujoco")] if args.plant == "mujoco" else []):
-        return error(VERB, missing)
     start = time.perf_counter()
     try:
-        check_writable(args.out, create=False)
         settings = experiment.Settings(
             plant=args.plant, model=args.model, excitation=args.excitation, duration=args.duration,
             noise_position=args.noise_position, noise_angle=args.noise_angle, noise_force=args.noise_force,
             perturb=args.perturb, derivatives=args.derivatives, seed=args.seed, period=args.period,
             max_iterations=args.iterations)
+        check_writable(args.out, create=False)
         result = experiment.run(settings, load_platform(args.platform))
         folder = experiment.write(result, args.out)
     except ValueError as err:  # IdentificationError, a busy or unwritable --out: the message names the cause

@@ -306,7 +306,8 @@ def _without(module: str, argv: list[str]) -> subprocess.CompletedProcess:
 
 @pytest.mark.parametrize("module, argv, extra", [
     ("mujoco", ["evaluate", "--model", "mujoco", "--episodes", "1"], "mujoco"),
-    ("mujoco", ["train", "--algo", "ppo", "--model", "mujoco", "--out", "OUT"], "mujoco"),
+    pytest.param("mujoco", ["train", "--algo", "ppo", "--model", "mujoco", "--out", "OUT"], "mujoco",
+                 marks=pytest.mark.extra("rl")),  # without rl, train names that extra first
     ("mujoco", ["bench", "--mujoco"], "mujoco"),
     ("mujoco", ["export-mjcf", "--platform", "dasgupta1998", "--out", "OUT/m.xml"], "mujoco"),
     ("stable_baselines3", ["evaluate", "--agent", "OUT"], "rl"),

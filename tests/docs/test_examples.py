@@ -91,6 +91,7 @@ def examples_in(modules) -> set[tuple[str, int]]:
             if test.examples}
 
 
+@pytest.mark.extra("rl")  # the scan imports every public module, the SB3 vector env's too
 def test_every_example_of_the_public_modules_is_listed():
     modules = [importlib.import_module(name) for name in LISTED_MODULES]
     for package in LISTED_PACKAGES:
