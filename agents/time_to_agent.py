@@ -41,10 +41,10 @@ import numpy as np
 
 from stewart_env.agents.evaluation import curve_style, evaluate, new_figure
 from stewart_env.agents.training import (
-    CONFIG_DIR,
     TrainedAgent,
     TrainingError,
     algorithm_class,
+    config_path,
     jsonable,
     make_training_env,
     parse_hyperparameters,
@@ -53,7 +53,7 @@ from stewart_env.agents.training import (
 )
 from stewart_env.files import LOCK_FILE, TMP_PREFIX, lock_folder, publish, publishing
 from stewart_env.progress import on_terminal, progress
-from stewart_env.validation import MAX_SEED
+from stewart_env.validation import MAX_SEED, real
 
 __all__ = ["EVALUATION_SEED", "FILES", "Point", "SeedResult", "TimeToAgentError", "TimeToAgentResult",
            "learning_curve_figure", "resolve_config", "summary_table", "time_to_agent", "write_files"]
@@ -153,30 +153,20 @@ class TimeToAgentResult:
 
 
 def resolve_config(algo: str, config: str | os.PathLike | None) -> Path:
-    """The hyperparameter file: ``config`` as a path if it is a file, else the shipped
-    configs/agents/<config>.yml, else configs/agents/<algo>.yml when ``config`` is None."""
-    if config is None:
-        return CONFIG_DIR / f"{algo}.yml"
-    path = Path(config)
-    if path.is_file():
-        return path
-    shipped = CONFIG_DIR / f"{config}.yml"
-    if os.sep not in str(config) and shipped.is_file():
-        return shipped
-    names = ", ".join(sorted(p.stem for p in CONFIG_DIR.glob("*.yml")))
-    raise TimeToAgentError(f"config: no such file or shipped config {str(config)!r} (shipped: {names})")
+    """The hyperparameter file, found as ``stewart-env train`` finds it
+    (:func:`stewart_env.agents.training.config_path`: a path, or a shipped config's name)."""
+    try:
+        return config_path(algo, config)
+    except TrainingError as err:
+        raise TimeToAgentError(f"config: {err}") from None
 
 
 def _number(name: str, value: Any, low: float, high: float = math.inf, low_open: bool = False) -> float:
+    """``value`` checked by the package's one number check, as this module's error."""
     try:
-        x = float(value)
-    except (TypeError, ValueError):
-        x = math.nan
-    if isinstance(value, bool) or not math.isfinite(x) or x < low or (low_open and x == low) or x > high:
-        bound = f"> {low:g}" if low_open else f">= {low:g}"
-        upper = "" if high == math.inf else f" and <= {high:g}"
-        raise TimeToAgentError(f"{name}: expected a finite number {bound}{upper}, got {value!r}")
-    return x
+        return real(name, value, low, high, low_open=low_open)
+    except ValueError as err:
+        raise TimeToAgentError(str(err)) from None
 
 
 def _seeds(seeds: Sequence[int]) -> list[int]:

@@ -90,3 +90,28 @@ def headless(monkeypatch):
     """No display, as on CI and servers: human rendering must warn once and draw nothing."""
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+
+
+@pytest.fixture(scope="module")
+def model(dasgupta):
+    """The improved model of the example platform."""
+    return se.make_dynamics("improved", dasgupta)
+
+
+@pytest.fixture
+def home(model):
+    """The home pose (position, rotation) and a zero rate."""
+    ws = model.workspace(1)
+    return ws.position[0].copy(), ws.rotation[0].copy(), np.zeros(3)
+
+
+@pytest.fixture
+def make():
+    """``make(**kwargs)``: ``gymnasium.make("StewartPlatform-v1", **kwargs)``, reset with seed 0."""
+    gym = pytest.importorskip("gymnasium")
+
+    def make(**kwargs):
+        env = gym.make("StewartPlatform-v1", **kwargs)
+        env.reset(seed=0)
+        return env
+    return make

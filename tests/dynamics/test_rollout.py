@@ -350,18 +350,6 @@ def test_a_law_declaring_its_row_length_refuses_other_rows(batch):
 # -- rollout with a control law: what is not a compiled law, bad parameters --------------------
 
 
-@pytest.fixture(scope="module")
-def model(dasgupta):
-    return se.make_dynamics("improved", dasgupta)
-
-
-@pytest.fixture
-def home(model):
-    """The home pose (position, rotation) and a zero rate."""
-    ws = model.workspace(1)
-    return ws.position[0].copy(), ws.rotation[0].copy(), np.zeros(3)
-
-
 def _wrong_signature(time, position):
     pass
 

@@ -181,18 +181,6 @@ def test_complex_arguments_are_refused_naming_the_argument(dasgupta):
 # -- the Workspace as an outside user meets it: bad arguments named, copies independent --------
 
 
-@pytest.fixture(scope="module")
-def model(dasgupta):
-    return se.make_dynamics("improved", dasgupta)
-
-
-@pytest.fixture
-def home(model):
-    """The home pose (position, rotation) and a zero rate."""
-    ws = model.workspace(1)
-    return ws.position[0].copy(), ws.rotation[0].copy(), np.zeros(3)
-
-
 @pytest.mark.parametrize("n", [0, -1, True, 1.0, 2.5, "2", None, np.float64(2.0)])
 def test_workspace_refuses_a_batch_size_that_is_not_a_positive_integer(model, n):
     with pytest.raises(ValueError, match=r"^n: "):

@@ -511,17 +511,6 @@ def test_hold_options_are_checked(dasgupta):
 # -- the environment's keywords for the tasks --------------------------------------------------
 
 
-@pytest.fixture
-def make():
-    gym = pytest.importorskip("gymnasium")
-
-    def make(**kwargs):
-        env = gym.make("StewartPlatform-v1", **kwargs)
-        env.reset(seed=0)
-        return env
-    return make
-
-
 @pytest.mark.parametrize("name", ["termination_cost", "ctrl_cost_weight", "position_reward_scale"])
 def test_old_reward_keywords_say_they_moved_to_task_options(make, name):
     with pytest.raises(TypeError, match=rf"the reward weights are options of the task: pass task_options=\{{'{name}'"):

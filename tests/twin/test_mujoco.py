@@ -246,17 +246,6 @@ def test_plant_copies_and_pickles_continue_bit_for_bit(dasgupta):
 from stewart_env.cli import main  # noqa: E402
 
 
-@pytest.fixture
-def make():
-    gym = pytest.importorskip("gymnasium")
-
-    def make(**kwargs):
-        env = gym.make("StewartPlatform-v1", **kwargs)
-        env.reset(seed=0)
-        return env
-    return make
-
-
 def test_export_mjcf_writes_a_model_mujoco_loads_into_a_new_folder(tmp_path, capsys):
     mujoco = pytest.importorskip("mujoco")
     out = tmp_path / "missing" / "folder" / "x.xml"
