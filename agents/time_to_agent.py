@@ -154,7 +154,7 @@ class TimeToAgentResult:
 
 def resolve_config(algo: str, config: str | os.PathLike | None) -> Path:
     """The hyperparameter file, found as ``stewart-env train`` finds it
-    (:func:`stewart_env.agents.training.config_path`: a path, or a shipped config's name)."""
+    (``stewart_env.agents.training.config_path``: a path, or a shipped config's name)."""
     try:
         return config_path(algo, config)
     except TrainingError as err:
