@@ -36,6 +36,8 @@ nonnegative_int = checked(int, lambda v: v >= 0, "an integer >= 0",
                            "argparse type: an integer >= 0 (seeds, step counts that may be 0).")
 positive_float = checked(float, lambda v: v > 0 and math.isfinite(v), "a finite positive number",
                           "argparse type: a finite number > 0.")
+nonnegative_float = checked(float, lambda v: v >= 0 and math.isfinite(v), "a finite number >= 0",
+                             "argparse type: a finite number >= 0 (noise levels, targets that may be 0).")
 
 
 def existing_file(text: str) -> str:

@@ -16,7 +16,7 @@ import argparse
 import sys
 import time
 
-from stewart_env.cli.arguments import nonnegative_int, platform_name, positive_float, positive_int
+from stewart_env.cli.arguments import nonnegative_float, nonnegative_int, platform_name, positive_float, positive_int
 from stewart_env.cli.common import error
 
 VERB = "identify"
@@ -41,15 +41,6 @@ def _model(text: str) -> str:
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """Add the ``identify`` subcommand to ``subparsers``."""
-    def nonnegative_float(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-        if not (value >= 0 and value < float("inf")):
-            raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
-        return value
-
     p = subparsers.add_parser(
         VERB, help="identify a platform's inertial and friction parameters on a stand-in plant",
         description="Drive a plant along an excitation trajectory (a finite Fourier series in task space, "

@@ -7,10 +7,9 @@ the target was reached: the table says), 1 stopped by a failing write (the point
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 
-from stewart_env.cli.arguments import TASKS, checked, positive_float, positive_int
+from stewart_env.cli.arguments import TASKS, checked, nonnegative_float, positive_float, positive_int
 from stewart_env.agents.time_to_agent import SeedResult, resolve_config, summary_table, time_to_agent
 from stewart_env.agents.training import ALGORITHMS, TrainingError
 from stewart_env.files import WriteError
@@ -19,8 +18,6 @@ from stewart_env.cli.mismatch import seed_list
 __all__ = ["add_parser", "run"]
 
 fraction = checked(float, lambda v: 0 <= v <= 1, "a number in [0, 1]", "argparse type: a fraction in [0, 1].")
-nonnegative_float = checked(float, lambda v: v >= 0 and math.isfinite(v), "a finite number >= 0",
-                             "argparse type: a finite number >= 0.")
 
 
 VERB = "time-to-agent"
