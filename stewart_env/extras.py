@@ -22,7 +22,7 @@ __all__ = ["EXTRAS", "MissingExtra", "extra_of", "install_hint", "missing", "req
 
 #: Every optional extra and the top-level modules it installs that the package imports.
 EXTRAS: dict[str, tuple[str, ...]] = {
-    "rl": ("torch", "stable_baselines3"),
+    "rl": ("torch", "stable_baselines3", "sb3_contrib"),
     "mujoco": ("mujoco",),
     "distributed": ("ray",),
     "laws": ("numba",),

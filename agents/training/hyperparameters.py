@@ -1,6 +1,6 @@
 """The hyperparameters: rl-baselines3-zoo's YAML format, read and split as rl_zoo3 splits it.
 
-Hyperparameters come from ``configs/agents/{ppo,sac,td3}.yml`` in rl-baselines3-zoo's format,
+Hyperparameters come from ``configs/agents/<algo>.yml`` in rl-baselines3-zoo's format,
 keyed by the environment id, so the same files drive ``python -m rl_zoo3.train``.  The file is
 read with the package's bounded reader of regular files (:func:`stewart_env.files.read_regular`).
 The zoo's string-valued entries (``policy_kwargs: "dict(net_arch=[64, 64])"``) are read by a
@@ -26,13 +26,15 @@ from stewart_env.params import MAX_CONFIG_BYTES, config_dir
 from stewart_env.registration import ENV_ID
 from stewart_env.validation import integer
 
-__all__ = ["ACTIVATIONS", "ALGORITHMS", "CONFIG_DIR", "MAX_COUNT", "OFF_POLICY", "ZOO_EVALUATED_KEYS",
+__all__ = ["ACTIVATIONS", "ALGORITHMS", "CONFIG_DIR", "CONTRIB", "MAX_COUNT", "OFF_POLICY", "ZOO_EVALUATED_KEYS",
            "ZOO_KEYS_HANDLED", "ZOO_KEYS_ZOO_ONLY", "ZOO_SCHEDULE_KEYS", "Hyperparameters", "algorithm_class",
            "check_count", "check_hyperparameter_names", "config_path", "parse_hyperparameters", "read_hyperparameters",
            "shipped_configs", "zoo_eval"]
 
-ALGORITHMS = ("ppo", "sac", "td3")
-OFF_POLICY = ("sac", "td3")
+ALGORITHMS = ("ppo", "sac", "td3", "tqc", "crossq")
+OFF_POLICY = ("sac", "td3", "tqc", "crossq")
+#: The algorithms of sb3-contrib (the rest are stable-baselines3's).
+CONTRIB = ("tqc", "crossq")
 #: Where the zoo-format hyperparameter files live: configs/agents, shipped as stewart_env.configs.
 CONFIG_DIR = config_dir("agents")
 
@@ -58,9 +60,10 @@ def algorithm_class(algo: str):
     if algo not in ALGORITHMS:
         raise TrainingError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGORITHMS)}")
     check_rl_installed()
-    import stable_baselines3
+    import importlib
 
-    return getattr(stable_baselines3, algo.upper())
+    library = importlib.import_module("sb3_contrib" if algo in CONTRIB else "stable_baselines3")
+    return getattr(library, {"crossq": "CrossQ"}.get(algo, algo.upper()))
 
 
 def shipped_configs() -> list[str]:

@@ -39,12 +39,6 @@ ZOO_OWN_KEYS = {"n_timesteps", "policy", "normalize", "n_envs", "frame_stack", "
                 "callback", "env_kwargs", "monitor_kwargs", "noise_type", "noise_std"}
 
 
-def _algorithm(algo):
-    import stable_baselines3
-
-    return getattr(stable_baselines3, algo.upper())
-
-
 #: every shipped hyperparameter file and the algorithm it configures
 CONFIGS = [(algo, f"{algo}.yml") for algo in ALGORITHMS] + [("ppo", "ppo_integral.yml")]
 
@@ -57,7 +51,7 @@ def test_zoo_config_names_only_valid_hyperparameters(algo, name):
         entries = yaml.safe_load(f)
     assert list(entries) == [ENV_ID]
     entry = entries[ENV_ID]
-    valid = set(inspect.signature(_algorithm(algo).__init__).parameters) - {"self", "env"}
+    valid = set(inspect.signature(training.algorithm_class(algo).__init__).parameters) - {"self", "env"}
     assert not set(entry) - valid - ZOO_OWN_KEYS, "keys neither the zoo's nor the algorithm's"
     for key in ("n_timesteps", "policy", "n_envs", "normalize"):
         assert key in entry
@@ -79,7 +73,7 @@ def test_zoo_config_builds_the_algorithm(algo, name):
     if "buffer_size" in kwargs:
         kwargs["buffer_size"] = 1000  # the construction is the check, not the allocation
     try:
-        model = _algorithm(algo)(env=env, device="cpu", **kwargs)
+        model = training.algorithm_class(algo)(env=env, device="cpu", **kwargs)
         assert model.n_envs == 2
     finally:
         env.close()

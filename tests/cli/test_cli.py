@@ -360,7 +360,7 @@ def test_config_by_an_unknown_name_lists_the_shipped_ones(tmp_path, capsys):
     assert stop.value.code == 2
     err = capsys.readouterr().err
     assert "argument --config: hyperparameter file not found: ppo_fast" in err
-    assert "ppo, ppo_integral, sac, td3" in err
+    assert "crossq, ppo, ppo_integral, sac, td3, tqc" in err
 
 
 @pytest.mark.parametrize("module, usage", [("stewart_env.mujoco", "usage: python -m stewart_env.mujoco"),
