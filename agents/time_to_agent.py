@@ -22,7 +22,9 @@ The learning-rate schedule of a ``lin_<x>`` config anneals over the config's ``n
 Files in ``out`` (locked while written, each published atomically, rewritten after every point,
 with training paused and the writing left out of the clock, so a run stopped keeps every point
 taken): ``time_to_agent.json`` (settings, every seed's points and throughputs, the summary), ``points.csv`` (one row per point), ``summary.md`` (the table
-of :func:`summary_table`) and ``learning_curve.png`` (:func:`learning_curve_figure`).
+of :func:`summary_table`) and ``learning_curve.png`` (:func:`learning_curve_figure`); and each
+finished seed's agent, the policy of its last point, as a run of ``stewart-env train`` in
+``agents/seed_<seed>`` (``stewart-env evaluate --agent`` loads it).
 """
 
 from __future__ import annotations
@@ -49,13 +51,15 @@ from stewart_env.agents.training import (
     make_training_env,
     parse_hyperparameters,
     read_hyperparameters,
+    run_manifest,
+    save_agent,
     single_thread,
 )
 from stewart_env.files import LOCK_FILE, TMP_PREFIX, lock_folder, publish, publishing
 from stewart_env.progress import on_terminal, progress
 from stewart_env.validation import MAX_SEED, real
 
-__all__ = ["EVALUATION_SEED", "FILES", "Point", "SeedResult", "TimeToAgentError", "TimeToAgentResult",
+__all__ = ["AGENTS_DIR", "EVALUATION_SEED", "FILES", "Point", "SeedResult", "TimeToAgentError", "TimeToAgentResult",
            "learning_curve_figure", "resolve_config", "summary_table", "time_to_agent", "write_files"]
 
 #: Seed of the first held-out evaluation episode.  Training rows are seeded seed + i with
@@ -63,6 +67,8 @@ __all__ = ["EVALUATION_SEED", "FILES", "Point", "SeedResult", "TimeToAgentError"
 EVALUATION_SEED = 2**40
 #: The files written into ``out``.
 FILES = {"json": "time_to_agent.json", "csv": "points.csv", "markdown": "summary.md", "png": "learning_curve.png"}
+#: The folder of ``out`` that holds each seed's agent, ``agents/seed_<seed>``.
+AGENTS_DIR = "agents"
 
 
 class TimeToAgentError(TrainingError):
@@ -232,9 +238,11 @@ def _timer_callback(clock: Callable[[], float], on_point: Callable[[], bool]):
 
 
 def _run_seed(cls, algo, hp, env_kwargs, seed, n_envs, *, target_success, target_error, budget, interval,
-              episodes, bar, publish_point: Callable[[SeedResult], None]) -> SeedResult:
+              episodes, bar, publish_point: Callable[[SeedResult], None], agent_dir: Path, config: str) -> SeedResult:
     """Train one seed until the target or the budget; the points and throughputs of the run.
-    ``publish_point`` gets the seed's result so far after every point (training paused)."""
+    ``publish_point`` gets the seed's result so far after every point (training paused).  The
+    policy of the last point, the one that met the target if one did, is saved into ``agent_dir``
+    as a run of ``stewart-env train`` (``evaluate --agent`` loads it)."""
     result = SeedResult(seed)
     paused = {"evaluation": 0.0, "writing": 0.0}
 
@@ -276,9 +284,16 @@ def _run_seed(cls, algo, hp, env_kwargs, seed, n_envs, *, target_success, target
             begin = time.perf_counter()
             take_times()
             result.training_time, result.total_steps = now, point.steps
+            last = force or reached or now >= budget
+            if last:  # the policy as evaluated: after this point SB3 steps the batch (and its statistics) once more
+                segment = {"start": 0, "end": point.steps, "wall_time": now, "interrupted": False}
+                save_agent(agent, agent_dir, run_manifest(
+                    algo=algo, seed=seed, n_envs=n_envs, env_kwargs=jsonable(env_kwargs), config=config,
+                    hyperparameters=jsonable(hp.raw), normalize=hp.normalize is not None, num_timesteps=point.steps,
+                    segments=[segment], finished=True, files={}))
             publish_point(result)
             paused["writing"] += time.perf_counter() - begin
-            return reached or now >= budget
+            return last
 
         timer = _timer_callback(clock, on_point)
         start = time.perf_counter()
@@ -379,7 +394,8 @@ def time_to_agent(algo: str, out: str | os.PathLike, *, config: str | os.PathLik
                                      target_error=target_error_mm, budget=budget, interval=interval,
                                      episodes=int(episodes), bar=bar,
                                      publish_point=lambda partial: write_files(
-                                         TimeToAgentResult(settings, [*result.seeds, partial]), folder))
+                                         TimeToAgentResult(settings, [*result.seeds, partial]), folder),
+                                     agent_dir=folder / AGENTS_DIR / f"seed_{seed}", config=str(cfg))
                 result.seeds.append(done)
                 result.files = write_files(result, folder)
                 if report is not None:

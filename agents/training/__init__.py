@@ -55,6 +55,8 @@ from stewart_env.agents.training.rundir import (
     log_progress,
     newest_checkpoint,
     read_manifest,
+    run_manifest,
+    save_agent,
     save_checkpoint,
 )
 from stewart_env.agents.training.trainer import TrainResult, rollout_steps, run_changes, train
@@ -69,5 +71,5 @@ __all__ = [
     "TrainingError", "TrainingInterrupted", "algorithm_class", "check_hyperparameter_names", "check_rl_installed",
     "config_path", "jsonable", "load_agent", "log_progress", "make_training_env", "newest_checkpoint",
     "parse_env_kwargs", "parse_hyperparameters", "progress_bar_available", "read_hyperparameters", "read_manifest",
-    "rollout_steps", "run_changes", "save_checkpoint", "shipped_configs", "single_thread", "train", "zoo_eval",
+    "rollout_steps", "run_changes", "run_manifest", "save_agent", "save_checkpoint", "shipped_configs", "single_thread", "train", "zoo_eval",
 ]

@@ -49,6 +49,7 @@ from stewart_env.files import (
     LOCK_FILE,
     TMP_PREFIX,
     FileError,
+    publish,
     publishing,
     publishing_folder,
     read_json,
@@ -56,11 +57,13 @@ from stewart_env.files import (
     sha256_file,
     write_error,
 )
+from stewart_env.registration import ENV_ID
 
 __all__ = ["CHECKPOINT_DIR", "CHECKPOINT_MANIFEST", "DEFAULT_KEEP_CHECKPOINTS", "MANIFEST", "MAX_AGENT_FILE_BYTES",
            "MAX_MANIFEST_BYTES", "MODEL_FILE", "PAUSE_IN_CHECKPOINT_ENV", "REPLAY_BUFFER_FILE", "VECNORMALIZE_FILE",
            "agent_file_writers", "check_fresh_directory", "checkpoint_hashes", "checkpoint_problem", "log_progress",
-           "newest_checkpoint", "publish_final", "read_manifest", "remove_unfinished_writes", "save_checkpoint",
+           "newest_checkpoint", "publish_final", "read_manifest", "remove_unfinished_writes", "run_manifest",
+           "save_agent", "save_checkpoint",
            "step_dirs", "unpickle_statistics", "verified_bytes", "versions"]
 
 MANIFEST = "run.json"
@@ -142,6 +145,29 @@ def versions() -> dict[str, str]:
     return {"stewart_env": stewart_env.__version__, "stable_baselines3": stable_baselines3.__version__,
             "torch": torch.__version__, "gymnasium": gymnasium.__version__, "numpy": np.__version__,
             "python": _platform.python_version()}
+
+
+def run_manifest(*, algo: str, seed: int, n_envs: int, env_kwargs: Mapping[str, Any], config: str,
+                 hyperparameters: Mapping[str, Any], normalize: bool, num_timesteps: int,
+                 segments: list[dict[str, Any]], finished: bool, files: Mapping[str, str]) -> dict[str, Any]:
+    """A run's manifest (DIR/run.json) as :func:`read_manifest` reads it: what was trained, on
+    what (``env_kwargs`` holds the model and the task), with what, how far (``segments``: one
+    {start, end, wall_time, interrupted} per training segment), and the sha256 of each of the
+    agent's ``files``."""
+    return {"env_id": ENV_ID, "algo": algo, "model": env_kwargs["model"], "task": env_kwargs["task"], "seed": seed,
+            "n_envs": int(n_envs), "env_kwargs": dict(env_kwargs), "config": config,
+            "hyperparameters": dict(hyperparameters), "normalize": bool(normalize), "versions": versions(),
+            "num_timesteps": int(num_timesteps), "wall_time": sum(s["wall_time"] for s in segments),
+            "segments": segments, "finished": finished, "files": dict(files)}
+
+
+def save_agent(model, directory: Path, manifest: Mapping[str, Any]) -> None:
+    """Write ``model`` as a finished run of :func:`~stewart_env.agents.training.train` into
+    ``directory`` (created): its final files (:func:`publish_final`), then ``manifest`` with
+    their hashes, written last, so that ``evaluate --agent DIR`` loads it."""
+    directory.mkdir(parents=True, exist_ok=True)
+    files = publish_final(model, directory)
+    publish(directory / MANIFEST, json.dumps({**manifest, "files": files}, indent=2) + "\n")
 
 
 def step_dirs(directory: Path) -> list[tuple[int, Path]]:

@@ -49,15 +49,14 @@ from stewart_env.agents.training.rundir import (
     publish_final,
     read_manifest,
     remove_unfinished_writes,
+    run_manifest,
     save_checkpoint,
     step_dirs,
     unpickle_statistics,
     verified_bytes,
-    versions,
 )
 from stewart_env.agents.training.signals import StopRequest, stop_on_signals
 from stewart_env.files import WriteError, check_not_busy, lock_folder, publish, write_error
-from stewart_env.registration import ENV_ID
 
 __all__ = ["TrainResult", "checkpoint_callback", "rollout_steps", "run_changes", "train"]
 
@@ -298,14 +297,9 @@ def _learn(cls, algo, directory, hp, kwargs, seed, n_envs, steps_done, segments,
                 if REPLAY_BUFFER_FILE in saved:
                     agent.load_replay_buffer(io.BytesIO(saved[REPLAY_BUFFER_FILE]))
                 saved.clear()  # the bytes of a replay buffer: tens of MB, not kept while training
-            manifest = {
-                "env_id": ENV_ID, "algo": algo, "model": kwargs["model"], "task": kwargs["task"], "seed": seed,
-                "n_envs": int(n_envs), "env_kwargs": jsonable(kwargs), "config": cfg_path,
-                "hyperparameters": jsonable(hp.raw), "normalize": hp.normalize is not None,
-                "versions": versions(), "num_timesteps": steps_done,
-                "wall_time": sum(s["wall_time"] for s in segments), "segments": segments, "finished": False,
-                "files": {},
-            }
+            manifest = run_manifest(algo=algo, seed=seed, n_envs=n_envs, env_kwargs=jsonable(kwargs), config=cfg_path,
+                                    hyperparameters=jsonable(hp.raw), normalize=hp.normalize is not None,
+                                    num_timesteps=steps_done, segments=segments, finished=False, files={})
             publish(directory / MANIFEST, json.dumps(manifest, indent=2) + "\n")
 
             callback = checkpoint_callback(directory, algo, int(checkpoint_freq), int(keep_checkpoints),

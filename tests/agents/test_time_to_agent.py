@@ -6,11 +6,13 @@ import csv
 import json
 import math
 
+import numpy as np
 import pytest
 import yaml
 
-from stewart_env.agents.time_to_agent import FILES, TimeToAgentError, time_to_agent
-from stewart_env.agents.training import ENV_ID
+from stewart_env.agents.evaluation import evaluate
+from stewart_env.agents.time_to_agent import AGENTS_DIR, EVALUATION_SEED, FILES, TimeToAgentError, time_to_agent
+from stewart_env.agents.training import ENV_ID, load_agent
 from stewart_env.cli import main
 
 # The runs here are a rollout or two of 2 platforms, smaller than a minibatch of the shipped config.
@@ -52,6 +54,12 @@ def test_a_target_met_at_once_is_reached_at_the_first_point(tiny, tmp_path):
     assert [(r["seed"], r["steps"], r["target_met"]) for r in rows] == [("3", str(ROLLOUT), "1")]
     assert (out / FILES["png"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "| 3 | " in (out / FILES["markdown"]).read_text()
+    # the agent of the reaching point, loadable as a run of `stewart-env train`, acts as it did there
+    agent = load_agent(out / AGENTS_DIR / "seed_3")
+    assert agent.manifest["num_timesteps"] == ROLLOUT and agent.manifest["seed"] == 3
+    again = evaluate(agent, agent.manifest["env_kwargs"], 2, EVALUATION_SEED, progress=False).episodes
+    error = 1e3 * float(np.median([ep.metrics["steady_state_position_error"] for ep in again]))
+    assert error == seed.points[0].median_error_mm  # the same policy, the same episodes
 
 
 def test_an_unreachable_target_stops_at_the_budget_and_writes_the_files(tiny, tmp_path):
