@@ -75,7 +75,7 @@ def config_path(algo: str, config: str | os.PathLike | None = None) -> Path:
     """The hyperparameter file of ``algo``: ``config`` if given, else configs/agents/<algo>.yml.
 
     ``config`` is a file's path, or the name of a shipped config with or without ``.yml``
-    (``ppo_integral``, ``ppo_integral.yml``); a file of that name in the working directory wins."""
+    (``ppo_6m``, ``ppo_6m.yml``); a file of that name in the working directory wins."""
     if config is None:
         return CONFIG_DIR / f"{algo}.yml"
     path = Path(config)

@@ -94,7 +94,7 @@ def env_kwargs_token(text: str) -> str:
 
 def agent_config(text: str) -> str:
     """argparse type of --config: a hyperparameter file's path, or a shipped config's name
-    (``ppo_integral`` or ``ppo_integral.yml``), as the path of that file."""
+    (``ppo_6m`` or ``ppo_6m.yml``), as the path of that file."""
     from stewart_env.agents.training import TrainingError, config_path
 
     try:

@@ -104,7 +104,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "improved+cK included)")
     p.add_argument("--config", type=agent_config, default=None,
                    help="the agents' hyperparameters: a zoo config file, or the name of a shipped config (e.g. "
-                        "ppo_integral) (default: configs/agents/<algo>.yml)")
+                        "ppo_6m) (default: configs/agents/<algo>.yml)")
     p.add_argument("--domain-randomization", action="store_true",
                    help="add agents trained on the improved model with domain randomisation")
     p.add_argument("--simplifications", default=",".join(SIMPLIFICATIONS),

@@ -35,7 +35,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "DIR/learning_curve.png.")
     p.add_argument("--algo", required=True, choices=ALGORITHMS, help=f"algorithm: {', '.join(ALGORITHMS)}")
     p.add_argument("--config", default=None,
-                   help="hyperparameters: a zoo config file or a shipped config's name, e.g. ppo_integral "
+                   help="hyperparameters: a zoo config file or a shipped config's name, e.g. ppo_6m "
                         "(default: configs/agents/<algo>.yml)")
     p.add_argument("--task", choices=TASKS, default="setpoint", help="task (default: setpoint)")
     p.add_argument("--seeds", type=seed_list, default=[0], help="training seeds, comma-separated (default: 0)")

@@ -50,7 +50,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--keep-checkpoints", type=positive_int, default=DEFAULT_KEEP_CHECKPOINTS, metavar="K",
                    help=f"keep the newest K checkpoints (default: {DEFAULT_KEEP_CHECKPOINTS})")
     p.add_argument("--config", type=agent_config, default=None,
-                   help="hyperparameter file: a path, or the name of a shipped config (e.g. ppo_integral) "
+                   help="hyperparameter file: a path, or the name of a shipped config (e.g. ppo_6m) "
                         "(default: configs/agents/<algo>.yml; with --resume, the run's)")
     p.add_argument("--env-kwargs", nargs="*", type=env_kwargs_token, default=None, metavar="KW",
                    help="environment kwargs: a JSON object or key=value pairs (values parsed as JSON)")

@@ -60,7 +60,7 @@ def tiny_config(path: Path, algo: str, **changes) -> Path:
 # -- configs are data ---------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name", ["ppo.yml", "ppo_integral.yml", "sac.yml", "td3.yml"])
+@pytest.mark.parametrize("name", ["ppo.yml", "ppo_6m.yml", "ppo_integral_6m.yml", "sac.yml", "td3.yml", "tqc.yml", "crossq.yml"])
 def test_shipped_configs_parse_to_what_python_would_evaluate(name):
     import torch
 

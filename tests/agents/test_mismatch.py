@@ -561,9 +561,9 @@ def test_config_file_is_part_of_the_study(tmp_path):
         run_mismatch(tmp_path / "study", ["improved"], ["improved"], algo="ppo", config=bad)
     assert not (tmp_path / "study").exists()
     parser_args = _parser().parse_args(["mismatch", "--out", str(tmp_path), "--config",
-                                        str(config_path("ppo", None).with_name("ppo_integral.yml"))])
-    assert parser_args.config.endswith("ppo_integral.yml")
-    # the agents train on the config's environment: ppo_integral.yml observes the error integral
+                                        str(config_path("ppo", None).with_name("ppo_integral_6m.yml"))])
+    assert parser_args.config.endswith("ppo_integral_6m.yml")
+    # the agents train on the config's environment: ppo_integral_6m.yml observes the error integral
     run_mismatch(tmp_path / "integral", ["improved"], ["improved"], algo="ppo", timesteps=100, n_envs=2, episodes=1,
                  simplifications=[], max_steps=5, config=parser_args.config, progress=False)
     manifest = json.loads((tmp_path / "integral" / "agents" / "improved" / "seed_0" / "run.json").read_text())

@@ -40,7 +40,7 @@ ZOO_OWN_KEYS = {"n_timesteps", "policy", "normalize", "n_envs", "frame_stack", "
 
 
 #: every shipped hyperparameter file and the algorithm it configures
-CONFIGS = [(algo, f"{algo}.yml") for algo in ALGORITHMS] + [("ppo", "ppo_integral.yml")]
+CONFIGS = [(algo, f"{algo}.yml") for algo in ALGORITHMS] + [("ppo", "ppo_6m.yml"), ("ppo", "ppo_integral_6m.yml")]
 
 
 @pytest.mark.parametrize("algo, name", CONFIGS)

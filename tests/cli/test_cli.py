@@ -339,17 +339,17 @@ def test_a_failed_import_of_an_extra_deep_in_a_command_is_one_line(monkeypatch, 
     assert err.startswith("stewart-env demo: error: ") and err.rstrip().endswith('pip install -e ".[distributed]"')
 
 
-@pytest.mark.parametrize("name", ["ppo_integral", "ppo_integral.yml"])
+@pytest.mark.parametrize("name", ["ppo_6m", "ppo_6m.yml"])
 def test_config_takes_a_shipped_config_by_name(name, tmp_path, monkeypatch):
     from stewart_env.agents.training import CONFIG_DIR, config_path
     from stewart_env.cli import build_parser
 
     monkeypatch.chdir(tmp_path)  # no file of that name here: the shipped one is meant
     args = build_parser().parse_args(["train", "--algo", "ppo", "--config", name, "--out", "run"])
-    assert Path(args.config) == CONFIG_DIR / "ppo_integral.yml" and Path(args.config).is_file()
+    assert Path(args.config) == CONFIG_DIR / "ppo_6m.yml" and Path(args.config).is_file()
     args = build_parser().parse_args(["mismatch", "--config", name, "--out", "study"])
-    assert Path(args.config) == CONFIG_DIR / "ppo_integral.yml"
-    assert config_path("ppo", name) == CONFIG_DIR / "ppo_integral.yml"
+    assert Path(args.config) == CONFIG_DIR / "ppo_6m.yml"
+    assert config_path("ppo", name) == CONFIG_DIR / "ppo_6m.yml"
     (tmp_path / name).write_text("StewartPlatform-v0: {}\n")  # a file of the name in the working directory wins
     assert config_path("ppo", name) == Path(name)
 
@@ -360,7 +360,7 @@ def test_config_by_an_unknown_name_lists_the_shipped_ones(tmp_path, capsys):
     assert stop.value.code == 2
     err = capsys.readouterr().err
     assert "argument --config: hyperparameter file not found: ppo_fast" in err
-    assert "crossq, ppo, ppo_integral, sac, td3, tqc" in err
+    assert "crossq, ppo, ppo_6m, ppo_integral_6m, sac, td3, tqc" in err
 
 
 @pytest.mark.parametrize("module, usage", [("stewart_env.mujoco", "usage: python -m stewart_env.mujoco"),
