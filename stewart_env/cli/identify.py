@@ -67,6 +67,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="orientation noise, standard deviation in rad (default 1e-5)")
     p.add_argument("--noise-force", type=nonnegative_float, default=1.0,
                    help="leg force noise, standard deviation in N (default 1)")
+    p.add_argument("--delay", type=nonnegative_float, default=0.0,
+                   help="seconds the pose measurements lag the leg-force measurements, a whole number of the "
+                        "0.005 s samples, at most 0.25 (default 0)")
     p.add_argument("--perturb", type=nonnegative_float, default=0.2,
                    help="relative random change of the plant's inertial and friction parameters from the nominal "
                         "(the unknown truth; default 0.2)")
@@ -90,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         settings = experiment.Settings(
             plant=args.plant, model=args.model, excitation=args.excitation, duration=args.duration,
             noise_position=args.noise_position, noise_angle=args.noise_angle, noise_force=args.noise_force,
-            perturb=args.perturb, derivatives=args.derivatives, seed=args.seed, period=args.period,
+            delay=args.delay, perturb=args.perturb, derivatives=args.derivatives, seed=args.seed, period=args.period,
             max_iterations=args.iterations)
         check_writable(args.out, create=False)
         result = experiment.run(settings, load_platform(args.platform))
