@@ -16,10 +16,12 @@ import argparse
 import sys
 import time
 
-from stewart_env.cli.arguments import nonnegative_float, nonnegative_int, platform_name, positive_float, positive_int
+from stewart_env.cli.arguments import existing_file, nonnegative_float, nonnegative_int, platform_name, positive_float, positive_int
 from stewart_env.cli.common import error
 
 VERB = "identify"
+#: Largest report.json --predicted-by reads, bytes (a report is tens of kilobytes).
+REPORT_LIMIT = 16 * 2 ** 20
 
 
 def _plant(text: str) -> str:
@@ -77,6 +79,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="velocities and accelerations by the Savitzky-Golay filter of the noisy poses, or the "
                         "plant's exact ones (default filter)")
     p.add_argument("--iterations", type=positive_int, default=30, help="optimiser iterations (default 30)")
+    p.add_argument("--predicted-by", type=existing_file, metavar="REPORT",
+                   help="report.json of an earlier run of the same platform and model: the report compares the "
+                        "standard deviations it predicts for this record and force noise with this run's")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed (default 0)")
     p.add_argument("--out", required=True, help="output directory (locked while written)")
     return p
@@ -84,7 +89,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Run the ``identify`` subcommand; 0 on success, 2 on an error the user can correct."""
-    from stewart_env.files import check_writable
+    from stewart_env.files import check_writable, read_json
     from stewart_env.identification import experiment
     from stewart_env.params import load_platform
 
@@ -96,7 +101,13 @@ def run(args: argparse.Namespace) -> int:
             delay=args.delay, perturb=args.perturb, derivatives=args.derivatives, seed=args.seed, period=args.period,
             max_iterations=args.iterations)
         check_writable(args.out, create=False)
-        result = experiment.run(settings, load_platform(args.platform))
+        reference = None
+        if args.predicted_by is not None:
+            try:
+                reference = read_json(args.predicted_by, REPORT_LIMIT, "report.json")
+            except ValueError as err:
+                return error(VERB, f"--predicted-by: {err}")
+        result = experiment.run(settings, load_platform(args.platform), predicted_by=reference)
         folder = experiment.write(result, args.out)
     except ValueError as err:  # IdentificationError, a busy or unwritable --out: the message names the cause
         return error(VERB, err)

@@ -148,6 +148,13 @@ def requirements(beta: np.ndarray, std: np.ndarray, duration: float, noise: floa
     return Requirement(rel, time, sigma, np.abs(beta) <= NEAR_ZERO_STD * np.abs(std))
 
 
+def predicted_std(std: np.ndarray, duration: float, noise: float, to_duration: float, to_noise: float) -> np.ndarray:
+    """The standard deviations (as :func:`requirements` scales them, std ~ sigma / sqrt(T)) that
+    estimates of std from a ``duration``-second record at force noise ``noise`` predict for a
+    ``to_duration``-second record at ``to_noise`` along the same excitation."""
+    return np.asarray(std, float) * (to_noise / noise) * np.sqrt(duration / to_duration)
+
+
 def _physical_body(phi: np.ndarray, shifts: float) -> np.ndarray:
     """A body's 10 parameters from mass phi0 (>= 0 by the solver's bounds), first moment phi1:4
     and the lower triangle L of the CoM's second moment Sigma = L L^T (phi4:10): the inertia about

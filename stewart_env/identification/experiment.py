@@ -242,14 +242,57 @@ def rows_of(model: Dynamics, base: base_mod.BaseParameters, record: Record) -> n
     return est.leg_force_rows(base.columns(Y), J)
 
 
-def run(settings: Settings, nominal: PlatformParams) -> Result:
-    """The whole experiment (see the module docstring)."""
+def _check_reference(reference: dict, settings: Settings, nominal: PlatformParams,
+                     base: base_mod.BaseParameters) -> None:
+    """IdentificationError unless ``reference`` is an identify report of the same platform's and
+    model's base parameters, recorded with force noise, and this experiment has force noise."""
+    try:
+        names = [p["name"] for p in reference["base_parameters"]]
+        ok = (reference["platform"] == nominal.name and reference["settings"]["model"] == settings.model
+              and float(reference["settings"]["noise_force"]) > 0 and float(reference["fitted_duration"]) > 0
+              and all(isinstance(p["wls_std"], float) for p in reference["base_parameters"]))
+    except (KeyError, TypeError, ValueError):
+        raise IdentificationError("--predicted-by: not a report.json of stewart-env identify") from None
+    if not ok or names != base.names:
+        raise IdentificationError(f"--predicted-by: a report of {nominal.name}'s {settings.model} base parameters "
+                                  "with force noise is needed")
+    if settings.noise_force <= 0:
+        raise IdentificationError("--predicted-by: needs --noise-force > 0 (the law scales with the force noise)")
+
+
+def _prediction(reference: dict, fitted: float, noise: float, std_now: np.ndarray, need: est.Requirement) -> dict:
+    """The reference's standard deviations scaled to this record and noise, against this record's."""
+    ref = reference["base_parameters"]
+    std = est.predicted_std(np.array([p["wls_std"] for p in ref]), reference["fitted_duration"],
+                            reference["settings"]["noise_force"], fitted, noise)
+    ref_beta = np.array([p["wls"] for p in ref])
+    ref_zero = np.abs(ref_beta) <= est.NEAR_ZERO_STD * np.array([p["wls_std"] for p in ref])
+    both = ~(need.near_zero | ref_zero)
+    rel_predicted = std / np.abs(ref_beta)
+
+    def spread(x):
+        return {"median": float(np.median(x)), "p10": float(np.percentile(x, 10)), "p90": float(np.percentile(x, 90)),
+                "count": int(x.size)}
+
+    return {"fitted_duration": float(reference["fitted_duration"]),
+            "noise_force": float(reference["settings"]["noise_force"]),
+            "std_ratio": spread(std_now / std), "rel_std_ratio": spread(need.rel_std[both] / rel_predicted[both]),
+            "predicted_std": std.tolist(), "predicted_rel_std": rel_predicted.tolist()}
+
+
+def run(settings: Settings, nominal: PlatformParams, predicted_by: dict | None = None) -> Result:
+    """The whole experiment (see the module docstring).  ``predicted_by``: the report of an
+    earlier run of the same platform and model, whose standard deviations, scaled to this
+    record's length and force noise (:func:`estimate.predicted_std`), the report compares with
+    this run's (its ``predicted_by`` entry)."""
     settings.check()
     rng = np.random.default_rng(settings.seed)
     truth = perturbed(nominal, settings.perturb, rng)
     plant = "mujoco" if settings.plant == "mujoco" else Dynamics(settings.plant, truth)
     model = Dynamics(settings.model, nominal)
     base = base_mod.base_parameters(model)
+    if predicted_by is not None:
+        _check_reference(predicted_by, settings, nominal, base)
     period = min(settings.period, settings.duration)
     start = exc.random_excitation(nominal, model, rng, period=period, harmonics=settings.harmonics)
     times = np.linspace(0, period, 100, endpoint=False)
@@ -300,6 +343,10 @@ def run(settings: Settings, nominal: PlatformParams) -> Result:
             row["truth"] = float(truth_beta[k])
         params_rows.append(row)
     rel_std = need.rel_std
+    prediction = None if predicted_by is None else _prediction(predicted_by, fitted, settings.noise_force, w.std, need)
+    if prediction is not None:
+        for row, std, rel in zip(params_rows, prediction["predicted_std"], prediction["predicted_rel_std"]):
+            row["predicted_std"], row["predicted_rel_std"] = _or_none(std), _or_none(rel)
     report = {
         "settings": settings.__dict__.copy(),
         "platform": nominal.name,
@@ -319,6 +366,8 @@ def run(settings: Settings, nominal: PlatformParams) -> Result:
         "excitation": series.to_dict(),
         "base_parameters": params_rows,
     }
+    if prediction is not None:
+        report["predicted_by"] = {k: v for k, v in prediction.items() if not k.startswith("predicted_")}
     if exact_structure:
         err = np.abs(w.beta - truth_beta)
         rel = err / np.maximum(np.abs(truth_beta), 1e-12)
@@ -364,7 +413,15 @@ def _markdown(report: dict) -> str:
         lines.append(f"- WLS against the truth: {t['within_10pct_wls']} of {report['rank']} base parameters within "
                      f"10 %, median relative error {t['median_rel_wls']:.3g}, largest {t['max_rel_wls']:.3g} (a "
                      f"combination near zero); {100 * t['within_3_std_wls']:.1f} % within 3 standard deviations")
+    if "predicted_by" in report:
+        q = report["predicted_by"]
+        a, b = q["std_ratio"], q["rel_std_ratio"]
+        lines.append(f"- against what a run of {q['fitted_duration']:.4g} s at {q['noise_force']:g} N predicts "
+                     f"(std ~ sigma / sqrt(T)), measured / predicted: std median {a['median']:.3g} (10-90 %: "
+                     f"{a['p10']:.3g}-{a['p90']:.3g}, {a['count']} parameters), rel. std median {b['median']:.3g} "
+                     f"({b['p10']:.3g}-{b['p90']:.3g}, the {b['count']} not ~0 in either run)")
     truth = "truth_error" in report
+    predicted = "predicted_by" in report
     target = f"{100 * est.WELL_IDENTIFIED:g} %"
     lines += ["", f"Per base parameter: the WLS estimate, its standard deviation and relative standard deviation; "
               f"the `--duration` (s) that brings it to {target} at this force noise, and the force noise (N) that "
@@ -372,16 +429,17 @@ def _markdown(report: dict) -> str:
               f"{est.NEAR_ZERO_STD:g} standard deviations of zero, so its relative deviation tells nothing.",
               "",
               f"| base parameter | WLS | std | rel. std | --duration for {target}, s | force noise for {target}, N "
-              "| consistent | nominal |" + (" truth |" if truth else ""),
-              "|---|---|---|---|---|---|---|---|" + ("---|" if truth else "")]
+              + ("| predicted rel. std " if predicted else "")
+              + "| consistent | nominal |" + (" truth |" if truth else ""),
+              "|---|---|---|---|---|---|---|---|" + ("---|" if truth else "") + ("---|" if predicted else "")]
     for p in report["base_parameters"]:
         if p["near_zero"]:
             time, noise = "~0", "~0"
         else:
             time, noise = _figure(p["duration_10pct"], "never"), _figure(p["noise_force_10pct"], "n/a")
         row = (f"| `{p['name']}` | {p['wls']:.6g} | {p['wls_std']:.3g} | {_figure(p['rel_std'], 'inf')} | {time} "
-               f"| {noise} "
-               f"| {p['consistent']:.6g} | {p['nominal']:.6g} |")
+               f"| {noise} " + (f"| {_figure(p['predicted_rel_std'], 'inf')} " if predicted else "")
+               + f"| {p['consistent']:.6g} | {p['nominal']:.6g} |")
         if truth:
             row += f" {p['truth']:.6g} |"
         lines.append(row)

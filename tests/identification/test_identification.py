@@ -247,6 +247,29 @@ def test_identify_command_writes_a_platform_other_commands_load(tmp_path, capsys
     assert err["wls"] < 0.2 * err["nominal"] and err["consistent"] < 0.2 * err["nominal"]
     assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["platform.yaml", "report.json",
                                                                                    "report.md", "truth.yaml"]
+    # per base parameter: its relative standard deviation and what brings it to 10 %, as requirements says
+    rows = report["base_parameters"]
+    need = est.requirements(np.array([p["wls"] for p in rows]), np.array([p["wls_std"] for p in rows]),
+                            report["fitted_duration"], 0.5)
+    dropped = 6 - report["fitted_duration"]
+    for p, rel, time, noise, zero in zip(rows, need.rel_std, need.duration, need.noise, need.near_zero):
+        assert (p["rel_std"], p["duration_10pct"], p["noise_force_10pct"], p["near_zero"]) == (
+            rel, time + dropped, noise, zero)
+    assert report["base_parameters_under_10pct_rel_std"] == int(np.sum(need.rel_std < 0.1))
+    table = (out / "report.md").read_text()
+    assert "| base parameter | WLS | std | rel. std | --duration for 10 %, s | force noise for 10 %, N |" in table
+    assert table.count("| ~0 | ~0 |") == int(need.near_zero.sum()) > 0
+
+    # a second, longer run: the first one's standard deviations, scaled by sqrt(T), predict its own
+    again = tmp_path / "again"
+    code, text, err = run_cli(["--excitation", "random", "--duration", "9", "--period", "3", "--noise-force", "1",
+                               "--predicted-by", str(out / "report.json"), "--out", str(again)], capsys)
+    assert code == 0, err
+    prediction = json.loads((again / "report.json").read_text())["predicted_by"]
+    assert prediction["fitted_duration"] == report["fitted_duration"] and prediction["noise_force"] == 0.5
+    # the same series (the seed), records of 1.8 and 2.8 of its periods: A^T A grows about linearly
+    assert 0.75 < prediction["std_ratio"]["median"] < 1.33
+    assert "against what a run of" in text
 
 
 def test_mujoco_plant_without_the_extra_is_named(monkeypatch):
@@ -378,3 +401,28 @@ def test_standard_deviations_shrink_as_one_over_the_square_root_of_the_record(no
     ratio = whole.std / predicted
     # the 0.8 period beyond the first is not a whole one, so A^T A grows only about linearly
     assert 0.8 < np.median(ratio) < 1.25, np.median(ratio)
+
+
+def test_predicted_std_scales_with_the_noise_and_one_over_the_root_of_the_record():
+    std = np.array([1.0, 0.2])
+    assert np.allclose(est.predicted_std(std, 60.0, 1.0, 240.0, 1.0), std / 2)
+    assert np.allclose(est.predicted_std(std, 60.0, 1.0, 60.0, 5.0), std * 5)
+
+
+def test_a_reference_report_that_does_not_fit_is_refused_before_any_work(tmp_path, capsys):
+    import json
+
+    bad = tmp_path / "bad.json"
+    for document, says in (({"platform": "dasgupta1998"}, "not a report.json"),
+                           ({"platform": "motion_simulator", "settings": {"model": "improved", "noise_force": 1.0},
+                             "fitted_duration": 5.0, "base_parameters": [{"name": "x", "wls_std": 1.0}]},
+                            "a report of dasgupta1998's improved base parameters")):
+        bad.write_text(json.dumps(document))
+        out = tmp_path / "run"
+        code, _, err = run_cli(["--excitation", "random", "--duration", "6", "--period", "3", "--predicted-by", str(bad),
+                                "--out", str(out)], capsys)
+        assert code == 2 and err.startswith("stewart-env identify: error: --predicted-by: ") and says in err, err
+        assert not out.exists() or not any(p.name != ".stewart-env.lock" for p in out.iterdir())
+    bad.write_text("{")
+    code, _, err = run_cli(["--predicted-by", str(bad), "--out", str(tmp_path / "run")], capsys)
+    assert code == 2 and "--predicted-by" in err and "not valid JSON" in err
