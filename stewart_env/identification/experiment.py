@@ -389,6 +389,37 @@ def _figure(x: float | None, none: str) -> str:
     return none if x is None else f"{x:.3g}"
 
 
+def body_of(name: str) -> str:
+    """The body a base parameter belongs to, by its leading entry of theta: ``platform``,
+    ``leg i`` (its upper and lower part turn together) or ``friction``."""
+    head = name.split(" ")[0].split(".")[0]
+    if head.startswith(("upper_leg[", "lower_leg[")):
+        return "leg " + head.split("[")[1].rstrip("]")
+    return "friction" if head == "damping" else head
+
+
+def _by_body(report: dict) -> list[str]:
+    """The per-body summary of the per-parameter answers (report.md)."""
+    groups: dict[str, list[dict]] = {}
+    for p in report["base_parameters"]:
+        groups.setdefault(body_of(p["name"]), []).append(p)
+    target = f"{100 * est.WELL_IDENTIFIED:g} %"
+    lines = ["", f"By body: how many base parameters are under {target} and how many ~0; of the others, the "
+             f"`--duration` (s) for {target} at this force noise and the force noise (N) for {target} in this "
+             "recording, median and worst.", "",
+             f"| body | base parameters | rel. std < {target} | ~0 | --duration, median | --duration, longest "
+             "| force noise, median | force noise, smallest |", "|---|---|---|---|---|---|---|---|"]
+    for body, rows in groups.items():
+        rest = [p for p in rows if not p["near_zero"]]
+        time = np.array([np.inf if p["duration_10pct"] is None else p["duration_10pct"] for p in rest])
+        noise = np.array([np.inf if p["noise_force_10pct"] is None else p["noise_force_10pct"] for p in rest])
+        under = sum(p["rel_std"] is not None and p["rel_std"] < est.WELL_IDENTIFIED for p in rows)
+        figures = (f"{np.median(time):.3g} | {time.max():.3g} | {np.median(noise):.3g} | {noise.min():.3g}"
+                   if rest else "| | |")
+        lines.append(f"| {body} | {len(rows)} | {under} | {len(rows) - len(rest)} | {figures} |")
+    return lines
+
+
 def _markdown(report: dict) -> str:
     s = report["settings"]
     e = report["held_out_force_error"]
@@ -420,6 +451,7 @@ def _markdown(report: dict) -> str:
                      f"(std ~ sigma / sqrt(T)), measured / predicted: std median {a['median']:.3g} (10-90 %: "
                      f"{a['p10']:.3g}-{a['p90']:.3g}, {a['count']} parameters), rel. std median {b['median']:.3g} "
                      f"({b['p10']:.3g}-{b['p90']:.3g}, the {b['count']} not ~0 in either run)")
+    lines += _by_body(report)
     truth = "truth_error" in report
     predicted = "predicted_by" in report
     target = f"{100 * est.WELL_IDENTIFIED:g} %"
