@@ -171,7 +171,10 @@ def optimized_excitation(start: Excitation, model: Dynamics, base: BaseParameter
     # coefficients in units of the coordinate's range times wf: the optimiser sees numbers near 1
     span = np.concatenate([0.5 * (lim.position_max - lim.position_min), np.full(3, lim.max_angle)]) * wf
     scale = np.broadcast_to(span[None, :, None], (2, 6, H)).ravel()
+    # the points of one iteration: SLSQP's finite differences of the objective and of the
+    # constraints step to the same points, so each is computed once
     cache: dict[bytes, tuple[float, np.ndarray]] = {}
+    cache_size = 4 * scale.size + 8
     best = {"value": np.inf, "x": None}
 
     def evaluate(z):
@@ -180,7 +183,8 @@ def optimized_excitation(start: Excitation, model: Dynamics, base: BaseParameter
             exc = _centred_at(_from_vector(z * scale, start.q0, H, wf), q_start)
             value = math.log10(condition_number(exc, model, base, times))
             room = margins(exc, model, times, per_sample=True)
-            cache.clear()
+            if len(cache) >= cache_size:
+                del cache[next(iter(cache))]  # the oldest point
             cache[key] = (value, room)
             if np.all(room >= 0) and value < best["value"]:
                 best.update(value=value, x=z.copy())
