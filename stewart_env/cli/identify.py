@@ -16,7 +16,7 @@ import argparse
 import sys
 import time
 
-from stewart_env.cli.arguments import existing_file, nonnegative_float, nonnegative_int, platform_name, positive_float, positive_int
+from stewart_env.cli.arguments import nonnegative_float, nonnegative_int, platform_name, positive_float, positive_int
 from stewart_env.cli.common import error
 
 VERB = "identify"
@@ -79,7 +79,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="velocities and accelerations by the Savitzky-Golay filter of the noisy poses, or the "
                         "plant's exact ones (default filter)")
     p.add_argument("--iterations", type=positive_int, default=30, help="optimiser iterations (default 30)")
-    p.add_argument("--predicted-by", type=existing_file, metavar="REPORT",
+    p.add_argument("--predicted-by", metavar="REPORT",
                    help="report.json of an earlier run of the same platform and model: the report compares the "
                         "standard deviations it predicts for this record and force noise with this run's")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed (default 0)")

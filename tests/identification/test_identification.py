@@ -426,3 +426,6 @@ def test_a_reference_report_that_does_not_fit_is_refused_before_any_work(tmp_pat
     bad.write_text("{")
     code, _, err = run_cli(["--predicted-by", str(bad), "--out", str(tmp_path / "run")], capsys)
     assert code == 2 and "--predicted-by" in err and "not valid JSON" in err
+    code, _, err = run_cli(["--predicted-by", str(tmp_path / "none.json"), "--out", str(tmp_path / "run")], capsys)
+    assert code == 2 and "--predicted-by" in err and "No such file" in err
+    assert not (tmp_path / "run").exists() or not any(p.name != ".stewart-env.lock" for p in (tmp_path / "run").iterdir())
