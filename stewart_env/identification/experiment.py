@@ -2,10 +2,11 @@
 
 :func:`run` drives a plant (a closed-form model, optionally with perturbed parameters as the
 unknown truth) along an excitation by the compiled computed-torque law, adds sensor noise to the
-recorded poses and leg forces (the poses optionally delayed against the forces), recovers velocities and accelerations by a Savitzky-Golay filter,
-estimates the base parameters (OLS, WLS, physically consistent), and measures the leg-force
-prediction error on a second, held-out trajectory.  :func:`write` publishes the identified
-platform config and the report.
+recorded poses and leg forces (the poses optionally delayed against the forces), recovers
+velocities and accelerations by a Savitzky-Golay filter, estimates the base parameters (OLS, WLS,
+physically consistent) and, per base parameter, the record and force noise that would identify
+it to 10 %, and measures the leg-force prediction error on a second, held-out trajectory.
+:func:`write` publishes the identified platform config and the report.
 """
 
 from __future__ import annotations
@@ -48,9 +49,9 @@ class Settings:
     model: the structure identified (a model name); excitation: ``optimized`` or ``random``;
     duration (s) of the identification record; noise: standard deviations of the position (m),
     angle (rad) and leg force (N) measurements; delay (s, whole samples of SAMPLE_DT): how long
-    the pose measurements lag the leg-force measurements; perturb: relative size of the random change of
-    every inertial and friction parameter that makes the plant's truth differ from the nominal
-    platform (0: the truth is the nominal); derivatives: ``filter`` (Savitzky-Golay of the
+    the pose measurements lag the leg-force measurements; perturb: relative size of the random
+    change of every inertial and friction parameter that makes the plant's truth differ from the
+    nominal platform (0: the truth is the nominal); derivatives: ``filter`` (Savitzky-Golay of the
     noisy poses) or ``exact`` (the plant's own, a simulation-only check); seed."""
 
     plant: str = "improved"

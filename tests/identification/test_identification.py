@@ -353,7 +353,8 @@ def test_a_delay_shifts_the_poses_by_whole_samples(plant_run, derivatives):
 
 
 def test_bad_delays_are_refused_naming_the_option(tmp_path, capsys):
-    for delay, says in ((0.003, "expected a whole number of samples"), (-0.005, "expected seconds"), (float("nan"), "expected"),
+    for delay, says in ((0.003, "expected a whole number of samples"), (-0.005, "expected seconds"),
+                        (float("nan"), "expected"),
                         (float("inf"), "expected"), (experiment.MAX_DELAY + experiment.SAMPLE_DT, "expected seconds")):
         with pytest.raises(IdentificationError, match=f"^--delay: {says}"):
             experiment.Settings(delay=delay).check()
@@ -419,8 +420,8 @@ def test_a_reference_report_that_does_not_fit_is_refused_before_any_work(tmp_pat
                             "a report of dasgupta1998's improved base parameters")):
         bad.write_text(json.dumps(document))
         out = tmp_path / "run"
-        code, _, err = run_cli(["--excitation", "random", "--duration", "6", "--period", "3", "--predicted-by", str(bad),
-                                "--out", str(out)], capsys)
+        code, _, err = run_cli(["--excitation", "random", "--duration", "6", "--period", "3",
+                                "--predicted-by", str(bad), "--out", str(out)], capsys)
         assert code == 2 and err.startswith("stewart-env identify: error: --predicted-by: ") and says in err, err
         assert not out.exists() or not any(p.name != ".stewart-env.lock" for p in out.iterdir())
     bad.write_text("{")
@@ -428,4 +429,5 @@ def test_a_reference_report_that_does_not_fit_is_refused_before_any_work(tmp_pat
     assert code == 2 and "--predicted-by" in err and "not valid JSON" in err
     code, _, err = run_cli(["--predicted-by", str(tmp_path / "none.json"), "--out", str(tmp_path / "run")], capsys)
     assert code == 2 and "--predicted-by" in err and "No such file" in err
-    assert not (tmp_path / "run").exists() or not any(p.name != ".stewart-env.lock" for p in (tmp_path / "run").iterdir())
+    run = tmp_path / "run"
+    assert not run.exists() or not any(p.name != ".stewart-env.lock" for p in run.iterdir())
