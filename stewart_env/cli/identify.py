@@ -20,6 +20,8 @@ from stewart_env.cli.arguments import nonnegative_float, nonnegative_int, platfo
 from stewart_env.cli.common import error
 
 VERB = "identify"
+#: Largest report.json --predicted-by reads, bytes (a report is tens of kilobytes).
+REPORT_LIMIT = 16 * 2 ** 20
 
 
 def _plant(text: str) -> str:
@@ -67,6 +69,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="orientation noise, standard deviation in rad (default 1e-5)")
     p.add_argument("--noise-force", type=nonnegative_float, default=1.0,
                    help="leg force noise, standard deviation in N (default 1)")
+    p.add_argument("--delay", type=nonnegative_float, default=0.0,
+                   help="seconds the pose measurements lag the leg-force measurements, a whole number of the "
+                        "0.005 s samples, at most 0.25 (default 0)")
     p.add_argument("--perturb", type=nonnegative_float, default=0.2,
                    help="relative random change of the plant's inertial and friction parameters from the nominal "
                         "(the unknown truth; default 0.2)")
@@ -74,6 +79,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="velocities and accelerations by the Savitzky-Golay filter of the noisy poses, or the "
                         "plant's exact ones (default filter)")
     p.add_argument("--iterations", type=positive_int, default=30, help="optimiser iterations (default 30)")
+    p.add_argument("--predicted-by", metavar="REPORT",
+                   help="report.json of an earlier run of the same platform and model: the report compares the "
+                        "standard deviations it predicts for this record and force noise with this run's")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed (default 0)")
     p.add_argument("--out", required=True, help="output directory (locked while written)")
     return p
@@ -81,7 +89,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Run the ``identify`` subcommand; 0 on success, 2 on an error the user can correct."""
-    from stewart_env.files import check_writable
+    from stewart_env.files import check_writable, read_json
     from stewart_env.identification import experiment
     from stewart_env.params import load_platform
 
@@ -90,10 +98,16 @@ def run(args: argparse.Namespace) -> int:
         settings = experiment.Settings(
             plant=args.plant, model=args.model, excitation=args.excitation, duration=args.duration,
             noise_position=args.noise_position, noise_angle=args.noise_angle, noise_force=args.noise_force,
-            perturb=args.perturb, derivatives=args.derivatives, seed=args.seed, period=args.period,
+            delay=args.delay, perturb=args.perturb, derivatives=args.derivatives, seed=args.seed, period=args.period,
             max_iterations=args.iterations)
         check_writable(args.out, create=False)
-        result = experiment.run(settings, load_platform(args.platform))
+        reference = None
+        if args.predicted_by is not None:
+            try:
+                reference = read_json(args.predicted_by, REPORT_LIMIT, "report.json")
+            except ValueError as err:
+                return error(VERB, f"--predicted-by: {err}")
+        result = experiment.run(settings, load_platform(args.platform), predicted_by=reference)
         folder = experiment.write(result, args.out)
     except ValueError as err:  # IdentificationError, a busy or unwritable --out: the message names the cause
         return error(VERB, err)

@@ -23,6 +23,10 @@ from stewart_env.identification.base import BaseParameters, IdentificationError
 #: Savitzky-Golay filter: polynomial order and window length (samples, odd) of the default.
 SAVGOL_ORDER = 3
 SAVGOL_WINDOW = 21
+#: The relative standard deviation under which the literature calls a parameter well identified.
+WELL_IDENTIFIED = 0.1
+#: An estimate within this many of its standard deviations of zero is not told from zero.
+NEAR_ZERO_STD = 2.0
 
 
 def _vee(S: np.ndarray) -> np.ndarray:
@@ -111,6 +115,44 @@ def wls(A: np.ndarray, F: np.ndarray) -> Estimate:
     res = (F - np.einsum("tir,r->ti", A, beta))
     cov = np.linalg.inv(rows.T @ rows)
     return Estimate(beta, np.sqrt(np.diag(cov)), np.sqrt(np.mean(res ** 2, axis=0)), cov)
+
+
+@dataclass(frozen=True)
+class Requirement:
+    """What brings each base parameter to a relative standard deviation ``target``: rel_std (r,)
+    now (std / |beta|), duration (r,) the record (s) at the same noise, noise (r,) the force noise
+    (N) in the same record, and near_zero (r,) where beta is within NEAR_ZERO_STD standard
+    deviations of zero (there the relative deviation, and so the two answers, tell nothing)."""
+
+    rel_std: np.ndarray
+    duration: np.ndarray
+    noise: np.ndarray
+    near_zero: np.ndarray
+
+
+def requirements(beta: np.ndarray, std: np.ndarray, duration: float, noise: float,
+                 target: float = WELL_IDENTIFIED) -> Requirement:
+    """Recording time and force noise for a relative standard deviation ``target``, per base
+    parameter, from one estimate (beta, std) of a ``duration``-second record at force noise
+    ``noise`` (N).  Under white force noise sigma the least-squares covariance is
+    sigma^2 (A^T A)^-1 and A^T A grows linearly with the record of a periodic excitation, so
+    std_k ~ sigma / sqrt(T):  T_k = T (RSD_k / target)^2  at the same noise and
+    sigma_k = sigma target / RSD_k  in the same record.  A zero estimate needs an infinite
+    record; without noise (``noise`` 0) the noise answer is infinite too."""
+    beta, std = np.asarray(beta, float), np.asarray(std, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.where(beta != 0, np.abs(std) / np.abs(beta), np.inf)
+        ratio = rel / target
+        time = duration * ratio ** 2
+        sigma = np.where(noise > 0, noise / ratio, np.inf)
+    return Requirement(rel, time, sigma, np.abs(beta) <= NEAR_ZERO_STD * np.abs(std))
+
+
+def predicted_std(std: np.ndarray, duration: float, noise: float, to_duration: float, to_noise: float) -> np.ndarray:
+    """The standard deviations (as :func:`requirements` scales them, std ~ sigma / sqrt(T)) that
+    estimates of std from a ``duration``-second record at force noise ``noise`` predict for a
+    ``to_duration``-second record at ``to_noise`` along the same excitation."""
+    return np.asarray(std, float) * (to_noise / noise) * np.sqrt(duration / to_duration)
 
 
 def _physical_body(phi: np.ndarray, shifts: float) -> np.ndarray:

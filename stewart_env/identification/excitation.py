@@ -5,9 +5,9 @@ Each task coordinate q_j (x, y, z of P's origin in {B}, m; roll, pitch, yaw, rad
 
     q_j(t) = q0_j + sum_{k=1..H} a_jk / (k wf) sin(k wf t) - b_jk / (k wf) cos(k wf t),
 
-a series of period 2 pi / wf (Swevers et al. 1997).  The compiled law
-``stewart_env/dynamics/cpp/excitation_law.hpp`` tracks the same series by computed torque on the
-plant; :meth:`Excitation.sample` evaluates it here (the tests check the two agree).
+a series of period 2 pi / wf (Swevers et al. 1997).  It is evaluated in one place, the compiled
+``stewart_env/dynamics/cpp/excitation_law.hpp``: its law tracks the series by computed torque on
+the plant, and :meth:`Excitation.sample` calls the same function.
 """
 
 from __future__ import annotations
@@ -52,15 +52,12 @@ class Excitation:
         return 2 * math.pi / self.wf
 
     def sample(self, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """q, qdot, qddot (T, 6) at the given times (s)."""
-        t = np.asarray(times, float)[:, None, None]
-        wk = self.wf * np.arange(1, self.harmonics + 1)[None, None, :]
-        s, c = np.sin(wk * t), np.cos(wk * t)
-        a, b = self.a[None], self.b[None]
-        q = self.q0 + np.sum((a * s - b * c) / wk, axis=2)
-        qd = np.sum(a * c + b * s, axis=2)
-        qdd = np.sum(wk * (b * c - a * s), axis=2)
-        return q, qd, qdd
+        """q, qdot, qddot (T, 6) at the given times (s), by the compiled series of the law."""
+        t = np.ascontiguousarray(times, dtype=float).reshape(-1)
+        out = np.empty((t.size, 3, 6))
+        _core.fourier_series(*(np.ascontiguousarray(x, dtype=float) for x in (self.q0, self.a, self.b)),
+                             float(self.wf), t, out)
+        return tuple(np.ascontiguousarray(out[:, i]) for i in range(3))
 
     def law_row(self, controller: Dynamics, natural_frequency: float = 20.0, damping: float = 1.0) -> np.ndarray:
         """The parameter row of :data:`FOURIER_COMPUTED_TORQUE`: gains Kp = wn^2, Kd = 2 zeta wn on
@@ -174,7 +171,10 @@ def optimized_excitation(start: Excitation, model: Dynamics, base: BaseParameter
     # coefficients in units of the coordinate's range times wf: the optimiser sees numbers near 1
     span = np.concatenate([0.5 * (lim.position_max - lim.position_min), np.full(3, lim.max_angle)]) * wf
     scale = np.broadcast_to(span[None, :, None], (2, 6, H)).ravel()
+    # the points of one iteration: SLSQP's finite differences of the objective and of the
+    # constraints step to the same points, so each is computed once
     cache: dict[bytes, tuple[float, np.ndarray]] = {}
+    cache_size = 4 * scale.size + 8
     best = {"value": np.inf, "x": None}
 
     def evaluate(z):
@@ -183,7 +183,8 @@ def optimized_excitation(start: Excitation, model: Dynamics, base: BaseParameter
             exc = _centred_at(_from_vector(z * scale, start.q0, H, wf), q_start)
             value = math.log10(condition_number(exc, model, base, times))
             room = margins(exc, model, times, per_sample=True)
-            cache.clear()
+            if len(cache) >= cache_size:
+                del cache[next(iter(cache))]  # the oldest point
             cache[key] = (value, room)
             if np.all(room >= 0) and value < best["value"]:
                 best.update(value=value, x=z.copy())

@@ -2,10 +2,11 @@
 
 :func:`run` drives a plant (a closed-form model, optionally with perturbed parameters as the
 unknown truth) along an excitation by the compiled computed-torque law, adds sensor noise to the
-recorded poses and leg forces, recovers velocities and accelerations by a Savitzky-Golay filter,
-estimates the base parameters (OLS, WLS, physically consistent), and measures the leg-force
-prediction error on a second, held-out trajectory.  :func:`write` publishes the identified
-platform config and the report.
+recorded poses and leg forces (the poses optionally delayed against the forces), recovers
+velocities and accelerations by a Savitzky-Golay filter, estimates the base parameters (OLS, WLS,
+physically consistent) and, per base parameter, the record and force noise that would identify
+it to 10 %, and measures the leg-force prediction error on a second, held-out trajectory.
+:func:`write` publishes the identified platform config and the report.
 """
 
 from __future__ import annotations
@@ -36,6 +37,9 @@ PLANT_DT = 1e-3
 SAMPLE_DT = 5e-3
 #: The start of each record the filter and the controller's transient spoil (s).
 SETTLE = 0.5
+#: Longest measurement delay (s): sensor pipelines lag by milliseconds to tens of milliseconds;
+#: a quarter second is far beyond them and keeps the shift inside the record's dropped start.
+MAX_DELAY = 0.25
 
 
 @dataclass
@@ -44,9 +48,10 @@ class Settings:
     ``mujoco``, the MuJoCo twin of the truth (stewart_env.mujoco);
     model: the structure identified (a model name); excitation: ``optimized`` or ``random``;
     duration (s) of the identification record; noise: standard deviations of the position (m),
-    angle (rad) and leg force (N) measurements; perturb: relative size of the random change of
-    every inertial and friction parameter that makes the plant's truth differ from the nominal
-    platform (0: the truth is the nominal); derivatives: ``filter`` (Savitzky-Golay of the
+    angle (rad) and leg force (N) measurements; delay (s, whole samples of SAMPLE_DT): how long
+    the pose measurements lag the leg-force measurements; perturb: relative size of the random
+    change of every inertial and friction parameter that makes the plant's truth differ from the
+    nominal platform (0: the truth is the nominal); derivatives: ``filter`` (Savitzky-Golay of the
     noisy poses) or ``exact`` (the plant's own, a simulation-only check); seed."""
 
     plant: str = "improved"
@@ -56,6 +61,7 @@ class Settings:
     noise_position: float = 0.0
     noise_angle: float = 0.0
     noise_force: float = 0.0
+    delay: float = 0.0
     perturb: float = 0.0
     derivatives: str = "filter"
     seed: int = 0
@@ -95,8 +101,18 @@ class Settings:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise IdentificationError(f"--{name.replace('_', '-')}: expected a number >= 0, got {value!r}")
+        delay = self.delay
+        if not (isinstance(delay, (int, float)) and math.isfinite(delay) and 0 <= delay <= MAX_DELAY):
+            raise IdentificationError(f"--delay: expected seconds in [0, {MAX_DELAY}], got {delay!r}")
+        if abs(delay - self.delay_samples * SAMPLE_DT) > 1e-9:
+            raise IdentificationError(f"--delay: expected a whole number of samples of {SAMPLE_DT} s, got {delay!r}")
         if self.perturb >= 1:
             raise IdentificationError(f"--perturb: expected a relative change below 1, got {self.perturb}")
+
+    @property
+    def delay_samples(self) -> int:
+        """The delay in whole samples of SAMPLE_DT."""
+        return int(round(self.delay / SAMPLE_DT))
 
 
 @dataclass
@@ -189,21 +205,32 @@ def simulate(plant: Dynamics | str, truth: PlatformParams, controller: Dynamics,
     return traj
 
 
+def delayed(x: np.ndarray, samples: int) -> np.ndarray:
+    """x (T, ...) seen ``samples`` samples late: entry n is x[n - samples]; the first entries,
+    before anything arrived, repeat x[0] (callers drop them)."""
+    if samples == 0:
+        return x
+    return np.concatenate([np.repeat(x[:1], samples, axis=0), x[:-samples]])
+
+
 def measure(plant: Dynamics, traj, settings: Settings, rng: np.random.Generator) -> Record:
-    """Noisy measurements of a recorded trajectory and the motion derivatives the estimators use."""
-    n = traj.time.size
-    pos = traj.position + rng.normal(scale=settings.noise_position, size=(n, 3))
-    rot = rotvec_to_matrix(rng.normal(scale=settings.noise_angle, size=(n, 3))) @ traj.rotation
+    """Noisy measurements of a recorded trajectory and the motion derivatives the estimators use.
+    The poses (and with exact derivatives every motion quantity) lag the leg forces by
+    ``settings.delay``."""
+    n, k = traj.time.size, settings.delay_samples
+    pos = delayed(traj.position, k) + rng.normal(scale=settings.noise_position, size=(n, 3))
+    rot = rotvec_to_matrix(rng.normal(scale=settings.noise_angle, size=(n, 3))) @ delayed(traj.rotation, k)
     forces = traj.leg_forces + rng.normal(scale=settings.noise_force, size=(n, 6))
     if not (np.isfinite(pos).all() and np.isfinite(rot).all() and np.isfinite(forces).all()):
         raise IdentificationError("measurements: non-finite poses or leg forces")
     if settings.derivatives == "exact":
         t, R, v, w = traj.position, traj.rotation, traj.velocity, traj.angular_velocity
         a, alpha = plant.forward(t, R, v, w, traj.leg_forces)
-        states = (t, R, v, w, a, alpha)
+        states = tuple(delayed(x, k) for x in (t, R, v, w, a, alpha))
     else:
         states = est.derivatives(SAMPLE_DT, pos, rot)
     keep = traj.time >= SETTLE
+    keep[:k + est.SAVGOL_WINDOW // 2 + 1] = False  # poses not yet arrived, and the filter's start on them
     keep[-(est.SAVGOL_WINDOW // 2 + 1):] = False
     return Record(traj.time[keep], tuple(np.ascontiguousarray(x[keep]) for x in states), forces[keep],
                   traj.leg_forces[keep])
@@ -216,14 +243,57 @@ def rows_of(model: Dynamics, base: base_mod.BaseParameters, record: Record) -> n
     return est.leg_force_rows(base.columns(Y), J)
 
 
-def run(settings: Settings, nominal: PlatformParams) -> Result:
-    """The whole experiment (see the module docstring)."""
+def _check_reference(reference: dict, settings: Settings, nominal: PlatformParams,
+                     base: base_mod.BaseParameters) -> None:
+    """IdentificationError unless ``reference`` is an identify report of the same platform's and
+    model's base parameters, recorded with force noise, and this experiment has force noise."""
+    try:
+        names = [p["name"] for p in reference["base_parameters"]]
+        ok = (reference["platform"] == nominal.name and reference["settings"]["model"] == settings.model
+              and float(reference["settings"]["noise_force"]) > 0 and float(reference["fitted_duration"]) > 0
+              and all(isinstance(p["wls_std"], float) for p in reference["base_parameters"]))
+    except (KeyError, TypeError, ValueError):
+        raise IdentificationError("--predicted-by: not a report.json of stewart-env identify") from None
+    if not ok or names != base.names:
+        raise IdentificationError(f"--predicted-by: a report of {nominal.name}'s {settings.model} base parameters "
+                                  "with force noise is needed")
+    if settings.noise_force <= 0:
+        raise IdentificationError("--predicted-by: needs --noise-force > 0 (the law scales with the force noise)")
+
+
+def _prediction(reference: dict, fitted: float, noise: float, std_now: np.ndarray, need: est.Requirement) -> dict:
+    """The reference's standard deviations scaled to this record and noise, against this record's."""
+    ref = reference["base_parameters"]
+    std = est.predicted_std(np.array([p["wls_std"] for p in ref]), reference["fitted_duration"],
+                            reference["settings"]["noise_force"], fitted, noise)
+    ref_beta = np.array([p["wls"] for p in ref])
+    ref_zero = np.abs(ref_beta) <= est.NEAR_ZERO_STD * np.array([p["wls_std"] for p in ref])
+    both = ~(need.near_zero | ref_zero)
+    rel_predicted = std / np.abs(ref_beta)
+
+    def spread(x):
+        return {"median": float(np.median(x)), "p10": float(np.percentile(x, 10)), "p90": float(np.percentile(x, 90)),
+                "count": int(x.size)}
+
+    return {"fitted_duration": float(reference["fitted_duration"]),
+            "noise_force": float(reference["settings"]["noise_force"]),
+            "std_ratio": spread(std_now / std), "rel_std_ratio": spread(need.rel_std[both] / rel_predicted[both]),
+            "predicted_std": std.tolist(), "predicted_rel_std": rel_predicted.tolist()}
+
+
+def run(settings: Settings, nominal: PlatformParams, predicted_by: dict | None = None) -> Result:
+    """The whole experiment (see the module docstring).  ``predicted_by``: the report of an
+    earlier run of the same platform and model, whose standard deviations, scaled to this
+    record's length and force noise (:func:`estimate.predicted_std`), the report compares with
+    this run's (its ``predicted_by`` entry)."""
     settings.check()
     rng = np.random.default_rng(settings.seed)
     truth = perturbed(nominal, settings.perturb, rng)
     plant = "mujoco" if settings.plant == "mujoco" else Dynamics(settings.plant, truth)
     model = Dynamics(settings.model, nominal)
     base = base_mod.base_parameters(model)
+    if predicted_by is not None:
+        _check_reference(predicted_by, settings, nominal, base)
     period = min(settings.period, settings.duration)
     start = exc.random_excitation(nominal, model, rng, period=period, harmonics=settings.harmonics)
     times = np.linspace(0, period, 100, endpoint=False)
@@ -260,18 +330,30 @@ def run(settings: Settings, nominal: PlatformParams) -> Result:
     exact_structure = plant_flags == model.flags
     rms_force = float(np.sqrt(np.mean(held.true_forces ** 2)))
     names = base.names
+    fitted = record.time.size * SAMPLE_DT
+    need = est.requirements(w.beta, w.std, fitted, settings.noise_force)
+    dropped = settings.duration - fitted  # the record's start and end the fit does not use
     params_rows = []
     for k in range(base.rank):
         row = {"name": names[k], "ols": float(o.beta[k]), "ols_std": float(o.std[k]), "wls": float(w.beta[k]),
-               "wls_std": float(w.std[k]), "consistent": float(beta_c[k]), "nominal": float(beta_nominal[k])}
+               "wls_std": float(w.std[k]), "rel_std": _or_none(need.rel_std[k]),
+               "duration_10pct": _or_none(need.duration[k] + dropped), "noise_force_10pct": _or_none(need.noise[k]),
+               "near_zero": bool(need.near_zero[k]),
+               "consistent": float(beta_c[k]), "nominal": float(beta_nominal[k])}
         if exact_structure:
             row["truth"] = float(truth_beta[k])
         params_rows.append(row)
-    rel_std = np.abs(w.std) / np.maximum(np.abs(w.beta), 1e-300)
+    rel_std = need.rel_std
+    prediction = None if predicted_by is None else _prediction(predicted_by, fitted, settings.noise_force, w.std, need)
+    if prediction is not None:
+        for row, std, rel in zip(params_rows, prediction["predicted_std"], prediction["predicted_rel_std"]):
+            row["predicted_std"], row["predicted_rel_std"] = _or_none(std), _or_none(rel)
     report = {
         "settings": settings.__dict__.copy(),
         "platform": nominal.name,
         "samples": int(record.time.size),
+        "delay_samples": settings.delay_samples,
+        "fitted_duration": fitted,
         "rank": base.rank,
         "n_theta": reg.N_THETA,
         "rank_tolerance": base_mod.RANK_TOLERANCE,
@@ -285,6 +367,8 @@ def run(settings: Settings, nominal: PlatformParams) -> Result:
         "excitation": series.to_dict(),
         "base_parameters": params_rows,
     }
+    if prediction is not None:
+        report["predicted_by"] = {k: v for k, v in prediction.items() if not k.startswith("predicted_")}
     if exact_structure:
         err = np.abs(w.beta - truth_beta)
         rel = err / np.maximum(np.abs(truth_beta), 1e-12)
@@ -297,6 +381,46 @@ def run(settings: Settings, nominal: PlatformParams) -> Result:
     return Result(settings, truth, identified, report)
 
 
+def _or_none(x: float) -> float | None:
+    """x, or None (JSON's null) where it is infinite."""
+    return float(x) if math.isfinite(x) else None
+
+
+def _figure(x: float | None, none: str) -> str:
+    return none if x is None else f"{x:.3g}"
+
+
+def body_of(name: str) -> str:
+    """The body a base parameter belongs to, by its leading entry of theta: ``platform``,
+    ``leg i`` (its upper and lower part turn together) or ``friction``."""
+    head = name.split(" ")[0].split(".")[0]
+    if head.startswith(("upper_leg[", "lower_leg[")):
+        return "leg " + head.split("[")[1].rstrip("]")
+    return "friction" if head == "damping" else head
+
+
+def _by_body(report: dict) -> list[str]:
+    """The per-body summary of the per-parameter answers (report.md)."""
+    groups: dict[str, list[dict]] = {}
+    for p in report["base_parameters"]:
+        groups.setdefault(body_of(p["name"]), []).append(p)
+    target = f"{100 * est.WELL_IDENTIFIED:g} %"
+    lines = ["", f"By body: how many base parameters are under {target} and how many ~0; of the others, the "
+             f"`--duration` (s) for {target} at this force noise and the force noise (N) for {target} in this "
+             "recording, median and worst.", "",
+             f"| body | base parameters | rel. std < {target} | ~0 | --duration, median | --duration, longest "
+             "| force noise, median | force noise, smallest |", "|---|---|---|---|---|---|---|---|"]
+    for body, rows in groups.items():
+        rest = [p for p in rows if not p["near_zero"]]
+        time = np.array([np.inf if p["duration_10pct"] is None else p["duration_10pct"] for p in rest])
+        noise = np.array([np.inf if p["noise_force_10pct"] is None else p["noise_force_10pct"] for p in rest])
+        under = sum(p["rel_std"] is not None and p["rel_std"] < est.WELL_IDENTIFIED for p in rows)
+        figures = (f"{np.median(time):.3g} | {time.max():.3g} | {np.median(noise):.3g} | {noise.min():.3g}"
+                   if rest else "| | |")
+        lines.append(f"| {body} | {len(rows)} | {under} | {len(rows) - len(rest)} | {figures} |")
+    return lines
+
+
 def _markdown(report: dict) -> str:
     s = report["settings"]
     e = report["held_out_force_error"]
@@ -305,6 +429,7 @@ def _markdown(report: dict) -> str:
         "",
         f"plant `{s['plant']}`, model `{s['model']}`, excitation `{s['excitation']}`, {s['duration']} s, "
         f"noise: position {s['noise_position']} m, angle {s['noise_angle']} rad, force {s['noise_force']} N; "
+        f"poses delayed by {s['delay']} s ({report['delay_samples']} samples); "
         f"truth perturbed by {s['perturb']}; seed {s['seed']}",
         "",
         f"- base parameters: {report['rank']} of {report['n_theta']} (QR tolerance {report['rank_tolerance']:g})",
@@ -320,11 +445,35 @@ def _markdown(report: dict) -> str:
         lines.append(f"- WLS against the truth: {t['within_10pct_wls']} of {report['rank']} base parameters within "
                      f"10 %, median relative error {t['median_rel_wls']:.3g}, largest {t['max_rel_wls']:.3g} (a "
                      f"combination near zero); {100 * t['within_3_std_wls']:.1f} % within 3 standard deviations")
-    lines += ["", "| base parameter | WLS | std | consistent | nominal |" + (" truth |" if "truth_error" in report else ""),
-              "|---|---|---|---|---|" + ("---|" if "truth_error" in report else "")]
+    if "predicted_by" in report:
+        q = report["predicted_by"]
+        a, b = q["std_ratio"], q["rel_std_ratio"]
+        lines.append(f"- against what a run of {q['fitted_duration']:.4g} s at {q['noise_force']:g} N predicts "
+                     f"(std ~ sigma / sqrt(T)), measured / predicted: std median {a['median']:.3g} (10-90 %: "
+                     f"{a['p10']:.3g}-{a['p90']:.3g}, {a['count']} parameters), rel. std median {b['median']:.3g} "
+                     f"({b['p10']:.3g}-{b['p90']:.3g}, the {b['count']} not ~0 in either run)")
+    lines += _by_body(report)
+    truth = "truth_error" in report
+    predicted = "predicted_by" in report
+    target = f"{100 * est.WELL_IDENTIFIED:g} %"
+    lines += ["", f"Per base parameter: the WLS estimate, its standard deviation and relative standard deviation; "
+              f"the `--duration` (s) that brings it to {target} at this force noise, and the force noise (N) that "
+              f"does in this recording (standard deviation as sigma / sqrt(T)); `~0`: the estimate is within "
+              f"{est.NEAR_ZERO_STD:g} standard deviations of zero, so its relative deviation tells nothing.",
+              "",
+              f"| base parameter | WLS | std | rel. std | --duration for {target}, s | force noise for {target}, N "
+              + ("| predicted rel. std " if predicted else "")
+              + "| consistent | nominal |" + (" truth |" if truth else ""),
+              "|---|---|---|---|---|---|---|---|" + ("---|" if truth else "") + ("---|" if predicted else "")]
     for p in report["base_parameters"]:
-        row = f"| `{p['name']}` | {p['wls']:.6g} | {p['wls_std']:.3g} | {p['consistent']:.6g} | {p['nominal']:.6g} |"
-        if "truth" in p:
+        if p["near_zero"]:
+            time, noise = "~0", "~0"
+        else:
+            time, noise = _figure(p["duration_10pct"], "never"), _figure(p["noise_force_10pct"], "n/a")
+        row = (f"| `{p['name']}` | {p['wls']:.6g} | {p['wls_std']:.3g} | {_figure(p['rel_std'], 'inf')} | {time} "
+               f"| {noise} " + (f"| {_figure(p['predicted_rel_std'], 'inf')} " if predicted else "")
+               + f"| {p['consistent']:.6g} | {p['nominal']:.6g} |")
+        if truth:
             row += f" {p['truth']:.6g} |"
         lines.append(row)
     return "\n".join(lines) + "\n"

@@ -247,6 +247,29 @@ def test_identify_command_writes_a_platform_other_commands_load(tmp_path, capsys
     assert err["wls"] < 0.2 * err["nominal"] and err["consistent"] < 0.2 * err["nominal"]
     assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["platform.yaml", "report.json",
                                                                                    "report.md", "truth.yaml"]
+    # per base parameter: its relative standard deviation and what brings it to 10 %, as requirements says
+    rows = report["base_parameters"]
+    need = est.requirements(np.array([p["wls"] for p in rows]), np.array([p["wls_std"] for p in rows]),
+                            report["fitted_duration"], 0.5)
+    dropped = 6 - report["fitted_duration"]
+    for p, rel, time, noise, zero in zip(rows, need.rel_std, need.duration, need.noise, need.near_zero):
+        assert (p["rel_std"], p["duration_10pct"], p["noise_force_10pct"], p["near_zero"]) == (
+            rel, time + dropped, noise, zero)
+    assert report["base_parameters_under_10pct_rel_std"] == int(np.sum(need.rel_std < 0.1))
+    table = (out / "report.md").read_text()
+    assert "| base parameter | WLS | std | rel. std | --duration for 10 %, s | force noise for 10 %, N |" in table
+    assert table.count("| ~0 | ~0 |") == int(need.near_zero.sum()) > 0
+
+    # a second, longer run: the first one's standard deviations, scaled by sqrt(T), predict its own
+    again = tmp_path / "again"
+    code, text, err = run_cli(["--excitation", "random", "--duration", "9", "--period", "3", "--noise-force", "1",
+                               "--predicted-by", str(out / "report.json"), "--out", str(again)], capsys)
+    assert code == 0, err
+    prediction = json.loads((again / "report.json").read_text())["predicted_by"]
+    assert prediction["fitted_duration"] == report["fitted_duration"] and prediction["noise_force"] == 0.5
+    # the same series (the seed), records of 1.8 and 2.8 of its periods: A^T A grows about linearly
+    assert 0.75 < prediction["std_ratio"]["median"] < 1.33
+    assert "against what a run of" in text
 
 
 def test_mujoco_plant_without_the_extra_is_named(monkeypatch):
@@ -255,3 +278,156 @@ def test_mujoco_plant_without_the_extra_is_named(monkeypatch):
     monkeypatch.setattr(library, "_mj", None)
     with pytest.raises(IdentificationError, match="--plant mujoco: .*not installed"):
         experiment.Settings(plant="mujoco").check()
+
+
+# -- the excitation's series, the measurement delay, the time and noise for 10 % --------------------
+
+
+def test_the_series_is_evaluated_once_by_the_compiled_law(dasgupta):
+    model = se.make_dynamics("improved", dasgupta)
+    series = exc.random_excitation(dasgupta, model, np.random.default_rng(1), period=3.0)
+    times = np.linspace(0.0, 6.0, 37)
+    q, qd, qdd = series.sample(times)
+    # the formula of the module docstring, written out: the same operations up to their order
+    t = times[:, None, None]
+    wk = series.wf * np.arange(1, series.harmonics + 1)
+    s, c = np.sin(wk * t), np.cos(wk * t)
+    want = (series.q0 + np.sum((series.a * s - series.b * c) / wk, axis=2), np.sum(series.a * c + series.b * s, axis=2),
+            np.sum(wk * (series.b * c - series.a * s), axis=2))
+    for got, w in zip((q, qd, qdd), want):
+        assert np.abs(got - w).max() <= 1e-14 * np.abs(w).max()  # five terms summed: rounding only
+    # on the reference the law's feedback vanishes: its forces are the controller's inverse dynamics
+    states = exc.task_states(q, qd, qdd)
+    row = series.law_row(model)[None]
+    from stewart_env.dynamics.rk4 import law_forces
+
+    for k, time in enumerate(times):
+        F = law_forces(exc.FOURIER_COMPUTED_TORQUE, row, *(np.ascontiguousarray(x[k:k + 1]) for x in states[:4]),
+                       time=float(time))
+        F_id = model.inverse(*(x[k] for x in states))
+        # roll-pitch-yaw back from the rotation matrix and the rates through E: rounding, times cond ~ 10
+        assert np.abs(F[0] - F_id).max() < 1e-9 * np.abs(F_id).max()
+    with pytest.raises(ValueError, match="b"):
+        exc.Excitation(series.q0, series.a, series.b[:, :2], series.wf).sample(times)
+
+
+@pytest.fixture(scope="module")
+def plant_run(dasgupta):
+    """A short noise-free run of the plant along a random series: (plant, trajectory)."""
+    model = se.make_dynamics("improved", dasgupta)
+    series = exc.random_excitation(dasgupta, model, np.random.default_rng(4), period=3.0)
+    return model, experiment.simulate(model, dasgupta, model, series, 3.0)
+
+
+def test_no_delay_measures_as_before(plant_run):
+    plant, traj = plant_run
+    settings = experiment.Settings(noise_position=1e-5, noise_angle=1e-5, noise_force=1.0)
+    record = experiment.measure(plant, traj, settings, np.random.default_rng(5))
+    # the measurement without a delay, written out: the same draws in the same order
+    rng, n = np.random.default_rng(5), traj.time.size
+    pos = traj.position + rng.normal(scale=1e-5, size=(n, 3))
+    rot = se.rotations.rotvec_to_matrix(rng.normal(scale=1e-5, size=(n, 3))) @ traj.rotation
+    forces = traj.leg_forces + rng.normal(scale=1.0, size=(n, 6))
+    keep = traj.time >= experiment.SETTLE
+    keep[-(est.SAVGOL_WINDOW // 2 + 1):] = False
+    assert np.array_equal(record.time, traj.time[keep]) and np.array_equal(record.forces, forces[keep])
+    for got, want in zip(record.states, est.derivatives(experiment.SAMPLE_DT, pos, rot)):
+        assert np.array_equal(got, want[keep])
+
+
+@pytest.mark.parametrize("derivatives", ["exact", "filter"])
+def test_a_delay_shifts_the_poses_by_whole_samples(plant_run, derivatives):
+    plant, traj = plant_run
+    k = 4
+    on_time = experiment.measure(plant, traj, experiment.Settings(derivatives=derivatives), np.random.default_rng(0))
+    late = experiment.measure(plant, traj, experiment.Settings(derivatives=derivatives, delay=k * experiment.SAMPLE_DT),
+                              np.random.default_rng(0))
+    # the same samples kept, the forces of their own time, every motion quantity k samples old
+    assert np.array_equal(late.time, on_time.time) and np.array_equal(late.forces, on_time.forces)
+    if derivatives == "exact":
+        index = np.searchsorted(traj.time, late.time)
+        assert np.array_equal(late.states[0], traj.position[index - k])
+    for got, want in zip(late.states, on_time.states):
+        assert np.array_equal(got[k:], want[:-k])
+        assert not np.array_equal(got[:k], want[:k])
+
+
+def test_bad_delays_are_refused_naming_the_option(tmp_path, capsys):
+    for delay, says in ((0.003, "expected a whole number of samples"), (-0.005, "expected seconds"),
+                        (float("nan"), "expected"),
+                        (float("inf"), "expected"), (experiment.MAX_DELAY + experiment.SAMPLE_DT, "expected seconds")):
+        with pytest.raises(IdentificationError, match=f"^--delay: {says}"):
+            experiment.Settings(delay=delay).check()
+    experiment.Settings(delay=experiment.MAX_DELAY).check()
+    assert experiment.Settings(delay=0.015).delay_samples == 3
+    out = tmp_path / "run"
+    for value in ("0.003", "-0.005", "nan", "1"):
+        code, _, err = run_cli_exit(["--excitation", "random", "--duration", "6", "--period", "3", "--delay", value,
+                                     "--out", str(out)], capsys)
+        # argparse's refusal (a negative or non-finite number) follows its usage; the command's own is one line
+        assert code == 2 and "--delay" in err.strip().splitlines()[-1], err
+        assert not out.exists() or not any(p.name != ".stewart-env.lock" for p in out.iterdir())
+
+
+def run_cli_exit(args, capsys):
+    """run_cli, with argparse's refusals (SystemExit) as their exit code."""
+    try:
+        return run_cli(args, capsys)
+    except SystemExit as stop:
+        out = capsys.readouterr()
+        return stop.code, out.out, out.err
+
+
+def test_requirements_follow_one_over_the_square_root_of_the_record():
+    beta = np.array([10.0, -2.0, 0.5, 0.0, 1.0])
+    std = np.array([0.5, 0.4, 0.3, 0.1, 0.0])
+    need = est.requirements(beta, std, duration=60.0, noise=2.0)
+    assert np.allclose(need.rel_std[:3], [0.05, 0.2, 0.6]) and need.rel_std[3] == np.inf and need.rel_std[4] == 0
+    # RSD 0.05 reaches 10 % in a quarter of the record or at twice the noise; 0.2 in four times it or at half
+    assert np.allclose(need.duration[:2], [15.0, 240.0]) and np.allclose(need.noise[:2], [4.0, 1.0])
+    assert need.duration[3] == np.inf and need.noise[3] == 0.0
+    assert need.near_zero.tolist() == [False, False, True, True, False]
+    assert np.all(est.requirements(beta, std, 60.0, noise=0.0).noise == np.inf)
+
+
+def test_standard_deviations_shrink_as_one_over_the_square_root_of_the_record(noise_free):
+    model, base, A, record, truth = noise_free
+    F = record.true_forces + np.random.default_rng(11).normal(scale=1.0, size=record.true_forces.shape)
+    period = int(round(3.0 / experiment.SAMPLE_DT))  # the fixture's series repeats every 3 s
+    one, whole = est.ols(A[:period], F[:period]), est.ols(A, F)
+    # the record's rows at 60 % of their time: the law T (RSD / target)^2 predicts the whole record's std
+    need = est.requirements(one.beta, one.std, 1.0, noise=1.0, target=1.0)
+    predicted = one.std * np.sqrt(period / A.shape[0])
+    assert np.allclose(need.duration, need.rel_std ** 2)
+    ratio = whole.std / predicted
+    # the 0.8 period beyond the first is not a whole one, so A^T A grows only about linearly
+    assert 0.8 < np.median(ratio) < 1.25, np.median(ratio)
+
+
+def test_predicted_std_scales_with_the_noise_and_one_over_the_root_of_the_record():
+    std = np.array([1.0, 0.2])
+    assert np.allclose(est.predicted_std(std, 60.0, 1.0, 240.0, 1.0), std / 2)
+    assert np.allclose(est.predicted_std(std, 60.0, 1.0, 60.0, 5.0), std * 5)
+
+
+def test_a_reference_report_that_does_not_fit_is_refused_before_any_work(tmp_path, capsys):
+    import json
+
+    bad = tmp_path / "bad.json"
+    for document, says in (({"platform": "dasgupta1998"}, "not a report.json"),
+                           ({"platform": "motion_simulator", "settings": {"model": "improved", "noise_force": 1.0},
+                             "fitted_duration": 5.0, "base_parameters": [{"name": "x", "wls_std": 1.0}]},
+                            "a report of dasgupta1998's improved base parameters")):
+        bad.write_text(json.dumps(document))
+        out = tmp_path / "run"
+        code, _, err = run_cli(["--excitation", "random", "--duration", "6", "--period", "3",
+                                "--predicted-by", str(bad), "--out", str(out)], capsys)
+        assert code == 2 and err.startswith("stewart-env identify: error: --predicted-by: ") and says in err, err
+        assert not out.exists() or not any(p.name != ".stewart-env.lock" for p in out.iterdir())
+    bad.write_text("{")
+    code, _, err = run_cli(["--predicted-by", str(bad), "--out", str(tmp_path / "run")], capsys)
+    assert code == 2 and "--predicted-by" in err and "not valid JSON" in err
+    code, _, err = run_cli(["--predicted-by", str(tmp_path / "none.json"), "--out", str(tmp_path / "run")], capsys)
+    assert code == 2 and "--predicted-by" in err and "No such file" in err
+    run = tmp_path / "run"
+    assert not run.exists() or not any(p.name != ".stewart-env.lock" for p in run.iterdir())

@@ -27,14 +27,14 @@ constexpr int KP = 0, KD = 6, FLAGS = 12, WF = 13, NH = 14, Q0 = 15, COEF = 21;
 // Length of the parameter row for H harmonics.
 constexpr int64_t row_length(int64_t harmonics) { return COEF + 12 * harmonics + kernels::N_PARAMS; }
 
-// The reference q, qdot, qddot (6 each) at time t of the series in params.
-inline void reference(const double* params, double time, double* q, double* qd, double* qdd) {
-    const double wf = params[WF];
-    const int H = static_cast<int>(params[NH]);
-    const double* a = params + COEF;
-    const double* b = a + 6 * H;
+// The series at time t: q, qdot, qddot (6 each) of the coefficients a, b (6 H, row j =
+// coordinate) about q0 (6), base angular frequency wf (rad/s).  The one evaluation of the series:
+// the law below and stewart_env.identification.excitation (through the binding fourier_series)
+// both call it.  The harmonics are summed first and q0 added last, in index order.
+inline void fourier_series(double wf, int H, const double* q0, const double* a, const double* b, double time,
+                           double* q, double* qd, double* qdd) {
     for (int j = 0; j < 6; ++j) {
-        double x = params[Q0 + j], xd = 0.0, xdd = 0.0;
+        double x = 0.0, xd = 0.0, xdd = 0.0;
         for (int k = 1; k <= H; ++k) {
             const double wk = wf * k, s = std::sin(wk * time), c = std::cos(wk * time);
             const double ajk = a[H * j + k - 1], bjk = b[H * j + k - 1];
@@ -42,10 +42,16 @@ inline void reference(const double* params, double time, double* q, double* qd, 
             xd += ajk * c + bjk * s;
             xdd += wk * (bjk * c - ajk * s);
         }
-        q[j] = x;
+        q[j] = q0[j] + x;
         qd[j] = xd;
         qdd[j] = xdd;
     }
+}
+
+// The reference q, qdot, qddot (6 each) at time t of the series in the law's parameter row.
+inline void reference(const double* params, double time, double* q, double* qd, double* qdd) {
+    const int H = static_cast<int>(params[NH]);
+    fourier_series(params[WF], H, params + Q0, params + COEF, params + COEF + 6 * H, time, q, qd, qdd);
 }
 
 // The law (rk4::ControlLaw): the six leg forces, N; NaN when the row's length does not fit H.

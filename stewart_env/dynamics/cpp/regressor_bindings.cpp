@@ -1,4 +1,5 @@
-// Python binding of the regressor (regressor.hpp): regressor_batch, with the shapes of its arrays
+// Python binding of the regressor (regressor.hpp): regressor_batch, and of the excitation's Fourier
+// series (excitation_law.hpp): fourier_series, with the shapes of its arrays
 // checked so no call from Python can read or write outside them.
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
@@ -23,14 +24,22 @@ using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
 void bind_regressor(nb::module_& m) {
     m.attr("N_THETA") = regressor::N_THETA;
     m.attr("FOURIER_COMPUTED_TORQUE") = reinterpret_cast<uintptr_t>(&excitation::fourier_computed_torque);
-    m.def("fourier_reference", [](In params, double time, Out out) {
-        array_checks::expect(params, "params", {-1});
-        array_checks::expect(out, "out (3, 6)", {3, 6});
-        if (params.shape(0) < excitation::COEF ||
-            static_cast<int64_t>(params.shape(0)) != excitation::row_length(static_cast<int64_t>(params.data()[excitation::NH])))
-            throw nb::value_error("params: not a Fourier excitation row");
-        excitation::reference(params.data(), time, out.data(), out.data() + 6, out.data() + 12);
-    }, "params"_a, "time"_a, "out"_a.noconvert());
+    m.def("fourier_series", [](In q0, In a, In b, double wf, In times, Out out) {
+        array_checks::expect(q0, "q0 (6,)", {6});
+        array_checks::expect(a, "a (6, H)", {6, -1});
+        const int64_t H = static_cast<int64_t>(a.shape(1));
+        array_checks::expect(b, "b (6, H)", {6, H});
+        array_checks::expect(times, "times (T,)", {-1});
+        const int64_t n = static_cast<int64_t>(times.shape(0));
+        array_checks::expect(out, "out (T, 3, 6)", {n, 3, 6});
+        if (H < 1) throw nb::value_error("a: expected at least one harmonic");
+        nb::gil_scoped_release release;
+        double* o = out.data();
+        for (int64_t i = 0; i < n; ++i, o += 18)
+            excitation::fourier_series(wf, static_cast<int>(H), q0.data(), a.data(), b.data(), times.data()[i], o, o + 6,
+                                       o + 12);
+    }, "q0"_a, "a"_a, "b"_a, "wf"_a, "times"_a, "out"_a.noconvert(),
+       "q, qdot, qddot (T, 3, 6) of the excitation's Fourier series at the times (excitation_law.hpp).");
     m.def("regressor_batch", [](In prm, int64_t flags, In t, In R, In v, In w, In acc, Out Y) {
         array_checks::expect(t, "position (N, 3)", {-1, 3});
         const int64_t n = static_cast<int64_t>(t.shape(0));
