@@ -1024,21 +1024,54 @@ inline bool all_finite(const double* x, int64_t size) {
 }
 
 // ||J||_F ||J^-1||_F of a 6x6 matrix, an upper bound of its 2-norm condition number (inf or NaN
-// when J is singular or not finite).  docs/physics.md section 4.4 (no paper equation).
+// when J is singular or not finite).  J^-1 column by column, as solve6 would solve J x = e_k for
+// each unit vector e_k: one elimination with the six right-hand sides carried along (the pivots
+// and factors depend on J alone), every column's numbers those solve6 gives it.
+// docs/physics.md section 4.4 (no paper equation).
 inline double frobenius_condition(const double* J) {
+    constexpr int n = 6;
     double M[36];
-    double e[6];
-    double x[6];
+    double E[36];  // row r, column k: entry r of the right-hand side e_k, then of the solution
     double norm = 0.0;
-    for (int k = 0; k < 36; ++k) norm += J[k] * J[k];
-    double inv_norm = 0.0;
-    for (int k = 0; k < 6; ++k) {
-        for (int j = 0; j < 36; ++j) M[j] = J[j];
-        for (int j = 0; j < 6; ++j) e[j] = 0.0;
-        e[k] = 1.0;
-        solve6(M, e, x);
-        for (int j = 0; j < 6; ++j) inv_norm += x[j] * x[j];
+    for (int k = 0; k < 36; ++k) {
+        norm += J[k] * J[k];
+        M[k] = J[k];
+        E[k] = 0.0;
     }
+    for (int k = 0; k < n; ++k) E[n * k + k] = 1.0;
+    for (int c = 0; c < n; ++c) {
+        // the pivot row p: the first of rows c.. with the largest |M[r][c]|
+        double big = std::abs(M[n * c + c]);
+        int p = c;
+        for (int r = c + 1; r < n; ++r) {
+            const double a = std::abs(M[n * r + c]);
+            if (a > big) {
+                big = a;
+                p = r;
+            }
+        }
+        if (p != c) {
+            for (int k = c; k < n; ++k) std::swap(M[n * c + k], M[n * p + k]);
+            for (int k = 0; k < n; ++k) std::swap(E[n * c + k], E[n * p + k]);
+        }
+        const double piv = M[n * c + c];
+        for (int r = c + 1; r < n; ++r) {
+            const double f = M[n * r + c] / piv;
+            // a zero factor leaves the row as it is (not even 0 * inf = NaN)
+            if (f == 0.0) continue;
+            for (int k = c + 1; k < n; ++k) M[n * r + k] = M[n * r + k] - f * M[n * c + k];
+            for (int k = 0; k < n; ++k) E[n * r + k] = E[n * r + k] - f * E[n * c + k];
+        }
+    }
+    for (int c = n - 1; c >= 0; --c)
+        for (int k = 0; k < n; ++k) {
+            double s = E[n * c + k];
+            for (int j = c + 1; j < n; ++j) s -= M[n * c + j] * E[n * j + k];
+            E[n * c + k] = s / M[n * c + c];
+        }
+    double inv_norm = 0.0;
+    for (int k = 0; k < n; ++k)
+        for (int j = 0; j < n; ++j) inv_norm += E[n * j + k] * E[n * j + k];
     return std::sqrt(norm * inv_norm);
 }
 
