@@ -50,26 +50,30 @@ inline void copy_state(const State& from, const State& to, int64_t n) {
     std::memcpy(to.w, from.w, sizeof(double) * 3 * n);
 }
 
-// Advance every row's clock one control step (time = steps dt) and find the rows whose state is
-// no longer finite (non_finite (n,)), putting them back to the state they started the step from
-// (start).  Returns whether any row was.
+// Advance row b's clock one control step (time = steps dt) and tell whether its state is still
+// finite (non_finite[b]); a row whose state is not is put back to the state it started the step
+// from (start).  Returns whether it was.
+inline bool after_physics_row(const State& s, const State& start, int64_t* steps, double dt, double* time,
+                              bool* non_finite, int64_t b) {
+    steps[b] += 1;
+    time[b] = static_cast<double>(steps[b]) * dt;
+    const bool ok = kernels::all_finite(s.t + 3 * b, 3) && kernels::all_finite(s.v + 3 * b, 3) &&
+                    kernels::all_finite(s.w + 3 * b, 3) && kernels::all_finite(s.R + 9 * b, 9);
+    non_finite[b] = !ok;
+    if (!ok) {
+        std::memcpy(s.t + 3 * b, start.t + 3 * b, sizeof(double) * 3);
+        std::memcpy(s.R + 9 * b, start.R + 9 * b, sizeof(double) * 9);
+        std::memcpy(s.v + 3 * b, start.v + 3 * b, sizeof(double) * 3);
+        std::memcpy(s.w + 3 * b, start.w + 3 * b, sizeof(double) * 3);
+    }
+    return !ok;
+}
+
+// after_physics_row of every row of a batch.  Returns whether any row's state stopped being finite.
 inline bool after_physics(const State& s, const State& start, int64_t* steps, double dt, double* time,
                           bool* non_finite, int64_t n) {
     bool found = false;
-    for (int64_t b = 0; b < n; ++b) {
-        steps[b] += 1;
-        time[b] = static_cast<double>(steps[b]) * dt;
-        bool ok = kernels::all_finite(s.t + 3 * b, 3) && kernels::all_finite(s.v + 3 * b, 3) &&
-                  kernels::all_finite(s.w + 3 * b, 3) && kernels::all_finite(s.R + 9 * b, 9);
-        non_finite[b] = !ok;
-        if (!ok) {
-            found = true;
-            std::memcpy(s.t + 3 * b, start.t + 3 * b, sizeof(double) * 3);
-            std::memcpy(s.R + 9 * b, start.R + 9 * b, sizeof(double) * 9);
-            std::memcpy(s.v + 3 * b, start.v + 3 * b, sizeof(double) * 3);
-            std::memcpy(s.w + 3 * b, start.w + 3 * b, sizeof(double) * 3);
-        }
-    }
+    for (int64_t b = 0; b < n; ++b) found = after_physics_row(s, start, steps, dt, time, non_finite, b) || found;
     return found;
 }
 
@@ -91,20 +95,33 @@ struct ControlStep {
 
 // One control step of every row of the closed-form plant: drive the actuators (unless already
 // driven), remember the start state, integrate substeps RK4 steps of physics_dt with the leg
-// forces F (n,6) and the external wrench W (n,6) held (rk4::rollout_batch), advance the clock
-// and put rows that stopped being finite back to their start state (after_physics), and
-// measure the leg lengths (n,6), rates (n,6) and condition numbers (n,).  Returns whether any
-// row stopped being finite.
+// forces F (n,6) and the external wrench W (n,6) held (rk4::rollout_row, as rk4::rollout_batch),
+// advance the clock and put rows that stopped being finite back to their start state
+// (after_physics_row), and measure the leg lengths (n,6), rates (n,6) and condition numbers (n,).
+// A block of rows goes through all of it at once, in the lanes and on every core as
+// rollout_batch's blocks (one hand-over to the helper threads per step, the rows' numbers still
+// in cache for the sensors).  Returns whether any row stopped being finite.
 inline bool control_step(const ControlStep& c, const double* action, double* clipped, double* F, const double* W,
                          const State& s, const State& start, int64_t* steps, double* time, bool* non_finite,
                          double* lengths, double* rates, double* condition, int64_t n) {
-    if (c.drive) drive(action, c.force_half, c.force_mid, c.lag, clipped, F, n);
-    copy_state(s, start, n);
-    rk4::rollout_batch(c.prm, c.n_prm, c.flags, s.t, s.R, s.v, s.w, F, W, c.physics_dt, c.substeps, n);
-    const bool found = after_physics(s, start, steps, c.control_dt, time, non_finite, n);
-    kernels::leg_sensors_batch(c.sensor_prm, c.n_sensor_prm, s.t, s.R, s.v, s.w, c.max_condition, lengths, rates,
-                               condition, n);
-    return found;
+    const kernels::ParamRows prm(c.prm, c.n_prm, n);
+    lanes::for_rows(n, 4 * c.substeps, [&](int64_t b, auto tag) {
+        using T = decltype(tag);
+        const int64_t rows = lanes::width<T>;
+        if (c.drive) drive(action + 6 * b, c.force_half, c.force_mid, c.lag, clipped + 6 * b, F + 6 * b, rows);
+        const State from{s.t + 3 * b, s.R + 9 * b, s.v + 3 * b, s.w + 3 * b};
+        copy_state(from, {start.t + 3 * b, start.R + 9 * b, start.v + 3 * b, start.w + 3 * b}, rows);
+        rk4::rollout_row<T>(prm, c.flags, s.t, s.R, s.v, s.w, nullptr, F, n, 6, W, 0.0, c.physics_dt, c.substeps, 0,
+                            nullptr, b);
+        for (int64_t r = b; r < b + rows; ++r) {
+            after_physics_row(s, start, steps, c.control_dt, time, non_finite, r);
+            kernels::leg_sensors_row(c.sensor_prm, c.n_sensor_prm, s.t, s.R, s.v, s.w, c.max_condition, lengths,
+                                     rates, condition, r);
+        }
+    });
+    for (int64_t b = 0; b < n; ++b)
+        if (non_finite[b]) return true;
+    return false;
 }
 
 // The pose observation's first 15 entries of every row into raw (n, dim): P, the first two
@@ -238,6 +255,9 @@ inline void measure(const Batch& B) {
 // reward was not finite (or its start observation was not): the rows in bad (n,).
 constexpr int64_t NON_FINITE_STATE = 1;
 constexpr int64_t BAD_ROWS = 2;
+// What the binding returns, having done nothing, for an action that is not finite (the caller's
+// own check then says where).
+constexpr int64_t NOT_FINITE_ACTION = -1;
 
 // One control step of the whole batch: control_step (the actuators unless drive is false, the RK4
 // substeps, the clock, the leg sensors), the tracking errors against the reference (set before the
