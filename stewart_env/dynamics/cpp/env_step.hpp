@@ -105,6 +105,7 @@ inline bool control_step(const ControlStep& c, const double* action, double* cli
                          const State& s, const State& start, int64_t* steps, double* time, bool* non_finite,
                          double* lengths, double* rates, double* condition, int64_t n) {
     const kernels::ParamRows prm(c.prm, c.n_prm, n);
+    const kernels::ParamRows sensor_prm(c.sensor_prm, c.n_sensor_prm, n);
     lanes::for_rows(n, 4 * c.substeps, [&](int64_t b, auto tag) {
         using T = decltype(tag);
         const int64_t rows = lanes::width<T>;
@@ -113,11 +114,8 @@ inline bool control_step(const ControlStep& c, const double* action, double* cli
         copy_state(from, {start.t + 3 * b, start.R + 9 * b, start.v + 3 * b, start.w + 3 * b}, rows);
         rk4::rollout_row<T>(prm, c.flags, s.t, s.R, s.v, s.w, nullptr, F, n, 6, W, 0.0, c.physics_dt, c.substeps, 0,
                             nullptr, b);
-        for (int64_t r = b; r < b + rows; ++r) {
-            after_physics_row(s, start, steps, c.control_dt, time, non_finite, r);
-            kernels::leg_sensors_row(c.sensor_prm, c.n_sensor_prm, s.t, s.R, s.v, s.w, c.max_condition, lengths,
-                                     rates, condition, r);
-        }
+        for (int64_t r = b; r < b + rows; ++r) after_physics_row(s, start, steps, c.control_dt, time, non_finite, r);
+        kernels::leg_sensors_row<T>(sensor_prm, s.t, s.R, s.v, s.w, c.max_condition, lengths, rates, condition, b);
     });
     for (int64_t b = 0; b < n; ++b)
         if (non_finite[b]) return true;

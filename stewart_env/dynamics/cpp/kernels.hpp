@@ -1024,15 +1024,16 @@ inline bool all_finite(const double* x, int64_t size) {
 }
 
 // ||J||_F ||J^-1||_F of a 6x6 matrix, an upper bound of its 2-norm condition number (inf or NaN
-// when J is singular or not finite).  J^-1 column by column, as solve6 would solve J x = e_k for
-// each unit vector e_k: one elimination with the six right-hand sides carried along (the pivots
-// and factors depend on J alone), every column's numbers those solve6 gives it.
-// docs/physics.md section 4.4 (no paper equation).
-inline double frobenius_condition(const double* J) {
+// when J is singular or not finite); T = double, or Lanes of one J each.  J^-1 column by column,
+// as solve6 would solve J x = e_k for each unit vector e_k: one elimination with the six
+// right-hand sides carried along (the pivots and factors depend on J alone), every column's
+// numbers those solve6 gives it.  docs/physics.md section 4.4 (no paper equation).
+template <typename T>
+inline T frobenius_condition(const T* J) {
     constexpr int n = 6;
-    double M[36];
-    double E[36];  // row r, column k: entry r of the right-hand side e_k, then of the solution
-    double norm = 0.0;
+    T M[36];
+    T E[36];  // row r, column k: entry r of the right-hand side e_k, then of the solution
+    T norm = 0.0;
     for (int k = 0; k < 36; ++k) {
         norm += J[k] * J[k];
         M[k] = J[k];
@@ -1040,39 +1041,54 @@ inline double frobenius_condition(const double* J) {
     }
     for (int k = 0; k < n; ++k) E[n * k + k] = 1.0;
     for (int c = 0; c < n; ++c) {
-        // the pivot row p: the first of rows c.. with the largest |M[r][c]|
-        double big = std::abs(M[n * c + c]);
-        int p = c;
+        // the pivot row p: the first of rows c.. with the largest |M[r][c]| (in each lane its own)
+        T big = lanes::abs_of(M[n * c + c]);
+        T p = T(c);
         for (int r = c + 1; r < n; ++r) {
-            const double a = std::abs(M[n * r + c]);
-            if (a > big) {
-                big = a;
-                p = r;
+            const T a = lanes::abs_of(M[n * r + c]);
+            const auto larger = a > big;
+            big = lanes::select(larger, a, big);
+            p = lanes::select(larger, T(r), p);
+        }
+        // rows c and p trade places
+        for (int r = c + 1; r < n; ++r) {
+            const auto swap = p == T(r);
+            if (!lanes::any(swap)) continue;
+            for (int k = 0; k < n; ++k) {
+                if (k >= c) {
+                    const T mine = M[n * c + k];
+                    const T theirs = M[n * r + k];
+                    M[n * c + k] = lanes::select(swap, theirs, mine);
+                    M[n * r + k] = lanes::select(swap, mine, theirs);
+                }
+                const T mine = E[n * c + k];
+                const T theirs = E[n * r + k];
+                E[n * c + k] = lanes::select(swap, theirs, mine);
+                E[n * r + k] = lanes::select(swap, mine, theirs);
             }
         }
-        if (p != c) {
-            for (int k = c; k < n; ++k) std::swap(M[n * c + k], M[n * p + k]);
-            for (int k = 0; k < n; ++k) std::swap(E[n * c + k], E[n * p + k]);
-        }
-        const double piv = M[n * c + c];
+        const T piv = M[n * c + c];
         for (int r = c + 1; r < n; ++r) {
-            const double f = M[n * r + c] / piv;
+            const T f = M[n * r + c] / piv;
             // a zero factor leaves the row as it is (not even 0 * inf = NaN)
-            if (f == 0.0) continue;
-            for (int k = c + 1; k < n; ++k) M[n * r + k] = M[n * r + k] - f * M[n * c + k];
-            for (int k = 0; k < n; ++k) E[n * r + k] = E[n * r + k] - f * E[n * c + k];
+            const auto nonzero = f != T(0.0);
+            if (!lanes::any(nonzero)) continue;
+            for (int k = c + 1; k < n; ++k)
+                M[n * r + k] = lanes::select(nonzero, M[n * r + k] - f * M[n * c + k], M[n * r + k]);
+            for (int k = 0; k < n; ++k)
+                E[n * r + k] = lanes::select(nonzero, E[n * r + k] - f * E[n * c + k], E[n * r + k]);
         }
     }
     for (int c = n - 1; c >= 0; --c)
         for (int k = 0; k < n; ++k) {
-            double s = E[n * c + k];
+            T s = E[n * c + k];
             for (int j = c + 1; j < n; ++j) s -= M[n * c + j] * E[n * j + k];
             E[n * c + k] = s / M[n * c + c];
         }
-    double inv_norm = 0.0;
+    T inv_norm = 0.0;
     for (int k = 0; k < n; ++k)
         for (int j = 0; j < n; ++j) inv_norm += E[n * j + k] * E[n * j + k];
-    return std::sqrt(norm * inv_norm);
+    return lanes::sqrt_of(norm * inv_norm);
 }
 
 // The 2-norm condition number sigma_max / sigma_min of a finite 6x6 matrix J, by one-sided Jacobi
@@ -1119,26 +1135,41 @@ inline double jacobi_condition(const double* J) {
     return smallest > 0.0 ? largest / smallest : std::numeric_limits<double>::infinity();
 }
 
-// Row b of leg_sensors_batch (docs/physics.md section 4.4; paper eqs. 7 and 13).
-inline void leg_sensors_row(const double* prm, int64_t n_prm, const double* t, const double* R, const double* v,
+// Rows b, b + 1, ... of leg_sensors_batch, as many as T carries (docs/physics.md section 4.4;
+// paper eqs. 7 and 13): prm the nominal parameter rows.
+template <typename T>
+inline void leg_sensors_row(const ParamRows& prm, const double* t, const double* R, const double* v,
                             const double* w, double max_condition, double* lengths, double* rates,
                             double* condition, int64_t b) {
-    const double* p = params_row(prm, n_prm, b);
-    double jac[36];
+    ParamScratch<T> scratch;
+    const T* p = prm.rows(b, scratch.rows);
+    T tl[3], Rl[9], vl[3], wl[3], L[6], Ldot[6], jac[36];
+    lanes::load(t, 3, b, 3, tl);
+    lanes::load(R, 9, b, 9, Rl);
+    lanes::load(v, 3, b, 3, vl);
+    lanes::load(w, 3, b, 3, wl);
     for (int i = 0; i < 6; ++i) {
-        const auto leg = leg_state(p, i, 0, t + 3 * b, R + 9 * b, v + 3 * b, w + 3 * b);
-        lengths[6 * b + i] = leg.frame.L;
-        rates[6 * b + i] = leg.Ldot;
-        const auto row = jacobian_row(leg.frame);
+        const auto leg = leg_state<T>(p, i, 0, tl, Rl, vl, wl);
+        L[i] = leg.frame.L;
+        Ldot[i] = leg.Ldot;
+        const auto row = jacobian_row<T>(leg.frame);
         for (int c = 0; c < 6; ++c) jac[6 * i + c] = row[c];
     }
-    const double bound = frobenius_condition(jac);
-    if (bound <= max_condition) {
-        condition[b] = bound;
-    } else if (std::isfinite(bound)) {
-        condition[b] = jacobi_condition(jac);
-    } else {
-        condition[b] = std::numeric_limits<double>::infinity();
+    lanes::store(L, 6, lengths, 6, b);
+    lanes::store(Ldot, 6, rates, 6, b);
+    const T bound = frobenius_condition<T>(jac);
+    for (int lane = 0; lane < lanes::width<T>; ++lane) {
+        const double x = lanes::get(bound, lane);
+        double& out = condition[b + lane];
+        if (x <= max_condition) {
+            out = x;
+        } else if (std::isfinite(x)) {
+            double J[36];
+            for (int k = 0; k < 36; ++k) J[k] = lanes::get(jac[k], lane);
+            out = jacobi_condition(J);
+        } else {
+            out = std::numeric_limits<double>::infinity();
+        }
     }
 }
 
@@ -1147,13 +1178,15 @@ inline void leg_sensors_row(const double* prm, int64_t n_prm, const double* t, c
 // condition is the 2-norm condition number wherever it exceeds max_condition (inf when singular or
 // non-finite); below it, the cheaper bound ||J||_F ||J^-1||_F >= cond_2, itself at most
 // max_condition.  So condition > max_condition holds exactly when cond_2 does.
-// Rows run on every core (lanes::for_each_row).  docs/physics.md section 4.4; paper eqs. 7 and 13.
+// Blocks of rows run in vector lanes and on every core (lanes::for_rows).  docs/physics.md
+// section 4.4; paper eqs. 7 and 13.
 inline void leg_sensors_batch(const double* prm, int64_t n_prm, const double* t, const double* R, const double* v,
                               const double* w, double max_condition, double* lengths, double* rates,
                               double* condition, int64_t n) {
-    // a row costs about as much as one forward evaluation in a lane: rows shared with the helpers
-    lanes::for_each_row(n, 1, [&](int64_t b) {
-        leg_sensors_row(prm, n_prm, t, R, v, w, max_condition, lengths, rates, condition, b);
+    const ParamRows rows(prm, n_prm, n);
+    // a row costs about as much as one forward evaluation: blocks shared with the helpers
+    lanes::for_rows(n, 1, [&](int64_t b, auto tag) {
+        leg_sensors_row<decltype(tag)>(rows, t, R, v, w, max_condition, lengths, rates, condition, b);
     });
 }
 
