@@ -312,6 +312,9 @@ class PlatformBatch:
         as float32); codes index :attr:`termination_reasons` (0: none).
         """
         if skip is not None:
+            if self.checks_action and self._observed and skip.all():
+                # every row is about to be reset, which sets all a step would: nothing to compute
+                return self._nothing_stepped()
             self._park(skip)
         driven = False
         if self._has_external_wrench:
@@ -356,6 +359,12 @@ class PlatformBatch:
             terms = dict(terms)  # _end_non_finite replaces a term: not in the batch's own views
             reward = self._end_non_finite(bad, code, terms)
         return reward, code, terms, observation
+
+    def _nothing_stepped(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray]:
+        """:meth:`step`'s outcome when every row is skipped: zeros, and the observation as it is."""
+        n = self.n
+        return (np.zeros(n), np.zeros(n, dtype=np.int64), dict(zip(REWARD_TERMS, np.zeros((5, n)))),
+                self.observation.astype(np.float32))
 
     def _end_non_finite(self, bad: np.ndarray, code: np.ndarray, terms: dict[str, np.ndarray]) -> np.ndarray:
         """End the rows ``bad`` whose observation or reward was not finite: no NaN or inf leaves the
