@@ -46,7 +46,8 @@ def test_make_vec_uses_the_native_vector_env():
 
 @pytest.mark.parametrize("kwargs", CONFIGS)
 def test_row_i_equals_a_single_env_seeded_seed_plus_i(kwargs):
-    n, seed, steps = 3, 21, 120
+    # 13 rows: a block of vector lanes and five rows alone, shared with the helper threads
+    n, seed, steps = 13, 21, 120
     envs = make_vec(n, max_episode_steps=40, **kwargs)
     singles = [gym.make(ENV_ID, max_episode_steps=40, **kwargs) for _ in range(n)]
     actions = actions_for(steps, n)
@@ -56,7 +57,7 @@ def test_row_i_equals_a_single_env_seeded_seed_plus_i(kwargs):
     resets = 0
     for k in range(steps):
         np.testing.assert_array_equal(v_obs, np.array(s_obs))
-        v_obs, v_rew, v_term, v_trunc, _ = envs.step(actions[k].astype(np.float32))
+        v_obs, v_rew, v_term, v_trunc, v_info = envs.step(actions[k].astype(np.float32))
         for i, env in enumerate(singles):
             if pending[i]:
                 # Next-step autoreset: this step resets the row and ignores its action.
@@ -64,7 +65,8 @@ def test_row_i_equals_a_single_env_seeded_seed_plus_i(kwargs):
                 rew, term, trunc = 0.0, False, False
                 resets += 1
             else:
-                s_obs[i], rew, term, trunc, _ = env.step(actions[k, i].astype(np.float32))
+                s_obs[i], rew, term, trunc, info = env.step(actions[k, i].astype(np.float32))
+                assert {key: v_info[key][i] for key in info} == info, (k, i)
             assert v_rew[i] == rew and v_term[i] == term and v_trunc[i] == trunc, (k, i)
             pending[i] = term or trunc
     assert resets >= n, "the run should cross autoresets"

@@ -487,7 +487,7 @@ public:
         }
         B.pending = keep<Flags>(a["pending"], "pending", {n}).data();
         B.largest = nb::cast<double>(a["largest"]);
-        observation_ = keep<Singles>(a["observation_out"], "observation_out", {n, D}).data();
+        B.latest = keep<Singles>(a["observation_out"], "observation_out", {n, D}).data();
     }
 
     // New packed parameters of the plant (domain randomisation at a reset): prm (1 or n rows).
@@ -543,14 +543,7 @@ public:
             skip_data = skip_array.data();
         }
         nb::gil_scoped_release release;
-        const int64_t found = env_step::step(b_, a, drive, noise_data, skip_data, head, code_, terms_, reward_, bad_);
-        if (b_.observe) {
-            // the ring's oldest slot, the one after head, is the observation returned now
-            const int64_t size = n * b_.layout.dim;
-            const double* latest = b_.history + ((head + 1) % b_.slots) * size;
-            for (int64_t k = 0; k < size; ++k) observation_[k] = static_cast<float>(latest[k]);
-        }
-        return found;
+        return env_step::step(b_, a, drive, noise_data, skip_data, head, code_, terms_, reward_, bad_);
     }
 
     int64_t n_codes() const { return n_codes_; }
@@ -586,11 +579,10 @@ private:
 
     env_step::Batch b_{};
     // the outcome of a step: termination codes (n,), reward terms (5,n), reward (n,), the rows
-    // made finite (n,), the observation as float32 (n,D) (when made here)
+    // made finite (n,); the observation as float32 (n,D), when made here, is the Batch's latest
     int64_t* code_ = nullptr;
     double *terms_ = nullptr, *reward_ = nullptr;
     bool* bad_ = nullptr;
-    float* observation_ = nullptr;
     std::vector<double> action_;  // a float32 action widened
     std::vector<nb::object> kept_;
     nb::object prm_;
