@@ -490,17 +490,15 @@ inline void jacobian_one(const T* prm, const T* t, const T* R, T* J) {
 // (minus the force of the platform on the leg, F_s, actuator force excluded) as a wrench at P,
 // and the spherical joint's friction torque.  The platform's acceleration acc = [a; alpha] enters
 // through P_i's acceleration; acc nullptr means its velocity part alone (the bias of forward
-// dynamics).  Writes the leg's LegState<T> and leg_bodies into leg and bodies for the caller's own
-// use of the leg.  The one leg loop body of forward dynamics, its M/h assembly and inverse
-// dynamics.  docs/physics.md sections 5.1 and 5.4-5.5; paper eqs. 38-41 and 47-49 (or 51 and 55).
+// dynamics).  leg and bodies: the leg's LegState<T> (leg_state) and leg_bodies, which the caller
+// makes (in its own variables, not copied in: in vector lanes they are kilobytes) and uses again.
+// The one leg loop body of forward dynamics, its M/h assembly and inverse dynamics.
+// docs/physics.md sections 5.1 and 5.4-5.5; paper eqs. 38-41 and 47-49 (or 51 and 55).
 template <typename T>
-inline void leg_on_platform(const T* prm, int64_t flags, int i, const T* t, const T* R,
-                            const T* v, const T* w, const T* acc, T* h, LegState<T>& leg,
-                            LegBodies<T>& bodies) {
-    leg = leg_state<T>(prm, i, flags, t, R, v, w);
+inline void leg_on_platform(const T* prm, int64_t flags, const T* w, const T* acc, T* h, const LegState<T>& leg,
+                            const LegBodies<T>& bodies) {
     const LegFrame<T>& fr = leg.frame;
     const V3<T> A = acc == nullptr ? leg.a_vel : with_platform_acc<T>(acc, fr, leg.a_vel);
-    bodies = leg_bodies<T>(prm, i, flags, fr.L);
     const auto [f0, f1, f2] = leg_force<T>(prm, flags, bodies, leg, A[0], A[1], A[2], 0.0);
     const auto [fs0, fs1, fs2] = to_base<T>(fr, f0, f1, f2);
     const auto& [q0, q1, q2] = fr.q;
@@ -659,10 +657,10 @@ template <typename T>
 inline void leg_share(const T* prm, int64_t flags, int i, const T* t, const T* R, const T* v, const T* w,
                       const T* acc, T* h_leg, T* M_leg, Row6<T>& jac) {
     std::fill(h_leg, h_leg + 6, -0.0);
-    LegState<T> leg;
-    LegBodies<T> bodies;
-    leg_on_platform<T>(prm, flags, i, t, R, v, w, acc, h_leg, leg, bodies);
+    const LegState<T> leg = leg_state<T>(prm, i, flags, t, R, v, w);
     const LegFrame<T>& fr = leg.frame;
+    const LegBodies<T> bodies = leg_bodies<T>(prm, i, flags, fr.L);
+    leg_on_platform<T>(prm, flags, w, acc, h_leg, leg, bodies);
     jac = jacobian_row<T>(fr);
     if (M_leg == nullptr) return;
     std::fill(M_leg, M_leg + 36, -0.0);
