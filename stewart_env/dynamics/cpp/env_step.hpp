@@ -3,9 +3,10 @@
 // the closed-form plant (the RK4 substeps of rk4.hpp with the forces held), the clock and the
 // non-finite check, the leg sensors, and the observation's own passes.  control_step fuses the
 // first four into one call, and step() a whole control step of the environment's Batch: those,
-// the tracking errors, the termination codes, the reward and the observation.  Each row is
-// computed as numpy would compute it, operation for operation, so a batch row equals a batch of
-// one bit for bit.
+// the tracking errors, the termination codes, the reward and the observation.  Both hand blocks of
+// rows to the cores once per step, each block going through all of it while its numbers are in
+// cache.  Each row is computed as numpy would compute it, operation for operation, so a batch row
+// equals a batch of one bit for bit.
 #pragma once
 
 #include <cmath>
