@@ -456,14 +456,22 @@ inline V3<T> unit_inertial_force(int64_t flags, const LegBodies<T>& bodies, cons
 template <typename T>
 inline LegState<T> leg_state(const T* prm, int i, int64_t flags, const T* t, const T* R,
                           const T* v, const T* w) {
-    const LegFrame<T> fr = leg_frame<T>(prm, i, t, R);
+    // the frame made in place (not copied in: in vector lanes it is a kilobyte), the rest set after
+    LegState<T> leg{leg_frame<T>(prm, i, t, R)};
+    const LegFrame<T>& fr = leg.frame;
     const auto& [q0, q1, q2] = fr.q;
     const auto [c0, c1, c2] = cross<T>(w[0], w[1], w[2], q0, q1, q2);
     const auto [u0, u1, u2] = to_leg<T>(fr, v[0] + c0, v[1] + c1, v[2] + c2);
     const LegRates<T> rates = leg_rates<T>(flags, fr, u0, u1, u2);
     const auto [a0, a1, a2] = cross<T>(w[0], w[1], w[2], c0, c1, c2);
-    return {fr, rates.Ldot, rates.sigma, rates.w1, rates.w2, to_leg<T>(fr, w[0], w[1], w[2]),
-            to_leg<T>(fr, prm[OFF_G], prm[OFF_G + 1], prm[OFF_G + 2]), to_leg<T>(fr, a0, a1, a2)};
+    leg.Ldot = rates.Ldot;
+    leg.sigma = rates.sigma;
+    leg.w1 = rates.w1;
+    leg.w2 = rates.w2;
+    leg.omega = to_leg<T>(fr, w[0], w[1], w[2]);
+    leg.gravity = to_leg<T>(fr, prm[OFF_G], prm[OFF_G + 1], prm[OFF_G + 2]);
+    leg.a_vel = to_leg<T>(fr, a0, a1, a2);
+    return leg;
 }
 
 // Row i of the leg Jacobian, [e_i, q_i x e_i] (dL_i/dt = row . [v; omega]), from the leg's frame.
