@@ -62,6 +62,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <new>
 #include <type_traits>
 #include <vector>
 
@@ -456,8 +457,10 @@ inline V3<T> unit_inertial_force(int64_t flags, const LegBodies<T>& bodies, cons
 template <typename T>
 inline LegState<T> leg_state(const T* prm, int i, int64_t flags, const T* t, const T* R,
                           const T* v, const T* w) {
-    // the frame made in place (not copied in: in vector lanes it is a kilobyte), the rest set after
-    LegState<T> leg{leg_frame<T>(prm, i, t, R)};
+    // the frame made in place, neither copied in nor the rest zeroed first (in vector lanes each
+    // is a kilobyte): every member is set below
+    LegState<T> leg;
+    new (&leg.frame) LegFrame<T>(leg_frame<T>(prm, i, t, R));
     const LegFrame<T>& fr = leg.frame;
     const auto& [q0, q1, q2] = fr.q;
     const auto [c0, c1, c2] = cross<T>(w[0], w[1], w[2], q0, q1, q2);
