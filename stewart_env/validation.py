@@ -329,11 +329,14 @@ def real_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
             every integer type.
         ValueError: NaN, inf, another shape, or a masked array with masked entries.
     """
-    value = _plain(name, value)
-    try:
-        a = np.asarray(value)
-    except (TypeError, ValueError, OverflowError, RuntimeError):  # RuntimeError: tensors numpy cannot read
-        raise ArgumentError(f"{name}: expected real numbers of shape {shape}, got {_excerpt(value)}") from None
+    if type(value) is np.ndarray:
+        a = value  # a plain array: nothing to unwrap or convert
+    else:
+        value = _plain(name, value)
+        try:
+            a = np.asarray(value)
+        except (TypeError, ValueError, OverflowError, RuntimeError):  # RuntimeError: tensors numpy cannot read
+            raise ArgumentError(f"{name}: expected real numbers of shape {shape}, got {_excerpt(value)}") from None
     if a.dtype.kind not in "iuf":
         hint = " (an integer too large for any integer type?)" if a.dtype.kind == "O" else ""
         raise ArgumentError(f"{name}: expected real numbers (integers or floats) of shape {shape}, "

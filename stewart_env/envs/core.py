@@ -45,6 +45,8 @@ TERMINATION_REASONS = LIMIT_REASONS
 NOT_TERMINATED = ""
 #: The code of "non_finite", the first of every task's reasons.
 NON_FINITE = 1
+#: The terms of the tracking-error reward, in the order of the compiled step's terms (5, n).
+REWARD_TERMS = ("position", "orientation", "velocity", "control", "termination")
 
 
 def _readonly(array: np.ndarray) -> np.ndarray:
@@ -76,6 +78,7 @@ class PlatformBatch:
         self._init_state(n)
         self.observations = ObservationPipeline(config.observation, self.platform, self.task, self.actuator_tau > 0,
                                                 self.control_dt, n)
+        self._observation32 = np.zeros((n, self.observations.dim), dtype=np.float32)
         self._views()
 
     def _init_physics(self, config: EnvConfig) -> None:
@@ -122,6 +125,10 @@ class PlatformBatch:
         self._error_vectors, self._error_norms = np.zeros((4, n, 3)), np.zeros((4, n))
         self._action = np.zeros((n, 6))
         self._non_finite = np.zeros(n, dtype=bool)
+        # the compiled step's outcome: termination codes, reward terms, reward, the rows it made
+        # finite (and, made in __init__, the latest observation as float32), written by every step
+        self._code, self._terms, self._reward = np.zeros(n, dtype=np.int64), np.zeros((5, n)), np.zeros(n)
+        self._bad = np.zeros(n, dtype=bool)
         self._any_non_finite = False
         self._home_rotation = rpy_to_matrix(self.platform.home_rpy)
 
@@ -137,7 +144,12 @@ class PlatformBatch:
             _readonly(self.leg_lengths), _readonly(self.leg_rates), _readonly(self.condition),
             _readonly(self.external_wrench), _readonly(self.time), _readonly(self._non_finite),
             MappingProxyType({k: _readonly(v) for k, v in self.episode.items()}))
+        # the compiled step's outcome: its reward terms by name, views of its (5, n) array
+        self._term_views = dict(zip(REWARD_TERMS, self._terms))
         self._kernel = self._compiled_step()
+        # the compiled step checks the action before it changes anything: nothing runs before it
+        self.checks_action = self._kernel is not None and not (self._moving_reference or self._has_external_wrench)
+        self._observed = self.observations.compiled
 
     def _compiled_step(self) -> _core.BatchStep | None:
         """The whole control step as one compiled call over the batch's arrays, or None when the
@@ -161,12 +173,13 @@ class PlatformBatch:
             time=self.time, non_finite=self._non_finite, leg_lengths=self.leg_lengths, leg_rates=self.leg_rates,
             condition=self.condition, error_vectors=self._error_vectors, error_norms=self._error_norms,
             **{"ref_" + k: getattr(self.reference, k) for k in PlatformState._fields},
+            code=self._code, terms=self._terms, reward=self._reward, bad=self._bad, observation_out=self._observation32,
             **task.kernel_arguments(), **self.observations.kernel_arguments())
         return _core.BatchStep(arrays)
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
-        del state["_state"], state["view"], state["_errors"], state["_kernel"]
+        del state["_state"], state["view"], state["_errors"], state["_kernel"], state["_term_views"]
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -283,17 +296,25 @@ class PlatformBatch:
 
     # -- control step -----------------------------------------------------------------------------------
 
-    def step(self, action: np.ndarray, rngs: Sequence[np.random.Generator],
-             skip: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    def step(self, action: np.ndarray, rngs: Sequence[np.random.Generator], skip: np.ndarray | None = None,
+             reuse: bool = False) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray] | None:
         """One control step of every row.
 
         action (n,6) float64, finite (see :func:`stewart_env.validation.check_action`); clipped to
-        [-1, 1] here.  rngs: one Generator per row (used only for observation noise).  skip:
-        optional (n,) bool of rows about to be reset by the caller: they are parked at home first
-        (their outcome is thrown away) and draw no noise.  Returns (reward (n,), termination code
-        (n,) int, reward terms by name, each (n,)); codes index :attr:`termination_reasons` (0: none).
+        [-1, 1] here.  When :attr:`checks_action`, also an action not yet known to be finite, float64
+        or float32, C-contiguous, (n,6) or for one row (6,): the compiled step checks it before it
+        changes anything and, if it is not finite, the step returns None having done nothing.
+        rngs: one Generator per row (used only for observation noise).  skip: optional (n,) bool of
+        rows about to be reset by the caller: they are parked at home first (their outcome is
+        thrown away) and draw no noise.  reuse: write the outcome into arrays of the batch that the
+        next step overwrites (for a caller that reads them at once).  Returns (reward (n,),
+        termination code (n,) int, reward terms by name, each (n,), the latest observation (n, D)
+        as float32); codes index :attr:`termination_reasons` (0: none).
         """
         if skip is not None:
+            if self.checks_action and self._observed and skip.all():
+                # every row is about to be reset, which sets all a step would: nothing to compute
+                return self._nothing_stepped()
             self._park(skip)
         driven = False
         if self._has_external_wrench:
@@ -302,34 +323,48 @@ class PlatformBatch:
             driven = True
             self.task.external_wrench(self.view, self.control_dt, self.external_wrench)
         if self._kernel is not None:
-            return self._compiled_outcome(action, driven, rngs, skip)
+            return self._compiled_outcome(action, driven, rngs, skip, reuse)
         self._physics(action, driven)
-        return self._outcome(rngs, skip)
+        reward, code, terms = self._outcome(rngs, skip)
+        return reward, code, terms, self.observation.astype(np.float32)
 
-    def _compiled_outcome(self, action, driven, rngs, skip) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    def _compiled_outcome(self, action, driven, rngs, skip, reuse):
         """:meth:`step` by the compiled batch: the reference at the step's end, then one call for
         the actuators, the plant, the sensors, the errors, the termination, the reward and (unless
-        the task observes terms of its own) the observation."""
-        task, obs, n = self.task, self.observations, self.n
+        the task observes terms of its own) the observation, which it also gives as float32."""
+        obs = self.observations
         if self._moving_reference:
             # the reference at the end of the step, the time the call will set (it depends on no state)
-            task.reference(self.view.episode, (self.steps + 1) * self.control_dt, self.reference)
-        code, terms, reward, bad = np.empty(n, dtype=np.int64), np.empty((5, n)), np.empty(n), np.empty(n, dtype=bool)
-        observed = obs.compiled
+            self.task.reference(self.view.episode, (self.steps + 1) * self.control_dt, self.reference)
+        observed = self._observed
         noise = obs.draw_noise(rngs, skip) if observed else None
         head = (obs._head + 1) % (obs.delay + 1)
-        found = self._kernel.step(action, not driven, noise, skip, head, code, terms, reward, bad)
+        found = self._kernel.step(action, not driven, noise, skip, head)
+        if found == _core.NOT_FINITE_ACTION:
+            return None
         self._any_non_finite = bool(found & _core.NON_FINITE_STATE)
-        terms = dict(zip(("position", "orientation", "velocity", "control", "termination"), terms))
+        if reuse:
+            code, terms, reward, observation = self._code, self._term_views, self._reward, self._observation32
+        else:
+            code, reward, observation = self._code.copy(), self._reward.copy(), self._observation32.copy()
+            terms = dict(zip(REWARD_TERMS, self._terms.copy()))
         if observed:
             obs._head = head
             obs._any_pending = False
-            bad = bad if found & _core.BAD_ROWS else None
+            bad = self._bad if found & _core.BAD_ROWS else None
         else:
             bad = obs.step(self.view, reward, rngs, skip)
+            observation = self.observation.astype(np.float32)
         if bad is not None:
+            terms = dict(terms)  # _end_non_finite replaces a term: not in the batch's own views
             reward = self._end_non_finite(bad, code, terms)
-        return reward, code, terms
+        return reward, code, terms, observation
+
+    def _nothing_stepped(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray]:
+        """:meth:`step`'s outcome when every row is skipped: zeros, and the observation as it is."""
+        n = self.n
+        return (np.zeros(n), np.zeros(n, dtype=np.int64), dict(zip(REWARD_TERMS, np.zeros((5, n)))),
+                self.observation.astype(np.float32))
 
     def _end_non_finite(self, bad: np.ndarray, code: np.ndarray, terms: dict[str, np.ndarray]) -> np.ndarray:
         """End the rows ``bad`` whose observation or reward was not finite: no NaN or inf leaves the

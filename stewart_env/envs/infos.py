@@ -6,7 +6,7 @@ import functools
 
 import numpy as np
 
-__all__ = ["step_values", "term_key"]
+__all__ = ["row_info", "step_values", "term_key"]
 
 
 @functools.cache
@@ -26,3 +26,15 @@ def step_values(terms: dict[str, np.ndarray], code: np.ndarray, time: np.ndarray
     if closure_error is not None:
         values["closure_error"] = closure_error.copy()
     return values
+
+
+def row_info(terms: dict[str, np.ndarray], code: np.ndarray, time: np.ndarray, closure_error: np.ndarray | None,
+             row: int) -> dict[str, np.generic]:
+    """Row ``row``'s step info, the values of :func:`step_values` as numpy numbers (the single
+    environment's info), read straight from the batch's arrays."""
+    info = {term_key(k): v[row] for k, v in terms.items()}
+    info["termination"] = code[row]
+    info["time"] = time[row]
+    if closure_error is not None:
+        info["closure_error"] = closure_error[row]
+    return info

@@ -233,7 +233,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
             rows = np.flatnonzero(self._autoreset).tolist()
             raise ValueError(f"step: rows {rows} ended; with autoreset_mode DISABLED reset them first with "
                              "reset(options={'reset_mask': mask})")
-        reward, code, terms = core.step(a, self._rngs, skip=resetting)
+        reward, code, terms, observation = core.step(a, self._rngs, skip=resetting)
         self._elapsed += 1
         terminated = code > 0
         truncated = (self._elapsed >= self.max_episode_steps if self.max_episode_steps is not None
@@ -247,13 +247,14 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
             terminated[rows] = False
             truncated[rows] = False
             self._reset_rows(rows, infos)
+            observation[rows] = core.observation[rows]
         elif mode == AutoresetMode.SAME_STEP:
             done = terminated | truncated
             if done.any():
                 rows = np.flatnonzero(done)
                 final_obs = np.full(n, None, dtype=object)
                 for i in rows:
-                    final_obs[i] = core.observation[i].astype(np.float32)
+                    final_obs[i] = observation[i].copy()
                 # As Gymnasium's vector envs: a finished row's step info moves to final_info, and
                 # the top level holds its reset info instead.
                 step_infos = infos
@@ -264,10 +265,11 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
                                        for k, v in step_infos.items()}
                 infos["_final_info"] = done.copy()
                 self._reset_rows(rows, infos)
+                observation[rows] = core.observation[rows]
         self._autoreset = terminated | truncated
         if self.render_mode == "human":
             self.render()
-        return core.observation.astype(np.float32), reward, terminated, truncated, infos
+        return observation, reward, terminated, truncated, infos
 
     def _reset_rows(self, rows: np.ndarray, infos: dict[str, Any]) -> None:
         row_infos = self._core.reset_rows(rows, [self._rngs[i] for i in rows])

@@ -248,6 +248,41 @@ def test_bad_action_raises(action, message):
         env.step(action)
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("task", ["setpoint", "tracking"])
+def test_a_refused_action_changes_nothing(dtype, task):
+    """An action that is not finite, of either float width, raises check_action's error and leaves
+    the episode as it was: the next steps are those of an env that never saw it."""
+    env, twin = make(task=task), make(task=task)
+    for e in (env, twin):
+        e.reset(seed=3)
+    a = np.full(6, 0.1, dtype=dtype)
+    bad = a.copy()
+    bad[4] = np.nan
+    with pytest.raises(ValueError, match=r"^action: contains NaN at index \(4,\) \(1 non-finite value\(s\)\)"):
+        env.step(bad)
+    for _ in range(3):
+        np.testing.assert_array_equal(env.step(a)[0], twin.step(a)[0])
+    assert env.unwrapped.target.position.tobytes() == twin.unwrapped.target.position.tobytes()
+
+
+def test_float32_float64_strided_and_listed_actions_step_alike():
+    """The compiled step reads a float32 or float64 array as it is (float32 widened exactly); any
+    other form is converted first: the same numbers give the same step."""
+    a64 = np.linspace(-0.4, 0.6, 6)
+    forms = [a64.astype(np.float32).astype(np.float64), a64.astype(np.float32),
+             np.repeat(a64.astype(np.float32).astype(np.float64), 2)[::2], a64.astype(np.float32).tolist()]
+    runs = []
+    for form in forms:
+        env = make()
+        env.reset(seed=5)
+        runs.append([env.step(form) for _ in range(3)])
+    for run in runs[1:]:
+        for (o, r, *_ , info), (o0, r0, *_, info0) in zip(run, runs[0]):
+            assert o.dtype == np.float32 and o.tobytes() == o0.tobytes() and r == r0
+            assert {k: v.tobytes() for k, v in info.items()} == {k: v.tobytes() for k, v in info0.items()}
+
+
 def test_action_maps_affinely_onto_force_range_and_clips():
     env = make()
     env.reset(seed=0)

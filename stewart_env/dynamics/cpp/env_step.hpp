@@ -3,9 +3,10 @@
 // the closed-form plant (the RK4 substeps of rk4.hpp with the forces held), the clock and the
 // non-finite check, the leg sensors, and the observation's own passes.  control_step fuses the
 // first four into one call, and step() a whole control step of the environment's Batch: those,
-// the tracking errors, the termination codes, the reward and the observation.  Each row is
-// computed as numpy would compute it, operation for operation, so a batch row equals a batch of
-// one bit for bit.
+// the tracking errors, the termination codes, the reward and the observation.  Both hand blocks of
+// rows to the cores once per step, each block going through all of it while its numbers are in
+// cache.  Each row is computed as numpy would compute it, operation for operation, so a batch row
+// equals a batch of one bit for bit.
 #pragma once
 
 #include <cmath>
@@ -50,26 +51,30 @@ inline void copy_state(const State& from, const State& to, int64_t n) {
     std::memcpy(to.w, from.w, sizeof(double) * 3 * n);
 }
 
-// Advance every row's clock one control step (time = steps dt) and find the rows whose state is
-// no longer finite (non_finite (n,)), putting them back to the state they started the step from
-// (start).  Returns whether any row was.
+// Advance row b's clock one control step (time = steps dt) and tell whether its state is still
+// finite (non_finite[b]); a row whose state is not is put back to the state it started the step
+// from (start).  Returns whether it was.
+inline bool after_physics_row(const State& s, const State& start, int64_t* steps, double dt, double* time,
+                              bool* non_finite, int64_t b) {
+    steps[b] += 1;
+    time[b] = static_cast<double>(steps[b]) * dt;
+    const bool ok = kernels::all_finite(s.t + 3 * b, 3) && kernels::all_finite(s.v + 3 * b, 3) &&
+                    kernels::all_finite(s.w + 3 * b, 3) && kernels::all_finite(s.R + 9 * b, 9);
+    non_finite[b] = !ok;
+    if (!ok) {
+        std::memcpy(s.t + 3 * b, start.t + 3 * b, sizeof(double) * 3);
+        std::memcpy(s.R + 9 * b, start.R + 9 * b, sizeof(double) * 9);
+        std::memcpy(s.v + 3 * b, start.v + 3 * b, sizeof(double) * 3);
+        std::memcpy(s.w + 3 * b, start.w + 3 * b, sizeof(double) * 3);
+    }
+    return !ok;
+}
+
+// after_physics_row of every row of a batch.  Returns whether any row's state stopped being finite.
 inline bool after_physics(const State& s, const State& start, int64_t* steps, double dt, double* time,
                           bool* non_finite, int64_t n) {
     bool found = false;
-    for (int64_t b = 0; b < n; ++b) {
-        steps[b] += 1;
-        time[b] = static_cast<double>(steps[b]) * dt;
-        bool ok = kernels::all_finite(s.t + 3 * b, 3) && kernels::all_finite(s.v + 3 * b, 3) &&
-                  kernels::all_finite(s.w + 3 * b, 3) && kernels::all_finite(s.R + 9 * b, 9);
-        non_finite[b] = !ok;
-        if (!ok) {
-            found = true;
-            std::memcpy(s.t + 3 * b, start.t + 3 * b, sizeof(double) * 3);
-            std::memcpy(s.R + 9 * b, start.R + 9 * b, sizeof(double) * 9);
-            std::memcpy(s.v + 3 * b, start.v + 3 * b, sizeof(double) * 3);
-            std::memcpy(s.w + 3 * b, start.w + 3 * b, sizeof(double) * 3);
-        }
-    }
+    for (int64_t b = 0; b < n; ++b) found = after_physics_row(s, start, steps, dt, time, non_finite, b) || found;
     return found;
 }
 
@@ -89,22 +94,44 @@ struct ControlStep {
     double max_condition;
 };
 
-// One control step of every row of the closed-form plant: drive the actuators (unless already
-// driven), remember the start state, integrate substeps RK4 steps of physics_dt with the leg
-// forces F (n,6) and the external wrench W (n,6) held (rk4::rollout_batch), advance the clock
-// and put rows that stopped being finite back to their start state (after_physics), and
-// measure the leg lengths (n,6), rates (n,6) and condition numbers (n,).  Returns whether any
-// row stopped being finite.
+// One control step of the rows b, b + 1, ... (as many as T carries) of the closed-form plant:
+// drive the actuators (unless already driven), remember the start state, integrate substeps RK4
+// steps of physics_dt with the leg forces F (n,6) and the external wrench W (n,6) held
+// (rk4::rollout_row, a block of rk4::rollout_batch), advance the clock and put rows that stopped
+// being finite back to their start state (after_physics_row), and measure the leg lengths (n,6),
+// rates (n,6) and condition numbers (n,).  prm and sensor_prm: the plant's and the nominal
+// parameter rows.
+template <typename T>
+inline void control_rows(const ControlStep& c, const kernels::ParamRows& prm, const kernels::ParamRows& sensor_prm,
+                         const double* action, double* clipped, double* F, const double* W, const State& s,
+                         const State& start, int64_t* steps, double* time, bool* non_finite, double* lengths,
+                         double* rates, double* condition, int64_t n, int64_t b) {
+    const int64_t rows = lanes::width<T>;
+    if (c.drive) drive(action + 6 * b, c.force_half, c.force_mid, c.lag, clipped + 6 * b, F + 6 * b, rows);
+    const State from{s.t + 3 * b, s.R + 9 * b, s.v + 3 * b, s.w + 3 * b};
+    copy_state(from, {start.t + 3 * b, start.R + 9 * b, start.v + 3 * b, start.w + 3 * b}, rows);
+    rk4::rollout_row<T>(prm, c.flags, s.t, s.R, s.v, s.w, nullptr, F, n, 6, W, 0.0, c.physics_dt, c.substeps, 0,
+                        nullptr, b);
+    for (int64_t r = b; r < b + rows; ++r) after_physics_row(s, start, steps, c.control_dt, time, non_finite, r);
+    kernels::leg_sensors_row<T>(sensor_prm, s.t, s.R, s.v, s.w, c.max_condition, lengths, rates, condition, b);
+}
+
+// One control step of every row of the closed-form plant (control_rows).  A block of rows goes
+// through all of it at once, in the lanes and on every core as rollout_batch's blocks (one
+// hand-over to the helper threads per step, the rows' numbers still in cache for the sensors).
+// Returns whether any row stopped being finite.
 inline bool control_step(const ControlStep& c, const double* action, double* clipped, double* F, const double* W,
                          const State& s, const State& start, int64_t* steps, double* time, bool* non_finite,
                          double* lengths, double* rates, double* condition, int64_t n) {
-    if (c.drive) drive(action, c.force_half, c.force_mid, c.lag, clipped, F, n);
-    copy_state(s, start, n);
-    rk4::rollout_batch(c.prm, c.n_prm, c.flags, s.t, s.R, s.v, s.w, F, W, c.physics_dt, c.substeps, n);
-    const bool found = after_physics(s, start, steps, c.control_dt, time, non_finite, n);
-    kernels::leg_sensors_batch(c.sensor_prm, c.n_sensor_prm, s.t, s.R, s.v, s.w, c.max_condition, lengths, rates,
-                               condition, n);
-    return found;
+    const kernels::ParamRows prm(c.prm, c.n_prm, n);
+    const kernels::ParamRows sensor_prm(c.sensor_prm, c.n_sensor_prm, n);
+    lanes::for_rows(n, 4 * c.substeps, [&](int64_t b, auto tag) {
+        control_rows<decltype(tag)>(c, prm, sensor_prm, action, clipped, F, W, s, start, steps, time, non_finite,
+                                    lengths, rates, condition, n, b);
+    });
+    for (int64_t b = 0; b < n; ++b)
+        if (non_finite[b]) return true;
+    return false;
 }
 
 // The pose observation's first 15 entries of every row into raw (n, dim): P, the first two
@@ -206,89 +233,119 @@ struct Batch {
     const double *band, *bound;        // (6,): band may be null
     bool* pending;                     // (n,) rows whose start observation was not finite
     double largest;                    // the float32 range
+    float* latest;                     // (n, D): the observation returned, as float32
 };
 
-// The clean observation of every row into raw: the pose block or the leg sensors, the lagged leg
-// forces, the position and orientation errors, the error integral, normalised.
-inline void measure(const Batch& B) {
+// The clean observation of rows b .. b + rows - 1 into raw: the pose block or the leg sensors, the
+// lagged leg forces, the position and orientation errors, the error integral, normalised.
+inline void measure(const Batch& B, int64_t b, int64_t rows) {
     const Layout& L = B.layout;
     const int64_t n = B.n, D = L.dim;
-    if (L.pose) pose_block(B.s.t, B.s.R, B.s.v, B.s.w, B.raw, D, n);
+    double* raw = B.raw + D * b;
+    if (L.pose) pose_block(B.s.t + 3 * b, B.s.R + 9 * b, B.s.v + 3 * b, B.s.w + 3 * b, raw, D, rows);
     const double* ep = B.errors;
     const double* eo = B.errors + 3 * n;
-    for (int64_t b = 0; b < n; ++b) {
-        double* o = B.raw + D * b;
+    for (int64_t r = b; r < b + rows; ++r) {
+        double* o = B.raw + D * r;
         for (int i = 0; i < 6; ++i) {
             if (!L.pose) {
-                o[L.leg_lengths + i] = B.lengths[6 * b + i];
-                o[L.leg_rates + i] = B.rates[6 * b + i];
+                o[L.leg_lengths + i] = B.lengths[6 * r + i];
+                o[L.leg_rates + i] = B.rates[6 * r + i];
             }
-            if (L.leg_forces >= 0) o[L.leg_forces + i] = B.F[6 * b + i];
-            if (L.error_integral >= 0) o[L.error_integral + i] = B.integral[6 * b + i];
+            if (L.leg_forces >= 0) o[L.leg_forces + i] = B.F[6 * r + i];
+            if (L.error_integral >= 0) o[L.error_integral + i] = B.integral[6 * r + i];
         }
         for (int j = 0; j < 3; ++j) {
-            o[L.position_error + j] = ep[3 * b + j];
-            o[L.orientation_error + j] = eo[3 * b + j];
+            o[L.position_error + j] = ep[3 * r + j];
+            o[L.orientation_error + j] = eo[3 * r + j];
         }
     }
-    if (B.normalize) env_step::normalize(B.raw, B.offset, B.inv_scale, D, n);
+    if (B.normalize) env_step::normalize(raw, B.offset, B.inv_scale, D, rows);
 }
 
 // What Batch::step found: bit 0 a row's state stopped being finite, bit 1 a row's observation or
 // reward was not finite (or its start observation was not): the rows in bad (n,).
 constexpr int64_t NON_FINITE_STATE = 1;
 constexpr int64_t BAD_ROWS = 2;
+// What the binding returns, having done nothing, for an action that is not finite (the caller's
+// own check then says where).
+constexpr int64_t NOT_FINITE_ACTION = -1;
 
-// One control step of the whole batch: control_step (the actuators unless drive is false, the RK4
+// What follows the physics for rows b .. b + rows - 1 (see step): the tracking errors, the
+// termination codes, the reward terms and the reward; when B.observe, the error integral, the
+// observation with its noise, its finite guard, the history slot head and the float32 copy of the
+// slot returned (head + 1).
+inline void outcome_rows(Batch& B, const double* noise, const bool* skip, int64_t head, int64_t* code,
+                         double* terms, double* reward, bool* bad, int64_t b, int64_t rows) {
+    const int64_t n = B.n;
+    double* e = B.errors;
+    task_kernels::tracking_errors(B.s.t + 3 * b, B.s.R + 9 * b, B.s.v + 3 * b, B.s.w + 3 * b, B.rt + 3 * b,
+                                  B.rR + 9 * b, B.rv + 3 * b, B.rw + 3 * b, e + 3 * b, e + 3 * n + 3 * b,
+                                  e + 6 * n + 3 * b, e + 9 * n + 3 * b, B.norms + b, 1, n, rows);
+    task_kernels::limit_codes(B.s.t + 3 * b, B.s.R + 9 * b, B.lengths + 6 * b, B.condition + b, B.non_finite + b,
+                              B.limits, code + b, rows);
+    // the four running terms of these rows (4, rows), then into terms (5, n)
+    double running[4 * lanes::LANES];
+    task_kernels::tracking_reward(B.norms + b, B.norms + n + b, B.norms + 2 * n + b, B.norms + 3 * n + b, 1,
+                                  B.clipped + 6 * b, B.weights, running, rows);
+    for (int64_t j = 0; j < rows; ++j) {
+        const int64_t r = b + j;
+        for (int k = 0; k < 4; ++k) terms[k * n + r] = running[k * rows + j];
+        // as the Python sum of the terms in their order, from 0
+        const double termination = -B.termination_cost * (B.failure[code[r]] ? 1.0 : 0.0);
+        terms[4 * n + r] = termination;
+        reward[r] = 0.0 + terms[r] + terms[n + r] + terms[2 * n + r] + terms[3 * n + r] + termination;
+    }
+    if (!B.observe) return;
+    if (B.integral != nullptr)
+        integrate_errors(e + 3 * b, e + 3 * n + 3 * b, B.band, B.bound, B.c.control_dt, B.integral + 6 * b, rows);
+    measure(B, b, rows);
+    const int64_t D = B.layout.dim;
+    for (int64_t r = b; r < b + rows; ++r) {
+        double* o = B.raw + D * r;
+        if (noise != nullptr && (skip == nullptr || !skip[r]))
+            for (int64_t k = 0; k < D; ++k) o[k] += noise[D * r + k];
+        bool row_bad = !std::isfinite(reward[r]);
+        for (int64_t k = 0; k < D; ++k) row_bad = row_bad || !(std::fabs(o[k]) <= B.largest);
+        if (row_bad) make_finite(o, D, B.largest);
+        bad[r] = row_bad || B.pending[r];
+        B.pending[r] = false;
+    }
+    std::memcpy(B.history + (head * n + b) * D, B.raw + b * D, sizeof(double) * rows * D);
+    if (B.latest != nullptr) {
+        // the ring's oldest slot, the one after head, is the observation returned now
+        const double* slot = B.history + (((head + 1) % B.slots) * n + b) * D;
+        for (int64_t k = 0; k < rows * D; ++k) B.latest[b * D + k] = static_cast<float>(slot[k]);
+    }
+}
+
+// One control step of the whole batch: control_rows (the actuators unless drive is false, the RK4
 // substeps, the clock, the leg sensors), the tracking errors against the reference (set before the
 // call for the step's end time), the termination codes of the platform's limits (code (n,)), the
 // tracking-error reward's terms (terms (5,n): position, orientation, velocity, control,
 // termination) and their sum (reward (n,)); then, when B.observe, the error integral, the
 // observation with the noise (n,D) added to the rows not in skip (noise or skip null: none) and
-// its finite guard (bad (n,)), pushed into history slot head.  Returns NON_FINITE_STATE | BAD_ROWS
-// as found.
+// its finite guard (bad (n,)), pushed into history slot head, and the slot returned now as
+// float32 (B.latest).  A block of rows goes through all of it at once, on every core
+// (lanes::for_rows); each row's numbers are those it has alone.  Returns NON_FINITE_STATE |
+// BAD_ROWS as found.
 inline int64_t step(Batch& B, const double* action, bool drive, const double* noise, const bool* skip, int64_t head,
                     int64_t* code, double* terms, double* reward, bool* bad) {
     const int64_t n = B.n;
     B.c.drive = drive;
-    int64_t found = control_step(B.c, action, B.clipped, B.F, B.W, B.s, B.start, B.steps, B.time, B.non_finite,
-                                 B.lengths, B.rates, B.condition, n)
-                        ? NON_FINITE_STATE
-                        : 0;
-    double* e = B.errors;
-    task_kernels::tracking_errors(B.s.t, B.s.R, B.s.v, B.s.w, B.rt, B.rR, B.rv, B.rw, e, e + 3 * n, e + 6 * n,
-                                  e + 9 * n, B.norms, 1, n, n);
-    task_kernels::limit_codes(B.s.t, B.s.R, B.lengths, B.condition, B.non_finite, B.limits, code, n);
-    task_kernels::tracking_reward(B.norms, B.norms + n, B.norms + 2 * n, B.norms + 3 * n, 1, B.clipped, B.weights,
-                                  terms, n);
+    const kernels::ParamRows prm(B.c.prm, B.c.n_prm, n);
+    const kernels::ParamRows sensor_prm(B.c.sensor_prm, B.c.n_sensor_prm, n);
+    lanes::for_rows(n, 4 * B.c.substeps, [&](int64_t b, auto tag) {
+        using T = decltype(tag);
+        control_rows<T>(B.c, prm, sensor_prm, action, B.clipped, B.F, B.W, B.s, B.start, B.steps, B.time,
+                        B.non_finite, B.lengths, B.rates, B.condition, n, b);
+        outcome_rows(B, noise, skip, head, code, terms, reward, bad, b, lanes::width<T>);
+    });
+    int64_t found = 0;
     for (int64_t b = 0; b < n; ++b) {
-        // as the Python sum of the terms in their order, from 0
-        const double termination = -B.termination_cost * (B.failure[code[b]] ? 1.0 : 0.0);
-        terms[4 * n + b] = termination;
-        reward[b] = 0.0 + terms[b] + terms[n + b] + terms[2 * n + b] + terms[3 * n + b] + termination;
+        if (B.non_finite[b]) found |= NON_FINITE_STATE;
+        if (B.observe && bad[b]) found |= BAD_ROWS;
     }
-    if (!B.observe) return found;
-    if (B.integral != nullptr) integrate_errors(e, e + 3 * n, B.band, B.bound, B.c.control_dt, B.integral, n);
-    measure(B);
-    const int64_t D = B.layout.dim;
-    if (noise != nullptr)
-        for (int64_t b = 0; b < n; ++b)
-            if (skip == nullptr || !skip[b])
-                for (int64_t k = 0; k < D; ++k) B.raw[D * b + k] += noise[D * b + k];
-    const bool fine = within_float32(B.raw, n * D, reward, n, B.largest);
-    for (int64_t b = 0; b < n; ++b) {
-        bool row_bad = false;
-        if (!fine) {
-            row_bad = !std::isfinite(reward[b]);
-            for (int64_t k = 0; k < D; ++k) row_bad = row_bad || !(std::fabs(B.raw[D * b + k]) <= B.largest);
-            if (row_bad) make_finite(B.raw + D * b, D, B.largest);
-        }
-        row_bad = row_bad || B.pending[b];
-        B.pending[b] = false;
-        bad[b] = row_bad;
-        if (row_bad) found |= BAD_ROWS;
-    }
-    std::memcpy(B.history + head * n * D, B.raw, sizeof(double) * n * D);
     return found;
 }
 

@@ -62,6 +62,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <new>
 #include <type_traits>
 #include <vector>
 
@@ -456,14 +457,24 @@ inline V3<T> unit_inertial_force(int64_t flags, const LegBodies<T>& bodies, cons
 template <typename T>
 inline LegState<T> leg_state(const T* prm, int i, int64_t flags, const T* t, const T* R,
                           const T* v, const T* w) {
-    const LegFrame<T> fr = leg_frame<T>(prm, i, t, R);
+    // the frame made in place, neither copied in nor the rest zeroed first (in vector lanes each
+    // is a kilobyte): every member is set below
+    LegState<T> leg;
+    new (&leg.frame) LegFrame<T>(leg_frame<T>(prm, i, t, R));
+    const LegFrame<T>& fr = leg.frame;
     const auto& [q0, q1, q2] = fr.q;
     const auto [c0, c1, c2] = cross<T>(w[0], w[1], w[2], q0, q1, q2);
     const auto [u0, u1, u2] = to_leg<T>(fr, v[0] + c0, v[1] + c1, v[2] + c2);
     const LegRates<T> rates = leg_rates<T>(flags, fr, u0, u1, u2);
     const auto [a0, a1, a2] = cross<T>(w[0], w[1], w[2], c0, c1, c2);
-    return {fr, rates.Ldot, rates.sigma, rates.w1, rates.w2, to_leg<T>(fr, w[0], w[1], w[2]),
-            to_leg<T>(fr, prm[OFF_G], prm[OFF_G + 1], prm[OFF_G + 2]), to_leg<T>(fr, a0, a1, a2)};
+    leg.Ldot = rates.Ldot;
+    leg.sigma = rates.sigma;
+    leg.w1 = rates.w1;
+    leg.w2 = rates.w2;
+    leg.omega = to_leg<T>(fr, w[0], w[1], w[2]);
+    leg.gravity = to_leg<T>(fr, prm[OFF_G], prm[OFF_G + 1], prm[OFF_G + 2]);
+    leg.a_vel = to_leg<T>(fr, a0, a1, a2);
+    return leg;
 }
 
 // Row i of the leg Jacobian, [e_i, q_i x e_i] (dL_i/dt = row . [v; omega]), from the leg's frame.
@@ -490,17 +501,15 @@ inline void jacobian_one(const T* prm, const T* t, const T* R, T* J) {
 // (minus the force of the platform on the leg, F_s, actuator force excluded) as a wrench at P,
 // and the spherical joint's friction torque.  The platform's acceleration acc = [a; alpha] enters
 // through P_i's acceleration; acc nullptr means its velocity part alone (the bias of forward
-// dynamics).  Writes the leg's LegState<T> and leg_bodies into leg and bodies for the caller's own
-// use of the leg.  The one leg loop body of forward dynamics, its M/h assembly and inverse
-// dynamics.  docs/physics.md sections 5.1 and 5.4-5.5; paper eqs. 38-41 and 47-49 (or 51 and 55).
+// dynamics).  leg and bodies: the leg's LegState<T> (leg_state) and leg_bodies, which the caller
+// makes (in its own variables, not copied in: in vector lanes they are kilobytes) and uses again.
+// The one leg loop body of forward dynamics, its M/h assembly and inverse dynamics.
+// docs/physics.md sections 5.1 and 5.4-5.5; paper eqs. 38-41 and 47-49 (or 51 and 55).
 template <typename T>
-inline void leg_on_platform(const T* prm, int64_t flags, int i, const T* t, const T* R,
-                            const T* v, const T* w, const T* acc, T* h, LegState<T>& leg,
-                            LegBodies<T>& bodies) {
-    leg = leg_state<T>(prm, i, flags, t, R, v, w);
+inline void leg_on_platform(const T* prm, int64_t flags, const T* w, const T* acc, T* h, const LegState<T>& leg,
+                            const LegBodies<T>& bodies) {
     const LegFrame<T>& fr = leg.frame;
     const V3<T> A = acc == nullptr ? leg.a_vel : with_platform_acc<T>(acc, fr, leg.a_vel);
-    bodies = leg_bodies<T>(prm, i, flags, fr.L);
     const auto [f0, f1, f2] = leg_force<T>(prm, flags, bodies, leg, A[0], A[1], A[2], 0.0);
     const auto [fs0, fs1, fs2] = to_base<T>(fr, f0, f1, f2);
     const auto& [q0, q1, q2] = fr.q;
@@ -659,10 +668,10 @@ template <typename T>
 inline void leg_share(const T* prm, int64_t flags, int i, const T* t, const T* R, const T* v, const T* w,
                       const T* acc, T* h_leg, T* M_leg, Row6<T>& jac) {
     std::fill(h_leg, h_leg + 6, -0.0);
-    LegState<T> leg;
-    LegBodies<T> bodies;
-    leg_on_platform<T>(prm, flags, i, t, R, v, w, acc, h_leg, leg, bodies);
+    const LegState<T> leg = leg_state<T>(prm, i, flags, t, R, v, w);
     const LegFrame<T>& fr = leg.frame;
+    const LegBodies<T> bodies = leg_bodies<T>(prm, i, flags, fr.L);
+    leg_on_platform<T>(prm, flags, w, acc, h_leg, leg, bodies);
     jac = jacobian_row<T>(fr);
     if (M_leg == nullptr) return;
     std::fill(M_leg, M_leg + 36, -0.0);
@@ -1024,22 +1033,71 @@ inline bool all_finite(const double* x, int64_t size) {
 }
 
 // ||J||_F ||J^-1||_F of a 6x6 matrix, an upper bound of its 2-norm condition number (inf or NaN
-// when J is singular or not finite).  docs/physics.md section 4.4 (no paper equation).
-inline double frobenius_condition(const double* J) {
-    double M[36];
-    double e[6];
-    double x[6];
-    double norm = 0.0;
-    for (int k = 0; k < 36; ++k) norm += J[k] * J[k];
-    double inv_norm = 0.0;
-    for (int k = 0; k < 6; ++k) {
-        for (int j = 0; j < 36; ++j) M[j] = J[j];
-        for (int j = 0; j < 6; ++j) e[j] = 0.0;
-        e[k] = 1.0;
-        solve6(M, e, x);
-        for (int j = 0; j < 6; ++j) inv_norm += x[j] * x[j];
+// when J is singular or not finite); T = double, or Lanes of one J each.  J^-1 column by column,
+// as solve6 would solve J x = e_k for each unit vector e_k: one elimination with the six
+// right-hand sides carried along (the pivots and factors depend on J alone), every column's
+// numbers those solve6 gives it.  docs/physics.md section 4.4 (no paper equation).
+template <typename T>
+inline T frobenius_condition(const T* J) {
+    constexpr int n = 6;
+    T M[36];
+    T E[36];  // row r, column k: entry r of the right-hand side e_k, then of the solution
+    T norm = 0.0;
+    for (int k = 0; k < 36; ++k) {
+        norm += J[k] * J[k];
+        M[k] = J[k];
+        E[k] = 0.0;
     }
-    return std::sqrt(norm * inv_norm);
+    for (int k = 0; k < n; ++k) E[n * k + k] = 1.0;
+    for (int c = 0; c < n; ++c) {
+        // the pivot row p: the first of rows c.. with the largest |M[r][c]| (in each lane its own)
+        T big = lanes::abs_of(M[n * c + c]);
+        T p = T(c);
+        for (int r = c + 1; r < n; ++r) {
+            const T a = lanes::abs_of(M[n * r + c]);
+            const auto larger = a > big;
+            big = lanes::select(larger, a, big);
+            p = lanes::select(larger, T(r), p);
+        }
+        // rows c and p trade places
+        for (int r = c + 1; r < n; ++r) {
+            const auto swap = p == T(r);
+            if (!lanes::any(swap)) continue;
+            for (int k = 0; k < n; ++k) {
+                if (k >= c) {
+                    const T mine = M[n * c + k];
+                    const T theirs = M[n * r + k];
+                    M[n * c + k] = lanes::select(swap, theirs, mine);
+                    M[n * r + k] = lanes::select(swap, mine, theirs);
+                }
+                const T mine = E[n * c + k];
+                const T theirs = E[n * r + k];
+                E[n * c + k] = lanes::select(swap, theirs, mine);
+                E[n * r + k] = lanes::select(swap, mine, theirs);
+            }
+        }
+        const T piv = M[n * c + c];
+        for (int r = c + 1; r < n; ++r) {
+            const T f = M[n * r + c] / piv;
+            // a zero factor leaves the row as it is (not even 0 * inf = NaN)
+            const auto nonzero = f != T(0.0);
+            if (!lanes::any(nonzero)) continue;
+            for (int k = c + 1; k < n; ++k)
+                M[n * r + k] = lanes::select(nonzero, M[n * r + k] - f * M[n * c + k], M[n * r + k]);
+            for (int k = 0; k < n; ++k)
+                E[n * r + k] = lanes::select(nonzero, E[n * r + k] - f * E[n * c + k], E[n * r + k]);
+        }
+    }
+    for (int c = n - 1; c >= 0; --c)
+        for (int k = 0; k < n; ++k) {
+            T s = E[n * c + k];
+            for (int j = c + 1; j < n; ++j) s -= M[n * c + j] * E[n * j + k];
+            E[n * c + k] = s / M[n * c + c];
+        }
+    T inv_norm = 0.0;
+    for (int k = 0; k < n; ++k)
+        for (int j = 0; j < n; ++j) inv_norm += E[n * j + k] * E[n * j + k];
+    return lanes::sqrt_of(norm * inv_norm);
 }
 
 // The 2-norm condition number sigma_max / sigma_min of a finite 6x6 matrix J, by one-sided Jacobi
@@ -1086,26 +1144,41 @@ inline double jacobi_condition(const double* J) {
     return smallest > 0.0 ? largest / smallest : std::numeric_limits<double>::infinity();
 }
 
-// Row b of leg_sensors_batch (docs/physics.md section 4.4; paper eqs. 7 and 13).
-inline void leg_sensors_row(const double* prm, int64_t n_prm, const double* t, const double* R, const double* v,
+// Rows b, b + 1, ... of leg_sensors_batch, as many as T carries (docs/physics.md section 4.4;
+// paper eqs. 7 and 13): prm the nominal parameter rows.
+template <typename T>
+inline void leg_sensors_row(const ParamRows& prm, const double* t, const double* R, const double* v,
                             const double* w, double max_condition, double* lengths, double* rates,
                             double* condition, int64_t b) {
-    const double* p = params_row(prm, n_prm, b);
-    double jac[36];
+    ParamScratch<T> scratch;
+    const T* p = prm.rows(b, scratch.rows);
+    T tl[3], Rl[9], vl[3], wl[3], L[6], Ldot[6], jac[36];
+    lanes::load(t, 3, b, 3, tl);
+    lanes::load(R, 9, b, 9, Rl);
+    lanes::load(v, 3, b, 3, vl);
+    lanes::load(w, 3, b, 3, wl);
     for (int i = 0; i < 6; ++i) {
-        const auto leg = leg_state(p, i, 0, t + 3 * b, R + 9 * b, v + 3 * b, w + 3 * b);
-        lengths[6 * b + i] = leg.frame.L;
-        rates[6 * b + i] = leg.Ldot;
-        const auto row = jacobian_row(leg.frame);
+        const auto leg = leg_state<T>(p, i, 0, tl, Rl, vl, wl);
+        L[i] = leg.frame.L;
+        Ldot[i] = leg.Ldot;
+        const auto row = jacobian_row<T>(leg.frame);
         for (int c = 0; c < 6; ++c) jac[6 * i + c] = row[c];
     }
-    const double bound = frobenius_condition(jac);
-    if (bound <= max_condition) {
-        condition[b] = bound;
-    } else if (std::isfinite(bound)) {
-        condition[b] = jacobi_condition(jac);
-    } else {
-        condition[b] = std::numeric_limits<double>::infinity();
+    lanes::store(L, 6, lengths, 6, b);
+    lanes::store(Ldot, 6, rates, 6, b);
+    const T bound = frobenius_condition<T>(jac);
+    for (int lane = 0; lane < lanes::width<T>; ++lane) {
+        const double x = lanes::get(bound, lane);
+        double& out = condition[b + lane];
+        if (x <= max_condition) {
+            out = x;
+        } else if (std::isfinite(x)) {
+            double J[36];
+            for (int k = 0; k < 36; ++k) J[k] = lanes::get(jac[k], lane);
+            out = jacobi_condition(J);
+        } else {
+            out = std::numeric_limits<double>::infinity();
+        }
     }
 }
 
@@ -1114,13 +1187,15 @@ inline void leg_sensors_row(const double* prm, int64_t n_prm, const double* t, c
 // condition is the 2-norm condition number wherever it exceeds max_condition (inf when singular or
 // non-finite); below it, the cheaper bound ||J||_F ||J^-1||_F >= cond_2, itself at most
 // max_condition.  So condition > max_condition holds exactly when cond_2 does.
-// Rows run on every core (lanes::for_each_row).  docs/physics.md section 4.4; paper eqs. 7 and 13.
+// Blocks of rows run in vector lanes and on every core (lanes::for_rows).  docs/physics.md
+// section 4.4; paper eqs. 7 and 13.
 inline void leg_sensors_batch(const double* prm, int64_t n_prm, const double* t, const double* R, const double* v,
                               const double* w, double max_condition, double* lengths, double* rates,
                               double* condition, int64_t n) {
-    // a row costs about as much as one forward evaluation in a lane: rows shared with the helpers
-    lanes::for_each_row(n, 1, [&](int64_t b) {
-        leg_sensors_row(prm, n_prm, t, R, v, w, max_condition, lengths, rates, condition, b);
+    const ParamRows rows(prm, n_prm, n);
+    // a row costs about as much as one forward evaluation: blocks shared with the helpers
+    lanes::for_rows(n, 1, [&](int64_t b, auto tag) {
+        leg_sensors_row<decltype(tag)>(rows, t, R, v, w, max_condition, lengths, rates, condition, b);
     });
 }
 

@@ -25,6 +25,8 @@ using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
 using Flags = nb::ndarray<bool, nb::c_contig, nb::device::cpu>;
 using InFlags = nb::ndarray<const bool, nb::c_contig, nb::device::cpu>;
 using Codes = nb::ndarray<int64_t, nb::c_contig, nb::device::cpu>;
+using InSingles = nb::ndarray<const float, nb::c_contig, nb::device::cpu>;
+using Singles = nb::ndarray<float, nb::c_contig, nb::device::cpu>;
 
 namespace {
 
@@ -445,6 +447,10 @@ public:
         // code 0 and the four limits' codes that limit_codes gives
         if (n_codes_ < 5) throw nb::value_error("failure: expected an entry for code 0 and each limit's code");
         B.failure = failure.data();
+        code_ = keep<Codes>(a["code"], "code", {n}).data();
+        terms_ = keep<Out>(a["terms"], "terms", {5, n}).data();
+        reward_ = keep<Out>(a["reward"], "reward", {n}).data();
+        bad_ = keep<Flags>(a["bad"], "bad", {n}).data();
         B.observe = nb::cast<bool>(a["observe"]);
         if (!B.observe) return;
         env_step::Layout& L = B.layout;
@@ -481,6 +487,7 @@ public:
         }
         B.pending = keep<Flags>(a["pending"], "pending", {n}).data();
         B.largest = nb::cast<double>(a["largest"]);
+        B.latest = keep<Singles>(a["observation_out"], "observation_out", {n, D}).data();
     }
 
     // New packed parameters of the plant (domain randomisation at a reset): prm (1 or n rows).
@@ -497,14 +504,29 @@ public:
         b_.c.flags = flags;
     }
 
-    int64_t step(In action, bool drive, nb::object noise, nb::object skip, int64_t head, Codes code, Out terms,
-                 Out reward, Flags bad) {
+    // One control step: the action (n,6), or (6,) for a batch of one, float64 or float32 (widened
+    // exactly, as numpy's astype); noise (n,D) or None, skip (n,) or None, head the history slot.
+    // The outcome goes into the batch's own arrays (code, terms, reward, bad and, when the
+    // observation is made here, observation_out: the latest observation as float32).  An action
+    // that is not finite anywhere: NOT_FINITE_ACTION, nothing done (the caller says why).
+    int64_t step(nb::handle action, bool drive, nb::handle noise, nb::handle skip, int64_t head) {
         const int64_t n = b_.n;
-        expect(action, "action", {n, 6});
-        expect(code, "code", {n});
-        expect(terms, "terms", {5, n});
-        expect(reward, "reward", {n});
-        expect(bad, "bad", {n});
+        const double* a = nullptr;
+        In wide;
+        InSingles single;
+        if (nb::try_cast<In>(action, wide, false) || (!nb::try_cast<InSingles>(action, single, false) &&
+                                                      nb::try_cast<In>(action, wide, true))) {
+            expect_action(wide, n);
+            a = wide.data();
+        } else if (single.is_valid()) {
+            expect_action(single, n);
+            action_.resize(6 * n);
+            for (int64_t k = 0; k < 6 * n; ++k) action_[k] = static_cast<double>(single.data()[k]);
+            a = action_.data();
+        } else {
+            throw nb::value_error("action: expected an array of real numbers");
+        }
+        if (!kernels::all_finite(a, 6 * n)) return env_step::NOT_FINITE_ACTION;
         if (head < 0 || (b_.observe && head >= b_.slots)) throw nb::value_error("head: outside the history ring");
         const double* noise_data = nullptr;
         const bool* skip_data = nullptr;
@@ -521,13 +543,21 @@ public:
             skip_data = skip_array.data();
         }
         nb::gil_scoped_release release;
-        return env_step::step(b_, action.data(), drive, noise_data, skip_data, head, code.data(), terms.data(),
-                              reward.data(), bad.data());
+        return env_step::step(b_, a, drive, noise_data, skip_data, head, code_, terms_, reward_, bad_);
     }
 
     int64_t n_codes() const { return n_codes_; }
 
 private:
+    // The action's shape: (n,6), or (6,) for a batch of one.
+    template <typename A>
+    static void expect_action(const A& a, int64_t n) {
+        if (a.ndim() == 1 && n == 1)
+            expect(a, "action", {6});
+        else
+            expect(a, "action", {n, 6});
+    }
+
     // An array of the dict, checked and kept alive; never converted (the batch writes into it).
     template <typename A>
     A keep(nb::handle h, const char* name, std::initializer_list<int64_t> shape) {
@@ -548,6 +578,12 @@ private:
     }
 
     env_step::Batch b_{};
+    // the outcome of a step: termination codes (n,), reward terms (5,n), reward (n,), the rows
+    // made finite (n,); the observation as float32 (n,D), when made here, is the Batch's latest
+    int64_t* code_ = nullptr;
+    double *terms_ = nullptr, *reward_ = nullptr;
+    bool* bad_ = nullptr;
+    std::vector<double> action_;  // a float32 action widened
     std::vector<nb::object> kept_;
     nb::object prm_;
     int64_t n_codes_ = 0;
@@ -556,15 +592,16 @@ private:
 void def_env_kernels(nb::module_& m) {
     m.attr("NON_FINITE_STATE") = env_step::NON_FINITE_STATE;
     m.attr("BAD_ROWS") = env_step::BAD_ROWS;
+    m.attr("NOT_FINITE_ACTION") = env_step::NOT_FINITE_ACTION;
     nb::class_<BatchStep>(m, "BatchStep",
         "The compiled control step of a batch of the environment (env_step.hpp): built once from the batch's "
         "arrays by name, then one call per control step.")
         .def(nb::init<nb::dict>(), "arrays"_a)
         .def("set_model", &BatchStep::set_model, "prm"_a, "flags"_a)
         .def("step", &BatchStep::step, "action"_a, "drive"_a, "noise"_a.none(), "skip"_a.none(), "head"_a,
-             "code"_a.noconvert(), "terms"_a.noconvert(), "reward"_a.noconvert(), "bad"_a.noconvert(),
-             "One control step of every row; returns 1 | 2 as a row's state stopped being finite | a row's "
-             "observation or reward was not (the rows in bad).");
+             "One control step of every row into the batch's outcome arrays; returns 1 | 2 as a row's state "
+             "stopped being finite | a row's observation or reward was not (the rows in bad), or "
+             "NOT_FINITE_ACTION (nothing done) for an action that is not finite.");
 
     m.def("rotation_error_rows", [](In r, In c, Out phi, Out angle) {
         expect(c, "rotation", {-1, 3, 3});
