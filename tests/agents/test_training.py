@@ -122,7 +122,7 @@ def test_parse_env_kwargs_json_and_pairs():
 
 @pytest.fixture(scope="module")
 def ppo_run(tmp_path_factory):
-    """A PPO run of two rollouts of 2 platforms x 128 steps (the config's n_steps)."""
+    """A PPO run of five rollouts of 2 platforms x 32 steps (the config's n_steps)."""
     out = tmp_path_factory.mktemp("ppo")
     result = train("ppo", out, timesteps=300, seed=3, n_envs=2, checkpoint_freq=256, progress_bar=False)
     return out, result
@@ -130,21 +130,23 @@ def ppo_run(tmp_path_factory):
 
 def test_training_writes_a_run_that_loads_and_evaluates(ppo_run):
     out, result = ppo_run
-    # PPO collects whole rollouts: 300 requested steps are 2 rollouts of 2 x 128
-    assert result.num_timesteps == 512
+    # PPO collects whole rollouts: 300 requested steps are 5 rollouts of 2 x 32
+    assert result.num_timesteps == 320
     for name in ("model.zip", "vecnormalize.pkl", "run.json", "monitor.csv"):
         assert (out / name).is_file(), name
     assert list((out / "tensorboard").rglob("events.out.tfevents*"))
-    assert (out / "checkpoints" / "step_512" / "model.zip").is_file()
+    assert (out / "checkpoints" / "step_320" / "model.zip").is_file()
     assert (out / "checkpoints" / "progress.csv").read_text().startswith("num_timesteps,wall_time_s\n")
     manifest = json.loads((out / "run.json").read_text())
-    assert manifest["algo"] == "ppo" and manifest["seed"] == 3 and manifest["num_timesteps"] == 512
-    assert manifest["env_kwargs"] == {"model": "improved", "task": "setpoint"}
+    assert manifest["algo"] == "ppo" and manifest["seed"] == 3 and manifest["num_timesteps"] == 320
+    # the config's environment keywords, then the run's
+    assert manifest["env_kwargs"] == {"error_integral": True, "error_integral_band": 0.01, "model": "improved",
+                                      "task": "setpoint"}
     assert manifest["finished"] and {"torch", "stable_baselines3", "stewart_env"} <= set(manifest["versions"])
     assert set(manifest["files"]) == {"model.zip", "vecnormalize.pkl"}
 
     agent = load_agent(out)
-    assert agent.num_timesteps == 512
+    assert agent.num_timesteps == 320
     result = evaluate(agent, agent.env_kwargs, episodes=2, seed=0, max_steps=20, progress=False)
     summary = result.summary()
     for key in ("rms_position_error", "steady_state_position_error", "peak_leg_force", "control_energy"):
