@@ -125,8 +125,9 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
       (``Workspace.mass_and_bias``, which has no counterpart in MuJoCo's task-space terms);
     * one control step of ``substeps`` RK4 steps of ``dt``, one platform: ``step_mujoco``
       (``mujoco.mj_step``), ``step_plant`` (:class:`stewart_env.mujoco.MujocoPlant`),
-      ``step_env`` (``StewartPlatform-v1`` through ``gymnasium.make``, measured over
-      ``env_seconds``), ``step_env_mujoco`` (the same env with ``model="mujoco"``),
+      ``step_env`` (``StewartPlatform-v1`` through ``gymnasium.make``, the set-point task from its
+      fixed start held by its holding forces), ``step_env_mujoco`` (the same env with
+      ``model="mujoco"``),
       ``step_rollout`` (``rollout_inplace``, N = 1), ``step_workspace`` (``Workspace.step``);
     * the same step for ``n_batch`` platforms, per platform: ``batch_mujoco`` (``mujoco.rollout``
       on every core), ``batch_vector_env`` (the native vector env), ``batch_rollout``
@@ -134,11 +135,12 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     * ``reset_randomized`` and ``reset_nominal``: ``reset()`` of the vector env of ``n_batch``
       rows, per row, with :data:`~stewart_env.envs.bench_env.RESET_RANDOMIZATION` and without.
 
-    Each figure is the best of ``repeats`` loops (``calls`` calls for the single-platform figures).
-    The single-platform figures are CPU time of this process per call (``time.process_time``;
-    ``step_env`` too), the batch figures and the resets wall-clock time.
+    Each figure is the best of ``repeats`` loops (``calls`` calls for the single-platform figures),
+    the loops of a group taking turns.  The single-platform figures are CPU time of this process
+    per call (``time.process_time``), the batch figures and the resets wall-clock time; the vector
+    env is measured over ``env_seconds``.
     """
-    from stewart_env.envs.bench_env import RESET_RANDOMIZATION, bench_env, bench_reset
+    from stewart_env.envs.bench_env import RESET_RANDOMIZATION, bench_env, bench_reset, held_env
     from stewart_env.integrate import rollout_inplace
     from stewart_env.mujoco import MujocoPlant, model_and_data, require_mujoco
     from stewart_env.mujoco.library import require_rollout
@@ -177,6 +179,9 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     state = [x.copy() for x in plant_state]
     forces, wrench = F[None].copy(), np.zeros((1, 6))
     start_state = [x.copy() for x in plant_state]
+    env_kwargs = dict(task_options={"randomize": False}, platform=params, control_dt=dt * substeps, physics_dt=dt)
+    env, env_action = held_env(**env_kwargs)
+    mj_env, mj_env_action = held_env(model="mujoco", **env_kwargs)
 
     def back_to_start():
         # the platform at rest under its holding forces is an unstable equilibrium: the rounding
@@ -187,13 +192,19 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
             for x in xs:
                 x[...] = x0
         ws.set_state(t, R, z, z)
+        env.reset(seed=0)
+        mj_env.reset(seed=0)
 
     out.update(_per_call({
         "step_mujoco": lambda: mujoco.mj_step(m, d, nstep=substeps),
         "step_plant": lambda: plant.step_inplace(*plant_state, forces, wrench, dt, substeps),
         "step_rollout": lambda: rollout_inplace(model, *state, forces, wrench, dt, substeps),
         "step_workspace": lambda: ws.step(dt, substeps),
+        "step_env": lambda: env.step(env_action),
+        "step_env_mujoco": lambda: mj_env.step(mj_env_action),
     }, step_calls, repeats, cpu, reset=back_to_start))
+    env.close()
+    mj_env.close()
     bar.update()
 
     # the batch: MuJoCo's threaded rollout of n_batch platforms from the same state, open loop
@@ -214,15 +225,10 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     out.update({name: seconds / n_batch for name, seconds in batch.items()})
     bar.update(2)
 
-    env = bench_env(n_vector=n_batch, seconds=env_seconds, platform=params, control_dt=dt * substeps,
-                    physics_dt=dt)
-    out["step_env"] = 1.0 / env["single_steps_per_cpu_s"]
-    out["batch_vector_env"] = 1.0 / env["vector_platform_steps_per_s"]
-    bar.update(2)
-    env = bench_env(n_vector=0, seconds=env_seconds, platform=params, control_dt=dt * substeps, physics_dt=dt,
-                    model="mujoco")
-    out["step_env_mujoco"] = 1.0 / env["single_steps_per_cpu_s"]
-    bar.update()
+    vector = bench_env(n_vector=n_batch, seconds=env_seconds, platform=params, control_dt=dt * substeps,
+                       physics_dt=dt)
+    out["batch_vector_env"] = 1.0 / vector["vector_platform_steps_per_s"]
+    bar.update(3)
     out["reset_randomized"] = bench_reset(n_batch, RESET_RANDOMIZATION, max(1, repeats // 2), platform=params)
     out["reset_nominal"] = bench_reset(n_batch, None, max(1, repeats // 2), platform=params)
     bar.update()

@@ -31,6 +31,16 @@ def _timed(step, seconds: float, batch: int = 64) -> tuple[int, float, float]:
             return calls, elapsed, time.process_time() - cpu
 
 
+def held_env(**kwargs) -> tuple[gym.Env, np.ndarray]:
+    """``gymnasium.make("StewartPlatform-v1", **kwargs)`` reset with seed 0, and the float32 action
+    that holds the platform at that start pose.  Held so, the open-loop platform drifts off slowly:
+    an episode runs for hundreds of steps, so a timing loop times steps, not resets."""
+    env = gym.make(ENV_ID, **kwargs)
+    env.reset(seed=0)
+    state = env.unwrapped.state
+    return env, holding_action(env, state.position, state.rotation).astype(np.float32)
+
+
 def bench_env(n_vector: int = 1024, seconds: float = 5.0, **kwargs) -> dict:
     """Measure both environments with default settings (improved model, control_dt 0.01 s,
     physics_dt 0.001 s: 10 RK4 substeps per step) or the given keyword arguments of the
@@ -49,12 +59,7 @@ def bench_env(n_vector: int = 1024, seconds: float = 5.0, **kwargs) -> dict:
     measures the single env only (no vector_* keys).
     """
     kwargs = {"task_options": {"randomize": False}, **kwargs}
-    env = gym.make(ENV_ID, **kwargs)
-    env.reset(seed=0)
-    # Held at its start pose, the open-loop platform drifts off slowly: an episode runs for
-    # hundreds of steps, so the timing is of steps, with the occasional reset included as in training.
-    state = env.unwrapped.state
-    action = holding_action(env, state.position, state.rotation).astype(np.float32)
+    env, action = held_env(**kwargs)
     resets = [0]
 
     def single_step():
