@@ -337,7 +337,7 @@ def time_to_agent(algo: str, out: str | os.PathLike, *, config: str | os.PathLik
     """Measure the training wall time to a precise agent, seed by seed (module docstring).
 
     Args:
-        algo: one of :data:`~stewart_env.agents.training.ALGORITHMS` (ppo, sac, td3, tqc, crossq).
+        algo: one of ``ALGORITHMS`` of :mod:`stewart_env.agents.training` (ppo, sac, td3, tqc, crossq).
         out: the output folder (new or empty).
         config: a zoo hyperparameter file, or the name of a shipped one (configs/agents/<name>.yml);
             default configs/agents/<algo>.yml.

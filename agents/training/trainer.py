@@ -152,7 +152,7 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
     """Train (or, with ``resume``, continue training) an SB3 agent on StewartPlatform-v1.
 
     Args:
-        algo: one of :data:`~stewart_env.agents.training.ALGORITHMS` (ppo, sac, td3, tqc, crossq).
+        algo: one of ``ALGORITHMS`` of :mod:`stewart_env.agents.training` (ppo, sac, td3, tqc, crossq).
         out: the run directory (created; see the module docstring for its contents).  A new run
             refuses a directory that holds anything else than a run of ``algo`` with nothing
             saved yet.
