@@ -43,6 +43,7 @@ import numpy as np
 
 from stewart_env.agents.evaluation import curve_style, evaluate, new_figure
 from stewart_env.agents.training import (
+    ALGORITHM_NAMES,
     TrainedAgent,
     TrainingError,
     algorithm_class,
@@ -482,7 +483,7 @@ def learning_curve_figure(result: TimeToAgentResult):
     for ax in (top, bottom):
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8, loc="best")
-    fig.suptitle(f"{s['algo'].upper()} ({Path(s['config']).name}) on the {s['task']} task, {s['model']} model: "
+    fig.suptitle(f"{ALGORITHM_NAMES[s['algo']]} ({Path(s['config']).name}) on the {s['task']} task, {s['model']} model: "
                  f"{s['episodes']} held-out episodes a point (circled: target reached)", fontsize=10)
     return fig
 
@@ -508,7 +509,7 @@ def write_files(result: TimeToAgentResult, out: Path) -> dict[str, Path]:
                                  f"{p.median_error_mm:.9g}", f"{p.evaluation_time:.3f}", int(met)])
     s = result.settings
     publish(paths["markdown"],
-            f"# Time to a precise agent: {s['algo'].upper()} on the {s['task']} task\n\n"
+            f"# Time to a precise agent: {ALGORITHM_NAMES[s['algo']]} on the {s['task']} task\n\n"
             f"Target: success >= {s['target_success']:.0%} and median steady-state position error <= "
             f"{s['target_error_mm']:g} mm on {s['episodes']} held-out episodes; budget {s['budget_s']:g} s of "
             f"training wall time a seed, a point every {s['interval_s']:g} s (evaluation time excluded). "

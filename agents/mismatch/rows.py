@@ -11,6 +11,7 @@ from stewart_env.agents.mismatch.constants import AGENTS_DIR, DEFAULT_RANDOMIZAT
 from stewart_env.agents.mismatch.results import Row
 from stewart_env.agents.mismatch.settings import closed_form
 from stewart_env.agents.training import (
+    ALGORITHM_NAMES,
     MANIFEST,
     MODEL_FILE,
     newest_checkpoint,
@@ -61,7 +62,7 @@ def _rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequence[in
     for m, randomized in trainings:
         name = f"{m} + DR" if randomized else on(m)
         agents = {s: out / AGENTS_DIR / slug(name) / f"seed_{s}" for s in seeds}
-        rows.append(Row(f"{algo.upper()} [{name}]", algo.upper(), m, "agent", tuple(seeds), agents,
+        rows.append(Row(f"{ALGORITHM_NAMES[algo]} [{name}]", ALGORITHM_NAMES[algo], m, "agent", tuple(seeds), agents,
                         randomized=randomized, **built))
     return rows
 

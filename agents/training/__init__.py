@@ -23,6 +23,7 @@ from stewart_env.agents.training.environment import make_training_env, progress_
 from stewart_env.agents.training.errors import TrainingError, TrainingInterrupted, check_rl_installed
 from stewart_env.agents.training.hyperparameters import (
     ACTIVATIONS,
+    ALGORITHM_NAMES,
     ALGORITHMS,
     CONFIG_DIR,
     MAX_COUNT,
@@ -64,7 +65,7 @@ from stewart_env.registration import ENV_ID
 from stewart_env.validation import MAX_SEED
 
 __all__ = [
-    "ACTIVATIONS", "ALGORITHMS", "CHECKPOINT_DIR", "CHECKPOINT_MANIFEST", "CONFIG_DIR", "DEFAULT_KEEP_CHECKPOINTS",
+    "ACTIVATIONS", "ALGORITHM_NAMES", "ALGORITHMS", "CHECKPOINT_DIR", "CHECKPOINT_MANIFEST", "CONFIG_DIR", "DEFAULT_KEEP_CHECKPOINTS",
     "ENV_ID", "MANIFEST", "MAX_AGENT_FILE_BYTES", "MAX_COUNT", "MAX_MANIFEST_BYTES", "MAX_SEED", "MODEL_FILE",
     "OFF_POLICY", "PAUSE_IN_CHECKPOINT_ENV", "REPLAY_BUFFER_FILE", "VECNORMALIZE_FILE", "ZOO_EVALUATED_KEYS",
     "ZOO_KEYS_HANDLED", "ZOO_KEYS_ZOO_ONLY", "ZOO_SCHEDULE_KEYS", "Hyperparameters", "TrainResult", "TrainedAgent",

@@ -18,7 +18,7 @@ import numpy as np
 
 from stewart_env.agents.training.environment import single_thread
 from stewart_env.agents.training.errors import TrainingError
-from stewart_env.agents.training.hyperparameters import algorithm_class
+from stewart_env.agents.training.hyperparameters import ALGORITHM_NAMES, algorithm_class
 from stewart_env.agents.training.rundir import (
     CHECKPOINT_DIR,
     MANIFEST,
@@ -61,8 +61,8 @@ class TrainedAgent:
 
     @property
     def name(self) -> str:
-        """A short label for tables: ``<ALGO> (<training model>)``."""
-        return f"{self.algo.upper()} ({self.env_kwargs.get('model')})"
+        """A short label for tables: ``<algorithm> (<training model>)``, e.g. ``PPO (improved)``."""
+        return f"{ALGORITHM_NAMES[self.algo]} ({self.env_kwargs.get('model')})"
 
     def normalize(self, observation) -> np.ndarray:
         """Raw observations -> the normalised observations the network was trained on (float32)."""

@@ -26,7 +26,7 @@ from stewart_env.params import MAX_CONFIG_BYTES, config_dir
 from stewart_env.registration import ENV_ID
 from stewart_env.validation import integer
 
-__all__ = ["ACTIVATIONS", "ALGORITHMS", "CONFIG_DIR", "CONTRIB", "MAX_COUNT", "OFF_POLICY", "ZOO_EVALUATED_KEYS",
+__all__ = ["ACTIVATIONS", "ALGORITHMS", "ALGORITHM_NAMES", "CONFIG_DIR", "CONTRIB", "MAX_COUNT", "OFF_POLICY", "ZOO_EVALUATED_KEYS",
            "ZOO_KEYS_HANDLED", "ZOO_KEYS_ZOO_ONLY", "ZOO_SCHEDULE_KEYS", "Hyperparameters", "algorithm_class",
            "check_count", "check_hyperparameter_names", "config_path", "parse_hyperparameters", "read_hyperparameters",
            "shipped_configs", "zoo_eval"]
@@ -35,6 +35,8 @@ ALGORITHMS = ("ppo", "sac", "td3", "tqc", "crossq")
 OFF_POLICY = ("sac", "td3", "tqc", "crossq")
 #: The algorithms of sb3-contrib (the rest are stable-baselines3's).
 CONTRIB = ("tqc", "crossq")
+#: Each algorithm's name as its library spells it (the class name), for labels.
+ALGORITHM_NAMES = {"ppo": "PPO", "sac": "SAC", "td3": "TD3", "tqc": "TQC", "crossq": "CrossQ"}
 #: Where the zoo-format hyperparameter files live: configs/agents, shipped as stewart_env.configs.
 CONFIG_DIR = config_dir("agents")
 
@@ -63,7 +65,7 @@ def algorithm_class(algo: str):
     import importlib
 
     library = importlib.import_module("sb3_contrib" if algo in CONTRIB else "stable_baselines3")
-    return getattr(library, {"crossq": "CrossQ"}.get(algo, algo.upper()))
+    return getattr(library, ALGORITHM_NAMES[algo])
 
 
 def shipped_configs() -> list[str]:
