@@ -113,8 +113,8 @@ def _per_call(fns: dict, calls: int, repeats: int, clock=time.perf_counter, rese
     return best
 
 
-def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 1000, env_seconds: float = 3.0,
-                 substeps: int = 10, dt: float = 1e-3) -> dict:
+def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 1000, substeps: int = 10,
+                 dt: float = 1e-3) -> dict:
     """MuJoCo and stewart-env side by side on the same mechanism (stewart_env.mujoco's twin of
     ``params``), the platform at home at rest under its holding forces.  Seconds per call:
 
@@ -138,9 +138,10 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     Each figure is the best of ``repeats`` loops (``calls`` calls for the single-platform figures),
     the loops of a group taking turns.  The single-platform figures are CPU time of this process
     per call (``time.process_time``), the batch figures and the resets wall-clock time; the vector
-    env is measured over ``env_seconds``.
+    env's steps start from its reset (the resets are timed apart).
     """
-    from stewart_env.envs.bench_env import RESET_RANDOMIZATION, bench_env, bench_reset, held_env
+    from stewart_env.envs.bench_env import RESET_RANDOMIZATION, bench_reset, held_env
+    from stewart_env.registration import ENV_ID
     from stewart_env.integrate import rollout_inplace
     from stewart_env.mujoco import MujocoPlant, model_and_data, require_mujoco
     from stewart_env.mujoco.library import require_rollout
@@ -218,16 +219,20 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     datas = [mujoco.MjData(m) for _ in range(nthread)]
     bt, bR, bv, bw, bF = _batch_state(model, n_batch, np.random.default_rng(0))
     bW = np.zeros((n_batch, 6))
+    import gymnasium as gym
+
+    venv = gym.make_vec(ENV_ID, num_envs=n_batch, vectorization_mode="vector_entry_point", **env_kwargs)
+    venv_actions = np.tile(env_action, (n_batch, 1))
+    venv.reset(seed=0)
     with mujoco_rollout.Rollout(nthread=nthread) as pool:
         batch = _per_call({"batch_mujoco": lambda: pool.rollout(m, datas, initial, control, state=states),
-                           "batch_rollout": lambda: rollout_inplace(model, bt, bR, bv, bw, bF, bW, dt, substeps)},
-                          1, repeats)
+                           "batch_rollout": lambda: rollout_inplace(model, bt, bR, bv, bw, bF, bW, dt, substeps),
+                           "batch_vector_env": lambda: venv.step(venv_actions)},
+                          1, repeats, reset=lambda: venv.reset(seed=0))
+    venv.close()
     out.update({name: seconds / n_batch for name, seconds in batch.items()})
     bar.update(2)
 
-    vector = bench_env(n_vector=n_batch, seconds=env_seconds, platform=params, control_dt=dt * substeps,
-                       physics_dt=dt)
-    out["batch_vector_env"] = 1.0 / vector["vector_platform_steps_per_s"]
     bar.update(3)
     out["reset_randomized"] = bench_reset(n_batch, RESET_RANDOMIZATION, max(1, repeats // 2), platform=params)
     out["reset_nominal"] = bench_reset(n_batch, None, max(1, repeats // 2), platform=params)
