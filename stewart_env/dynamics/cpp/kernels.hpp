@@ -610,6 +610,33 @@ inline void add_column(T* M, int c, T q0, T q1, T q2, T f0, T f1, T f2) {
     M[6 * 5 + c] += n2;
 }
 
+// The pivot row of column c of a 6x6 matrix M in elimination: the first of rows c.. with the
+// largest |M[r][c]| (in each lane its own), as a row index of type T.  docs/physics.md section
+// 5.4 (no paper equation).
+template <typename T>
+inline T pivot_row(const T* M, int c) {
+    constexpr int n = 6;
+    T big = lanes::abs_of(M[n * c + c]);
+    T p = T(c);
+    for (int r = c + 1; r < n; ++r) {
+        const T a = lanes::abs_of(M[n * r + c]);
+        const auto larger = a > big;
+        big = lanes::select(larger, a, big);
+        p = lanes::select(larger, T(r), p);
+    }
+    return p;
+}
+
+// a and b trade values where swap holds (lane by lane): a row swap of the elimination.
+// docs/physics.md section 5.4 (no paper equation).
+template <typename T, typename Mask>
+inline void trade(const Mask& swap, T& a, T& b) {
+    const T mine = a;
+    const T theirs = b;
+    a = lanes::select(swap, theirs, mine);
+    b = lanes::select(swap, mine, theirs);
+}
+
 // Solve M x = b (6x6) by Gaussian elimination with partial pivoting; M and b are overwritten.
 // A singular M gives non-finite x, which callers report.  docs/physics.md section 5.4 (no paper
 // equation).
@@ -617,29 +644,13 @@ template <typename T>
 inline void solve6(T* M, T* b, T* x) {
     constexpr int n = 6;
     for (int c = 0; c < n; ++c) {
-        // the pivot row p: the first of rows c.. with the largest |M[r][c]| (in each lane its own)
-        T big = lanes::abs_of(M[n * c + c]);
-        T p = T(c);
-        for (int r = c + 1; r < n; ++r) {
-            const T a = lanes::abs_of(M[n * r + c]);
-            const auto larger = a > big;
-            big = lanes::select(larger, a, big);
-            p = lanes::select(larger, T(r), p);
-        }
+        const T p = pivot_row(M, c);
         // rows c and p trade places
         for (int r = c + 1; r < n; ++r) {
             const auto swap = p == T(r);
             if (!lanes::any(swap)) continue;
-            for (int k = c; k < n; ++k) {
-                const T mine = M[n * c + k];
-                const T theirs = M[n * r + k];
-                M[n * c + k] = lanes::select(swap, theirs, mine);
-                M[n * r + k] = lanes::select(swap, mine, theirs);
-            }
-            const T mine = b[c];
-            const T theirs = b[r];
-            b[c] = lanes::select(swap, theirs, mine);
-            b[r] = lanes::select(swap, mine, theirs);
+            for (int k = c; k < n; ++k) trade(swap, M[n * c + k], M[n * r + k]);
+            trade(swap, b[c], b[r]);
         }
         const T piv = M[n * c + c];
         for (int r = c + 1; r < n; ++r) {
@@ -1050,30 +1061,14 @@ inline T frobenius_condition(const T* J) {
     }
     for (int k = 0; k < n; ++k) E[n * k + k] = 1.0;
     for (int c = 0; c < n; ++c) {
-        // the pivot row p: the first of rows c.. with the largest |M[r][c]| (in each lane its own)
-        T big = lanes::abs_of(M[n * c + c]);
-        T p = T(c);
-        for (int r = c + 1; r < n; ++r) {
-            const T a = lanes::abs_of(M[n * r + c]);
-            const auto larger = a > big;
-            big = lanes::select(larger, a, big);
-            p = lanes::select(larger, T(r), p);
-        }
+        const T p = pivot_row(M, c);
         // rows c and p trade places
         for (int r = c + 1; r < n; ++r) {
             const auto swap = p == T(r);
             if (!lanes::any(swap)) continue;
             for (int k = 0; k < n; ++k) {
-                if (k >= c) {
-                    const T mine = M[n * c + k];
-                    const T theirs = M[n * r + k];
-                    M[n * c + k] = lanes::select(swap, theirs, mine);
-                    M[n * r + k] = lanes::select(swap, mine, theirs);
-                }
-                const T mine = E[n * c + k];
-                const T theirs = E[n * r + k];
-                E[n * c + k] = lanes::select(swap, theirs, mine);
-                E[n * r + k] = lanes::select(swap, mine, theirs);
+                if (k >= c) trade(swap, M[n * c + k], M[n * r + k]);
+                trade(swap, E[n * c + k], E[n * r + k]);
             }
         }
         const T piv = M[n * c + c];
