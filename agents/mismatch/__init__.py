@@ -54,8 +54,9 @@ The package by job: :mod:`.constants` (the study's constants and its error),
 :mod:`.backends` (local, Ray), :mod:`.jobs` (what a worker runs), :mod:`.rows` (the controllers
 and their agents), :mod:`.cells` (the finished evaluations on disk), :mod:`.study` (the
 orchestration, :func:`run_mismatch`), :mod:`.costs` (the simplifications' costs and statistics),
-:mod:`.tables` (matrix.md and the CSV files) and :mod:`.figures` (the PNG figures, drawn only
-when asked).  The command line is :mod:`stewart_env.cli.mismatch`.
+:mod:`.tables` (matrix.md and the CSV files), :mod:`.timing` (the jobs' measured times and
+the study's makespan on more machines) and :mod:`.figures` (the PNG figures, drawn only when
+asked).  The command line is :mod:`stewart_env.cli.mismatch`.
 """
 
 from stewart_env.agents.mismatch.backends import (
@@ -113,17 +114,18 @@ from stewart_env.agents.mismatch.settings import (
 )
 from stewart_env.agents.mismatch.study import run_jobs, run_mismatch, run_study, summarize, write_outputs
 from stewart_env.agents.mismatch.tables import format_interval, markdown, write_tables
+from stewart_env.agents.mismatch.timing import JobTimes, makespan, scale_out
 
 __all__ = [
     "AGENTS_DIR", "AGENT_FILES", "BACKENDS", "CELLS_DIR", "COST", "CPUS_PER_JOB", "DEFAULT_RANDOMIZATION",
     "DEFAULT_STATISTIC", "DOUBLE_DIFFERENCE", "EVAL_SEED_OFFSET", "FAILURE_THRESHOLD", "MAX_CELL_BYTES", "MAX_STEPS",
     "PLANNING_BASES", "QUICK_TIMESTEPS", "RANKING_METRICS", "RAY_AUTH_HINT", "RAY_CONNECT_TIMEOUT",
     "RAY_INSTALL_HINT", "SHARE_REMOVED", "SIMPLIFICATIONS", "SIMPLIFICATION_TEXT", "STATISTIC", "STUDY_FILE", "TRUE_MODEL",
-    "BackendError", "Difference", "LocalBackend", "MismatchError", "MismatchResult", "MismatchSettings",
+    "BackendError", "Difference", "JobTimes", "LocalBackend", "MismatchError", "MismatchResult", "MismatchSettings",
     "RayBackend", "Row", "agent_files", "build_rows", "cell_path", "cell_spec", "cell_values", "check_backend",
     "check_own_agents", "check_study", "closed_form", "config_env_kwargs", "design_models", "evaluate_job",
     "finished_agent", "forest_figure", "format_interval", "heatmap", "heatmap_figure", "make_backend",
-    "make_policy", "markdown", "per_seed_estimates", "publish_agent", "ray_endpoint", "read_cell", "run_jobs",
-    "run_mismatch", "run_study", "seeds_needed", "simplification_costs", "statistic", "summarize", "train_agent",
+    "make_policy", "makespan", "markdown", "per_seed_estimates", "publish_agent", "ray_endpoint", "read_cell", "run_jobs",
+    "run_mismatch", "run_study", "scale_out", "seeds_needed", "simplification_costs", "statistic", "summarize", "train_agent",
     "train_job", "training_keywords", "write_figures", "write_outputs", "write_tables",
 ]

@@ -3,6 +3,7 @@ on, and its metrics and intervals read back."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -15,7 +16,8 @@ from stewart_env.agents.statistics import Interval, stratified_bootstrap
 from stewart_env.agents.training import MODEL_FILE, read_manifest
 from stewart_env.files import read_json
 
-__all__ = ["cell_intervals", "cell_path", "cell_spec", "cell_values", "metric_values", "read_cell", "stored_metrics"]
+__all__ = ["cell_intervals", "cell_path", "cell_spec", "cell_values", "cell_wall_time", "metric_values", "read_cell",
+           "stored_cells", "stored_metrics"]
 
 
 def cell_path(out: Path, row: Row, plant: str, seed: int | None) -> Path:
@@ -47,10 +49,23 @@ def read_cell(path: Path) -> dict[str, Any]:
     return cell
 
 
+def stored_cells(out: Path, row: Row, plant: str) -> list[dict[str, Any]]:
+    """A stored cell's files (:func:`read_cell`), one per seed (one for a model-based row)."""
+    return [read_cell(cell_path(out, row, plant, seed)) for seed in (row.seeds or (None,))]
+
+
 def stored_metrics(out: Path, row: Row, plant: str) -> list[dict[str, list[float]]]:
     """A stored cell's metrics per episode, one dict per seed (one for a model-based row)."""
-    paths = [cell_path(out, row, plant, seed) for seed in (row.seeds or (None,))]
-    return [read_cell(p)["metrics"] for p in paths]
+    return [cell["metrics"] for cell in stored_cells(out, row, plant)]
+
+
+def cell_wall_time(cell: Mapping[str, Any]) -> float | None:
+    """The evaluation's wall time (s) a cell file records; None if it records none (a cell written
+    before evaluations were timed) or no finite time."""
+    t = cell.get("wall_time")
+    if isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) and t >= 0:
+        return float(t)
+    return None
 
 
 def metric_values(stored: list[dict[str, list[float]]], metric: str) -> np.ndarray:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
@@ -67,13 +68,14 @@ def make_policy(kind: str, model: str, agent=None, platform: str | None = None):
 
 def evaluate_job(spec: dict[str, Any], agent=None) -> dict[str, Any]:
     """One evaluation: the controller of ``spec`` (a cell's spec) on its plant; every metric per
-    episode, and the episodes' terminations."""
+    episode, the episodes' terminations, and the job's wall time (s, the policy's loading included)."""
     from stewart_env.agents.evaluation import METRICS, evaluate
 
+    start = time.perf_counter()
     policy = make_policy(spec["kind"], spec["design_model"], agent, spec.get("design_platform"))
     result = evaluate(policy, {**spec["env_kwargs"], "model": spec["plant"], "task": spec["task"]},
                       episodes=spec["episodes"], seed=spec["eval_seed"], label=spec["controller"],
                       max_steps=spec["max_steps"], position_tolerance=spec["position_tolerance"],
                       orientation_tolerance=spec["orientation_tolerance"], progress=False)
     return {"metrics": {metric.key: [ep.metrics[metric.key] for ep in result.episodes] for metric in METRICS},
-            "terminations": [ep.termination for ep in result.episodes]}
+            "terminations": [ep.termination for ep in result.episodes], "wall_time": time.perf_counter() - start}

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from stewart_env.agents.mismatch.constants import TRUE_MODEL
+from stewart_env.agents.mismatch.timing import JobTimes
 from stewart_env.agents.statistics import Interval
 
 __all__ = ["COST", "DOUBLE_DIFFERENCE", "SHARE_REMOVED", "Difference", "MismatchResult", "Row"]
@@ -79,7 +80,8 @@ class MismatchResult:
     """The study's numbers: ``summary[row label][test model][metric]`` an :class:`Interval`;
     ``rows`` in table order; ``test_models`` the columns; ``differences`` the simplifications'
     costs; ``per_seed[row label][metric]`` a learned row's point estimate per training seed on the
-    plant the costs are measured on; ``files`` what was written."""
+    plant the costs are measured on; ``timing`` its jobs' measured wall times; ``files`` what was
+    written."""
 
     rows: list[Row]
     test_models: list[str]
@@ -87,6 +89,7 @@ class MismatchResult:
     episodes: int
     differences: list[Difference] = field(default_factory=list)
     per_seed: dict[str, dict[str, list[float]]] = field(default_factory=dict)
+    timing: JobTimes | None = None
     files: dict[str, Path] = field(default_factory=dict)
 
     def matrix(self, metric: str) -> np.ndarray:

@@ -20,8 +20,9 @@ from stewart_env.agents.mismatch.cells import (
     cell_path,
     cell_spec,
     metric_values,
+    cell_wall_time,
     read_cell,
-    stored_metrics,
+    stored_cells,
 )
 from stewart_env.agents.mismatch.constants import (
     QUICK_TIMESTEPS,
@@ -43,6 +44,7 @@ from stewart_env.agents.mismatch.rows import (
 )
 from stewart_env.agents.mismatch.settings import MismatchSettings, changes, check_own_agents, check_study
 from stewart_env.agents.mismatch.tables import write_tables
+from stewart_env.agents.mismatch.timing import JobTimes
 from stewart_env.agents.training import jsonable, read_manifest
 from stewart_env.files import check_not_busy, lock_folder, write_error
 from stewart_env.progress import progress as progress_bar
@@ -170,8 +172,9 @@ def run_jobs(runner: LocalBackend | RayBackend, out: Path, rows: list[Row], sett
 def summarize(out: Path, rows: list[Row], settings: MismatchSettings) -> MismatchResult:
     """The study's numbers from its stored cells: every cell's intervals, the simplifications'
     costs and the learned rows' estimates per seed, on the cost plant."""
-    # every cell read once: the summary, the costs and the per-seed values all draw on it
-    stored = {(r.label, m): stored_metrics(out, r, m) for r in rows for m in settings.test_models}
+    # every cell read once: the summary, the costs, the per-seed values and the timing draw on it
+    cells = {(r.label, m): stored_cells(out, r, m) for r in rows for m in settings.test_models}
+    stored = {key: [cell["metrics"] for cell in found] for key, found in cells.items()}
 
     def values(row: Row, plant: str, metric: str):
         return metric_values(stored[row.label, plant], metric)
@@ -181,7 +184,12 @@ def summarize(out: Path, rows: list[Row], settings: MismatchSettings) -> Mismatc
         if r.kind == "agent":
             steps = sorted({read_manifest(d)["num_timesteps"] for d in r.agents.values()})
             r.info = f"{', '.join(map(str, steps))} steps, seeds {', '.join(map(str, r.seeds))}"
-    result = MismatchResult(rows, list(settings.test_models), summary, settings.episodes)
+    cell_times = [cell_wall_time(cell) for found in cells.values() for cell in found]
+    timing = JobTimes(training=[float(read_manifest(d)["wall_time"]) for r in rows if r.kind == "agent"
+                                for d in r.agents.values()],
+                      evaluation=[t for t in cell_times if t is not None],
+                      untimed_cells=sum(t is None for t in cell_times))
+    result = MismatchResult(rows, list(settings.test_models), summary, settings.episodes, timing=timing)
     result.differences = simplification_costs(result, values, plant=settings.cost_plant)
     result.per_seed = {r.label: {key: per_seed_estimates(values(r, settings.cost_plant, key), statistic(key))
                                  for key in RANKING_METRICS} for r in rows if r.kind == "agent"}

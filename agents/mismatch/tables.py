@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -12,6 +13,7 @@ import numpy as np
 
 from stewart_env.agents.evaluation import METRICS, Metric
 from stewart_env.agents.mismatch.constants import (
+    CPUS_PER_JOB,
     EVAL_SEED_OFFSET,
     FAILURE_THRESHOLD,
     RANKING_METRICS,
@@ -22,6 +24,7 @@ from stewart_env.agents.mismatch.constants import (
 from stewart_env.agents.mismatch.costs import PLANNING_BASES, seeds_needed
 from stewart_env.agents.mismatch.results import COST, DOUBLE_DIFFERENCE, SHARE_REMOVED, Difference, MismatchResult
 from stewart_env.agents.mismatch.settings import MismatchSettings
+from stewart_env.agents.mismatch.timing import describe, duration, scale_out
 from stewart_env.agents.statistics import Interval
 from stewart_env.files import publish, publishing
 
@@ -187,6 +190,32 @@ def _per_seed_lines(result: MismatchResult, plant: str) -> list[str]:
     return lines + [""]
 
 
+def _scale_out_lines(result: MismatchResult, cpus_per_machine: int | None = None) -> list[str]:
+    """The jobs' measured times and the study's makespan on 1, 2, 5 and 10 machines of this
+    machine's CPU count (:func:`~.timing.scale_out`)."""
+    times = result.timing
+    if times is None:
+        return []
+    cpus = cpus_per_machine or os.cpu_count() or 1
+    lines = ["## Scale-out", "",
+             f"The study's jobs, each on {CPUS_PER_JOB} CPU: {len(times.training)} training"
+             f"{'s' if len(times.training) != 1 else ''}, {describe(times.training)} (each agent's run.json: "
+             f"the training loop, without a worker's start or the agent's transfer); "
+             f"{len(times.evaluation) + times.untimed_cells} evaluations, "
+             + (describe(times.evaluation) if not times.untimed_cells else
+                f"{times.untimed_cells} of them written without their time (by an earlier version), so the "
+                "evaluations are not projected") + ".", "",
+             f"What the same jobs take on N machines of {cpus} CPUs (this machine's count), scheduled from "
+             "these measured times: the trainings first, then the evaluations, each job to the first free CPU, "
+             "longest first:", "",
+             "| machines | CPUs | training | evaluation | total |", "|---|---|---|---|---|"]
+    for row in scale_out(times, cpus):
+        total = None if row["evaluation"] is None else row["training"] + row["evaluation"]
+        lines.append(f"| {row['machines']} | {row['cpus']} | {duration(row['training'])} | "
+                     f"{duration(row['evaluation'])} | {duration(total)} |")
+    return lines + [""]
+
+
 def markdown(result: MismatchResult, settings: MismatchSettings, wall_time: float) -> str:
     """matrix.md: the matrix of every metric with its intervals, the costs, the per-seed values."""
     seeds = settings.seeds
@@ -212,7 +241,7 @@ def markdown(result: MismatchResult, settings: MismatchSettings, wall_time: floa
                      for m in result.test_models]
             lines.append(f"| {r.label} | " + " | ".join(cells) + " |")
         lines.append("")
-    lines += _cost_lines(result) + _per_seed_lines(result, settings.cost_plant)
+    lines += _cost_lines(result) + _per_seed_lines(result, settings.cost_plant) + _scale_out_lines(result)
     lines.append(f"Backend: {settings.backend}. Wall time of this run: {wall_time:.0f} s.")
     return "\n".join(lines) + "\n"
 

@@ -156,6 +156,54 @@ def test_second_run_reuses_agents_and_cells_and_runs_only_what_is_missing(study)
 
 
 @pytest.mark.slow  # the study fixture trains eight agents: about 20 s
+def test_scale_out_is_scheduled_from_the_jobs_measured_times(study):
+    out, _ = study
+    times = run_mismatch(out, **STUDY).timing  # all reused: the timing of what is on disk now
+    manifests = sorted((out / "agents").rglob("run.json"))
+    assert len(manifests) == 8
+    assert sorted(times.training) == sorted(json.loads(p.read_text())["wall_time"] for p in manifests)
+    cells = sorted((out / "cells").rglob("*.json"))
+    assert times.untimed_cells == 0
+    assert sorted(times.evaluation) == sorted(json.loads(p.read_text())["wall_time"] for p in cells)
+    assert all(t > 0 for t in times.evaluation)
+    text = (out / "matrix.md").read_text().split("## Scale-out")[1]
+    assert f"8 trainings, median {np.median(times.training):.3g} s" in text
+    assert f"{len(cells)} evaluations, median {np.median(times.evaluation):.3g} s" in text
+    table = [line for line in text.splitlines() if line.startswith("| ") and line[2].isdigit()]
+    assert [line.split(" | ")[0] for line in table] == ["| 1", "| 2", "| 5", "| 10"]
+
+
+@pytest.mark.slow  # the study fixture trains eight agents: about 20 s
+def test_cells_written_without_their_time_are_named_not_projected(study, tmp_path):
+    import shutil
+
+    out, _ = study
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    cell = sorted((copy / "cells").rglob("*.json"))[0]
+    stored = json.loads(cell.read_text())
+    del stored["wall_time"]  # as an earlier version wrote it
+    cell.write_text(json.dumps(stored))
+    result = run_mismatch(copy, **STUDY)
+    assert result.timing.untimed_cells == 1
+    text = (copy / "matrix.md").read_text().split("## Scale-out")[1]
+    assert "1 of them written without their time" in text
+    assert "| 1 | " in text and text.count(" | - | - |") == 4  # no evaluation or total column
+
+
+def test_makespan_gives_each_job_to_the_first_free_worker_longest_first():
+    assert mismatch.makespan([3, 3, 2, 2, 2], 2) == 7  # 3+2+2 | 3+2
+    assert mismatch.makespan([1] * 10, 3) == 4  # ceil(10 / 3) rounds
+    assert mismatch.makespan([5, 1], 10) == 5
+    assert mismatch.makespan([], 4) == 0
+    with pytest.raises(ValueError, match="slots"):
+        mismatch.makespan([1], 0)
+    times = mismatch.JobTimes(training=[300.0] * 20, evaluation=[2.0] * 60)
+    rows = mismatch.scale_out(times, cpus_per_machine=2, machines=(1, 10))
+    assert [(r["slots"], r["training"], r["evaluation"]) for r in rows] == [(2, 3000, 60), (20, 300, 6)]
+
+
+@pytest.mark.slow  # the study fixture trains eight agents: about 20 s
 def test_a_study_with_other_settings_is_refused(study):
     out, _ = study
     with pytest.raises(MismatchError, match=r"other settings(.|\n)*episodes: 3 -> 4"):
