@@ -56,11 +56,11 @@ def scale_out(times: JobTimes, cpus_per_machine: int, machines: Sequence[int] = 
 
 
 def describe(times: Sequence[float]) -> str:
-    """'median a s (b-c s), d s in all' of a list of job times."""
+    """'median a (b to c), d in all' of a list of job times, each a :func:`duration`."""
     if not len(times):
         return "none"
     t = np.asarray(times, dtype=float)
-    return f"median {np.median(t):.3g} s ({t.min():.3g}-{t.max():.3g} s), {t.sum():.4g} s in all"
+    return f"median {duration(np.median(t))} ({duration(t.min())} to {duration(t.max())}), {duration(t.sum())} in all"
 
 
 def duration(seconds: float | None) -> str:

@@ -20,6 +20,7 @@ pytestmark = pytest.mark.filterwarnings("ignore:You have specified a mini-batch 
 from stewart_env.cli import mismatch as mismatch_cli  # noqa: E402
 from stewart_env.agents import evaluation, mismatch  # noqa: E402
 from stewart_env.agents.evaluation import METRICS  # noqa: E402
+from stewart_env.agents.mismatch import timing  # noqa: E402
 from stewart_env.agents.mismatch import RANKING_METRICS, MismatchError, MismatchSettings, run_mismatch  # noqa: E402
 from stewart_env.agents.statistics import Interval, stratified_bootstrap  # noqa: E402
 from stewart_env.agents.training import TrainingError  # noqa: E402
@@ -167,8 +168,8 @@ def test_scale_out_is_scheduled_from_the_jobs_measured_times(study):
     assert sorted(times.evaluation) == sorted(json.loads(p.read_text())["wall_time"] for p in cells)
     assert all(t > 0 for t in times.evaluation)
     text = (out / "matrix.md").read_text().split("## Scale-out")[1]
-    assert f"8 trainings, median {np.median(times.training):.3g} s" in text
-    assert f"{len(cells)} evaluations, median {np.median(times.evaluation):.3g} s" in text
+    assert f"8 trainings, median {timing.duration(np.median(times.training))} (" in text
+    assert f"{len(cells)} evaluations, median {timing.duration(np.median(times.evaluation))} (" in text
     table = [line for line in text.splitlines() if line.startswith("| ") and line[2].isdigit()]
     assert [line.split(" | ")[0] for line in table] == ["| 1", "| 2", "| 5", "| 10"]
 
@@ -189,6 +190,13 @@ def test_cells_written_without_their_time_are_named_not_projected(study, tmp_pat
     text = (copy / "matrix.md").read_text().split("## Scale-out")[1]
     assert "1 of them written without their time" in text
     assert "| 1 | " in text and text.count(" | - | - |") == 4  # no evaluation or total column
+
+
+def test_durations_read_in_the_unit_they_need():
+    assert [timing.duration(t) for t in (0.0123, 59.04, 894.0, 8000.0, None, math.inf)] == [
+        "0.0123 s", "59 s", "14.9 min", "2.22 h", "-", "-"]
+    assert timing.describe([302.0, 894.0, 1460.0]) == "median 14.9 min (5.0 min to 24.3 min), 44.3 min in all"
+    assert timing.describe([]) == "none"
 
 
 def test_makespan_gives_each_job_to_the_first_free_worker_longest_first():
