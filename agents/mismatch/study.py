@@ -19,8 +19,8 @@ from stewart_env.agents.mismatch.cells import (
     cell_intervals,
     cell_path,
     cell_spec,
-    metric_values,
     cell_wall_time,
+    metric_values,
     read_cell,
     stored_cells,
 )

@@ -190,15 +190,15 @@ def _per_seed_lines(result: MismatchResult, plant: str) -> list[str]:
     return lines + [""]
 
 
-def _scale_out_lines(result: MismatchResult, cpus_per_machine: int | None = None) -> list[str]:
+def _scale_out_lines(result: MismatchResult) -> list[str]:
     """The jobs' measured times and the study's makespan on 1, 2, 5 and 10 machines of this
     machine's CPU count (:func:`~.timing.scale_out`)."""
     times = result.timing
     if times is None:
         return []
-    cpus = cpus_per_machine or os.cpu_count() or 1
+    cpus = os.cpu_count() or 1
     lines = ["## Scale-out", "",
-             f"The study's jobs, each on {CPUS_PER_JOB} CPU: {len(times.training)} training"
+             f"The study's jobs, each given {CPUS_PER_JOB} CPU: {len(times.training)} training"
              f"{'s' if len(times.training) != 1 else ''}, {describe(times.training)} (each agent's run.json: "
              f"the training loop, without a worker's start or the agent's transfer); "
              f"{len(times.evaluation) + times.untimed_cells} evaluations, "
