@@ -140,11 +140,13 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     per call (``time.process_time``), the batch figures and the resets wall-clock time; the vector
     env's steps start from its reset (the resets are timed apart).
     """
+    import gymnasium as gym
+
     from stewart_env.envs.bench_env import RESET_RANDOMIZATION, bench_reset, held_env
-    from stewart_env.registration import ENV_ID
     from stewart_env.integrate import rollout_inplace
     from stewart_env.mujoco import MujocoPlant, model_and_data, require_mujoco
     from stewart_env.mujoco.library import require_rollout
+    from stewart_env.registration import ENV_ID
 
     mujoco, mujoco_rollout = require_mujoco(), require_rollout()
 
@@ -219,8 +221,6 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     datas = [mujoco.MjData(m) for _ in range(nthread)]
     bt, bR, bv, bw, bF = _batch_state(model, n_batch, np.random.default_rng(0))
     bW = np.zeros((n_batch, 6))
-    import gymnasium as gym
-
     venv = gym.make_vec(ENV_ID, num_envs=n_batch, vectorization_mode="vector_entry_point", **env_kwargs)
     venv_actions = np.tile(env_action, (n_batch, 1))
     venv.reset(seed=0)
