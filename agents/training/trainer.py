@@ -283,6 +283,7 @@ def _learn(cls, algo, directory, hp, kwargs, seed, n_envs, steps_done, segments,
     resume = bool(saved)
     with single_thread():
         statistics = unpickle_statistics(saved[VECNORMALIZE_FILE]) if resume and hp.normalize is not None else None
+        agent = None
         env = make_training_env(n_envs, kwargs, seed + steps_done, hp.normalize, monitor_path=directory / monitor,
                                 statistics=statistics)
         try:
@@ -322,5 +323,11 @@ def _learn(cls, algo, directory, hp, kwargs, seed, n_envs, steps_done, segments,
                 publish(directory / MANIFEST, json.dumps(manifest, indent=2) + "\n")
         finally:
             env.close()
+            # learn() leaves its TensorBoard writer open (a thread and a file); a process that trains
+            # agent after agent, as a study's workers do, would keep one per agent.  The next learn()
+            # opens its own.
+            logger = getattr(agent, "_logger", None)
+            if logger is not None:
+                logger.close()
     return agent, steps, wall, checkpoint
 

@@ -8,6 +8,7 @@ import json
 import pickle
 import subprocess
 import sys
+import threading
 
 import numpy as np
 import pytest
@@ -190,6 +191,13 @@ def test_resume_continues_the_step_count(tmp_path):
     # default frequency is 50000): the newest 3 are kept
     assert sorted(p.name for p in (out / "checkpoints").glob("step_*")) == ["step_100", "step_120", "step_200"]
     assert (out / "resumed_120.monitor.csv").is_file()
+
+
+def test_training_leaves_no_thread_behind(tmp_path):
+    # A study's worker trains agent after agent in one process: every run must close what it opened.
+    before = set(threading.enumerate())
+    train("ppo", tmp_path / "run", timesteps=300, seed=3, n_envs=2, checkpoint_freq=256, progress_bar=False)
+    assert set(threading.enumerate()) - before == set()
 
 
 def test_bad_algorithm_fails_before_anything_is_written(tmp_path):
