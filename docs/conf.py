@@ -25,6 +25,9 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.napoleon",
     "sphinx.ext.mathjax",
+    # MathJax 3 shipped with the site (_static/mathjax/), not fetched from a CDN: the pages'
+    # maths renders offline and from a checkout's local build
+    "sphinx-mathjax-offline",
     "stewart_docs",
 ]
 
@@ -76,8 +79,3 @@ html_theme = "furo"
 html_title = f"stewart-env {release}"
 html_static_path = ["_static"]
 html_css_files = ["stewart-env.css"]
-html_theme_options = {
-    "source_repository": "https://github.com/stewart-env/stewart-env/",
-    "source_branch": "main",
-    "source_directory": "docs/",
-}
