@@ -127,7 +127,7 @@ def env_summary() -> str:
     rows = [("Action Space", f"`{action_space}`"),
             ("Observation Space", observation + ", with the default arguments"),
             ("import", f'`import stewart_env`, then `gymnasium.make("{ENV_ID}")`'),
-            ("id", f"`{ENV_ID}`; earlier versions: {earlier} (see Version History)")]
+            ("id", f"`{ENV_ID}`; earlier versions: {earlier} ([Version History](#version-history))")]
     lines = ["```{list-table}", ":class: env-summary", ""]
     for name, value in rows:
         lines += [f"* - {name}", f"  - {value}"]
