@@ -24,10 +24,8 @@ extensions = [
     "myst_parser",
     "sphinx.ext.autodoc",
     "sphinx.ext.napoleon",
+    # MathJax itself comes with the site, not from a CDN (stewart_docs sets it up)
     "sphinx.ext.mathjax",
-    # MathJax 3 shipped with the site (_static/mathjax/), not fetched from a CDN: the pages'
-    # maths renders offline and from a checkout's local build
-    "sphinx-mathjax-offline",
     "stewart_docs",
 ]
 

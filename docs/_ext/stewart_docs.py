@@ -21,6 +21,10 @@ site never carries a hand-kept copy of what the code says:
 
 The environment page's picture, frames of one seeded episode drawn by the environment's own
 renderer, is drawn at build time too (:func:`episode_figure`).
+
+MathJax is shipped with the site (``_static/mathjax/``, from the package sphinx-mathjax-offline
+of the ``docs`` extra) instead of loaded from a CDN, so that the pages' maths renders offline and
+from a checkout's own build (:func:`_ship_mathjax`).
 """
 
 from __future__ import annotations
@@ -338,7 +342,29 @@ def _same_object(app, env, node, contnode):
     return None
 
 
+def _ship_mathjax(app) -> None:
+    """Set up sphinx-mathjax-offline as part of this extension: it points ``mathjax_path`` at its
+    MathJax 3 and copies MathJax into the build when the build has finished, which is safe in a
+    parallel build, but the package does not say so (Sphinx would warn under ``-j``).
+
+    Raises:
+        ExtensionError: the package is not installed (it comes with the ``docs`` extra).
+    """
+    import importlib
+
+    from sphinx.errors import ExtensionError
+
+    try:
+        offline = importlib.import_module("sphinx-mathjax-offline")  # the package's module name has hyphens
+    except ImportError:
+        raise ExtensionError("the site ships MathJax from the package sphinx-mathjax-offline, which is not "
+                             "installed: pip install -e \".[docs]\"") from None
+    offline.setup(app)
+
+
 def setup(app):
+    app.setup_extension("sphinx.ext.mathjax")
+    _ship_mathjax(app)
     app.connect("missing-reference", _same_object)
     app.connect("builder-inited", _draw_figures)
     app.connect("source-read", _generate)

@@ -57,3 +57,9 @@ def test_an_extra_without_a_comment_is_one_clear_error(tmp_path, monkeypatch):
         stewart_docs.extras()
     pyproject.write_text(pyproject.read_text().replace("docs =", "# The site.\ndocs ="))
     assert stewart_docs.extras() == [("plots", "Plotting.", ["matplotlib"]), ("docs", "The site.", ["sphinx"])]
+
+
+def test_the_site_without_its_mathjax_package_is_one_clear_error(monkeypatch):
+    monkeypatch.setitem(sys.modules, "sphinx-mathjax-offline", None)  # as if not installed
+    with pytest.raises(ExtensionError, match=r"sphinx-mathjax-offline, which is not installed: pip install -e "):
+        stewart_docs._ship_mathjax(app=None)
