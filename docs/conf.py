@@ -24,6 +24,7 @@ extensions = [
     "myst_parser",
     "sphinx.ext.autodoc",
     "sphinx.ext.napoleon",
+    # MathJax itself comes with the site, not from a CDN (stewart_docs sets it up)
     "sphinx.ext.mathjax",
     "stewart_docs",
 ]
@@ -76,8 +77,3 @@ html_theme = "furo"
 html_title = f"stewart-env {release}"
 html_static_path = ["_static"]
 html_css_files = ["stewart-env.css"]
-html_theme_options = {
-    "source_repository": "https://github.com/stewart-env/stewart-env/",
-    "source_branch": "main",
-    "source_directory": "docs/",
-}

@@ -6,11 +6,25 @@ site never carries a hand-kept copy of what the code says:
 
 - ``<!-- generated: env card -->``: the environment card, the class docstring of
   :class:`stewart_env.envs.StewartPlatformEnv` (Gymnasium's Markdown card format);
+  ``<!-- generated: env card: Description, Rewards -->`` inserts the card's sections of these
+  headings, and the plain marker then the card's other sections, so that a page may put its own
+  text between them;
+- ``<!-- generated: env summary -->``: the box at the top of an environment page, as Gymnasium's
+  pages have one: the action space, each task's observation space, the import and the ids;
+- ``<!-- generated: reward symbols -->``: the reward's weights and scales, each with its symbol,
+  its ``task_options`` key, its meaning (the docstring of :class:`stewart_env.tasks.RewardWeights`)
+  and each task's default;
 - ``<!-- generated: command line -->``: every ``stewart-env`` verb's usage and help, from the
-  argparse parser that :func:`stewart_env.cli.build_parser` builds.
+  argparse parser that :func:`stewart_env.cli.build_parser` builds;
+- ``<!-- generated: extras -->``: the optional extras of ``pyproject.toml``, each with its purpose,
+  the first line of the comment above it there, and its requirements.
 
 The environment page's picture, frames of one seeded episode drawn by the environment's own
 renderer, is drawn at build time too (:func:`episode_figure`).
+
+MathJax is shipped with the site (``_static/mathjax/``, from the package sphinx-mathjax-offline
+of the ``docs`` extra) instead of loaded from a CDN, so that the pages' maths renders offline and
+from a checkout's own build (:func:`_ship_mathjax`).
 """
 
 from __future__ import annotations
@@ -22,7 +36,21 @@ import re
 from pathlib import Path
 
 ENV_CARD = "<!-- generated: env card -->"
+# a marker of some of the card's sections, by heading
+ENV_CARD_SECTIONS = re.compile(r"^<!-- generated: env card: (.+?) -->$", flags=re.M)
+ENV_SUMMARY = "<!-- generated: env summary -->"
+REWARD_SYMBOLS = "<!-- generated: reward symbols -->"
 COMMAND_LINE = "<!-- generated: command line -->"
+EXTRAS = "<!-- generated: extras -->"
+PYPROJECT = Path(__file__).resolve().parents[2] / "pyproject.toml"
+#: The symbol of each weight and scale of the reward (stewart_env.tasks.RewardWeights) in the
+#: environment page's formula.
+REWARD_SYMBOL = {
+    "position_reward_weight": "w_p", "position_reward_scale": "s_p",
+    "orientation_reward_weight": "w_o", "orientation_reward_scale": "s_o",
+    "velocity_cost_weight": "w_v", "velocity_cost_scale": "s_v", "angular_velocity_cost_scale": r"s_\omega",
+    "ctrl_cost_weight": "w_a", "termination_cost": "c",
+}
 EPISODE_FIGURE = Path("_generated") / "episode.png"
 # argparse wraps its help to the terminal's width; the site's code blocks show about this many columns
 HELP_COLUMNS = 90
@@ -41,6 +69,160 @@ def env_card(heading_level: int = 2) -> str:
             line = "#" * (hashes + shift) + line[hashes:]
         lines.append(line)
     return "\n".join(lines)
+
+
+def card_sections(card: str) -> list[tuple[str, str]]:
+    """(heading, Markdown from the heading on) of each ``##`` section of ``card``, in order; text
+    before the first heading is a section of heading ``""``."""
+    sections: list[tuple[str, list[str]]] = [("", [])]
+    fence = False
+    for line in card.splitlines():
+        if line.startswith("```"):
+            fence = not fence
+        if not fence and line.startswith("## "):
+            sections.append((line[3:].strip(), []))
+        sections[-1][1].append(line)
+    return [(heading, "\n".join(lines).strip("\n")) for heading, lines in sections if "".join(lines).strip()]
+
+
+def env_card_on_page(text: str, docname: str = "") -> str:
+    """``text`` with its env-card markers replaced: each section marker by the sections it names,
+    then the plain marker by the card's sections no section marker names.
+
+    Raises:
+        ExtensionError: a section marker names a heading the card does not have.
+    """
+    from sphinx.errors import ExtensionError
+
+    sections = dict(card_sections(env_card()))
+    placed: list[str] = []
+
+    def insert(match: re.Match) -> str:
+        headings = [h.strip() for h in match.group(1).split(",")]
+        unknown = [h for h in headings if h not in sections]
+        if unknown:
+            raise ExtensionError(f"{docname}: the env card has no section {unknown[0]!r} "
+                                 f"(its sections: {', '.join(h for h in sections if h)})")
+        placed.extend(headings)
+        return "\n\n".join(sections[h] for h in headings)
+
+    text = ENV_CARD_SECTIONS.sub(insert, text)
+    if ENV_CARD in text:
+        text = text.replace(ENV_CARD, "\n\n".join(s for h, s in sections.items() if h not in placed))
+    return text
+
+
+def env_summary() -> str:
+    """Markdown: the environment's summary box (a table without a header row): its action space,
+    the observation space of each task with the default arguments, the import and the ids."""
+    import gymnasium as gym
+
+    from stewart_env.registration import CURRENT_VERSION, ENV_ID, ENV_IDS
+    from stewart_env.tasks import TASKS
+
+    spaces: dict[str, list[str]] = {}
+    for task in TASKS:
+        env = gym.make(ENV_ID, task=task)
+        action_space = str(env.action_space)
+        spaces.setdefault(str(env.observation_space), []).append(f"`{task}`")
+        env.close()
+    observation = "; ".join(f"`{space}` for " + ", ".join(tasks) for space, tasks in spaces.items())
+    earlier = ", ".join(f"`{ENV_IDS[v]}`" for v in sorted(ENV_IDS, reverse=True) if v != CURRENT_VERSION)
+    rows = [("Action Space", f"`{action_space}`"),
+            ("Observation Space", observation + ", with the default arguments"),
+            ("import", f'`import stewart_env`, then `gymnasium.make("{ENV_ID}")`'),
+            ("id", f"`{ENV_ID}`; earlier versions: {earlier} ([Version History](#version-history))")]
+    lines = ["```{list-table}", ":class: env-summary", ""]
+    for name, value in rows:
+        lines += [f"* - {name}", f"  - {value}"]
+    return "\n".join(lines + ["```"])
+
+
+def _attribute_docs(cls) -> dict[str, str]:
+    """{name: text} of the ``Attributes:`` section of a Google-style class docstring."""
+    doc = inspect.getdoc(cls) or ""
+    section = doc.split("Attributes:", 1)[1] if "Attributes:" in doc else ""
+    found: dict[str, str] = {}
+    name = None
+    for line in section.splitlines():
+        if line.strip() and not line.startswith(" "):
+            break  # the next section
+        entry = re.match(r"^\s{4}(\w+): (.*)$", line)
+        if entry:
+            name, found[entry.group(1)] = entry.group(1), entry.group(2).strip()
+        elif name and line.strip():
+            found[name] += " " + line.strip()
+    return found
+
+
+def reward_symbols() -> str:
+    """Markdown: a table of the reward's weights and scales, each with its symbol, its option, its
+    meaning and its default in each task.
+
+    Raises:
+        ExtensionError: a field of RewardWeights without a symbol in REWARD_SYMBOL.
+    """
+    import dataclasses
+
+    from sphinx.errors import ExtensionError
+
+    import stewart_env as se
+    from stewart_env.tasks import TASKS, RewardWeights, make_task
+
+    fields = [f.name for f in dataclasses.fields(RewardWeights)]
+    if set(fields) != set(REWARD_SYMBOL):
+        raise ExtensionError(f"docs/_ext/stewart_docs.py: REWARD_SYMBOL names {sorted(REWARD_SYMBOL)}, "
+                             f"RewardWeights has {fields}")
+    meanings = _attribute_docs(RewardWeights)
+    params = se.load_platform("dasgupta1998")
+    weights = {task: make_task(task, params, control_dt=0.01).weights for task in TASKS}
+    rows = ["| symbol | option | meaning | default |", "|---|---|---|---|"]
+    for name in fields:
+        by_value: dict[str, list[str]] = {}
+        for task, w in weights.items():
+            by_value.setdefault(f"{getattr(w, name):g}", []).append(f"`{task}`")
+        default = (next(iter(by_value)) if len(by_value) == 1
+                   else "; ".join(f"{value} ({', '.join(tasks)})" for value, tasks in by_value.items()))
+        rows.append(f"| ${REWARD_SYMBOL[name]}$ | `{name}` | {meanings.get(name, '')} | {default} |")
+    return "\n".join(rows)
+
+
+def extras() -> list[tuple[str, str, list[str]]]:
+    """(extra, purpose, requirements) of each optional extra of ``pyproject.toml``, in its order:
+    the purpose is the first line of the comment right above the extra.
+
+    Raises:
+        ExtensionError: an extra without a comment above it.
+    """
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        import tomli as tomllib
+    from sphinx.errors import ExtensionError
+
+    text = PYPROJECT.read_text(encoding="utf-8")
+    declared = tomllib.loads(text)["project"]["optional-dependencies"]
+    lines = text.splitlines()
+    section = lines.index("[project.optional-dependencies]")
+    found = []
+    for extra, requirements in declared.items():
+        start = next(i for i, line in enumerate(lines) if i > section and re.match(rf"^{re.escape(extra)}\s*=", line))
+        above = start
+        while above > 0 and lines[above - 1].startswith("#"):
+            above -= 1
+        if above == start:
+            raise ExtensionError(f"pyproject.toml: the extra {extra!r} has no comment above it (its first line "
+                                 "is the extra's purpose on the getting-started page)")
+        found.append((extra, lines[above].lstrip("# ").strip(), list(requirements)))
+    return found
+
+
+def extras_table() -> str:
+    """Markdown: the table of the optional extras (extra, what it is for, what it installs)."""
+    rows = ["| extra | for | installs |", "|---|---|---|"]
+    for extra, purpose, requirements in extras():
+        rows.append(f"| `{extra}` | {purpose} | {', '.join(f'`{r}`' for r in requirements)} |")
+    return "\n".join(rows)
 
 
 def _subcommands(parser: argparse.ArgumentParser) -> list[tuple[str, str, argparse.ArgumentParser]]:
@@ -109,10 +291,16 @@ def episode_figure(path: Path, seed: int = 0, steps: tuple[int, ...] = (0, 10, 3
 
 def _generate(app, docname: str, source: list[str]) -> None:
     text = source[0]
-    if ENV_CARD in text:
-        text = text.replace(ENV_CARD, env_card())
+    if ENV_CARD in text or ENV_CARD_SECTIONS.search(text):
+        text = env_card_on_page(text, docname)
+    if ENV_SUMMARY in text:
+        text = text.replace(ENV_SUMMARY, env_summary())
+    if REWARD_SYMBOLS in text:
+        text = text.replace(REWARD_SYMBOLS, reward_symbols())
     if COMMAND_LINE in text:
         text = text.replace(COMMAND_LINE, command_line())
+    if EXTRAS in text:
+        text = text.replace(EXTRAS, extras_table())
     source[0] = text
 
 
@@ -154,7 +342,29 @@ def _same_object(app, env, node, contnode):
     return None
 
 
+def _ship_mathjax(app) -> None:
+    """Set up sphinx-mathjax-offline as part of this extension: it points ``mathjax_path`` at its
+    MathJax 3 and copies MathJax into the build when the build has finished, which is safe in a
+    parallel build, but the package does not say so (Sphinx would warn under ``-j``).
+
+    Raises:
+        ExtensionError: the package is not installed (it comes with the ``docs`` extra).
+    """
+    import importlib
+
+    from sphinx.errors import ExtensionError
+
+    try:
+        offline = importlib.import_module("sphinx-mathjax-offline")  # the package's module name has hyphens
+    except ImportError:
+        raise ExtensionError("the site ships MathJax from the package sphinx-mathjax-offline, which is not "
+                             "installed: pip install -e \".[docs]\"") from None
+    offline.setup(app)
+
+
 def setup(app):
+    app.setup_extension("sphinx.ext.mathjax")
+    _ship_mathjax(app)
     app.connect("missing-reference", _same_object)
     app.connect("builder-inited", _draw_figures)
     app.connect("source-read", _generate)

@@ -125,6 +125,43 @@ def test_relative_links_resolve(page):
     assert not broken
 
 
+# Hosts that do not serve this project: a link to them is dead to a reader of the checkout.
+FOREIGN_HOSTS = ("readthedocs", "github.com/stewart-env", "raw.githubusercontent.com")
+IMAGE_SUFFIXES = (".png", ".svg", ".jpg", ".gif")
+
+
+def test_readme_links_and_images_are_files_of_the_repository():
+    """Every link and image of README.md names a file or folder of the repository, and every
+    ``#anchor`` a heading of the page it names; the only web addresses are those of code blocks
+    (package indexes), none of them a host that does not serve this project."""
+    text = (ROOT / "README.md").read_text()
+    assert not [host for host in FOREIGN_HOSTS if host in text]
+    links = re.findall(r"(!?)\[[^\]]*\]\(([^)\s]+)\)", prose(text))
+    autolinks = re.findall(r"<(https?://[^>]+)>", prose(text))
+    assert len(links) > 20  # the links were found: the README links its pages and results
+    assert not autolinks and not [url for _, url in links if re.match(r"[a-z]+:", url)]
+    broken = []
+    for image, url in links:
+        path, _, anchor = url.partition("#")
+        target = ROOT / path
+        if not target.exists():
+            broken.append(f"{url}: no such file")
+        elif image and not (target.is_file() and target.suffix in IMAGE_SUFFIXES):
+            broken.append(f"{url}: not an image")
+        elif anchor and (target.suffix != ".md" or anchor not in
+                         {slug(h) for h in re.findall(r"^#+ (.+)$", prose(target.read_text()), flags=re.M)}):
+            broken.append(f"{url}: no heading #{anchor} in {path}")
+    assert not broken
+
+
+def test_readme_builds_the_site_as_its_page_says():
+    """The README's one-line build of the site is the command of the site's page on building it."""
+    command = r"python -m sphinx [^`\n]+"
+    readme = re.findall(command, " ".join((ROOT / "README.md").read_text().split()))
+    layout = re.findall(command, (ROOT / "docs" / "layout.md").read_text())
+    assert readme and readme == layout
+
+
 def test_every_function_in_the_physics_table_exists_and_every_kernel_is_listed():
     """Every function of the compiled kernels (kernels.hpp, rk4.hpp) and of their Python faces
     (kernels.py, rk4.py) has a row in the physics page's function table, and every row names a

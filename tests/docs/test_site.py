@@ -15,6 +15,7 @@ shows its pages without errors, and its pages run as written.
 
 from __future__ import annotations
 
+import html
 import os
 import re
 import shlex
@@ -160,6 +161,97 @@ def test_a_browser_shows_the_page_without_errors(site, page, tmp_path):
     problems = [message for message in console if not message.startswith('"probe: ')]
     assert not problems, f"{page}.html: " + "\n".join(problems)
     assert screenshot.is_file() and screenshot.stat().st_size > 20_000, "no screenshot, or a blank one"
+
+
+def test_the_site_loads_nothing_from_another_host(site):
+    """Every script, stylesheet and image of every page is a file of the build (MathJax included),
+    so that the site shows the same offline, and no page links to an editor on another host."""
+    foreign = []
+    for path in site.rglob("*.html"):
+        parser = _Links()
+        parser.feed(path.read_text(encoding="utf-8"))
+        for tag, key, url in parser.links:
+            if tag in ("script", "img", "link") and (urlsplit(url).scheme or url.startswith("//")):
+                foreign.append(f"{path.relative_to(site)}: <{tag} {key}={url!r}>")
+            if tag == "a" and "/edit/" in url:
+                foreign.append(f"{path.relative_to(site)}: <a href={url!r}>")
+    assert not foreign, "\n".join(foreign)
+    assert (site / "_static" / "mathjax" / "tex-chtml.js").is_file()
+
+
+def chromium_dom(page: Path, profile: Path) -> str:
+    """The DOM of a page of the site after its scripts have run, as headless Chromium shows it with
+    every host name unresolvable (so offline)."""
+    done = subprocess.run(
+        [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+         "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={profile}",
+         "--host-resolver-rules=MAP * ~NOTFOUND", "--virtual-time-budget=20000", "--dump-dom", page.as_uri()],
+        capture_output=True, text=True, timeout=BROWSER_TIMEOUT_S)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return done.stdout
+
+
+@pytest.mark.parametrize("page", ["physics", "guides/identification", "environment"])
+def test_the_maths_renders_offline(site, page, tmp_path):
+    """MathJax, shipped with the site, typesets every formula of a page in a browser that reaches no
+    other host: one ``mjx-container`` per maths element, the headings' maths in the side menu too."""
+    if CHROMIUM is None:
+        pytest.skip("chromium is not installed")
+    formulas = (site / f"{page}.html").read_text(encoding="utf-8").count('class="math notranslate nohighlight"')
+    assert formulas > 5  # the page has maths, inline and displayed
+    dom = chromium_dom(site / f"{page}.html", tmp_path / "profile")
+    assert dom.count("<mjx-container") == formulas, "MathJax did not typeset every formula offline"
+    if page == "physics":  # a heading with maths, in the page's table of contents
+        toc = dom[dom.index('class="toc-tree"'):]
+        entry = toc[toc.index("5.2 The leg"):]
+        assert "<mjx-container" in entry[:entry.index("</a>")]
+
+
+def test_the_environment_page_opens_with_its_summary(site):
+    """The environment page opens, as Gymnasium's pages do, with a box of its spaces, import and id
+    (read from the environment), then the card's Description; its reward is typeset, every weight
+    and scale with its symbol."""
+    import dataclasses
+
+    import gymnasium as gym
+
+    from stewart_env.tasks import TASKS, RewardWeights
+
+    text = html.unescape(re.sub(r"<[^>]+>", "", (site / "environment.html").read_text(encoding="utf-8")))
+    body = text[text.index("The environment: StewartPlatform-v1¶"):]
+    description = body.index("Description¶")
+    summary = body[:description]
+    env = gym.make("StewartPlatform-v1")
+    assert str(env.action_space) in summary
+    for task in TASKS:
+        assert str(gym.make("StewartPlatform-v1", task=task).observation_space) in summary
+    assert 'gymnasium.make("StewartPlatform-v1")' in summary
+    assert body.index("Action Space¶") > description
+    rewards = body[body.index("The reward in symbols¶"):body.index("Starting State¶")]
+    for field in dataclasses.fields(RewardWeights):
+        assert field.name in rewards, f"the reward's symbols leave out {field.name}"
+    assert rewards.count("\\(") > 10  # the symbols are maths, not plain text
+
+
+def test_the_extras_table_is_pyproject_s(site):
+    """getting-started's table of the extras lists each extra of pyproject.toml with its
+    requirements, in pyproject's order."""
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        tomllib = pytest.importorskip("tomli")
+
+    declared = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    page = (site / "getting-started.html").read_text(encoding="utf-8")
+    table = page[page.index("<th class=\"head\"><p>extra</p></th>"):]  # the rows after its header
+    table = table[:table.index("</table>")]
+    rows = re.findall(r"<tr[^>]*>(.*?)</tr>", table, flags=re.S)
+    cells = [[html.unescape(re.sub(r"<[^>]+>", "", cell)) for cell in re.findall(r"<td>(.*?)</td>", row, flags=re.S)]
+             for row in rows]
+    assert [row[0] for row in cells] == list(declared)
+    for (extra, purpose, installs) in cells:
+        assert purpose.strip(), f"the extra {extra} has no purpose"
+        assert [r.strip() for r in installs.split(",")] == declared[extra]
 
 
 # --- the pages run as written -----------------------------------------------------------------
