@@ -485,7 +485,7 @@ def write(result: Result, out: str | Path) -> Path:
     while it is written; each file appears whole or not at all."""
     with files.lock_folder(out) as folder:
         text = yaml.safe_dump(result.identified.to_dict(), sort_keys=False)
-        PlatformParams.from_dict(yaml.safe_load(text), result.identified.name)  # it loads back
+        PlatformParams.from_dict(files.load_yaml(text), result.identified.name)  # it loads back
         files.publish(folder / "platform.yaml", "# identified by stewart-env identify; see report.md\n" + text)
         truth = yaml.safe_dump(result.truth.to_dict(), sort_keys=False)
         files.publish(folder / "truth.yaml", "# the plant's parameters (the unknown truth) of this experiment\n" + truth)

@@ -1,0 +1,180 @@
+"""Files and options as a user's machine and a user's editor leave them: agents read on a laptop
+with less memory than the bound of an agent's files, results published under the user's umask,
+output folders left clean, documents nested deeply enough to exhaust Python's recursion, and an
+edited identification report.  Every case ends in the result or one line naming the file or
+option, never a traceback."""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+import stewart_env  # noqa: F401  (registers the environment)
+from stewart_env import files
+from stewart_env.cli import main
+from stewart_env.files import FileError, FolderBusy, lock_folder, publish, publishing_folder, read_regular
+
+#: The bound of an agent's files (stewart_env.agents.training.MAX_AGENT_FILE_BYTES), written out so
+#: that the file-layer tests import no training code.
+AGENT_FILE_BOUND = 16 << 30
+#: Address space a process is given in the capped tests: an 8 GiB laptop's share, and room for
+#: numpy and torch (loading a trained agent peaks near 0.9 GiB of address space on Linux x86-64).
+ADDRESS_SPACE = 4 << 30
+#: A document nested far deeper than Python's recursion limit.
+DEEP = 100_000
+
+
+def capped(code: str, *args: str) -> subprocess.CompletedProcess:
+    """``code`` run by a new Python whose address space is capped at ADDRESS_SPACE."""
+    prelude = ("import resource, sys\n"
+               f"resource.setrlimit(resource.RLIMIT_AS, ({ADDRESS_SPACE}, {ADDRESS_SPACE}))\n")
+    return subprocess.run([sys.executable, "-c", prelude + code, *args], capture_output=True, text=True,
+                          timeout=600, env={**os.environ, "MPLBACKEND": "Agg"})
+
+
+def run_cli(argv: list[str], capsys) -> tuple[int, str]:
+    """(exit code, stderr) of ``stewart-env argv``, argparse's refusals included."""
+    try:
+        code = main(argv)
+    except SystemExit as stop:
+        code = stop.code
+    return code, capsys.readouterr().err
+
+
+# -- reading by a file's size, not by its bound ---------------------------------------------------
+
+
+def test_a_small_file_is_read_with_the_agent_bound_in_an_address_space_smaller_than_the_bound(tmp_path):
+    small = tmp_path / "model.zip"
+    small.write_bytes(b"x" * 1000)
+    done = capped("from stewart_env.files import read_regular\n"
+                  f"print(len(read_regular(sys.argv[1], {AGENT_FILE_BOUND})))\n", str(small))
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "1000"
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").is_file(), reason="needs Linux's /proc")
+def test_a_file_larger_than_its_reported_size_is_still_bounded():
+    # /proc files are regular files of size 0 by fstat that hold hundreds of bytes
+    assert os.stat("/proc/self/status").st_size == 0
+    assert b"Pid:" in read_regular("/proc/self/status", 1 << 20)
+    with pytest.raises(FileError, match=r"/proc/self/status: larger than 10 bytes"):
+        read_regular("/proc/self/status", 10)
+
+
+@pytest.mark.extra("rl")
+def test_a_trained_agent_loads_in_an_address_space_smaller_than_the_bound_of_its_files(tmp_path):
+    from stewart_env.agents.training import ENV_ID, MAX_AGENT_FILE_BYTES, train
+
+    assert MAX_AGENT_FILE_BYTES == AGENT_FILE_BOUND > ADDRESS_SPACE
+    config = tmp_path / "ppo.yml"
+    config.write_text(yaml.safe_dump({ENV_ID: {
+        "n_timesteps": 32, "policy": "MlpPolicy", "n_envs": 2, "normalize": "dict(norm_obs=True, norm_reward=True)", "n_steps": 16,
+        "batch_size": 32, "n_epochs": 1, "policy_kwargs": "dict(net_arch=dict(pi=[8], vf=[8]))"}}))
+    train("ppo", tmp_path / "agent", timesteps=32, config=config, progress_bar=False)
+    done = capped("from stewart_env.agents.training import load_agent\n"
+                  "print(load_agent(sys.argv[1]).num_timesteps)\n", str(tmp_path / "agent"))
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "32"
+
+
+# -- published files get the umask's modes -------------------------------------------------------
+
+
+@contextlib.contextmanager
+def umask(mask: int):
+    old = os.umask(mask)
+    try:
+        yield
+    finally:
+        os.umask(old)
+
+
+@pytest.mark.parametrize("mask, file_mode, folder_mode", [(0o022, 0o644, 0o755), (0o077, 0o600, 0o700)])
+def test_published_files_and_folders_have_the_modes_of_the_umask(tmp_path, mask, file_mode, folder_mode):
+    with umask(mask):
+        publish(tmp_path / "summary.md", "text")
+        with publishing_folder(tmp_path / "figures") as folder:
+            (folder / "a.png").write_bytes(b"png")
+        with files.publishing(tmp_path / "model.zip") as tmp:
+            tmp.write_bytes(b"zip")
+    assert oct((tmp_path / "summary.md").stat().st_mode & 0o777) == oct(file_mode)
+    assert oct((tmp_path / "model.zip").stat().st_mode & 0o777) == oct(file_mode)
+    assert oct((tmp_path / "figures").stat().st_mode & 0o777) == oct(folder_mode)
+    assert oct((tmp_path / "figures" / "a.png").stat().st_mode & 0o777) == oct(file_mode)
+
+
+# -- the lock file goes when its command ends -----------------------------------------------------
+
+
+def test_the_lock_file_is_removed_when_the_command_ends(tmp_path, capsys):
+    folder = tmp_path / "out"
+    with lock_folder(folder):
+        assert (folder / files.LOCK_FILE).read_text().strip() == str(os.getpid())
+    assert list(folder.iterdir()) == []
+    files.check_not_busy(folder)
+    with pytest.raises(RuntimeError):
+        with lock_folder(folder):
+            raise RuntimeError("a command failing")
+    assert list(folder.iterdir()) == []
+    # a command: evaluate --out writes its results and leaves no lock file
+    assert main(["evaluate", "--policy", "pd", "--episodes", "1", "--max-steps", "5", "--out", str(folder)]) == 0
+    names = sorted(p.name for p in folder.iterdir())
+    assert names and files.LOCK_FILE not in names, names
+
+
+def test_a_locker_that_opened_the_removed_lock_file_locks_the_new_one(tmp_path, monkeypatch):
+    """The race of removing the lock file: a second command opens it, the holder ends (removes it
+    and closes it), the second command's flock then succeeds on the removed file.  It must notice
+    and lock the file the path names, so that a third command is refused."""
+    folder = tmp_path / "out"
+    holder = contextlib.ExitStack()
+    holder.enter_context(lock_folder(folder))
+    real_flock, ended = fcntl.flock, []
+
+    def flock_once_the_holder_ended(fd, operation):
+        if operation & fcntl.LOCK_EX and not ended:
+            ended.append(True)
+            holder.close()  # the holder ends between the second command's open and its flock
+        return real_flock(fd, operation)
+
+    monkeypatch.setattr(files.fcntl, "flock", flock_once_the_holder_ended)
+    monkeypatch.setattr(files, "check_not_busy", lambda directory: None)  # it ran before the holder ended
+    monkeypatch.setattr(files, "_LOCK_RETRY_SECONDS", 0.0)
+    with lock_folder(folder):
+        lock = folder / files.LOCK_FILE
+        assert ended and lock.read_text().strip() == str(os.getpid())
+        with pytest.raises(FolderBusy, match=rf"\(PID {os.getpid()}\)"):
+            with lock_folder(folder):
+                pass
+    assert not lock.exists()
+
+
+def test_check_not_busy_looks_again_when_the_lock_file_it_opened_was_removed(tmp_path, monkeypatch):
+    folder = tmp_path / "out"
+    first, second = contextlib.ExitStack(), contextlib.ExitStack()
+    first.enter_context(lock_folder(folder))
+    real_flock, swapped = fcntl.flock, []
+
+    def flock_once_another_command_holds_the_folder(fd, operation):
+        if not swapped:
+            swapped.append(True)
+            first.close()  # the holder ends as check_not_busy opens its lock file
+            second.enter_context(lock_folder(folder))  # and another command takes the folder
+        return real_flock(fd, operation)
+
+    monkeypatch.setattr(files.fcntl, "flock", flock_once_another_command_holds_the_folder)
+    with pytest.raises(FolderBusy, match=rf"\(PID {os.getpid()}\)"):
+        files.check_not_busy(folder)
+    second.close()
+    files.check_not_busy(folder)
+    assert list(folder.iterdir()) == []
