@@ -31,6 +31,9 @@ AGENT_FILE_BOUND = 16 << 30
 ADDRESS_SPACE = 4 << 30
 #: A document nested far deeper than Python's recursion limit.
 DEEP = 100_000
+#: Levels of a deep block mapping: beyond Python's recursion limit, within a config's 1 MiB
+#: (each level indented one more space, the file grows as the square of its depth).
+BLOCK_LEVELS = 1200
 
 
 def capped(code: str, *args: str) -> subprocess.CompletedProcess:
@@ -178,3 +181,94 @@ def test_check_not_busy_looks_again_when_the_lock_file_it_opened_was_removed(tmp
     second.close()
     files.check_not_busy(folder)
     assert list(folder.iterdir()) == []
+
+
+# -- documents nested deeper than Python's recursion ----------------------------------------------
+
+
+def deep_yaml_mapping(levels: int) -> str:
+    """A block mapping ``levels`` deep under the environment's id (a hyperparameter file's shape)."""
+    return "StewartPlatform-v1:\n" + "".join(" " * i + "k:\n" for i in range(1, levels)) + " " * levels + "v: 1\n"
+
+
+@pytest.mark.parametrize("text", ["[" * DEEP, "[" * 101 + "]" * 101, '{"k": ' * 101 + "1" + "}" * 101,
+                                  b"[" * DEEP], ids=["lists", "101 lists", "101 objects", "bytes"])
+def test_load_json_refuses_a_deep_document_in_one_line(text):
+    with pytest.raises(files.DocumentError, match=r"^not valid JSON \(nested more than 100 levels deep\)$"):
+        files.load_json(text)
+    assert files.load_json("[" * 100 + "]" * 100) is not None  # the bound itself is decoded
+
+
+@pytest.mark.parametrize("text", ["[" * DEEP, "{a: " * DEEP, deep_yaml_mapping(BLOCK_LEVELS)],
+                         ids=["flow lists", "flow mappings", "block mappings"])
+def test_load_yaml_refuses_a_deep_document_in_one_line(text):
+    with pytest.raises(files.DocumentError, match=r"^not valid YAML: line \d+, column \d+: nested more than 100 "
+                                                  r"levels deep$"):
+        files.load_yaml(text)
+
+
+def test_a_deep_run_json_is_one_line_for_evaluate_and_resume(tmp_path, capsys):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "run.json").write_text("[" * DEEP)
+    for argv in (["evaluate", "--agent", str(run), "--episodes", "1"],
+                 ["train", "--algo", "ppo", "--resume", "--out", str(run), "--no-progress"]):
+        code, err = run_cli(argv, capsys)
+        assert code == 2 and err.strip().endswith(f"{run / 'run.json'}: not valid JSON (nested more than 100 levels "
+                                                  "deep)"), err
+        assert len(err.strip().splitlines()) == 1, err
+
+
+def test_a_deep_report_is_one_line_for_identify_predicted_by(tmp_path, capsys):
+    report = tmp_path / "report.json"
+    report.write_text('{"a": ' * DEEP)
+    code, err = run_cli(["identify", "--predicted-by", str(report), "--out", str(tmp_path / "run")], capsys)
+    assert code == 2 and err.strip() == (f"stewart-env identify: error: --predicted-by: {report}: not valid JSON "
+                                         "(nested more than 100 levels deep)")
+
+
+@pytest.mark.parametrize("token", ['{"a": ' * DEEP, "observation_noise=" + "[" * DEEP,
+                                   "observation_noise=" + "[" * 101 + "]" * 101],
+                         ids=["object", "key=lists", "key=101 lists"])
+def test_deep_env_kwargs_are_one_line_naming_the_option(tmp_path, capsys, token):
+    code, err = run_cli(["train", "--algo", "ppo", "--env-kwargs", token, "--out", str(tmp_path / "run")], capsys)
+    assert code == 2 and "--env-kwargs" in err and "nested more than 100 levels deep" in err, err[-500:]
+    assert "Traceback" not in err and len(err.strip().splitlines()[-1]) < 300
+    code, err = run_cli(["mismatch", "--algo", "none", "--train-models", "improved", "--test-models", "improved",
+                         "--env-kwargs", token, "--out", str(tmp_path / "study")], capsys)
+    assert code == 2 and err.startswith("stewart-env mismatch: error: --env-kwargs") and "nested more than" in err
+    assert len(err) < 300, err[-500:]
+
+
+def test_a_key_value_env_kwarg_that_is_not_json_is_still_a_string():
+    from stewart_env.agents.training import parse_env_kwargs
+
+    assert parse_env_kwargs(["platform=dasgupta1998", "name=[draft"]) == {"platform": "dasgupta1998",
+                                                                           "name": "[draft"}
+
+
+@pytest.mark.parametrize("text", ["[" * DEEP, "{a: " * DEEP, deep_yaml_mapping(BLOCK_LEVELS)],
+                         ids=["flow lists", "flow mappings", "block mappings"])
+def test_a_deep_platform_yaml_is_a_config_error_naming_the_file(tmp_path, capsys, text):
+    import gymnasium as gym
+
+    from stewart_env.params import ConfigError, load_platform
+
+    path = tmp_path / "robot.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=rf"{path}.*nested more than 32 levels deep"):
+        load_platform(path)
+    with pytest.raises(ConfigError, match=rf"{path}.*nested more than 32 levels deep"):
+        gym.make("StewartPlatform-v1", platform=str(path))
+    code, err = run_cli(["evaluate", "--platform", str(path), "--episodes", "1"], capsys)
+    assert code == 2 and "--platform" in err and "nested more than 32 levels deep" in err.splitlines()[-1], err
+
+
+@pytest.mark.parametrize("text", ["[" * DEEP, deep_yaml_mapping(BLOCK_LEVELS)], ids=["flow lists", "block mappings"])
+def test_a_deep_hyperparameter_yaml_is_one_line_naming_the_file(tmp_path, capsys, text):
+    config = tmp_path / "ppo.yml"
+    config.write_text(text)
+    code, err = run_cli(["train", "--algo", "ppo", "--config", str(config), "--timesteps", "32",
+                         "--out", str(tmp_path / "run"), "--no-progress"], capsys)
+    assert code == 2 and err.strip().startswith(f"stewart-env train: error: {config}: not valid YAML: line ")
+    assert err.strip().endswith("nested more than 100 levels deep") and len(err.strip().splitlines()) == 1, err
