@@ -20,8 +20,6 @@ from stewart_env.cli.arguments import nonnegative_float, nonnegative_int, platfo
 from stewart_env.cli.common import error
 
 VERB = "identify"
-#: Largest report.json --predicted-by reads, bytes (a report is tens of kilobytes).
-REPORT_LIMIT = 16 * 2 ** 20
 
 
 def _plant(text: str) -> str:
@@ -89,7 +87,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Run the ``identify`` subcommand; 0 on success, 2 on an error the user can correct."""
-    from stewart_env.files import check_writable, read_json
+    from stewart_env.files import check_writable
     from stewart_env.identification import experiment
     from stewart_env.params import load_platform
 
@@ -104,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
         reference = None
         if args.predicted_by is not None:
             try:
-                reference = read_json(args.predicted_by, REPORT_LIMIT, "report.json")
+                reference = experiment.read_report(args.predicted_by)
             except ValueError as err:
                 return error(VERB, f"--predicted-by: {err}")
         result = experiment.run(settings, load_platform(args.platform), predicted_by=reference)

@@ -272,3 +272,127 @@ def test_a_deep_hyperparameter_yaml_is_one_line_naming_the_file(tmp_path, capsys
                          "--out", str(tmp_path / "run"), "--no-progress"], capsys)
     assert code == 2 and err.strip().startswith(f"stewart-env train: error: {config}: not valid YAML: line ")
     assert err.strip().endswith("nested more than 100 levels deep") and len(err.strip().splitlines()) == 1, err
+
+
+# -- an edited identification report --------------------------------------------------------------
+
+
+def minimal_report() -> dict:
+    """The fields of a report.json that ``identify --predicted-by`` reads, as identify writes them."""
+    return {"platform": "dasgupta1998", "settings": {"model": "improved", "noise_force": 1.0}, "fitted_duration": 5.0,
+            "base_parameters": [{"name": "platform.m", "wls": 12.5, "wls_std": 0.1},
+                                {"name": "damping.b", "wls": 0.0, "wls_std": 0.02}]}
+
+
+def edited(path: str, value) -> dict:
+    """minimal_report() with the value at ``path`` (keys and list indices by dots) replaced, or
+    removed when ``value`` is the ``removed`` sentinel."""
+    report = minimal_report()
+    *parents, last = [int(part) if part.isdigit() else part for part in path.split(".")]
+    node = report
+    for part in parents:
+        node = node[part]
+    if value is removed:
+        del node[last]
+    else:
+        node[last] = value
+    return report
+
+
+removed = object()
+
+
+@pytest.mark.parametrize("path, value, says", [
+    ("settings.noise_force", 0, "settings.noise_force: expected a number > 0, got 0"),
+    ("settings.noise_force", "NaN", "settings.noise_force: expected a number > 0, got 'NaN'"),
+    ("settings.noise_force", removed, "not a report.json of stewart-env identify (no settings.noise_force)"),
+    ("fitted_duration", "5", "fitted_duration: expected a number > 0, got '5'"),
+    ("fitted_duration", -5.0, "fitted_duration: expected a number > 0, got -5.0"),
+    ("fitted_duration", None, "fitted_duration: expected a number > 0, got None"),
+    ("fitted_duration", [5.0], "fitted_duration: expected a number > 0, got [5.0]"),
+    ("fitted_duration", removed, "not a report.json of stewart-env identify (no fitted_duration)"),
+    ("base_parameters.1.wls_std", 0.0, "base_parameters[1].wls_std: expected a number > 0, got 0.0"),
+    ("base_parameters.1.wls_std", None, "base_parameters[1].wls_std: expected a number > 0, got None"),
+    ("base_parameters.1.wls_std", True, "base_parameters[1].wls_std: expected a number > 0, got True"),
+    ("base_parameters.0.wls", "12.5", "base_parameters[0].wls: expected a finite number, got '12.5'"),
+    ("base_parameters.0.wls", removed, "not a report.json of stewart-env identify (no base_parameters[0].wls)"),
+    ("base_parameters.0.name", 7, "base_parameters[0].name: expected text, got 7"),
+    ("base_parameters.0", [1.0], "not a report.json of stewart-env identify (base_parameters[0] is [1.0], not an "
+                                 "object)"),
+    ("base_parameters", [], "base_parameters: expected a list of base parameters, got []"),
+    ("base_parameters", {"platform.m": 1.0}, "base_parameters: expected a list of base parameters, got "
+                                             "{'platform.m': 1.0}"),
+    ("settings", None, "not a report.json of stewart-env identify (settings is None, not an object)"),
+    ("platform", 3, "platform: expected text, got 3"),
+], ids=lambda x: None)
+def test_an_edited_report_is_refused_naming_the_file_and_the_key(tmp_path, capsys, path, value, says):
+    from stewart_env.identification.base import IdentificationError
+    from stewart_env.identification.experiment import read_report
+
+    report = tmp_path / "report.json"
+    report.write_text(json.dumps(edited(path, value)))
+    with pytest.raises(IdentificationError) as caught:
+        read_report(report)
+    assert str(caught.value) == f"{report}: {says}"
+    # the command refuses it in one line before any work
+    out = tmp_path / "run"
+    code, err = run_cli(["identify", "--predicted-by", str(report), "--out", str(out)], capsys)
+    assert code == 2 and err == f"stewart-env identify: error: --predicted-by: {report}: {says}\n"
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("literal", ["NaN", "Infinity", "-Infinity", "1e400"])
+def test_a_report_with_a_non_finite_number_is_refused(tmp_path, literal):
+    from stewart_env.identification.base import IdentificationError
+    from stewart_env.identification.experiment import read_report
+
+    report = tmp_path / "report.json"
+    report.write_text(json.dumps(minimal_report()).replace('"wls_std": 0.1', f'"wls_std": {literal}'))
+    with pytest.raises(IdentificationError, match=r"base_parameters\[0\]\.wls_std: expected a number > 0, got "
+                                                  r"-?(nan|inf)$"):
+        read_report(report)
+
+
+def test_the_unedited_report_is_read_and_the_python_keyword_is_checked_alike(tmp_path):
+    from stewart_env.identification import experiment
+    from stewart_env.identification.base import IdentificationError
+    from stewart_env.params import load_platform
+
+    path = tmp_path / "report.json"
+    path.write_text(json.dumps(minimal_report()))
+    assert experiment.read_report(path) == minimal_report()
+    settings = experiment.Settings(excitation="random", duration=6.0, period=3.0, noise_force=1.0)
+    with pytest.raises(IdentificationError, match=r"^--predicted-by: fitted_duration: expected a number > 0, got 0$"):
+        experiment.run(settings, load_platform("dasgupta1998"), predicted_by=edited("fitted_duration", 0))
+
+
+def strict_json(text: str):
+    """JSON as the standard has it: NaN and Infinity are not JSON."""
+    def refuse(name):
+        raise ValueError(f"not strict JSON: {name}")
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_the_report_written_is_strict_json_with_null_for_numbers_that_are_not_finite(tmp_path):
+    from stewart_env.identification import experiment
+    from stewart_env.params import load_platform
+
+    platform = load_platform("dasgupta1998")
+    settings = experiment.Settings(noise_force=1.0)
+    row = {"name": "platform.m", "ols": 1.0, "ols_std": float("nan"), "wls": 1.0, "wls_std": float("inf"),
+           "rel_std": None, "duration_10pct": None, "noise_force_10pct": None, "near_zero": False, "consistent": 1.0,
+           "nominal": 1.0}
+    report = {"settings": settings.__dict__.copy(), "platform": platform.name, "samples": 10, "delay_samples": 0,
+              "fitted_duration": 5.0, "rank": 1, "n_theta": 1, "rank_tolerance": 1e-9,
+              "condition_number": float("inf"), "condition_number_start": float("nan"),
+              "residual_sigma_wls": [1.0, float("-inf")], "base_parameters_under_10pct_rel_std": 0,
+              "held_out_rms_force": 1.0,
+              "held_out_force_error": {"nominal": 1.0, "ols": 1.0, "wls": 1.0, "consistent": 1.0},
+              "base_parameters": [row]}
+    folder = experiment.write(experiment.Result(settings, platform, platform, report), tmp_path / "run")
+    written = strict_json((folder / "report.json").read_text())
+    assert written["condition_number"] is None and written["condition_number_start"] is None
+    assert written["residual_sigma_wls"] == [1.0, None]
+    assert written["base_parameters"][0]["ols_std"] is None and written["base_parameters"][0]["wls_std"] is None
+    assert written["fitted_duration"] == 5.0 and written["platform"] == "dasgupta1998"
+    assert "condition number of the stacked base regressor: inf (random start nan)" in (folder / "report.md").read_text()
