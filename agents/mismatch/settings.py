@@ -29,6 +29,7 @@ from stewart_env.agents.mismatch.constants import (
 from stewart_env.agents.training import ALGORITHMS, MAX_MANIFEST_BYTES, jsonable, read_hyperparameters
 from stewart_env.files import publish, read_json, sha256_file
 from stewart_env.params import MAX_CONFIG_BYTES
+from stewart_env.params.shipped import is_platform_name
 from stewart_env.validation import MAX_SEED, seed
 
 __all__ = ["MismatchSettings", "check_own_agents", "check_study", "closed_form", "design_models"]
@@ -237,7 +238,7 @@ def _check_platform(platform: str) -> str:
     except (ValueError, OSError, KeyError, TypeError) as err:
         raise MismatchError(f"platform: {err}") from None
     # a config file by its absolute path, so that a later run from elsewhere finds the same one
-    return platform if Path(platform).suffix == "" and not Path(platform).exists() else str(Path(platform).resolve())
+    return platform if is_platform_name(platform) else str(Path(platform).resolve())
 
 
 #: What may name a controller platform in the rows' labels.

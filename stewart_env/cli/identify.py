@@ -16,7 +16,8 @@ import argparse
 import sys
 import time
 
-from stewart_env.cli.arguments import nonnegative_float, nonnegative_int, platform_name, positive_float, positive_int
+from stewart_env.cli.arguments import (PLATFORM_RULE, nonnegative_float, nonnegative_int, platform_name, positive_float,
+                                      positive_int)
 from stewart_env.cli.common import error
 
 VERB = "identify"
@@ -56,7 +57,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--model", type=_model, default="improved",
                    help="the model structure identified (default improved)")
     p.add_argument("--platform", type=platform_name, default="dasgupta1998",
-                   help="nominal platform config name or YAML path (default dasgupta1998)")
+                   help=f"nominal platform: shipped platform name or YAML config path ({PLATFORM_RULE}; default "
+                        "dasgupta1998)")
     p.add_argument("--excitation", choices=("optimized", "random"), default="optimized",
                    help="excitation trajectory (default optimized)")
     p.add_argument("--duration", type=positive_float, default=60.0, help="seconds recorded (default 60)")

@@ -18,11 +18,12 @@ import yaml
 from stewart_env.files import DocumentError, FileError, load_yaml, read_regular
 from stewart_env.params.checks import ConfigError, key_names
 
-__all__ = ["MAX_CONFIG_BYTES", "read_config_text", "parse_config"]
+__all__ = ["CONFIG_SUFFIXES", "MAX_CONFIG_BYTES", "read_config_text", "parse_config"]
 
 #: Largest platform config file accepted, bytes. The shipped configs are about 4 KB.
 MAX_CONFIG_BYTES = 1 << 20
-_CONFIG_SUFFIXES = (".yaml", ".yml")
+#: The suffixes of a config file's name.
+CONFIG_SUFFIXES = (".yaml", ".yml")
 # A config has about 200 values nested 4 deep; far larger documents are refused before they are
 # built (a few KB of nested YAML aliases can expand to billions of values).
 _MAX_YAML_DEPTH = 32
@@ -36,7 +37,7 @@ def read_config_text(path: Path) -> str:
     most MAX_CONFIG_BYTES (:func:`stewart_env.files.read_regular`: FIFOs, devices and
     directories are refused before they are read)."""
     source = str(path)
-    if path.suffix.lower() not in _CONFIG_SUFFIXES:
+    if path.suffix.lower() not in CONFIG_SUFFIXES:
         raise ConfigError("", "not a platform config: the file name must end in .yaml or .yml", source)
     try:
         data = read_regular(path, MAX_CONFIG_BYTES, "config file")
