@@ -24,6 +24,7 @@ import yaml
 from stewart_env.agents.training.errors import TrainingError, check_rl_installed
 from stewart_env.files import DocumentError, load_yaml, read_regular
 from stewart_env.params import MAX_CONFIG_BYTES, config_dir
+from stewart_env.params.checks import excerpt
 from stewart_env.registration import ENV_ID
 from stewart_env.validation import integer
 
@@ -158,9 +159,11 @@ def zoo_eval(text: str, key: str) -> Any:
     evaluated, so that a config from a stranger cannot run code."""
     try:
         tree = ast.parse(text.strip(), mode="eval")
+        return _zoo_value(tree.body, key, text)
     except SyntaxError as exc:
-        raise TrainingError(f"hyperparameter {key}: not an expression: {text!r} ({exc.msg})") from None
-    return _zoo_value(tree.body, key, text)
+        raise TrainingError(f"hyperparameter {key}: not an expression: {excerpt(text)!r} ({exc.msg})") from None
+    except (RecursionError, MemoryError):  # Python's parser gives out on a chain of thousands of operators
+        raise TrainingError(f"hyperparameter {key}: not an expression: {excerpt(text)!r} (nested too deeply)") from None
 
 
 def _schedule(value: Any, key: str):

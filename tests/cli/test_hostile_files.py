@@ -396,3 +396,15 @@ def test_the_report_written_is_strict_json_with_null_for_numbers_that_are_not_fi
     assert written["base_parameters"][0]["ols_std"] is None and written["base_parameters"][0]["wls_std"] is None
     assert written["fitted_duration"] == 5.0 and written["platform"] == "dasgupta1998"
     assert "condition number of the stacked base regressor: inf (random start nan)" in (folder / "report.md").read_text()
+
+
+@pytest.mark.parametrize("expression", ["-" * DEEP + "1", "a." * DEEP + "b", "dict(net_arch=" + "[" * DEEP],
+                         ids=["unary chain", "attribute chain", "brackets"])
+def test_a_deep_zoo_expression_in_a_hyperparameter_file_is_one_line_naming_the_key(tmp_path, capsys, expression):
+    config = tmp_path / "ppo.yml"
+    config.write_text(yaml.safe_dump({"StewartPlatform-v1": {"n_timesteps": 32, "policy": "MlpPolicy",
+                                                             "policy_kwargs": expression}}, width=1 << 30))
+    code, err = run_cli(["train", "--algo", "ppo", "--config", str(config), "--timesteps", "32",
+                         "--out", str(tmp_path / "run"), "--no-progress"], capsys)
+    assert code == 2 and err.startswith("stewart-env train: error: ") and "policy_kwargs: not an expression" in err
+    assert len(err.strip().splitlines()) == 1 and len(err) < 300, err[-300:]
