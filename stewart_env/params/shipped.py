@@ -72,7 +72,7 @@ def load_platform(name_or_path: str | os.PathLike) -> PlatformParams:
     file named ``dasgupta1998`` there is not read); anything with a separator or a YAML suffix
     (``"./dasgupta1998.yaml"``, ``"dir/robot.yaml"``, ``"robot.yml"``), or a ``Path``, is read
     as a file, which must be a regular *.yaml or *.yml file of at most MAX_CONFIG_BYTES (see
-    `PlatformParams.from_yaml`).  See :func:`is_platform_name`.
+    `PlatformParams.from_yaml`).
 
     Args:
         name_or_path: a shipped platform's name, or the path of a YAML config.
