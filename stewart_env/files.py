@@ -588,16 +588,6 @@ def load_json(text: str | bytes) -> Any:
 
     Raises:
         DocumentError: not UTF-8, not valid JSON, or nested more than :data:`MAX_DEPTH` levels.
-
-    Examples:
-        >>> from stewart_env.files import DocumentError, load_json
-        >>> load_json('{"seed": [1, 2]}')
-        {'seed': [1, 2]}
-        >>> try:
-        ...     load_json("[" * 100_000)
-        ... except DocumentError as err:
-        ...     print(err)
-        not valid JSON (nested more than 100 levels deep)
     """
     if isinstance(text, (bytes, bytearray)):
         try:

@@ -51,11 +51,6 @@ def is_platform_name(name_or_path: object) -> bool:
 
     Returns:
         True for a name, False for a file.
-
-    Examples:
-        >>> from stewart_env.params.shipped import is_platform_name
-        >>> is_platform_name("dasgupta1998"), is_platform_name("./dasgupta1998"), is_platform_name("robot.yaml")
-        (True, False, False)
     """
     if not isinstance(name_or_path, str):
         return False
