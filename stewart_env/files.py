@@ -1,23 +1,34 @@
 """The package's file machinery: one writer per output folder, atomic publication, safe reading
-of files someone else may have put in a folder, content hashes and a writability check.
+of files someone else may have put in a folder, the decoding of JSON and YAML, content hashes and
+a writability check.
 
 Every command that writes a run (``train``, ``mismatch``, ``evaluate --out``) holds
 :func:`lock_folder` on its output folder for as long as it writes: an exclusive ``flock`` on
 ``.stewart-env.lock`` inside it, which the operating system releases when the process ends,
 however it ends, so a killed run never leaves its folder locked.  A second command on the same
-folder is refused at once with :class:`FolderBusy`, naming the folder and the holder's PID.  (On
-a system without ``flock``, Windows, folders are not locked.)
+folder is refused at once with :class:`FolderBusy`, naming the folder and the holder's PID.  A
+command that ends removes the lock file (a killed one leaves it, unlocked, and the next command
+takes it over); whoever takes the lock checks that the path still names the file it locked, so
+the removal never lets two commands hold one folder.  (On a system without ``flock``, Windows,
+folders are not locked.)
 
 Every file is published with :func:`publishing` (or :func:`publish` for bytes and text, and
 :func:`publishing_folder` for a folder of files): written under a temporary name unique to the
 process in the same directory, flushed to disk, then renamed over the target, so a reader sees
 the old file or the whole new one; on any error the temporary file is removed and the error is a
 :class:`WriteError` naming the target and the cause (a full disk is "No space left on device").
+A published file or folder has the modes the umask gives, as one written with ``open``.
 
 Every file read from a folder the package did not just write goes through :func:`open_regular`
 (or :func:`read_regular`, :func:`read_json`, :func:`sha256_file`): regular files only, opened without blocking (a
 named pipe would wait for a writer for ever), checked by ``fstat`` after opening (a symbolic link
-to ``/dev/zero`` is a device), and bounded in size before a byte is read.
+to ``/dev/zero`` is a device), bounded in size before a byte is read, and read by the size they
+have, never by the bound (which may be larger than the machine's memory).
+
+Every JSON or YAML document the package decodes, from a file or a command-line option, goes
+through :func:`load_json` or :func:`load_yaml`: a malformed document, or one nested so deeply
+that decoding it would exhaust Python's recursion, is a :class:`DocumentError` saying what is
+wrong without quoting the text, which the caller raises as its own error naming the file or option.
 
 This module imports nothing from the rest of the package: it sits below every layer.
 """
@@ -29,6 +40,7 @@ import errno
 import hashlib
 import json
 import os
+import secrets
 import shutil
 import stat
 import tempfile
@@ -37,6 +49,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, BinaryIO
 
+import yaml
+
 from stewart_env.errors import UsageError
 
 try:
@@ -44,9 +58,9 @@ try:
 except ImportError:  # no flock (Windows): folders are not locked there
     fcntl = None
 
-__all__ = ["LOCK_FILE", "TMP_PREFIX", "FileError", "FolderBusy", "NotWritable", "WriteError", "check_not_busy",
-           "check_writable", "lock_folder", "open_regular", "publish", "publishing", "publishing_folder", "read_json",
-           "read_regular", "sha256_file", "write_error"]
+__all__ = ["LOCK_FILE", "MAX_DEPTH", "TMP_PREFIX", "DocumentError", "FileError", "FolderBusy", "NotWritable",
+           "WriteError", "check_not_busy", "check_writable", "load_json", "load_yaml", "lock_folder", "open_regular",
+           "publish", "publishing", "publishing_folder", "read_json", "read_regular", "sha256_file", "write_error"]
 
 #: The lock file of an output folder (see :func:`lock_folder`).
 LOCK_FILE = ".stewart-env.lock"
@@ -57,6 +71,15 @@ _PID_BYTES = 32
 #: Tries, and seconds between them, to take a lock that :func:`check_not_busy` of another command
 #: may hold for an instant; a lock still held after them belongs to a command that runs.
 _LOCK_ATTEMPTS, _LOCK_RETRY_SECONDS = 20, 0.01
+#: Deepest nesting of lists and mappings in a JSON or YAML document decoded (the package's own
+#: documents nest a few levels; code walking a document recursively fails near a thousand).
+MAX_DEPTH = 100
+#: Longest piece of a YAML parser's message repeated (a tag or token can be as long as the file).
+_PROBLEM_CHARS = 120
+#: Bytes read at a time where a file's size is not known in advance.
+_READ_CHUNK = 1 << 20
+#: Tries to make a temporary file or folder under a name not yet taken.
+_NAME_ATTEMPTS = 100
 
 
 class FileError(UsageError):
@@ -128,6 +151,16 @@ def _holder(fd: int) -> int | None:
     return int(text) if text.isdigit() else None
 
 
+def _same_file(fd: int, path: Path) -> bool:
+    """Whether ``path`` still names the file open as ``fd`` (a finished holder unlinks its lock
+    file: a lock taken on the unlinked file locks nothing)."""
+    try:
+        named, held = os.stat(path, follow_symlinks=False), os.fstat(fd)
+    except OSError:
+        return False
+    return (named.st_dev, named.st_ino) == (held.st_dev, held.st_ino)
+
+
 def check_not_busy(directory: str | os.PathLike) -> None:
     """Raise :class:`FolderBusy` if another process holds the lock of ``directory``, changing nothing.
 
@@ -143,19 +176,25 @@ def check_not_busy(directory: str | os.PathLike) -> None:
     lock = Path(directory) / LOCK_FILE
     if fcntl is None:
         return
-    try:
-        fd = os.open(lock, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOFOLLOW", 0))
-    except (OSError, ValueError):
-        return  # no lock file, or one :func:`lock_folder` will report on
-    try:
-        if stat.S_ISREG(os.fstat(fd).st_mode):
+    for _ in range(_LOCK_ATTEMPTS):
+        try:
+            fd = os.open(lock, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOFOLLOW", 0))
+        except (OSError, ValueError):
+            return  # no lock file, or one :func:`lock_folder` will report on
+        try:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                return
             try:
                 fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
             except OSError as err:
                 if err.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
                     raise FolderBusy(directory, _holder(fd)) from None
-    finally:
-        os.close(fd)
+                return
+            if _same_file(fd, lock):
+                return
+            # the file a holder unlinked as it ended: the path may name a newer lock file by now
+        finally:
+            os.close(fd)
 
 
 @contextlib.contextmanager
@@ -163,7 +202,9 @@ def lock_folder(directory: str | os.PathLike, create: bool = True) -> Iterator[P
     """Hold the exclusive lock of ``directory`` inside the block.
 
     A lock file in the folder, locked with ``flock``, which the system releases when the process
-    ends however it ends.
+    ends however it ends.  When the block ends the lock file is removed, still locked, then
+    closed; a process that opened it meanwhile finds, once it has the lock, that the path no
+    longer names that file, and starts again with a new one.
 
     Args:
         directory: the output folder.
@@ -182,29 +223,48 @@ def lock_folder(directory: str | os.PathLike, create: bool = True) -> Iterator[P
         yield path
         return
     lock = path / LOCK_FILE
+    fd = _locked(path, lock)
     try:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0), 0o644)
-    except OSError as err:
-        raise FileError(lock, f"cannot open the folder's lock file: {_cause(err)}") from None
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            raise FileError(lock, "not a regular file; remove it")
-        for attempt in range(_LOCK_ATTEMPTS):
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                break
-            except OSError as err:
-                if err.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-                    raise FileError(lock, f"cannot lock the folder: {_cause(err)}") from None
-                if attempt == _LOCK_ATTEMPTS - 1:
-                    raise FolderBusy(path, _holder(fd)) from None
-                time.sleep(_LOCK_RETRY_SECONDS)  # perhaps only another command's check_not_busy, a moment long
         with contextlib.suppress(OSError):  # the PID is for the message of a second command only
             os.ftruncate(fd, 0)
             os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
         yield path
     finally:
+        # unlinked while still locked, so no other process can hold the lock on this path meanwhile
+        if _same_file(fd, lock):
+            with contextlib.suppress(OSError):
+                os.unlink(lock)
         os.close(fd)  # closing the descriptor releases the lock
+
+
+def _locked(folder: Path, lock: Path) -> int:
+    """A descriptor of ``lock``, the lock file ``folder`` holds, exclusively locked by this process."""
+    for attempt in range(_LOCK_ATTEMPTS):
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0),
+                         0o644)
+        except OSError as err:
+            raise FileError(lock, f"cannot open the folder's lock file: {_cause(err)}") from None
+        try:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                raise FileError(lock, "not a regular file; remove it")
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError as err:
+                if err.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    raise FileError(lock, f"cannot lock the folder: {_cause(err)}") from None
+                if attempt == _LOCK_ATTEMPTS - 1:
+                    raise FolderBusy(folder, _holder(fd)) from None
+                time.sleep(_LOCK_RETRY_SECONDS)  # perhaps only another command's check_not_busy, a moment long
+                os.close(fd)
+                continue
+        except BaseException:
+            os.close(fd)
+            raise
+        if _same_file(fd, lock):
+            return fd
+        os.close(fd)  # the file its last holder unlinked as it ended: open the path again
+    raise FolderBusy(folder, None)
 
 
 # -- writing --------------------------------------------------------------------------------------
@@ -291,12 +351,30 @@ def _replacing(path: Path, tmp: Path) -> Iterator[Path]:
         raise
 
 
+def _made_unique(parent: Path, prefix: str, suffix: str, folder: bool) -> Path:
+    """A new, empty file or folder in ``parent`` under a name no other process has taken, made
+    with the modes the umask gives (0666 or 0777 less the umask), as a file the user writes
+    with ``open`` gets: :mod:`tempfile` would make it private (0600, 0700), and so the file it
+    becomes once renamed."""
+    for _ in range(_NAME_ATTEMPTS):
+        name = parent / f"{prefix}{secrets.token_hex(6)}{suffix}"
+        try:
+            if folder:
+                os.mkdir(name, 0o777)
+            else:
+                os.close(os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o666))
+        except FileExistsError:
+            continue
+        return name
+    raise FileExistsError(errno.EEXIST, f"no unused temporary name after {_NAME_ATTEMPTS} tries", str(parent))
+
+
 @contextlib.contextmanager
 def publishing(path: str | os.PathLike) -> Iterator[Path]:
     """A temporary path, unique to this call, next to ``path``, published over ``path`` at the end.
 
     Whatever the block writes there is flushed and renamed over ``path`` when the block ends, and
-    removed if it raises.
+    removed if it raises.  The file is made with the modes the umask gives (0666 less the umask).
 
     Args:
         path: the file to publish.
@@ -310,11 +388,10 @@ def publishing(path: str | os.PathLike) -> Iterator[Path]:
     path = Path(path)
     try:
         # the target's suffix kept: some writers (SB3's save) append theirs to a name without it
-        fd, name = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.stem}-", suffix=path.suffix, dir=path.parent)
-        os.close(fd)
+        name = _made_unique(path.parent, f"{TMP_PREFIX}{path.stem}-", path.suffix, folder=False)
     except OSError as err:
         raise write_error(path, err) from None
-    with _replacing(path, Path(name)) as tmp:
+    with _replacing(path, name) as tmp:
         yield tmp
 
 
@@ -345,7 +422,8 @@ def publishing_folder(path: str | os.PathLike) -> Iterator[Path]:
     """A temporary folder, unique to this call, next to ``path``, published over ``path`` at the end.
 
     When the block ends its files are flushed and the folder replaces ``path`` (an existing one is
-    removed first); if the block raises it is removed.
+    removed first); if the block raises it is removed.  The folder is made with the modes the umask
+    gives (0777 less the umask).
 
     Args:
         path: the folder to publish.
@@ -359,7 +437,7 @@ def publishing_folder(path: str | os.PathLike) -> Iterator[Path]:
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f"{TMP_PREFIX}{path.name}-", dir=path.parent))
+        tmp = _made_unique(path.parent, f"{TMP_PREFIX}{path.name}-", "", folder=True)
     except OSError as err:
         raise write_error(path, err) from None
     with _replacing(path, tmp) as tmp:
@@ -426,12 +504,21 @@ def read_regular(path: str | os.PathLike, limit: int, what: str = "file") -> byt
     """
     with open_regular(path, limit, what) as f:
         try:
-            data = f.read(limit + 1)
+            # as many bytes as the file holds, not ``limit``: a read of n bytes allocates n first,
+            # and the bound of an agent's files is larger than many a machine's memory
+            parts = [f.read(os.fstat(f.fileno()).st_size)]
+            total = len(parts[0])
+            while total <= limit:  # the file grown since its fstat (or a size the system does not report)
+                block = f.read(min(_READ_CHUNK, limit + 1 - total))
+                if not block:
+                    break
+                parts.append(block)
+                total += len(block)
         except OSError as err:
             raise FileError(path, f"cannot read the file: {_cause(err)}") from None
-    if len(data) > limit:
+    if total > limit:
         raise FileError(path, f"larger than {limit} bytes")
-    return data
+    return parts[0] if len(parts) == 1 else b"".join(parts)
 
 
 def sha256_file(path: str | os.PathLike, limit: int) -> str:
@@ -450,11 +537,129 @@ def sha256_file(path: str | os.PathLike, limit: int) -> str:
     digest = hashlib.sha256()
     with open_regular(path, limit) as f:
         try:
-            for block in iter(lambda: f.read(1 << 20), b""):
+            for block in iter(lambda: f.read(_READ_CHUNK), b""):
                 digest.update(block)
         except OSError as err:
             raise FileError(path, f"cannot read the file: {_cause(err)}") from None
     return digest.hexdigest()
+
+
+# -- decoding -------------------------------------------------------------------------------------
+
+
+class DocumentError(UsageError):
+    """Text that is not a document of its format (JSON or YAML), or one nested deeper than
+    :data:`MAX_DEPTH`; ``problem`` says what is wrong and quotes no more of the text than a
+    parser's token, ``nested`` whether the depth was the problem.  The caller raises it as its own
+    error, naming the file or option."""
+
+    def __init__(self, problem: str, nested: bool = False):
+        super().__init__(problem)
+        self.problem = problem
+        self.nested = nested
+
+    def __str__(self) -> str:
+        return self.problem
+
+
+def _too_deep(document: Any, limit: int) -> bool:
+    """Whether a decoded JSON document nests lists and objects more than ``limit`` levels deep
+    (iterative: the check must not itself run out of recursion)."""
+    stack = [(document, 1)]
+    while stack:
+        value, depth = stack.pop()
+        if depth > limit:
+            return True
+        if isinstance(value, dict):
+            stack.extend((item, depth + 1) for item in value.values() if isinstance(item, (dict, list)))
+        elif isinstance(value, list):
+            stack.extend((item, depth + 1) for item in value if isinstance(item, (dict, list)))
+    return False
+
+
+def load_json(text: str | bytes) -> Any:
+    """The JSON document in ``text``.
+
+    Args:
+        text: the document; bytes are decoded as UTF-8.
+
+    Returns:
+        The decoded document.
+
+    Raises:
+        DocumentError: not UTF-8, not valid JSON, or nested more than :data:`MAX_DEPTH` levels.
+    """
+    if isinstance(text, (bytes, bytearray)):
+        try:
+            text = bytes(text).decode("utf-8")
+        except UnicodeDecodeError as err:
+            raise DocumentError(f"not valid JSON (not UTF-8 text: invalid byte at offset {err.start})") from None
+    try:
+        document = json.loads(text)
+        deep = _too_deep(document, MAX_DEPTH)
+    except json.JSONDecodeError as err:
+        raise DocumentError(f"not valid JSON ({err})") from None
+    except RecursionError:  # the decoder recurses once per level, before any bound of ours can look
+        deep = True
+    if deep:
+        raise DocumentError(f"not valid JSON (nested more than {MAX_DEPTH} levels deep)", nested=True)
+    return document
+
+
+class _BoundedLoader(yaml.SafeLoader):
+    """YAML's safe loader, nesting at most :data:`MAX_DEPTH` levels: its composer recurses once
+    per level, so the bound comes before Python's recursion limit."""
+
+    def __init__(self, stream):
+        super().__init__(stream)
+        self._depth = 0
+
+    def compose_node(self, parent, index):
+        self._depth += 1
+        try:
+            if self._depth > MAX_DEPTH:
+                raise yaml.composer.ComposerError(None, None, f"nested more than {MAX_DEPTH} levels deep",
+                                                  self.peek_event().start_mark)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+
+def _shortened(text: str) -> str:
+    return text if len(text) <= _PROBLEM_CHARS else text[:_PROBLEM_CHARS - 3] + "..."
+
+
+def _yaml_problem(err: yaml.YAMLError) -> str:
+    """Where and what went wrong, without PyYAML's snippet of the offending line."""
+    if isinstance(err, yaml.reader.ReaderError):
+        return f"position {err.position + 1}: character #x{err.character:04x} is not allowed"
+    if isinstance(err, yaml.MarkedYAMLError):
+        mark = err.problem_mark or err.context_mark
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+        return where + "; ".join(_shortened(part) for part in (err.context, err.problem) if part)
+    return type(err).__name__
+
+
+def load_yaml(text: str | bytes, loader: type[yaml.SafeLoader] | None = None) -> Any:
+    """The YAML document in ``text``, by YAML's safe loader bounded in depth (or ``loader``).
+
+    Args:
+        text: the document; bytes are read as YAML reads them (UTF-8 or UTF-16).
+        loader: a loader class derived from ``yaml.SafeLoader`` with bounds of its own (a
+            platform config's); by default the safe loader nesting at most :data:`MAX_DEPTH` levels.
+
+    Returns:
+        The decoded document.
+
+    Raises:
+        DocumentError: not valid YAML, or beyond the loader's bounds.
+    """
+    try:
+        return yaml.load(text, Loader=loader or _BoundedLoader)
+    except yaml.YAMLError as err:
+        raise DocumentError(f"not valid YAML: {_yaml_problem(err)}", nested="levels deep" in str(err.problem)) from None
+    except RecursionError:  # a loader without a depth bound
+        raise DocumentError("not valid YAML: nested too deeply", nested=True) from None
 
 
 def read_json(path: str | os.PathLike, limit: int, what: str = "JSON file") -> Any:
@@ -473,8 +678,6 @@ def read_json(path: str | os.PathLike, limit: int, what: str = "JSON file") -> A
     """
     data = read_regular(path, limit, what)
     try:
-        return json.loads(data.decode("utf-8"))
-    except UnicodeDecodeError as err:
-        raise FileError(path, f"not valid JSON (not UTF-8 text: invalid byte at offset {err.start})") from None
-    except json.JSONDecodeError as err:
-        raise FileError(path, f"not valid JSON ({err})") from None
+        return load_json(data)
+    except DocumentError as err:
+        raise FileError(path, err.problem) from None

@@ -3,7 +3,6 @@ study's folder (its recorded settings, its own agents)."""
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
@@ -28,7 +27,9 @@ from stewart_env.agents.mismatch.constants import (
     MismatchError,
 )
 from stewart_env.agents.training import ALGORITHMS, MAX_MANIFEST_BYTES, jsonable, read_hyperparameters
-from stewart_env.files import publish, read_json
+from stewart_env.files import publish, read_json, sha256_file
+from stewart_env.params import MAX_CONFIG_BYTES
+from stewart_env.params.shipped import is_platform_name
 from stewart_env.validation import MAX_SEED, seed
 
 __all__ = ["MismatchSettings", "check_own_agents", "check_study", "closed_form", "design_models"]
@@ -237,7 +238,7 @@ def _check_platform(platform: str) -> str:
     except (ValueError, OSError, KeyError, TypeError) as err:
         raise MismatchError(f"platform: {err}") from None
     # a config file by its absolute path, so that a later run from elsewhere finds the same one
-    return platform if Path(platform).suffix == "" and not Path(platform).exists() else str(Path(platform).resolve())
+    return platform if is_platform_name(platform) else str(Path(platform).resolve())
 
 
 #: What may name a controller platform in the rows' labels.
@@ -276,7 +277,7 @@ def _check_controller_platforms(items: Sequence[Any]) -> tuple[tuple[str, str], 
 def _file_hash(platform: str) -> str | None:
     """The SHA-256 of a platform config file, None for a shipped platform's name."""
     path = Path(platform)
-    return hashlib.sha256(path.read_bytes()).hexdigest() if path.is_absolute() and path.is_file() else None
+    return sha256_file(path, MAX_CONFIG_BYTES) if path.is_absolute() and path.is_file() else None
 
 
 def changes(old: Mapping[str, Any], new: Mapping[str, Any]) -> list[str]:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from typing import Any
 
@@ -10,6 +9,8 @@ import numpy as np
 
 from stewart_env.agents.training.errors import TrainingError
 from stewart_env.agents.training.rundir import MANIFEST
+from stewart_env.files import DocumentError, load_json
+from stewart_env.params.checks import excerpt
 
 __all__ = ["jsonable", "parse_env_kwargs"]
 
@@ -22,17 +23,19 @@ def parse_env_kwargs(items: Sequence[str] | None) -> dict[str, Any]:
         text = item.strip()
         if text.startswith("{"):
             try:
-                value = json.loads(text)
-            except json.JSONDecodeError as exc:
-                raise TrainingError(f"--env-kwargs: not a JSON object: {text!r} ({exc})") from None
+                value = load_json(text)
+            except DocumentError as exc:
+                raise TrainingError(f"--env-kwargs: not a JSON object: {excerpt(text)!r} ({exc.problem})") from None
             out.update(value)
             continue
         key, sep, raw = text.partition("=")
         if not sep or not key:
-            raise TrainingError(f"--env-kwargs: expected key=value or a JSON object, got {item!r}")
+            raise TrainingError(f"--env-kwargs: expected key=value or a JSON object, got {excerpt(item)!r}")
         try:
-            out[key] = json.loads(raw)
-        except json.JSONDecodeError:
+            out[key] = load_json(raw)
+        except DocumentError as exc:
+            if exc.nested:
+                raise TrainingError(f"--env-kwargs: {key}: {exc.problem}") from None
             out[key] = raw
     return out
 

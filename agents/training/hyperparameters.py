@@ -2,7 +2,8 @@
 
 Hyperparameters come from ``configs/agents/<algo>.yml`` in rl-baselines3-zoo's format,
 keyed by the environment id, so the same files drive ``python -m rl_zoo3.train``.  The file is
-read with the package's bounded reader of regular files (:func:`stewart_env.files.read_regular`).
+read with the package's bounded reader of regular files (:func:`stewart_env.files.read_regular`) and
+decoder of YAML (:func:`stewart_env.files.load_yaml`).
 The zoo's string-valued entries (``policy_kwargs: "dict(net_arch=[64, 64])"``) are read by a
 parser of that vocabulary (:func:`zoo_eval`), never evaluated as Python.
 """
@@ -21,8 +22,9 @@ import numpy as np
 import yaml
 
 from stewart_env.agents.training.errors import TrainingError, check_rl_installed
-from stewart_env.files import read_regular
+from stewart_env.files import DocumentError, load_yaml, read_regular
 from stewart_env.params import MAX_CONFIG_BYTES, config_dir
+from stewart_env.params.checks import excerpt
 from stewart_env.registration import ENV_ID
 from stewart_env.validation import integer
 
@@ -95,9 +97,9 @@ def read_hyperparameters(algo: str, config: str | os.PathLike | None = None, env
     """The raw zoo entry for ``env_id`` in the hyperparameter file of ``algo`` (a copy)."""
     path = config_path(algo, config)
     try:
-        entries = yaml.safe_load(read_regular(path, MAX_CONFIG_BYTES, "config file"))
-    except yaml.YAMLError as exc:
-        raise TrainingError(f"{path}: not valid YAML: {exc}") from None
+        entries = load_yaml(read_regular(path, MAX_CONFIG_BYTES, "config file"))
+    except DocumentError as exc:
+        raise TrainingError(f"{path}: {exc.problem}") from None
     if not isinstance(entries, dict) or env_id not in entries:
         found = ", ".join(map(str, entries)) if isinstance(entries, dict) else ""
         raise TrainingError(f"{path}: no entry for {env_id!r} (found: {found or 'nothing'})")
@@ -157,9 +159,11 @@ def zoo_eval(text: str, key: str) -> Any:
     evaluated, so that a config from a stranger cannot run code."""
     try:
         tree = ast.parse(text.strip(), mode="eval")
+        return _zoo_value(tree.body, key, text)
     except SyntaxError as exc:
-        raise TrainingError(f"hyperparameter {key}: not an expression: {text!r} ({exc.msg})") from None
-    return _zoo_value(tree.body, key, text)
+        raise TrainingError(f"hyperparameter {key}: not an expression: {excerpt(text)!r} ({exc.msg})") from None
+    except (RecursionError, MemoryError):  # Python's parser gives out on a chain of thousands of operators
+        raise TrainingError(f"hyperparameter {key}: not an expression: {excerpt(text)!r} (nested too deeply)") from None
 
 
 def _schedule(value: Any, key: str):

@@ -47,6 +47,10 @@ def existing_file(text: str) -> str:
     return text
 
 
+#: How --platform tells a shipped platform's name from a config file's path (load_platform's rule).
+PLATFORM_RULE = "a name has no / and no .yaml or .yml suffix, whatever the working directory holds"
+
+
 def platform_name(text: str) -> str:
     """argparse type: a shipped platform's name or a platform YAML file that loads."""
     from stewart_env.params import load_platform

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from stewart_env.cli.arguments import PLATFORM_RULE
 from stewart_env.cli.common import check_extras, error
 
 VERB = "bench"
@@ -14,7 +15,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
     p = subparsers.add_parser(VERB, help="the benchmark of the compiled core (stewart_env.bench)",
                               description=description.split("\n\n")[0].replace("``", ""))
-    p.add_argument("--platform", default="dasgupta1998", help="platform config name or YAML path")
+    p.add_argument("--platform", default="dasgupta1998",
+                   help=f"shipped platform name or YAML config path ({PLATFORM_RULE})")
     p.add_argument("--models", default=",".join(MODEL_NAMES), help="comma-separated model names")
     p.add_argument("--env", action="store_true", help="also benchmark the single and vector environments")
     p.add_argument("--plot", metavar="PATH", help="also draw the scaling table to this PNG file")

@@ -6,7 +6,7 @@ import argparse
 import sys
 import time
 
-from stewart_env.cli.arguments import nonnegative_int, platform_name, positive_int
+from stewart_env.cli.arguments import PLATFORM_RULE, nonnegative_int, platform_name, positive_int
 from stewart_env.cli.common import check_out, controllers, error
 
 VERB = "demo"
@@ -22,8 +22,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument("--episodes", type=positive_int, default=3, help="episodes per model (default 3)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="episode i uses seed + i (default 0)")
-    p.add_argument("--platform", type=platform_name, default="dasgupta1998", help="platform config name or YAML path "
-                   "(default dasgupta1998)")
+    p.add_argument("--platform", type=platform_name, default="dasgupta1998",
+                   help=f"shipped platform name or YAML config path ({PLATFORM_RULE}; default dasgupta1998)")
     p.add_argument("--out", help="also write the report (table, CSV, plots) into this directory")
     return p
 

@@ -7,7 +7,8 @@ import sys
 import time
 from pathlib import Path
 
-from stewart_env.cli.arguments import TASKS, model_name, nonnegative_int, plant_model_name, platform_name, positive_int
+from stewart_env.cli.arguments import (PLATFORM_RULE, TASKS, model_name, nonnegative_int, plant_model_name,
+                                      platform_name, positive_int)
 from stewart_env.cli.common import (
     CONTROLLERS,
     check_extras,
@@ -45,8 +46,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "mechanism, needs the extra mujoco) (default improved)")
     p.add_argument("--task", choices=TASKS,
                    help="default setpoint (for an --agent: the task it was trained on)")
-    p.add_argument("--platform", type=platform_name, help="platform config name or YAML path (default dasgupta1998; "
-                   "for an --agent: the platform it was trained on)")
+    p.add_argument("--platform", type=platform_name, help="shipped platform name or YAML config path "
+                   f"({PLATFORM_RULE}; default dasgupta1998; for an --agent: the platform it was trained on)")
     p.add_argument("--episodes", type=positive_int, default=5, help="episodes per configuration (default 5)")
     p.add_argument("--seed", type=nonnegative_int, default=0, help="episode i uses seed + i (default 0)")
     p.add_argument("--max-steps", type=positive_int, help="episode length in control steps "

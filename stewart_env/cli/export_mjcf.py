@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from stewart_env.cli.arguments import platform_name, positive_float
+from stewart_env.cli.arguments import PLATFORM_RULE, platform_name, positive_float
 from stewart_env.cli.common import check_extras, error
 
 VERB = "export-mjcf"
@@ -19,7 +19,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "masses, inertias, joint damping, force actuators, gravity, RK4.  An existing file is "
                     "overwritten.  Needs the extra: pip install -e \".[mujoco]\".",
     )
-    p.add_argument("--platform", type=platform_name, required=True, help="platform config name or YAML path")
+    p.add_argument("--platform", type=platform_name, required=True, help="shipped platform name or YAML config "
+                   f"path ({PLATFORM_RULE})")
     p.add_argument("--out", required=True, help="the XML file to write")
     p.add_argument("--timestep", type=positive_float, default=1e-3, help="MuJoCo's time step, s (default 1e-3)")
     p.add_argument("--solref", type=float, nargs=2, metavar=("TIMECONST", "DAMPRATIO"),

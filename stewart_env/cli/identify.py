@@ -16,12 +16,11 @@ import argparse
 import sys
 import time
 
-from stewart_env.cli.arguments import nonnegative_float, nonnegative_int, platform_name, positive_float, positive_int
+from stewart_env.cli.arguments import (PLATFORM_RULE, nonnegative_float, nonnegative_int, platform_name, positive_float,
+                                      positive_int)
 from stewart_env.cli.common import error
 
 VERB = "identify"
-#: Largest report.json --predicted-by reads, bytes (a report is tens of kilobytes).
-REPORT_LIMIT = 16 * 2 ** 20
 
 
 def _plant(text: str) -> str:
@@ -58,7 +57,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--model", type=_model, default="improved",
                    help="the model structure identified (default improved)")
     p.add_argument("--platform", type=platform_name, default="dasgupta1998",
-                   help="nominal platform config name or YAML path (default dasgupta1998)")
+                   help=f"nominal platform: shipped platform name or YAML config path ({PLATFORM_RULE}; default "
+                        "dasgupta1998)")
     p.add_argument("--excitation", choices=("optimized", "random"), default="optimized",
                    help="excitation trajectory (default optimized)")
     p.add_argument("--duration", type=positive_float, default=60.0, help="seconds recorded (default 60)")
@@ -89,7 +89,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """Run the ``identify`` subcommand; 0 on success, 2 on an error the user can correct."""
-    from stewart_env.files import check_writable, read_json
+    from stewart_env.files import check_writable
     from stewart_env.identification import experiment
     from stewart_env.params import load_platform
 
@@ -104,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
         reference = None
         if args.predicted_by is not None:
             try:
-                reference = read_json(args.predicted_by, REPORT_LIMIT, "report.json")
+                reference = experiment.read_report(args.predicted_by)
             except ValueError as err:
                 return error(VERB, f"--predicted-by: {err}")
         result = experiment.run(settings, load_platform(args.platform), predicted_by=reference)

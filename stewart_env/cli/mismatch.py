@@ -10,6 +10,7 @@ import signal
 import sys
 
 from stewart_env.cli.arguments import (
+    PLATFORM_RULE,
     TASKS,
     agent_config,
     checked,
@@ -74,8 +75,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="comma-separated plant models (default: classical,improved,improved_centroidal)")
     p.add_argument("--task", default="setpoint", choices=TASKS, help="task (default: setpoint)")
     p.add_argument("--platform", default="dasgupta1998", type=platform_name,
-                   help="platform name or config file: the plants' (the truth), and the controllers' but those of "
-                        "--controller-platform (default: dasgupta1998)")
+                   help=f"shipped platform name or YAML config path ({PLATFORM_RULE}): the plants' (the truth), and "
+                        "the controllers' but those of --controller-platform (default: dasgupta1998)")
     p.add_argument("--controller-platform", action="append", default=[], metavar="[NAME=]PLATFORM",
                    help="a further platform the controllers are built on (e.g. an identified platform.yaml), "
                         "its rows labelled [model @ NAME] (default NAME: the config's name or file stem), run on "

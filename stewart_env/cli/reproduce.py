@@ -6,7 +6,7 @@ import argparse
 import sys
 import time
 
-from stewart_env.cli.arguments import platform_name, positive_float
+from stewart_env.cli.arguments import PLATFORM_RULE, platform_name, positive_float
 from stewart_env.cli.common import check_out, error
 
 VERB = "reproduce"
@@ -24,8 +24,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--duration", type=positive_float, default=1.0, help="simulated time, s (default 1.0)")
     p.add_argument("--dt", type=positive_float, default=2e-4, help="RK4 step, s (default 2e-4)")
-    p.add_argument("--platform", type=platform_name, default="dasgupta1998", help="platform config (default "
-                   "dasgupta1998)")
+    p.add_argument("--platform", type=platform_name, default="dasgupta1998",
+                   help=f"shipped platform name or YAML config path ({PLATFORM_RULE}; default dasgupta1998)")
     p.add_argument("--gravity-compensation", action="store_true",
                    help="add the static holding forces to the PD law (the paper's law as we have it has none)")
     return p

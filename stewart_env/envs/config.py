@@ -103,7 +103,9 @@ class PhysicsConfig(_Record):
                                         'RK4) or `"mujoco"` (MuJoCo simulating the same mechanism, needs the '
                                         '`mujoco` extra)')
     platform: str | os.PathLike | PlatformParams = _argument(
-        "dasgupta1998", "a shipped config name, a YAML path, or a `PlatformParams`")
+        "dasgupta1998", "a shipped config name, a YAML path, or a `PlatformParams`; a string with no `/` and no "
+                        "`.yaml`/`.yml` suffix is always a shipped config's name, whatever the working directory "
+                        "holds")
     control_dt: float = _argument(0.01, "s per environment step, 1e-6 to 10")
     physics_dt: float = _argument(0.001, "s per RK4 substep; `control_dt` must be a whole multiple of it, "
                                          "at most 10^6 substeps")

@@ -256,7 +256,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     |---|---|---|
     | `model` | `"improved"` | dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, optionally with switches such as `"+c1"`; `"mujoco"` is another spelling of `plant="mujoco"` (with the `"improved"` model) |
     | `plant` | `"closed_form"` | what simulates the platform: `"closed_form"` (`model` integrated with RK4) or `"mujoco"` (MuJoCo simulating the same mechanism, needs the `mujoco` extra) |
-    | `platform` | `"dasgupta1998"` | a shipped config name, a YAML path, or a `PlatformParams` |
+    | `platform` | `"dasgupta1998"` | a shipped config name, a YAML path, or a `PlatformParams`; a string with no `/` and no `.yaml`/`.yml` suffix is always a shipped config's name, whatever the working directory holds |
     | `control_dt` | `0.01` | s per environment step, 1e-6 to 10 |
     | `physics_dt` | `0.001` | s per RK4 substep; `control_dt` must be a whole multiple of it, at most 10^6 substeps |
     | `randomization` | `None` | domain randomisation spec, e.g. `{"platform.mass": (0.8, 1.2), "legs.mass": (0.9, 1.1), "inertia": (0.9, 1.1), "com": (0.9, 1.1), "damping": (0.5, 2.0)}` |

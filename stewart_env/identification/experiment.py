@@ -6,7 +6,9 @@ recorded poses and leg forces (the poses optionally delayed against the forces),
 velocities and accelerations by a Savitzky-Golay filter, estimates the base parameters (OLS, WLS,
 physically consistent) and, per base parameter, the record and force noise that would identify
 it to 10 %, and measures the leg-force prediction error on a second, held-out trajectory.
-:func:`write` publishes the identified platform config and the report.
+:func:`write` publishes the identified platform config and the report (strict JSON: a number
+that is not finite is written as null); :func:`read_report` reads a report back, checked, for
+a later run's ``predicted_by``.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from stewart_env.dynamics.rk4 import law_forces
 from stewart_env.integrate import Trajectory, rollout
 from stewart_env.kinematics import inverse_kinematics, jacobian
 from stewart_env.params import Damping, PlatformParams, RigidBody
+from stewart_env.params.checks import short
 from stewart_env.rotations import rotvec_to_matrix
 
 #: Integration step of the plant (s) and sampling period of the measurements (s).
@@ -37,6 +40,8 @@ PLANT_DT = 1e-3
 SAMPLE_DT = 5e-3
 #: The start of each record the filter and the controller's transient spoil (s).
 SETTLE = 0.5
+#: Largest report.json read back (``--predicted-by``), bytes: a report is tens of kilobytes.
+MAX_REPORT_BYTES = 16 << 20
 #: Longest measurement delay (s): sensor pipelines lag by milliseconds to tens of milliseconds;
 #: a quarter second is far beyond them and keeps the shift inside the record's dropped start.
 MAX_DELAY = 0.25
@@ -243,17 +248,89 @@ def rows_of(model: Dynamics, base: base_mod.BaseParameters, record: Record) -> n
     return est.leg_force_rows(base.columns(Y), J)
 
 
+def read_report(path: str | Path) -> dict:
+    """The report.json of an earlier run, read to predict this run's standard deviations.
+
+    Read through :func:`stewart_env.files.read_json` (a regular file of at most
+    :data:`MAX_REPORT_BYTES`) and checked by :func:`check_report`.
+
+    Args:
+        path: the report.json.
+
+    Returns:
+        The report.
+
+    Raises:
+        IdentificationError: not a readable JSON file, or a field a prediction reads is missing
+            or not what it should be (the message names the file and the key).
+    """
+    try:
+        report = files.read_json(path, MAX_REPORT_BYTES, "report.json")
+    except files.FileError as err:
+        raise IdentificationError(str(err)) from None
+    return check_report(report, str(path))
+
+
+def check_report(report: object, source: str) -> dict:
+    """``report`` if every field a prediction reads from an identify report holds what
+    :func:`run` writes: ``platform`` and ``settings.model`` text, ``settings.noise_force`` and
+    ``fitted_duration`` positive numbers, ``base_parameters`` a list of objects with a ``name``,
+    a finite ``wls`` and a positive ``wls_std``.  (A report someone edited may hold anything.)
+
+    Args:
+        report: the decoded report.json.
+        source: where it came from, named in messages.
+
+    Returns:
+        ``report``.
+
+    Raises:
+        IdentificationError: naming ``source`` and the key (``base_parameters[3].wls_std``).
+    """
+    def field(mapping: object, name: str, key: str) -> object:
+        if not isinstance(mapping, dict):
+            raise IdentificationError(f"{source}: not a report.json of stewart-env identify ({key or 'the document'} "
+                                      f"is {short(mapping)}, not an object)")
+        if name not in mapping:
+            raise IdentificationError(f"{source}: not a report.json of stewart-env identify (no {key + '.' if key else ''}"
+                                      f"{name})")
+        return mapping[name]
+
+    def text(mapping: object, name: str, key: str = "") -> None:
+        value = field(mapping, name, key)
+        if not isinstance(value, str):
+            raise IdentificationError(f"{source}: {key + '.' if key else ''}{name}: expected text, got {short(value)}")
+
+    def number(mapping: object, name: str, key: str = "", positive: bool = True) -> None:
+        value = field(mapping, name, key)
+        usable = (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+                  and (value > 0 or not positive))
+        if not usable:
+            kind = "a number > 0" if positive else "a finite number"
+            raise IdentificationError(f"{source}: {key + '.' if key else ''}{name}: expected {kind}, got {short(value)}")
+
+    text(report, "platform")
+    text(field(report, "settings", ""), "model", "settings")
+    number(report["settings"], "noise_force", "settings")
+    number(report, "fitted_duration")
+    rows = field(report, "base_parameters", "")
+    if not isinstance(rows, list) or not rows:
+        raise IdentificationError(f"{source}: base_parameters: expected a list of base parameters, got {short(rows)}")
+    for k, row in enumerate(rows):
+        key = f"base_parameters[{k}]"
+        text(row, "name", key)
+        number(row, "wls", key, positive=False)
+        number(row, "wls_std", key)
+    return report
+
+
 def _check_reference(reference: dict, settings: Settings, nominal: PlatformParams,
                      base: base_mod.BaseParameters) -> None:
     """IdentificationError unless ``reference`` is an identify report of the same platform's and
     model's base parameters, recorded with force noise, and this experiment has force noise."""
-    try:
-        names = [p["name"] for p in reference["base_parameters"]]
-        ok = (reference["platform"] == nominal.name and reference["settings"]["model"] == settings.model
-              and float(reference["settings"]["noise_force"]) > 0 and float(reference["fitted_duration"]) > 0
-              and all(isinstance(p["wls_std"], float) for p in reference["base_parameters"]))
-    except (KeyError, TypeError, ValueError):
-        raise IdentificationError("--predicted-by: not a report.json of stewart-env identify") from None
+    check_report(reference, "--predicted-by")
+    names = [p["name"] for p in reference["base_parameters"]]
+    ok = reference["platform"] == nominal.name and reference["settings"]["model"] == settings.model
     if not ok or names != base.names:
         raise IdentificationError(f"--predicted-by: a report of {nominal.name}'s {settings.model} base parameters "
                                   "with force noise is needed")
@@ -381,6 +458,18 @@ def run(settings: Settings, nominal: PlatformParams, predicted_by: dict | None =
     return Result(settings, truth, identified, report)
 
 
+def _strict(value):
+    """``value`` with every number that is not finite replaced by None, JSON's null: strict JSON
+    has no NaN or Infinity (Python's json would write them, other readers refuse the file)."""
+    if isinstance(value, dict):
+        return {k: _strict(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_strict(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
 def _or_none(x: float) -> float | None:
     """x, or None (JSON's null) where it is infinite."""
     return float(x) if math.isfinite(x) else None
@@ -482,13 +571,15 @@ def _markdown(report: dict) -> str:
 def write(result: Result, out: str | Path) -> Path:
     """Publish ``platform.yaml`` (the identified platform, a config every command accepts as
     ``--platform``), ``truth.yaml`` (the plant's), ``report.json`` and ``report.md`` into the folder ``out``, which is locked
-    while it is written; each file appears whole or not at all."""
+    while it is written; each file appears whole or not at all.  report.json is strict JSON: a
+    number that is not finite (an infinite relative deviation or condition number, a NaN) is
+    written as null; report.md shows it as ``inf`` or ``nan``."""
     with files.lock_folder(out) as folder:
         text = yaml.safe_dump(result.identified.to_dict(), sort_keys=False)
-        PlatformParams.from_dict(yaml.safe_load(text), result.identified.name)  # it loads back
+        PlatformParams.from_dict(files.load_yaml(text), result.identified.name)  # it loads back
         files.publish(folder / "platform.yaml", "# identified by stewart-env identify; see report.md\n" + text)
         truth = yaml.safe_dump(result.truth.to_dict(), sort_keys=False)
         files.publish(folder / "truth.yaml", "# the plant's parameters (the unknown truth) of this experiment\n" + truth)
-        files.publish(folder / "report.json", json.dumps(result.report, indent=1) + "\n")
+        files.publish(folder / "report.json", json.dumps(_strict(result.report), indent=1, allow_nan=False) + "\n")
         files.publish(folder / "report.md", _markdown(result.report))
     return Path(folder)

@@ -49,6 +49,9 @@ Jacobian's condition number there must be at most limits.max_condition: the mode
 platform (`stewart_env.dynamics.Dynamics`, and so every environment) checks it, with the same
 `ConfigError`.
 
+Names: a string with no path separator and no .yaml/.yml suffix is a shipped platform's name,
+whatever the working directory holds; anything else is a file (`load_platform`).
+
 Files: `load_platform` and `PlatformParams.from_yaml` read only regular files named *.yaml or
 *.yml of at most 1 MB (`MAX_CONFIG_BYTES`), with YAML's safe loader, nesting at most 32 levels
 deep and at most 5000 values once aliases are expanded; a key given twice in one mapping is an

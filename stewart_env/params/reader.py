@@ -15,14 +15,15 @@ from pathlib import Path
 
 import yaml
 
-from stewart_env.files import FileError, read_regular
-from stewart_env.params.checks import EXCERPT, ConfigError, excerpt, key_names
+from stewart_env.files import DocumentError, FileError, load_yaml, read_regular
+from stewart_env.params.checks import ConfigError, key_names
 
-__all__ = ["MAX_CONFIG_BYTES", "read_config_text", "parse_config"]
+__all__ = ["CONFIG_SUFFIXES", "MAX_CONFIG_BYTES", "read_config_text", "parse_config"]
 
 #: Largest platform config file accepted, bytes. The shipped configs are about 4 KB.
 MAX_CONFIG_BYTES = 1 << 20
-_CONFIG_SUFFIXES = (".yaml", ".yml")
+#: The suffixes of a config file's name.
+CONFIG_SUFFIXES = (".yaml", ".yml")
 # A config has about 200 values nested 4 deep; far larger documents are refused before they are
 # built (a few KB of nested YAML aliases can expand to billions of values).
 _MAX_YAML_DEPTH = 32
@@ -36,7 +37,7 @@ def read_config_text(path: Path) -> str:
     most MAX_CONFIG_BYTES (:func:`stewart_env.files.read_regular`: FIFOs, devices and
     directories are refused before they are read)."""
     source = str(path)
-    if path.suffix.lower() not in _CONFIG_SUFFIXES:
+    if path.suffix.lower() not in CONFIG_SUFFIXES:
         raise ConfigError("", "not a platform config: the file name must end in .yaml or .yml", source)
     try:
         data = read_regular(path, MAX_CONFIG_BYTES, "config file")
@@ -51,9 +52,9 @@ def read_config_text(path: Path) -> str:
 def parse_config(text: str, source: str) -> object:
     """The document of a config file's `text` (read from `source`), by the bounded loader."""
     try:
-        return yaml.load(text, Loader=_ConfigLoader)
-    except yaml.YAMLError as err:
-        raise ConfigError("", f"not valid YAML: {_yaml_problem(err)}", source) from None
+        return load_yaml(text, _ConfigLoader)
+    except DocumentError as err:
+        raise ConfigError("", err.problem, source) from None
 
 
 class _ConfigLoader(yaml.SafeLoader):
@@ -151,14 +152,3 @@ def _check_expansion(root: yaml.Node) -> None:
                 None, None, f"nested more than {_MAX_YAML_DEPTH} levels deep (after expanding aliases)",
                 node.start_mark)
 
-
-def _yaml_problem(err: yaml.YAMLError) -> str:
-    """Where and what went wrong, without PyYAML's snippet of the offending line."""
-    if isinstance(err, yaml.reader.ReaderError):
-        return f"position {err.position + 1}: character #x{err.character:04x} is not allowed"
-    if isinstance(err, yaml.MarkedYAMLError):
-        mark = err.problem_mark or err.context_mark
-        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
-        what = "; ".join(excerpt(part, 2 * EXCERPT) for part in (err.context, err.problem) if part)
-        return where + what
-    return type(err).__name__

@@ -11,8 +11,9 @@ from pathlib import Path
 
 from stewart_env.params.checks import ConfigError, describe
 from stewart_env.params.platform import PlatformParams, from_text
+from stewart_env.params.reader import CONFIG_SUFFIXES
 
-__all__ = ["config_dir", "available_platforms", "load_platform"]
+__all__ = ["config_dir", "available_platforms", "is_platform_name", "load_platform"]
 
 
 def config_dir(kind: str) -> Path:
@@ -37,19 +38,35 @@ def available_platforms() -> list[str]:
                   if entry.name.endswith(".yaml"))
 
 
-def _exists(path: Path) -> bool:
-    try:
-        return path.exists()
-    except (OSError, ValueError):  # a name too long for the file system, a NUL character
+def is_platform_name(name_or_path: object) -> bool:
+    """Whether ``name_or_path`` names a shipped platform rather than a config file.
+
+    A string with no path separator (``/``, or the system's own) and no ``.yaml``/``.yml``
+    suffix is a shipped platform's name, whatever the working directory holds (a folder left by
+    ``--out dasgupta1998`` does not hide the shipped platform); anything else, a string with a
+    separator or a YAML suffix or a ``Path``, is a file.
+
+    Args:
+        name_or_path: what :func:`load_platform` was given.
+
+    Returns:
+        True for a name, False for a file.
+    """
+    if not isinstance(name_or_path, str):
         return False
+    separators = {"/", os.sep} | ({os.altsep} if os.altsep else set())
+    return (not any(sep in name_or_path for sep in separators)
+            and not name_or_path.lower().endswith(CONFIG_SUFFIXES))
 
 
 def load_platform(name_or_path: str | os.PathLike) -> PlatformParams:
     """Load a platform by name (a shipped config, see `available_platforms`) or from a YAML file.
 
-    A string without a suffix or directory part that is not an existing path is a name, e.g.
-    ``"dasgupta1998"``; anything else (``"my.yaml"``, ``"dir/robot"``, a Path) is read as a file,
-    which must be a regular *.yaml or *.yml file of at most MAX_CONFIG_BYTES (see
+    A string with no path separator and no ``.yaml``/``.yml`` suffix is always a shipped
+    platform's name, e.g. ``"dasgupta1998"``, whatever the working directory holds (a folder or
+    file named ``dasgupta1998`` there is not read); anything with a separator or a YAML suffix
+    (``"./dasgupta1998.yaml"``, ``"dir/robot.yaml"``, ``"robot.yml"``), or a ``Path``, is read
+    as a file, which must be a regular *.yaml or *.yml file of at most MAX_CONFIG_BYTES (see
     `PlatformParams.from_yaml`).
 
     Args:
@@ -72,13 +89,15 @@ def load_platform(name_or_path: str | os.PathLike) -> PlatformParams:
     text = os.fspath(name_or_path) if isinstance(name_or_path, (str, os.PathLike)) else None
     if not isinstance(text, str):
         raise ConfigError("", f"expected a platform name or a path, got {describe(name_or_path)}")
-    candidate = Path(text)
-    is_name = (isinstance(name_or_path, str) and not candidate.suffix and candidate.name == text
-               and not _exists(candidate))
-    if not is_name:
-        return PlatformParams.from_yaml(candidate)
+    if not is_platform_name(name_or_path):
+        if not text.lower().endswith(CONFIG_SUFFIXES):  # named as given: "./dasgupta1998", not "dasgupta1998"
+            names = ", ".join(available_platforms()) or "none"
+            raise ConfigError("", f"not a platform config: a config file's name ends in .yaml or .yml; a shipped "
+                                  f"platform is named by a string alone, with no path ({names})", text)
+        return PlatformParams.from_yaml(Path(text))
     if text not in available_platforms():
         available = ", ".join(available_platforms()) or "none"
-        raise ConfigError("", f"unknown platform {describe(text)}; available: {available}")
+        raise ConfigError("", f"unknown platform {describe(text)}; available: {available} (a config file's path "
+                              "has a / or ends in .yaml or .yml)")
     resource = config_dir("platforms") / f"{text}.yaml"
     return from_text(resource.read_text(encoding="utf-8"), text, f"{text}.yaml")

@@ -164,10 +164,10 @@ def test_reproduce_holds_its_out_and_publishes_whole_files(tmp_path, capsys):
     out = tmp_path / "out"
     with lock_folder(out):  # another command writing into --out
         assert main(["reproduce", "--out", str(out), "--duration", "0.01"]) == 2
+        assert sorted(p.name for p in out.iterdir()) == [LOCK_FILE]  # refused before any file was written
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"stewart-env reproduce: error: output directory '{out}' is in use by another "
                           f"stewart-env command (PID {os.getpid()})")
-    assert sorted(p.name for p in out.iterdir()) == [LOCK_FILE]  # refused before any file was written
     reproduce(out, duration=0.01, progress=False)
     names = sorted(p.name for p in out.iterdir())
     assert [n for n in names if n.startswith(".tmp")] == []  # every file renamed into place, none left half-written

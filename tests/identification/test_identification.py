@@ -416,7 +416,7 @@ def test_a_reference_report_that_does_not_fit_is_refused_before_any_work(tmp_pat
     bad = tmp_path / "bad.json"
     for document, says in (({"platform": "dasgupta1998"}, "not a report.json"),
                            ({"platform": "motion_simulator", "settings": {"model": "improved", "noise_force": 1.0},
-                             "fitted_duration": 5.0, "base_parameters": [{"name": "x", "wls_std": 1.0}]},
+                             "fitted_duration": 5.0, "base_parameters": [{"name": "x", "wls": 1.0, "wls_std": 1.0}]},
                             "a report of dasgupta1998's improved base parameters")):
         bad.write_text(json.dumps(document))
         out = tmp_path / "run"
