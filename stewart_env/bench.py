@@ -401,14 +401,16 @@ def first_evaluation_seconds() -> float:
 
 
 def machine() -> str:
-    """One line naming the machine the figures come from."""
+    """One line naming the machine the figures come from, and the instruction-set target of the
+    kernels that ran (``stewart_env.dynamics._core.TARGET``)."""
     cpu = _platform.processor() or _platform.machine()
     try:
         with open("/proc/cpuinfo") as f:
             cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
     except (OSError, StopIteration):
         pass
-    return f"{cpu}, {os.cpu_count()} cores, Python {_platform.python_version()}, numpy {np.__version__}"
+    return (f"{cpu}, {os.cpu_count()} cores, kernels for {_core.TARGET}, Python {_platform.python_version()}, "
+            f"numpy {np.__version__}")
 
 
 def run_bench(platform: str = "dasgupta1998", models: str = ",".join(MODEL_NAMES), env: bool = False,

@@ -143,7 +143,7 @@ struct BoundWorkspace {
 
 void def_env_kernels(nb::module_& m);
 
-NB_MODULE(_core, m) {
+NB_MODULE(STEWART_ENV_CORE_MODULE, m) {  // _core_<instruction-set target> (CMakeLists.txt)
     m.doc() = "The compiled kernels of the Stewart platform's kinematics, dynamics and integrator.";
     m.attr("C1") = kernels::C1;
     m.attr("C2") = kernels::C2;
