@@ -5,7 +5,8 @@ an extension of their own: ``_core_baseline`` (the architecture's baseline, whic
 it runs) and, on x86-64, ``_core_x86_64_v3`` (AVX2, FMA, BMI2) and ``_core_x86_64_v4``
 (AVX-512).  On import this module takes the most demanding target the processor runs, or the one
 the environment variable ``STEWART_ENV_CPU`` names (``baseline``, ``x86-64-v3`` or
-``x86-64-v4``), imports its extension and re-exports its names, so that ``from
+``x86-64-v4``; a value that cannot be had is a RuntimeWarning naming it, and the fastest target
+is used), imports its extension and re-exports its names, so that ``from
 stewart_env.dynamics import _core`` reaches the kernels whichever was chosen.  Every target
 computes the same numbers bit for bit (no fused multiply-adds on any target); they differ in speed
 only.
@@ -19,6 +20,7 @@ Attributes:
 import importlib as _importlib
 import importlib.util as _importlib_util
 import os as _os
+import warnings as _warnings
 
 from stewart_env.dynamics import _cpu_features
 from stewart_env.errors import UsageError as _UsageError
@@ -69,7 +71,20 @@ def _choose(requested: str | None, built: list[str], runnable: list[str]) -> str
     return requested
 
 
-TARGET = _choose(_os.environ.get(_VARIABLE, "").strip(), _built_targets(), list(_cpu_features.runnable()))
+def _target() -> str:
+    """The target to import: ``STEWART_ENV_CPU``'s if it can be had; otherwise, with a warning naming
+    the variable, the fastest this processor runs (the variable is read on import, before any caller
+    could catch an error, and a job script copied to another machine should still run)."""
+    built, runnable = _built_targets(), list(_cpu_features.runnable())
+    try:
+        return _choose(_os.environ.get(_VARIABLE, "").strip(), built, runnable)
+    except _UsageError as err:
+        fallback = _choose(None, built, runnable)
+        _warnings.warn(f"{err}; using {fallback}", RuntimeWarning, stacklevel=2)
+        return fallback
+
+
+TARGET = _target()
 
 _kernels = _importlib.import_module(f"{__package__}.{_module_name(TARGET)}")
 globals().update({name: value for name, value in vars(_kernels).items() if not name.startswith("__")})
