@@ -1,7 +1,8 @@
 """The compiled kernels' Python face: the packed parameter layout and the kernels themselves.
 
 The one implementation of the Stewart platform's kinematics and dynamics is C++, compiled into
-the extension ``stewart_env.dynamics._core`` when the package is installed; its sources are
+one extension per instruction-set target when the package is installed, the fastest the
+processor runs imported as ``stewart_env.dynamics._core``; its sources are
 ``stewart_env/dynamics/cpp/kernels.hpp`` (kinematics and dynamics), ``rk4.hpp`` (the integrator)
 and ``laws.hpp`` (the compiled control laws); beside them ``task_kernels.hpp`` (the tasks' errors,
 termination and reward) and ``env_step.hpp`` (the environment's control step) compile the
