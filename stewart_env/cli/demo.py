@@ -6,7 +6,7 @@ import argparse
 import sys
 import time
 
-from stewart_env.cli.arguments import nonnegative_int, platform_name, positive_int
+from stewart_env.cli.arguments import directory_name, platform_count, platform_name, seed
 from stewart_env.cli.common import check_out, controllers, error
 
 VERB = "demo"
@@ -20,11 +20,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "classical and once on the improved dynamics model, with the same seeded episodes, and print "
                     "the comparison table.  No training; under a minute.",
     )
-    p.add_argument("--episodes", type=positive_int, default=3, help="episodes per model (default 3)")
-    p.add_argument("--seed", type=nonnegative_int, default=0, help="episode i uses seed + i (default 0)")
+    p.add_argument("--episodes", type=platform_count, default=3, help="episodes per model (default 3)")
+    p.add_argument("--seed", type=seed, default=0, help="episode i uses seed + i (default 0)")
     p.add_argument("--platform", type=platform_name, default="dasgupta1998", help="platform config name or YAML path "
                    "(default dasgupta1998)")
-    p.add_argument("--out", help="also write the report (table, CSV, plots) into this directory")
+    p.add_argument("--out", type=directory_name, help="also write the report (table, CSV, plots) into this directory")
     return p
 
 
