@@ -78,7 +78,9 @@ def run(args: argparse.Namespace) -> int:
               f"{stop.checkpoint} (continue with --resume)", file=sys.stderr)
         return stop.exit_code
     except KeyboardInterrupt:
-        print("stewart-env train: interrupted before training started; nothing saved", file=sys.stderr)
+        again = ("its checkpoints are kept: run the same command to continue it" if args.resume else
+                 "run the same command to start it again")
+        print(f"stewart-env train: interrupted before training started; nothing saved ({again})", file=sys.stderr)
         return 130
     except ValueError as exc:  # TrainingError, a file error, an environment setting: named in the message
         return error(VERB, exc)
