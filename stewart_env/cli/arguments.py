@@ -93,25 +93,33 @@ def platform_count(text: str) -> int:
     return count
 
 
-def distinct_list(item: Callable[[str], Any], example: str):
+def distinct_list(item: Callable[[str], Any], example: str, expected: str | None = None):
     """An argparse type: comma-separated values, each checked by the argparse type ``item``, at
-    least one, none twice (``example``: a valid value the error shows)."""
+    least one, none twice (``example``: a valid value the error shows; ``expected``: if given,
+    the one thing every error says was expected, instead of what is wrong with the list)."""
 
     def parse(text: str) -> list:
+        def refuse(problem: str) -> argparse.ArgumentTypeError:
+            return argparse.ArgumentTypeError(problem if expected is None else
+                                              f"expected {expected}, got {quoted(text)}")
+
         names = [t.strip() for t in text.split(",") if t.strip()]  # blanks dropped: "a,b," is a,b
         if not names:
-            raise argparse.ArgumentTypeError(f"expected a comma-separated list such as {example}, got {quoted(text)}")
-        values = [item(n) for n in names]
+            raise refuse(f"expected a comma-separated list such as {example}, got {quoted(text)}")
+        try:
+            values = [item(n) for n in names]
+        except argparse.ArgumentTypeError as err:
+            raise refuse(str(err)) from None
         twice = sorted({str(v) for v in values if values.count(v) > 1})
         if twice:
-            raise argparse.ArgumentTypeError(f"{', '.join(twice)} given twice in {quoted(text)}")
+            raise refuse(f"{', '.join(twice)} given twice in {quoted(text)}")
         return values
 
     parse.__doc__ = f"argparse type: comma-separated values, e.g. {example}, each once."
     return parse
 
 
-seed_list = distinct_list(seed, "0,1,2")
+seed_list = distinct_list(seed, "0,1,2", f"comma-separated distinct integers in [0, {MAX_SEED}], e.g. 0,1,2")
 
 
 def choice(names: Sequence[str]):

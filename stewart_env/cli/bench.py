@@ -16,7 +16,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(VERB, help="the benchmark of the compiled core (stewart_env.bench)",
                               description=description.split("\n\n")[0].replace("``", ""))
     p.add_argument("--platform", type=platform_name, default="dasgupta1998", help="platform config name or YAML path")
-    p.add_argument("--models", type=distinct_list(model_name, "classical,improved"), default=",".join(MODEL_NAMES), help="comma-separated model names")
+    p.add_argument("--models", type=distinct_list(model_name, "classical,improved"), default=",".join(MODEL_NAMES),
+                   help="comma-separated model names")
     p.add_argument("--env", action="store_true", help="also benchmark the single and vector environments")
     p.add_argument("--plot", type=writable_file, metavar="PATH", help="also draw the scaling table to this PNG file")
     p.add_argument("--mujoco", action="store_true",

@@ -63,7 +63,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--seed", type=seed, default=0, help="episode i uses seed + i (default 0)")
     p.add_argument("--max-steps", type=episode_steps, help="episode length in control steps "
                    "(default the registered 500)")
-    p.add_argument("--out", type=directory_name, help="write the report (results.md, episodes.csv, PNG plots) into this directory")
+    p.add_argument("--out", type=directory_name,
+                   help="write the report (results.md, episodes.csv, PNG plots) into this directory")
     return p
 
 

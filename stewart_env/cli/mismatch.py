@@ -76,7 +76,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--platform", default="dasgupta1998", type=platform_name,
                    help="platform name or config file: the plants' (the truth), and the controllers' but those of "
                         "--controller-platform (default: dasgupta1998)")
-    p.add_argument("--controller-platform", type=controller_platform, action="append", default=[], metavar="[NAME=]PLATFORM",
+    p.add_argument("--controller-platform", type=controller_platform, action="append", default=[],
+                   metavar="[NAME=]PLATFORM",
                    help="a further platform the controllers are built on (e.g. an identified platform.yaml), "
                         "its rows labelled [model @ NAME] (default NAME: the config's name or file stem), run on "
                         "--platform's plants; repeat for several")

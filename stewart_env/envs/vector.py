@@ -73,8 +73,8 @@ def check_batch_memory(name: str, num_envs: int, bytes_per_platform: float = BYT
     available = available_memory()
     need = float(num_envs) * float(bytes_per_platform)
     if available is not None and need > available:
-        raise ValueError(f"{name}: {num_envs} platforms need about {_size(need)} of memory, more than the "
-                         f"{_size(available)} this machine has available")
+        raise ValueError(f"{name}: {num_envs} platforms do not fit in this machine's memory: they need about "
+                         f"{_size(need)}, {_size(available)} is available")
 
 
 def _autoreset_mode(value: Any) -> AutoresetMode:
