@@ -121,12 +121,28 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
+def _problem(args: argparse.Namespace) -> str | None:
+    """What the parsed options ask that cannot run, naming the flag, before the study writes
+    anything; None if nothing."""
+    if args.ray_address is not None and (args.backend != "ray" or not args.ray_address.strip()):
+        return ("argument --ray-address: only with --backend ray" if args.backend != "ray" else
+                "argument --ray-address: expected 'auto' or HOST:PORT, got ''")
+    if args.env_kwargs:
+        from stewart_env.envs import StewartPlatformEnv
+
+        try:  # an unknown keyword or a bad value, named by the environment
+            StewartPlatformEnv(**parse_env_kwargs(args.env_kwargs)).close()
+        except (ValueError, TypeError) as err:
+            return f"argument --env-kwargs: {err}"
+    return None
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the study the parsed ``args`` ask for; print one line of result or error; the exit code."""
     needs = [("rl", "training agents (--algo none runs the model-based rows only)")] if args.algo != "none" else []
     if args.backend == "ray":
         needs.append(("distributed", "--backend ray"))
-    problem = check_extras(needs) or check_out(args)
+    problem = check_extras(needs) or _problem(args) or check_out(args)
     if problem is not None:
         return error(VERB, problem)
     kept = f"; finished agents and cells are kept in {args.out} (run the same command again to continue)"

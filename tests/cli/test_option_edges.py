@@ -104,6 +104,12 @@ def test_a_bad_value_is_argparses_error_naming_the_flag(verb, flag, values, tmp_
     (["reproduce", "--out", "{out}", "--duration", "0.001", "--dt", "0.002"], "--dt"),  # longer than --duration
     (["reproduce", "--out", "{out}", "--duration", "50", "--dt", "1e-5"], "--dt"),  # 5e6 steps
     (["evaluate", "--model", "improved", "improved"], "--model"),
+    (["mismatch", "--out", "{out}", "--algo", "none", "--env-kwargs", "contol_dt=0.02"], "--env-kwargs"),
+    (["mismatch", "--out", "{out}", "--algo", "none", "--env-kwargs", "control_dt=-1"], "--env-kwargs"),
+    (["mismatch", "--out", "{out}", "--algo", "none", "--ray-address", "auto"], "--ray-address"),
+    pytest.param(["mismatch", "--out", "{out}", "--algo", "none", "--backend", "ray", "--ray-address", ""],
+                 "--ray-address", marks=pytest.mark.extra("distributed")),  # without ray, the extra is named first
+    (["time-to-agent", "--algo", "ppo", "--out", "{out}", "--config", "nowhere"], "--config"),
     (["evaluate", "--policy", "pd", "pd"], "--policy"),
     (["evaluate", "--episodes", "100000", "--max-steps", "1000000"], "--episodes"),  # the record of every step
 ])
