@@ -351,6 +351,41 @@ def markdown_table(results: Sequence[EvaluationResult]) -> str:
     return "\n".join(lines)
 
 
+#: The metrics of :func:`compact_table` with their short headings: what a terminal of 80 columns
+#: shows of a result.
+COMPACT_COLUMNS = {"success": "success", "rms_position_error": "pos. mm", "rms_orientation_error": "ori. mrad",
+                   "peak_leg_force": "force N", "control_energy": "energy J"}
+
+
+def compact_table(results: Sequence[EvaluationResult], columns: Mapping[str, str] | None = None) -> str:
+    """A plain-text table of a few mean metrics of each result, aligned, for a terminal: controller,
+    model and the metrics ``columns`` ({metric key: heading}, default :data:`COMPACT_COLUMNS`:
+    success, RMS position and orientation errors, peak leg force, control energy, in 80 columns
+    for the demo's labels).  :func:`markdown_table` has every metric.
+
+    Args:
+        results: the results, one row each.
+        columns: {metric key of :data:`METRICS`: its heading}.
+
+    Returns:
+        The table, one line a row under a heading line.
+
+    Raises:
+        KeyError: a key of ``columns`` that is no metric.
+    """
+    columns = dict(COMPACT_COLUMNS if columns is None else columns)
+    metrics = {m.key: m for m in METRICS}
+    chosen = [metrics[key] for key in columns]
+    rows = [["controller", "model", *columns.values()]]
+    for r in results:
+        s = r.summary()
+        rows.append([r.label, r.model, *(_fmt(s[m.key], m.factor, m.spec) for m in chosen)])
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+    # names flush left, numbers flush right
+    return "\n".join("  ".join(cell.ljust(w) if i < 2 else cell.rjust(w) for i, (cell, w) in
+                                enumerate(zip(row, widths))).rstrip() for row in rows)
+
+
 def slug(text: str) -> str:
     """``text`` as a file or directory name: lower case, each run of other characters than a-z and 0-9
     one underscore, e.g. ``"PPO [improved + DR]"`` -> ``"ppo_improved_dr"``."""

@@ -61,7 +61,8 @@ from stewart_env.registration import ENV_ID
 
 __all__ = ["CHECKPOINT_DIR", "CHECKPOINT_MANIFEST", "DEFAULT_KEEP_CHECKPOINTS", "MANIFEST", "MAX_AGENT_FILE_BYTES",
            "MAX_MANIFEST_BYTES", "MODEL_FILE", "PAUSE_IN_CHECKPOINT_ENV", "REPLAY_BUFFER_FILE", "VECNORMALIZE_FILE",
-           "agent_file_writers", "check_fresh_directory", "checkpoint_hashes", "checkpoint_problem", "log_progress",
+           "START_UP_FILES", "agent_file_writers", "check_fresh_directory", "checkpoint_hashes", "checkpoint_problem",
+           "holds_no_run", "log_progress", "remove_start_up_files",
            "newest_checkpoint", "publish_final", "read_manifest", "remove_unfinished_writes", "run_manifest",
            "save_agent", "save_checkpoint",
            "step_dirs", "unpickle_statistics", "verified_bytes", "versions"]
@@ -288,12 +289,45 @@ def log_progress(directory: Path, num_timesteps: int, wall_time: float) -> None:
         raise write_error(log, err) from None
 
 
+#: What the start of a run writes before its manifest: its environment's monitor file and the
+#: TensorBoard folder.  A folder with nothing else, and no manifest, holds no run: its start was
+#: interrupted (Ctrl-C) or failed before the run was recorded.
+START_UP_FILES = ("monitor.csv", "tensorboard")
+
+
+def holds_no_run(directory: Path) -> bool:
+    """Whether ``directory`` is missing or holds nothing of a run: nothing but its lock file, the
+    temporary files of unfinished writes and the :data:`START_UP_FILES` of an interrupted start.
+
+    Args:
+        directory: the run directory.
+
+    Returns:
+        True if a new run may start in it as in an empty folder.
+    """
+    return not directory.is_dir() or all(name == LOCK_FILE or name.startswith(TMP_PREFIX) or name in START_UP_FILES
+                                         for name in os.listdir(directory))
+
+
+def remove_start_up_files(directory: Path) -> None:
+    """Remove the :data:`START_UP_FILES` of an interrupted start from a folder that
+    :func:`holds_no_run`; only under the run's lock, before a new run starts in it."""
+    if not holds_no_run(directory) or not directory.is_dir():
+        return
+    for name in START_UP_FILES:
+        path = directory / name
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        elif os.path.lexists(path):
+            path.unlink()
+
+
 def check_fresh_directory(directory: Path, algo: str) -> None:
     """Refuse to start a run in a directory that holds anything but a run of ``algo`` that saved
     nothing yet (a start that failed before its first checkpoint)."""
-    # the lock file, and the temporary files of a start killed in its first write, are no run
-    if not directory.is_dir() or not [name for name in os.listdir(directory)
-                                      if name != LOCK_FILE and not name.startswith(TMP_PREFIX)]:
+    # the lock file, the temporary files of a start killed in its first write and the files of a
+    # start interrupted before its manifest are no run
+    if holds_no_run(directory):
         return
     if not (directory / MANIFEST).is_file():
         raise TrainingError(f"{directory} is not empty and holds no run of `stewart-env train` (no {MANIFEST}); "

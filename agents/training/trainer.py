@@ -41,13 +41,16 @@ from stewart_env.agents.training.rundir import (
     MANIFEST,
     MODEL_FILE,
     REPLAY_BUFFER_FILE,
+    START_UP_FILES,
     VECNORMALIZE_FILE,
     check_fresh_directory,
     checkpoint_hashes,
+    holds_no_run,
     log_progress,
     newest_checkpoint,
     publish_final,
     read_manifest,
+    remove_start_up_files,
     remove_unfinished_writes,
     run_manifest,
     save_checkpoint,
@@ -216,6 +219,9 @@ def _train(cls, algo: str, directory: Path, held: contextlib.ExitStack, *, model
     steps_done, segments, checkpoint = 0, [], None
     check_not_busy(directory)  # before any look at the run: a run in progress is reported as such
     if resume:
+        if holds_no_run(directory) and any(os.path.lexists(directory / name) for name in START_UP_FILES):
+            raise TrainingError(f"--resume: {directory} holds no run to continue: its start was interrupted before "
+                                "anything was saved; start it again without --resume")
         read_manifest(directory)  # a directory without a run is refused before its lock is taken
         held.enter_context(lock_folder(directory, create=False))
         previous = read_manifest(directory)
@@ -236,7 +242,8 @@ def _train(cls, algo: str, directory: Path, held: contextlib.ExitStack, *, model
             older = list((directory / CHECKPOINT_DIR).glob("model_*_steps.zip"))
             raise TrainingError(f"--resume: no complete checkpoint in {directory / CHECKPOINT_DIR}" + (
                 "; its model_<steps>_steps.zip files are checkpoints of an older stewart-env, which record no "
-                "hashes: start a new run" if older else ""))
+                "hashes: start a new run" if older else "" if step_dirs(directory) else
+                "; the run stopped before its first checkpoint: start it again without --resume"))
         steps_done, checkpoint = found
         segments = previous.get("segments", [])
         report(f"resuming from {CHECKPOINT_DIR}/{checkpoint.name} ({steps_done} steps)")
@@ -257,6 +264,7 @@ def _train(cls, algo: str, directory: Path, held: contextlib.ExitStack, *, model
         held.enter_context(lock_folder(directory))
         check_fresh_directory(directory, algo)  # again, under the lock: another run may have started meanwhile
         remove_unfinished_writes(directory)
+        remove_start_up_files(directory)  # of a start interrupted before its manifest
     timesteps = hp.n_timesteps if timesteps is None else int(timesteps)
     progress_bar = progress_bar and progress_bar_available()
 

@@ -5,13 +5,27 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from typing import Any
 from pathlib import Path
 
+from stewart_env.agents.mismatch.constants import MAX_STEPS as MAX_EPISODE_STEPS
 from stewart_env.tasks import TASKS as _TASK_CLASSES
+from stewart_env.validation import MAX_SEED
 
 #: The task names the command line offers: those of the task registry.
 TASKS = tuple(_TASK_CLASSES)
+
+
+#: Largest count a command takes (steps, iterations, checkpoints): numpy's int64, where counts end up.
+MAX_COUNT = 2**63 - 1
+
+
+def quoted(text: str, limit: int = 40) -> str:
+    """``repr(text)`` for an error message, cut to ``limit`` characters (a number of a thousand
+    digits is not echoed whole)."""
+    text = repr(text)
+    return text if len(text) <= limit else text[:limit - 4] + "...'"
 
 
 def checked(cast: Callable[[str], float], ok: Callable[[float], bool], expected: str, doc: str):
@@ -24,20 +38,121 @@ def checked(cast: Callable[[str], float], ok: Callable[[float], bool], expected:
         except (ValueError, OverflowError):
             value = None
         if value is None or not ok(value):
-            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {quoted(text)}")
         return value
 
     parse.__doc__ = doc
     return parse
 
 
-positive_int = checked(int, lambda v: v >= 1, "a positive integer", "argparse type: an integer >= 1.")
-nonnegative_int = checked(int, lambda v: v >= 0, "an integer >= 0",
-                           "argparse type: an integer >= 0 (seeds, step counts that may be 0).")
-positive_float = checked(float, lambda v: v > 0 and math.isfinite(v), "a finite positive number",
-                          "argparse type: a finite number > 0.")
-nonnegative_float = checked(float, lambda v: v >= 0 and math.isfinite(v), "a finite number >= 0",
-                             "argparse type: a finite number >= 0 (noise levels, targets that may be 0).")
+def integer(low: int, high: int, expected: str | None = None, doc: str | None = None):
+    """An argparse type: an integer in [low, high] (``expected``: how the error says it)."""
+    expected = expected or f"an integer in [{low}, {high}]"
+    return checked(int, lambda v: low <= v <= high, expected, doc or f"argparse type: {expected}.")
+
+
+def real(low: float, high: float = math.inf, *, low_open: bool = False, expected: str | None = None,
+         doc: str | None = None):
+    """An argparse type: a finite number in [low, high] ((low, high] with ``low_open``)."""
+    if expected is None:
+        left = f"{'(' if low_open else '['}{low:g}"
+        expected = f"a finite number in {left}, {high:g}]" if math.isfinite(high) else \
+            f"a finite number {'>' if low_open else '>='} {low:g}"
+
+    def ok(v: float) -> bool:
+        return math.isfinite(v) and (v > low if low_open else v >= low) and v <= high
+
+    return checked(float, ok, expected, doc or f"argparse type: {expected}.")
+
+
+positive_int = integer(1, MAX_COUNT, f"a positive integer up to {MAX_COUNT}", "argparse type: an integer >= 1.")
+nonnegative_int = integer(0, MAX_COUNT, f"an integer >= 0, up to {MAX_COUNT}",
+                          "argparse type: an integer >= 0 (step counts that may be 0).")
+positive_float = real(0, low_open=True, expected="a finite positive number", doc="argparse type: a finite number > 0.")
+nonnegative_float = real(0, expected="a finite number >= 0",
+                         doc="argparse type: a finite number >= 0 (noise levels, targets that may be 0).")
+finite_float = real(-math.inf, expected="a finite number", doc="argparse type: a finite number.")
+fraction = real(0, 1, expected="a number in [0, 1]", doc="argparse type: a fraction in [0, 1].")
+#: A seed: numpy takes any, but the seeds passed on to outside libraries must fit 32 bits.
+seed = integer(0, MAX_SEED, doc="argparse type: a seed, an integer in [0, 2**32 - 1].")
+#: An evaluation episode's length in control steps: a record of every step is kept.
+episode_steps = integer(1, MAX_EPISODE_STEPS, doc="argparse type of --max-steps: an integer in [1, MAX_STEPS].")
+
+
+def platform_count(text: str) -> int:
+    """argparse type: a number of platforms simulated in one batch (--n-envs, --episodes): an
+    integer in [1, 2**31 - 1] whose batch fits in the memory this machine has available
+    (:func:`stewart_env.envs.vector.check_batch_memory`)."""
+    from stewart_env.envs.vector import MAX_NUM_ENVS, check_batch_memory
+
+    count = integer(1, MAX_NUM_ENVS, f"a positive integer up to {MAX_NUM_ENVS}")(text)
+    try:
+        check_batch_memory("", count)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err).removeprefix(": ")) from None
+    return count
+
+
+def distinct_list(item: Callable[[str], Any], example: str, expected: str | None = None):
+    """An argparse type: comma-separated values, each checked by the argparse type ``item``, at
+    least one, none twice (``example``: a valid value the error shows; ``expected``: if given,
+    the one thing every error says was expected, instead of what is wrong with the list)."""
+
+    def parse(text: str) -> list:
+        def refuse(problem: str) -> argparse.ArgumentTypeError:
+            return argparse.ArgumentTypeError(problem if expected is None else
+                                              f"expected {expected}, got {quoted(text)}")
+
+        names = [t.strip() for t in text.split(",") if t.strip()]  # blanks dropped: "a,b," is a,b
+        if not names:
+            raise refuse(f"expected a comma-separated list such as {example}, got {quoted(text)}")
+        try:
+            values = [item(n) for n in names]
+        except argparse.ArgumentTypeError as err:
+            raise refuse(str(err)) from None
+        twice = sorted({str(v) for v in values if values.count(v) > 1})
+        if twice:
+            raise refuse(f"{', '.join(twice)} given twice in {quoted(text)}")
+        return values
+
+    parse.__doc__ = f"argparse type: comma-separated values, e.g. {example}, each once."
+    return parse
+
+
+seed_list = distinct_list(seed, "0,1,2", f"comma-separated distinct integers in [0, {MAX_SEED}], e.g. 0,1,2")
+
+
+def choice(names: Sequence[str]):
+    """An argparse type: one of ``names`` (for a value inside a list; a flag of its own uses
+    argparse's ``choices``)."""
+
+    def parse(text: str) -> str:
+        if text not in names:
+            raise argparse.ArgumentTypeError(f"unknown {quoted(text)}; choose from {', '.join(names)}")
+        return text
+
+    parse.__doc__ = f"argparse type: one of {', '.join(names)}."
+    return parse
+
+
+def writable_file(text: str) -> str:
+    """argparse type: the path of a file to write: not a directory, in a folder that exists."""
+    path = Path(text)
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a file name, got ''")
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{quoted(text)} is a directory; give the file's name")
+    if not path.parent.is_dir():
+        raise argparse.ArgumentTypeError(f"no such folder: {quoted(str(path.parent))}")
+    return text
+
+
+def directory_name(text: str) -> str:
+    """argparse type of --out: a non-blank path (whether it can be written is checked before any
+    work, :func:`stewart_env.cli.common.check_out`)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a directory, got ''")
+    return text
 
 
 def existing_file(text: str) -> str:
@@ -49,6 +164,13 @@ def existing_file(text: str) -> str:
 
 #: How --platform tells a shipped platform's name from a config file's path (load_platform's rule).
 PLATFORM_RULE = "a name has no / and no .yaml or .yml suffix, whatever the working directory holds"
+
+
+def existing_directory(text: str) -> str:
+    """argparse type: the path of an existing directory."""
+    if not Path(text).is_dir():
+        raise argparse.ArgumentTypeError(f"no such directory: {quoted(text)}")
+    return text
 
 
 def platform_name(text: str) -> str:
@@ -68,8 +190,8 @@ def model_name(text: str) -> str:
 
     try:
         return parse_model_name(text)[0]
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
+    except ValueError as err:  # "model: unknown model ...": the flag names the argument
+        raise argparse.ArgumentTypeError(str(err).removeprefix("model: ")) from None
 
 
 def plant_model_name(text: str) -> str:
@@ -83,6 +205,10 @@ def plant_model_name(text: str) -> str:
         return model_argument(text)
     except ValueError as err:
         raise argparse.ArgumentTypeError(str(err)) from None
+
+
+#: A list of plants: dynamics model names (with +c1..+c4 switches) or mujoco.
+plant_list = distinct_list(plant_model_name, "classical,improved")
 
 
 def env_kwargs_token(text: str) -> str:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from stewart_env.cli.arguments import PLATFORM_RULE
+from stewart_env.cli.arguments import PLATFORM_RULE, distinct_list, model_name, platform_name, writable_file
 from stewart_env.cli.common import check_extras, error
 
 VERB = "bench"
@@ -15,11 +15,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
     p = subparsers.add_parser(VERB, help="the benchmark of the compiled core (stewart_env.bench)",
                               description=description.split("\n\n")[0].replace("``", ""))
-    p.add_argument("--platform", default="dasgupta1998",
-                   help=f"shipped platform name or YAML config path ({PLATFORM_RULE})")
-    p.add_argument("--models", default=",".join(MODEL_NAMES), help="comma-separated model names")
+    p.add_argument("--platform", type=platform_name, default="dasgupta1998", help=f"shipped platform name or YAML config path ({PLATFORM_RULE})")
+    p.add_argument("--models", type=distinct_list(model_name, "classical,improved"), default=",".join(MODEL_NAMES),
+                   help="comma-separated model names")
     p.add_argument("--env", action="store_true", help="also benchmark the single and vector environments")
-    p.add_argument("--plot", metavar="PATH", help="also draw the scaling table to this PNG file")
+    p.add_argument("--plot", type=writable_file, metavar="PATH", help="also draw the scaling table to this PNG file")
     p.add_argument("--mujoco", action="store_true",
                    help="also time MuJoCo on the same mechanism beside the kernels, the env and the vector env "
                         '(needs the extra: pip install -e ".[mujoco]")')
@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
     if problem is not None:
         return error(VERB, f"argument --mujoco: {problem}")
     try:
-        run_bench(args.platform, args.models, env=args.env, mujoco=args.mujoco, plot=args.plot)
+        run_bench(args.platform, ",".join(args.models), env=args.env, mujoco=args.mujoco, plot=args.plot)
     except ImportError as err:  # the MuJoCo library present but failing to load
         return error(VERB, f"argument --mujoco: {err}")
     return 0

@@ -7,8 +7,17 @@ import sys
 import time
 from pathlib import Path
 
-from stewart_env.cli.arguments import (PLATFORM_RULE, TASKS, model_name, nonnegative_int, plant_model_name,
-                                      platform_name, positive_int)
+from stewart_env.cli.arguments import (
+    PLATFORM_RULE,
+    TASKS,
+    directory_name,
+    episode_steps,
+    model_name,
+    plant_model_name,
+    platform_count,
+    platform_name,
+    seed,
+)
 from stewart_env.cli.common import (
     CONTROLLERS,
     check_extras,
@@ -19,6 +28,9 @@ from stewart_env.cli.common import (
 )
 
 VERB = "evaluate"
+#: Memory the evaluation keeps per episode and control step, bytes, rounded up: the position and
+#: orientation errors, rates and six leg forces of every step, then stacked into one array each.
+RECORD_BYTES_PER_STEP = 256
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -47,12 +59,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--task", choices=TASKS,
                    help="default setpoint (for an --agent: the task it was trained on)")
     p.add_argument("--platform", type=platform_name, help="shipped platform name or YAML config path "
-                   f"({PLATFORM_RULE}; default dasgupta1998; for an --agent: the platform it was trained on)")
-    p.add_argument("--episodes", type=positive_int, default=5, help="episodes per configuration (default 5)")
-    p.add_argument("--seed", type=nonnegative_int, default=0, help="episode i uses seed + i (default 0)")
-    p.add_argument("--max-steps", type=positive_int, help="episode length in control steps "
+                   f"({PLATFORM_RULE}; default dasgupta1998; "
+                   "for an --agent: the platform it was trained on)")
+    p.add_argument("--episodes", type=platform_count, default=5, help="episodes per configuration (default 5)")
+    p.add_argument("--seed", type=seed, default=0, help="episode i uses seed + i (default 0)")
+    p.add_argument("--max-steps", type=episode_steps, help="episode length in control steps "
                    "(default the registered 500)")
-    p.add_argument("--out", help="write the report (results.md, episodes.csv, PNG plots) into this directory")
+    p.add_argument("--out", type=directory_name,
+                   help="write the report (results.md, episodes.csv, PNG plots) into this directory")
     return p
 
 
@@ -83,9 +97,30 @@ def _evaluate(args: argparse.Namespace) -> str:
     return markdown_table(results)
 
 
+def _problem(args: argparse.Namespace) -> str | None:
+    """What the parsed options ask that cannot run (a value given twice, a record too large for
+    this machine's memory), naming the flag; None if nothing."""
+    from stewart_env.envs.vector import BYTES_PER_PLATFORM, check_batch_memory
+    from stewart_env.registration import MAX_EPISODE_STEPS
+
+    for flag, values in (("--policy", args.policy), ("--agent", args.agent), ("--model", args.model)):
+        twice = sorted({v for v in values or () if values.count(v) > 1})
+        if twice:
+            return f"argument {flag}: {', '.join(twice)} given twice"
+    missing = [d for d in args.agent or () if not Path(d).is_dir()]
+    if missing:
+        return f"argument --agent: no such directory: {missing[0]!r}"
+    steps = args.max_steps or MAX_EPISODE_STEPS
+    try:  # every episode runs in one batch, each step of each episode kept
+        check_batch_memory("--episodes", args.episodes, BYTES_PER_PLATFORM + RECORD_BYTES_PER_STEP * steps)
+    except ValueError as err:
+        return f"argument {err} (at --max-steps {steps})"
+    return None
+
+
 def run(args: argparse.Namespace) -> int:
     needs = ([("rl", "--agent")] if args.agent else []) + plant_extras(args.model)
-    problem = check_extras(needs) or check_out(args)
+    problem = check_extras(needs) or _problem(args) or check_out(args)
     if problem is not None:
         return error(VERB, problem)
     start = time.perf_counter()

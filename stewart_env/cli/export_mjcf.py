@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from stewart_env.cli.arguments import PLATFORM_RULE, platform_name, positive_float
+from stewart_env.cli.arguments import PLATFORM_RULE, finite_float, platform_name, positive_float
 from stewart_env.cli.common import check_extras, error
 
 VERB = "export-mjcf"
@@ -22,10 +22,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--platform", type=platform_name, required=True, help="shipped platform name or YAML config "
                    f"path ({PLATFORM_RULE})")
     p.add_argument("--out", required=True, help="the XML file to write")
-    p.add_argument("--timestep", type=positive_float, default=1e-3, help="MuJoCo's time step, s (default 1e-3)")
-    p.add_argument("--solref", type=float, nargs=2, metavar=("TIMECONST", "DAMPRATIO"),
+    p.add_argument("--timestep", type=positive_float, default=1e-3,
+                   help="MuJoCo's time step, s (default 1e-3)")
+    p.add_argument("--solref", type=finite_float, nargs=2, metavar=("TIMECONST", "DAMPRATIO"),
                    help="softness of the loop-closure constraints (default: stewart_env.mujoco.DEFAULT_SOLREF)")
-    p.add_argument("--solimp", type=float, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
+    p.add_argument("--solimp", type=finite_float, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
                    help="impedance of the loop-closure constraints (default: stewart_env.mujoco.DEFAULT_SOLIMP)")
     return p
 

@@ -13,14 +13,24 @@ every command's ``--platform`` accepts as a path), ``truth.yaml`` (the plant's p
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 
-from stewart_env.cli.arguments import (PLATFORM_RULE, nonnegative_float, nonnegative_int, platform_name, positive_float,
-                                      positive_int)
+from stewart_env.cli.arguments import (PLATFORM_RULE, checked, directory_name, platform_name, positive_int, quoted, real,
+                                      seed)
 from stewart_env.cli.common import error
 
 VERB = "identify"
+#: Longest record, s.
+MAX_DURATION = 3600.0
+#: Noise standard deviations far beyond any sensor's, short of overflowing the estimate's sums of
+#: squares: a workspace (1 m), a half turn (pi rad), a meganewton.
+noise_position = real(0, 1.0, doc="argparse type of --noise-position, m.")
+noise_angle = real(0, math.pi, doc="argparse type of --noise-angle, rad.")
+noise_force = real(0, 1e6, doc="argparse type of --noise-force, N.")
+perturb = checked(float, lambda v: 0 <= v < 1, "a relative change in [0, 1)",
+                  "argparse type of --perturb: a relative change in [0, 1).")
 
 
 def _plant(text: str) -> str:
@@ -38,6 +48,31 @@ def _model(text: str) -> str:
     if text.strip().lower() == "mujoco":
         raise argparse.ArgumentTypeError("the identified structure is a closed-form model (improved, classical, ...)")
     return _plant(text)
+
+
+def duration(text: str) -> float:
+    """argparse type of --duration: seconds recorded, two settling times and half a second at least."""
+    from stewart_env.identification.experiment import SETTLE
+
+    return real(2 * SETTLE + 0.5, MAX_DURATION)(text)
+
+
+def period(text: str) -> float:
+    """argparse type of --period: the excitation's period, s, its highest harmonic at most at half
+    the sampling rate (beyond it the samples cannot tell the harmonic apart)."""
+    from stewart_env.identification.experiment import SAMPLE_DT, Settings
+
+    return real(2 * Settings.harmonics * SAMPLE_DT, MAX_DURATION)(text)
+
+
+def delay(text: str) -> float:
+    """argparse type of --delay: seconds in [0, MAX_DELAY], a whole number of SAMPLE_DT samples."""
+    from stewart_env.identification.experiment import MAX_DELAY, SAMPLE_DT
+
+    value = real(0, MAX_DELAY)(text)
+    if abs(value - round(value / SAMPLE_DT) * SAMPLE_DT) > 1e-9:
+        raise argparse.ArgumentTypeError(f"expected a whole number of samples of {SAMPLE_DT:g} s, got {quoted(text)}")
+    return value
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -61,18 +96,18 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "dasgupta1998)")
     p.add_argument("--excitation", choices=("optimized", "random"), default="optimized",
                    help="excitation trajectory (default optimized)")
-    p.add_argument("--duration", type=positive_float, default=60.0, help="seconds recorded (default 60)")
-    p.add_argument("--period", type=positive_float, default=10.0, help="period of the Fourier series, s (default 10)")
-    p.add_argument("--noise-position", type=nonnegative_float, default=1e-5,
+    p.add_argument("--duration", type=duration, default=60.0, help="seconds recorded (default 60)")
+    p.add_argument("--period", type=period, default=10.0, help="period of the Fourier series, s (default 10)")
+    p.add_argument("--noise-position", type=noise_position, default=1e-5,
                    help="position noise, standard deviation in m (default 1e-5)")
-    p.add_argument("--noise-angle", type=nonnegative_float, default=1e-5,
+    p.add_argument("--noise-angle", type=noise_angle, default=1e-5,
                    help="orientation noise, standard deviation in rad (default 1e-5)")
-    p.add_argument("--noise-force", type=nonnegative_float, default=1.0,
+    p.add_argument("--noise-force", type=noise_force, default=1.0,
                    help="leg force noise, standard deviation in N (default 1)")
-    p.add_argument("--delay", type=nonnegative_float, default=0.0,
+    p.add_argument("--delay", type=delay, default=0.0,
                    help="seconds the pose measurements lag the leg-force measurements, a whole number of the "
                         "0.005 s samples, at most 0.25 (default 0)")
-    p.add_argument("--perturb", type=nonnegative_float, default=0.2,
+    p.add_argument("--perturb", type=perturb, default=0.2,
                    help="relative random change of the plant's inertial and friction parameters from the nominal "
                         "(the unknown truth; default 0.2)")
     p.add_argument("--derivatives", choices=("filter", "exact"), default="filter",
@@ -82,8 +117,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--predicted-by", metavar="REPORT",
                    help="report.json of an earlier run of the same platform and model: the report compares the "
                         "standard deviations it predicts for this record and force noise with this run's")
-    p.add_argument("--seed", type=nonnegative_int, default=0, help="random seed (default 0)")
-    p.add_argument("--out", required=True, help="output directory (locked while written)")
+    p.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
+    p.add_argument("--out", type=directory_name, required=True, help="output directory (locked while written)")
     return p
 
 

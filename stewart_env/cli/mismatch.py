@@ -13,17 +13,24 @@ from stewart_env.cli.arguments import (
     PLATFORM_RULE,
     TASKS,
     agent_config,
-    checked,
+    choice,
+    directory_name,
+    distinct_list,
+    env_kwargs_token,
+    episode_steps,
+    plant_list,
+    plant_model_name,
+    platform_count,
     platform_name,
     positive_float,
     positive_int,
+    seed_list,
 )
 from stewart_env.cli.common import check_extras, check_out, error
 from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
 from stewart_env.agents.mismatch import (
     BACKENDS,
     FAILURE_THRESHOLD,
-    MAX_STEPS,
     QUICK_TIMESTEPS,
     SIMPLIFICATIONS,
     TRUE_MODEL,
@@ -32,32 +39,25 @@ from stewart_env.agents.mismatch import (
 )
 from stewart_env.agents.training import ALGORITHMS, TrainingError, TrainingInterrupted, parse_env_kwargs
 from stewart_env.files import WriteError
-from stewart_env.validation import MAX_SEED
 
-__all__ = ["add_parser", "episode_steps", "name_list", "run", "seed_list"]
+__all__ = ["add_parser", "controller_platform", "run", "simplification_list"]
 
 VERB = "mismatch"
 
 
-def name_list(text: str) -> list[str]:
-    """argparse type of the model lists: comma-separated names, blanks dropped."""
-    return [t.strip() for t in text.split(",") if t.strip()]
+def simplification_list(text: str) -> list[str]:
+    """argparse type of --simplifications: comma-separated names of c1..c4, each once, or ``none``."""
+    if text.strip().lower() == "none":
+        return []
+    return distinct_list(choice(SIMPLIFICATIONS), "c1,c3")(text)
 
 
-def seed_list(text: str) -> list[int]:
-    """argparse type of --seeds: comma-separated integers in [0, MAX_SEED], each once."""
-    try:
-        seeds = [int(t) for t in name_list(text)]
-    except ValueError:
-        seeds = []
-    if not seeds or min(seeds) < 0 or max(seeds) > MAX_SEED or len(set(seeds)) != len(seeds):
-        raise argparse.ArgumentTypeError(f"expected comma-separated distinct integers in [0, {MAX_SEED}], e.g. 0,1,2, "
-                                         f"got {text!r}")
-    return seeds
-
-
-episode_steps = checked(int, lambda steps: 1 <= steps <= MAX_STEPS, f"an integer in [1, {MAX_STEPS}]",
-                         "argparse type of --max-steps: an integer in [1, MAX_STEPS].")
+def controller_platform(text: str) -> str:
+    """argparse type of --controller-platform: ``[NAME=]PLATFORM`` whose platform loads (the study
+    checks the name against its rows)."""
+    head, sep, tail = text.partition("=")
+    platform_name(tail if sep and head.strip() else text)
+    return text
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -68,27 +68,29 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "controllers on the same models and on the improved model with each of C1..C4 switched on, "
                     "evaluate every controller on every test plant, and write DIR/matrix.md, DIR/matrix.csv "
                     "(95 % intervals), DIR/differences.csv, DIR/forest.png and DIR/heatmap_<metric>.png.")
-    p.add_argument("--train-models", default="classical,improved",
+    p.add_argument("--train-models", type=plant_list, default="classical,improved",
                    help="comma-separated models to train agents on / build PD and CT on "
                         "(default: classical,improved)")
-    p.add_argument("--test-models", default="classical,improved,improved_centroidal",
+    p.add_argument("--test-models", type=plant_list, default="classical,improved,improved_centroidal",
                    help="comma-separated plant models (default: classical,improved,improved_centroidal)")
     p.add_argument("--task", default="setpoint", choices=TASKS, help="task (default: setpoint)")
     p.add_argument("--platform", default="dasgupta1998", type=platform_name,
                    help=f"shipped platform name or YAML config path ({PLATFORM_RULE}): the plants' (the truth), and "
-                        "the controllers' but those of --controller-platform (default: dasgupta1998)")
-    p.add_argument("--controller-platform", action="append", default=[], metavar="[NAME=]PLATFORM",
+                        "the controllers' but those of "
+                        "--controller-platform (default: dasgupta1998)")
+    p.add_argument("--controller-platform", type=controller_platform, action="append", default=[],
+                   metavar="[NAME=]PLATFORM",
                    help="a further platform the controllers are built on (e.g. an identified platform.yaml), "
                         "its rows labelled [model @ NAME] (default NAME: the config's name or file stem), run on "
                         "--platform's plants; repeat for several")
-    p.add_argument("--out", required=True, help="study directory")
+    p.add_argument("--out", type=directory_name, required=True, help="study directory")
     p.add_argument("--algo", default="ppo", choices=(*ALGORITHMS, "none"),
                    help="RL algorithm, or 'none' for the model-based rows only (default: ppo)")
     p.add_argument("--timesteps", type=positive_int, default=QUICK_TIMESTEPS,
                    help=f"environment steps per agent (default: {QUICK_TIMESTEPS}, a quick smoke-scale study)")
-    p.add_argument("--n-envs", type=positive_int, default=None,
+    p.add_argument("--n-envs", type=platform_count, default=None,
                    help="platforms per training batch (default: the config's)")
-    p.add_argument("--episodes", type=positive_int, default=5, help="evaluation episodes per cell (default: 5)")
+    p.add_argument("--episodes", type=platform_count, default=5, help="evaluation episodes per cell (default: 5)")
     p.add_argument("--max-steps", type=episode_steps, default=None,
                    help="evaluation episode length in control steps (default: the registered 500)")
     p.add_argument("--position-tolerance", type=positive_float, default=POSITION_TOLERANCE,
@@ -96,11 +98,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         f"{100 * FAILURE_THRESHOLD:g}%% of its episodes is marked failed")
     p.add_argument("--orientation-tolerance", type=positive_float, default=ORIENTATION_TOLERANCE,
                    help=f"success band, rad (default: {ORIENTATION_TOLERANCE})")
-    p.add_argument("--cost-plant", default=TRUE_MODEL,
+    p.add_argument("--cost-plant", type=plant_model_name, default=TRUE_MODEL,
                    help=f"the test plant the simplifications' costs are measured on (default: {TRUE_MODEL})")
     p.add_argument("--seeds", type=seed_list, default=[0],
                    help="training seeds, comma-separated: one agent per seed and learned row (default: 0)")
-    p.add_argument("--agent-models", default=None,
+    p.add_argument("--agent-models", type=plant_list, default=None,
                    help="comma-separated models to train agents on (default: every model of the study, "
                         "improved+cK included)")
     p.add_argument("--config", type=agent_config, default=None,
@@ -108,9 +110,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         "ppo_6m) (default: configs/agents/<algo>.yml)")
     p.add_argument("--domain-randomization", action="store_true",
                    help="add agents trained on the improved model with domain randomisation")
-    p.add_argument("--simplifications", default=",".join(SIMPLIFICATIONS),
+    p.add_argument("--simplifications", type=simplification_list, default=",".join(SIMPLIFICATIONS),
                    help="which of c1..c4 get an improved+cK row, comma-separated, or 'none' (default: all)")
-    p.add_argument("--env-kwargs", nargs="*", default=None, metavar="KW",
+    p.add_argument("--env-kwargs", nargs="*", type=env_kwargs_token, default=None, metavar="KW",
                    help="further environment kwargs for training and testing: JSON or key=value")
     p.add_argument("--backend", default="local", choices=BACKENDS,
                    help="local: in this process (default); ray: every training run and evaluation a Ray task")
@@ -121,24 +123,39 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
+def _problem(args: argparse.Namespace) -> str | None:
+    """What the parsed options ask that cannot run, naming the flag, before the study writes
+    anything; None if nothing."""
+    if args.ray_address is not None and (args.backend != "ray" or not args.ray_address.strip()):
+        return ("argument --ray-address: only with --backend ray" if args.backend != "ray" else
+                "argument --ray-address: expected 'auto' or HOST:PORT, got ''")
+    if args.env_kwargs:
+        from stewart_env.envs import StewartPlatformEnv
+
+        try:  # an unknown keyword or a bad value, named by the environment
+            StewartPlatformEnv(**parse_env_kwargs(args.env_kwargs)).close()
+        except (ValueError, TypeError) as err:
+            return f"argument --env-kwargs: {err}"
+    return None
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the study the parsed ``args`` ask for; print one line of result or error; the exit code."""
     needs = [("rl", "training agents (--algo none runs the model-based rows only)")] if args.algo != "none" else []
     if args.backend == "ray":
         needs.append(("distributed", "--backend ray"))
-    problem = check_extras(needs) or check_out(args)
+    problem = check_extras(needs) or _problem(args) or check_out(args)
     if problem is not None:
         return error(VERB, problem)
-    simplifications = [] if args.simplifications.strip().lower() == "none" else name_list(args.simplifications)
     kept = f"; finished agents and cells are kept in {args.out} (run the same command again to continue)"
     try:
-        result = run_mismatch(args.out, name_list(args.train_models), name_list(args.test_models), task=args.task,
+        result = run_mismatch(args.out, args.train_models, args.test_models, task=args.task,
                               algo=None if args.algo == "none" else args.algo, timesteps=args.timesteps,
                               episodes=args.episodes, seeds=args.seeds, domain_randomization=args.domain_randomization,
-                              simplifications=simplifications, env_kwargs=parse_env_kwargs(args.env_kwargs),
+                              simplifications=args.simplifications, env_kwargs=parse_env_kwargs(args.env_kwargs),
                               n_envs=args.n_envs, max_steps=args.max_steps, platform=args.platform,
                               backend=args.backend, ray_address=args.ray_address,
-                              agent_models=None if args.agent_models is None else name_list(args.agent_models),
+                              agent_models=args.agent_models,
                               config=args.config, position_tolerance=args.position_tolerance,
                               orientation_tolerance=args.orientation_tolerance, cost_plant=args.cost_plant,
                               controller_platforms=args.controller_platform, progress=not args.no_progress)

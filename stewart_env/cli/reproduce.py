@@ -6,10 +6,17 @@ import argparse
 import sys
 import time
 
-from stewart_env.cli.arguments import PLATFORM_RULE, platform_name, positive_float
+from stewart_env.cli.arguments import PLATFORM_RULE, directory_name, platform_name, real
 from stewart_env.cli.common import check_out, error
 
 VERB = "reproduce"
+#: Longest simulated time, s: the case settles within its first second.
+MAX_DURATION = 60.0
+#: The RK4 step's range, s: below MIN_DT rounding dominates; with the paper's gains RK4 diverges
+#: on the shipped platforms at 0.01 s and holds at MAX_DT.
+MIN_DT, MAX_DT = 1e-6, 5e-3
+#: Most RK4 steps a run takes (--duration / --dt): every sample of three models is kept in memory.
+MAX_CASE_STEPS = 10**6
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -21,11 +28,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "(PNG) and summary.md with the peak differences.  --out is locked while the command runs "
                     "and every file is published whole.",
     )
-    p.add_argument("--out", required=True, help="output directory")
-    p.add_argument("--duration", type=positive_float, default=1.0, help="simulated time, s (default 1.0)")
-    p.add_argument("--dt", type=positive_float, default=2e-4, help="RK4 step, s (default 2e-4)")
-    p.add_argument("--platform", type=platform_name, default="dasgupta1998",
-                   help=f"shipped platform name or YAML config path ({PLATFORM_RULE}; default dasgupta1998)")
+    p.add_argument("--out", type=directory_name, required=True, help="output directory")
+    p.add_argument("--duration", type=real(0, MAX_DURATION, low_open=True), default=1.0,
+                   help=f"simulated time, s, at most {MAX_DURATION:g} (default 1.0)")
+    p.add_argument("--dt", type=real(MIN_DT, MAX_DT), default=2e-4,
+                   help=f"RK4 step, s, in [{MIN_DT:g}, {MAX_DT:g}] and at most --duration (default 2e-4)")
+    p.add_argument("--platform", type=platform_name, default="dasgupta1998", help="shipped platform name or YAML config path "
+                   f"({PLATFORM_RULE}; default dasgupta1998)")
     p.add_argument("--gravity-compensation", action="store_true",
                    help="add the static holding forces to the PD law (the paper's law as we have it has none)")
     return p
@@ -34,6 +43,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     from stewart_env.agents.reproduce import reproduce
 
+    if args.dt > args.duration:
+        return error(VERB, f"argument --dt: the step {args.dt:g} s is longer than --duration {args.duration:g} s")
+    if args.duration / args.dt > MAX_CASE_STEPS:
+        return error(VERB, f"argument --dt: --duration / --dt is {args.duration / args.dt:.3g} steps, more than the "
+                           f"{MAX_CASE_STEPS:g} a run keeps in memory; take a longer --dt or a shorter --duration")
     problem = check_out(args)
     if problem is not None:
         return error(VERB, problem)
@@ -43,6 +57,9 @@ def run(args: argparse.Namespace) -> int:
                            gravity_compensation=args.gravity_compensation)
     except ValueError as err:  # a platform whose leg stroke the case leaves, --out in use, a failed write
         return error(VERB, err)
+    except FloatingPointError:  # the law's stiff gains beyond what this step resolves, on this platform
+        return error(VERB, f"argument --dt: the simulation diverged with a step of {args.dt:g} s; take a shorter "
+                           "--dt")
     force = result["differences"]["leg_force"]
     print(f"wrote the figures and summary.md to {args.out}")
     print(f"leg force: peak-value difference classical vs improved {100 * force['peak_difference']:.2f} %, "

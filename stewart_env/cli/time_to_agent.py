@@ -9,15 +9,25 @@ from __future__ import annotations
 import argparse
 import sys
 
-from stewart_env.cli.arguments import TASKS, checked, nonnegative_float, positive_float, positive_int
+from stewart_env.cli.arguments import (
+    TASKS,
+    directory_name,
+    fraction,
+    nonnegative_float,
+    platform_count,
+    real,
+    seed_list,
+)
 from stewart_env.agents.time_to_agent import SeedResult, resolve_config, summary_table, time_to_agent
 from stewart_env.agents.training import ALGORITHMS, TrainingError
 from stewart_env.files import WriteError
-from stewart_env.cli.mismatch import seed_list
 
 __all__ = ["add_parser", "run"]
 
-fraction = checked(float, lambda v: 0 <= v <= 1, "a number in [0, 1]", "argparse type: a fraction in [0, 1].")
+#: Longest training wall time per seed, s (a year): beyond it the clock's arithmetic, not the
+#: measurement, would decide when to stop.
+MAX_BUDGET = 365 * 24 * 3600.0
+wall_time = real(0, MAX_BUDGET, low_open=True, doc="argparse type: a wall time in (0, MAX_BUDGET] seconds.")
 
 
 VERB = "time-to-agent"
@@ -43,12 +53,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="target success rate on the held-out episodes, in [0, 1] (default: 0.98)")
     p.add_argument("--target-error-mm", type=nonnegative_float, default=0.5,
                    help="target median steady-state position error, mm (default: 0.5)")
-    p.add_argument("--budget", type=positive_float, default=300.0,
+    p.add_argument("--budget", type=wall_time, default=300.0,
                    help="training wall time per seed, s (default: 300)")
-    p.add_argument("--interval", type=positive_float, default=30.0,
+    p.add_argument("--interval", type=wall_time, default=30.0,
                    help="training wall time between two evaluations, s (default: 30)")
-    p.add_argument("--episodes", type=positive_int, default=50, help="held-out episodes per evaluation (default: 50)")
-    p.add_argument("--out", required=True, help="output directory (new or empty)")
+    p.add_argument("--episodes", type=platform_count, default=50, help="held-out episodes per evaluation (default: 50)")
+    p.add_argument("--out", type=directory_name, required=True, help="output directory (new or empty)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (there is none unless stderr is a "
                    "terminal)")
     return p

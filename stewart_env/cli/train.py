@@ -12,9 +12,12 @@ from stewart_env.cli.arguments import (
     TASKS,
     agent_config,
     env_kwargs_token,
+    directory_name,
     nonnegative_int,
     plant_model_name,
+    platform_count,
     positive_int,
+    seed,
 )
 from stewart_env.cli.common import check_extras, check_out, error, plant_extras
 
@@ -37,13 +40,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--timesteps", type=positive_int, default=None,
                    help="environment steps of this call, at least: SB3 rounds up to whole rollouts of n_steps x "
                         "n_envs (default: the config's n_timesteps; with --resume, steps added to those done)")
-    p.add_argument("--seed", type=nonnegative_int, default=None,
+    p.add_argument("--seed", type=seed, default=None,
                    help="random seed (default: 0; with --resume, the run's)")
-    p.add_argument("--out", required=True, help="run directory (new or empty, unless --resume)")
+    p.add_argument("--out", type=directory_name, required=True, help="run directory (new or empty, unless --resume)")
     p.add_argument("--resume", action="store_true",
                    help="continue the run in --out from its newest complete checkpoint; a setting that differs from "
                         "the run's is refused, except --timesteps")
-    p.add_argument("--n-envs", type=positive_int, default=None,
+    p.add_argument("--n-envs", type=platform_count, default=None,
                    help="platforms in the training batch (default: the config's; with --resume, the run's)")
     p.add_argument("--checkpoint-freq", type=nonnegative_int, default=50_000,
                    help="environment steps between checkpoints, 0 for none but the final (default: 50000)")
@@ -75,7 +78,9 @@ def run(args: argparse.Namespace) -> int:
               f"{stop.checkpoint} (continue with --resume)", file=sys.stderr)
         return stop.exit_code
     except KeyboardInterrupt:
-        print("stewart-env train: interrupted before training started; nothing saved", file=sys.stderr)
+        again = ("its checkpoints are kept: run the same command to continue it" if args.resume else
+                 "run the same command to start it again")
+        print(f"stewart-env train: interrupted before training started; nothing saved ({again})", file=sys.stderr)
         return 130
     except ValueError as exc:  # TrainingError, a file error, an environment setting: named in the message
         return error(VERB, exc)

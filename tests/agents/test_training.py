@@ -256,3 +256,35 @@ def test_cli_reports_errors_with_exit_code(tmp_path, capsys):
     assert train_verb.run(args) == 2
     assert "contol_dt" in capsys.readouterr().err
     assert not (tmp_path / "run" / "run.json").exists()
+
+
+def _interrupt_after(original):
+    """``original`` that raises KeyboardInterrupt (a Ctrl-C) once it has done its work."""
+
+    def interrupted(*args, **kwargs):
+        original(*args, **kwargs)
+        raise KeyboardInterrupt
+
+    return interrupted
+
+
+@pytest.mark.parametrize("point", ["make_training_env", "publish"])
+def test_a_start_interrupted_before_the_first_checkpoint_leaves_a_folder_a_rerun_accepts(point, tmp_path, monkeypatch,
+                                                                                        capsys):
+    """Ctrl-C once the environment wrote its monitor file (before the run's manifest), or once the
+    manifest is published (before the first checkpoint): the same command starts the run again,
+    and --resume says to run it without --resume."""
+    from stewart_env.agents.training import trainer
+    from stewart_env.cli import main
+
+    out = tmp_path / "run"
+    argv = ["train", "--algo", "ppo", "--out", str(out), "--timesteps", "10", "--n-envs", "2", "--no-progress"]
+    with monkeypatch.context() as patch:
+        patch.setattr(trainer, point, _interrupt_after(getattr(trainer, point)))
+        assert main(argv) == 130
+    assert "interrupted before training started; nothing saved (run the same command to start it again)" in \
+        capsys.readouterr().err
+    assert main([*argv, "--resume"]) == 2
+    assert "start it again without --resume" in capsys.readouterr().err
+    assert main(argv) == 0
+    assert json.loads((out / "run.json").read_text())["finished"] is True
