@@ -361,6 +361,36 @@ def compare_table(shown_rows, printed_rows, keys, where):
                 f"{where}: {key}, {column}: shown {cell}, the command prints {index[key][column]}"
 
 
+def aligned_tables(text: str) -> list[list[dict[str, str]]]:
+    """The plain-text tables of ``text`` that a terminal shows (a heading line, then rows, columns
+    apart by two or more spaces, a blank line after), each a list of rows {heading: cell}."""
+    tables, rows = [], []
+    for line in text.splitlines() + [""]:
+        cells = re.split(r"\s{2,}", line.strip()) if line.strip() and not line.startswith("|") else []
+        cells = cells if len(cells) >= 2 else []  # a line of prose is no row
+        if cells and (not rows or len(cells) == len(rows[0])):
+            rows.append(cells)
+            continue
+        if len(rows) >= 2:  # a line of another shape ends the table
+            tables.append([dict(zip(rows[0], row)) for row in rows[1:]])
+        rows = [cells] if cells else []
+    return tables
+
+
+def block_and_text_table(run: DocumentRun, command_start: str) -> tuple[Block, list[dict[str, str]]]:
+    """The first block with a command that starts with ``command_start`` and, in the next
+    ``text`` block of its document, the aligned table it shows; and that table."""
+    assert run.failure is None, "an earlier block failed"
+    for index, block in enumerate(run.blocks):
+        if block.tag in SHELL_TAGS and any(c.startswith(command_start) for c, _ in shell_commands(block)):
+            shown = next((b for b in run.blocks[index + 1:] if b.tag == "text" and b.document == block.document),
+                         None)
+            tables = aligned_tables(shown.text) if shown is not None else []
+            if tables:
+                return block, tables[0]
+    raise AssertionError(f"no block runs {command_start!r} with a text block of a table after it")
+
+
 def block_and_table(run: DocumentRun, command_start: str) -> tuple[Block, list[dict[str, str]]]:
     """The first block with a command that starts with ``command_start`` and a table after it,
     before the next block of its document; and that table."""

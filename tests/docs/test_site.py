@@ -30,7 +30,9 @@ import pytest
 
 from doc_blocks import (
     ROOT,
+    aligned_tables,
     block_and_table,
+    block_and_text_table,
     compare_table,
     markdown_tables,
     run_documents,
@@ -289,8 +291,8 @@ def test_snippet_figures(pages_run):
 
 
 def test_demo_table(pages_run):
-    block, table = block_and_table(pages_run, "stewart-env demo")
-    printed = [row for out in block.outputs.values() for t in markdown_tables(out) for row in t]
+    block, table = block_and_text_table(pages_run, "stewart-env demo")
+    printed = [row for out in block.outputs.values() for t in aligned_tables(out) for row in t]
     compare_table(table, printed, ("controller", "model"), f"{block.document}:{block.end + 1}, demo table")
 
 
