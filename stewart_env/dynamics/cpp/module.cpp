@@ -263,6 +263,26 @@ NB_MODULE(STEWART_ENV_CORE_MODULE, m) {  // _core_<instruction-set target> (CMak
         }, "dt"_a, "steps"_a);
 
 
+    m.attr("MAX_THREADS") = lanes::MAX_THREADS;
+    m.def("set_num_threads", [](int total) {
+        if (total < 1 || total > lanes::MAX_THREADS)
+            throw nb::value_error(("n: expected an integer in [1, " + std::to_string(lanes::MAX_THREADS) + "], got " +
+                                   std::to_string(total)).c_str());
+        nb::gil_scoped_release release;  // waits for a batch running on another thread
+        return lanes::Helpers::set_threads(total);
+    }, "total"_a,
+       "Use `total` threads (the caller included) for the batches from now on; returns the threads the pool has "
+       "(fewer where the operating system refused some).");
+    m.def("get_num_threads", [] {
+        nb::gil_scoped_release release;
+        return lanes::Helpers::pool().threads();
+    }, "The threads the batches use (the caller included), the pool started if it was not.");
+    m.def("set_default_threads", [](int total) {
+        if (total < 1 || total > lanes::MAX_THREADS)
+            throw nb::value_error("total: expected an integer in [1, MAX_THREADS]");
+        lanes::Helpers::request(total);
+    }, "total"_a, "The thread count the pool is made with when first needed (STEWART_ENV_THREADS); nothing starts.");
+
     bind_regressor(m);
     def_solve_batch<kernels::forward_batch>(m, "forward_batch", "F", "leg_forces");
     def_solve_batch<kernels::inverse_batch>(m, "inverse_batch", "acc", "acceleration");
