@@ -17,9 +17,10 @@ How many threads:
   with a warning;
 * :func:`set_num_threads`, at any time between calls.
 
-Processes that run side by side (a study's workers, SB3's ``SubprocVecEnv``) each have their own
-threads: with W workers on C cores, ``set_num_threads(max(1, C // W))`` in each keeps them from
-competing for the cores (the package's runners do so).  When the operating system refuses to
+Processes that run side by side each have their own threads: with W worker processes running
+batches on C cores, ``set_num_threads(max(1, C // W))`` in each keeps them from competing for the
+cores (the mismatch study's Ray jobs run on the CPUs Ray gave them; a batch of one platform, such
+as each environment of SB3's ``SubprocVecEnv``, never uses helper threads).  When the operating system refuses to
 start a thread (a capped address space, ``ulimit -v``, or process count, ``ulimit -u``), the
 batches use the threads it did start: :func:`get_num_threads` tells how many.
 """
