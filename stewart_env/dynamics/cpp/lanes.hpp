@@ -313,6 +313,9 @@ private:
     // The loop of helper number `index` (1, 2, ...): a batch's blocks while it runs, exit when the
     // pool shrinks below it.
     void help(int index) {
+#if defined(__linux__)
+        pthread_setname_np(pthread_self(), "stewart-helper");  // as tools (top -H, /proc) show it
+#endif
         std::unique_lock<std::mutex> lock(mutex_);
         uint64_t seen = generation_;
         for (;;) {
