@@ -314,10 +314,12 @@ class Dynamics:
 
     @property
     def packed(self) -> np.ndarray:
-        """(Np, N_PARAMS) the packed parameter rows: a read-only C-contiguous float64 array that the
-        model owns.  Assigning to it stores a copy of the numbers given (any real array of that
-        shape: a strided view, Fortran-ordered or float32), so later changes to the array given do
-        not reach the model.
+        """The packed parameter rows (Np, N_PARAMS), a read-only C-contiguous float64 array that the
+        model owns.
+
+        Assigning to it stores a copy of the numbers given (any real array of that shape, such as
+        a strided view, a Fortran-ordered or a float32 array), so later changes to the array given
+        do not reach the model.
 
         Raises:
             ValueError: on assignment, not real numbers of shape (Np, N_PARAMS), NaN or inf, or a

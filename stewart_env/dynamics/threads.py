@@ -11,9 +11,9 @@ How many threads:
 * by default one per processor core this process may run on (its CPU affinity: ``taskset`` or a
   container's CPU set count, not the machine's), the calling thread included;
 * the environment variable ``STEWART_ENV_THREADS``, read when the package is imported: a whole
-  number from 1 to :data:`MAX_THREADS`.  1 keeps the calling thread alone.  Empty is the same as
+  number from 1 to ``MAX_THREADS`` (256).  1 keeps the calling thread alone.  Empty is the same as
   unset; any other value (``0``, ``-2``, ``four``, ``1.5``) is ignored with a RuntimeWarning that
-  names the variable, and the default used; a number above :data:`MAX_THREADS` is capped at it,
+  names the variable, and the default used; a number above ``MAX_THREADS`` (256) is capped at it,
   with a warning;
 * :func:`set_num_threads`, at any time between calls.
 
@@ -49,19 +49,14 @@ def set_num_threads(n: int) -> int:
     numbers of every call are the same whatever ``n``.
 
     Args:
-        n: the thread count, 1 (the calling thread alone) to :data:`MAX_THREADS`.
+        n: the thread count, 1 (the calling thread alone) to ``MAX_THREADS`` (256).
 
     Returns:
-        The threads the batches now use: ``n``, or fewer when the operating system refused to
+        The threads the batches now use, ``n`` or fewer when the operating system refused to
         start some (a capped address space or process count).
 
     Raises:
-        ValueError: ``n`` not an integer in [1, :data:`MAX_THREADS`] (the message names ``n``).
-
-    Examples:
-        >>> import stewart_env as se
-        >>> se.set_num_threads(1)   # e.g. in each of several worker processes
-        1
+        ValueError: ``n`` not an integer from 1 to ``MAX_THREADS`` (256); the message names ``n``.
     """
     return _core.set_num_threads(validation.integer("n", n, 1, MAX_THREADS))
 
@@ -73,7 +68,7 @@ def get_num_threads() -> int:
     gave: see the module docstring for the default and ``STEWART_ENV_THREADS``.
 
     Returns:
-        The thread count, 1 to :data:`MAX_THREADS`.
+        The thread count, 1 to ``MAX_THREADS`` (256).
     """
     return _core.get_num_threads()
 
