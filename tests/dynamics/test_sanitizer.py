@@ -25,6 +25,8 @@ ROOT = Path(__file__).resolve().parents[2]
 SOURCES = ROOT / "stewart_env" / "dynamics" / "cpp"
 #: The test files run under the sanitizer: the bindings' own and the environment's compiled step.
 UNDER_SANITIZER = ["tests/dynamics", "tests/envs/test_compiled_step.py"]
+#: Left out: this file, and the choice of the instruction-set target (the run imports the baseline's).
+LEFT_OUT = ["tests/dynamics/test_sanitizer.py", "tests/dynamics/test_cpu_targets.py"]
 #: Seconds a build or the run of the tests may take before it counts as hung.
 TIMEOUT = 900
 
@@ -58,28 +60,30 @@ def sanitized(tmp_path_factory):
     for step in (configure, [cmake, "--build", str(build), "-j", str(os.cpu_count() or 1)]):
         done = subprocess.run(step, capture_output=True, text=True, timeout=TIMEOUT)
         assert done.returncode == 0, f"{' '.join(step)} failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
-    (module,) = build.glob("_core*.so")
+    (module,) = build.glob("_core_baseline*.so")  # STEWART_ENV_PORTABLE=ON: the baseline target alone
     return module, [p for p in (libasan, libstdcxx) if p]
 
 
 PLUGIN = '''
-"""Loads the AddressSanitizer build of the extension as stewart_env.dynamics._core, before the
-package is imported (a pytest plugin given with -p is imported before any conftest)."""
+"""Loads the AddressSanitizer build of the kernels as stewart_env.dynamics._core_baseline, before
+the package is imported (a pytest plugin given with -p is imported before any conftest);
+STEWART_ENV_CPU=baseline then has stewart_env.dynamics._core take it."""
 import importlib.util
 import sys
 
 PATH = {path!r}
-spec = importlib.util.spec_from_file_location("stewart_env.dynamics._core", PATH)
+NAME = "stewart_env.dynamics._core_baseline"
+spec = importlib.util.spec_from_file_location(NAME, PATH)
 module = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(module)
-sys.modules["stewart_env.dynamics._core"] = module
+sys.modules[NAME] = module
 
 
 def pytest_configure(config):
-    from stewart_env.dynamics import model
+    from stewart_env.dynamics import _core
 
-    if model._core.__file__ != PATH:
-        raise RuntimeError("the sanitized extension is not the one stewart_env imported")
+    if _core._kernels.__file__ != PATH:
+        raise RuntimeError("the sanitized kernels are not the ones stewart_env imported")
 '''
 
 
@@ -93,11 +97,12 @@ def test_the_bindings_read_and_write_only_live_memory_under_address_sanitizer(sa
         # leaks: Python's own allocations at exit are none of the extension's; allocator_may_return_null:
         # the tests that ask for a workspace too large to allocate expect a MemoryError, not an abort
         "ASAN_OPTIONS": f"detect_leaks=0:allocator_may_return_null=1:log_path={tmp_path / 'asan'}",
+        "STEWART_ENV_CPU": "baseline",
         "MPLBACKEND": "Agg",
         "OPENBLAS_NUM_THREADS": "1",
     }
     command = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "asan_core", "-m", "not slow",
-               "--ignore", str(Path(__file__).relative_to(ROOT)), *UNDER_SANITIZER]
+               *(f"--ignore={path}" for path in LEFT_OUT), *UNDER_SANITIZER]
     done = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True, timeout=TIMEOUT)
     reports = "\n".join(path.read_text() for path in sorted(tmp_path.glob("asan.*")))
     assert "ERROR: AddressSanitizer" not in reports, reports[:6000]
