@@ -10,9 +10,11 @@ Public API::
     state = se.rollout(model, position, rotation, velocity, angular_velocity, leg_forces, dt=1e-3, steps=1000)
     state = se.rollout(model, ..., control_law=law, control_params=row)   # law: a compiled se.ControlLaw
     ws = model.workspace()          # preallocated arrays: ws.position[0] = ...; ws.forward()
+    se.set_num_threads(1)           # threads of the compiled batches (default: one per core, or
+                                    # STEWART_ENV_THREADS when the package is imported); se.get_num_threads()
 """
 
-from stewart_env.dynamics import MODEL_NAMES, Dynamics, Workspace, make_dynamics
+from stewart_env.dynamics import MODEL_NAMES, Dynamics, Workspace, get_num_threads, make_dynamics, set_num_threads
 from stewart_env.dynamics.rk4 import ControlLaw
 from stewart_env.integrate import rollout
 from stewart_env.kinematics import (
@@ -43,6 +45,7 @@ __all__ = [
     "Workspace",
     "available_platforms",
     "forward_kinematics",
+    "get_num_threads",
     "inverse_kinematics",
     "jacobian",
     "leg_kinematics",
@@ -51,4 +54,5 @@ __all__ = [
     "matrix_to_rpy",
     "rollout",
     "rpy_to_matrix",
+    "set_num_threads",
 ]

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["MAX_SEED", "ArgumentError", "check_action", "check_keywords", "choice", "flag", "integer",
-           "interval", "real", "real_array", "reset_options", "seed", "vector"]
+           "interval", "plain", "real", "real_array", "reset_options", "seed", "vector"]
 
 
 #: Largest seed: numpy's SeedSequence takes any non-negative int, but the seeds a run records
@@ -294,11 +294,22 @@ def reset_options(options: Any, valid: Iterable[str] = ()) -> dict[str, Any]:
     return dict(options)
 
 
-def _plain(name: str, value: Any) -> Any:
+def plain(name: str, value: Any) -> Any:
     """``value`` with what numpy would misread made plain: a tensor (torch's or any with
     ``detach``) detached from its autograd graph and moved to the CPU (the simulation is not
     differentiable: no gradient flows through a step), a masked array without masked entries its
-    data.  A masked array with masked entries is refused: the values under a mask are not data."""
+    data.  A masked array with masked entries is refused: the values under a mask are not data.
+
+    Args:
+        name: the argument's name, which the error message gives.
+        value: the value to read.
+
+    Returns:
+        ``value`` made plain (anything else unchanged).
+
+    Raises:
+        ValueError: a masked array with masked entries.
+    """
     if isinstance(value, np.ma.MaskedArray):
         masked = int(np.count_nonzero(np.ma.getmaskarray(value)))
         if masked:
@@ -314,7 +325,7 @@ def _plain(name: str, value: Any) -> Any:
 def real_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
     """``value`` as a float64 array of ``shape``: real numbers (integers or floats of any width), finite.
 
-    A torch tensor is read detached (see :func:`_plain`).
+    A torch tensor is read detached (see :func:`plain`).
 
     Args:
         name: the argument's name, which the error message gives.
@@ -332,7 +343,7 @@ def real_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
     if type(value) is np.ndarray:
         a = value  # a plain array: nothing to unwrap or convert
     else:
-        value = _plain(name, value)
+        value = plain(name, value)
         try:
             a = np.asarray(value)
         except (TypeError, ValueError, OverflowError, RuntimeError):  # RuntimeError: tensors numpy cannot read

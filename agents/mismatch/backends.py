@@ -15,6 +15,7 @@ from stewart_env.agents.mismatch.constants import (
     RAY_INSTALL_HINT,
     MismatchError,
 )
+from stewart_env.agents.mismatch.jobs import on_threads
 from stewart_env.agents.training import TrainingError
 from stewart_env.errors import UsageError
 
@@ -47,7 +48,9 @@ class LocalBackend:
 class RayBackend:
     """Runs every job as a Ray task requesting :data:`~.constants.CPUS_PER_JOB` CPUs, on the
     cluster at ``address`` ("auto", "HOST:PORT") or, without one, on a local Ray instance started
-    here (or the one this process already joined)."""
+    here (or the one this process already joined).  A task sets its worker's physics threads to
+    those CPUs (:func:`~.jobs.on_threads`): the workers side by side on a node share its cores
+    instead of each taking all of them."""
 
     name = "ray"
 
@@ -80,8 +83,8 @@ class RayBackend:
         """(index, fn(*args)) of each job as it finishes; the unfinished ones are cancelled when the
         caller stops (Ctrl-C, an error)."""
         ray = self.ray
-        remote = ray.remote(num_cpus=CPUS_PER_JOB, max_retries=0)(fn)
-        pending = {remote.remote(*args): i for i, args in enumerate(jobs)}
+        remote = ray.remote(num_cpus=CPUS_PER_JOB, max_retries=0)(on_threads)
+        pending = {remote.remote(CPUS_PER_JOB, fn, *args): i for i, args in enumerate(jobs)}
         try:
             while pending:
                 done, _ = ray.wait(list(pending), num_returns=1)

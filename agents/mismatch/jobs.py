@@ -1,6 +1,7 @@
 """The study's two jobs, training one agent and running one evaluation: top-level functions,
 since Ray workers import them by name, that take and return plain values (an agent travels as
-its files' bytes: a worker's file system need not be the driver's)."""
+its files' bytes: a worker's file system need not be the driver's); and :func:`on_threads`, which
+runs a job on as many physics threads as its worker was given CPUs."""
 
 from __future__ import annotations
 
@@ -8,13 +9,32 @@ import os
 import tempfile
 import time
 from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
+import stewart_env as se
 from stewart_env.agents.mismatch.constants import AGENT_FILES
 from stewart_env.agents.training import MAX_AGENT_FILE_BYTES, load_agent, train
 from stewart_env.files import read_regular
 
-__all__ = ["agent_files", "evaluate_job", "make_policy", "train_job"]
+__all__ = ["agent_files", "evaluate_job", "make_policy", "on_threads", "train_job"]
+
+
+def on_threads(threads: int, job: Callable, *args):
+    """``job(*args)`` with the batches of the physics on ``threads`` threads
+    (:func:`stewart_env.set_num_threads`), set at the start of the job: a worker given ``threads``
+    CPUs among others on one machine then uses no more than them.
+
+    Args:
+        threads: the worker's CPUs.
+        job: the job, e.g. :func:`train_job`.
+        *args: its arguments.
+
+    Returns:
+        What ``job`` returns.
+    """
+    se.set_num_threads(threads)
+    return job(*args)
 
 
 def train_job(training: dict[str, Any], timesteps: int) -> dict[str, bytes]:

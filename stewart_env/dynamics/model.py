@@ -20,6 +20,7 @@ section 5, the switches c1-c4 and where each enters the equations in its section
 from __future__ import annotations
 
 import math
+import operator
 from collections.abc import Sequence
 
 import numpy as np
@@ -81,6 +82,12 @@ def _packed_value(params: PlatformParams, key: str):
     return getattr(value, field)
 
 
+def _check_platform(name: str, params) -> None:
+    """Raise ValueError naming ``name`` unless ``params`` is a PlatformParams."""
+    if not isinstance(params, PlatformParams):
+        raise ValueError(f"{name}: expected a PlatformParams (stewart_env.load_platform), got {type(params).__name__}")
+
+
 def pack_params(params: PlatformParams) -> np.ndarray:
     """Kernel parameter row of a platform, in the order of ``kernels.PACKED_LAYOUT``.
 
@@ -91,7 +98,11 @@ def pack_params(params: PlatformParams) -> np.ndarray:
 
     Returns:
         The row (N_PARAMS,), float64.
+
+    Raises:
+        ValueError: ``params`` not a PlatformParams.
     """
+    _check_platform("params", params)
     row = np.empty(K.N_PARAMS)
     for key, _ in K.PACKED_LAYOUT:
         row[K.PACKED_SLICES[key]] = np.ravel(_packed_value(params, key))
@@ -108,6 +119,7 @@ def check_home_condition(params: PlatformParams, packed: np.ndarray | None = Non
     Jacobian (the one implementation), so the model checks it when a platform becomes a model.
     ``packed`` is the platform's :func:`pack_params` row when already at hand.
     """
+    _check_platform("params", params)
     row = pack_params(params) if packed is None else packed
     jacobian = np.empty((1, 6, 6))
     K.jacobian_batch(row[None], params.home_position[None], rpy_to_matrix(params.home_rpy)[None], jacobian)
@@ -135,8 +147,9 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
     Each keyword is ``name=(value, tail_shape)``.  A value of shape ``tail_shape`` is one platform;
     ``(N,) + tail_shape`` is a batch.  Every (3,3) argument is a rotation and must be orthonormal
     with determinant +1 within :data:`ROTATION_TOLERANCE`.  Returns (N, batched, contiguous
-    float64 arrays of shape (N,) + tail_shape).  Raises ValueError naming the argument on a
-    wrong shape, mismatched batch sizes, a non-finite value or a matrix that is not a rotation.
+    float64 arrays of shape (N,) + tail_shape).  Raises ValueError naming the argument on None, a
+    masked array with masked entries (:func:`stewart_env.validation.plain`), a wrong shape,
+    mismatched batch sizes, a non-finite value or a matrix that is not a rotation.
 
     An argument that already is a C-contiguous float64 array of the right size is returned as a
     view, not copied: the kernels only read their inputs.
@@ -147,6 +160,10 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
     for name, (value, tail) in arrays.items():
         if tail == (3, 3):
             rotations.append(name)
+        if type(value) is not np.ndarray:
+            if value is None:
+                raise ValueError(f"{name}: expected an array of numbers of shape {tail}, got None")
+            value = validation.plain(name, value)
         try:
             # an array converts only from a kind that holds real numbers: complex parts or text never pass
             a = (value.astype(np.float64, casting="same_kind", copy=False) if type(value) is np.ndarray
@@ -207,6 +224,15 @@ def check_step(dt, steps) -> tuple[float, int]:
             validation.integer("steps", steps, 0, MAX_STEPS))
 
 
+def _row_numbers(rows) -> list[int]:
+    """The batch rows a ``with_*`` call replaces, as ints; ValueError naming ``rows`` unless they
+    are integers (a sequence, range or integer array)."""
+    try:
+        return [operator.index(r) for r in rows]
+    except TypeError:
+        raise ValueError(f"rows: expected a sequence of integer batch rows, got {type(rows).__name__}") from None
+
+
 class ParamsRows(Sequence):
     """The :class:`PlatformParams` of a model's parameter rows, built when first asked for.
 
@@ -255,7 +281,8 @@ class Dynamics:
     Attributes:
         name: the canonical name, e.g. ``"improved+c1"``.
         flags: the kernel switch bits.
-        packed: (Np, N_PARAMS), read-only: the packed parameter rows.
+        packed: (Np, N_PARAMS), read-only C-contiguous float64: the packed parameter rows (assigning
+            to it stores a copy of the numbers given).
         params: the :class:`PlatformParams` of each row of ``packed`` (a sequence; rows set from
             packed numbers are built when first read, see :meth:`with_packed_rows`).
 
@@ -267,22 +294,55 @@ class Dynamics:
 
     def __init__(self, name: str, params: PlatformParams | Sequence[PlatformParams]):
         self.name, self.flags = parse_model_name(name)
-        plist = (params,) if isinstance(params, PlatformParams) else tuple(params)
+        if isinstance(params, PlatformParams):
+            plist = (params,)
+        elif isinstance(params, Sequence) and not isinstance(params, str):
+            plist = tuple(params)
+        else:
+            plist = ()
         if not plist or not all(isinstance(p, PlatformParams) for p in plist):
-            raise ValueError("params: expected a PlatformParams or a non-empty sequence of them")
+            raise ValueError("params: expected a PlatformParams or a non-empty sequence of them, got "
+                             f"{type(params).__name__}")
         self.params = ParamsRows(plist)
         rows: dict[int, np.ndarray] = {}
         for p in plist:  # a platform repeated over a batch is packed and checked once
             if id(p) not in rows:
                 rows[id(p)] = pack_params(p)
                 check_home_condition(p, rows[id(p)])
-        self.packed = np.stack([rows[id(p)] for p in plist])
-        self.packed.setflags(write=False)
+        self._packed = np.stack([rows[id(p)] for p in plist])
+        self._packed.setflags(write=False)
+
+    @property
+    def packed(self) -> np.ndarray:
+        """The packed parameter rows (Np, N_PARAMS), a read-only C-contiguous float64 array that the
+        model owns.
+
+        Assigning to it stores a copy of the numbers given (any real array of that shape, such as
+        a strided view, a Fortran-ordered or a float32 array), so later changes to the array given
+        do not reach the model.
+
+        Raises:
+            ValueError: on assignment, not real numbers of shape (Np, N_PARAMS), NaN or inf, or a
+                masked array with masked entries (the message names ``packed``).
+        """
+        return self._packed
+
+    @packed.setter
+    def packed(self, value) -> None:
+        shape = (len(self.params), K.N_PARAMS)
+        if value is None:
+            raise ValueError(f"packed: expected an array of real numbers of shape {shape}, got None")
+        rows = validation.real_array("packed", value, shape)
+        owned = np.array(rows, dtype=np.float64, order="C", copy=True)
+        owned.setflags(write=False)
+        self._packed = owned
 
     def __setstate__(self, state: dict) -> None:
-        # an unpickled model (e.g. sent to a worker process) is as read-only as the original
+        if "packed" in state:  # pickled before packed became a property
+            state["_packed"] = state.pop("packed")
         self.__dict__.update(state)
-        self.packed.setflags(write=False)
+        # an unpickled model (e.g. sent to a worker process) is as read-only as the original
+        self._packed.setflags(write=False)
 
     def __repr__(self) -> str:
         more = ", ..." if len(self.params) > 1 else ""
@@ -296,8 +356,11 @@ class Dynamics:
 
         Returns:
             The row's :class:`PlatformParams`.
+
+        Raises:
+            ValueError: ``row`` not an integer in [0, Np - 1].
         """
-        return self.params[row]
+        return self.params[validation.integer("row", row, 0, len(self.params) - 1)]
 
     def with_params(self, params: PlatformParams | Sequence[PlatformParams]) -> "Dynamics":
         """The same model on other parameters (e.g. one randomised set per batch row).
@@ -326,6 +389,9 @@ class Dynamics:
             ValueError: not one PlatformParams per row.
             ConfigError: a platform whose home pose is conditioned beyond its limits.
         """
+        rows = _row_numbers(rows)
+        if not isinstance(params, Sequence):
+            raise ValueError(f"params: expected a sequence of PlatformParams, one per row, got {type(params).__name__}")
         if len(rows) != len(params):
             raise ValueError(f"params: expected one per row ({len(rows)}), got {len(params)}")
         for p in params:
@@ -357,16 +423,20 @@ class Dynamics:
         Raises:
             ValueError: wrong rows, shapes, counts or non-finite numbers (the message names the argument).
         """
-        rows = [int(r) for r in rows]
-        packed_rows = np.ascontiguousarray(packed_rows, dtype=np.float64)
+        rows = _row_numbers(rows)
+        if packed_rows is None:
+            raise ValueError(f"packed_rows: expected an array of shape ({len(rows)}, {K.N_PARAMS}), got None")
+        packed_rows = np.ascontiguousarray(validation.plain("packed_rows", packed_rows), dtype=np.float64)
         if packed_rows.shape != (len(rows), K.N_PARAMS):
             raise ValueError(f"packed_rows: expected shape ({len(rows)}, {K.N_PARAMS}), got {packed_rows.shape}")
+        if not isinstance(sources, Sequence):
+            raise ValueError(f"sources: expected a sequence, one per row, got {type(sources).__name__}")
         if len(sources) != len(rows):
             raise ValueError(f"sources: expected one per row ({len(rows)}), got {len(sources)}")
         if K.first_nonfinite((packed_rows,)) >= 0:
             raise ValueError("packed_rows: contains NaN or inf")
         items = list(self.params._items)
-        packed = self.packed.copy()
+        packed = self._packed.copy()
         for j, r in enumerate(rows):
             if not 0 <= r < len(items):
                 raise ValueError(f"rows: {r} is outside the batch of {len(items)} parameter rows")
@@ -378,7 +448,7 @@ class Dynamics:
         new = object.__new__(Dynamics)
         new.name, new.flags, new.params = self.name, self.flags, ParamsRows(items)
         packed.setflags(write=False)
-        new.packed = packed
+        new._packed = packed
         return new
 
     def workspace(self, n: int = 1):
@@ -430,14 +500,14 @@ class Dynamics:
         """
         out = np.empty(6)
         # one platform's float64 arrays, valid: checked and solved in one compiled call
-        if _core.forward_one_checked(self.packed, self.flags, position, rotation, velocity, angular_velocity, leg_forces,
+        if _core.forward_one_checked(self._packed, self.flags, position, rotation, velocity, angular_velocity, leg_forces,
                                      _NO_WRENCH if external_wrench is None else external_wrench, ROTATION_TOLERANCE,
                                      out):
             return out[:3], out[3:]
         n, batched, a = self._args(position, rotation, velocity, angular_velocity,
                                    leg_forces=(leg_forces, (6,)), external_wrench=external_wrench)
         out = np.empty((n, 6))
-        K.forward_batch(self.packed, self.flags, a["position"], a["rotation"], a["velocity"],
+        K.forward_batch(self._packed, self.flags, a["position"], a["rotation"], a["velocity"],
                         a["angular_velocity"], a["leg_forces"], a["external_wrench"], out)
         return (out[:, :3], out[:, 3:]) if batched else (out[0, :3], out[0, 3:])
 
@@ -471,7 +541,7 @@ class Dynamics:
             [193.9 145.4 153.1 172.3 159.6 188.9]
         """
         out = np.empty(6)
-        if _core.inverse_one_checked(self.packed, self.flags, position, rotation, velocity, angular_velocity, lin_acc,
+        if _core.inverse_one_checked(self._packed, self.flags, position, rotation, velocity, angular_velocity, lin_acc,
                                      ang_acc, _NO_WRENCH if external_wrench is None else external_wrench,
                                      ROTATION_TOLERANCE, out):
             return out
@@ -482,7 +552,7 @@ class Dynamics:
         acc[:, :3] = a["lin_acc"]
         acc[:, 3:] = a["ang_acc"]
         out = np.empty((n, 6))
-        K.inverse_batch(self.packed, self.flags, a["position"], a["rotation"], a["velocity"],
+        K.inverse_batch(self._packed, self.flags, a["position"], a["rotation"], a["velocity"],
                         a["angular_velocity"], acc, a["external_wrench"], out)
         return out if batched else out[0]
 
@@ -508,7 +578,7 @@ class Dynamics:
         n, batched, a = self._args(position, rotation, velocity, angular_velocity, external_wrench=external_wrench)
         M = np.empty((n, 6, 6))
         h = np.empty((n, 6))
-        K.mass_bias_batch(self.packed, self.flags, a["position"], a["rotation"], a["velocity"],
+        K.mass_bias_batch(self._packed, self.flags, a["position"], a["rotation"], a["velocity"],
                           a["angular_velocity"], a["external_wrench"], M, h)
         return (M, h) if batched else (M[0], h[0])
 
@@ -542,7 +612,7 @@ class Dynamics:
         if external_wrench is None:
             external_wrench = _NO_WRENCH
         return batch_args(
-            self.packed.shape[0],
+            self._packed.shape[0],
             position=(position, (3,)), rotation=(rotation, (3, 3)), velocity=(velocity, (3,)),
             angular_velocity=(angular_velocity, (3,)), external_wrench=(external_wrench, (6,)),
             **extra,

@@ -103,9 +103,9 @@ class Workspace:
             size = n * sum(int(np.prod(tail)) for tail, _ in _ARRAYS.values()) * 8
             raise ValueError(f"n: a workspace of {n} platforms needs {size / 2**30:.3g} GiB, more than "
                              "can be allocated") from None
-        arrays = tuple(getattr(self, f"_{name}") for name in _ARRAYS)
-        # the kernels get the arrays' addresses once, here; the arrays are never replaced
-        self._bound = _core.BoundWorkspace((model.packed, *arrays), model.packed, model.flags, self._position,
+        # the kernels get the arrays' addresses once, here (the bound object holds the arrays); the
+        # arrays are never replaced
+        self._bound = _core.BoundWorkspace(self._packed, self._flags, self._position,
                                            self._rotation, self._velocity, self._angular_velocity, self._leg_forces,
                                            self._external_wrench, self._acceleration, self._mass_matrix, self._bias)
         home = model.params_of(0)

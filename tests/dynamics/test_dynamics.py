@@ -459,3 +459,67 @@ def test_a_pickled_model_keeps_its_rows_and_stays_read_only(dasgupta):
     copy = pickle.loads(pickle.dumps(model))
     assert copy.name == model.name and copy.flags == model.flags and copy.params == model.params
     assert np.array_equal(copy.packed, model.packed) and not copy.packed.flags.writeable
+
+
+def _one_masked(a, index=0):
+    """``a`` as a masked array whose entry ``index`` (flat) is masked."""
+    a = np.asarray(a, dtype=np.float64)
+    return np.ma.masked_array(a, mask=np.arange(a.size).reshape(a.shape) == index)
+
+
+@pytest.mark.parametrize("entry", list(_entry_points(None, None)))
+def test_every_entry_point_refuses_none_and_masked_arrays_naming_the_argument(dasgupta, entry):
+    call = _entry_points(se.make_dynamics("improved", dasgupta), dasgupta)[entry]
+    t, R, v = dasgupta.home_position, se.rpy_to_matrix([0.02, -0.03, 0.05]), np.zeros(3)
+    with pytest.raises(ValueError, match=r"^position: expected an array of numbers of shape \(3,\), got None$"):
+        call(None, R, v)
+    with pytest.raises(ValueError, match=r"^rotation: expected an array of numbers of shape \(3, 3\), got None$"):
+        call(t, None, v)
+    with pytest.raises(ValueError, match=r"^position: a masked array with 1 masked value\(s\)"):
+        call(_one_masked(t), R, v)
+    with pytest.raises(ValueError, match=r"^rotation: a masked array with 1 masked value\(s\)"):
+        call(t, _one_masked(R, 4), v)
+    call(np.ma.masked_array(t), np.ma.masked_array(R), v)  # nothing masked: the numbers are data
+
+
+def test_forward_and_inverse_refuse_none_and_masked_arrays_naming_the_argument(dasgupta):
+    model = se.make_dynamics("improved", dasgupta)
+    t, R, z, F = dasgupta.home_position, np.eye(3), np.zeros(3), np.full(6, 180.0)
+    for name, call in {
+        "leg_forces": lambda x: model.forward(t, R, z, z, x if x is None else _one_masked(F, 2)),
+        "velocity": lambda x: model.forward(t, R, x if x is None else _one_masked(z), z, F),
+        "external_wrench": lambda x: model.forward(t, R, z, z, F, x if x is None else _one_masked(np.zeros(6))),
+        "lin_acc": lambda x: model.inverse(t, R, z, z, x if x is None else _one_masked(z), z),
+        "ang_acc": lambda x: model.inverse(t, R, z, z, z, x if x is None else _one_masked(z, 1)),
+        "angular_velocity": lambda x: model.mass_and_bias(t, R, z, x if x is None else _one_masked(z)),
+    }.items():
+        # the masked entry holds a finite number, which a call reading the buffer would use
+        with pytest.raises(ValueError, match=rf"^{name}: a masked array with 1 masked value\(s\); give plain numbers"):
+            call("masked")
+        if name != "external_wrench":  # None is no wrench
+            with pytest.raises(ValueError, match=rf"^{name}: expected an array of numbers of shape \(\d(, \d)?,?\), "
+                                                 "got None$"):
+                call(None)
+    # a masked array with nothing masked is its numbers
+    assert np.array_equal(np.hstack(model.forward(t, R, z, z, np.ma.masked_array(F))),
+                          np.hstack(model.forward(t, R, z, z, F)))
+    assert np.array_equal(model.inverse(t, R, z, z, np.ma.masked_array(z), z), model.inverse(t, R, z, z, z, z))
+
+
+def test_model_calls_refuse_none_and_masked_arrays_naming_the_argument(dasgupta):
+    model = se.make_dynamics("improved", [dasgupta, dasgupta])
+    for call, message in [
+        (lambda: se.make_dynamics("improved", None), r"^params: expected a PlatformParams or a non-empty sequence"),
+        (lambda: model.with_params(None), r"^params: expected a PlatformParams or a non-empty sequence"),
+        (lambda: model.with_rows(None, [dasgupta]), r"^rows: expected a sequence of integer batch rows, got NoneType"),
+        (lambda: model.with_rows([0], None), r"^params: expected a sequence of PlatformParams"),
+        (lambda: model.with_rows([0], [None]), r"^params: expected PlatformParams, got NoneType"),
+        (lambda: model.with_packed_rows([0], None, [dasgupta]), r"^packed_rows: expected an array of shape"),
+        (lambda: model.with_packed_rows([0], _one_masked(model.packed[:1], 5), [dasgupta]),
+         r"^packed_rows: a masked array with 1 masked value\(s\)"),
+        (lambda: model.with_packed_rows([0], model.packed[:1], None), r"^sources: expected a sequence"),
+        (lambda: model.params_of(None), r"^row: expected an integer in \[0, 1\], got None"),
+        (lambda: se.dynamics.pack_params(None), r"^params: expected a PlatformParams"),
+    ]:
+        with pytest.raises(ValueError, match=message):
+            call()

@@ -296,3 +296,79 @@ def test_scale_packed_names_a_wrong_or_read_only_out_row(model):
         rnd.scale_packed(model.packed[0], {"platform.mass": 1.0}, np.empty(3))
     with pytest.raises(ValueError, match=r"^out_row: read-only"):
         rnd.scale_packed(model.packed[0], {"platform.mass": 1.0}, model.packed[0])
+
+
+# -- parameter arrays of any layout: the model and the bound workspace own a C-contiguous copy ----
+
+
+def _churn():
+    """Allocate and fill many arrays of a parameter row's size, so memory freed before is reused
+    (a pointer into a freed copy then reads these numbers)."""
+    return [np.full((1, se.dynamics.kernels.N_PARAMS), 1e3) for _ in range(200)]
+
+
+PARAMETER_LAYOUTS = {
+    "strided": lambda p: np.repeat(p, 2, axis=1)[:, ::2],
+    "fortran": lambda p: np.asfortranarray(np.repeat(p, 2, axis=0))[:1],
+    "float32": lambda p: p.astype(np.float32),
+    "list": lambda p: p.tolist(),
+}
+
+
+@pytest.mark.parametrize("layout", list(PARAMETER_LAYOUTS))
+def test_packed_rows_assigned_in_any_layout_give_the_numbers_of_a_plain_array(dasgupta, rng, layout):
+    model = se.make_dynamics("improved", dasgupta)
+    given = PARAMETER_LAYOUTS[layout](model.packed)
+    plain = se.make_dynamics("improved", dasgupta)
+    plain.packed = np.array(given, dtype=np.float64)  # the same numbers, C-contiguous float64
+    model.packed = given
+    assert model.packed.flags.c_contiguous and model.packed.dtype == np.float64 and not model.packed.flags.writeable
+    assert isinstance(given, list) or not np.shares_memory(model.packed, given)
+    t, R, v, w, F, W = random_batch(dasgupta, rng, 1)
+    want = plain.workspace()
+    ws = model.workspace()
+    for bench in (want, ws):
+        bench.set_state(t, R, v, w)
+        bench.leg_forces[:] = F
+    expected = want.forward().copy()
+    _churn()
+    assert np.array_equal(ws.forward(), expected)
+    _churn()
+    assert np.array_equal(ws.forward(), expected)
+    assert np.array_equal(np.hstack(model.forward(t, R, v, w, F)), expected)
+
+
+def test_bound_workspace_keeps_the_parameter_copy_it_was_given(dasgupta):
+    """The compiled workspace given a parameter array it must convert (strided) holds the copy:
+    its calls after the caller's temporary is gone still read the model's numbers."""
+    from stewart_env.dynamics import _core
+    from stewart_env.dynamics.workspace import _ARRAYS
+
+    model = se.make_dynamics("improved", dasgupta)
+    want = model.workspace()
+    want.leg_forces[0] = 150.0
+    expected = want.forward().copy()
+    arrays = {name: np.zeros((1,) + tail) for name, (tail, _) in _ARRAYS.items()}
+    arrays["position"][0], arrays["rotation"][0] = want.position[0], want.rotation[0]
+    arrays["leg_forces"][0] = 150.0
+    bound = _core.BoundWorkspace(np.repeat(model.packed, 2, axis=1)[:, ::2], model.flags, *arrays.values())
+    _churn()
+    bound.forward()
+    assert np.array_equal(arrays["acceleration"], expected)
+
+
+@pytest.mark.parametrize("value, message", [
+    (None, r"^packed: expected an array of real numbers of shape \(1, \d+\), got None$"),
+    ("masked", r"^packed: a masked array with 1 masked value"),
+    (np.zeros((2, 3)), r"^packed: expected shape \(1, \d+\), got \(2, 3\)$"),
+    ("nan", r"^packed: contains NaN"),
+])
+def test_assigning_packed_rows_refuses_what_is_not_a_row_of_numbers(dasgupta, value, message):
+    model = se.make_dynamics("improved", dasgupta)
+    before = model.packed
+    if isinstance(value, str):
+        value = (np.ma.masked_array(before, mask=np.arange(before.size).reshape(before.shape) == 3)
+                 if value == "masked" else np.where(np.arange(before.size) == 3, np.nan, before))
+    with pytest.raises(ValueError, match=message):
+        model.packed = value
+    assert model.packed is before

@@ -18,13 +18,17 @@
 #ifndef _WIN32
 #include <pthread.h>
 #endif
+#if defined(__linux__)
+#include <sched.h>
+#endif
 
 #include <atomic>
 #include <condition_variable>
 #include <cstdlib>
 #include <mutex>
+#include <new>
+#include <system_error>
 #include <thread>
-#include <vector>
 
 namespace lanes {
 
@@ -166,11 +170,18 @@ inline void store(const T* from, int size, double* to, int64_t stride, int64_t b
 //: Rows of work below which a batch runs on the calling thread alone (waking a helper costs more).
 constexpr int64_t MIN_PARALLEL_WORK = 512;
 
-//: Helper threads, one per processor core beyond the caller's (STEWART_ENV_THREADS, if set, is the
-//: total thread count; 1 leaves the caller alone), that share the blocks of a batch with the
-//: calling thread.  The caller works through the blocks itself and only waits for blocks a helper
-//: has started, so a helper the operating system does not schedule in time (a busy machine) costs
+//: The most threads a batch may use (the caller and its helpers): more than the cores of any
+//: machine the package targets.  set_num_threads refuses more; STEWART_ENV_THREADS is capped here.
+constexpr int MAX_THREADS = 256;
+
+//: Helper threads that share the blocks of a batch with the calling thread: by default one per
+//: processor core the process may run on beyond the caller's (set_threads, which the Python
+//: package calls for set_num_threads and STEWART_ENV_THREADS, sets the total; 1 leaves the caller
+//: alone).  The caller works through the blocks itself and only waits for blocks a helper has
+//: started, so a helper the operating system does not schedule in time (a busy machine) costs
 //: nothing: it finds no block left.  Which thread computes a block never changes its numbers.
+//: A helper the operating system refuses to start (a capped address space or process count)
+//: is done without: the pool keeps the threads it got.
 class Helpers {
 public:
     // The process's pool, its threads started on first use (again in a child after fork).
@@ -181,11 +192,36 @@ public:
         std::call_once(registered, [] { pthread_atfork(nullptr, nullptr, [] { instance() = nullptr; }); });
 #endif
         std::lock_guard<std::mutex> lock(creation());
-        if (instance() == nullptr) instance() = new Helpers();  // never deleted: threads outlive exit
+        if (instance() == nullptr) {
+            Helpers* made = new Helpers();  // never deleted: detached helpers may outlive exit
+            made->resize(wanted_threads());
+            instance() = made;
+        }
         return *instance();
     }
 
-    int threads() const { return static_cast<int>(threads_.size()) + 1; }
+    // The total thread count a pool is made with, or resized to by set_threads: requested(), or
+    // by default the processor cores this process may run on, at most MAX_THREADS.
+    static int wanted_threads() {
+        const int asked = requested().load();
+        return asked > 0 ? asked : default_threads();
+    }
+
+    // Use `total` threads (1 .. MAX_THREADS; the caller included) from now on: the pool, if it is
+    // running, is resized between two batches; otherwise it is made with them when first needed.
+    // Returns the threads the pool has (fewer when the operating system refused some).
+    static int set_threads(int total) {
+        request(total);
+        Helpers& helpers = pool();
+        std::lock_guard<std::mutex> one_job(helpers.caller_);
+        helpers.resize(wanted_threads());
+        return helpers.threads();
+    }
+
+    // The total thread count (1 .. MAX_THREADS) a pool not yet started is made with; nothing starts.
+    static void request(int total) { requested().store(total < 1 ? 1 : (total > MAX_THREADS ? MAX_THREADS : total)); }
+
+    int threads() const { return helpers_.load() + 1; }
 
     // Call body(u) for u = 0 .. units - 1, on this thread and the helpers.
     template <typename Body>
@@ -231,20 +267,64 @@ private:
         return m;
     }
 
-    Helpers() {
-        int total = static_cast<int>(std::thread::hardware_concurrency());
-        if (const char* env = std::getenv("STEWART_ENV_THREADS")) total = std::atoi(env);
-        for (int k = 1; k < total; ++k) {
-            threads_.emplace_back([this] { help(); });
-            threads_.back().detach();
-        }
+    // The total set by set_threads; 0: none set, the default.
+    static std::atomic<int>& requested() {
+        static std::atomic<int> total{0};
+        return total;
     }
 
-    void help() {
-        uint64_t seen = 0;
+    // The processor cores this process may run on (its affinity mask, where the system has one),
+    // at most MAX_THREADS.
+    static int default_threads() {
+        int cores = static_cast<int>(std::thread::hardware_concurrency());
+#if defined(__linux__)
+        cpu_set_t set;
+        if (sched_getaffinity(0, sizeof(set), &set) == 0 && CPU_COUNT(&set) > 0) cores = CPU_COUNT(&set);
+#endif
+        return cores < 1 ? 1 : (cores > MAX_THREADS ? MAX_THREADS : cores);
+    }
+
+    Helpers() = default;
+
+    // Keep total - 1 helpers: the surplus exit, the missing start.  Called while no batch runs
+    // (at creation, or holding caller_).  A helper the system refuses ends the growth: the pool
+    // keeps the helpers it has.
+    void resize(int total) {
         std::unique_lock<std::mutex> lock(mutex_);
+        limit_ = total - 1;
+        if (helpers_.load() > limit_) {
+            wake_.notify_all();
+            exited_.wait(lock, [this] { return helpers_.load() <= limit_; });
+        }
+        while (helpers_.load() < limit_) {
+            const int index = helpers_.load() + 1;
+            try {
+                std::thread(&Helpers::help, this, index).detach();
+            } catch (const std::system_error&) {  // the system's thread or memory limit
+                break;
+            } catch (const std::bad_alloc&) {
+                break;
+            }
+            helpers_.store(index);
+        }
+        limit_ = helpers_.load();
+    }
+
+    // The loop of helper number `index` (1, 2, ...): a batch's blocks while it runs, exit when the
+    // pool shrinks below it.
+    void help(int index) {
+#if defined(__linux__)
+        pthread_setname_np(pthread_self(), "stewart-helper");  // as tools (top -H, /proc) show it
+#endif
+        std::unique_lock<std::mutex> lock(mutex_);
+        uint64_t seen = generation_;
         for (;;) {
-            wake_.wait(lock, [&] { return job_ != nullptr && generation_ != seen; });
+            wake_.wait(lock, [&] { return index > limit_ || (job_ != nullptr && generation_ != seen); });
+            if (index > limit_) {
+                helpers_.store(helpers_.load() - 1);
+                exited_.notify_all();
+                return;
+            }
             seen = generation_;
             Job* job = job_;
             ++active_;
@@ -255,14 +335,16 @@ private:
         }
     }
 
-    std::vector<std::thread> threads_;
-    std::mutex caller_;
+    std::mutex caller_;  // one batch at a time; a resize waits for it
     std::mutex mutex_;
     std::condition_variable wake_;
     std::condition_variable idle_;
+    std::condition_variable exited_;
     Job* job_ = nullptr;
     uint64_t generation_ = 0;
     int active_ = 0;
+    std::atomic<int> helpers_{0};  // helper threads running (written under mutex_)
+    int limit_ = 0;                // helpers wanted: a helper numbered above it exits
 };
 
 // Run row_block(b, tag) over the n rows of a batch: tag is a Lanes for each block of LANES rows

@@ -86,9 +86,14 @@ nb::tuple pd_layout() {
     return nb::tuple(entries);
 }
 
-// A float64 C-contiguous buffer of a given shape, borrowed from a Python object for one call (the
+//: numpy.ndarray, set when the module is imported.
+PyTypeObject* ndarray_type = nullptr;
+
+// A float64 C-contiguous buffer of a given shape, borrowed from a numpy array for one call (the
 // fast path of the checked single-platform calls): take() says whether the object is one, and
-// leaves no Python error behind when it is not.
+// leaves no Python error behind when it is not.  Only a plain numpy.ndarray qualifies: a
+// subclass's buffer need not be its numbers (a masked array's holds the values under its mask
+// too), so a subclass takes the checked path of the Python caller.
 class Doubles {
 public:
     Doubles() = default;
@@ -98,7 +103,7 @@ public:
         if (held_) PyBuffer_Release(&view_);
     }
     bool take(nb::handle obj, std::initializer_list<Py_ssize_t> shape, bool writable = false) {
-        if (!PyObject_CheckBuffer(obj.ptr())) return false;
+        if (Py_TYPE(obj.ptr()) != ndarray_type) return false;
         const int want = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
         if (PyObject_GetBuffer(obj.ptr(), &view_, want) != 0) {
             PyErr_Clear();
@@ -130,13 +135,22 @@ bool checked(const Doubles& t, const Doubles& R, const Doubles& v, const Doubles
 }
 
 //: The arrays of a Workspace (stewart_env.dynamics.workspace), bound once: its calls hand the
-//: kernels these pointers with no argument to convert.  keep holds the arrays (a tuple), so they
-//: live as long as it does.
+//: kernels these pointers with no argument to convert.  The struct holds every array it points
+//: into (an ndarray holds its memory), so no pointer outlives its array: a prm that nanobind
+//: converted (a strided, Fortran-ordered or float32 array) is a copy this struct owns.
 struct BoundWorkspace {
-    nb::object keep;
+    In prm_array;
+    Out t_array, R_array, v_array, w_array, F_array, W_array, acc_array, M_array, h_array;
     const double* prm;
     int64_t n_prm, flags, n;
     double *t, *R, *v, *w, *F, *W, *acc, *M, *h;
+
+    BoundWorkspace(In prm_, int64_t flags_, Out t_, Out R_, Out v_, Out w_, Out F_, Out W_, Out acc_, Out M_,
+                   Out h_)
+        : prm_array(prm_), t_array(t_), R_array(R_), v_array(v_), w_array(w_), F_array(F_), W_array(W_),
+          acc_array(acc_), M_array(M_), h_array(h_), prm(prm_.data()), n_prm(static_cast<int64_t>(prm_.shape(0))),
+          flags(flags_), n(static_cast<int64_t>(t_.shape(0))), t(t_.data()), R(R_.data()), v(v_.data()),
+          w(w_.data()), F(F_.data()), W(W_.data()), acc(acc_.data()), M(M_.data()), h(h_.data()) {}
 };
 
 }  // namespace
@@ -145,6 +159,10 @@ void def_env_kernels(nb::module_& m);
 
 NB_MODULE(STEWART_ENV_CORE_MODULE, m) {  // _core_<instruction-set target> (CMakeLists.txt)
     m.doc() = "The compiled kernels of the Stewart platform's kinematics, dynamics and integrator.";
+    {
+        nb::object ndarray = nb::module_::import_("numpy").attr("ndarray");
+        ndarray_type = reinterpret_cast<PyTypeObject*>(ndarray.ptr());  // numpy keeps its type alive
+    }
     m.attr("C1") = kernels::C1;
     m.attr("C2") = kernels::C2;
     m.attr("C3") = kernels::C3;
@@ -170,10 +188,11 @@ NB_MODULE(STEWART_ENV_CORE_MODULE, m) {  // _core_<instruction-set target> (CMak
         kernels::forward_one<double>(P.data(), flags, tv.data(), Rv.data(), vv.data(), wv.data(), Fv.data(), Wv.data(),
                                      M, h, ov.data());
         return true;
-    }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "F"_a, "W"_a, "tolerance"_a, "out"_a,
+    }, "prm"_a, "flags"_a, "t"_a.none(), "R"_a.none(), "v"_a.none(), "w"_a.none(), "F"_a.none(), "W"_a.none(),
+       "tolerance"_a, "out"_a,
        "Forward dynamics of one platform into out (6,) when every argument is a float64 C-contiguous array of one "
-       "platform's shape, finite, and R a rotation within tolerance; otherwise False and nothing computed (the "
-       "caller then checks the arguments itself and reports what is wrong).");
+       "platform's shape, finite, and R a rotation within tolerance; otherwise (None too) False and nothing "
+       "computed (the caller then checks the arguments itself and reports what is wrong).");
 
     m.def("inverse_one_checked", [](nb::handle prm, int64_t flags, nb::handle t, nb::handle R, nb::handle v,
                                     nb::handle w, nb::handle lin, nb::handle ang, nb::handle W, double tolerance,
@@ -191,7 +210,8 @@ NB_MODULE(STEWART_ENV_CORE_MODULE, m) {  // _core_<instruction-set target> (CMak
         kernels::inverse_one<double>(P.data(), flags, tv.data(), Rv.data(), vv.data(), wv.data(), acc, Wv.data(), M, h,
                                      ov.data());
         return true;
-    }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "lin_acc"_a, "ang_acc"_a, "W"_a, "tolerance"_a, "out"_a,
+    }, "prm"_a, "flags"_a, "t"_a.none(), "R"_a.none(), "v"_a.none(), "w"_a.none(), "lin_acc"_a.none(),
+       "ang_acc"_a.none(), "W"_a.none(), "tolerance"_a, "out"_a,
        "Inverse dynamics of one platform into out (6,), on the terms of forward_one_checked.");
 
     m.def("forward_flops", [](In prm, int64_t flags, In t, In R, In v, In w, In F) {
@@ -216,8 +236,8 @@ NB_MODULE(STEWART_ENV_CORE_MODULE, m) {  // _core_<instruction-set target> (CMak
 
     nb::class_<BoundWorkspace>(m, "BoundWorkspace",
                                "The arrays of a Workspace bound once, for its calls without argument conversion.")
-        .def("__init__", [](BoundWorkspace* self, nb::tuple arrays, In prm, int64_t flags, Out t, Out R, Out v, Out w,
-                            Out F, Out W, Out acc, Out M, Out h) {
+        .def("__init__", [](BoundWorkspace* self, In prm, int64_t flags, Out t, Out R, Out v, Out w, Out F, Out W,
+                            Out acc, Out M, Out h) {
             const int64_t n = batch(prm, In(t));
             state(t, R, v, w, n);
             expect(F, "leg_forces", {n, 6});
@@ -225,12 +245,9 @@ NB_MODULE(STEWART_ENV_CORE_MODULE, m) {  // _core_<instruction-set target> (CMak
             expect(acc, "acceleration", {n, 6});
             expect(M, "mass_matrix", {n, 6, 6});
             expect(h, "bias", {n, 6});
-            new (self) BoundWorkspace{arrays, prm.data(), static_cast<int64_t>(prm.shape(0)), flags, n, t.data(),
-                                      R.data(), v.data(), w.data(), F.data(), W.data(), acc.data(), M.data(),
-                                      h.data()};
-        }, "arrays"_a, "prm"_a, "flags"_a, "t"_a.noconvert(), "R"_a.noconvert(), "v"_a.noconvert(),
-           "w"_a.noconvert(), "F"_a.noconvert(), "W"_a.noconvert(), "acc"_a.noconvert(), "M"_a.noconvert(),
-           "h"_a.noconvert())
+            new (self) BoundWorkspace(prm, flags, t, R, v, w, F, W, acc, M, h);
+        }, "prm"_a, "flags"_a, "t"_a.noconvert(), "R"_a.noconvert(), "v"_a.noconvert(), "w"_a.noconvert(),
+           "F"_a.noconvert(), "W"_a.noconvert(), "acc"_a.noconvert(), "M"_a.noconvert(), "h"_a.noconvert())
         .def("forward", [](BoundWorkspace& s) {
             kernels::forward_batch(s.prm, s.n_prm, s.flags, s.t, s.R, s.v, s.w, s.F, s.W, s.acc, s.n);
         })
@@ -245,6 +262,26 @@ NB_MODULE(STEWART_ENV_CORE_MODULE, m) {  // _core_<instruction-set target> (CMak
             rk4::rollout_batch(s.prm, s.n_prm, s.flags, s.t, s.R, s.v, s.w, s.F, s.W, dt, steps, s.n);
         }, "dt"_a, "steps"_a);
 
+
+    m.attr("MAX_THREADS") = lanes::MAX_THREADS;
+    m.def("set_num_threads", [](int total) {
+        if (total < 1 || total > lanes::MAX_THREADS)
+            throw nb::value_error(("n: expected an integer in [1, " + std::to_string(lanes::MAX_THREADS) + "], got " +
+                                   std::to_string(total)).c_str());
+        nb::gil_scoped_release release;  // waits for a batch running on another thread
+        return lanes::Helpers::set_threads(total);
+    }, "total"_a,
+       "Use `total` threads (the caller included) for the batches from now on; returns the threads the pool has "
+       "(fewer where the operating system refused some).");
+    m.def("get_num_threads", [] {
+        nb::gil_scoped_release release;
+        return lanes::Helpers::pool().threads();
+    }, "The threads the batches use (the caller included), the pool started if it was not.");
+    m.def("set_default_threads", [](int total) {
+        if (total < 1 || total > lanes::MAX_THREADS)
+            throw nb::value_error("total: expected an integer in [1, MAX_THREADS]");
+        lanes::Helpers::request(total);
+    }, "total"_a, "The thread count the pool is made with when first needed (STEWART_ENV_THREADS); nothing starts.");
 
     bind_regressor(m);
     def_solve_batch<kernels::forward_batch>(m, "forward_batch", "F", "leg_forces");
