@@ -97,11 +97,16 @@ def test_directory_is_refused(tmp_path):
     assert str(load_error(directory)) == f"{directory}: a directory, not a config file"
 
 
+#: The refusal of a file whose name is not a config's.
+NOT_A_CONFIG_NAME = ("not a platform config: a config file's name ends in .yaml or .yml; a shipped platform is named "
+                     "by a string alone, with no path (dasgupta1998, motion_simulator)")
+
+
 @pytest.mark.parametrize("name", ["config.txt", "config.yaml.bak", "config", "passwd"])
 def test_only_yaml_suffixes_are_read(tmp_path, name):
     path = tmp_path / name
     shutil.copy(DASGUPTA, path)
-    assert str(load_error(path)) == f"{path}: not a platform config: the file name must end in .yaml or .yml"
+    assert str(load_error(path)) == f"{path}: {NOT_A_CONFIG_NAME}"
 
 
 @pytest.mark.parametrize("name", ["robot.yml", "robot.YAML"])
@@ -118,7 +123,7 @@ def test_symlink_to_a_config_is_followed(tmp_path):
 
 
 def test_etc_passwd_is_never_quoted(tmp_path):
-    assert str(load_error("/etc/passwd")) == "/etc/passwd: not a platform config: the file name must end in .yaml or .yml"
+    assert str(load_error("/etc/passwd")) == f"/etc/passwd: {NOT_A_CONFIG_NAME}"
     content = Path("/etc/passwd").read_text(encoding="utf-8")
     copy_ = write(tmp_path / "passwd.yaml", content)
     error = load_error(copy_)
@@ -487,10 +492,11 @@ def read_only_install(tmp_path):
     install = tmp_path / "install"
     package_dir = Path(stewart_env.__file__).resolve().parent
     shutil.copytree(package_dir, install / "stewart_env", ignore=shutil.ignore_patterns("__pycache__"))
-    # the compiled extension: beside the sources in a normal install, elsewhere in an editable one
-    extension = Path(stewart_env.dynamics._core.__file__)
-    if not (install / "stewart_env" / "dynamics" / extension.name).exists():
-        shutil.copy2(extension, install / "stewart_env" / "dynamics" / extension.name)
+    # the compiled extensions (one per instruction-set target, and the processor's features):
+    # beside the sources in a normal install, elsewhere in an editable one
+    for extension in Path(stewart_env.dynamics._core._kernels.__file__).parent.glob("_*.so"):
+        if not (install / "stewart_env" / "dynamics" / extension.name).exists():
+            shutil.copy2(extension, install / "stewart_env" / "dynamics" / extension.name)
     shutil.copytree(package_dir.parent / "configs", install / "configs", ignore=shutil.ignore_patterns("__pycache__"))
     home = tmp_path / "home"
     home.mkdir()
