@@ -134,7 +134,7 @@ class MismatchSettings:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
                 raise MismatchError(f"{name}: expected a finite positive number, got {value!r}")
             set_(name, float(value))
-        set_("controller_platforms", _check_controller_platforms(self.controller_platforms))
+        set_("controller_platforms", check_controller_platforms(self.controller_platforms))
         # rows' cells and agents live in folders named by the slugs of their labels
         own = {slug(m) for m in [*self.design_models, "improved + DR"]}
         for name, _ in self.controller_platforms:
@@ -245,7 +245,7 @@ def _check_platform(platform: str) -> str:
 _PLATFORM_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]*")
 
 
-def _check_controller_platforms(items: Sequence[Any]) -> tuple[tuple[str, str], ...]:
+def check_controller_platforms(items: Sequence[Any]) -> tuple[tuple[str, str], ...]:
     """((name, platform), ...) of the controller platforms: each loads, each name once."""
     if isinstance(items, (str, bytes)):
         raise MismatchError(f"controller platforms: expected a list of platforms, got {items!r}")

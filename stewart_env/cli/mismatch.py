@@ -55,8 +55,12 @@ def simplification_list(text: str) -> list[str]:
 def controller_platform(text: str) -> str:
     """argparse type of --controller-platform: ``[NAME=]PLATFORM`` whose platform loads (the study
     checks the name against its rows)."""
-    head, sep, tail = text.partition("=")
-    platform_name(tail if sep and head.strip() else text)
+    from stewart_env.agents.mismatch.settings import MismatchError, check_controller_platforms
+
+    try:
+        check_controller_platforms([text])  # the study's own rule for NAME and PLATFORM
+    except MismatchError as err:
+        raise argparse.ArgumentTypeError(str(err).removeprefix("controller platform: ")) from None
     return text
 
 
