@@ -146,8 +146,8 @@ def episode_metrics(time, position_error, orientation_error, leg_forces, leg_rat
     terminated: whether the episode ended early.
     """
     criterion = SuccessCriterion(position_tolerance, orientation_tolerance, final_window)
-    p_norm = error_norm(*np.asarray(position_error, dtype=float).T)
-    o_norm = error_norm(*np.asarray(orientation_error, dtype=float).T)
+    p_norm = error_norm(np.asarray(position_error, dtype=float))
+    o_norm = error_norm(np.asarray(orientation_error, dtype=float))
     inside = criterion.inside(p_norm, o_norm)
     window = criterion.final_window_mask(time)
     return {

@@ -34,7 +34,7 @@ from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks import LIMIT_REASONS, StepView, make_task, tracking_errors
-from stewart_env.tasks.base import Task, errors_in, zero_reference
+from stewart_env.tasks.base import SuccessTracker, Task, error_norm, errors_in, zero_reference
 
 __all__ = ["TERMINATION_REASONS", "PlatformBatch"]
 
@@ -47,6 +47,12 @@ NOT_TERMINATED = ""
 NON_FINITE = 1
 #: The terms of the tracking-error reward, in the order of the compiled step's terms (5, n).
 REWARD_TERMS = ("position", "orientation", "velocity", "control", "termination")
+#: The largest float64: an error norm beyond it (a state set absurdly far away) is reported as it,
+#: so that no inf leaves the environment.
+_LARGEST = float(np.finfo(np.float64).max)
+#: Up to this many rows, :meth:`PlatformBatch.track_success` goes row by row in Python numbers,
+#: which then costs less than numpy's overhead per call on the whole batch.
+_ROW_BY_ROW = 4
 
 
 def _readonly(array: np.ndarray) -> np.ndarray:
@@ -131,6 +137,8 @@ class PlatformBatch:
         self._bad = np.zeros(n, dtype=bool)
         self._any_non_finite = False
         self._home_rotation = rpy_to_matrix(self.platform.home_rpy)
+        # whether each row's episode meets the task's success criterion so far
+        self._success = SuccessTracker(self.task.success_criterion, n)
 
     def _views(self) -> None:
         """The members that are views of others; made again in a copy (see :meth:`__setstate__`),
@@ -236,7 +244,9 @@ class PlatformBatch:
         self._action[rows] = 0.0
         state = PlatformState(*(x[rows] for x in self._state))
         self.leg_forces[rows] = self._start_forces(state, drawn)
-        self.observations.reset_rows(rows, self._start_view(rows, state), rngs)
+        view = self._start_view(rows, state)
+        self._success.start(rows, error_norm(view.errors.position), error_norm(view.errors.orientation))
+        self.observations.reset_rows(rows, view, rngs)
         return infos
 
     def _draw_episodes(self, rows: np.ndarray, rngs: Sequence[np.random.Generator],
@@ -425,6 +435,37 @@ class PlatformBatch:
         if bad is not None:
             reward = self._end_non_finite(bad, code, terms)
         return reward, code, terms
+
+    # -- success -----------------------------------------------------------------------------------------
+
+    def track_success(self, code: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every row's outcome for the success criterion after a step; call once after each step.
+
+        Args:
+            code: (n,) the step's termination codes (as :meth:`step` returns them).
+
+        Returns:
+            The rows' position error |e_p| (n,) m, orientation error (the angle of e_o) (n,) rad,
+            both :func:`~stewart_env.tasks.base.error_norm` of the step's errors (the numbers the
+            evaluation harness measures; beyond the largest float64, that), and whether each
+            episode, ended at this step, meets the task's success criterion (n,) bool.
+        """
+        if self.n <= _ROW_BY_ROW:
+            rows = zip(*(self.track_success_of_row(i, code) for i in range(self.n)))
+            return tuple(np.array(values) for values in rows)
+        # both norms at once, of the (2, n, 3) position and orientation errors
+        position, orientation = np.fmin(error_norm(self._error_vectors[:2]), _LARGEST)
+        return position, orientation, self._success.step(self.time, position, orientation, code > 0)
+
+    def track_success_of_row(self, row: int, code: np.ndarray) -> tuple[float, float, bool]:
+        """:meth:`track_success` of row ``row`` alone, as Python numbers: the same numbers at a
+        fraction of the cost (the single environment's step, a batch of a few rows)."""
+        p, o = self._error_vectors[:2, row].tolist()
+        position, orientation = error_norm(p), error_norm(o)
+        position = position if position <= _LARGEST else _LARGEST
+        orientation = orientation if orientation <= _LARGEST else _LARGEST
+        return position, orientation, self._success.step_row(row, self.time.item(row), position, orientation,
+                                                             code.item(row) > 0)
 
     def _park(self, rows: np.ndarray) -> None:
         """Put rows at home at rest: a safe state to step before the caller resets them."""

@@ -216,21 +216,26 @@ ORIENTATION_TOLERANCE = 1e-2
 FINAL_WINDOW = 0.1
 
 
-def error_norm(x, y, z):
-    """The norm sqrt((x^2 + y^2) + z^2) of error vectors given by their components.
+def error_norm(vectors):
+    """The norm sqrt((x^2 + y^2) + z^2) of error vectors (x, y, z).
 
     The squares are summed in that order, numpy's order for a norm over a last axis of three
-    (``np.linalg.norm(e, axis=-1)`` gives the same bits), so that the environment's errors, one
-    row at a time, and the evaluation harness's, over a recorded episode, are the same numbers.
+    (``np.linalg.norm(e, axis=-1)`` gives the same bits), in both forms, so that the environment's
+    errors, one row at a time or a batch at once, and the evaluation harness's, over a recorded
+    episode, are the same numbers.
 
     Args:
-        x, y, z: the components: floats, or arrays of one shape.
+        vectors: an array (..., 3), or one vector as a list or tuple of three Python floats (a
+            fraction of the array form's cost, for one row at a time).
 
     Returns:
-        The norms: a float for floats, else an array of the components' shape.
+        The norms: an array (...) for an array, a float for a list or tuple.
     """
-    squares = x * x + y * y + z * z
-    return math.sqrt(squares) if type(squares) is float else np.sqrt(squares)
+    if isinstance(vectors, (list, tuple)):
+        x, y, z = vectors
+        return math.sqrt(x * x + y * y + z * z)
+    squares = np.square(vectors)
+    return np.sqrt(squares[..., 0] + squares[..., 1] + squares[..., 2])
 
 
 @dataclass(frozen=True)
@@ -359,13 +364,14 @@ class SuccessTracker:
         np.copyto(self.latest_outside, time, where=~criterion.inside(position_norm, orientation_norm))
         return ~terminated & criterion.holds(self.latest_outside, 0.0, time)
 
-    def step_one(self, time: float, position_norm: float, orientation_norm: float, terminated: bool) -> bool:
-        """:meth:`step` for a batch of one, in Python numbers (a fraction of the array version's
-        cost, for the single environment): the same comparisons of the same numbers."""
+    def step_row(self, row: int, time: float, position_norm: float, orientation_norm: float,
+                 terminated: bool) -> bool:
+        """:meth:`step` for one row, in Python numbers (a fraction of the array version's cost,
+        for a batch of a few rows): the same comparisons of the same numbers."""
         criterion = self.criterion
         if not criterion.inside(position_norm, orientation_norm):
-            self.latest_outside[0] = time
-        return not terminated and bool(criterion.holds(float(self.latest_outside[0]), 0.0, time))
+            self.latest_outside[row] = time
+        return not terminated and bool(criterion.holds(float(self.latest_outside[row]), 0.0, time))
 
 
 def pose_margins(params: PlatformParams | Dynamics, position: np.ndarray, rpy: np.ndarray, margin: float = 0.1,
