@@ -26,7 +26,7 @@ samples at t = 0 and after every control step; see the functions of the same nam
   F held over each step (zero-order hold) and the leg rate averaged over it (trapezoid); energy
   that a leg absorbs counts as spent, as in an actuator without regeneration.
 * ``success``: the episode ran to its time limit without termination and every sample of the
-  final window is inside both tolerances (:class:`stewart_env.tasks.SuccessCriterion`, the
+  final window is inside both tolerances (:class:`stewart_env.tasks.base.SuccessCriterion`, the
   criterion of the environment's ``info["is_success"]`` too).
 """
 
@@ -58,7 +58,13 @@ QUALIFIED_ENV_ID = f"stewart_env:{ENV_ID}"
 from stewart_env.rotations import rotation_error
 # The defaults of settling and success (2 mm, 0.01 rad, the final tenth) and the criterion live with
 # the tasks, whose environment reports the same verdict as info["is_success"].
-from stewart_env.tasks import FINAL_WINDOW, ORIENTATION_TOLERANCE, POSITION_TOLERANCE, SuccessCriterion, error_norm
+from stewart_env.tasks.base import (
+    FINAL_WINDOW,
+    ORIENTATION_TOLERANCE,
+    POSITION_TOLERANCE,
+    SuccessCriterion,
+    error_norm,
+)
 from stewart_env.validation import integer
 
 
@@ -120,7 +126,7 @@ def overshoot(error, tolerance: float) -> float:
 
 def final_window_mask(time, final_window: float) -> np.ndarray:
     """(T,) bool: the samples with t >= t_end - final_window (t_end - t_0); at least the last
-    (:meth:`stewart_env.tasks.SuccessCriterion.final_window_mask`)."""
+    (:meth:`stewart_env.tasks.base.SuccessCriterion.final_window_mask`)."""
     return SuccessCriterion(final_window=final_window).final_window_mask(time)
 
 

@@ -185,7 +185,9 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
 
     Infos are Gymnasium vector infos: every key holds an (N,) array with a boolean mask under
     ``"_" + key``; step keys are those of the single environment (``reward_<term>``,
-    ``termination`` an int64 array of codes, 0 for rows that go on, ``time``).
+    ``termination`` an int64 array of codes, 0 for rows that go on, ``time``, ``position_error``,
+    ``orientation_error``, ``is_success`` a bool array); a row reset at the step (next-step
+    autoreset) has no step info (its mask False, its values 0 and False).
 
     A row is a sub-environment to ``call``, ``get_attr`` and ``set_attr`` (Gymnasium's
     semantics: a tuple of one result per row), e.g. ``get_attr("state")`` or ``call("render")``;

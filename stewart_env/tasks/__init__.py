@@ -13,19 +13,13 @@ from typing import Any
 from stewart_env.params import PlatformParams
 from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks.base import (
-    FINAL_WINDOW,
     LIMIT_REASONS,
-    ORIENTATION_TOLERANCE,
-    POSITION_TOLERANCE,
     Errors,
     RewardWeights,
     Scales,
     StepView,
-    SuccessCriterion,
-    SuccessTracker,
     Task,
     check_option_names,
-    error_norm,
     tracking_errors,
 )
 from stewart_env.tasks.disturbance import DisturbanceTask
@@ -36,10 +30,7 @@ from stewart_env.tasks.tracking import TrackingTask
 TASKS: dict[str, type[Task]] = {cls.name: cls for cls in (SetpointTask, TrackingTask, DisturbanceTask, HoldTask)}
 
 __all__ = [
-    "FINAL_WINDOW",
     "LIMIT_REASONS",
-    "ORIENTATION_TOLERANCE",
-    "POSITION_TOLERANCE",
     "TASKS",
     "DisturbanceTask",
     "Errors",
@@ -50,11 +41,8 @@ __all__ = [
     "Scales",
     "SetpointTask",
     "StepView",
-    "SuccessCriterion",
-    "SuccessTracker",
     "Task",
     "TrackingTask",
-    "error_norm",
     "make_task",
     "tracking_errors",
 ]

@@ -209,7 +209,7 @@ def zero_reference(n: int) -> Reference:
 
 # -- success ---------------------------------------------------------------------------------------
 
-#: Default tolerances of the success band: 2 mm and 0.01 rad (0.57 deg).
+#: Default tolerances of the success band, 2 mm and 0.01 rad (0.57 deg).
 POSITION_TOLERANCE = 2e-3
 ORIENTATION_TOLERANCE = 1e-2
 #: Default final window of the success criterion, as a fraction of the episode's duration.
@@ -229,9 +229,9 @@ def error_norm(vectors):
             fraction of the array form's cost, for one row at a time).
 
     Returns:
-        The norms: an array (...) for an array, a float for a list or tuple.
+        The norms, an array (...) for an array, a float for a list or tuple.
     """
-    if isinstance(vectors, (list, tuple)):
+    if type(vectors) in (list, tuple):  # (not isinstance: this is on the environment's step path)
         x, y, z = vectors
         return math.sqrt(x * x + y * y + z * z)
     squares = np.square(vectors)
@@ -340,12 +340,16 @@ class SuccessTracker:
 
     def __init__(self, criterion: SuccessCriterion, n: int):
         self.criterion = criterion
-        #: (n,) s: the time of each row's latest sample outside the band, -inf if none.
+        #: The time (s) of each row's latest sample outside the band (n,), -inf if none.
         self.latest_outside = np.full(n, -math.inf)
 
     def start(self, rows: np.ndarray, position_norm: np.ndarray, orientation_norm: np.ndarray) -> None:
         """Start the episodes of ``rows`` with their samples at t = 0: norms (m,) m and rad."""
         self.latest_outside[rows] = np.where(self.criterion.inside(position_norm, orientation_norm), -math.inf, 0.0)
+
+    def start_row(self, row: int, position_norm: float, orientation_norm: float) -> None:
+        """:meth:`start` for one row, in Python numbers."""
+        self.latest_outside[row] = -math.inf if self.criterion.inside(position_norm, orientation_norm) else 0.0
 
     def step(self, time: np.ndarray, position_norm: np.ndarray, orientation_norm: np.ndarray,
              terminated: np.ndarray) -> np.ndarray:
@@ -358,7 +362,7 @@ class SuccessTracker:
             terminated: (n,) bool, the rows whose episode the step terminated.
 
         Returns:
-            (n,) bool: whether each episode, ended at this step, succeeds.
+            Whether each episode, ended at this step, succeeds, (n,) bool.
         """
         criterion = self.criterion
         np.copyto(self.latest_outside, time, where=~criterion.inside(position_norm, orientation_norm))
@@ -371,7 +375,8 @@ class SuccessTracker:
         criterion = self.criterion
         if not criterion.inside(position_norm, orientation_norm):
             self.latest_outside[row] = time
-        return not terminated and bool(criterion.holds(float(self.latest_outside[row]), 0.0, time))
+            return False  # the last sample is always in the final window
+        return not terminated and criterion.holds(self.latest_outside.item(row), 0.0, time)
 
 
 def pose_margins(params: PlatformParams | Dynamics, position: np.ndarray, rpy: np.ndarray, margin: float = 0.1,

@@ -26,7 +26,7 @@ from stewart_env.agents.evaluation import (
     rms,
     settling_time,
 )
-from stewart_env.tasks import error_norm
+from stewart_env.tasks.base import error_norm
 
 
 def second_order_step(zeta: float, wn: float, t: np.ndarray) -> np.ndarray:

@@ -17,7 +17,8 @@ from stewart_env.agents import PDPolicy, evaluate
 from stewart_env.envs import StewartPlatformEnv, holding_action
 from stewart_env.registration import ENV_IDS
 from stewart_env.rotations import rotation_error
-from stewart_env.tasks import TASKS, SetpointTask, SuccessCriterion, error_norm
+from stewart_env.tasks import TASKS, SetpointTask
+from stewart_env.tasks.base import SuccessCriterion, error_norm
 
 V0, V1 = ENV_IDS[0], ENV_IDS[1]
 SUCCESS_KEYS = ("position_error", "orientation_error", "is_success")
