@@ -26,7 +26,8 @@ samples at t = 0 and after every control step; see the functions of the same nam
   F held over each step (zero-order hold) and the leg rate averaged over it (trapezoid); energy
   that a leg absorbs counts as spent, as in an actuator without regeneration.
 * ``success``: the episode ran to its time limit without termination and every sample of the
-  final window is inside both tolerances.
+  final window is inside both tolerances (:class:`stewart_env.tasks.base.SuccessCriterion`, the
+  criterion of the environment's ``info["is_success"]`` too).
 """
 
 from __future__ import annotations
@@ -55,13 +56,16 @@ from stewart_env.registration import ENV_ID
 #: known in a fresh process too (a Ray worker, a subprocess) without importing stewart_env by hand.
 QUALIFIED_ENV_ID = f"stewart_env:{ENV_ID}"
 from stewart_env.rotations import rotation_error
+# The defaults of settling and success (2 mm, 0.01 rad, the final tenth) and the criterion live with
+# the tasks, whose environment reports the same verdict as info["is_success"].
+from stewart_env.tasks.base import (
+    FINAL_WINDOW,
+    ORIENTATION_TOLERANCE,
+    POSITION_TOLERANCE,
+    SuccessCriterion,
+    error_norm,
+)
 from stewart_env.validation import integer
-
-#: Default tolerances of settling and success: 2 mm and 0.01 rad (0.57 deg).
-POSITION_TOLERANCE = 2e-3
-ORIENTATION_TOLERANCE = 1e-2
-#: Default final window, as a fraction of the episode's duration.
-FINAL_WINDOW = 0.1
 
 
 class Metric(NamedTuple):
@@ -121,11 +125,9 @@ def overshoot(error, tolerance: float) -> float:
 
 
 def final_window_mask(time, final_window: float) -> np.ndarray:
-    """(T,) bool: the samples with t >= t_end - final_window (t_end - t_0); at least the last."""
-    time = np.asarray(time, dtype=float)
-    mask = time >= time[-1] - final_window * (time[-1] - time[0])
-    mask[-1] = True
-    return mask
+    """(T,) bool: the samples with t >= t_end - final_window (t_end - t_0); at least the last
+    (:meth:`stewart_env.tasks.base.SuccessCriterion.final_window_mask`)."""
+    return SuccessCriterion(final_window=final_window).final_window_mask(time)
 
 
 def control_energy(time, leg_forces, leg_rates) -> float:
@@ -149,12 +151,13 @@ def episode_metrics(time, position_error, orientation_error, leg_forces, leg_rat
     at the samples; leg_forces (T,6) N over the steps; leg_rates (T+1,6) m/s at the samples;
     terminated: whether the episode ended early.
     """
-    p_norm = np.linalg.norm(position_error, axis=1)
-    o_norm = np.linalg.norm(orientation_error, axis=1)
-    inside = (p_norm <= position_tolerance) & (o_norm <= orientation_tolerance)
-    window = final_window_mask(time, final_window)
+    criterion = SuccessCriterion(position_tolerance, orientation_tolerance, final_window)
+    p_norm = error_norm(np.asarray(position_error, dtype=float))
+    o_norm = error_norm(np.asarray(orientation_error, dtype=float))
+    inside = criterion.inside(p_norm, o_norm)
+    window = criterion.final_window_mask(time)
     return {
-        "success": float(not terminated and bool(inside[window].all())),
+        "success": float(criterion.succeeded(time, inside, terminated)),
         "rms_position_error": rms(position_error),
         "rms_orientation_error": rms(orientation_error),
         "settling_time": math.nan if terminated else settling_time(time, inside),
@@ -247,11 +250,7 @@ def evaluate(policy, env_kwargs: Mapping | None = None, episodes: int = 5, seed:
     """
     episodes = integer("episodes", episodes, 1, 2**31 - 1)  # the vector env's bound on its batch
     seed = integer("seed", seed, 0, 2**63 - 1)
-    if not (position_tolerance > 0 and orientation_tolerance > 0):
-        raise ValueError(f"position_tolerance, orientation_tolerance: must be positive, got "
-                         f"{position_tolerance}, {orientation_tolerance}")
-    if not 0 <= final_window <= 1:
-        raise ValueError(f"final_window: a fraction of the episode in [0, 1], got {final_window}")
+    SuccessCriterion(position_tolerance, orientation_tolerance, final_window)  # checks them before any work
     env_kwargs = dict(env_kwargs or {})
     agent = _make_policy(policy, env_kwargs)
     label = label or type(agent).__name__

@@ -34,7 +34,7 @@ from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks import LIMIT_REASONS, StepView, make_task, tracking_errors
-from stewart_env.tasks.base import Task, errors_in, zero_reference
+from stewart_env.tasks.base import SuccessTracker, Task, error_norm, errors_in, zero_reference
 
 __all__ = ["TERMINATION_REASONS", "PlatformBatch"]
 
@@ -47,6 +47,12 @@ NOT_TERMINATED = ""
 NON_FINITE = 1
 #: The terms of the tracking-error reward, in the order of the compiled step's terms (5, n).
 REWARD_TERMS = ("position", "orientation", "velocity", "control", "termination")
+#: The largest float64: a position error beyond it (a state set absurdly far away) is reported as it,
+#: so that no inf leaves the environment.
+_LARGEST = float(np.finfo(np.float64).max)
+#: Up to this many rows, :meth:`PlatformBatch.track_success` goes row by row in Python numbers,
+#: which then costs less than numpy's overhead per call on the whole batch.
+_ROW_BY_ROW = 4
 
 
 def _readonly(array: np.ndarray) -> np.ndarray:
@@ -131,6 +137,8 @@ class PlatformBatch:
         self._bad = np.zeros(n, dtype=bool)
         self._any_non_finite = False
         self._home_rotation = rpy_to_matrix(self.platform.home_rpy)
+        # whether each row's episode meets the task's success criterion so far
+        self._success = SuccessTracker(self.task.success_criterion, n)
 
     def _views(self) -> None:
         """The members that are views of others; made again in a copy (see :meth:`__setstate__`),
@@ -146,6 +154,8 @@ class PlatformBatch:
             MappingProxyType({k: _readonly(v) for k, v in self.episode.items()}))
         # the compiled step's outcome: its reward terms by name, views of its (5, n) array
         self._term_views = dict(zip(REWARD_TERMS, self._terms))
+        # the position and orientation errors (2, 3) of each row that track_success_of_row reads
+        self._pose_errors = tuple(self._error_vectors[:2, i] for i in range(min(self.n, _ROW_BY_ROW)))
         self._kernel = self._compiled_step()
         # the compiled step checks the action before it changes anything: nothing runs before it
         self.checks_action = self._kernel is not None and not (self._moving_reference or self._has_external_wrench)
@@ -180,6 +190,7 @@ class PlatformBatch:
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         del state["_state"], state["view"], state["_errors"], state["_kernel"], state["_term_views"]
+        del state["_pose_errors"]
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -236,7 +247,9 @@ class PlatformBatch:
         self._action[rows] = 0.0
         state = PlatformState(*(x[rows] for x in self._state))
         self.leg_forces[rows] = self._start_forces(state, drawn)
-        self.observations.reset_rows(rows, self._start_view(rows, state), rngs)
+        view = self._start_view(rows, state)
+        self._start_success(rows, view.errors)
+        self.observations.reset_rows(rows, view, rngs)
         return infos
 
     def _draw_episodes(self, rows: np.ndarray, rngs: Sequence[np.random.Generator],
@@ -425,6 +438,50 @@ class PlatformBatch:
         if bad is not None:
             reward = self._end_non_finite(bad, code, terms)
         return reward, code, terms
+
+    # -- success -----------------------------------------------------------------------------------------
+
+    def _start_success(self, rows: np.ndarray, errors) -> None:
+        """Start the success tracker of ``rows`` with their errors at reset (:class:`Errors` of
+        those rows): row by row in Python numbers for a few rows, as :meth:`track_success`."""
+        if len(rows) <= _ROW_BY_ROW:
+            for row, position, orientation in zip(rows.tolist(), errors.position.tolist(),
+                                                  errors.orientation.tolist()):
+                self._success.start_row(row, error_norm(position), error_norm(orientation))
+        else:
+            self._success.start(rows, error_norm(errors.position), error_norm(errors.orientation))
+
+    def track_success(self, code: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every row's outcome for the success criterion after a step; call once after each step.
+
+        Args:
+            code: (n,) the step's termination codes (as :meth:`step` returns them).
+
+        Returns:
+            The rows' position error |e_p| (n,) m, orientation error (the angle of e_o, at most
+            pi) (n,) rad, both :func:`~stewart_env.tasks.base.error_norm` of the step's errors (the
+            numbers the evaluation harness measures; a position error beyond the largest float64,
+            that), and whether each episode, ended at this step, meets the task's success
+            criterion (n,) bool.
+        """
+        if self.n <= _ROW_BY_ROW:
+            rows = zip(*(self.track_success_of_row(i, code) for i in range(self.n)))
+            return tuple(np.array(values) for values in rows)
+        # both norms at once, of the (2, n, 3) position and orientation errors
+        position, orientation = error_norm(self._error_vectors[:2])
+        np.fmin(position, _LARGEST, out=position)
+        return position, orientation, self._success.step(self.time, position, orientation, code > 0)
+
+    def track_success_of_row(self, row: int, code: np.ndarray) -> tuple[float, float, bool]:
+        """:meth:`track_success` of row ``row`` alone, as Python numbers: the same numbers at a
+        fraction of the cost (the single environment's step, a batch of a few rows).  ``row`` is
+        one of the first ``_ROW_BY_ROW`` rows, whose errors the batch keeps views of."""
+        p, o = self._pose_errors[row].tolist()
+        position, orientation = error_norm(p), error_norm(o)
+        if position > _LARGEST:
+            position = _LARGEST
+        return position, orientation, self._success.step_row(row, self.time.item(row), position, orientation,
+                                                             code.item(row) > 0)
 
     def _park(self, rows: np.ndarray) -> None:
         """Put rows at home at rest: a safe state to step before the caller resets them."""

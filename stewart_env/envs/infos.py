@@ -6,7 +6,12 @@ import functools
 
 import numpy as np
 
-__all__ = ["row_info", "step_values", "term_key"]
+__all__ = ["SUCCESS_KEYS", "row_info", "step_values", "term_key"]
+
+#: The info keys of a step's outcome for the success criterion, in the order of
+#: :meth:`~stewart_env.envs.core.PlatformBatch.track_success`: the position error |e_p| (m), the
+#: orientation error's angle (rad) and whether the episode, ended at this step, succeeds.
+SUCCESS_KEYS = ("position_error", "orientation_error", "is_success")
 
 
 @functools.cache
@@ -16,25 +21,35 @@ def term_key(name: str) -> str:
 
 
 def step_values(terms: dict[str, np.ndarray], code: np.ndarray, time: np.ndarray,
-                closure_error: np.ndarray | None) -> dict[str, np.ndarray]:
+                closure_error: np.ndarray | None,
+                success: tuple[np.ndarray, np.ndarray, np.ndarray]) -> dict[str, np.ndarray]:
     """Every row's step info, by key: ``reward_<term>`` (float64), ``termination`` (int64 code),
-    ``time`` (float64, s) and, when the plant reports it, ``closure_error`` (float64, m); each an
+    ``time`` (float64, s), when the plant reports it ``closure_error`` (float64, m), and
+    ``position_error``, ``orientation_error`` (float64, m and rad) and ``is_success`` (bool), the
+    arrays ``success`` of :meth:`~stewart_env.envs.core.PlatformBatch.track_success`; each an
     (n,) array of its own (copied where the batch goes on writing into it)."""
     values = {term_key(k): v for k, v in terms.items()}
     values["termination"] = code.copy()
     values["time"] = time.copy()
     if closure_error is not None:
         values["closure_error"] = closure_error.copy()
+    values.update(zip(SUCCESS_KEYS, success))
     return values
 
 
 def row_info(terms: dict[str, np.ndarray], code: np.ndarray, time: np.ndarray, closure_error: np.ndarray | None,
-             row: int) -> dict[str, np.generic]:
+             row: int, success: tuple[float, float, bool]) -> dict[str, np.generic]:
     """Row ``row``'s step info, the values of :func:`step_values` as numpy numbers (the single
-    environment's info), read straight from the batch's arrays."""
+    environment's info), read straight from the batch's arrays, and ``success`` the row's
+    (position error, orientation error, success) of
+    :meth:`~stewart_env.envs.core.PlatformBatch.track_success_of_row`."""
     info = {term_key(k): v[row] for k, v in terms.items()}
     info["termination"] = code[row]
     info["time"] = time[row]
     if closure_error is not None:
         info["closure_error"] = closure_error[row]
+    position, orientation, succeeded = success
+    info["position_error"] = np.float64(position)
+    info["orientation_error"] = np.float64(orientation)
+    info["is_success"] = np.bool_(succeeded)
     return info

@@ -27,8 +27,11 @@ class StewartPlatformSB3VecEnv(VecEnv):
     SB3 semantics: a
     row that ends is reset in the same step, its last observation in
     ``infos[i]["terminal_observation"]``, ``infos[i]["TimeLimit.truncated"]`` True when the time
-    limit (and not a termination) ended it, and ``infos[i]["termination"]`` the reason's code, as
-    the environment's (an index into ``termination_reasons``; 0 when truncated).  ``seed(s)`` seeds row i with s + i at the next ``reset()``, as SB3's own VecEnvs
+    limit (and not a termination) ended it, ``infos[i]["termination"]`` the reason's code, as
+    the environment's (an index into ``termination_reasons``; 0 when truncated), and
+    ``infos[i]["is_success"]`` whether the episode met the task's success criterion, as the
+    environment's ``info["is_success"]`` (what SB3's ``EvalCallback`` and ``Monitor`` read at an
+    episode's end).  ``seed(s)`` seeds row i with s + i at the next ``reset()``, as SB3's own VecEnvs
     do, so row i reproduces ``gymnasium.make("StewartPlatform-v1")`` reset with seed s + i.
     Wrap in ``VecMonitor`` for episode statistics.
 
@@ -107,10 +110,11 @@ class StewartPlatformSB3VecEnv(VecEnv):
         row_infos = [{"TimeLimit.truncated": bool(time_limit[i])} for i in range(self.num_envs)]
         if done.any():
             rows = np.flatnonzero(done)
-            codes = infos["final_info"]["termination"]
+            codes, success = infos["final_info"]["termination"], infos["final_info"]["is_success"]
             for i, info in zip(rows, self._row_infos(infos, rows)):
                 row_infos[i]["terminal_observation"] = infos["final_obs"][i]
                 row_infos[i]["termination"] = codes[i]
+                row_infos[i]["is_success"] = success[i]
                 self.reset_infos[i] = info
         return obs, reward.astype(np.float32), done, row_infos
 

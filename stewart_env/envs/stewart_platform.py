@@ -284,8 +284,20 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     dynamics model.  The tasks' options have ranges of their own (see `stewart_env.tasks`).
 
     Infos hold only numpy numbers (as torchrl's info readers need): a step's `info` has
-    `reward_<term>` and `time` (and `closure_error` on the MuJoCo plant) as float64 and
-    `termination` as an int64 code.  `step()` before the first `reset()` raises `gymnasium.error.ResetNeeded`.
+    `reward_<term>` and `time` (and `closure_error` on the MuJoCo plant) as float64,
+    `termination` as an int64 code, and the errors and verdict of the task's success criterion
+    (`env.unwrapped.task.success_criterion`, the evaluation harness's): `position_error`, `|e_p|`
+    in m, and `orientation_error`, the angle of `e_o` in rad, as float64 (the true errors after the
+    step, not the noisy observation: the numbers the harness measures, to the last bit), and
+    `is_success`, a numpy bool: whether the episode, were it to end at this step (at time t_k),
+    succeeds: it was not terminated, and every sample of its final tenth (of the errors at reset
+    and after each step, those at t >= 0.9 t_k, and at least the last) lies within 2 mm and
+    0.01 rad.  At the step that ends an episode, by the time limit or by a termination (then
+    always False), it is the verdict on the whole episode, as stable-baselines3's `Monitor`
+    (`info_keywords=("is_success",)`) and `EvalCallback` read it; before, it says whether the
+    episode so far meets the criterion (a set-point episode turns True once the platform has held
+    the band over the latest tenth of the time elapsed).
+    `step()` before the first `reset()` raises `gymnasium.error.ResetNeeded`.
     `reset()` takes no `options` (the vector environment one, `reset_mask`): any, or an `options`
     that is not a dict or None, raises a `ValueError` naming `options`.
     `copy.deepcopy(env)` and `pickle` give an environment that continues bit for bit as the
@@ -306,9 +318,9 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     (e.g. `get_attr("state")`, `call("render")`; `set_attr` sets a row's `np_random`, or one value
     shared by all rows), and `render()` gives one frame per row (drawn when first indexed, so that
     `gymnasium.wrappers.vector.RecordVideo` works).  Step infos are arrays with Gymnasium's masks,
-    `termination` an int64 array with 0 for rows that go on.
+    `termination` an int64 array with 0 for rows that go on, `is_success` a bool array.
     `stewart_env.envs.StewartPlatformSB3VecEnv(num_envs=N, **kwargs)` is the same batch behind
-    stable-baselines3's `VecEnv` API.
+    stable-baselines3's `VecEnv` API; its infos hold `is_success` at the end of a row's episode.
 
     Other attributes of `env.unwrapped`: `state` (position, rotation, velocity, angular_velocity),
     `target`, `model` (the `Dynamics`), `plant` (what simulates the platform, named by `plant.name`),
@@ -388,7 +400,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
         else:
             outcome = core.step(check_action(action, (6,)).reshape(1, 6), self._rngs, reuse=True)
         reward, code, terms, observation = outcome
-        info = row_info(terms, code, core.time, core.plant.closure_error, 0)
+        info = row_info(terms, code, core.time, core.plant.closure_error, 0, core.track_success_of_row(0, code))
         if self.render_mode == "human":
             self.render()
         return observation[0].copy(), float(reward[0]), bool(code[0]), False, info

@@ -185,7 +185,9 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
 
     Infos are Gymnasium vector infos: every key holds an (N,) array with a boolean mask under
     ``"_" + key``; step keys are those of the single environment (``reward_<term>``,
-    ``termination`` an int64 array of codes, 0 for rows that go on, ``time``).
+    ``termination`` an int64 array of codes, 0 for rows that go on, ``time``, ``position_error``,
+    ``orientation_error``, ``is_success`` a bool array); a row reset at the step (next-step
+    autoreset) has no step info (its mask False, its values 0 and False).
 
     A row is a sub-environment to ``call``, ``get_attr`` and ``set_attr`` (Gymnasium's
     semantics: a tuple of one result per row), e.g. ``get_attr("state")`` or ``call("render")``;
@@ -334,7 +336,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
 
     def _step_infos(self, terms: dict[str, np.ndarray], code: np.ndarray, stepped: np.ndarray) -> dict[str, Any]:
         core = self._core
-        values = step_values(terms, code, core.time, core.plant.closure_error)
+        values = step_values(terms, code, core.time, core.plant.closure_error, core.track_success(code))
         all_rows = bool(stepped.all())
         infos: dict[str, Any] = {}
         for key, value in values.items():

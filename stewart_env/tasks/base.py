@@ -18,6 +18,7 @@ origin in m/s, angular velocities in {B} in rad/s, forces in N, moments in N m.
 from __future__ import annotations
 
 import inspect
+import math
 from dataclasses import dataclass
 from collections.abc import Mapping
 from typing import Any, NamedTuple
@@ -32,13 +33,19 @@ from stewart_env.state import PlatformState, Reference
 from stewart_env.validation import real, vector
 
 __all__ = [
+    "FINAL_WINDOW",
     "LIMIT_REASONS",
+    "ORIENTATION_TOLERANCE",
+    "POSITION_TOLERANCE",
     "Errors",
     "RewardWeights",
     "Scales",
     "StepView",
+    "SuccessCriterion",
+    "SuccessTracker",
     "Task",
     "check_option_names",
+    "error_norm",
     "motion_ranges",
     "option",
     "pose_margins",
@@ -198,6 +205,178 @@ def tracking_errors(state: PlatformState, reference: Reference,
 def zero_reference(n: int) -> Reference:
     """A :class:`Reference` of n rows of zeros (rotation (n,3,3), every other field (n,3))."""
     return Reference(*(np.zeros((n, 3, 3) if name == "rotation" else (n, 3)) for name in Reference._fields))
+
+
+# -- success ---------------------------------------------------------------------------------------
+
+#: Default tolerances of the success band, 2 mm and 0.01 rad (0.57 deg).
+POSITION_TOLERANCE = 2e-3
+ORIENTATION_TOLERANCE = 1e-2
+#: Default final window of the success criterion, as a fraction of the episode's duration.
+FINAL_WINDOW = 0.1
+
+
+def error_norm(vectors):
+    """The norm sqrt((x^2 + y^2) + z^2) of error vectors (x, y, z).
+
+    The squares are summed in that order, numpy's order for a norm over a last axis of three
+    (``np.linalg.norm(e, axis=-1)`` gives the same bits), in both forms, so that the environment's
+    errors, one row at a time or a batch at once, and the evaluation harness's, over a recorded
+    episode, are the same numbers.
+
+    Args:
+        vectors: an array (..., 3), or one vector as a list or tuple of three Python floats (a
+            fraction of the array form's cost, for one row at a time).
+
+    Returns:
+        The norms, an array (...) for an array, a float for a list or tuple.
+    """
+    if type(vectors) in (list, tuple):  # (not isinstance: this is on the environment's step path)
+        x, y, z = vectors
+        return math.sqrt(x * x + y * y + z * z)
+    squares = np.square(vectors)
+    return np.sqrt(squares[..., 0] + squares[..., 1] + squares[..., 2])
+
+
+@dataclass(frozen=True)
+class SuccessCriterion:
+    """When an episode succeeds: it ran to its end without termination and held the success
+    band over its final window.
+
+    The episode's samples are its errors at t_0 = 0 (reset) and after every control step, up to
+    its last, t_end.  Inside the band: ``|e_p| <= position_tolerance`` and the orientation error's
+    angle ``|e_o| <= orientation_tolerance`` (:func:`error_norm` of the vectors of
+    :class:`Errors`).  The final window: the samples at t >= t_end - final_window (t_end - t_0),
+    and at least the last.  The episode succeeds when it was not terminated (for any reason) and
+    every sample of its final window lies inside the band; equivalently, when the latest sample
+    outside the band, if any, comes before the window (:meth:`holds`), which is how
+    :class:`SuccessTracker` follows it step by step with one number per episode.  The evaluation
+    harness (``stewart_env.agents.evaluation``) and the environment's ``info["is_success"]`` both
+    apply it.
+
+    Attributes:
+        position_tolerance: m, positive.
+        orientation_tolerance: rad, positive.
+        final_window: a fraction of the episode's duration, in [0, 1].
+
+    Raises:
+        ValueError: a tolerance that is not positive, or a final window outside [0, 1] (the
+            message names it).
+    """
+
+    position_tolerance: float = POSITION_TOLERANCE
+    orientation_tolerance: float = ORIENTATION_TOLERANCE
+    final_window: float = FINAL_WINDOW
+
+    def __post_init__(self) -> None:
+        if not (self.position_tolerance > 0 and self.orientation_tolerance > 0):
+            raise ValueError(f"position_tolerance, orientation_tolerance: must be positive, got "
+                             f"{self.position_tolerance}, {self.orientation_tolerance}")
+        if not 0 <= self.final_window <= 1:
+            raise ValueError(f"final_window: a fraction of the episode in [0, 1], got {self.final_window}")
+
+    def inside(self, position_norm, orientation_norm):
+        """Whether samples lie inside the band: floats give a bool, arrays a bool array.
+
+        Args:
+            position_norm: |e_p|, m.
+            orientation_norm: |e_o|, rad.
+        """
+        return (position_norm <= self.position_tolerance) & (orientation_norm <= self.orientation_tolerance)
+
+    def window_start(self, start_time, end_time):
+        """The time t_end - final_window (t_end - t_0) from which samples are in the final window
+        of an episode from ``start_time`` to ``end_time`` (s; floats or arrays)."""
+        return end_time - self.final_window * (end_time - start_time)
+
+    def final_window_mask(self, time) -> np.ndarray:
+        """(T,) bool: the samples of an episode at ``time`` (T,) s in its final window."""
+        time = np.asarray(time, dtype=float)
+        mask = time >= self.window_start(time[0], time[-1])
+        mask[-1] = True
+        return mask
+
+    def holds(self, latest_outside, start_time, end_time):
+        """Whether an episode from ``start_time`` to ``end_time`` (s) whose latest sample outside
+        the band is at ``latest_outside`` (s; -inf if none) holds the band over its final window.
+
+        With the samples' times increasing, the latest sample outside the band comes before the
+        window exactly when every sample of the window is inside (the last sample, always in the
+        window, among them).  Floats give a bool, arrays a bool array.
+        """
+        return latest_outside < self.window_start(start_time, end_time)
+
+    def succeeded(self, time, inside, terminated: bool) -> bool:
+        """Whether one recorded episode succeeds.
+
+        Args:
+            time: (T,) s, the sample times, increasing.
+            inside: (T,) bool, the samples inside the band (:meth:`inside`).
+            terminated: whether the episode ended early.
+
+        Returns:
+            The verdict.
+        """
+        if terminated:
+            return False
+        time = np.asarray(time, dtype=float)
+        outside = np.flatnonzero(~np.asarray(inside, dtype=bool))
+        latest = time[outside[-1]] if outside.size else -math.inf
+        return bool(self.holds(latest, time[0], time[-1]))
+
+
+class SuccessTracker:
+    """A :class:`SuccessCriterion` applied to the n episodes of a batch as they run.
+
+    Per row it keeps one number, the time of the episode's latest sample outside the band (-inf
+    if none), so that after every step it says, without the episode's history, whether the
+    episode would succeed if it ended there; at an episode's last step that is the criterion's
+    verdict on the whole episode, whatever its length.  Episodes start at t = 0.
+
+    Args:
+        criterion: the criterion.
+        n: the number of rows.
+    """
+
+    def __init__(self, criterion: SuccessCriterion, n: int):
+        self.criterion = criterion
+        #: The time (s) of each row's latest sample outside the band (n,), -inf if none.
+        self.latest_outside = np.full(n, -math.inf)
+
+    def start(self, rows: np.ndarray, position_norm: np.ndarray, orientation_norm: np.ndarray) -> None:
+        """Start the episodes of ``rows`` with their samples at t = 0: norms (m,) m and rad."""
+        self.latest_outside[rows] = np.where(self.criterion.inside(position_norm, orientation_norm), -math.inf, 0.0)
+
+    def start_row(self, row: int, position_norm: float, orientation_norm: float) -> None:
+        """:meth:`start` for one row, in Python numbers."""
+        self.latest_outside[row] = -math.inf if self.criterion.inside(position_norm, orientation_norm) else 0.0
+
+    def step(self, time: np.ndarray, position_norm: np.ndarray, orientation_norm: np.ndarray,
+             terminated: np.ndarray) -> np.ndarray:
+        """Take every row's sample after a step and judge its episode as if it ended there.
+
+        Args:
+            time: (n,) s, the sample's time.
+            position_norm: (n,) m.
+            orientation_norm: (n,) rad.
+            terminated: (n,) bool, the rows whose episode the step terminated.
+
+        Returns:
+            Whether each episode, ended at this step, succeeds, (n,) bool.
+        """
+        criterion = self.criterion
+        np.copyto(self.latest_outside, time, where=~criterion.inside(position_norm, orientation_norm))
+        return ~terminated & criterion.holds(self.latest_outside, 0.0, time)
+
+    def step_row(self, row: int, time: float, position_norm: float, orientation_norm: float,
+                 terminated: bool) -> bool:
+        """:meth:`step` for one row, in Python numbers (a fraction of the array version's cost,
+        for a batch of a few rows): the same comparisons of the same numbers."""
+        criterion = self.criterion
+        if not criterion.inside(position_norm, orientation_norm):
+            self.latest_outside[row] = time
+            return False  # the last sample is always in the final window
+        return not terminated and criterion.holds(self.latest_outside.item(row), 0.0, time)
 
 
 def pose_margins(params: PlatformParams | Dynamics, position: np.ndarray, rpy: np.ndarray, margin: float = 0.1,
@@ -381,6 +560,9 @@ class Task:
     #: ``version`` argument), as version -> {option: its default under that version}; an option
     #: the user gives wins.  Empty when the task is the same under every version.
     version_defaults: Mapping[int, Mapping[str, Any]] = {}
+    #: When an episode of the task succeeds (the environment's ``info["is_success"]``): by default
+    #: the evaluation harness's criterion, 2 mm and 0.01 rad over the final tenth of the episode.
+    success_criterion: SuccessCriterion = SuccessCriterion()
 
     def __init__(self, params: PlatformParams, control_dt: float, *, position_reward_weight: float = 0.5,
                  position_reward_scale: float = BASE_REWARD_SCALES[0], orientation_reward_weight: float = 0.5,

@@ -14,6 +14,8 @@ from stewart_env.agents.evaluation import (
     ENV_ID,
     ERROR_FLOOR,
     METRICS,
+    ORIENTATION_TOLERANCE,
+    POSITION_TOLERANCE,
     Episode,
     EvaluationResult,
     control_energy,
@@ -24,6 +26,7 @@ from stewart_env.agents.evaluation import (
     rms,
     settling_time,
 )
+from stewart_env.tasks.base import error_norm
 
 
 def second_order_step(zeta: float, wn: float, t: np.ndarray) -> np.ndarray:
@@ -102,6 +105,39 @@ def test_episode_metrics_of_a_synthetic_step():
     assert m["steady_state_position_error"] == pytest.approx(0.05 * np.abs(1 - y[window]).mean(), rel=1e-12)
     failed = episode_metrics(t, position_error, orientation_error, forces, rates, terminated=True)
     assert failed["success"] == 0.0 and math.isnan(failed["settling_time"])
+
+
+def test_success_is_the_final_window_rule():
+    """The criterion, now the tasks' (latest sample outside the band before the window), is the
+    harness's rule as it was written: not terminated and every sample of the final window inside."""
+    rng = np.random.default_rng(0)
+    verdicts = set()
+    for _ in range(2000):
+        steps = int(rng.integers(0, 60))
+        time = 0.01 * np.arange(steps + 1)
+        final_window = float(rng.choice([0.0, 0.1, 0.25, 0.5, 1.0, rng.uniform()]))
+        # errors around the band's edge, often inside from some sample on
+        scale = np.where(np.arange(steps + 1) >= rng.integers(0, steps + 2), 0.5, 2.0)
+        position_error = scale[:, None] * rng.uniform(0.0, 2e-3 / math.sqrt(3), (steps + 1, 3))
+        orientation_error = np.outer(scale * rng.uniform(0.3, 1.2, steps + 1), [0.0, 0.0, 1e-2])
+        terminated = bool(rng.random() < 0.1)
+        inside = (np.linalg.norm(position_error, axis=1) <= POSITION_TOLERANCE) & (
+            np.linalg.norm(orientation_error, axis=1) <= ORIENTATION_TOLERANCE)
+        written = float(not terminated and bool(inside[final_window_mask(time, final_window)].all()))
+        metrics = episode_metrics(time, position_error, orientation_error, np.zeros((steps, 6)),
+                                  np.zeros((steps + 1, 6)), terminated, final_window=final_window)
+        assert metrics["success"] == written
+        verdicts.add(written)
+    assert verdicts == {0.0, 1.0}
+
+
+def test_error_norms_are_numpy_s_norms_bit_for_bit():
+    """The environment's errors (``error_norm``, one row or a batch) are the numbers
+    ``np.linalg.norm`` gives the harness's recorded errors."""
+    vectors = np.random.default_rng(1).standard_normal((20000, 3)) * np.logspace(-9, 1, 20000)[:, None]
+    expected = np.linalg.norm(vectors, axis=1)
+    assert np.array_equal(error_norm(vectors), expected)
+    assert [error_norm(v) for v in vectors[:2000].tolist()] == expected[:2000].tolist()
 
 
 def test_evaluate_is_deterministic_and_matches_the_single_environment():

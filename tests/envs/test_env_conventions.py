@@ -147,7 +147,8 @@ def test_single_infos_are_plain_numpy_values():
     _, reward, _, _, info = env.step(np.full(6, 0.1))
     numeric_only(info)
     assert type(info["termination"]) is np.int64 and info["termination"] == 0
-    assert {type(v) for k, v in info.items() if k != "termination"} == {np.float64}
+    assert type(info["is_success"]) is np.bool_
+    assert {type(v) for k, v in info.items() if k not in ("termination", "is_success")} == {np.float64}
     assert isinstance(reward, float)
 
 
