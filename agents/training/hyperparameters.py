@@ -25,6 +25,7 @@ from stewart_env.agents.training.errors import TrainingError, check_rl_installed
 from stewart_env.files import DocumentError, load_yaml, read_regular
 from stewart_env.params import MAX_CONFIG_BYTES, config_dir
 from stewart_env.params.checks import excerpt
+from stewart_env.params.shipped import is_shipped_name
 from stewart_env.registration import ENV_ID
 from stewart_env.validation import integer
 
@@ -78,11 +79,19 @@ def shipped_configs() -> list[str]:
 def config_path(algo: str, config: str | os.PathLike | None = None) -> Path:
     """The hyperparameter file of ``algo``: ``config`` if given, else configs/agents/<algo>.yml.
 
-    ``config`` is a file's path, or the name of a shipped config with or without ``.yml``
-    (``ppo_6m``, ``ppo_6m.yml``); a file of that name in the working directory wins."""
+    ``config`` is a shipped config's name (``ppo_6m``: no path separator and no YAML suffix,
+    whatever the working directory holds, the rule of platforms), or a file's path; a name with
+    the suffix (``ppo_6m.yml``) is the file of that name in the working directory if there is one,
+    else the shipped config."""
     if config is None:
         return CONFIG_DIR / f"{algo}.yml"
     path = Path(config)
+    if is_shipped_name(config):
+        shipped = CONFIG_DIR / f"{path.name}.yml"
+        if shipped.is_file():
+            return shipped
+        raise TrainingError(f"unknown shipped config {str(config)!r}; shipped: {', '.join(shipped_configs())} (a "
+                            "file's path has a / or ends in .yml or .yaml)")
     if path.is_file():
         return path
     if len(path.parts) == 1 and not os.path.lexists(path):

@@ -13,7 +13,7 @@ from stewart_env.params.checks import ConfigError, describe
 from stewart_env.params.platform import PlatformParams, from_text
 from stewart_env.params.reader import CONFIG_SUFFIXES
 
-__all__ = ["config_dir", "available_platforms", "is_platform_name", "load_platform"]
+__all__ = ["config_dir", "available_platforms", "is_platform_name", "is_shipped_name", "load_platform"]
 
 
 def config_dir(kind: str) -> Path:
@@ -38,11 +38,12 @@ def available_platforms() -> list[str]:
                   if entry.name.endswith(".yaml"))
 
 
-def is_platform_name(name_or_path: object) -> bool:
-    """Whether ``name_or_path`` names a shipped platform rather than a config file.
+def is_shipped_name(name_or_path: object) -> bool:
+    """Whether ``name_or_path`` names a shipped config (a platform, an agent's hyperparameters)
+    rather than a file.
 
     A string with no path separator (``/``, or the system's own) and no ``.yaml``/``.yml``
-    suffix is a shipped platform's name, whatever the working directory holds (a folder left by
+    suffix is a shipped config's name, whatever the working directory holds (a folder left by
     ``--out dasgupta1998`` does not hide the shipped platform); anything else, a string with a
     separator or a YAML suffix or a ``Path``, is a file.
 
@@ -57,6 +58,10 @@ def is_platform_name(name_or_path: object) -> bool:
     separators = {"/", os.sep} | ({os.altsep} if os.altsep else set())
     return (not any(sep in name_or_path for sep in separators)
             and not name_or_path.lower().endswith(CONFIG_SUFFIXES))
+
+
+#: The rule of :func:`is_shipped_name`, for platforms.
+is_platform_name = is_shipped_name
 
 
 def load_platform(name_or_path: str | os.PathLike) -> PlatformParams:

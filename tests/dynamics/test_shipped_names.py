@@ -80,3 +80,19 @@ def test_the_command_line_and_the_mismatch_study_keep_the_shipped_name(cluttered
     except SystemExit as stop:
         code = stop.code
     assert code == 2 and "argument --platform: ./dasgupta1998: not a platform config" in capsys.readouterr().err
+
+
+def test_a_folder_named_like_a_shipped_agent_config_does_not_hide_it(tmp_path, monkeypatch):
+    from stewart_env.agents.training import config_path
+    from stewart_env.agents.training.errors import TrainingError
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "ppo").mkdir()  # left by --out ppo
+    (tmp_path / "sac").write_text("not a config")
+    assert config_path("ppo", "ppo") == config_path("ppo", None)
+    assert config_path("sac", "sac").read_bytes() == config_path("sac", None).read_bytes()
+    with pytest.raises(TrainingError, match=r"unknown shipped config 'nosuch'; shipped: crossq, ppo"):
+        config_path("ppo", "nosuch")
+    # a name with the suffix is the working directory's file where there is one
+    (tmp_path / "ppo.yml").write_text("StewartPlatform-v1: {}\n")
+    assert config_path("ppo", "ppo.yml").resolve() == tmp_path / "ppo.yml"
