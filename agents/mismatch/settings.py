@@ -27,6 +27,8 @@ from stewart_env.agents.mismatch.constants import (
     MismatchError,
 )
 from stewart_env.agents.training import ALGORITHMS, MAX_MANIFEST_BYTES, jsonable, read_hyperparameters
+from stewart_env.envs.config import model_argument
+from stewart_env.errors import UsageError
 from stewart_env.files import publish, read_json, sha256_file
 from stewart_env.params import MAX_CONFIG_BYTES
 from stewart_env.params.shipped import is_platform_name
@@ -114,6 +116,10 @@ class MismatchSettings:
         set_("train_models", tuple(_check_models(self.train_models, "train models", platform)))
         set_("test_models", tuple(_check_models(self.test_models, "test models", platform)))
         set_("seeds", _check_seeds(self.seeds))
+        try:
+            set_("cost_plant", model_argument(self.cost_plant))
+        except UsageError as err:
+            raise MismatchError(f"cost plant: {err.problem}", argument="cost_plant", problem=err.problem) from None
         if self.cost_plant not in self.test_models:
             raise MismatchError(f"cost plant: {self.cost_plant!r} is not one of the test models "
                                 f"({', '.join(self.test_models)}); pass --cost-plant with one of them, or add "
@@ -189,31 +195,40 @@ def design_models(train_models: Sequence[str], simplifications: Sequence[str]) -
 
 
 def _check_models(names: Sequence[str], what: str, platform: str) -> list[str]:
-    """The model names, each checked by building the environment on it (one source of truth for
-    what the environment simulates)."""
+    """The models' canonical names (:func:`stewart_env.envs.config.model_argument`: each name
+    parsed once), each checked by building the environment on it (one source of truth for what
+    the environment simulates, e.g. whether MuJoCo is installed)."""
     from stewart_env.envs import StewartPlatformEnv
 
     out = []
     for name in names:
         try:
-            StewartPlatformEnv(model=name, platform=platform).close()
+            canonical = model_argument(name)
+            StewartPlatformEnv(model=canonical, platform=platform).close()
         except (ValueError, KeyError, ImportError) as exc:
             raise MismatchError(f"{what}: {name!r} is not a model the environment simulates ({exc})") from None
-        out.append(name)
+        out.append(canonical)
     if not out:
         raise MismatchError(f"{what}: give at least one model")
     return out
 
 
-def closed_form(model: str, platform: str) -> bool:
-    """Whether ``model`` is a closed-form dynamics model (one PD and CT rows can be built on)."""
-    import stewart_env as se
+def closed_form(model: str) -> bool:
+    """Whether ``model`` is a closed-form dynamics model (one PD and CT rows can be built on), not
+    MuJoCo's plant nor an unknown name.
+
+    Args:
+        model: a model name, a ModelSpec or ``"mujoco"``.
+
+    Returns:
+        Whether it names a :class:`~stewart_env.ModelSpec`.
+    """
+    from stewart_env.envs.config import model_spec
 
     try:
-        se.make_dynamics(model, se.load_platform(platform))
-    except (ValueError, KeyError):
+        return model_spec(model) is not None
+    except UsageError:
         return False
-    return True
 
 
 def _check_seeds(seeds: Sequence[int]) -> tuple[int, ...]:
