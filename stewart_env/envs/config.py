@@ -179,6 +179,10 @@ class TaskConfig(_Record):
                                               "`StewartPlatform-v<version>`: its tasks' defaults (see Version History)")
 
     def __post_init__(self) -> None:
+        from stewart_env.tasks import TASKS
+
+        if isinstance(self.task, str) and self.task not in TASKS:  # a Task subclass is checked by the task registry
+            raise UsageError.about("task", f"unknown task {self.task!r}; choose one of {', '.join(TASKS)}")
         options = self.task_options
         if options is not None and not isinstance(options, dict):
             raise ArgumentError.about("task_options", f"expected a dict of options, got {options!r}")
