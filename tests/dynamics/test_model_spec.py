@@ -145,3 +145,21 @@ def test_the_environment_names_mujoco_beside_the_models():
     # an unknown switch is no unknown model: no MuJoCo hint
     with pytest.raises(UsageError, match=r"^model: unknown switch 'c7' in 'improved\+c7'; switches are c1, c2, c3, c4$"):
         model_argument("improved+c7")
+
+
+def test_an_identify_report_of_another_spelling_of_the_model_is_the_same_model():
+    """Reports written before the canonical names said ``classical+c1`` where they now say ``classical``."""
+    from stewart_env.identification import base as base_mod
+    from stewart_env.identification import experiment
+
+    params = se.load_platform("dasgupta1998")
+    model = se.make_dynamics("classical", params)
+    base = base_mod.base_parameters(model)
+    report = {"platform": params.name, "settings": {"model": "classical+c1", "noise_force": 1.0},
+              "fitted_duration": 5.0, "base_parameters": [{"name": n, "wls": 1.0, "wls_std": 0.1} for n in base.names]}
+    settings = experiment.Settings(model="classical", noise_force=1.0)
+    experiment._check_reference(report, settings, params, base, model.spec)  # accepted: the same kernel flags
+    for other in ("improved", "improved+c9"):
+        report["settings"]["model"] = other
+        with pytest.raises(UsageError, match="^--predicted-by: a report of dasgupta1998's classical base parameters"):
+            experiment._check_reference(report, settings, params, base, model.spec)
