@@ -80,7 +80,7 @@ class ModelSpec:
         UsageError: an unknown base or a switches value that is no :class:`Switch` (argument ``model``).
 
     Examples:
-        >>> from stewart_env import ModelSpec
+        >>> from stewart_env import ModelSpec, Switch
         >>> spec = ModelSpec.parse("Improved+C3+c1")
         >>> spec.name, spec.flags, spec.switches == Switch.C1 | Switch.C3
         ('improved+c1+c3', 5, True)
