@@ -35,7 +35,8 @@ def test_the_subclasses_keep_their_fields():
 
     err = ConfigError("platform.mass", "expected a positive number", "a.yaml")
     assert (err.key, err.problem, err.source, err.argument) == ("platform.mass", "expected a positive number",
-                                                                 "a.yaml", None)
+                                                                 "a.yaml", "platform.mass")
+    assert ConfigError("", "not a mapping").argument is None
     assert str(err) == "a.yaml: platform.mass: expected a positive number"
     bad = ArgumentError.about("seed", "expected an integer")
     assert isinstance(bad, TypeError) and isinstance(bad, UsageError) and bad.argument == "seed"

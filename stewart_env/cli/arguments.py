@@ -18,7 +18,7 @@ from pathlib import Path
 from stewart_env.agents.mismatch.constants import MAX_STEPS as MAX_EPISODE_STEPS
 from stewart_env.tasks import TASKS as _TASK_CLASSES
 from stewart_env.errors import UsageError
-from stewart_env.validation import MAX_SEED, Constraint, Interval, quoted
+from stewart_env.validation import MAX_SEED, Constraint, Interval, StrOptions, quoted
 
 #: The task names the command line offers: those of the task registry.
 TASKS = tuple(_TASK_CLASSES)
@@ -132,14 +132,7 @@ seed_list = distinct_list(seed, "0,1,2", f"comma-separated distinct integers in 
 def choice(names: Sequence[str]):
     """An argparse type: one of ``names`` (for a value inside a list; a flag of its own uses
     argparse's ``choices``)."""
-
-    def parse(text: str) -> str:
-        if text not in names:
-            raise argparse.ArgumentTypeError(f"unknown {quoted(text)}; choose from {', '.join(names)}")
-        return text
-
-    parse.__doc__ = f"argparse type: one of {', '.join(names)}."
-    return parse
+    return constrained(StrOptions(names), doc=f"argparse type: one of {', '.join(names)}.")
 
 
 def writable_file(text: str) -> str:
