@@ -251,7 +251,7 @@ def _check_platform(platform: str) -> str:
     try:
         load_platform(platform)
     except (ValueError, OSError, KeyError, TypeError) as err:
-        raise MismatchError(f"platform: {err}") from None
+        raise MismatchError(f"platform: {err}", argument="platform", problem=str(err)) from None
     # a config file by its absolute path, so that a later run from elsewhere finds the same one
     return platform if is_platform_name(platform) else str(Path(platform).resolve())
 
@@ -260,10 +260,17 @@ def _check_platform(platform: str) -> str:
 _PLATFORM_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]*")
 
 
+def _refuse_platform(problem: str) -> MismatchError:
+    """The error of one controller platform: ``controller platform: <problem>``, its argument
+    ``controller_platforms``."""
+    return MismatchError(f"controller platform: {problem}", argument="controller_platforms", problem=problem)
+
+
 def check_controller_platforms(items: Sequence[Any]) -> tuple[tuple[str, str], ...]:
     """((name, platform), ...) of the controller platforms: each loads, each name once."""
     if isinstance(items, (str, bytes)):
-        raise MismatchError(f"controller platforms: expected a list of platforms, got {items!r}")
+        raise MismatchError(f"controller platforms: expected a list of platforms, got {items!r}",
+                            argument="controller_platforms", problem=f"expected a list of platforms, got {items!r}")
     out: list[tuple[str, str]] = []
     for item in items:
         if isinstance(item, (tuple, list)) and len(item) == 2:
@@ -273,18 +280,17 @@ def check_controller_platforms(items: Sequence[Any]) -> tuple[tuple[str, str], .
             head, sep, tail = text.partition("=")
             name, platform = (head, tail) if sep and _PLATFORM_NAME.fullmatch(head) else (None, text)
         else:
-            raise MismatchError(f"controller platform: expected NAME=PLATFORM or PLATFORM, got {item!r}")
+            raise _refuse_platform(f"expected NAME=PLATFORM or PLATFORM, got {item!r}")
         try:
             checked = _check_platform(str(platform))
         except MismatchError as err:
-            raise MismatchError(f"controller {err}") from None
+            raise _refuse_platform(err.problem) from None
         name = Path(checked).stem if name is None else name
         if not isinstance(name, str) or not _PLATFORM_NAME.fullmatch(name):
-            raise MismatchError(f"controller platform: {name!r} cannot name a platform in the rows; give "
-                                "NAME=PLATFORM with NAME letters, digits and _.+-")
+            raise _refuse_platform(f"{name!r} cannot name a platform in the rows; give NAME=PLATFORM with NAME "
+                                   "letters, digits and _.+-")
         if slug(name) in (slug(n) for n, _ in out):  # the rows' files are named by the slug
-            raise MismatchError(f"controller platform: two platforms named {name!r}; name them apart with "
-                                "NAME=PLATFORM")
+            raise _refuse_platform(f"two platforms named {name!r}; name them apart with NAME=PLATFORM")
         out.append((name, checked))
     return tuple(out)
 

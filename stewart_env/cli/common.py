@@ -25,6 +25,8 @@ FLAGS = {
     "plant": "--plant",
     "internal_model": "--internal-model",
     "cost_plant": "--cost-plant",
+    "platform": "--platform",
+    "controller_platforms": "--controller-platform",
     "env_kwargs": "--env-kwargs",
     "out": "--out",
     "config": "--config",
