@@ -126,6 +126,8 @@ class Interval(Constraint):
         kind: ``numbers.Integral`` or ``numbers.Real``.
         low, high: the bounds.
         low_open: exclude ``low`` (real numbers only).
+        expected: how messages say what is accepted, if not in the bounds' own words (e.g.
+            ``"a positive integer"``).
 
     Examples:
         >>> import numbers
@@ -135,15 +137,18 @@ class Interval(Constraint):
         ('a finite number in (0, 10]', 0.01, 0.5)
     """
 
-    def __init__(self, kind: type, low: float, high: float, *, low_open: bool = False):
+    def __init__(self, kind: type, low: float, high: float, *, low_open: bool = False, expected: str | None = None):
         if kind not in (numbers.Integral, numbers.Real):
             raise TypeError(f"Interval: kind must be numbers.Integral or numbers.Real, got {kind!r}")
         if kind is numbers.Integral and low_open:
             raise TypeError("Interval: an integer interval is closed; raise low by one instead")
         self.kind, self.low, self.high, self.low_open = kind, low, high, low_open
+        self._expected = expected
 
     @property
     def expected(self) -> str:  # said only when refusing: a check that passes formats nothing
+        if self._expected is not None:
+            return self._expected
         if self.kind is numbers.Integral:
             return f"an integer in [{self.low}, {self.high}]"
         return f"a finite number {_span(self.low, self.high, self.low_open)}"

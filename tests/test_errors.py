@@ -277,3 +277,18 @@ def test_no_module_reads_an_error_text():
                         found.add((path.relative_to(ROOT).as_posix(), fn.name))
     assert found - KNOWN == set(), "code that reads an error's text (raise errors that carry data instead)"
     assert KNOWN - found == set(), "a known place no longer reads error text: remove it from KNOWN"
+
+
+def test_the_study_checks_its_counts_with_the_command_lines_constraints():
+    """MismatchSettings' counts and tolerances are the constraints' checks: the error names the
+    setting as data, and a numpy integer is a count."""
+    from stewart_env.agents.mismatch.settings import COUNT, TOLERANCE, _checked
+
+    import numpy as np
+
+    assert _checked(COUNT, "episodes", np.int64(3)) == 3 and _checked(TOLERANCE, "position_tolerance", 1) == 1.0
+    for name, constraint, value in (("episodes", COUNT, 0), ("n_envs", COUNT, True), ("position_tolerance", TOLERANCE, 0.0),
+                                    ("orientation_tolerance", TOLERANCE, math.nan)):
+        with pytest.raises(UsageError) as info:
+            _checked(constraint, name, value)
+        assert info.value.argument == name and str(info.value).startswith(f"{name}: expected {constraint.expected}")

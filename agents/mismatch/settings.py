@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 import os
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE, slug
 from stewart_env.agents.mismatch.backends import check_backend
@@ -32,7 +31,7 @@ from stewart_env.errors import UsageError
 from stewart_env.files import publish, read_json, sha256_file
 from stewart_env.params import MAX_CONFIG_BYTES
 from stewart_env.params.shipped import is_platform_name
-from stewart_env.validation import MAX_SEED, seed
+from stewart_env.validation import MAX_SEED, Interval, seed
 
 __all__ = ["MismatchSettings", "check_own_agents", "check_study", "closed_form", "design_models"]
 
@@ -127,19 +126,12 @@ class MismatchSettings:
         if self.agent_models is not None:
             set_("agent_models", tuple(_check_models(self.agent_models, "agent models", platform)))
         for name in ("episodes", "timesteps", "n_envs", "max_steps"):
-            value = getattr(self, name)
-            if value is None:
-                continue
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise MismatchError(f"{name}: expected a positive integer, got {value!r}")
-            set_(name, int(value))
+            if getattr(self, name) is not None:
+                set_(name, _checked(COUNT, name, getattr(self, name)))
         if self.max_steps is not None and self.max_steps > MAX_STEPS:
             raise MismatchError(f"max_steps: at most {MAX_STEPS} control steps per episode, got {self.max_steps}")
         for name in ("position_tolerance", "orientation_tolerance"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
-                raise MismatchError(f"{name}: expected a finite positive number, got {value!r}")
-            set_(name, float(value))
+            set_(name, _checked(TOLERANCE, name, getattr(self, name)))
         set_("controller_platforms", check_controller_platforms(self.controller_platforms))
         # rows' cells and agents live in folders named by the slugs of their labels
         own = {slug(m) for m in [*self.design_models, "improved + DR"]}
@@ -187,6 +179,20 @@ class MismatchSettings:
             out["controller_platforms"] = [{"name": name, "platform": platform, "sha256": _file_hash(platform)}
                                            for name, platform in self.controller_platforms]
         return out
+
+
+#: A count of episodes, timesteps, environments or steps, and a tolerance (the same constraints
+#: as the command line's --episodes ... and --position-tolerance ...).
+COUNT = Interval(numbers.Integral, 1, math.inf, expected="a positive integer")
+TOLERANCE = Interval(numbers.Real, 0.0, math.inf, low_open=True, expected="a finite positive number")
+
+
+def _checked(constraint: Interval, name: str, value: Any) -> Any:
+    """``value`` checked by ``constraint``; a MismatchError naming ``name`` (as data too) otherwise."""
+    try:
+        return constraint.check(name, value)
+    except UsageError as err:
+        raise MismatchError(str(err), argument=err.argument, problem=err.problem) from None
 
 
 def design_models(train_models: Sequence[str], simplifications: Sequence[str]) -> list[str]:

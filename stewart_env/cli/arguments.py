@@ -45,31 +45,29 @@ def checked(cast: Callable[[str], float], ok: Callable[[float], bool], expected:
     return parse
 
 
-def constrained(constraint: Constraint, expected: str | None = None, doc: str | None = None):
-    """The argparse type of a declarative constraint (``expected``: how the error says what is
-    accepted, default the constraint's own words)."""
+def constrained(constraint: Constraint, doc: str | None = None):
+    """The argparse type of a declarative constraint: its value, or argparse's error in the
+    constraint's words."""
 
     def parse(text: str):
         try:
             return constraint.parse(text)
         except UsageError as err:
-            if expected is None:
-                raise argparse.ArgumentTypeError(err.problem) from None
-            raise argparse.ArgumentTypeError(f"expected {expected}, got {quoted(text)}") from None
+            raise argparse.ArgumentTypeError(err.problem) from None
 
-    parse.__doc__ = doc or f"argparse type: {expected or constraint.expected}."
+    parse.__doc__ = doc or f"argparse type: {constraint.expected}."
     return parse
 
 
 def integer(low: int, high: int, expected: str | None = None, doc: str | None = None):
     """An argparse type: an integer in [low, high] (``expected``: how the error says it)."""
-    return constrained(Interval(numbers.Integral, low, high), expected, doc)
+    return constrained(Interval(numbers.Integral, low, high, expected=expected), doc)
 
 
 def real(low: float, high: float = math.inf, *, low_open: bool = False, expected: str | None = None,
          doc: str | None = None):
     """An argparse type: a finite number in [low, high] ((low, high] with ``low_open``)."""
-    return constrained(Interval(numbers.Real, low, high, low_open=low_open), expected, doc)
+    return constrained(Interval(numbers.Real, low, high, low_open=low_open, expected=expected), doc)
 
 
 positive_int = integer(1, MAX_COUNT, f"a positive integer up to {MAX_COUNT}", "argparse type: an integer >= 1.")
