@@ -171,7 +171,8 @@ class ComputedTorquePolicy(EnvPolicy):
         kp, kd: gains as in :class:`ComputedTorque`.
     """
 
-    def __init__(self, env, internal_model: str | se.ModelSpec = "improved", kp=None, kd=None, platform: PlatformParams | None = None):
+    def __init__(self, env, internal_model: str | se.ModelSpec = "improved",
+                 kp=None, kd=None, platform: PlatformParams | None = None):
         believed = env.unwrapped.platform if platform is None else platform
         super().__init__(env, ComputedTorque(believed, internal_model, kp, kd))
         base = env.unwrapped

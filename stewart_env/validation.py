@@ -26,8 +26,9 @@ import numpy as np
 
 from stewart_env.errors import UsageError
 
-__all__ = ["MAX_SEED", "ArgumentError", "Constraint", "Interval", "StrOptions", "check_action", "check_keywords", "choice", "flag", "integer",
-           "interval", "plain", "quoted", "real", "real_array", "reset_options", "seed", "vector"]
+__all__ = ["MAX_SEED", "ArgumentError", "Constraint", "Interval", "StrOptions", "check_action", "check_keywords",
+           "choice", "flag", "integer", "interval", "plain", "quoted", "real", "real_array", "reset_options", "seed",
+           "vector"]
 
 
 #: Largest seed: numpy's SeedSequence takes any non-negative int, but the seeds a run records

@@ -287,8 +287,9 @@ def test_the_study_checks_its_counts_with_the_command_lines_constraints():
     import numpy as np
 
     assert _checked(COUNT, "episodes", np.int64(3)) == 3 and _checked(TOLERANCE, "position_tolerance", 1) == 1.0
-    for name, constraint, value in (("episodes", COUNT, 0), ("n_envs", COUNT, True), ("position_tolerance", TOLERANCE, 0.0),
-                                    ("orientation_tolerance", TOLERANCE, math.nan)):
+    cases = (("episodes", COUNT, 0), ("n_envs", COUNT, True), ("position_tolerance", TOLERANCE, 0.0),
+             ("orientation_tolerance", TOLERANCE, math.nan))
+    for name, constraint, value in cases:
         with pytest.raises(UsageError) as info:
             _checked(constraint, name, value)
         assert info.value.argument == name and str(info.value).startswith(f"{name}: expected {constraint.expected}")

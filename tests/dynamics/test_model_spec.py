@@ -143,7 +143,7 @@ def test_the_environment_names_mujoco_beside_the_models():
         model_argument("nope")
     assert info.value.argument == "model"
     # an unknown switch is no unknown model: no MuJoCo hint
-    with pytest.raises(UsageError, match=r"^model: unknown switch 'c7' in 'improved\+c7'; switches are c1, c2, c3, c4$"):
+    with pytest.raises(UsageError, match=r"^model: unknown switch 'c7' in 'improved\+c7'; switches are c1, c2, c3, c4"):
         model_argument("improved+c7")
 
 
