@@ -58,14 +58,3 @@ class UsageError(ValueError):
             The error (not raised).
         """
         return cls(f"{argument}: {problem}" if argument else problem, argument=argument, problem=problem, **extra)
-
-    def renamed(self, argument: str) -> "UsageError":
-        """The same problem said of the argument ``argument`` (e.g. a model name refused as ``plant``).
-
-        Args:
-            argument: the argument's name in the caller's terms.
-
-        Returns:
-            A new :class:`UsageError` (the base class), not raised.
-        """
-        return UsageError.about(argument, self.problem)

@@ -21,8 +21,6 @@ def test_a_usage_error_carries_its_argument_and_problem():
     assert (err.argument, err.problem) == ("control_dt", "expected a finite number in [1e-06, 10], got 0")
     assert str(err) == "control_dt: expected a finite number in [1e-06, 10], got 0" and isinstance(err, ValueError)
     assert UsageError("a file is busy").argument is None and UsageError("a file is busy").problem == "a file is busy"
-    renamed = err.renamed("physics_dt")
-    assert (renamed.argument, str(renamed)) == ("physics_dt", "physics_dt: " + err.problem)
     import pickle
 
     copy = pickle.loads(pickle.dumps(err))  # errors cross process boundaries (the mismatch study's workers)
