@@ -46,13 +46,13 @@ class ComputedTorque:
     Args:
         platform: the platform's parameters, as the controller believes them.
         internal_model: name of the controller's dynamics model (``"improved"``, ``"classical"``,
-            ``"improved+c2"``, ...), independent of the plant's.
+            ``"improved+c2"``, ...) or its :class:`~stewart_env.ModelSpec`, independent of the plant's.
         kp, kd: six gains [x, y, z, roll, pitch, yaw] in 1/s^2 and 1/s, or a scalar for all;
             default wn^2 and 2 zeta wn with wn = 20 rad/s, zeta = 1.
 
     Raises:
-        ValueError: ``platform`` not PlatformParams, an unknown model name, or a gain not six
-            finite numbers or a scalar.
+        ValueError: ``platform`` not PlatformParams, an unknown model name (a UsageError whose
+            ``argument`` is ``"internal_model"``), or a gain not six finite numbers or a scalar.
 
     Examples:
         A 1 cm step up: Kp e = 400/s^2 x 0.01 m = 4 m/s^2 commanded upwards, turned into leg
@@ -72,11 +72,11 @@ class ComputedTorque:
         (6,)
     """
 
-    def __init__(self, platform: PlatformParams, internal_model: str = "improved", kp=None, kd=None):
+    def __init__(self, platform: PlatformParams, internal_model: str | se.ModelSpec = "improved", kp=None, kd=None):
         if not isinstance(platform, PlatformParams):
             raise ValueError(f"platform: expected PlatformParams, got {type(platform).__name__}")
         self.platform = platform
-        self.model = se.make_dynamics(internal_model, platform)
+        self.model = se.make_dynamics(se.ModelSpec.parse(internal_model, "internal_model"), platform)
         self.internal_model = self.model.name
         wn, zeta = DEFAULT_NATURAL_FREQUENCY, DEFAULT_DAMPING
         self.kp = _gain(wn**2 if kp is None else kp, "kp")
@@ -171,7 +171,8 @@ class ComputedTorquePolicy(EnvPolicy):
         kp, kd: gains as in :class:`ComputedTorque`.
     """
 
-    def __init__(self, env, internal_model: str = "improved", kp=None, kd=None, platform: PlatformParams | None = None):
+    def __init__(self, env, internal_model: str | se.ModelSpec = "improved",
+                 kp=None, kd=None, platform: PlatformParams | None = None):
         believed = env.unwrapped.platform if platform is None else platform
         super().__init__(env, ComputedTorque(believed, internal_model, kp, kd))
         base = env.unwrapped

@@ -45,7 +45,8 @@ import numpy as np
 import scipy.linalg
 
 import stewart_env as se
-from stewart_env.dynamics.model import batch_args, pack_params, parse_model_name
+from stewart_env.dynamics import ModelSpec
+from stewart_env.dynamics.model import batch_args, pack_params
 from stewart_env.dynamics.rk4 import PD_CONTROL_LAW, PD_LAYOUT, law_forces
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rotvec_to_matrix
@@ -71,7 +72,7 @@ PD_N_PARAMS = sum(size for _, size in PD_LAYOUT)
 _STATE_FIELDS = (("position", (3,)), ("rotation", (3, 3)), ("velocity", (3,)), ("angular_velocity", (3,)))
 
 def pd_control_params(platform: PlatformParams, reference: Reference, kp=PAPER_KP, kd=PAPER_KD,
-                      gravity_compensation: bool = False, gravity_model: str = "improved") -> np.ndarray:
+                      gravity_compensation: bool = False, gravity_model: str | ModelSpec = "improved") -> np.ndarray:
     """The parameter row of ``pd_control_law`` for a reference.
 
     Args:
@@ -87,7 +88,7 @@ def pd_control_params(platform: PlatformParams, reference: Reference, kp=PAPER_K
     """
     if not isinstance(platform, PlatformParams):
         raise ValueError(f"platform: expected PlatformParams, got {type(platform).__name__}")
-    _, flags = parse_model_name(gravity_model)
+    flags = ModelSpec.parse(gravity_model, "gravity_model").flags
     n, batched, ref = batch_args(
         1, position=(reference.position, (3,)), rotation=(reference.rotation, (3, 3)),
         velocity=(reference.velocity, (3,)), angular_velocity=(reference.angular_velocity, (3,)))
@@ -204,7 +205,8 @@ class TaskSpacePD:
             inverse dynamics at rest of ``gravity_model``; off by default, as in the paper's law
             as we have it.  With it the PD terms only have to produce accelerations, so a set
             point is reached without the droop weight / Kp.
-        gravity_model: dynamics model name for the holding forces; ``"improved"`` is exact at rest.
+        gravity_model: dynamics model name (or :class:`~stewart_env.dynamics.ModelSpec`) for the
+            holding forces; ``"improved"`` is exact at rest.
 
     Raises:
         ValueError: ``platform`` not PlatformParams, a gain not six finite numbers or a scalar,
@@ -225,14 +227,15 @@ class TaskSpacePD:
     """
 
     def __init__(self, platform: PlatformParams, kp=PAPER_KP, kd=PAPER_KD, gravity_compensation: bool = False,
-                 gravity_model: str = "improved"):
+                 gravity_model: str | ModelSpec = "improved"):
         if not isinstance(platform, PlatformParams):
             raise ValueError(f"platform: expected PlatformParams, got {type(platform).__name__}")
         self.platform = platform
         self.kp = _gain(kp, "kp")
         self.kd = _gain(kd, "kd")
         self.gravity_compensation = bool(gravity_compensation)
-        self.gravity_model = parse_model_name(gravity_model)[0]
+        self.gravity_spec = ModelSpec.parse(gravity_model, "gravity_model")
+        self.gravity_model = self.gravity_spec.name
 
     def control_params(self, reference: Reference) -> np.ndarray:
         """``pd_control_law``'s parameter row for this controller and a reference.
@@ -245,7 +248,7 @@ class TaskSpacePD:
             :func:`stewart_env.rollout` takes as ``control_params`` for this controller.
         """
         return pd_control_params(self.platform, reference, self.kp, self.kd, self.gravity_compensation,
-                                 self.gravity_model)
+                                 self.gravity_spec)
 
     def __call__(self, state: PlatformState, reference: Reference) -> np.ndarray:
         """Leg forces for a state and a reference (see the class docstring).

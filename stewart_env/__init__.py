@@ -14,7 +14,8 @@ Public API::
                                     # STEWART_ENV_THREADS when the package is imported); se.get_num_threads()
 """
 
-from stewart_env.dynamics import MODEL_NAMES, Dynamics, Workspace, get_num_threads, make_dynamics, set_num_threads
+from stewart_env.dynamics import (MODEL_NAMES, Dynamics, ModelSpec, Switch, Workspace, get_num_threads, make_dynamics,
+                                  set_num_threads)
 from stewart_env.dynamics.rk4 import ControlLaw
 from stewart_env.integrate import rollout
 from stewart_env.kinematics import (
@@ -39,9 +40,11 @@ __all__ = [
     "ConvergenceError",
     "Dynamics",
     "LegKinematics",
+    "ModelSpec",
     "PlatformParams",
     "PlatformState",
     "Reference",
+    "Switch",
     "Workspace",
     "available_platforms",
     "forward_kinematics",

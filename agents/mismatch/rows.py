@@ -49,7 +49,7 @@ def _rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequence[in
 
     built = {} if platform_name is None else {"platform": platform, "platform_name": platform_name}
     where = "" if platform_name is None else f", on platform {platform_name}"
-    analytic = [m for m in models if closed_form(m, platform)]
+    analytic = [m for m in models if closed_form(m)]
     rows = [Row(f"PD + gravity comp. [{on(m)}]", "PD", m, "pd",
                 info=f"task-space PD, gravity compensation from this model's statics{where}", **built)
             for m in analytic]

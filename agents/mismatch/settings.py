@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 import os
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE, slug
 from stewart_env.agents.mismatch.backends import check_backend
@@ -27,10 +26,12 @@ from stewart_env.agents.mismatch.constants import (
     MismatchError,
 )
 from stewart_env.agents.training import ALGORITHMS, MAX_MANIFEST_BYTES, jsonable, read_hyperparameters
+from stewart_env.envs.config import model_argument
+from stewart_env.errors import UsageError
 from stewart_env.files import publish, read_json, sha256_file
 from stewart_env.params import MAX_CONFIG_BYTES
 from stewart_env.params.shipped import is_platform_name
-from stewart_env.validation import MAX_SEED, seed
+from stewart_env.validation import MAX_SEED, Interval, seed
 
 __all__ = ["MismatchSettings", "check_own_agents", "check_study", "closed_form", "design_models"]
 
@@ -114,6 +115,10 @@ class MismatchSettings:
         set_("train_models", tuple(_check_models(self.train_models, "train models", platform)))
         set_("test_models", tuple(_check_models(self.test_models, "test models", platform)))
         set_("seeds", _check_seeds(self.seeds))
+        try:
+            set_("cost_plant", model_argument(self.cost_plant))
+        except UsageError as err:
+            raise MismatchError(f"cost plant: {err.problem}", argument="cost_plant", problem=err.problem) from None
         if self.cost_plant not in self.test_models:
             raise MismatchError(f"cost plant: {self.cost_plant!r} is not one of the test models "
                                 f"({', '.join(self.test_models)}); pass --cost-plant with one of them, or add "
@@ -121,19 +126,12 @@ class MismatchSettings:
         if self.agent_models is not None:
             set_("agent_models", tuple(_check_models(self.agent_models, "agent models", platform)))
         for name in ("episodes", "timesteps", "n_envs", "max_steps"):
-            value = getattr(self, name)
-            if value is None:
-                continue
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise MismatchError(f"{name}: expected a positive integer, got {value!r}")
-            set_(name, int(value))
+            if getattr(self, name) is not None:
+                set_(name, _checked(COUNT, name, getattr(self, name)))
         if self.max_steps is not None and self.max_steps > MAX_STEPS:
             raise MismatchError(f"max_steps: at most {MAX_STEPS} control steps per episode, got {self.max_steps}")
         for name in ("position_tolerance", "orientation_tolerance"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
-                raise MismatchError(f"{name}: expected a finite positive number, got {value!r}")
-            set_(name, float(value))
+            set_(name, _checked(TOLERANCE, name, getattr(self, name)))
         set_("controller_platforms", check_controller_platforms(self.controller_platforms))
         # rows' cells and agents live in folders named by the slugs of their labels
         own = {slug(m) for m in [*self.design_models, "improved + DR"]}
@@ -183,37 +181,60 @@ class MismatchSettings:
         return out
 
 
+#: A count of episodes, timesteps, environments or steps, and a tolerance (the same constraints
+#: as the command line's --episodes ... and --position-tolerance ...).
+COUNT = Interval(numbers.Integral, 1, math.inf, expected="a positive integer")
+TOLERANCE = Interval(numbers.Real, 0.0, math.inf, low_open=True, expected="a finite positive number")
+
+
+def _checked(constraint: Interval, name: str, value: Any) -> Any:
+    """``value`` checked by ``constraint``; a MismatchError naming ``name`` (as data too) otherwise."""
+    try:
+        return constraint.check(name, value)
+    except UsageError as err:
+        raise MismatchError(str(err), argument=err.argument, problem=err.problem) from None
+
+
 def design_models(train_models: Sequence[str], simplifications: Sequence[str]) -> list[str]:
     """The models controllers are built on: the training models, then improved+cK per simplification."""
     return list(train_models) + [f"improved+{c}" for c in simplifications if f"improved+{c}" not in train_models]
 
 
 def _check_models(names: Sequence[str], what: str, platform: str) -> list[str]:
-    """The model names, each checked by building the environment on it (one source of truth for
-    what the environment simulates)."""
+    """The models' canonical names (:func:`stewart_env.envs.config.model_argument`: each name
+    parsed once), each checked by building the environment on it (one source of truth for what
+    the environment simulates, e.g. whether MuJoCo is installed)."""
     from stewart_env.envs import StewartPlatformEnv
 
     out = []
     for name in names:
         try:
-            StewartPlatformEnv(model=name, platform=platform).close()
+            canonical = model_argument(name)
+            StewartPlatformEnv(model=canonical, platform=platform).close()
         except (ValueError, KeyError, ImportError) as exc:
             raise MismatchError(f"{what}: {name!r} is not a model the environment simulates ({exc})") from None
-        out.append(name)
+        out.append(canonical)
     if not out:
         raise MismatchError(f"{what}: give at least one model")
     return out
 
 
-def closed_form(model: str, platform: str) -> bool:
-    """Whether ``model`` is a closed-form dynamics model (one PD and CT rows can be built on)."""
-    import stewart_env as se
+def closed_form(model: str) -> bool:
+    """Whether ``model`` is a closed-form dynamics model (one PD and CT rows can be built on), not
+    MuJoCo's plant nor an unknown name.
+
+    Args:
+        model: a model name, a ModelSpec or ``"mujoco"``.
+
+    Returns:
+        Whether it names a :class:`~stewart_env.ModelSpec`.
+    """
+    from stewart_env.envs.config import model_spec
 
     try:
-        se.make_dynamics(model, se.load_platform(platform))
-    except (ValueError, KeyError):
+        return model_spec(model) is not None
+    except UsageError:
         return False
-    return True
 
 
 def _check_seeds(seeds: Sequence[int]) -> tuple[int, ...]:
@@ -236,7 +257,7 @@ def _check_platform(platform: str) -> str:
     try:
         load_platform(platform)
     except (ValueError, OSError, KeyError, TypeError) as err:
-        raise MismatchError(f"platform: {err}") from None
+        raise MismatchError(f"platform: {err}", argument="platform", problem=str(err)) from None
     # a config file by its absolute path, so that a later run from elsewhere finds the same one
     return platform if is_platform_name(platform) else str(Path(platform).resolve())
 
@@ -245,10 +266,17 @@ def _check_platform(platform: str) -> str:
 _PLATFORM_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]*")
 
 
+def _refuse_platform(problem: str) -> MismatchError:
+    """The error of one controller platform: ``controller platform: <problem>``, its argument
+    ``controller_platforms``."""
+    return MismatchError(f"controller platform: {problem}", argument="controller_platforms", problem=problem)
+
+
 def check_controller_platforms(items: Sequence[Any]) -> tuple[tuple[str, str], ...]:
     """((name, platform), ...) of the controller platforms: each loads, each name once."""
     if isinstance(items, (str, bytes)):
-        raise MismatchError(f"controller platforms: expected a list of platforms, got {items!r}")
+        raise MismatchError(f"controller platforms: expected a list of platforms, got {items!r}",
+                            argument="controller_platforms", problem=f"expected a list of platforms, got {items!r}")
     out: list[tuple[str, str]] = []
     for item in items:
         if isinstance(item, (tuple, list)) and len(item) == 2:
@@ -258,18 +286,17 @@ def check_controller_platforms(items: Sequence[Any]) -> tuple[tuple[str, str], .
             head, sep, tail = text.partition("=")
             name, platform = (head, tail) if sep and _PLATFORM_NAME.fullmatch(head) else (None, text)
         else:
-            raise MismatchError(f"controller platform: expected NAME=PLATFORM or PLATFORM, got {item!r}")
+            raise _refuse_platform(f"expected NAME=PLATFORM or PLATFORM, got {item!r}")
         try:
             checked = _check_platform(str(platform))
         except MismatchError as err:
-            raise MismatchError(f"controller {err}") from None
+            raise _refuse_platform(err.problem) from None
         name = Path(checked).stem if name is None else name
         if not isinstance(name, str) or not _PLATFORM_NAME.fullmatch(name):
-            raise MismatchError(f"controller platform: {name!r} cannot name a platform in the rows; give "
-                                "NAME=PLATFORM with NAME letters, digits and _.+-")
+            raise _refuse_platform(f"{name!r} cannot name a platform in the rows; give NAME=PLATFORM with NAME "
+                                   "letters, digits and _.+-")
         if slug(name) in (slug(n) for n, _ in out):  # the rows' files are named by the slug
-            raise MismatchError(f"controller platform: two platforms named {name!r}; name them apart with "
-                                "NAME=PLATFORM")
+            raise _refuse_platform(f"two platforms named {name!r}; name them apart with NAME=PLATFORM")
         out.append((name, checked))
     return tuple(out)
 

@@ -15,6 +15,11 @@ from stewart_env.params.checks import excerpt
 __all__ = ["jsonable", "parse_env_kwargs"]
 
 
+def _refuse(problem: str) -> TrainingError:
+    """The error of an ``--env-kwargs`` value: ``--env-kwargs: <problem>``, argument ``env_kwargs``."""
+    return TrainingError(f"--env-kwargs: {problem}", argument="env_kwargs", problem=problem)
+
+
 def parse_env_kwargs(items: Sequence[str] | None) -> dict[str, Any]:
     """``--env-kwargs`` values: one JSON object, or ``key=value`` tokens whose values are JSON
     (numbers, true/false, lists, objects) or else plain strings."""
@@ -25,17 +30,17 @@ def parse_env_kwargs(items: Sequence[str] | None) -> dict[str, Any]:
             try:
                 value = load_json(text)
             except DocumentError as exc:
-                raise TrainingError(f"--env-kwargs: not a JSON object: {excerpt(text)!r} ({exc.problem})") from None
+                raise _refuse(f"not a JSON object: {excerpt(text)!r} ({exc.problem})") from None
             out.update(value)
             continue
         key, sep, raw = text.partition("=")
         if not sep or not key:
-            raise TrainingError(f"--env-kwargs: expected key=value or a JSON object, got {excerpt(item)!r}")
+            raise _refuse(f"expected key=value or a JSON object, got {excerpt(item)!r}")
         try:
             out[key] = load_json(raw)
         except DocumentError as exc:
             if exc.nested:
-                raise TrainingError(f"--env-kwargs: {key}: {exc.problem}") from None
+                raise _refuse(f"{key}: {exc.problem}") from None
             out[key] = raw
     return out
 

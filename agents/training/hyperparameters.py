@@ -23,6 +23,7 @@ import yaml
 
 from stewart_env.agents.training.errors import TrainingError, check_rl_installed
 from stewart_env.files import DocumentError, load_yaml, read_regular
+from stewart_env.errors import UsageError
 from stewart_env.params import MAX_CONFIG_BYTES, config_dir
 from stewart_env.params.checks import excerpt
 from stewart_env.params.shipped import is_shipped_name
@@ -272,6 +273,6 @@ def check_count(name: str, value: Any, minimum: int, maximum: int = MAX_COUNT) -
     """A count of steps, platforms or checkpoints, through the package's one integer check."""
     try:
         integer(name, value, minimum, maximum)
-    except ValueError as err:
-        raise TrainingError(str(err)) from None
+    except UsageError as err:
+        raise TrainingError(str(err), argument=err.argument, problem=err.problem) from None
 

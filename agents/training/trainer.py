@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from stewart_env import validation
+from stewart_env.errors import UsageError
 from stewart_env.agents.training.env_kwargs import jsonable
 from stewart_env.agents.training.environment import make_training_env, progress_bar_available, single_thread
 from stewart_env.agents.training.errors import TrainingError, TrainingInterrupted
@@ -199,8 +200,8 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
     if seed is not None:
         try:
             validation.seed("seed", seed)
-        except ValueError as err:
-            raise TrainingError(str(err)) from None
+        except UsageError as err:
+            raise TrainingError(str(err), argument=err.argument, problem=err.problem) from None
     check_count("checkpoint_freq", checkpoint_freq, 0)
     check_count("keep_checkpoints", keep_checkpoints, 1)
     directory = Path(out)

@@ -15,7 +15,8 @@ Each subcommand has ``--help``.  One module per verb in this package, each with
 dispatches on.  The argparse types live in :mod:`stewart_env.cli.arguments`; no module that does
 the work imports argparse.  Every error a user can correct
 (:class:`stewart_env.errors.UsageError`), and every missing optional extra, is one line
-``stewart-env <verb>: error: ...`` with exit status 2.
+``stewart-env <verb>: error: ...`` with exit status 2; an error about an argument a flag sets
+names the flag (:data:`stewart_env.cli.common.FLAGS`).
 """
 
 from __future__ import annotations
@@ -80,5 +81,5 @@ def main(argv: Sequence[str] | None = None) -> int:
         extra = extra_of(err)
         if extra is None:
             raise
-        message = str(err) if "pip install" in str(err) else f"{err}; {install_hint(extra)}"
-        return error(args.command, message)
+        # the extra is known from the module that failed to import, never from the message's words
+        return error(args.command, f"{err}; {install_hint(extra)}")

@@ -1,17 +1,24 @@
 """argparse types shared by the command-line verbs: each turns a bad value into argparse's error
-naming the argument (``stewart-env <verb>: error: argument --x: ...``, exit status 2)."""
+naming the argument (``stewart-env <verb>: error: argument --x: ...``, exit status 2).
+
+The ranges are the package's declarative constraints (:class:`stewart_env.validation.Interval`,
+:class:`~stewart_env.validation.StrOptions`), the same objects that check the environment's
+keywords; a library check refused here is read from the error's data
+(:attr:`stewart_env.errors.UsageError.problem`), never from its text."""
 
 from __future__ import annotations
 
 import argparse
 import math
+import numbers
 from collections.abc import Callable, Sequence
 from typing import Any
 from pathlib import Path
 
 from stewart_env.agents.mismatch.constants import MAX_STEPS as MAX_EPISODE_STEPS
 from stewart_env.tasks import TASKS as _TASK_CLASSES
-from stewart_env.validation import MAX_SEED
+from stewart_env.errors import UsageError
+from stewart_env.validation import MAX_SEED, Constraint, Interval, StrOptions, quoted
 
 #: The task names the command line offers: those of the task registry.
 TASKS = tuple(_TASK_CLASSES)
@@ -19,13 +26,6 @@ TASKS = tuple(_TASK_CLASSES)
 
 #: Largest count a command takes (steps, iterations, checkpoints): numpy's int64, where counts end up.
 MAX_COUNT = 2**63 - 1
-
-
-def quoted(text: str, limit: int = 40) -> str:
-    """``repr(text)`` for an error message, cut to ``limit`` characters (a number of a thousand
-    digits is not echoed whole)."""
-    text = repr(text)
-    return text if len(text) <= limit else text[:limit - 4] + "...'"
 
 
 def checked(cast: Callable[[str], float], ok: Callable[[float], bool], expected: str, doc: str):
@@ -45,24 +45,29 @@ def checked(cast: Callable[[str], float], ok: Callable[[float], bool], expected:
     return parse
 
 
+def constrained(constraint: Constraint, doc: str | None = None):
+    """The argparse type of a declarative constraint: its value, or argparse's error in the
+    constraint's words."""
+
+    def parse(text: str):
+        try:
+            return constraint.parse(text)
+        except UsageError as err:
+            raise argparse.ArgumentTypeError(err.problem) from None
+
+    parse.__doc__ = doc or f"argparse type: {constraint.expected}."
+    return parse
+
+
 def integer(low: int, high: int, expected: str | None = None, doc: str | None = None):
     """An argparse type: an integer in [low, high] (``expected``: how the error says it)."""
-    expected = expected or f"an integer in [{low}, {high}]"
-    return checked(int, lambda v: low <= v <= high, expected, doc or f"argparse type: {expected}.")
+    return constrained(Interval(numbers.Integral, low, high, expected=expected), doc)
 
 
 def real(low: float, high: float = math.inf, *, low_open: bool = False, expected: str | None = None,
          doc: str | None = None):
     """An argparse type: a finite number in [low, high] ((low, high] with ``low_open``)."""
-    if expected is None:
-        left = f"{'(' if low_open else '['}{low:g}"
-        expected = f"a finite number in {left}, {high:g}]" if math.isfinite(high) else \
-            f"a finite number {'>' if low_open else '>='} {low:g}"
-
-    def ok(v: float) -> bool:
-        return math.isfinite(v) and (v > low if low_open else v >= low) and v <= high
-
-    return checked(float, ok, expected, doc or f"argparse type: {expected}.")
+    return constrained(Interval(numbers.Real, low, high, low_open=low_open, expected=expected), doc)
 
 
 positive_int = integer(1, MAX_COUNT, f"a positive integer up to {MAX_COUNT}", "argparse type: an integer >= 1.")
@@ -125,14 +130,7 @@ seed_list = distinct_list(seed, "0,1,2", f"comma-separated distinct integers in 
 def choice(names: Sequence[str]):
     """An argparse type: one of ``names`` (for a value inside a list; a flag of its own uses
     argparse's ``choices``)."""
-
-    def parse(text: str) -> str:
-        if text not in names:
-            raise argparse.ArgumentTypeError(f"unknown {quoted(text)}; choose from {', '.join(names)}")
-        return text
-
-    parse.__doc__ = f"argparse type: one of {', '.join(names)}."
-    return parse
+    return constrained(StrOptions(names), doc=f"argparse type: one of {', '.join(names)}.")
 
 
 def writable_file(text: str) -> str:
@@ -185,13 +183,14 @@ def platform_name(text: str) -> str:
 
 
 def model_name(text: str) -> str:
-    """argparse type: a dynamics model name (classical, improved, ... with +c1..+c4 switches)."""
-    from stewart_env.dynamics.model import parse_model_name
+    """argparse type: a dynamics model's canonical name (classical, improved, ... with +c1..+c4
+    switches; :class:`stewart_env.dynamics.ModelSpec`)."""
+    from stewart_env.dynamics import ModelSpec
 
     try:
-        return parse_model_name(text)[0]
-    except ValueError as err:  # "model: unknown model ...": the flag names the argument
-        raise argparse.ArgumentTypeError(str(err).removeprefix("model: ")) from None
+        return ModelSpec.parse(text).name
+    except UsageError as err:
+        raise argparse.ArgumentTypeError(err.problem) from None
 
 
 def plant_model_name(text: str) -> str:
@@ -203,8 +202,8 @@ def plant_model_name(text: str) -> str:
 
     try:
         return model_argument(text)
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
+    except UsageError as err:
+        raise argparse.ArgumentTypeError(err.problem) from None
 
 
 #: A list of plants: dynamics model names (with +c1..+c4 switches) or mujoco.
@@ -218,7 +217,7 @@ def env_kwargs_token(text: str) -> str:
     try:
         parse_env_kwargs([text])
     except TrainingError as exc:
-        raise argparse.ArgumentTypeError(str(exc).removeprefix("--env-kwargs: ")) from None
+        raise argparse.ArgumentTypeError(exc.problem) from None
     return text
 
 

@@ -1,5 +1,9 @@
 """What the verbs share: the one-line error, the checks made before any work and the baseline
-controllers by name."""
+controllers by name.
+
+A usage error that names its argument as data (:attr:`stewart_env.errors.UsageError.argument`) is
+said of the flag that sets the argument (:data:`FLAGS`), as argparse says its own errors:
+``stewart-env <verb>: error: argument --model: unknown model 'newton'; ...``."""
 
 from __future__ import annotations
 
@@ -7,15 +11,49 @@ import argparse
 import sys
 from collections.abc import Iterable, Sequence
 
+from stewart_env.errors import UsageError
 from stewart_env.extras import require
 
 #: The baseline controllers ``--policy`` offers.
 CONTROLLERS = ("pd", "pd-gc", "ct")
 
 
+#: The command-line flag of each argument a usage error may name: the keyword of the library call
+#: (the environment's, a study's or an identification's setting) -> the option that sets it.
+FLAGS = {
+    "model": "--model",
+    "plant": "--plant",
+    "internal_model": "--internal-model",
+    "cost_plant": "--cost-plant",
+    "platform": "--platform",
+    "controller_platforms": "--controller-platform",
+    "env_kwargs": "--env-kwargs",
+    "out": "--out",
+    "config": "--config",
+    "excitation": "--excitation",
+    "derivatives": "--derivatives",
+    "duration": "--duration",
+    "period": "--period",
+    "noise_position": "--noise-position",
+    "noise_angle": "--noise-angle",
+    "noise_force": "--noise-force",
+    "delay": "--delay",
+    "perturb": "--perturb",
+    "max_iterations": "--iterations",
+}
+
+
+def usage_message(err: object) -> str:
+    """The one-line message of ``err``: ``argument --flag: <problem>`` for a usage error about an
+    argument a flag sets (:data:`FLAGS`), else the error's own message."""
+    flag = FLAGS.get(err.argument) if isinstance(err, UsageError) and err.argument else None
+    return f"argument {flag}: {err.problem}" if flag else str(err)
+
+
 def error(verb: str, message: object) -> int:
-    """Print ``stewart-env <verb>: error: <message>`` to stderr; the exit status of a usage error, 2."""
-    print(f"stewart-env {verb}: error: {message}", file=sys.stderr)
+    """Print ``stewart-env <verb>: error: <message>`` to stderr (a usage error as
+    :func:`usage_message` says it); the exit status of a usage error, 2."""
+    print(f"stewart-env {verb}: error: {usage_message(message)}", file=sys.stderr)
     return 2
 
 

@@ -17,8 +17,8 @@ import math
 import sys
 import time
 
-from stewart_env.cli.arguments import (PLATFORM_RULE, checked, directory_name, platform_name, positive_int, quoted, real,
-                                      seed)
+from stewart_env.cli.arguments import (PLATFORM_RULE, checked, directory_name, model_name, platform_name, positive_int,
+                                      quoted, real, seed)
 from stewart_env.cli.common import error
 
 VERB = "identify"
@@ -34,20 +34,17 @@ perturb = checked(float, lambda v: 0 <= v < 1, "a relative change in [0, 1)",
 
 
 def _plant(text: str) -> str:
-    from stewart_env.dynamics.model import parse_model_name
-
+    """argparse type of --plant: a model name (canonical) or ``mujoco``."""
     if text.strip().lower() == "mujoco":
         return "mujoco"
-    try:
-        return parse_model_name(text)[0]
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(str(err).partition(": ")[2]) from None
+    return model_name(text)
 
 
 def _model(text: str) -> str:
+    """argparse type of --model: a closed-form model's canonical name."""
     if text.strip().lower() == "mujoco":
         raise argparse.ArgumentTypeError("the identified structure is a closed-form model (improved, classical, ...)")
-    return _plant(text)
+    return model_name(text)
 
 
 def duration(text: str) -> float:

@@ -60,7 +60,7 @@ def controller_platform(text: str) -> str:
     try:
         check_controller_platforms([text])  # the study's own rule for NAME and PLATFORM
     except MismatchError as err:
-        raise argparse.ArgumentTypeError(str(err).removeprefix("controller platform: ")) from None
+        raise argparse.ArgumentTypeError(err.problem) from None
     return text
 
 

@@ -1,5 +1,6 @@
-"""Dynamics models of the Stewart platform: compiled kernels, the model (Dynamics), its data (Workspace) and the
-threads of the batches (set_num_threads, get_num_threads; the environment variable STEWART_ENV_THREADS)."""
+"""Dynamics models of the Stewart platform: compiled kernels, the model spec (ModelSpec, Switch), the model
+(Dynamics), its data (Workspace) and the threads of the batches (set_num_threads, get_num_threads; the
+environment variable STEWART_ENV_THREADS)."""
 
 from stewart_env.dynamics.model import (
     MODEL_NAMES,
@@ -8,8 +9,9 @@ from stewart_env.dynamics.model import (
     make_dynamics,
     pack_params,
 )
+from stewart_env.dynamics.spec import ModelSpec, Switch
 from stewart_env.dynamics.threads import get_num_threads, set_num_threads
 from stewart_env.dynamics.workspace import Workspace
 
-__all__ = ["MODEL_NAMES", "SWITCHES", "Dynamics", "Workspace", "get_num_threads", "make_dynamics", "pack_params",
-           "set_num_threads"]
+__all__ = ["MODEL_NAMES", "SWITCHES", "Dynamics", "ModelSpec", "Switch", "Workspace", "get_num_threads",
+           "make_dynamics", "pack_params", "set_num_threads"]

@@ -11,7 +11,9 @@ Names
                          agrees with ``improved`` to rounding.
 
 A name may carry switches after ``+``, e.g. ``"improved+c1"`` or ``"improved+c2+c3"``;
-:data:`SIMPLIFICATIONS` says what each switch assumes.
+:data:`SIMPLIFICATIONS` says what each switch assumes.  :class:`~stewart_env.dynamics.spec.ModelSpec`
+parses a name once (its module says which name is canonical); everything that takes a name takes
+a spec too.
 
 ``docs/physics.md`` in the repository carries the derivation: the two improved forms in its
 section 5, the switches c1-c4 and where each enters the equations in its section 6.
@@ -28,10 +30,12 @@ import numpy as np
 from stewart_env import validation
 from stewart_env.dynamics import _core
 from stewart_env.dynamics import kernels as K
+from stewart_env.dynamics.spec import BASE_MODELS, ModelSpec, Switch
 from stewart_env.params import ConfigError, PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 
-SWITCHES = {"c1": K.C1, "c2": K.C2, "c3": K.C3, "c4": K.C4}
+#: Each switch's name and kernel bit (the values of :class:`~stewart_env.dynamics.spec.Switch`).
+SWITCHES = {s.name.lower(): int(s) for s in Switch}
 #: The classical model's simplifications, each a switch on the improved model: switch -> what it assumes.
 SIMPLIFICATIONS = {
     "c1": "the leg does not spin about its own axis",
@@ -39,34 +43,26 @@ SIMPLIFICATIONS = {
     "c3": "parallel-axis part counted twice in the legs' Euler equations",
     "c4": "parallel-axis part counted twice in the platform's Euler equation",
 }
-_BASE_FLAGS = {
-    "improved": 0,
-    "improved_centroidal": K.CENTROIDAL,
-    "classical": K.C1 | K.C2 | K.C3 | K.C4,
-}
-MODEL_NAMES = tuple(_BASE_FLAGS)
+#: The base models' names.
+MODEL_NAMES = tuple(BASE_MODELS)
 
 
-def parse_model_name(name: str) -> tuple[str, int]:
-    """Canonical name and kernel flags of a model name such as ``"improved+c1+c3"``.
+def parse_model_name(name: str | ModelSpec) -> tuple[str, int]:
+    """Canonical name and kernel flags of a model name such as ``"improved+c1+c3"``: the
+    :attr:`~ModelSpec.name` and :attr:`~ModelSpec.flags` of :meth:`ModelSpec.parse`, which new
+    code calls instead.
 
-    The flags are the kernels' switch bits (docs/physics.md section 6).
+    Args:
+        name: a model name or a :class:`ModelSpec`.
+
+    Returns:
+        The pair (canonical name, kernel flags).
+
+    Raises:
+        UsageError: an unknown model or switch (a ValueError whose ``argument`` is ``"model"``).
     """
-    if not isinstance(name, str):
-        raise ValueError(f"model: expected a name such as 'improved', got {name!r}")
-    base, *switches = name.strip().lower().split("+")
-    if base not in _BASE_FLAGS:
-        raise ValueError(
-            f"model: unknown model {base!r}; choose one of {', '.join(MODEL_NAMES)}, "
-            f"optionally with switches '+c1'..'+c4'"
-        )
-    flags = _BASE_FLAGS[base]
-    for s in switches:
-        if s not in SWITCHES:
-            raise ValueError(f"model: unknown switch {s!r} in {name!r}; switches are c1, c2, c3, c4")
-        flags |= SWITCHES[s]
-    canonical = base + "".join(f"+{s}" for s in sorted(set(switches)))
-    return canonical, flags
+    spec = ModelSpec.parse(name)
+    return spec.name, spec.flags
 
 
 def _packed_value(params: PlatformParams, key: str):
@@ -275,10 +271,12 @@ class Dynamics:
     way to make one.
 
     Args:
-        name: the model's name (see the module docstring), e.g. ``"improved+c1"``.
+        name: the model's name (see the module docstring), e.g. ``"improved+c1"``, or its
+            :class:`~stewart_env.dynamics.spec.ModelSpec`.
         params: one platform's parameters, or a non-empty sequence of them (one per batch row).
 
     Attributes:
+        spec: the model's :class:`~stewart_env.dynamics.spec.ModelSpec`.
         name: the canonical name, e.g. ``"improved+c1"``.
         flags: the kernel switch bits.
         packed: (Np, N_PARAMS), read-only C-contiguous float64: the packed parameter rows (assigning
@@ -292,8 +290,9 @@ class Dynamics:
             (``check_home_condition``).
     """
 
-    def __init__(self, name: str, params: PlatformParams | Sequence[PlatformParams]):
-        self.name, self.flags = parse_model_name(name)
+    def __init__(self, name: str | ModelSpec, params: PlatformParams | Sequence[PlatformParams]):
+        self.spec = ModelSpec.parse(name)
+        self.name, self.flags = self.spec.name, self.spec.flags
         if isinstance(params, PlatformParams):
             plist = (params,)
         elif isinstance(params, Sequence) and not isinstance(params, str):
@@ -446,7 +445,7 @@ class Dynamics:
             items[r] = sources[j]
             packed[r] = packed_rows[j]
         new = object.__new__(Dynamics)
-        new.name, new.flags, new.params = self.name, self.flags, ParamsRows(items)
+        new.spec, new.name, new.flags, new.params = self.spec, self.name, self.flags, ParamsRows(items)
         packed.setflags(write=False)
         new._packed = packed
         return new
@@ -619,12 +618,13 @@ class Dynamics:
         )
 
 
-def make_dynamics(name: str, params: PlatformParams | Sequence[PlatformParams]) -> Dynamics:
+def make_dynamics(name: str | ModelSpec, params: PlatformParams | Sequence[PlatformParams]) -> Dynamics:
     """The dynamics model ``name`` (see the module docstring) on ``params``.
 
     Args:
         name: the model's name, ``"improved"``, ``"improved_centroidal"`` or ``"classical"``,
-            optionally with switches such as ``"+c1"`` (any case).
+            optionally with switches such as ``"+c1"`` (any case), or its
+            :class:`~stewart_env.dynamics.spec.ModelSpec`.
         params: one platform's parameters, or a sequence of them (one per batch row).
 
     Returns:
@@ -636,8 +636,8 @@ def make_dynamics(name: str, params: PlatformParams | Sequence[PlatformParams]) 
 
     Examples:
         >>> import stewart_env as se
-        >>> model = se.make_dynamics("classical+c1", se.load_platform("dasgupta1998"))
+        >>> model = se.make_dynamics("improved+C3+c1", se.load_platform("dasgupta1998"))
         >>> model.name
-        'classical+c1'
+        'improved+c1+c3'
     """
     return Dynamics(name, params)

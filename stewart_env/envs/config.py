@@ -21,18 +21,18 @@ import os
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from stewart_env.dynamics import Dynamics, make_dynamics
-from stewart_env.dynamics.model import parse_model_name
+from stewart_env.dynamics import Dynamics, ModelSpec, make_dynamics
+from stewart_env.errors import UsageError
 from stewart_env.params import PlatformParams, load_platform
 from stewart_env.randomization import Randomization
 from stewart_env.registration import CURRENT_VERSION
-from stewart_env.validation import ArgumentError, choice, flag, integer, real
+from stewart_env.validation import ArgumentError, check_keywords, choice, flag, integer, real
 
 if TYPE_CHECKING:
     from stewart_env.tasks import Task
 
 __all__ = ["PLANTS", "RECORDS", "ActuatorConfig", "EnvConfig", "ObservationConfig", "PhysicsConfig", "RenderConfig",
-           "TaskConfig", "arguments_table", "defaults", "model_argument"]
+           "TaskConfig", "arguments_table", "defaults", "model_argument", "model_spec"]
 
 #: At most this many RK4 substeps per control step (control_dt / physics_dt).
 MAX_SUBSTEPS = 10**6
@@ -71,21 +71,44 @@ def _platform(value: Any) -> PlatformParams:
         return value
     if isinstance(value, str) or hasattr(value, "__fspath__"):
         return load_platform(value)
-    raise ArgumentError(f"platform: expected a config name, a YAML path or a PlatformParams, got {value!r}")
+    raise ArgumentError.about("platform", f"expected a config name, a YAML path or a PlatformParams, got {value!r}")
+
+
+def model_spec(model: Any) -> ModelSpec | None:
+    """The ``model`` argument parsed once: a closed-form model's :class:`~stewart_env.dynamics.ModelSpec`,
+    or None for ``"mujoco"`` (any case), another spelling of ``plant="mujoco"``.
+
+    Args:
+        model: a model name, a ModelSpec or ``"mujoco"``.
+
+    Returns:
+        The spec, or None for MuJoCo.
+
+    Raises:
+        UsageError: an unknown model or switch; ``err.argument`` is ``"model"`` and the message
+            names the MuJoCo spelling too.
+    """
+    if isinstance(model, str) and model.strip().lower() == MUJOCO:
+        return None
+    return ModelSpec.parse(model, "model", hint=f"; or {MUJOCO!r} (MuJoCo simulating the same mechanism)")
 
 
 def model_argument(model: Any) -> str:
     """The canonical value of the ``model`` argument: a closed-form model's canonical name (e.g.
-    ``"improved+c1"``), or ``"mujoco"`` (any case), another spelling of ``plant="mujoco"``.
-    Raises ValueError naming the argument, and the MuJoCo spelling, on an unknown model."""
-    if isinstance(model, str) and model.strip().lower() == MUJOCO:
-        return MUJOCO
-    try:
-        return parse_model_name(model)[0]
-    except ValueError as err:
-        if not str(err).startswith("model: unknown model"):
-            raise
-        raise ValueError(f"{err}; or {MUJOCO!r} (MuJoCo simulating the same mechanism)") from None
+    ``"improved+c1"``, :class:`~stewart_env.dynamics.ModelSpec`), or ``"mujoco"`` (any case), another
+    spelling of ``plant="mujoco"``.
+
+    Args:
+        model: a model name, a ModelSpec or ``"mujoco"``.
+
+    Returns:
+        The canonical name.
+
+    Raises:
+        UsageError: an unknown model or switch (see :func:`model_spec`).
+    """
+    spec = model_spec(model)
+    return MUJOCO if spec is None else spec.name
 
 
 @dataclass(frozen=True)
@@ -117,22 +140,24 @@ class PhysicsConfig(_Record):
 
     def __post_init__(self) -> None:
         self._set("platform", _platform(self.platform))
-        model = model_argument(self.model)
+        spec = model_spec(self.model)
         plant = choice("plant", self.plant.strip().lower() if isinstance(self.plant, str) else self.plant, PLANTS)
-        if model == MUJOCO:  # the other spelling: MuJoCo simulating, the improved model for the rest
-            model, plant = "improved", MUJOCO
-        self._set("model", model)
+        if spec is None:  # the other spelling: MuJoCo simulating, the improved model for the rest
+            spec, plant = ModelSpec("improved"), MUJOCO
+        self._set("model", spec.name)
         self._set("plant", plant)
-        self._set("dynamics", make_dynamics(model, self.platform))
+        self._set("dynamics", make_dynamics(spec, self.platform))
         control_dt = real("control_dt", self.control_dt, 1e-6, 10.0)
         physics_dt = real("physics_dt", self.physics_dt, 0.0, control_dt, low_open=True)
         substeps = round(control_dt / physics_dt)
         if substeps > MAX_SUBSTEPS:
-            raise ValueError(f"physics_dt ({physics_dt}): control_dt / physics_dt is "
-                             f"{control_dt / physics_dt:.6g}, more than {MAX_SUBSTEPS} RK4 substeps per step")
+            problem = (f"control_dt / physics_dt is {control_dt / physics_dt:.6g}, more than {MAX_SUBSTEPS} RK4 "
+                       "substeps per step")
+            raise UsageError(f"physics_dt ({physics_dt}): {problem}", argument="physics_dt", problem=problem)
         if abs(substeps * physics_dt - control_dt) > _DT_TOLERANCE * control_dt:
-            raise ValueError(f"control_dt ({control_dt}) must be a whole multiple of physics_dt "
-                             f"({physics_dt}): the ratio is {control_dt / physics_dt:.6g}")
+            problem = (f"must be a whole multiple of physics_dt ({physics_dt}): the ratio is "
+                       f"{control_dt / physics_dt:.6g}")
+            raise UsageError(f"control_dt ({control_dt}) {problem}", argument="control_dt", problem=problem)
         self._set("control_dt", control_dt)
         self._set("physics_dt", control_dt / substeps)
         self._set("substeps", substeps)
@@ -154,9 +179,13 @@ class TaskConfig(_Record):
                                               "`StewartPlatform-v<version>`: its tasks' defaults (see Version History)")
 
     def __post_init__(self) -> None:
+        from stewart_env.tasks import TASKS
+
+        if isinstance(self.task, str) and self.task not in TASKS:  # a Task subclass is checked by the task registry
+            raise UsageError.about("task", f"unknown task {self.task!r}; choose one of {', '.join(TASKS)}")
         options = self.task_options
         if options is not None and not isinstance(options, dict):
-            raise ArgumentError(f"task_options: expected a dict of options, got {options!r}")
+            raise ArgumentError.about("task_options", f"expected a dict of options, got {options!r}")
         self._set("task_options", dict(options or {}))
         self._set("version", integer("version", self.version, 0, CURRENT_VERSION))
 
@@ -221,7 +250,8 @@ class RenderConfig(_Record):
 
     def __post_init__(self) -> None:
         if self.render_mode is not None and self.render_mode not in RENDER_MODES:
-            raise ValueError(f"render_mode: expected one of {list(RENDER_MODES)} or None, got {self.render_mode!r}")
+            raise UsageError.about("render_mode",
+                                   f"expected one of {list(RENDER_MODES)} or None, got {self.render_mode!r}")
         self._set("width", integer("width", self.width, 1, 4096))
         self._set("height", integer("height", self.height, 1, 4096))
 
@@ -272,11 +302,7 @@ class EnvConfig:
             >>> config.task.task, config.physics.control_dt
             ('tracking', 0.02)
         """
-        known = {f.name for record in RECORDS for f in _arguments(record)}
-        unknown = [k for k in arguments if k not in known]
-        if unknown:
-            raise ArgumentError(f"unknown environment argument(s) {', '.join(map(repr, unknown))}; "
-                                f"valid: {', '.join(sorted(known))}")
+        check_keywords("EnvConfig.of", arguments, (f.name for record in RECORDS for f in _arguments(record)))
         records = [record(**{f.name: arguments[f.name] for f in _arguments(record) if f.name in arguments})
                    for record in RECORDS]
         return cls(*records)

@@ -22,7 +22,9 @@ import numpy as np
 import yaml
 
 from stewart_env import files
-from stewart_env.dynamics.model import Dynamics, parse_model_name
+from stewart_env.dynamics.model import Dynamics
+from stewart_env.dynamics.spec import ModelSpec
+from stewart_env.errors import UsageError
 from stewart_env.identification import base as base_mod
 from stewart_env.identification import estimate as est
 from stewart_env.identification import excitation as exc
@@ -45,6 +47,11 @@ MAX_REPORT_BYTES = 16 << 20
 #: Longest measurement delay (s): sensor pipelines lag by milliseconds to tens of milliseconds;
 #: a quarter second is far beyond them and keeps the shift inside the record's dropped start.
 MAX_DELAY = 0.25
+
+
+def _refuse(setting: str, problem: str) -> IdentificationError:
+    """The error of a setting: ``--<option>: <problem>``, the setting's name as its ``argument``."""
+    return IdentificationError(f"--{setting.replace('_', '-')}: {problem}", argument=setting, problem=problem)
 
 
 @dataclass
@@ -74,45 +81,62 @@ class Settings:
     harmonics: int = 5
     max_iterations: int = 30
 
-    def check(self) -> None:
+    def check(self) -> tuple[ModelSpec | None, ModelSpec]:
+        """Check every setting and parse the plant's and the model's names once.
+
+        ``plant`` and ``model`` (names or :class:`~stewart_env.ModelSpec`) become their canonical
+        names (what the report records).
+
+        Returns:
+            The pair (plant's spec, None for ``mujoco``; the identified model's spec).
+
+        Raises:
+            IdentificationError: a setting out of its range, naming its option (``err.argument``
+                is the setting's name).
+        """
+        specs: dict[str, ModelSpec | None] = {"plant": None}
         for name in ("plant", "model"):
             if name == "plant" and self.plant == "mujoco":
                 if self.derivatives == "exact":
-                    raise IdentificationError("--derivatives exact: the MuJoCo plant gives no accelerations; use filter")
+                    problem = "the MuJoCo plant gives no accelerations; use filter"
+                    raise IdentificationError(f"--derivatives exact: {problem}", argument="derivatives",
+                                              problem=f"exact: {problem}")
                 from stewart_env.mujoco.library import require_mujoco
 
                 try:
                     require_mujoco()
                 except ImportError as err:
-                    raise IdentificationError(f"--plant mujoco: {err}") from None
+                    raise IdentificationError(f"--plant mujoco: {err}", argument="plant", problem=str(err)) from None
                 continue
             try:
-                parse_model_name(getattr(self, name))
-            except ValueError as err:
-                raise IdentificationError(f"--{name}: {str(err).partition(': ')[2]}") from None
+                specs[name] = ModelSpec.parse(getattr(self, name), name)
+            except UsageError as err:
+                raise _refuse(name, err.problem) from None
+            setattr(self, name, specs[name].name)
         if self.excitation not in ("optimized", "random"):
-            raise IdentificationError(f"--excitation: expected optimized or random, got {self.excitation!r}")
+            raise _refuse("excitation", f"expected optimized or random, got {self.excitation!r}")
         if self.derivatives not in ("filter", "exact"):
-            raise IdentificationError(f"--derivatives: expected filter or exact, got {self.derivatives!r}")
+            raise _refuse("derivatives", f"expected filter or exact, got {self.derivatives!r}")
         for name in ("duration", "period"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise IdentificationError(f"--{name}: expected a positive number of seconds, got {value!r}")
+                raise _refuse(name, f"expected a positive number of seconds, got {value!r}")
         if self.duration > 3600:
-            raise IdentificationError(f"--duration: at most 3600 s, got {self.duration}")
+            raise _refuse("duration", f"at most 3600 s, got {self.duration}")
         if self.duration < 2 * SETTLE + 0.5:
-            raise IdentificationError(f"--duration: {self.duration} s is too short; at least {2 * SETTLE + 0.5} s")
+            raise _refuse("duration", f"{self.duration} s is too short; at least {2 * SETTLE + 0.5} s")
         for name in ("noise_position", "noise_angle", "noise_force", "perturb"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise IdentificationError(f"--{name.replace('_', '-')}: expected a number >= 0, got {value!r}")
+                raise _refuse(name, f"expected a number >= 0, got {value!r}")
         delay = self.delay
         if not (isinstance(delay, (int, float)) and math.isfinite(delay) and 0 <= delay <= MAX_DELAY):
-            raise IdentificationError(f"--delay: expected seconds in [0, {MAX_DELAY}], got {delay!r}")
+            raise _refuse("delay", f"expected seconds in [0, {MAX_DELAY}], got {delay!r}")
         if abs(delay - self.delay_samples * SAMPLE_DT) > 1e-9:
-            raise IdentificationError(f"--delay: expected a whole number of samples of {SAMPLE_DT} s, got {delay!r}")
+            raise _refuse("delay", f"expected a whole number of samples of {SAMPLE_DT} s, got {delay!r}")
         if self.perturb >= 1:
-            raise IdentificationError(f"--perturb: expected a relative change below 1, got {self.perturb}")
+            raise _refuse("perturb", f"expected a relative change below 1, got {self.perturb}")
+        return specs["plant"], specs["model"]
 
     @property
     def delay_samples(self) -> int:
@@ -325,12 +349,16 @@ def check_report(report: object, source: str) -> dict:
 
 
 def _check_reference(reference: dict, settings: Settings, nominal: PlatformParams,
-                     base: base_mod.BaseParameters) -> None:
+                     base: base_mod.BaseParameters, model: ModelSpec) -> None:
     """IdentificationError unless ``reference`` is an identify report of the same platform's and
     model's base parameters, recorded with force noise, and this experiment has force noise."""
     check_report(reference, "--predicted-by")
     names = [p["name"] for p in reference["base_parameters"]]
-    ok = reference["platform"] == nominal.name and reference["settings"]["model"] == settings.model
+    try:  # a report of an older version may spell the same model otherwise ("classical+c1")
+        same_model = ModelSpec.parse(reference["settings"]["model"]) == model
+    except UsageError:
+        same_model = False
+    ok = reference["platform"] == nominal.name and same_model
     if not ok or names != base.names:
         raise IdentificationError(f"--predicted-by: a report of {nominal.name}'s {settings.model} base parameters "
                                   "with force noise is needed")
@@ -363,14 +391,14 @@ def run(settings: Settings, nominal: PlatformParams, predicted_by: dict | None =
     earlier run of the same platform and model, whose standard deviations, scaled to this
     record's length and force noise (:func:`estimate.predicted_std`), the report compares with
     this run's (its ``predicted_by`` entry)."""
-    settings.check()
+    plant_spec, model_spec = settings.check()
     rng = np.random.default_rng(settings.seed)
     truth = perturbed(nominal, settings.perturb, rng)
-    plant = "mujoco" if settings.plant == "mujoco" else Dynamics(settings.plant, truth)
-    model = Dynamics(settings.model, nominal)
+    plant = "mujoco" if plant_spec is None else Dynamics(plant_spec, truth)
+    model = Dynamics(model_spec, nominal)
     base = base_mod.base_parameters(model)
     if predicted_by is not None:
-        _check_reference(predicted_by, settings, nominal, base)
+        _check_reference(predicted_by, settings, nominal, base, model_spec)
     period = min(settings.period, settings.duration)
     start = exc.random_excitation(nominal, model, rng, period=period, harmonics=settings.harmonics)
     times = np.linspace(0, period, 100, endpoint=False)
@@ -403,7 +431,7 @@ def run(settings: Settings, nominal: PlatformParams, predicted_by: dict | None =
 
     beta_nominal = base.of_theta(nominal_theta)
     truth_beta = base.of_theta(reg.theta_of(truth, model.flags))
-    plant_flags = 0 if settings.plant == "mujoco" else parse_model_name(settings.plant)[1]  # MuJoCo: exact
+    plant_flags = 0 if plant_spec is None else plant_spec.flags  # MuJoCo: exact
     exact_structure = plant_flags == model.flags
     rms_force = float(np.sqrt(np.mean(held.true_forces ** 2)))
     names = base.names

@@ -52,10 +52,12 @@ class ConfigError(UsageError):
             ``"hooke_axes[3]"``; empty for problems of the config or file as a whole.
         problem: what is wrong with it.
         source: the file the config came from, if any.
+        argument: the key again, as every usage error names its argument (None for the whole
+            config).
     """
 
     def __init__(self, key: str, problem: str, source: str | None = None):
-        super().__init__(key, problem, source)
+        super().__init__(key, problem, source, argument=key or None, problem=problem)
         self.key = key
         self.problem = problem
         self.source = source

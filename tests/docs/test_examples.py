@@ -16,6 +16,9 @@ import pytest
 #: The main entry points, by dotted name: each must carry an example that runs.
 ENTRY_POINTS = [
     "stewart_env.make_dynamics",
+    "stewart_env.ModelSpec",
+    "stewart_env.errors.UsageError",
+    "stewart_env.validation.Interval",
     "stewart_env.Dynamics.forward",
     "stewart_env.Dynamics.inverse",
     "stewart_env.Workspace",
