@@ -350,8 +350,9 @@ def test_config_takes_a_shipped_config_by_name(name, tmp_path, monkeypatch):
     args = build_parser().parse_args(["mismatch", "--config", name, "--out", "study"])
     assert Path(args.config) == CONFIG_DIR / "ppo_6m.yml"
     assert config_path("ppo", name) == CONFIG_DIR / "ppo_6m.yml"
-    (tmp_path / name).write_text("StewartPlatform-v0: {}\n")  # a file of the name in the working directory wins
-    assert config_path("ppo", name) == Path(name)
+    (tmp_path / name).write_text("StewartPlatform-v0: {}\n")
+    # with the suffix, a file of the name in the working directory is meant; without it, the shipped one always
+    assert config_path("ppo", name) == (Path(name) if name.endswith(".yml") else CONFIG_DIR / "ppo_6m.yml")
 
 
 def test_config_by_an_unknown_name_lists_the_shipped_ones(tmp_path, capsys):
@@ -359,7 +360,7 @@ def test_config_by_an_unknown_name_lists_the_shipped_ones(tmp_path, capsys):
         main(["train", "--algo", "ppo", "--config", "ppo_fast", "--out", str(tmp_path / "run")])
     assert stop.value.code == 2
     err = capsys.readouterr().err
-    assert "argument --config: hyperparameter file not found: ppo_fast" in err
+    assert "argument --config: unknown shipped config 'ppo_fast'" in err
     assert "crossq, ppo, ppo_6m, ppo_integral_6m, sac, td3, tqc" in err
 
 
