@@ -51,11 +51,8 @@ import stewart_env as se
 from stewart_env.files import lock_folder, publish, publishing
 from stewart_env.progress import progress as progress_bar
 from stewart_env.registration import ENV_ID
-
-#: The environment id with its module: ``gymnasium.make`` imports stewart_env first, so the id is
-#: known in a fresh process too (a Ray worker, a subprocess) without importing stewart_env by hand.
-QUALIFIED_ENV_ID = f"stewart_env:{ENV_ID}"
 from stewart_env.rotations import rotation_error
+
 # The defaults of settling and success (2 mm, 0.01 rad, the final tenth) and the criterion live with
 # the tasks, whose environment reports the same verdict as info["is_success"].
 from stewart_env.tasks.base import (
@@ -66,6 +63,10 @@ from stewart_env.tasks.base import (
     error_norm,
 )
 from stewart_env.validation import integer
+
+#: The environment id with its module: ``gymnasium.make`` imports stewart_env first, so the id is
+#: known in a fresh process too (a Ray worker, a subprocess) without importing stewart_env by hand.
+QUALIFIED_ENV_ID = f"stewart_env:{ENV_ID}"
 
 
 class Metric(NamedTuple):

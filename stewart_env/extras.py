@@ -61,8 +61,16 @@ def missing(extra: str) -> list[str]:
 
 
 def require(extra: str, what: str) -> None:
-    """Raise :class:`MissingExtra` unless every module of ``extra`` can be imported: "``what``
-    needs <modules>, which is not installed; install the extra ...\"."""
+    """Raise :class:`MissingExtra` unless every module of ``extra`` can be imported.
+
+    Args:
+        extra: the extra's name, a key of :data:`EXTRAS` (``"rl"``, ``"mujoco"``, ...).
+        what: what needs the extra, the subject of the message "``what`` needs <modules>, which is
+            not installed; install the extra ...".
+
+    Raises:
+        MissingExtra: a module of the extra is not installed.
+    """
     absent = missing(extra)
     if absent:
         verb = "is" if len(absent) == 1 else "are"

@@ -8,7 +8,6 @@ rotation vector between two orientations.
 import numpy as np
 
 
-
 def rpy_to_matrix(rpy):
     """Rotation matrix of roll-pitch-yaw angles, R = Rz(yaw) Ry(pitch) Rx(roll).
 

@@ -100,7 +100,7 @@ class ControlLaw:
         self._function = function  # keeps the compiled code alive
 
     @classmethod
-    def _compiled(cls, address: int, n_params: int | None, name: str) -> "ControlLaw":
+    def _compiled(cls, address: int, n_params: int | None, name: str) -> ControlLaw:
         """A law compiled into the package's extension, at ``address``."""
         law = object.__new__(cls)
         law.address, law.n_params, law.name, law._function = address, n_params, name, None

@@ -7,10 +7,10 @@ import sys
 
 import pytest
 
-from conftest import exit_code
-
 from stewart_env.cli import main
 from stewart_env.envs import vector
+
+from conftest import exit_code
 
 #: The estimator itself, before the fixture below stands in for it.
 AVAILABLE_MEMORY = vector.available_memory
