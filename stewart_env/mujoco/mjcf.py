@@ -60,12 +60,20 @@ MAX_TIMESTEP = 0.1
 
 
 def number_list(x) -> str:
-    """Numbers as MJCF writes them: space-separated, every digit of the float kept."""
+    """Numbers as MJCF writes them: space-separated, every digit of the float kept.
+
+    Args:
+        x: a number or an array of them.
+    """
     return " ".join(repr(float(v)) for v in np.atleast_1d(x))
 
 
 def quaternion(R: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of a rotation matrix (MuJoCo's convention)."""
+    """Unit quaternion (w, x, y, z) of a rotation matrix (MuJoCo's convention).
+
+    Args:
+        R: the rotation matrix (3, 3).
+    """
     mj = require_mujoco()
     q = np.empty(4)
     mj.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=np.float64).ravel())
@@ -200,7 +208,11 @@ def to_mjcf(params: PlatformParams, timestep: float = 1e-3, solref: Sequence[flo
 
 
 def home_rotation(params: PlatformParams) -> np.ndarray:
-    """The platform's rotation at its home pose."""
+    """The platform's rotation at its home pose.
+
+    Args:
+        params: the platform's parameters (its ``home_rpy``).
+    """
     return rpy_to_matrix(params.home_rpy)
 
 
