@@ -185,7 +185,7 @@ def episode_metrics(time, position_error, orientation_error, leg_forces, leg_rat
             success, a fraction of the episode.
 
     Returns:
-        {metric key: value}, the keys of ``METRICS``.
+        The metrics by key, the keys of ``METRICS``.
     """
     criterion = SuccessCriterion(position_tolerance, orientation_tolerance, final_window)
     p_norm = error_norm(np.asarray(position_error, dtype=float))
@@ -467,7 +467,7 @@ def write_report(results: Sequence[EvaluationResult], out, title: str = "Control
         title: the heading of ``results.md``.
 
     Returns:
-        {name: path} of the files written.
+        The paths of the files written, by name.
 
     Raises:
         stewart_env.files.FolderBusy: another report is being written into ``out``.

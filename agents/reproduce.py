@@ -165,9 +165,10 @@ def peak_differences(reference: CaseTrajectory, other: CaseTrajectory) -> dict[s
         other: the trajectory compared.
 
     Returns:
-        {key: {"peak_reference", "peak_other" (the two peaks of the component where the
-        peak-value difference is largest, SI, signed), "peak_time" (s, of the reference's peak),
-        "peak_difference", "peak_component" (index), "pointwise_difference"}}.
+        A dict by quantity key of dicts of ``"peak_reference"`` and ``"peak_other"`` (the two
+        peaks of the component where the peak-value difference is largest, SI, signed),
+        ``"peak_time"`` (s, of the reference's peak), ``"peak_difference"``, ``"peak_component"``
+        (index) and ``"pointwise_difference"``.
     """
     out = {}
     for key, _, _, _, from_start in QUANTITIES:
@@ -324,9 +325,10 @@ def reproduce(out, duration: float = 1.0, dt: float = 2e-4, sample_dt: float | N
         progress: whether to show a progress bar.
 
     Returns:
-        {"runs": {model: CaseTrajectory}, "differences": per quantity, classical against improved
-        (:func:`peak_differences`, improved the reference), "centroidal_difference": the largest
-        relative pointwise difference improved vs improved_centroidal, "seconds": run time}.
+        A dict of ``"runs"`` (a :class:`CaseTrajectory` by model), ``"differences"`` (per
+        quantity, classical against improved, by :func:`peak_differences` with improved the
+        reference), ``"centroidal_difference"`` (the largest relative pointwise difference improved
+        vs improved_centroidal) and ``"seconds"`` (the run time).
 
     Raises:
         stewart_env.files.FolderBusy: another command is writing into ``out``.

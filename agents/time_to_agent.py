@@ -515,7 +515,7 @@ def write_files(result: TimeToAgentResult, out: Path) -> dict[str, Path]:
         out: the output folder.
 
     Returns:
-        {name: path} of the files written.
+        The paths of the files written, by name.
     """
     paths = {key: out / name for key, name in FILES.items()}
     median = result.median_time()
