@@ -325,7 +325,7 @@ def reproduce(out, duration: float = 1.0, dt: float = 2e-4, sample_dt: float | N
         progress: whether to show a progress bar.
 
     Returns:
-        A dict of ``"runs"`` (a :class:`CaseTrajectory` by model), ``"differences"`` (per
+        A dict of ``"runs"`` (a ``CaseTrajectory`` by model), ``"differences"`` (per
         quantity, classical against improved, by :func:`peak_differences` with improved the
         reference), ``"centroidal_difference"`` (the largest relative pointwise difference improved
         vs improved_centroidal) and ``"seconds"`` (the run time).
