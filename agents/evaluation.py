@@ -51,11 +51,8 @@ import stewart_env as se
 from stewart_env.files import lock_folder, publish, publishing
 from stewart_env.progress import progress as progress_bar
 from stewart_env.registration import ENV_ID
-
-#: The environment id with its module: ``gymnasium.make`` imports stewart_env first, so the id is
-#: known in a fresh process too (a Ray worker, a subprocess) without importing stewart_env by hand.
-QUALIFIED_ENV_ID = f"stewart_env:{ENV_ID}"
 from stewart_env.rotations import rotation_error
+
 # The defaults of settling and success (2 mm, 0.01 rad, the final tenth) and the criterion live with
 # the tasks, whose environment reports the same verdict as info["is_success"].
 from stewart_env.tasks.base import (
@@ -66,6 +63,10 @@ from stewart_env.tasks.base import (
     error_norm,
 )
 from stewart_env.validation import integer
+
+#: The environment id with its module: ``gymnasium.make`` imports stewart_env first, so the id is
+#: known in a fresh process too (a Ray worker, a subprocess) without importing stewart_env by hand.
+QUALIFIED_ENV_ID = f"stewart_env:{ENV_ID}"
 
 
 class Metric(NamedTuple):
@@ -97,15 +98,26 @@ METRICS = tuple(Metric(*m) for m in (
 
 
 def rms(error) -> float:
-    """Root mean square of the norm of error samples (T, k) (or of a scalar signal (T,))."""
+    """Root mean square of the norm of error samples.
+
+    Args:
+        error: the samples, (T, k), or a scalar signal (T,).
+
+    Returns:
+        sqrt(mean_t |e(t)|^2), in the unit of ``error``.
+    """
     e = np.asarray(error, dtype=float)
     e = e[:, None] if e.ndim == 1 else e
     return float(np.sqrt(np.mean(np.sum(e * e, axis=1))))
 
 
 def settling_time(time, inside) -> float:
-    """First sample time from which ``inside`` (T,) bool holds to the end; NaN if the last sample
-    is outside.  time (T,) s."""
+    """First sample time from which ``inside`` holds to the end; NaN if the last sample is outside.
+
+    Args:
+        time: the sample times (T,), s.
+        inside: (T,) bool, whether each sample is within the tolerances.
+    """
     inside = np.asarray(inside, dtype=bool)
     if not inside[-1]:
         return math.nan
@@ -114,8 +126,13 @@ def settling_time(time, inside) -> float:
 
 
 def overshoot(error, tolerance: float) -> float:
-    """Percent overshoot of an error vector signal (T, k) past zero along its initial direction:
-    100 max(0, max_t -(e(t) . e(0)) / |e(0)|^2); NaN if |e(0)| <= tolerance (no step)."""
+    """Percent overshoot of an error vector signal past zero along its initial direction:
+    100 max(0, max_t -(e(t) . e(0)) / |e(0)|^2); NaN if |e(0)| <= tolerance (no step).
+
+    Args:
+        error: the error e(t), (T, k) (or (T,)).
+        tolerance: the size of |e(0)| at or below which there is no step, in the unit of ``error``.
+    """
     e = np.asarray(error, dtype=float)
     e = e[:, None] if e.ndim == 1 else e
     size2 = float(e[0] @ e[0])
@@ -126,15 +143,23 @@ def overshoot(error, tolerance: float) -> float:
 
 def final_window_mask(time, final_window: float) -> np.ndarray:
     """(T,) bool: the samples with t >= t_end - final_window (t_end - t_0); at least the last
-    (:meth:`stewart_env.tasks.base.SuccessCriterion.final_window_mask`)."""
+    (:meth:`stewart_env.tasks.base.SuccessCriterion.final_window_mask`).
+
+    Args:
+        time: the sample times (T,), s.
+        final_window: the window's length, a fraction of the episode in [0, 1].
+    """
     return SuccessCriterion(final_window=final_window).final_window_mask(time)
 
 
 def control_energy(time, leg_forces, leg_rates) -> float:
     """sum_k sum_i |F_i,k (Ldot_i(t_k) + Ldot_i(t_k+1)) / 2| (t_k+1 - t_k), J.
 
-    time (T+1,) s; leg_forces (T,6) N, held over [t_k, t_k+1]; leg_rates (T+1,6) m/s at the
-    sample times."""
+    Args:
+        time: the sample times t_k (T+1,), s.
+        leg_forces: the leg forces F (T, 6), N, each held over [t_k, t_k+1].
+        leg_rates: the legs' extension rates Ldot (T+1, 6), m/s, at the sample times.
+    """
     dt = np.diff(np.asarray(time, dtype=float))
     rates = np.asarray(leg_rates, dtype=float)
     mean_rate = 0.5 * (rates[:-1] + rates[1:])
@@ -147,9 +172,20 @@ def episode_metrics(time, position_error, orientation_error, leg_forces, leg_rat
                     final_window: float = FINAL_WINDOW) -> dict[str, float]:
     """The metrics of one episode (module docstring).
 
-    time (T+1,) s; position_error (T+1,3) m and orientation_error (T+1,3) rad (rotation vector)
-    at the samples; leg_forces (T,6) N over the steps; leg_rates (T+1,6) m/s at the samples;
-    terminated: whether the episode ended early.
+    Args:
+        time: the sample times (T+1,), s.
+        position_error: target minus platform position at the samples (T+1, 3), m.
+        orientation_error: the orientation error at the samples as a rotation vector (T+1, 3), rad.
+        leg_forces: the leg forces over the steps (T, 6), N.
+        leg_rates: the legs' extension rates at the samples (T+1, 6), m/s.
+        terminated: whether the environment ended the episode early.
+        position_tolerance: the settling and success tolerance of the position error's norm, m.
+        orientation_tolerance: the settling and success tolerance of the orientation error's norm, rad.
+        final_window: the final part of the episode whose errors give the steady-state metrics and
+            success, a fraction of the episode.
+
+    Returns:
+        The metrics by key, the keys of ``METRICS``.
     """
     criterion = SuccessCriterion(position_tolerance, orientation_tolerance, final_window)
     p_norm = error_norm(np.asarray(position_error, dtype=float))
@@ -211,10 +247,12 @@ class EvaluationResult:
 
     @property
     def model(self) -> str:
+        """The environment's dynamics model (``env_kwargs["model"]``, default ``"improved"``)."""
         return str(self.env_kwargs.get("model", "improved"))
 
     @property
     def task(self) -> str:
+        """The environment's task (``env_kwargs["task"]``, default ``"setpoint"``)."""
         return str(self.env_kwargs.get("task", "setpoint"))
 
 
@@ -236,17 +274,29 @@ def evaluate(policy, env_kwargs: Mapping | None = None, episodes: int = 5, seed:
              out=None, progress: bool = True) -> EvaluationResult:
     """Run ``episodes`` seeded episodes of a policy and measure them.
 
-    policy: anything with Stable-Baselines3's ``predict(observation, state, episode_start,
-        deterministic) -> (action, state)`` that accepts a batch of observations (N, obs_dim), or
-        a callable that builds one from an environment (e.g. :class:`~.pd.PDPolicy`); the callable
-        gets ``gymnasium.make("StewartPlatform-v1", **env_kwargs)``.
-    env_kwargs: keywords of the environment (model, platform, task, task_options, control_dt, ...).
-    episodes, seed: episode i is the environment reset with seed + i; the run is deterministic
-        given the seed (for a deterministic policy).
-    max_steps: episode length in control steps; default the registered time limit (500).
-    position_tolerance (m), orientation_tolerance (rad), final_window (fraction of the episode):
-        settling and success criteria (module docstring).
-    out: if given, a directory for :func:`write_report` of this result.
+    Args:
+        policy: anything with Stable-Baselines3's ``predict(observation, state, episode_start,
+            deterministic) -> (action, state)`` that accepts a batch of observations (N, obs_dim), or
+            a callable that builds one from an environment (e.g. :class:`~.pd.PDPolicy`); the callable
+            gets ``gymnasium.make("StewartPlatform-v1", **env_kwargs)``.
+        env_kwargs: keywords of the environment (model, platform, task, task_options, control_dt, ...).
+        episodes: the number of episodes, run side by side in one vector environment.
+        seed: episode i is the environment reset with seed + i; the run is deterministic given the
+            seed (for a deterministic policy).
+        label: the policy's name in tables and figures; default its class name.
+        max_steps: episode length in control steps; default the registered time limit (500).
+        position_tolerance: the settling and success tolerance of the position error, m (module docstring).
+        orientation_tolerance: the settling and success tolerance of the orientation error, rad.
+        final_window: the final part of the episode the steady-state metrics and success look at,
+            a fraction of the episode.
+        out: if given, a directory for :func:`write_report` of this result.
+        progress: whether to show a progress bar of the steps.
+
+    Returns:
+        The episodes and their metrics.
+
+    Raises:
+        ValueError: an argument out of its range, named; a policy factory that returns no policy.
     """
     episodes = integer("episodes", episodes, 1, 2**31 - 1)  # the vector env's bound on its batch
     seed = integer("seed", seed, 0, 2**63 - 1)
@@ -327,7 +377,11 @@ ENDED_EARLY = "ended early"
 def ended_early(result: EvaluationResult) -> str:
     """The episodes of ``result`` that the environment terminated before their time limit, and
     the most common reason: ``"0"``, or e.g. ``"3 (leg_limit)"`` (the reason met first among
-    equally common ones)."""
+    equally common ones).
+
+    Args:
+        result: the evaluated episodes.
+    """
     reasons = Counter(ep.termination for ep in result.episodes if ep.termination is not None)
     if not reasons:
         return "0"
@@ -337,7 +391,11 @@ def ended_early(result: EvaluationResult) -> str:
 def markdown_table(results: Sequence[EvaluationResult]) -> str:
     """A markdown table of the mean metrics of each result (one row per result), with the count
     of episodes ended early and their most common reason (``ended_early``) after the success
-    rate: a controller that loses the platform at once has no overshoot to show, but shows here."""
+    rate: a controller that loses the platform at once has no overshoot to show, but shows here.
+
+    Args:
+        results: the evaluations, one row each.
+    """
     titles = [m.title for m in METRICS]
     at = [m.key for m in METRICS].index("success") + 1
     head = ["controller", "model", "task", "episodes"] + titles[:at] + [ENDED_EARLY] + titles[at:]
@@ -387,7 +445,11 @@ def compact_table(results: Sequence[EvaluationResult], columns: Mapping[str, str
 
 def slug(text: str) -> str:
     """``text`` as a file or directory name: lower case, each run of other characters than a-z and 0-9
-    one underscore, e.g. ``"PPO [improved + DR]"`` -> ``"ppo_improved_dr"``."""
+    one underscore, e.g. ``"PPO [improved + DR]"`` -> ``"ppo_improved_dr"``.
+
+    Args:
+        text: a label.
+    """
     return re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_")
 
 
@@ -395,11 +457,22 @@ def write_report(results: Sequence[EvaluationResult], out, title: str = "Control
     """Write ``results.md`` (the table and the definitions' source), ``episodes.csv`` (one row per
     episode, SI units), ``error_norms.png`` (every result's error norms over time) and one
     ``trajectory_<label>_<model>.png`` per result (error components and leg forces of its first
-    episode) into the directory ``out``.  Returns {name: path}.
+    episode) into the directory ``out``.
 
-    The directory's lock is held while writing (a second report into it at the same time is
-    refused with :class:`~stewart_env.files.FolderBusy`); each file is published atomically, and a
-    write that fails (a full disk) raises :class:`~stewart_env.files.WriteError` naming it."""
+    The directory's lock is held while writing; each file is published atomically.
+
+    Args:
+        results: the evaluations to report.
+        out: the directory, made if missing.
+        title: the heading of ``results.md``.
+
+    Returns:
+        The paths of the files written, by name.
+
+    Raises:
+        stewart_env.files.FolderBusy: another report is being written into ``out``.
+        stewart_env.files.WriteError: a write failed (a full disk); the message names the file.
+    """
     with lock_folder(out) as out:
         return _write_report(results, out, title)
 
@@ -445,7 +518,11 @@ _STYLES = (
 
 def new_figure(**kwargs) -> Figure:
     """A matplotlib Figure on its own Agg canvas: figures are made without pyplot, so writing
-    them neither needs a display nor changes the user's backend."""
+    them neither needs a display nor changes the user's backend.
+
+    Args:
+        **kwargs: the keywords of matplotlib's ``Figure`` (figsize, layout, ...).
+    """
     fig = Figure(**kwargs)
     FigureCanvasAgg(fig)
     return fig
@@ -453,7 +530,14 @@ def new_figure(**kwargs) -> Figure:
 
 def curve_style(j: int) -> dict:
     """Line style of the j-th overlaid curve (see :data:`_STYLES`); markers at even distances
-    on the screen (on log axes too), offset from the other curves' markers."""
+    on the screen (on log axes too), offset from the other curves' markers.
+
+    Args:
+        j: the curve's index among the overlaid ones, from 0.
+
+    Returns:
+        Keywords of ``Axes.plot``.
+    """
     style = dict(_STYLES[j % len(_STYLES)], zorder=2 + j)
     if "marker" in style:
         style["markevery"] = (0.02 * (j % len(_STYLES)), 0.1)
@@ -461,7 +545,13 @@ def curve_style(j: int) -> dict:
 
 
 def draw_floor(ax, floor: float, unit: str) -> None:
-    """Mark a log axis's clip floor as one: a dotted rule, a label and nothing drawn below it."""
+    """Mark a log axis's clip floor as one: a dotted rule, a label and nothing drawn below it.
+
+    Args:
+        ax: the matplotlib Axes.
+        floor: the value below which the curves are drawn at it, in the axis's unit.
+        unit: the axis's unit, for the label.
+    """
     ax.axhline(floor, color="0.35", ls=":", lw=1.0, zorder=1)
     mantissa, exponent = f"{floor:.0e}".split("e")
     ax.annotate(f"below {mantissa}e{int(exponent)} {unit}: rounding floor", (0.01, floor),
@@ -473,7 +563,11 @@ def draw_floor(ax, floor: float, unit: str) -> None:
 def error_norms_figure(results: Sequence[EvaluationResult]) -> Figure:
     """Position and orientation error norms against time, log scale: each episode faint, the
     median over episodes bold; one colour and one line style per result; norms below
-    :data:`ERROR_FLOOR` drawn at the floor, which is marked when reached."""
+    :data:`ERROR_FLOOR` drawn at the floor, which is marked when reached.
+
+    Args:
+        results: the evaluations, one colour each (the task of the first titles the figure).
+    """
     fig = new_figure(figsize=(9, 6.5), layout="constrained")
     axes = fig.subplots(2, 1, sharex=True)
     colours = colormaps["tab10"].colors
@@ -532,7 +626,20 @@ def _plot_trajectory(result: EvaluationResult, path: Path) -> None:
 def compare(policies: Mapping[str, object], env_kwargs_list: Sequence[Mapping], episodes: int = 5, seed: int = 0,
             out=None, progress: bool = True, **kwargs) -> list[EvaluationResult]:
     """:func:`evaluate` every policy (label -> policy or factory) on every environment
-    configuration, with the same seeds; writes one report of all of them into ``out`` if given."""
+    configuration, with the same seeds; writes one report of all of them into ``out`` if given.
+
+    Args:
+        policies: {label: policy or factory}, as :func:`evaluate` takes them.
+        env_kwargs_list: the environment configurations, each a mapping of keywords.
+        episodes: episodes of each policy on each configuration.
+        seed: the first episode's seed, the same for every policy.
+        out: if given, the directory of :func:`write_report`.
+        progress: whether to show progress bars.
+        **kwargs: further keywords of :func:`evaluate` (max_steps, the tolerances, final_window).
+
+    Returns:
+        The results, configuration by configuration, policy by policy.
+    """
     results = [evaluate(policy, env_kwargs, episodes, seed, label=label, progress=progress, **kwargs)
                for env_kwargs in env_kwargs_list for label, policy in policies.items()]
     if out is not None:

@@ -81,7 +81,12 @@ class CaseTrajectory:
     leg_force: np.ndarray
 
     def quantity(self, key: str, from_start: bool) -> np.ndarray:
-        """The quantity ``key`` (T, k), minus its initial value if ``from_start``."""
+        """The quantity ``key`` (T, k), minus its initial value if ``from_start``.
+
+        Args:
+            key: a field of the trajectory, a key of ``QUANTITIES`` (``"leg_force"``, ...).
+            from_start: whether to subtract the initial value (a change from the start).
+        """
         q = getattr(self, key)
         return q - q[0] if from_start else q
 
@@ -91,12 +96,22 @@ def simulate_case_study(model_name: str, platform: se.PlatformParams, controller
                         progress=None) -> CaseTrajectory:
     """Integrate the case study's closed loop with RK4, the controller evaluated at every stage.
 
-    model_name: the plant's dynamics; controller: the PD law (its compiled
-    :func:`~stewart_env.agents.pd.pd_control_law` runs inside the integrator); duration, dt,
-    sample_dt in s (sample_dt a multiple of dt, default dt: the transient under the paper's gains
-    lasts about 50 ms, and coarser samples cut its peaks); ``progress`` (a
-    :func:`stewart_env.progress.progress` bar, or None) is advanced by the steps run.  Returns the
-    sampled :class:`CaseTrajectory`.
+    Args:
+        model_name: the plant's dynamics model (``"classical"``, ``"improved"``, ...).
+        platform: the platform's parameters.
+        controller: the PD law (its compiled :func:`~stewart_env.agents.pd.pd_control_law` runs
+            inside the integrator).
+        duration: the simulated time, s.
+        dt: the integrator's step, s.
+        sample_dt: the time between recorded samples, s, a multiple of ``dt``; default ``dt`` (the
+            transient under the paper's gains lasts about 50 ms, and coarser samples cut its peaks).
+        progress: a :func:`stewart_env.progress.progress` bar advanced by the steps run, or None.
+
+    Returns:
+        The sampled :class:`CaseTrajectory`.
+
+    Raises:
+        ValueError: a duration, dt or sample_dt out of its range (named).
     """
     sample_dt = dt if sample_dt is None else sample_dt
     if not (np.isfinite(duration) and duration > 0):
@@ -124,7 +139,14 @@ def simulate_case_study(model_name: str, platform: se.PlatformParams, controller
 def transient_peaks(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The largest extremum of the transient of each component of q (T, k): among the interior
     local extrema (samples where the slope changes sign), the one of largest |q|; a component
-    without one (monotone) takes its final value.  Returns (values (k,), sample indices (k,))."""
+    without one (monotone) takes its final value.
+
+    Args:
+        q: the samples of a quantity (T, k).
+
+    Returns:
+        (values (k,), sample indices (k,)) of the peaks.
+    """
     slope = np.diff(q, axis=0)
     turning = slope[:-1] * slope[1:] < 0  # (T-2, k): sample j + 1 is a local extremum
     candidates = np.where(turning, q[1:-1], 0.0)
@@ -138,9 +160,15 @@ def peak_differences(reference: CaseTrajectory, other: CaseTrajectory) -> dict[s
     """Per quantity of :data:`QUANTITIES`: the peak-value difference and the largest pointwise
     difference of ``other`` against ``reference`` (module docstring), both relative (fractions).
 
-    Returns {key: {"peak_reference", "peak_other" (the two peaks of the component where the
-    peak-value difference is largest, SI, signed), "peak_time" (s, of the reference's peak),
-    "peak_difference", "peak_component" (index), "pointwise_difference"}}.
+    Args:
+        reference: the trajectory compared against (the improved model's).
+        other: the trajectory compared.
+
+    Returns:
+        A dict by quantity key of dicts of ``"peak_reference"`` and ``"peak_other"`` (the two
+        peaks of the component where the peak-value difference is largest, SI, signed),
+        ``"peak_time"`` (s, of the reference's peak), ``"peak_difference"``, ``"peak_component"``
+        (index) and ``"pointwise_difference"``.
     """
     out = {}
     for key, _, _, _, from_start in QUANTITIES:
@@ -169,7 +197,15 @@ def _component_names(key: str) -> list[str]:
 def plot_comparison(path: Path, keys: tuple[str, ...], classical: CaseTrajectory, improved: CaseTrajectory,
                     title: str) -> None:
     """One figure: a panel per component of each quantity in ``keys`` (three panels a row),
-    classical and improved overlaid, improved - classical in a small axis beneath."""
+    classical and improved overlaid, improved - classical in a small axis beneath.
+
+    Args:
+        path: the PNG file written.
+        keys: the quantities drawn, keys of ``QUANTITIES``.
+        classical: the classical model's trajectory.
+        improved: the improved model's trajectory.
+        title: the figure's title.
+    """
     spec = {q[0]: q for q in QUANTITIES}
     panels = [(key, k) for key in keys for k in range(len(_component_names(key)))]
     rows = len(panels) // 3
@@ -276,16 +312,27 @@ def reproduce(out, duration: float = 1.0, dt: float = 2e-4, sample_dt: float | N
               platform: str = "dasgupta1998", gravity_compensation: bool = False, progress: bool = True) -> dict:
     """Run the case study on ``MODELS``, write the figures and ``summary.md`` into ``out``.
 
-    duration, dt, sample_dt in s (see :func:`simulate_case_study`); platform: a config name or
-    YAML path; gravity_compensation: add the holding forces to the paper's law (off: the law as
-    we have it).  Returns {"runs": {model: CaseTrajectory}, "differences": per quantity, classical
-    against improved (:func:`peak_differences`, improved the reference), "centroidal_difference":
-    the largest relative pointwise difference improved vs improved_centroidal, "seconds": run time}.
+    ``out`` is locked for the whole run (``stewart_env.files.lock_folder``) and every file is
+    published atomically.
 
-    ``out`` is locked for the whole run (``stewart_env.files.lock_folder``: a second command
-    on it is refused at once with :class:`~stewart_env.files.FolderBusy`) and every file is
-    published atomically; a write that fails (a full disk) raises
-    :class:`~stewart_env.files.WriteError` naming it.
+    Args:
+        out: the directory of the figures and ``summary.md``, made if missing.
+        duration: the simulated time, s (see :func:`simulate_case_study`).
+        dt: the integrator's step, s.
+        sample_dt: the time between recorded samples, s, a multiple of ``dt``; default ``dt``.
+        platform: a shipped config's name or a YAML path.
+        gravity_compensation: add the holding forces to the paper's law (off: the law as we have it).
+        progress: whether to show a progress bar.
+
+    Returns:
+        A dict of ``"runs"`` (a ``CaseTrajectory`` by model), ``"differences"`` (per
+        quantity, classical against improved, by :func:`peak_differences` with improved the
+        reference), ``"centroidal_difference"`` (the largest relative pointwise difference improved
+        vs improved_centroidal) and ``"seconds"`` (the run time).
+
+    Raises:
+        stewart_env.files.FolderBusy: another command is writing into ``out``.
+        stewart_env.files.WriteError: a write failed (a full disk); the message names the file.
     """
     start = time.perf_counter()
     params = se.load_platform(platform)

@@ -146,7 +146,8 @@ def resolved(low: float, high: float) -> bool:
     """Whether the interval [low, high] excludes zero: a difference whose sign the sample determines.
 
     Args:
-        low, high: the interval's bounds; an undefined bound (NaN) resolves nothing.
+        low: the interval's lower bound; an undefined bound (NaN) resolves nothing.
+        high: the interval's upper bound.
 
     Returns:
         True if both bounds are finite and of one sign.
@@ -221,8 +222,10 @@ def double_difference(values, values_home, reference, reference_home, statistic:
     episode's change).
 
     Args:
-        values, values_home: one controller's cells (seeds, episodes) on two plants.
-        reference, reference_home: another controller's cells on the same two plants.
+        values: one controller's cell (seeds, episodes) on a plant.
+        values_home: the same controller's cell on its home plant.
+        reference: another controller's cell on the first plant.
+        reference_home: that controller's cell on the home plant.
         statistic: ``"mean"`` or ``"iqm"`` (:data:`STATISTICS`).
         confidence: the interval's confidence level, in (0, 1).
         resamples: the number of bootstrap resamples.
@@ -280,7 +283,8 @@ def paired_difference(values, reference, statistic: str = "mean", confidence: fl
     ``reference`` are the same seeded episode, and seed s of each is drawn together.
 
     Args:
-        values, reference: the two cells (seeds, episodes).
+        values: the cell (seeds, episodes) whose statistic is taken first.
+        reference: the cell (seeds, episodes) subtracted, its episodes paired with ``values``'s.
         statistic: ``"mean"`` or ``"iqm"`` (:data:`STATISTICS`).
         confidence: the interval's confidence level, in (0, 1).
         resamples: the number of bootstrap resamples.
@@ -308,7 +312,23 @@ def share_removed(values, remaining, reference, statistic: str = "mean", confide
     """``[stat(values) - stat(remaining)] / [stat(values) - stat(reference)]`` and its stratified
     bootstrap interval, the three cells (seeds, episodes) resampled with the same indices: the share
     of the cost ``values - reference`` that a controller with ``remaining`` removes (1: all of it,
-    0: none, negative: it costs more).  Unstable where the cost's own interval includes zero."""
+    0: none, negative: it costs more).  Unstable where the cost's own interval includes zero.
+
+    Args:
+        values: the costly controller's cell (seeds, episodes).
+        remaining: the cell of the controller whose cost share is measured.
+        reference: the cell of the controller without the cost.
+        statistic: ``"mean"`` or ``"iqm"`` (:data:`STATISTICS`).
+        confidence: the interval's confidence level, in (0, 1).
+        resamples: the number of bootstrap resamples.
+        seed: the resampling's seed: the same seed gives the same interval.
+
+    Returns:
+        The :class:`Interval`.
+
+    Raises:
+        ValueError: an unknown statistic, or a bad confidence or resamples count.
+    """
     with np.errstate(divide="ignore", invalid="ignore"):
         return _bootstrap([_as_cell(values), _as_cell(remaining), _as_cell(reference)],
                           lambda c, r, e: (c - r) / (c - e), statistic, confidence, resamples, seed)

@@ -126,6 +126,7 @@ class SeedResult:
         return self.total_steps / self.training_time if self.training_time > 0 else math.nan
 
     def as_dict(self) -> dict[str, Any]:
+        """The fields and the three rates (steps/s of collection, of learning and of training), as JSON takes them."""
         out = asdict(self)
         out.update(collection_steps_per_s=self.collection_rate, learning_steps_per_s=self.learning_rate,
                    steps_per_s=self.rate)
@@ -161,7 +162,15 @@ class TimeToAgentResult:
 
 def resolve_config(algo: str, config: str | os.PathLike | None) -> Path:
     """The hyperparameter file, found as ``stewart-env train`` finds it
-    (``stewart_env.agents.training.config_path``: a path, or a shipped config's name)."""
+    (``stewart_env.agents.training.config_path``: a path, or a shipped config's name).
+
+    Args:
+        algo: the algorithm, whose shipped config is the default.
+        config: a path, a shipped config's name, or None for the algorithm's shipped config.
+
+    Raises:
+        TimeToAgentError: no such file or config (the message says ``config:``).
+    """
     try:
         return config_path(algo, config)
     except TrainingError as err:
@@ -342,14 +351,16 @@ def time_to_agent(algo: str, out: str | os.PathLike, *, config: str | os.PathLik
         out: the output folder (new or empty).
         config: a zoo hyperparameter file, or the name of a shipped one (configs/agents/<name>.yml);
             default configs/agents/<algo>.yml.
-        task, model: the task and the plant's dynamics model; env_kwargs: further environment
-            keywords (over the config's env_kwargs).
+        task: the task (``"setpoint"``, ``"tracking"``, ...).
+        model: the plant's dynamics model.
         seeds: one training run per seed.
         target_success: fraction of held-out episodes that succeed, in [0, 1].
         target_error_mm: bound of the median steady-state position error, mm (>= 0).
-        budget: training wall time per seed, s (> 0); interval: s between points (> 0).
+        budget: training wall time per seed, s (> 0).
+        interval: training wall time between points, s (> 0).
         episodes: held-out episodes per point.
         n_envs: platforms in the training batch (default the config's n_envs).
+        env_kwargs: further environment keywords (over the config's env_kwargs).
         progress_bar: a bar per seed, on terminals only.
         report: called with every finished seed's result.
 
@@ -417,7 +428,11 @@ def _median_range(values: Sequence[float], spec: str) -> str:
 
 def summary_table(result: TimeToAgentResult) -> str:
     """A markdown table: per seed, then the median (range) over seeds, of the wall time and steps to
-    target, the last point's success and error, and the steps/s of collection, learning and all."""
+    target, the last point's success and error, and the steps/s of collection, learning and all.
+
+    Args:
+        result: the measurement.
+    """
     s = result.settings
     head = ["seed", "time to target (s)", "steps at target", "success", "median ss error (mm)",
             "collection steps/s", "learning steps/s", "training steps/s", "evaluation (s)"]
@@ -457,7 +472,11 @@ def summary_table(result: TimeToAgentResult) -> str:
 
 def learning_curve_figure(result: TimeToAgentResult):
     """Success (%) and median steady-state position error (mm, log scale) against training wall
-    time, one line per seed, the target dashed, each seed's reaching point circled."""
+    time, one line per seed, the target dashed, each seed's reaching point circled.
+
+    Args:
+        result: the measurement.
+    """
     s = result.settings
     fig = new_figure(figsize=(9, 6.5), layout="constrained")
     top, bottom = fig.subplots(2, 1, sharex=True)
@@ -489,7 +508,15 @@ def learning_curve_figure(result: TimeToAgentResult):
 
 
 def write_files(result: TimeToAgentResult, out: Path) -> dict[str, Path]:
-    """Write the four files of ``result`` into ``out`` (held locked by the caller), each atomically."""
+    """Write the four files of ``result`` into ``out`` (held locked by the caller), each atomically.
+
+    Args:
+        result: the measurement.
+        out: the output folder.
+
+    Returns:
+        The paths of the files written, by name.
+    """
     paths = {key: out / name for key, name in FILES.items()}
     median = result.median_time()
     summary = {"reached": result.reached, "seeds": len(result.done()),

@@ -14,8 +14,17 @@ Public API::
                                     # STEWART_ENV_THREADS when the package is imported); se.get_num_threads()
 """
 
-from stewart_env.dynamics import (MODEL_NAMES, Dynamics, ModelSpec, Switch, Workspace, get_num_threads, make_dynamics,
-                                  set_num_threads)
+from stewart_env import registration  # noqa: F401  (registers StewartPlatform-v0 and -v1 with Gymnasium)
+from stewart_env.dynamics import (
+    MODEL_NAMES,
+    Dynamics,
+    ModelSpec,
+    Switch,
+    Workspace,
+    get_num_threads,
+    make_dynamics,
+    set_num_threads,
+)
 from stewart_env.dynamics.rk4 import ControlLaw
 from stewart_env.integrate import rollout
 from stewart_env.kinematics import (
@@ -29,7 +38,6 @@ from stewart_env.kinematics import (
 from stewart_env.params import ConfigError, PlatformParams, available_platforms, load_platform
 from stewart_env.rotations import matrix_to_rpy, rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
-from stewart_env import registration  # noqa: F401  (registers StewartPlatform-v0 and -v1 with Gymnasium)
 
 __version__ = "0.1.0"
 

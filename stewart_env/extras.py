@@ -43,12 +43,20 @@ class MissingExtra(UsageError, ImportError):
 
 
 def install_hint(extra: str) -> str:
-    """How to install ``extra`` from a clone: ``install the extra 'rl': pip install -e ".[rl]"``."""
+    """How to install ``extra`` from a clone: ``install the extra 'rl': pip install -e ".[rl]"``.
+
+    Args:
+        extra: the extra's name.
+    """
     return f"install the extra {extra!r}: {_BEFORE.get(extra, '')}pip install -e \".[{extra}]\""
 
 
 def missing(extra: str) -> list[str]:
-    """The modules of ``extra`` that cannot be imported (looked up, not imported)."""
+    """The modules of ``extra`` that cannot be imported (looked up, not imported).
+
+    Args:
+        extra: the extra's name, a key of ``EXTRAS``.
+    """
     found = []
     for name in EXTRAS[extra]:
         try:
@@ -61,8 +69,16 @@ def missing(extra: str) -> list[str]:
 
 
 def require(extra: str, what: str) -> None:
-    """Raise :class:`MissingExtra` unless every module of ``extra`` can be imported: "``what``
-    needs <modules>, which is not installed; install the extra ...\"."""
+    """Raise :class:`MissingExtra` unless every module of ``extra`` can be imported.
+
+    Args:
+        extra: the extra's name, a key of ``EXTRAS`` (``"rl"``, ``"mujoco"``, ...).
+        what: what needs the extra, the subject of the message "``what`` needs <modules>, which is
+            not installed; install the extra ...".
+
+    Raises:
+        MissingExtra: a module of the extra is not installed.
+    """
     absent = missing(extra)
     if absent:
         verb = "is" if len(absent) == 1 else "are"
@@ -71,7 +87,11 @@ def require(extra: str, what: str) -> None:
 
 
 def extra_of(error: BaseException | None) -> str | None:
-    """The extra whose module ``error`` failed to import, or None (a module of no extra)."""
+    """The extra whose module ``error`` failed to import, or None (a module of no extra).
+
+    Args:
+        error: an exception, followed through the errors it was raised from; or None.
+    """
     while error is not None:  # the import that failed, through errors raised from it
         if isinstance(error, MissingExtra):
             return error.extra

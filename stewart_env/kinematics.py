@@ -225,6 +225,18 @@ def leg_sensors_inplace(params: PlatformParams | Dynamics, position, rotation, v
     states, written into preallocated arrays; no argument checks (the environment's per-step
     path).  State arrays as in :func:`stewart_env.integrate.rollout_inplace`.  ``condition`` is
     exact where it exceeds ``max_condition`` and an upper bound at most ``max_condition``
-    elsewhere, so comparing it with ``max_condition`` decides singularity exactly."""
+    elsewhere, so comparing it with ``max_condition`` decides singularity exactly.
+
+    Args:
+        params: the platform's parameters, or a model of it.
+        position: the platforms' positions (N, 3), m, {B}.
+        rotation: their rotation matrices (N, 3, 3), {P} in {B}.
+        velocity: their velocities (N, 3), m/s.
+        angular_velocity: their angular velocities (N, 3), rad/s.
+        max_condition: the condition number of the Jacobian beyond which a pose is singular.
+        lengths: the output of the leg lengths (N, 6), m.
+        rates: the output of the leg rates (N, 6), m/s.
+        condition: the output of the condition numbers (N,).
+    """
     K.leg_sensors_batch(_packed(params), position, rotation, velocity, angular_velocity, float(max_condition),
                         lengths, rates, condition)

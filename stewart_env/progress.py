@@ -56,9 +56,20 @@ class QuietProgress:
         self.close()
 
     def set_postfix_str(self, text: str = "", refresh: bool = True) -> None:
+        """As tqdm's ``set_postfix_str``: the text shown after the count from the next line on.
+
+        Args:
+            text: the text.
+            refresh: tqdm's argument, ignored (a line is printed at most once a minute).
+        """
         self.postfix = str(text)
 
     def update(self, n: float = 1) -> None:
+        """As tqdm's ``update``: advance the count, printing a line if a minute has passed since the last.
+
+        Args:
+            n: the increment, in ``unit``.
+        """
         self.n += n
         now = time.monotonic()
         if self.disable or now - self._last < self.interval:
@@ -70,13 +81,22 @@ class QuietProgress:
         print(f"{label}{count} {self.unit}{postfix}, {now - self._start:.0f} s", file=sys.stderr, flush=True)
 
     def close(self) -> None:
-        pass
+        """As tqdm's ``close``: nothing to do (no line is left open)."""
 
 
 def progress(iterable: Iterable | None = None, total: float | None = None, desc: str = "", unit: str = "it",
              disable: bool = False, leave: bool = True):
     """A tqdm bar over ``iterable`` (or advanced by ``update``) when stderr is a terminal, else a
-    :class:`QuietProgress` (at most one line per minute); ``disable`` silences both."""
+    :class:`QuietProgress` (at most one line per minute); ``disable`` silences both.
+
+    Args:
+        iterable: what the bar iterates over, or None for a bar advanced by ``update``.
+        total: the expected count, or None (the length of ``iterable`` if it has one, for tqdm).
+        desc: the label before the count.
+        unit: the unit of the count (``"it"``, ``"step"``, ...).
+        disable: show nothing.
+        leave: tqdm's: keep the bar on the terminal when it is done.
+    """
     if on_terminal():
         from tqdm.auto import tqdm
 

@@ -8,7 +8,6 @@ rotation vector between two orientations.
 import numpy as np
 
 
-
 def rpy_to_matrix(rpy):
     """Rotation matrix of roll-pitch-yaw angles, R = Rz(yaw) Ry(pitch) Rx(roll).
 
@@ -95,7 +94,11 @@ def rpy_rate_matrix(rpy):
 
 
 def rotvec_to_matrix(phi):
-    """exp([phi]x): rotation matrices (..., 3, 3) of rotation vectors phi (..., 3), rad (Rodrigues)."""
+    """exp([phi]x): rotation matrices (..., 3, 3) of rotation vectors (Rodrigues' formula).
+
+    Args:
+        phi: rotation vectors (..., 3), rad: the axis times the angle.
+    """
     phi = np.asarray(phi, dtype=float)
     angle = np.linalg.norm(phi, axis=-1)[..., None, None]
     k = np.zeros(phi.shape[:-1] + (3, 3))

@@ -280,9 +280,9 @@ def test_no_module_reads_an_error_text():
 def test_the_study_checks_its_counts_with_the_command_lines_constraints():
     """MismatchSettings' counts and tolerances are the constraints' checks: the error names the
     setting as data, and a numpy integer is a count."""
-    from stewart_env.agents.mismatch.settings import COUNT, TOLERANCE, _checked
-
     import numpy as np
+
+    from stewart_env.agents.mismatch.settings import COUNT, TOLERANCE, _checked
 
     assert _checked(COUNT, "episodes", np.int64(3)) == 3 and _checked(TOLERANCE, "position_tolerance", 1) == 1.0
     cases = (("episodes", COUNT, 0), ("n_envs", COUNT, True), ("position_tolerance", TOLERANCE, 0.0),

@@ -1,14 +1,19 @@
 """The tests import the checkout they belong to, and every module finds the shipped configs alike,
 installed or from the source tree."""
 
+import importlib.metadata
 import importlib.resources
+import re
 
 import pytest
-from conftest import CHECKOUT_MODULES, REPOSITORY, foreign_modules
+import yaml
 
+import stewart_env
 import stewart_env.params as params_module
 from stewart_env.agents import training
 from stewart_env.params import config_dir
+
+from conftest import CHECKOUT_MODULES, REPOSITORY, foreign_modules
 
 
 def test_the_tests_import_this_checkout():
@@ -28,6 +33,21 @@ def test_a_foreign_module_stops_the_run_naming_it(monkeypatch):
     monkeypatch.setattr(conftest, "foreign_modules", lambda: ["stewart_env.agents from /elsewhere/agents/__init__.py"])
     with pytest.raises(pytest.UsageError, match=r"would import stewart_env\.agents from /elsewhere/agents/__init__\.py"):
         conftest.pytest_configure(None)
+
+
+def test_the_installed_version_is_stewart_env_version():
+    assert importlib.metadata.version("stewart-env") == stewart_env.__version__
+
+
+def test_the_version_is_written_once():
+    # pyproject.toml reads it from stewart_env/__init__.py (scikit-build-core's regex provider);
+    # the citation metadata carries none, the version cited is the one used
+    pyproject = (REPOSITORY / "pyproject.toml").read_text(encoding="utf-8")
+    assert re.search(r'^dynamic = \["version"\]$', pyproject, flags=re.M)
+    assert not re.search(r"^version\s*=", pyproject, flags=re.M)
+    assert 'input = "stewart_env/__init__.py"' in pyproject
+    assert "version" not in yaml.safe_load((REPOSITORY / "CITATION.cff").read_text(encoding="utf-8"))
+    assert stewart_env.__version__ not in (REPOSITORY / "docs" / "citing.md").read_text(encoding="utf-8")
 
 
 @pytest.mark.parametrize(("kind", "example"), [("platforms", "dasgupta1998.yaml"), ("agents", "ppo.yml")])
@@ -82,6 +102,9 @@ def test_the_wheel_holds_the_compiled_extensions_and_the_configs(tmp_path):
                     "stewart_env/agents/pd.py", "stewart_env/dynamics/kernels.py", "stewart_env/dynamics/_core.py"):
         assert shipped in names
     assert not [n for n in names if "/cpp/" in n or n.endswith((".hpp", ".cpp"))]
+    # the wheel's metadata carries the version of stewart_env/__init__.py
+    metadata = zipfile.ZipFile(wheel).read(f"stewart_env-{stewart_env.__version__}.dist-info/METADATA").decode()
+    assert f"\nVersion: {stewart_env.__version__}\n" in metadata
     if shutil.which("objdump") and platform.machine() == "x86_64":
         # the baseline runs on any x86-64 processor: no AVX register; and no target fuses a
         # multiply and an add, which would change the numbers from one target to another

@@ -363,6 +363,14 @@ def _ship_mathjax(app) -> None:
 
 
 def setup(app):
+    """Register the extension with Sphinx: the generated pages, the figures, MathJax and the docstrings.
+
+    Args:
+        app: the Sphinx application.
+
+    Returns:
+        The extension's metadata.
+    """
     app.setup_extension("sphinx.ext.mathjax")
     _ship_mathjax(app)
     app.connect("missing-reference", _same_object)

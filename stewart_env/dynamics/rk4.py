@@ -100,7 +100,7 @@ class ControlLaw:
         self._function = function  # keeps the compiled code alive
 
     @classmethod
-    def _compiled(cls, address: int, n_params: int | None, name: str) -> "ControlLaw":
+    def _compiled(cls, address: int, n_params: int | None, name: str) -> ControlLaw:
         """A law compiled into the package's extension, at ``address``."""
         law = object.__new__(cls)
         law.address, law.n_params, law.name, law._function = address, n_params, name, None
@@ -119,14 +119,27 @@ PD_CONTROL_LAW = ControlLaw._compiled(_core.PD_CONTROL_LAW, sum(size for _, size
 
 
 def as_control_law(law) -> ControlLaw:
-    """``law`` as a :class:`ControlLaw` (itself, or a cfunc or ctypes function wrapped).  Raises
-    ValueError naming ``control_law`` otherwise."""
+    """``law`` as a :class:`ControlLaw` (itself, or a cfunc or ctypes function wrapped).
+
+    Args:
+        law: a :class:`ControlLaw`, a numba cfunc or a ctypes function of the law's signature.
+
+    Raises:
+        ValueError: ``law`` is none of these (the message names ``control_law``).
+    """
     return law if isinstance(law, ControlLaw) else ControlLaw(law)
 
 
 def check_law_params(law: ControlLaw, params: np.ndarray) -> None:
-    """Raise ValueError naming ``control_law`` when the rows of ``params`` (n, P) are not as long as
-    the law reads."""
+    """Raise ValueError naming ``control_law`` when the rows of ``params`` are not as long as the law reads.
+
+    Args:
+        law: the control law.
+        params: its parameter rows, (n, P).
+
+    Raises:
+        ValueError: P is not the law's ``n_params``.
+    """
     if law.n_params is not None and params.shape[-1] != law.n_params:
         raise ValueError(f"control_law: {law.name} failed on control_params of shape {params.shape}: it reads "
                          f"rows of {law.n_params} numbers")
@@ -138,9 +151,12 @@ def law_forces(law, params, position, rotation, velocity, angular_velocity, time
     Args:
         law: a :class:`ControlLaw` (or what it accepts).
         params: the law's parameter rows, (N, P) or (1, P) for one row shared by every state.
-        position, rotation, velocity, angular_velocity: (N,3), (N,3,3), (N,3), (N,3) C-contiguous
-            float64 arrays, {B} (checked by the caller, e.g. with ``batch_args``).
-        time: s.
+        position: the platform's position t (N, 3), m, {B}; like the three below a C-contiguous
+            float64 array, checked by the caller (e.g. with ``batch_args``).
+        rotation: the rotation matrix R (N, 3, 3) of {P} in {B}.
+        velocity: the platform's velocity (N, 3), m/s, {B}.
+        angular_velocity: the platform's angular velocity omega (N, 3), rad/s, {B}.
+        time: the time the law is evaluated at, s.
 
     Returns:
         (N, 6) leg forces; a force the law leaves unwritten is NaN.

@@ -49,7 +49,11 @@ class BatchAttributes:
         return dict(self._core.observation_layout)
 
     def decode_observation(self, observation) -> dict[str, np.ndarray]:
-        """An observation, or a batch of them, in physical units by term name (undoes the scaling)."""
+        """An observation, or a batch of them, in physical units by term name (undoes the scaling).
+
+        Args:
+            observation: an observation vector, or a batch of them (N, obs_dim).
+        """
         return self._core.decode_observation(observation)
 
     @property

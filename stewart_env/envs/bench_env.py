@@ -34,7 +34,11 @@ def _timed(step, seconds: float, batch: int = 64) -> tuple[int, float, float]:
 def held_env(**kwargs) -> tuple[gym.Env, np.ndarray]:
     """``gymnasium.make("StewartPlatform-v1", **kwargs)`` reset with seed 0, and the float32 action
     that holds the platform at that start pose.  Held so, the open-loop platform drifts off slowly:
-    an episode runs for hundreds of steps, so a timing loop times steps, not resets."""
+    an episode runs for hundreds of steps, so a timing loop times steps, not resets.
+
+    Args:
+        **kwargs: keyword arguments of the environment.
+    """
     env = gym.make(ENV_ID, **kwargs)
     env.reset(seed=0)
     state = env.unwrapped.state
@@ -55,8 +59,13 @@ def bench_env(n_vector: int = 1024, seconds: float = 5.0, **kwargs) -> dict:
     of wall-clock time, and the two rates also per second of this process's CPU time
     (``*_per_cpu_s``), which other load on the machine does not lower (the vector env uses every
     core, so on an idle machine its wall-clock rate approaches cores x its CPU-time rate).  A
-    short warm-up (which includes any first compilation) is not timed.  ``n_vector`` = 0
-    measures the single env only (no vector_* keys).
+    short warm-up (which includes any first compilation) is not timed.
+
+    Args:
+        n_vector: the platforms N of the vector environment; 0 measures the single env only (no
+            vector_* keys).
+        seconds: the wall-clock time each environment is timed for, s.
+        **kwargs: keyword arguments of the environment (over the held set-point task's).
     """
     kwargs = {"task_options": {"randomize": False}, **kwargs}
     env, action = held_env(**kwargs)
@@ -112,7 +121,14 @@ def bench_reset(n: int = 1024, randomization: dict | None = RESET_RANDOMIZATION,
                 **kwargs) -> float:
     """Seconds per row of ``reset()`` of the native vector env of ``n`` rows (every row starts a new
     episode, so with ``randomization`` every row draws and applies new parameters); the best of
-    ``repeats`` resets after one untimed reset (which includes any first compilation)."""
+    ``repeats`` resets after one untimed reset (which includes any first compilation).
+
+    Args:
+        n: the rows of the vector environment.
+        randomization: the environment's ``randomization`` argument (None: no randomization).
+        repeats: the timed resets, of which the fastest counts.
+        **kwargs: further keyword arguments of the environment.
+    """
     venv = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point",
                         randomization=randomization, **kwargs)
     venv.reset(seed=0)

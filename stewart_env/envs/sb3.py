@@ -75,6 +75,11 @@ class StewartPlatformSB3VecEnv(VecEnv):
         self._actions: np.ndarray | None = None
 
     def reset(self) -> np.ndarray:
+        """SB3's ``reset``: every row starts an episode, with the seeds and options set before it.
+
+        Returns:
+            The observations (N, obs_dim); the rows' reset infos are in ``reset_infos``.
+        """
         seed = None if all(s is None for s in self._seeds) else list(self._seeds)
         for options in self._options:
             reset_options(options)  # takes none: set_options refused here, naming options
@@ -87,7 +92,14 @@ class StewartPlatformSB3VecEnv(VecEnv):
     def set_options(self, options: dict | Sequence[dict | None] | None = None) -> None:
         """SB3's ``set_options``: one dict for every row or a list of one per row (this
         environment takes none, so only empty ones pass the next ``reset()``); anything else is
-        refused now, naming ``options``."""
+        refused now, naming ``options``.
+
+        Args:
+            options: one dict (or None) for every row, or a list of one per row.
+
+        Raises:
+            ValueError: a list of another length than the rows, or a row's options not a dict.
+        """
         rows = options if isinstance(options, (list, tuple)) else [options] * self.num_envs
         if len(rows) != self.num_envs:
             raise ArgumentError(f"set_options: options: expected one dict for every row or a list of {self.num_envs}, "
@@ -98,9 +110,23 @@ class StewartPlatformSB3VecEnv(VecEnv):
         super().set_options(options)
 
     def step_async(self, actions: np.ndarray) -> None:
+        """SB3's ``step_async``: hold the actions for :meth:`step_wait`.
+
+        Args:
+            actions: the rows' actions (N, 6).
+        """
         self._actions = actions
 
     def step_wait(self):
+        """SB3's ``step_wait``: step every row with the held actions, resetting the rows whose episode ended.
+
+        Returns:
+            (observations, rewards (float32), dones, infos), a done row's info holding its
+            ``terminal_observation``, ``termination`` code and ``TimeLimit.truncated``.
+
+        Raises:
+            RuntimeError: no :meth:`step_async` before it.
+        """
         if self._actions is None:
             raise RuntimeError("step_wait() called without step_async()")
         obs, reward, terminated, truncated, infos = self.venv.step(self._actions)
@@ -131,12 +157,29 @@ class StewartPlatformSB3VecEnv(VecEnv):
         return out
 
     def close(self) -> None:
+        """Close the batch underneath (its renderer)."""
         self.venv.close()
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+        """SB3's ``get_attr``: an attribute of each row's environment.
+
+        Args:
+            attr_name: the attribute's name.
+            indices: the rows (an index, a sequence of them or None for all).
+        """
         return [getattr(self.venv._row(i), attr_name) for i in self._indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        """SB3's ``set_attr``: set an attribute of each row's environment.
+
+        Args:
+            attr_name: the attribute's name.
+            value: its new value, the same for each row.
+            indices: the rows (an index, a sequence of them or None for all).
+
+        Raises:
+            ValueError: an attribute the rows share, set for some rows only.
+        """
         rows = self._indices(indices)
         if len(rows) == self.num_envs:
             self.venv.set_attr(attr_name, [value] * self.num_envs)  # SB3: one value for every index
@@ -147,13 +190,31 @@ class StewartPlatformSB3VecEnv(VecEnv):
             setattr(self.venv._row(i), attr_name, value)
 
     def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
+        """SB3's ``env_method``: call a method of each row's environment.
+
+        Args:
+            method_name: the method's name.
+            *method_args: its positional arguments.
+            indices: the rows (an index, a sequence of them or None for all).
+            **method_kwargs: its keyword arguments.
+
+        Returns:
+            Each row's return value.
+        """
         return [getattr(self.venv._row(i), method_name)(*method_args, **method_kwargs)
                 for i in self._indices(indices)]
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+        """SB3's ``env_is_wrapped``: False for every row (the rows are no wrapped environments).
+
+        Args:
+            wrapper_class: the wrapper asked about.
+            indices: the rows (an index, a sequence of them or None for all).
+        """
         return [False] * len(self._indices(indices))
 
     def get_images(self) -> Sequence[np.ndarray | None]:
+        """SB3's ``get_images``: the batch's frame with ``render_mode="rgb_array"``, else None."""
         frames = self.venv.render() if self.render_mode == "rgb_array" else None
         return [frames[0]] if frames is not None else [None]
 

@@ -52,7 +52,9 @@ def acceleration_error(params: PlatformParams, solref: Sequence[float] = DEFAULT
 
     Args:
         params: the platform's parameters.
-        solref, solimp: the loops' softness, as in :func:`~stewart_env.mujoco.to_mjcf`.
+        solref: the loop-closure constraints' (time constant s, damping ratio), as in
+            :func:`~stewart_env.mujoco.to_mjcf`.
+        solimp: the constraints' impedance, as in :func:`~stewart_env.mujoco.to_mjcf`.
         seed: the seed of the moving state near home.
         force_scale: the factor on the holding forces.
 
@@ -132,7 +134,9 @@ def holding_drift(params: PlatformParams, seconds: float = 1.0, timestep: float 
         params: the platform's parameters.
         seconds: the length of the motion, s.
         timestep: MuJoCo's step, s.
-        solref, solimp: the loops' softness, as in :func:`~stewart_env.mujoco.to_mjcf`.
+        solref: the loop-closure constraints' (time constant s, damping ratio), as in
+            :func:`~stewart_env.mujoco.to_mjcf`.
+        solimp: the constraints' impedance, as in :func:`~stewart_env.mujoco.to_mjcf`.
         seed: the seed of the moving state near home.
 
     Returns:
@@ -158,7 +162,9 @@ def trajectory_report(params: PlatformParams, seconds: float = 1.0, timestep: fl
         params: the platform's parameters.
         seconds: the length of the motion, s.
         timestep: MuJoCo's step, s.
-        solref, solimp: the loops' softness, as in :func:`~stewart_env.mujoco.to_mjcf`.
+        solref: the loop-closure constraints' (time constant s, damping ratio), as in
+            :func:`~stewart_env.mujoco.to_mjcf`.
+        solimp: the constraints' impedance, as in :func:`~stewart_env.mujoco.to_mjcf`.
         seed: the seed of the moving state near home.
 
     Returns:

@@ -60,20 +60,28 @@ MAX_TIMESTEP = 0.1
 
 
 def number_list(x) -> str:
-    """Numbers as MJCF writes them: space-separated, every digit of the float kept."""
+    """Numbers as MJCF writes them: space-separated, every digit of the float kept.
+
+    Args:
+        x: a number or an array of them.
+    """
     return " ".join(repr(float(v)) for v in np.atleast_1d(x))
 
 
 def quaternion(R: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of a rotation matrix (MuJoCo's convention)."""
+    """Unit quaternion (w, x, y, z) of a rotation matrix (MuJoCo's convention).
+
+    Args:
+        R: the rotation matrix (3, 3).
+    """
     mj = require_mujoco()
     q = np.empty(4)
     mj.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=np.float64).ravel())
     return q
 
 
-def _full_inertia(I: np.ndarray) -> str:
-    return number_list([I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]])
+def _full_inertia(inertia: np.ndarray) -> str:
+    return number_list([inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2]])
 
 
 def _check_pair(name: str, value, size: int) -> tuple[float, ...]:
@@ -170,7 +178,7 @@ def to_mjcf(params: PlatformParams, timestep: float = 1e-3, solref: Sequence[flo
         if geometry:
             out.append(f'      <geom type="capsule" size="{1.5 * width:.4g}" fromto="0 0 0 {number_list(0.55 * L)} 0 0"/>')
         out += [
-            '      <body name="upper_{0}">'.format(i),
+            f'      <body name="upper_{i}">',
             f'        <joint name="slide_{i}" type="slide" axis="1 0 0" damping="{number_list(d.prismatic)}"/>',
             _inertial(up.mass, np.array([L, 0.0, 0.0]) + up.com, up.inertia, "        "),
             f'        <site name="tip_{i}" pos="{number_list(L)} 0 0"/>',
@@ -200,7 +208,11 @@ def to_mjcf(params: PlatformParams, timestep: float = 1e-3, solref: Sequence[flo
 
 
 def home_rotation(params: PlatformParams) -> np.ndarray:
-    """The platform's rotation at its home pose."""
+    """The platform's rotation at its home pose.
+
+    Args:
+        params: the platform's parameters (its ``home_rpy``).
+    """
     return rpy_to_matrix(params.home_rpy)
 
 

@@ -55,7 +55,15 @@ class Twin:
         inverse kinematics (docs/physics.md section 4), so the loops start closed and moving with
         the platform: the U-joint angles turn the home frame T_i to the pose's, the slide is
         L_i - L_i(home), and the joint rates are the leg's angular velocity on the two hinge
-        axes (orthogonal, so each is a dot product) and dL_i/dt."""
+        axes (orthogonal, so each is a dot product) and dL_i/dt.
+
+        Args:
+            data: the twin's ``MjData``, overwritten.
+            t: the position of P's origin (3,), m, {B}.
+            R: the rotation matrix (3, 3) of {P} in {B}.
+            v: the velocity of P's origin (3,), m/s, {B}.
+            w: the angular velocity omega (3,), rad/s, {B}.
+        """
         mj = require_mujoco()
         mj.mj_resetData(self.model, data)
         legs = leg_kinematics(self.params, t, R, v, w)
@@ -84,14 +92,26 @@ class Twin:
         mj.mj_forward(self.model, data)
 
     def closure_gap(self, data) -> float:
-        """Largest distance |tip_i - joint_i| (m) over the six loops, at data's current qpos."""
+        """Largest distance |tip_i - joint_i| (m) over the six loops, at data's current qpos.
+
+        Args:
+            data: the twin's ``MjData``.
+        """
         mj = require_mujoco()
         mj.mj_kinematics(self.model, data)
         gap = data.site_xpos[self.tips] - data.site_xpos[self.joints]
         return float(np.sqrt((gap * gap).sum(axis=1).max()))
 
     def set_wrench(self, data, t, R, leg_forces, wrench) -> None:
-        """Leg forces as controls; the external wrench as MuJoCo's applied force (:func:`wrench_at_com`)."""
+        """Leg forces as controls; the external wrench as MuJoCo's applied force (:func:`wrench_at_com`).
+
+        Args:
+            data: the twin's ``MjData``.
+            t: the position of P's origin (3,), m, {B} (unused: the wrench's moment is about P).
+            R: the rotation matrix (3, 3) of {P} in {B}.
+            leg_forces: the leg forces (6,), N.
+            wrench: the external wrench [force at P; moment] (6,), N and N m, {B}.
+        """
         data.ctrl[:] = leg_forces
         data.xfrc_applied[self.body] = wrench_at_com(R[None], self.params.platform.com[None], wrench[None])[0]
 
@@ -99,7 +119,12 @@ class Twin:
 def wrench_at_com(R: np.ndarray, com: np.ndarray, wrench: np.ndarray) -> np.ndarray:
     """The external wrench [force at P; moment] (N,6), {B}, as the equivalent [force; moment] at
     the platform's CoM (MuJoCo's ``xfrc_applied``): the moment gains (P - CoM) x force.
-    R (N,3,3); com (N,3), the CoM in {P}."""
+
+    Args:
+        R: the rotation matrices (N, 3, 3) of {P} in {B}.
+        com: the platform's CoM (N, 3) in {P}, m.
+        wrench: the external wrench [force at P; moment] (N, 6), N and N m, {B}.
+    """
     a = -np.einsum("nij,nj->ni", R, com)  # P - CoM in {B}
     f = wrench[:, :3]
     out = wrench.copy()
@@ -127,7 +152,10 @@ def model_and_data(params: PlatformParams, position, rotation, velocity=None, an
         angular_velocity: (3,) rad/s, zero when left out.
         leg_forces: (6,) N, the actuators' controls, zero when left out.
         external_wrench: (6,) [force at P; moment] applied, zero when left out.
-        timestep, solref, solimp: as in :func:`~stewart_env.mujoco.to_mjcf`.
+        timestep: MuJoCo's step, s.
+        solref: the loop-closure constraints' (time constant s, damping ratio), as in
+            :func:`~stewart_env.mujoco.to_mjcf`.
+        solimp: the constraints' impedance, as in :func:`~stewart_env.mujoco.to_mjcf`.
 
     Returns:
         The pair (MjModel, MjData).

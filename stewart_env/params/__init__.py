@@ -64,9 +64,13 @@ reader of config files) and ``shipped`` (the shipped configs by name, `load_plat
 
 from stewart_env.params.bodies import Damping, Limits, RigidBody
 from stewart_env.params.checks import ConfigError
-from stewart_env.params.platform import N_LEGS, PlatformParams
-from stewart_env.params.reader import MAX_CONFIG_BYTES
-from stewart_env.params.shipped import available_platforms, config_dir, load_platform
+
+# re-exported (``name as name``) outside __all__: the package's modules and tests import them from here
+from stewart_env.params.platform import N_LEGS as N_LEGS
+from stewart_env.params.platform import PlatformParams
+from stewart_env.params.reader import MAX_CONFIG_BYTES as MAX_CONFIG_BYTES
+from stewart_env.params.shipped import available_platforms, load_platform
+from stewart_env.params.shipped import config_dir as config_dir
 
 __all__ = [
     "ConfigError",

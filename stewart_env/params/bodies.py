@@ -48,7 +48,13 @@ class _ValueObject:
 
 
 def set_field(obj: object, name: str, value: object) -> None:
-    """Store a checked value in a frozen dataclass's field (from its ``__post_init__``)."""
+    """Store a checked value in a frozen dataclass's field (from its ``__post_init__``).
+
+    Args:
+        obj: the dataclass instance.
+        name: the field's name.
+        value: the checked value.
+    """
     object.__setattr__(obj, name, value)
 
 
@@ -104,11 +110,20 @@ class RigidBody(_ValueObject):
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "RigidBody":
-        """From a config mapping {mass, com, inertia}."""
+        """From a config mapping {mass, com, inertia}.
+
+        Args:
+            d: the mapping: mass (kg), com ((3,), m, in the body's frame) and inertia ((3, 3),
+                kg m^2, about the CoM).
+
+        Raises:
+            ConfigError: a missing or unknown key, or a value that fails its check.
+        """
         d = mapping(d, "", ("mass", "com", "inertia"))
         return cls(mass=d["mass"], com=d["com"], inertia=d["inertia"])
 
     def to_dict(self) -> dict:
+        """The config mapping {mass, com, inertia} of :meth:`from_dict`, as plain lists and floats."""
         return {"mass": self.mass, "com": self.com.tolist(), "inertia": self.inertia.tolist()}
 
 
@@ -139,10 +154,19 @@ class Damping(_ValueObject):
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "Damping":
+        """From a config mapping {universal, prismatic, spherical}.
+
+        Args:
+            d: the mapping of the three coefficients (see the class docstring for their units).
+
+        Raises:
+            ConfigError: a missing or unknown key, or a value that fails its check.
+        """
         d = mapping(d, "", ("universal", "prismatic", "spherical"))
         return cls(**d)
 
     def to_dict(self) -> dict:
+        """The config mapping {universal, prismatic, spherical} of :meth:`from_dict`."""
         return {"universal": self.universal, "prismatic": self.prismatic, "spherical": self.spherical}
 
 
@@ -199,6 +223,7 @@ class Limits(_ValueObject):
         set_field(self, "max_condition", max_condition)
 
     def to_dict(self) -> dict:
+        """The config mapping of the limits, as a platform config's ``limits`` holds them."""
         return {
             "leg_length": list(self.leg_length),
             "leg_force": list(self.leg_force),

@@ -149,7 +149,15 @@ class PlatformParams(_ValueObject):
     @classmethod
     def from_dict(cls, d: Mapping, name: str = "custom") -> "PlatformParams":
         """Build from a config mapping (the schema of :mod:`stewart_env.params`), filling the
-        documented defaults for `gravity`, `home` and `limits`."""
+        documented defaults for `gravity`, `home` and `limits`.
+
+        Args:
+            d: the config mapping.
+            name: the platform's name.
+
+        Raises:
+            ConfigError: a missing or unknown key, or a value that fails its check (named).
+        """
         d = mapping(d, "", _TOP_KEYS_REQUIRED, _TOP_KEYS_OPTIONAL)
         base = array(d["base_joints"], "base_joints", (N_LEGS, 3))
         plat = array(d["platform_joints"], "platform_joints", (N_LEGS, 3))
@@ -204,7 +212,14 @@ class PlatformParams(_ValueObject):
     @classmethod
     def from_yaml(cls, path: str | os.PathLike) -> "PlatformParams":
         """Load a YAML config file (a regular *.yaml or *.yml file of at most MAX_CONFIG_BYTES);
-        the platform's name is the file stem. Errors are ConfigErrors naming the file."""
+        the platform's name is the file stem.
+
+        Args:
+            path: the config file.
+
+        Raises:
+            ConfigError: the file cannot be read or holds no valid config (naming the file and key).
+        """
         path = Path(path)
         return from_text(read_config_text(path), path.stem, str(path))
 
@@ -232,12 +247,28 @@ class PlatformParams(_ValueObject):
         }
 
     def replace(self, **changes) -> "PlatformParams":
-        """A copy with some fields changed (dataclass field names), validated again."""
+        """A copy with some fields changed (dataclass field names), validated again.
+
+        Args:
+            **changes: {field name: new value}.
+
+        Raises:
+            ConfigError: a new value that fails its check.
+        """
         return dataclasses.replace(self, **changes)
 
 
 def from_text(text: str, name: str, source: str) -> PlatformParams:
-    """The platform of a config file's `text`, named `name`; every error names `source`."""
+    """The platform of a config file's `text`, named `name`; every error names `source`.
+
+    Args:
+        text: the config file's text (YAML).
+        name: the platform's name.
+        source: where the text comes from (a path), for the errors.
+
+    Raises:
+        ConfigError: text that is no valid config.
+    """
     config = parse_config(text, source)
     try:
         return PlatformParams.from_dict(config, name=name)

@@ -35,7 +35,14 @@ _MAX_INT_LITERAL = 1000
 def read_config_text(path: Path) -> str:
     """The text of a config file, after checking that it is a regular *.yaml/*.yml file of at
     most MAX_CONFIG_BYTES (:func:`stewart_env.files.read_regular`: FIFOs, devices and
-    directories are refused before they are read)."""
+    directories are refused before they are read).
+
+    Args:
+        path: the config file.
+
+    Raises:
+        ConfigError: a file of another suffix, kind or size, unreadable or not UTF-8 (naming it).
+    """
     source = str(path)
     if path.suffix.lower() not in CONFIG_SUFFIXES:
         raise ConfigError("", "not a platform config: the file name must end in .yaml or .yml", source)
@@ -50,7 +57,15 @@ def read_config_text(path: Path) -> str:
 
 
 def parse_config(text: str, source: str) -> object:
-    """The document of a config file's `text` (read from `source`), by the bounded loader."""
+    """The document of a config file's `text` (read from `source`), by the bounded loader.
+
+    Args:
+        text: the file's text.
+        source: where it was read from, for the errors.
+
+    Raises:
+        ConfigError: text that is no YAML, or beyond the loader's bounds.
+    """
     try:
         return load_yaml(text, _ConfigLoader)
     except DocumentError as err:

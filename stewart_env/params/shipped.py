@@ -19,7 +19,11 @@ __all__ = ["config_dir", "available_platforms", "is_platform_name", "is_shipped_
 def config_dir(kind: str) -> Path:
     """The directory of shipped configs of one kind, ``platforms`` or ``agents``: in the installed
     `stewart_env.configs` package, or configs/<kind> in the source tree when the package is not
-    installed (running from a checkout)."""
+    installed (running from a checkout).
+
+    Args:
+        kind: ``"platforms"`` or ``"agents"``.
+    """
     try:
         installed = importlib.resources.files("stewart_env.configs") / kind
     except ModuleNotFoundError:

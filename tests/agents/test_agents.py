@@ -5,13 +5,12 @@ import numpy as np
 import pytest
 
 import stewart_env as se
-from stewart_env.state import PlatformState, Reference
 from stewart_env.agents import (
     PAPER_KD,
     PAPER_KP,
+    PD_LAYOUT,
     ComputedTorque,
     ComputedTorquePolicy,
-    PD_LAYOUT,
     PDPolicy,
     TaskSpacePD,
     evaluate,
@@ -22,6 +21,7 @@ from stewart_env.agents import (
     zoh_spectral_radius,
 )
 from stewart_env.agents.evaluation import ENV_ID
+from stewart_env.state import PlatformState, Reference
 
 
 @pytest.fixture

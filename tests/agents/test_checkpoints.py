@@ -24,7 +24,6 @@ pytestmark = [pytest.mark.extra("rl"),
 
 import stewart_env  # noqa: E402,F401  (registers the environment)
 from stewart_env.agents import training  # noqa: E402
-from stewart_env.files import sha256_file as _sha256_file  # noqa: E402
 from stewart_env.agents.training import (  # noqa: E402
     CONFIG_DIR,
     ENV_ID,
@@ -36,6 +35,7 @@ from stewart_env.agents.training import (  # noqa: E402
     train,
     zoo_eval,
 )
+from stewart_env.files import sha256_file as _sha256_file  # noqa: E402
 
 TINY = {
     "ppo": {"n_timesteps": 1000, "policy": "MlpPolicy", "n_envs": 2,

@@ -17,13 +17,18 @@ import pytest
 # PPO runs here are a rollout or two of 2 platforms, smaller than the config's minibatch on purpose.
 pytestmark = pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning")
 
-from stewart_env.cli import mismatch as mismatch_cli  # noqa: E402
 from stewart_env.agents import evaluation, mismatch  # noqa: E402
 from stewart_env.agents.evaluation import METRICS  # noqa: E402
-from stewart_env.agents.mismatch import timing  # noqa: E402
-from stewart_env.agents.mismatch import RANKING_METRICS, MismatchError, MismatchSettings, run_mismatch  # noqa: E402
+from stewart_env.agents.mismatch import (  # noqa: E402
+    RANKING_METRICS,
+    MismatchError,
+    MismatchSettings,
+    run_mismatch,
+    timing,
+)
 from stewart_env.agents.statistics import Interval, stratified_bootstrap  # noqa: E402
 from stewart_env.agents.training import TrainingError  # noqa: E402
+from stewart_env.cli import mismatch as mismatch_cli  # noqa: E402
 from stewart_env.errors import UsageError  # noqa: E402
 
 TEST_MODELS = ["classical", "improved", "improved_centroidal"]

@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stewart_env.cli import mismatch as mismatch_cli
 from stewart_env.agents import mismatch
 from stewart_env.agents.mismatch import MismatchError, MismatchSettings, run_mismatch
 from stewart_env.agents.mismatch.rows import build_rows, training_keywords
 from stewart_env.agents.statistics import share_removed
+from stewart_env.cli import mismatch as mismatch_cli
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs" / "platforms"
 # CT only, on the truth's plant: 2 episodes of 40 steps per cell

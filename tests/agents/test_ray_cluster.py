@@ -14,6 +14,7 @@ pytestmark = [pytest.mark.filterwarnings("ignore:You have specified a mini-batch
               pytest.mark.slow]  # three Ray nodes start in about 10-20 s
 
 from stewart_env.agents.mismatch import run_mismatch  # noqa: E402
+
 from test_ray import STUDY, _numbers  # noqa: E402  the tiny study of the single-node tests
 
 

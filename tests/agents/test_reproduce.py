@@ -1,6 +1,7 @@
 """The reproduction of the case study of He et al. (2018)."""
 
 import os
+
 import numpy as np
 import pytest
 import yaml

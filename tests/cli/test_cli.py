@@ -7,9 +7,10 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import exit_code
 
 from stewart_env.cli import main
+
+from conftest import exit_code
 
 
 @pytest.mark.parametrize("command, expected", [

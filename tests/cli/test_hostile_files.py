@@ -14,7 +14,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 import yaml
 
@@ -207,6 +206,7 @@ def test_load_yaml_refuses_a_deep_document_in_one_line(text):
         files.load_yaml(text)
 
 
+@pytest.mark.extra("rl")  # evaluate --agent and train name a missing rl extra before they read a file
 def test_a_deep_run_json_is_one_line_for_evaluate_and_resume(tmp_path, capsys):
     run = tmp_path / "run"
     run.mkdir()
@@ -265,6 +265,7 @@ def test_a_deep_platform_yaml_is_a_config_error_naming_the_file(tmp_path, capsys
     assert code == 2 and "--platform" in err and "nested more than 32 levels deep" in err.splitlines()[-1], err
 
 
+@pytest.mark.extra("rl")  # train names a missing rl extra before it reads the config
 @pytest.mark.parametrize("text", ["[" * DEEP, deep_yaml_mapping(BLOCK_LEVELS)], ids=["flow lists", "block mappings"])
 def test_a_deep_hyperparameter_yaml_is_one_line_naming_the_file(tmp_path, capsys, text):
     config = tmp_path / "ppo.yml"
@@ -399,6 +400,7 @@ def test_the_report_written_is_strict_json_with_null_for_numbers_that_are_not_fi
     assert "condition number of the stacked base regressor: inf (random start nan)" in (folder / "report.md").read_text()
 
 
+@pytest.mark.extra("rl")  # train names a missing rl extra before it reads the config
 @pytest.mark.parametrize("expression", ["-" * DEEP + "1", "a." * DEEP + "b", "dict(net_arch=" + "[" * DEEP],
                          ids=["unary chain", "attribute chain", "brackets"])
 def test_a_deep_zoo_expression_in_a_hyperparameter_file_is_one_line_naming_the_key(tmp_path, capsys, expression):

@@ -8,6 +8,7 @@ import pytest
 
 import stewart_env as se
 from stewart_env.dynamics import _core
+
 from physics_reference import random_state
 
 pytestmark = pytest.mark.physics

@@ -5,8 +5,8 @@ import pytest
 
 import stewart_env as se
 from stewart_env.params import Damping, RigidBody
-from physics_reference import (dissipated_power, kinetic_energy, potential_energy, random_state,
-                               rotvec_matrix)
+
+from physics_reference import dissipated_power, kinetic_energy, potential_energy, random_state, rotvec_matrix
 
 pytestmark = pytest.mark.physics
 
@@ -319,7 +319,7 @@ NOT_ROTATIONS = {
 def test_every_entry_point_checks_its_arguments_alike(dasgupta, entry):
     call = _entry_points(se.make_dynamics("improved", dasgupta), dasgupta)[entry]
     t, R, v = dasgupta.home_position, se.rpy_to_matrix([0.02, -0.03, 0.05]), np.zeros(3)
-    for kind, bad in NOT_ROTATIONS.items():
+    for bad in NOT_ROTATIONS.values():
         with pytest.raises(ValueError, match="rotation: not a rotation matrix"):
             call(t, bad, v)
         with pytest.raises(ValueError, match=r"rotation: not a rotation matrix in batch rows \[1\]"):

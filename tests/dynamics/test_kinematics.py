@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import stewart_env as se
+
 from physics_reference import left_jacobian, leg_frames, random_state, rotvec_matrix
 
 pytestmark = pytest.mark.physics

@@ -6,6 +6,7 @@ import pytest
 
 import stewart_env as se
 from stewart_env.params import RigidBody
+
 from physics_reference import kinetic_energy, random_state
 
 pytestmark = pytest.mark.physics

@@ -16,6 +16,7 @@ import pytest
 
 import stewart_env as se
 from stewart_env.dynamics import threads
+
 from physics_reference import random_state
 
 pytestmark = pytest.mark.physics

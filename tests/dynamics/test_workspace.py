@@ -10,6 +10,7 @@ import pytest
 
 import stewart_env as se
 from stewart_env.dynamics.workspace import Workspace
+
 from physics_reference import random_state
 
 pytestmark = pytest.mark.physics

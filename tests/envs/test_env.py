@@ -2,7 +2,6 @@
 
 import dataclasses
 import inspect
-import re
 import subprocess
 import sys
 import warnings
@@ -17,8 +16,7 @@ import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v1)
 from stewart_env.envs import DEFAULTS, EnvConfig, StewartPlatformEnv, StewartPlatformVectorEnv, holding_action
 from stewart_env.envs.config import arguments_table
 from stewart_env.params import Limits, load_platform
-from stewart_env.rotations import rpy_to_matrix
-from stewart_env.rotations import rotation_error
+from stewart_env.rotations import rotation_error, rpy_to_matrix
 
 pytestmark = pytest.mark.env
 

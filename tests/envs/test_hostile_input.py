@@ -504,7 +504,7 @@ def read_only_install(tmp_path):
     writable_tmp.mkdir()
     writable_tmp.chmod(0o777)  # for a child that runs as nobody
     for directory in (install, home):
-        for root, dirs, files in os.walk(directory):
+        for root, _, files in os.walk(directory):
             for name in files:
                 os.chmod(os.path.join(root, name), 0o444)
             os.chmod(root, 0o555)
@@ -522,7 +522,7 @@ def read_only_install(tmp_path):
                               capture_output=True, text=True, timeout=300)
 
     yield run, tmp_path
-    for root, dirs, files in os.walk(tmp_path):  # let pytest remove the tree
+    for root, _, _ in os.walk(tmp_path):  # let pytest remove the tree
         os.chmod(root, stat.S_IRWXU)
 
 

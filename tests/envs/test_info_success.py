@@ -327,7 +327,7 @@ def test_sb3_monitor_and_eval_callback_read_the_success_rate():
         callback = EvalCallback(env)
         monitored = []
 
-        def read(locals_, globals_):
+        def read(locals_, globals_, callback=callback, monitored=monitored):  # this iteration's
             callback._log_success_callback(locals_, globals_)  # what EvalCallback's evaluation runs
             if locals_["done"]:
                 monitored.append(locals_["info"]["episode"]["is_success"])

@@ -11,6 +11,7 @@ import stewart_env as se
 from stewart_env.dynamics import kernels as K
 from stewart_env.identification import regressor as reg
 from stewart_env.params import Damping, RigidBody
+
 from physics_reference import random_state
 
 # every combination of the four switches over both improved forms (classical = joint form + all four)

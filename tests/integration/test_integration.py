@@ -19,7 +19,7 @@ import pytest
 
 # Every test here drives an outside RL library (the integration extra); without torch none can run.
 torch = pytest.importorskip("torch", reason="the integration extra is not installed")
-from gymnasium.wrappers.vector import (
+from gymnasium.wrappers.vector import (  # noqa: E402  (after the skip without torch)
     ClipReward,
     NormalizeObservation,
     NormalizeReward,
@@ -27,7 +27,7 @@ from gymnasium.wrappers.vector import (
     RecordVideo,
 )
 
-from stewart_env.registration import ENV_ID, MAX_EPISODE_STEPS
+from stewart_env.registration import ENV_ID, MAX_EPISODE_STEPS  # noqa: E402
 
 pytestmark = pytest.mark.integration
 

@@ -13,9 +13,9 @@ from stewart_env.rotations import matrix_to_rpy, rotation_error, rpy_to_matrix
 from stewart_env.tasks import (
     DisturbanceTask,
     HoldTask,
+    PlatformState,
     Reference,
     SetpointTask,
-    PlatformState,
     StepView,
     TrackingTask,
     make_task,

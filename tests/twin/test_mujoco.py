@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from conftest import exit_code
 
 mujoco = pytest.importorskip("mujoco")
