@@ -31,6 +31,7 @@ import numpy as np
 
 import stewart_env as se
 from stewart_env.agents.pd import EnvPolicy, _gain
+from stewart_env.dynamics import ModelSpec
 from stewart_env.rotations import rotation_error, rotvec_to_matrix
 from stewart_env.state import PlatformState, Reference
 from stewart_env.params import PlatformParams
@@ -72,7 +73,7 @@ class ComputedTorque:
         (6,)
     """
 
-    def __init__(self, platform: PlatformParams, internal_model: str | se.ModelSpec = "improved", kp=None, kd=None):
+    def __init__(self, platform: PlatformParams, internal_model: str | ModelSpec = "improved", kp=None, kd=None):
         if not isinstance(platform, PlatformParams):
             raise ValueError(f"platform: expected PlatformParams, got {type(platform).__name__}")
         self.platform = platform
@@ -171,7 +172,7 @@ class ComputedTorquePolicy(EnvPolicy):
         kp, kd: gains as in :class:`ComputedTorque`.
     """
 
-    def __init__(self, env, internal_model: str | se.ModelSpec = "improved",
+    def __init__(self, env, internal_model: str | ModelSpec = "improved",
                  kp=None, kd=None, platform: PlatformParams | None = None):
         believed = env.unwrapped.platform if platform is None else platform
         super().__init__(env, ComputedTorque(believed, internal_model, kp, kd))

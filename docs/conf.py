@@ -52,7 +52,7 @@ nitpicky = True
 # The site is built offline (no intersphinx inventories): names of Python's standard library and
 # of the libraries stewart-env builds on are not cross-referenced.
 nitpick_ignore_regex = [
-    (r"py:.*", r"(numpy|np|collections|os|pathlib|argparse|typing|gymnasium|gym|numba|mujoco|matplotlib"
+    (r"py:.*", r"(numpy|np|collections|enum|os|pathlib|argparse|typing|gymnasium|gym|numba|mujoco|matplotlib"
                r"|stable_baselines3|torch|ray)(\..*)?"),
     (r"py:class", r"(ObsType|ActType|AutoresetMode|Path|optional .*)"),
 ]

@@ -108,12 +108,12 @@ class ModelSpec:
 
     @property
     def flags(self) -> int:
-        """The kernel flags: the switch bits and the centroidal bit (docs/physics.md section 6)."""
+        """The kernel flags, the switch bits and the centroidal bit (docs/physics.md section 6)."""
         return BASE_MODELS[self.base] | int(self.switches)
 
     @property
     def name(self) -> str:
-        """The canonical name: ``"classical"``, or the base and its switches in order, e.g. ``"improved+c1+c3"``."""
+        """The canonical name, ``"classical"`` or the base and its switches in order, e.g. ``"improved+c1+c3"``."""
         if self.base == "classical":
             return "classical"
         return self.base + "".join(f"+{s.name.lower()}" for s in Switch if s in self.switches)
