@@ -190,8 +190,6 @@ TEXT_READERS = {"startswith", "endswith", "removeprefix", "removesuffix", "parti
                 "rsplit", "find", "rfind", "index", "count", "replace"}
 #: Places that still read an error's text, each with the reason it cannot stop here.
 KNOWN = {
-    # check_batch_memory (stewart_env/envs/vector.py) raises a plain ValueError naming no argument
-    ("stewart_env/cli/arguments.py", "platform_count"),
     # stewart_env.mujoco.twin names --solref/--solimp only in its messages
     ("stewart_env/cli/export_mjcf.py", "run"),
     # agents/time_to_agent.py raises TimeToAgentError("out: ...")/("config: ...") with no argument

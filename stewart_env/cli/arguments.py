@@ -93,8 +93,8 @@ def platform_count(text: str) -> int:
     count = integer(1, MAX_NUM_ENVS, f"a positive integer up to {MAX_NUM_ENVS}")(text)
     try:
         check_batch_memory("", count)
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(str(err).removeprefix(": ")) from None
+    except UsageError as err:
+        raise argparse.ArgumentTypeError(err.problem) from None
     return count
 
 

@@ -18,6 +18,7 @@ from stewart_env.envs.config import RENDER_MODES, EnvConfig
 from stewart_env.envs.core import PlatformBatch
 from stewart_env.envs.infos import step_values
 from stewart_env.envs.keywords import check_arguments, with_signature
+from stewart_env.errors import UsageError
 from stewart_env.validation import check_action, integer, reset_options
 
 __all__ = ["BYTES_PER_PLATFORM", "MAX_NUM_ENVS", "StewartPlatformVectorEnv", "available_memory", "check_batch_memory"]
@@ -68,13 +69,13 @@ def check_batch_memory(name: str, num_envs: int, bytes_per_platform: float = BYT
             caller that keeps more per platform, e.g. a record of every step, adds it).
 
     Raises:
-        ValueError: the estimate exceeds the available memory (both in the message).
+        UsageError: the estimate exceeds the available memory (both in the message), about ``name``.
     """
     available = available_memory()
     need = float(num_envs) * float(bytes_per_platform)
     if available is not None and need > available:
-        raise ValueError(f"{name}: {num_envs} platforms do not fit in this machine's memory: they need about "
-                         f"{_size(need)}, {_size(available)} is available")
+        raise UsageError.about(name, f"{num_envs} platforms do not fit in this machine's memory: they need about "
+                                     f"{_size(need)}, {_size(available)} is available")
 
 
 def _autoreset_mode(value: Any) -> AutoresetMode:
