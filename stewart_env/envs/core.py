@@ -259,6 +259,30 @@ class PlatformBatch:
         as :meth:`~stewart_env.dynamics.Dynamics.with_packed_rows` takes them, or None without
         randomisation."""
         rnd = self.randomization
+        if len({id(rng) for rng in rngs}) < len(rngs):
+            # a generator shared by rows: its draws must go row after row, in the order of rows
+            return self._draw_episodes_by_row(rows, rngs, infos)
+        if rnd is not None:
+            nominal = self.nominal_model.packed[0]
+            packed = np.empty((len(rows), nominal.shape[0]))
+            factors = rnd.sample_rows(rngs)
+            rnd.scale_packed_rows(nominal, factors, packed)
+            sources = []
+            for j, values in enumerate(factors.tolist()):
+                row_factors = dict(zip(rnd.ranges, values))
+                sources.append(functools.partial(rnd.apply, self.platform, row_factors))
+                infos[j]["randomization"] = {k: np.float64(v) for k, v in row_factors.items()}
+        start, episode = self.task.initialize_episodes(rngs)
+        self.position[rows], self.rotation[rows], self.velocity[rows], self.angular_velocity[rows] = start
+        for k, v in episode.items():
+            self.episode[k][rows] = v
+        return None if rnd is None else (packed, sources)
+
+    def _draw_episodes_by_row(self, rows: np.ndarray, rngs: Sequence[np.random.Generator],
+                              infos: list[dict[str, Any]]) -> tuple[np.ndarray, list] | None:
+        """:meth:`_draw_episodes` one row after the other, every draw of a row before the next
+        row's: for rows that share a generator."""
+        rnd = self.randomization
         if rnd is not None:
             nominal = self.nominal_model.packed[0]
             packed = np.empty((len(rows), nominal.shape[0]))
