@@ -267,8 +267,9 @@ class PlatformBatch:
         :meth:`~stewart_env.dynamics.Dynamics.with_packed_rows` takes them, and their factors
         (m, k) in the order of the spec's keys; (None, None) without randomisation."""
         rnd = self.randomization
-        if len({id(rng) for rng in rngs}) < len(rngs):
-            # a generator shared by rows: its draws must go row after row, in the order of rows
+        if len(rngs) == 1 or len({id(rng) for rng in rngs}) < len(rngs):
+            # one row (the single environment), which numpy's overhead per call makes cheaper row by
+            # row, or a generator shared by rows, whose draws must go row after row
             return self._draw_episodes_by_row(rows, rngs)
         if rnd is None:
             factors = None
