@@ -180,3 +180,15 @@ def test_scale_packed_rows_equals_scale_packed_and_names_a_refused_factor():
     factors[7, list(spec.ranges).index("mass")] = 5.0
     with pytest.raises(ConfigError, match=r"factors\['mass'\].*within \[0.8, 1.2\]"):
         spec.scale_packed_rows(nominal, factors, out)
+
+
+def test_bench_resets_in_steps_reports_the_step_with_and_without_resets():
+    from stewart_env.envs.bench_env import bench_resets_in_steps
+
+    r = bench_resets_in_steps(n=8, steps=20, repeats=1)
+    assert r["resets_step"] == 0.0  # held, no row ends within the run
+    # uniformly random actions lose the platform within some ten steps
+    assert r["resets_nominal"] > 0.02 and r["resets_randomized"] > 0.02
+    assert r["reset_nominal_ratio"] == r["reset_nominal_s"] / r["step_s"] > 0
+    with pytest.raises(ValueError, match="steps: expected 1 to 100"):
+        bench_resets_in_steps(n=2, steps=500)
