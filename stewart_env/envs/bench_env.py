@@ -147,15 +147,26 @@ def bench_resets_in_steps(n: int = 1024, steps: int = 40, repeats: int = 3, seed
     so steps), nominal and with :data:`RESET_RANDOMIZATION`, beside its step alone: the setpoint
     task at its fixed start pose under the action that holds it there, no time limit, so that no
     row resets (``resets_step`` counts any that do; it starts each run afresh, as held the platform
-    drifts out of its limits in some 170 steps).  The three runs are interleaved ``repeats`` times and each figure is the best of
-    its runs (other load on the machine falls on all alike); each run of ``steps`` steps follows
-    ``steps // 2`` untimed ones, so the resets are at their steady rate (``steps`` at most 100).
+    drifts out of its limits in some 170 steps).  The three runs are interleaved ``repeats``
+    times and each figure is the best of its runs (other load on the machine falls on all alike);
+    each run of ``steps`` steps follows ``steps // 2`` untimed ones, so the resets are at their
+    steady rate.
+
+    Args:
+        n: rows of the vector env.
+        steps: timed steps of each run, 1 to 100.
+        repeats: interleaved runs of each of the three.
+        seed: the seed of the resets and of the random actions.
+        **kwargs: keyword arguments of the environment.
 
     Returns:
         A dict: step_s (the step alone), reset_nominal_s and reset_randomized_s, seconds per
         platform-step; reset_nominal_ratio and reset_randomized_ratio, each over step_s; the
         resets per platform-step of each run with resets (resets_nominal, resets_randomized);
         n and steps.
+
+    Raises:
+        ValueError: ``steps`` outside 1 to 100.
     """
     if not 1 <= steps <= 100:
         raise ValueError(f"steps: expected 1 to 100 (a held episode lasts some 170 steps), got {steps}")
