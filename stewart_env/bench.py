@@ -451,6 +451,14 @@ def run_bench(platform: str = "dasgupta1998", models: str = ",".join(MODEL_NAMES
         print()
         print(f"single env (gymnasium.make): {r['single_steps_per_s']:,.0f} steps/s")
         print(f"vector env N={r['n_vector']}: {r['vector_platform_steps_per_s']:,.0f} platform-steps/s")
+        from stewart_env.envs.bench_env import bench_resets_in_steps
+
+        r = bench_resets_in_steps()
+        print(f"vector env N={r['n']} with resets (uniformly random actions; the step alone holds the platform): "
+              f"{r['step_s'] * 1e6:.2f} us a platform-step alone, {r['reset_nominal_s'] * 1e6:.2f} us with resets "
+              f"(x{r['reset_nominal_ratio']:.2f}, {r['resets_nominal']:.3f} resets a platform-step), "
+              f"{r['reset_randomized_s'] * 1e6:.2f} us randomised (x{r['reset_randomized_ratio']:.2f}, "
+              f"{r['resets_randomized']:.3f})")
     if mujoco:
         from stewart_env.mujoco import require_mujoco
 

@@ -32,7 +32,7 @@ drawn in the order of :data:`KEYS`, whatever the order of the dict, so a seed gi
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -136,6 +136,58 @@ class Randomization:
             A dict from each key of the spec to its factor.
         """
         return {key: float(rng.uniform(low, high)) for key, (low, high) in self.ranges.items()}
+
+    def sample_rows(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        """:meth:`sample` for many rows at once: the same numbers, row j from ``rngs[j]``.
+
+        ``uniform(low, high)`` is ``low + (high - low) * random()`` of the same draw, so one
+        ``random(k)`` call per row gives the k factors of :meth:`sample` bit for bit, in the order
+        of KEYS; the scaling is done for all rows at once.
+
+        Args:
+            rngs: one generator per row.
+
+        Returns:
+            (m, k) float64, row j the factors of row j in the order of ``self.ranges``.
+        """
+        k = len(self.ranges)
+        unit = np.empty((len(rngs), k))
+        for j, rng in enumerate(rngs):
+            unit[j] = rng.random(k)
+        bounds = np.array(list(self.ranges.values()), dtype=np.float64).reshape(k, 2)
+        low = bounds[:, 0]
+        return low + (bounds[:, 1] - low) * unit
+
+    def scale_packed_rows(self, nominal_row: np.ndarray, factors: np.ndarray, out: np.ndarray) -> None:
+        """:meth:`scale_packed` for many rows at once: bit for bit the same packed rows.
+
+        Args:
+            nominal_row: ``pack_params(params)`` (N_PARAMS,) of a valid PlatformParams.
+            factors: (m, k) factors in the order of ``self.ranges`` (what :meth:`sample_rows` draws).
+            out: (m, N_PARAMS) float64, overwritten.
+
+        Raises:
+            ConfigError: as :meth:`scale_packed`, for the first row it refuses.
+        """
+        m = factors.shape[0]
+        column = {key: factors[:, c] for c, key in enumerate(self.ranges)}
+        # the products of _multipliers, in its order, for every row at once
+        multipliers = np.ones((m, 1 + len(_PARTS)))
+        for p, (_, _, keys) in enumerate(_PARTS):
+            f = np.ones(m)
+            for key in keys:
+                if key in column:
+                    f = f * column[key]
+            multipliers[:, p + 1] = f
+        np.multiply(nominal_row, multipliers[:, _PART_OF], out=out)
+        lows, highs = (np.array([r[i] for r in self.ranges.values()]) for i in (0, 1))
+        smallest = multipliers[:, 1 + _PART_NAMES.index("platform.inertia")] * self._smallest_moment(nominal_row)
+        ok = ((factors >= lows) & (factors <= highs)).all(axis=1)
+        ok &= (out[:, K.OFF_MP] >= MIN_PLATFORM_MASS) & (np.abs(out).max(axis=1) <= MAX_MAGNITUDE)
+        ok &= smallest >= MIN_PLATFORM_INERTIA
+        for j in np.flatnonzero(~ok):
+            # the row by row check raises the error that names the parameter
+            self.scale_packed(nominal_row, dict(zip(self.ranges, factors[j].tolist())), out[j])
 
     def apply(self, params: PlatformParams, factors: Mapping[str, float]) -> PlatformParams:
         """``params`` with every parameter multiplied by the product of its keys' factors.

@@ -13,7 +13,7 @@ import numpy as np
 from stewart_env.envs.stewart_platform import holding_action
 from stewart_env.registration import ENV_ID  # importing it registers the environment
 
-__all__ = ["RESET_RANDOMIZATION", "bench_env", "bench_reset"]
+__all__ = ["RESET_RANDOMIZATION", "bench_env", "bench_reset", "bench_resets_in_steps"]
 
 #: The domain randomisation whose reset :func:`bench_reset` times: every body's mass and inertia within +-20 %.
 RESET_RANDOMIZATION = {"mass": (0.8, 1.2), "inertia": (0.8, 1.2)}
@@ -139,3 +139,76 @@ def bench_reset(n: int = 1024, randomization: dict | None = RESET_RANDOMIZATION,
         best = min(best, time.perf_counter() - start)
     venv.close()
     return best / n
+
+
+def bench_resets_in_steps(n: int = 1024, steps: int = 40, repeats: int = 3, seed: int = 0, **kwargs) -> dict:
+    """The native vector env's wall-clock time per platform-step under uniformly random actions (a
+    policy that still loses the platform, as at the start of training: a row resets every ten or
+    so steps), nominal and with :data:`RESET_RANDOMIZATION`, beside its step alone: the setpoint
+    task at its fixed start pose under the action that holds it there, no time limit, so that no
+    row resets (``resets_step`` counts any that do; it starts each run afresh, as held the platform
+    drifts out of its limits in some 170 steps).  The three runs are interleaved ``repeats``
+    times and each figure is the best of its runs (other load on the machine falls on all alike);
+    each run of ``steps`` steps follows ``steps // 2`` untimed ones, so the resets are at their
+    steady rate.
+
+    Args:
+        n: rows of the vector env.
+        steps: timed steps of each run, 1 to 100.
+        repeats: interleaved runs of each of the three.
+        seed: the seed of the resets and of the random actions.
+        **kwargs: keyword arguments of the environment.
+
+    Returns:
+        A dict: step_s (the step alone), reset_nominal_s and reset_randomized_s, seconds per
+        platform-step; reset_nominal_ratio and reset_randomized_ratio, each over step_s; the
+        resets per platform-step of each run with resets (resets_nominal, resets_randomized);
+        n and steps.
+
+    Raises:
+        ValueError: ``steps`` outside 1 to 100.
+    """
+    if not 1 <= steps <= 100:
+        raise ValueError(f"steps: expected 1 to 100 (a held episode lasts some 170 steps), got {steps}")
+    _, hold = held_env(task_options={"randomize": False}, **kwargs)
+    envs = {
+        "step": gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", max_episode_steps=10**9,
+                             task_options={"randomize": False}, **kwargs),
+        "reset_nominal": gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", **kwargs),
+        "reset_randomized": gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point",
+                                         randomization=RESET_RANDOMIZATION, **kwargs),
+    }
+    rng = np.random.default_rng(seed)
+    random_actions = [rng.uniform(-1.0, 1.0, (n, 6)).astype(np.float32) for _ in range(16)]
+    held_actions = [np.tile(hold, (n, 1))]
+    best = dict.fromkeys(envs, np.inf)
+    resets = dict.fromkeys(envs, 0.0)
+    for env in envs.values():
+        env.reset(seed=seed)
+    for _ in range(repeats):
+        for name, env in envs.items():
+            actions = held_actions if name == "step" else random_actions
+            if name == "step":
+                # held, the platform leaves its limits after some 170 steps: start each run afresh
+                env.reset(seed=seed)
+            for k in range(steps // 2):
+                env.step(actions[k % len(actions)])
+            count = 0
+            start = time.perf_counter()
+            for k in range(steps):
+                _, _, terminated, truncated, _ = env.step(actions[k % len(actions)])
+                count += int(np.count_nonzero(terminated | truncated))
+            elapsed = (time.perf_counter() - start) / (steps * n)
+            best[name] = min(best[name], elapsed)
+            resets[name] = count / (steps * n)
+    for env in envs.values():
+        env.close()
+    return {
+        "n": n, "steps": steps,
+        "step_s": best["step"],
+        "reset_nominal_s": best["reset_nominal"], "reset_randomized_s": best["reset_randomized"],
+        "reset_nominal_ratio": best["reset_nominal"] / best["step"],
+        "reset_randomized_ratio": best["reset_randomized"] / best["step"],
+        "resets_nominal": resets["reset_nominal"], "resets_randomized": resets["reset_randomized"],
+        "resets_step": resets["step"],
+    }

@@ -226,16 +226,19 @@ class PlatformBatch:
 
     # -- episode start ----------------------------------------------------------------------------------
 
-    def reset_rows(self, rows: np.ndarray, rngs: Sequence[np.random.Generator]) -> list[dict[str, Any]]:
+    def reset_rows(self, rows: np.ndarray, rngs: Sequence[np.random.Generator],
+                   batch_infos: bool = False) -> list[dict[str, Any]] | dict[str, Any]:
         """Start a new episode in each of ``rows`` (int array), row rows[j] drawing from rngs[j].
 
-        Draw order within a row: randomisation factors, the task's episode, observation noise.
-        Returns one info dict per row: with randomisation, ``randomization`` (the factors, name ->
-        np.float64).  A randomised row's parameters are scaled in packed form; its PlatformParams
-        are built only when read (:meth:`episode_params`).
+        Draw order within a row: randomisation factors, the task's episode, observation noise;
+        rows with generators of their own draw all rows' factors, then all rows' episodes (the
+        same numbers, row by row, as drawing one row after the other).  Returns one info dict per
+        row: with randomisation, ``randomization`` (the factors, name -> np.float64); with
+        ``batch_infos``, one dict of the rows' infos instead, each value an (m,) array in the
+        order of ``rows``.  A randomised row's parameters are scaled in packed form; its
+        PlatformParams are built only when read (:meth:`episode_params`).
         """
-        infos = [{} for _ in rows]
-        drawn = self._draw_episodes(rows, rngs, infos)
+        drawn, factors = self._draw_episodes(rows, rngs)
         if drawn is not None:
             self.model = self.model.with_packed_rows(rows, *drawn)
             self.plant.set_model(self.model, rows)
@@ -250,30 +253,61 @@ class PlatformBatch:
         view = self._start_view(rows, state)
         self._start_success(rows, view.errors)
         self.observations.reset_rows(rows, view, rngs)
-        return infos
+        keys = () if factors is None else tuple(self.randomization.ranges)
+        if batch_infos:
+            return {} if factors is None else {"randomization": dict(zip(keys, factors.T))}
+        if factors is None:
+            return [{} for _ in rows]
+        return [{"randomization": {k: np.float64(v) for k, v in zip(keys, values)}} for values in factors.tolist()]
 
-    def _draw_episodes(self, rows: np.ndarray, rngs: Sequence[np.random.Generator],
-                       infos: list[dict[str, Any]]) -> tuple[np.ndarray, list] | None:
-        """Draw each row's randomisation factors (into its info) and the task's episode, and set
-        the start state.  Returns the rows' randomised parameters, (packed rows, their sources)
-        as :meth:`~stewart_env.dynamics.Dynamics.with_packed_rows` takes them, or None without
-        randomisation."""
+    def _draw_episodes(self, rows: np.ndarray, rngs: Sequence[np.random.Generator]
+                       ) -> tuple[tuple[np.ndarray, list] | None, np.ndarray | None]:
+        """Draw each row's randomisation factors and the task's episode, and set the start state.
+        Returns the rows' randomised parameters, (packed rows, their sources) as
+        :meth:`~stewart_env.dynamics.Dynamics.with_packed_rows` takes them, and their factors
+        (m, k) in the order of the spec's keys; (None, None) without randomisation."""
+        rnd = self.randomization
+        if len(rngs) == 1 or len({id(rng) for rng in rngs}) < len(rngs):
+            # one row (the single environment), which numpy's overhead per call makes cheaper row by
+            # row, or a generator shared by rows, whose draws must go row after row
+            return self._draw_episodes_by_row(rows, rngs)
+        if rnd is None:
+            factors = None
+        else:
+            nominal = self.nominal_model.packed[0]
+            packed = np.empty((len(rows), nominal.shape[0]))
+            factors = rnd.sample_rows(rngs)
+            rnd.scale_packed_rows(nominal, factors, packed)
+            keys = tuple(rnd.ranges)
+            sources = [functools.partial(rnd.apply, self.platform, dict(zip(keys, values)))
+                       for values in factors.tolist()]
+        start, episode = self.task.initialize_episodes(rngs)
+        self.position[rows], self.rotation[rows], self.velocity[rows], self.angular_velocity[rows] = start
+        for k, v in episode.items():
+            self.episode[k][rows] = v
+        return (None, None) if rnd is None else ((packed, sources), factors)
+
+    def _draw_episodes_by_row(self, rows: np.ndarray, rngs: Sequence[np.random.Generator]
+                              ) -> tuple[tuple[np.ndarray, list] | None, np.ndarray | None]:
+        """:meth:`_draw_episodes` one row after the other, every draw of a row before the next
+        row's: for rows that share a generator."""
         rnd = self.randomization
         if rnd is not None:
             nominal = self.nominal_model.packed[0]
             packed = np.empty((len(rows), nominal.shape[0]))
+            factors = np.empty((len(rows), len(rnd.ranges)))
             sources = []
         for j, i in enumerate(rows):
             if rnd is not None:
-                factors = rnd.sample(rngs[j])
-                rnd.scale_packed(nominal, factors, packed[j])
-                sources.append(functools.partial(rnd.apply, self.platform, factors))
-                infos[j]["randomization"] = {k: np.float64(v) for k, v in factors.items()}
+                row_factors = rnd.sample(rngs[j])
+                rnd.scale_packed(nominal, row_factors, packed[j])
+                sources.append(functools.partial(rnd.apply, self.platform, row_factors))
+                factors[j] = list(row_factors.values())
             start, episode = self.task.initialize_episode(rngs[j])
             self.position[i], self.rotation[i], self.velocity[i], self.angular_velocity[i] = start
             for k, v in episode.items():
                 self.episode[k][i] = v
-        return None if rnd is None else (packed, sources)
+        return (None, None) if rnd is None else ((packed, sources), factors)
 
     def _start_forces(self, state: PlatformState, drawn: tuple[np.ndarray, list] | None) -> np.ndarray:
         """The leg forces at a start state of m rows: without actuator lag none (the first action

@@ -274,7 +274,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
         for i in rows:
             if seeds[i] is not None or self._rngs[i] is None:
                 self._rngs[i] = seeding.np_random(seeds[i])[0]
-        infos = self._reset_infos({}, rows, self._core.reset_rows(rows, [self._rngs[i] for i in rows]))
+        infos = self._reset_infos({}, rows, self._core.reset_rows(rows, [self._rngs[i] for i in rows], True))
         self._reset_done = all(rng is not None for rng in self._rngs)
         self._elapsed[rows] = 0
         self._autoreset[rows] = False
@@ -331,7 +331,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
         return observation, reward, terminated, truncated, infos
 
     def _reset_rows(self, rows: np.ndarray, infos: dict[str, Any]) -> None:
-        row_infos = self._core.reset_rows(rows, [self._rngs[i] for i in rows])
+        row_infos = self._core.reset_rows(rows, [self._rngs[i] for i in rows], True)
         self._elapsed[rows] = 0
         self._reset_infos(infos, rows, row_infos)
 
@@ -345,12 +345,25 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
             infos["_" + key] = stepped.copy()
         return infos
 
-    def _reset_infos(self, infos: dict[str, Any], rows: np.ndarray,
-                     row_infos: list[dict[str, Any]]) -> dict[str, Any]:
-        """Add per-row reset infos to vector infos with Gymnasium's own rule (``VectorEnv._add_info``):
-        an (N,) array per key, of the value's type, and its mask under ``"_" + key``."""
-        for i, info in zip(rows, row_infos):
-            infos = self._add_info(infos, info, int(i))
+    def _reset_infos(self, infos: dict[str, Any], rows: np.ndarray, row_infos: dict[str, Any]) -> dict[str, Any]:
+        """Add the reset infos of ``rows`` (a dict of (m,) arrays, or nested dicts of them, in the
+        order of ``rows``) to vector infos, with the result of Gymnasium's own rule row by row
+        (``VectorEnv._add_info``): an (N,) array per key, of the values' type, and its mask under
+        ``"_" + key``."""
+        n = self.num_envs
+        for key, value in row_infos.items():
+            if isinstance(value, dict):
+                array = self._reset_infos(infos.get(key, {}), rows, value)
+            else:
+                array = infos.get(key)
+                if array is None:
+                    array = np.zeros((n, *value.shape[1:]), dtype=value.dtype)
+                array[rows] = value
+            mask = infos.get("_" + key)
+            if mask is None:
+                mask = np.zeros(n, dtype=np.bool_)
+            mask[rows] = True
+            infos[key], infos["_" + key] = array, mask
         return infos
 
     def render(self):

@@ -20,7 +20,7 @@ from __future__ import annotations
 import inspect
 import math
 from dataclasses import dataclass
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -613,6 +613,29 @@ class Task:
     def initialize_episode(self, rng: np.random.Generator) -> tuple[PlatformState, dict[str, np.ndarray]]:
         """Draw one row's episode: its initial state and its ``episode_fields`` values."""
         raise NotImplementedError
+
+    def initialize_episodes(self, rngs: Sequence[np.random.Generator]) -> tuple[PlatformState, dict[str, np.ndarray]]:
+        """Draw the episodes of m rows, row j from ``rngs[j]`` (each a different generator): the
+        same numbers as :meth:`initialize_episode` row by row.  This default calls it per row; a
+        task may draw all rows at once.
+
+        Args:
+            rngs: one generator per row.
+
+        Returns:
+            The rows' initial states (a PlatformState of (m, ...) arrays) and their
+            ``episode_fields`` values, (m, ...) each.
+        """
+        m = len(rngs)
+        start = PlatformState(np.empty((m, 3)), np.empty((m, 3, 3)), np.empty((m, 3)), np.empty((m, 3)))
+        episode = {k: np.empty((m, *shape)) for k, shape in self.episode_fields().items()}
+        for j, rng in enumerate(rngs):
+            state, values = self.initialize_episode(rng)
+            for dst, src in zip(start, state):
+                dst[j] = src
+            for k, v in values.items():
+                episode[k][j] = v
+        return start, episode
 
     def reference(self, episode: Mapping[str, np.ndarray], time: np.ndarray, out: Reference) -> None:
         """Write the reference at ``time`` (N,) s into ``out`` (N rows).  This default is a fixed

@@ -124,10 +124,11 @@ class SetpointTask(Task):
     def episode_fields(self):
         return {"target_position": (3,), "target_rotation": (3, 3)}
 
-    def _draw_pose(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """A random pose (position, rotation) safely inside the limits."""
+    def _draw_pose(self, rng: np.random.Generator, draws: int = _MAX_DRAWS) -> tuple[np.ndarray, np.ndarray]:
+        """A random pose (position, rotation) safely inside the limits, in at most ``draws``
+        draws (of the _MAX_DRAWS allowed, the rest of a pose begun by :meth:`initialize_episodes`)."""
         p = self.params
-        for _ in range(_MAX_DRAWS):
+        for _ in range(draws):
             position = p.home_position + rng.uniform(-1.0, 1.0, 3) * self.position_range
             rpy = p.home_rpy + rng.uniform(-1.0, 1.0, 3) * self.angle_range
             rotation = rpy_to_matrix(rpy)
@@ -137,6 +138,45 @@ class SetpointTask(Task):
             f"setpoint: no pose inside the limits of platform {p.name!r} in {_MAX_DRAWS} draws; "
             "reduce task_options['position_range'] or ['angle_range']"
         )
+
+    def _candidates(self, unit: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Candidate poses of :meth:`_draw_pose` from its draws ``unit`` (M, 6) of ``random()``
+        (``uniform(-1, 1)`` is ``-1 + 2 random()``, the same number): positions (M,3), rotations
+        (M,3,3), and whether each is safely inside the limits (M,) bool."""
+        p = self.params
+        position = p.home_position + (-1.0 + 2.0 * unit[:, :3]) * self.position_range
+        rpy = p.home_rpy + (-1.0 + 2.0 * unit[:, 3:]) * self.angle_range
+        rotation = rpy_to_matrix(rpy)
+        return position, rotation, pose_margins(self.kinematics, position, rpy, rotation=rotation)
+
+    def initialize_episodes(self, rngs):
+        """The start and target poses of every row at once, bit for bit those of
+        :meth:`initialize_episode` row by row: each row draws its first two candidates (start,
+        target) in one call, all are checked together, and the few rows that rejected one go on
+        drawing row by row, as :meth:`_draw_pose` would have."""
+        if not self.randomize:
+            return super().initialize_episodes(rngs)
+        m = len(rngs)
+        unit = np.empty((m, 2, 6))
+        for j, rng in enumerate(rngs):
+            unit[j] = rng.random(12).reshape(2, 6)
+        position, rotation, ok = (x.reshape(m, 2, *x.shape[1:]) for x in self._candidates(unit.reshape(2 * m, 6)))
+        start_p, start_r = position[:, 0].copy(), rotation[:, 0].copy()
+        target_p, target_r = position[:, 1].copy(), rotation[:, 1].copy()
+        # a rejected start: the second candidate is the start's next draw
+        second = ~ok[:, 0] & ok[:, 1]
+        start_p[second], start_r[second] = position[second, 1], rotation[second, 1]
+        for j in np.flatnonzero(~(ok[:, 0] & ok[:, 1])).tolist():
+            rng = rngs[j]
+            if not ok[j, 0] and not ok[j, 1]:
+                start_p[j], start_r[j] = self._draw_pose(rng, _MAX_DRAWS - 2)
+                target_p[j], target_r[j] = self._draw_pose(rng)
+            else:
+                # the start is accepted; the target had one rejected draw if the start was the first
+                target_p[j], target_r[j] = self._draw_pose(rng, _MAX_DRAWS - int(ok[j, 0]))
+        zero = np.zeros((m, 3))
+        return (PlatformState(start_p, start_r, zero, zero.copy()),
+                {"target_position": target_p, "target_rotation": target_r})
 
     def initialize_episode(self, rng):
         if self.randomize:
