@@ -83,7 +83,8 @@ class RayBackend:
         """(index, fn(*args)) of each job as it finishes; the unfinished ones are cancelled when the
         caller stops (Ctrl-C, an error)."""
         ray = self.ray
-        remote = ray.remote(num_cpus=CPUS_PER_JOB, max_retries=0)(on_threads)
+        # each task under its job's name (train_job, evaluate_job), as Ray's state API and dashboard list it
+        remote = ray.remote(num_cpus=CPUS_PER_JOB, max_retries=0)(on_threads).options(name=fn.__name__)
         pending = {remote.remote(CPUS_PER_JOB, fn, *args): i for i, args in enumerate(jobs)}
         try:
             while pending:
