@@ -124,8 +124,10 @@ def test_a_time_dependent_law_converges_at_fourth_order(dasgupta):
     zero = np.zeros(3)
     hold = model.inverse(dasgupta.home_position, R, zero, zero, zero, zero)
     params = np.concatenate([hold, [300.0, 40.0]])
-    run = lambda dt: se.rollout(model, dasgupta.home_position, R, zero, zero, dt=dt, steps=round(0.2 / dt),  # noqa: E731
-                                control_law=_swaying, control_params=params)[0]
+    def run(dt):
+        return se.rollout(model, dasgupta.home_position, R, zero, zero, dt=dt, steps=round(0.2 / dt),
+                          control_law=_swaying, control_params=params)[0]
+
     reference = run(1e-4)
     errors = [np.abs(run(dt) - reference).max() for dt in (4e-3, 2e-3)]
     # halving dt divides a fourth-order error by 16; 10 leaves room for the higher-order terms
