@@ -32,9 +32,9 @@ import numpy as np
 import stewart_env as se
 from stewart_env.agents.pd import EnvPolicy, _gain
 from stewart_env.dynamics import ModelSpec
+from stewart_env.params import PlatformParams
 from stewart_env.rotations import rotation_error, rotvec_to_matrix
 from stewart_env.state import PlatformState, Reference
-from stewart_env.params import PlatformParams
 
 #: Default natural frequency of the error dynamics, rad/s, and its damping ratio.
 DEFAULT_NATURAL_FREQUENCY = 20.0
@@ -181,6 +181,14 @@ class ComputedTorquePolicy(EnvPolicy):
         self._horizons = getattr(base.task, "preview_interval", 0.0) * np.arange(1, preview + 1)
 
     def reference(self, state: PlatformState, part: dict[str, np.ndarray]) -> Reference:
+        """The target of decoded observations, as ``EnvPolicy.reference`` reads it, with the
+        accelerations fitted to the reference preview when the observation carries the preview and
+        the twist errors (else zero).
+
+        Args:
+            state: the platform's decoded state (N rows).
+            part: the decoded observation, entry name -> (N, size) in physical units.
+        """
         ref = super().reference(state, part)
         if not self._horizons.size or "velocity_error" not in part:
             return ref

@@ -78,7 +78,10 @@ def pd_control_params(platform: PlatformParams, reference: Reference, kp=PAPER_K
     Args:
         platform: the platform's parameters (its geometry gives J).
         reference: the target in {B}, fields (N, ...) for a batch (its accelerations are not used).
-        kp, kd, gravity_compensation, gravity_model: as in :class:`TaskSpacePD`.
+        kp: proportional gains Kp, as in :class:`TaskSpacePD`.
+        kd: derivative gains Kd, as in :class:`TaskSpacePD`.
+        gravity_compensation: add the holding forces, as in :class:`TaskSpacePD`.
+        gravity_model: the model of the holding forces, as in :class:`TaskSpacePD`.
 
     Returns:
         The row (PD_N_PARAMS,), or (N, PD_N_PARAMS) for a batched reference.
@@ -176,7 +179,8 @@ def zoh_spectral_radius(model: se.Dynamics, kp, kd, control_dt: float, inertia_s
 
     Args:
         model: the dynamics model (its first parameter row is used).
-        kp, kd: six gains or a scalar, as in :class:`TaskSpacePD`.
+        kp: proportional gains Kp, six or a scalar, as in :class:`TaskSpacePD`.
+        kd: derivative gains Kd, six or a scalar, as in :class:`TaskSpacePD`.
         control_dt: the hold, s.
         inertia_scale: factor on M.
 
@@ -305,7 +309,11 @@ class EnvPolicy:
         self._mid, self._half = 0.5 * (low + high), 0.5 * (high - low)
 
     def decode(self, observation) -> tuple[PlatformState, Reference]:
-        """State and target (batched, N rows) of observations (obs_dim,) or (N, obs_dim)."""
+        """State and target (batched, N rows) of observations (obs_dim,) or (N, obs_dim).
+
+        Args:
+            observation: one observation (obs_dim,) or a batch (N, obs_dim).
+        """
         part = self.env.unwrapped.decode_observation(np.atleast_2d(np.asarray(observation, dtype=float)))
         rotation = _columns_to_matrix(part["orientation"])
         state = PlatformState(part["position"], rotation, part["velocity"], part["angular_velocity"])
@@ -313,7 +321,12 @@ class EnvPolicy:
 
     def reference(self, state: PlatformState, part: dict[str, np.ndarray]) -> Reference:
         """The target of decoded observations ``part`` (name -> (N, size), physical units): its
-        twist is zero unless the observation carries the twist errors; its accelerations zero."""
+        twist is zero unless the observation carries the twist errors; its accelerations zero.
+
+        Args:
+            state: the platform's decoded state (N rows).
+            part: the decoded observation, entry name -> (N, size) in physical units.
+        """
         zero = np.zeros_like(state.velocity)
         velocity = state.velocity + part["velocity_error"] if "velocity_error" in part else zero
         angular_velocity = (state.angular_velocity + part["angular_velocity_error"]
@@ -322,11 +335,22 @@ class EnvPolicy:
                          rotvec_to_matrix(part["orientation_error"]) @ state.rotation, velocity, angular_velocity)
 
     def forces_to_action(self, forces) -> np.ndarray:
-        """Actions in [-1, 1] for leg forces (N): the environment's affine map inverted, clipped."""
+        """Actions in [-1, 1] for leg forces (N): the environment's affine map inverted, clipped.
+
+        Args:
+            forces: the leg forces (6,) or (N, 6), N.
+        """
         return np.clip((np.asarray(forces) - self._mid) / self._half, -1.0, 1.0).astype(np.float32)
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
-        """SB3's interface: (action (6,) or (N,6), None) for one observation or a batch."""
+        """SB3's interface: (action (6,) or (N,6), None) for one observation or a batch.
+
+        Args:
+            observation: one observation (obs_dim,) or a batch (N, obs_dim).
+            state: SB3's recurrent state; unused (the policy has none).
+            episode_start: SB3's episode starts; unused.
+            deterministic: SB3's flag; unused (the policy is deterministic).
+        """
         obs = np.asarray(observation)
         platform_state, reference = self.decode(obs)
         action = self.forces_to_action(self.controller(platform_state, reference))

@@ -46,7 +46,7 @@ class UsageError(ValueError):
         self.problem = message if problem is None else problem
 
     @classmethod
-    def about(cls, argument: str, problem: str, **extra) -> "UsageError":
+    def about(cls, argument: str, problem: str, **extra) -> UsageError:
         """The error ``"<argument>: <problem>"`` about the argument named ``argument``.
 
         Args:

@@ -80,7 +80,11 @@ class Constraint:
     expected: str = "a value"
 
     def is_satisfied_by(self, value: Any) -> bool:
-        """Whether ``value`` (already of the right kind) is accepted."""
+        """Whether ``value`` (already of the right kind) is accepted.
+
+        Args:
+            value: the value.
+        """
         raise NotImplementedError
 
     def check(self, name: str, value: Any) -> Any:
@@ -115,7 +119,12 @@ class Constraint:
         raise NotImplementedError
 
     def refuse_text(self, text: str, name: str = "") -> UsageError:
-        """The error of command-line text that is no accepted value (not raised)."""
+        """The error of command-line text that is no accepted value (not raised).
+
+        Args:
+            text: the text given.
+            name: the argument's name, which the error carries.
+        """
         return UsageError.about(name, f"expected {self.expected}, got {quoted(text)}")
 
 
@@ -125,7 +134,8 @@ class Interval(Constraint):
 
     Args:
         kind: ``numbers.Integral`` or ``numbers.Real``.
-        low, high: the bounds.
+        low: the lower bound.
+        high: the upper bound.
         low_open: exclude ``low`` (real numbers only).
         expected: how messages say what is accepted, if not in the bounds' own words (e.g.
             ``"a positive integer"``).
@@ -148,6 +158,7 @@ class Interval(Constraint):
 
     @property
     def expected(self) -> str:  # said only when refusing: a check that passes formats nothing
+        """How a message says what is accepted: ``expected``, else the bounds in words."""
         if self._expected is not None:
             return self._expected
         if self.kind is numbers.Integral:
@@ -158,12 +169,30 @@ class Interval(Constraint):
         return f"Interval({self.kind.__name__}, {self.low!r}, {self.high!r}, low_open={self.low_open})"
 
     def is_satisfied_by(self, value: Any) -> bool:
+        """Whether ``value`` (already of the right kind) is accepted.
+
+        Args:
+            value: the value.
+        """
         if self.kind is numbers.Integral:
             return self.low <= value <= self.high
         return math.isfinite(value) and (value > self.low if self.low_open else value >= self.low) \
             and value <= self.high
 
     def check(self, name: str, value: Any) -> Any:
+        """``value`` in checked form (:meth:`Constraint.check`).
+
+        Args:
+            name: the argument's name, which the error gives (as text and as ``argument``).
+            value: the value to check.
+
+        Returns:
+            The checked value, an int or a float.
+
+        Raises:
+            ArgumentError: a value of the wrong kind.
+            UsageError: a value of the right kind that is not accepted.
+        """
         if self.kind is numbers.Integral:
             if not isinstance(value, numbers.Integral) or isinstance(value, (bool, np.bool_)):
                 raise ArgumentError.about(name, f"expected {self.expected}, got {_excerpt(value)}")
@@ -178,6 +207,18 @@ class Interval(Constraint):
         return x
 
     def parse(self, text: str, name: str = "") -> Any:
+        """The value of the command-line text ``text`` (:meth:`Constraint.parse`).
+
+        Args:
+            text: the text given.
+            name: the argument's name, which the error carries.
+
+        Returns:
+            The value, an int or a float.
+
+        Raises:
+            UsageError: text that is no accepted value; its ``problem`` says what was expected.
+        """
         try:
             value = int(text) if self.kind is numbers.Integral else float(text)
         except (ValueError, OverflowError):
@@ -199,20 +240,51 @@ class StrOptions(Constraint):
 
     @property
     def expected(self) -> str:
+        """How a message says what is accepted: the options, quoted."""
         return f"one of {', '.join(map(repr, self.options))}"
 
     def __repr__(self) -> str:
         return f"StrOptions({self.options!r})"
 
     def is_satisfied_by(self, value: Any) -> bool:
+        """Whether ``value`` (already of the right kind) is accepted.
+
+        Args:
+            value: the value.
+        """
         return isinstance(value, str) and value in self.options
 
     def check(self, name: str, value: Any) -> str:
+        """``value`` in checked form (:meth:`Constraint.check`).
+
+        Args:
+            name: the argument's name, which the error gives (as text and as ``argument``).
+            value: the value to check.
+
+        Returns:
+            The checked value, the string.
+
+        Raises:
+            ArgumentError: a value of the wrong kind.
+            UsageError: a value of the right kind that is not accepted.
+        """
         if not self.is_satisfied_by(value):
             raise UsageError.about(name, f"expected {self.expected}, got {_excerpt(value)}")
         return value
 
     def parse(self, text: str, name: str = "") -> str:
+        """The value of the command-line text ``text`` (:meth:`Constraint.parse`).
+
+        Args:
+            text: the text given.
+            name: the argument's name, which the error carries.
+
+        Returns:
+            The value, the string.
+
+        Raises:
+            UsageError: text that is no accepted value; its ``problem`` says what was expected.
+        """
         if not self.is_satisfied_by(text):
             raise UsageError.about(name, f"unknown {quoted(text)}; choose from {', '.join(self.options)}")
         return text
@@ -220,7 +292,12 @@ class StrOptions(Constraint):
 
 def quoted(text: str, limit: int = 40) -> str:
     """``repr(text)`` for an error message, cut to ``limit`` characters (a number of a thousand
-    digits is not echoed whole)."""
+    digits is not echoed whole).
+
+    Args:
+        text: the text.
+        limit: the most characters of the repr kept.
+    """
     text = repr(text)
     return text if len(text) <= limit else text[:limit - 4] + "...'"
 
@@ -232,7 +309,8 @@ def real(name: str, value: Any, low: float = -math.inf, high: float = math.inf, 
     Args:
         name: the argument's name, which the error message gives.
         value: the value to check.
-        low, high: the bounds.
+        low: the lower bound.
+        high: the upper bound.
         low_open: exclude ``low``: (low, high].
 
     Returns:
@@ -261,7 +339,8 @@ def integer(name: str, value: Any, low: int, high: int) -> int:
     Args:
         name: the argument's name, which the error message gives.
         value: the value to check.
-        low, high: the bounds.
+        low: the lower bound.
+        high: the upper bound.
 
     Returns:
         The int.
@@ -363,7 +442,8 @@ def interval(name: str, value: Any, low: float, high: float, *, low_open: bool =
     Args:
         name: the argument's name, which the error message gives.
         value: the pair to check.
-        low, high: the bounds.
+        low: the lower bound.
+        high: the upper bound.
         low_open: require low < min.
 
     Returns:

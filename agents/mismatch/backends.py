@@ -33,15 +33,25 @@ class LocalBackend:
     name = "local"
 
     def run(self, fn: Callable, jobs: Sequence[tuple]) -> Iterator[tuple[int, Any]]:
-        """(index, fn(*args)) of each job, in order."""
+        """(index, fn(*args)) of each job, in order.
+
+        Args:
+            fn: the job's function.
+            jobs: the arguments of each job.
+        """
         for i, args in enumerate(jobs):
             yield i, fn(*args)
 
     def put(self, value):
-        """``value`` itself: the jobs run here."""
+        """``value`` itself: the jobs run here.
+
+        Args:
+            value: the value the jobs share.
+        """
         return value
 
     def close(self) -> None:
+        """Nothing to release: the jobs ran in this process."""
         pass
 
 
@@ -76,12 +86,21 @@ class RayBackend:
             self.started = True
 
     def put(self, value):
-        """``value`` in Ray's object store: sent to the workers once, however many jobs use it."""
+        """``value`` in Ray's object store: sent to the workers once, however many jobs use it.
+
+        Args:
+            value: the value the jobs share.
+        """
         return self.ray.put(value)
 
     def run(self, fn: Callable, jobs: Sequence[tuple]) -> Iterator[tuple[int, Any]]:
         """(index, fn(*args)) of each job as it finishes; the unfinished ones are cancelled when the
-        caller stops (Ctrl-C, an error)."""
+        caller stops (Ctrl-C, an error).
+
+        Args:
+            fn: the job's function.
+            jobs: the arguments of each job.
+        """
         ray = self.ray
         # each task under its job's name (train_job, evaluate_job), as Ray's state API and dashboard list it
         remote = ray.remote(num_cpus=CPUS_PER_JOB, max_retries=0)(on_threads).options(name=fn.__name__)
@@ -113,12 +132,17 @@ class RayBackend:
             raise BackendError(f"the Ray cluster failed: {type(exc).__name__}: {reason}") from None
 
     def close(self) -> None:
+        """Shuts down the Ray instance this backend started; a cluster it joined keeps running."""
         if self.started:
             self.ray.shutdown()
 
 
 def ray_endpoint(address: str) -> tuple[str, int] | None:
-    """(host, port) of a Ray address "HOST:PORT" or "ray://HOST:PORT"; None for "auto"."""
+    """(host, port) of a Ray address "HOST:PORT" or "ray://HOST:PORT"; None for "auto".
+
+    Args:
+        address: the Ray address (``--ray-address``).
+    """
     if address == "auto":
         return None
     host, sep, port = address.split("://", 1)[-1].rpartition(":")
@@ -129,7 +153,12 @@ def ray_endpoint(address: str) -> tuple[str, int] | None:
 
 def check_backend(name: str, address: str | None = None) -> None:
     """Refuse an unknown backend, an address without Ray or of no Ray form, and the Ray backend
-    without ray installed."""
+    without ray installed.
+
+    Args:
+        name: the backend's name (``--backend``).
+        address: the Ray address (``--ray-address``), or None.
+    """
     if name not in BACKENDS:
         raise MismatchError(f"backend: expected one of {', '.join(BACKENDS)}, got {name!r}")
     if name == "local" and address is not None:
@@ -144,6 +173,11 @@ def check_backend(name: str, address: str | None = None) -> None:
 
 
 def make_backend(name: str, address: str | None = None) -> LocalBackend | RayBackend:
-    """The backend called ``name`` ("local" or "ray"); ``address`` only with "ray"."""
+    """The backend called ``name`` ("local" or "ray"); ``address`` only with "ray".
+
+    Args:
+        name: the backend's name (``--backend``).
+        address: the Ray address (``--ray-address``), or None.
+    """
     check_backend(name, address)
     return LocalBackend() if name == "local" else RayBackend(address)

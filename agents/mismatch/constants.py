@@ -79,5 +79,9 @@ AGENT_FILES = (MANIFEST, MODEL_FILE, VECNORMALIZE_FILE)
 
 
 def statistic(metric: str) -> str:
-    """The statistic ("mean" or "iqm") a metric's cells report."""
+    """The statistic ("mean" or "iqm") a metric's cells report.
+
+    Args:
+        metric: the metric's name.
+    """
     return STATISTIC.get(metric, DEFAULT_STATISTIC)

@@ -50,7 +50,13 @@ def simplification_costs(result: MismatchResult, values: Callable[[Row, str, str
     each row built on the exact model's structure on a controller platform, the share of the
     classical row's cost it removes (:data:`~.results.SHARE_REMOVED`).
     ``values(row, plant, metric)`` gives a cell's values (seeds, episodes), e.g.
-    :func:`~.cells.cell_values` of a study's directory."""
+    :func:`~.cells.cell_values` of a study's directory.
+
+    Args:
+        result: the study's numbers.
+        values: ``values(row, plant, metric)``: a cell's values (seeds, episodes).
+        plant: the test plant the costs are measured on.
+    """
     if plant not in result.test_models:
         return []
     differences = []
@@ -89,7 +95,12 @@ def simplification_costs(result: MismatchResult, values: Callable[[Row, str, str
 
 
 def per_seed_estimates(values: np.ndarray, statistic_name: str) -> list[float]:
-    """A cell's point estimate for each training seed alone: ``values`` (seeds, episodes)."""
+    """A cell's point estimate for each training seed alone: ``values`` (seeds, episodes).
+
+    Args:
+        values: the cell's values (seeds, episodes).
+        statistic_name: the metric's statistic, ``"mean"`` or ``"iqm"``.
+    """
     return [point_estimate(v, statistic_name) for v in values]
 
 
@@ -129,7 +140,12 @@ def seeds_needed(cost: Difference, differences: Sequence[Difference]) -> tuple[i
     family, simplification and metric, it sizes the figure: it is the sum of the costs of the two
     directions, measured without the seeds' spread, so half of it is a far better guess of the
     cost than the cost's own estimate, which at few seeds is mostly their spread; where it is not
-    resolved, half its larger bound bounds the cost, and the figure is a lower bound."""
+    resolved, half its larger bound bounds the cost, and the figure is a lower bound.
+
+    Args:
+        cost: the unresolved cost.
+        differences: the study's differences, among which its double difference is looked for.
+    """
     double = next((d for d in differences if d.measure == DOUBLE_DIFFERENCE and
                    (d.family, d.simplification, d.metric) == (cost.family, cost.simplification, cost.metric)), None)
     if double is None or not np.isfinite(double.interval.estimate):

@@ -19,7 +19,12 @@ __all__ = ["forest_figure", "heatmap", "heatmap_figure", "write_figures"]
 
 def write_figures(result: MismatchResult, out: Path) -> dict[str, Path]:
     """forest.png (where the study has costs) and heatmap_<metric>.png per metric into ``out``;
-    returns {name: path}."""
+    returns {name: path}.
+
+    Args:
+        result: the study's numbers.
+        out: the study's folder.
+    """
     files = {}
     if result.differences:
         files["forest"] = out / "forest.png"
@@ -38,7 +43,12 @@ def forest_figure(result: MismatchResult, metrics: Sequence[Metric] = METRICS):
     simplification), and one per double difference where the study has them (labelled "double
     diff."): filled where resolved, hollow where the interval includes zero, grey crosses where a
     row failed.  The x axis is symmetric-log: costs to computed torque (micrometres) and to learned
-    agents (millimetres) share it."""
+    agents (millimetres) share it.
+
+    Args:
+        result: the study's numbers.
+        metrics: the metrics, whose titles and units the panels show.
+    """
     from matplotlib.ticker import FixedLocator, NullLocator
 
     from stewart_env.agents.evaluation import new_figure
@@ -94,7 +104,13 @@ def forest_figure(result: MismatchResult, metrics: Sequence[Metric] = METRICS):
 
 
 def heatmap(result: MismatchResult, metric: Metric, path: Path) -> None:
-    """Write :func:`heatmap_figure` of one metric to ``path`` (PNG)."""
+    """Write :func:`heatmap_figure` of one metric to ``path`` (PNG).
+
+    Args:
+        result: the study's numbers.
+        metric: the metric.
+        path: the PNG file.
+    """
     with publishing(path) as tmp:
         heatmap_figure(result, metric).savefig(tmp, dpi=110)
 
@@ -104,7 +120,12 @@ def heatmap_figure(result: MismatchResult, metric: Metric):
     cells (in the metric's display unit and format); a log colour scale when the values span more
     than two decades (model errors do).  Failed cells (success below
     :data:`~.constants.FAILURE_THRESHOLD`) are hatched grey and say so, outside the colour scale,
-    so that a controller that loses the platform is never coloured as the best."""
+    so that a controller that loses the platform is never coloured as the best.
+
+    Args:
+        result: the study's numbers.
+        metric: the metric.
+    """
     from matplotlib import colormaps
     from matplotlib.colors import LogNorm, Normalize
     from matplotlib.patches import Rectangle

@@ -8,8 +8,8 @@ from __future__ import annotations
 import os
 import tempfile
 import time
-from pathlib import Path
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import stewart_env as se
@@ -39,7 +39,12 @@ def on_threads(threads: int, job: Callable, *args):
 
 def train_job(training: dict[str, Any], timesteps: int) -> dict[str, bytes]:
     """Train one agent (``training``: the keywords of :func:`~stewart_env.agents.training.train`)
-    in a temporary folder of the worker and return its files' bytes."""
+    in a temporary folder of the worker and return its files' bytes.
+
+    Args:
+        training: the keywords of :func:`~stewart_env.agents.training.train` but ``out`` and ``timesteps``.
+        timesteps: the environment steps to train for.
+    """
     with tempfile.TemporaryDirectory(prefix="stewart-env-agent-") as tmp:
         folder = Path(tmp) / "agent"
         train(**training, out=folder, timesteps=timesteps)
@@ -47,7 +52,11 @@ def train_job(training: dict[str, Any], timesteps: int) -> dict[str, bytes]:
 
 
 def agent_files(folder: Path) -> dict[str, bytes]:
-    """The bytes of an agent's files in ``folder``, by name (what travels to and from workers)."""
+    """The bytes of an agent's files in ``folder``, by name (what travels to and from workers).
+
+    Args:
+        folder: the agent's folder.
+    """
     return {name: read_regular(folder / name, MAX_AGENT_FILE_BYTES) for name in AGENT_FILES
             if os.path.lexists(folder / name)}
 
@@ -67,7 +76,14 @@ def make_policy(kind: str, model: str, agent=None, platform: str | None = None):
     """A policy (or a factory env -> policy) for :func:`~stewart_env.agents.evaluation.evaluate`:
     the PD law with model ``model``'s holding forces, CT with internal model ``model``, or the
     trained ``agent`` (a folder, or its files' bytes).  PD and CT are built on ``platform`` (a
-    platform name or config path) when given, on the plant's nominal platform otherwise."""
+    platform name or config path) when given, on the plant's nominal platform otherwise.
+
+    Args:
+        kind: the controller's kind: ``"pd"``, ``"ct"`` or ``"agent"``.
+        model: the dynamics model the controller is built on.
+        agent: the trained agent: its folder or its files' bytes (``kind="agent"`` only).
+        platform: the platform PD and CT are built on (None: the plant's nominal platform).
+    """
     if kind == "agent":
         return _load_agent(agent)
     believed = None
@@ -88,7 +104,12 @@ def make_policy(kind: str, model: str, agent=None, platform: str | None = None):
 
 def evaluate_job(spec: dict[str, Any], agent=None) -> dict[str, Any]:
     """One evaluation: the controller of ``spec`` (a cell's spec) on its plant; every metric per
-    episode, the episodes' terminations, and the job's wall time (s, the policy's loading included)."""
+    episode, the episodes' terminations, and the job's wall time (s, the policy's loading included).
+
+    Args:
+        spec: the cell's spec (:func:`~.cells.cell_spec`).
+        agent: the trained agent of a learned row: its folder or its files' bytes.
+    """
     from stewart_env.agents.evaluation import METRICS, evaluate
 
     start = time.perf_counter()

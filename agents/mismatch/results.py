@@ -72,6 +72,7 @@ class Difference:
 
     @property
     def resolved(self) -> bool:
+        """Whether the difference's confidence interval excludes zero."""
         return self.interval.resolved
 
 
@@ -93,5 +94,9 @@ class MismatchResult:
     files: dict[str, Path] = field(default_factory=dict)
 
     def matrix(self, metric: str) -> np.ndarray:
-        """(rows, test models) array of one metric's point estimates."""
+        """(rows, test models) array of one metric's point estimates.
+
+        Args:
+            metric: the metric's name.
+        """
         return np.array([[self.summary[r.label][m][metric].estimate for m in self.test_models] for r in self.rows])

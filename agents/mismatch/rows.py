@@ -31,7 +31,19 @@ def build_rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequen
     """The study's controllers; learned rows (on ``agent_models``, default all ``models``) name
     their agent folders (trained or not yet).  Each of ``controller_platforms`` (name, platform)
     adds the rows of ``platform_models`` (those of ``agent_models`` for the learned rows) built on
-    it, labelled ``[model @ name]``."""
+    it, labelled ``[model @ name]``.
+
+    Args:
+        out: the study's folder, which holds the agents.
+        models: the models controllers are built on.
+        algo: the RL algorithm, or None for the model-based rows only.
+        seeds: the training seeds, one agent per seed and learned row.
+        domain_randomization: add agents trained on the improved model with domain randomisation.
+        platform: the study's platform (a name or config path).
+        agent_models: the models RL agents are trained on (None: all ``models``).
+        controller_platforms: further (name, platform) pairs controllers are built on.
+        platform_models: the models whose rows each controller platform adds.
+    """
     rows = _rows(out, models, algo, seeds, domain_randomization, platform, agent_models)
     for name, other in controller_platforms:
         learned = [m for m in platform_models if agent_models is None or m in agent_models]
@@ -69,7 +81,17 @@ def _rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequence[in
 
 def training_keywords(algo: str, row: Row, seed: int, env_kwargs: Mapping[str, Any], task: str,
                       n_envs: int | None, config: str | None = None) -> dict[str, Any]:
-    """The keywords of :func:`~stewart_env.agents.training.train` for one agent of a learned row."""
+    """The keywords of :func:`~stewart_env.agents.training.train` for one agent of a learned row.
+
+    Args:
+        algo: the RL algorithm.
+        row: the learned row.
+        seed: the agent's training seed.
+        env_kwargs: the study's further environment kwargs.
+        task: the task.
+        n_envs: platforms per training batch (None: the config's).
+        config: the zoo hyperparameter file (None: the algorithm's shipped one).
+    """
     rest = dict(env_kwargs)
     if row.platform is not None:  # trained on the platform the row is built on, e.g. an identified one
         rest["platform"] = row.platform
@@ -80,13 +102,25 @@ def training_keywords(algo: str, row: Row, seed: int, env_kwargs: Mapping[str, A
 
 
 def config_env_kwargs(algo: str, config: str | None = None) -> dict[str, Any]:
-    """The env kwargs the algorithm's config adds to every run (run.json records them)."""
+    """The env kwargs the algorithm's config adds to every run (run.json records them).
+
+    Args:
+        algo: the RL algorithm.
+        config: the zoo hyperparameter file (None: the algorithm's shipped one).
+    """
     return dict(parse_hyperparameters(algo, read_hyperparameters(algo, config)).env_kwargs)
 
 
 def finished_agent(directory: Path, algo: str, seed: int, env_kwargs: Mapping[str, Any]) -> bool:
     """Whether ``directory`` holds this agent, trained to the end; refuses one trained
-    differently (another algorithm, seed or environment) with a :class:`~.constants.MismatchError`."""
+    differently (another algorithm, seed or environment) with a :class:`~.constants.MismatchError`.
+
+    Args:
+        directory: the agent's folder.
+        algo: the RL algorithm.
+        seed: the agent's training seed.
+        env_kwargs: the environment kwargs it must have been trained with (run.json's form).
+    """
     if not (directory / MODEL_FILE).exists():
         return False
     manifest = read_manifest(directory)
@@ -102,7 +136,14 @@ def finished_agent(directory: Path, algo: str, seed: int, env_kwargs: Mapping[st
 def train_agent(directory: Path, training: Mapping[str, Any], timesteps: int, progress: bool = False) -> None:
     """Train one agent into ``directory`` (``training``: :func:`training_keywords`), continuing it
     from its newest checkpoint if a stopped study left one (given the row's settings,
-    :func:`~stewart_env.agents.training.train` refuses a run trained otherwise)."""
+    :func:`~stewart_env.agents.training.train` refuses a run trained otherwise).
+
+    Args:
+        directory: the agent's folder.
+        training: the keywords of :func:`training_keywords`.
+        timesteps: the environment steps to train for.
+        progress: show SB3's progress bar.
+    """
     resumable = None
     if (directory / MANIFEST).exists():
         resumable = newest_checkpoint(directory, training["algo"], bool(read_manifest(directory).get("normalize")))
@@ -115,7 +156,12 @@ def train_agent(directory: Path, training: Mapping[str, Any], timesteps: int, pr
 
 def publish_agent(directory: Path, files: Mapping[str, bytes]) -> None:
     """Write an agent's files, sent back by a worker, as ``directory`` in one rename (replacing an
-    unfinished local run of this agent)."""
+    unfinished local run of this agent).
+
+    Args:
+        directory: the agent's folder.
+        files: the agent's files' bytes, by name.
+    """
     with publishing_folder(directory) as tmp:
         for name, data in files.items():
             (tmp / name).write_bytes(data)

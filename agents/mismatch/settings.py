@@ -196,7 +196,12 @@ def _checked(constraint: Interval, name: str, value: Any) -> Any:
 
 
 def design_models(train_models: Sequence[str], simplifications: Sequence[str]) -> list[str]:
-    """The models controllers are built on: the training models, then improved+cK per simplification."""
+    """The models controllers are built on: the training models, then improved+cK per simplification.
+
+    Args:
+        train_models: the training models.
+        simplifications: the simplifications c1..c4 that get a row.
+    """
     return list(train_models) + [f"improved+{c}" for c in simplifications if f"improved+{c}" not in train_models]
 
 
@@ -273,7 +278,12 @@ def _refuse_platform(problem: str) -> MismatchError:
 
 
 def check_controller_platforms(items: Sequence[Any]) -> tuple[tuple[str, str], ...]:
-    """((name, platform), ...) of the controller platforms: each loads, each name once."""
+    """((name, platform), ...) of the controller platforms: each loads, each name once.
+
+    Args:
+        items: the controller platforms, each ``"NAME=PLATFORM"`` or ``"PLATFORM"`` (or a (name, platform)
+            pair).
+    """
     if isinstance(items, (str, bytes)):
         raise MismatchError(f"controller platforms: expected a list of platforms, got {items!r}",
                             argument="controller_platforms", problem=f"expected a list of platforms, got {items!r}")
@@ -308,12 +318,22 @@ def _file_hash(platform: str) -> str | None:
 
 
 def changes(old: Mapping[str, Any], new: Mapping[str, Any]) -> list[str]:
-    """``key: old -> new`` of every key whose value differs."""
+    """``key: old -> new`` of every key whose value differs.
+
+    Args:
+        old: the recorded settings.
+        new: the requested settings.
+    """
     return [f"{k}: {old.get(k)!r} -> {new.get(k)!r}" for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]
 
 
 def check_study(out: Path, settings: MismatchSettings) -> None:
-    """Refuse a directory holding a study of other settings; record the settings otherwise."""
+    """Refuse a directory holding a study of other settings; record the settings otherwise.
+
+    Args:
+        out: the study's folder.
+        settings: the requested settings.
+    """
     path = out / STUDY_FILE
     recorded = settings.recorded()
     if os.path.lexists(path):
@@ -327,7 +347,11 @@ def check_study(out: Path, settings: MismatchSettings) -> None:
 
 
 def check_own_agents(out: Path) -> None:
-    """Refuse agents shared with another study: DIR/agents as a symbolic link (or one below it)."""
+    """Refuse agents shared with another study: DIR/agents as a symbolic link (or one below it).
+
+    Args:
+        out: the study's folder.
+    """
     agents = out / AGENTS_DIR
     for path in [agents, *agents.glob("*"), *agents.glob("*/*")]:
         if path.is_symlink():

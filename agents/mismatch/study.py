@@ -68,6 +68,32 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     :class:`~stewart_env.agents.mismatch.settings.MismatchSettings`, which checks them all before
     any work starts; :func:`run_study` runs a study from such a record.
 
+    Args:
+        out: the study's folder (created; an earlier run of the same settings is continued).
+        train_models: models to build controllers on (PD's statics, CT's internal model, RL plants).
+        test_models: the plants every controller is evaluated on (the columns).
+        task: "setpoint", "tracking" or "disturbance".
+        algo: the RL algorithm ("ppo", "sac", "td3"), or None for the model-based rows only.
+        timesteps: environment steps per agent.
+        episodes: evaluation episodes per cell, the same seeds for every cell.
+        seeds: training seeds, one agent per seed and learned row.
+        domain_randomization: add agents trained on the improved model with domain randomisation.
+        simplifications: which of c1..c4 get an ``improved+cK`` row (() for none).
+        env_kwargs: further environment kwargs shared by training and test plants.
+        n_envs: platforms per training batch (None: the algorithm config's).
+        max_steps: evaluation episode length in control steps (None: the registered 500).
+        platform: a platform name or config path.
+        backend: "local" or "ray".
+        ray_address: an existing Ray cluster ("auto", "HOST:PORT"), with ``backend="ray"`` only.
+        agent_models: the models RL agents are trained on (None: every model controllers are built on).
+        config: the agents' zoo hyperparameter file (None: configs/agents/<algo>.yml).
+        position_tolerance: the position band of a success in the evaluation, m.
+        orientation_tolerance: the orientation band of a success in the evaluation, rad.
+        cost_plant: the test plant the simplifications' costs are measured on.
+        controller_platforms: further platforms controllers are built on, each ``"NAME=PLATFORM"`` or
+            ``"PLATFORM"``.
+        progress: show a progress bar.
+
     Raises:
         MismatchError: a bad argument, named (a :class:`~stewart_env.errors.UsageError`), or a
             folder holding a study of other settings.
@@ -88,7 +114,14 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
 def run_study(out: str | Path, settings: MismatchSettings, progress: bool = True,
               figures: bool = True) -> MismatchResult:
     """Run the study of ``settings`` in ``out``, reusing what an earlier run of it finished, and
-    write its report (:func:`write_outputs`; the figures only if ``figures``)."""
+    write its report (:func:`write_outputs`; the figures only if ``figures``).
+
+    Args:
+        out: the study's folder (created; an earlier run of the same settings is continued).
+        settings: the study's settings.
+        progress: show a progress bar.
+        figures: also draw the figures.
+    """
     out = Path(out)
     with lock_folder(out):  # one command at a time on a study, until this one ends
         check_own_agents(out)
@@ -110,7 +143,15 @@ def run_study(out: str | Path, settings: MismatchSettings, progress: bool = True
 def run_jobs(runner: LocalBackend | RayBackend, out: Path, rows: list[Row], settings: MismatchSettings,
              progress: bool) -> None:
     """Train the missing agents, then evaluate the missing cells, on ``runner``; each result is
-    stored as soon as it arrives, so a stopped study keeps what finished."""
+    stored as soon as it arrives, so a stopped study keeps what finished.
+
+    Args:
+        runner: the backend the jobs run on.
+        out: the study's folder.
+        rows: the study's controllers (:func:`~.rows.build_rows`).
+        settings: the study's settings.
+        progress: show a progress bar.
+    """
     algo, task, config, env_kwargs = settings.algo, settings.task, settings.config, settings.env_kwargs
     common = settings.evaluation()
     trainings = []
@@ -150,7 +191,7 @@ def run_jobs(runner: LocalBackend | RayBackend, out: Path, rows: list[Row], sett
             todo.append((path, spec, row, seed))
         agents = {}  # each agent read (and sent to the workers) once
         jobs = []
-        for path, spec, row, seed in todo:
+        for _path, spec, row, seed in todo:
             agent = None
             if seed is not None:
                 key = row.agents[seed]
@@ -171,7 +212,13 @@ def run_jobs(runner: LocalBackend | RayBackend, out: Path, rows: list[Row], sett
 
 def summarize(out: Path, rows: list[Row], settings: MismatchSettings) -> MismatchResult:
     """The study's numbers from its stored cells: every cell's intervals, the simplifications'
-    costs and the learned rows' estimates per seed, on the cost plant."""
+    costs and the learned rows' estimates per seed, on the cost plant.
+
+    Args:
+        out: the study's folder.
+        rows: the study's controllers (:func:`~.rows.build_rows`).
+        settings: the study's settings.
+    """
     # every cell read once: the summary, the costs, the per-seed values and the timing draw on it
     cells = {(r.label, m): stored_cells(out, r, m) for r in rows for m in settings.test_models}
     stored = {key: [cell["metrics"] for cell in found] for key, found in cells.items()}
@@ -200,7 +247,15 @@ def write_outputs(result: MismatchResult, out: Path, settings: MismatchSettings,
                   figures: bool = True) -> dict[str, Path]:
     """The report into ``out``: matrix.csv, differences.csv and matrix.md
     (:func:`~.tables.write_tables`), then, if ``figures``, forest.png and one heatmap PNG per
-    metric (:func:`~.figures.write_figures`); returns {name: path}."""
+    metric (:func:`~.figures.write_figures`); returns {name: path}.
+
+    Args:
+        result: the study's numbers (:func:`summarize`).
+        out: the study's folder.
+        settings: the study's settings.
+        wall_time: the study's wall time, s, which the report gives.
+        figures: also draw the figures.
+    """
     written = write_tables(result, out, settings, wall_time)
     if figures:
         from stewart_env.agents.mismatch.figures import write_figures

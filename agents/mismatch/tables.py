@@ -39,7 +39,13 @@ def _fmt(value: float, factor: float, spec: str) -> str:
 
 
 def format_interval(interval: Interval, factor: float, spec: str) -> str:
-    """``estimate [low, high]`` in display units; '-' where undefined."""
+    """``estimate [low, high]`` in display units; '-' where undefined.
+
+    Args:
+        interval: the point estimate and its interval, in the metric's unit.
+        factor: the display unit's factor (value times factor).
+        spec: the format spec of a number, e.g. ``".3g"``.
+    """
     if not np.isfinite(interval.estimate):
         return "-"
     return (f"{_fmt(interval.estimate, factor, spec)} [{_fmt(interval.low, factor, spec)}, "
@@ -217,7 +223,13 @@ def _scale_out_lines(result: MismatchResult) -> list[str]:
 
 
 def markdown(result: MismatchResult, settings: MismatchSettings, wall_time: float) -> str:
-    """matrix.md: the matrix of every metric with its intervals, the costs, the per-seed values."""
+    """matrix.md: the matrix of every metric with its intervals, the costs, the per-seed values.
+
+    Args:
+        result: the study's numbers.
+        settings: the study's settings.
+        wall_time: the study's wall time, s.
+    """
     seeds = settings.seeds
     lines = [f"# Model mismatch on the {settings.task} task, platform {settings.platform}", "",
              f"Rows: controllers and the dynamics model they were designed or trained on; columns: the plant "
@@ -247,7 +259,14 @@ def markdown(result: MismatchResult, settings: MismatchSettings, wall_time: floa
 
 
 def write_tables(result: MismatchResult, out: Path, settings: MismatchSettings, wall_time: float = 0.0) -> dict[str, Path]:
-    """matrix.csv, differences.csv and matrix.md into ``out`` (no figure); returns {name: path}."""
+    """matrix.csv, differences.csv and matrix.md into ``out`` (no figure); returns {name: path}.
+
+    Args:
+        result: the study's numbers.
+        out: the study's folder.
+        settings: the study's settings.
+        wall_time: the study's wall time, s.
+    """
     files = {"csv": out / "matrix.csv", "markdown": out / "matrix.md", "differences": out / "differences.csv"}
     with publishing(files["csv"]) as tmp, tmp.open("w", newline="") as f:
         writer = csv.writer(f)

@@ -30,7 +30,12 @@ class JobTimes:
 
 def makespan(times: Sequence[float], slots: int) -> float:
     """The wall time of ``times``' jobs on ``slots`` workers, each job given to the worker free
-    first, longest job first (a list schedule within 4/3 of the shortest possible)."""
+    first, longest job first (a list schedule within 4/3 of the shortest possible).
+
+    Args:
+        times: the jobs' durations, s.
+        slots: the number of workers.
+    """
     if slots < 1:
         raise ValueError(f"slots: expected at least 1, got {slots}")
     finish = [0.0] * min(slots, len(times))
@@ -45,7 +50,13 @@ def scale_out(times: JobTimes, cpus_per_machine: int, machines: Sequence[int] = 
     """For each count N of ``machines`` of ``cpus_per_machine`` CPUs: the study's training and
     evaluation makespans (s) with every job on :data:`CPUS_PER_JOB` CPUs, trainings first (the
     evaluations need the agents), as the study runs them; evaluation None unless every cell was
-    timed."""
+    timed.
+
+    Args:
+        times: the study's measured job times.
+        cpus_per_machine: the CPUs of one machine.
+        machines: the machine counts N to compute.
+    """
     rows = []
     for n in machines:
         slots = max(1, (n * cpus_per_machine) // CPUS_PER_JOB)
@@ -56,7 +67,11 @@ def scale_out(times: JobTimes, cpus_per_machine: int, machines: Sequence[int] = 
 
 
 def describe(times: Sequence[float]) -> str:
-    """'median a (b to c), d in all' of a list of job times, each a :func:`duration`."""
+    """'median a (b to c), d in all' of a list of job times, each a :func:`duration`.
+
+    Args:
+        times: the job times, s.
+    """
     if not len(times):
         return "none"
     t = np.asarray(times, dtype=float)
@@ -64,7 +79,11 @@ def describe(times: Sequence[float]) -> str:
 
 
 def duration(seconds: float | None) -> str:
-    """A duration for the table: s below two minutes, min below two hours, h above."""
+    """A duration for the table: s below two minutes, min below two hours, h above.
+
+    Args:
+        seconds: the duration, s (None or not finite: ``-``).
+    """
     if seconds is None or not math.isfinite(seconds):
         return "-"
     if seconds < 120:

@@ -65,7 +65,11 @@ class TrainedAgent:
         return f"{ALGORITHM_NAMES[self.algo]} ({self.env_kwargs.get('model')})"
 
     def normalize(self, observation) -> np.ndarray:
-        """Raw observations -> the normalised observations the network was trained on (float32)."""
+        """Raw observations -> the normalised observations the network was trained on (float32).
+
+        Args:
+            observation: raw observations (obs_dim,) or (N, obs_dim).
+        """
         obs = np.asarray(observation, dtype=np.float32)
         if self._normalizer is None:
             return obs
@@ -73,13 +77,24 @@ class TrainedAgent:
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
         """SB3's interface on raw observations: (action (6,) or (N,6) in [-1, 1], None).  The
-        network runs on one torch thread; the caller's thread count is restored after."""
+        network runs on one torch thread; the caller's thread count is restored after.
+
+        Args:
+            observation: one raw observation (obs_dim,) or a batch (N, obs_dim).
+            state: SB3's recurrent state, passed to the model.
+            episode_start: SB3's episode starts, passed to the model.
+            deterministic: the mean action rather than a sample.
+        """
         with single_thread():
             return self.model.predict(self.normalize(observation), state=state, episode_start=episode_start,
                                       deterministic=deterministic)
 
     def make_env(self, **overrides: Any):
-        """``gymnasium.make("StewartPlatform-v1")`` with the training kwargs and ``overrides``."""
+        """``gymnasium.make("StewartPlatform-v1")`` with the training kwargs and ``overrides``.
+
+        Args:
+            **overrides: environment kwargs that replace the training ones.
+        """
         import gymnasium
 
         import stewart_env  # noqa: F401  (registers the environment)
@@ -94,7 +109,12 @@ def load_agent(directory: str | os.PathLike, checkpoint: int | None = None) -> T
     The model zip and the statistics are pickles: their sha256 is checked against run.json (or
     the checkpoint's manifest) before they are unpickled, and a file that does not match is
     refused with TrainingError.  This detects changed and damaged files, not a forged directory:
-    load only run directories you trust."""
+    load only run directories you trust.
+
+    Args:
+        directory: the run directory of ``stewart-env train``.
+        checkpoint: the step count of a kept checkpoint (default the final model).
+    """
     path = Path(directory)
     manifest = read_manifest(path)
     cls = algorithm_class(manifest["algo"])

@@ -22,7 +22,11 @@ def _refuse(problem: str) -> TrainingError:
 
 def parse_env_kwargs(items: Sequence[str] | None) -> dict[str, Any]:
     """``--env-kwargs`` values: one JSON object, or ``key=value`` tokens whose values are JSON
-    (numbers, true/false, lists, objects) or else plain strings."""
+    (numbers, true/false, lists, objects) or else plain strings.
+
+    Args:
+        items: the ``--env-kwargs`` values (None: none).
+    """
     out: dict[str, Any] = {}
     for item in items or ():
         text = item.strip()
@@ -46,7 +50,11 @@ def parse_env_kwargs(items: Sequence[str] | None) -> dict[str, Any]:
 
 
 def jsonable(value: Any) -> Any:
-    """``value`` with tuples and numpy values made JSON-friendly (for run.json)."""
+    """``value`` with tuples and numpy values made JSON-friendly (for run.json).
+
+    Args:
+        value: the value.
+    """
     if isinstance(value, dict):
         return {str(k): jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):

@@ -40,7 +40,16 @@ def make_training_env(n_envs: int, env_kwargs: Mapping[str, Any], seed: int, nor
     """The training VecEnv: ``n_envs`` platforms in one native batch, VecMonitor (episode
     statistics, ``monitor_path`` CSV) and, if ``normalize`` is not None, VecNormalize with those
     kwargs, or the saved VecNormalize ``statistics`` put on this batch (resuming).  Rows are
-    seeded seed, seed + 1, ...; ValueError from the environment for bad kwargs."""
+    seeded seed, seed + 1, ...; ValueError from the environment for bad kwargs.
+
+    Args:
+        n_envs: the number of platforms in the batch.
+        env_kwargs: the environment kwargs.
+        seed: the seed of the first row.
+        normalize: VecNormalize's kwargs, or None for no normalisation.
+        monitor_path: the CSV file of VecMonitor (None: none).
+        statistics: saved VecNormalize statistics to put on the batch (resuming), or None.
+    """
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
     from stewart_env.envs import StewartPlatformSB3VecEnv

@@ -19,11 +19,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from stewart_env.agents.training.errors import TrainingError, check_rl_installed
-from stewart_env.files import DocumentError, load_yaml, read_regular
 from stewart_env.errors import UsageError
+from stewart_env.files import DocumentError, load_yaml, read_regular
 from stewart_env.params import MAX_CONFIG_BYTES, config_dir
 from stewart_env.params.checks import excerpt
 from stewart_env.params.shipped import is_shipped_name
@@ -62,7 +61,11 @@ MAX_COUNT = 2**62
 
 
 def algorithm_class(algo: str):
-    """The stable-baselines3 class of ``algo`` (one of :data:`ALGORITHMS`)."""
+    """The stable-baselines3 class of ``algo`` (one of :data:`ALGORITHMS`).
+
+    Args:
+        algo: the algorithm's name, one of :data:`ALGORITHMS`.
+    """
     if algo not in ALGORITHMS:
         raise TrainingError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGORITHMS)}")
     check_rl_installed()
@@ -83,7 +86,12 @@ def config_path(algo: str, config: str | os.PathLike | None = None) -> Path:
     ``config`` is a shipped config's name (``ppo_6m``: no path separator and no YAML suffix,
     whatever the working directory holds, the rule of platforms), or a file's path; a name with
     the suffix (``ppo_6m.yml``) is the file of that name in the working directory if there is one,
-    else the shipped config."""
+    else the shipped config.
+
+    Args:
+        algo: the algorithm's name, one of :data:`ALGORITHMS`.
+        config: a shipped config's name or a file's path (default configs/agents/<algo>.yml).
+    """
     if config is None:
         return CONFIG_DIR / f"{algo}.yml"
     path = Path(config)
@@ -104,7 +112,13 @@ def config_path(algo: str, config: str | os.PathLike | None = None) -> Path:
 
 
 def read_hyperparameters(algo: str, config: str | os.PathLike | None = None, env_id: str = ENV_ID) -> dict[str, Any]:
-    """The raw zoo entry for ``env_id`` in the hyperparameter file of ``algo`` (a copy)."""
+    """The raw zoo entry for ``env_id`` in the hyperparameter file of ``algo`` (a copy).
+
+    Args:
+        algo: the algorithm's name, one of :data:`ALGORITHMS`.
+        config: the hyperparameter file, as :func:`config_path` reads it.
+        env_id: the environment whose entry is read.
+    """
     path = config_path(algo, config)
     try:
         entries = load_yaml(read_regular(path, MAX_CONFIG_BYTES, "config file"))
@@ -166,7 +180,12 @@ def _zoo_value(node: ast.AST, key: str, text: str) -> Any:
 def zoo_eval(text: str, key: str) -> Any:
     """Read a zoo hyperparameter string (e.g. ``policy_kwargs: "dict(net_arch=[64, 64])"``) as
     data: the subset of Python that rl-zoo configs use (see :func:`_zoo_value`), parsed, never
-    evaluated, so that a config from a stranger cannot run code."""
+    evaluated, so that a config from a stranger cannot run code.
+
+    Args:
+        text: the string's text.
+        key: the hyperparameter's name, which the error names.
+    """
     try:
         tree = ast.parse(text.strip(), mode="eval")
         return _zoo_value(tree.body, key, text)
@@ -210,7 +229,12 @@ class Hyperparameters:
 
 
 def check_hyperparameter_names(algo: str, entry: Mapping[str, Any]) -> None:
-    """Refuse keys that are neither zoo keys nor constructor arguments of the algorithm."""
+    """Refuse keys that are neither zoo keys nor constructor arguments of the algorithm.
+
+    Args:
+        algo: the algorithm's name, one of :data:`ALGORITHMS`.
+        entry: the zoo entry.
+    """
     cls = algorithm_class(algo)
     valid = set(inspect.signature(cls.__init__).parameters) - {"self", "env"}
     zoo = set(ZOO_KEYS_HANDLED) | set(ZOO_KEYS_ZOO_ONLY)
@@ -221,7 +245,12 @@ def check_hyperparameter_names(algo: str, entry: Mapping[str, Any]) -> None:
 
 
 def parse_hyperparameters(algo: str, entry: Mapping[str, Any]) -> Hyperparameters:
-    """Turn a zoo entry into SB3 arguments, as rl_zoo3's ExperimentManager does."""
+    """Turn a zoo entry into SB3 arguments, as rl_zoo3's ExperimentManager does.
+
+    Args:
+        algo: the algorithm's name, one of :data:`ALGORITHMS`.
+        entry: the zoo entry (of :func:`read_hyperparameters`).
+    """
     check_hyperparameter_names(algo, entry)
     zoo_only = [k for k in ZOO_KEYS_ZOO_ONLY if k in entry]
     if zoo_only:
@@ -270,7 +299,14 @@ def parse_hyperparameters(algo: str, entry: Mapping[str, Any]) -> Hyperparameter
 
 
 def check_count(name: str, value: Any, minimum: int, maximum: int = MAX_COUNT) -> None:
-    """A count of steps, platforms or checkpoints, through the package's one integer check."""
+    """A count of steps, platforms or checkpoints, through the package's one integer check.
+
+    Args:
+        name: the argument's name, which the error gives.
+        value: the count.
+        minimum: the smallest count accepted.
+        maximum: the largest.
+    """
     try:
         integer(name, value, minimum, maximum)
     except UsageError as err:

@@ -87,7 +87,12 @@ PAUSE_IN_CHECKPOINT_ENV = "STEWART_ENV_TEST_CHECKPOINT_PAUSE"
 
 def agent_file_writers(model, replay_buffer: bool) -> dict[str, Callable[[Path], None]]:
     """{file name: a function writing it to a path} for ``model``, its VecNormalize statistics
-    and (``replay_buffer``) its replay buffer."""
+    and (``replay_buffer``) its replay buffer.
+
+    Args:
+        model: the SB3 model.
+        replay_buffer: also the replay buffer (off-policy algorithms).
+    """
     writers = {MODEL_FILE: model.save}
     vn = model.get_vec_normalize_env()
     if vn is not None:
@@ -99,7 +104,14 @@ def agent_file_writers(model, replay_buffer: bool) -> dict[str, Callable[[Path],
 
 def verified_bytes(folder: Path, hashes: Mapping[str, str], name: str, what: str) -> bytes:
     """The bytes of ``folder/name`` if their sha256 is ``hashes[name]``; TrainingError otherwise.
-    Reading once and unpickling these bytes leaves no gap between the check and the load."""
+    Reading once and unpickling these bytes leaves no gap between the check and the load.
+
+    Args:
+        folder: the folder of the file.
+        hashes: the expected sha256 of each file name.
+        name: the file's name.
+        what: the manifest the hashes come from, named in the error.
+    """
     path = folder / name
     if name not in hashes:
         raise TrainingError(f"{path}: not listed in {what}; refusing to load an unrecorded file")
@@ -113,6 +125,11 @@ def verified_bytes(folder: Path, hashes: Mapping[str, str], name: str, what: str
 
 
 def unpickle_statistics(data: bytes):
+    """The VecNormalize statistics pickled in ``data``; TrainingError if they are something else.
+
+    Args:
+        data: the bytes of vecnormalize.pkl, their hash already checked (:func:`verified_bytes`).
+    """
     normalizer = pickle.loads(data)  # SB3's VecNormalize.save format; the bytes' hash was checked
     from stable_baselines3.common.vec_env import VecNormalize
 
@@ -122,7 +139,11 @@ def unpickle_statistics(data: bytes):
 
 
 def read_manifest(directory: str | os.PathLike) -> dict[str, Any]:
-    """DIR/run.json as a dict; TrainingError if missing or unreadable."""
+    """DIR/run.json as a dict; TrainingError if missing or unreadable.
+
+    Args:
+        directory: the run directory.
+    """
     path = Path(directory) / MANIFEST
     if not os.path.lexists(path):
         raise TrainingError(f"{directory}: no {MANIFEST}; not a directory written by `stewart-env train`")
@@ -137,6 +158,7 @@ def read_manifest(directory: str | os.PathLike) -> dict[str, Any]:
 
 
 def versions() -> dict[str, str]:
+    """The versions of the package and of the libraries a run depends on, for run.json."""
     import gymnasium
     import stable_baselines3
     import torch
@@ -154,7 +176,21 @@ def run_manifest(*, algo: str, seed: int, n_envs: int, env_kwargs: Mapping[str, 
     """A run's manifest (DIR/run.json) as :func:`read_manifest` reads it: what was trained, on
     what (``env_kwargs`` holds the model and the task), with what, how far (``segments``: one
     {start, end, wall_time, interrupted} per training segment), and the sha256 of each of the
-    agent's ``files``."""
+    agent's ``files``.
+
+    Args:
+        algo: the algorithm's name.
+        seed: the run's seed.
+        n_envs: the number of platforms in the batch.
+        env_kwargs: the environment kwargs.
+        config: the hyperparameter file's path.
+        hyperparameters: the zoo entry trained with.
+        normalize: whether observations and rewards are normalised (VecNormalize).
+        num_timesteps: the environment steps done.
+        segments: the training segments.
+        finished: whether the run is finished.
+        files: the sha256 of each of the agent's files.
+    """
     return {"env_id": ENV_ID, "algo": algo, "model": env_kwargs["model"], "task": env_kwargs["task"], "seed": seed,
             "n_envs": int(n_envs), "env_kwargs": dict(env_kwargs), "config": config,
             "hyperparameters": dict(hyperparameters), "normalize": bool(normalize), "versions": versions(),
@@ -165,14 +201,24 @@ def run_manifest(*, algo: str, seed: int, n_envs: int, env_kwargs: Mapping[str, 
 def save_agent(model, directory: Path, manifest: Mapping[str, Any]) -> None:
     """Write ``model`` as a finished run of :func:`~stewart_env.agents.training.train` into
     ``directory`` (created): its final files (:func:`publish_final`), then ``manifest`` with
-    their hashes, written last, so that ``evaluate --agent DIR`` loads it."""
+    their hashes, written last, so that ``evaluate --agent DIR`` loads it.
+
+    Args:
+        model: the SB3 model.
+        directory: the run directory.
+        manifest: the run's manifest, without the hashes.
+    """
     directory.mkdir(parents=True, exist_ok=True)
     files = publish_final(model, directory)
     publish(directory / MANIFEST, json.dumps({**manifest, "files": files}, indent=2) + "\n")
 
 
 def step_dirs(directory: Path) -> list[tuple[int, Path]]:
-    """The published checkpoint directories, newest first."""
+    """The published checkpoint directories, newest first.
+
+    Args:
+        directory: the run directory.
+    """
     root = directory / CHECKPOINT_DIR
     found = [(int(m.group(1)), root / name) for name in (os.listdir(root) if root.is_dir() else ())
              if (m := _STEP_DIR_RE.match(name))]
@@ -185,7 +231,14 @@ def _required_files(algo: str, normalize: bool) -> list[str]:
 
 def checkpoint_problem(folder: Path, steps: int, algo: str, normalize: bool) -> str | None:
     """Why the checkpoint in ``folder`` cannot be resumed from (None if it is complete: manifest
-    present, its step count and algorithm, every file the run needs, every hash matching)."""
+    present, its step count and algorithm, every file the run needs, every hash matching).
+
+    Args:
+        folder: the checkpoint's folder.
+        steps: the step count its name gives.
+        algo: the algorithm's name.
+        normalize: whether the run normalises (its checkpoints hold VecNormalize statistics).
+    """
     if not os.path.lexists(folder / CHECKPOINT_MANIFEST):
         return f"no {CHECKPOINT_MANIFEST}"
     try:
@@ -213,7 +266,11 @@ def checkpoint_problem(folder: Path, steps: int, algo: str, normalize: bool) -> 
 
 def checkpoint_hashes(folder: Path) -> tuple[dict[str, str], str]:
     """The {file name: sha256} of a checkpoint that :func:`checkpoint_problem` passed, and its
-    manifest's name for error messages."""
+    manifest's name for error messages.
+
+    Args:
+        folder: the checkpoint's folder.
+    """
     return (read_json(folder / CHECKPOINT_MANIFEST, MAX_MANIFEST_BYTES, "checkpoint manifest")["files"],
             f"{CHECKPOINT_DIR}/{folder.name}/{CHECKPOINT_MANIFEST}")
 
@@ -222,7 +279,14 @@ def newest_checkpoint(directory: str | os.PathLike, algo: str, normalize: bool,
                       report: Callable[[str], None] = lambda message: None) -> tuple[int, Path] | None:
     """The step count and folder of the newest complete checkpoint in DIR/checkpoints (None if
     there is none).  Unfinished writes (``.tmp-*``) and incomplete or corrupt checkpoints are
-    passed over, each with a line to ``report``."""
+    passed over, each with a line to ``report``.
+
+    Args:
+        directory: the run directory.
+        algo: the algorithm's name.
+        normalize: whether the run normalises.
+        report: where the line of each checkpoint passed over goes.
+    """
     root = Path(directory) / CHECKPOINT_DIR
     for name in sorted(os.listdir(root) if root.is_dir() else ()):
         if name.startswith(TMP_PREFIX):
@@ -250,6 +314,12 @@ def save_checkpoint(model, directory: Path, algo: str, keep: int = DEFAULT_KEEP_
     Raises:
         WriteError: naming the checkpoint, if it cannot be written (a full disk): the temporary
             folder is removed, the complete checkpoints are kept.
+
+    Args:
+        model: the SB3 model.
+        directory: the run directory.
+        algo: the algorithm's name.
+        keep: how many of the newest checkpoints to keep.
     """
     steps = int(model.num_timesteps)
     root = directory / CHECKPOINT_DIR
@@ -269,7 +339,12 @@ def save_checkpoint(model, directory: Path, algo: str, keep: int = DEFAULT_KEEP_
 
 def publish_final(model, directory: Path) -> dict[str, str]:
     """Write DIR/model.zip and DIR/vecnormalize.pkl, each under a temporary name renamed over the
-    previous one; returns their hashes for run.json (which, written last, makes them a set)."""
+    previous one; returns their hashes for run.json (which, written last, makes them a set).
+
+    Args:
+        model: the SB3 model.
+        directory: the run directory.
+    """
     files = {}
     for name, write in agent_file_writers(model, replay_buffer=False).items():
         with publishing(directory / name) as tmp:
@@ -279,7 +354,13 @@ def publish_final(model, directory: Path) -> dict[str, str]:
 
 
 def log_progress(directory: Path, num_timesteps: int, wall_time: float) -> None:
-    """Append a checkpoint's steps and training wall time (s) to DIR/checkpoints/progress.csv."""
+    """Append a checkpoint's steps and training wall time (s) to DIR/checkpoints/progress.csv.
+
+    Args:
+        directory: the run directory.
+        num_timesteps: the checkpoint's environment steps.
+        wall_time: the run's training wall time, s.
+    """
     log = directory / CHECKPOINT_DIR / "progress.csv"
     header = "" if log.exists() else "num_timesteps,wall_time_s\n"
     try:
@@ -311,7 +392,11 @@ def holds_no_run(directory: Path) -> bool:
 
 def remove_start_up_files(directory: Path) -> None:
     """Remove the :data:`START_UP_FILES` of an interrupted start from a folder that
-    :func:`holds_no_run`; only under the run's lock, before a new run starts in it."""
+    :func:`holds_no_run`; only under the run's lock, before a new run starts in it.
+
+    Args:
+        directory: the run directory.
+    """
     if not holds_no_run(directory) or not directory.is_dir():
         return
     for name in START_UP_FILES:
@@ -324,7 +409,12 @@ def remove_start_up_files(directory: Path) -> None:
 
 def check_fresh_directory(directory: Path, algo: str) -> None:
     """Refuse to start a run in a directory that holds anything but a run of ``algo`` that saved
-    nothing yet (a start that failed before its first checkpoint)."""
+    nothing yet (a start that failed before its first checkpoint).
+
+    Args:
+        directory: the run directory.
+        algo: the algorithm's name.
+    """
     # the lock file, the temporary files of a start killed in its first write and the files of a
     # start interrupted before its manifest are no run
     if holds_no_run(directory):
@@ -343,7 +433,11 @@ def check_fresh_directory(directory: Path, algo: str) -> None:
 
 def remove_unfinished_writes(directory: Path) -> None:
     """Remove the temporary files and folders of writes that did not finish (a killed run's), in
-    the run directory and its checkpoints; only under the run's lock, when no one else writes."""
+    the run directory and its checkpoints; only under the run's lock, when no one else writes.
+
+    Args:
+        directory: the run directory.
+    """
     for folder in (directory, directory / CHECKPOINT_DIR):
         for name in os.listdir(folder) if folder.is_dir() else ():
             if name.startswith(TMP_PREFIX):

@@ -22,7 +22,11 @@ class StopRequest:
 def stop_on_signals(stop: StopRequest) -> Iterator[None]:
     """Inside the block, SIGINT and SIGTERM set ``stop.signum`` (training then stops at the next
     step and saves a checkpoint); a second signal exits at once with 128 + its number.  Only the
-    main thread can own signal handlers: elsewhere the block changes nothing."""
+    main thread can own signal handlers: elsewhere the block changes nothing.
+
+    Args:
+        stop: the request the handler sets ``signum`` of.
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return

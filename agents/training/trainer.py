@@ -24,7 +24,6 @@ from pathlib import Path
 from typing import Any
 
 from stewart_env import validation
-from stewart_env.errors import UsageError
 from stewart_env.agents.training.env_kwargs import jsonable
 from stewart_env.agents.training.environment import make_training_env, progress_bar_available, single_thread
 from stewart_env.agents.training.errors import TrainingError, TrainingInterrupted
@@ -60,6 +59,7 @@ from stewart_env.agents.training.rundir import (
     verified_bytes,
 )
 from stewart_env.agents.training.signals import StopRequest, stop_on_signals
+from stewart_env.errors import UsageError
 from stewart_env.files import WriteError, check_not_busy, lock_folder, publish, write_error
 
 __all__ = ["TrainResult", "checkpoint_callback", "rollout_steps", "run_changes", "train"]
@@ -70,7 +70,16 @@ def checkpoint_callback(directory: Path, algo: str, freq: int, keep: int, wall_o
     :func:`save_checkpoint` at the first rollout end ``freq`` environment steps after the last
     checkpoint (0: never), logging each checkpoint's step count and training wall time (s,
     ``wall_offset`` plus the time since this call started) to DIR/checkpoints/progress.csv, so
-    that a point of the learning curve can be matched to its budget."""
+    that a point of the learning curve can be matched to its budget.
+
+    Args:
+        directory: the run directory.
+        algo: the algorithm's name, one of :data:`ALGORITHMS`.
+        freq: environment steps between checkpoints (0: none).
+        keep: how many of the newest checkpoints to keep.
+        wall_offset: the training wall time of earlier segments of the run, s.
+        stop: the signal request that stops training.
+    """
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Checkpoints(BaseCallback):
@@ -110,7 +119,12 @@ class TrainResult:
 
 def rollout_steps(agent, algo: str) -> int:
     """Environment steps SB3 collects between two checks of its budget: n_steps x n_envs
-    on-policy, train_freq x n_envs off-policy (n_envs for a train_freq counted in episodes)."""
+    on-policy, train_freq x n_envs off-policy (n_envs for a train_freq counted in episodes).
+
+    Args:
+        agent: the SB3 model.
+        algo: the algorithm's name, one of :data:`ALGORITHMS`.
+    """
     if algo not in OFF_POLICY:
         return int(agent.n_steps * agent.n_envs)
     freq = agent.train_freq
@@ -129,7 +143,15 @@ def run_changes(manifest: Mapping[str, Any], entry: Mapping[str, Any], env_kwarg
     """What differs, key by key ("key: old -> new"), between the run in ``manifest`` and a
     request to continue it with the zoo ``entry``, ``env_kwargs``, ``seed`` and ``n_envs``
     (None: the run's).  The budget ``n_timesteps`` may differ: ``--timesteps`` sets the steps
-    added."""
+    added.
+
+    Args:
+        manifest: the run's run.json.
+        entry: the zoo entry of the request.
+        env_kwargs: the environment kwargs of the request.
+        seed: the seed of the request (None: the run's).
+        n_envs: the number of platforms of the request (None: the run's).
+    """
     changes = []
     for what, old, new in (("hyperparameter", manifest.get("hyperparameters", {}), jsonable(dict(entry))),
                            ("environment kwarg", manifest.get("env_kwargs", {}), jsonable(dict(env_kwargs)))):
@@ -160,7 +182,8 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
         out: the run directory (created; see the module docstring for its contents).  A new run
             refuses a directory that holds anything else than a run of ``algo`` with nothing
             saved yet.
-        model, task: the plant's dynamics model and the task (default improved, setpoint).
+        model: the plant's dynamics model (default improved).
+        task: the task (default setpoint).
         timesteps: environment steps of this call, at least (default the config's n_timesteps):
             SB3 collects whole rollouts, so it runs ``timesteps`` rounded up to a multiple of
             :func:`rollout_steps`.  With ``resume`` they are added to the steps already done.
@@ -178,6 +201,7 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
             None is the run's; one given must equal the run's (the config's n_timesteps
             excepted), else TrainingError lists each difference.
         progress_bar: SB3's progress bar, when stderr is a terminal and tqdm and rich are installed.
+        verbose: SB3's verbosity (0: silent).
         report: where resume messages (the checkpoint taken, those skipped) go; default stderr.
 
     Every check (installation, algorithm, config file and entry, hyperparameter names, output

@@ -66,7 +66,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``stewart-env`` with ``argv`` (default the process's arguments); the exit status."""
+    """Run ``stewart-env`` with ``argv`` (default the process's arguments); the exit status.
+
+    Args:
+        argv: the command line without the program's name (default ``sys.argv[1:]``).
+    """
     parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv:  # no command: what there is to run, not argparse's complaint that a command is missing

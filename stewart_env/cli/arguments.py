@@ -12,12 +12,12 @@ import argparse
 import math
 import numbers
 from collections.abc import Callable, Sequence
-from typing import Any
 from pathlib import Path
+from typing import Any
 
 from stewart_env.agents.mismatch.constants import MAX_STEPS as MAX_EPISODE_STEPS
-from stewart_env.tasks import TASKS as _TASK_CLASSES
 from stewart_env.errors import UsageError
+from stewart_env.tasks import TASKS as _TASK_CLASSES
 from stewart_env.validation import MAX_SEED, Constraint, Interval, StrOptions, quoted
 
 #: The task names the command line offers: those of the task registry.
@@ -30,7 +30,14 @@ MAX_COUNT = 2**63 - 1
 
 def checked(cast: Callable[[str], float], ok: Callable[[float], bool], expected: str, doc: str):
     """An argparse type: ``cast(text)`` if it converts and passes ``ok``, else an error saying
-    what was expected."""
+    what was expected.
+
+    Args:
+        cast: converts the text to a value (raising ValueError or OverflowError if it cannot).
+        ok: whether a converted value is accepted.
+        expected: what the error says was expected, e.g. ``"a positive integer"``.
+        doc: the docstring of the type (argparse's help shows nothing of it; the API pages do).
+    """
 
     def parse(text: str):
         try:
@@ -47,7 +54,12 @@ def checked(cast: Callable[[str], float], ok: Callable[[float], bool], expected:
 
 def constrained(constraint: Constraint, doc: str | None = None):
     """The argparse type of a declarative constraint: its value, or argparse's error in the
-    constraint's words."""
+    constraint's words.
+
+    Args:
+        constraint: the declarative constraint (:mod:`stewart_env.validation`).
+        doc: the type's docstring (default one saying what the constraint accepts).
+    """
 
     def parse(text: str):
         try:
@@ -60,13 +72,28 @@ def constrained(constraint: Constraint, doc: str | None = None):
 
 
 def integer(low: int, high: int, expected: str | None = None, doc: str | None = None):
-    """An argparse type: an integer in [low, high] (``expected``: how the error says it)."""
+    """An argparse type: an integer in [low, high] (``expected``: how the error says it).
+
+    Args:
+        low: the smallest integer accepted.
+        high: the largest integer accepted.
+        expected: how the error says what is accepted (default in the bounds' own words).
+        doc: the type's docstring.
+    """
     return constrained(Interval(numbers.Integral, low, high, expected=expected), doc)
 
 
 def real(low: float, high: float = math.inf, *, low_open: bool = False, expected: str | None = None,
          doc: str | None = None):
-    """An argparse type: a finite number in [low, high] ((low, high] with ``low_open``)."""
+    """An argparse type: a finite number in [low, high] ((low, high] with ``low_open``).
+
+    Args:
+        low: the lower bound.
+        high: the upper bound (default none).
+        low_open: exclude ``low``.
+        expected: how the error says what is accepted (default in the bounds' own words).
+        doc: the type's docstring.
+    """
     return constrained(Interval(numbers.Real, low, high, low_open=low_open, expected=expected), doc)
 
 
@@ -85,9 +112,13 @@ episode_steps = integer(1, MAX_EPISODE_STEPS, doc="argparse type of --max-steps:
 
 
 def platform_count(text: str) -> int:
-    """argparse type: a number of platforms simulated in one batch (--n-envs, --episodes): an
+    """Argparse type: a number of platforms simulated in one batch (--n-envs, --episodes): an
     integer in [1, 2**31 - 1] whose batch fits in the memory this machine has available
-    (:func:`stewart_env.envs.vector.check_batch_memory`)."""
+    (:func:`stewart_env.envs.vector.check_batch_memory`).
+
+    Args:
+        text: the command-line text.
+    """
     from stewart_env.envs.vector import MAX_NUM_ENVS, check_batch_memory
 
     count = integer(1, MAX_NUM_ENVS, f"a positive integer up to {MAX_NUM_ENVS}")(text)
@@ -101,7 +132,13 @@ def platform_count(text: str) -> int:
 def distinct_list(item: Callable[[str], Any], example: str, expected: str | None = None):
     """An argparse type: comma-separated values, each checked by the argparse type ``item``, at
     least one, none twice (``example``: a valid value the error shows; ``expected``: if given,
-    the one thing every error says was expected, instead of what is wrong with the list)."""
+    the one thing every error says was expected, instead of what is wrong with the list).
+
+    Args:
+        item: the argparse type of one value.
+        example: a valid value the error shows.
+        expected: if given, the one thing every error says was expected.
+    """
 
     def parse(text: str) -> list:
         def refuse(problem: str) -> argparse.ArgumentTypeError:
@@ -129,12 +166,20 @@ seed_list = distinct_list(seed, "0,1,2", f"comma-separated distinct integers in 
 
 def choice(names: Sequence[str]):
     """An argparse type: one of ``names`` (for a value inside a list; a flag of its own uses
-    argparse's ``choices``)."""
+    argparse's ``choices``).
+
+    Args:
+        names: the accepted names, in the order the error lists them.
+    """
     return constrained(StrOptions(names), doc=f"argparse type: one of {', '.join(names)}.")
 
 
 def writable_file(text: str) -> str:
-    """argparse type: the path of a file to write: not a directory, in a folder that exists."""
+    """Argparse type: the path of a file to write: not a directory, in a folder that exists.
+
+    Args:
+        text: the command-line text.
+    """
     path = Path(text)
     if not text.strip():
         raise argparse.ArgumentTypeError("expected a file name, got ''")
@@ -146,15 +191,23 @@ def writable_file(text: str) -> str:
 
 
 def directory_name(text: str) -> str:
-    """argparse type of --out: a non-blank path (whether it can be written is checked before any
-    work, :func:`stewart_env.cli.common.check_out`)."""
+    """Argparse type of --out: a non-blank path (whether it can be written is checked before any
+    work, :func:`stewart_env.cli.common.check_out`).
+
+    Args:
+        text: the command-line text.
+    """
     if not text.strip():
         raise argparse.ArgumentTypeError("expected a directory, got ''")
     return text
 
 
 def existing_file(text: str) -> str:
-    """argparse type: the path of an existing file."""
+    """Argparse type: the path of an existing file.
+
+    Args:
+        text: the command-line text.
+    """
     if not Path(text).is_file():
         raise argparse.ArgumentTypeError(f"no such file: {text!r}")
     return text
@@ -165,14 +218,22 @@ PLATFORM_RULE = "a name has no / and no .yaml or .yml suffix, whatever the worki
 
 
 def existing_directory(text: str) -> str:
-    """argparse type: the path of an existing directory."""
+    """Argparse type: the path of an existing directory.
+
+    Args:
+        text: the command-line text.
+    """
     if not Path(text).is_dir():
         raise argparse.ArgumentTypeError(f"no such directory: {quoted(text)}")
     return text
 
 
 def platform_name(text: str) -> str:
-    """argparse type: a shipped platform's name or a platform YAML file that loads."""
+    """Argparse type: a shipped platform's name or a platform YAML file that loads.
+
+    Args:
+        text: the command-line text.
+    """
     from stewart_env.params import load_platform
 
     try:
@@ -183,8 +244,12 @@ def platform_name(text: str) -> str:
 
 
 def model_name(text: str) -> str:
-    """argparse type: a dynamics model's canonical name (classical, improved, ... with +c1..+c4
-    switches; :class:`stewart_env.dynamics.ModelSpec`)."""
+    """Argparse type: a dynamics model's canonical name (classical, improved, ... with +c1..+c4
+    switches; :class:`stewart_env.dynamics.ModelSpec`).
+
+    Args:
+        text: the command-line text.
+    """
     from stewart_env.dynamics import ModelSpec
 
     try:
@@ -194,10 +259,14 @@ def model_name(text: str) -> str:
 
 
 def plant_model_name(text: str) -> str:
-    """argparse type: a value of the environment's ``model`` argument: a dynamics model name (see
+    """Argparse type: a value of the environment's ``model`` argument: a dynamics model name (see
     :func:`model_name`) or ``"mujoco"``, MuJoCo's simulation of the same mechanism (a plant only:
     it has no closed-form dynamics for a controller to use); the environment's configuration
-    checks it (:func:`stewart_env.envs.config.model_argument`)."""
+    checks it (:func:`stewart_env.envs.config.model_argument`).
+
+    Args:
+        text: the command-line text.
+    """
     from stewart_env.envs.config import model_argument
 
     try:
@@ -211,7 +280,11 @@ plant_list = distinct_list(plant_model_name, "classical,improved")
 
 
 def env_kwargs_token(text: str) -> str:
-    """argparse type of one --env-kwargs token: checked here, so that a bad one is an argparse error."""
+    """Argparse type of one --env-kwargs token: checked here, so that a bad one is an argparse error.
+
+    Args:
+        text: the command-line text.
+    """
     from stewart_env.agents.training import TrainingError, parse_env_kwargs
 
     try:
@@ -222,8 +295,12 @@ def env_kwargs_token(text: str) -> str:
 
 
 def agent_config(text: str) -> str:
-    """argparse type of --config: a hyperparameter file's path, or a shipped config's name
-    (``ppo_6m`` or ``ppo_6m.yml``), as the path of that file."""
+    """Argparse type of --config: a hyperparameter file's path, or a shipped config's name
+    (``ppo_6m`` or ``ppo_6m.yml``), as the path of that file.
+
+    Args:
+        text: the command-line text.
+    """
     from stewart_env.agents.training import TrainingError, config_path
 
     try:

@@ -11,7 +11,16 @@ VERB = "bench"
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
-    from stewart_env.bench import MODEL_NAMES, __doc__ as description
+    """Add the ``stewart-env bench`` command and its options.
+
+    Args:
+        subparsers: the subcommands of the ``stewart-env`` parser (``add_subparsers``'s result).
+
+    Returns:
+        The command's parser.
+    """
+    from stewart_env.bench import MODEL_NAMES
+    from stewart_env.bench import __doc__ as description
 
     p = subparsers.add_parser(VERB, help="the benchmark of the compiled core (stewart_env.bench)",
                               description=description.split("\n\n")[0].replace("``", ""))
@@ -27,6 +36,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run ``stewart-env bench``.
+
+    Args:
+        args: the parsed command line, with the options :func:`add_parser` declares.
+
+    Returns:
+        The exit status, 0 on success.
+    """
     from stewart_env.bench import run_bench
 
     problem = check_extras([("mujoco", "--mujoco")] if args.mujoco else [])

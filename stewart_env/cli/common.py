@@ -45,20 +45,33 @@ FLAGS = {
 
 def usage_message(err: object) -> str:
     """The one-line message of ``err``: ``argument --flag: <problem>`` for a usage error about an
-    argument a flag sets (:data:`FLAGS`), else the error's own message."""
+    argument a flag sets (:data:`FLAGS`), else the error's own message.
+
+    Args:
+        err: the error (or message) to say.
+    """
     flag = FLAGS.get(err.argument) if isinstance(err, UsageError) and err.argument else None
     return f"argument {flag}: {err.problem}" if flag else str(err)
 
 
 def error(verb: str, message: object) -> int:
     """Print ``stewart-env <verb>: error: <message>`` to stderr (a usage error as
-    :func:`usage_message` says it); the exit status of a usage error, 2."""
+    :func:`usage_message` says it); the exit status of a usage error, 2.
+
+    Args:
+        verb: the command, e.g. ``train``.
+        message: the error or its text.
+    """
     print(f"stewart-env {verb}: error: {usage_message(message)}", file=sys.stderr)
     return 2
 
 
 def check_out(args: argparse.Namespace) -> str | None:
-    """Why ``--out`` cannot be written (None if it can), before any work is done."""
+    """Why ``--out`` cannot be written (None if it can), before any work is done.
+
+    Args:
+        args: the parsed command line; without an ``out`` there is nothing to check.
+    """
     from stewart_env.files import check_writable
 
     if getattr(args, "out", None) is None:
@@ -71,7 +84,11 @@ def check_out(args: argparse.Namespace) -> str | None:
 
 
 def check_extras(needs: Iterable[tuple[str, str]]) -> str | None:
-    """The first missing extra of ``needs`` ((extra, what needs it), ...) as its one-line message."""
+    """The first missing extra of ``needs`` ((extra, what needs it), ...) as its one-line message.
+
+    Args:
+        needs: (extra, what needs it) pairs, e.g. ``("mujoco", "--mujoco")``.
+    """
     for extra, what in needs:
         try:
             require(extra, what)
@@ -81,12 +98,22 @@ def check_extras(needs: Iterable[tuple[str, str]]) -> str | None:
 
 
 def plant_extras(models: Sequence[str] | None, flag: str = "--model") -> list[tuple[str, str]]:
-    """The extra a plant of ``models`` needs: MuJoCo's plant needs ``mujoco``."""
+    """The extra a plant of ``models`` needs: MuJoCo's plant needs ``mujoco``.
+
+    Args:
+        models: the plants' model names (None: the default plant).
+        flag: the flag that names them, which the message gives.
+    """
     return [("mujoco", f"{flag} mujoco")] if models and "mujoco" in models else []
 
 
 def controllers(names: Sequence[str], internal_model: str) -> dict:
-    """{table label: policy factory} of the baseline controllers ``names`` (see :data:`CONTROLLERS`)."""
+    """{table label: policy factory} of the baseline controllers ``names`` (see :data:`CONTROLLERS`).
+
+    Args:
+        names: the controllers' names (``pd``, ``pd-gc``, ``ct``).
+        internal_model: the dynamics model computed torque uses.
+    """
     from stewart_env.agents.computed_torque import ComputedTorquePolicy
     from stewart_env.agents.pd import PDPolicy
 

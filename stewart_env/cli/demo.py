@@ -13,6 +13,14 @@ VERB = "demo"
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the ``stewart-env demo`` command and its options.
+
+    Args:
+        subparsers: the subcommands of the ``stewart-env`` parser (``add_subparsers``'s result).
+
+    Returns:
+        The command's parser.
+    """
     p = subparsers.add_parser(
         VERB, help="evaluate the PD baseline on the classical and improved models and print the table",
         description="Evaluate the task-space PD baseline (gains tuned for the 10 ms control step), without and "
@@ -31,6 +39,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run ``stewart-env demo``.
+
+    Args:
+        args: the parsed command line, with the options :func:`add_parser` declares.
+
+    Returns:
+        The exit status, 0 on success.
+    """
     from stewart_env.agents.evaluation import compact_table, compare, write_report
 
     problem = check_out(args)

@@ -34,6 +34,14 @@ RECORD_BYTES_PER_STEP = 256
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the ``stewart-env evaluate`` command and its options.
+
+    Args:
+        subparsers: the subcommands of the ``stewart-env`` parser (``add_subparsers``'s result).
+
+    Returns:
+        The command's parser.
+    """
     p = subparsers.add_parser(
         VERB, help="evaluate baseline controllers and trained agents (--agent) on a task and dynamics model(s)",
         description="Run seeded episodes of the baseline controllers (--policy) and of agents trained by "
@@ -119,6 +127,14 @@ def _problem(args: argparse.Namespace) -> str | None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run ``stewart-env evaluate``.
+
+    Args:
+        args: the parsed command line, with the options :func:`add_parser` declares.
+
+    Returns:
+        The exit status, 0 on success.
+    """
     needs = ([("rl", "--agent")] if args.agent else []) + plant_extras(args.model)
     problem = check_extras(needs) or _problem(args) or check_out(args)
     if problem is not None:

@@ -12,6 +12,14 @@ VERB = "export-mjcf"
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the ``stewart-env export-mjcf`` command and its options.
+
+    Args:
+        subparsers: the subcommands of the ``stewart-env`` parser (``add_subparsers``'s result).
+
+    Returns:
+        The command's parser.
+    """
     p = subparsers.add_parser(
         VERB, help="write a platform's mechanism as a MuJoCo model (MJCF XML)",
         description="Write the mechanism of a platform config as MJCF for MuJoCo (stewart_env.mujoco.to_mjcf): "
@@ -32,7 +40,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    """The MJCF text of --platform into the file --out."""
+    """The MJCF text of --platform into the file --out.
+
+    Args:
+        args: the parsed command line, with the options :func:`add_parser` declares.
+
+    Returns:
+        The exit status, 0 on success.
+    """
     from stewart_env import mujoco as twin
     from stewart_env.files import check_writable
     from stewart_env.params import load_platform

@@ -1,4 +1,4 @@
-"""``stewart-env identify``: dynamic parameter identification on a stand-in plant.
+r"""``stewart-env identify``: dynamic parameter identification on a stand-in plant.
 
     stewart-env identify --plant improved --platform dasgupta1998 --excitation optimized \\
         --duration 60 --noise-force 1 --perturb 0.2 --out runs/ident
@@ -17,8 +17,17 @@ import math
 import sys
 import time
 
-from stewart_env.cli.arguments import (PLATFORM_RULE, checked, directory_name, model_name, platform_name, positive_int,
-                                      quoted, real, seed)
+from stewart_env.cli.arguments import (
+    PLATFORM_RULE,
+    checked,
+    directory_name,
+    model_name,
+    platform_name,
+    positive_int,
+    quoted,
+    real,
+    seed,
+)
 from stewart_env.cli.common import error
 
 VERB = "identify"
@@ -34,36 +43,48 @@ perturb = checked(float, lambda v: 0 <= v < 1, "a relative change in [0, 1)",
 
 
 def _plant(text: str) -> str:
-    """argparse type of --plant: a model name (canonical) or ``mujoco``."""
+    """Argparse type of --plant: a model name (canonical) or ``mujoco``."""
     if text.strip().lower() == "mujoco":
         return "mujoco"
     return model_name(text)
 
 
 def _model(text: str) -> str:
-    """argparse type of --model: a closed-form model's canonical name."""
+    """Argparse type of --model: a closed-form model's canonical name."""
     if text.strip().lower() == "mujoco":
         raise argparse.ArgumentTypeError("the identified structure is a closed-form model (improved, classical, ...)")
     return model_name(text)
 
 
 def duration(text: str) -> float:
-    """argparse type of --duration: seconds recorded, two settling times and half a second at least."""
+    """Argparse type of --duration: seconds recorded, two settling times and half a second at least.
+
+    Args:
+        text: the command-line text.
+    """
     from stewart_env.identification.experiment import SETTLE
 
     return real(2 * SETTLE + 0.5, MAX_DURATION)(text)
 
 
 def period(text: str) -> float:
-    """argparse type of --period: the excitation's period, s, its highest harmonic at most at half
-    the sampling rate (beyond it the samples cannot tell the harmonic apart)."""
+    """Argparse type of --period: the excitation's period, s, its highest harmonic at most at half
+    the sampling rate (beyond it the samples cannot tell the harmonic apart).
+
+    Args:
+        text: the command-line text.
+    """
     from stewart_env.identification.experiment import SAMPLE_DT, Settings
 
     return real(2 * Settings.harmonics * SAMPLE_DT, MAX_DURATION)(text)
 
 
 def delay(text: str) -> float:
-    """argparse type of --delay: seconds in [0, MAX_DELAY], a whole number of SAMPLE_DT samples."""
+    """Argparse type of --delay: seconds in [0, MAX_DELAY], a whole number of SAMPLE_DT samples.
+
+    Args:
+        text: the command-line text.
+    """
     from stewart_env.identification.experiment import MAX_DELAY, SAMPLE_DT
 
     value = real(0, MAX_DELAY)(text)
@@ -73,7 +94,14 @@ def delay(text: str) -> float:
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
-    """Add the ``identify`` subcommand to ``subparsers``."""
+    """Add the ``identify`` subcommand to ``subparsers``.
+
+    Args:
+        subparsers: the subcommands of the ``stewart-env`` parser (``add_subparsers``'s result).
+
+    Returns:
+        The command's parser.
+    """
     p = subparsers.add_parser(
         VERB, help="identify a platform's inertial and friction parameters on a stand-in plant",
         description="Drive a plant along an excitation trajectory (a finite Fourier series in task space, "
@@ -120,7 +148,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the ``identify`` subcommand; 0 on success, 2 on an error the user can correct."""
+    """Run the ``identify`` subcommand; 0 on success, 2 on an error the user can correct.
+
+    Args:
+        args: the parsed command line, with the options :func:`add_parser` declares.
+
+    Returns:
+        The exit status, 0 on success.
+    """
     from stewart_env.files import check_writable
     from stewart_env.identification import experiment
     from stewart_env.params import load_platform

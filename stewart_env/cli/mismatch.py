@@ -9,6 +9,17 @@ import argparse
 import signal
 import sys
 
+from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
+from stewart_env.agents.mismatch import (
+    BACKENDS,
+    FAILURE_THRESHOLD,
+    QUICK_TIMESTEPS,
+    SIMPLIFICATIONS,
+    TRUE_MODEL,
+    BackendError,
+    run_mismatch,
+)
+from stewart_env.agents.training import ALGORITHMS, TrainingError, TrainingInterrupted, parse_env_kwargs
 from stewart_env.cli.arguments import (
     PLATFORM_RULE,
     TASKS,
@@ -27,17 +38,6 @@ from stewart_env.cli.arguments import (
     seed_list,
 )
 from stewart_env.cli.common import check_extras, check_out, error
-from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
-from stewart_env.agents.mismatch import (
-    BACKENDS,
-    FAILURE_THRESHOLD,
-    QUICK_TIMESTEPS,
-    SIMPLIFICATIONS,
-    TRUE_MODEL,
-    BackendError,
-    run_mismatch,
-)
-from stewart_env.agents.training import ALGORITHMS, TrainingError, TrainingInterrupted, parse_env_kwargs
 from stewart_env.files import WriteError
 
 __all__ = ["add_parser", "controller_platform", "run", "simplification_list"]
@@ -46,15 +46,23 @@ VERB = "mismatch"
 
 
 def simplification_list(text: str) -> list[str]:
-    """argparse type of --simplifications: comma-separated names of c1..c4, each once, or ``none``."""
+    """Argparse type of --simplifications: comma-separated names of c1..c4, each once, or ``none``.
+
+    Args:
+        text: the command-line text.
+    """
     if text.strip().lower() == "none":
         return []
     return distinct_list(choice(SIMPLIFICATIONS), "c1,c3")(text)
 
 
 def controller_platform(text: str) -> str:
-    """argparse type of --controller-platform: ``[NAME=]PLATFORM`` whose platform loads (the study
-    checks the name against its rows)."""
+    """Argparse type of --controller-platform: ``[NAME=]PLATFORM`` whose platform loads (the study
+    checks the name against its rows).
+
+    Args:
+        text: the command-line text.
+    """
     from stewart_env.agents.mismatch.settings import MismatchError, check_controller_platforms
 
     try:
@@ -65,7 +73,14 @@ def controller_platform(text: str) -> str:
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
-    """Add ``mismatch`` to an argparse subparsers object; its ``func`` is :func:`run`."""
+    """Add ``mismatch`` to an argparse subparsers object; its ``func`` is :func:`run`.
+
+    Args:
+        subparsers: the subcommands of the ``stewart-env`` parser (``add_subparsers``'s result).
+
+    Returns:
+        The command's parser.
+    """
     p = subparsers.add_parser(
         VERB, help="model-mismatch study: controllers built on one model, run on another",
         description="Train (or load) RL agents per training model and seed, build PD and computed-torque "
@@ -144,7 +159,14 @@ def _problem(args: argparse.Namespace) -> str | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the study the parsed ``args`` ask for; print one line of result or error; the exit code."""
+    """Run the study the parsed ``args`` ask for; print one line of result or error; the exit code.
+
+    Args:
+        args: the parsed command line, with the options :func:`add_parser` declares.
+
+    Returns:
+        The exit status, 0 on success.
+    """
     needs = [("rl", "training agents (--algo none runs the model-based rows only)")] if args.algo != "none" else []
     if args.backend == "ray":
         needs.append(("distributed", "--backend ray"))

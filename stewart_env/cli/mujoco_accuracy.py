@@ -13,6 +13,7 @@ PROG = "python -m stewart_env.mujoco"
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The parser of ``python -m stewart_env.mujoco``."""
     from stewart_env.mujoco import accuracy_report
 
     parser = argparse.ArgumentParser(prog=PROG, description=accuracy_report.__doc__.split("\n\n")[0])
@@ -22,6 +23,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``python -m stewart_env.mujoco``: the accuracy report of the MuJoCo twin.
+
+    Args:
+        argv: the command line without the program's name (default ``sys.argv[1:]``).
+
+    Returns:
+        The exit status, 0 on success.
+    """
     from stewart_env.mujoco import accuracy_report
     from stewart_env.params import load_platform
 

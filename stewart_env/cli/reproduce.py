@@ -20,6 +20,14 @@ MAX_CASE_STEPS = 10**6
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the ``stewart-env reproduce`` command and its options.
+
+    Args:
+        subparsers: the subcommands of the ``stewart-env`` parser (``add_subparsers``'s result).
+
+    Returns:
+        The command's parser.
+    """
     p = subparsers.add_parser(
         VERB, help="reproduce the case study of He et al. (2018): figures 6-10 and a summary",
         description="Drive the platform from (0.1, 0, 0.395) m to (0.1, 0, 0.4) m, rpy (0, 0, -0.2), with the "
@@ -41,6 +49,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run ``stewart-env reproduce``.
+
+    Args:
+        args: the parsed command line, with the options :func:`add_parser` declares.
+
+    Returns:
+        The exit status, 0 on success.
+    """
     from stewart_env.agents.reproduce import reproduce
 
     if args.dt > args.duration:

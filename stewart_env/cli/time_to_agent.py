@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from stewart_env.agents.time_to_agent import SeedResult, resolve_config, summary_table, time_to_agent
+from stewart_env.agents.training import ALGORITHMS, TrainingError
 from stewart_env.cli.arguments import (
     TASKS,
     directory_name,
@@ -18,8 +20,6 @@ from stewart_env.cli.arguments import (
     real,
     seed_list,
 )
-from stewart_env.agents.time_to_agent import SeedResult, resolve_config, summary_table, time_to_agent
-from stewart_env.agents.training import ALGORITHMS, TrainingError
 from stewart_env.files import WriteError
 
 __all__ = ["add_parser", "run"]
@@ -34,7 +34,14 @@ VERB = "time-to-agent"
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
-    """Add ``time-to-agent`` to an argparse subparsers object; its ``func`` is :func:`run`."""
+    """Add ``time-to-agent`` to an argparse subparsers object; its ``func`` is :func:`run`.
+
+    Args:
+        subparsers: the subcommands of the ``stewart-env`` parser (``add_subparsers``'s result).
+
+    Returns:
+        The command's parser.
+    """
     p = subparsers.add_parser(
         VERB, help="training wall time to a precise agent, measured on held-out episodes",
         description="Train an agent per seed with a zoo config; every --interval seconds of training wall time "
@@ -73,7 +80,14 @@ def _seed_line(r: SeedResult) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Measure what the parsed ``args`` ask for; print the table or a one-line error; the exit code."""
+    """Measure what the parsed ``args`` ask for; print the table or a one-line error; the exit code.
+
+    Args:
+        args: the parsed command line, with the options :func:`add_parser` declares.
+
+    Returns:
+        The exit status, 0 on success.
+    """
     prog = "stewart-env time-to-agent"
     try:
         config = resolve_config(args.algo, args.config)

@@ -11,8 +11,8 @@ from stewart_env.agents.training import ALGORITHMS, DEFAULT_KEEP_CHECKPOINTS
 from stewart_env.cli.arguments import (
     TASKS,
     agent_config,
-    env_kwargs_token,
     directory_name,
+    env_kwargs_token,
     nonnegative_int,
     plant_model_name,
     platform_count,
@@ -25,6 +25,14 @@ VERB = "train"
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the ``stewart-env train`` command and its options.
+
+    Args:
+        subparsers: the subcommands of the ``stewart-env`` parser (``add_subparsers``'s result).
+
+    Returns:
+        The command's parser.
+    """
     p = subparsers.add_parser(
         VERB, help="train an RL agent (stable-baselines3) on StewartPlatform-v1",
         description="Train a stable-baselines3 agent with the hyperparameters of configs/agents/<algo>.yml "
@@ -63,6 +71,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run ``stewart-env train``.
+
+    Args:
+        args: the parsed command line, with the options :func:`add_parser` declares.
+
+    Returns:
+        The exit status, 0 on success.
+    """
     problem = check_extras([("rl", "training"), *plant_extras([args.model])]) or check_out(args)
     if problem is not None:
         return error(VERB, problem)

@@ -114,6 +114,10 @@ def check_home_condition(params: PlatformParams, packed: np.ndarray | None = Non
     PlatformParams checks the rest of the home pose itself; this part needs the kernels'
     Jacobian (the one implementation), so the model checks it when a platform becomes a model.
     ``packed`` is the platform's :func:`pack_params` row when already at hand.
+
+    Args:
+        params: the platform.
+        packed: its :func:`pack_params` row, if at hand (default: packed here).
     """
     _check_platform("params", params)
     row = pack_params(params) if packed is None else packed
@@ -149,6 +153,10 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
 
     An argument that already is a C-contiguous float64 array of the right size is returned as a
     view, not copied: the kernels only read their inputs.
+
+    Args:
+        n_params: the number of parameter rows of the model (1: one platform, broadcast to the states' batch).
+        **arrays: ``name=(value, tail_shape)`` of each state argument, e.g. ``position=(p, (3,))``.
     """
     sizes = {}
     out = {}
@@ -195,7 +203,12 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
 
 def check_rotation(name: str, R: np.ndarray) -> None:
     """Raise ValueError naming ``name`` unless every R (N,3,3) is a rotation within
-    :data:`ROTATION_TOLERANCE` (orthonormal, determinant +1)."""
+    :data:`ROTATION_TOLERANCE` (orthonormal, determinant +1).
+
+    Args:
+        name: the argument's name, which the error gives.
+        R: the rotation matrices (N,3,3) of {P} in {B}.
+    """
     if not K.largest_rotation_error(R) <= ROTATION_TOLERANCE:
         orth = np.empty(R.shape[0])
         det = np.empty(R.shape[0])
@@ -213,7 +226,12 @@ MAX_STEPS = 2**63 - 1
 def check_step(dt, steps) -> tuple[float, int]:
     """The time step and step count of an RK4 call: ``dt`` a positive finite number of seconds
     and ``steps`` a non-negative integer (not a bool) up to :data:`MAX_STEPS`, returned as a
-    float and an int.  Raises ValueError naming ``dt`` or ``steps`` otherwise."""
+    float and an int.  Raises ValueError naming ``dt`` or ``steps`` otherwise.
+
+    Args:
+        dt: the RK4 time step, s.
+        steps: the number of steps.
+    """
     if type(dt) is float and 0.0 < dt < math.inf and type(steps) is int and 0 <= steps <= MAX_STEPS:
         return dt, steps
     return (validation.real("dt", dt, 0.0, math.inf, low_open=True),
@@ -361,7 +379,7 @@ class Dynamics:
         """
         return self.params[validation.integer("row", row, 0, len(self.params) - 1)]
 
-    def with_params(self, params: PlatformParams | Sequence[PlatformParams]) -> "Dynamics":
+    def with_params(self, params: PlatformParams | Sequence[PlatformParams]) -> Dynamics:
         """The same model on other parameters (e.g. one randomised set per batch row).
 
         Args:
@@ -372,7 +390,7 @@ class Dynamics:
         """
         return Dynamics(self.name, params)
 
-    def with_rows(self, rows: Sequence[int], params: Sequence[PlatformParams]) -> "Dynamics":
+    def with_rows(self, rows: Sequence[int], params: Sequence[PlatformParams]) -> Dynamics:
         """The same model with the parameters of some batch rows replaced.
 
         The other rows keep their packed parameters, so only the new rows are packed.
@@ -401,7 +419,7 @@ class Dynamics:
             check_home_condition(p, row)
         return self.with_packed_rows(rows, packed, params)
 
-    def with_packed_rows(self, rows: Sequence[int], packed_rows, sources: Sequence) -> "Dynamics":
+    def with_packed_rows(self, rows: Sequence[int], packed_rows, sources: Sequence) -> Dynamics:
         """The same model with parameter rows ``rows`` replaced by packed numbers, no PlatformParams
         built: the reset of a domain-randomised batch.
 
@@ -517,7 +535,10 @@ class Dynamics:
         leading batch dimension N.
 
         Args:
-            position, rotation, velocity, angular_velocity: the state, as in :meth:`forward`.
+            position: (3,) position of P's origin, m.
+            rotation: (3,3) rotation matrix of {P} in {B}.
+            velocity: (3,) velocity of P's origin, m/s.
+            angular_velocity: (3,) angular velocity, rad/s.
             lin_acc: (3,) acceleration a of P's origin, m/s^2.
             ang_acc: (3,) angular acceleration alpha, rad/s^2.
             external_wrench: (6,) [force at P, N; moment, N m], or None for none.
@@ -562,7 +583,11 @@ class Dynamics:
         or 55), so forward(F) = M^-1 (J^T F - h).
 
         Args:
-            position, rotation, velocity, angular_velocity, external_wrench: as in :meth:`forward`.
+            position: (3,) position of P's origin, m.
+            rotation: (3,3) rotation matrix of {P} in {B}.
+            velocity: (3,) velocity of P's origin, m/s.
+            angular_velocity: (3,) angular velocity, rad/s.
+            external_wrench: (6,) [force at P, N; moment, N m], or None for none.
 
         Returns:
             The pair (M, h).  M (6,6) or (N,6,6) maps [a; alpha] (acceleration of P's origin, m/s^2;
@@ -587,7 +612,10 @@ class Dynamics:
         It does not depend on the rates, which may be left out.
 
         Args:
-            position, rotation, velocity, angular_velocity: as in :meth:`forward`.
+            position: (3,) position of P's origin, m.
+            rotation: (3,3) rotation matrix of {P} in {B}.
+            velocity: (3,) velocity of P's origin, m/s (default zero: M does not depend on it).
+            angular_velocity: (3,) angular velocity, rad/s (default zero).
 
         Returns:
             M (6,6) or (N,6,6) in kg, kg m, kg m^2; {B}, moments about P.
@@ -600,7 +628,11 @@ class Dynamics:
         """The bias h of :meth:`mass_and_bias`.
 
         Args:
-            position, rotation, velocity, angular_velocity, external_wrench: as in :meth:`forward`.
+            position: (3,) position of P's origin, m.
+            rotation: (3,3) rotation matrix of {P} in {B}.
+            velocity: (3,) velocity of P's origin, m/s.
+            angular_velocity: (3,) angular velocity, rad/s.
+            external_wrench: (6,) [force at P, N; moment, N m], or None for none.
 
         Returns:
             h (6,) or (N,6), [force, N; moment about P, N m] in {B}.

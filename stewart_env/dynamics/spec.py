@@ -122,7 +122,7 @@ class ModelSpec:
         return self.name
 
     @classmethod
-    def parse(cls, model: Any, argument: str = "model", *, hint: str = "") -> "ModelSpec":
+    def parse(cls, model: Any, argument: str = "model", *, hint: str = "") -> ModelSpec:
         """The spec of a model name such as ``"improved+c1+c3"`` (a spec is returned as it is).
 
         Args:

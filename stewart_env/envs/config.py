@@ -201,7 +201,11 @@ class ActuatorConfig(_Record):
         self._set("actuator_tau", real("actuator_tau", self.actuator_tau, 0.0, 100.0))
 
     def lag(self, control_dt: float) -> float:
-        """The fraction of the command error closed per control step of ``control_dt`` (0: none)."""
+        """The fraction of the command error closed per control step of ``control_dt`` (0: none).
+
+        Args:
+            control_dt: the control step, s.
+        """
         tau = self.actuator_tau
         return 1.0 - math.exp(-control_dt / tau) if tau > 0 else 0.0
 

@@ -16,7 +16,11 @@ SUCCESS_KEYS = ("position_error", "orientation_error", "is_success")
 
 @functools.cache
 def term_key(name: str) -> str:
-    """The info key of a reward term: ``reward_<name>`` (made once per name: it is on the step path)."""
+    """The info key of a reward term: ``reward_<name>`` (made once per name: it is on the step path).
+
+    Args:
+        name: the reward term's name.
+    """
     return f"reward_{name}"
 
 
@@ -27,7 +31,16 @@ def step_values(terms: dict[str, np.ndarray], code: np.ndarray, time: np.ndarray
     ``time`` (float64, s), when the plant reports it ``closure_error`` (float64, m), and
     ``position_error``, ``orientation_error`` (float64, m and rad) and ``is_success`` (bool), the
     arrays ``success`` of :meth:`~stewart_env.envs.core.PlatformBatch.track_success`; each an
-    (n,) array of its own (copied where the batch goes on writing into it)."""
+    (n,) array of its own (copied where the batch goes on writing into it).
+
+    Args:
+        terms: each reward term's values, by name, (n,) arrays.
+        code: the termination code of each row (n,).
+        time: each row's episode time (n,), s.
+        closure_error: each row's loop-closure error (n,), m, or None when the plant does not report it.
+        success: the (position error, orientation error, success) arrays (n,) of
+            :meth:`~stewart_env.envs.core.PlatformBatch.track_success`.
+    """
     values = {term_key(k): v for k, v in terms.items()}
     values["termination"] = code.copy()
     values["time"] = time.copy()
@@ -42,7 +55,17 @@ def row_info(terms: dict[str, np.ndarray], code: np.ndarray, time: np.ndarray, c
     """Row ``row``'s step info, the values of :func:`step_values` as numpy numbers (the single
     environment's info), read straight from the batch's arrays, and ``success`` the row's
     (position error, orientation error, success) of
-    :meth:`~stewart_env.envs.core.PlatformBatch.track_success_of_row`."""
+    :meth:`~stewart_env.envs.core.PlatformBatch.track_success_of_row`.
+
+    Args:
+        terms: each reward term's values, by name, (n,) arrays.
+        code: the termination code of each row (n,).
+        time: each row's episode time (n,), s.
+        closure_error: each row's loop-closure error (n,), m, or None when the plant does not report it.
+        row: the row whose info it is.
+        success: the row's (position error, m; orientation error, rad; success) of
+            :meth:`~stewart_env.envs.core.PlatformBatch.track_success_of_row`.
+    """
     info = {term_key(k): v[row] for k, v in terms.items()}
     info["termination"] = code[row]
     info["time"] = time[row]

@@ -34,14 +34,24 @@ PARAMETERS: tuple[inspect.Parameter, ...] = tuple(
 def check_arguments(owner: str, arguments: Mapping[str, Any], own: Sequence[str] = ()) -> None:
     """Refuse a keyword of ``arguments`` that is neither one of ``own`` nor an environment
     argument, as Python refuses it in a call of ``owner.__init__`` (an ArgumentError, both a
-    TypeError and a ValueError)."""
+    TypeError and a ValueError).
+
+    Args:
+        owner: the class whose ``__init__`` is called, as the error names it.
+        arguments: the keyword arguments given.
+        own: the keywords of that class besides the environment arguments.
+    """
     check_keywords(f"{owner}.__init__", arguments, (*own, *DEFAULTS), MOVED)
 
 
 def with_signature(*own: inspect.Parameter) -> Callable[[Callable], Callable]:
     """Decorate an ``__init__(self, <own>, **arguments)`` with the signature it accepts: ``self``,
     the parameters ``own`` of that face, then every environment argument (:data:`PARAMETERS`).
-    The check of the keywords stays the ``__init__``'s (:func:`check_arguments`)."""
+    The check of the keywords stays the ``__init__``'s (:func:`check_arguments`).
+
+    Args:
+        *own: the parameters of the decorated ``__init__`` before the environment arguments.
+    """
     self = inspect.Parameter("self", inspect.Parameter.POSITIONAL_OR_KEYWORD)
 
     def decorate(init: Callable) -> Callable:

@@ -53,6 +53,7 @@ class BaseParameters:
 
     @property
     def rank(self) -> int:
+        """The number r of base parameters."""
         return int(self.independent.size)
 
     @property
@@ -69,24 +70,46 @@ class BaseParameters:
         return out
 
     def of_theta(self, theta: np.ndarray) -> np.ndarray:
-        """Base parameters (r,) of a full theta (N_THETA,)."""
+        """Base parameters (r,) of a full theta (N_THETA,).
+
+        Args:
+            theta: the full inertial and friction parameters theta (N_THETA,) of
+                :mod:`~stewart_env.identification.regressor`.
+        """
         theta = np.asarray(theta, float)
         return theta[self.independent] + self.combination @ theta[self.dependent]
 
     def columns(self, Y: np.ndarray) -> np.ndarray:
-        """The base regressor: the independent columns of Y (..., N_THETA) -> (..., r)."""
+        """The base regressor: the independent columns of Y (..., N_THETA) -> (..., r).
+
+        Args:
+            Y: the regressor (..., N_THETA) of :func:`~stewart_env.identification.regressor.regressor_matrix`.
+        """
         return Y[..., self.independent]
 
     def theta_from(self, beta: np.ndarray, nominal_theta: np.ndarray) -> np.ndarray:
         """A full theta with base parameters beta: the dependent entries from the nominal theta
-        (they are not identifiable), the independent ones solved from beta."""
+        (they are not identifiable), the independent ones solved from beta.
+
+        Args:
+            beta: the base parameters (r,).
+            nominal_theta: the nominal platform's full theta (N_THETA,).
+        """
         theta = np.array(nominal_theta, float)
         theta[self.independent] = np.asarray(beta, float) - self.combination @ theta[self.dependent]
         return theta
 
 
 def random_states(params: PlatformParams, n: int, rng: np.random.Generator, speed: float = 0.5):
-    """n random states inside the platform's workspace box and angle limit (t, R, v, w, a, alpha)."""
+    """N random states inside the platform's workspace box and angle limit (t, R, v, w, a, alpha).
+
+    Args:
+        params: the platform, whose limits bound the poses.
+        n: the number of states.
+        rng: the random generator.
+        speed: the standard deviation of each velocity component, m/s (twice it for the angular velocity,
+            rad/s).
+    """
     lim = params.limits
     t = rng.uniform(lim.position_min, lim.position_max, size=(n, 3))
     rpy = params.home_rpy + rng.uniform(-lim.max_angle, lim.max_angle, size=(n, 3)) * 0.5
@@ -97,13 +120,24 @@ def random_states(params: PlatformParams, n: int, rng: np.random.Generator, spee
 
 
 def stacked_regressor(model: Dynamics, states) -> np.ndarray:
-    """Y of each state stacked into one (6 N, N_THETA) matrix."""
+    """Y of each state stacked into one (6 N, N_THETA) matrix.
+
+    Args:
+        model: the dynamics model.
+        states: the states (t, R, v, w, a, alpha), each (N, ...), as :func:`random_states` gives them.
+    """
     return reg.regressor_matrix(model, *states).reshape(-1, reg.N_THETA)
 
 
 def base_parameters(model: Dynamics, n_states: int = 400, seed: int = 0) -> BaseParameters:
     """The base parameters of ``model`` (its first platform's geometry and gravity), from the
-    pivoted QR of Y stacked over ``n_states`` random states (:data:`RANK_TOLERANCE`)."""
+    pivoted QR of Y stacked over ``n_states`` random states (:data:`RANK_TOLERANCE`).
+
+    Args:
+        model: the dynamics model.
+        n_states: the number of random states Y is stacked over.
+        seed: the seed of those states.
+    """
     states = random_states(model.params[0], n_states, np.random.default_rng(seed))
     W = stacked_regressor(model, states)
     _, R, piv = scipy.linalg.qr(W, mode="economic", pivoting=True)
@@ -125,6 +159,12 @@ def params_from_theta(theta: np.ndarray, nominal: PlatformParams, flags: int, na
     Raises IdentificationError naming the body when theta does not describe a real body (a
     mass <= 0, or an inertia about the CoM that is not positive semidefinite): use a physically
     consistent estimate (:func:`stewart_env.identification.estimate.consistent`).
+
+    Args:
+        theta: the full theta (N_THETA,).
+        nominal: the nominal platform, whose geometry, limits and home pose are kept.
+        flags: the model's switch bits (theta's inertias depend on them).
+        name: the new platform's name (default the nominal's).
     """
     leg_shift, plat_shift = reg.shifts_of(flags)
 

@@ -41,7 +41,15 @@ def derivatives(dt: float, position: np.ndarray, rotation: np.ndarray, window: i
     first and second derivatives).  The rotation's nine entries are filtered alike and the
     smoothed matrix taken back to the nearest rotation (polar decomposition); omega and alpha are
     the skew parts of Rdot R^T and Rddot R^T ({B}).  The first and last window // 2 samples are
-    the filter's own extrapolation: callers drop them."""
+    the filter's own extrapolation: callers drop them.
+
+    Args:
+        dt: the sampling interval, s.
+        position: the sampled positions t (T, 3) of P's origin in {B}, m.
+        rotation: the sampled rotations R (T, 3, 3) of {P} in {B}.
+        window: the filter's window, samples (odd).
+        order: the filter's polynomial order.
+    """
     n = position.shape[0]
     if window % 2 == 0 or window <= order or n < window:
         raise IdentificationError(f"filter: {n} samples are too few for a window of {window} (odd, > order {order})")
@@ -70,12 +78,22 @@ class Estimate:
 
 
 def leg_force_rows(Y_base: np.ndarray, J: np.ndarray) -> np.ndarray:
-    """A = J^-T Y_base (T, 6, r): leg i's force row of each sample."""
+    """A = J^-T Y_base (T, 6, r): leg i's force row of each sample.
+
+    Args:
+        Y_base: the base regressor (T, 6, r) of each sample.
+        J: the leg Jacobian (T, 6, 6) of each sample.
+    """
     return np.linalg.solve(np.swapaxes(J, 1, 2), Y_base)
 
 
 def check_rank(A: np.ndarray, base: BaseParameters) -> None:
-    """Raise IdentificationError when the stacked rows cannot determine every base parameter."""
+    """Raise IdentificationError when the stacked rows cannot determine every base parameter.
+
+    Args:
+        A: the leg force rows (T, 6, r).
+        base: the base parameters the rows are of.
+    """
     rows = A.reshape(-1, A.shape[-1])
     if rows.shape[0] <= rows.shape[1]:
         raise IdentificationError(f"data: {rows.shape[0]} equations for {rows.shape[1]} base parameters; "
@@ -89,7 +107,12 @@ def check_rank(A: np.ndarray, base: BaseParameters) -> None:
 
 def ols(A: np.ndarray, F: np.ndarray) -> Estimate:
     """Ordinary least squares of F (T, 6) = A (T, 6, r) beta, with the standard deviations from
-    one common residual variance."""
+    one common residual variance.
+
+    Args:
+        A: the leg force rows (T, 6, r) of :func:`leg_force_rows`.
+        F: the measured leg forces (T, 6), N.
+    """
     rows, y = A.reshape(-1, A.shape[-1]), F.ravel()
     beta, *_ = np.linalg.lstsq(rows, y, rcond=None)
     res = (y - rows @ beta).reshape(F.shape)
@@ -102,7 +125,12 @@ def ols(A: np.ndarray, F: np.ndarray) -> Estimate:
 def wls(A: np.ndarray, F: np.ndarray) -> Estimate:
     """Weighted least squares: each leg's equations weighted by the inverse of that leg's
     residual standard deviation in the ordinary estimate (Gautier's two-step WLS), with the
-    covariance (A^T W A)^-1."""
+    covariance (A^T W A)^-1.
+
+    Args:
+        A: the leg force rows (T, 6, r) of :func:`leg_force_rows`.
+        F: the measured leg forces (T, 6), N.
+    """
     first = ols(A, F)
     T = F.shape[0]
     dof = (T * 6 - A.shape[-1]) / 6  # residual degrees of freedom per leg
@@ -138,7 +166,15 @@ def requirements(beta: np.ndarray, std: np.ndarray, duration: float, noise: floa
     sigma^2 (A^T A)^-1 and A^T A grows linearly with the record of a periodic excitation, so
     std_k ~ sigma / sqrt(T):  T_k = T (RSD_k / target)^2  at the same noise and
     sigma_k = sigma target / RSD_k  in the same record.  A zero estimate needs an infinite
-    record; without noise (``noise`` 0) the noise answer is infinite too."""
+    record; without noise (``noise`` 0) the noise answer is infinite too.
+
+    Args:
+        beta: the estimated base parameters (r,).
+        std: their standard deviations (r,).
+        duration: the record's length, s.
+        noise: the force noise of the record, N.
+        target: the relative standard deviation asked for.
+    """
     beta, std = np.asarray(beta, float), np.asarray(std, float)
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.where(beta != 0, np.abs(std) / np.abs(beta), np.inf)
@@ -151,7 +187,15 @@ def requirements(beta: np.ndarray, std: np.ndarray, duration: float, noise: floa
 def predicted_std(std: np.ndarray, duration: float, noise: float, to_duration: float, to_noise: float) -> np.ndarray:
     """The standard deviations (as :func:`requirements` scales them, std ~ sigma / sqrt(T)) that
     estimates of std from a ``duration``-second record at force noise ``noise`` predict for a
-    ``to_duration``-second record at ``to_noise`` along the same excitation."""
+    ``to_duration``-second record at ``to_noise`` along the same excitation.
+
+    Args:
+        std: the estimate's standard deviations (r,).
+        duration: the estimate's record length, s.
+        noise: the estimate's force noise, N.
+        to_duration: the predicted record's length, s.
+        to_noise: the predicted record's force noise, N.
+    """
     return np.asarray(std, float) * (to_noise / noise) * np.sqrt(duration / to_duration)
 
 
@@ -186,7 +230,16 @@ def consistent(A: np.ndarray, F: np.ndarray, base: BaseParameters, nominal_theta
     :func:`_physical_body`) and non-negative friction, fitting the leg forces in the
     least-squares sense (``scipy.optimize.least_squares`` with bounds).  The directions the data
     do not determine are held near the nominal theta by a weak prior (``prior_weight`` relative
-    to the data's scale)."""
+    to the data's scale).
+
+    Args:
+        A: the leg force rows (T, 6, r) of :func:`leg_force_rows`.
+        F: the measured leg forces (T, 6), N.
+        base: the base parameters of the rows.
+        nominal_theta: the nominal platform's full theta (N_THETA,), the prior.
+        start_theta: the full theta the solver starts from.
+        prior_weight: the prior's weight relative to the data's scale.
+    """
     rows, y = A.reshape(-1, A.shape[-1]), F.ravel()
     # the data term through the triangular factor: |rows beta - y|^2 = |R beta - Q^T y|^2 + const
     Q, R = np.linalg.qr(rows)

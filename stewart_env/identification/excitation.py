@@ -45,14 +45,20 @@ class Excitation:
 
     @property
     def harmonics(self) -> int:
+        """The number H of harmonics."""
         return int(self.a.shape[1])
 
     @property
     def period(self) -> float:
+        """The series' period 2 pi / wf, s."""
         return 2 * math.pi / self.wf
 
     def sample(self, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """q, qdot, qddot (T, 6) at the given times (s), by the compiled series of the law."""
+        """q, qdot, qddot (T, 6) at the given times (s), by the compiled series of the law.
+
+        Args:
+            times: the times (T,), s.
+        """
         t = np.ascontiguousarray(times, dtype=float).reshape(-1)
         out = np.empty((t.size, 3, 6))
         _core.fourier_series(*(np.ascontiguousarray(x, dtype=float) for x in (self.q0, self.a, self.b)),
@@ -61,19 +67,32 @@ class Excitation:
 
     def law_row(self, controller: Dynamics, natural_frequency: float = 20.0, damping: float = 1.0) -> np.ndarray:
         """The parameter row of :data:`FOURIER_COMPUTED_TORQUE`: gains Kp = wn^2, Kd = 2 zeta wn on
-        every coordinate, the controller's model and its first platform."""
+        every coordinate, the controller's model and its first platform.
+
+        Args:
+            controller: the computed-torque controller's dynamics model.
+            natural_frequency: the closed loop's natural frequency wn, rad/s.
+            damping: its damping ratio zeta.
+        """
         kp = np.full(6, natural_frequency ** 2)
         kd = np.full(6, 2 * damping * natural_frequency)
         return np.concatenate([kp, kd, [controller.flags, self.wf, self.harmonics], self.q0, self.a.ravel(),
                                self.b.ravel(), controller.packed[0]])
 
     def to_dict(self) -> dict:
+        """The series as JSON-fit lists: q0, a, b and wf."""
         return {"q0": self.q0.tolist(), "a": self.a.tolist(), "b": self.b.tolist(), "wf": self.wf}
 
 
 def task_states(q, qd, qdd):
     """(t, R, v, w, a, alpha) of task-space samples: omega = E(rpy) rpy_dot and
-    alpha = E rpy_ddot + Edot rpy_dot (E of :func:`stewart_env.rotations.rpy_rate_matrix`)."""
+    alpha = E rpy_ddot + Edot rpy_dot (E of :func:`stewart_env.rotations.rpy_rate_matrix`).
+
+    Args:
+        q: the poses (T, 6): position of P's origin in {B}, m, and roll-pitch-yaw angles, rad.
+        qd: their rates (T, 6), m/s and rad/s.
+        qdd: their second derivatives (T, 6), m/s^2 and rad/s^2.
+    """
     rpy, rate, acc = q[:, 3:], qd[:, 3:], qdd[:, 3:]
     E = rpy_rate_matrix(rpy)
     cp, sp = np.cos(rpy[:, 1]), np.sin(rpy[:, 1])
@@ -95,7 +114,14 @@ def margins(excitation: Excitation, model: Dynamics, times, per_sample: bool = F
     """Normalised margins to the platform's limits along the series, all >= 0 when it keeps
     within LIMIT_SHARE of each: leg stroke, workspace box, angle range, Jacobian condition number
     and leg force range (forces from ``model``'s inverse dynamics).  Five numbers (the smallest
-    margin of each kind), or with ``per_sample`` every sample's margins, one vector."""
+    margin of each kind), or with ``per_sample`` every sample's margins, one vector.
+
+    Args:
+        excitation: the series.
+        model: the dynamics model (its first platform's limits and inverse dynamics).
+        times: the sample times (T,), s.
+        per_sample: every sample's margins instead of the smallest of each kind.
+    """
     p = model.params[0]
     lim = p.limits
     q, qd, qdd = excitation.sample(times)
@@ -120,7 +146,14 @@ def margins(excitation: Excitation, model: Dynamics, times, per_sample: bool = F
 
 def condition_number(excitation: Excitation, model: Dynamics, base: BaseParameters, times) -> float:
     """Condition number of the base regressor stacked over the samples (leg-force rows:
-    J^-T Y, the equations the estimators solve)."""
+    J^-T Y, the equations the estimators solve).
+
+    Args:
+        excitation: the series.
+        model: the dynamics model (its first platform's limits and inverse dynamics).
+        base: the base parameters.
+        times: the sample times (T,), s.
+    """
     q, qd, qdd = excitation.sample(times)
     states = task_states(q, qd, qdd)
     Y = reg.regressor_matrix(model, *states)
@@ -136,7 +169,16 @@ def _from_vector(x, q0, H, wf):
 
 def random_excitation(params: PlatformParams, model: Dynamics, rng: np.random.Generator, period: float,
                       harmonics: int = 5, samples: int = 100) -> Excitation:
-    """A random series, scaled down until it keeps within the limits (:func:`margins` >= 0)."""
+    """A random series, scaled down until it keeps within the limits (:func:`margins` >= 0).
+
+    Args:
+        params: the platform: its home pose is q0 and its limits scale the amplitudes.
+        model: the dynamics model (its first platform's limits and inverse dynamics).
+        rng: the random generator.
+        period: the series' period, s.
+        harmonics: the number of harmonics H.
+        samples: the samples per period the limits are checked at.
+    """
     wf = 2 * math.pi / period
     q0 = np.concatenate([params.home_position, params.home_rpy])
     lim = params.limits
@@ -163,7 +205,15 @@ def optimized_excitation(start: Excitation, model: Dynamics, base: BaseParameter
                          max_iterations: int = 30) -> tuple[Excitation, dict]:
     """The series from ``start`` optimised (SLSQP) for the log condition number of the stacked
     base regressor, subject to :func:`margins` >= 0; the best feasible series met is kept (the
-    start if none beats it).  Returns (excitation, info with the condition numbers)."""
+    start if none beats it).  Returns (excitation, info with the condition numbers).
+
+    Args:
+        start: the series the optimisation starts from.
+        model: the dynamics model (its first platform's limits and inverse dynamics).
+        base: the base parameters.
+        samples: the samples per period the condition number and limits are evaluated at.
+        max_iterations: SLSQP's iteration limit.
+    """
     H, wf = start.harmonics, start.wf
     q_start = start.sample([0.0])[0][0]  # the pose at t = 0 stays the start's
     times = np.linspace(0, start.period, samples, endpoint=False)

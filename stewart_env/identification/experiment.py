@@ -23,6 +23,7 @@ import yaml
 
 from stewart_env import files
 from stewart_env.dynamics.model import Dynamics
+from stewart_env.dynamics.rk4 import law_forces
 from stewart_env.dynamics.spec import ModelSpec
 from stewart_env.errors import UsageError
 from stewart_env.identification import base as base_mod
@@ -30,7 +31,6 @@ from stewart_env.identification import estimate as est
 from stewart_env.identification import excitation as exc
 from stewart_env.identification import regressor as reg
 from stewart_env.identification.base import IdentificationError
-from stewart_env.dynamics.rk4 import law_forces
 from stewart_env.integrate import Trajectory, rollout
 from stewart_env.kinematics import inverse_kinematics, jacobian
 from stewart_env.params import Damping, PlatformParams, RigidBody
@@ -156,6 +156,9 @@ class Record:
 
 @dataclass
 class Result:
+    """What :func:`run` returns: its settings, the plant's true platform, the identified platform
+    and the report (the content of report.json)."""
+
     settings: Settings
     truth: PlatformParams
     identified: PlatformParams
@@ -164,7 +167,13 @@ class Result:
 
 def perturbed(params: PlatformParams, size: float, rng: np.random.Generator) -> PlatformParams:
     """``params`` with every body's mass, CoM and inertia and every friction coefficient changed
-    by a random relative amount up to ``size`` (each leg part on its own)."""
+    by a random relative amount up to ``size`` (each leg part on its own).
+
+    Args:
+        params: the nominal platform.
+        size: the largest relative change (0: ``params`` unchanged).
+        rng: the random generator.
+    """
     if size == 0:
         return params
 
@@ -208,7 +217,15 @@ def simulate(plant: Dynamics | str, truth: PlatformParams, controller: Dynamics,
              duration: float):
     """Drive the plant (a closed-form model, or ``"mujoco"`` on the truth) along the series by
     the compiled computed-torque law; returns the recorded Trajectory.  IdentificationError
-    when the plant diverges or leaves the stroke."""
+    when the plant diverges or leaves the stroke.
+
+    Args:
+        plant: the plant: a closed-form model, or ``"mujoco"``.
+        truth: the plant's true platform (MuJoCo's; a closed-form plant has its own).
+        controller: the computed-torque controller's dynamics model.
+        series: the excitation to follow.
+        duration: the record's length, s.
+    """
     q, qd, qdd = series.sample([0.0])
     t0, R0, v0, w0, _, _ = exc.task_states(q, qd, qdd)
     steps = int(round(duration / PLANT_DT))
@@ -235,8 +252,13 @@ def simulate(plant: Dynamics | str, truth: PlatformParams, controller: Dynamics,
 
 
 def delayed(x: np.ndarray, samples: int) -> np.ndarray:
-    """x (T, ...) seen ``samples`` samples late: entry n is x[n - samples]; the first entries,
-    before anything arrived, repeat x[0] (callers drop them)."""
+    """X (T, ...) seen ``samples`` samples late: entry n is x[n - samples]; the first entries,
+    before anything arrived, repeat x[0] (callers drop them).
+
+    Args:
+        x: the samples (T, ...).
+        samples: the delay in samples (0: ``x`` itself).
+    """
     if samples == 0:
         return x
     return np.concatenate([np.repeat(x[:1], samples, axis=0), x[:-samples]])
@@ -245,7 +267,15 @@ def delayed(x: np.ndarray, samples: int) -> np.ndarray:
 def measure(plant: Dynamics, traj, settings: Settings, rng: np.random.Generator) -> Record:
     """Noisy measurements of a recorded trajectory and the motion derivatives the estimators use.
     The poses (and with exact derivatives every motion quantity) lag the leg forces by
-    ``settings.delay``."""
+    ``settings.delay``.
+
+    Args:
+        plant: the plant's closed-form model, whose forward dynamics give the exact accelerations
+            (``settings.derivatives`` ``"exact"``).
+        traj: the recorded trajectory of :func:`simulate`.
+        settings: the experiment's settings (noise levels, delay, derivative method).
+        rng: the random generator of the noise.
+    """
     n, k = traj.time.size, settings.delay_samples
     pos = delayed(traj.position, k) + rng.normal(scale=settings.noise_position, size=(n, 3))
     rot = rotvec_to_matrix(rng.normal(scale=settings.noise_angle, size=(n, 3))) @ delayed(traj.rotation, k)
@@ -266,7 +296,13 @@ def measure(plant: Dynamics, traj, settings: Settings, rng: np.random.Generator)
 
 
 def rows_of(model: Dynamics, base: base_mod.BaseParameters, record: Record) -> np.ndarray:
-    """Leg-force rows A (T, 6, r) of a record."""
+    """Leg-force rows A (T, 6, r) of a record.
+
+    Args:
+        model: the identified model's dynamics.
+        base: its base parameters.
+        record: the measured record.
+    """
     Y = reg.regressor_matrix(model, *record.states)
     J = jacobian(model.params[0], record.states[0], record.states[1])
     return est.leg_force_rows(base.columns(Y), J)
@@ -299,7 +335,7 @@ def check_report(report: object, source: str) -> dict:
     """``report`` if every field a prediction reads from an identify report holds what
     :func:`run` writes: ``platform`` and ``settings.model`` text, ``settings.noise_force`` and
     ``fitted_duration`` positive numbers, ``base_parameters`` a list of objects with a ``name``,
-    a finite ``wls`` and a positive ``wls_std``.  (A report someone edited may hold anything.)
+    a finite ``wls`` and a positive ``wls_std`` (a report someone edited may hold anything).
 
     Args:
         report: the decoded report.json.
@@ -390,7 +426,13 @@ def run(settings: Settings, nominal: PlatformParams, predicted_by: dict | None =
     """The whole experiment (see the module docstring).  ``predicted_by``: the report of an
     earlier run of the same platform and model, whose standard deviations, scaled to this
     record's length and force noise (:func:`estimate.predicted_std`), the report compares with
-    this run's (its ``predicted_by`` entry)."""
+    this run's (its ``predicted_by`` entry).
+
+    Args:
+        settings: the experiment's settings.
+        nominal: the nominal platform, which the plant's truth perturbs and the identification starts from.
+        predicted_by: the report of an earlier run to compare the standard deviations with, or None.
+    """
     plant_spec, model_spec = settings.check()
     rng = np.random.default_rng(settings.seed)
     truth = perturbed(nominal, settings.perturb, rng)
@@ -509,7 +551,12 @@ def _figure(x: float | None, none: str) -> str:
 
 def body_of(name: str) -> str:
     """The body a base parameter belongs to, by its leading entry of theta: ``platform``,
-    ``leg i`` (its upper and lower part turn together) or ``friction``."""
+    ``leg i`` (its upper and lower part turn together) or ``friction``.
+
+    Args:
+        name: the base parameter's name, as :attr:`~stewart_env.identification.base.BaseParameters.names` gives
+            it.
+    """
     head = name.split(" ")[0].split(".")[0]
     if head.startswith(("upper_leg[", "lower_leg[")):
         return "leg " + head.split("[")[1].rstrip("]")
@@ -601,7 +648,12 @@ def write(result: Result, out: str | Path) -> Path:
     ``--platform``), ``truth.yaml`` (the plant's), ``report.json`` and ``report.md`` into the folder ``out``, which is locked
     while it is written; each file appears whole or not at all.  report.json is strict JSON: a
     number that is not finite (an infinite relative deviation or condition number, a NaN) is
-    written as null; report.md shows it as ``inf`` or ``nan``."""
+    written as null; report.md shows it as ``inf`` or ``nan``.
+
+    Args:
+        result: the experiment's result.
+        out: the folder, created if missing.
+    """
     with files.lock_folder(out) as folder:
         text = yaml.safe_dump(result.identified.to_dict(), sort_keys=False)
         PlatformParams.from_dict(files.load_yaml(text), result.identified.name)  # it loads back

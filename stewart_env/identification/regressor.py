@@ -44,7 +44,11 @@ assert len(THETA_NAMES) == N_THETA
 
 
 def shifts_of(flags: int) -> tuple[float, float]:
-    """Parallel-axis shifts (legs, platform) in theta's inertias: 2 under C3 (C4), else 1."""
+    """Parallel-axis shifts (legs, platform) in theta's inertias: 2 under C3 (C4), else 1.
+
+    Args:
+        flags: the model's switch bits.
+    """
     return (2.0 if flags & K.C3 else 1.0, 2.0 if flags & K.C4 else 1.0)
 
 
@@ -55,7 +59,14 @@ def _parallel_axis(r: np.ndarray) -> np.ndarray:
 
 def body_theta(mass: float, com: np.ndarray, inertia_c: np.ndarray, shifts: float) -> np.ndarray:
     """The 10 parameters (m, m c, I) of a body with CoM c from the reference point and inertia
-    I_c about the CoM: I = I_c + shifts * m S(c)."""
+    I_c about the CoM: I = I_c + shifts * m S(c).
+
+    Args:
+        mass: the body's mass m, kg.
+        com: its CoM c (3,) from the reference point, m, in the body's frame.
+        inertia_c: its inertia I_c (3,3) about the CoM, kg m^2.
+        shifts: the parallel-axis factor of :func:`shifts_of` (1 or 2).
+    """
     com = np.asarray(com, float)
     inertia = np.asarray(inertia_c, float) + shifts * mass * _parallel_axis(com)
     return np.concatenate([[mass], mass * com, [inertia[a, b] for a, b in _I6]])
@@ -63,7 +74,12 @@ def body_theta(mass: float, com: np.ndarray, inertia_c: np.ndarray, shifts: floa
 
 def body_from_theta(p: np.ndarray, shifts: float) -> tuple[float, np.ndarray, np.ndarray]:
     """(mass, com, inertia about the CoM (3,3)) of a body's 10 parameters; the inverse of
-    :func:`body_theta` for a positive mass."""
+    :func:`body_theta` for a positive mass.
+
+    Args:
+        p: the body's 10 parameters (m, m c, I).
+        shifts: the parallel-axis factor of :func:`shifts_of` (1 or 2).
+    """
     m = float(p[0])
     com = p[1:4] / m if m > 0 else np.zeros(3)
     inertia = np.zeros((3, 3))
@@ -73,7 +89,12 @@ def body_from_theta(p: np.ndarray, shifts: float) -> tuple[float, np.ndarray, np
 
 
 def theta_of(params: PlatformParams, flags: int = 0) -> np.ndarray:
-    """theta (N_THETA,) of a platform for the model with switch bits ``flags``."""
+    """Theta (N_THETA,) of a platform for the model with switch bits ``flags``.
+
+    Args:
+        params: the platform.
+        flags: the model's switch bits (default 0, none set).
+    """
     leg_shift, plat_shift = shifts_of(flags)
     parts = [body_theta(params.platform.mass, params.platform.com, params.platform.inertia, plat_shift)]
     for i in range(6):
@@ -89,6 +110,15 @@ def regressor_matrix(dynamics: Dynamics, position, rotation, velocity, angular_v
     of ``dynamics`` (its name's switches; its first platform gives the geometry and gravity).
 
     Arguments as in :meth:`Dynamics.inverse`, {B}.  docs/physics.md section 5.7.
+
+    Args:
+        dynamics: the dynamics model.
+        position: (3,) position of P's origin, m.
+        rotation: (3,3) rotation matrix of {P} in {B}.
+        velocity: (3,) velocity of P's origin, m/s.
+        angular_velocity: (3,) angular velocity, rad/s.
+        lin_acc: (3,) acceleration a of P's origin, m/s^2.
+        ang_acc: (3,) angular acceleration alpha, rad/s^2.
     """
     n, batched, a = batch_args(
         1, position=(position, (3,)), rotation=(rotation, (3, 3)), velocity=(velocity, (3,)),

@@ -67,7 +67,11 @@ class ConfigError(UsageError):
         return f"{self.source}: {text}" if self.source else text
 
     def within(self, prefix: str) -> ConfigError:
-        """The same error, its key moved under `prefix` (``"inertia"`` -> ``"platform.inertia"``)."""
+        """The same error, its key moved under `prefix` (``"inertia"`` -> ``"platform.inertia"``).
+
+        Args:
+            prefix: the key path to put in front, e.g. ``"platform"``.
+        """
         if not self.key:
             key = prefix
         elif self.key.startswith("["):
@@ -79,7 +83,11 @@ class ConfigError(UsageError):
 
 @contextmanager
 def within(prefix: str) -> Iterator[None]:
-    """Re-raise a ConfigError from the block with its key path under `prefix`."""
+    """Re-raise a ConfigError from the block with its key path under `prefix`.
+
+    Args:
+        prefix: the key path to put in front, e.g. ``"platform"``.
+    """
     try:
         yield
     except ConfigError as err:
@@ -95,7 +103,12 @@ _TEXT_HINT = " (text; in YAML write floats with a dot, e.g. 1.0e-4)"
 
 
 def excerpt(text: str, limit: int = EXCERPT) -> str:
-    """`text` cut to `limit` characters, an ellipsis marking the cut."""
+    """`text` cut to `limit` characters, an ellipsis marking the cut.
+
+    Args:
+        text: the text.
+        limit: the most characters kept, the ellipsis included.
+    """
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
@@ -120,7 +133,11 @@ _short_repr = _ShortRepr()
 
 
 def short(value: object) -> str:
-    """A short excerpt of `value`'s repr for an error message."""
+    """A short excerpt of `value`'s repr for an error message.
+
+    Args:
+        value: the value, as read from a config.
+    """
     try:
         return excerpt(_short_repr.repr(value))
     except Exception:  # a foreign object whose repr fails: name its type instead
@@ -128,7 +145,11 @@ def short(value: object) -> str:
 
 
 def describe(value: object) -> str:
-    """`short(value)`, with a hint when it is a number that YAML read as text."""
+    """`short(value)`, with a hint when it is a number that YAML read as text.
+
+    Args:
+        value: the value, as read from a config.
+    """
     return short(value) + (_TEXT_HINT if isinstance(value, str) and _is_float_text(value) else "")
 
 
@@ -141,7 +162,11 @@ def _is_float_text(text: str) -> bool:
 
 
 def kind(value: object) -> str:
-    """What `value` is, without quoting it."""
+    """What `value` is, without quoting it.
+
+    Args:
+        value: the value, as read from a config.
+    """
     if value is None:
         return "None"
     if isinstance(value, str):
@@ -158,7 +183,11 @@ _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.]{0,39}")  # dotted too: randomisation
 def key_names(keys: Sequence) -> str:
     """Unknown keys for an error message, the first three of them: quoted if they look like
     misspelt names, else only described, for a file that is no config at all may be all keys (a
-    line of /etc/shadow is a YAML key)."""
+    line of /etc/shadow is a YAML key).
+
+    Args:
+        keys: the unknown keys, in the file's order.
+    """
     names = [repr(k) if isinstance(k, str) and _NAME.fullmatch(k) else f"({kind(k)})" for k in keys[:3]]
     return ", ".join(names) + (f" and {len(keys) - 3} more" if len(keys) > 3 else "")
 
@@ -169,7 +198,12 @@ def key_names(keys: Sequence) -> str:
 
 def number(value: object, key: str) -> float:
     """A finite float of magnitude at most MAX_MAGNITUDE. Booleans and strings are refused:
-    they are always a mistake here."""
+    they are always a mistake here.
+
+    Args:
+        value: the raw value.
+        key: the value's key path in the config, which the error names, e.g. ``platform.mass``.
+    """
     numeric = isinstance(value, (int, float, np.integer, np.floating))
     if isinstance(value, (bool, np.bool_)) or not numeric:
         raise ConfigError(key, f"must be a number, got {describe(value)}")
@@ -186,19 +220,33 @@ def number(value: object, key: str) -> float:
 
 def frozen_array(values: np.ndarray) -> np.ndarray:
     """A float64 copy whose memory belongs to an immutable bytes object, so that nobody can turn
-    its WRITEABLE flag back on."""
+    its WRITEABLE flag back on.
+
+    Args:
+        values: the numbers.
+    """
     data = np.ascontiguousarray(values, dtype=np.float64)
     return np.frombuffer(data.tobytes(), dtype=np.float64).reshape(data.shape)
 
 
 def is_sequence(value: object) -> bool:
-    """A list, tuple or numpy array (not text)."""
+    """A list, tuple or numpy array (not text).
+
+    Args:
+        value: the value.
+    """
     return isinstance(value, (Sequence, np.ndarray)) and not isinstance(value, (str, bytes))
 
 
 def array(value: object, key: str, *shapes: tuple[int, ...]) -> np.ndarray:
     """A float64 array of one of `shapes` (not yet frozen), every entry checked by `number` and
-    named by its index path, e.g. ``base_joints[3][1]``."""
+    named by its index path, e.g. ``base_joints[3][1]``.
+
+    Args:
+        value: the raw value: nested sequences of numbers or a numeric array.
+        key: the value's key path in the config, which the error names, e.g. ``platform.mass``.
+        *shapes: the accepted shapes, e.g. ``(6, 3)``.
+    """
     expected = " or ".join(str(s) for s in shapes)
     if isinstance(value, np.ndarray) and value.dtype.kind in "iuf":
         if value.shape not in shapes:
@@ -238,7 +286,12 @@ def array(value: object, key: str, *shapes: tuple[int, ...]) -> np.ndarray:
 
 
 def interval(value: object, key: str) -> tuple[float, float]:
-    """(min, max) with min < max."""
+    """(min, max) with min < max.
+
+    Args:
+        value: the raw value, two numbers.
+        key: the value's key path in the config, which the error names, e.g. ``platform.mass``.
+    """
     lo, hi = array(value, key, (2,))
     if not lo < hi:
         raise ConfigError(key, f"expected (min, max) with min < max, got ({lo}, {hi})")
@@ -246,7 +299,14 @@ def interval(value: object, key: str) -> tuple[float, float]:
 
 
 def mapping(value: object, key: str, required: Sequence[str], optional: Sequence[str] = ()) -> Mapping:
-    """Check that `value` is a mapping with all `required` keys and nothing unknown."""
+    """Check that `value` is a mapping with all `required` keys and nothing unknown.
+
+    Args:
+        value: the raw value.
+        key: the value's key path in the config, which the error names (empty: the whole document).
+        required: the keys it must have.
+        optional: the keys it may have besides.
+    """
     if not isinstance(value, Mapping):
         # The whole document is never quoted: it may be any file, e.g. one of secrets.
         got = describe(value) if key else kind(value)
