@@ -595,8 +595,8 @@ void def_env_kernels(nb::module_& m) {
     nb::class_<BatchStep>(m, "BatchStep",
         "The compiled control step of a batch of the environment (env_step.hpp): built once from the step's "
         "records (the observation's may be None: the caller makes the observation), then one call per step.")
-        .def(nb::init<nb::object, nb::object, nb::object, nb::object, nb::object, nb::object>(), "state"_a,
-             "plant"_a, "actuator"_a, "task"_a, "observation"_a.none(), "outputs"_a)
+        .def(nb::init<nb::object, nb::object, nb::object, nb::object, nb::object, nb::object>(), "state"_a.none(),
+             "plant"_a.none(), "actuator"_a.none(), "task"_a.none(), "observation"_a.none(), "outputs"_a.none())
         .def_prop_ro("observes", &BatchStep::observes)
         .def("step", &BatchStep::step, "action"_a, "drive"_a, "noise"_a.none(), "skip"_a.none(),
              "One control step of every row into the output record; returns 1 | 2 as a row's state "
