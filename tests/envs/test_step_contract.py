@@ -11,8 +11,8 @@ import sys
 import numpy as np
 import pytest
 
-from stewart_env.envs import StewartPlatformEnv
 from stewart_env.dynamics import _core
+from stewart_env.envs import StewartPlatformEnv
 
 
 def _actuator_arrays(n=2):
