@@ -89,11 +89,14 @@ class ClosedFormPlant:
 
     def step_record(self, physics_dt: float, substeps: int) -> _core.PlantRecord:
         """The closed-form plant's part of the compiled step: the model's packed parameters and
-        flags, the RK4 substeps.  Returns a new :class:`_core.PlantRecord`, which :meth:`set_model`
-        keeps up to date from now on."""
-        model = self.model
-        self._record = _core.PlantRecord(self.n, model.packed, model.flags, physics_dt, substeps)
-        return self._record
+        flags, the RK4 substeps.  Returns its :class:`_core.PlantRecord`, made on the first call
+        (and again for other ``physics_dt`` or ``substeps``) and kept up to date by
+        :meth:`set_model`, so every step made of it sees the parameters of each reset."""
+        record = self._record
+        if record is None or (record.physics_dt, record.substeps) != (physics_dt, substeps):
+            model = self.model
+            self._record = record = _core.PlantRecord(self.n, model.packed, model.flags, physics_dt, substeps)
+        return record
 
 
 def make_plant(physics: PhysicsConfig, model: Dynamics, n: int) -> Plant:

@@ -122,3 +122,14 @@ def test_a_copy_keeps_the_step_mode_and_steps_alike(clone, mode):
     # a reset (new randomised parameters, through the plant's record) in both, the same numbers
     np.testing.assert_array_equal(env.reset(seed=4)[0], twin.reset(seed=4)[0])
     np.testing.assert_array_equal(env.step(np.full(6, 0.5))[0], twin.step(np.full(6, 0.5))[0])
+
+
+def test_the_plant_builds_its_record_once_and_keeps_it_up_to_date():
+    env = StewartPlatformEnv(randomization={"platform.mass": (0.5, 1.5)})
+    core = env._core
+    record = core.plant.step_record(core.physics_dt, core.substeps)
+    # the step's own record: the plant keeps one, so no step is left with parameters of an old reset
+    assert core.plant.step_record(core.physics_dt, core.substeps) is record
+    flags = record.flags
+    env.reset(seed=0)
+    assert record.flags == flags and core.plant.step_record(core.physics_dt, core.substeps) is record
