@@ -152,7 +152,7 @@ class ObservationPipeline:
         the compiled step makes, call :meth:`after_compiled_step`.
 
         Returns:
-            A new :class:`_core.ObservationRecord`, or None when the task observes terms of its
+            A new ``_core.ObservationRecord``, or None when the task observes terms of its
             own (see :attr:`compiled`; the caller then makes the observation with :meth:`step`).
         """
         if not self.compiled:

@@ -89,7 +89,7 @@ class ClosedFormPlant:
 
     def step_record(self, physics_dt: float, substeps: int) -> _core.PlantRecord:
         """The closed-form plant's part of the compiled step: the model's packed parameters and
-        flags, the RK4 substeps.  Returns its :class:`_core.PlantRecord`, made on the first call
+        flags, the RK4 substeps.  Returns its ``_core.PlantRecord``, made on the first call
         (and again for other ``physics_dt`` or ``substeps``) and kept up to date by
         :meth:`set_model`, so every step made of it sees the parameters of each reset."""
         record = self._record

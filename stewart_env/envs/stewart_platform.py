@@ -422,7 +422,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
         page, "The step"): "auto" (the default), "fused" or "parts".
 
         Args:
-            mode: see :meth:`~stewart_env.envs.core.PlatformBatch.set_step_mode`.
+            mode: as ``stewart_env.envs.core.PlatformBatch.set_step_mode`` takes it.
 
         Raises:
             ValueError: an unknown ``mode``, or "fused" where the fused step cannot run.

@@ -682,14 +682,14 @@ class Task:
         where the episode ends with a failure, 0 where it goes on or ends with a success."""
         return -self.weights.termination_cost * self._failure[code]
 
-    def step_record(self) -> _core.TaskRecord | None:
+    def step_record(self) -> Any:
         """This task's part of the environment's compiled step (docs/layout.md, "The compiled
         step's contract"): the platform's limits, the reward weights and which termination codes
         are failures, the numbers of :meth:`termination`, :meth:`reward_terms` and
         :meth:`termination_reward`.
 
         Returns:
-            A new :class:`_core.TaskRecord`, or None when a subclass has its own termination,
+            A new ``_core.TaskRecord`` (the compiled extension's type), or None when a subclass has its own termination,
             reward terms or termination reward (the step then calls them between its parts).
         """
         if any(getattr(type(self), name) is not getattr(Task, name)
