@@ -9,7 +9,10 @@ observation pipeline (:mod:`stewart_env.envs.observation`) makes every row's obs
 the closed-form plant and a task that keeps :class:`~stewart_env.tasks.Task`'s termination and
 reward, all of that but the task's Python hooks (a moving reference, an external wrench, its own
 observation terms) is one call of the compiled batch (``_core.BatchStep``,
-``stewart_env/dynamics/cpp/env_step.hpp``), the same arithmetic as the step of parts.  The
+``stewart_env/dynamics/cpp/env_step.hpp``), the same arithmetic as the step of parts.  That step is
+made of typed records, each built once by its owner (the batch's state and actuators here, the
+plant's, the task's and the observation's by them; docs/layout.md, "The compiled step's
+contract"), and :meth:`PlatformBatch.set_step_mode` chooses between it and the step of parts.  The
 single environment is a batch of one, the vector environment a batch of N; both give a platform
 the same arithmetic, so a vector row reproduces a single environment bit for bit.  Per-row
 Python loops run only at episode start and for observation noise (each row draws from its own
@@ -28,13 +31,13 @@ import numpy as np
 from stewart_env.dynamics import Dynamics, _core
 from stewart_env.envs.config import EnvConfig
 from stewart_env.envs.observation import ObservationPipeline
-from stewart_env.envs.plant import ClosedFormPlant, Plant, make_plant
+from stewart_env.envs.plant import Plant, make_plant
 from stewart_env.kinematics import leg_sensors_inplace
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks import LIMIT_REASONS, StepView, make_task, tracking_errors
-from stewart_env.tasks.base import SuccessTracker, Task, error_norm, errors_in, zero_reference
+from stewart_env.tasks.base import SuccessTracker, error_norm, errors_in, zero_reference
 
 __all__ = ["TERMINATION_REASONS", "PlatformBatch"]
 
@@ -50,6 +53,9 @@ REWARD_TERMS = ("position", "orientation", "velocity", "control", "termination")
 #: The largest float64: a position error beyond it (a state set absurdly far away) is reported as it,
 #: so that no inf leaves the environment.
 _LARGEST = float(np.finfo(np.float64).max)
+#: The values of :meth:`PlatformBatch.set_step_mode`: the fused compiled step where the plant,
+#: the task and the observation allow it, that step or an error, the step of parts.
+STEP_MODES = ("auto", "fused", "parts")
 #: Up to this many rows, :meth:`PlatformBatch.track_success` goes row by row in Python numbers,
 #: which then costs less than numpy's overhead per call on the whole batch.
 _ROW_BY_ROW = 4
@@ -79,6 +85,7 @@ class PlatformBatch:
     def __init__(self, n: int, config: EnvConfig):
         self.n = n
         self.config = config
+        self._step_mode = "auto"
         self._init_physics(config)
         self._init_task(config)
         self._init_state(n)
@@ -156,41 +163,71 @@ class PlatformBatch:
         self._term_views = dict(zip(REWARD_TERMS, self._terms))
         # the position and orientation errors (2, 3) of each row that track_success_of_row reads
         self._pose_errors = tuple(self._error_vectors[:2, i] for i in range(min(self.n, _ROW_BY_ROW)))
-        self._kernel = self._compiled_step()
+        self._fused = self._compiled_step(self._step_mode)
         # the compiled step checks the action before it changes anything: nothing runs before it
-        self.checks_action = self._kernel is not None and not (self._moving_reference or self._has_external_wrench)
-        self._observed = self.observations.compiled
+        self.checks_action = self._fused is not None and not (self._moving_reference or self._has_external_wrench)
+        # whether the compiled step makes the observation too
+        self._observed = self._fused is not None and self._fused.observes
 
-    def _compiled_step(self) -> _core.BatchStep | None:
-        """The whole control step as one compiled call over the batch's arrays, or None when the
-        step needs Python between its parts: a plant other than the closed-form one, or a task with
-        its own termination or reward.  The observation is made in the same call unless the task
-        observes terms of its own (then :meth:`ObservationPipeline.step` makes it after the call)."""
-        task = self.task
-        if not isinstance(self.plant, ClosedFormPlant) or any(
-                getattr(type(task), name) is not getattr(Task, name)
-                for name in ("termination", "reward_terms", "termination_reward")):
+    def _compiled_step(self, mode: str) -> _core.BatchStep | None:
+        """The whole control step as one compiled call over the step's records (built here, once),
+        or None for the step of parts: with ``mode`` "parts", or "auto" when the step needs Python
+        between its parts (a plant with no compiled part, a task with its own termination or
+        reward).  The observation is made in the same call unless the task observes terms of its
+        own (then :meth:`ObservationPipeline.step` makes it after the call).  Raises ValueError
+        for "fused" where the compiled step cannot run."""
+        plant = self._plant_record = self.plant.step_record(self.physics_dt, self.substeps)
+        if mode == "parts":
             return None
-        model = self.plant.model
-        lim = self.platform.limits
-        arrays = dict(
-            n=self.n, prm=model.packed, flags=model.flags, sensor_prm=self.nominal_model.packed,
-            force_half=self._force_half, force_mid=self._force_mid, lag=self._lag, physics_dt=self.physics_dt,
-            substeps=self.substeps, control_dt=self.control_dt, max_condition=lim.max_condition,
-            **dict(zip(PlatformState._fields, self._state)),
-            **{"start_" + k: v for k, v in zip(PlatformState._fields, self._backup)},
-            action=self._action, leg_forces=self.leg_forces, external_wrench=self.external_wrench, steps=self.steps,
-            time=self.time, non_finite=self._non_finite, leg_lengths=self.leg_lengths, leg_rates=self.leg_rates,
-            condition=self.condition, error_vectors=self._error_vectors, error_norms=self._error_norms,
-            **{"ref_" + k: getattr(self.reference, k) for k in PlatformState._fields},
-            code=self._code, terms=self._terms, reward=self._reward, bad=self._bad, observation_out=self._observation32,
-            **task.kernel_arguments(), **self.observations.kernel_arguments())
-        return _core.BatchStep(arrays)
+        task = self.task.step_record()
+        if plant is None or task is None:
+            if mode == "fused":
+                why = (f"the plant {self.plant.name!r} has no compiled part" if plant is None else
+                       f"the task {self.task.name!r} has its own termination or reward")
+                raise ValueError(f"step_mode='fused': {why}; use 'auto' or 'parts'")
+            return None
+        state = _core.StateRecord(
+            tuple(self._state), tuple(self._backup), self.external_wrench, self.steps, self.time, self._non_finite,
+            self.leg_lengths, self.leg_rates, self.condition,
+            tuple(getattr(self.reference, k) for k in PlatformState._fields), self._error_vectors, self._error_norms,
+            self.nominal_model.packed, self.control_dt, self.platform.limits.max_condition)
+        actuator = _core.ActuatorRecord(self._force_half, self._force_mid, self._lag, self._action, self.leg_forces)
+        outputs = _core.OutputRecord(self._code, self._terms, self._reward, self._bad, self._observation32)
+        return _core.BatchStep(state, plant, actuator, task, self.observations.step_record(), outputs)
+
+    @property
+    def step_mode(self) -> str:
+        """The step mode chosen (:meth:`set_step_mode`; "auto" unless chosen otherwise)."""
+        return self._step_mode
+
+    @property
+    def fused(self) -> bool:
+        """Whether a control step is the one compiled call (else the step of parts)."""
+        return self._fused is not None
+
+    def set_step_mode(self, mode: str) -> None:
+        """Choose how every following control step is made, the same numbers either way.
+
+        Args:
+            mode: "auto" (the default): the fused compiled step where the plant and the task allow
+                it, else the step of parts; "fused": the fused step, or an error; "parts": the
+                step of parts (the plant's step, then the task's termination and reward, then the
+                observation pipeline), as for a plant or a task the fused step cannot run.
+
+        Raises:
+            ValueError: ``mode`` is not one of :data:`STEP_MODES`, or is "fused" where the fused
+                step cannot run (the message says why).
+        """
+        if mode not in STEP_MODES:
+            raise ValueError(f"step_mode: expected one of {', '.join(map(repr, STEP_MODES))}, got {mode!r}")
+        self._compiled_step(mode)  # raises before anything changes
+        self._step_mode = mode
+        self._views()
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
-        del state["_state"], state["view"], state["_errors"], state["_kernel"], state["_term_views"]
-        del state["_pose_errors"]
+        del state["_state"], state["view"], state["_errors"], state["_fused"], state["_term_views"]
+        del state["_pose_errors"], state["_plant_record"]
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -241,9 +278,7 @@ class PlatformBatch:
         drawn, factors = self._draw_episodes(rows, rngs)
         if drawn is not None:
             self.model = self.model.with_packed_rows(rows, *drawn)
-            self.plant.set_model(self.model, rows)
-            if self._kernel is not None:
-                self._kernel.set_model(self.model.packed, self.model.flags)
+            self.plant.set_model(self.model, rows)  # which updates its record of the compiled step
         self.steps[rows] = 0
         self.time[rows] = 0.0
         self.external_wrench[rows] = 0.0
@@ -369,7 +404,7 @@ class PlatformBatch:
             self._drive(action)
             driven = True
             self.task.external_wrench(self.view, self.control_dt, self.external_wrench)
-        if self._kernel is not None:
+        if self._fused is not None:
             return self._compiled_outcome(action, driven, rngs, skip, reuse)
         self._physics(action, driven)
         reward, code, terms = self._outcome(rngs, skip)
@@ -385,8 +420,7 @@ class PlatformBatch:
             self.task.reference(self.view.episode, (self.steps + 1) * self.control_dt, self.reference)
         observed = self._observed
         noise = obs.draw_noise(rngs, skip) if observed else None
-        head = (obs._head + 1) % (obs.delay + 1)
-        found = self._kernel.step(action, not driven, noise, skip, head)
+        found = self._fused.step(action, not driven, noise, skip)
         if found == _core.NOT_FINITE_ACTION:
             return None
         self._any_non_finite = bool(found & _core.NON_FINITE_STATE)
@@ -396,8 +430,7 @@ class PlatformBatch:
             code, reward, observation = self._code.copy(), self._reward.copy(), self._observation32.copy()
             terms = dict(zip(REWARD_TERMS, self._terms.copy()))
         if observed:
-            obs._head = head
-            obs._any_pending = False
+            obs.after_compiled_step()
             bad = self._bad if found & _core.BAD_ROWS else None
         else:
             bad = obs.step(self.view, reward, rngs, skip)
@@ -433,9 +466,10 @@ class PlatformBatch:
         the non-finite check, and the leg sensors.  A row whose state is no longer finite keeps
         its last finite state, so that observation, reward and rendering stay finite."""
         max_condition = self.platform.limits.max_condition
-        if isinstance(self.plant, ClosedFormPlant):
-            # the whole control step in one compiled call
-            model = self.plant.model
+        if self._plant_record is not None:
+            # the plant has a compiled part (the closed-form model, the batch's own): the whole
+            # control step of the plant in one compiled call
+            model = self.model
             self._any_non_finite = _core.control_step(
                 model.packed, model.flags, self.nominal_model.packed, self._force_half, self._force_mid, self._lag,
                 not driven, self.physics_dt, self.substeps, self.control_dt, max_condition, action, self._action,

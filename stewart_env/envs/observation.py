@@ -102,9 +102,10 @@ class ObservationPipeline:
         self._raw = np.zeros((n, start))
         self.noise_std = self._noise(config.observation_noise)
         self.delay = config.observation_delay
-        # A ring of the last delay + 1 observations; the slot _head + 1 is the oldest.
+        # A ring of the last delay + 1 observations; the slot after the head, the slot written
+        # last, is the oldest.  The head is an array that the compiled step advances in place.
         self._history = np.zeros((self.delay + 1, n, start))
-        self._head = 0
+        self._head = np.zeros(1, dtype=np.int64)
         # Rows whose start observation was not finite: their first step terminates ("non_finite").
         self._pending = np.zeros(n, dtype=bool)
         self._any_pending = False
@@ -139,23 +140,31 @@ class ObservationPipeline:
 
     @property
     def compiled(self) -> bool:
-        """Whether the environment's compiled step makes the observation (:meth:`kernel_arguments`):
+        """Whether the environment's compiled step can make the observation (:meth:`step_record`):
         the task observes only the position and orientation errors, as :class:`Task` does."""
         task = type(self._task)
         return task.observe is Task.observe and task.observation_terms is Task.observation_terms
 
-    def kernel_arguments(self) -> dict[str, Any]:
-        """The layout, scaling, error integral and arrays of the observation, for the environment's
-        compiled step (see :meth:`compiled`)."""
+    def step_record(self) -> _core.ObservationRecord | None:
+        """The observation's part of the environment's compiled step (docs/layout.md, "The
+        compiled step's contract"): the layout, the clean rows, the delay ring and its head, the
+        scaling, the error integral and the pending rows, all held by the record.  After each step
+        the compiled step makes, call :meth:`after_compiled_step`.
+
+        Returns:
+            A new ``_core.ObservationRecord``, or None when the task observes terms of its
+            own (see :attr:`compiled`; the caller then makes the observation with :meth:`step`).
+        """
         if not self.compiled:
-            return {"observe": False}
+            return None
         at = {name: self.layout[name].start if name in self.layout else -1
               for name in ("leg_lengths", "leg_rates", "leg_forces", "position_error", "orientation_error",
                            "error_integral")}
-        return dict(observe=True, pose=self.mode == "pose", **{k + "_at": v for k, v in at.items()}, raw=self._raw,
-                    history=self._history, normalize=self.normalize, offset=self.offset, inv_scale=self._inv_scale,
-                    error_integral=self.error_integral, error_integral_bound=self.error_integral_bound,
-                    error_integral_band=self.error_integral_band, pending=self._pending, largest=_FLOAT32_MAX)
+        return _core.ObservationRecord(
+            self.mode == "pose", at["leg_lengths"], at["leg_rates"], at["leg_forces"], at["position_error"],
+            at["orientation_error"], at["error_integral"], self._raw, self._history, self._head, self.normalize,
+            self.offset, self._inv_scale, self.error_integral, self.error_integral_bound, self.error_integral_band,
+            self._pending, _FLOAT32_MAX)
 
     def draw_noise(self, rngs: Sequence[np.random.Generator], skip: np.ndarray | None) -> np.ndarray | None:
         """This step's observation noise (n, D), drawn from rngs[i] for every row i not in ``skip``
@@ -168,10 +177,15 @@ class ObservationPipeline:
                 noise[i] = rngs[i].normal(size=self.dim) * self.noise_std
         return noise
 
+    def after_compiled_step(self) -> None:
+        """Take note of a step whose observation the compiled step made (:meth:`step_record`): it
+        advanced the ring's head and reported and cleared the pending rows itself."""
+        self._any_pending = False
+
     @property
     def latest(self) -> np.ndarray:
         """The observation every row returns now (n, D): scaled, noisy and delayed as configured."""
-        return self._history[(self._head + 1) % (self.delay + 1)]
+        return self._history[(self._head.item() + 1) % (self.delay + 1)]
 
     def decode(self, observation: np.ndarray) -> dict[str, np.ndarray]:
         """Observation(s) (..., D) back to physical units, by layout name."""
@@ -222,8 +236,9 @@ class ObservationPipeline:
             bad = self._pending.copy() if bad is None else bad | self._pending
             self._pending[:] = False
             self._any_pending = False
-        self._head = (self._head + 1) % (self.delay + 1)
-        self._history[self._head] = raw
+        head = (self._head.item() + 1) % (self.delay + 1)
+        self._head[0] = head
+        self._history[head] = raw
         return bad
 
     def _integrate(self, errors) -> None:

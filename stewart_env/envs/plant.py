@@ -1,9 +1,10 @@
 """The plant: what simulates the rows of a batch, chosen once from the configuration.
 
-The batch asks three things of its plant (:class:`Plant`): step the rows' state in place over a
+The batch asks four things of its plant (:class:`Plant`): step the rows' state in place over a
 control step with the leg forces and the external wrench held, take new parameters for some rows
-(domain randomisation at a reset), and say how far its closed loops come apart
-(``closure_error``; None when they cannot).  Two plants answer:
+(domain randomisation at a reset), say how far its closed loops come apart (``closure_error``;
+None when they cannot), and give its part of the batch's compiled step (``step_record``; None
+when it has none, and the batch then steps it with ``step_inplace``).  Two plants answer:
 
 * :class:`ClosedFormPlant` (``plant="closed_form"``, the default): the closed-form Newton-Euler
   model ``model`` integrated with RK4 (:func:`stewart_env.integrate.rollout_inplace`);
@@ -22,7 +23,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from stewart_env.dynamics import Dynamics
+from stewart_env.dynamics import Dynamics, _core
 from stewart_env.envs.config import CLOSED_FORM, MUJOCO, PhysicsConfig
 from stewart_env.integrate import rollout_inplace
 
@@ -52,16 +53,29 @@ class Plant(Protocol):
         """The batch's dynamics model is now ``model`` (one parameter row per platform), whose
         rows ``rows`` hold new parameters (e.g. randomised at a reset)."""
 
+    def step_record(self, physics_dt: float, substeps: int) -> _core.PlantRecord | None:
+        """This plant's part of the batch's compiled step (docs/layout.md, "The compiled step's
+        contract"), integrating ``substeps`` steps of ``physics_dt`` s per control step and kept up
+        to date by :meth:`set_model`; or None for a plant the compiled step cannot run."""
+
 
 class ClosedFormPlant:
-    """The closed-form model of the batch integrated with RK4, the forces held over each call."""
+    """The closed-form model of the batch (``n`` rows) integrated with RK4, the forces held over each call."""
 
     name = CLOSED_FORM
     #: The loops of the closed-form models are closed exactly.
     closure_error = None
 
-    def __init__(self, model: Dynamics):
+    def __init__(self, model: Dynamics, n: int = 1):
         self.model = model
+        self.n = n  # the rows it simulates
+        # the part of the batch's compiled step made last (step_record), which set_model updates
+        self._record: _core.PlantRecord | None = None
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_record"] = None  # the batch's copy makes its step, and so this record, again
+        return state
 
     def step_inplace(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench,
                      dt: float, steps: int) -> None:
@@ -70,6 +84,19 @@ class ClosedFormPlant:
 
     def set_model(self, model: Dynamics, rows: Sequence[int]) -> None:
         self.model = model
+        if self._record is not None:
+            self._record.set_model(model.packed, model.flags)
+
+    def step_record(self, physics_dt: float, substeps: int) -> _core.PlantRecord:
+        """The closed-form plant's part of the compiled step: the model's packed parameters and
+        flags, the RK4 substeps.  Returns its ``_core.PlantRecord``, made on the first call
+        (and again for other ``physics_dt`` or ``substeps``) and kept up to date by
+        :meth:`set_model`, so every step made of it sees the parameters of each reset."""
+        record = self._record
+        if record is None or (record.physics_dt, record.substeps) != (physics_dt, substeps):
+            model = self.model
+            self._record = record = _core.PlantRecord(self.n, model.packed, model.flags, physics_dt, substeps)
+        return record
 
 
 def make_plant(physics: PhysicsConfig, model: Dynamics, n: int) -> Plant:
@@ -81,4 +108,4 @@ def make_plant(physics: PhysicsConfig, model: Dynamics, n: int) -> Plant:
             return MujocoPlant([physics.platform] * n, timestep=physics.physics_dt)
         except ImportError as error:
             raise ImportError(f"plant={MUJOCO!r} (or model={MUJOCO!r}): {error}") from error
-    return ClosedFormPlant(model)
+    return ClosedFormPlant(model, n)

@@ -167,6 +167,11 @@ class MujocoPlant:
         environment's plant interface, see :meth:`set_params`."""
         self.set_params(rows, [model.params_of(i) for i in rows])
 
+    def step_record(self, physics_dt: float, substeps: int) -> None:
+        """The environment's plant interface: MuJoCo has no part in the batch's compiled step
+        (the batch steps it with :meth:`step_inplace`)."""
+        return None
+
     def step_inplace(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench,
                      dt: float, steps: int) -> None:
         """Advance every row by ``steps`` MuJoCo steps of ``dt`` s, leg forces (N,6) and external

@@ -682,18 +682,26 @@ class Task:
         where the episode ends with a failure, 0 where it goes on or ends with a success."""
         return -self.weights.termination_cost * self._failure[code]
 
-    def kernel_arguments(self) -> dict[str, Any]:
-        """What the environment's compiled step needs of this task's :meth:`termination`,
-        :meth:`reward_terms` and :meth:`termination_reward` (used while a subclass keeps them):
-        the platform's limits, the reward weights and which termination codes are failures."""
+    def step_record(self) -> Any:
+        """This task's part of the environment's compiled step (docs/layout.md, "The compiled
+        step's contract"): the platform's limits, the reward weights and which termination codes
+        are failures, the numbers of :meth:`termination`, :meth:`reward_terms` and
+        :meth:`termination_reward`.
+
+        Returns:
+            A new ``_core.TaskRecord`` (the compiled extension's type), or None when a subclass has its own termination,
+            reward terms or termination reward (the step then calls them between its parts).
+        """
+        if any(getattr(type(self), name) is not getattr(Task, name)
+               for name in ("termination", "reward_terms", "termination_reward")):
+            return None
         w = self.weights
-        position_min, position_max, home_rpy, max_angle, length_min, length_max, _ = self._limits
-        return dict(position_min=position_min, position_max=position_max, home_rpy=home_rpy, max_angle=max_angle,
-                    length_min=length_min, length_max=length_max,
-                    weights=np.array([w.position_reward_weight, w.position_reward_scale, w.orientation_reward_weight,
-                                      w.orientation_reward_scale, w.velocity_cost_weight, w.velocity_cost_scale,
-                                      w.angular_velocity_cost_scale, w.ctrl_cost_weight]),
-                    termination_cost=w.termination_cost, failure=self._failure)
+        position_min, position_max, home_rpy, max_angle, length_min, length_max, max_condition = self._limits
+        weights = np.array([w.position_reward_weight, w.position_reward_scale, w.orientation_reward_weight,
+                            w.orientation_reward_scale, w.velocity_cost_weight, w.velocity_cost_scale,
+                            w.angular_velocity_cost_scale, w.ctrl_cost_weight])
+        return _core.TaskRecord(position_min, position_max, home_rpy, max_angle, length_min, length_max, max_condition,
+                                weights, w.termination_cost, self._failure)
 
     def termination(self, view: StepView) -> np.ndarray:
         """Termination codes (N,) int64: 0 where the episode goes on, else k for the reason

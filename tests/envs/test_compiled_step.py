@@ -1,6 +1,7 @@
 """The environment's compiled control step (one call per step for the batch) gives what the step
 made of its parts gives (the plant, then the task's termination and reward, then the observation
-pipeline), bit for bit, whatever the options."""
+pipeline), bit for bit, whatever the options; the step mode (``PlatformBatch.set_step_mode``)
+chooses between them."""
 
 from __future__ import annotations
 
@@ -25,8 +26,7 @@ def _run(kwargs, compiled: bool, num_envs=3, steps=60):
     envs = gym.make_vec("StewartPlatform-v0", num_envs=num_envs, vectorization_mode="vector_entry_point",
                         max_episode_steps=25, **kwargs)
     core = envs.unwrapped._core
-    if not compiled:
-        core._kernel = None  # the step of parts
+    core.set_step_mode("fused" if compiled else "parts")
     rng = np.random.default_rng(1)
     out = [envs.reset(seed=3)[0]]
     for _ in range(steps):
@@ -40,8 +40,9 @@ def _run(kwargs, compiled: bool, num_envs=3, steps=60):
 @pytest.mark.parametrize("kwargs", CASES)
 def test_the_compiled_step_is_the_step_of_parts(kwargs):
     fused, core = _run(kwargs, compiled=True)
-    assert core._kernel is not None
-    parts, _ = _run(kwargs, compiled=False)
+    assert core.fused
+    parts, core = _run(kwargs, compiled=False)
+    assert not core.fused
     assert len(fused) == len(parts)
     for a, b in zip(fused, parts):
         np.testing.assert_array_equal(a, b)
@@ -56,10 +57,13 @@ def test_a_task_with_its_own_reward_takes_the_step_of_parts(monkeypatch):
 
     env = gym.make("StewartPlatform-v0").unwrapped
     core = env._core
-    assert core._kernel is not None
+    assert core.fused
     monkeypatch.setattr(core, "task", Graded(core.platform, core.control_dt))
-    core._views()
-    assert core._kernel is None and base.Task.reward_terms is not Graded.reward_terms
+    core.set_step_mode("auto")
+    assert not core.fused and base.Task.reward_terms is not Graded.reward_terms
+    with pytest.raises(ValueError, match=r"^step_mode='fused': the task 'setpoint' has its own termination or reward"):
+        core.set_step_mode("fused")
+    assert core.step_mode == "auto"
     env.reset(seed=0)
     _, reward, *_ = env.step(np.zeros(6))
     assert reward == pytest.approx(-core.view.errors.position_norm[0], abs=0.0)

@@ -227,6 +227,7 @@ struct Batch {
     double* raw;            // (n, D)
     double* history;        // (delay + 1, n, D)
     int64_t slots;          // delay + 1
+    int64_t* head;          // (1,): the history slot written last; step() advances it
     bool normalize;
     const double *offset, *inv_scale;  // (D,)
     double* integral;                  // (n,6) or null
@@ -326,12 +327,13 @@ inline void outcome_rows(Batch& B, const double* noise, const bool* skip, int64_
 // termination) and their sum (reward (n,)); then, when B.observe, the error integral, the
 // observation with the noise (n,D) added to the rows not in skip (noise or skip null: none) and
 // its finite guard (bad (n,)), pushed into history slot head, and the slot returned now as
-// float32 (B.latest).  A block of rows goes through all of it at once, on every core
-// (lanes::for_rows); each row's numbers are those it has alone.  Returns NON_FINITE_STATE |
-// BAD_ROWS as found.
-inline int64_t step(Batch& B, const double* action, bool drive, const double* noise, const bool* skip, int64_t head,
+// float32 (B.latest).  The history slot written is the one after *B.head, which then becomes it.
+// A block of rows goes through all of it at once, on every core (lanes::for_rows); each row's
+// numbers are those it has alone.  Returns NON_FINITE_STATE | BAD_ROWS as found.
+inline int64_t step(Batch& B, const double* action, bool drive, const double* noise, const bool* skip,
                     int64_t* code, double* terms, double* reward, bool* bad) {
     const int64_t n = B.n;
+    const int64_t head = B.observe ? (*B.head + 1) % B.slots : 0;
     B.c.drive = drive;
     const kernels::ParamRows prm(B.c.prm, B.c.n_prm, n);
     const kernels::ParamRows sensor_prm(B.c.sensor_prm, B.c.n_sensor_prm, n);
@@ -341,6 +343,7 @@ inline int64_t step(Batch& B, const double* action, bool drive, const double* no
                         B.non_finite, B.lengths, B.rates, B.condition, n, b);
         outcome_rows(B, noise, skip, head, code, terms, reward, bad, b, lanes::width<T>);
     });
+    if (B.observe) *B.head = head;
     int64_t found = 0;
     for (int64_t b = 0; b < n; ++b) {
         if (B.non_finite[b]) found |= NON_FINITE_STATE;

@@ -13,6 +13,7 @@
 #include "kernels.hpp"
 #include "laws.hpp"
 #include "rk4.hpp"
+#include "step_records.hpp"
 #include "task_kernels.hpp"
 
 namespace nb = nanobind;
@@ -430,123 +431,45 @@ env_step::State state_of(Out& t, Out& R, Out& v, Out& w) { return {t.data(), R.d
 
 }  // namespace
 
-// The compiled batch of the environment (env_step::Batch): the numpy arrays it works on, taken
-// from a dict by name once, shape-checked and kept alive while it lives; the per-step call then
-// passes only the action and the step's fresh outputs.
+// The compiled batch of the environment (env_step::Batch), made of the step's records
+// (step_records.hpp), each built once by its owner and held while the step lives; the per-step
+// call then passes only the action and the step's fresh inputs.  Without an observation record
+// the observation is left to the caller.
 class BatchStep {
 public:
-    explicit BatchStep(nb::dict a) {
-        const int64_t n = nb::cast<int64_t>(a["n"]);
-        if (n < 1) throw nb::value_error("n: expected a positive batch size");
-        env_step::Batch& B = b_;
-        B.n = n;
-        set_model(a["prm"], nb::cast<int64_t>(a["flags"]));
-        const In sensor = keep<In>(a["sensor_prm"], "sensor_prm", {-1, kernels::N_PARAMS});
-        if (!(sensor.shape(0) == 1 || static_cast<int64_t>(sensor.shape(0)) == n))
-            throw nb::value_error("sensor_prm: expected 1 or N parameter rows");
-        B.c.sensor_prm = sensor.data();
-        B.c.n_sensor_prm = static_cast<int64_t>(sensor.shape(0));
-        B.c.force_half = nb::cast<double>(a["force_half"]);
-        B.c.force_mid = nb::cast<double>(a["force_mid"]);
-        B.c.lag = nb::cast<double>(a["lag"]);
-        B.c.physics_dt = nb::cast<double>(a["physics_dt"]);
-        B.c.substeps = nb::cast<int64_t>(a["substeps"]);
-        if (B.c.substeps < 0) throw nb::value_error("substeps: expected a non-negative integer");
-        B.c.control_dt = nb::cast<double>(a["control_dt"]);
-        B.c.max_condition = nb::cast<double>(a["max_condition"]);
-        B.s = state_arrays(a, "", n);
-        B.start = state_arrays(a, "start_", n);
-        B.clipped = keep<Out>(a["action"], "action", {n, 6}).data();
-        B.F = keep<Out>(a["leg_forces"], "leg_forces", {n, 6}).data();
-        B.W = keep<Out>(a["external_wrench"], "external_wrench", {n, 6}).data();
-        B.steps = keep<Codes>(a["steps"], "steps", {n}).data();
-        B.time = keep<Out>(a["time"], "time", {n}).data();
-        B.non_finite = keep<Flags>(a["non_finite"], "non_finite", {n}).data();
-        B.lengths = keep<Out>(a["leg_lengths"], "leg_lengths", {n, 6}).data();
-        B.rates = keep<Out>(a["leg_rates"], "leg_rates", {n, 6}).data();
-        B.condition = keep<Out>(a["condition"], "condition", {n}).data();
-        B.rt = keep<Out>(a["ref_position"], "ref_position", {n, 3}).data();
-        B.rR = keep<Out>(a["ref_rotation"], "ref_rotation", {n, 3, 3}).data();
-        B.rv = keep<Out>(a["ref_velocity"], "ref_velocity", {n, 3}).data();
-        B.rw = keep<Out>(a["ref_angular_velocity"], "ref_angular_velocity", {n, 3}).data();
-        B.errors = keep<Out>(a["error_vectors"], "error_vectors", {4, n, 3}).data();
-        B.norms = keep<Out>(a["error_norms"], "error_norms", {4, n}).data();
-        B.limits = {keep<In>(a["position_min"], "position_min", {3}).data(),
-                    keep<In>(a["position_max"], "position_max", {3}).data(),
-                    keep<In>(a["home_rpy"], "home_rpy", {3}).data(), nb::cast<double>(a["max_angle"]),
-                    nb::cast<double>(a["length_min"]), nb::cast<double>(a["length_max"]), B.c.max_condition};
-        const In w = keep<In>(a["weights"], "weights", {8});
-        B.weights = {w.data()[0], w.data()[1], w.data()[2], w.data()[3], w.data()[4], w.data()[5], w.data()[6],
-                     w.data()[7]};
-        B.termination_cost = nb::cast<double>(a["termination_cost"]);
-        const auto failure = keep<InFlags>(a["failure"], "failure", {-1});
-        n_codes_ = static_cast<int64_t>(failure.shape(0));
-        // code 0 and the four limits' codes that limit_codes gives
-        if (n_codes_ < 5) throw nb::value_error("failure: expected an entry for code 0 and each limit's code");
-        B.failure = failure.data();
-        code_ = keep<Codes>(a["code"], "code", {n}).data();
-        terms_ = keep<Out>(a["terms"], "terms", {5, n}).data();
-        reward_ = keep<Out>(a["reward"], "reward", {n}).data();
-        bad_ = keep<Flags>(a["bad"], "bad", {n}).data();
-        B.observe = nb::cast<bool>(a["observe"]);
-        if (!B.observe) return;
-        env_step::Layout& L = B.layout;
-        L.pose = nb::cast<bool>(a["pose"]);
-        L.leg_lengths = nb::cast<int64_t>(a["leg_lengths_at"]);
-        L.leg_rates = nb::cast<int64_t>(a["leg_rates_at"]);
-        L.leg_forces = nb::cast<int64_t>(a["leg_forces_at"]);
-        L.position_error = nb::cast<int64_t>(a["position_error_at"]);
-        L.orientation_error = nb::cast<int64_t>(a["orientation_error_at"]);
-        L.error_integral = nb::cast<int64_t>(a["error_integral_at"]);
-        const Out raw = keep<Out>(a["raw"], "raw", {n, -1});
-        L.dim = static_cast<int64_t>(raw.shape(1));
-        const int64_t D = L.dim;
-        // every term's columns inside the row
-        const auto fits = [D](int64_t at, int64_t size, bool on) { return !on || (at >= 0 && at + size <= D); };
-        if (!(fits(0, 15, L.pose) && fits(L.leg_lengths, 6, !L.pose) && fits(L.leg_rates, 6, !L.pose) &&
-              fits(L.leg_forces, 6, L.leg_forces >= 0) && fits(L.position_error, 3, true) &&
-              fits(L.orientation_error, 3, true) && fits(L.error_integral, 6, L.error_integral >= 0)))
-            throw nb::value_error("layout: a term outside the observation row");
-        B.raw = raw.data();
-        const Out history = keep<Out>(a["history"], "history", {-1, n, D});
-        B.history = history.data();
-        B.slots = static_cast<int64_t>(history.shape(0));
-        B.normalize = nb::cast<bool>(a["normalize"]);
-        B.offset = keep<In>(a["offset"], "offset", {D}).data();
-        B.inv_scale = keep<In>(a["inv_scale"], "inv_scale", {D}).data();
-        B.integral = nullptr;
-        B.band = nullptr;
-        if (L.error_integral >= 0) {
-            B.integral = keep<Out>(a["error_integral"], "error_integral", {n, 6}).data();
-            B.bound = keep<In>(a["error_integral_bound"], "error_integral_bound", {6}).data();
-            if (!a["error_integral_band"].is_none())
-                B.band = keep<In>(a["error_integral_band"], "error_integral_band", {6}).data();
+    BatchStep(nb::object state, nb::object plant, nb::object actuator, nb::object task, nb::object observation,
+              nb::object outputs)
+        : state_(nb::cast<step_records::StateRecord*>(state)), plant_(nb::cast<step_records::PlantRecord*>(plant)),
+          actuator_(nb::cast<step_records::ActuatorRecord*>(actuator)),
+          task_(nb::cast<step_records::TaskRecord*>(task)),
+          observation_(observation.is_none() ? nullptr : nb::cast<step_records::ObservationRecord*>(observation)),
+          outputs_(nb::cast<step_records::OutputRecord*>(outputs)),
+          held_{state, plant, actuator, task, observation, outputs} {
+        if (!(state_ && plant_ && actuator_ && task_ && outputs_))
+            throw nb::value_error("state, plant, actuator, task, outputs: expected a record each, not None");
+        const int64_t n = state_->n;
+        if (plant_->n != n) throw nb::value_error("plant: expected a record of the batch's rows");
+        if (actuator_->rows() != n) throw nb::value_error("actuator: expected a record of the batch's rows");
+        if (outputs_->rows() != n) throw nb::value_error("outputs: expected a record of the batch's rows");
+        if (observation_ != nullptr) {
+            if (observation_->rows() != n) throw nb::value_error("observation: expected a record of the batch's rows");
+            if (static_cast<int64_t>(outputs_->observation.shape(1)) != observation_->dim())
+                throw nb::value_error("outputs: expected an observation of the observation record's columns");
         }
-        B.pending = keep<Flags>(a["pending"], "pending", {n}).data();
-        B.largest = nb::cast<double>(a["largest"]);
-        B.latest = keep<Singles>(a["observation_out"], "observation_out", {n, D}).data();
-    }
-
-    // New packed parameters of the plant (domain randomisation at a reset): prm (1 or n rows).
-    void set_model(nb::handle packed, int64_t flags) {
-        In prm;
-        if (!nb::try_cast<In>(packed, prm, false))
-            throw nb::value_error("prm: expected a C-contiguous float64 array");
-        expect(prm, "prm", {-1, kernels::N_PARAMS});
-        if (!(prm.shape(0) == 1 || static_cast<int64_t>(prm.shape(0)) == b_.n))
-            throw nb::value_error("prm: expected 1 or N parameter rows");
-        prm_ = nb::borrow(packed);
-        b_.c.prm = prm.data();
-        b_.c.n_prm = static_cast<int64_t>(prm.shape(0));
-        b_.c.flags = flags;
+        state_->fill(b_);
+        actuator_->fill(b_);
+        task_->fill(b_);
+        b_.observe = observation_ != nullptr;
+        if (observation_ != nullptr) observation_->fill(b_);
+        outputs_->fill(b_);
     }
 
     // One control step: the action (n,6), or (6,) for a batch of one, float64 or float32 (widened
-    // exactly, as numpy's astype); noise (n,D) or None, skip (n,) or None, head the history slot.
-    // The outcome goes into the batch's own arrays (code, terms, reward, bad and, when the
-    // observation is made here, observation_out: the latest observation as float32).  An action
-    // that is not finite anywhere: NOT_FINITE_ACTION, nothing done (the caller says why).
-    int64_t step(nb::handle action, bool drive, nb::handle noise, nb::handle skip, int64_t head) {
+    // exactly, as numpy's astype); noise (n,D) or None, skip (n,) or None.  The outcome goes into
+    // the output record's arrays (and, with an observation record, its delay ring, whose head the
+    // step advances).  An action that is not finite anywhere: NOT_FINITE_ACTION, nothing done
+    // (the caller says why).
+    int64_t step(nb::handle action, bool drive, nb::handle noise, nb::handle skip) {
         const int64_t n = b_.n;
         const double* a = nullptr;
         In wide;
@@ -564,7 +487,8 @@ public:
             throw nb::value_error("action: expected an array of real numbers");
         }
         if (!kernels::all_finite(a, 6 * n)) return env_step::NOT_FINITE_ACTION;
-        if (head < 0 || (b_.observe && head >= b_.slots)) throw nb::value_error("head: outside the history ring");
+        if (b_.observe && !(*b_.head >= 0 && *b_.head < b_.slots))
+            throw nb::value_error("head: outside the history ring");
         const double* noise_data = nullptr;
         const bool* skip_data = nullptr;
         In noise_array;
@@ -579,11 +503,16 @@ public:
             expect(skip_array, "skip", {n});
             skip_data = skip_array.data();
         }
+        // the plant's parameters may have changed since the last call (PlantRecord.set_model)
+        plant_->fill(b_);
+        const step_records::OutputRecord& o = *outputs_;
         nb::gil_scoped_release release;
-        return env_step::step(b_, a, drive, noise_data, skip_data, head, code_, terms_, reward_, bad_);
+        return env_step::step(b_, a, drive, noise_data, skip_data, o.code.data(), o.terms.data(), o.reward.data(),
+                              o.bad.data());
     }
 
-    int64_t n_codes() const { return n_codes_; }
+    int64_t n_codes() const { return task_->n_codes(); }
+    bool observes() const { return observation_ != nullptr; }
 
 private:
     // The action's shape: (n,6), or (6,) for a batch of one.
@@ -595,48 +524,82 @@ private:
             expect(a, "action", {n, 6});
     }
 
-    // An array of the dict, checked and kept alive; never converted (the batch writes into it).
-    template <typename A>
-    A keep(nb::handle h, const char* name, std::initializer_list<int64_t> shape) {
-        A a;
-        if (!nb::try_cast<A>(h, a, false))
-            throw nb::value_error((std::string(name) + ": expected a C-contiguous array of the batch's dtype").c_str());
-        expect(a, name, shape);
-        kept_.push_back(nb::borrow(h));
-        return a;
-    }
-
-    env_step::State state_arrays(nb::dict a, const std::string& prefix, int64_t n) {
-        const auto name = [&prefix](const char* field) { return prefix + field; };
-        return {keep<Out>(a[name("position").c_str()], "position", {n, 3}).data(),
-                keep<Out>(a[name("rotation").c_str()], "rotation", {n, 3, 3}).data(),
-                keep<Out>(a[name("velocity").c_str()], "velocity", {n, 3}).data(),
-                keep<Out>(a[name("angular_velocity").c_str()], "angular_velocity", {n, 3}).data()};
-    }
-
+    step_records::StateRecord* state_;
+    step_records::PlantRecord* plant_;
+    step_records::ActuatorRecord* actuator_;
+    step_records::TaskRecord* task_;
+    step_records::ObservationRecord* observation_;
+    step_records::OutputRecord* outputs_;
+    // the records themselves, alive while the step points into them
+    nb::object held_[6];
     env_step::Batch b_{};
-    // the outcome of a step: termination codes (n,), reward terms (5,n), reward (n,), the rows
-    // made finite (n,); the observation as float32 (n,D), when made here, is the Batch's latest
-    int64_t* code_ = nullptr;
-    double *terms_ = nullptr, *reward_ = nullptr;
-    bool* bad_ = nullptr;
     std::vector<double> action_;  // a float32 action widened
-    std::vector<nb::object> kept_;
-    nb::object prm_;
-    int64_t n_codes_ = 0;
 };
 
 void def_env_kernels(nb::module_& m) {
+    using step_records::ActuatorRecord, step_records::ObservationRecord, step_records::OutputRecord,
+        step_records::PlantRecord, step_records::StateRecord, step_records::TaskRecord;
     m.attr("NON_FINITE_STATE") = env_step::NON_FINITE_STATE;
     m.attr("BAD_ROWS") = env_step::BAD_ROWS;
     m.attr("NOT_FINITE_ACTION") = env_step::NOT_FINITE_ACTION;
+    nb::class_<StateRecord>(m, "StateRecord",
+        "The batch's part of the compiled step (step_records.hpp): its state, start state, external wrench, clock, "
+        "non-finite flags, leg sensors with their nominal parameters, reference and tracking errors.")
+        .def(nb::init<nb::tuple, nb::tuple, nb::handle, nb::handle, nb::handle, nb::handle, nb::handle, nb::handle,
+                      nb::handle, nb::tuple, nb::handle, nb::handle, nb::handle, double, double>(),
+             "state"_a, "start"_a, "external_wrench"_a, "steps"_a, "time"_a, "non_finite"_a, "leg_lengths"_a,
+             "leg_rates"_a, "condition"_a, "reference"_a, "error_vectors"_a, "error_norms"_a, "sensor_prm"_a,
+             "control_dt"_a, "max_condition"_a)
+        .def_ro("n", &StateRecord::n);
+    nb::class_<PlantRecord>(m, "PlantRecord",
+        "The closed-form plant's part of the compiled step: packed parameters (1 or n rows), model flags, "
+        "physics_dt and substeps.")
+        .def(nb::init<int64_t, nb::handle, int64_t, double, int64_t>(), "n"_a, "prm"_a, "flags"_a, "physics_dt"_a,
+             "substeps"_a)
+        .def("set_model", &PlantRecord::set_model, "prm"_a, "flags"_a,
+             "New packed parameters (1 or n rows) and model flags, read by the step from its next call.")
+        .def_ro("n", &PlantRecord::n)
+        .def_ro("flags", &PlantRecord::flags)
+        .def_ro("physics_dt", &PlantRecord::physics_dt)
+        .def_ro("substeps", &PlantRecord::substeps);
+    nb::class_<ActuatorRecord>(m, "ActuatorRecord",
+        "The actuators' part of the compiled step: the force map (force_half, force_mid), the lag, the applied "
+        "action (n,6) and the leg forces (n,6).")
+        .def(nb::init<double, double, double, nb::handle, nb::handle>(), "force_half"_a, "force_mid"_a, "lag"_a,
+             "action"_a, "leg_forces"_a)
+        .def_ro("lag", &ActuatorRecord::lag);
+    nb::class_<TaskRecord>(m, "TaskRecord",
+        "The task's part of the compiled step: the platform's limits, the reward weights (8,), the termination "
+        "cost and whether each termination code is a failure.")
+        .def(nb::init<nb::handle, nb::handle, nb::handle, double, double, double, double, nb::handle, double,
+                      nb::handle>(),
+             "position_min"_a, "position_max"_a, "home_rpy"_a, "max_angle"_a, "length_min"_a, "length_max"_a,
+             "max_condition"_a, "weights"_a, "termination_cost"_a, "failure"_a)
+        .def_prop_ro("n_codes", &TaskRecord::n_codes);
+    nb::class_<ObservationRecord>(m, "ObservationRecord",
+        "The observation's part of the compiled step: layout, clean rows, delay ring and its head, scaling, error "
+        "integral, pending rows.")
+        .def(nb::init<bool, int64_t, int64_t, int64_t, int64_t, int64_t, int64_t, nb::handle, nb::handle,
+                      nb::handle, bool, nb::handle, nb::handle, nb::handle, nb::handle, nb::handle, nb::handle,
+                      double>(),
+             "pose"_a, "leg_lengths_at"_a, "leg_rates_at"_a, "leg_forces_at"_a, "position_error_at"_a,
+             "orientation_error_at"_a, "error_integral_at"_a, "raw"_a, "history"_a, "head"_a, "normalize"_a,
+             "offset"_a, "inv_scale"_a, "error_integral"_a.none(), "error_integral_bound"_a,
+             "error_integral_band"_a.none(), "pending"_a, "largest"_a)
+        .def_prop_ro("dim", &ObservationRecord::dim);
+    nb::class_<OutputRecord>(m, "OutputRecord",
+        "Where the compiled step's outcome goes: codes (n,), reward terms (5,n), reward (n,), bad rows (n,), the "
+        "latest observation as float32 (n,D).")
+        .def(nb::init<nb::handle, nb::handle, nb::handle, nb::handle, nb::handle>(), "code"_a, "terms"_a,
+             "reward"_a, "bad"_a, "observation"_a);
     nb::class_<BatchStep>(m, "BatchStep",
-        "The compiled control step of a batch of the environment (env_step.hpp): built once from the batch's "
-        "arrays by name, then one call per control step.")
-        .def(nb::init<nb::dict>(), "arrays"_a)
-        .def("set_model", &BatchStep::set_model, "prm"_a, "flags"_a)
-        .def("step", &BatchStep::step, "action"_a, "drive"_a, "noise"_a.none(), "skip"_a.none(), "head"_a,
-             "One control step of every row into the batch's outcome arrays; returns 1 | 2 as a row's state "
+        "The compiled control step of a batch of the environment (env_step.hpp): built once from the step's "
+        "records (the observation's may be None: the caller makes the observation), then one call per step.")
+        .def(nb::init<nb::object, nb::object, nb::object, nb::object, nb::object, nb::object>(), "state"_a.none(),
+             "plant"_a.none(), "actuator"_a.none(), "task"_a.none(), "observation"_a.none(), "outputs"_a.none())
+        .def_prop_ro("observes", &BatchStep::observes)
+        .def("step", &BatchStep::step, "action"_a, "drive"_a, "noise"_a.none(), "skip"_a.none(),
+             "One control step of every row into the output record; returns 1 | 2 as a row's state "
              "stopped being finite | a row's observation or reward was not (the rows in bad), or "
              "NOT_FINITE_ACTION (nothing done) for an action that is not finite.");
 
