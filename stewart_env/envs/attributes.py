@@ -28,6 +28,18 @@ class BatchAttributes:
     _renderer = None  # made on first render
     _reset_done = False  # set by the first reset()
 
+    def set_step_mode(self, mode: str) -> None:
+        """Choose how every following step is made, the same numbers either way (the environment
+        page, "The step"): "auto" (the default), "fused" or "parts".
+
+        Args:
+            mode: as ``stewart_env.envs.core.PlatformBatch.set_step_mode`` takes it.
+
+        Raises:
+            ValueError: an unknown ``mode``, or "fused" where the fused step cannot run.
+        """
+        self._core.set_step_mode(mode)
+
     def _rows_of(self, array: np.ndarray) -> np.ndarray:
         return array[self._rows].copy()
 

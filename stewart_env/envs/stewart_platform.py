@@ -417,18 +417,6 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     # -- introspection: see BatchAttributes ------------------------------------------------------
 
-    def set_step_mode(self, mode: str) -> None:
-        """Choose how every following step is made, the same numbers either way (the environment
-        page, "The step"): "auto" (the default), "fused" or "parts".
-
-        Args:
-            mode: as ``stewart_env.envs.core.PlatformBatch.set_step_mode`` takes it.
-
-        Raises:
-            ValueError: an unknown ``mode``, or "fused" where the fused step cannot run.
-        """
-        self._core.set_step_mode(mode)
-
     def set_state(self, position, rotation, velocity=None, angular_velocity=None) -> None:
         """Put the platform in a state (in {B}; velocities default to zero); the episode goes on
         from it at the next step.  Shapes (3,), (3,3), (3,), (3,); rotation must be orthonormal."""

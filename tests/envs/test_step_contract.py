@@ -133,3 +133,14 @@ def test_the_plant_builds_its_record_once_and_keeps_it_up_to_date():
     flags = record.flags
     env.reset(seed=0)
     assert record.flags == flags and core.plant.step_record(core.physics_dt, core.substeps) is record
+
+
+def test_the_vector_environment_chooses_its_step_as_the_single_one_does():
+    import gymnasium as gym
+
+    envs = gym.make_vec("StewartPlatform-v1", num_envs=3, vectorization_mode="vector_entry_point")
+    envs.unwrapped.set_step_mode("parts")
+    assert envs.unwrapped._core.step_mode == "parts"
+    envs.unwrapped.set_step_mode("fused")  # the default task and plant: the fused step can run
+    assert envs.unwrapped._core.fused
+    envs.close()
