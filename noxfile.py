@@ -15,8 +15,6 @@ nox.options.sessions = ["lint", "core"]
 RUFF = "ruff==0.17.6"
 #: torch as the README's test command installs it, from PyTorch's index of the CPU build.
 TORCH = ("torch==2.13.0", "--index-url", "https://download.pytorch.org/whl/cpu")
-#: Until the tree is formatted with ``ruff format``, the lint session checks no formatting.
-FORMAT_PENDING = True
 
 
 @nox.session
@@ -25,7 +23,16 @@ def core(session: nox.Session) -> None:
     session.install("-e", ".")
     # the runner and the property tests' library, not a feature of the package
     session.install("pytest", "hypothesis")
-    session.run("python", "-m", "pytest", "-q", "-m", "not slow and not integration", *session.posargs, env={"MPLBACKEND": "Agg"})
+    session.run(
+        "python",
+        "-m",
+        "pytest",
+        "-q",
+        "-m",
+        "not slow and not integration",
+        *session.posargs,
+        env={"MPLBACKEND": "Agg"},
+    )
 
 
 @nox.session
@@ -40,8 +47,9 @@ def tests(session: nox.Session) -> None:
 def docs(session: nox.Session) -> None:
     """The documentation site, built into docs/_build/html with warnings as errors."""
     session.install("-e", ".[docs]")
-    session.run("python", "-m", "sphinx", "-W", "-n", "--keep-going", "-b", "html", "docs", "docs/_build/html",
-                *session.posargs)
+    session.run(
+        "python", "-m", "sphinx", "-W", "-n", "--keep-going", "-b", "html", "docs", "docs/_build/html", *session.posargs
+    )
 
 
 @nox.session
@@ -54,10 +62,7 @@ def bench(session: nox.Session) -> None:
 
 @nox.session
 def lint(session: nox.Session) -> None:
-    """The checks of pyproject.toml's [tool.ruff] rules, and the formatting once the tree is formatted."""
+    """The checks of pyproject.toml's [tool.ruff] rules and the formatting of ``ruff format``."""
     session.install(RUFF)
     session.run("ruff", "check", ".", *session.posargs)
-    if FORMAT_PENDING:
-        session.log("formatting pending: `ruff format --check .` is not run")
-    else:
-        session.run("ruff", "format", "--check", ".")
+    session.run("ruff", "format", "--check", ".")

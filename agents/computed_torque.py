@@ -95,8 +95,13 @@ class ComputedTorque:
         """
         v = np.asarray(state.velocity, float)
         w = np.asarray(state.angular_velocity, float)
-        error = np.concatenate([np.asarray(reference.position, float) - state.position,
-                                rotation_error(reference.rotation, state.rotation)[0]], axis=-1)
+        error = np.concatenate(
+            [
+                np.asarray(reference.position, float) - state.position,
+                rotation_error(reference.rotation, state.rotation)[0],
+            ],
+            axis=-1,
+        )
         error_rate = np.concatenate([reference.velocity - v, reference.angular_velocity - w], axis=-1)
         feedforward = np.concatenate(np.broadcast_arrays(reference.lin_acc, reference.ang_acc, v)[:2], axis=-1)
         return feedforward + self.kd * error_rate + self.kp * error
@@ -112,8 +117,9 @@ class ComputedTorque:
             The leg forces (6,) or (N,6), N.
         """
         acc = self.commanded_acceleration(state, reference)
-        return self.model.inverse(state.position, state.rotation, state.velocity, state.angular_velocity,
-                                  acc[..., :3], acc[..., 3:])
+        return self.model.inverse(
+            state.position, state.rotation, state.velocity, state.angular_velocity, acc[..., :3], acc[..., 3:]
+        )
 
 
 def preview_acceleration(position_step, rotation_step, velocity, angular_velocity, horizons) -> np.ndarray:
@@ -172,8 +178,14 @@ class ComputedTorquePolicy(EnvPolicy):
         kp, kd: gains as in :class:`ComputedTorque`.
     """
 
-    def __init__(self, env, internal_model: str | ModelSpec = "improved",
-                 kp=None, kd=None, platform: PlatformParams | None = None):
+    def __init__(
+        self,
+        env,
+        internal_model: str | ModelSpec = "improved",
+        kp=None,
+        kd=None,
+        platform: PlatformParams | None = None,
+    ):
         believed = env.unwrapped.platform if platform is None else platform
         super().__init__(env, ComputedTorque(believed, internal_model, kp, kd))
         base = env.unwrapped

@@ -80,18 +80,21 @@ class Metric(NamedTuple):
 
 
 #: Metrics of an episode, in the order of the CSV columns.
-METRICS = tuple(Metric(*m) for m in (
-    ("success", "success", 1.0, ".0%"),
-    ("rms_position_error", "RMS pos. err. (mm)", 1e3, ".3g"),
-    ("rms_orientation_error", "RMS ori. err. (mrad)", 1e3, ".3g"),
-    ("settling_time", "settling (s)", 1.0, ".3g"),
-    ("position_overshoot", "overshoot pos. (%)", 1.0, ".3g"),
-    ("orientation_overshoot", "overshoot ori. (%)", 1.0, ".3g"),
-    ("steady_state_position_error", "steady-state pos. (mm)", 1e3, ".3g"),
-    ("steady_state_orientation_error", "steady-state ori. (mrad)", 1e3, ".3g"),
-    ("peak_leg_force", "peak leg force (N)", 1.0, ".4g"),
-    ("control_energy", "energy (J)", 1.0, ".4g"),
-))
+METRICS = tuple(
+    Metric(*m)
+    for m in (
+        ("success", "success", 1.0, ".0%"),
+        ("rms_position_error", "RMS pos. err. (mm)", 1e3, ".3g"),
+        ("rms_orientation_error", "RMS ori. err. (mrad)", 1e3, ".3g"),
+        ("settling_time", "settling (s)", 1.0, ".3g"),
+        ("position_overshoot", "overshoot pos. (%)", 1.0, ".3g"),
+        ("orientation_overshoot", "overshoot ori. (%)", 1.0, ".3g"),
+        ("steady_state_position_error", "steady-state pos. (mm)", 1e3, ".3g"),
+        ("steady_state_orientation_error", "steady-state ori. (mrad)", 1e3, ".3g"),
+        ("peak_leg_force", "peak leg force (N)", 1.0, ".4g"),
+        ("control_energy", "energy (J)", 1.0, ".4g"),
+    )
+)
 
 
 # -- metrics of one episode ------------------------------------------------------------------------
@@ -166,10 +169,17 @@ def control_energy(time, leg_forces, leg_rates) -> float:
     return float(np.sum(np.abs(np.asarray(leg_forces) * mean_rate) * dt[:, None]))
 
 
-def episode_metrics(time, position_error, orientation_error, leg_forces, leg_rates, terminated: bool,
-                    position_tolerance: float = POSITION_TOLERANCE,
-                    orientation_tolerance: float = ORIENTATION_TOLERANCE,
-                    final_window: float = FINAL_WINDOW) -> dict[str, float]:
+def episode_metrics(
+    time,
+    position_error,
+    orientation_error,
+    leg_forces,
+    leg_rates,
+    terminated: bool,
+    position_tolerance: float = POSITION_TOLERANCE,
+    orientation_tolerance: float = ORIENTATION_TOLERANCE,
+    final_window: float = FINAL_WINDOW,
+) -> dict[str, float]:
     """The metrics of one episode (module docstring).
 
     Args:
@@ -264,14 +274,24 @@ def _make_policy(policy, env_kwargs: dict):
         if not hasattr(made, "predict"):
             raise ValueError(f"policy: the factory returned {type(made).__name__}, which has no predict method")
         return made
-    raise ValueError(f"policy: expected an object with predict(observation) or a callable env -> policy, "
-                     f"got {type(policy).__name__}")
+    raise ValueError(
+        f"policy: expected an object with predict(observation) or a callable env -> policy, got {type(policy).__name__}"
+    )
 
 
-def evaluate(policy, env_kwargs: Mapping | None = None, episodes: int = 5, seed: int = 0, label: str | None = None,
-             max_steps: int | None = None, position_tolerance: float = POSITION_TOLERANCE,
-             orientation_tolerance: float = ORIENTATION_TOLERANCE, final_window: float = FINAL_WINDOW,
-             out=None, progress: bool = True) -> EvaluationResult:
+def evaluate(
+    policy,
+    env_kwargs: Mapping | None = None,
+    episodes: int = 5,
+    seed: int = 0,
+    label: str | None = None,
+    max_steps: int | None = None,
+    position_tolerance: float = POSITION_TOLERANCE,
+    orientation_tolerance: float = ORIENTATION_TOLERANCE,
+    final_window: float = FINAL_WINDOW,
+    out=None,
+    progress: bool = True,
+) -> EvaluationResult:
     """Run ``episodes`` seeded episodes of a policy and measure them.
 
     Args:
@@ -305,8 +325,9 @@ def evaluate(policy, env_kwargs: Mapping | None = None, episodes: int = 5, seed:
     agent = _make_policy(policy, env_kwargs)
     label = label or type(agent).__name__
     vec_kwargs = {} if max_steps is None else {"max_episode_steps": int(max_steps)}
-    env = gym.make_vec(QUALIFIED_ENV_ID, num_envs=int(episodes), vectorization_mode="vector_entry_point",
-                       **vec_kwargs, **env_kwargs)
+    env = gym.make_vec(
+        QUALIFIED_ENV_ID, num_envs=int(episodes), vectorization_mode="vector_entry_point", **vec_kwargs, **env_kwargs
+    )
     base = env.unwrapped
     n = base.num_envs
     dt = base.dt
@@ -320,8 +341,13 @@ def evaluate(policy, env_kwargs: Mapping | None = None, episodes: int = 5, seed:
     length = np.full(n, steps)
     reasons: list[str | None] = [None] * n
     returns = np.zeros(n)
-    with progress_bar(total=steps, desc=f"{label} on {env_kwargs.get('model', 'improved')}", unit="step",
-                      disable=not progress, leave=False) as bar:
+    with progress_bar(
+        total=steps,
+        desc=f"{label} on {env_kwargs.get('model', 'improved')}",
+        unit="step",
+        disable=not progress,
+        leave=False,
+    ) as bar:
         for k in range(steps):
             action, _ = agent.predict(obs, deterministic=True)
             obs, reward, terminated, truncated, info = env.step(np.asarray(action, dtype=np.float32))
@@ -343,12 +369,27 @@ def evaluate(policy, env_kwargs: Mapping | None = None, episodes: int = 5, seed:
     results = []
     for i in range(n):
         t_end = int(length[i])
-        ep = Episode(int(seed) + i, dt * np.arange(t_end + 1), arrays["p"][i, :t_end + 1],
-                     arrays["o"][i, :t_end + 1], arrays["f"][i, :t_end], arrays["r"][i, :t_end + 1],
-                     reasons[i], float(returns[i]))
-        ep.metrics = episode_metrics(ep.time, ep.position_error, ep.orientation_error, ep.leg_forces,
-                                     ep.leg_rates, ep.termination is not None, position_tolerance,
-                                     orientation_tolerance, final_window)
+        ep = Episode(
+            int(seed) + i,
+            dt * np.arange(t_end + 1),
+            arrays["p"][i, : t_end + 1],
+            arrays["o"][i, : t_end + 1],
+            arrays["f"][i, :t_end],
+            arrays["r"][i, : t_end + 1],
+            reasons[i],
+            float(returns[i]),
+        )
+        ep.metrics = episode_metrics(
+            ep.time,
+            ep.position_error,
+            ep.orientation_error,
+            ep.leg_forces,
+            ep.leg_rates,
+            ep.termination is not None,
+            position_tolerance,
+            orientation_tolerance,
+            final_window,
+        )
         results.append(ep)
     result = EvaluationResult(label, env_kwargs, int(seed), results)
     if out is not None:
@@ -410,8 +451,13 @@ def markdown_table(results: Sequence[EvaluationResult]) -> str:
 
 #: The metrics of :func:`compact_table` with their short headings: what a terminal of 80 columns
 #: shows of a result.
-COMPACT_COLUMNS = {"success": "success", "rms_position_error": "pos. mm", "rms_orientation_error": "ori. mrad",
-                   "peak_leg_force": "force N", "control_energy": "energy J"}
+COMPACT_COLUMNS = {
+    "success": "success",
+    "rms_position_error": "pos. mm",
+    "rms_orientation_error": "ori. mrad",
+    "peak_leg_force": "force N",
+    "control_energy": "energy J",
+}
 
 
 def compact_table(results: Sequence[EvaluationResult], columns: Mapping[str, str] | None = None) -> str:
@@ -439,8 +485,10 @@ def compact_table(results: Sequence[EvaluationResult], columns: Mapping[str, str
         rows.append([r.label, r.model, *(_fmt(s[m.key], m.factor, m.spec) for m in chosen)])
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
     # names flush left, numbers flush right
-    return "\n".join("  ".join(cell.ljust(w) if i < 2 else cell.rjust(w) for i, (cell, w) in
-                                enumerate(zip(row, widths))).rstrip() for row in rows)
+    return "\n".join(
+        "  ".join(cell.ljust(w) if i < 2 else cell.rjust(w) for i, (cell, w) in enumerate(zip(row, widths))).rstrip()
+        for row in rows
+    )
 
 
 def slug(text: str) -> str:
@@ -479,20 +527,25 @@ def write_report(results: Sequence[EvaluationResult], out, title: str = "Control
 
 def _write_report(results: Sequence[EvaluationResult], out: Path, title: str) -> dict[str, Path]:
     paths = {"markdown": out / "results.md", "csv": out / "episodes.csv", "error_norms": out / "error_norms.png"}
-    publish(paths["markdown"],
-            f"# {title}\n\n" + markdown_table(results) + "\n\n"
-            "Means over the episodes (settling time and overshoot over the episodes where they are defined; "
-            "'-' where none). Metric definitions: `stewart_env.agents.evaluation`.\n")
+    publish(
+        paths["markdown"],
+        f"# {title}\n\n" + markdown_table(results) + "\n\n"
+        "Means over the episodes (settling time and overshoot over the episodes where they are defined; "
+        "'-' where none). Metric definitions: `stewart_env.agents.evaluation`.\n",
+    )
     with publishing(paths["csv"]) as tmp, tmp.open("w", newline="") as f:
         writer = csv.writer(f)
-        writer.writerow(["controller", "model", "task", "platform", "seed", "termination", "return"]
-                        + [m.key for m in METRICS])
+        writer.writerow(
+            ["controller", "model", "task", "platform", "seed", "termination", "return"] + [m.key for m in METRICS]
+        )
         for r in results:
             platform = r.env_kwargs.get("platform", "dasgupta1998")
             platform = platform.name if isinstance(platform, se.PlatformParams) else str(platform)
             for ep in r.episodes:
-                writer.writerow([r.label, r.model, r.task, platform, ep.seed, ep.termination or "", f"{ep.reward:.6g}"]
-                                + [f"{ep.metrics[m.key]:.9g}" for m in METRICS])
+                writer.writerow(
+                    [r.label, r.model, r.task, platform, ep.seed, ep.termination or "", f"{ep.reward:.6g}"]
+                    + [f"{ep.metrics[m.key]:.9g}" for m in METRICS]
+                )
     with publishing(paths["error_norms"]) as tmp:
         error_norms_figure(results).savefig(tmp, dpi=110)
     for r in results:
@@ -554,9 +607,16 @@ def draw_floor(ax, floor: float, unit: str) -> None:
     """
     ax.axhline(floor, color="0.35", ls=":", lw=1.0, zorder=1)
     mantissa, exponent = f"{floor:.0e}".split("e")
-    ax.annotate(f"below {mantissa}e{int(exponent)} {unit}: rounding floor", (0.01, floor),
-                xycoords=("axes fraction", "data"), xytext=(0, 2), textcoords="offset points", fontsize=8,
-                color="0.3", va="bottom")
+    ax.annotate(
+        f"below {mantissa}e{int(exponent)} {unit}: rounding floor",
+        (0.01, floor),
+        xycoords=("axes fraction", "data"),
+        xytext=(0, 2),
+        textcoords="offset points",
+        fontsize=8,
+        color="0.3",
+        va="bottom",
+    )
     ax.set_ylim(bottom=floor / 2)
 
 
@@ -583,8 +643,13 @@ def error_norms_figure(results: Sequence[EvaluationResult]) -> Figure:
             for ep, nrm in zip(r.episodes, norms):
                 ax.plot(ep.time, nrm, color=colour, ls=style["ls"], lw=0.6, alpha=0.35, zorder=1)
             shortest = min(len(x) for x in norms)
-            ax.plot(r.episodes[0].time[:shortest], np.median([x[:shortest] for x in norms], axis=0), color=colour,
-                    label=f"{r.label} on {r.model}", **style)
+            ax.plot(
+                r.episodes[0].time[:shortest],
+                np.median([x[:shortest] for x in norms], axis=0),
+                color=colour,
+                label=f"{r.label} on {r.model}",
+                **style,
+            )
     axes[0].set_ylabel("|position error| (mm)")
     axes[1].set_ylabel("orientation error (mrad)")
     axes[1].set_xlabel("time (s)")
@@ -623,8 +688,15 @@ def _plot_trajectory(result: EvaluationResult, path: Path) -> None:
         fig.savefig(tmp, dpi=110)
 
 
-def compare(policies: Mapping[str, object], env_kwargs_list: Sequence[Mapping], episodes: int = 5, seed: int = 0,
-            out=None, progress: bool = True, **kwargs) -> list[EvaluationResult]:
+def compare(
+    policies: Mapping[str, object],
+    env_kwargs_list: Sequence[Mapping],
+    episodes: int = 5,
+    seed: int = 0,
+    out=None,
+    progress: bool = True,
+    **kwargs,
+) -> list[EvaluationResult]:
     """:func:`evaluate` every policy (label -> policy or factory) on every environment
     configuration, with the same seeds; writes one report of all of them into ``out`` if given.
 
@@ -640,9 +712,11 @@ def compare(policies: Mapping[str, object], env_kwargs_list: Sequence[Mapping], 
     Returns:
         The results, configuration by configuration, policy by policy.
     """
-    results = [evaluate(policy, env_kwargs, episodes, seed, label=label, progress=progress, **kwargs)
-               for env_kwargs in env_kwargs_list for label, policy in policies.items()]
+    results = [
+        evaluate(policy, env_kwargs, episodes, seed, label=label, progress=progress, **kwargs)
+        for env_kwargs in env_kwargs_list
+        for label, policy in policies.items()
+    ]
     if out is not None:
         write_report(results, out)
     return results
-

@@ -71,8 +71,15 @@ PD_N_PARAMS = sum(size for _, size in PD_LAYOUT)
 #: The pose and twist fields of a state or reference, with the shape of one platform's.
 _STATE_FIELDS = (("position", (3,)), ("rotation", (3, 3)), ("velocity", (3,)), ("angular_velocity", (3,)))
 
-def pd_control_params(platform: PlatformParams, reference: Reference, kp=PAPER_KP, kd=PAPER_KD,
-                      gravity_compensation: bool = False, gravity_model: str | ModelSpec = "improved") -> np.ndarray:
+
+def pd_control_params(
+    platform: PlatformParams,
+    reference: Reference,
+    kp=PAPER_KP,
+    kd=PAPER_KD,
+    gravity_compensation: bool = False,
+    gravity_model: str | ModelSpec = "improved",
+) -> np.ndarray:
     """The parameter row of ``pd_control_law`` for a reference.
 
     Args:
@@ -93,14 +100,23 @@ def pd_control_params(platform: PlatformParams, reference: Reference, kp=PAPER_K
         raise ValueError(f"platform: expected PlatformParams, got {type(platform).__name__}")
     flags = ModelSpec.parse(gravity_model, "gravity_model").flags
     n, batched, ref = batch_args(
-        1, position=(reference.position, (3,)), rotation=(reference.rotation, (3, 3)),
-        velocity=(reference.velocity, (3,)), angular_velocity=(reference.angular_velocity, (3,)))
-    row = {"kp": _gain(kp, "kp"), "kd": _gain(kd, "kd"), "gravity_compensation": float(bool(gravity_compensation)),
-           "gravity_flags": float(flags), "platform": pack_params(platform)}
+        1,
+        position=(reference.position, (3,)),
+        rotation=(reference.rotation, (3, 3)),
+        velocity=(reference.velocity, (3,)),
+        angular_velocity=(reference.angular_velocity, (3,)),
+    )
+    row = {
+        "kp": _gain(kp, "kp"),
+        "kd": _gain(kd, "kd"),
+        "gravity_compensation": float(bool(gravity_compensation)),
+        "gravity_flags": float(flags),
+        "platform": pack_params(platform),
+    }
     params = np.empty((n, PD_N_PARAMS))
     for name, size in PD_LAYOUT:
         value = ref[name].reshape(n, size) if name in ref else row[name]
-        params[:, PD_OFFSETS[name]:PD_OFFSETS[name] + size] = value
+        params[:, PD_OFFSETS[name] : PD_OFFSETS[name] + size] = value
     return params if batched else params[0]
 
 
@@ -230,8 +246,14 @@ class TaskSpacePD:
         [193.9 145.4 153.1 172.3 159.6 188.9]
     """
 
-    def __init__(self, platform: PlatformParams, kp=PAPER_KP, kd=PAPER_KD, gravity_compensation: bool = False,
-                 gravity_model: str | ModelSpec = "improved"):
+    def __init__(
+        self,
+        platform: PlatformParams,
+        kp=PAPER_KP,
+        kd=PAPER_KD,
+        gravity_compensation: bool = False,
+        gravity_model: str | ModelSpec = "improved",
+    ):
         if not isinstance(platform, PlatformParams):
             raise ValueError(f"platform: expected PlatformParams, got {type(platform).__name__}")
         self.platform = platform
@@ -251,8 +273,9 @@ class TaskSpacePD:
             The row (PD_N_PARAMS,), or (N, PD_N_PARAMS) for a batched reference, which
             :func:`stewart_env.rollout` takes as ``control_params`` for this controller.
         """
-        return pd_control_params(self.platform, reference, self.kp, self.kd, self.gravity_compensation,
-                                 self.gravity_spec)
+        return pd_control_params(
+            self.platform, reference, self.kp, self.kd, self.gravity_compensation, self.gravity_spec
+        )
 
     def __call__(self, state: PlatformState, reference: Reference) -> np.ndarray:
         """Leg forces for a state and a reference (see the class docstring).
@@ -264,9 +287,14 @@ class TaskSpacePD:
         Returns:
             The leg forces (6,) or (N,6), N.
         """
-        n, batched, a = batch_args(1, **{f"{record}.{name}": (getattr(value, name), tail)
-                                         for record, value in (("state", state), ("reference", reference))
-                                         for name, tail in _STATE_FIELDS})
+        n, batched, a = batch_args(
+            1,
+            **{
+                f"{record}.{name}": (getattr(value, name), tail)
+                for record, value in (("state", state), ("reference", reference))
+                for name, tail in _STATE_FIELDS
+            },
+        )
         params = self.control_params(Reference(*(a[f"reference.{name}"] for name, _ in _STATE_FIELDS)))
         out = law_forces(pd_control_law, np.atleast_2d(params), *(a[f"state.{name}"] for name, _ in _STATE_FIELDS))
         return out if batched else out[0]
@@ -329,10 +357,15 @@ class EnvPolicy:
         """
         zero = np.zeros_like(state.velocity)
         velocity = state.velocity + part["velocity_error"] if "velocity_error" in part else zero
-        angular_velocity = (state.angular_velocity + part["angular_velocity_error"]
-                            if "angular_velocity_error" in part else zero)
-        return Reference(state.position + part["position_error"],
-                         rotvec_to_matrix(part["orientation_error"]) @ state.rotation, velocity, angular_velocity)
+        angular_velocity = (
+            state.angular_velocity + part["angular_velocity_error"] if "angular_velocity_error" in part else zero
+        )
+        return Reference(
+            state.position + part["position_error"],
+            rotvec_to_matrix(part["orientation_error"]) @ state.rotation,
+            velocity,
+            angular_velocity,
+        )
 
     def forces_to_action(self, forces) -> np.ndarray:
         """Actions in [-1, 1] for leg forces (N): the environment's affine map inverted, clipped.
@@ -386,13 +419,23 @@ class PDPolicy(EnvPolicy):
         (6,)
     """
 
-    def __init__(self, env, kp=None, kd=None, gravity_compensation: bool = False, bandwidth: float = 0.2,
-                 damping: float = 1.0, gravity_model: str = "improved", platform: PlatformParams | None = None):
+    def __init__(
+        self,
+        env,
+        kp=None,
+        kd=None,
+        gravity_compensation: bool = False,
+        bandwidth: float = 0.2,
+        damping: float = 1.0,
+        gravity_model: str = "improved",
+        platform: PlatformParams | None = None,
+    ):
         base = env.unwrapped
         believed = base.platform if platform is None else platform
         if kp is None or kd is None:
             tuned = zoh_pd_gains(se.make_dynamics("improved", believed), base.dt, bandwidth, damping)
             kp = tuned[0] if kp is None else kp
             kd = tuned[1] if kd is None else kd
-        super().__init__(env, TaskSpacePD(believed, kp, kd, gravity_compensation=gravity_compensation,
-                                          gravity_model=gravity_model))
+        super().__init__(
+            env, TaskSpacePD(believed, kp, kd, gravity_compensation=gravity_compensation, gravity_model=gravity_model)
+        )

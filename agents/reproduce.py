@@ -91,9 +91,15 @@ class CaseTrajectory:
         return q - q[0] if from_start else q
 
 
-def simulate_case_study(model_name: str, platform: se.PlatformParams, controller: TaskSpacePD, duration: float = 1.0,
-                        dt: float = 2e-4, sample_dt: float | None = None,
-                        progress=None) -> CaseTrajectory:
+def simulate_case_study(
+    model_name: str,
+    platform: se.PlatformParams,
+    controller: TaskSpacePD,
+    duration: float = 1.0,
+    dt: float = 2e-4,
+    sample_dt: float | None = None,
+    progress=None,
+) -> CaseTrajectory:
     """Integrate the case study's closed loop with RK4, the controller evaluated at every stage.
 
     Args:
@@ -126,14 +132,32 @@ def simulate_case_study(model_name: str, platform: se.PlatformParams, controller
     zero = np.zeros(3)
     reference = Reference(case.target_position, se.rpy_to_matrix(case.target_rpy), zero, zero)
     steps = int(round(duration / sample_dt)) * every
-    run = se.rollout(model, case.start_position, se.rpy_to_matrix(case.start_rpy), zero, zero, dt=dt, steps=steps,
-                     control_law=pd_control_law, control_params=controller.control_params(reference),
-                     record_every=every)
+    run = se.rollout(
+        model,
+        case.start_position,
+        se.rpy_to_matrix(case.start_rpy),
+        zero,
+        zero,
+        dt=dt,
+        steps=steps,
+        control_law=pd_control_law,
+        control_params=controller.control_params(reference),
+        record_every=every,
+    )
     if progress is not None:
         progress.update(steps)
     legs = se.leg_kinematics(model, run.position, run.rotation, run.velocity, run.angular_velocity, model=model_name)
-    return CaseTrajectory(model.name, run.time, run.position, run.velocity, se.matrix_to_rpy(run.rotation),
-                          run.angular_velocity, legs.lengths, legs.rates, run.leg_forces)
+    return CaseTrajectory(
+        model.name,
+        run.time,
+        run.position,
+        run.velocity,
+        se.matrix_to_rpy(run.rotation),
+        run.angular_velocity,
+        legs.lengths,
+        legs.rates,
+        run.leg_forces,
+    )
 
 
 def transient_peaks(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -194,8 +218,9 @@ def _component_names(key: str) -> list[str]:
     return ["roll", "pitch", "yaw"] if key in ("angles", "angular_velocity") else ["x", "y", "z"]
 
 
-def plot_comparison(path: Path, keys: tuple[str, ...], classical: CaseTrajectory, improved: CaseTrajectory,
-                    title: str) -> None:
+def plot_comparison(
+    path: Path, keys: tuple[str, ...], classical: CaseTrajectory, improved: CaseTrajectory, title: str
+) -> None:
     """One figure: a panel per component of each quantity in ``keys`` (three panels a row),
     classical and improved overlaid, improved - classical in a small axis beneath.
 
@@ -244,10 +269,16 @@ def plot_comparison(path: Path, keys: tuple[str, ...], classical: CaseTrajectory
 FIGURES = (
     ("fig6_leg_lengths.png", ("leg_length",), "Leg lengths, change from the start (cf. paper Fig. 6)"),
     ("fig7_leg_rates.png", ("leg_rate",), "Leg rates dL/dt (cf. paper Fig. 7)"),
-    ("fig8_displacement_velocity.png", ("displacement", "velocity"),
-     "Platform displacement from the start and velocity of P (cf. paper Fig. 8)"),
-    ("fig9_angles_angular_velocity.png", ("angles", "angular_velocity"),
-     "Roll-pitch-yaw change from the start and angular velocity (cf. paper Fig. 9)"),
+    (
+        "fig8_displacement_velocity.png",
+        ("displacement", "velocity"),
+        "Platform displacement from the start and velocity of P (cf. paper Fig. 8)",
+    ),
+    (
+        "fig9_angles_angular_velocity.png",
+        ("angles", "angular_velocity"),
+        "Roll-pitch-yaw change from the start and angular velocity (cf. paper Fig. 9)",
+    ),
     ("fig10_leg_forces.png", ("leg_force",), "Leg forces of the PD law (cf. paper Fig. 10)"),
 )
 
@@ -267,8 +298,11 @@ def _summary_markdown(runs: dict[str, CaseTrajectory], diff: dict[str, dict], ce
         "4e6, 5e4, 5e4, 1e5), Kd = diag(1e4, 1e4, 2e4, 1e3, 1e3, 2e3)), gravity compensation {gravity}; "
         "continuous control: RK4 with dt = {dt:g} s, the law evaluated at every stage; {duration:g} s "
         "simulated, sampled every {sample_dt:g} s; run time {seconds:.1f} s.".format(
-            start=_triple(case.start_position), rpy=_triple(case.start_rpy), target=_triple(case.target_position),
-            **settings),
+            start=_triple(case.start_position),
+            rpy=_triple(case.start_rpy),
+            target=_triple(case.target_position),
+            **settings,
+        ),
         "",
         "Measures (q is the change from the start for leg length, displacement and angles, the value "
         "itself otherwise):",
@@ -308,8 +342,15 @@ def _summary_markdown(runs: dict[str, CaseTrajectory], diff: dict[str, dict], ce
     return "\n".join(lines)
 
 
-def reproduce(out, duration: float = 1.0, dt: float = 2e-4, sample_dt: float | None = None,
-              platform: str = "dasgupta1998", gravity_compensation: bool = False, progress: bool = True) -> dict:
+def reproduce(
+    out,
+    duration: float = 1.0,
+    dt: float = 2e-4,
+    sample_dt: float | None = None,
+    platform: str = "dasgupta1998",
+    gravity_compensation: bool = False,
+    progress: bool = True,
+) -> dict:
     """Run the case study on ``MODELS``, write the figures and ``summary.md`` into ``out``.
 
     ``out`` is locked for the whole run (``stewart_env.files.lock_folder``) and every file is
@@ -352,8 +393,14 @@ def reproduce(out, duration: float = 1.0, dt: float = 2e-4, sample_dt: float | N
         for filename, keys, title in FIGURES:
             plot_comparison(out / filename, keys, runs["classical"], runs["improved"], title)
         seconds = time.perf_counter() - start
-        settings = {"platform": platform, "gravity": "on" if gravity_compensation else "off", "dt": dt,
-                    "duration": duration, "sample_dt": sample_dt, "seconds": seconds,
-                    "case": case}
+        settings = {
+            "platform": platform,
+            "gravity": "on" if gravity_compensation else "off",
+            "dt": dt,
+            "duration": duration,
+            "sample_dt": sample_dt,
+            "seconds": seconds,
+            "case": case,
+        }
         publish(out / "summary.md", _summary_markdown(runs, diff, centroidal, settings))
     return {"runs": runs, "differences": diff, "centroidal_difference": centroidal, "seconds": seconds}

@@ -109,7 +109,9 @@ def point_estimate(values, statistic: str) -> float:
     return float(_along_last(_as_cell(values).ravel(), statistic))
 
 
-def _resample_indices(shape: tuple[int, int], resamples: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def _resample_indices(
+    shape: tuple[int, int], resamples: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
     """Stratified draws for a cell (seeds S, episodes K): seed indices (B, S, 1) with replacement,
     and for each drawn seed episode indices (B, S, K) with replacement."""
     seeds, episodes = shape
@@ -194,8 +196,14 @@ def _check(confidence: float, resamples: int) -> None:
     integer("resamples", resamples, 1, 10**7)  # 10^7 resamples of a cell already take minutes
 
 
-def _bootstrap(cells: list[np.ndarray], combine: Callable[..., np.ndarray], statistic: str, confidence: float,
-               resamples: int, seed: int) -> Interval:
+def _bootstrap(
+    cells: list[np.ndarray],
+    combine: Callable[..., np.ndarray],
+    statistic: str,
+    confidence: float,
+    resamples: int,
+    seed: int,
+) -> Interval:
     """The percentile interval of ``combine(stat(cell_1*), stat(cell_2*), ...)`` over stratified
     resamples drawn once for all cells (they share the shape (seeds, episodes))."""
     _check(confidence, resamples)
@@ -210,9 +218,16 @@ def _bootstrap(cells: list[np.ndarray], combine: Callable[..., np.ndarray], stat
     return Interval(estimate, low, high, shape[0], shape[1], n)
 
 
-def double_difference(values, values_home, reference, reference_home, statistic: str = "mean",
-                      confidence: float = CONFIDENCE, resamples: int = RESAMPLES,
-                      seed: int = BOOTSTRAP_SEED) -> Interval:
+def double_difference(
+    values,
+    values_home,
+    reference,
+    reference_home,
+    statistic: str = "mean",
+    confidence: float = CONFIDENCE,
+    resamples: int = RESAMPLES,
+    seed: int = BOOTSTRAP_SEED,
+) -> Interval:
     """``stat(values - values_home) - stat(reference - reference_home)`` and its stratified bootstrap
     interval (:func:`paired_difference` of the two changes).
 
@@ -237,12 +252,23 @@ def double_difference(values, values_home, reference, reference_home, statistic:
     Raises:
         ValueError: an unknown statistic, or a bad confidence or resamples count.
     """
-    return paired_difference(_as_cell(values) - _as_cell(values_home), _as_cell(reference) - _as_cell(reference_home),
-                             statistic, confidence, resamples, seed)
+    return paired_difference(
+        _as_cell(values) - _as_cell(values_home),
+        _as_cell(reference) - _as_cell(reference_home),
+        statistic,
+        confidence,
+        resamples,
+        seed,
+    )
 
 
-def stratified_bootstrap(values, statistic: str = "mean", confidence: float = CONFIDENCE,
-                         resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> Interval:
+def stratified_bootstrap(
+    values,
+    statistic: str = "mean",
+    confidence: float = CONFIDENCE,
+    resamples: int = RESAMPLES,
+    seed: int = BOOTSTRAP_SEED,
+) -> Interval:
     """Point estimate and percentile bootstrap interval of a statistic of one cell.
 
     Each of ``resamples`` resamples draws the seeds with replacement and, within each drawn seed,
@@ -275,8 +301,14 @@ def stratified_bootstrap(values, statistic: str = "mean", confidence: float = CO
     return _bootstrap([_as_cell(values)], lambda a: a, statistic, confidence, resamples, seed)
 
 
-def paired_difference(values, reference, statistic: str = "mean", confidence: float = CONFIDENCE,
-                      resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> Interval:
+def paired_difference(
+    values,
+    reference,
+    statistic: str = "mean",
+    confidence: float = CONFIDENCE,
+    resamples: int = RESAMPLES,
+    seed: int = BOOTSTRAP_SEED,
+) -> Interval:
     """``statistic(values) - statistic(reference)`` and its stratified bootstrap interval.
 
     The two cells are resampled with the same indices: episode k of ``values`` and of
@@ -307,8 +339,15 @@ def paired_difference(values, reference, statistic: str = "mean", confidence: fl
     return _bootstrap([_as_cell(values), _as_cell(reference)], np.subtract, statistic, confidence, resamples, seed)
 
 
-def share_removed(values, remaining, reference, statistic: str = "mean", confidence: float = CONFIDENCE,
-                  resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> Interval:
+def share_removed(
+    values,
+    remaining,
+    reference,
+    statistic: str = "mean",
+    confidence: float = CONFIDENCE,
+    resamples: int = RESAMPLES,
+    seed: int = BOOTSTRAP_SEED,
+) -> Interval:
     """``[stat(values) - stat(remaining)] / [stat(values) - stat(reference)]`` and its stratified
     bootstrap interval, the three cells (seeds, episodes) resampled with the same indices: the share
     of the cost ``values - reference`` that a controller with ``remaining`` removes (1: all of it,
@@ -330,5 +369,11 @@ def share_removed(values, remaining, reference, statistic: str = "mean", confide
         ValueError: an unknown statistic, or a bad confidence or resamples count.
     """
     with np.errstate(divide="ignore", invalid="ignore"):
-        return _bootstrap([_as_cell(values), _as_cell(remaining), _as_cell(reference)],
-                          lambda c, r, e: (c - r) / (c - e), statistic, confidence, resamples, seed)
+        return _bootstrap(
+            [_as_cell(values), _as_cell(remaining), _as_cell(reference)],
+            lambda c, r, e: (c - r) / (c - e),
+            statistic,
+            confidence,
+            resamples,
+            seed,
+        )

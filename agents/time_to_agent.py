@@ -60,8 +60,20 @@ from stewart_env.files import LOCK_FILE, TMP_PREFIX, lock_folder, publish, publi
 from stewart_env.progress import on_terminal, progress
 from stewart_env.validation import MAX_SEED, real
 
-__all__ = ["AGENTS_DIR", "EVALUATION_SEED", "FILES", "Point", "SeedResult", "TimeToAgentError", "TimeToAgentResult",
-           "learning_curve_figure", "resolve_config", "summary_table", "time_to_agent", "write_files"]
+__all__ = [
+    "AGENTS_DIR",
+    "EVALUATION_SEED",
+    "FILES",
+    "Point",
+    "SeedResult",
+    "TimeToAgentError",
+    "TimeToAgentResult",
+    "learning_curve_figure",
+    "resolve_config",
+    "summary_table",
+    "time_to_agent",
+    "write_files",
+]
 
 #: Seed of the first held-out evaluation episode.  Training rows are seeded seed + i with
 #: seed <= MAX_SEED (2**32 - 1) and i < n_envs, so every training seed lies below this one.
@@ -128,8 +140,9 @@ class SeedResult:
     def as_dict(self) -> dict[str, Any]:
         """The fields and the three rates (steps/s of collection, of learning and of training), as JSON takes them."""
         out = asdict(self)
-        out.update(collection_steps_per_s=self.collection_rate, learning_steps_per_s=self.learning_rate,
-                   steps_per_s=self.rate)
+        out.update(
+            collection_steps_per_s=self.collection_rate, learning_steps_per_s=self.learning_rate, steps_per_s=self.rate
+        )
         return out
 
 
@@ -187,8 +200,11 @@ def _number(name: str, value: Any, low: float, high: float = math.inf, low_open:
 
 def _seeds(seeds: Sequence[int]) -> list[int]:
     seeds = list(seeds)
-    if (not seeds or any(isinstance(s, bool) or not isinstance(s, (int, np.integer)) or not 0 <= s <= MAX_SEED
-                         for s in seeds) or len(set(seeds)) != len(seeds)):
+    if (
+        not seeds
+        or any(isinstance(s, bool) or not isinstance(s, (int, np.integer)) or not 0 <= s <= MAX_SEED for s in seeds)
+        or len(set(seeds)) != len(seeds)
+    ):
         raise TimeToAgentError(f"seeds: expected distinct integers in [0, {MAX_SEED}], got {seeds!r}")
     return [int(s) for s in seeds]
 
@@ -247,8 +263,24 @@ def _timer_callback(clock: Callable[[], float], on_point: Callable[[], bool]):
     return Timer()
 
 
-def _run_seed(cls, algo, hp, env_kwargs, seed, n_envs, *, target_success, target_error, budget, interval,
-              episodes, bar, publish_point: Callable[[SeedResult], None], agent_dir: Path, config: str) -> SeedResult:
+def _run_seed(
+    cls,
+    algo,
+    hp,
+    env_kwargs,
+    seed,
+    n_envs,
+    *,
+    target_success,
+    target_error,
+    budget,
+    interval,
+    episodes,
+    bar,
+    publish_point: Callable[[SeedResult], None],
+    agent_dir: Path,
+    config: str,
+) -> SeedResult:
     """Train one seed until the target or the budget; the points and throughputs of the run.
     ``publish_point`` gets the seed's result so far after every point (training paused).  The
     policy of the last point, the one that met the target if one did, is saved into ``agent_dir``
@@ -268,8 +300,7 @@ def _run_seed(cls, algo, hp, env_kwargs, seed, n_envs, *, target_success, target
     env = make_training_env(n_envs, env_kwargs, seed, hp.normalize)
     try:
         agent = cls(env=env, seed=seed, device="cpu", verbose=0, **hp.algorithm_kwargs)
-        policy = TrainedAgent(Path("."), {"algo": algo, "env_kwargs": env_kwargs}, agent,
-                              agent.get_vec_normalize_env())
+        policy = TrainedAgent(Path("."), {"algo": algo, "env_kwargs": env_kwargs}, agent, agent.get_vec_normalize_env())
 
         def on_point(force: bool = False) -> bool:
             nonlocal next_point
@@ -297,10 +328,23 @@ def _run_seed(cls, algo, hp, env_kwargs, seed, n_envs, *, target_success, target
             last = force or reached or now >= budget
             if last:  # the policy as evaluated: after this point SB3 steps the batch (and its statistics) once more
                 segment = {"start": 0, "end": point.steps, "wall_time": now, "interrupted": False}
-                save_agent(agent, agent_dir, run_manifest(
-                    algo=algo, seed=seed, n_envs=n_envs, env_kwargs=jsonable(env_kwargs), config=config,
-                    hyperparameters=jsonable(hp.raw), normalize=hp.normalize is not None, num_timesteps=point.steps,
-                    segments=[segment], finished=True, files={}))
+                save_agent(
+                    agent,
+                    agent_dir,
+                    run_manifest(
+                        algo=algo,
+                        seed=seed,
+                        n_envs=n_envs,
+                        env_kwargs=jsonable(env_kwargs),
+                        config=config,
+                        hyperparameters=jsonable(hp.raw),
+                        normalize=hp.normalize is not None,
+                        num_timesteps=point.steps,
+                        segments=[segment],
+                        finished=True,
+                        files={},
+                    ),
+                )
             publish_point(result)
             paused["writing"] += time.perf_counter() - begin
             return last
@@ -338,12 +382,24 @@ def _warm_up(env_kwargs: Mapping[str, Any]) -> None:
 # -- the measurement -------------------------------------------------------------------------------
 
 
-def time_to_agent(algo: str, out: str | os.PathLike, *, config: str | os.PathLike | None = None,
-                  task: str = "setpoint", model: str = "improved", seeds: Sequence[int] = (0,),
-                  target_success: float = 0.98, target_error_mm: float = 0.5, budget: float = 300.0,
-                  interval: float = 30.0, episodes: int = 50, n_envs: int | None = None,
-                  env_kwargs: Mapping[str, Any] | None = None, progress_bar: bool = True,
-                  report: Callable[[SeedResult], None] | None = None) -> TimeToAgentResult:
+def time_to_agent(
+    algo: str,
+    out: str | os.PathLike,
+    *,
+    config: str | os.PathLike | None = None,
+    task: str = "setpoint",
+    model: str = "improved",
+    seeds: Sequence[int] = (0,),
+    target_success: float = 0.98,
+    target_error_mm: float = 0.5,
+    budget: float = 300.0,
+    interval: float = 30.0,
+    episodes: int = 50,
+    n_envs: int | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+    progress_bar: bool = True,
+    report: Callable[[SeedResult], None] | None = None,
+) -> TimeToAgentResult:
     """Measure the training wall time to a precise agent, seed by seed (module docstring).
 
     Args:
@@ -389,25 +445,54 @@ def time_to_agent(algo: str, out: str | os.PathLike, *, config: str | os.PathLik
     n_envs = int(hp.n_envs if n_envs is None else n_envs)
     out = Path(out)
     _check_out(out)
-    settings = {"algo": algo, "config": str(cfg), "task": task, "model": model, "env_kwargs": jsonable(kwargs),
-                "n_envs": n_envs, "seeds": seeds, "target_success": target_success,
-                "target_error_mm": target_error_mm, "budget_s": budget, "interval_s": interval,
-                "episodes": int(episodes), "evaluation_seed": EVALUATION_SEED,
-                "hyperparameters": jsonable(hp.raw)}
+    settings = {
+        "algo": algo,
+        "config": str(cfg),
+        "task": task,
+        "model": model,
+        "env_kwargs": jsonable(kwargs),
+        "n_envs": n_envs,
+        "seeds": seeds,
+        "target_success": target_success,
+        "target_error_mm": target_error_mm,
+        "budget_s": budget,
+        "interval_s": interval,
+        "episodes": int(episodes),
+        "evaluation_seed": EVALUATION_SEED,
+        "hyperparameters": jsonable(hp.raw),
+    }
     result = TimeToAgentResult(settings, [])
     with lock_folder(out) as folder:
         _check_out(folder)  # again, under the lock
         with single_thread():
             _warm_up(kwargs)
             for seed in seeds:
-                with progress(total=budget, desc=f"{algo} seed {seed}", unit="s",
-                              disable=not (progress_bar and on_terminal()), leave=False) as bar:
-                    done = _run_seed(cls, algo, hp, kwargs, seed, n_envs, target_success=target_success,
-                                     target_error=target_error_mm, budget=budget, interval=interval,
-                                     episodes=int(episodes), bar=bar,
-                                     publish_point=lambda partial: write_files(
-                                         TimeToAgentResult(settings, [*result.seeds, partial]), folder),
-                                     agent_dir=folder / AGENTS_DIR / f"seed_{seed}", config=str(cfg))
+                with progress(
+                    total=budget,
+                    desc=f"{algo} seed {seed}",
+                    unit="s",
+                    disable=not (progress_bar and on_terminal()),
+                    leave=False,
+                ) as bar:
+                    done = _run_seed(
+                        cls,
+                        algo,
+                        hp,
+                        kwargs,
+                        seed,
+                        n_envs,
+                        target_success=target_success,
+                        target_error=target_error_mm,
+                        budget=budget,
+                        interval=interval,
+                        episodes=int(episodes),
+                        bar=bar,
+                        publish_point=lambda partial: write_files(
+                            TimeToAgentResult(settings, [*result.seeds, partial]), folder
+                        ),
+                        agent_dir=folder / AGENTS_DIR / f"seed_{seed}",
+                        config=str(cfg),
+                    )
                 result.seeds.append(done)
                 result.files = write_files(result, folder)
                 if report is not None:
@@ -434,8 +519,17 @@ def summary_table(result: TimeToAgentResult) -> str:
         result: the measurement.
     """
     s = result.settings
-    head = ["seed", "time to target (s)", "steps at target", "success", "median ss error (mm)",
-            "collection steps/s", "learning steps/s", "training steps/s", "evaluation (s)"]
+    head = [
+        "seed",
+        "time to target (s)",
+        "steps at target",
+        "success",
+        "median ss error (mm)",
+        "collection steps/s",
+        "learning steps/s",
+        "training steps/s",
+        "evaluation (s)",
+    ]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
 
     def last(r: SeedResult) -> Point | None:
@@ -443,30 +537,52 @@ def summary_table(result: TimeToAgentResult) -> str:
 
     for r in result.seeds:
         p = last(r)
-        lines.append("| " + " | ".join([
-            str(r.seed), f"{r.wall_time:.0f}" if r.reached else (
-                f"not reached (> {s['budget_s']:g})" if r.finished else "running"),
-            f"{r.steps}" if r.reached else "-", "-" if p is None else f"{p.success:.0%}",
-            "-" if p is None else f"{p.median_error_mm:.3g}", f"{r.collection_rate:.0f}", f"{r.learning_rate:.0f}",
-            f"{r.rate:.0f}", f"{r.evaluation_time:.0f}"]) + " |")
+        lines.append(
+            "| "
+            + " | ".join(
+                [
+                    str(r.seed),
+                    f"{r.wall_time:.0f}"
+                    if r.reached
+                    else (f"not reached (> {s['budget_s']:g})" if r.finished else "running"),
+                    f"{r.steps}" if r.reached else "-",
+                    "-" if p is None else f"{p.success:.0%}",
+                    "-" if p is None else f"{p.median_error_mm:.3g}",
+                    f"{r.collection_rate:.0f}",
+                    f"{r.learning_rate:.0f}",
+                    f"{r.rate:.0f}",
+                    f"{r.evaluation_time:.0f}",
+                ]
+            )
+            + " |"
+        )
     if len(result.done()) > 1:
         median = result.median_time()
         reached = [r for r in result.seeds if r.reached]
-        time_cell = (f"{median:.0f}" if math.isfinite(median) else f"not reached (> {s['budget_s']:g})")
+        time_cell = f"{median:.0f}" if math.isfinite(median) else f"not reached (> {s['budget_s']:g})"
         if reached:
             times = [r.wall_time for r in reached]
             time_cell += f" (reached {len(reached)}/{len(result.done())}: {min(times):.0f}-{max(times):.0f})"
         else:
             time_cell += f" (reached 0/{len(result.done())})"
         points = [last(r) for r in result.seeds if r.points]
-        lines.append("| " + " | ".join([
-            "median (range)", time_cell, _median_range([r.steps for r in reached], ".0f"),
-            _median_range([p.success * 100 for p in points], ".0f") + " %" if points else "-",
-            _median_range([p.median_error_mm for p in points], ".3g"),
-            _median_range([r.collection_rate for r in result.seeds], ".0f"),
-            _median_range([r.learning_rate for r in result.seeds], ".0f"),
-            _median_range([r.rate for r in result.seeds], ".0f"),
-            _median_range([r.evaluation_time for r in result.seeds], ".0f")]) + " |")
+        lines.append(
+            "| "
+            + " | ".join(
+                [
+                    "median (range)",
+                    time_cell,
+                    _median_range([r.steps for r in reached], ".0f"),
+                    _median_range([p.success * 100 for p in points], ".0f") + " %" if points else "-",
+                    _median_range([p.median_error_mm for p in points], ".3g"),
+                    _median_range([r.collection_rate for r in result.seeds], ".0f"),
+                    _median_range([r.learning_rate for r in result.seeds], ".0f"),
+                    _median_range([r.rate for r in result.seeds], ".0f"),
+                    _median_range([r.evaluation_time for r in result.seeds], ".0f"),
+                ]
+            )
+            + " |"
+        )
     return "\n".join(lines)
 
 
@@ -502,8 +618,11 @@ def learning_curve_figure(result: TimeToAgentResult):
     for ax in (top, bottom):
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8, loc="best")
-    fig.suptitle(f"{ALGORITHM_NAMES[s['algo']]} ({Path(s['config']).name}) on the {s['task']} task, {s['model']} model: "
-                 f"{s['episodes']} held-out episodes a point (circled: target reached)", fontsize=10)
+    fig.suptitle(
+        f"{ALGORITHM_NAMES[s['algo']]} ({Path(s['config']).name}) on the {s['task']} task, {s['model']} model: "
+        f"{s['episodes']} held-out episodes a point (circled: target reached)",
+        fontsize=10,
+    )
     return fig
 
 
@@ -519,28 +638,57 @@ def write_files(result: TimeToAgentResult, out: Path) -> dict[str, Path]:
     """
     paths = {key: out / name for key, name in FILES.items()}
     median = result.median_time()
-    summary = {"reached": result.reached, "seeds": len(result.done()),
-               "running": len(result.seeds) - len(result.done()),
-               "median_time_to_target_s": median if math.isfinite(median) else None}
-    publish(paths["json"], json.dumps(_finite({"settings": result.settings, "summary": summary,
-                                               "seeds": [r.as_dict() for r in result.seeds]}), indent=2) + "\n")
+    summary = {
+        "reached": result.reached,
+        "seeds": len(result.done()),
+        "running": len(result.seeds) - len(result.done()),
+        "median_time_to_target_s": median if math.isfinite(median) else None,
+    }
+    publish(
+        paths["json"],
+        json.dumps(
+            _finite({"settings": result.settings, "summary": summary, "seeds": [r.as_dict() for r in result.seeds]}),
+            indent=2,
+        )
+        + "\n",
+    )
     with publishing(paths["csv"]) as tmp, tmp.open("w", newline="") as f:
         writer = csv.writer(f)
-        writer.writerow(["seed", "wall_time_s", "steps", "success", "median_steady_state_error_mm",
-                         "evaluation_time_s", "target_met"])
+        writer.writerow(
+            [
+                "seed",
+                "wall_time_s",
+                "steps",
+                "success",
+                "median_steady_state_error_mm",
+                "evaluation_time_s",
+                "target_met",
+            ]
+        )
         s = result.settings
         for r in result.seeds:
             for p in r.points:
                 met = p.success >= s["target_success"] and p.median_error_mm <= s["target_error_mm"]
-                writer.writerow([r.seed, f"{p.wall_time:.3f}", p.steps, f"{p.success:.6g}",
-                                 f"{p.median_error_mm:.9g}", f"{p.evaluation_time:.3f}", int(met)])
+                writer.writerow(
+                    [
+                        r.seed,
+                        f"{p.wall_time:.3f}",
+                        p.steps,
+                        f"{p.success:.6g}",
+                        f"{p.median_error_mm:.9g}",
+                        f"{p.evaluation_time:.3f}",
+                        int(met),
+                    ]
+                )
     s = result.settings
-    publish(paths["markdown"],
-            f"# Time to a precise agent: {ALGORITHM_NAMES[s['algo']]} on the {s['task']} task\n\n"
-            f"Target: success >= {s['target_success']:.0%} and median steady-state position error <= "
-            f"{s['target_error_mm']:g} mm on {s['episodes']} held-out episodes; budget {s['budget_s']:g} s of "
-            f"training wall time a seed, a point every {s['interval_s']:g} s (evaluation time excluded). "
-            f"Config: `{s['config']}`, {s['n_envs']} platforms a batch.\n\n" + summary_table(result) + "\n")
+    publish(
+        paths["markdown"],
+        f"# Time to a precise agent: {ALGORITHM_NAMES[s['algo']]} on the {s['task']} task\n\n"
+        f"Target: success >= {s['target_success']:.0%} and median steady-state position error <= "
+        f"{s['target_error_mm']:g} mm on {s['episodes']} held-out episodes; budget {s['budget_s']:g} s of "
+        f"training wall time a seed, a point every {s['interval_s']:g} s (evaluation time excluded). "
+        f"Config: `{s['config']}`, {s['n_envs']} platforms a batch.\n\n" + summary_table(result) + "\n",
+    )
     with publishing(paths["png"]) as tmp:
         learning_curve_figure(result).savefig(tmp, dpi=110, format="png")
     return paths
@@ -555,4 +703,3 @@ def _finite(value: Any) -> Any:
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
-

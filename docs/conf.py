@@ -52,19 +52,28 @@ nitpicky = True
 # The site is built offline (no intersphinx inventories): names of Python's standard library and
 # of the libraries stewart-env builds on are not cross-referenced.
 nitpick_ignore_regex = [
-    (r"py:.*", r"(numpy|np|collections|enum|os|pathlib|argparse|typing|gymnasium|gym|numba|mujoco|matplotlib"
-               r"|stable_baselines3|torch|ray)(\..*)?"),
+    (
+        r"py:.*",
+        r"(numpy|np|collections|enum|os|pathlib|argparse|typing|gymnasium|gym|numba|mujoco|matplotlib"
+        r"|stable_baselines3|torch|ray)(\..*)?",
+    ),
     (r"py:class", r"(ObsType|ActType|AutoresetMode|Path|optional .*)"),
 ]
 # Names that docstrings of the public API mention but that are not public themselves (private
 # bases, helpers, the compiled kernels' modules): shown as code, not linked.
 nitpick_ignore_regex += [
     (r"py:.*", r"stewart_env\..*\._\w+|_\w+"),
-    (r"py:.*", r"stewart_env\.(dynamics\.(rk4|kernels|model\.batch_args|model\.ROTATION_TOLERANCE)"
-               r"|validation|envs\.\w+\.BatchAttributes|agents\.pd\.EnvPolicy|agents\.evaluation\.Episode"
-               r"|rotations\.rpy_rate_matrix)"),
-    (r"py:.*", r"EnvPolicy|TrainingInterrupted|rollout_steps|simulate_case_study|peak_differences|empty_errors"
-               r"|Task\.initialize_episode|Reference|PlatformState|PlatformParams|pose_margins"),
+    (
+        r"py:.*",
+        r"stewart_env\.(dynamics\.(rk4|kernels|model\.batch_args|model\.ROTATION_TOLERANCE)"
+        r"|validation|envs\.\w+\.BatchAttributes|agents\.pd\.EnvPolicy|agents\.evaluation\.Episode"
+        r"|rotations\.rpy_rate_matrix)",
+    ),
+    (
+        r"py:.*",
+        r"EnvPolicy|TrainingInterrupted|rollout_steps|simulate_case_study|peak_differences|empty_errors"
+        r"|Task\.initialize_episode|Reference|PlatformState|PlatformParams|pose_margins",
+    ),
     # the site documents packages, not each of their modules
     (r"py:mod", r"stewart_env(\..*)?"),
     # a description after a colon in a Returns line, read by napoleon as a type

@@ -88,8 +88,9 @@ def bench_model(name: str, params, sizes=(1, 1024), repeats: int = 5) -> dict:
         kernel_loop()
         out[f"forward_per_s_N{n}"] = calls * n / _best_of(forward_loop, repeats)
         out[f"kernel_per_s_N{n}"] = calls * n / _best_of(kernel_loop, repeats)
-        out[f"rollout_1s_N{n}"] = _best_of(lambda: se.rollout(model, t, R, v, w, F, dt=1e-3, steps=1000),
-                                           repeats if n == 1 else 2)
+        out[f"rollout_1s_N{n}"] = _best_of(
+            lambda: se.rollout(model, t, R, v, w, F, dt=1e-3, steps=1000), repeats if n == 1 else 2
+        )
     return out
 
 
@@ -113,8 +114,9 @@ def _per_call(fns: dict, calls: int, repeats: int, clock=time.perf_counter, rese
     return best
 
 
-def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 1000, substeps: int = 10,
-                 dt: float = 1e-3) -> dict:
+def bench_mujoco(
+    params, n_batch: int = 1024, repeats: int = 10, calls: int = 1000, substeps: int = 10, dt: float = 1e-3
+) -> dict:
     """MuJoCo and stewart-env side by side on the same mechanism (stewart_env.mujoco's twin of
     ``params``), the platform at home at rest under its holding forces.  Seconds per call:
 
@@ -166,14 +168,32 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     ws = model.workspace(1)
     ws.set_state(t, R, z, z)
     ws.leg_forces[0] = F
-    out.update(_per_call({"forward_mujoco": lambda: mujoco.mj_forward(m, d),
-                          "forward_api": lambda: model.forward(t, R, z, z, F),
-                          "forward_workspace": ws.forward}, calls, repeats, cpu))
+    out.update(
+        _per_call(
+            {
+                "forward_mujoco": lambda: mujoco.mj_forward(m, d),
+                "forward_api": lambda: model.forward(t, R, z, z, F),
+                "forward_workspace": ws.forward,
+            },
+            calls,
+            repeats,
+            cpu,
+        )
+    )
     ws.acceleration[0] = 0.0  # Workspace.inverse then writes the holding forces back into leg_forces
-    out.update(_per_call({"inverse_mujoco": lambda: mujoco.mj_inverse(m, d),  # of mj_forward's qacc
-                          "inverse_api": lambda: model.inverse(t, R, z, z, z, z),
-                          "inverse_workspace": ws.inverse,
-                          "mass_and_bias_workspace": ws.mass_and_bias}, calls, repeats, cpu))
+    out.update(
+        _per_call(
+            {
+                "inverse_mujoco": lambda: mujoco.mj_inverse(m, d),  # of mj_forward's qacc
+                "inverse_api": lambda: model.inverse(t, R, z, z, z, z),
+                "inverse_workspace": ws.inverse,
+                "mass_and_bias_workspace": ws.mass_and_bias,
+            },
+            calls,
+            repeats,
+            cpu,
+        )
+    )
     bar.update()
 
     step_calls = max(1, calls // substeps)
@@ -198,14 +218,22 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
         env.reset(seed=0)
         mj_env.reset(seed=0)
 
-    out.update(_per_call({
-        "step_mujoco": lambda: mujoco.mj_step(m, d, nstep=substeps),
-        "step_plant": lambda: plant.step_inplace(*plant_state, forces, wrench, dt, substeps),
-        "step_rollout": lambda: rollout_inplace(model, *state, forces, wrench, dt, substeps),
-        "step_workspace": lambda: ws.step(dt, substeps),
-        "step_env": lambda: env.step(env_action),
-        "step_env_mujoco": lambda: mj_env.step(mj_env_action),
-    }, step_calls, repeats, cpu, reset=back_to_start))
+    out.update(
+        _per_call(
+            {
+                "step_mujoco": lambda: mujoco.mj_step(m, d, nstep=substeps),
+                "step_plant": lambda: plant.step_inplace(*plant_state, forces, wrench, dt, substeps),
+                "step_rollout": lambda: rollout_inplace(model, *state, forces, wrench, dt, substeps),
+                "step_workspace": lambda: ws.step(dt, substeps),
+                "step_env": lambda: env.step(env_action),
+                "step_env_mujoco": lambda: mj_env.step(mj_env_action),
+            },
+            step_calls,
+            repeats,
+            cpu,
+            reset=back_to_start,
+        )
+    )
     env.close()
     mj_env.close()
     bar.update()
@@ -225,10 +253,16 @@ def bench_mujoco(params, n_batch: int = 1024, repeats: int = 10, calls: int = 10
     venv_actions = np.tile(env_action, (n_batch, 1))
     venv.reset(seed=0)
     with mujoco_rollout.Rollout(nthread=nthread) as pool:
-        batch = _per_call({"batch_mujoco": lambda: pool.rollout(m, datas, initial, control, state=states),
-                           "batch_rollout": lambda: rollout_inplace(model, bt, bR, bv, bw, bF, bW, dt, substeps),
-                           "batch_vector_env": lambda: venv.step(venv_actions)},
-                          1, repeats, reset=lambda: venv.reset(seed=0))
+        batch = _per_call(
+            {
+                "batch_mujoco": lambda: pool.rollout(m, datas, initial, control, state=states),
+                "batch_rollout": lambda: rollout_inplace(model, bt, bR, bv, bw, bF, bW, dt, substeps),
+                "batch_vector_env": lambda: venv.step(venv_actions),
+            },
+            1,
+            repeats,
+            reset=lambda: venv.reset(seed=0),
+        )
     venv.close()
     out.update({name: seconds / n_batch for name, seconds in batch.items()})
     bar.update(2)
@@ -248,28 +282,61 @@ def mujoco_table(r: dict) -> str:
     ratio = lambda ours, theirs: "" if theirs is None else f"{theirs / ours:.2f}x"  # noqa: E731
     step = f"{r['substeps'] * r['dt'] * 1e3:g} ms step ({r['substeps']} RK4 substeps)"
     rows = [
-        ("forward dynamics, 1 platform", "mj_forward", r["forward_mujoco"], [
-            ("Workspace.forward", r["forward_workspace"]), ("Dynamics.forward", r["forward_api"])]),
-        ("inverse dynamics, 1 platform", "mj_inverse", r["inverse_mujoco"], [
-            ("Workspace.inverse", r["inverse_workspace"]), ("Dynamics.inverse", r["inverse_api"])]),
+        (
+            "forward dynamics, 1 platform",
+            "mj_forward",
+            r["forward_mujoco"],
+            [("Workspace.forward", r["forward_workspace"]), ("Dynamics.forward", r["forward_api"])],
+        ),
+        (
+            "inverse dynamics, 1 platform",
+            "mj_inverse",
+            r["inverse_mujoco"],
+            [("Workspace.inverse", r["inverse_workspace"]), ("Dynamics.inverse", r["inverse_api"])],
+        ),
         ("mass matrix and bias, 1 platform", "", None, [("Workspace.mass_and_bias", r["mass_and_bias_workspace"])]),
-        (f"{step}, 1 platform", "mj_step", r["step_mujoco"], [
-            ("env.step (gymnasium.make)", r["step_env"]), ("Workspace.step", r["step_workspace"]),
-            ("rollout_inplace", r["step_rollout"])]),
-        (f"{step}, 1 platform, as a plant", "MujocoPlant.step_inplace", r["step_plant"], [
-            ("rollout_inplace", r["step_rollout"])]),
-        (f"{step}, 1 platform, env", 'env.step (model="mujoco")', r["step_env_mujoco"], [
-            ("env.step (improved)", r["step_env"])]),
-        (f"{step}, {r['n_batch']} platforms, per platform", "mujoco.rollout", r["batch_mujoco"], [
-            ("vector env step", r["batch_vector_env"]), ("rollout_inplace", r["batch_rollout"])]),
+        (
+            f"{step}, 1 platform",
+            "mj_step",
+            r["step_mujoco"],
+            [
+                ("env.step (gymnasium.make)", r["step_env"]),
+                ("Workspace.step", r["step_workspace"]),
+                ("rollout_inplace", r["step_rollout"]),
+            ],
+        ),
+        (
+            f"{step}, 1 platform, as a plant",
+            "MujocoPlant.step_inplace",
+            r["step_plant"],
+            [("rollout_inplace", r["step_rollout"])],
+        ),
+        (
+            f"{step}, 1 platform, env",
+            'env.step (model="mujoco")',
+            r["step_env_mujoco"],
+            [("env.step (improved)", r["step_env"])],
+        ),
+        (
+            f"{step}, {r['n_batch']} platforms, per platform",
+            "mujoco.rollout",
+            r["batch_mujoco"],
+            [("vector env step", r["batch_vector_env"]), ("rollout_inplace", r["batch_rollout"])],
+        ),
     ]
-    lines = ["(1 platform: CPU time per call; batches and resets: wall-clock time)", "",
-             "| call | MuJoCo | time | stewart-env | time | MuJoCo / stewart-env |", "|---|---|---|---|---|---|"]
+    lines = [
+        "(1 platform: CPU time per call; batches and resets: wall-clock time)",
+        "",
+        "| call | MuJoCo | time | stewart-env | time | MuJoCo / stewart-env |",
+        "|---|---|---|---|---|---|",
+    ]
     for what, theirs_name, theirs, ours in rows:
         for name, value in ours:
             lines.append(f"| {what} | {theirs_name} | {us(theirs)} | {name} | {us(value)} | {ratio(value, theirs)} |")
-    lines.append(f"| vector env reset, {r['n_batch']} rows, per row | | | randomised / nominal "
-                 f"| {us(r['reset_randomized'])} / {us(r['reset_nominal'])} | |")
+    lines.append(
+        f"| vector env reset, {r['n_batch']} rows, per row | | | randomised / nominal "
+        f"| {us(r['reset_randomized'])} / {us(r['reset_nominal'])} | |"
+    )
     return "\n".join(lines)
 
 
@@ -303,8 +370,15 @@ def forward_flops(model) -> int:
     return _core.forward_flops(model.packed[:1], model.flags, t, R, z, z, model.inverse(t, R, z, z, z, z))
 
 
-def bench_scaling(params, model_name: str = "improved", sizes=SCALING_SIZES, repeats: int = 5,
-                  seconds: float = 0.05, substeps: int = 10, dt: float = 1e-3) -> dict:
+def bench_scaling(
+    params,
+    model_name: str = "improved",
+    sizes=SCALING_SIZES,
+    repeats: int = 5,
+    seconds: float = 0.05,
+    substeps: int = 10,
+    dt: float = 1e-3,
+) -> dict:
     """Throughput of the batched kernels over batch sizes: for each N in ``sizes``, forward
     evaluations/s (``Workspace.forward``) and control steps of ``substeps`` RK4 steps of ``dt``
     per second and platform (``Workspace.step``), by the wall clock and per second of CPU time
@@ -349,18 +423,22 @@ def scaling_table(r: dict) -> str:
     """The markdown table of :func:`bench_scaling`'s result, with the flop count and peak it assumes."""
     step = f"{r['substeps'] * r['dt'] * 1e3:g} ms"
     cores = os.cpu_count() or 1
-    lines = [f"model {r['model']}: {r['flops']:,} flops per forward evaluation (counted); vector peak "
-             f"{r['peak'] / 1e9:.1f} GFLOP/s ({cores} cores x clock x {PEAK_FLOPS_PER_CYCLE} flops/cycle), "
-             f"{r['peak'] / cores / 1e9:.1f} GFLOP/s per core",
-             "",
-             f"| platforms N | forward evaluations/s | of peak | per CPU second | of a core's peak "
-             f"| {step} platform-steps/s | of peak | per CPU second | of a core's peak |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"model {r['model']}: {r['flops']:,} flops per forward evaluation (counted); vector peak "
+        f"{r['peak'] / 1e9:.1f} GFLOP/s ({cores} cores x clock x {PEAK_FLOPS_PER_CYCLE} flops/cycle), "
+        f"{r['peak'] / cores / 1e9:.1f} GFLOP/s per core",
+        "",
+        f"| platforms N | forward evaluations/s | of peak | per CPU second | of a core's peak "
+        f"| {step} platform-steps/s | of peak | per CPU second | of a core's peak |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for row in r["rows"]:
-        lines.append(f"| {row['n']:,} | {row['evals_per_s']:,.0f} | {row['evals_peak']:.1%} "
-                     f"| {row['evals_per_cpu_s']:,.0f} | {row['evals_core_peak']:.1%} "
-                     f"| {row['steps_per_s']:,.0f} | {row['steps_peak']:.1%} "
-                     f"| {row['steps_per_cpu_s']:,.0f} | {row['steps_core_peak']:.1%} |")
+        lines.append(
+            f"| {row['n']:,} | {row['evals_per_s']:,.0f} | {row['evals_peak']:.1%} "
+            f"| {row['evals_per_cpu_s']:,.0f} | {row['evals_core_peak']:.1%} "
+            f"| {row['steps_per_s']:,.0f} | {row['steps_peak']:.1%} "
+            f"| {row['steps_per_cpu_s']:,.0f} | {row['steps_core_peak']:.1%} |"
+        )
     return "\n".join(lines)
 
 
@@ -375,16 +453,43 @@ def plot_scaling(r: dict, path) -> None:
     n = [row["n"] for row in r["rows"]]
     fig, ax = plt.subplots(figsize=(7.0, 5.4), layout="constrained")
     ax.loglog(n, [row["evals_per_s"] for row in r["rows"]], "o-", color="C0", label="forward evaluations/s")
-    ax.loglog(n, [row["evals_per_cpu_s"] for row in r["rows"]], "o:", color="C0", mfc="none",
-              label="forward evaluations per CPU second")
-    ax.loglog(n, [row["steps_per_s"] for row in r["rows"]], "s-", color="C1",
-              label=f"{r['substeps'] * r['dt'] * 1e3:g} ms platform-steps/s ({4 * r['substeps']} evaluations)")
-    ax.loglog(n, [row["steps_per_cpu_s"] for row in r["rows"]], "s:", color="C1", mfc="none",
-              label="platform-steps per CPU second")
-    ax.axhline(r["peak"] / r["flops"], color="C0", ls="--", lw=0.8,
-               label=f"vector peak / {r['flops']:,} flops = {r['peak'] / r['flops'] / 1e6:.1f} M evaluations/s")
-    ax.axhline(r["peak"] / (4 * r["substeps"] * r["flops"]), color="C1", ls="--", lw=0.8,
-               label="vector peak in platform-steps/s")
+    ax.loglog(
+        n,
+        [row["evals_per_cpu_s"] for row in r["rows"]],
+        "o:",
+        color="C0",
+        mfc="none",
+        label="forward evaluations per CPU second",
+    )
+    ax.loglog(
+        n,
+        [row["steps_per_s"] for row in r["rows"]],
+        "s-",
+        color="C1",
+        label=f"{r['substeps'] * r['dt'] * 1e3:g} ms platform-steps/s ({4 * r['substeps']} evaluations)",
+    )
+    ax.loglog(
+        n,
+        [row["steps_per_cpu_s"] for row in r["rows"]],
+        "s:",
+        color="C1",
+        mfc="none",
+        label="platform-steps per CPU second",
+    )
+    ax.axhline(
+        r["peak"] / r["flops"],
+        color="C0",
+        ls="--",
+        lw=0.8,
+        label=f"vector peak / {r['flops']:,} flops = {r['peak'] / r['flops'] / 1e6:.1f} M evaluations/s",
+    )
+    ax.axhline(
+        r["peak"] / (4 * r["substeps"] * r["flops"]),
+        color="C1",
+        ls="--",
+        lw=0.8,
+        label="vector peak in platform-steps/s",
+    )
     ax.set_xlabel("platforms in the batch, N")
     ax.set_ylabel("per second")
     ax.set_title(f"stewart-env batched physics ({r['model']}), {machine().split(',')[0]}", fontsize=9)
@@ -409,12 +514,19 @@ def machine() -> str:
             cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
     except (OSError, StopIteration):
         pass
-    return (f"{cpu}, {os.cpu_count()} cores, kernels for {_core.TARGET}, Python {_platform.python_version()}, "
-            f"numpy {np.__version__}")
+    return (
+        f"{cpu}, {os.cpu_count()} cores, kernels for {_core.TARGET}, Python {_platform.python_version()}, "
+        f"numpy {np.__version__}"
+    )
 
 
-def run_bench(platform: str = "dasgupta1998", models: str = ",".join(MODEL_NAMES), env: bool = False,
-              mujoco: bool = False, plot: str | None = None) -> None:
+def run_bench(
+    platform: str = "dasgupta1998",
+    models: str = ",".join(MODEL_NAMES),
+    env: bool = False,
+    mujoco: bool = False,
+    plot: str | None = None,
+) -> None:
     """Print the benchmark's tables: the machine, the first evaluation of a fresh process, each of
     the comma-separated ``models`` on ``platform``, the scaling table (drawn to the PNG file
     ``plot`` if given); with ``env`` the environments, with ``mujoco`` MuJoCo beside the kernels
@@ -430,14 +542,18 @@ def run_bench(platform: str = "dasgupta1998", models: str = ",".join(MODEL_NAMES
     first = first_evaluation_seconds()
     print(f"fresh process to first forward evaluation: {first:.2f} s")
     print()
-    print("| model | forward/s N=1 (API / kernel) | forward/s N=1024 (API / kernel) "
-          "| rollout 1 s N=1 | rollout 1 s N=1024 |")
+    print(
+        "| model | forward/s N=1 (API / kernel) | forward/s N=1024 (API / kernel) "
+        "| rollout 1 s N=1 | rollout 1 s N=1024 |"
+    )
     print("|---|---|---|---|---|")
     for name in models.split(","):
         r = bench_model(name.strip(), params)
-        print(f"| {name} | {r['forward_per_s_N1']:,.0f} / {r['kernel_per_s_N1']:,.0f} "
-              f"| {r['forward_per_s_N1024']:,.0f} / {r['kernel_per_s_N1024']:,.0f} "
-              f"| {r['rollout_1s_N1'] * 1e3:.2f} ms | {r['rollout_1s_N1024']:.2f} s |")
+        print(
+            f"| {name} | {r['forward_per_s_N1']:,.0f} / {r['kernel_per_s_N1']:,.0f} "
+            f"| {r['forward_per_s_N1024']:,.0f} / {r['kernel_per_s_N1024']:,.0f} "
+            f"| {r['rollout_1s_N1'] * 1e3:.2f} ms | {r['rollout_1s_N1024']:.2f} s |"
+        )
     print()
     scaling = bench_scaling(params)
     print(scaling_table(scaling))
@@ -454,14 +570,18 @@ def run_bench(platform: str = "dasgupta1998", models: str = ",".join(MODEL_NAMES
         from stewart_env.envs.bench_env import bench_resets_in_steps
 
         r = bench_resets_in_steps()
-        print(f"vector env N={r['n']} with resets (uniformly random actions; the step alone holds the platform): "
-              f"{r['step_s'] * 1e6:.2f} us a platform-step alone, {r['reset_nominal_s'] * 1e6:.2f} us with resets "
-              f"(x{r['reset_nominal_ratio']:.2f}, {r['resets_nominal']:.3f} resets a platform-step), "
-              f"{r['reset_randomized_s'] * 1e6:.2f} us randomised (x{r['reset_randomized_ratio']:.2f}, "
-              f"{r['resets_randomized']:.3f})")
+        print(
+            f"vector env N={r['n']} with resets (uniformly random actions; the step alone holds the platform): "
+            f"{r['step_s'] * 1e6:.2f} us a platform-step alone, {r['reset_nominal_s'] * 1e6:.2f} us with resets "
+            f"(x{r['reset_nominal_ratio']:.2f}, {r['resets_nominal']:.3f} resets a platform-step), "
+            f"{r['reset_randomized_s'] * 1e6:.2f} us randomised (x{r['reset_randomized_ratio']:.2f}, "
+            f"{r['resets_randomized']:.3f})"
+        )
     if mujoco:
         from stewart_env.mujoco import require_mujoco
 
         print()
-        print(f"MuJoCo {require_mujoco().__version__} on the same mechanism (stewart_env.mujoco), platform at rest at home:")
+        print(
+            f"MuJoCo {require_mujoco().__version__} on the same mechanism (stewart_env.mujoco), platform at rest at home:"
+        )
         print(mujoco_table(bench_mujoco(params)))

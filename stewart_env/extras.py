@@ -29,8 +29,10 @@ EXTRAS: dict[str, tuple[str, ...]] = {
 }
 #: What an extra asks of the user before ``pip install`` (torch's CPU build for ``rl``: the
 #: default index serves the CUDA build, gigabytes this package does not use).
-_BEFORE = {"rl": "first torch==2.13.0 (the CPU build: pip install torch==2.13.0 --index-url "
-                 "https://download.pytorch.org/whl/cpu), then "}
+_BEFORE = {
+    "rl": "first torch==2.13.0 (the CPU build: pip install torch==2.13.0 --index-url "
+    "https://download.pytorch.org/whl/cpu), then "
+}
 
 
 class MissingExtra(UsageError, ImportError):
@@ -48,7 +50,7 @@ def install_hint(extra: str) -> str:
     Args:
         extra: the extra's name.
     """
-    return f"install the extra {extra!r}: {_BEFORE.get(extra, '')}pip install -e \".[{extra}]\""
+    return f'install the extra {extra!r}: {_BEFORE.get(extra, "")}pip install -e ".[{extra}]"'
 
 
 def missing(extra: str) -> list[str]:
@@ -82,8 +84,9 @@ def require(extra: str, what: str) -> None:
     absent = missing(extra)
     if absent:
         verb = "is" if len(absent) == 1 else "are"
-        raise MissingExtra(f"{what} needs {' and '.join(absent)}, which {verb} not installed; "
-                           f"{install_hint(extra)}", extra)
+        raise MissingExtra(
+            f"{what} needs {' and '.join(absent)}, which {verb} not installed; {install_hint(extra)}", extra
+        )
 
 
 def extra_of(error: BaseException | None) -> str | None:

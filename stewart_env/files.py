@@ -58,9 +58,29 @@ try:
 except ImportError:  # no flock (Windows): folders are not locked there
     fcntl = None
 
-__all__ = ["LOCK_FILE", "MAX_DEPTH", "TMP_PREFIX", "DocumentError", "FileError", "FolderBusy", "NotWritable",
-           "WriteError", "check_not_busy", "check_writable", "load_json", "load_yaml", "lock_folder", "open_regular",
-           "publish", "publishing", "publishing_folder", "read_json", "read_regular", "sha256_file", "write_error"]
+__all__ = [
+    "LOCK_FILE",
+    "MAX_DEPTH",
+    "TMP_PREFIX",
+    "DocumentError",
+    "FileError",
+    "FolderBusy",
+    "NotWritable",
+    "WriteError",
+    "check_not_busy",
+    "check_writable",
+    "load_json",
+    "load_yaml",
+    "lock_folder",
+    "open_regular",
+    "publish",
+    "publishing",
+    "publishing_folder",
+    "read_json",
+    "read_regular",
+    "sha256_file",
+    "write_error",
+]
 
 #: The lock file of an output folder (see :func:`lock_folder`).
 LOCK_FILE = ".stewart-env.lock"
@@ -114,8 +134,10 @@ class FolderBusy(FileError):
 
     def __init__(self, path: str | os.PathLike, pid: int | None):
         holder = f"PID {pid}" if pid is not None else "PID unknown"
-        super().__init__(path, f"in use by another stewart-env command ({holder}); wait for it to end, or choose "
-                               "another output directory")
+        super().__init__(
+            path,
+            f"in use by another stewart-env command ({holder}); wait for it to end, or choose another output directory",
+        )
         self.pid = pid
 
     def __str__(self) -> str:
@@ -241,8 +263,9 @@ def _locked(folder: Path, lock: Path) -> int:
     """A descriptor of ``lock``, the lock file ``folder`` holds, exclusively locked by this process."""
     for attempt in range(_LOCK_ATTEMPTS):
         try:
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0),
-                         0o644)
+            fd = os.open(
+                lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0), 0o644
+            )
         except OSError as err:
             raise FileError(lock, f"cannot open the folder's lock file: {_cause(err)}") from None
         try:
@@ -618,15 +641,16 @@ class _BoundedLoader(yaml.SafeLoader):
         self._depth += 1
         try:
             if self._depth > MAX_DEPTH:
-                raise yaml.composer.ComposerError(None, None, f"nested more than {MAX_DEPTH} levels deep",
-                                                  self.peek_event().start_mark)
+                raise yaml.composer.ComposerError(
+                    None, None, f"nested more than {MAX_DEPTH} levels deep", self.peek_event().start_mark
+                )
             return super().compose_node(parent, index)
         finally:
             self._depth -= 1
 
 
 def _shortened(text: str) -> str:
-    return text if len(text) <= _PROBLEM_CHARS else text[:_PROBLEM_CHARS - 3] + "..."
+    return text if len(text) <= _PROBLEM_CHARS else text[: _PROBLEM_CHARS - 3] + "..."
 
 
 def _yaml_problem(err: yaml.YAMLError) -> str:

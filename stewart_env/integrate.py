@@ -38,9 +38,23 @@ class Trajectory(NamedTuple):
     leg_forces: np.ndarray
 
 
-def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg_forces=None,
-            dt: float = 1e-3, steps: int = 1000, external_wrench=None, check_finite: bool = True, *,
-            control_law=None, control_params=None, start_time: float = 0.0, record_every: int | None = None):
+def rollout(
+    model: Dynamics,
+    position,
+    rotation,
+    velocity,
+    angular_velocity,
+    leg_forces=None,
+    dt: float = 1e-3,
+    steps: int = 1000,
+    external_wrench=None,
+    check_finite: bool = True,
+    *,
+    control_law=None,
+    control_params=None,
+    start_time: float = 0.0,
+    record_every: int | None = None,
+):
     """Integrate the forward dynamics with classical RK4, the wrench held constant and the leg
     forces either held constant or given by a compiled control law at every RK4 stage.
 
@@ -121,28 +135,57 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
         external_wrench = np.zeros(6)
     n, batched, a = batch_args(
         model.packed.shape[0],
-        position=(position, (3,)), rotation=(rotation, (3, 3)), velocity=(velocity, (3,)),
-        angular_velocity=(angular_velocity, (3,)), external_wrench=(external_wrench, (6,)), **control,
+        position=(position, (3,)),
+        rotation=(rotation, (3, 3)),
+        velocity=(velocity, (3,)),
+        angular_velocity=(angular_velocity, (3,)),
+        external_wrench=(external_wrench, (6,)),
+        **control,
     )
     t, R, v, w = (a[k].copy() for k in ("position", "rotation", "velocity", "angular_velocity"))
     trajectory = None
     if control_law is None and record_every is None:
         _core.rollout_batch(model.packed, model.flags, t, R, v, w, a["leg_forces"], a["external_wrench"], dt, steps)
     else:
-        law, ctrl = (rk4.CONSTANT_FORCES, a["leg_forces"]) if control_law is None else (control_law, a["control_params"])
+        law, ctrl = (
+            (rk4.CONSTANT_FORCES, a["leg_forces"]) if control_law is None else (control_law, a["control_params"])
+        )
         rk4.check_law_params(law, ctrl)
         every = record_every or 0  # 0: record nothing
         samples = steps // every + 1 if every else 0
         try:
-            rec = (np.empty((n, samples, 3)), np.empty((n, samples, 3, 3)), np.empty((n, samples, 3)),
-                   np.empty((n, samples, 3)), np.empty((n, samples, 6)))
+            rec = (
+                np.empty((n, samples, 3)),
+                np.empty((n, samples, 3, 3)),
+                np.empty((n, samples, 3)),
+                np.empty((n, samples, 3)),
+                np.empty((n, samples, 6)),
+            )
         except MemoryError:
-            raise ValueError(f"record_every: {samples} samples of {n} platforms need {n * samples * 24 * 8 / 2**30:.1f} "
-                             "GiB; record less often") from None
-        _core.rollout_law_batch(model.packed, model.flags, t, R, v, w, law.address, ctrl, a["external_wrench"],
-                                start_time, dt, steps, every, *rec)
+            raise ValueError(
+                f"record_every: {samples} samples of {n} platforms need {n * samples * 24 * 8 / 2**30:.1f} "
+                "GiB; record less often"
+            ) from None
+        _core.rollout_law_batch(
+            model.packed,
+            model.flags,
+            t,
+            R,
+            v,
+            w,
+            law.address,
+            ctrl,
+            a["external_wrench"],
+            start_time,
+            dt,
+            steps,
+            every,
+            *rec,
+        )
         if record_every is not None:
-            trajectory = Trajectory(start_time + dt * every * np.arange(samples), *(x if batched else x[0] for x in rec))
+            trajectory = Trajectory(
+                start_time + dt * every * np.arange(samples), *(x if batched else x[0] for x in rec)
+            )
     if check_finite:
         bad = ~(np.isfinite(t).all(1) & np.isfinite(R).all((1, 2)) & np.isfinite(v).all(1) & np.isfinite(w).all(1))
         if bad.any():
@@ -155,8 +198,9 @@ def rollout(model: Dynamics, position, rotation, velocity, angular_velocity, leg
     return (t, R, v, w) if batched else (t[0], R[0], v[0], w[0])
 
 
-def rollout_inplace(model: Dynamics, position, rotation, velocity, angular_velocity, leg_forces,
-                    external_wrench, dt: float, steps: int) -> None:
+def rollout_inplace(
+    model: Dynamics, position, rotation, velocity, angular_velocity, leg_forces, external_wrench, dt: float, steps: int
+) -> None:
     """:func:`rollout` with the leg forces held, without argument checks, overwriting the state
     arrays in place.
 
@@ -174,5 +218,15 @@ def rollout_inplace(model: Dynamics, position, rotation, velocity, angular_veloc
         dt: the step, s.
         steps: the number of steps.
     """
-    _core.rollout_batch(model.packed, model.flags, position, rotation, velocity, angular_velocity,
-                        leg_forces, external_wrench, float(dt), int(steps))
+    _core.rollout_batch(
+        model.packed,
+        model.flags,
+        position,
+        rotation,
+        velocity,
+        angular_velocity,
+        leg_forces,
+        external_wrench,
+        float(dt),
+        int(steps),
+    )

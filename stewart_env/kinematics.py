@@ -62,14 +62,23 @@ def _flags(params: PlatformParams | Dynamics, model: str | None) -> int:
     """The switch bits of the leg kinematics: a Dynamics' own, else those of ``model``."""
     if isinstance(params, Dynamics):
         if model is not None and parse_model_name(model)[1] != params.flags:
-            raise ValueError(f"model: {model!r} disagrees with the switches of the Dynamics given, {params.name!r}; "
-                             "leave model out")
+            raise ValueError(
+                f"model: {model!r} disagrees with the switches of the Dynamics given, {params.name!r}; leave model out"
+            )
         return params.flags
     return parse_model_name("improved" if model is None else model)[1]
 
 
-def leg_kinematics(params: PlatformParams | Dynamics, position, rotation, velocity=None,
-                   angular_velocity=None, lin_acc=None, ang_acc=None, model: str | None = None) -> LegKinematics:
+def leg_kinematics(
+    params: PlatformParams | Dynamics,
+    position,
+    rotation,
+    velocity=None,
+    angular_velocity=None,
+    lin_acc=None,
+    ang_acc=None,
+    model: str | None = None,
+) -> LegKinematics:
     """Inverse kinematics to second order: leg vectors, lengths, frames, rates, accelerations,
     leg angular velocities and accelerations, and the Jacobian.
 
@@ -106,17 +115,34 @@ def leg_kinematics(params: PlatformParams | Dynamics, position, rotation, veloci
     packed = _packed(params)
     z3 = np.zeros(3)
     n, batched, a = batch_args(
-        packed.shape[0], position=(position, (3,)), rotation=(rotation, (3, 3)),
+        packed.shape[0],
+        position=(position, (3,)),
+        rotation=(rotation, (3, 3)),
         velocity=(z3 if velocity is None else velocity, (3,)),
         angular_velocity=(z3 if angular_velocity is None else angular_velocity, (3,)),
-        lin_acc=(z3 if lin_acc is None else lin_acc, (3,)), ang_acc=(z3 if ang_acc is None else ang_acc, (3,)),
+        lin_acc=(z3 if lin_acc is None else lin_acc, (3,)),
+        ang_acc=(z3 if ang_acc is None else ang_acc, (3,)),
     )
     acc = np.concatenate([a["lin_acc"], a["ang_acc"]], axis=1)
     frames = np.empty((n, 6, 3, 3))
     lengths, rates, accels = np.empty((n, 6)), np.empty((n, 6)), np.empty((n, 6))
     omega, alpha, jac = np.empty((n, 6, 3)), np.empty((n, 6, 3)), np.empty((n, 6, 6))
-    K.leg_kinematics_batch(packed, flags, a["position"], a["rotation"], a["velocity"], a["angular_velocity"],
-                           acc, frames, lengths, rates, accels, omega, alpha, jac)
+    K.leg_kinematics_batch(
+        packed,
+        flags,
+        a["position"],
+        a["rotation"],
+        a["velocity"],
+        a["angular_velocity"],
+        acc,
+        frames,
+        lengths,
+        rates,
+        accels,
+        omega,
+        alpha,
+        jac,
+    )
     units = frames[..., :, 0]
     out = LegKinematics(units * lengths[..., None], lengths, units, frames, rates, accels, omega, alpha, jac)
     return out if batched else LegKinematics(*(x[0] for x in out))
@@ -162,8 +188,14 @@ def jacobian(params: PlatformParams | Dynamics, position, rotation) -> np.ndarra
     return J if batched else J[0]
 
 
-def forward_kinematics(params: PlatformParams | Dynamics, leg_lengths, position_guess, rotation_guess,
-                       tol: float = 1e-12, max_iter: int = 50):
+def forward_kinematics(
+    params: PlatformParams | Dynamics,
+    leg_lengths,
+    position_guess,
+    rotation_guess,
+    tol: float = 1e-12,
+    max_iter: int = 50,
+):
     """The platform pose with the given leg lengths, by Newton-Raphson from a guess.
 
     Each iteration solves J [dt; dphi] = L - L(pose) and updates t += dt, R = exp([dphi]x) R
@@ -194,10 +226,16 @@ def forward_kinematics(params: PlatformParams | Dynamics, leg_lengths, position_
         >>> print(np.round(position, 9) + 0.0)
         [0.  0.  0.4]
     """
-    _, batched, a = batch_args(1, leg_lengths=(leg_lengths, (6,)), position_guess=(position_guess, (3,)),
-                               rotation_guess=(rotation_guess, (3, 3)))
+    _, batched, a = batch_args(
+        1,
+        leg_lengths=(leg_lengths, (6,)),
+        position_guess=(position_guess, (3,)),
+        rotation_guess=(rotation_guess, (3, 3)),
+    )
     if batched:
-        raise ValueError("leg_lengths, position_guess, rotation_guess: forward kinematics solves one platform at a time")
+        raise ValueError(
+            "leg_lengths, position_guess, rotation_guess: forward kinematics solves one platform at a time"
+        )
     target, t, R = a["leg_lengths"][0], a["position_guess"][0], a["rotation_guess"][0]
     if np.any(target <= 0):
         raise ValueError(f"leg_lengths: expected six positive lengths, got {target}")
@@ -219,8 +257,17 @@ def forward_kinematics(params: PlatformParams | Dynamics, leg_lengths, position_
     )
 
 
-def leg_sensors_inplace(params: PlatformParams | Dynamics, position, rotation, velocity, angular_velocity,
-                        max_condition, lengths, rates, condition) -> None:
+def leg_sensors_inplace(
+    params: PlatformParams | Dynamics,
+    position,
+    rotation,
+    velocity,
+    angular_velocity,
+    max_condition,
+    lengths,
+    rates,
+    condition,
+) -> None:
     """Leg lengths (N,6) m, rates (N,6) m/s and Jacobian condition numbers (N,) of a batch of
     states, written into preallocated arrays; no argument checks (the environment's per-step
     path).  State arrays as in :func:`stewart_env.integrate.rollout_inplace`.  ``condition`` is
@@ -238,5 +285,6 @@ def leg_sensors_inplace(params: PlatformParams | Dynamics, position, rotation, v
         rates: the output of the leg rates (N, 6), m/s.
         condition: the output of the condition numbers (N,).
     """
-    K.leg_sensors_batch(_packed(params), position, rotation, velocity, angular_velocity, float(max_condition),
-                        lengths, rates, condition)
+    K.leg_sensors_batch(
+        _packed(params), position, rotation, velocity, angular_velocity, float(max_condition), lengths, rates, condition
+    )

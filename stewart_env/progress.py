@@ -32,8 +32,15 @@ class QuietProgress:
     ``close``, context manager); writes ``desc: n/total unit (postfix), elapsed s`` to stderr
     at most once per ``interval`` seconds, or never if ``disable``."""
 
-    def __init__(self, iterable: Iterable | None = None, total: float | None = None, desc: str = "",
-                 unit: str = "it", disable: bool = False, interval: float = LOG_INTERVAL):
+    def __init__(
+        self,
+        iterable: Iterable | None = None,
+        total: float | None = None,
+        desc: str = "",
+        unit: str = "it",
+        disable: bool = False,
+        interval: float = LOG_INTERVAL,
+    ):
         self.iterable = iterable
         if total is None and iterable is not None and hasattr(iterable, "__len__"):
             total = len(iterable)
@@ -84,8 +91,14 @@ class QuietProgress:
         """As tqdm's ``close``: nothing to do (no line is left open)."""
 
 
-def progress(iterable: Iterable | None = None, total: float | None = None, desc: str = "", unit: str = "it",
-             disable: bool = False, leave: bool = True):
+def progress(
+    iterable: Iterable | None = None,
+    total: float | None = None,
+    desc: str = "",
+    unit: str = "it",
+    disable: bool = False,
+    leave: bool = True,
+):
     """A tqdm bar over ``iterable`` (or advanced by ``update``) when stderr is a terminal, else a
     :class:`QuietProgress` (at most one line per minute); ``disable`` silences both.
 

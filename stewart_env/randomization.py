@@ -205,8 +205,11 @@ class Randomization:
         scale = dict(zip(_PART_NAMES, _multipliers(factors)))
 
         def body(b: RigidBody, name: str) -> RigidBody:
-            return RigidBody(mass=b.mass * scale[f"{name}.mass"], com=b.com * scale[f"{name}.com"],
-                             inertia=b.inertia * scale[f"{name}.inertia"])
+            return RigidBody(
+                mass=b.mass * scale[f"{name}.mass"],
+                com=b.com * scale[f"{name}.com"],
+                inertia=b.inertia * scale[f"{name}.inertia"],
+            )
 
         def legs(bodies: tuple[RigidBody, ...], name: str) -> tuple[RigidBody, ...]:
             # Legs that share one RigidBody keep sharing it (and it is validated once).
@@ -281,8 +284,9 @@ class Randomization:
         # a positive factor scales every principal moment alike
         smallest = multipliers[_PART_NAMES.index("platform.inertia")] * self._smallest_moment(nominal_row)
         if smallest < MIN_PLATFORM_INERTIA:
-            raise ConfigError("platform.inertia", f"smallest principal moment {smallest:.3g} is "
-                                                  f"below {MIN_PLATFORM_INERTIA:g} kg m^2")
+            raise ConfigError(
+                "platform.inertia", f"smallest principal moment {smallest:.3g} is below {MIN_PLATFORM_INERTIA:g} kg m^2"
+            )
 
     def _smallest_moment(self, nominal_row: np.ndarray) -> float:
         """The smallest principal moment of the platform inertia in ``nominal_row``, kept for the
@@ -301,7 +305,9 @@ def _parts() -> tuple[tuple[str, slice, tuple[str, ...]], ...]:
     for name in _BODIES:
         group = ("legs",) if name != "platform" else ()
         for q in _QUANTITIES:
-            parts.append((f"{name}.{q}", K.PACKED_SLICES[f"{name}.{q}"], (f"{name}.{q}", *(f"{g}.{q}" for g in group), q)))
+            parts.append(
+                (f"{name}.{q}", K.PACKED_SLICES[f"{name}.{q}"], (f"{name}.{q}", *(f"{g}.{q}" for g in group), q))
+            )
     for j, coefficient in enumerate(_DAMPING):
         start = K.OFF_DAMP + j
         parts.append((f"damping.{coefficient}", slice(start, start + 1), ("damping", f"damping.{coefficient}")))

@@ -53,6 +53,12 @@ class Reference(_ReferenceFields):
 
     def __new__(cls, position, rotation, velocity, angular_velocity, lin_acc=None, ang_acc=None):
         """The reference; the accelerations left out are zero, of the shape of ``velocity``."""
-        return super().__new__(cls, position, rotation, velocity, angular_velocity,
-                               np.zeros(np.shape(velocity)) if lin_acc is None else lin_acc,
-                               np.zeros(np.shape(velocity)) if ang_acc is None else ang_acc)
+        return super().__new__(
+            cls,
+            position,
+            rotation,
+            velocity,
+            angular_velocity,
+            np.zeros(np.shape(velocity)) if lin_acc is None else lin_acc,
+            np.zeros(np.shape(velocity)) if ang_acc is None else ang_acc,
+        )

@@ -26,9 +26,26 @@ import numpy as np
 
 from stewart_env.errors import UsageError
 
-__all__ = ["MAX_SEED", "ArgumentError", "Constraint", "Interval", "StrOptions", "check_action", "check_keywords",
-           "choice", "flag", "integer", "interval", "plain", "quoted", "real", "real_array", "reset_options", "seed",
-           "vector"]
+__all__ = [
+    "MAX_SEED",
+    "ArgumentError",
+    "Constraint",
+    "Interval",
+    "StrOptions",
+    "check_action",
+    "check_keywords",
+    "choice",
+    "flag",
+    "integer",
+    "interval",
+    "plain",
+    "quoted",
+    "real",
+    "real_array",
+    "reset_options",
+    "seed",
+    "vector",
+]
 
 
 #: Largest seed: numpy's SeedSequence takes any non-negative int, but the seeds a run records
@@ -47,7 +64,7 @@ def _excerpt(value: Any, limit: int = 80) -> str:
         text = reprlib.repr(value)
     except ValueError:  # an int beyond Python's digit limit for str()
         text = f"<{type(value).__name__} too large to print>"
-    return text if len(text) <= limit else text[:limit - 3] + "..."
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _is_real(value: Any) -> bool:
@@ -176,8 +193,9 @@ class Interval(Constraint):
         """
         if self.kind is numbers.Integral:
             return self.low <= value <= self.high
-        return math.isfinite(value) and (value > self.low if self.low_open else value >= self.low) \
-            and value <= self.high
+        return (
+            math.isfinite(value) and (value > self.low if self.low_open else value >= self.low) and value <= self.high
+        )
 
     def check(self, name: str, value: Any) -> Any:
         """``value`` in checked form (:meth:`Constraint.check`).
@@ -299,7 +317,7 @@ def quoted(text: str, limit: int = 40) -> str:
         limit: the most characters of the repr kept.
     """
     text = repr(text)
-    return text if len(text) <= limit else text[:limit - 4] + "...'"
+    return text if len(text) <= limit else text[: limit - 4] + "...'"
 
 
 def real(name: str, value: Any, low: float = -math.inf, high: float = math.inf, *, low_open: bool = False) -> float:
@@ -461,14 +479,14 @@ def interval(name: str, value: Any, low: float, high: float, *, low_open: bool =
     if not (_is_real(lo) and _is_real(hi)):
         raise ArgumentError.about(name, f"expected (min, max) of numbers {span}, got {_excerpt(value)}")
     lo, hi = _as_float(lo), _as_float(hi)
-    if not (math.isfinite(lo) and math.isfinite(hi) and (lo > low if low_open else lo >= low)
-            and lo <= hi <= high):
+    if not (math.isfinite(lo) and math.isfinite(hi) and (lo > low if low_open else lo >= low) and lo <= hi <= high):
         raise UsageError.about(name, f"expected (min, max) with min <= max, both {span}, got {_excerpt(value)}")
     return lo, hi
 
 
-def check_keywords(owner: str, kwargs: Mapping[str, Any], valid: Iterable[str],
-                   moved: Mapping[str, str] | None = None) -> None:
+def check_keywords(
+    owner: str, kwargs: Mapping[str, Any], valid: Iterable[str], moved: Mapping[str, str] | None = None
+) -> None:
     """Refuse keywords not in ``valid`` as Python refuses them in a call of ``owner``.
 
     Args:
@@ -485,8 +503,11 @@ def check_keywords(owner: str, kwargs: Mapping[str, Any], valid: Iterable[str],
         if key not in valid:
             hint = (moved or {}).get(key)
             where = hint if hint else f"valid keyword arguments: {', '.join(valid)}"
-            raise ArgumentError(f"{owner}() got an unexpected keyword argument {key!r}; {where}",
-                                argument=key, problem=f"unexpected keyword argument; {where}")
+            raise ArgumentError(
+                f"{owner}() got an unexpected keyword argument {key!r}; {where}",
+                argument=key,
+                problem=f"unexpected keyword argument; {where}",
+            )
 
 
 def check_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
@@ -528,8 +549,9 @@ def reset_options(options: Any, valid: Iterable[str] = ()) -> dict[str, Any]:
         raise ArgumentError(f"reset: options: {problem}", argument="options", problem=problem)
     unknown = [key for key in options if key not in valid]
     if unknown:
-        problem = (f"unknown option(s) {', '.join(_excerpt(k, 40) for k in unknown[:5])}; "
-                   + (f"valid: {', '.join(map(repr, valid))}" if valid else "this environment takes none"))
+        problem = f"unknown option(s) {', '.join(_excerpt(k, 40) for k in unknown[:5])}; " + (
+            f"valid: {', '.join(map(repr, valid))}" if valid else "this environment takes none"
+        )
         raise UsageError(f"reset: options: {problem}", argument="options", problem=problem)
     return dict(options)
 
@@ -553,8 +575,11 @@ def plain(name: str, value: Any) -> Any:
     if isinstance(value, np.ma.MaskedArray):
         masked = int(np.count_nonzero(np.ma.getmaskarray(value)))
         if masked:
-            raise UsageError.about(name, f"a masked array with {masked} masked value(s); give plain numbers, e.g. "
-                             f"{name}.filled(0.0) to choose the value of the masked entries")
+            raise UsageError.about(
+                name,
+                f"a masked array with {masked} masked value(s); give plain numbers, e.g. "
+                f"{name}.filled(0.0) to choose the value of the masked entries",
+            )
         return np.ma.getdata(value)
     if callable(getattr(value, "detach", None)) and type(value).__module__.split(".")[0] == "torch":
         value = value.detach()
@@ -590,8 +615,11 @@ def real_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
             raise ArgumentError.about(name, f"expected real numbers of shape {shape}, got {_excerpt(value)}") from None
     if a.dtype.kind not in "iuf":
         hint = " (an integer too large for any integer type?)" if a.dtype.kind == "O" else ""
-        raise ArgumentError.about(name, f"expected real numbers (integers or floats) of shape {shape}, "
-                            f"got dtype {a.dtype}{hint}: {_excerpt(value)}")
+        raise ArgumentError.about(
+            name,
+            f"expected real numbers (integers or floats) of shape {shape}, "
+            f"got dtype {a.dtype}{hint}: {_excerpt(value)}",
+        )
     if a.shape != shape:
         raise UsageError.about(name, f"expected shape {shape}, got {a.shape}")
     a = a.astype(np.float64, copy=False)
@@ -601,6 +629,9 @@ def real_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
         if bad.any():
             where = np.argwhere(bad)[0]
             kind = "NaN" if np.isnan(a[tuple(where)]) else "inf"
-            raise UsageError.about(name, f"contains {kind} at index {tuple(int(i) for i in where)} "
-                             f"({int(bad.sum())} non-finite value(s)); it must be finite")
+            raise UsageError.about(
+                name,
+                f"contains {kind} at index {tuple(int(i) for i in where)} "
+                f"({int(bad.sum())} non-finite value(s)); it must be finite",
+            )
     return a

@@ -114,4 +114,5 @@ def make():
         env = gym.make("StewartPlatform-v1", **kwargs)
         env.reset(seed=0)
         return env
+
     return make

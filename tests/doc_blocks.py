@@ -93,7 +93,7 @@ def shell_commands(block: Block) -> list[tuple[str, str | None]]:
         stripped = line.strip()
         if not pending and (not stripped or stripped.startswith("#")):
             if stripped.startswith(LONG_MARK):
-                long_reason = stripped[len(LONG_MARK):].strip()
+                long_reason = stripped[len(LONG_MARK) :].strip()
             continue
         if stripped.endswith("\\"):
             pending += stripped[:-1] + " "
@@ -156,10 +156,17 @@ def check_long(command: str, where: str) -> None:
 
 def run_shell(command: str, cwd: Path, where: str) -> str:
     env = {**os.environ, "MPLBACKEND": "Agg"}
-    done = subprocess.run(["bash", "-c", "set -eo pipefail\n" + command], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=COMMAND_TIMEOUT_S)
-    assert done.returncode == 0, (f"{where}: {command!r} exited with {done.returncode}:\n"
-                                  f"{done.stdout[-2000:]}\n{done.stderr[-3000:]}")
+    done = subprocess.run(
+        ["bash", "-c", "set -eo pipefail\n" + command],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=COMMAND_TIMEOUT_S,
+    )
+    assert done.returncode == 0, (
+        f"{where}: {command!r} exited with {done.returncode}:\n{done.stdout[-2000:]}\n{done.stderr[-3000:]}"
+    )
     return done.stdout
 
 
@@ -169,9 +176,12 @@ def run_shell_block(block: Block, cwd: Path) -> None:
             check_long(command, block.where)
             continue
         parts = [part.strip() for part in command.split("&&")]
-        if any(part.startswith("pip ") for part in parts) and any(part.startswith("python -m pytest") for part in parts):
-            assert command == ci_test_command(), (f"{block.where}: the test command {command!r} is not "
-                                                  f"the one .ci/run runs, {ci_test_command()!r}")
+        if any(part.startswith("pip ") for part in parts) and any(
+            part.startswith("python -m pytest") for part in parts
+        ):
+            assert command == ci_test_command(), (
+                f"{block.where}: the test command {command!r} is not the one .ci/run runs, {ci_test_command()!r}"
+            )
         for part in parts:
             if part.startswith("pip "):
                 check_pip(part, block.where)
@@ -189,19 +199,22 @@ def check_yaml(block: Block) -> None:
 
     def compare(a, b, path):
         if isinstance(a, dict):
-            assert isinstance(b, dict) and set(a) == set(b), \
+            assert isinstance(b, dict) and set(a) == set(b), (
                 f"{block.where}: keys of {path or 'the config'}: shown {sorted(a)}, config {sorted(b)}"
+            )
             for key in a:
                 compare(a[key], b[key], f"{path}.{key}".lstrip("."))
         elif "..." not in str(a) and not re.search(r"[a-z]", str(a)):  # a value written out in full
             shown_value, shipped_value = np.asarray(a, float), np.asarray(b, float)
             if shown_value.shape == (3,) and shipped_value.shape == (3, 3):  # a diagonal inertia
-                assert np.array_equal(shipped_value, np.diag(np.diag(shipped_value))), \
+                assert np.array_equal(shipped_value, np.diag(np.diag(shipped_value))), (
                     f"{block.where}: {path} is written as a diagonal, but the config's is not diagonal"
+                )
                 shipped_value = np.diag(shipped_value)
             # the document copies the config's decimals: equal up to float parsing
-            assert shown_value == pytest.approx(shipped_value, rel=1e-12), \
+            assert shown_value == pytest.approx(shipped_value, rel=1e-12), (
                 f"{block.where}: {path} is {a} in the document, {b} in the config"
+            )
 
     compare(shown, shipped, "")
 
@@ -221,9 +234,10 @@ def check_text(block: Block) -> None:
 
 def write_file_block(block: Block, cwd: Path) -> None:
     """A ``# file: PATH`` block: its text (the marker line included) written to PATH under cwd."""
-    path = block.text.splitlines()[0][len(FILE_MARK):].strip()
-    assert path and not Path(path).is_absolute() and ".." not in Path(path).parts, \
+    path = block.text.splitlines()[0][len(FILE_MARK) :].strip()
+    assert path and not Path(path).is_absolute() and ".." not in Path(path).parts, (
         f"{block.where}: '{FILE_MARK}' needs a relative path inside the working directory, got {path!r}"
+    )
     (cwd / path).parent.mkdir(parents=True, exist_ok=True)
     (cwd / path).write_text(block.text)
 
@@ -232,6 +246,7 @@ def write_file_block(block: Block, cwd: Path) -> None:
 class DocumentRun:
     """What running documents left: every block (with the outputs of what ran), the python
     namespaces by (document, heading), the working directory and the first failure, if any."""
+
     blocks: list[Block]
     namespaces: dict[tuple[str, str], dict]
     cwd: Path
@@ -240,8 +255,7 @@ class DocumentRun:
 
 def run_documents(documents: list[Path], cwd: Path) -> DocumentRun:
     """Every block of ``documents``, run or checked in order in ``cwd``; stops at the first failure."""
-    blocks = [block for path in documents
-              for block in markdown_blocks(path.read_text(), str(path.relative_to(ROOT)))]
+    blocks = [block for path in documents for block in markdown_blocks(path.read_text(), str(path.relative_to(ROOT)))]
     namespaces: dict[tuple[str, str], dict] = {}
     failure = None
     old_cwd, old_path = os.getcwd(), list(sys.path)
@@ -279,15 +293,18 @@ def states_the_long_convention(run: DocumentRun, runner: str) -> None:
     and names the test that runs the rest."""
     first_long = next(b for b in run.blocks if b.tag in SHELL_TAGS and LONG_MARK in b.text)
     text = (ROOT / first_long.document).read_text().splitlines()
-    nearby = "\n".join(text[max(0, first_long.line - 15):first_long.end + 15])
-    assert f"`{LONG_MARK}" in nearby and runner in nearby, \
+    nearby = "\n".join(text[max(0, first_long.line - 15) : first_long.end + 15])
+    assert f"`{LONG_MARK}" in nearby and runner in nearby, (
         f"{first_long.where}: the first long command is not explained near it (mentioning {runner})"
+    )
 
 
 def snippets_write_what_they_say(run: DocumentRun) -> list[tuple[str, str]]:
     """Each snippet's `# writes PATH` comment names a file it left behind; the (where, path) promised."""
     assert run.failure is None, "an earlier block failed"
-    promised = [(b.where, path) for b in run.blocks if b.tag == "python" for path in re.findall(r"# writes (\S+)", b.text)]
+    promised = [
+        (b.where, path) for b in run.blocks if b.tag == "python" for path in re.findall(r"# writes (\S+)", b.text)
+    ]
     for where, path in promised:
         assert (run.cwd / path).is_file(), f"{where}: the snippet says it writes {path}, which does not exist"
     return promised
@@ -296,17 +313,23 @@ def snippets_write_what_they_say(run: DocumentRun) -> list[tuple[str, str]]:
 def snippet_figures(run: DocumentRun) -> int:
     """A snippet that prints a table states a figure of it as `# <column>: <value>`; the number stated."""
     assert run.failure is None, "an earlier block failed"
-    stated = [(b, m) for b in run.blocks if b.tag == "python" and not b.text.startswith(FILE_MARK)
-              for m in re.finditer(r"# ([^#\n]+): (\S+)$", b.text, re.M)]
+    stated = [
+        (b, m)
+        for b in run.blocks
+        if b.tag == "python" and not b.text.startswith(FILE_MARK)
+        for m in re.finditer(r"# ([^#\n]+): (\S+)$", b.text, re.M)
+    ]
     for block, match in stated:
         (row,) = markdown_tables(block.outputs["python"])[0]
         column, figure = match.groups()
-        assert same_figure(figure, row[column]), \
+        assert same_figure(figure, row[column]), (
             f"{block.where}: the snippet says {column} {figure}, it prints {row[column]}"
+        )
     return len(stated)
 
 
 # --- the numbers of the tables ---------------------------------------------------------------
+
 
 def markdown_tables(text: str) -> list[list[dict[str, str]]]:
     """The pipe tables of ``text``, each a list of rows {header: cell}."""
@@ -357,8 +380,7 @@ def compare_table(shown_rows, printed_rows, keys, where):
         for column, cell in row.items():
             assert column in index[key], f"{where}: the command prints no column {column!r}"
             same = cell == index[key][column] if column in EXACT_COLUMNS else same_figure(cell, index[key][column])
-            assert same, \
-                f"{where}: {key}, {column}: shown {cell}, the command prints {index[key][column]}"
+            assert same, f"{where}: {key}, {column}: shown {cell}, the command prints {index[key][column]}"
 
 
 def aligned_tables(text: str) -> list[list[dict[str, str]]]:
@@ -383,8 +405,7 @@ def block_and_text_table(run: DocumentRun, command_start: str) -> tuple[Block, l
     assert run.failure is None, "an earlier block failed"
     for index, block in enumerate(run.blocks):
         if block.tag in SHELL_TAGS and any(c.startswith(command_start) for c, _ in shell_commands(block)):
-            shown = next((b for b in run.blocks[index + 1:] if b.tag == "text" and b.document == block.document),
-                         None)
+            shown = next((b for b in run.blocks[index + 1 :] if b.tag == "text" and b.document == block.document), None)
             tables = aligned_tables(shown.text) if shown is not None else []
             if tables:
                 return block, tables[0]
@@ -397,7 +418,7 @@ def block_and_table(run: DocumentRun, command_start: str) -> tuple[Block, list[d
     assert run.failure is None, "an earlier block failed"
     for block in run.blocks:
         if block.tag in SHELL_TAGS and any(c.startswith(command_start) for c, _ in shell_commands(block)):
-            after = "\n".join((ROOT / block.document).read_text().splitlines()[block.end:])
+            after = "\n".join((ROOT / block.document).read_text().splitlines()[block.end :])
             tables = markdown_tables(after.split("\n```")[0])
             if tables:
                 return block, tables[0]

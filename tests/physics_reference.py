@@ -59,8 +59,10 @@ def kinetic_energy(params, t, R, v, w):
         Ti, wl, e, L = k.frames[i], k.omega[i], k.units[i], k.lengths[i]
         r_d = Ti @ params.lower_leg[i].com
         r_u = L * e + Ti @ params.upper_leg[i].com
-        for body, vel in ((params.lower_leg[i], np.cross(wl, r_d)),
-                          (params.upper_leg[i], k.rates[i] * e + np.cross(wl, r_u))):
+        for body, vel in (
+            (params.lower_leg[i], np.cross(wl, r_d)),
+            (params.upper_leg[i], k.rates[i] * e + np.cross(wl, r_u)),
+        ):
             I_c = Ti @ body.inertia @ Ti.T
             T_kin += 0.5 * body.mass * vel @ vel + 0.5 * wl @ I_c @ wl
     return T_kin
@@ -71,8 +73,7 @@ def dissipated_power(params, t, R, v, w):
     k = se.leg_kinematics(params, t, R, v, w)
     d = params.damping
     rel = k.omega - w
-    return (d.universal * np.sum(k.omega ** 2) + d.prismatic * np.sum(k.rates ** 2)
-            + d.spherical * np.sum(rel ** 2))
+    return d.universal * np.sum(k.omega**2) + d.prismatic * np.sum(k.rates**2) + d.spherical * np.sum(rel**2)
 
 
 def rotvec_matrix(phi):
@@ -91,4 +92,4 @@ def left_jacobian(phi):
     K = np.array([[0, -phi[2], phi[1]], [phi[2], 0, -phi[0]], [-phi[1], phi[0], 0]])
     if a < 1e-8:
         return np.eye(3) + 0.5 * K
-    return np.eye(3) + (1 - np.cos(a)) / a ** 2 * K + (a - np.sin(a)) / a ** 3 * K @ K
+    return np.eye(3) + (1 - np.cos(a)) / a**2 * K + (a - np.sin(a)) / a**3 * K @ K

@@ -32,8 +32,12 @@ def test_the_subclasses_keep_their_fields():
     from stewart_env.validation import ArgumentError
 
     err = ConfigError("platform.mass", "expected a positive number", "a.yaml")
-    assert (err.key, err.problem, err.source, err.argument) == ("platform.mass", "expected a positive number",
-                                                                 "a.yaml", "platform.mass")
+    assert (err.key, err.problem, err.source, err.argument) == (
+        "platform.mass",
+        "expected a positive number",
+        "a.yaml",
+        "platform.mass",
+    )
     assert ConfigError("", "not a mapping").argument is None
     assert str(err) == "a.yaml: platform.mass: expected a positive number"
     bad = ArgumentError.about("seed", "expected an integer")
@@ -44,10 +48,22 @@ def test_the_subclasses_keep_their_fields():
 
 #: A value of each environment keyword the environment refuses (the wrong kind, or out of range).
 BAD_VALUES = {
-    "model": "newton", "plant": "bullet", "platform": 3, "control_dt": 0.0, "physics_dt": -1.0,
-    "randomization": {"platform.mass": (2.0, 1.0)}, "task": "juggle", "task_options": [1], "version": 99,
-    "max_force": -1.0, "action_filter": 2.0, "observation_noise": "loud", "observation_delay": 2.5,
-    "render_mode": "paper", "width": 0, "height": 10**6,
+    "model": "newton",
+    "plant": "bullet",
+    "platform": 3,
+    "control_dt": 0.0,
+    "physics_dt": -1.0,
+    "randomization": {"platform.mass": (2.0, 1.0)},
+    "task": "juggle",
+    "task_options": [1],
+    "version": 99,
+    "max_force": -1.0,
+    "action_filter": 2.0,
+    "observation_noise": "loud",
+    "observation_delay": 2.5,
+    "render_mode": "paper",
+    "width": 0,
+    "height": 10**6,
 }
 
 
@@ -153,11 +169,24 @@ def test_every_identification_setting_refused_names_its_flag():
     from stewart_env.cli.common import FLAGS
     from stewart_env.identification.experiment import Settings
 
-    flags = {o for action in build_parser()._subparsers._group_actions[0].choices["identify"]._actions
-             for o in action.option_strings}
-    bad = {"plant": "newton", "model": "improved+c9", "excitation": "sine", "derivatives": "guess", "duration": -1.0,
-           "period": math.nan, "noise_position": -1.0, "noise_angle": math.inf, "noise_force": -2.0,
-           "delay": 0.0021, "perturb": 1.5}
+    flags = {
+        o
+        for action in build_parser()._subparsers._group_actions[0].choices["identify"]._actions
+        for o in action.option_strings
+    }
+    bad = {
+        "plant": "newton",
+        "model": "improved+c9",
+        "excitation": "sine",
+        "derivatives": "guess",
+        "duration": -1.0,
+        "period": math.nan,
+        "noise_position": -1.0,
+        "noise_angle": math.inf,
+        "noise_force": -2.0,
+        "delay": 0.0021,
+        "perturb": 1.5,
+    }
     for name, value in bad.items():
         with pytest.raises(UsageError) as info:
             Settings(**{name: value}).check()
@@ -165,14 +194,20 @@ def test_every_identification_setting_refused_names_its_flag():
         assert FLAGS[name] in flags and str(info.value) == f"{FLAGS[name]}: {info.value.problem}"
 
 
-@pytest.mark.parametrize("argv, flag, problem", [
-    (["evaluate", "--model", "newton"], "--model", "unknown model 'newton'; choose one of"),
-    (["evaluate", "--internal-model", "mujoco"], "--internal-model", "unknown model 'mujoco'"),
-    (["identify", "--plant", "improved+c5", "--out", "x"], "--plant", "unknown switch 'c5'"),
-    (["train", "--algo", "ppo", "--env-kwargs", "noequals", "--out", "x"], "--env-kwargs",
-     "expected key=value or a JSON object"),
-    (["mismatch", "--cost-plant", "classical+c9", "--out", "x"], "--cost-plant", "unknown switch 'c9'"),
-])
+@pytest.mark.parametrize(
+    "argv, flag, problem",
+    [
+        (["evaluate", "--model", "newton"], "--model", "unknown model 'newton'; choose one of"),
+        (["evaluate", "--internal-model", "mujoco"], "--internal-model", "unknown model 'mujoco'"),
+        (["identify", "--plant", "improved+c5", "--out", "x"], "--plant", "unknown switch 'c5'"),
+        (
+            ["train", "--algo", "ppo", "--env-kwargs", "noequals", "--out", "x"],
+            "--env-kwargs",
+            "expected key=value or a JSON object",
+        ),
+        (["mismatch", "--cost-plant", "classical+c9", "--out", "x"], "--cost-plant", "unknown switch 'c9'"),
+    ],
+)
 def test_a_bad_model_or_keyword_flag_is_argparse_error_naming_it(argv, flag, problem, capsys):
     from stewart_env.cli import main
 
@@ -186,8 +221,21 @@ def test_a_bad_model_or_keyword_flag_is_argparse_error_naming_it(argv, flag, pro
 # -- no code reads an error's text ---------------------------------------------------------------
 
 #: str methods that read a message's words.
-TEXT_READERS = {"startswith", "endswith", "removeprefix", "removesuffix", "partition", "rpartition", "split",
-                "rsplit", "find", "rfind", "index", "count", "replace"}
+TEXT_READERS = {
+    "startswith",
+    "endswith",
+    "removeprefix",
+    "removesuffix",
+    "partition",
+    "rpartition",
+    "split",
+    "rsplit",
+    "find",
+    "rfind",
+    "index",
+    "count",
+    "replace",
+}
 #: Places that still read an error's text, each with the reason it cannot stop here.
 KNOWN = {
     # stewart_env.mujoco.twin names --solref/--solimp only in its messages
@@ -210,8 +258,9 @@ def _reads_error_text(handler: ast.ExceptHandler) -> bool:
     def is_text(node: ast.AST) -> bool:
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "str" and node.args:
             inner = node.args[0]
-            return (isinstance(inner, ast.Name) and inner.id in names) or \
-                (isinstance(inner, ast.Attribute) and isinstance(inner.value, ast.Name) and inner.value.id in names)
+            return (isinstance(inner, ast.Name) and inner.id in names) or (
+                isinstance(inner, ast.Attribute) and isinstance(inner.value, ast.Name) and inner.value.id in names
+            )
         if isinstance(node, ast.Subscript) and isinstance(node.value, ast.Attribute) and node.value.attr == "args":
             return isinstance(node.value.value, ast.Name) and node.value.value.id in names
         return isinstance(node, ast.Name) and node.id in texts
@@ -238,7 +287,7 @@ def _functions(tree: ast.AST):
 
 
 def test_the_text_reader_finds_what_it_looks_for():
-    code = '''
+    code = """
 def f():
     try:
         pass
@@ -256,9 +305,13 @@ def h():
         pass
     except ValueError as err:
         raise KeyError(err.problem) from None
-'''
-    found = [fn.name for fn in _functions(ast.parse(code)) for h in ast.walk(fn)
-             if isinstance(h, ast.ExceptHandler) and _reads_error_text(h)]
+"""
+    found = [
+        fn.name
+        for fn in _functions(ast.parse(code))
+        for h in ast.walk(fn)
+        if isinstance(h, ast.ExceptHandler) and _reads_error_text(h)
+    ]
     assert found == ["f", "g"]
 
 
@@ -283,8 +336,12 @@ def test_the_study_checks_its_counts_with_the_command_lines_constraints():
     from stewart_env.agents.mismatch.settings import COUNT, TOLERANCE, _checked
 
     assert _checked(COUNT, "episodes", np.int64(3)) == 3 and _checked(TOLERANCE, "position_tolerance", 1) == 1.0
-    cases = (("episodes", COUNT, 0), ("n_envs", COUNT, True), ("position_tolerance", TOLERANCE, 0.0),
-             ("orientation_tolerance", TOLERANCE, math.nan))
+    cases = (
+        ("episodes", COUNT, 0),
+        ("n_envs", COUNT, True),
+        ("position_tolerance", TOLERANCE, 0.0),
+        ("orientation_tolerance", TOLERANCE, math.nan),
+    )
     for name, constraint, value in cases:
         with pytest.raises(UsageError) as info:
             _checked(constraint, name, value)

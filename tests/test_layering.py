@@ -104,23 +104,34 @@ def test_every_module_has_a_layer():
 @pytest.mark.parametrize("name,path", MODULES, ids=[name for name, _ in MODULES])
 def test_imports_run_one_way(name, path):
     own = ORDER.index(layer_of(name))
-    upward = [f"line {line}: {module} ({layer_of(module)})" for module, _, line in imports(path)
-              if layer_of(module) and ORDER.index(layer_of(module)) > own]
+    upward = [
+        f"line {line}: {module} ({layer_of(module)})"
+        for module, _, line in imports(path)
+        if layer_of(module) and ORDER.index(layer_of(module)) > own
+    ]
     assert upward == [], f"{name} ({layer_of(name)}) imports a layer above it"
 
 
-@pytest.mark.parametrize("name,path", [m for m in MODULES if layer_of(m[0]) == "tasks"],
-                         ids=[n for n, _ in MODULES if layer_of(n) == "tasks"])
+@pytest.mark.parametrize(
+    "name,path",
+    [m for m in MODULES if layer_of(m[0]) == "tasks"],
+    ids=[n for n, _ in MODULES if layer_of(n) == "tasks"],
+)
 def test_tasks_import_no_integrator(name, path):
     assert [m for m, _, _ in imports(path) if m.startswith(INTEGRATOR)] == []
 
 
-@pytest.mark.parametrize("name,path", [m for m in MODULES if layer_of(m[0]) == "agents"],
-                         ids=[n for n, _ in MODULES if layer_of(n) == "agents"])
+@pytest.mark.parametrize(
+    "name,path",
+    [m for m in MODULES if layer_of(m[0]) == "agents"],
+    ids=[n for n, _ in MODULES if layer_of(n) == "agents"],
+)
 def test_agents_use_public_names_of_the_package(name, path):
-    private = [f"line {line}: {', '.join(n for n in names if n.startswith('_'))} from {module}"
-               for module, names, line in imports(path)
-               if layer_of(module) != "agents" and any(n.startswith("_") for n in names)]
+    private = [
+        f"line {line}: {', '.join(n for n in names if n.startswith('_'))} from {module}"
+        for module, names, line in imports(path)
+        if layer_of(module) != "agents" and any(n.startswith("_") for n in names)
+    ]
     assert private == []
 
 
@@ -128,14 +139,24 @@ def test_agents_use_public_names_of_the_package(name, path):
 # shipped configs. The models are built on them (a check that needs the kernels runs where a
 # platform becomes a model), never the other way round.
 PARAMETERS = "stewart_env.params"
-ABOVE_PARAMETERS = ("stewart_env.dynamics", "stewart_env.kinematics", "stewart_env.integrate",
-                    "stewart_env.randomization", "stewart_env.mujoco", "stewart_env.tasks", "stewart_env.envs")
+ABOVE_PARAMETERS = (
+    "stewart_env.dynamics",
+    "stewart_env.kinematics",
+    "stewart_env.integrate",
+    "stewart_env.randomization",
+    "stewart_env.mujoco",
+    "stewart_env.tasks",
+    "stewart_env.envs",
+)
 
 
 def imports_above_the_parameters(path: Path) -> list[str]:
     """``line n: module`` of every import of a module the parameters must not know."""
-    return [f"line {line}: {module}" for module, _, line in imports(path)
-            if module == PACKAGE or module.startswith(ABOVE_PARAMETERS)]
+    return [
+        f"line {line}: {module}"
+        for module, _, line in imports(path)
+        if module == PACKAGE or module.startswith(ABOVE_PARAMETERS)
+    ]
 
 
 def test_the_parameters_import_no_model_task_or_environment():
@@ -162,8 +183,12 @@ PLANT = "stewart_env.envs.plant"
 
 
 def test_only_the_twins_library_module_imports_mujoco():
-    found = [f"{name} line {line}: {module}" for name, path in MODULES for module, line in library_imports(path)
-             if module.split(".")[0] == "mujoco" and name != MUJOCO_LIBRARY]
+    found = [
+        f"{name} line {line}: {module}"
+        for name, path in MODULES
+        for module, line in library_imports(path)
+        if module.split(".")[0] == "mujoco" and name != MUJOCO_LIBRARY
+    ]
     assert found == [], "import mujoco through stewart_env.mujoco (its library module)"
 
 
@@ -171,8 +196,12 @@ def test_only_the_twins_library_module_imports_mujoco():
 def test_the_environments_reach_a_simulator_only_through_their_plant(simulator):
     envs = [(name, path) for name, path in MODULES if name.startswith("stewart_env.envs") and name != PLANT]
     assert len(envs) > 5
-    found = [f"{name} line {line}: {module}" for name, path in envs for module, _, line in imports(path)
-             if module == simulator or module.startswith(simulator + ".")]
+    found = [
+        f"{name} line {line}: {module}"
+        for name, path in envs
+        for module, _, line in imports(path)
+        if module == simulator or module.startswith(simulator + ".")
+    ]
     assert found == []
 
 
@@ -183,10 +212,12 @@ MISMATCH = [(name, path) for name, path in MODULES if name.startswith("stewart_e
 @pytest.mark.parametrize("name,path", MISMATCH, ids=[name for name, _ in MISMATCH])
 def test_the_mismatch_study_s_work_modules_import_no_argparse(name, path):
     assert len(MISMATCH) > 5, "the study's modules were not found"
-    assert [f"line {line}: {module}" for module, line in library_imports(path)
-            if module.split(".")[0] == "argparse"] == []
-    assert [f"line {line}: {module}" for module, _, line in imports(path)
-            if module.startswith("stewart_env.cli")] == [], "argparse types belong to the command line"
+    assert [
+        f"line {line}: {module}" for module, line in library_imports(path) if module.split(".")[0] == "argparse"
+    ] == []
+    assert [
+        f"line {line}: {module}" for module, _, line in imports(path) if module.startswith("stewart_env.cli")
+    ] == [], "argparse types belong to the command line"
 
 
 def test_the_rule_catches_an_upward_import(tmp_path):
@@ -208,15 +239,28 @@ def test_the_rule_catches_an_upward_import(tmp_path):
 # -- the command line ------------------------------------------------------------------------------
 
 CLI = "stewart_env.cli"
-VERB_MODULES = ("demo", "evaluate", "reproduce", "train", "time_to_agent", "mismatch", "identify", "bench",
-                "export_mjcf")
+VERB_MODULES = (
+    "demo",
+    "evaluate",
+    "reproduce",
+    "train",
+    "time_to_agent",
+    "mismatch",
+    "identify",
+    "bench",
+    "export_mjcf",
+)
 
 
 def test_only_the_command_line_imports_argparse():
     """The modules that do the work take values, not parsed arguments: argparse, its types and
     its parsers live in stewart_env/cli/."""
-    found = [f"{name} line {line}" for name, path in MODULES for module, line in library_imports(path)
-             if module == "argparse" and not (name == CLI or name.startswith(CLI + ".")) and name not in OWN_PARSERS]
+    found = [
+        f"{name} line {line}"
+        for name, path in MODULES
+        for module, line in library_imports(path)
+        if module == "argparse" and not (name == CLI or name.startswith(CLI + ".")) and name not in OWN_PARSERS
+    ]
     assert found == []
 
 
@@ -229,8 +273,14 @@ def test_every_verb_is_a_module_of_the_command_line_with_its_two_functions():
     for module in VERBS.values():
         assert layer_of(module.__name__) == "cli"
         assert callable(module.add_parser) and callable(module.run)
-    for name in ("agents.training.hyperparameters", "agents.training.rundir", "agents.training.trainer",
-                 "agents.training.agent", "agents.training.signals", "agents.training.env_kwargs"):
+    for name in (
+        "agents.training.hyperparameters",
+        "agents.training.rundir",
+        "agents.training.trainer",
+        "agents.training.agent",
+        "agents.training.signals",
+        "agents.training.env_kwargs",
+    ):
         assert layer_of(importlib.import_module(f"stewart_env.{name}").__name__) == "agents"
     assert layer_of("stewart_env.extras") == "physics"
 

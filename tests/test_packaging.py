@@ -31,7 +31,9 @@ def test_a_foreign_module_stops_the_run_naming_it(monkeypatch):
     import conftest
 
     monkeypatch.setattr(conftest, "foreign_modules", lambda: ["stewart_env.agents from /elsewhere/agents/__init__.py"])
-    with pytest.raises(pytest.UsageError, match=r"would import stewart_env\.agents from /elsewhere/agents/__init__\.py"):
+    with pytest.raises(
+        pytest.UsageError, match=r"would import stewart_env\.agents from /elsewhere/agents/__init__\.py"
+    ):
         conftest.pytest_configure(None)
 
 
@@ -87,19 +89,41 @@ def test_the_wheel_holds_the_compiled_extensions_and_the_configs(tmp_path):
 
     pytest.importorskip("scikit_build_core")  # the build backend, from the extra "test"
     pytest.importorskip("nanobind")
-    result = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-w",
-                             str(tmp_path), str(REPOSITORY)], capture_output=True, text=True, timeout=900)
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--no-deps",
+            "--no-build-isolation",
+            "-w",
+            str(tmp_path),
+            str(REPOSITORY),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert result.returncode == 0, result.stderr[-3000:]
     (wheel,) = tmp_path.glob("stewart_env-*.whl")
     names = zipfile.ZipFile(wheel).namelist()
-    extensions = {n.split("/")[-1].split(".")[0]: n for n in names
-                  if n.startswith("stewart_env/dynamics/_") and n.endswith((".so", ".pyd"))}
+    extensions = {
+        n.split("/")[-1].split(".")[0]: n
+        for n in names
+        if n.startswith("stewart_env/dynamics/_") and n.endswith((".so", ".pyd"))
+    }
     targets = ["_core_baseline"]
     if sys.platform.startswith("linux") and platform.machine() == "x86_64":
         targets += ["_core_x86_64_v3", "_core_x86_64_v4"]
     assert sorted(extensions) == sorted([*targets, "_cpu_features"])
-    for shipped in ("stewart_env/configs/platforms/dasgupta1998.yaml", "stewart_env/configs/agents/ppo.yml",
-                    "stewart_env/agents/pd.py", "stewart_env/dynamics/kernels.py", "stewart_env/dynamics/_core.py"):
+    for shipped in (
+        "stewart_env/configs/platforms/dasgupta1998.yaml",
+        "stewart_env/configs/agents/ppo.yml",
+        "stewart_env/agents/pd.py",
+        "stewart_env/dynamics/kernels.py",
+        "stewart_env/dynamics/_core.py",
+    ):
         assert shipped in names
     assert not [n for n in names if "/cpp/" in n or n.endswith((".hpp", ".cpp"))]
     # the wheel's metadata carries the version of stewart_env/__init__.py
@@ -110,8 +134,9 @@ def test_the_wheel_holds_the_compiled_extensions_and_the_configs(tmp_path):
         # multiply and an add, which would change the numbers from one target to another
         zipfile.ZipFile(wheel).extractall(tmp_path / "wheel")
         for module, path in extensions.items():
-            code = subprocess.run(["objdump", "-d", str(tmp_path / "wheel" / path)], capture_output=True, text=True,
-                                  check=True).stdout
+            code = subprocess.run(
+                ["objdump", "-d", str(tmp_path / "wheel" / path)], capture_output=True, text=True, check=True
+            ).stdout
             assert not re.search(r"\tvfn?m(add|sub)", code), module
             if module in ("_core_baseline", "_cpu_features"):
                 assert "%ymm" not in code and "%zmm" not in code, module

@@ -57,7 +57,7 @@ def test_an_episode_of_each_env_and_a_pd_rollout_run_without_numba():
     done = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     line = next(x for x in done.stdout.splitlines() if x.startswith("RESULT "))
-    out = json.loads(line[len("RESULT "):])
+    out = json.loads(line[len("RESULT ") :])
     assert out["numba"] is False
     steps, total, finite = out["single"]
     assert 1 <= steps <= 50 and finite and abs(total) < 1e6

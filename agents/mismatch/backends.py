@@ -75,14 +75,17 @@ class RayBackend:
                 try:
                     socket.create_connection(endpoint, timeout=RAY_CONNECT_TIMEOUT).close()
                 except OSError as exc:
-                    raise MismatchError(f"--ray-address {address}: nothing answers there "
-                                        f"({exc.strerror or exc}); is the cluster's head node started?") from None
+                    raise MismatchError(
+                        f"--ray-address {address}: nothing answers there "
+                        f"({exc.strerror or exc}); is the cluster's head node started?"
+                    ) from None
             kwargs = {"address": address} if address else {"include_dashboard": False}
             try:
                 ray.init(logging_level="ERROR", log_to_driver=False, **kwargs)
             except (ConnectionError, ValueError, RuntimeError, ray.exceptions.RayError) as exc:
-                raise MismatchError(f"--ray-address {address}: cannot join the Ray cluster ({exc}){RAY_AUTH_HINT}") \
-                    from None
+                raise MismatchError(
+                    f"--ray-address {address}: cannot join the Ray cluster ({exc}){RAY_AUTH_HINT}"
+                ) from None
             self.started = True
 
     def put(self, value):

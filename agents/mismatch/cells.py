@@ -16,8 +16,17 @@ from stewart_env.agents.statistics import Interval, stratified_bootstrap
 from stewart_env.agents.training import MODEL_FILE, read_manifest
 from stewart_env.files import read_json
 
-__all__ = ["cell_intervals", "cell_path", "cell_spec", "cell_values", "cell_wall_time", "metric_values", "read_cell",
-           "stored_cells", "stored_metrics"]
+__all__ = [
+    "cell_intervals",
+    "cell_path",
+    "cell_spec",
+    "cell_values",
+    "cell_wall_time",
+    "metric_values",
+    "read_cell",
+    "stored_cells",
+    "stored_metrics",
+]
 
 
 def cell_path(out: Path, row: Row, plant: str, seed: int | None) -> Path:
@@ -31,7 +40,9 @@ def cell_path(out: Path, row: Row, plant: str, seed: int | None) -> Path:
     """
     from stewart_env.agents.evaluation import slug
 
-    return out / CELLS_DIR / slug(row.label) / slug(plant) / ("model_based.json" if seed is None else f"seed_{seed}.json")
+    return (
+        out / CELLS_DIR / slug(row.label) / slug(plant) / ("model_based.json" if seed is None else f"seed_{seed}.json")
+    )
 
 
 def cell_spec(row: Row, plant: str, seed: int | None, common: Mapping[str, Any]) -> dict[str, Any]:
@@ -62,8 +73,9 @@ def read_cell(path: Path) -> dict[str, Any]:
     """
     cell = read_json(path, MAX_CELL_BYTES, "cell file")
     if not (isinstance(cell, dict) and isinstance(cell.get("spec"), dict) and isinstance(cell.get("metrics"), dict)):
-        raise MismatchError(f"{path}: not a cell of a mismatch study (no spec and metrics); remove it to compute "
-                            "the cell again")
+        raise MismatchError(
+            f"{path}: not a cell of a mismatch study (no spec and metrics); remove it to compute the cell again"
+        )
     return cell
 
 

@@ -6,11 +6,31 @@ from stewart_env.agents.training import MANIFEST, MODEL_FILE, VECNORMALIZE_FILE
 from stewart_env.dynamics.model import SIMPLIFICATIONS as SIMPLIFICATION_TEXT
 from stewart_env.errors import UsageError
 
-__all__ = ["AGENTS_DIR", "AGENT_FILES", "BACKENDS", "CELLS_DIR", "CPUS_PER_JOB", "DEFAULT_RANDOMIZATION",
-           "DEFAULT_STATISTIC", "EVAL_SEED_OFFSET", "FAILURE_THRESHOLD", "MAX_CELL_BYTES", "MAX_STEPS",
-           "QUICK_TIMESTEPS", "RANKING_METRICS", "RAY_AUTH_HINT", "RAY_CONNECT_TIMEOUT", "RAY_INSTALL_HINT",
-           "SIMPLIFICATIONS", "SIMPLIFICATION_TEXT", "STATISTIC", "STUDY_FILE", "TRUE_MODEL", "MismatchError",
-           "statistic"]
+__all__ = [
+    "AGENTS_DIR",
+    "AGENT_FILES",
+    "BACKENDS",
+    "CELLS_DIR",
+    "CPUS_PER_JOB",
+    "DEFAULT_RANDOMIZATION",
+    "DEFAULT_STATISTIC",
+    "EVAL_SEED_OFFSET",
+    "FAILURE_THRESHOLD",
+    "MAX_CELL_BYTES",
+    "MAX_STEPS",
+    "QUICK_TIMESTEPS",
+    "RANKING_METRICS",
+    "RAY_AUTH_HINT",
+    "RAY_CONNECT_TIMEOUT",
+    "RAY_INSTALL_HINT",
+    "SIMPLIFICATIONS",
+    "SIMPLIFICATION_TEXT",
+    "STATISTIC",
+    "STUDY_FILE",
+    "TRUE_MODEL",
+    "MismatchError",
+    "statistic",
+]
 
 
 class MismatchError(UsageError):
@@ -45,8 +65,14 @@ MAX_STEPS = 10**7
 #: and orientation, and the effort: the force peak and the control energy (a learned agent's peak
 #: is often the actuators' limit, so only its energy shows how hard it pushes).  Settling time and
 #: overshoot are left out: undefined in the episodes that never settle.
-RANKING_METRICS = ("steady_state_position_error", "steady_state_orientation_error", "rms_position_error",
-                   "rms_orientation_error", "peak_leg_force", "control_energy")
+RANKING_METRICS = (
+    "steady_state_position_error",
+    "steady_state_orientation_error",
+    "rms_position_error",
+    "rms_orientation_error",
+    "peak_leg_force",
+    "control_energy",
+)
 TRUE_MODEL = "improved"
 #: A cell whose controller succeeds in fewer than this share of the episodes is marked failed: its
 #: heatmap cell is hatched grey, and its differences are marked, not ranked.
@@ -62,9 +88,11 @@ BACKENDS = ("local", "ray")
 #: A cluster started with ``ray start`` checks a token when one exists in ~/.ray/auth_token (any
 #: earlier local Ray instance writes it), and a driver joining it by an explicit address sends the
 #: token only when told to.
-RAY_AUTH_HINT = ("; if the cluster checks a token (Ray 2.59 and later do when ~/.ray/auth_token exists), set "
-                 "RAY_AUTH_MODE=token and give its token in ~/.ray/auth_token or RAY_AUTH_TOKEN (see "
-                 "`ray get-auth-token` on the head node), or join with --ray-address auto on the head node")
+RAY_AUTH_HINT = (
+    "; if the cluster checks a token (Ray 2.59 and later do when ~/.ray/auth_token exists), set "
+    "RAY_AUTH_MODE=token and give its token in ~/.ray/auth_token or RAY_AUTH_TOKEN (see "
+    "`ray get-auth-token` on the head node), or join with --ray-address auto on the head node"
+)
 #: Seconds to wait for a Ray head node to accept a connection before refusing its address.
 RAY_CONNECT_TIMEOUT = 5.0
 RAY_INSTALL_HINT = 'install the distributed extra: pip install -e ".[distributed]" (ray)'

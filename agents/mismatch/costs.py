@@ -36,13 +36,17 @@ def _compared_rows(result: MismatchResult, family: str) -> list[tuple[str, Row]]
     out = [("classical model", by_model["classical"])] if "classical" in by_model else []
     out += [(c.upper(), by_model[f"improved+{c}"]) for c in SIMPLIFICATIONS if f"improved+{c}" in by_model]
     out += [("domain randomisation", r) for r in result.rows if r.family == family and r.randomized]
-    out += [(f"platform {r.platform_name}" if r.model == TRUE_MODEL else f"{r.model} model, platform {r.platform_name}",
-             r) for r in result.rows if r.family == family and r.platform is not None]
+    out += [
+        (f"platform {r.platform_name}" if r.model == TRUE_MODEL else f"{r.model} model, platform {r.platform_name}", r)
+        for r in result.rows
+        if r.family == family and r.platform is not None
+    ]
     return out
 
 
-def simplification_costs(result: MismatchResult, values: Callable[[Row, str, str], np.ndarray],
-                         plant: str = TRUE_MODEL) -> list[Difference]:
+def simplification_costs(
+    result: MismatchResult, values: Callable[[Row, str, str], np.ndarray], plant: str = TRUE_MODEL
+) -> list[Difference]:
     """Per controller family with a row built on the exact model: for each simplification and each
     of :data:`~.constants.RANKING_METRICS`, the paired difference on ``plant`` of the row built on
     the simplified model minus the exact-model row, with its interval; and where the simplified
@@ -61,36 +65,79 @@ def simplification_costs(result: MismatchResult, values: Callable[[Row, str, str
         return []
     differences = []
     for family in dict.fromkeys(r.family for r in result.rows):
-        exact = next((r for r in result.rows if r.family == family and r.model == TRUE_MODEL and not r.randomized
-                      and r.platform is None), None)
+        exact = next(
+            (
+                r
+                for r in result.rows
+                if r.family == family and r.model == TRUE_MODEL and not r.randomized and r.platform is None
+            ),
+            None,
+        )
         if exact is None:
             continue
         for name, row in _compared_rows(result, family):
-            home = (row.model if row.model in result.test_models and row.model != plant and not row.randomized
-                    and row.platform is None else None)
+            home = (
+                row.model
+                if row.model in result.test_models
+                and row.model != plant
+                and not row.randomized
+                and row.platform is None
+                else None
+            )
             for metric in RANKING_METRICS:
                 mine, theirs = values(row, plant, metric), values(exact, plant, metric)
-                differences.append(Difference(
-                    family, name, row.label, exact.label, metric,
-                    paired_difference(mine, theirs, statistic(metric)), _failed(result, (row, exact), (plant,)),
-                    plant, seed_p=_seed_test(mine, theirs, statistic(metric))))
+                differences.append(
+                    Difference(
+                        family,
+                        name,
+                        row.label,
+                        exact.label,
+                        metric,
+                        paired_difference(mine, theirs, statistic(metric)),
+                        _failed(result, (row, exact), (plant,)),
+                        plant,
+                        seed_p=_seed_test(mine, theirs, statistic(metric)),
+                    )
+                )
                 if home is not None:
                     mine_home, theirs_home = values(row, home, metric), values(exact, home, metric)
-                    differences.append(Difference(
-                        family, name, row.label, exact.label, metric,
-                        double_difference(mine, mine_home, theirs, theirs_home, statistic(metric)),
-                        _failed(result, (row, exact), (plant, home)), plant, DOUBLE_DIFFERENCE,
-                        _seed_test(mine - mine_home, theirs - theirs_home, statistic(metric))))
+                    differences.append(
+                        Difference(
+                            family,
+                            name,
+                            row.label,
+                            exact.label,
+                            metric,
+                            double_difference(mine, mine_home, theirs, theirs_home, statistic(metric)),
+                            _failed(result, (row, exact), (plant, home)),
+                            plant,
+                            DOUBLE_DIFFERENCE,
+                            _seed_test(mine - mine_home, theirs - theirs_home, statistic(metric)),
+                        )
+                    )
         classical = next((r for name, r in _compared_rows(result, family) if name == "classical model"), None)
         for row in result.rows:
             if classical is None or row.family != family or row.platform is None or row.model != TRUE_MODEL:
                 continue
             for metric in RANKING_METRICS:
-                differences.append(Difference(
-                    family, f"platform {row.platform_name}", row.label, classical.label, metric,
-                    share_removed(values(classical, plant, metric), values(row, plant, metric),
-                                  values(exact, plant, metric), statistic(metric)),
-                    _failed(result, (row, classical, exact), (plant,)), plant, SHARE_REMOVED))
+                differences.append(
+                    Difference(
+                        family,
+                        f"platform {row.platform_name}",
+                        row.label,
+                        classical.label,
+                        metric,
+                        share_removed(
+                            values(classical, plant, metric),
+                            values(row, plant, metric),
+                            values(exact, plant, metric),
+                            statistic(metric),
+                        ),
+                        _failed(result, (row, classical, exact), (plant,)),
+                        plant,
+                        SHARE_REMOVED,
+                    )
+                )
     return differences
 
 
@@ -127,10 +174,12 @@ def _failed(result: MismatchResult, rows: Sequence[Row], plants: Sequence[str]) 
 
 
 #: What a planning figure (:func:`seeds_needed`) is sized for, as the text that follows it.
-PLANNING_BASES = {"estimate": "at its own estimate",
-                  "double difference": "at half the double difference, {effect}",
-                  "double difference bound": "at the most it can be, half the double difference's larger bound, "
-                                             "{effect}; so at least that many"}
+PLANNING_BASES = {
+    "estimate": "at its own estimate",
+    "double difference": "at half the double difference, {effect}",
+    "double difference bound": "at the most it can be, half the double difference's larger bound, "
+    "{effect}; so at least that many",
+}
 
 
 def seeds_needed(cost: Difference, differences: Sequence[Difference]) -> tuple[int | None, str, float]:
@@ -146,8 +195,15 @@ def seeds_needed(cost: Difference, differences: Sequence[Difference]) -> tuple[i
         cost: the unresolved cost.
         differences: the study's differences, among which its double difference is looked for.
     """
-    double = next((d for d in differences if d.measure == DOUBLE_DIFFERENCE and
-                   (d.family, d.simplification, d.metric) == (cost.family, cost.simplification, cost.metric)), None)
+    double = next(
+        (
+            d
+            for d in differences
+            if d.measure == DOUBLE_DIFFERENCE
+            and (d.family, d.simplification, d.metric) == (cost.family, cost.simplification, cost.metric)
+        ),
+        None,
+    )
     if double is None or not np.isfinite(double.interval.estimate):
         effect, basis = cost.interval.estimate, "estimate"
     elif double.resolved:

@@ -58,15 +58,20 @@ def forest_figure(result: MismatchResult, metrics: Sequence[Metric] = METRICS):
     shown = [d for d in result.differences if d.measure != SHARE_REMOVED]
     entries = list(dict.fromkeys((d.family, d.simplification, d.measure) for d in shown))
     columns = 2
-    fig = new_figure(figsize=(13.0, 1.4 + 0.3 * len(entries) * math.ceil(len(RANKING_METRICS) / columns)),
-                     layout="constrained")
+    fig = new_figure(
+        figsize=(13.0, 1.4 + 0.3 * len(entries) * math.ceil(len(RANKING_METRICS) / columns)), layout="constrained"
+    )
     axes = fig.subplots(math.ceil(len(RANKING_METRICS) / columns), columns, sharey=True, squeeze=False).ravel()
     y = {e: len(entries) - 1 - i for i, e in enumerate(entries)}
     for ax, key in zip(axes, RANKING_METRICS):
         factor = meta[key].factor
         mine = [d for d in shown if d.metric == key]
-        magnitudes = [abs(v) * factor for d in mine for v in (d.interval.estimate, d.interval.low, d.interval.high)
-                      if np.isfinite(v) and v != 0]
+        magnitudes = [
+            abs(v) * factor
+            for d in mine
+            for v in (d.interval.estimate, d.interval.low, d.interval.high)
+            if np.isfinite(v) and v != 0
+        ]
         ax.axvline(0.0, color="0.3", lw=0.8)
         for d in mine:
             i = y[d.family, d.simplification, d.measure]
@@ -75,16 +80,23 @@ def forest_figure(result: MismatchResult, metrics: Sequence[Metric] = METRICS):
                 continue
             colour = "0.6" if d.failed else ("C3" if d.resolved else "C0")
             ax.plot([lo, hi], [i, i], color=colour, lw=2.0, solid_capstyle="butt")
-            ax.plot([e], [i], marker="x" if d.failed else "o", ms=7, color=colour,
-                    mfc=colour if d.resolved and not d.failed else "white", mew=1.5)
+            ax.plot(
+                [e],
+                [i],
+                marker="x" if d.failed else "o",
+                ms=7,
+                color=colour,
+                mfc=colour if d.resolved and not d.failed else "white",
+                mew=1.5,
+            )
         if magnitudes:
             low, high = (math.floor(math.log10(v)) for v in (min(magnitudes), max(magnitudes)))
             # at most about four labelled decades a side (more overlap); the linear part around zero
             # as wide as one labelled step, so that its three labels do not overlap either
             step = max(1, math.ceil((high - low + 1) / 4))
-            ax.set_xscale("symlog", linthresh=10.0 ** low, linscale=step)
+            ax.set_xscale("symlog", linthresh=10.0**low, linscale=step)
             # zero and every step-th decade down from the largest, none at the linear part's edges
-            decades = [10.0 ** k for k in range(high + 1, low, -step)]
+            decades = [10.0**k for k in range(high + 1, low, -step)]
             ax.xaxis.set_major_locator(FixedLocator(sorted([0.0] + decades + [-d for d in decades])))
             ax.xaxis.set_minor_locator(NullLocator())
         ax.set_title(meta[key].title, fontsize=10)
@@ -94,12 +106,17 @@ def forest_figure(result: MismatchResult, metrics: Sequence[Metric] = METRICS):
             if entries[i][0] != entries[i - 1][0]:
                 ax.axhline(y[entries[i]] + 0.5, color="0.75", lw=0.8)
     for ax in axes[::columns]:
-        ax.set_yticks([y[e] for e in entries],
-                      [f"{f}: {s}" + (" (double diff.)" if m == DOUBLE_DIFFERENCE else "") for f, s, m in entries])
+        ax.set_yticks(
+            [y[e] for e in entries],
+            [f"{f}: {s}" + (" (double diff.)" if m == DOUBLE_DIFFERENCE else "") for f, s, m in entries],
+        )
         ax.set_ylim(-0.7, len(entries) - 0.3)
-    fig.suptitle(f"The cost of each simplification on the {result.differences[0].plant} plant, 95 % intervals\n"
-                 "(red filled: resolved; "
-                 f"blue hollow: includes zero; grey x: a row failed, success < {FAILURE_THRESHOLD:.0%})", fontsize=11)
+    fig.suptitle(
+        f"The cost of each simplification on the {result.differences[0].plant} plant, 95 % intervals\n"
+        "(red filled: resolved; "
+        f"blue hollow: includes zero; grey x: a row failed, success < {FAILURE_THRESHOLD:.0%})",
+        fontsize=11,
+    )
     return fig
 
 
@@ -151,15 +168,22 @@ def heatmap_figure(result: MismatchResult, metric: Metric):
     ax = fig.subplots()
     image = ax.imshow(np.ma.masked_where(~np.isfinite(values) | failed, values), cmap=cmap, norm=norm, aspect="auto")
     for i, j in zip(*np.nonzero(failed)):
-        ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1.0, 1.0, facecolor="0.82", edgecolor="0.55", hatch="///",
-                               lw=0.0))
+        ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1.0, 1.0, facecolor="0.82", edgecolor="0.55", hatch="///", lw=0.0))
     for i in range(n_rows):
         for j in range(n_cols):
             v = values[i, j]
             text = "-" if not np.isfinite(v) else format(v, metric.spec)
             if failed[i, j]:
-                ax.text(j, i, f"failed ({text})", ha="center", va="center", fontsize=8, color="black",
-                        bbox=dict(boxstyle="round,pad=0.15", facecolor="0.82", edgecolor="none"))
+                ax.text(
+                    j,
+                    i,
+                    f"failed ({text})",
+                    ha="center",
+                    va="center",
+                    fontsize=8,
+                    color="black",
+                    bbox=dict(boxstyle="round,pad=0.15", facecolor="0.82", edgecolor="none"),
+                )
                 continue
             # viridis is dark at its low end, viridis_r at its high end
             dark = np.isfinite(v) and (norm(v) < 0.5 if key == "success" else norm(v) > 0.5)

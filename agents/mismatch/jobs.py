@@ -57,8 +57,11 @@ def agent_files(folder: Path) -> dict[str, bytes]:
     Args:
         folder: the agent's folder.
     """
-    return {name: read_regular(folder / name, MAX_AGENT_FILE_BYTES) for name in AGENT_FILES
-            if os.path.lexists(folder / name)}
+    return {
+        name: read_regular(folder / name, MAX_AGENT_FILE_BYTES)
+        for name in AGENT_FILES
+        if os.path.lexists(folder / name)
+    }
 
 
 def _load_agent(agent):
@@ -114,9 +117,19 @@ def evaluate_job(spec: dict[str, Any], agent=None) -> dict[str, Any]:
 
     start = time.perf_counter()
     policy = make_policy(spec["kind"], spec["design_model"], agent, spec.get("design_platform"))
-    result = evaluate(policy, {**spec["env_kwargs"], "model": spec["plant"], "task": spec["task"]},
-                      episodes=spec["episodes"], seed=spec["eval_seed"], label=spec["controller"],
-                      max_steps=spec["max_steps"], position_tolerance=spec["position_tolerance"],
-                      orientation_tolerance=spec["orientation_tolerance"], progress=False)
-    return {"metrics": {metric.key: [ep.metrics[metric.key] for ep in result.episodes] for metric in METRICS},
-            "terminations": [ep.termination for ep in result.episodes], "wall_time": time.perf_counter() - start}
+    result = evaluate(
+        policy,
+        {**spec["env_kwargs"], "model": spec["plant"], "task": spec["task"]},
+        episodes=spec["episodes"],
+        seed=spec["eval_seed"],
+        label=spec["controller"],
+        max_steps=spec["max_steps"],
+        position_tolerance=spec["position_tolerance"],
+        orientation_tolerance=spec["orientation_tolerance"],
+        progress=False,
+    )
+    return {
+        "metrics": {metric.key: [ep.metrics[metric.key] for ep in result.episodes] for metric in METRICS},
+        "terminations": [ep.termination for ep in result.episodes],
+        "wall_time": time.perf_counter() - start,
+    }

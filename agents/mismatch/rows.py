@@ -25,9 +25,17 @@ from stewart_env.files import publishing_folder
 __all__ = ["build_rows", "config_env_kwargs", "finished_agent", "publish_agent", "train_agent", "training_keywords"]
 
 
-def build_rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequence[int], domain_randomization: bool,
-               platform: str, agent_models: Sequence[str] | None = None,
-               controller_platforms: Sequence[tuple[str, str]] = (), platform_models: Sequence[str] = ()) -> list[Row]:
+def build_rows(
+    out: Path,
+    models: Sequence[str],
+    algo: str | None,
+    seeds: Sequence[int],
+    domain_randomization: bool,
+    platform: str,
+    agent_models: Sequence[str] | None = None,
+    controller_platforms: Sequence[tuple[str, str]] = (),
+    platform_models: Sequence[str] = (),
+) -> list[Row]:
     """The study's controllers; learned rows (on ``agent_models``, default all ``models``) name
     their agent folders (trained or not yet).  Each of ``controller_platforms`` (name, platform)
     adds the rows of ``platform_models`` (those of ``agent_models`` for the learned rows) built on
@@ -51,8 +59,16 @@ def build_rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequen
     return rows
 
 
-def _rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequence[int], domain_randomization: bool,
-          platform: str, agent_models: Sequence[str] | None, platform_name: str | None = None) -> list[Row]:
+def _rows(
+    out: Path,
+    models: Sequence[str],
+    algo: str | None,
+    seeds: Sequence[int],
+    domain_randomization: bool,
+    platform: str,
+    agent_models: Sequence[str] | None,
+    platform_name: str | None = None,
+) -> list[Row]:
     """The rows of ``models`` built on ``platform``; ``platform_name`` None for the study's own."""
     from stewart_env.agents.evaluation import slug
 
@@ -62,11 +78,21 @@ def _rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequence[in
     built = {} if platform_name is None else {"platform": platform, "platform_name": platform_name}
     where = "" if platform_name is None else f", on platform {platform_name}"
     analytic = [m for m in models if closed_form(m)]
-    rows = [Row(f"PD + gravity comp. [{on(m)}]", "PD", m, "pd",
-                info=f"task-space PD, gravity compensation from this model's statics{where}", **built)
-            for m in analytic]
-    rows += [Row(f"CT [{on(m)}]", "CT", m, "ct", info=f"computed torque, this model's inverse dynamics{where}",
-                 **built) for m in analytic]
+    rows = [
+        Row(
+            f"PD + gravity comp. [{on(m)}]",
+            "PD",
+            m,
+            "pd",
+            info=f"task-space PD, gravity compensation from this model's statics{where}",
+            **built,
+        )
+        for m in analytic
+    ]
+    rows += [
+        Row(f"CT [{on(m)}]", "CT", m, "ct", info=f"computed torque, this model's inverse dynamics{where}", **built)
+        for m in analytic
+    ]
     if algo is None:
         return rows
     agent_models = models if agent_models is None else agent_models
@@ -74,13 +100,30 @@ def _rows(out: Path, models: Sequence[str], algo: str | None, seeds: Sequence[in
     for m, randomized in trainings:
         name = f"{m} + DR" if randomized else on(m)
         agents = {s: out / AGENTS_DIR / slug(name) / f"seed_{s}" for s in seeds}
-        rows.append(Row(f"{ALGORITHM_NAMES[algo]} [{name}]", ALGORITHM_NAMES[algo], m, "agent", tuple(seeds), agents,
-                        randomized=randomized, **built))
+        rows.append(
+            Row(
+                f"{ALGORITHM_NAMES[algo]} [{name}]",
+                ALGORITHM_NAMES[algo],
+                m,
+                "agent",
+                tuple(seeds),
+                agents,
+                randomized=randomized,
+                **built,
+            )
+        )
     return rows
 
 
-def training_keywords(algo: str, row: Row, seed: int, env_kwargs: Mapping[str, Any], task: str,
-                      n_envs: int | None, config: str | None = None) -> dict[str, Any]:
+def training_keywords(
+    algo: str,
+    row: Row,
+    seed: int,
+    env_kwargs: Mapping[str, Any],
+    task: str,
+    n_envs: int | None,
+    config: str | None = None,
+) -> dict[str, Any]:
     """The keywords of :func:`~stewart_env.agents.training.train` for one agent of a learned row.
 
     Args:
@@ -97,8 +140,16 @@ def training_keywords(algo: str, row: Row, seed: int, env_kwargs: Mapping[str, A
         rest["platform"] = row.platform
     if row.randomized:
         rest["randomization"] = {k: list(v) for k, v in DEFAULT_RANDOMIZATION.items()}
-    return dict(algo=algo, model=row.model, task=task, seed=seed, n_envs=n_envs, checkpoint_freq=0,
-                env_kwargs=rest, config=config)
+    return dict(
+        algo=algo,
+        model=row.model,
+        task=task,
+        seed=seed,
+        n_envs=n_envs,
+        checkpoint_freq=0,
+        env_kwargs=rest,
+        config=config,
+    )
 
 
 def config_env_kwargs(algo: str, config: str | None = None) -> dict[str, Any]:
@@ -128,7 +179,8 @@ def finished_agent(directory: Path, algo: str, seed: int, env_kwargs: Mapping[st
     if found != (algo, seed, env_kwargs):
         raise MismatchError(
             f"{directory} holds an agent trained differently (algorithm, seed, env kwargs: {found}) from "
-            f"this study's row ({(algo, seed, env_kwargs)}); use another --out")
+            f"this study's row ({(algo, seed, env_kwargs)}); use another --out"
+        )
     # a run stopped by a signal saves its model too, unfinished: it is continued, not reused
     return bool(manifest.get("finished"))
 

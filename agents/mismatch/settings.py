@@ -107,8 +107,9 @@ class MismatchSettings:
             raise MismatchError(f"task: unknown task {self.task!r}; choose one of {', '.join(TASKS)}")
         unknown = [c for c in self.simplifications if c not in SIMPLIFICATIONS]
         if unknown:
-            raise MismatchError(f"simplifications: unknown {', '.join(unknown)}; choose from "
-                                f"{', '.join(SIMPLIFICATIONS)}")
+            raise MismatchError(
+                f"simplifications: unknown {', '.join(unknown)}; choose from {', '.join(SIMPLIFICATIONS)}"
+            )
         set_("simplifications", tuple(self.simplifications))
         platform = _check_platform(self.platform)
         set_("platform", platform)
@@ -120,9 +121,11 @@ class MismatchSettings:
         except UsageError as err:
             raise MismatchError(f"cost plant: {err.problem}", argument="cost_plant", problem=err.problem) from None
         if self.cost_plant not in self.test_models:
-            raise MismatchError(f"cost plant: {self.cost_plant!r} is not one of the test models "
-                                f"({', '.join(self.test_models)}); pass --cost-plant with one of them, or add "
-                                f"{self.cost_plant} to --test-models")
+            raise MismatchError(
+                f"cost plant: {self.cost_plant!r} is not one of the test models "
+                f"({', '.join(self.test_models)}); pass --cost-plant with one of them, or add "
+                f"{self.cost_plant} to --test-models"
+            )
         if self.agent_models is not None:
             set_("agent_models", tuple(_check_models(self.agent_models, "agent models", platform)))
         for name in ("episodes", "timesteps", "n_envs", "max_steps"):
@@ -138,14 +141,18 @@ class MismatchSettings:
         for name, _ in self.controller_platforms:
             clash = [m for m in self.train_models if slug(f"{m} @ {name}") in own]
             if clash:
-                raise MismatchError(f"controller platform: the name {name!r} makes the rows of {clash[0]} on it "
-                                    "share their files with another row's; name it otherwise with NAME=PLATFORM")
+                raise MismatchError(
+                    f"controller platform: the name {name!r} makes the rows of {clash[0]} on it "
+                    "share their files with another row's; name it otherwise with NAME=PLATFORM"
+                )
         env_kwargs = dict(self.env_kwargs or {})
         clash = [k for k in ("model", "task", "randomization", "platform") if k in env_kwargs]
         if clash:
-            raise MismatchError(f"env kwargs: {', '.join(clash)} {'is' if len(clash) == 1 else 'are'} set by the "
-                                "study itself (--train-models/--test-models, --task, --domain-randomization, "
-                                "--platform)")
+            raise MismatchError(
+                f"env kwargs: {', '.join(clash)} {'is' if len(clash) == 1 else 'are'} set by the "
+                "study itself (--train-models/--test-models, --task, --domain-randomization, "
+                "--platform)"
+            )
         env_kwargs["platform"] = platform
         set_("env_kwargs", jsonable(env_kwargs))
         check_backend(self.backend, self.ray_address)
@@ -163,21 +170,33 @@ class MismatchSettings:
     def evaluation(self) -> dict[str, Any]:
         """What every evaluation's numbers depend on besides its row and plant (part of each
         cell's spec)."""
-        return {"task": self.task, "env_kwargs": self.env_kwargs, "episodes": self.episodes,
-                "eval_seed": EVAL_SEED_OFFSET, "max_steps": self.max_steps,
-                "position_tolerance": self.position_tolerance, "orientation_tolerance": self.orientation_tolerance}
+        return {
+            "task": self.task,
+            "env_kwargs": self.env_kwargs,
+            "episodes": self.episodes,
+            "eval_seed": EVAL_SEED_OFFSET,
+            "max_steps": self.max_steps,
+            "position_tolerance": self.position_tolerance,
+            "orientation_tolerance": self.orientation_tolerance,
+        }
 
     def recorded(self) -> dict[str, Any]:
         """The settings study.json records: those that give the finished cells and agents their
         meaning (rows, test models and seeds may be added to a study)."""
-        out = {**self.evaluation(), "algo": self.algo, "timesteps": self.timesteps if self.algo else None,
-               "n_envs": self.n_envs if self.algo else None}
+        out = {
+            **self.evaluation(),
+            "algo": self.algo,
+            "timesteps": self.timesteps if self.algo else None,
+            "n_envs": self.n_envs if self.algo else None,
+        }
         if self.config is not None:  # the hyperparameters themselves: an edited file changes the agents
             out["config"] = {"path": self.config, "hyperparameters": self.hyperparameters}
         if self.controller_platforms:  # recorded only when given: studies without them resume as before
             # a config's content too: an identification written again to the same file changes the rows
-            out["controller_platforms"] = [{"name": name, "platform": platform, "sha256": _file_hash(platform)}
-                                           for name, platform in self.controller_platforms]
+            out["controller_platforms"] = [
+                {"name": name, "platform": platform, "sha256": _file_hash(platform)}
+                for name, platform in self.controller_platforms
+            ]
         return out
 
 
@@ -285,8 +304,11 @@ def check_controller_platforms(items: Sequence[Any]) -> tuple[tuple[str, str], .
             pair).
     """
     if isinstance(items, (str, bytes)):
-        raise MismatchError(f"controller platforms: expected a list of platforms, got {items!r}",
-                            argument="controller_platforms", problem=f"expected a list of platforms, got {items!r}")
+        raise MismatchError(
+            f"controller platforms: expected a list of platforms, got {items!r}",
+            argument="controller_platforms",
+            problem=f"expected a list of platforms, got {items!r}",
+        )
     out: list[tuple[str, str]] = []
     for item in items:
         if isinstance(item, (tuple, list)) and len(item) == 2:
@@ -303,8 +325,9 @@ def check_controller_platforms(items: Sequence[Any]) -> tuple[tuple[str, str], .
             raise _refuse_platform(err.problem) from None
         name = Path(checked).stem if name is None else name
         if not isinstance(name, str) or not _PLATFORM_NAME.fullmatch(name):
-            raise _refuse_platform(f"{name!r} cannot name a platform in the rows; give NAME=PLATFORM with NAME "
-                                   "letters, digits and _.+-")
+            raise _refuse_platform(
+                f"{name!r} cannot name a platform in the rows; give NAME=PLATFORM with NAME letters, digits and _.+-"
+            )
         if slug(name) in (slug(n) for n, _ in out):  # the rows' files are named by the slug
             raise _refuse_platform(f"two platforms named {name!r}; name them apart with NAME=PLATFORM")
         out.append((name, checked))
@@ -339,9 +362,11 @@ def check_study(out: Path, settings: MismatchSettings) -> None:
     if os.path.lexists(path):
         found = changes(read_json(path, MAX_MANIFEST_BYTES, "study file"), recorded)
         if found:
-            raise MismatchError(f"{out} holds a study with other settings; its finished cells and agents would "
-                                "mean something else:\n  " + "\n  ".join(found) + "\nrun with the study's "
-                                "settings (rows, test models and seeds may be added), or use another --out")
+            raise MismatchError(
+                f"{out} holds a study with other settings; its finished cells and agents would "
+                "mean something else:\n  " + "\n  ".join(found) + "\nrun with the study's "
+                "settings (rows, test models and seeds may be added), or use another --out"
+            )
     else:
         publish(path, json.dumps(recorded, indent=1, sort_keys=True))
 
@@ -355,6 +380,8 @@ def check_own_agents(out: Path) -> None:
     agents = out / AGENTS_DIR
     for path in [agents, *agents.glob("*"), *agents.glob("*/*")]:
         if path.is_symlink():
-            raise MismatchError(f"{path} is a symbolic link: a study's agents are not shared with another study "
-                                f"(its cells record the hashes of the agents they ran); give each study its own "
-                                f"--out, or copy the agents into {agents}")
+            raise MismatchError(
+                f"{path} is a symbolic link: a study's agents are not shared with another study "
+                f"(its cells record the hashes of the agents they ran); give each study its own "
+                f"--out, or copy the agents into {agents}"
+            )

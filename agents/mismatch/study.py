@@ -52,16 +52,31 @@ from stewart_env.progress import progress as progress_bar
 __all__ = ["run_mismatch", "run_study", "summarize", "write_outputs"]
 
 
-def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "improved"),
-                 test_models: Sequence[str] = ("classical", "improved", "improved_centroidal"),
-                 task: str = "setpoint", algo: str | None = "ppo", timesteps: int = QUICK_TIMESTEPS,
-                 episodes: int = 5, seeds: Sequence[int] = (0,), domain_randomization: bool = False,
-                 simplifications: Sequence[str] = SIMPLIFICATIONS, env_kwargs: dict[str, Any] | None = None,
-                 n_envs: int | None = None, max_steps: int | None = None, platform: str = "dasgupta1998",
-                 backend: str = "local", ray_address: str | None = None, agent_models: Sequence[str] | None = None,
-                 config: str | os.PathLike | None = None, position_tolerance: float = POSITION_TOLERANCE,
-                 orientation_tolerance: float = ORIENTATION_TOLERANCE, cost_plant: str = TRUE_MODEL,
-                 controller_platforms: Sequence[Any] = (), progress: bool = True) -> MismatchResult:
+def run_mismatch(
+    out: str | Path,
+    train_models: Sequence[str] = ("classical", "improved"),
+    test_models: Sequence[str] = ("classical", "improved", "improved_centroidal"),
+    task: str = "setpoint",
+    algo: str | None = "ppo",
+    timesteps: int = QUICK_TIMESTEPS,
+    episodes: int = 5,
+    seeds: Sequence[int] = (0,),
+    domain_randomization: bool = False,
+    simplifications: Sequence[str] = SIMPLIFICATIONS,
+    env_kwargs: dict[str, Any] | None = None,
+    n_envs: int | None = None,
+    max_steps: int | None = None,
+    platform: str = "dasgupta1998",
+    backend: str = "local",
+    ray_address: str | None = None,
+    agent_models: Sequence[str] | None = None,
+    config: str | os.PathLike | None = None,
+    position_tolerance: float = POSITION_TOLERANCE,
+    orientation_tolerance: float = ORIENTATION_TOLERANCE,
+    cost_plant: str = TRUE_MODEL,
+    controller_platforms: Sequence[Any] = (),
+    progress: bool = True,
+) -> MismatchResult:
     """Run the mismatch study and write it to ``out`` (see :mod:`stewart_env.agents.mismatch`).
 
     The arguments but ``out`` and ``progress`` are those of
@@ -103,16 +118,34 @@ def run_mismatch(out: str | Path, train_models: Sequence[str] = ("classical", "i
     """
     check_not_busy(out)  # a study in progress is reported at once, not by what it left so far
     settings = MismatchSettings(
-        train_models=train_models, test_models=test_models, task=task, algo=algo, timesteps=timesteps,
-        episodes=episodes, seeds=seeds, domain_randomization=domain_randomization, simplifications=simplifications,
-        env_kwargs=env_kwargs, n_envs=n_envs, max_steps=max_steps, platform=platform, backend=backend,
-        ray_address=ray_address, agent_models=agent_models, config=config, position_tolerance=position_tolerance,
-        orientation_tolerance=orientation_tolerance, cost_plant=cost_plant, controller_platforms=controller_platforms)
+        train_models=train_models,
+        test_models=test_models,
+        task=task,
+        algo=algo,
+        timesteps=timesteps,
+        episodes=episodes,
+        seeds=seeds,
+        domain_randomization=domain_randomization,
+        simplifications=simplifications,
+        env_kwargs=env_kwargs,
+        n_envs=n_envs,
+        max_steps=max_steps,
+        platform=platform,
+        backend=backend,
+        ray_address=ray_address,
+        agent_models=agent_models,
+        config=config,
+        position_tolerance=position_tolerance,
+        orientation_tolerance=orientation_tolerance,
+        cost_plant=cost_plant,
+        controller_platforms=controller_platforms,
+    )
     return run_study(out, settings, progress=progress)
 
 
-def run_study(out: str | Path, settings: MismatchSettings, progress: bool = True,
-              figures: bool = True) -> MismatchResult:
+def run_study(
+    out: str | Path, settings: MismatchSettings, progress: bool = True, figures: bool = True
+) -> MismatchResult:
     """Run the study of ``settings`` in ``out``, reusing what an earlier run of it finished, and
     write its report (:func:`write_outputs`; the figures only if ``figures``).
 
@@ -128,9 +161,17 @@ def run_study(out: str | Path, settings: MismatchSettings, progress: bool = True
         check_study(out, settings)
         runner = make_backend(settings.backend, settings.ray_address)
         start = time.perf_counter()
-        rows = build_rows(out, settings.design_models, settings.algo, settings.seeds, settings.domain_randomization,
-                          settings.platform, settings.agent_models, settings.controller_platforms,
-                          settings.train_models)
+        rows = build_rows(
+            out,
+            settings.design_models,
+            settings.algo,
+            settings.seeds,
+            settings.domain_randomization,
+            settings.platform,
+            settings.agent_models,
+            settings.controller_platforms,
+            settings.train_models,
+        )
         try:
             run_jobs(runner, out, rows, settings, progress)
         finally:
@@ -140,8 +181,9 @@ def run_study(out: str | Path, settings: MismatchSettings, progress: bool = True
         return result
 
 
-def run_jobs(runner: LocalBackend | RayBackend, out: Path, rows: list[Row], settings: MismatchSettings,
-             progress: bool) -> None:
+def run_jobs(
+    runner: LocalBackend | RayBackend, out: Path, rows: list[Row], settings: MismatchSettings, progress: bool
+) -> None:
     """Train the missing agents, then evaluate the missing cells, on ``runner``; each result is
     stored as soon as it arrives, so a stopped study keeps what finished.
 
@@ -185,9 +227,12 @@ def run_jobs(runner: LocalBackend | RayBackend, out: Path, rows: list[Row], sett
                 if stored["spec"] == spec:
                     bar.update()
                     continue
-                print(f"stewart-env mismatch: recomputing {row.label} on {plant}"
-                      f"{'' if seed is None else f' (seed {seed})'}: its settings changed: "
-                      + "; ".join(changes(stored["spec"], spec)), file=sys.stderr)
+                print(
+                    f"stewart-env mismatch: recomputing {row.label} on {plant}"
+                    f"{'' if seed is None else f' (seed {seed})'}: its settings changed: "
+                    + "; ".join(changes(stored["spec"], spec)),
+                    file=sys.stderr,
+                )
             todo.append((path, spec, row, seed))
         agents = {}  # each agent read (and sent to the workers) once
         jobs = []
@@ -232,19 +277,26 @@ def summarize(out: Path, rows: list[Row], settings: MismatchSettings) -> Mismatc
             steps = sorted({read_manifest(d)["num_timesteps"] for d in r.agents.values()})
             r.info = f"{', '.join(map(str, steps))} steps, seeds {', '.join(map(str, r.seeds))}"
     cell_times = [cell_wall_time(cell) for found in cells.values() for cell in found]
-    timing = JobTimes(training=[float(read_manifest(d)["wall_time"]) for r in rows if r.kind == "agent"
-                                for d in r.agents.values()],
-                      evaluation=[t for t in cell_times if t is not None],
-                      untimed_cells=sum(t is None for t in cell_times))
+    timing = JobTimes(
+        training=[float(read_manifest(d)["wall_time"]) for r in rows if r.kind == "agent" for d in r.agents.values()],
+        evaluation=[t for t in cell_times if t is not None],
+        untimed_cells=sum(t is None for t in cell_times),
+    )
     result = MismatchResult(rows, list(settings.test_models), summary, settings.episodes, timing=timing)
     result.differences = simplification_costs(result, values, plant=settings.cost_plant)
-    result.per_seed = {r.label: {key: per_seed_estimates(values(r, settings.cost_plant, key), statistic(key))
-                                 for key in RANKING_METRICS} for r in rows if r.kind == "agent"}
+    result.per_seed = {
+        r.label: {
+            key: per_seed_estimates(values(r, settings.cost_plant, key), statistic(key)) for key in RANKING_METRICS
+        }
+        for r in rows
+        if r.kind == "agent"
+    }
     return result
 
 
-def write_outputs(result: MismatchResult, out: Path, settings: MismatchSettings, wall_time: float = 0.0,
-                  figures: bool = True) -> dict[str, Path]:
+def write_outputs(
+    result: MismatchResult, out: Path, settings: MismatchSettings, wall_time: float = 0.0, figures: bool = True
+) -> dict[str, Path]:
     """The report into ``out``: matrix.csv, differences.csv and matrix.md
     (:func:`~.tables.write_tables`), then, if ``figures``, forest.png and one heatmap PNG per
     metric (:func:`~.figures.write_figures`); returns {name: path}.

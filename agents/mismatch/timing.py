@@ -61,8 +61,15 @@ def scale_out(times: JobTimes, cpus_per_machine: int, machines: Sequence[int] = 
     for n in machines:
         slots = max(1, (n * cpus_per_machine) // CPUS_PER_JOB)
         evaluation = None if times.untimed_cells else makespan(times.evaluation, slots)
-        rows.append({"machines": n, "cpus": n * cpus_per_machine, "slots": slots,
-                     "training": makespan(times.training, slots), "evaluation": evaluation})
+        rows.append(
+            {
+                "machines": n,
+                "cpus": n * cpus_per_machine,
+                "slots": slots,
+                "training": makespan(times.training, slots),
+                "evaluation": evaluation,
+            }
+        )
     return rows
 
 

@@ -56,8 +56,10 @@ class TrainedAgent:
         self._normalizer = normalizer
 
     def __repr__(self) -> str:
-        return (f"TrainedAgent({self.algo} on {self.env_kwargs.get('model')!r}, {self.num_timesteps} steps, "
-                f"{self.directory})")
+        return (
+            f"TrainedAgent({self.algo} on {self.env_kwargs.get('model')!r}, {self.num_timesteps} steps, "
+            f"{self.directory})"
+        )
 
     @property
     def name(self) -> str:
@@ -86,8 +88,9 @@ class TrainedAgent:
             deterministic: the mean action rather than a sample.
         """
         with single_thread():
-            return self.model.predict(self.normalize(observation), state=state, episode_start=episode_start,
-                                      deterministic=deterministic)
+            return self.model.predict(
+                self.normalize(observation), state=state, episode_start=episode_start, deterministic=deterministic
+            )
 
     def make_env(self, **overrides: Any):
         """``gymnasium.make("StewartPlatform-v1")`` with the training kwargs and ``overrides``.
@@ -124,20 +127,25 @@ def load_agent(directory: str | os.PathLike, checkpoint: int | None = None) -> T
             raise TrainingError(f"{path}: no model at {MODEL_FILE}; the run has not finished (try --resume)")
         hashes = manifest.get("files")
         if not isinstance(hashes, dict) or not hashes:
-            raise TrainingError(f"{path}: {MANIFEST} records no sha256 of {MODEL_FILE} (written by an older "
-                                "stewart-env, or not by `stewart-env train`); refusing to unpickle unverified files")
+            raise TrainingError(
+                f"{path}: {MANIFEST} records no sha256 of {MODEL_FILE} (written by an older "
+                "stewart-env, or not by `stewart-env train`); refusing to unpickle unverified files"
+            )
     else:
         folder = path / CHECKPOINT_DIR / f"step_{checkpoint}"
-        problem = (checkpoint_problem(folder, checkpoint, manifest["algo"], bool(manifest.get("normalize")))
-                   if folder.is_dir() else "no such checkpoint")
+        problem = (
+            checkpoint_problem(folder, checkpoint, manifest["algo"], bool(manifest.get("normalize")))
+            if folder.is_dir()
+            else "no such checkpoint"
+        )
         if problem is not None:
             found = ", ".join(str(steps) for steps, _ in step_dirs(path)) or "none"
-            raise TrainingError(f"{path}: cannot load the checkpoint at {checkpoint} steps: {problem} "
-                                f"(checkpoints: {found})")
+            raise TrainingError(
+                f"{path}: cannot load the checkpoint at {checkpoint} steps: {problem} (checkpoints: {found})"
+            )
         hashes, what = checkpoint_hashes(folder)
     model_bytes = verified_bytes(folder, hashes, MODEL_FILE, what)
-    statistics = (verified_bytes(folder, hashes, VECNORMALIZE_FILE, what)
-                  if manifest.get("normalize", False) else None)
+    statistics = verified_bytes(folder, hashes, VECNORMALIZE_FILE, what) if manifest.get("normalize", False) else None
     with single_thread():
         model = cls.load(io.BytesIO(model_bytes), device="cpu")
     normalizer = None
@@ -145,4 +153,3 @@ def load_agent(directory: str | os.PathLike, checkpoint: int | None = None) -> T
         normalizer = unpickle_statistics(statistics)
         normalizer.training = False
     return TrainedAgent(path, manifest, model, normalizer)
-

@@ -65,6 +65,6 @@ def jsonable(value: Any) -> Any:
         return value.item()
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
-    raise TrainingError(f"environment kwarg value {value!r} cannot be written to {MANIFEST}; "
-                        "pass names, numbers, lists and dicts")
-
+    raise TrainingError(
+        f"environment kwarg value {value!r} cannot be written to {MANIFEST}; pass names, numbers, lists and dicts"
+    )

@@ -35,8 +35,14 @@ def single_thread() -> Iterator[None]:
         torch.set_num_threads(before)
 
 
-def make_training_env(n_envs: int, env_kwargs: Mapping[str, Any], seed: int, normalize: dict[str, Any] | None,
-                      monitor_path: str | os.PathLike | None = None, statistics=None):
+def make_training_env(
+    n_envs: int,
+    env_kwargs: Mapping[str, Any],
+    seed: int,
+    normalize: dict[str, Any] | None,
+    monitor_path: str | os.PathLike | None = None,
+    statistics=None,
+):
     """The training VecEnv: ``n_envs`` platforms in one native batch, VecMonitor (episode
     statistics, ``monitor_path`` CSV) and, if ``normalize`` is not None, VecNormalize with those
     kwargs, or the saved VecNormalize ``statistics`` put on this batch (resuming).  Rows are
@@ -56,12 +62,10 @@ def make_training_env(n_envs: int, env_kwargs: Mapping[str, Any], seed: int, nor
 
     env = StewartPlatformSB3VecEnv(num_envs=n_envs, **env_kwargs)
     env.seed(seed)
-    env = VecMonitor(env, filename=None if monitor_path is None else str(monitor_path),
-                     info_keywords=("termination",))
+    env = VecMonitor(env, filename=None if monitor_path is None else str(monitor_path), info_keywords=("termination",))
     if normalize is None:
         return env
     if statistics is not None:
         statistics.set_venv(env)  # what VecNormalize.load does after unpickling
         return statistics
     return VecNormalize(env, **normalize)
-

@@ -29,10 +29,28 @@ from stewart_env.params.shipped import is_shipped_name
 from stewart_env.registration import ENV_ID
 from stewart_env.validation import integer
 
-__all__ = ["ACTIVATIONS", "ALGORITHMS", "ALGORITHM_NAMES", "CONFIG_DIR", "CONTRIB", "MAX_COUNT", "OFF_POLICY", "ZOO_EVALUATED_KEYS",
-           "ZOO_KEYS_HANDLED", "ZOO_KEYS_ZOO_ONLY", "ZOO_SCHEDULE_KEYS", "Hyperparameters", "algorithm_class",
-           "check_count", "check_hyperparameter_names", "config_path", "parse_hyperparameters", "read_hyperparameters",
-           "shipped_configs", "zoo_eval"]
+__all__ = [
+    "ACTIVATIONS",
+    "ALGORITHMS",
+    "ALGORITHM_NAMES",
+    "CONFIG_DIR",
+    "CONTRIB",
+    "MAX_COUNT",
+    "OFF_POLICY",
+    "ZOO_EVALUATED_KEYS",
+    "ZOO_KEYS_HANDLED",
+    "ZOO_KEYS_ZOO_ONLY",
+    "ZOO_SCHEDULE_KEYS",
+    "Hyperparameters",
+    "algorithm_class",
+    "check_count",
+    "check_hyperparameter_names",
+    "config_path",
+    "parse_hyperparameters",
+    "read_hyperparameters",
+    "shipped_configs",
+    "zoo_eval",
+]
 
 ALGORITHMS = ("ppo", "sac", "td3", "tqc", "crossq")
 OFF_POLICY = ("sac", "td3", "tqc", "crossq")
@@ -99,16 +117,19 @@ def config_path(algo: str, config: str | os.PathLike | None = None) -> Path:
         shipped = CONFIG_DIR / f"{path.name}.yml"
         if shipped.is_file():
             return shipped
-        raise TrainingError(f"unknown shipped config {str(config)!r}; shipped: {', '.join(shipped_configs())} (a "
-                            "file's path has a / or ends in .yml or .yaml)")
+        raise TrainingError(
+            f"unknown shipped config {str(config)!r}; shipped: {', '.join(shipped_configs())} (a "
+            "file's path has a / or ends in .yml or .yaml)"
+        )
     if path.is_file():
         return path
     if len(path.parts) == 1 and not os.path.lexists(path):
         shipped = CONFIG_DIR / (path.name if path.suffix in (".yml", ".yaml") else f"{path.name}.yml")
         if shipped.is_file():
             return shipped
-    raise TrainingError(f"hyperparameter file not found: {path} (neither a file nor a shipped config: "
-                        f"{', '.join(shipped_configs())})")
+    raise TrainingError(
+        f"hyperparameter file not found: {path} (neither a file nor a shipped config: {', '.join(shipped_configs())})"
+    )
 
 
 def read_hyperparameters(algo: str, config: str | os.PathLike | None = None, env_id: str = ENV_ID) -> dict[str, Any]:
@@ -152,8 +173,12 @@ def _zoo_value(node: ast.AST, key: str, text: str) -> Any:
     """The data of one node of a zoo expression; TrainingError naming ``key`` for anything else."""
     if isinstance(node, ast.Constant) and (node.value is None or type(node.value) in (bool, int, float, str)):
         return node.value
-    if (isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd))
-            and isinstance(node.operand, ast.Constant) and type(node.operand.value) in (int, float)):
+    if (
+        isinstance(node, ast.UnaryOp)
+        and isinstance(node.op, (ast.USub, ast.UAdd))
+        and isinstance(node.operand, ast.Constant)
+        and type(node.operand.value) in (int, float)
+    ):
         return -node.operand.value if isinstance(node.op, ast.USub) else node.operand.value
     if isinstance(node, (ast.List, ast.Tuple)):
         items = [_zoo_value(e, key, text) for e in node.elts]
@@ -163,8 +188,13 @@ def _zoo_value(node: ast.AST, key: str, text: str) -> Any:
         if not all(isinstance(k, (str, int, float, bool)) or k is None for k in keys):
             raise TrainingError(f"hyperparameter {key}: dict keys must be names or numbers in {text!r}")
         return dict(zip(keys, (_zoo_value(v, key, text) for v in node.values)))
-    if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "dict" and not node.args
-            and all(k.arg is not None for k in node.keywords)):
+    if (
+        isinstance(node, ast.Call)
+        and isinstance(node.func, ast.Name)
+        and node.func.id == "dict"
+        and not node.args
+        and all(k.arg is not None for k in node.keywords)
+    ):
         return {k.arg: _zoo_value(k.value, key, text) for k in node.keywords}
     if isinstance(node, ast.Attribute):
         dotted = ast.unparse(node)
@@ -172,9 +202,11 @@ def _zoo_value(node: ast.AST, key: str, text: str) -> Any:
             import torch
 
             return getattr(torch.nn, node.attr)
-    raise TrainingError(f"hyperparameter {key}: {_describe(node)} is not allowed in {text!r}; a config holds data "
-                        "only: dict(key=value, ...), {...}, [...], (...), numbers, strings, True/False/None and "
-                        f"nn.<activation> ({', '.join(ACTIVATIONS)})")
+    raise TrainingError(
+        f"hyperparameter {key}: {_describe(node)} is not allowed in {text!r}; a config holds data "
+        "only: dict(key=value, ...), {...}, [...], (...), numbers, strings, True/False/None and "
+        f"nn.<activation> ({', '.join(ACTIVATIONS)})"
+    )
 
 
 def zoo_eval(text: str, key: str) -> Any:
@@ -240,8 +272,9 @@ def check_hyperparameter_names(algo: str, entry: Mapping[str, Any]) -> None:
     zoo = set(ZOO_KEYS_HANDLED) | set(ZOO_KEYS_ZOO_ONLY)
     unknown = sorted(k for k in entry if k not in valid and k not in zoo)
     if unknown:
-        raise TrainingError(f"{algo}: unknown hyperparameter(s) {', '.join(unknown)}; valid: "
-                            f"{', '.join(sorted(valid | zoo))}")
+        raise TrainingError(
+            f"{algo}: unknown hyperparameter(s) {', '.join(unknown)}; valid: {', '.join(sorted(valid | zoo))}"
+        )
 
 
 def parse_hyperparameters(algo: str, entry: Mapping[str, Any]) -> Hyperparameters:
@@ -254,8 +287,10 @@ def parse_hyperparameters(algo: str, entry: Mapping[str, Any]) -> Hyperparameter
     check_hyperparameter_names(algo, entry)
     zoo_only = [k for k in ZOO_KEYS_ZOO_ONLY if k in entry]
     if zoo_only:
-        raise TrainingError(f"{algo}: hyperparameter(s) {', '.join(zoo_only)} are handled by rl_zoo3 only; "
-                            "train with `python -m rl_zoo3.train` or remove them")
+        raise TrainingError(
+            f"{algo}: hyperparameter(s) {', '.join(zoo_only)} are handled by rl_zoo3 only; "
+            "train with `python -m rl_zoo3.train` or remove them"
+        )
     kwargs = {k: v for k, v in entry.items() if k not in ZOO_KEYS_HANDLED}
     kwargs["policy"] = entry.get("policy", "MlpPolicy")
     for key in ZOO_EVALUATED_KEYS:
@@ -311,4 +346,3 @@ def check_count(name: str, value: Any, minimum: int, maximum: int = MAX_COUNT) -
         integer(name, value, minimum, maximum)
     except UsageError as err:
         raise TrainingError(str(err), argument=err.argument, problem=err.problem) from None
-

@@ -59,13 +59,37 @@ from stewart_env.files import (
 )
 from stewart_env.registration import ENV_ID
 
-__all__ = ["CHECKPOINT_DIR", "CHECKPOINT_MANIFEST", "DEFAULT_KEEP_CHECKPOINTS", "MANIFEST", "MAX_AGENT_FILE_BYTES",
-           "MAX_MANIFEST_BYTES", "MODEL_FILE", "PAUSE_IN_CHECKPOINT_ENV", "REPLAY_BUFFER_FILE", "VECNORMALIZE_FILE",
-           "START_UP_FILES", "agent_file_writers", "check_fresh_directory", "checkpoint_hashes", "checkpoint_problem",
-           "holds_no_run", "log_progress", "remove_start_up_files",
-           "newest_checkpoint", "publish_final", "read_manifest", "remove_unfinished_writes", "run_manifest",
-           "save_agent", "save_checkpoint",
-           "step_dirs", "unpickle_statistics", "verified_bytes", "versions"]
+__all__ = [
+    "CHECKPOINT_DIR",
+    "CHECKPOINT_MANIFEST",
+    "DEFAULT_KEEP_CHECKPOINTS",
+    "MANIFEST",
+    "MAX_AGENT_FILE_BYTES",
+    "MAX_MANIFEST_BYTES",
+    "MODEL_FILE",
+    "PAUSE_IN_CHECKPOINT_ENV",
+    "REPLAY_BUFFER_FILE",
+    "VECNORMALIZE_FILE",
+    "START_UP_FILES",
+    "agent_file_writers",
+    "check_fresh_directory",
+    "checkpoint_hashes",
+    "checkpoint_problem",
+    "holds_no_run",
+    "log_progress",
+    "remove_start_up_files",
+    "newest_checkpoint",
+    "publish_final",
+    "read_manifest",
+    "remove_unfinished_writes",
+    "run_manifest",
+    "save_agent",
+    "save_checkpoint",
+    "step_dirs",
+    "unpickle_statistics",
+    "verified_bytes",
+    "versions",
+]
 
 MANIFEST = "run.json"
 MODEL_FILE = "model.zip"
@@ -119,8 +143,10 @@ def verified_bytes(folder: Path, hashes: Mapping[str, str], name: str, what: str
         raise TrainingError(f"{path}: missing ({what} lists it)")
     data = read_regular(path, MAX_AGENT_FILE_BYTES)
     if hashlib.sha256(data).hexdigest() != hashes[name]:
-        raise TrainingError(f"{path}: its sha256 does not match {what}: the file was changed, truncated or "
-                            "replaced after it was written; refusing to unpickle it")
+        raise TrainingError(
+            f"{path}: its sha256 does not match {what}: the file was changed, truncated or "
+            "replaced after it was written; refusing to unpickle it"
+        )
     return data
 
 
@@ -152,8 +178,9 @@ def read_manifest(directory: str | os.PathLike) -> dict[str, Any]:
         raise TrainingError(f"{path}: not a run manifest of `stewart-env train` (no known algorithm)")
     for key, kind in (("env_kwargs", dict), ("hyperparameters", dict), ("seed", int), ("n_envs", int)):
         if not isinstance(manifest.get(key), kind):
-            raise TrainingError(f"{path}: not a run manifest of `stewart-env train` ({key} missing or not a "
-                                f"{kind.__name__})")
+            raise TrainingError(
+                f"{path}: not a run manifest of `stewart-env train` ({key} missing or not a {kind.__name__})"
+            )
     return manifest
 
 
@@ -165,14 +192,30 @@ def versions() -> dict[str, str]:
 
     import stewart_env
 
-    return {"stewart_env": stewart_env.__version__, "stable_baselines3": stable_baselines3.__version__,
-            "torch": torch.__version__, "gymnasium": gymnasium.__version__, "numpy": np.__version__,
-            "python": _platform.python_version()}
+    return {
+        "stewart_env": stewart_env.__version__,
+        "stable_baselines3": stable_baselines3.__version__,
+        "torch": torch.__version__,
+        "gymnasium": gymnasium.__version__,
+        "numpy": np.__version__,
+        "python": _platform.python_version(),
+    }
 
 
-def run_manifest(*, algo: str, seed: int, n_envs: int, env_kwargs: Mapping[str, Any], config: str,
-                 hyperparameters: Mapping[str, Any], normalize: bool, num_timesteps: int,
-                 segments: list[dict[str, Any]], finished: bool, files: Mapping[str, str]) -> dict[str, Any]:
+def run_manifest(
+    *,
+    algo: str,
+    seed: int,
+    n_envs: int,
+    env_kwargs: Mapping[str, Any],
+    config: str,
+    hyperparameters: Mapping[str, Any],
+    normalize: bool,
+    num_timesteps: int,
+    segments: list[dict[str, Any]],
+    finished: bool,
+    files: Mapping[str, str],
+) -> dict[str, Any]:
     """A run's manifest (DIR/run.json) as :func:`read_manifest` reads it: what was trained, on
     what (``env_kwargs`` holds the model and the task), with what, how far (``segments``: one
     {start, end, wall_time, interrupted} per training segment), and the sha256 of each of the
@@ -191,11 +234,24 @@ def run_manifest(*, algo: str, seed: int, n_envs: int, env_kwargs: Mapping[str, 
         finished: whether the run is finished.
         files: the sha256 of each of the agent's files.
     """
-    return {"env_id": ENV_ID, "algo": algo, "model": env_kwargs["model"], "task": env_kwargs["task"], "seed": seed,
-            "n_envs": int(n_envs), "env_kwargs": dict(env_kwargs), "config": config,
-            "hyperparameters": dict(hyperparameters), "normalize": bool(normalize), "versions": versions(),
-            "num_timesteps": int(num_timesteps), "wall_time": sum(s["wall_time"] for s in segments),
-            "segments": segments, "finished": finished, "files": dict(files)}
+    return {
+        "env_id": ENV_ID,
+        "algo": algo,
+        "model": env_kwargs["model"],
+        "task": env_kwargs["task"],
+        "seed": seed,
+        "n_envs": int(n_envs),
+        "env_kwargs": dict(env_kwargs),
+        "config": config,
+        "hyperparameters": dict(hyperparameters),
+        "normalize": bool(normalize),
+        "versions": versions(),
+        "num_timesteps": int(num_timesteps),
+        "wall_time": sum(s["wall_time"] for s in segments),
+        "segments": segments,
+        "finished": finished,
+        "files": dict(files),
+    }
 
 
 def save_agent(model, directory: Path, manifest: Mapping[str, Any]) -> None:
@@ -220,8 +276,11 @@ def step_dirs(directory: Path) -> list[tuple[int, Path]]:
         directory: the run directory.
     """
     root = directory / CHECKPOINT_DIR
-    found = [(int(m.group(1)), root / name) for name in (os.listdir(root) if root.is_dir() else ())
-             if (m := _STEP_DIR_RE.match(name))]
+    found = [
+        (int(m.group(1)), root / name)
+        for name in (os.listdir(root) if root.is_dir() else ())
+        if (m := _STEP_DIR_RE.match(name))
+    ]
     return sorted(found, reverse=True)
 
 
@@ -271,12 +330,15 @@ def checkpoint_hashes(folder: Path) -> tuple[dict[str, str], str]:
     Args:
         folder: the checkpoint's folder.
     """
-    return (read_json(folder / CHECKPOINT_MANIFEST, MAX_MANIFEST_BYTES, "checkpoint manifest")["files"],
-            f"{CHECKPOINT_DIR}/{folder.name}/{CHECKPOINT_MANIFEST}")
+    return (
+        read_json(folder / CHECKPOINT_MANIFEST, MAX_MANIFEST_BYTES, "checkpoint manifest")["files"],
+        f"{CHECKPOINT_DIR}/{folder.name}/{CHECKPOINT_MANIFEST}",
+    )
 
 
-def newest_checkpoint(directory: str | os.PathLike, algo: str, normalize: bool,
-                      report: Callable[[str], None] = lambda message: None) -> tuple[int, Path] | None:
+def newest_checkpoint(
+    directory: str | os.PathLike, algo: str, normalize: bool, report: Callable[[str], None] = lambda message: None
+) -> tuple[int, Path] | None:
     """The step count and folder of the newest complete checkpoint in DIR/checkpoints (None if
     there is none).  Unfinished writes (``.tmp-*``) and incomplete or corrupt checkpoints are
     passed over, each with a line to ``report``.
@@ -330,8 +392,9 @@ def save_checkpoint(model, directory: Path, algo: str, keep: int = DEFAULT_KEEP_
             write(tmp / name)
             files[name] = sha256_file(tmp / name, MAX_AGENT_FILE_BYTES)
         _pause_for_tests()
-        (tmp / CHECKPOINT_MANIFEST).write_text(json.dumps({"algo": algo, "num_timesteps": steps, "files": files},
-                                                          indent=2) + "\n")
+        (tmp / CHECKPOINT_MANIFEST).write_text(
+            json.dumps({"algo": algo, "num_timesteps": steps, "files": files}, indent=2) + "\n"
+        )
     for _, old in step_dirs(directory)[keep:]:
         shutil.rmtree(old)
     return final
@@ -386,8 +449,9 @@ def holds_no_run(directory: Path) -> bool:
     Returns:
         True if a new run may start in it as in an empty folder.
     """
-    return not directory.is_dir() or all(name == LOCK_FILE or name.startswith(TMP_PREFIX) or name in START_UP_FILES
-                                         for name in os.listdir(directory))
+    return not directory.is_dir() or all(
+        name == LOCK_FILE or name.startswith(TMP_PREFIX) or name in START_UP_FILES for name in os.listdir(directory)
+    )
 
 
 def remove_start_up_files(directory: Path) -> None:
@@ -420,15 +484,21 @@ def check_fresh_directory(directory: Path, algo: str) -> None:
     if holds_no_run(directory):
         return
     if not (directory / MANIFEST).is_file():
-        raise TrainingError(f"{directory} is not empty and holds no run of `stewart-env train` (no {MANIFEST}); "
-                            "refusing to write into it: choose a new or empty output directory")
+        raise TrainingError(
+            f"{directory} is not empty and holds no run of `stewart-env train` (no {MANIFEST}); "
+            "refusing to write into it: choose a new or empty output directory"
+        )
     manifest = read_manifest(directory)
     if manifest["algo"] != algo:
-        raise TrainingError(f"{directory} holds a {manifest['algo']} run; refusing to overwrite it with a {algo} "
-                            "run: choose another output directory")
+        raise TrainingError(
+            f"{directory} holds a {manifest['algo']} run; refusing to overwrite it with a {algo} "
+            "run: choose another output directory"
+        )
     if (directory / MODEL_FILE).exists() or step_dirs(directory):
-        raise TrainingError(f"{directory} already holds a trained agent; pass --resume to continue it, "
-                            "or choose another output directory")
+        raise TrainingError(
+            f"{directory} already holds a trained agent; pass --resume to continue it, "
+            "or choose another output directory"
+        )
 
 
 def remove_unfinished_writes(directory: Path) -> None:
@@ -443,4 +513,3 @@ def remove_unfinished_writes(directory: Path) -> None:
             if name.startswith(TMP_PREFIX):
                 path = folder / name
                 shutil.rmtree(path) if path.is_dir() and not path.is_symlink() else path.unlink()
-

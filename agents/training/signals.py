@@ -37,8 +37,9 @@ def stop_on_signals(stop: StopRequest) -> Iterator[None]:
             os.write(2, f"stewart-env train: second signal ({name}); exiting now without saving\n".encode())
             os._exit(128 + signum)
         stop.signum = signum
-        os.write(2, f"stewart-env train: {name} received; saving a checkpoint (send it again to exit at once)\n"
-                 .encode())
+        os.write(
+            2, f"stewart-env train: {name} received; saving a checkpoint (send it again to exit at once)\n".encode()
+        )
 
     previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
     try:

@@ -138,8 +138,13 @@ def _show(value: Any) -> str:
     return "(unset)" if value is _UNSET else json.dumps(value)
 
 
-def run_changes(manifest: Mapping[str, Any], entry: Mapping[str, Any], env_kwargs: Mapping[str, Any],
-                seed: int | None, n_envs: int | None) -> list[str]:
+def run_changes(
+    manifest: Mapping[str, Any],
+    entry: Mapping[str, Any],
+    env_kwargs: Mapping[str, Any],
+    seed: int | None,
+    n_envs: int | None,
+) -> list[str]:
     """What differs, key by key ("key: old -> new"), between the run in ``manifest`` and a
     request to continue it with the zoo ``entry``, ``env_kwargs``, ``seed`` and ``n_envs``
     (None: the run's).  The budget ``n_timesteps`` may differ: ``--timesteps`` sets the steps
@@ -153,8 +158,10 @@ def run_changes(manifest: Mapping[str, Any], entry: Mapping[str, Any], env_kwarg
         n_envs: the number of platforms of the request (None: the run's).
     """
     changes = []
-    for what, old, new in (("hyperparameter", manifest.get("hyperparameters", {}), jsonable(dict(entry))),
-                           ("environment kwarg", manifest.get("env_kwargs", {}), jsonable(dict(env_kwargs)))):
+    for what, old, new in (
+        ("hyperparameter", manifest.get("hyperparameters", {}), jsonable(dict(entry))),
+        ("environment kwarg", manifest.get("env_kwargs", {}), jsonable(dict(env_kwargs))),
+    ):
         for key in sorted(set(old) | set(new)):
             before, after = old.get(key, _UNSET), new.get(key, _UNSET)
             if key != "n_timesteps" and before != after:
@@ -169,12 +176,24 @@ def _stderr_report(message: str) -> None:
     print(f"stewart-env train: {message}", file=sys.stderr)
 
 
-def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: str | None = None,
-          timesteps: int | None = None, seed: int | None = None, n_envs: int | None = None,
-          checkpoint_freq: int = 50_000, keep_checkpoints: int = DEFAULT_KEEP_CHECKPOINTS,
-          env_kwargs: Mapping[str, Any] | None = None, config: str | os.PathLike | None = None,
-          resume: bool = False, progress_bar: bool = True, verbose: int = 0,
-          report: Callable[[str], None] = _stderr_report) -> TrainResult:
+def train(
+    algo: str,
+    out: str | os.PathLike,
+    *,
+    model: str | None = None,
+    task: str | None = None,
+    timesteps: int | None = None,
+    seed: int | None = None,
+    n_envs: int | None = None,
+    checkpoint_freq: int = 50_000,
+    keep_checkpoints: int = DEFAULT_KEEP_CHECKPOINTS,
+    env_kwargs: Mapping[str, Any] | None = None,
+    config: str | os.PathLike | None = None,
+    resume: bool = False,
+    progress_bar: bool = True,
+    verbose: int = 0,
+    report: Callable[[str], None] = _stderr_report,
+) -> TrainResult:
     """Train (or, with ``resume``, continue training) an SB3 agent on StewartPlatform-v1.
 
     Args:
@@ -230,23 +249,57 @@ def train(algo: str, out: str | os.PathLike, *, model: str | None = None, task: 
     check_count("keep_checkpoints", keep_checkpoints, 1)
     directory = Path(out)
     with contextlib.ExitStack() as held:
-        return _train(cls, algo, directory, held, model=model, task=task, timesteps=timesteps, seed=seed,
-                      n_envs=n_envs, checkpoint_freq=checkpoint_freq, keep_checkpoints=keep_checkpoints,
-                      env_kwargs=env_kwargs, config=config, resume=resume, progress_bar=progress_bar,
-                      verbose=verbose, report=report)
+        return _train(
+            cls,
+            algo,
+            directory,
+            held,
+            model=model,
+            task=task,
+            timesteps=timesteps,
+            seed=seed,
+            n_envs=n_envs,
+            checkpoint_freq=checkpoint_freq,
+            keep_checkpoints=keep_checkpoints,
+            env_kwargs=env_kwargs,
+            config=config,
+            resume=resume,
+            progress_bar=progress_bar,
+            verbose=verbose,
+            report=report,
+        )
 
 
-def _train(cls, algo: str, directory: Path, held: contextlib.ExitStack, *, model, task, timesteps, seed, n_envs,
-           checkpoint_freq, keep_checkpoints, env_kwargs, config, resume, progress_bar, verbose,
-           report) -> TrainResult:
+def _train(
+    cls,
+    algo: str,
+    directory: Path,
+    held: contextlib.ExitStack,
+    *,
+    model,
+    task,
+    timesteps,
+    seed,
+    n_envs,
+    checkpoint_freq,
+    keep_checkpoints,
+    env_kwargs,
+    config,
+    resume,
+    progress_bar,
+    verbose,
+    report,
+) -> TrainResult:
     """The body of :func:`train`: the run directory's lock is entered on ``held`` once every check
     that needs no file of the run has passed, and the run's state is read under it."""
     steps_done, segments, checkpoint = 0, [], None
     check_not_busy(directory)  # before any look at the run: a run in progress is reported as such
     if resume:
         if holds_no_run(directory) and any(os.path.lexists(directory / name) for name in START_UP_FILES):
-            raise TrainingError(f"--resume: {directory} holds no run to continue: its start was interrupted before "
-                                "anything was saved; start it again without --resume")
+            raise TrainingError(
+                f"--resume: {directory} holds no run to continue: its start was interrupted before "
+                "anything was saved; start it again without --resume"
+            )
         read_manifest(directory)  # a directory without a run is refused before its lock is taken
         held.enter_context(lock_folder(directory, create=False))
         previous = read_manifest(directory)
@@ -258,17 +311,26 @@ def _train(cls, algo: str, directory: Path, held: contextlib.ExitStack, *, model
         given = {k: v for k, v in (("model", model), ("task", task)) if v is not None}
         changes = run_changes(previous, entry, {**previous["env_kwargs"], **(env_kwargs or {}), **given}, seed, n_envs)
         if changes:
-            raise TrainingError(f"--resume: {directory} was trained with other settings; refusing to continue it "
-                                "with\n  " + "\n  ".join(changes) + "\nresume without these changes (--timesteps "
-                                "may differ: it sets the steps added), or start a new run in another --out")
+            raise TrainingError(
+                f"--resume: {directory} was trained with other settings; refusing to continue it "
+                "with\n  " + "\n  ".join(changes) + "\nresume without these changes (--timesteps "
+                "may differ: it sets the steps added), or start a new run in another --out"
+            )
         kwargs, seed, n_envs = previous["env_kwargs"], previous["seed"], previous["n_envs"]
         found = newest_checkpoint(directory, algo, hp.normalize is not None, report)
         if found is None:
             older = list((directory / CHECKPOINT_DIR).glob("model_*_steps.zip"))
-            raise TrainingError(f"--resume: no complete checkpoint in {directory / CHECKPOINT_DIR}" + (
-                "; its model_<steps>_steps.zip files are checkpoints of an older stewart-env, which record no "
-                "hashes: start a new run" if older else "" if step_dirs(directory) else
-                "; the run stopped before its first checkpoint: start it again without --resume"))
+            raise TrainingError(
+                f"--resume: no complete checkpoint in {directory / CHECKPOINT_DIR}"
+                + (
+                    "; its model_<steps>_steps.zip files are checkpoints of an older stewart-env, which record no "
+                    "hashes: start a new run"
+                    if older
+                    else ""
+                    if step_dirs(directory)
+                    else "; the run stopped before its first checkpoint: start it again without --resume"
+                )
+            )
         steps_done, checkpoint = found
         segments = previous.get("segments", [])
         report(f"resuming from {CHECKPOINT_DIR}/{checkpoint.name} ({steps_done} steps)")
@@ -296,52 +358,114 @@ def _train(cls, algo: str, directory: Path, held: contextlib.ExitStack, *, model
     stop = StopRequest()
     monitor = "monitor.csv" if not resume else f"resumed_{steps_done}.monitor.csv"
     try:
-        agent, steps, wall, checkpoint = _learn(cls, algo, directory, hp, kwargs, seed, n_envs, steps_done, segments,
-                                                saved if resume else {}, cfg_path, timesteps, monitor, stop,
-                                                checkpoint_freq, keep_checkpoints, progress_bar, verbose)
+        agent, steps, wall, checkpoint = _learn(
+            cls,
+            algo,
+            directory,
+            hp,
+            kwargs,
+            seed,
+            n_envs,
+            steps_done,
+            segments,
+            saved if resume else {},
+            cfg_path,
+            timesteps,
+            monitor,
+            stop,
+            checkpoint_freq,
+            keep_checkpoints,
+            progress_bar,
+            verbose,
+        )
     except (OSError, WriteError) as err:  # a full disk or a failing device, in our writes or SB3's own
         cause = err if isinstance(err, WriteError) else write_error(err.filename or directory, err)
-        kept = ("the complete checkpoints are kept (--resume continues from the newest)" if step_dirs(directory)
-                else "no checkpoint was complete")
+        kept = (
+            "the complete checkpoints are kept (--resume continues from the newest)"
+            if step_dirs(directory)
+            else "no checkpoint was complete"
+        )
         raise WriteError(cause.path, f"{cause.problem}; {kept}") from None
     if stop.signum is not None:
         raise TrainingInterrupted(stop.signum, checkpoint)
     return TrainResult(directory, steps, steps - steps_done, wall, timesteps, rollout_steps(agent, algo))
 
 
-def _learn(cls, algo, directory, hp, kwargs, seed, n_envs, steps_done, segments, saved, cfg_path, timesteps, monitor,
-           stop, checkpoint_freq, keep_checkpoints, progress_bar, verbose):
+def _learn(
+    cls,
+    algo,
+    directory,
+    hp,
+    kwargs,
+    seed,
+    n_envs,
+    steps_done,
+    segments,
+    saved,
+    cfg_path,
+    timesteps,
+    monitor,
+    stop,
+    checkpoint_freq,
+    keep_checkpoints,
+    progress_bar,
+    verbose,
+):
     """The training of :func:`_train` once the run's state is known: (agent, steps, wall time,
     last checkpoint)."""
     resume = bool(saved)
     with single_thread():
         statistics = unpickle_statistics(saved[VECNORMALIZE_FILE]) if resume and hp.normalize is not None else None
         agent = None
-        env = make_training_env(n_envs, kwargs, seed + steps_done, hp.normalize, monitor_path=directory / monitor,
-                                statistics=statistics)
+        env = make_training_env(
+            n_envs, kwargs, seed + steps_done, hp.normalize, monitor_path=directory / monitor, statistics=statistics
+        )
         try:
             if not resume:
-                agent = cls(env=env, seed=seed, device="cpu", verbose=verbose,
-                            tensorboard_log=str(directory / "tensorboard"), **hp.algorithm_kwargs)
+                agent = cls(
+                    env=env,
+                    seed=seed,
+                    device="cpu",
+                    verbose=verbose,
+                    tensorboard_log=str(directory / "tensorboard"),
+                    **hp.algorithm_kwargs,
+                )
             else:
-                agent = cls.load(io.BytesIO(saved[MODEL_FILE]), env=env, device="cpu",
-                                 tensorboard_log=str(directory / "tensorboard"))
+                agent = cls.load(
+                    io.BytesIO(saved[MODEL_FILE]), env=env, device="cpu", tensorboard_log=str(directory / "tensorboard")
+                )
                 # A resumed run draws new exploration noise and new episodes (seed + steps done).
                 agent.set_random_seed(seed + steps_done)
                 if REPLAY_BUFFER_FILE in saved:
                     agent.load_replay_buffer(io.BytesIO(saved[REPLAY_BUFFER_FILE]))
                 saved.clear()  # the bytes of a replay buffer: tens of MB, not kept while training
-            manifest = run_manifest(algo=algo, seed=seed, n_envs=n_envs, env_kwargs=jsonable(kwargs), config=cfg_path,
-                                    hyperparameters=jsonable(hp.raw), normalize=hp.normalize is not None,
-                                    num_timesteps=steps_done, segments=segments, finished=False, files={})
+            manifest = run_manifest(
+                algo=algo,
+                seed=seed,
+                n_envs=n_envs,
+                env_kwargs=jsonable(kwargs),
+                config=cfg_path,
+                hyperparameters=jsonable(hp.raw),
+                normalize=hp.normalize is not None,
+                num_timesteps=steps_done,
+                segments=segments,
+                finished=False,
+                files={},
+            )
             publish(directory / MANIFEST, json.dumps(manifest, indent=2) + "\n")
 
-            callback = checkpoint_callback(directory, algo, int(checkpoint_freq), int(keep_checkpoints),
-                                            manifest["wall_time"], stop)
+            callback = checkpoint_callback(
+                directory, algo, int(checkpoint_freq), int(keep_checkpoints), manifest["wall_time"], stop
+            )
             start = time.perf_counter()
             with stop_on_signals(stop):
-                agent.learn(total_timesteps=timesteps, callback=callback, progress_bar=progress_bar,
-                            tb_log_name=algo, reset_num_timesteps=not resume)
+                agent.learn(
+                    total_timesteps=timesteps,
+                    callback=callback,
+                    progress_bar=progress_bar,
+                    tb_log_name=algo,
+                    reset_num_timesteps=not resume,
+                )
                 wall = time.perf_counter() - start
                 steps = int(agent.num_timesteps)
                 checkpoint = directory / CHECKPOINT_DIR / f"step_{steps}"
@@ -349,10 +473,15 @@ def _learn(cls, algo, directory, hp, kwargs, seed, n_envs, steps_done, segments,
                     checkpoint = save_checkpoint(agent, directory, algo, int(keep_checkpoints))
                     log_progress(directory, steps, manifest["wall_time"] + wall)
                 files = publish_final(agent, directory)
-                manifest["segments"].append({"start": steps_done, "end": steps, "wall_time": wall,
-                                             "interrupted": stop.signum is not None})
-                manifest.update(num_timesteps=steps, finished=stop.signum is None, files=files,
-                                wall_time=sum(s["wall_time"] for s in manifest["segments"]))
+                manifest["segments"].append(
+                    {"start": steps_done, "end": steps, "wall_time": wall, "interrupted": stop.signum is not None}
+                )
+                manifest.update(
+                    num_timesteps=steps,
+                    finished=stop.signum is None,
+                    files=files,
+                    wall_time=sum(s["wall_time"] for s in manifest["segments"]),
+                )
                 publish(directory / MANIFEST, json.dumps(manifest, indent=2) + "\n")
         finally:
             env.close()
@@ -363,4 +492,3 @@ def _learn(cls, algo, directory, hp, kwargs, seed, n_envs, steps_done, segments,
             if logger is not None:
                 logger.close()
     return agent, steps, wall, checkpoint
-

@@ -46,10 +46,15 @@ PYPROJECT = Path(__file__).resolve().parents[2] / "pyproject.toml"
 #: The symbol of each weight and scale of the reward (stewart_env.tasks.RewardWeights) in the
 #: environment page's formula.
 REWARD_SYMBOL = {
-    "position_reward_weight": "w_p", "position_reward_scale": "s_p",
-    "orientation_reward_weight": "w_o", "orientation_reward_scale": "s_o",
-    "velocity_cost_weight": "w_v", "velocity_cost_scale": "s_v", "angular_velocity_cost_scale": r"s_\omega",
-    "ctrl_cost_weight": "w_a", "termination_cost": "c",
+    "position_reward_weight": "w_p",
+    "position_reward_scale": "s_p",
+    "orientation_reward_weight": "w_o",
+    "orientation_reward_scale": "s_o",
+    "velocity_cost_weight": "w_v",
+    "velocity_cost_scale": "s_v",
+    "angular_velocity_cost_scale": r"s_\omega",
+    "ctrl_cost_weight": "w_a",
+    "termination_cost": "c",
 }
 EPISODE_FIGURE = Path("_generated") / "episode.png"
 # argparse wraps its help to the terminal's width; the site's code blocks show about this many columns
@@ -101,8 +106,10 @@ def env_card_on_page(text: str, docname: str = "") -> str:
         headings = [h.strip() for h in match.group(1).split(",")]
         unknown = [h for h in headings if h not in sections]
         if unknown:
-            raise ExtensionError(f"{docname}: the env card has no section {unknown[0]!r} "
-                                 f"(its sections: {', '.join(h for h in sections if h)})")
+            raise ExtensionError(
+                f"{docname}: the env card has no section {unknown[0]!r} "
+                f"(its sections: {', '.join(h for h in sections if h)})"
+            )
         placed.extend(headings)
         return "\n\n".join(sections[h] for h in headings)
 
@@ -128,10 +135,12 @@ def env_summary() -> str:
         env.close()
     observation = "; ".join(f"`{space}` for " + ", ".join(tasks) for space, tasks in spaces.items())
     earlier = ", ".join(f"`{ENV_IDS[v]}`" for v in sorted(ENV_IDS, reverse=True) if v != CURRENT_VERSION)
-    rows = [("Action Space", f"`{action_space}`"),
-            ("Observation Space", observation + ", with the default arguments"),
-            ("import", f'`import stewart_env`, then `gymnasium.make("{ENV_ID}")`'),
-            ("id", f"`{ENV_ID}`; earlier versions: {earlier} ([Version History](#version-history))")]
+    rows = [
+        ("Action Space", f"`{action_space}`"),
+        ("Observation Space", observation + ", with the default arguments"),
+        ("import", f'`import stewart_env`, then `gymnasium.make("{ENV_ID}")`'),
+        ("id", f"`{ENV_ID}`; earlier versions: {earlier} ([Version History](#version-history))"),
+    ]
     lines = ["```{list-table}", ":class: env-summary", ""]
     for name, value in rows:
         lines += [f"* - {name}", f"  - {value}"]
@@ -171,8 +180,9 @@ def reward_symbols() -> str:
 
     fields = [f.name for f in dataclasses.fields(RewardWeights)]
     if set(fields) != set(REWARD_SYMBOL):
-        raise ExtensionError(f"docs/_ext/stewart_docs.py: REWARD_SYMBOL names {sorted(REWARD_SYMBOL)}, "
-                             f"RewardWeights has {fields}")
+        raise ExtensionError(
+            f"docs/_ext/stewart_docs.py: REWARD_SYMBOL names {sorted(REWARD_SYMBOL)}, RewardWeights has {fields}"
+        )
     meanings = _attribute_docs(RewardWeights)
     params = se.load_platform("dasgupta1998")
     weights = {task: make_task(task, params, control_dt=0.01).weights for task in TASKS}
@@ -181,8 +191,11 @@ def reward_symbols() -> str:
         by_value: dict[str, list[str]] = {}
         for task, w in weights.items():
             by_value.setdefault(f"{getattr(w, name):g}", []).append(f"`{task}`")
-        default = (next(iter(by_value)) if len(by_value) == 1
-                   else "; ".join(f"{value} ({', '.join(tasks)})" for value, tasks in by_value.items()))
+        default = (
+            next(iter(by_value))
+            if len(by_value) == 1
+            else "; ".join(f"{value} ({', '.join(tasks)})" for value, tasks in by_value.items())
+        )
         rows.append(f"| ${REWARD_SYMBOL[name]}$ | `{name}` | {meanings.get(name, '')} | {default} |")
     return "\n".join(rows)
 
@@ -211,8 +224,10 @@ def extras() -> list[tuple[str, str, list[str]]]:
         while above > 0 and lines[above - 1].startswith("#"):
             above -= 1
         if above == start:
-            raise ExtensionError(f"pyproject.toml: the extra {extra!r} has no comment above it (its first line "
-                                 "is the extra's purpose on the getting-started page)")
+            raise ExtensionError(
+                f"pyproject.toml: the extra {extra!r} has no comment above it (its first line "
+                "is the extra's purpose on the getting-started page)"
+            )
         found.append((extra, lines[above].lstrip("# ").strip(), list(requirements)))
     return found
 
@@ -357,8 +372,10 @@ def _ship_mathjax(app) -> None:
     try:
         offline = importlib.import_module("sphinx-mathjax-offline")  # the package's module name has hyphens
     except ImportError:
-        raise ExtensionError("the site ships MathJax from the package sphinx-mathjax-offline, which is not "
-                             "installed: pip install -e \".[docs]\"") from None
+        raise ExtensionError(
+            "the site ships MathJax from the package sphinx-mathjax-offline, which is not "
+            'installed: pip install -e ".[docs]"'
+        ) from None
     offline.setup(app)
 
 
@@ -383,6 +400,7 @@ def setup(app):
 
 # -- docstrings in the API reference ------------------------------------------------------------
 
+
 def _rst_problems(lines: list[str], env) -> list[str]:
     """The docutils warnings and errors of reStructuredText ``lines``, Sphinx's own roles and
     directives (which plain docutils does not know) aside."""
@@ -392,14 +410,27 @@ def _rst_problems(lines: list[str], env) -> list[str]:
     from docutils.utils import Reporter
 
     stream = io.StringIO()
-    publish_doctree("\n".join(lines), settings_overrides={
-        "report_level": Reporter.WARNING_LEVEL, "halt_level": Reporter.SEVERE_LEVEL + 1,
-        "warning_stream": stream, "file_insertion_enabled": False, "raw_enabled": False, "env": env})
+    publish_doctree(
+        "\n".join(lines),
+        settings_overrides={
+            "report_level": Reporter.WARNING_LEVEL,
+            "halt_level": Reporter.SEVERE_LEVEL + 1,
+            "warning_stream": stream,
+            "file_insertion_enabled": False,
+            "raw_enabled": False,
+            "env": env,
+        },
+    )
     problems = []
     for message in stream.getvalue().split("<string>:")[1:]:
-        if "Unknown interpreted text role" in message or "Unknown directive type" in message \
-                or 'No role entry for' in message or 'No directive entry for' in message \
-                or "Trying" in message and "as canonical" in message:
+        if (
+            "Unknown interpreted text role" in message
+            or "Unknown directive type" in message
+            or "No role entry for" in message
+            or "No directive entry for" in message
+            or "Trying" in message
+            and "as canonical" in message
+        ):
             continue
         problems.append(message.strip().splitlines()[0])
     return problems
@@ -441,11 +472,15 @@ def _plain_text_repaired(lines: list[str]) -> list[str]:
                 i += 1
             out += [" " * _indent(line) + "- " + _escaped(item) for item in items] + [""]
             continue
-        after = next((later for later in lines[i + 1:] if later.strip()), "")
-        if line.rstrip().endswith(":") and not line.rstrip().endswith("::") and not following.strip() \
-                and _indent(after) > _indent(line):
+        after = next((later for later in lines[i + 1 :] if later.strip()), "")
+        if (
+            line.rstrip().endswith(":")
+            and not line.rstrip().endswith("::")
+            and not following.strip()
+            and _indent(after) > _indent(line)
+        ):
             out.append(_escaped(line) + ":")  # a block set off by a blank line: a listing, kept as written
-            out += lines[i + 1:i + 2]
+            out += lines[i + 1 : i + 2]
             i += 2
             while i < len(lines) and (not lines[i].strip() or _indent(lines[i]) > _indent(line)):
                 out.append(lines[i])
@@ -463,11 +498,19 @@ def _docstring(app, what, name, obj, options, lines: list[str]) -> None:
     norms, ``a * b`` products, indented lists under a colon) is repaired into reStructuredText,
     or, where that is not enough, shown as written."""
     if name.endswith(".StewartPlatformEnv") and what == "class":
-        lines[:] = ["The Gymnasium environment ``StewartPlatform-v1``; its card (spaces, rewards, starting state,",
-                    "episode end, arguments) is the page :doc:`/environment`."]
+        lines[:] = [
+            "The Gymnasium environment ``StewartPlatform-v1``; its card (spaces, rewards, starting state,",
+            "episode end, arguments) is the page :doc:`/environment`.",
+        ]
         return
     own = inspect.getdoc(obj) or ""
-    if what in ("data", "attribute") and not callable(obj) and own and lines and lines[0].strip() == own.splitlines()[0].strip():
+    if (
+        what in ("data", "attribute")
+        and not callable(obj)
+        and own
+        and lines
+        and lines[0].strip() == own.splitlines()[0].strip()
+    ):
         lines[:] = []  # a constant without a doc comment of its own: not its type's docstring (numpy's)
         return
     if not lines or not _rst_problems(lines, app.env):

@@ -35,9 +35,10 @@ from stewart_env.registration import ENV_ID
 __all__ = ["VERBS", "build_parser", "main"]
 
 #: Each verb's module, in the order ``--help`` lists them.
-VERBS: dict[str, ModuleType] = {module.VERB: module for module in
-                                (demo, evaluate, reproduce, train, time_to_agent, mismatch, identify, bench,
-                                 export_mjcf)}
+VERBS: dict[str, ModuleType] = {
+    module.VERB: module
+    for module in (demo, evaluate, reproduce, train, time_to_agent, mismatch, identify, bench, export_mjcf)
+}
 
 
 def _version() -> str:
@@ -52,11 +53,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="stewart-env",
         description="The 6-UPS Stewart platform on closed-form Newton-Euler dynamics: baselines, "
-                    "evaluation and the reproduction of He et al. (2018).  The Gymnasium environment's id is "
-                    f"{ENV_ID}.",
+        "evaluation and the reproduction of He et al. (2018).  The Gymnasium environment's id is "
+        f"{ENV_ID}.",
         epilog=f"Quick start: `stewart-env demo` compares the PD baseline on the classical and improved models "
-               f"(under a minute); in Python, `import stewart_env` registers the environment: "
-               f'`gym.make("{ENV_ID}")`.  Each command has --help.',
+        f"(under a minute); in Python, `import stewart_env` registers the environment: "
+        f'`gym.make("{ENV_ID}")`.  Each command has --help.',
     )
     parser.add_argument("--version", action="version", version=_version())
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")

@@ -83,8 +83,9 @@ def integer(low: int, high: int, expected: str | None = None, doc: str | None = 
     return constrained(Interval(numbers.Integral, low, high, expected=expected), doc)
 
 
-def real(low: float, high: float = math.inf, *, low_open: bool = False, expected: str | None = None,
-         doc: str | None = None):
+def real(
+    low: float, high: float = math.inf, *, low_open: bool = False, expected: str | None = None, doc: str | None = None
+):
     """An argparse type: a finite number in [low, high] ((low, high] with ``low_open``).
 
     Args:
@@ -98,11 +99,13 @@ def real(low: float, high: float = math.inf, *, low_open: bool = False, expected
 
 
 positive_int = integer(1, MAX_COUNT, f"a positive integer up to {MAX_COUNT}", "argparse type: an integer >= 1.")
-nonnegative_int = integer(0, MAX_COUNT, f"an integer >= 0, up to {MAX_COUNT}",
-                          "argparse type: an integer >= 0 (step counts that may be 0).")
+nonnegative_int = integer(
+    0, MAX_COUNT, f"an integer >= 0, up to {MAX_COUNT}", "argparse type: an integer >= 0 (step counts that may be 0)."
+)
 positive_float = real(0, low_open=True, expected="a finite positive number", doc="argparse type: a finite number > 0.")
-nonnegative_float = real(0, expected="a finite number >= 0",
-                         doc="argparse type: a finite number >= 0 (noise levels, targets that may be 0).")
+nonnegative_float = real(
+    0, expected="a finite number >= 0", doc="argparse type: a finite number >= 0 (noise levels, targets that may be 0)."
+)
 finite_float = real(-math.inf, expected="a finite number", doc="argparse type: a finite number.")
 fraction = real(0, 1, expected="a number in [0, 1]", doc="argparse type: a fraction in [0, 1].")
 #: A seed: numpy takes any, but the seeds passed on to outside libraries must fit 32 bits.
@@ -142,8 +145,9 @@ def distinct_list(item: Callable[[str], Any], example: str, expected: str | None
 
     def parse(text: str) -> list:
         def refuse(problem: str) -> argparse.ArgumentTypeError:
-            return argparse.ArgumentTypeError(problem if expected is None else
-                                              f"expected {expected}, got {quoted(text)}")
+            return argparse.ArgumentTypeError(
+                problem if expected is None else f"expected {expected}, got {quoted(text)}"
+            )
 
         names = [t.strip() for t in text.split(",") if t.strip()]  # blanks dropped: "a,b," is a,b
         if not names:

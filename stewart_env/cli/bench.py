@@ -22,16 +22,31 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     from stewart_env.bench import MODEL_NAMES
     from stewart_env.bench import __doc__ as description
 
-    p = subparsers.add_parser(VERB, help="the benchmark of the compiled core (stewart_env.bench)",
-                              description=description.split("\n\n")[0].replace("``", ""))
-    p.add_argument("--platform", type=platform_name, default="dasgupta1998", help=f"shipped platform name or YAML config path ({PLATFORM_RULE})")
-    p.add_argument("--models", type=distinct_list(model_name, "classical,improved"), default=",".join(MODEL_NAMES),
-                   help="comma-separated model names")
+    p = subparsers.add_parser(
+        VERB,
+        help="the benchmark of the compiled core (stewart_env.bench)",
+        description=description.split("\n\n")[0].replace("``", ""),
+    )
+    p.add_argument(
+        "--platform",
+        type=platform_name,
+        default="dasgupta1998",
+        help=f"shipped platform name or YAML config path ({PLATFORM_RULE})",
+    )
+    p.add_argument(
+        "--models",
+        type=distinct_list(model_name, "classical,improved"),
+        default=",".join(MODEL_NAMES),
+        help="comma-separated model names",
+    )
     p.add_argument("--env", action="store_true", help="also benchmark the single and vector environments")
     p.add_argument("--plot", type=writable_file, metavar="PATH", help="also draw the scaling table to this PNG file")
-    p.add_argument("--mujoco", action="store_true",
-                   help="also time MuJoCo on the same mechanism beside the kernels, the env and the vector env "
-                        '(needs the extra: pip install -e ".[mujoco]")')
+    p.add_argument(
+        "--mujoco",
+        action="store_true",
+        help="also time MuJoCo on the same mechanism beside the kernels, the env and the vector env "
+        '(needs the extra: pip install -e ".[mujoco]")',
+    )
     return p
 
 

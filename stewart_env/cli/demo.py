@@ -22,19 +22,27 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         The command's parser.
     """
     p = subparsers.add_parser(
-        VERB, help="evaluate the PD baseline on the classical and improved models and print the table",
+        VERB,
+        help="evaluate the PD baseline on the classical and improved models and print the table",
         description="Evaluate the task-space PD baseline (gains tuned for the 10 ms control step), without and "
-                    "with gravity compensation, on the set-point task of the default platform, once on the "
-                    "classical and once on the improved dynamics model, with the same seeded episodes, and print "
-                    "a compact comparison table (--out writes the table of every metric).  No training; under a "
-                    "minute.",
+        "with gravity compensation, on the set-point task of the default platform, once on the "
+        "classical and once on the improved dynamics model, with the same seeded episodes, and print "
+        "a compact comparison table (--out writes the table of every metric).  No training; under a "
+        "minute.",
     )
     p.add_argument("--episodes", type=platform_count, default=3, help="episodes per model (default 3)")
     p.add_argument("--seed", type=seed, default=0, help="episode i uses seed + i (default 0)")
-    p.add_argument("--platform", type=platform_name, default="dasgupta1998", help="shipped platform name or YAML config path "
-                   f"({PLATFORM_RULE}; default dasgupta1998)")
-    p.add_argument("--out", type=directory_name, help="also write the report (the table of every metric, CSV, plots) "
-                   "into this directory")
+    p.add_argument(
+        "--platform",
+        type=platform_name,
+        default="dasgupta1998",
+        help=f"shipped platform name or YAML config path ({PLATFORM_RULE}; default dasgupta1998)",
+    )
+    p.add_argument(
+        "--out",
+        type=directory_name,
+        help="also write the report (the table of every metric, CSV, plots) into this directory",
+    )
     return p
 
 
@@ -60,8 +68,10 @@ def run(args: argparse.Namespace) -> int:
             write_report(results, args.out, title="Demo: PD baseline, classical vs improved dynamics")
     except ValueError as err:  # --out in use by another command, or a write that failed (a full disk)
         return error(VERB, err)
-    print(f"PD baseline on the set-point task of {args.platform}, {args.episodes} seeded episodes a model\n"
-          f"(seed {args.seed}):\n")
+    print(
+        f"PD baseline on the set-point task of {args.platform}, {args.episodes} seeded episodes a model\n"
+        f"(seed {args.seed}):\n"
+    )
     print(compact_table(results))  # the few key metrics: the table of every metric is wider than a terminal
     print("(means over the episodes: success, RMS errors, peak leg force, control energy)")
     if args.out is not None:

@@ -43,38 +43,60 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         The command's parser.
     """
     p = subparsers.add_parser(
-        VERB, help="evaluate baseline controllers and trained agents (--agent) on a task and dynamics model(s)",
+        VERB,
+        help="evaluate baseline controllers and trained agents (--agent) on a task and dynamics model(s)",
         description="Run seeded episodes of the baseline controllers (--policy) and of agents trained by "
-                    "`stewart-env train` (--agent) and report RMS errors, settling time, overshoot, steady-state "
-                    "error, peak leg force, control energy, success rate and early terminations (definitions: "
-                    "stewart_env.agents.evaluation).  Every controller runs on every model, with the same seeds.",
+        "`stewart-env train` (--agent) and report RMS errors, settling time, overshoot, steady-state "
+        "error, peak leg force, control energy, success rate and early terminations (definitions: "
+        "stewart_env.agents.evaluation).  Every controller runs on every model, with the same seeds.",
     )
-    p.add_argument("--policy", nargs="+", choices=CONTROLLERS,
-                   help="pd: task-space PD (paper eq. 56, gains tuned for the control step); pd-gc: the same "
-                        "with gravity compensation (the improved model's holding forces); ct: computed "
-                        "torque with its own internal model (default pd, unless --agent is given)")
-    p.add_argument("--agent", nargs="+", metavar="DIR",
-                   help="run directories of agents trained by `stewart-env train` (model.zip with its "
-                        "VecNormalize statistics); each is evaluated with its training environment "
-                        "settings, the plant model replaced by --model (needs the extra rl)")
-    p.add_argument("--internal-model", type=model_name, default="improved",
-                   help="the computed-torque controller's dynamics model, independent of the plant's "
-                        "(default improved)")
-    p.add_argument("--model", nargs="+", type=plant_model_name, default=["improved"],
-                   help="the plant's dynamics model(s): classical, improved, improved_centroidal, "
-                        "optionally with switches +c1..+c4, or mujoco (MuJoCo simulating the same "
-                        "mechanism, needs the extra mujoco) (default improved)")
-    p.add_argument("--task", choices=TASKS,
-                   help="default setpoint (for an --agent: the task it was trained on)")
-    p.add_argument("--platform", type=platform_name, help="shipped platform name or YAML config path "
-                   f"({PLATFORM_RULE}; default dasgupta1998; "
-                   "for an --agent: the platform it was trained on)")
+    p.add_argument(
+        "--policy",
+        nargs="+",
+        choices=CONTROLLERS,
+        help="pd: task-space PD (paper eq. 56, gains tuned for the control step); pd-gc: the same "
+        "with gravity compensation (the improved model's holding forces); ct: computed "
+        "torque with its own internal model (default pd, unless --agent is given)",
+    )
+    p.add_argument(
+        "--agent",
+        nargs="+",
+        metavar="DIR",
+        help="run directories of agents trained by `stewart-env train` (model.zip with its "
+        "VecNormalize statistics); each is evaluated with its training environment "
+        "settings, the plant model replaced by --model (needs the extra rl)",
+    )
+    p.add_argument(
+        "--internal-model",
+        type=model_name,
+        default="improved",
+        help="the computed-torque controller's dynamics model, independent of the plant's (default improved)",
+    )
+    p.add_argument(
+        "--model",
+        nargs="+",
+        type=plant_model_name,
+        default=["improved"],
+        help="the plant's dynamics model(s): classical, improved, improved_centroidal, "
+        "optionally with switches +c1..+c4, or mujoco (MuJoCo simulating the same "
+        "mechanism, needs the extra mujoco) (default improved)",
+    )
+    p.add_argument("--task", choices=TASKS, help="default setpoint (for an --agent: the task it was trained on)")
+    p.add_argument(
+        "--platform",
+        type=platform_name,
+        help="shipped platform name or YAML config path "
+        f"({PLATFORM_RULE}; default dasgupta1998; "
+        "for an --agent: the platform it was trained on)",
+    )
     p.add_argument("--episodes", type=platform_count, default=5, help="episodes per configuration (default 5)")
     p.add_argument("--seed", type=seed, default=0, help="episode i uses seed + i (default 0)")
-    p.add_argument("--max-steps", type=episode_steps, help="episode length in control steps "
-                   "(default the registered 500)")
-    p.add_argument("--out", type=directory_name,
-                   help="write the report (results.md, episodes.csv, PNG plots) into this directory")
+    p.add_argument(
+        "--max-steps", type=episode_steps, help="episode length in control steps (default the registered 500)"
+    )
+    p.add_argument(
+        "--out", type=directory_name, help="write the report (results.md, episodes.csv, PNG plots) into this directory"
+    )
     return p
 
 
@@ -97,9 +119,11 @@ def _evaluate(args: argparse.Namespace) -> str:
             # agents of one algorithm and model are told apart by their run directory
             label = agent.name if names.count(agent.name) == 1 else f"{agent.name} {Path(directory).name}"
             runs.append((label, agent, kwargs))
-    results = [evaluate(policy, {**kwargs, "model": model}, args.episodes, args.seed, label=label,
-                        max_steps=args.max_steps)
-               for model in args.model for label, policy, kwargs in runs]
+    results = [
+        evaluate(policy, {**kwargs, "model": model}, args.episodes, args.seed, label=label, max_steps=args.max_steps)
+        for model in args.model
+        for label, policy, kwargs in runs
+    ]
     if args.out is not None:
         write_report(results, args.out)
     return markdown_table(results)

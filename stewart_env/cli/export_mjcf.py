@@ -21,21 +21,35 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         The command's parser.
     """
     p = subparsers.add_parser(
-        VERB, help="write a platform's mechanism as a MuJoCo model (MJCF XML)",
+        VERB,
+        help="write a platform's mechanism as a MuJoCo model (MJCF XML)",
         description="Write the mechanism of a platform config as MJCF for MuJoCo (stewart_env.mujoco.to_mjcf): "
-                    "the platform a free body, each leg a universal joint, a slide and a loop-closure constraint, "
-                    "masses, inertias, joint damping, force actuators, gravity, RK4.  An existing file is "
-                    "overwritten.  Needs the extra: pip install -e \".[mujoco]\".",
+        "the platform a free body, each leg a universal joint, a slide and a loop-closure constraint, "
+        "masses, inertias, joint damping, force actuators, gravity, RK4.  An existing file is "
+        'overwritten.  Needs the extra: pip install -e ".[mujoco]".',
     )
-    p.add_argument("--platform", type=platform_name, required=True, help="shipped platform name or YAML config "
-                   f"path ({PLATFORM_RULE})")
+    p.add_argument(
+        "--platform",
+        type=platform_name,
+        required=True,
+        help=f"shipped platform name or YAML config path ({PLATFORM_RULE})",
+    )
     p.add_argument("--out", required=True, help="the XML file to write")
-    p.add_argument("--timestep", type=positive_float, default=1e-3,
-                   help="MuJoCo's time step, s (default 1e-3)")
-    p.add_argument("--solref", type=finite_float, nargs=2, metavar=("TIMECONST", "DAMPRATIO"),
-                   help="softness of the loop-closure constraints (default: stewart_env.mujoco.DEFAULT_SOLREF)")
-    p.add_argument("--solimp", type=finite_float, nargs=5, metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
-                   help="impedance of the loop-closure constraints (default: stewart_env.mujoco.DEFAULT_SOLIMP)")
+    p.add_argument("--timestep", type=positive_float, default=1e-3, help="MuJoCo's time step, s (default 1e-3)")
+    p.add_argument(
+        "--solref",
+        type=finite_float,
+        nargs=2,
+        metavar=("TIMECONST", "DAMPRATIO"),
+        help="softness of the loop-closure constraints (default: stewart_env.mujoco.DEFAULT_SOLREF)",
+    )
+    p.add_argument(
+        "--solimp",
+        type=finite_float,
+        nargs=5,
+        metavar=("DMIN", "DMAX", "WIDTH", "MID", "POWER"),
+        help="impedance of the loop-closure constraints (default: stewart_env.mujoco.DEFAULT_SOLIMP)",
+    )
     return p
 
 

@@ -38,8 +38,12 @@ MAX_DURATION = 3600.0
 noise_position = real(0, 1.0, doc="argparse type of --noise-position, m.")
 noise_angle = real(0, math.pi, doc="argparse type of --noise-angle, rad.")
 noise_force = real(0, 1e6, doc="argparse type of --noise-force, N.")
-perturb = checked(float, lambda v: 0 <= v < 1, "a relative change in [0, 1)",
-                  "argparse type of --perturb: a relative change in [0, 1).")
+perturb = checked(
+    float,
+    lambda v: 0 <= v < 1,
+    "a relative change in [0, 1)",
+    "argparse type of --perturb: a relative change in [0, 1).",
+)
 
 
 def _plant(text: str) -> str:
@@ -103,45 +107,80 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         The command's parser.
     """
     p = subparsers.add_parser(
-        VERB, help="identify a platform's inertial and friction parameters on a stand-in plant",
+        VERB,
+        help="identify a platform's inertial and friction parameters on a stand-in plant",
         description="Drive a plant along an excitation trajectory (a finite Fourier series in task space, "
-                    "optimised for the condition number of the base regressor, or random) by computed torque, "
-                    "add sensor noise, recover velocities and accelerations by a Savitzky-Golay filter, and "
-                    "estimate the base parameters by OLS, WLS and a physically consistent least squares.  Writes "
-                    "platform.yaml (the identified platform), truth.yaml (the plant's), report.json and report.md "
-                    "into --out.",
+        "optimised for the condition number of the base regressor, or random) by computed torque, "
+        "add sensor noise, recover velocities and accelerations by a Savitzky-Golay filter, and "
+        "estimate the base parameters by OLS, WLS and a physically consistent least squares.  Writes "
+        "platform.yaml (the identified platform), truth.yaml (the plant's), report.json and report.md "
+        "into --out.",
     )
-    p.add_argument("--plant", type=_plant, default="improved",
-                   help="the plant: a dynamics model (improved, classical or a name with switches) or mujoco, the MuJoCo "
-                        "twin (needs the extra mujoco; default improved)")
-    p.add_argument("--model", type=_model, default="improved",
-                   help="the model structure identified (default improved)")
-    p.add_argument("--platform", type=platform_name, default="dasgupta1998",
-                   help=f"nominal platform: shipped platform name or YAML config path ({PLATFORM_RULE}; default "
-                        "dasgupta1998)")
-    p.add_argument("--excitation", choices=("optimized", "random"), default="optimized",
-                   help="excitation trajectory (default optimized)")
+    p.add_argument(
+        "--plant",
+        type=_plant,
+        default="improved",
+        help="the plant: a dynamics model (improved, classical or a name with switches) or mujoco, the MuJoCo "
+        "twin (needs the extra mujoco; default improved)",
+    )
+    p.add_argument("--model", type=_model, default="improved", help="the model structure identified (default improved)")
+    p.add_argument(
+        "--platform",
+        type=platform_name,
+        default="dasgupta1998",
+        help=f"nominal platform: shipped platform name or YAML config path ({PLATFORM_RULE}; default dasgupta1998)",
+    )
+    p.add_argument(
+        "--excitation",
+        choices=("optimized", "random"),
+        default="optimized",
+        help="excitation trajectory (default optimized)",
+    )
     p.add_argument("--duration", type=duration, default=60.0, help="seconds recorded (default 60)")
     p.add_argument("--period", type=period, default=10.0, help="period of the Fourier series, s (default 10)")
-    p.add_argument("--noise-position", type=noise_position, default=1e-5,
-                   help="position noise, standard deviation in m (default 1e-5)")
-    p.add_argument("--noise-angle", type=noise_angle, default=1e-5,
-                   help="orientation noise, standard deviation in rad (default 1e-5)")
-    p.add_argument("--noise-force", type=noise_force, default=1.0,
-                   help="leg force noise, standard deviation in N (default 1)")
-    p.add_argument("--delay", type=delay, default=0.0,
-                   help="seconds the pose measurements lag the leg-force measurements, a whole number of the "
-                        "0.005 s samples, at most 0.25 (default 0)")
-    p.add_argument("--perturb", type=perturb, default=0.2,
-                   help="relative random change of the plant's inertial and friction parameters from the nominal "
-                        "(the unknown truth; default 0.2)")
-    p.add_argument("--derivatives", choices=("filter", "exact"), default="filter",
-                   help="velocities and accelerations by the Savitzky-Golay filter of the noisy poses, or the "
-                        "plant's exact ones (default filter)")
+    p.add_argument(
+        "--noise-position",
+        type=noise_position,
+        default=1e-5,
+        help="position noise, standard deviation in m (default 1e-5)",
+    )
+    p.add_argument(
+        "--noise-angle",
+        type=noise_angle,
+        default=1e-5,
+        help="orientation noise, standard deviation in rad (default 1e-5)",
+    )
+    p.add_argument(
+        "--noise-force", type=noise_force, default=1.0, help="leg force noise, standard deviation in N (default 1)"
+    )
+    p.add_argument(
+        "--delay",
+        type=delay,
+        default=0.0,
+        help="seconds the pose measurements lag the leg-force measurements, a whole number of the "
+        "0.005 s samples, at most 0.25 (default 0)",
+    )
+    p.add_argument(
+        "--perturb",
+        type=perturb,
+        default=0.2,
+        help="relative random change of the plant's inertial and friction parameters from the nominal "
+        "(the unknown truth; default 0.2)",
+    )
+    p.add_argument(
+        "--derivatives",
+        choices=("filter", "exact"),
+        default="filter",
+        help="velocities and accelerations by the Savitzky-Golay filter of the noisy poses, or the "
+        "plant's exact ones (default filter)",
+    )
     p.add_argument("--iterations", type=positive_int, default=30, help="optimiser iterations (default 30)")
-    p.add_argument("--predicted-by", metavar="REPORT",
-                   help="report.json of an earlier run of the same platform and model: the report compares the "
-                        "standard deviations it predicts for this record and force noise with this run's")
+    p.add_argument(
+        "--predicted-by",
+        metavar="REPORT",
+        help="report.json of an earlier run of the same platform and model: the report compares the "
+        "standard deviations it predicts for this record and force noise with this run's",
+    )
     p.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
     p.add_argument("--out", type=directory_name, required=True, help="output directory (locked while written)")
     return p
@@ -163,10 +202,20 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     try:
         settings = experiment.Settings(
-            plant=args.plant, model=args.model, excitation=args.excitation, duration=args.duration,
-            noise_position=args.noise_position, noise_angle=args.noise_angle, noise_force=args.noise_force,
-            delay=args.delay, perturb=args.perturb, derivatives=args.derivatives, seed=args.seed, period=args.period,
-            max_iterations=args.iterations)
+            plant=args.plant,
+            model=args.model,
+            excitation=args.excitation,
+            duration=args.duration,
+            noise_position=args.noise_position,
+            noise_angle=args.noise_angle,
+            noise_force=args.noise_force,
+            delay=args.delay,
+            perturb=args.perturb,
+            derivatives=args.derivatives,
+            seed=args.seed,
+            period=args.period,
+            max_iterations=args.iterations,
+        )
         check_writable(args.out, create=False)
         reference = None
         if args.predicted_by is not None:

@@ -82,61 +82,135 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         The command's parser.
     """
     p = subparsers.add_parser(
-        VERB, help="model-mismatch study: controllers built on one model, run on another",
+        VERB,
+        help="model-mismatch study: controllers built on one model, run on another",
         description="Train (or load) RL agents per training model and seed, build PD and computed-torque "
-                    "controllers on the same models and on the improved model with each of C1..C4 switched on, "
-                    "evaluate every controller on every test plant, and write DIR/matrix.md, DIR/matrix.csv "
-                    "(95 % intervals), DIR/differences.csv, DIR/forest.png and DIR/heatmap_<metric>.png.")
-    p.add_argument("--train-models", type=plant_list, default="classical,improved",
-                   help="comma-separated models to train agents on / build PD and CT on "
-                        "(default: classical,improved)")
-    p.add_argument("--test-models", type=plant_list, default="classical,improved,improved_centroidal",
-                   help="comma-separated plant models (default: classical,improved,improved_centroidal)")
+        "controllers on the same models and on the improved model with each of C1..C4 switched on, "
+        "evaluate every controller on every test plant, and write DIR/matrix.md, DIR/matrix.csv "
+        "(95 % intervals), DIR/differences.csv, DIR/forest.png and DIR/heatmap_<metric>.png.",
+    )
+    p.add_argument(
+        "--train-models",
+        type=plant_list,
+        default="classical,improved",
+        help="comma-separated models to train agents on / build PD and CT on (default: classical,improved)",
+    )
+    p.add_argument(
+        "--test-models",
+        type=plant_list,
+        default="classical,improved,improved_centroidal",
+        help="comma-separated plant models (default: classical,improved,improved_centroidal)",
+    )
     p.add_argument("--task", default="setpoint", choices=TASKS, help="task (default: setpoint)")
-    p.add_argument("--platform", default="dasgupta1998", type=platform_name,
-                   help=f"shipped platform name or YAML config path ({PLATFORM_RULE}): the plants' (the truth), and "
-                        "the controllers' but those of "
-                        "--controller-platform (default: dasgupta1998)")
-    p.add_argument("--controller-platform", type=controller_platform, action="append", default=[],
-                   metavar="[NAME=]PLATFORM",
-                   help="a further platform the controllers are built on (e.g. an identified platform.yaml), "
-                        "its rows labelled [model @ NAME] (default NAME: the config's name or file stem), run on "
-                        "--platform's plants; repeat for several")
+    p.add_argument(
+        "--platform",
+        default="dasgupta1998",
+        type=platform_name,
+        help=f"shipped platform name or YAML config path ({PLATFORM_RULE}): the plants' (the truth), and "
+        "the controllers' but those of "
+        "--controller-platform (default: dasgupta1998)",
+    )
+    p.add_argument(
+        "--controller-platform",
+        type=controller_platform,
+        action="append",
+        default=[],
+        metavar="[NAME=]PLATFORM",
+        help="a further platform the controllers are built on (e.g. an identified platform.yaml), "
+        "its rows labelled [model @ NAME] (default NAME: the config's name or file stem), run on "
+        "--platform's plants; repeat for several",
+    )
     p.add_argument("--out", type=directory_name, required=True, help="study directory")
-    p.add_argument("--algo", default="ppo", choices=(*ALGORITHMS, "none"),
-                   help="RL algorithm, or 'none' for the model-based rows only (default: ppo)")
-    p.add_argument("--timesteps", type=positive_int, default=QUICK_TIMESTEPS,
-                   help=f"environment steps per agent (default: {QUICK_TIMESTEPS}, a quick smoke-scale study)")
-    p.add_argument("--n-envs", type=platform_count, default=None,
-                   help="platforms per training batch (default: the config's)")
+    p.add_argument(
+        "--algo",
+        default="ppo",
+        choices=(*ALGORITHMS, "none"),
+        help="RL algorithm, or 'none' for the model-based rows only (default: ppo)",
+    )
+    p.add_argument(
+        "--timesteps",
+        type=positive_int,
+        default=QUICK_TIMESTEPS,
+        help=f"environment steps per agent (default: {QUICK_TIMESTEPS}, a quick smoke-scale study)",
+    )
+    p.add_argument(
+        "--n-envs", type=platform_count, default=None, help="platforms per training batch (default: the config's)"
+    )
     p.add_argument("--episodes", type=platform_count, default=5, help="evaluation episodes per cell (default: 5)")
-    p.add_argument("--max-steps", type=episode_steps, default=None,
-                   help="evaluation episode length in control steps (default: the registered 500)")
-    p.add_argument("--position-tolerance", type=positive_float, default=POSITION_TOLERANCE,
-                   help=f"success band, m (default: {POSITION_TOLERANCE}); a cell succeeding in fewer than "
-                        f"{100 * FAILURE_THRESHOLD:g}%% of its episodes is marked failed")
-    p.add_argument("--orientation-tolerance", type=positive_float, default=ORIENTATION_TOLERANCE,
-                   help=f"success band, rad (default: {ORIENTATION_TOLERANCE})")
-    p.add_argument("--cost-plant", type=plant_model_name, default=TRUE_MODEL,
-                   help=f"the test plant the simplifications' costs are measured on (default: {TRUE_MODEL})")
-    p.add_argument("--seeds", type=seed_list, default=[0],
-                   help="training seeds, comma-separated: one agent per seed and learned row (default: 0)")
-    p.add_argument("--agent-models", type=plant_list, default=None,
-                   help="comma-separated models to train agents on (default: every model of the study, "
-                        "improved+cK included)")
-    p.add_argument("--config", type=agent_config, default=None,
-                   help="the agents' hyperparameters: a zoo config file, or the name of a shipped config (e.g. "
-                        "ppo_6m) (default: configs/agents/<algo>.yml)")
-    p.add_argument("--domain-randomization", action="store_true",
-                   help="add agents trained on the improved model with domain randomisation")
-    p.add_argument("--simplifications", type=simplification_list, default=",".join(SIMPLIFICATIONS),
-                   help="which of c1..c4 get an improved+cK row, comma-separated, or 'none' (default: all)")
-    p.add_argument("--env-kwargs", nargs="*", type=env_kwargs_token, default=None, metavar="KW",
-                   help="further environment kwargs for training and testing: JSON or key=value")
-    p.add_argument("--backend", default="local", choices=BACKENDS,
-                   help="local: in this process (default); ray: every training run and evaluation a Ray task")
-    p.add_argument("--ray-address", default=None,
-                   help="with --backend ray: an existing cluster, 'auto' or HOST:PORT (default: a local Ray instance)")
+    p.add_argument(
+        "--max-steps",
+        type=episode_steps,
+        default=None,
+        help="evaluation episode length in control steps (default: the registered 500)",
+    )
+    p.add_argument(
+        "--position-tolerance",
+        type=positive_float,
+        default=POSITION_TOLERANCE,
+        help=f"success band, m (default: {POSITION_TOLERANCE}); a cell succeeding in fewer than "
+        f"{100 * FAILURE_THRESHOLD:g}%% of its episodes is marked failed",
+    )
+    p.add_argument(
+        "--orientation-tolerance",
+        type=positive_float,
+        default=ORIENTATION_TOLERANCE,
+        help=f"success band, rad (default: {ORIENTATION_TOLERANCE})",
+    )
+    p.add_argument(
+        "--cost-plant",
+        type=plant_model_name,
+        default=TRUE_MODEL,
+        help=f"the test plant the simplifications' costs are measured on (default: {TRUE_MODEL})",
+    )
+    p.add_argument(
+        "--seeds",
+        type=seed_list,
+        default=[0],
+        help="training seeds, comma-separated: one agent per seed and learned row (default: 0)",
+    )
+    p.add_argument(
+        "--agent-models",
+        type=plant_list,
+        default=None,
+        help="comma-separated models to train agents on (default: every model of the study, improved+cK included)",
+    )
+    p.add_argument(
+        "--config",
+        type=agent_config,
+        default=None,
+        help="the agents' hyperparameters: a zoo config file, or the name of a shipped config (e.g. "
+        "ppo_6m) (default: configs/agents/<algo>.yml)",
+    )
+    p.add_argument(
+        "--domain-randomization",
+        action="store_true",
+        help="add agents trained on the improved model with domain randomisation",
+    )
+    p.add_argument(
+        "--simplifications",
+        type=simplification_list,
+        default=",".join(SIMPLIFICATIONS),
+        help="which of c1..c4 get an improved+cK row, comma-separated, or 'none' (default: all)",
+    )
+    p.add_argument(
+        "--env-kwargs",
+        nargs="*",
+        type=env_kwargs_token,
+        default=None,
+        metavar="KW",
+        help="further environment kwargs for training and testing: JSON or key=value",
+    )
+    p.add_argument(
+        "--backend",
+        default="local",
+        choices=BACKENDS,
+        help="local: in this process (default); ray: every training run and evaluation a Ray task",
+    )
+    p.add_argument(
+        "--ray-address",
+        default=None,
+        help="with --backend ray: an existing cluster, 'auto' or HOST:PORT (default: a local Ray instance)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
     return p
@@ -146,8 +220,11 @@ def _problem(args: argparse.Namespace) -> str | None:
     """What the parsed options ask that cannot run, naming the flag, before the study writes
     anything; None if nothing."""
     if args.ray_address is not None and (args.backend != "ray" or not args.ray_address.strip()):
-        return ("argument --ray-address: only with --backend ray" if args.backend != "ray" else
-                "argument --ray-address: expected 'auto' or HOST:PORT, got ''")
+        return (
+            "argument --ray-address: only with --backend ray"
+            if args.backend != "ray"
+            else "argument --ray-address: expected 'auto' or HOST:PORT, got ''"
+        )
     if args.env_kwargs:
         from stewart_env.envs import StewartPlatformEnv
 
@@ -175,16 +252,31 @@ def run(args: argparse.Namespace) -> int:
         return error(VERB, problem)
     kept = f"; finished agents and cells are kept in {args.out} (run the same command again to continue)"
     try:
-        result = run_mismatch(args.out, args.train_models, args.test_models, task=args.task,
-                              algo=None if args.algo == "none" else args.algo, timesteps=args.timesteps,
-                              episodes=args.episodes, seeds=args.seeds, domain_randomization=args.domain_randomization,
-                              simplifications=args.simplifications, env_kwargs=parse_env_kwargs(args.env_kwargs),
-                              n_envs=args.n_envs, max_steps=args.max_steps, platform=args.platform,
-                              backend=args.backend, ray_address=args.ray_address,
-                              agent_models=args.agent_models,
-                              config=args.config, position_tolerance=args.position_tolerance,
-                              orientation_tolerance=args.orientation_tolerance, cost_plant=args.cost_plant,
-                              controller_platforms=args.controller_platform, progress=not args.no_progress)
+        result = run_mismatch(
+            args.out,
+            args.train_models,
+            args.test_models,
+            task=args.task,
+            algo=None if args.algo == "none" else args.algo,
+            timesteps=args.timesteps,
+            episodes=args.episodes,
+            seeds=args.seeds,
+            domain_randomization=args.domain_randomization,
+            simplifications=args.simplifications,
+            env_kwargs=parse_env_kwargs(args.env_kwargs),
+            n_envs=args.n_envs,
+            max_steps=args.max_steps,
+            platform=args.platform,
+            backend=args.backend,
+            ray_address=args.ray_address,
+            agent_models=args.agent_models,
+            config=args.config,
+            position_tolerance=args.position_tolerance,
+            orientation_tolerance=args.orientation_tolerance,
+            cost_plant=args.cost_plant,
+            controller_platforms=args.controller_platform,
+            progress=not args.no_progress,
+        )
     except (BackendError, WriteError) as exc:
         print(f"stewart-env mismatch: error: {exc}{kept}", file=sys.stderr)
         return 1
@@ -192,8 +284,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"stewart-env mismatch: error: {exc}", file=sys.stderr)
         return 2
     except TrainingInterrupted as stop:
-        print(f"stewart-env mismatch: stopped by {signal.Signals(stop.signum).name}; checkpoint saved in "
-              f"{stop.checkpoint}{kept}", file=sys.stderr)
+        print(
+            f"stewart-env mismatch: stopped by {signal.Signals(stop.signum).name}; checkpoint saved in "
+            f"{stop.checkpoint}{kept}",
+            file=sys.stderr,
+        )
         return stop.exit_code
     except KeyboardInterrupt:
         print(f"stewart-env mismatch: interrupted{kept}", file=sys.stderr)

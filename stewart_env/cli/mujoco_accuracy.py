@@ -17,8 +17,12 @@ def build_parser() -> argparse.ArgumentParser:
     from stewart_env.mujoco import accuracy_report
 
     parser = argparse.ArgumentParser(prog=PROG, description=accuracy_report.__doc__.split("\n\n")[0])
-    parser.add_argument("platforms", nargs="*", default=["dasgupta1998", "motion_simulator"],
-                        help="platform config names or YAML paths (default: both shipped platforms)")
+    parser.add_argument(
+        "platforms",
+        nargs="*",
+        default=["dasgupta1998", "motion_simulator"],
+        help="platform config names or YAML paths (default: both shipped platforms)",
+    )
     return parser
 
 

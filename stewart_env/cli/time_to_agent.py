@@ -43,31 +43,45 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         The command's parser.
     """
     p = subparsers.add_parser(
-        VERB, help="training wall time to a precise agent, measured on held-out episodes",
+        VERB,
+        help="training wall time to a precise agent, measured on held-out episodes",
         description="Train an agent per seed with a zoo config; every --interval seconds of training wall time "
-                    "pause and evaluate the policy on --episodes held-out episodes; stop at the first point with "
-                    "success >= --target-success and median steady-state position error <= --target-error-mm, or "
-                    "at --budget. Reports the time and steps to target and the steps/s of collection and of "
-                    "learning; writes DIR/time_to_agent.json, DIR/points.csv, DIR/summary.md and "
-                    "DIR/learning_curve.png.")
+        "pause and evaluate the policy on --episodes held-out episodes; stop at the first point with "
+        "success >= --target-success and median steady-state position error <= --target-error-mm, or "
+        "at --budget. Reports the time and steps to target and the steps/s of collection and of "
+        "learning; writes DIR/time_to_agent.json, DIR/points.csv, DIR/summary.md and "
+        "DIR/learning_curve.png.",
+    )
     p.add_argument("--algo", required=True, choices=ALGORITHMS, help=f"algorithm: {', '.join(ALGORITHMS)}")
-    p.add_argument("--config", default=None,
-                   help="hyperparameters: a zoo config file or a shipped config's name, e.g. ppo_6m "
-                        "(default: configs/agents/<algo>.yml)")
+    p.add_argument(
+        "--config",
+        default=None,
+        help="hyperparameters: a zoo config file or a shipped config's name, e.g. ppo_6m "
+        "(default: configs/agents/<algo>.yml)",
+    )
     p.add_argument("--task", choices=TASKS, default="setpoint", help="task (default: setpoint)")
     p.add_argument("--seeds", type=seed_list, default=[0], help="training seeds, comma-separated (default: 0)")
-    p.add_argument("--target-success", type=fraction, default=0.98,
-                   help="target success rate on the held-out episodes, in [0, 1] (default: 0.98)")
-    p.add_argument("--target-error-mm", type=nonnegative_float, default=0.5,
-                   help="target median steady-state position error, mm (default: 0.5)")
-    p.add_argument("--budget", type=wall_time, default=300.0,
-                   help="training wall time per seed, s (default: 300)")
-    p.add_argument("--interval", type=wall_time, default=30.0,
-                   help="training wall time between two evaluations, s (default: 30)")
+    p.add_argument(
+        "--target-success",
+        type=fraction,
+        default=0.98,
+        help="target success rate on the held-out episodes, in [0, 1] (default: 0.98)",
+    )
+    p.add_argument(
+        "--target-error-mm",
+        type=nonnegative_float,
+        default=0.5,
+        help="target median steady-state position error, mm (default: 0.5)",
+    )
+    p.add_argument("--budget", type=wall_time, default=300.0, help="training wall time per seed, s (default: 300)")
+    p.add_argument(
+        "--interval", type=wall_time, default=30.0, help="training wall time between two evaluations, s (default: 30)"
+    )
     p.add_argument("--episodes", type=platform_count, default=50, help="held-out episodes per evaluation (default: 50)")
     p.add_argument("--out", type=directory_name, required=True, help="output directory (new or empty)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar (there is none unless stderr is a "
-                   "terminal)")
+    p.add_argument(
+        "--no-progress", action="store_true", help="no progress bar (there is none unless stderr is a terminal)"
+    )
     return p
 
 
@@ -75,8 +89,12 @@ def _seed_line(r: SeedResult) -> None:
     last = r.points[-1] if r.points else None
     state = f"target reached in {r.wall_time:.0f} s, {r.steps} steps" if r.reached else "target not reached"
     measured = "" if last is None else f"; last point: success {last.success:.0%}, {last.median_error_mm:.3g} mm"
-    print(f"seed {r.seed}: {state}{measured}; collection {r.collection_rate:.0f} steps/s, learning "
-          f"{r.learning_rate:.0f} steps/s", file=sys.stderr, flush=True)
+    print(
+        f"seed {r.seed}: {state}{measured}; collection {r.collection_rate:.0f} steps/s, learning "
+        f"{r.learning_rate:.0f} steps/s",
+        file=sys.stderr,
+        flush=True,
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -95,10 +113,20 @@ def run(args: argparse.Namespace) -> int:
         print(f"{prog}: error: argument --config: {str(exc).removeprefix('config: ')}", file=sys.stderr)
         return 2
     try:
-        result = time_to_agent(args.algo, args.out, config=config, task=args.task, seeds=args.seeds,
-                               target_success=args.target_success, target_error_mm=args.target_error_mm,
-                               budget=args.budget, interval=args.interval, episodes=args.episodes,
-                               progress_bar=not args.no_progress, report=_seed_line)
+        result = time_to_agent(
+            args.algo,
+            args.out,
+            config=config,
+            task=args.task,
+            seeds=args.seeds,
+            target_success=args.target_success,
+            target_error_mm=args.target_error_mm,
+            budget=args.budget,
+            interval=args.interval,
+            episodes=args.episodes,
+            progress_bar=not args.no_progress,
+            report=_seed_line,
+        )
     except WriteError as exc:
         print(f"{prog}: error: {exc}; the points taken are kept in {args.out}", file=sys.stderr)
         return 1

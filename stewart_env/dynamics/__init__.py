@@ -13,5 +13,15 @@ from stewart_env.dynamics.spec import ModelSpec, Switch
 from stewart_env.dynamics.threads import get_num_threads, set_num_threads
 from stewart_env.dynamics.workspace import Workspace
 
-__all__ = ["MODEL_NAMES", "SWITCHES", "Dynamics", "ModelSpec", "Switch", "Workspace", "get_num_threads",
-           "make_dynamics", "pack_params", "set_num_threads"]
+__all__ = [
+    "MODEL_NAMES",
+    "SWITCHES",
+    "Dynamics",
+    "ModelSpec",
+    "Switch",
+    "Workspace",
+    "get_num_threads",
+    "make_dynamics",
+    "pack_params",
+    "set_num_threads",
+]

@@ -58,12 +58,16 @@ def _choose(requested: str | None, built: list[str], runnable: list[str]) -> str
     if not requested:
         usable = [t for t in built if t in runnable]
         if not usable:
-            raise ImportError(f"stewart_env.dynamics: no compiled kernels this processor runs (built: "
-                              f"{', '.join(built) or 'none'}); reinstall the package to compile them")
+            raise ImportError(
+                f"stewart_env.dynamics: no compiled kernels this processor runs (built: "
+                f"{', '.join(built) or 'none'}); reinstall the package to compile them"
+            )
         return usable[-1]
     if requested not in _cpu_features.TARGETS:
-        raise _UsageError(f"{_VARIABLE}={requested!r}: not a target; choose one of "
-                         f"{', '.join(_cpu_features.TARGETS)}, or unset it for the fastest this processor runs")
+        raise _UsageError(
+            f"{_VARIABLE}={requested!r}: not a target; choose one of "
+            f"{', '.join(_cpu_features.TARGETS)}, or unset it for the fastest this processor runs"
+        )
     if requested not in built:
         raise _UsageError(f"{_VARIABLE}={requested!r}: not built in this installation (built: {', '.join(built)})")
     if requested not in runnable:

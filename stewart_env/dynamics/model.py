@@ -127,8 +127,7 @@ def check_home_condition(params: PlatformParams, packed: np.ndarray | None = Non
     if not condition <= params.limits.max_condition:
         raise ConfigError(
             "limits.max_condition",
-            f"the Jacobian's condition number at the home pose is {condition:.4g}, "
-            f"above {params.limits.max_condition}",
+            f"the Jacobian's condition number at the home pose is {condition:.4g}, above {params.limits.max_condition}",
         )
 
 
@@ -170,8 +169,11 @@ def batch_args(n_params: int, **arrays) -> tuple[int, bool, dict[str, np.ndarray
             value = validation.plain(name, value)
         try:
             # an array converts only from a kind that holds real numbers: complex parts or text never pass
-            a = (value.astype(np.float64, casting="same_kind", copy=False) if type(value) is np.ndarray
-                 else np.asarray(value, dtype=np.float64))
+            a = (
+                value.astype(np.float64, casting="same_kind", copy=False)
+                if type(value) is np.ndarray
+                else np.asarray(value, dtype=np.float64)
+            )
         except (TypeError, ValueError):
             got = f"an array of {value.dtype}" if type(value) is np.ndarray else type(value).__name__
             raise ValueError(f"{name}: expected an array of numbers of shape {tail}, got {got}") from None
@@ -215,8 +217,10 @@ def check_rotation(name: str, R: np.ndarray) -> None:
         K.rotation_errors_batch(R, orth, det)
         rows = np.flatnonzero(~((orth <= ROTATION_TOLERANCE) & (np.abs(det - 1.0) <= ROTATION_TOLERANCE)))
         where = f" in batch rows {rows[:10].tolist()}" if R.shape[0] > 1 else ""
-        raise ValueError(f"{name}: not a rotation matrix{where} (|R^T R - I| = {orth[rows[0]]:.2e}, "
-                         f"det R = {det[rows[0]]:.6g}; tolerance {ROTATION_TOLERANCE:g})")
+        raise ValueError(
+            f"{name}: not a rotation matrix{where} (|R^T R - I| = {orth[rows[0]]:.2e}, "
+            f"det R = {det[rows[0]]:.6g}; tolerance {ROTATION_TOLERANCE:g})"
+        )
 
 
 #: The most RK4 steps one call may take (the kernels' int64).
@@ -234,8 +238,7 @@ def check_step(dt, steps) -> tuple[float, int]:
     """
     if type(dt) is float and 0.0 < dt < math.inf and type(steps) is int and 0 <= steps <= MAX_STEPS:
         return dt, steps
-    return (validation.real("dt", dt, 0.0, math.inf, low_open=True),
-            validation.integer("steps", steps, 0, MAX_STEPS))
+    return (validation.real("dt", dt, 0.0, math.inf, low_open=True), validation.integer("steps", steps, 0, MAX_STEPS))
 
 
 def _row_numbers(rows) -> list[int]:
@@ -318,8 +321,9 @@ class Dynamics:
         else:
             plist = ()
         if not plist or not all(isinstance(p, PlatformParams) for p in plist):
-            raise ValueError("params: expected a PlatformParams or a non-empty sequence of them, got "
-                             f"{type(params).__name__}")
+            raise ValueError(
+                f"params: expected a PlatformParams or a non-empty sequence of them, got {type(params).__name__}"
+            )
         self.params = ParamsRows(plist)
         rows: dict[int, np.ndarray] = {}
         for p in plist:  # a platform repeated over a batch is packed and checked once
@@ -458,8 +462,9 @@ class Dynamics:
             if not 0 <= r < len(items):
                 raise ValueError(f"rows: {r} is outside the batch of {len(items)} parameter rows")
             if not (isinstance(sources[j], PlatformParams) or callable(sources[j])):
-                raise ValueError(f"sources: expected PlatformParams or a function returning them, "
-                                 f"got {type(sources[j]).__name__}")
+                raise ValueError(
+                    f"sources: expected PlatformParams or a function returning them, got {type(sources[j]).__name__}"
+                )
             items[r] = sources[j]
             packed[r] = packed_rows[j]
         new = object.__new__(Dynamics)
@@ -517,15 +522,39 @@ class Dynamics:
         """
         out = np.empty(6)
         # one platform's float64 arrays, valid: checked and solved in one compiled call
-        if _core.forward_one_checked(self._packed, self.flags, position, rotation, velocity, angular_velocity, leg_forces,
-                                     _NO_WRENCH if external_wrench is None else external_wrench, ROTATION_TOLERANCE,
-                                     out):
+        if _core.forward_one_checked(
+            self._packed,
+            self.flags,
+            position,
+            rotation,
+            velocity,
+            angular_velocity,
+            leg_forces,
+            _NO_WRENCH if external_wrench is None else external_wrench,
+            ROTATION_TOLERANCE,
+            out,
+        ):
             return out[:3], out[3:]
-        n, batched, a = self._args(position, rotation, velocity, angular_velocity,
-                                   leg_forces=(leg_forces, (6,)), external_wrench=external_wrench)
+        n, batched, a = self._args(
+            position,
+            rotation,
+            velocity,
+            angular_velocity,
+            leg_forces=(leg_forces, (6,)),
+            external_wrench=external_wrench,
+        )
         out = np.empty((n, 6))
-        K.forward_batch(self._packed, self.flags, a["position"], a["rotation"], a["velocity"],
-                        a["angular_velocity"], a["leg_forces"], a["external_wrench"], out)
+        K.forward_batch(
+            self._packed,
+            self.flags,
+            a["position"],
+            a["rotation"],
+            a["velocity"],
+            a["angular_velocity"],
+            a["leg_forces"],
+            a["external_wrench"],
+            out,
+        )
         return (out[:, :3], out[:, 3:]) if batched else (out[0, :3], out[0, 3:])
 
     def inverse(self, position, rotation, velocity, angular_velocity, lin_acc, ang_acc, external_wrench=None):
@@ -561,19 +590,44 @@ class Dynamics:
             [193.9 145.4 153.1 172.3 159.6 188.9]
         """
         out = np.empty(6)
-        if _core.inverse_one_checked(self._packed, self.flags, position, rotation, velocity, angular_velocity, lin_acc,
-                                     ang_acc, _NO_WRENCH if external_wrench is None else external_wrench,
-                                     ROTATION_TOLERANCE, out):
+        if _core.inverse_one_checked(
+            self._packed,
+            self.flags,
+            position,
+            rotation,
+            velocity,
+            angular_velocity,
+            lin_acc,
+            ang_acc,
+            _NO_WRENCH if external_wrench is None else external_wrench,
+            ROTATION_TOLERANCE,
+            out,
+        ):
             return out
-        n, batched, a = self._args(position, rotation, velocity, angular_velocity,
-                                   lin_acc=(lin_acc, (3,)), ang_acc=(ang_acc, (3,)),
-                                   external_wrench=external_wrench)
+        n, batched, a = self._args(
+            position,
+            rotation,
+            velocity,
+            angular_velocity,
+            lin_acc=(lin_acc, (3,)),
+            ang_acc=(ang_acc, (3,)),
+            external_wrench=external_wrench,
+        )
         acc = np.empty((n, 6))
         acc[:, :3] = a["lin_acc"]
         acc[:, 3:] = a["ang_acc"]
         out = np.empty((n, 6))
-        K.inverse_batch(self._packed, self.flags, a["position"], a["rotation"], a["velocity"],
-                        a["angular_velocity"], acc, a["external_wrench"], out)
+        K.inverse_batch(
+            self._packed,
+            self.flags,
+            a["position"],
+            a["rotation"],
+            a["velocity"],
+            a["angular_velocity"],
+            acc,
+            a["external_wrench"],
+            out,
+        )
         return out if batched else out[0]
 
     def mass_and_bias(self, position, rotation, velocity, angular_velocity, external_wrench=None):
@@ -602,8 +656,17 @@ class Dynamics:
         n, batched, a = self._args(position, rotation, velocity, angular_velocity, external_wrench=external_wrench)
         M = np.empty((n, 6, 6))
         h = np.empty((n, 6))
-        K.mass_bias_batch(self._packed, self.flags, a["position"], a["rotation"], a["velocity"],
-                          a["angular_velocity"], a["external_wrench"], M, h)
+        K.mass_bias_batch(
+            self._packed,
+            self.flags,
+            a["position"],
+            a["rotation"],
+            a["velocity"],
+            a["angular_velocity"],
+            a["external_wrench"],
+            M,
+            h,
+        )
         return (M, h) if batched else (M[0], h[0])
 
     def mass_matrix(self, position, rotation, velocity=None, angular_velocity=None):
@@ -621,8 +684,12 @@ class Dynamics:
             M (6,6) or (N,6,6) in kg, kg m, kg m^2; {B}, moments about P.
         """
         zero = np.zeros(3)
-        return self.mass_and_bias(position, rotation, zero if velocity is None else velocity,
-                                  zero if angular_velocity is None else angular_velocity)[0]
+        return self.mass_and_bias(
+            position,
+            rotation,
+            zero if velocity is None else velocity,
+            zero if angular_velocity is None else angular_velocity,
+        )[0]
 
     def bias(self, position, rotation, velocity, angular_velocity, external_wrench=None):
         """The bias h of :meth:`mass_and_bias`.
@@ -644,8 +711,11 @@ class Dynamics:
             external_wrench = _NO_WRENCH
         return batch_args(
             self._packed.shape[0],
-            position=(position, (3,)), rotation=(rotation, (3, 3)), velocity=(velocity, (3,)),
-            angular_velocity=(angular_velocity, (3,)), external_wrench=(external_wrench, (6,)),
+            position=(position, (3,)),
+            rotation=(rotation, (3, 3)),
+            velocity=(velocity, (3,)),
+            angular_velocity=(angular_velocity, (3,)),
+            external_wrench=(external_wrench, (6,)),
             **extra,
         )
 

@@ -33,8 +33,17 @@ import numpy as np
 
 from stewart_env.dynamics import _core
 
-__all__ = ["CONSTANT_FORCES", "LAW_CTYPES", "PD_CONTROL_LAW", "PD_LAYOUT", "ControlLaw", "inverse_dynamics",
-           "jacobian", "law_forces", "numba_law_signature"]
+__all__ = [
+    "CONSTANT_FORCES",
+    "LAW_CTYPES",
+    "PD_CONTROL_LAW",
+    "PD_LAYOUT",
+    "ControlLaw",
+    "inverse_dynamics",
+    "jacobian",
+    "law_forces",
+    "numba_law_signature",
+]
 
 _P = ctypes.POINTER(ctypes.c_double)
 #: ctypes type of a control law (see the module docstring).
@@ -82,17 +91,22 @@ class ControlLaw:
     def __init__(self, function, n_params: int | None = None, name: str | None = None):
         prototype = getattr(function, "ctypes", function)  # a numba cfunc carries its ctypes face
         if not isinstance(prototype, ctypes._CFuncPtr):
-            raise ValueError("control_law: expected a compiled control law (stewart_env.ControlLaw, a numba cfunc or "
-                             "a ctypes function of type stewart_env.dynamics.rk4.LAW_CTYPES) law(time, position, "
-                             "rotation, velocity, angular_velocity, params, n_params, forces), got "
-                             f"{type(function).__name__}")
+            raise ValueError(
+                "control_law: expected a compiled control law (stewart_env.ControlLaw, a numba cfunc or "
+                "a ctypes function of type stewart_env.dynamics.rk4.LAW_CTYPES) law(time, position, "
+                "rotation, velocity, angular_velocity, params, n_params, forces), got "
+                f"{type(function).__name__}"
+            )
         name = name or getattr(function, "__name__", None) or getattr(prototype, "__name__", "control_law")
         if prototype.restype is not None or list(prototype.argtypes or ()) != list(LAW_CTYPES._argtypes_):
-            raise ValueError(f"control_law: {name} does not have the signature of a control law, void law(double time, "
-                             "double *position, double *rotation, double *velocity, double *angular_velocity, "
-                             "double *params, int64_t n_params, double *forces)")
-        if n_params is not None and (isinstance(n_params, bool) or not isinstance(n_params, (int, np.integer))
-                                     or n_params < 0):
+            raise ValueError(
+                f"control_law: {name} does not have the signature of a control law, void law(double time, "
+                "double *position, double *rotation, double *velocity, double *angular_velocity, "
+                "double *params, int64_t n_params, double *forces)"
+            )
+        if n_params is not None and (
+            isinstance(n_params, bool) or not isinstance(n_params, (int, np.integer)) or n_params < 0
+        ):
             raise ValueError(f"n_params: expected a non-negative integer or None, got {n_params!r}")
         self.address = ctypes.cast(prototype, ctypes.c_void_p).value
         self.n_params = None if n_params is None else int(n_params)
@@ -141,8 +155,10 @@ def check_law_params(law: ControlLaw, params: np.ndarray) -> None:
         ValueError: P is not the law's ``n_params``.
     """
     if law.n_params is not None and params.shape[-1] != law.n_params:
-        raise ValueError(f"control_law: {law.name} failed on control_params of shape {params.shape}: it reads "
-                         f"rows of {law.n_params} numbers")
+        raise ValueError(
+            f"control_law: {law.name} failed on control_params of shape {params.shape}: it reads "
+            f"rows of {law.n_params} numbers"
+        )
 
 
 def law_forces(law, params, position, rotation, velocity, angular_velocity, time: float = 0.0) -> np.ndarray:

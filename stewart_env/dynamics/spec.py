@@ -57,8 +57,10 @@ _SWITCH_NAMES = {s.name.lower(): s for s in Switch}
 
 
 def _unknown_model(argument: str, base: str, hint: str) -> UsageError:
-    return UsageError.about(argument, f"unknown model {base!r}; choose one of {', '.join(BASE_MODELS)}, "
-                                      f"optionally with switches '+c1'..'+c4'{hint}")
+    return UsageError.about(
+        argument,
+        f"unknown model {base!r}; choose one of {', '.join(BASE_MODELS)}, optionally with switches '+c1'..'+c4'{hint}",
+    )
 
 
 @dataclass(frozen=True)
@@ -94,8 +96,12 @@ class ModelSpec:
     def __post_init__(self) -> None:
         if self.base not in BASE_MODELS:
             raise _unknown_model("model", self.base, "")
-        if not isinstance(self.switches, int) or isinstance(self.switches, bool) \
-                or self.switches & ~int(ALL_SWITCHES) or self.switches < 0:
+        if (
+            not isinstance(self.switches, int)
+            or isinstance(self.switches, bool)
+            or self.switches & ~int(ALL_SWITCHES)
+            or self.switches < 0
+        ):
             raise UsageError.about("model", f"switches: expected a Switch (C1..C4), got {self.switches!r}")
         switches = Switch(int(self.switches))
         base = self.base

@@ -86,10 +86,15 @@ def threads_from_environment(value: str | None) -> tuple[int | None, str | None]
     if value is None or not value.strip():
         return None, None
     if not re.fullmatch(r"\s*\d+\s*", value) or int(value) < 1:
-        return None, (f"{THREADS_VARIABLE}: expected a whole number of threads from 1 to {MAX_THREADS}, got "
-                      f"{value[:40]!r}; using the default, one thread per processor core")
+        return None, (
+            f"{THREADS_VARIABLE}: expected a whole number of threads from 1 to {MAX_THREADS}, got "
+            f"{value[:40]!r}; using the default, one thread per processor core"
+        )
     if int(value) > MAX_THREADS:
-        return MAX_THREADS, f"{THREADS_VARIABLE}: {int(value)} threads is above the most, {MAX_THREADS}; using {MAX_THREADS}"
+        return (
+            MAX_THREADS,
+            f"{THREADS_VARIABLE}: {int(value)} threads is above the most, {MAX_THREADS}; using {MAX_THREADS}",
+        )
     return int(value), None
 
 

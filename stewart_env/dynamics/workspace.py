@@ -101,13 +101,24 @@ class Workspace:
                 object.__setattr__(self, f"_{name}", np.zeros((n,) + tail))
         except (ValueError, MemoryError):
             size = n * sum(int(np.prod(tail)) for tail, _ in _ARRAYS.values()) * 8
-            raise ValueError(f"n: a workspace of {n} platforms needs {size / 2**30:.3g} GiB, more than "
-                             "can be allocated") from None
+            raise ValueError(
+                f"n: a workspace of {n} platforms needs {size / 2**30:.3g} GiB, more than can be allocated"
+            ) from None
         # the kernels get the arrays' addresses once, here (the bound object holds the arrays); the
         # arrays are never replaced
-        self._bound = _core.BoundWorkspace(self._packed, self._flags, self._position,
-                                           self._rotation, self._velocity, self._angular_velocity, self._leg_forces,
-                                           self._external_wrench, self._acceleration, self._mass_matrix, self._bias)
+        self._bound = _core.BoundWorkspace(
+            self._packed,
+            self._flags,
+            self._position,
+            self._rotation,
+            self._velocity,
+            self._angular_velocity,
+            self._leg_forces,
+            self._external_wrench,
+            self._acceleration,
+            self._mass_matrix,
+            self._bias,
+        )
         home = model.params_of(0)
         self._position[:] = home.home_position
         self._rotation[:] = rpy_to_matrix(home.home_rpy)
@@ -144,12 +155,19 @@ class Workspace:
         Raises:
             ValueError: a bad argument (the message names it).
         """
-        n, _, a = batch_args(self._n, position=(position, (3,)), rotation=(rotation, (3, 3)),
-                             velocity=(velocity, (3,)), angular_velocity=(angular_velocity, (3,)))
+        n, _, a = batch_args(
+            self._n,
+            position=(position, (3,)),
+            rotation=(rotation, (3, 3)),
+            velocity=(velocity, (3,)),
+            angular_velocity=(angular_velocity, (3,)),
+        )
         if n != self._n:  # a batch given to a workspace of one platform
             name = next(k for k, x in a.items() if x.shape[0] != self._n)
-            raise ValueError(f"{name}: expected shape {a[name].shape[1:]} or ({self._n}, ...) for this workspace "
-                             f"of n = {self._n}, got a batch of {n}")
+            raise ValueError(
+                f"{name}: expected shape {a[name].shape[1:]} or ({self._n}, ...) for this workspace "
+                f"of n = {self._n}, got a batch of {n}"
+            )
         self._position[:] = a["position"]
         self._rotation[:] = a["rotation"]
         self._velocity[:] = a["velocity"]
@@ -161,8 +179,14 @@ class Workspace:
         Raises:
             ValueError: a number not finite or a rotation that is not one (the message names the array).
         """
-        batch_args(self._n, **{name: (getattr(self, f"_{name}"), tail) for name, (tail, _) in _ARRAYS.items()
-                               if name not in ("acceleration", "mass_matrix", "bias")})
+        batch_args(
+            self._n,
+            **{
+                name: (getattr(self, f"_{name}"), tail)
+                for name, (tail, _) in _ARRAYS.items()
+                if name not in ("acceleration", "mass_matrix", "bias")
+            },
+        )
 
     def forward(self) -> np.ndarray:
         """Forward dynamics from the state, ``leg_forces`` and ``external_wrench``.

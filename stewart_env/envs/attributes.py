@@ -52,8 +52,9 @@ class BatchAttributes:
     def _check_reset(self) -> None:
         """Refuse a step before the first reset(), which draws the episode (the state would be zeros)."""
         if not self._reset_done:
-            raise ResetNeeded(f"{type(self).__name__}: call reset() before step(); the first reset() "
-                              "draws the episode's start state")
+            raise ResetNeeded(
+                f"{type(self).__name__}: call reset() before step(); the first reset() draws the episode's start state"
+            )
 
     @property
     def observation_layout(self) -> dict[str, slice]:
@@ -155,11 +156,24 @@ class BatchAttributes:
 
             p = core.platform
             size = core.config.render
-            self._renderer = PlatformRenderer(p.base_joints, p.platform_joints, p.home_position,
-                                              p.limits.leg_force, size.width, size.height, self.render_mode)
+            self._renderer = PlatformRenderer(
+                p.base_joints,
+                p.platform_joints,
+                p.home_position,
+                p.limits.leg_force,
+                size.width,
+                size.height,
+                self.render_mode,
+            )
         position, rotation, forces, target_position, target_rotation, time = scene or self._scene()
-        return self._renderer.render(position[row], rotation[row], forces[row], target_position=target_position[row],
-                                     target_rotation=target_rotation[row], text=f"{label}t = {time[row]:.2f} s")
+        return self._renderer.render(
+            position[row],
+            rotation[row],
+            forces[row],
+            target_position=target_position[row],
+            target_rotation=target_rotation[row],
+            text=f"{label}t = {time[row]:.2f} s",
+        )
 
     def _close_renderer(self) -> None:
         if self._renderer is not None:

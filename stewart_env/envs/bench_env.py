@@ -117,8 +117,7 @@ def bench_env(n_vector: int = 1024, seconds: float = 5.0, **kwargs) -> dict:
     }
 
 
-def bench_reset(n: int = 1024, randomization: dict | None = RESET_RANDOMIZATION, repeats: int = 3,
-                **kwargs) -> float:
+def bench_reset(n: int = 1024, randomization: dict | None = RESET_RANDOMIZATION, repeats: int = 3, **kwargs) -> float:
     """Seconds per row of ``reset()`` of the native vector env of ``n`` rows (every row starts a new
     episode, so with ``randomization`` every row draws and applies new parameters); the best of
     ``repeats`` resets after one untimed reset (which includes any first compilation).
@@ -129,8 +128,9 @@ def bench_reset(n: int = 1024, randomization: dict | None = RESET_RANDOMIZATION,
         repeats: the timed resets, of which the fastest counts.
         **kwargs: further keyword arguments of the environment.
     """
-    venv = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point",
-                        randomization=randomization, **kwargs)
+    venv = gym.make_vec(
+        ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", randomization=randomization, **kwargs
+    )
     venv.reset(seed=0)
     best = np.inf
     for seed in range(1, repeats + 1):
@@ -172,11 +172,18 @@ def bench_resets_in_steps(n: int = 1024, steps: int = 40, repeats: int = 3, seed
         raise ValueError(f"steps: expected 1 to 100 (a held episode lasts some 170 steps), got {steps}")
     _, hold = held_env(task_options={"randomize": False}, **kwargs)
     envs = {
-        "step": gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", max_episode_steps=10**9,
-                             task_options={"randomize": False}, **kwargs),
+        "step": gym.make_vec(
+            ENV_ID,
+            num_envs=n,
+            vectorization_mode="vector_entry_point",
+            max_episode_steps=10**9,
+            task_options={"randomize": False},
+            **kwargs,
+        ),
         "reset_nominal": gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", **kwargs),
-        "reset_randomized": gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point",
-                                         randomization=RESET_RANDOMIZATION, **kwargs),
+        "reset_randomized": gym.make_vec(
+            ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", randomization=RESET_RANDOMIZATION, **kwargs
+        ),
     }
     rng = np.random.default_rng(seed)
     random_actions = [rng.uniform(-1.0, 1.0, (n, 6)).astype(np.float32) for _ in range(16)]
@@ -204,11 +211,14 @@ def bench_resets_in_steps(n: int = 1024, steps: int = 40, repeats: int = 3, seed
     for env in envs.values():
         env.close()
     return {
-        "n": n, "steps": steps,
+        "n": n,
+        "steps": steps,
         "step_s": best["step"],
-        "reset_nominal_s": best["reset_nominal"], "reset_randomized_s": best["reset_randomized"],
+        "reset_nominal_s": best["reset_nominal"],
+        "reset_randomized_s": best["reset_randomized"],
         "reset_nominal_ratio": best["reset_nominal"] / best["step"],
         "reset_randomized_ratio": best["reset_randomized"] / best["step"],
-        "resets_nominal": resets["reset_nominal"], "resets_randomized": resets["reset_randomized"],
+        "resets_nominal": resets["reset_nominal"],
+        "resets_randomized": resets["reset_randomized"],
         "resets_step": resets["step"],
     }

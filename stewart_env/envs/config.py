@@ -31,8 +31,20 @@ from stewart_env.validation import ArgumentError, check_keywords, choice, flag, 
 if TYPE_CHECKING:
     from stewart_env.tasks import Task
 
-__all__ = ["PLANTS", "RECORDS", "ActuatorConfig", "EnvConfig", "ObservationConfig", "PhysicsConfig", "RenderConfig",
-           "TaskConfig", "arguments_table", "defaults", "model_argument", "model_spec"]
+__all__ = [
+    "PLANTS",
+    "RECORDS",
+    "ActuatorConfig",
+    "EnvConfig",
+    "ObservationConfig",
+    "PhysicsConfig",
+    "RenderConfig",
+    "TaskConfig",
+    "arguments_table",
+    "defaults",
+    "model_argument",
+    "model_spec",
+]
 
 #: At most this many RK4 substeps per control step (control_dt / physics_dt).
 MAX_SUBSTEPS = 10**6
@@ -119,22 +131,33 @@ class PhysicsConfig(_Record):
     per control step; ``physics_dt`` becomes control_dt / substeps, so that n control steps are
     exactly n control_dt).  ``model="mujoco"`` is stored as ``model="improved", plant="mujoco"``."""
 
-    model: str = _argument("improved", 'dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, '
-                                       'optionally with switches such as `"+c1"`; `"mujoco"` is another '
-                                       'spelling of `plant="mujoco"` (with the `"improved"` model)')
-    plant: str = _argument(CLOSED_FORM, 'what simulates the platform: `"closed_form"` (`model` integrated with '
-                                        'RK4) or `"mujoco"` (MuJoCo simulating the same mechanism, needs the '
-                                        '`mujoco` extra)')
+    model: str = _argument(
+        "improved",
+        'dynamics model: `"improved"`, `"improved_centroidal"`, `"classical"`, '
+        'optionally with switches such as `"+c1"`; `"mujoco"` is another '
+        'spelling of `plant="mujoco"` (with the `"improved"` model)',
+    )
+    plant: str = _argument(
+        CLOSED_FORM,
+        'what simulates the platform: `"closed_form"` (`model` integrated with '
+        'RK4) or `"mujoco"` (MuJoCo simulating the same mechanism, needs the '
+        "`mujoco` extra)",
+    )
     platform: str | os.PathLike | PlatformParams = _argument(
-        "dasgupta1998", "a shipped config name, a YAML path, or a `PlatformParams`; a string with no `/` and no "
-                        "`.yaml`/`.yml` suffix is always a shipped config's name, whatever the working directory "
-                        "holds")
+        "dasgupta1998",
+        "a shipped config name, a YAML path, or a `PlatformParams`; a string with no `/` and no "
+        "`.yaml`/`.yml` suffix is always a shipped config's name, whatever the working directory "
+        "holds",
+    )
     control_dt: float = _argument(0.01, "s per environment step, 1e-6 to 10")
-    physics_dt: float = _argument(0.001, "s per RK4 substep; `control_dt` must be a whole multiple of it, "
-                                         "at most 10^6 substeps")
+    physics_dt: float = _argument(
+        0.001, "s per RK4 substep; `control_dt` must be a whole multiple of it, at most 10^6 substeps"
+    )
     randomization: dict[str, tuple[float, float]] | None = _argument(
-        None, 'domain randomisation spec, e.g. `{"platform.mass": (0.8, 1.2), "legs.mass": (0.9, 1.1), '
-              '"inertia": (0.9, 1.1), "com": (0.9, 1.1), "damping": (0.5, 2.0)}`')
+        None,
+        'domain randomisation spec, e.g. `{"platform.mass": (0.8, 1.2), "legs.mass": (0.9, 1.1), '
+        '"inertia": (0.9, 1.1), "com": (0.9, 1.1), "damping": (0.5, 2.0)}`',
+    )
     dynamics: Dynamics = _derived()
     substeps: int = _derived()
 
@@ -151,12 +174,15 @@ class PhysicsConfig(_Record):
         physics_dt = real("physics_dt", self.physics_dt, 0.0, control_dt, low_open=True)
         substeps = round(control_dt / physics_dt)
         if substeps > MAX_SUBSTEPS:
-            problem = (f"control_dt / physics_dt is {control_dt / physics_dt:.6g}, more than {MAX_SUBSTEPS} RK4 "
-                       "substeps per step")
+            problem = (
+                f"control_dt / physics_dt is {control_dt / physics_dt:.6g}, more than {MAX_SUBSTEPS} RK4 "
+                "substeps per step"
+            )
             raise UsageError(f"physics_dt ({physics_dt}): {problem}", argument="physics_dt", problem=problem)
         if abs(substeps * physics_dt - control_dt) > _DT_TOLERANCE * control_dt:
-            problem = (f"must be a whole multiple of physics_dt ({physics_dt}): the ratio is "
-                       f"{control_dt / physics_dt:.6g}")
+            problem = (
+                f"must be a whole multiple of physics_dt ({physics_dt}): the ratio is {control_dt / physics_dt:.6g}"
+            )
             raise UsageError(f"control_dt ({control_dt}) {problem}", argument="control_dt", problem=problem)
         self._set("control_dt", control_dt)
         self._set("physics_dt", control_dt / substeps)
@@ -171,12 +197,18 @@ class PhysicsConfig(_Record):
 class TaskConfig(_Record):
     """What the platform should do; the task checks its own options (see :mod:`stewart_env.tasks`)."""
 
-    task: str | type[Task] = _argument("setpoint", '`"setpoint"`, `"tracking"`, `"disturbance"`, `"hold"` '
-                                      "(or a `Task` subclass)")
-    task_options: dict[str, Any] | None = _argument(None, "dict of the task's options, its reward weights included "
-                                        "(see Starting State, Rewards and `stewart_env.tasks`)")
-    version: int = _argument(CURRENT_VERSION, f"the environment's version, 0 to {CURRENT_VERSION}, set by the id "
-                                              "`StewartPlatform-v<version>`: its tasks' defaults (see Version History)")
+    task: str | type[Task] = _argument(
+        "setpoint", '`"setpoint"`, `"tracking"`, `"disturbance"`, `"hold"` (or a `Task` subclass)'
+    )
+    task_options: dict[str, Any] | None = _argument(
+        None,
+        "dict of the task's options, its reward weights included (see Starting State, Rewards and `stewart_env.tasks`)",
+    )
+    version: int = _argument(
+        CURRENT_VERSION,
+        f"the environment's version, 0 to {CURRENT_VERSION}, set by the id "
+        "`StewartPlatform-v<version>`: its tasks' defaults (see Version History)",
+    )
 
     def __post_init__(self) -> None:
         from stewart_env.tasks import TASKS
@@ -194,8 +226,9 @@ class TaskConfig(_Record):
 class ActuatorConfig(_Record):
     """The legs' actuators."""
 
-    actuator_tau: float = _argument(0.0, "s, first-order actuator lag time constant, 0 to 100; "
-                                         "0 applies the commanded forces directly")
+    actuator_tau: float = _argument(
+        0.0, "s, first-order actuator lag time constant, 0 to 100; 0 applies the commanded forces directly"
+    )
 
     def __post_init__(self) -> None:
         self._set("actuator_tau", real("actuator_tau", self.actuator_tau, 0.0, 100.0))
@@ -216,16 +249,20 @@ class ObservationConfig(_Record):
     checked numbers; its term names are checked against the observation layout by the batch."""
 
     observation_mode: str = _argument("pose", '`"pose"` (pose and twist) or `"sensors"` (leg lengths and rates)')
-    normalize_observation: bool = _argument(True, "scale the observation by the platform's limits "
-                                                  "(see Observation Space)")
+    normalize_observation: bool = _argument(
+        True, "scale the observation by the platform's limits (see Observation Space)"
+    )
     observation_noise: float | dict[str, float] = _argument(
-        0.0, "Gaussian noise std in observation units, 0 to 100: a number, or a dict term name -> std")
+        0.0, "Gaussian noise std in observation units, 0 to 100: a number, or a dict term name -> std"
+    )
     observation_delay: int = _argument(0, "control steps between measurement and observation, 0 to 1000")
     error_integral: bool = _argument(False, "observe the time integral of the pose error (see Observation Space)")
-    error_integral_limit: float = _argument(0.1, "s, anti-windup bound T of the error integral: +-T h (position), "
-                                                 "+-T A (orientation); 1e-6 to 1e6")
-    error_integral_band: float | None = _argument(None, "integrate an error component only within this fraction "
-                                                        "(0 to 1e6) of its scale (h, A); None: always")
+    error_integral_limit: float = _argument(
+        0.1, "s, anti-windup bound T of the error integral: +-T h (position), +-T A (orientation); 1e-6 to 1e6"
+    )
+    error_integral_band: float | None = _argument(
+        None, "integrate an error component only within this fraction (0 to 1e6) of its scale (h, A); None: always"
+    )
 
     def __post_init__(self) -> None:
         self._set("observation_mode", choice("observation_mode", self.observation_mode, OBSERVATION_MODES))
@@ -240,8 +277,9 @@ class ObservationConfig(_Record):
         self._set("error_integral", flag("error_integral", self.error_integral))
         self._set("error_integral_limit", real("error_integral_limit", self.error_integral_limit, 1e-6, 1e6))
         band = self.error_integral_band
-        self._set("error_integral_band",
-                  None if band is None else real("error_integral_band", band, 0.0, 1e6, low_open=True))
+        self._set(
+            "error_integral_band", None if band is None else real("error_integral_band", band, 0.0, 1e6, low_open=True)
+        )
 
 
 @dataclass(frozen=True)
@@ -254,8 +292,9 @@ class RenderConfig(_Record):
 
     def __post_init__(self) -> None:
         if self.render_mode is not None and self.render_mode not in RENDER_MODES:
-            raise UsageError.about("render_mode",
-                                   f"expected one of {list(RENDER_MODES)} or None, got {self.render_mode!r}")
+            raise UsageError.about(
+                "render_mode", f"expected one of {list(RENDER_MODES)} or None, got {self.render_mode!r}"
+            )
         self._set("width", integer("width", self.width, 1, 4096))
         self._set("height", integer("height", self.height, 1, 4096))
 
@@ -307,8 +346,10 @@ class EnvConfig:
             ('tracking', 0.02)
         """
         check_keywords("EnvConfig.of", arguments, (f.name for record in RECORDS for f in _arguments(record)))
-        records = [record(**{f.name: arguments[f.name] for f in _arguments(record) if f.name in arguments})
-                   for record in RECORDS]
+        records = [
+            record(**{f.name: arguments[f.name] for f in _arguments(record) if f.name in arguments})
+            for record in RECORDS
+        ]
         return cls(*records)
 
 

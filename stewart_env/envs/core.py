@@ -89,8 +89,9 @@ class PlatformBatch:
         self._init_physics(config)
         self._init_task(config)
         self._init_state(n)
-        self.observations = ObservationPipeline(config.observation, self.platform, self.task, self.actuator_tau > 0,
-                                                self.control_dt, n)
+        self.observations = ObservationPipeline(
+            config.observation, self.platform, self.task, self.actuator_tau > 0, self.control_dt, n
+        )
         self._observation32 = np.zeros((n, self.observations.dim), dtype=np.float32)
         self._views()
 
@@ -112,8 +113,9 @@ class PlatformBatch:
         self._force_half = 0.5 * (hi - lo)
 
     def _init_task(self, config: EnvConfig) -> None:
-        self.task = task = make_task(config.task.task, self.platform, self.control_dt, config.task.task_options,
-                                     config.task.version)
+        self.task = task = make_task(
+            config.task.task, self.platform, self.control_dt, config.task.task_options, config.task.version
+        )
         self.termination_reasons: tuple[str, ...] = (NOT_TERMINATED, *task.termination_reasons)
         self._reason_array = np.array(self.termination_reasons, dtype=str)
         self._moving_reference = task.moving_reference
@@ -154,11 +156,19 @@ class PlatformBatch:
         self._errors = errors_in(self._error_vectors, self._error_norms)
         errors = self._errors[0]
         self.view = StepView(
-            PlatformState(*map(_readonly, self._state)), Reference(*map(_readonly, self.reference)),
-            type(errors)(*map(_readonly, errors)), _readonly(self._action), _readonly(self.leg_forces),
-            _readonly(self.leg_lengths), _readonly(self.leg_rates), _readonly(self.condition),
-            _readonly(self.external_wrench), _readonly(self.time), _readonly(self._non_finite),
-            MappingProxyType({k: _readonly(v) for k, v in self.episode.items()}))
+            PlatformState(*map(_readonly, self._state)),
+            Reference(*map(_readonly, self.reference)),
+            type(errors)(*map(_readonly, errors)),
+            _readonly(self._action),
+            _readonly(self.leg_forces),
+            _readonly(self.leg_lengths),
+            _readonly(self.leg_rates),
+            _readonly(self.condition),
+            _readonly(self.external_wrench),
+            _readonly(self.time),
+            _readonly(self._non_finite),
+            MappingProxyType({k: _readonly(v) for k, v in self.episode.items()}),
+        )
         # the compiled step's outcome: its reward terms by name, views of its (5, n) array
         self._term_views = dict(zip(REWARD_TERMS, self._terms))
         # the position and orientation errors (2, 3) of each row that track_success_of_row reads
@@ -182,15 +192,30 @@ class PlatformBatch:
         task = self.task.step_record()
         if plant is None or task is None:
             if mode == "fused":
-                why = (f"the plant {self.plant.name!r} has no compiled part" if plant is None else
-                       f"the task {self.task.name!r} has its own termination or reward")
+                why = (
+                    f"the plant {self.plant.name!r} has no compiled part"
+                    if plant is None
+                    else f"the task {self.task.name!r} has its own termination or reward"
+                )
                 raise ValueError(f"step_mode='fused': {why}; use 'auto' or 'parts'")
             return None
         state = _core.StateRecord(
-            tuple(self._state), tuple(self._backup), self.external_wrench, self.steps, self.time, self._non_finite,
-            self.leg_lengths, self.leg_rates, self.condition,
-            tuple(getattr(self.reference, k) for k in PlatformState._fields), self._error_vectors, self._error_norms,
-            self.nominal_model.packed, self.control_dt, self.platform.limits.max_condition)
+            tuple(self._state),
+            tuple(self._backup),
+            self.external_wrench,
+            self.steps,
+            self.time,
+            self._non_finite,
+            self.leg_lengths,
+            self.leg_rates,
+            self.condition,
+            tuple(getattr(self.reference, k) for k in PlatformState._fields),
+            self._error_vectors,
+            self._error_norms,
+            self.nominal_model.packed,
+            self.control_dt,
+            self.platform.limits.max_condition,
+        )
         actuator = _core.ActuatorRecord(self._force_half, self._force_mid, self._lag, self._action, self.leg_forces)
         outputs = _core.OutputRecord(self._code, self._terms, self._reward, self._bad, self._observation32)
         return _core.BatchStep(state, plant, actuator, task, self.observations.step_record(), outputs)
@@ -263,8 +288,9 @@ class PlatformBatch:
 
     # -- episode start ----------------------------------------------------------------------------------
 
-    def reset_rows(self, rows: np.ndarray, rngs: Sequence[np.random.Generator],
-                   batch_infos: bool = False) -> list[dict[str, Any]] | dict[str, Any]:
+    def reset_rows(
+        self, rows: np.ndarray, rngs: Sequence[np.random.Generator], batch_infos: bool = False
+    ) -> list[dict[str, Any]] | dict[str, Any]:
         """Start a new episode in each of ``rows`` (int array), row rows[j] drawing from rngs[j].
 
         Draw order within a row: randomisation factors, the task's episode, observation noise;
@@ -295,8 +321,9 @@ class PlatformBatch:
             return [{} for _ in rows]
         return [{"randomization": {k: np.float64(v) for k, v in zip(keys, values)}} for values in factors.tolist()]
 
-    def _draw_episodes(self, rows: np.ndarray, rngs: Sequence[np.random.Generator]
-                       ) -> tuple[tuple[np.ndarray, list] | None, np.ndarray | None]:
+    def _draw_episodes(
+        self, rows: np.ndarray, rngs: Sequence[np.random.Generator]
+    ) -> tuple[tuple[np.ndarray, list] | None, np.ndarray | None]:
         """Draw each row's randomisation factors and the task's episode, and set the start state.
         Returns the rows' randomised parameters, (packed rows, their sources) as
         :meth:`~stewart_env.dynamics.Dynamics.with_packed_rows` takes them, and their factors
@@ -314,16 +341,18 @@ class PlatformBatch:
             factors = rnd.sample_rows(rngs)
             rnd.scale_packed_rows(nominal, factors, packed)
             keys = tuple(rnd.ranges)
-            sources = [functools.partial(rnd.apply, self.platform, dict(zip(keys, values)))
-                       for values in factors.tolist()]
+            sources = [
+                functools.partial(rnd.apply, self.platform, dict(zip(keys, values))) for values in factors.tolist()
+            ]
         start, episode = self.task.initialize_episodes(rngs)
         self.position[rows], self.rotation[rows], self.velocity[rows], self.angular_velocity[rows] = start
         for k, v in episode.items():
             self.episode[k][rows] = v
         return (None, None) if rnd is None else ((packed, sources), factors)
 
-    def _draw_episodes_by_row(self, rows: np.ndarray, rngs: Sequence[np.random.Generator]
-                              ) -> tuple[tuple[np.ndarray, list] | None, np.ndarray | None]:
+    def _draw_episodes_by_row(
+        self, rows: np.ndarray, rngs: Sequence[np.random.Generator]
+    ) -> tuple[tuple[np.ndarray, list] | None, np.ndarray | None]:
         """:meth:`_draw_episodes` one row after the other, every draw of a row before the next
         row's: for rows that share a generator."""
         rnd = self.randomization
@@ -372,14 +401,30 @@ class PlatformBatch:
         self.task.reference(episode, self.time[rows], ref)
         for dst, src in zip(self.reference, ref):
             dst[rows] = src
-        return StepView(state, ref, tracking_errors(state, ref), self._action[rows], self.leg_forces[rows],
-                        lengths, rates, cond, self.external_wrench[rows], self.time[rows], np.zeros(m, dtype=bool),
-                        episode)
+        return StepView(
+            state,
+            ref,
+            tracking_errors(state, ref),
+            self._action[rows],
+            self.leg_forces[rows],
+            lengths,
+            rates,
+            cond,
+            self.external_wrench[rows],
+            self.time[rows],
+            np.zeros(m, dtype=bool),
+            episode,
+        )
 
     # -- control step -----------------------------------------------------------------------------------
 
-    def step(self, action: np.ndarray, rngs: Sequence[np.random.Generator], skip: np.ndarray | None = None,
-             reuse: bool = False) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray] | None:
+    def step(
+        self,
+        action: np.ndarray,
+        rngs: Sequence[np.random.Generator],
+        skip: np.ndarray | None = None,
+        reuse: bool = False,
+    ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray] | None:
         """One control step of every row.
 
         action (n,6) float64, finite (see :func:`stewart_env.validation.check_action`); clipped to
@@ -443,8 +488,12 @@ class PlatformBatch:
     def _nothing_stepped(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray]:
         """:meth:`step`'s outcome when every row is skipped: zeros, and the observation as it is."""
         n = self.n
-        return (np.zeros(n), np.zeros(n, dtype=np.int64), dict(zip(REWARD_TERMS, np.zeros((5, n)))),
-                self.observation.astype(np.float32))
+        return (
+            np.zeros(n),
+            np.zeros(n, dtype=np.int64),
+            dict(zip(REWARD_TERMS, np.zeros((5, n)))),
+            self.observation.astype(np.float32),
+        )
 
     def _end_non_finite(self, bad: np.ndarray, code: np.ndarray, terms: dict[str, np.ndarray]) -> np.ndarray:
         """End the rows ``bad`` whose observation or reward was not finite: no NaN or inf leaves the
@@ -471,20 +520,58 @@ class PlatformBatch:
             # control step of the plant in one compiled call
             model = self.model
             self._any_non_finite = _core.control_step(
-                model.packed, model.flags, self.nominal_model.packed, self._force_half, self._force_mid, self._lag,
-                not driven, self.physics_dt, self.substeps, self.control_dt, max_condition, action, self._action,
-                self.leg_forces, self.external_wrench, *self._state, *self._backup, self.steps, self.time,
-                self._non_finite, self.leg_lengths, self.leg_rates, self.condition)
+                model.packed,
+                model.flags,
+                self.nominal_model.packed,
+                self._force_half,
+                self._force_mid,
+                self._lag,
+                not driven,
+                self.physics_dt,
+                self.substeps,
+                self.control_dt,
+                max_condition,
+                action,
+                self._action,
+                self.leg_forces,
+                self.external_wrench,
+                *self._state,
+                *self._backup,
+                self.steps,
+                self.time,
+                self._non_finite,
+                self.leg_lengths,
+                self.leg_rates,
+                self.condition,
+            )
             return
         if not driven:
             self._drive(action)
         _core.copy_state(*self._state, *self._backup)
-        self.plant.step_inplace(self.position, self.rotation, self.velocity, self.angular_velocity,
-                                self.leg_forces, self.external_wrench, self.physics_dt, self.substeps)
-        self._any_non_finite = _core.after_physics(*self._state, *self._backup, self.steps, self.control_dt,
-                                                   self.time, self._non_finite)
-        leg_sensors_inplace(self.nominal_model, self.position, self.rotation, self.velocity,
-                            self.angular_velocity, max_condition, self.leg_lengths, self.leg_rates, self.condition)
+        self.plant.step_inplace(
+            self.position,
+            self.rotation,
+            self.velocity,
+            self.angular_velocity,
+            self.leg_forces,
+            self.external_wrench,
+            self.physics_dt,
+            self.substeps,
+        )
+        self._any_non_finite = _core.after_physics(
+            *self._state, *self._backup, self.steps, self.control_dt, self.time, self._non_finite
+        )
+        leg_sensors_inplace(
+            self.nominal_model,
+            self.position,
+            self.rotation,
+            self.velocity,
+            self.angular_velocity,
+            max_condition,
+            self.leg_lengths,
+            self.leg_rates,
+            self.condition,
+        )
 
     def _outcome(self, rngs, skip) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         """Reference, then the task's termination and reward, and the observation after the
@@ -513,8 +600,7 @@ class PlatformBatch:
         """Start the success tracker of ``rows`` with their errors at reset (:class:`Errors` of
         those rows): row by row in Python numbers for a few rows, as :meth:`track_success`."""
         if len(rows) <= _ROW_BY_ROW:
-            for row, position, orientation in zip(rows.tolist(), errors.position.tolist(),
-                                                  errors.orientation.tolist()):
+            for row, position, orientation in zip(rows.tolist(), errors.position.tolist(), errors.orientation.tolist()):
                 self._success.start_row(row, error_norm(position), error_norm(orientation))
         else:
             self._success.start(rows, error_norm(errors.position), error_norm(errors.orientation))
@@ -548,8 +634,11 @@ class PlatformBatch:
         position, orientation = error_norm(p), error_norm(o)
         if position > _LARGEST:
             position = _LARGEST
-        return position, orientation, self._success.step_row(row, self.time.item(row), position, orientation,
-                                                             code.item(row) > 0)
+        return (
+            position,
+            orientation,
+            self._success.step_row(row, self.time.item(row), position, orientation, code.item(row) > 0),
+        )
 
     def _park(self, rows: np.ndarray) -> None:
         """Put rows at home at rest: a safe state to step before the caller resets them."""

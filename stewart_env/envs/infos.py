@@ -24,9 +24,13 @@ def term_key(name: str) -> str:
     return f"reward_{name}"
 
 
-def step_values(terms: dict[str, np.ndarray], code: np.ndarray, time: np.ndarray,
-                closure_error: np.ndarray | None,
-                success: tuple[np.ndarray, np.ndarray, np.ndarray]) -> dict[str, np.ndarray]:
+def step_values(
+    terms: dict[str, np.ndarray],
+    code: np.ndarray,
+    time: np.ndarray,
+    closure_error: np.ndarray | None,
+    success: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> dict[str, np.ndarray]:
     """Every row's step info, by key: ``reward_<term>`` (float64), ``termination`` (int64 code),
     ``time`` (float64, s), when the plant reports it ``closure_error`` (float64, m), and
     ``position_error``, ``orientation_error`` (float64, m and rad) and ``is_success`` (bool), the
@@ -50,8 +54,14 @@ def step_values(terms: dict[str, np.ndarray], code: np.ndarray, time: np.ndarray
     return values
 
 
-def row_info(terms: dict[str, np.ndarray], code: np.ndarray, time: np.ndarray, closure_error: np.ndarray | None,
-             row: int, success: tuple[float, float, bool]) -> dict[str, np.generic]:
+def row_info(
+    terms: dict[str, np.ndarray],
+    code: np.ndarray,
+    time: np.ndarray,
+    closure_error: np.ndarray | None,
+    row: int,
+    success: tuple[float, float, bool],
+) -> dict[str, np.generic]:
     """Row ``row``'s step info, the values of :func:`step_values` as numpy numbers (the single
     environment's info), read straight from the batch's arrays, and ``success`` the row's
     (position error, orientation error, success) of

@@ -23,12 +23,17 @@ __all__ = ["DEFAULTS", "MOVED", "PARAMETERS", "check_arguments", "with_signature
 #: Every keyword argument of the environments and its default (the arguments table of the card).
 DEFAULTS: dict[str, Any] = defaults()
 #: Keywords that are no longer environment arguments, and where they went (said in the error).
-MOVED = {name: f"the reward weights are options of the task: pass task_options={{{name!r}: ...}}"
-         for name in RewardWeights.__dataclass_fields__}
+MOVED = {
+    name: f"the reward weights are options of the task: pass task_options={{{name!r}: ...}}"
+    for name in RewardWeights.__dataclass_fields__
+}
 #: The environment arguments as signature parameters: keyword-only, in the records' order.
 PARAMETERS: tuple[inspect.Parameter, ...] = tuple(
     inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=f.default, annotation=f.type)
-    for record in RECORDS for f in dataclasses.fields(record) if f.init)
+    for record in RECORDS
+    for f in dataclasses.fields(record)
+    if f.init
+)
 
 
 def check_arguments(owner: str, arguments: Mapping[str, Any], own: Sequence[str] = ()) -> None:

@@ -49,8 +49,15 @@ class ObservationPipeline:
     returns now (n, D).
     """
 
-    def __init__(self, config: ObservationConfig, platform: PlatformParams, task: Task, lagged_forces: bool,
-                 control_dt: float, n: int):
+    def __init__(
+        self,
+        config: ObservationConfig,
+        platform: PlatformParams,
+        task: Task,
+        lagged_forces: bool,
+        control_dt: float,
+        n: int,
+    ):
         lim = platform.limits
         self._task = task
         self.mode = config.observation_mode
@@ -63,11 +70,17 @@ class ObservationPipeline:
         # (name, scale, offset): observed value = (physical - offset) / scale when normalised.
         terms: list[tuple[str, np.ndarray, np.ndarray]] = []
         if self.mode == "pose":
-            terms += [("position", scales.position, box_centre), ("orientation", np.ones(6), np.zeros(6)),
-                      ("velocity", scales.position, np.zeros(3)), ("angular_velocity", ang, np.zeros(3))]
+            terms += [
+                ("position", scales.position, box_centre),
+                ("orientation", np.ones(6), np.zeros(6)),
+                ("velocity", scales.position, np.zeros(3)),
+                ("angular_velocity", ang, np.zeros(3)),
+            ]
         else:
-            terms += [("leg_lengths", np.full(6, scales.leg_length), np.full(6, stroke_mid)),
-                      ("leg_rates", np.full(6, scales.leg_length), np.zeros(6))]
+            terms += [
+                ("leg_lengths", np.full(6, scales.leg_length), np.full(6, stroke_mid)),
+                ("leg_rates", np.full(6, scales.leg_length), np.zeros(6)),
+            ]
         if lagged_forces:
             terms.append(("leg_forces", np.full(6, scales.leg_force), np.full(6, force_mid)))
         terms += [(name, scale, np.zeros(scale.size)) for name, scale in task.observation_terms(scales)]
@@ -130,8 +143,10 @@ class ObservationPipeline:
         if isinstance(value, dict):
             unknown = [k for k in value if k not in self.layout]
             if unknown:
-                raise ValueError(f"observation_noise: unknown observation term(s) {', '.join(map(repr, unknown))}; "
-                                 f"terms: {', '.join(self.layout)}")
+                raise ValueError(
+                    f"observation_noise: unknown observation term(s) {', '.join(map(repr, unknown))}; "
+                    f"terms: {', '.join(self.layout)}"
+                )
             for name, s in value.items():
                 std[self.layout[name]] = s
         else:
@@ -157,14 +172,37 @@ class ObservationPipeline:
         """
         if not self.compiled:
             return None
-        at = {name: self.layout[name].start if name in self.layout else -1
-              for name in ("leg_lengths", "leg_rates", "leg_forces", "position_error", "orientation_error",
-                           "error_integral")}
+        at = {
+            name: self.layout[name].start if name in self.layout else -1
+            for name in (
+                "leg_lengths",
+                "leg_rates",
+                "leg_forces",
+                "position_error",
+                "orientation_error",
+                "error_integral",
+            )
+        }
         return _core.ObservationRecord(
-            self.mode == "pose", at["leg_lengths"], at["leg_rates"], at["leg_forces"], at["position_error"],
-            at["orientation_error"], at["error_integral"], self._raw, self._history, self._head, self.normalize,
-            self.offset, self._inv_scale, self.error_integral, self.error_integral_bound, self.error_integral_band,
-            self._pending, _FLOAT32_MAX)
+            self.mode == "pose",
+            at["leg_lengths"],
+            at["leg_rates"],
+            at["leg_forces"],
+            at["position_error"],
+            at["orientation_error"],
+            at["error_integral"],
+            self._raw,
+            self._history,
+            self._head,
+            self.normalize,
+            self.offset,
+            self._inv_scale,
+            self.error_integral,
+            self.error_integral_bound,
+            self.error_integral_band,
+            self._pending,
+            _FLOAT32_MAX,
+        )
 
     def draw_noise(self, rngs: Sequence[np.random.Generator], skip: np.ndarray | None) -> np.ndarray | None:
         """This step's observation noise (n, D), drawn from rngs[i] for every row i not in ``skip``
@@ -216,8 +254,9 @@ class ObservationPipeline:
 
     # -- control step -----------------------------------------------------------------------------
 
-    def step(self, view: StepView, reward: np.ndarray, rngs: Sequence[np.random.Generator],
-             skip: np.ndarray | None) -> np.ndarray | None:
+    def step(
+        self, view: StepView, reward: np.ndarray, rngs: Sequence[np.random.Generator], skip: np.ndarray | None
+    ) -> np.ndarray | None:
         """The observation after a step, seen through ``view`` (every row): the error integral
         advanced, the observation measured, noise drawn from rngs[i] for every row i not in
         ``skip``, and pushed into the delay ring.  Returns the rows (bool (n,)) whose observation or

@@ -42,9 +42,17 @@ class Plant(Protocol):
     name: str
     closure_error: np.ndarray | None
 
-    def step_inplace(self, position: np.ndarray, rotation: np.ndarray, velocity: np.ndarray,
-                     angular_velocity: np.ndarray, leg_forces: np.ndarray, external_wrench: np.ndarray,
-                     dt: float, steps: int) -> None:
+    def step_inplace(
+        self,
+        position: np.ndarray,
+        rotation: np.ndarray,
+        velocity: np.ndarray,
+        angular_velocity: np.ndarray,
+        leg_forces: np.ndarray,
+        external_wrench: np.ndarray,
+        dt: float,
+        steps: int,
+    ) -> None:
         """Advance every row ``steps`` steps of ``dt`` s, leg forces (N,6) and external wrench
         (N,6) held; overwrite the state arrays (N,3), (N,3,3), (N,3), (N,3) in place.  No checks:
         the per-step path.  A row that stops being finite comes back non-finite."""
@@ -77,10 +85,12 @@ class ClosedFormPlant:
         state["_record"] = None  # the batch's copy makes its step, and so this record, again
         return state
 
-    def step_inplace(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench,
-                     dt: float, steps: int) -> None:
-        rollout_inplace(self.model, position, rotation, velocity, angular_velocity, leg_forces, external_wrench,
-                        dt, steps)
+    def step_inplace(
+        self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench, dt: float, steps: int
+    ) -> None:
+        rollout_inplace(
+            self.model, position, rotation, velocity, angular_velocity, leg_forces, external_wrench, dt, steps
+        )
 
     def set_model(self, model: Dynamics, rows: Sequence[int]) -> None:
         self.model = model

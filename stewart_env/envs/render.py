@@ -81,8 +81,10 @@ def _warn_no_display(reason: str) -> None:
     global _warned_no_display
     if not _warned_no_display:
         _warned_no_display = True
-        logger.warn(f"render_mode='human': no display is available ({reason}), so human rendering draws "
-                    "nothing and render() returns None; use render_mode='rgb_array' to get frames as arrays")
+        logger.warn(
+            f"render_mode='human': no display is available ({reason}), so human rendering draws "
+            "nothing and render() returns None; use render_mode='rgb_array' to get frames as arrays"
+        )
 
 
 def _open_window(figsize: tuple[float, float]) -> Figure | None:
@@ -236,8 +238,9 @@ class PlatformRenderer:
             Patch(facecolor=_PLATFORM_FACE, edgecolor="navy", label="platform"),
             Patch(facecolor=_TARGET_FACE, edgecolor=_TARGET_EDGE, linestyle="--", label="target"),
         ]
-        legend = fig.legend(handles=handles, loc="upper right", fontsize=_FONT_SIZE, frameon=False,
-                            handlelength=1.6, borderaxespad=0.3)
+        legend = fig.legend(
+            handles=handles, loc="upper right", fontsize=_FONT_SIZE, frameon=False, handlelength=1.6, borderaxespad=0.3
+        )
 
         bar_height = 0.45
         bar = (0.9, 0.5 * (1.0 - bar_height), _COLORBAR_WIDTH_PX / self.width, bar_height)
@@ -295,8 +298,14 @@ class PlatformRenderer:
         axes_centre, zoom = region_centre, 1.0
 
         def place() -> None:
-            ax.set_position(((axes_centre[0] - 0.5 * side) / self.width, (axes_centre[1] - 0.5 * side) / self.height,
-                             side / self.width, side / self.height))
+            ax.set_position(
+                (
+                    (axes_centre[0] - 0.5 * side) / self.width,
+                    (axes_centre[1] - 0.5 * side) / self.height,
+                    side / self.width,
+                    side / self.height,
+                )
+            )
             ax.set_box_aspect(self._box_aspect, zoom=zoom)
 
         for _ in range(2):

@@ -65,12 +65,21 @@ class StewartPlatformSB3VecEnv(VecEnv):
         [False, False]
     """
 
-    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = MAX_EPISODE_STEPS,
-                 render_mode: str | None = None, **kwargs: Any):
+    def __init__(
+        self,
+        num_envs: int = 1,
+        max_episode_steps: int | None = MAX_EPISODE_STEPS,
+        render_mode: str | None = None,
+        **kwargs: Any,
+    ):
         check_arguments(type(self).__name__, kwargs)
-        self.venv = StewartPlatformVectorEnv(num_envs=num_envs, max_episode_steps=max_episode_steps,
-                                             render_mode=render_mode, autoreset_mode=AutoresetMode.SAME_STEP,
-                                             **kwargs)
+        self.venv = StewartPlatformVectorEnv(
+            num_envs=num_envs,
+            max_episode_steps=max_episode_steps,
+            render_mode=render_mode,
+            autoreset_mode=AutoresetMode.SAME_STEP,
+            **kwargs,
+        )
         super().__init__(num_envs, self.venv.single_observation_space, self.venv.single_action_space)
         self._actions: np.ndarray | None = None
 
@@ -102,11 +111,15 @@ class StewartPlatformSB3VecEnv(VecEnv):
         """
         rows = options if isinstance(options, (list, tuple)) else [options] * self.num_envs
         if len(rows) != self.num_envs:
-            raise ArgumentError(f"set_options: options: expected one dict for every row or a list of {self.num_envs}, "
-                                f"got a list of {len(rows)}")
+            raise ArgumentError(
+                f"set_options: options: expected one dict for every row or a list of {self.num_envs}, "
+                f"got a list of {len(rows)}"
+            )
         for row in rows:
             if row is not None and not isinstance(row, Mapping):
-                raise ArgumentError(f"set_options: options: expected a dict (or None) per row, got {type(row).__name__}")
+                raise ArgumentError(
+                    f"set_options: options: expected a dict (or None) per row, got {type(row).__name__}"
+                )
         super().set_options(options)
 
     def step_async(self, actions: np.ndarray) -> None:
@@ -201,8 +214,7 @@ class StewartPlatformSB3VecEnv(VecEnv):
         Returns:
             Each row's return value.
         """
-        return [getattr(self.venv._row(i), method_name)(*method_args, **method_kwargs)
-                for i in self._indices(indices)]
+        return [getattr(self.venv._row(i), method_name)(*method_args, **method_kwargs) for i in self._indices(indices)]
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
         """SB3's ``env_is_wrapped``: False for every row (the rows are no wrapped environments).

@@ -407,8 +407,9 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     def render(self):
         if self.render_mode is None:
-            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human' "
-                            "to gymnasium.make")
+            gym.logger.warn(
+                "render() called without a render_mode; pass render_mode='rgb_array' or 'human' to gymnasium.make"
+            )
             return None
         return self._draw()
 
@@ -420,9 +421,12 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     def set_state(self, position, rotation, velocity=None, angular_velocity=None) -> None:
         """Put the platform in a state (in {B}; velocities default to zero); the episode goes on
         from it at the next step.  Shapes (3,), (3,3), (3,), (3,); rotation must be orthonormal."""
-        values = {"position": (position, (3,)), "rotation": (rotation, (3, 3)),
-                  "velocity": (np.zeros(3) if velocity is None else velocity, (3,)),
-                  "angular_velocity": (np.zeros(3) if angular_velocity is None else angular_velocity, (3,))}
+        values = {
+            "position": (position, (3,)),
+            "rotation": (rotation, (3, 3)),
+            "velocity": (np.zeros(3) if velocity is None else velocity, (3,)),
+            "angular_velocity": (np.zeros(3) if angular_velocity is None else angular_velocity, (3,)),
+        }
         checked = {name: real_array(name, value, shape) for name, (value, shape) in values.items()}
         R = checked["rotation"]
         check_rotation("rotation", R[None])  # the physics API's own test, so both accept the same states

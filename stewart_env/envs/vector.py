@@ -74,8 +74,11 @@ def check_batch_memory(name: str, num_envs: int, bytes_per_platform: float = BYT
     available = available_memory()
     need = float(num_envs) * float(bytes_per_platform)
     if available is not None and need > available:
-        raise UsageError.about(name, f"{num_envs} platforms do not fit in this machine's memory: they need about "
-                                     f"{_size(need)}, {_size(available)} is available")
+        raise UsageError.about(
+            name,
+            f"{num_envs} platforms do not fit in this machine's memory: they need about "
+            f"{_size(need)}, {_size(available)} is available",
+        )
 
 
 def _autoreset_mode(value: Any) -> AutoresetMode:
@@ -85,8 +88,10 @@ def _autoreset_mode(value: Any) -> AutoresetMode:
         # "NextStep" (the enum's value), "next_step", "NEXT_STEP" (its name) all name NEXT_STEP.
         if isinstance(value, str) and value.lower().replace("_", "") == mode.value.lower():
             return mode
-    raise ValueError(f"autoreset_mode: expected an AutoresetMode or one of "
-                     f"{', '.join(m.value for m in AutoresetMode)}, got {value!r}")
+    raise ValueError(
+        f"autoreset_mode: expected an AutoresetMode or one of "
+        f"{', '.join(m.value for m in AutoresetMode)}, got {value!r}"
+    )
 
 
 def _masked(value: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -149,8 +154,10 @@ class _Row(BatchAttributes):
         if name.startswith("_"):  # the row's own members are set in __init__
             raise AttributeError(name)
         if name in ("reset", "step"):
-            raise AttributeError(f"{name}: a row does not {name} alone; call the vector environment's {name}() "
-                                 "(reset(options={'reset_mask': mask}) resets some rows)")
+            raise AttributeError(
+                f"{name}: a row does not {name} alone; call the vector environment's {name}() "
+                "(reset(options={'reset_mask': mask}) resets some rows)"
+            )
         return getattr(self._venv, name)
 
 
@@ -222,19 +229,31 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
     """
 
     _rows = slice(None)  # BatchAttributes: every row
-    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 100.0,
-                "autoreset_mode": AutoresetMode.NEXT_STEP}
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 100.0, "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    @with_signature(*(inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=default)
-                      for name, default in (("num_envs", 1), ("max_episode_steps", None),
-                                            ("autoreset_mode", AutoresetMode.NEXT_STEP))))
-    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
-                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **arguments: Any):
+    @with_signature(
+        *(
+            inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=default)
+            for name, default in (
+                ("num_envs", 1),
+                ("max_episode_steps", None),
+                ("autoreset_mode", AutoresetMode.NEXT_STEP),
+            )
+        )
+    )
+    def __init__(
+        self,
+        num_envs: int = 1,
+        max_episode_steps: int | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        **arguments: Any,
+    ):
         check_arguments(type(self).__name__, arguments, ("num_envs", "max_episode_steps", "autoreset_mode"))
         self.num_envs = integer("num_envs", num_envs, 1, MAX_NUM_ENVS)
         check_batch_memory("num_envs", self.num_envs)
-        self.max_episode_steps = (None if max_episode_steps is None
-                                  else integer("max_episode_steps", max_episode_steps, 1, 2**62))
+        self.max_episode_steps = (
+            None if max_episode_steps is None else integer("max_episode_steps", max_episode_steps, 1, 2**62)
+        )
         self.autoreset_mode = _autoreset_mode(autoreset_mode)
         config = EnvConfig.of(**arguments)
         self.render_mode = config.render.render_mode
@@ -290,13 +309,16 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
         resetting = self._autoreset if mode == AutoresetMode.NEXT_STEP and self._autoreset.any() else None
         if mode == AutoresetMode.DISABLED and self._autoreset.any():
             rows = np.flatnonzero(self._autoreset).tolist()
-            raise ValueError(f"step: rows {rows} ended; with autoreset_mode DISABLED reset them first with "
-                             "reset(options={'reset_mask': mask})")
+            raise ValueError(
+                f"step: rows {rows} ended; with autoreset_mode DISABLED reset them first with "
+                "reset(options={'reset_mask': mask})"
+            )
         reward, code, terms, observation = core.step(a, self._rngs, skip=resetting)
         self._elapsed += 1
         terminated = code > 0
-        truncated = (self._elapsed >= self.max_episode_steps if self.max_episode_steps is not None
-                     else np.zeros(n, dtype=bool))
+        truncated = (
+            self._elapsed >= self.max_episode_steps if self.max_episode_steps is not None else np.zeros(n, dtype=bool)
+        )
         stepped = np.ones(n, dtype=bool) if resetting is None else ~resetting
         infos = self._step_infos(terms, code, stepped)
 
@@ -317,11 +339,11 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
                 # As Gymnasium's vector envs: a finished row's step info moves to final_info, and
                 # the top level holds its reset info instead.
                 step_infos = infos
-                infos = {k: (v & ~done) if k.startswith("_") else _masked(v, ~done)
-                         for k, v in step_infos.items()}
+                infos = {k: (v & ~done) if k.startswith("_") else _masked(v, ~done) for k, v in step_infos.items()}
                 infos["final_obs"], infos["_final_obs"] = final_obs, done.copy()
-                infos["final_info"] = {k: (v & done) if k.startswith("_") else _masked(v, done)
-                                       for k, v in step_infos.items()}
+                infos["final_info"] = {
+                    k: (v & done) if k.startswith("_") else _masked(v, done) for k, v in step_infos.items()
+                }
                 infos["_final_info"] = done.copy()
                 self._reset_rows(rows, infos)
                 observation[rows] = core.observation[rows]
@@ -401,8 +423,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
         if not isinstance(values, (list, tuple)):
             values = [values] * n
         if len(values) != n:
-            raise ValueError(f"set_attr: expected one value or num_envs={n} values for {name!r}, "
-                             f"got {len(values)}")
+            raise ValueError(f"set_attr: expected one value or num_envs={n} values for {name!r}, got {len(values)}")
         if _Row.settable(name):
             for i, value in enumerate(values):
                 setattr(self._row(i), name, value)

@@ -148,12 +148,18 @@ def base_parameters(model: Dynamics, n_states: int = 400, seed: int = 0) -> Base
     K[np.abs(K) < 1e-12 * max(1.0, np.abs(K).max())] = 0.0
     rows = np.argsort(piv[:r])  # base parameters in theta's order, for reading
     cols = np.argsort(piv[r:])
-    return BaseParameters(independent=piv[:r][rows], dependent=piv[r:][cols], combination=K[rows][:, cols],
-                          diagonal=rel, flags=model.flags)
+    return BaseParameters(
+        independent=piv[:r][rows],
+        dependent=piv[r:][cols],
+        combination=K[rows][:, cols],
+        diagonal=rel,
+        flags=model.flags,
+    )
 
 
-def params_from_theta(theta: np.ndarray, nominal: PlatformParams, flags: int, name: str | None = None
-                      ) -> PlatformParams:
+def params_from_theta(
+    theta: np.ndarray, nominal: PlatformParams, flags: int, name: str | None = None
+) -> PlatformParams:
     """The platform of a full theta, on the nominal's geometry, limits and home pose.
 
     Raises IdentificationError naming the body when theta does not describe a real body (a
@@ -169,7 +175,7 @@ def params_from_theta(theta: np.ndarray, nominal: PlatformParams, flags: int, na
     leg_shift, plat_shift = reg.shifts_of(flags)
 
     def body(k: int, shifts: float, label: str, positive: bool) -> RigidBody:
-        m, com, inertia = reg.body_from_theta(theta[k:k + reg.N_BODY], shifts)
+        m, com, inertia = reg.body_from_theta(theta[k : k + reg.N_BODY], shifts)
         if not np.isfinite(m) or m <= 0 and positive or m < 0:
             raise IdentificationError(f"identified {label}: mass {m:.6g} kg is not a body's mass")
         if m == 0:
@@ -188,5 +194,10 @@ def params_from_theta(theta: np.ndarray, nominal: PlatformParams, flags: int, na
     cu, cp, cs = (float(x) for x in theta[-3:])
     if min(cu, cp, cs) < 0:
         raise IdentificationError(f"identified damping ({cu:.4g}, {cp:.4g}, {cs:.4g}) has a negative coefficient")
-    return nominal.replace(name=name or nominal.name, platform=platform, upper_leg=tuple(upper),
-                           lower_leg=tuple(lower), damping=Damping(cu, cp, cs))
+    return nominal.replace(
+        name=name or nominal.name,
+        platform=platform,
+        upper_leg=tuple(upper),
+        lower_leg=tuple(lower),
+        damping=Damping(cu, cp, cs),
+    )

@@ -34,8 +34,9 @@ def _vee(S: np.ndarray) -> np.ndarray:
     return 0.5 * np.stack([S[..., 2, 1] - S[..., 1, 2], S[..., 0, 2] - S[..., 2, 0], S[..., 1, 0] - S[..., 0, 1]], -1)
 
 
-def derivatives(dt: float, position: np.ndarray, rotation: np.ndarray, window: int = SAVGOL_WINDOW,
-                order: int = SAVGOL_ORDER):
+def derivatives(
+    dt: float, position: np.ndarray, rotation: np.ndarray, window: int = SAVGOL_WINDOW, order: int = SAVGOL_ORDER
+):
     """(t, R, v, w, a, alpha) from poses sampled every ``dt`` s, by a Savitzky-Golay filter
     (``scipy.signal.savgol_filter``, polynomial ``order`` over ``window`` samples, its zeroth,
     first and second derivatives).  The rotation's nine entries are filtered alike and the
@@ -96,13 +97,16 @@ def check_rank(A: np.ndarray, base: BaseParameters) -> None:
     """
     rows = A.reshape(-1, A.shape[-1])
     if rows.shape[0] <= rows.shape[1]:
-        raise IdentificationError(f"data: {rows.shape[0]} equations for {rows.shape[1]} base parameters; "
-                                  "record longer (--duration)")
+        raise IdentificationError(
+            f"data: {rows.shape[0]} equations for {rows.shape[1]} base parameters; record longer (--duration)"
+        )
     d = np.abs(np.diag(scipy.linalg.qr(rows, mode="r", pivoting=True)[0]))
     if d[-1] < 1e-10 * d[0]:
         weak = int(np.sum(d < 1e-10 * d[0]))
-        raise IdentificationError(f"data: rank-deficient, {weak} of {rows.shape[1]} base parameters are not "
-                                  "excited by this trajectory; record longer or use --excitation optimized")
+        raise IdentificationError(
+            f"data: rank-deficient, {weak} of {rows.shape[1]} base parameters are not "
+            "excited by this trajectory; record longer or use --excitation optimized"
+        )
 
 
 def ols(A: np.ndarray, F: np.ndarray) -> Estimate:
@@ -117,9 +121,9 @@ def ols(A: np.ndarray, F: np.ndarray) -> Estimate:
     beta, *_ = np.linalg.lstsq(rows, y, rcond=None)
     res = (y - rows @ beta).reshape(F.shape)
     dof = rows.shape[0] - rows.shape[1]
-    s2 = float(np.sum(res ** 2) / dof)
+    s2 = float(np.sum(res**2) / dof)
     cov = s2 * np.linalg.inv(rows.T @ rows)
-    return Estimate(beta, np.sqrt(np.diag(cov)), np.sqrt(np.mean(res ** 2, axis=0)), cov)
+    return Estimate(beta, np.sqrt(np.diag(cov)), np.sqrt(np.mean(res**2, axis=0)), cov)
 
 
 def wls(A: np.ndarray, F: np.ndarray) -> Estimate:
@@ -140,9 +144,9 @@ def wls(A: np.ndarray, F: np.ndarray) -> Estimate:
     Aw, yw = A / sigma[None, :, None], F / sigma[None, :]
     rows, y = Aw.reshape(-1, A.shape[-1]), yw.ravel()
     beta, *_ = np.linalg.lstsq(rows, y, rcond=None)
-    res = (F - np.einsum("tir,r->ti", A, beta))
+    res = F - np.einsum("tir,r->ti", A, beta)
     cov = np.linalg.inv(rows.T @ rows)
-    return Estimate(beta, np.sqrt(np.diag(cov)), np.sqrt(np.mean(res ** 2, axis=0)), cov)
+    return Estimate(beta, np.sqrt(np.diag(cov)), np.sqrt(np.mean(res**2, axis=0)), cov)
 
 
 @dataclass(frozen=True)
@@ -158,8 +162,9 @@ class Requirement:
     near_zero: np.ndarray
 
 
-def requirements(beta: np.ndarray, std: np.ndarray, duration: float, noise: float,
-                 target: float = WELL_IDENTIFIED) -> Requirement:
+def requirements(
+    beta: np.ndarray, std: np.ndarray, duration: float, noise: float, target: float = WELL_IDENTIFIED
+) -> Requirement:
     """Recording time and force noise for a relative standard deviation ``target``, per base
     parameter, from one estimate (beta, std) of a ``duration``-second record at force noise
     ``noise`` (N).  Under white force noise sigma the least-squares covariance is
@@ -179,7 +184,7 @@ def requirements(beta: np.ndarray, std: np.ndarray, duration: float, noise: floa
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.where(beta != 0, np.abs(std) / np.abs(beta), np.inf)
         ratio = rel / target
-        time = duration * ratio ** 2
+        time = duration * ratio**2
         sigma = np.where(noise > 0, noise / ratio, np.inf)
     return Requirement(rel, time, sigma, np.abs(beta) <= NEAR_ZERO_STD * np.abs(std))
 
@@ -224,8 +229,14 @@ def _physical_of(theta_body: np.ndarray, shifts: float, mass_floor: float) -> np
     return np.concatenate([[m], m * com, L[np.tril_indices(3)]])
 
 
-def consistent(A: np.ndarray, F: np.ndarray, base: BaseParameters, nominal_theta: np.ndarray,
-               start_theta: np.ndarray, prior_weight: float = 1e-3) -> np.ndarray:
+def consistent(
+    A: np.ndarray,
+    F: np.ndarray,
+    base: BaseParameters,
+    nominal_theta: np.ndarray,
+    start_theta: np.ndarray,
+    prior_weight: float = 1e-3,
+) -> np.ndarray:
     """A physically consistent full theta: positive masses, inertias of real bodies (see
     :func:`_physical_body`) and non-negative friction, fitting the leg forces in the
     least-squares sense (``scipy.optimize.least_squares`` with bounds).  The directions the data
@@ -250,7 +261,7 @@ def consistent(A: np.ndarray, F: np.ndarray, base: BaseParameters, nominal_theta
     weight = prior_weight * np.linalg.norm(R, 2)
 
     def theta_of(phi):
-        bodies = [_physical_body(phi[10 * k:10 * k + 10], shifts[k]) for k in range(13)]
+        bodies = [_physical_body(phi[10 * k : 10 * k + 10], shifts[k]) for k in range(13)]
         return np.concatenate(bodies + [phi[130:133]])
 
     def residual(phi):
@@ -258,13 +269,16 @@ def consistent(A: np.ndarray, F: np.ndarray, base: BaseParameters, nominal_theta
         return np.concatenate([R @ base.of_theta(theta) - qy, weight * (theta - nominal_theta) / scale_theta])
 
     floors = [1e-3 * max(nominal_theta[10 * k], 1e-3) for k in range(13)]
-    phi0 = np.concatenate([_physical_of(start_theta[10 * k:10 * k + 10], shifts[k], floors[k]) for k in range(13)]
-                          + [np.maximum(start_theta[130:133], 0.0)])
+    phi0 = np.concatenate(
+        [_physical_of(start_theta[10 * k : 10 * k + 10], shifts[k], floors[k]) for k in range(13)]
+        + [np.maximum(start_theta[130:133], 0.0)]
+    )
     lower = np.full(133, -np.inf)
     lower[0:130:10] = 0.0
     lower[130:] = 0.0
     phi0 = np.maximum(phi0, lower + 1e-12)
     x_scale = np.maximum(np.abs(phi0), 1e-3 * np.abs(phi0).max())
-    result = scipy.optimize.least_squares(residual, phi0, bounds=(lower, np.inf), method="trf", x_scale=x_scale,
-                                          max_nfev=100)
+    result = scipy.optimize.least_squares(
+        residual, phi0, bounds=(lower, np.inf), method="trf", x_scale=x_scale, max_nfev=100
+    )
     return theta_of(result.x)

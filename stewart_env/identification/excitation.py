@@ -61,8 +61,9 @@ class Excitation:
         """
         t = np.ascontiguousarray(times, dtype=float).reshape(-1)
         out = np.empty((t.size, 3, 6))
-        _core.fourier_series(*(np.ascontiguousarray(x, dtype=float) for x in (self.q0, self.a, self.b)),
-                             float(self.wf), t, out)
+        _core.fourier_series(
+            *(np.ascontiguousarray(x, dtype=float) for x in (self.q0, self.a, self.b)), float(self.wf), t, out
+        )
         return tuple(np.ascontiguousarray(out[:, i]) for i in range(3))
 
     def law_row(self, controller: Dynamics, natural_frequency: float = 20.0, damping: float = 1.0) -> np.ndarray:
@@ -74,10 +75,19 @@ class Excitation:
             natural_frequency: the closed loop's natural frequency wn, rad/s.
             damping: its damping ratio zeta.
         """
-        kp = np.full(6, natural_frequency ** 2)
+        kp = np.full(6, natural_frequency**2)
         kd = np.full(6, 2 * damping * natural_frequency)
-        return np.concatenate([kp, kd, [controller.flags, self.wf, self.harmonics], self.q0, self.a.ravel(),
-                               self.b.ravel(), controller.packed[0]])
+        return np.concatenate(
+            [
+                kp,
+                kd,
+                [controller.flags, self.wf, self.harmonics],
+                self.q0,
+                self.a.ravel(),
+                self.b.ravel(),
+                controller.packed[0],
+            ]
+        )
 
     def to_dict(self) -> dict:
         """The series as JSON-fit lists: q0, a, b and wf."""
@@ -106,8 +116,14 @@ def task_states(q, qd, qdd):
     Ed[:, 1, 1] = -sy * yd
     w = np.einsum("nij,nj->ni", E, rate)
     alpha = np.einsum("nij,nj->ni", E, acc) + np.einsum("nij,nj->ni", Ed, rate)
-    return (np.ascontiguousarray(q[:, :3]), rpy_to_matrix(rpy), np.ascontiguousarray(qd[:, :3]), w,
-            np.ascontiguousarray(qdd[:, :3]), alpha)
+    return (
+        np.ascontiguousarray(q[:, :3]),
+        rpy_to_matrix(rpy),
+        np.ascontiguousarray(qd[:, :3]),
+        w,
+        np.ascontiguousarray(qdd[:, :3]),
+        alpha,
+    )
 
 
 def margins(excitation: Excitation, model: Dynamics, times, per_sample: bool = False) -> np.ndarray:
@@ -167,8 +183,14 @@ def _from_vector(x, q0, H, wf):
     return Excitation(q0, a, b, wf)
 
 
-def random_excitation(params: PlatformParams, model: Dynamics, rng: np.random.Generator, period: float,
-                      harmonics: int = 5, samples: int = 100) -> Excitation:
+def random_excitation(
+    params: PlatformParams,
+    model: Dynamics,
+    rng: np.random.Generator,
+    period: float,
+    harmonics: int = 5,
+    samples: int = 100,
+) -> Excitation:
     """A random series, scaled down until it keeps within the limits (:func:`margins` >= 0).
 
     Args:
@@ -191,8 +213,10 @@ def random_excitation(params: PlatformParams, model: Dynamics, rng: np.random.Ge
         exc = _centred(_from_vector(scale * x.ravel(), q0, harmonics, wf))
         if np.all(margins(exc, model, times) >= 0):
             return exc
-    raise IdentificationError("excitation: no random series keeps within the platform's limits "
-                              "(leg stroke, workspace, condition number, leg forces) at the home pose")
+    raise IdentificationError(
+        "excitation: no random series keeps within the platform's limits "
+        "(leg stroke, workspace, condition number, leg forces) at the home pose"
+    )
 
 
 def _centred(exc: Excitation) -> Excitation:
@@ -201,8 +225,9 @@ def _centred(exc: Excitation) -> Excitation:
     return Excitation(exc.q0 - (q[0] - exc.q0), exc.a, exc.b, exc.wf)
 
 
-def optimized_excitation(start: Excitation, model: Dynamics, base: BaseParameters, samples: int = 100,
-                         max_iterations: int = 30) -> tuple[Excitation, dict]:
+def optimized_excitation(
+    start: Excitation, model: Dynamics, base: BaseParameters, samples: int = 100, max_iterations: int = 30
+) -> tuple[Excitation, dict]:
     """The series from ``start`` optimised (SLSQP) for the log condition number of the stacked
     base regressor, subject to :func:`margins` >= 0; the best feasible series met is kept (the
     start if none beats it).  Returns (excitation, info with the condition numbers).
@@ -243,9 +268,13 @@ def optimized_excitation(start: Excitation, model: Dynamics, base: BaseParameter
     z0 = np.concatenate([start.a.ravel(), start.b.ravel()]) / scale
     before = 10 ** evaluate(z0)[0]
     try:
-        result = scipy.optimize.minimize(lambda z: evaluate(z)[0], z0, method="SLSQP",
-                                         constraints=[{"type": "ineq", "fun": lambda z: evaluate(z)[1]}],
-                                         options={"maxiter": max_iterations, "ftol": 1e-4})
+        result = scipy.optimize.minimize(
+            lambda z: evaluate(z)[0],
+            z0,
+            method="SLSQP",
+            constraints=[{"type": "ineq", "fun": lambda z: evaluate(z)[1]}],
+            options={"maxiter": max_iterations, "ftol": 1e-4},
+        )
         # SLSQP ends on the limits, often a little outside: shrink its series until it fits
         for shrink in 0.98 ** np.arange(1, 30):
             if np.all(evaluate(result.x * shrink)[1] >= 0):

@@ -99,8 +99,9 @@ class Settings:
             if name == "plant" and self.plant == "mujoco":
                 if self.derivatives == "exact":
                     problem = "the MuJoCo plant gives no accelerations; use filter"
-                    raise IdentificationError(f"--derivatives exact: {problem}", argument="derivatives",
-                                              problem=f"exact: {problem}")
+                    raise IdentificationError(
+                        f"--derivatives exact: {problem}", argument="derivatives", problem=f"exact: {problem}"
+                    )
                 from stewart_env.mujoco.library import require_mujoco
 
                 try:
@@ -186,9 +187,12 @@ def perturbed(params: PlatformParams, size: float, rng: np.random.Generator) -> 
 
     d = params.damping
     fd = 1 + rng.uniform(-size, size, 3)
-    return params.replace(platform=body(params.platform), upper_leg=tuple(body(b) for b in params.upper_leg),
-                          lower_leg=tuple(body(b) for b in params.lower_leg),
-                          damping=Damping(d.universal * fd[0], d.prismatic * fd[1], d.spherical * fd[2]))
+    return params.replace(
+        platform=body(params.platform),
+        upper_leg=tuple(body(b) for b in params.upper_leg),
+        lower_leg=tuple(body(b) for b in params.lower_leg),
+        damping=Damping(d.universal * fd[0], d.prismatic * fd[1], d.spherical * fd[2]),
+    )
 
 
 def _simulate_mujoco(truth: PlatformParams, row: np.ndarray, start: tuple, steps: int, every: int) -> Trajectory:
@@ -199,8 +203,14 @@ def _simulate_mujoco(truth: PlatformParams, row: np.ndarray, start: tuple, steps
     plant = MujocoPlant(truth, timestep=PLANT_DT, nthread=0)
     t, R, v, w = (np.ascontiguousarray(x.copy()) for x in start)
     n = steps // every + 1
-    rec = Trajectory(np.arange(n) * every * PLANT_DT, np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 3)),
-                    np.empty((n, 3)), np.empty((n, 6)))
+    rec = Trajectory(
+        np.arange(n) * every * PLANT_DT,
+        np.empty((n, 3)),
+        np.empty((n, 3, 3)),
+        np.empty((n, 3)),
+        np.empty((n, 3)),
+        np.empty((n, 6)),
+    )
     wrench = np.zeros((1, 6))
     for k in range(n):
         F = law_forces(exc.FOURIER_COMPUTED_TORQUE, row[None], t, R, v, w, time=float(rec.time[k]))
@@ -213,8 +223,9 @@ def _simulate_mujoco(truth: PlatformParams, row: np.ndarray, start: tuple, steps
     return rec
 
 
-def simulate(plant: Dynamics | str, truth: PlatformParams, controller: Dynamics, series: exc.Excitation,
-             duration: float):
+def simulate(
+    plant: Dynamics | str, truth: PlatformParams, controller: Dynamics, series: exc.Excitation, duration: float
+):
     """Drive the plant (a closed-form model, or ``"mujoco"`` on the truth) along the series by
     the compiled computed-torque law; returns the recorded Trajectory.  IdentificationError
     when the plant diverges or leaves the stroke.
@@ -236,18 +247,31 @@ def simulate(plant: Dynamics | str, truth: PlatformParams, controller: Dynamics,
         traj = _simulate_mujoco(truth, row, (t0, R0, v0, w0), steps, every)
     else:
         try:
-            traj = rollout(plant, t0[0], R0[0], v0[0], w0[0], dt=PLANT_DT, steps=steps,
-                           control_law=exc.FOURIER_COMPUTED_TORQUE, control_params=row, record_every=every)
+            traj = rollout(
+                plant,
+                t0[0],
+                R0[0],
+                v0[0],
+                w0[0],
+                dt=PLANT_DT,
+                steps=steps,
+                control_law=exc.FOURIER_COMPUTED_TORQUE,
+                control_params=row,
+                record_every=every,
+            )
         except FloatingPointError:
-            raise IdentificationError("plant: the simulation diverged along the excitation "
-                                      "(state no longer finite)") from None
+            raise IdentificationError(
+                "plant: the simulation diverged along the excitation (state no longer finite)"
+            ) from None
     if not (np.isfinite(traj.position).all() and np.isfinite(traj.rotation).all()):
         raise IdentificationError("plant: the simulation diverged along the excitation (state no longer finite)")
     lim = truth.limits
     L, _ = inverse_kinematics(truth, traj.position, traj.rotation)
     if L.min() < lim.leg_length[0] or L.max() > lim.leg_length[1]:
-        raise IdentificationError(f"excitation: the plant's legs leave the stroke {list(lim.leg_length)} m "
-                                  f"(lengths {L.min():.4f}-{L.max():.4f} m)")
+        raise IdentificationError(
+            f"excitation: the plant's legs leave the stroke {list(lim.leg_length)} m "
+            f"(lengths {L.min():.4f}-{L.max():.4f} m)"
+        )
     return traj
 
 
@@ -289,10 +313,11 @@ def measure(plant: Dynamics, traj, settings: Settings, rng: np.random.Generator)
     else:
         states = est.derivatives(SAMPLE_DT, pos, rot)
     keep = traj.time >= SETTLE
-    keep[:k + est.SAVGOL_WINDOW // 2 + 1] = False  # poses not yet arrived, and the filter's start on them
-    keep[-(est.SAVGOL_WINDOW // 2 + 1):] = False
-    return Record(traj.time[keep], tuple(np.ascontiguousarray(x[keep]) for x in states), forces[keep],
-                  traj.leg_forces[keep])
+    keep[: k + est.SAVGOL_WINDOW // 2 + 1] = False  # poses not yet arrived, and the filter's start on them
+    keep[-(est.SAVGOL_WINDOW // 2 + 1) :] = False
+    return Record(
+        traj.time[keep], tuple(np.ascontiguousarray(x[keep]) for x in states), forces[keep], traj.leg_forces[keep]
+    )
 
 
 def rows_of(model: Dynamics, base: base_mod.BaseParameters, record: Record) -> np.ndarray:
@@ -347,13 +372,17 @@ def check_report(report: object, source: str) -> dict:
     Raises:
         IdentificationError: naming ``source`` and the key (``base_parameters[3].wls_std``).
     """
+
     def field(mapping: object, name: str, key: str) -> object:
         if not isinstance(mapping, dict):
-            raise IdentificationError(f"{source}: not a report.json of stewart-env identify ({key or 'the document'} "
-                                      f"is {short(mapping)}, not an object)")
+            raise IdentificationError(
+                f"{source}: not a report.json of stewart-env identify ({key or 'the document'} "
+                f"is {short(mapping)}, not an object)"
+            )
         if name not in mapping:
-            raise IdentificationError(f"{source}: not a report.json of stewart-env identify (no {key + '.' if key else ''}"
-                                      f"{name})")
+            raise IdentificationError(
+                f"{source}: not a report.json of stewart-env identify (no {key + '.' if key else ''}{name})"
+            )
         return mapping[name]
 
     def text(mapping: object, name: str, key: str = "") -> None:
@@ -363,11 +392,17 @@ def check_report(report: object, source: str) -> dict:
 
     def number(mapping: object, name: str, key: str = "", positive: bool = True) -> None:
         value = field(mapping, name, key)
-        usable = (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-                  and (value > 0 or not positive))
+        usable = (
+            isinstance(value, (int, float))
+            and not isinstance(value, bool)
+            and math.isfinite(value)
+            and (value > 0 or not positive)
+        )
         if not usable:
             kind = "a number > 0" if positive else "a finite number"
-            raise IdentificationError(f"{source}: {key + '.' if key else ''}{name}: expected {kind}, got {short(value)}")
+            raise IdentificationError(
+                f"{source}: {key + '.' if key else ''}{name}: expected {kind}, got {short(value)}"
+            )
 
     text(report, "platform")
     text(field(report, "settings", ""), "model", "settings")
@@ -384,8 +419,9 @@ def check_report(report: object, source: str) -> dict:
     return report
 
 
-def _check_reference(reference: dict, settings: Settings, nominal: PlatformParams,
-                     base: base_mod.BaseParameters, model: ModelSpec) -> None:
+def _check_reference(
+    reference: dict, settings: Settings, nominal: PlatformParams, base: base_mod.BaseParameters, model: ModelSpec
+) -> None:
     """IdentificationError unless ``reference`` is an identify report of the same platform's and
     model's base parameters, recorded with force noise, and this experiment has force noise."""
     check_report(reference, "--predicted-by")
@@ -396,8 +432,9 @@ def _check_reference(reference: dict, settings: Settings, nominal: PlatformParam
         same_model = False
     ok = reference["platform"] == nominal.name and same_model
     if not ok or names != base.names:
-        raise IdentificationError(f"--predicted-by: a report of {nominal.name}'s {settings.model} base parameters "
-                                  "with force noise is needed")
+        raise IdentificationError(
+            f"--predicted-by: a report of {nominal.name}'s {settings.model} base parameters with force noise is needed"
+        )
     if settings.noise_force <= 0:
         raise IdentificationError("--predicted-by: needs --noise-force > 0 (the law scales with the force noise)")
 
@@ -405,21 +442,34 @@ def _check_reference(reference: dict, settings: Settings, nominal: PlatformParam
 def _prediction(reference: dict, fitted: float, noise: float, std_now: np.ndarray, need: est.Requirement) -> dict:
     """The reference's standard deviations scaled to this record and noise, against this record's."""
     ref = reference["base_parameters"]
-    std = est.predicted_std(np.array([p["wls_std"] for p in ref]), reference["fitted_duration"],
-                            reference["settings"]["noise_force"], fitted, noise)
+    std = est.predicted_std(
+        np.array([p["wls_std"] for p in ref]),
+        reference["fitted_duration"],
+        reference["settings"]["noise_force"],
+        fitted,
+        noise,
+    )
     ref_beta = np.array([p["wls"] for p in ref])
     ref_zero = np.abs(ref_beta) <= est.NEAR_ZERO_STD * np.array([p["wls_std"] for p in ref])
     both = ~(need.near_zero | ref_zero)
     rel_predicted = std / np.abs(ref_beta)
 
     def spread(x):
-        return {"median": float(np.median(x)), "p10": float(np.percentile(x, 10)), "p90": float(np.percentile(x, 90)),
-                "count": int(x.size)}
+        return {
+            "median": float(np.median(x)),
+            "p10": float(np.percentile(x, 10)),
+            "p90": float(np.percentile(x, 90)),
+            "count": int(x.size),
+        }
 
-    return {"fitted_duration": float(reference["fitted_duration"]),
-            "noise_force": float(reference["settings"]["noise_force"]),
-            "std_ratio": spread(std_now / std), "rel_std_ratio": spread(need.rel_std[both] / rel_predicted[both]),
-            "predicted_std": std.tolist(), "predicted_rel_std": rel_predicted.tolist()}
+    return {
+        "fitted_duration": float(reference["fitted_duration"]),
+        "noise_force": float(reference["settings"]["noise_force"]),
+        "std_ratio": spread(std_now / std),
+        "rel_std_ratio": spread(need.rel_std[both] / rel_predicted[both]),
+        "predicted_std": std.tolist(),
+        "predicted_rel_std": rel_predicted.tolist(),
+    }
 
 
 def run(settings: Settings, nominal: PlatformParams, predicted_by: dict | None = None) -> Result:
@@ -463,8 +513,7 @@ def run(settings: Settings, nominal: PlatformParams, predicted_by: dict | None =
 
     # held out: a second, random series on the same plant, its forces predicted by each model
     held_series = exc.random_excitation(nominal, model, rng, period=period, harmonics=settings.harmonics)
-    held = measure(plant, simulate(plant, truth, model, held_series, min(settings.duration, 2 * period)),
-                   settings, rng)
+    held = measure(plant, simulate(plant, truth, model, held_series, min(settings.duration, 2 * period)), settings, rng)
     A_held = rows_of(model, base, held)
 
     def prediction_error(beta):
@@ -475,18 +524,26 @@ def run(settings: Settings, nominal: PlatformParams, predicted_by: dict | None =
     truth_beta = base.of_theta(reg.theta_of(truth, model.flags))
     plant_flags = 0 if plant_spec is None else plant_spec.flags  # MuJoCo: exact
     exact_structure = plant_flags == model.flags
-    rms_force = float(np.sqrt(np.mean(held.true_forces ** 2)))
+    rms_force = float(np.sqrt(np.mean(held.true_forces**2)))
     names = base.names
     fitted = record.time.size * SAMPLE_DT
     need = est.requirements(w.beta, w.std, fitted, settings.noise_force)
     dropped = settings.duration - fitted  # the record's start and end the fit does not use
     params_rows = []
     for k in range(base.rank):
-        row = {"name": names[k], "ols": float(o.beta[k]), "ols_std": float(o.std[k]), "wls": float(w.beta[k]),
-               "wls_std": float(w.std[k]), "rel_std": _or_none(need.rel_std[k]),
-               "duration_10pct": _or_none(need.duration[k] + dropped), "noise_force_10pct": _or_none(need.noise[k]),
-               "near_zero": bool(need.near_zero[k]),
-               "consistent": float(beta_c[k]), "nominal": float(beta_nominal[k])}
+        row = {
+            "name": names[k],
+            "ols": float(o.beta[k]),
+            "ols_std": float(o.std[k]),
+            "wls": float(w.beta[k]),
+            "wls_std": float(w.std[k]),
+            "rel_std": _or_none(need.rel_std[k]),
+            "duration_10pct": _or_none(need.duration[k] + dropped),
+            "noise_force_10pct": _or_none(need.noise[k]),
+            "near_zero": bool(need.near_zero[k]),
+            "consistent": float(beta_c[k]),
+            "nominal": float(beta_nominal[k]),
+        }
         if exact_structure:
             row["truth"] = float(truth_beta[k])
         params_rows.append(row)
@@ -509,8 +566,12 @@ def run(settings: Settings, nominal: PlatformParams, predicted_by: dict | None =
         "residual_sigma_wls": w.sigma.tolist(),
         "base_parameters_under_10pct_rel_std": int(np.sum(rel_std < 0.1)),
         "held_out_rms_force": rms_force,
-        "held_out_force_error": {"nominal": prediction_error(beta_nominal), "ols": prediction_error(o.beta),
-                                 "wls": prediction_error(w.beta), "consistent": prediction_error(beta_c)},
+        "held_out_force_error": {
+            "nominal": prediction_error(beta_nominal),
+            "ols": prediction_error(o.beta),
+            "wls": prediction_error(w.beta),
+            "consistent": prediction_error(beta_c),
+        },
         "excitation": series.to_dict(),
         "base_parameters": params_rows,
     }
@@ -569,18 +630,26 @@ def _by_body(report: dict) -> list[str]:
     for p in report["base_parameters"]:
         groups.setdefault(body_of(p["name"]), []).append(p)
     target = f"{100 * est.WELL_IDENTIFIED:g} %"
-    lines = ["", f"By body: how many base parameters are under {target} and how many ~0; of the others, the "
-             f"`--duration` (s) for {target} at this force noise and the force noise (N) for {target} in this "
-             "recording, median and worst.", "",
-             f"| body | base parameters | rel. std < {target} | ~0 | --duration, median | --duration, longest "
-             "| force noise, median | force noise, smallest |", "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "",
+        f"By body: how many base parameters are under {target} and how many ~0; of the others, the "
+        f"`--duration` (s) for {target} at this force noise and the force noise (N) for {target} in this "
+        "recording, median and worst.",
+        "",
+        f"| body | base parameters | rel. std < {target} | ~0 | --duration, median | --duration, longest "
+        "| force noise, median | force noise, smallest |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for body, rows in groups.items():
         rest = [p for p in rows if not p["near_zero"]]
         time = np.array([np.inf if p["duration_10pct"] is None else p["duration_10pct"] for p in rest])
         noise = np.array([np.inf if p["noise_force_10pct"] is None else p["noise_force_10pct"] for p in rest])
         under = sum(p["rel_std"] is not None and p["rel_std"] < est.WELL_IDENTIFIED for p in rows)
-        figures = (f"{np.median(time):.3g} | {time.max():.3g} | {np.median(noise):.3g} | {noise.min():.3g}"
-                   if rest else "| | |")
+        figures = (
+            f"{np.median(time):.3g} | {time.max():.3g} | {np.median(noise):.3g} | {noise.min():.3g}"
+            if rest
+            else "| | |"
+        )
         lines.append(f"| {body} | {len(rows)} | {under} | {len(rows) - len(rest)} | {figures} |")
     return lines
 
@@ -606,37 +675,48 @@ def _markdown(report: dict) -> str:
     ]
     if "truth_error" in report:
         t = report["truth_error"]
-        lines.append(f"- WLS against the truth: {t['within_10pct_wls']} of {report['rank']} base parameters within "
-                     f"10 %, median relative error {t['median_rel_wls']:.3g}, largest {t['max_rel_wls']:.3g} (a "
-                     f"combination near zero); {100 * t['within_3_std_wls']:.1f} % within 3 standard deviations")
+        lines.append(
+            f"- WLS against the truth: {t['within_10pct_wls']} of {report['rank']} base parameters within "
+            f"10 %, median relative error {t['median_rel_wls']:.3g}, largest {t['max_rel_wls']:.3g} (a "
+            f"combination near zero); {100 * t['within_3_std_wls']:.1f} % within 3 standard deviations"
+        )
     if "predicted_by" in report:
         q = report["predicted_by"]
         a, b = q["std_ratio"], q["rel_std_ratio"]
-        lines.append(f"- against what a run of {q['fitted_duration']:.4g} s at {q['noise_force']:g} N predicts "
-                     f"(std ~ sigma / sqrt(T)), measured / predicted: std median {a['median']:.3g} (10-90 %: "
-                     f"{a['p10']:.3g}-{a['p90']:.3g}, {a['count']} parameters), rel. std median {b['median']:.3g} "
-                     f"({b['p10']:.3g}-{b['p90']:.3g}, the {b['count']} not ~0 in either run)")
+        lines.append(
+            f"- against what a run of {q['fitted_duration']:.4g} s at {q['noise_force']:g} N predicts "
+            f"(std ~ sigma / sqrt(T)), measured / predicted: std median {a['median']:.3g} (10-90 %: "
+            f"{a['p10']:.3g}-{a['p90']:.3g}, {a['count']} parameters), rel. std median {b['median']:.3g} "
+            f"({b['p10']:.3g}-{b['p90']:.3g}, the {b['count']} not ~0 in either run)"
+        )
     lines += _by_body(report)
     truth = "truth_error" in report
     predicted = "predicted_by" in report
     target = f"{100 * est.WELL_IDENTIFIED:g} %"
-    lines += ["", f"Per base parameter: the WLS estimate, its standard deviation and relative standard deviation; "
-              f"the `--duration` (s) that brings it to {target} at this force noise, and the force noise (N) that "
-              f"does in this recording (standard deviation as sigma / sqrt(T)); `~0`: the estimate is within "
-              f"{est.NEAR_ZERO_STD:g} standard deviations of zero, so its relative deviation tells nothing.",
-              "",
-              f"| base parameter | WLS | std | rel. std | --duration for {target}, s | force noise for {target}, N "
-              + ("| predicted rel. std " if predicted else "")
-              + "| consistent | nominal |" + (" truth |" if truth else ""),
-              "|---|---|---|---|---|---|---|---|" + ("---|" if truth else "") + ("---|" if predicted else "")]
+    lines += [
+        "",
+        f"Per base parameter: the WLS estimate, its standard deviation and relative standard deviation; "
+        f"the `--duration` (s) that brings it to {target} at this force noise, and the force noise (N) that "
+        f"does in this recording (standard deviation as sigma / sqrt(T)); `~0`: the estimate is within "
+        f"{est.NEAR_ZERO_STD:g} standard deviations of zero, so its relative deviation tells nothing.",
+        "",
+        f"| base parameter | WLS | std | rel. std | --duration for {target}, s | force noise for {target}, N "
+        + ("| predicted rel. std " if predicted else "")
+        + "| consistent | nominal |"
+        + (" truth |" if truth else ""),
+        "|---|---|---|---|---|---|---|---|" + ("---|" if truth else "") + ("---|" if predicted else ""),
+    ]
     for p in report["base_parameters"]:
         if p["near_zero"]:
             time, noise = "~0", "~0"
         else:
             time, noise = _figure(p["duration_10pct"], "never"), _figure(p["noise_force_10pct"], "n/a")
-        row = (f"| `{p['name']}` | {p['wls']:.6g} | {p['wls_std']:.3g} | {_figure(p['rel_std'], 'inf')} | {time} "
-               f"| {noise} " + (f"| {_figure(p['predicted_rel_std'], 'inf')} " if predicted else "")
-               + f"| {p['consistent']:.6g} | {p['nominal']:.6g} |")
+        row = (
+            f"| `{p['name']}` | {p['wls']:.6g} | {p['wls_std']:.3g} | {_figure(p['rel_std'], 'inf')} | {time} "
+            f"| {noise} "
+            + (f"| {_figure(p['predicted_rel_std'], 'inf')} " if predicted else "")
+            + f"| {p['consistent']:.6g} | {p['nominal']:.6g} |"
+        )
         if truth:
             row += f" {p['truth']:.6g} |"
         lines.append(row)
@@ -659,7 +739,9 @@ def write(result: Result, out: str | Path) -> Path:
         PlatformParams.from_dict(files.load_yaml(text), result.identified.name)  # it loads back
         files.publish(folder / "platform.yaml", "# identified by stewart-env identify; see report.md\n" + text)
         truth = yaml.safe_dump(result.truth.to_dict(), sort_keys=False)
-        files.publish(folder / "truth.yaml", "# the plant's parameters (the unknown truth) of this experiment\n" + truth)
+        files.publish(
+            folder / "truth.yaml", "# the plant's parameters (the unknown truth) of this experiment\n" + truth
+        )
         files.publish(folder / "report.json", json.dumps(_strict(result.report), indent=1, allow_nan=False) + "\n")
         files.publish(folder / "report.md", _markdown(result.report))
     return Path(folder)

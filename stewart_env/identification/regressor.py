@@ -105,7 +105,9 @@ def theta_of(params: PlatformParams, flags: int = 0) -> np.ndarray:
     return np.concatenate(parts)
 
 
-def regressor_matrix(dynamics: Dynamics, position, rotation, velocity, angular_velocity, lin_acc, ang_acc) -> np.ndarray:
+def regressor_matrix(
+    dynamics: Dynamics, position, rotation, velocity, angular_velocity, lin_acc, ang_acc
+) -> np.ndarray:
     """Y (N, 6, N_THETA) (or (6, N_THETA) for one state) with J^T F + W = Y theta for the model
     of ``dynamics`` (its name's switches; its first platform gives the geometry and gravity).
 
@@ -121,11 +123,24 @@ def regressor_matrix(dynamics: Dynamics, position, rotation, velocity, angular_v
         ang_acc: (3,) angular acceleration alpha, rad/s^2.
     """
     n, batched, a = batch_args(
-        1, position=(position, (3,)), rotation=(rotation, (3, 3)), velocity=(velocity, (3,)),
-        angular_velocity=(angular_velocity, (3,)), lin_acc=(lin_acc, (3,)), ang_acc=(ang_acc, (3,)))
+        1,
+        position=(position, (3,)),
+        rotation=(rotation, (3, 3)),
+        velocity=(velocity, (3,)),
+        angular_velocity=(angular_velocity, (3,)),
+        lin_acc=(lin_acc, (3,)),
+        ang_acc=(ang_acc, (3,)),
+    )
     acc = np.ascontiguousarray(np.concatenate([a["lin_acc"], a["ang_acc"]], axis=1))
     Y = np.empty((n, 6, N_THETA))
-    _core.regressor_batch(np.ascontiguousarray(dynamics.packed[:1]), dynamics.flags, a["position"],
-                          a["rotation"], a["velocity"], a["angular_velocity"], acc, Y)
+    _core.regressor_batch(
+        np.ascontiguousarray(dynamics.packed[:1]),
+        dynamics.flags,
+        a["position"],
+        a["rotation"],
+        a["velocity"],
+        a["angular_velocity"],
+        acc,
+        Y,
+    )
     return Y if batched else Y[0]
-

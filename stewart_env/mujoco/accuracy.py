@@ -20,8 +20,16 @@ from stewart_env.mujoco.twin import Twin, model_and_data, platform_acceleration
 from stewart_env.params import Damping, PlatformParams
 from stewart_env.rotations import rotation_error, rpy_to_matrix
 
-__all__ = ["MUJOCO_SOLIMP", "MUJOCO_SOLREF", "acceleration_error", "accuracy_report", "holding_drift",
-           "plant_difference", "spherical_friction_effect", "trajectory_report"]
+__all__ = [
+    "MUJOCO_SOLIMP",
+    "MUJOCO_SOLREF",
+    "acceleration_error",
+    "accuracy_report",
+    "holding_drift",
+    "plant_difference",
+    "spherical_friction_effect",
+    "trajectory_report",
+]
 
 
 def _test_state(params: PlatformParams, seed: int):
@@ -42,8 +50,13 @@ def _without_spherical_friction(params: PlatformParams) -> PlatformParams:
     return params.replace(damping=Damping(d.universal, d.prismatic, 0.0))
 
 
-def acceleration_error(params: PlatformParams, solref: Sequence[float] = DEFAULT_SOLREF,
-                       solimp: Sequence[float] = DEFAULT_SOLIMP, seed: int = 0, force_scale: float = 1.1) -> float:
+def acceleration_error(
+    params: PlatformParams,
+    solref: Sequence[float] = DEFAULT_SOLREF,
+    solimp: Sequence[float] = DEFAULT_SOLIMP,
+    seed: int = 0,
+    force_scale: float = 1.1,
+) -> float:
     """Largest difference between MuJoCo's platform acceleration and the ``improved`` model's.
 
     The forward dynamics (docs/physics.md section 5.4) at a valid moving state near home with the
@@ -88,8 +101,14 @@ def spherical_friction_effect(params: PlatformParams, seed: int = 0) -> float:
     return float(np.abs(np.concatenate(a) - np.concatenate(b)).max())
 
 
-def plant_difference(params: PlatformParams, seconds: float = 1.0, control_dt: float = 0.01, dt: float = 1e-3,
-                     spherical_friction: bool = True, seed: int = 0) -> tuple[float, float]:
+def plant_difference(
+    params: PlatformParams,
+    seconds: float = 1.0,
+    control_dt: float = 0.01,
+    dt: float = 1e-3,
+    spherical_friction: bool = True,
+    seed: int = 0,
+) -> tuple[float, float]:
     """How far :class:`MujocoPlant`'s platform ends from the ``improved`` model's.
 
     The ``improved`` model has every friction included, RK4 at ``dt``; both start from the moving
@@ -122,9 +141,14 @@ def plant_difference(params: PlatformParams, seconds: float = 1.0, control_dt: f
     return float(np.linalg.norm(mine[0][0] - exact[0][0])), float(rotation_error(mine[1][0], exact[1][0])[1])
 
 
-def holding_drift(params: PlatformParams, seconds: float = 1.0, timestep: float = 1e-3,
-                  solref: Sequence[float] = DEFAULT_SOLREF, solimp: Sequence[float] = DEFAULT_SOLIMP,
-                  seed: int = 0) -> tuple[float, float]:
+def holding_drift(
+    params: PlatformParams,
+    seconds: float = 1.0,
+    timestep: float = 1e-3,
+    solref: Sequence[float] = DEFAULT_SOLREF,
+    solimp: Sequence[float] = DEFAULT_SOLIMP,
+    seed: int = 0,
+) -> tuple[float, float]:
     """Drift of MuJoCo's platform under the forces that hold the exact mechanism at rest.
 
     The leg forces that ``inverse`` of the ``improved`` model says hold the platform at rest at
@@ -149,9 +173,14 @@ def holding_drift(params: PlatformParams, seconds: float = 1.0, timestep: float 
     return float(np.linalg.norm(state[0][0] - t)), float(rotation_error(state[1][0], R)[1])
 
 
-def trajectory_report(params: PlatformParams, seconds: float = 1.0, timestep: float = 1e-3,
-                      solref: Sequence[float] = DEFAULT_SOLREF, solimp: Sequence[float] = DEFAULT_SOLIMP,
-                      seed: int = 0) -> dict:
+def trajectory_report(
+    params: PlatformParams,
+    seconds: float = 1.0,
+    timestep: float = 1e-3,
+    solref: Sequence[float] = DEFAULT_SOLREF,
+    solimp: Sequence[float] = DEFAULT_SOLIMP,
+    seed: int = 0,
+) -> dict:
     """Energy and loop closure of MuJoCo's twin over a free motion, beside the exact model.
 
     The platform starts at the moving state of :func:`acceleration_error` under constant holding
@@ -199,9 +228,14 @@ def trajectory_report(params: PlatformParams, seconds: float = 1.0, timestep: fl
         drift = max(drift, abs(energy() - e0))
         closure = max(closure, tw.closure_gap(d))
     t_ref = rollout(make_dynamics("improved", free), t, R, v, w, F, dt=timestep, steps=steps)[0]
-    return {"energy_drift": drift, "kinetic_energy": kinetic, "closure_max": closure,
-            "position_difference": float(np.linalg.norm(d.qpos[tw.q_free:tw.q_free + 3] - t_ref)),
-            "seconds": seconds, "timestep": timestep}
+    return {
+        "energy_drift": drift,
+        "kinetic_energy": kinetic,
+        "closure_max": closure,
+        "position_difference": float(np.linalg.norm(d.qpos[tw.q_free : tw.q_free + 3] - t_ref)),
+        "seconds": seconds,
+        "timestep": timestep,
+    }
 
 
 #: MuJoCo's own defaults for constraint softness, for comparison in :func:`accuracy_report`.
@@ -223,21 +257,32 @@ def accuracy_report(params: PlatformParams) -> str:
         The report's markdown.
     """
     loose = (0.99, 0.99) + DEFAULT_SOLIMP[2:]
-    lines = [f"MuJoCo twin of {params.name} (stewart_env.mujoco), against the improved model:", "",
-             "| loop softness (solref; solimp d) | platform acceleration error | closure, 1 s free motion "
-             "| energy drift / kinetic energy | position vs improved after 1 s |", "|---|---|---|---|---|"]
-    for label, solref, solimp in (("twin default", DEFAULT_SOLREF, DEFAULT_SOLIMP),
-                                  ("d = 0.99", DEFAULT_SOLREF, loose),
-                                  ("MuJoCo default", MUJOCO_SOLREF, MUJOCO_SOLIMP)):
+    lines = [
+        f"MuJoCo twin of {params.name} (stewart_env.mujoco), against the improved model:",
+        "",
+        "| loop softness (solref; solimp d) | platform acceleration error | closure, 1 s free motion "
+        "| energy drift / kinetic energy | position vs improved after 1 s |",
+        "|---|---|---|---|---|",
+    ]
+    for label, solref, solimp in (
+        ("twin default", DEFAULT_SOLREF, DEFAULT_SOLIMP),
+        ("d = 0.99", DEFAULT_SOLREF, loose),
+        ("MuJoCo default", MUJOCO_SOLREF, MUJOCO_SOLIMP),
+    ):
         acc = acceleration_error(params, solref, solimp)
         r = trajectory_report(params, solref=solref, solimp=solimp)
-        lines.append(f"| {label} ({number_list(solref)}; {solimp[0]:g}) | {acc:.2e} | {r['closure_max']:.2e} m "
-                     f"| {r['energy_drift']:.2e} J / {r['kinetic_energy']:.3g} J | {r['position_difference']:.2e} m |")
+        lines.append(
+            f"| {label} ({number_list(solref)}; {solimp[0]:g}) | {acc:.2e} | {r['closure_max']:.2e} m "
+            f"| {r['energy_drift']:.2e} J / {r['kinetic_energy']:.3g} J | {r['position_difference']:.2e} m |"
+        )
     position, angle = holding_drift(params)
     held, omitted = plant_difference(params), plant_difference(params, spherical_friction=False)
-    lines += ["", f"holding forces of `inverse`, 1 s: platform drifts {position:.2e} m and {angle:.2e} rad",
-              f"spherical-joint friction C_s (not in the MJCF model) changes the improved model's acceleration by "
-              f"{spherical_friction_effect(params):.2e} (m/s^2, rad/s^2) at the same state",
-              f"MujocoPlant vs improved after 1 s of motion in 10 ms steps: {held[0]:.2e} m, {held[1]:.2e} rad with "
-              f"C_s held over each step; {omitted[0]:.2e} m, {omitted[1]:.2e} rad without"]
+    lines += [
+        "",
+        f"holding forces of `inverse`, 1 s: platform drifts {position:.2e} m and {angle:.2e} rad",
+        f"spherical-joint friction C_s (not in the MJCF model) changes the improved model's acceleration by "
+        f"{spherical_friction_effect(params):.2e} (m/s^2, rad/s^2) at the same state",
+        f"MujocoPlant vs improved after 1 s of motion in 10 ms steps: {held[0]:.2e} m, {held[1]:.2e} rad with "
+        f"C_s held over each step; {omitted[0]:.2e} m, {omitted[1]:.2e} rad without",
+    ]
     return "\n".join(lines)

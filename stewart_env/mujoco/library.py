@@ -22,8 +22,9 @@ def require_mujoco():
     """The ``mujoco`` module.  Raises ``stewart_env.extras.MissingExtra`` (an ImportError)
     naming the extra when it is not installed."""
     if _mj is None:
-        raise MissingExtra(f"stewart_env.mujoco: the package 'mujoco' is not installed; {install_hint('mujoco')}",
-                           "mujoco")
+        raise MissingExtra(
+            f"stewart_env.mujoco: the package 'mujoco' is not installed; {install_hint('mujoco')}", "mujoco"
+        )
     return _mj
 
 

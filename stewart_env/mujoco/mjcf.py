@@ -35,8 +35,7 @@ from stewart_env.mujoco.library import require_mujoco
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 
-__all__ = ["DEFAULT_SOLIMP", "DEFAULT_SOLREF", "MAX_TIMESTEP", "home_rotation", "number_list", "quaternion",
-           "to_mjcf"]
+__all__ = ["DEFAULT_SOLIMP", "DEFAULT_SOLREF", "MAX_TIMESTEP", "home_rotation", "number_list", "quaternion", "to_mjcf"]
 
 #: Time constant (s) and damping ratio of the loop-closure constraints' error correction.
 #: 0.002 s is the smallest MuJoCo accepts at a 1 ms step (it raises any smaller value to twice
@@ -94,8 +93,14 @@ def _check_pair(name: str, value, size: int) -> tuple[float, ...]:
     return v
 
 
-def to_mjcf(params: PlatformParams, timestep: float = 1e-3, solref: Sequence[float] = DEFAULT_SOLREF,
-            solimp: Sequence[float] = DEFAULT_SOLIMP, integrator: str = "RK4", geometry: bool = True) -> str:
+def to_mjcf(
+    params: PlatformParams,
+    timestep: float = 1e-3,
+    solref: Sequence[float] = DEFAULT_SOLREF,
+    solimp: Sequence[float] = DEFAULT_SOLIMP,
+    integrator: str = "RK4",
+    geometry: bool = True,
+) -> str:
     """MJCF text of the mechanism of ``params`` (see the module docstring), at its home pose.
 
     Names in the model: bodies ``platform``, ``lower_i``, ``upper_i``; joints ``platform``
@@ -155,16 +160,20 @@ def to_mjcf(params: PlatformParams, timestep: float = 1e-3, solref: Sequence[flo
         f'  <option timestep="{number_list(timestep)}" integrator="{integrator}" gravity="{number_list(params.gravity)}" '
         'solver="Newton" iterations="100" tolerance="1e-12">',
         '    <flag contact="disable"/>',
-        '  </option>',
+        "  </option>",
         '  <default><geom contype="0" conaffinity="0" group="1" rgba="0.6 0.6 0.7 1"/></default>',
-        '  <worldbody>',
+        "  <worldbody>",
     ]
     width = 0.02 * float(np.mean(legs.lengths))
     if geometry:
         b = params.base_joints
-        out.append(f'    <light directional="true" pos="{number_list(t0 + [0, 0, 3 * np.mean(legs.lengths)])}" dir="0 0 -1"/>')
+        out.append(
+            f'    <light directional="true" pos="{number_list(t0 + [0, 0, 3 * np.mean(legs.lengths)])}" dir="0 0 -1"/>'
+        )
         for i in range(6):
-            out.append(f'    <geom type="capsule" size="{width:.4g}" fromto="{number_list(b[i])} {number_list(b[(i + 1) % 6])}"/>')
+            out.append(
+                f'    <geom type="capsule" size="{width:.4g}" fromto="{number_list(b[i])} {number_list(b[(i + 1) % 6])}"/>'
+            )
     for i in range(6):
         T = legs.frames[i]
         L = legs.lengths[i]
@@ -176,7 +185,9 @@ def to_mjcf(params: PlatformParams, timestep: float = 1e-3, solref: Sequence[flo
             _inertial(lo.mass, lo.com, lo.inertia, "      "),
         ]
         if geometry:
-            out.append(f'      <geom type="capsule" size="{1.5 * width:.4g}" fromto="0 0 0 {number_list(0.55 * L)} 0 0"/>')
+            out.append(
+                f'      <geom type="capsule" size="{1.5 * width:.4g}" fromto="0 0 0 {number_list(0.55 * L)} 0 0"/>'
+            )
         out += [
             f'      <body name="upper_{i}">',
             f'        <joint name="slide_{i}" type="slide" axis="1 0 0" damping="{number_list(d.prismatic)}"/>',
@@ -184,9 +195,11 @@ def to_mjcf(params: PlatformParams, timestep: float = 1e-3, solref: Sequence[flo
             f'        <site name="tip_{i}" pos="{number_list(L)} 0 0"/>',
         ]
         if geometry:
-            out.append(f'        <geom type="capsule" size="{width:.4g}" fromto="{number_list(0.4 * L)} 0 0 {number_list(L)} 0 0" '
-                       'rgba="0.8 0.8 0.85 1"/>')
-        out += ['      </body>', '    </body>']
+            out.append(
+                f'        <geom type="capsule" size="{width:.4g}" fromto="{number_list(0.4 * L)} 0 0 {number_list(L)} 0 0" '
+                'rgba="0.8 0.8 0.85 1"/>'
+            )
+        out += ["      </body>", "    </body>"]
     p = params.platform
     out += [
         f'    <body name="platform" pos="{number_list(t0)}" quat="{number_list(quaternion(R0))}">',
@@ -197,13 +210,18 @@ def to_mjcf(params: PlatformParams, timestep: float = 1e-3, solref: Sequence[flo
         out.append(f'      <site name="joint_{i}" pos="{number_list(params.platform_joints[i])}"/>')
         if geometry:
             pj = params.platform_joints
-            out.append(f'      <geom type="capsule" size="{width:.4g}" fromto="{number_list(pj[i])} {number_list(pj[(i + 1) % 6])}" '
-                       'rgba="0.3 0.5 0.8 1"/>')
-    out += ['    </body>', '  </worldbody>', '  <equality>']
+            out.append(
+                f'      <geom type="capsule" size="{width:.4g}" fromto="{number_list(pj[i])} {number_list(pj[(i + 1) % 6])}" '
+                'rgba="0.3 0.5 0.8 1"/>'
+            )
+    out += ["    </body>", "  </worldbody>", "  <equality>"]
     out += [f'    <connect name="loop_{i}" site1="tip_{i}" site2="joint_{i}" {eq}/>' for i in range(6)]
-    out += ['  </equality>', '  <actuator>']
-    out += [f'    <motor name="leg_{i}" joint="slide_{i}" gear="1" ctrlrange="{number_list((lo_f, hi_f))}"/>' for i in range(6)]
-    out += ['  </actuator>', '</mujoco>', '']
+    out += ["  </equality>", "  <actuator>"]
+    out += [
+        f'    <motor name="leg_{i}" joint="slide_{i}" gear="1" ctrlrange="{number_list((lo_f, hi_f))}"/>'
+        for i in range(6)
+    ]
+    out += ["  </actuator>", "</mujoco>", ""]
     return "\n".join(out)
 
 
@@ -218,7 +236,8 @@ def home_rotation(params: PlatformParams) -> np.ndarray:
 
 def _inertial(mass: float, com, inertia: np.ndarray, indent: str) -> str:
     if mass <= 0:
-        raise ValueError("params: a massless leg part cannot be a MuJoCo body (MuJoCo needs mass and inertia "
-                         "on every moving body); give it a small mass")
+        raise ValueError(
+            "params: a massless leg part cannot be a MuJoCo body (MuJoCo needs mass and inertia "
+            "on every moving body); give it a small mass"
+        )
     return f'{indent}<inertial pos="{number_list(com)}" mass="{number_list(mass)}" fullinertia="{_full_inertia(inertia)}"/>'
-

@@ -65,12 +65,26 @@ class MujocoPlant:
     name = "mujoco"
     #: What a copy or pickle carries: the settings and the arrays of the simulation; MuJoCo's
     #: compiled models, data and thread pool are rebuilt from them (:meth:`__setstate__`).
-    _CARRIED = ("params", "_settings", "_nthread", "spherical_friction", "_states", "_control", "_last",
-                "closure_error")
+    _CARRIED = (
+        "params",
+        "_settings",
+        "_nthread",
+        "spherical_friction",
+        "_states",
+        "_control",
+        "_last",
+        "closure_error",
+    )
 
-    def __init__(self, params_rows: PlatformParams | Sequence[PlatformParams], timestep: float = 1e-3,
-                 solref: Sequence[float] = DEFAULT_SOLREF, solimp: Sequence[float] = DEFAULT_SOLIMP,
-                 nthread: int | None = None, spherical_friction: bool = True):
+    def __init__(
+        self,
+        params_rows: PlatformParams | Sequence[PlatformParams],
+        timestep: float = 1e-3,
+        solref: Sequence[float] = DEFAULT_SOLREF,
+        solimp: Sequence[float] = DEFAULT_SOLIMP,
+        nthread: int | None = None,
+        spherical_friction: bool = True,
+    ):
         mj = require_mujoco()
         rows = [params_rows] if isinstance(params_rows, PlatformParams) else list(params_rows)
         if not rows or not all(isinstance(p, PlatformParams) for p in rows):
@@ -78,9 +92,12 @@ class MujocoPlant:
         n = len(rows)
         self.params = tuple(rows)
         self._settings = (timestep, tuple(solref), tuple(solimp))
-        if nthread is not None and (isinstance(nthread, bool) or not isinstance(nthread, (int, np.integer))
-                                    or nthread < 0):
-            raise ValueError(f"nthread: expected a non-negative integer (0: the calling thread) or None, got {nthread!r}")
+        if nthread is not None and (
+            isinstance(nthread, bool) or not isinstance(nthread, (int, np.integer)) or nthread < 0
+        ):
+            raise ValueError(
+                f"nthread: expected a non-negative integer (0: the calling thread) or None, got {nthread!r}"
+            )
         self._nthread = ((os.cpu_count() or 1) if n > 1 else 0) if nthread is None else int(nthread)
         self.spherical_friction = bool(spherical_friction)
         self._build()
@@ -89,8 +106,12 @@ class MujocoPlant:
         self._control = np.zeros((n, mj.mj_stateSize(m, self._control_spec)))
         self.closure_error = np.full(n, np.nan)
         # The state each row returned last: a row given anything else was reset or set by the caller.
-        self._last = (np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan), np.full((n, 3), np.nan),
-                      np.full((n, 3), np.nan))
+        self._last = (
+            np.full((n, 3), np.nan),
+            np.full((n, 3, 3), np.nan),
+            np.full((n, 3), np.nan),
+            np.full((n, 3), np.nan),
+        )
 
     def _build(self) -> None:
         """MuJoCo's side of the plant from ``params`` and the settings: compiled models (shared by
@@ -172,8 +193,9 @@ class MujocoPlant:
         (the batch steps it with :meth:`step_inplace`)."""
         return None
 
-    def step_inplace(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench,
-                     dt: float, steps: int) -> None:
+    def step_inplace(
+        self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench, dt: float, steps: int
+    ) -> None:
         """Advance every row by ``steps`` MuJoCo steps of ``dt`` s, leg forces (N,6) and external
         wrench (N,6) [force at P, N; moment, N m; {B}] held constant; overwrite position (N,3),
         rotation (N,3,3), velocity (N,3) and angular_velocity (N,3) (platform P's origin, {B},
@@ -184,9 +206,15 @@ class MujocoPlant:
         that is not finite, or that MuJoCo finds diverging, comes back NaN and stays so."""
         mj = require_mujoco()
         state = (position, rotation, velocity, angular_velocity)
-        alive = (np.isfinite(position).all(1) & np.isfinite(rotation).all((1, 2)) & np.isfinite(velocity).all(1)
-                 & np.isfinite(angular_velocity).all(1))
-        changed = alive & ~np.all([np.equal(x, y).reshape(len(x), -1).all(1) for x, y in zip(state, self._last)], axis=0)
+        alive = (
+            np.isfinite(position).all(1)
+            & np.isfinite(rotation).all((1, 2))
+            & np.isfinite(velocity).all(1)
+            & np.isfinite(angular_velocity).all(1)
+        )
+        changed = alive & ~np.all(
+            [np.equal(x, y).reshape(len(x), -1).all(1) for x, y in zip(state, self._last)], axis=0
+        )
         for i in np.flatnonzero(changed):
             tw = self.twins[i]
             scratch = self._scratch[id(tw)]
@@ -197,7 +225,7 @@ class MujocoPlant:
         # leg forces as controls, the wrench as MuJoCo's applied force on the platform
         control = self._control
         control[:, :6] = leg_forces
-        control[:, self._xfrc:self._xfrc + 6] = wrench_at_com(rotation, self._com, external_wrench)
+        control[:, self._xfrc : self._xfrc + 6] = wrench_at_com(rotation, self._com, external_wrench)
         if self.spherical_friction and alive.any():
             self._spherical_friction(alive, state)
         rows = np.flatnonzero(alive)
@@ -211,8 +239,16 @@ class MujocoPlant:
             controls[:] = (control if every else control[rows])[:, None, :]
             out = np.empty((rows.size, steps, self._states.shape[1]))
             with quiet_mujoco():
-                self._pool.rollout(models, self._datas, initial, controls, control_spec=self._control_spec,
-                                   state=out, nstep=steps, skip_checks=True)
+                self._pool.rollout(
+                    models,
+                    self._datas,
+                    initial,
+                    controls,
+                    control_spec=self._control_spec,
+                    state=out,
+                    nstep=steps,
+                    skip_checks=True,
+                )
             end = initial[:, 0] + steps * dt
             self._states[rows] = out[:, -1]
             # MuJoCo resets a diverging simulation to its home pose and time 0: the clock tells
@@ -232,28 +268,37 @@ class MujocoPlant:
         torque = -cs[:, None, None] * (omega - angular_velocity[:, None, :])  # on each leg
         control = self._control
         for leg, at in enumerate(self._uppers):
-            control[rows, at:at + 3] = 0.0
-            control[rows, at + 3:at + 6] = torque[:, leg]
-        control[rows, self._xfrc + 3:self._xfrc + 6] -= torque.sum(axis=1)
+            control[rows, at : at + 3] = 0.0
+            control[rows, at + 3 : at + 6] = torque[:, leg]
+        control[rows, self._xfrc + 3 : self._xfrc + 6] -= torque.sum(axis=1)
 
     def _write(self, alive, state) -> None:
         """The platform state of every live row from MuJoCo's state vectors; NaN for the others."""
         mj = require_mujoco()
         position, rotation, velocity, angular_velocity = state
         s = self._states
-        quat = s[:, self._q + 3:self._q + 7]
+        quat = s[:, self._q + 3 : self._q + 7]
         quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
         w, x, y, z = quat.T
-        R = np.stack([
-            1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-            2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-            2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
-        ], axis=1).reshape(-1, 3, 3)
-        position[alive] = s[alive, self._q:self._q + 3]
+        R = np.stack(
+            [
+                1 - 2 * (y * y + z * z),
+                2 * (x * y - w * z),
+                2 * (x * z + w * y),
+                2 * (x * y + w * z),
+                1 - 2 * (x * x + z * z),
+                2 * (y * z - w * x),
+                2 * (x * z - w * y),
+                2 * (y * z + w * x),
+                1 - 2 * (x * x + y * y),
+            ],
+            axis=1,
+        ).reshape(-1, 3, 3)
+        position[alive] = s[alive, self._q : self._q + 3]
         rotation[alive] = R[alive]
-        velocity[alive] = s[alive, self._v:self._v + 3]
+        velocity[alive] = s[alive, self._v : self._v + 3]
         # MuJoCo's free joint carries the angular velocity in the body frame
-        angular_velocity[alive] = np.einsum("nij,nj->ni", R[alive], s[alive, self._v + 3:self._v + 6])
+        angular_velocity[alive] = np.einsum("nij,nj->ni", R[alive], s[alive, self._v + 3 : self._v + 6])
         for i in np.flatnonzero(alive):
             tw = self.twins[i]
             scratch = self._scratch[id(tw)]

@@ -85,10 +85,10 @@ class Twin:
         qvel[self.v_u1] = np.einsum("ij,ij->i", k, legs.omega)
         qvel[self.v_u2] = np.einsum("ij,ij->i", y, legs.omega)
         qvel[self.v_slide] = legs.rates
-        qpos[self.q_free:self.q_free + 3] = t
-        qpos[self.q_free + 3:self.q_free + 7] = quaternion(R)
-        qvel[self.v_free:self.v_free + 3] = v
-        qvel[self.v_free + 3:self.v_free + 6] = R.T @ w  # MuJoCo's free joint: angular velocity in the body frame
+        qpos[self.q_free : self.q_free + 3] = t
+        qpos[self.q_free + 3 : self.q_free + 7] = quaternion(R)
+        qvel[self.v_free : self.v_free + 3] = v
+        qvel[self.v_free + 3 : self.v_free + 6] = R.T @ w  # MuJoCo's free joint: angular velocity in the body frame
         mj.mj_forward(self.model, data)
 
     def closure_gap(self, data) -> float:
@@ -135,9 +135,18 @@ def wrench_at_com(R: np.ndarray, com: np.ndarray, wrench: np.ndarray) -> np.ndar
     return out
 
 
-def model_and_data(params: PlatformParams, position, rotation, velocity=None, angular_velocity=None,
-                   leg_forces=None, external_wrench=None, timestep: float = 1e-3,
-                   solref: Sequence[float] = DEFAULT_SOLREF, solimp: Sequence[float] = DEFAULT_SOLIMP):
+def model_and_data(
+    params: PlatformParams,
+    position,
+    rotation,
+    velocity=None,
+    angular_velocity=None,
+    leg_forces=None,
+    external_wrench=None,
+    timestep: float = 1e-3,
+    solref: Sequence[float] = DEFAULT_SOLREF,
+    solimp: Sequence[float] = DEFAULT_SOLIMP,
+):
     """MuJoCo's ``(MjModel, MjData)`` of the twin of ``params`` at a platform state.
 
     Ready for ``mujoco.mj_forward`` or ``mj_step``: the legs' joints set by inverse kinematics so
@@ -171,8 +180,13 @@ def model_and_data(params: PlatformParams, position, rotation, velocity=None, an
     tw = Twin(params, timestep, solref, solimp)
     d = mj.MjData(tw.model)
     tw.set_state(d, t, R, v, w)
-    tw.set_wrench(d, t, R, np.zeros(6) if leg_forces is None else np.asarray(leg_forces, float),
-                  np.zeros(6) if external_wrench is None else np.asarray(external_wrench, float))
+    tw.set_wrench(
+        d,
+        t,
+        R,
+        np.zeros(6) if leg_forces is None else np.asarray(leg_forces, float),
+        np.zeros(6) if external_wrench is None else np.asarray(external_wrench, float),
+    )
     return tw.model, d
 
 
@@ -207,5 +221,5 @@ def platform_acceleration(model, data) -> tuple[np.ndarray, np.ndarray]:
     mj = require_mujoco()
     joint = mj.mj_name2id(model, mj.mjtObj.mjOBJ_JOINT, "platform")
     body = mj.mj_name2id(model, mj.mjtObj.mjOBJ_BODY, "platform")
-    acc = data.qacc[model.jnt_dofadr[joint]:model.jnt_dofadr[joint] + 6]
+    acc = data.qacc[model.jnt_dofadr[joint] : model.jnt_dofadr[joint] + 6]
     return acc[:3].copy(), data.xmat[body].reshape(3, 3) @ acc[3:]

@@ -98,8 +98,7 @@ class RigidBody(_ValueObject):
             inertia = np.diag(inertia)
         eigenvalues = _symmetric_eigenvalues(inertia, "inertia")
         if eigenvalues[0] < -1e-12 * float(np.max(np.abs(eigenvalues))):
-            raise ConfigError("inertia",
-                              f"not positive semidefinite (eigenvalues {eigenvalues.tolist()})")
+            raise ConfigError("inertia", f"not positive semidefinite (eigenvalues {eigenvalues.tolist()})")
         if mass == 0 and np.any(inertia != 0):
             raise ConfigError("inertia", "must be zero for a massless body (mass 0)")
         set_field(self, "mass", mass)

@@ -109,7 +109,7 @@ def excerpt(text: str, limit: int = EXCERPT) -> str:
         text: the text.
         limit: the most characters kept, the ellipsis included.
     """
-    return text if len(text) <= limit else text[:limit - 3] + "..."
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 class _ShortRepr(reprlib.Repr):

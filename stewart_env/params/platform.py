@@ -37,8 +37,7 @@ _DEFAULT_MAX_CONDITION = 1000.0
 MIN_PLATFORM_MASS = 1e-6
 MIN_PLATFORM_INERTIA = 1e-15
 
-_TOP_KEYS_REQUIRED = ("base_joints", "platform_joints", "hooke_axes", "platform", "upper_leg",
-                      "lower_leg", "damping")
+_TOP_KEYS_REQUIRED = ("base_joints", "platform_joints", "hooke_axes", "platform", "upper_leg", "lower_leg", "damping")
 _TOP_KEYS_OPTIONAL = ("gravity", "limits", "home")
 
 
@@ -109,11 +108,12 @@ class PlatformParams(_ValueObject):
         _check_platform_mass(platform.mass)
         eigenvalues = np.linalg.eigvalsh(platform.inertia)
         if eigenvalues[0] <= 1e-12 * eigenvalues[-1]:
-            raise ConfigError("platform.inertia",
-                              f"not positive definite (eigenvalues {eigenvalues.tolist()})")
+            raise ConfigError("platform.inertia", f"not positive definite (eigenvalues {eigenvalues.tolist()})")
         if eigenvalues[0] < MIN_PLATFORM_INERTIA:
-            raise ConfigError("platform.inertia", f"smallest principal moment {eigenvalues[0]:.3g} is "
-                                                  f"below {MIN_PLATFORM_INERTIA:g} kg m^2")
+            raise ConfigError(
+                "platform.inertia",
+                f"smallest principal moment {eigenvalues[0]:.3g} is below {MIN_PLATFORM_INERTIA:g} kg m^2",
+            )
         upper = _legs(self.upper_leg, "upper_leg")
         lower = _legs(self.lower_leg, "lower_leg")
         _instance(self.damping, Damping, "damping")
@@ -192,8 +192,9 @@ class PlatformParams(_ValueObject):
             ) from None
 
         with within("limits"):
-            limits = _limits_from_config(d.get("limits", {}), lengths, position, gravity,
-                                         platform.mass + N_LEGS * _mean_mass(upper, lower))
+            limits = _limits_from_config(
+                d.get("limits", {}), lengths, position, gravity, platform.mass + N_LEGS * _mean_mass(upper, lower)
+            )
         return cls(
             name=name,
             base_joints=base,
@@ -280,8 +281,9 @@ def from_text(text: str, name: str, source: str) -> PlatformParams:
 # The home pose, as far as validation needs it.
 
 
-def _home_leg_lengths(base: np.ndarray, plat: np.ndarray, hooke: np.ndarray,
-                      position: np.ndarray, rpy: np.ndarray) -> np.ndarray:
+def _home_leg_lengths(
+    base: np.ndarray, plat: np.ndarray, hooke: np.ndarray, position: np.ndarray, rpy: np.ndarray
+) -> np.ndarray:
     """Leg lengths L_i (6,) at a pose, m, after checking that every leg has a direction and that
     no fixed Hooke axis is parallel to its leg (where the U-joint frame is undefined)."""
     q = plat @ rpy_to_matrix(rpy).T
@@ -296,8 +298,7 @@ def _home_leg_lengths(base: np.ndarray, plat: np.ndarray, hooke: np.ndarray,
         sine = float(np.linalg.norm(np.cross(hooke[i], e[i])))
         if sine < _MIN_HOOKE_SINE:
             angle = np.degrees(np.arcsin(min(sine, 1.0)))
-            raise ConfigError(f"hooke_axes[{i}]",
-                              f"parallel to leg {i} at the home pose (angle {angle:.1f} deg)")
+            raise ConfigError(f"hooke_axes[{i}]", f"parallel to leg {i} at the home pose (angle {angle:.1f} deg)")
     return lengths
 
 
@@ -327,8 +328,7 @@ def _legs(value: object, key: str) -> tuple[RigidBody, ...]:
     """Six leg parts from one shared RigidBody or a sequence of six."""
     if isinstance(value, RigidBody):
         return (value,) * N_LEGS
-    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, Sequence) \
-            or len(value) != N_LEGS:
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, Sequence) or len(value) != N_LEGS:
         raise ConfigError(key, f"expected a RigidBody or a sequence of six, got {describe(value)}")
     for i, body in enumerate(value):
         if not isinstance(body, RigidBody):
@@ -363,13 +363,13 @@ def _mean_mass(upper: tuple[RigidBody, ...], lower: tuple[RigidBody, ...]) -> fl
     return float(np.mean([u.mass + d.mass for u, d in zip(upper, lower)]))
 
 
-def _limits_from_config(value: object, lengths: np.ndarray, position: np.ndarray,
-                        gravity: np.ndarray, total_mass: float) -> Limits:
+def _limits_from_config(
+    value: object, lengths: np.ndarray, position: np.ndarray, gravity: np.ndarray, total_mass: float
+) -> Limits:
     """Limits from the config's `limits` mapping, each missing entry replaced by its default
     (the schema of stewart_env.params), computed from the home leg lengths, home position and the weight."""
     limits = mapping(value, "", (), ("leg_length", "leg_force", "workspace", "max_condition"))
-    workspace = mapping(limits.get("workspace", {}), "workspace", (),
-                        ("position_min", "position_max", "max_angle"))
+    workspace = mapping(limits.get("workspace", {}), "workspace", (), ("position_min", "position_max", "max_angle"))
     g = float(np.linalg.norm(gravity)) or _G0
     leg_weight = total_mass * g / N_LEGS
     half_box = 0.5 * float(np.mean(lengths))

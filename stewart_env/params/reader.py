@@ -89,11 +89,13 @@ class _ConfigLoader(yaml.SafeLoader):
         self._nodes += 1
         try:
             if self._depth > _MAX_YAML_DEPTH:
-                raise yaml.composer.ComposerError(None, None, f"nested more than {_MAX_YAML_DEPTH} levels deep",
-                                                  self.peek_event().start_mark)
+                raise yaml.composer.ComposerError(
+                    None, None, f"nested more than {_MAX_YAML_DEPTH} levels deep", self.peek_event().start_mark
+                )
             if self._nodes > _MAX_YAML_VALUES:
-                raise yaml.composer.ComposerError(None, None, f"more than {_MAX_YAML_VALUES} values",
-                                                  self.peek_event().start_mark)
+                raise yaml.composer.ComposerError(
+                    None, None, f"more than {_MAX_YAML_VALUES} values", self.peek_event().start_mark
+                )
             return super().compose_node(parent, index)
         finally:
             self._depth -= 1
@@ -111,15 +113,19 @@ class _ConfigLoader(yaml.SafeLoader):
                 if isinstance(key_node, yaml.ScalarNode) and key_node.tag != "tag:yaml.org,2002:merge":
                     if (key_node.tag, key_node.value) in seen:
                         raise yaml.constructor.ConstructorError(
-                            "while constructing a mapping", node.start_mark,
-                            f"duplicate key {key_names([key_node.value])}", key_node.start_mark)
+                            "while constructing a mapping",
+                            node.start_mark,
+                            f"duplicate key {key_names([key_node.value])}",
+                            key_node.start_mark,
+                        )
                     seen.add((key_node.tag, key_node.value))
         return super().construct_mapping(node, deep)
 
     def construct_yaml_int(self, node):
         if len(node.value) > _MAX_INT_LITERAL:
             raise yaml.constructor.ConstructorError(
-                None, None, f"an integer literal of {len(node.value)} characters", node.start_mark)
+                None, None, f"an integer literal of {len(node.value)} characters", node.start_mark
+            )
         return super().construct_yaml_int(node)
 
 
@@ -149,8 +155,9 @@ def _check_expansion(root: yaml.Node) -> None:
             if key in sizes:
                 continue
             if key in started:  # reached again from inside its own expansion
-                raise yaml.constructor.ConstructorError(None, None, "an alias refers to its own anchor",
-                                                        node.start_mark)
+                raise yaml.constructor.ConstructorError(
+                    None, None, "an alias refers to its own anchor", node.start_mark
+                )
             started.add(key)
             stack.append((node, True))
             stack.extend((child, False) for child in _children(node))
@@ -161,9 +168,9 @@ def _check_expansion(root: yaml.Node) -> None:
         started.discard(key)
         if sizes[key] > _MAX_YAML_VALUES:
             raise yaml.constructor.ConstructorError(
-                None, None, f"more than {_MAX_YAML_VALUES} values (after expanding aliases)", node.start_mark)
+                None, None, f"more than {_MAX_YAML_VALUES} values (after expanding aliases)", node.start_mark
+            )
         if depths[key] > _MAX_YAML_DEPTH:
             raise yaml.constructor.ConstructorError(
-                None, None, f"nested more than {_MAX_YAML_DEPTH} levels deep (after expanding aliases)",
-                node.start_mark)
-
+                None, None, f"nested more than {_MAX_YAML_DEPTH} levels deep (after expanding aliases)", node.start_mark
+            )

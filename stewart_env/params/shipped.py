@@ -38,8 +38,7 @@ def available_platforms() -> list[str]:
     directory = config_dir("platforms")
     if not directory.is_dir():
         return []
-    return sorted(entry.name.removesuffix(".yaml") for entry in directory.iterdir()
-                  if entry.name.endswith(".yaml"))
+    return sorted(entry.name.removesuffix(".yaml") for entry in directory.iterdir() if entry.name.endswith(".yaml"))
 
 
 def is_shipped_name(name_or_path: object) -> bool:
@@ -60,8 +59,7 @@ def is_shipped_name(name_or_path: object) -> bool:
     if not isinstance(name_or_path, str):
         return False
     separators = {"/", os.sep} | ({os.altsep} if os.altsep else set())
-    return (not any(sep in name_or_path for sep in separators)
-            and not name_or_path.lower().endswith(CONFIG_SUFFIXES))
+    return not any(sep in name_or_path for sep in separators) and not name_or_path.lower().endswith(CONFIG_SUFFIXES)
 
 
 #: The rule of :func:`is_shipped_name`, for platforms.
@@ -101,12 +99,19 @@ def load_platform(name_or_path: str | os.PathLike) -> PlatformParams:
     if not is_platform_name(name_or_path):
         if not text.lower().endswith(CONFIG_SUFFIXES):  # named as given: "./dasgupta1998", not "dasgupta1998"
             names = ", ".join(available_platforms()) or "none"
-            raise ConfigError("", f"not a platform config: a config file's name ends in .yaml or .yml; a shipped "
-                                  f"platform is named by a string alone, with no path ({names})", text)
+            raise ConfigError(
+                "",
+                f"not a platform config: a config file's name ends in .yaml or .yml; a shipped "
+                f"platform is named by a string alone, with no path ({names})",
+                text,
+            )
         return PlatformParams.from_yaml(Path(text))
     if text not in available_platforms():
         available = ", ".join(available_platforms()) or "none"
-        raise ConfigError("", f"unknown platform {describe(text)}; available: {available} (a config file's path "
-                              "has a / or ends in .yaml or .yml)")
+        raise ConfigError(
+            "",
+            f"unknown platform {describe(text)}; available: {available} (a config file's path "
+            "has a / or ends in .yaml or .yml)",
+        )
     resource = config_dir("platforms") / f"{text}.yaml"
     return from_text(resource.read_text(encoding="utf-8"), text, f"{text}.yaml")

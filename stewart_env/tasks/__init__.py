@@ -48,8 +48,13 @@ __all__ = [
 ]
 
 
-def make_task(task: str | type[Task], params: PlatformParams, control_dt: float,
-              options: dict[str, Any] | None = None, version: int | None = None) -> Task:
+def make_task(
+    task: str | type[Task],
+    params: PlatformParams,
+    control_dt: float,
+    options: dict[str, Any] | None = None,
+    version: int | None = None,
+) -> Task:
     """The task ``task`` on ``params`` with ``options``, as under the environment's ``version``.
 
     Args:

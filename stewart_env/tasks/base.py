@@ -100,9 +100,12 @@ class Scales(NamedTuple):
     @classmethod
     def of(cls, params: PlatformParams) -> Scales:
         lim = params.limits
-        return cls(position=0.5 * (lim.position_max - lim.position_min), angle=lim.max_angle,
-                   leg_length=0.5 * (lim.leg_length[1] - lim.leg_length[0]),
-                   leg_force=0.5 * (lim.leg_force[1] - lim.leg_force[0]))
+        return cls(
+            position=0.5 * (lim.position_max - lim.position_min),
+            angle=lim.max_angle,
+            leg_length=0.5 * (lim.leg_length[1] - lim.leg_length[0]),
+            leg_force=0.5 * (lim.leg_force[1] - lim.leg_force[0]),
+        )
 
 
 #: Bounds of the reward weights and scales (see :class:`RewardWeights`).
@@ -122,8 +125,7 @@ BASE_REWARD_SCALES = (0.05, 0.1)
 PRECISE_REWARD_SCALES = (0.01, 0.02)
 #: The options of a precise task whose defaults were BASE_REWARD_SCALES under version 0 of the
 #: environment (``StewartPlatform-v0``): its ``Task.version_defaults`` entry.
-BASE_SCALE_OPTIONS = {"position_reward_scale": BASE_REWARD_SCALES[0],
-                      "orientation_reward_scale": BASE_REWARD_SCALES[1]}
+BASE_SCALE_OPTIONS = {"position_reward_scale": BASE_REWARD_SCALES[0], "orientation_reward_scale": BASE_REWARD_SCALES[1]}
 
 
 @dataclass(frozen=True)
@@ -168,8 +170,11 @@ class RewardWeights:
 
     def __post_init__(self) -> None:
         for name, value in vars(self).items():
-            checked = (real(option(name), value, 0.0, MAX_SCALE, low_open=True) if name.endswith("_scale")
-                       else real(option(name), value, 0.0, MAX_WEIGHT))
+            checked = (
+                real(option(name), value, 0.0, MAX_SCALE, low_open=True)
+                if name.endswith("_scale")
+                else real(option(name), value, 0.0, MAX_WEIGHT)
+            )
             object.__setattr__(self, name, checked)
 
 
@@ -184,8 +189,7 @@ def errors_in(vectors: np.ndarray, norms: np.ndarray) -> tuple[Errors, np.ndarra
     return Errors(*vectors, *norms), norms.T
 
 
-def tracking_errors(state: PlatformState, reference: Reference,
-                    out: tuple[Errors, np.ndarray] | None = None) -> Errors:
+def tracking_errors(state: PlatformState, reference: Reference, out: tuple[Errors, np.ndarray] | None = None) -> Errors:
     """Reference minus actual, for a batch (see :class:`Errors`).
 
     Args:
@@ -197,8 +201,15 @@ def tracking_errors(state: PlatformState, reference: Reference,
         The :class:`Errors`.
     """
     errors, norms = out if out is not None else empty_errors(state.position.shape[0])
-    _core.tracking_errors(*state, reference.position, reference.rotation, reference.velocity,
-                          reference.angular_velocity, *errors[:4], norms.T)
+    _core.tracking_errors(
+        *state,
+        reference.position,
+        reference.rotation,
+        reference.velocity,
+        reference.angular_velocity,
+        *errors[:4],
+        norms.T,
+    )
     return errors
 
 
@@ -270,8 +281,10 @@ class SuccessCriterion:
 
     def __post_init__(self) -> None:
         if not (self.position_tolerance > 0 and self.orientation_tolerance > 0):
-            raise ValueError(f"position_tolerance, orientation_tolerance: must be positive, got "
-                             f"{self.position_tolerance}, {self.orientation_tolerance}")
+            raise ValueError(
+                f"position_tolerance, orientation_tolerance: must be positive, got "
+                f"{self.position_tolerance}, {self.orientation_tolerance}"
+            )
         if not 0 <= self.final_window <= 1:
             raise ValueError(f"final_window: a fraction of the episode in [0, 1], got {self.final_window}")
 
@@ -351,8 +364,9 @@ class SuccessTracker:
         """:meth:`start` for one row, in Python numbers."""
         self.latest_outside[row] = -math.inf if self.criterion.inside(position_norm, orientation_norm) else 0.0
 
-    def step(self, time: np.ndarray, position_norm: np.ndarray, orientation_norm: np.ndarray,
-             terminated: np.ndarray) -> np.ndarray:
+    def step(
+        self, time: np.ndarray, position_norm: np.ndarray, orientation_norm: np.ndarray, terminated: np.ndarray
+    ) -> np.ndarray:
         """Take every row's sample after a step and judge its episode as if it ended there.
 
         Args:
@@ -368,8 +382,7 @@ class SuccessTracker:
         np.copyto(self.latest_outside, time, where=~criterion.inside(position_norm, orientation_norm))
         return ~terminated & criterion.holds(self.latest_outside, 0.0, time)
 
-    def step_row(self, row: int, time: float, position_norm: float, orientation_norm: float,
-                 terminated: bool) -> bool:
+    def step_row(self, row: int, time: float, position_norm: float, orientation_norm: float, terminated: bool) -> bool:
         """:meth:`step` for one row, in Python numbers (a fraction of the array version's cost,
         for a batch of a few rows): the same comparisons of the same numbers."""
         criterion = self.criterion
@@ -379,8 +392,13 @@ class SuccessTracker:
         return not terminated and criterion.holds(self.latest_outside.item(row), 0.0, time)
 
 
-def pose_margins(params: PlatformParams | Dynamics, position: np.ndarray, rpy: np.ndarray, margin: float = 0.1,
-                 rotation: np.ndarray | None = None) -> np.ndarray:
+def pose_margins(
+    params: PlatformParams | Dynamics,
+    position: np.ndarray,
+    rpy: np.ndarray,
+    margin: float = 0.1,
+    rotation: np.ndarray | None = None,
+) -> np.ndarray:
     """Whether poses lie safely inside the platform's limits, (M,) bool.
 
     params: the platform, or a :class:`~stewart_env.dynamics.Dynamics` of it (its packed
@@ -399,17 +417,37 @@ def pose_margins(params: PlatformParams | Dynamics, position: np.ndarray, rpy: n
     rotation = rpy_to_matrix(rpy) if rotation is None else np.ascontiguousarray(rotation, dtype=np.float64)
     m = position.shape[0]
     lengths, rates, condition, rest = np.empty((m, 6)), np.empty((m, 6)), np.empty(m), np.zeros((m, 3))
-    leg_sensors_inplace(model, position, rotation.reshape(m, 3, 3), rest, rest, lim.max_condition, lengths, rates,
-                        condition)
+    leg_sensors_inplace(
+        model, position, rotation.reshape(m, 3, 3), rest, rest, lim.max_condition, lengths, rates, condition
+    )
     ok = np.empty(m, dtype=bool)
-    _core.within_margins(position, np.ascontiguousarray(rpy), lengths, condition, lim.position_min, lim.position_max,
-                         p.home_rpy, lim.max_angle, lim.leg_length[0], lim.leg_length[1], lim.max_condition,
-                         float(margin), ok)
+    _core.within_margins(
+        position,
+        np.ascontiguousarray(rpy),
+        lengths,
+        condition,
+        lim.position_min,
+        lim.position_max,
+        p.home_rpy,
+        lim.max_angle,
+        lim.leg_length[0],
+        lim.leg_length[1],
+        lim.max_condition,
+        float(margin),
+        ok,
+    )
     return ok
 
 
-def sinusoid_reference(home_position: np.ndarray, home_rpy: np.ndarray, amplitude: np.ndarray,
-                       omega: np.ndarray, phase: np.ndarray, time: np.ndarray, out: Reference) -> None:
+def sinusoid_reference(
+    home_position: np.ndarray,
+    home_rpy: np.ndarray,
+    amplitude: np.ndarray,
+    omega: np.ndarray,
+    phase: np.ndarray,
+    time: np.ndarray,
+    out: Reference,
+) -> None:
     """Pose offsets a_k sin(omega_k t + phi_k) about home on x, y, z, roll, pitch, yaw.
 
     amplitude, omega (rad/s), phase: (N,6); time (N,) s.  Writes the reference pose, twist and
@@ -436,8 +474,13 @@ def sinusoid_reference(home_position: np.ndarray, home_rpy: np.ndarray, amplitud
     dp, dy = d[:, 1:2], d[:, 2:3]
     e0_dot = np.concatenate([-sy * cp * dy - cy * sp * dp, cy * cp * dy - sy * sp * dp, -cp * dp], axis=1)
     e1_dot = np.concatenate([-cy * dy, -sy * dy, np.zeros_like(dy)], axis=1)
-    out.ang_acc[:] = (E[:, :, 0] * dd[:, 0:1] + E[:, :, 1] * dd[:, 1:2] + E[:, :, 2] * dd[:, 2:3]
-                      + e0_dot * d[:, 0:1] + e1_dot * d[:, 1:2])
+    out.ang_acc[:] = (
+        E[:, :, 0] * dd[:, 0:1]
+        + E[:, :, 1] * dd[:, 1:2]
+        + E[:, :, 2] * dd[:, 2:3]
+        + e0_dot * d[:, 0:1]
+        + e1_dot * d[:, 1:2]
+    )
 
 
 def check_option_names(task_cls: type, options: dict[str, Any]) -> None:
@@ -472,9 +515,10 @@ def motion_ranges(params: PlatformParams, position, angle, names: tuple[str, str
     the limits.  ``names`` are the option names for errors."""
     lim = params.limits
     half = 0.5 * (lim.position_max - lim.position_min)
-    return (0.4 * half if position is None else vector(option(names[0]), position, 3, 0.0, half),
-            np.full(3, 0.4 * lim.max_angle) if angle is None
-            else vector(option(names[1]), angle, 3, 0.0, lim.max_angle))
+    return (
+        0.4 * half if position is None else vector(option(names[0]), position, 3, 0.0, half),
+        np.full(3, 0.4 * lim.max_angle) if angle is None else vector(option(names[1]), angle, 3, 0.0, lim.max_angle),
+    )
 
 
 #: The platform's limits as termination reasons, by priority: the state is no longer finite, the
@@ -564,30 +608,59 @@ class Task:
     #: the evaluation harness's criterion, 2 mm and 0.01 rad over the final tenth of the episode.
     success_criterion: SuccessCriterion = SuccessCriterion()
 
-    def __init__(self, params: PlatformParams, control_dt: float, *, position_reward_weight: float = 0.5,
-                 position_reward_scale: float = BASE_REWARD_SCALES[0], orientation_reward_weight: float = 0.5,
-                 orientation_reward_scale: float = BASE_REWARD_SCALES[1], velocity_cost_weight: float = 0.1,
-                 velocity_cost_scale: float = 0.5, angular_velocity_cost_scale: float = 1.0,
-                 ctrl_cost_weight: float = 0.1, termination_cost: float = 10.0):
+    def __init__(
+        self,
+        params: PlatformParams,
+        control_dt: float,
+        *,
+        position_reward_weight: float = 0.5,
+        position_reward_scale: float = BASE_REWARD_SCALES[0],
+        orientation_reward_weight: float = 0.5,
+        orientation_reward_scale: float = BASE_REWARD_SCALES[1],
+        velocity_cost_weight: float = 0.1,
+        velocity_cost_scale: float = 0.5,
+        angular_velocity_cost_scale: float = 1.0,
+        ctrl_cost_weight: float = 0.1,
+        termination_cost: float = 10.0,
+    ):
         self.params = params
         self.control_dt = float(control_dt)
         #: The platform's packed parameters for :func:`pose_margins` (packed once).
         self.kinematics = make_dynamics("improved", params)
-        self.weights = RewardWeights(position_reward_weight, position_reward_scale, orientation_reward_weight,
-                                     orientation_reward_scale, velocity_cost_weight, velocity_cost_scale,
-                                     angular_velocity_cost_scale, ctrl_cost_weight, termination_cost)
+        self.weights = RewardWeights(
+            position_reward_weight,
+            position_reward_scale,
+            orientation_reward_weight,
+            orientation_reward_scale,
+            velocity_cost_weight,
+            velocity_cost_scale,
+            angular_velocity_cost_scale,
+            ctrl_cost_weight,
+            termination_cost,
+        )
         reasons = self.termination_reasons
-        if reasons[:len(LIMIT_REASONS)] != LIMIT_REASONS or not set(self.success_reasons) <= set(reasons):
-            raise TypeError(f"task {self.name!r}: termination_reasons must begin with {LIMIT_REASONS} and "
-                            f"hold every success reason, got {reasons} and {self.success_reasons}")
+        if reasons[: len(LIMIT_REASONS)] != LIMIT_REASONS or not set(self.success_reasons) <= set(reasons):
+            raise TypeError(
+                f"task {self.name!r}: termination_reasons must begin with {LIMIT_REASONS} and "
+                f"hold every success reason, got {reasons} and {self.success_reasons}"
+            )
         # Code -> whether it ends the episode with a failure (code 0: no end, no failure).
         self._failure = np.array([False] + [r not in self.success_reasons for r in reasons])
         lim = params.limits
-        self._limits = (lim.position_min, lim.position_max, params.home_rpy, lim.max_angle, lim.leg_length[0],
-                        lim.leg_length[1], lim.max_condition)
+        self._limits = (
+            lim.position_min,
+            lim.position_max,
+            params.home_rpy,
+            lim.max_angle,
+            lim.leg_length[0],
+            lim.leg_length[1],
+            lim.max_condition,
+        )
         if not self.moving_reference and not {"target_position", "target_rotation"} <= set(self.episode_fields()):
-            raise TypeError(f"task {self.name!r}: a task with a fixed target declares the episode fields "
-                            "'target_position' and 'target_rotation', or overrides reference()")
+            raise TypeError(
+                f"task {self.name!r}: a task with a fixed target declares the episode fields "
+                "'target_position' and 'target_rotation', or overrides reference()"
+            )
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(platform={self.params.name!r})"
@@ -671,10 +744,22 @@ class Task:
         the end of an episode adds :meth:`termination_reward`)."""
         w, e = self.weights, view.errors
         out = np.empty((4, view.time.shape[0]))
-        _core.tracking_reward(e.position_norm, e.orientation_norm, e.velocity_norm, e.angular_velocity_norm,
-                              view.action, w.position_reward_weight, w.position_reward_scale,
-                              w.orientation_reward_weight, w.orientation_reward_scale, w.velocity_cost_weight,
-                              w.velocity_cost_scale, w.angular_velocity_cost_scale, w.ctrl_cost_weight, out)
+        _core.tracking_reward(
+            e.position_norm,
+            e.orientation_norm,
+            e.velocity_norm,
+            e.angular_velocity_norm,
+            view.action,
+            w.position_reward_weight,
+            w.position_reward_scale,
+            w.orientation_reward_weight,
+            w.orientation_reward_scale,
+            w.velocity_cost_weight,
+            w.velocity_cost_scale,
+            w.angular_velocity_cost_scale,
+            w.ctrl_cost_weight,
+            out,
+        )
         return {"position": out[0], "orientation": out[1], "velocity": out[2], "control": out[3]}
 
     def termination_reward(self, code: np.ndarray) -> np.ndarray:
@@ -692,16 +777,37 @@ class Task:
             A new ``_core.TaskRecord`` (the compiled extension's type), or None when a subclass has its own termination,
             reward terms or termination reward (the step then calls them between its parts).
         """
-        if any(getattr(type(self), name) is not getattr(Task, name)
-               for name in ("termination", "reward_terms", "termination_reward")):
+        if any(
+            getattr(type(self), name) is not getattr(Task, name)
+            for name in ("termination", "reward_terms", "termination_reward")
+        ):
             return None
         w = self.weights
         position_min, position_max, home_rpy, max_angle, length_min, length_max, max_condition = self._limits
-        weights = np.array([w.position_reward_weight, w.position_reward_scale, w.orientation_reward_weight,
-                            w.orientation_reward_scale, w.velocity_cost_weight, w.velocity_cost_scale,
-                            w.angular_velocity_cost_scale, w.ctrl_cost_weight])
-        return _core.TaskRecord(position_min, position_max, home_rpy, max_angle, length_min, length_max, max_condition,
-                                weights, w.termination_cost, self._failure)
+        weights = np.array(
+            [
+                w.position_reward_weight,
+                w.position_reward_scale,
+                w.orientation_reward_weight,
+                w.orientation_reward_scale,
+                w.velocity_cost_weight,
+                w.velocity_cost_scale,
+                w.angular_velocity_cost_scale,
+                w.ctrl_cost_weight,
+            ]
+        )
+        return _core.TaskRecord(
+            position_min,
+            position_max,
+            home_rpy,
+            max_angle,
+            length_min,
+            length_max,
+            max_condition,
+            weights,
+            w.termination_cost,
+            self._failure,
+        )
 
     def termination(self, view: StepView) -> np.ndarray:
         """Termination codes (N,) int64: 0 where the episode goes on, else k for the reason
@@ -710,8 +816,9 @@ class Task:
         :meth:`end`."""
         code = np.empty(view.time.shape[0], dtype=np.int64)
         state = view.state
-        _core.limit_codes(state.position, state.rotation, view.leg_lengths, view.condition, view.non_finite,
-                          *self._limits, code)
+        _core.limit_codes(
+            state.position, state.rotation, view.leg_lengths, view.condition, view.non_finite, *self._limits, code
+        )
         return code
 
     def end(self, code: np.ndarray, where: np.ndarray, reason: str) -> None:

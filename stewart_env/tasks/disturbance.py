@@ -63,33 +63,67 @@ class DisturbanceTask(Task):
     name = "disturbance"
     version_defaults = {0: BASE_SCALE_OPTIONS}
 
-    def __init__(self, params: PlatformParams, control_dt: float, *, sine_force=None, sine_moment=None,
-                 frequency_range=(0.2, 2.0), n_impulses: int = 2, impulse_force=None, impulse_moment=None,
-                 impulse_duration: float = 0.05, horizon: float = 5.0,
-                 position_reward_scale: float = PRECISE_REWARD_SCALES[0],
-                 orientation_reward_scale: float = PRECISE_REWARD_SCALES[1], **weights):
+    def __init__(
+        self,
+        params: PlatformParams,
+        control_dt: float,
+        *,
+        sine_force=None,
+        sine_moment=None,
+        frequency_range=(0.2, 2.0),
+        n_impulses: int = 2,
+        impulse_force=None,
+        impulse_moment=None,
+        impulse_duration: float = 0.05,
+        horizon: float = 5.0,
+        position_reward_scale: float = PRECISE_REWARD_SCALES[0],
+        orientation_reward_scale: float = PRECISE_REWARD_SCALES[1],
+        **weights,
+    ):
         weight = params.platform.mass * (float(np.linalg.norm(params.gravity)) or 9.81)
         radius = float(np.mean(np.linalg.norm(params.platform_joints[:, :2], axis=1)))
         max_force, max_moment = MAX_LOAD * weight, MAX_LOAD * weight * radius
-        self.sine_force = (np.full(3, 0.2 * weight) if sine_force is None
-                           else vector(option("sine_force"), sine_force, 3, 0.0, max_force))
-        self.sine_moment = (np.full(3, 0.2 * weight * radius) if sine_moment is None
-                            else vector(option("sine_moment"), sine_moment, 3, 0.0, max_moment))
+        self.sine_force = (
+            np.full(3, 0.2 * weight)
+            if sine_force is None
+            else vector(option("sine_force"), sine_force, 3, 0.0, max_force)
+        )
+        self.sine_moment = (
+            np.full(3, 0.2 * weight * radius)
+            if sine_moment is None
+            else vector(option("sine_moment"), sine_moment, 3, 0.0, max_moment)
+        )
         self.frequency_range = interval(option("frequency_range"), frequency_range, 0.0, MAX_FREQUENCY, low_open=True)
         self.n_impulses = integer(option("n_impulses"), n_impulses, 0, MAX_IMPULSES)
-        self.impulse_force = (weight if impulse_force is None
-                              else real(option("impulse_force"), impulse_force, 0.0, max_force))
-        self.impulse_moment = (0.5 * weight * radius if impulse_moment is None
-                               else real(option("impulse_moment"), impulse_moment, 0.0, max_moment))
+        self.impulse_force = (
+            weight if impulse_force is None else real(option("impulse_force"), impulse_force, 0.0, max_force)
+        )
+        self.impulse_moment = (
+            0.5 * weight * radius
+            if impulse_moment is None
+            else real(option("impulse_moment"), impulse_moment, 0.0, max_moment)
+        )
         self.impulse_duration = real(option("impulse_duration"), impulse_duration, 0.0, MAX_HORIZON, low_open=True)
         self.horizon = real(option("horizon"), horizon, self.impulse_duration, MAX_HORIZON)
         self._home_rotation = rpy_to_matrix(params.home_rpy)
-        super().__init__(params, control_dt, position_reward_scale=position_reward_scale,
-                         orientation_reward_scale=orientation_reward_scale, **weights)
+        super().__init__(
+            params,
+            control_dt,
+            position_reward_scale=position_reward_scale,
+            orientation_reward_scale=orientation_reward_scale,
+            **weights,
+        )
 
     def episode_fields(self):
-        return {"target_position": (3,), "target_rotation": (3, 3), "sine_amplitude": (6,), "sine_omega": (6,),
-                "sine_phase": (6,), "impulse_time": (self.n_impulses,), "impulse_wrench": (self.n_impulses, 6)}
+        return {
+            "target_position": (3,),
+            "target_rotation": (3, 3),
+            "sine_amplitude": (6,),
+            "sine_omega": (6,),
+            "sine_phase": (6,),
+            "impulse_time": (self.n_impulses,),
+            "impulse_wrench": (self.n_impulses, 6),
+        }
 
     def initialize_episode(self, rng):
         amplitude = rng.uniform(0.0, 1.0, 6) * np.concatenate([self.sine_force, self.sine_moment])
@@ -103,9 +137,15 @@ class DisturbanceTask(Task):
         wrench = (directions * magnitudes[:, :, None]).reshape(n, 6)
         p = self.params
         start = PlatformState(p.home_position.copy(), self._home_rotation.copy(), np.zeros(3), np.zeros(3))
-        return start, {"target_position": p.home_position, "target_rotation": self._home_rotation,
-                       "sine_amplitude": amplitude, "sine_omega": omega, "sine_phase": phase,
-                       "impulse_time": times, "impulse_wrench": wrench}
+        return start, {
+            "target_position": p.home_position,
+            "target_rotation": self._home_rotation,
+            "sine_amplitude": amplitude,
+            "sine_omega": omega,
+            "sine_phase": phase,
+            "impulse_time": times,
+            "impulse_wrench": wrench,
+        }
 
     def external_wrench(self, view, dt, out) -> None:
         episode, time = view.episode, view.time
@@ -114,7 +154,8 @@ class DisturbanceTask(Task):
         # Average of A sin(omega t + phi) over [t, t + dt].
         out[:] = episode["sine_amplitude"] * (np.cos(t0) - np.cos(t0 + omega * dt)) / (omega * dt)
         start = episode["impulse_time"]
-        overlap = (np.minimum(time[:, None] + dt, start + self.impulse_duration)
-                   - np.maximum(time[:, None], start)).clip(min=0.0) / dt
+        overlap = (
+            np.minimum(time[:, None] + dt, start + self.impulse_duration) - np.maximum(time[:, None], start)
+        ).clip(min=0.0) / dt
         for k in range(self.n_impulses):
-            out += overlap[:, k:k + 1] * episode["impulse_wrench"][:, k]
+            out += overlap[:, k : k + 1] * episode["impulse_wrench"][:, k]

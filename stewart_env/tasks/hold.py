@@ -39,14 +39,15 @@ class HoldTask(Task):
 
     name = "hold"
 
-    def __init__(self, params: PlatformParams, control_dt: float, *, max_payload=None, payload_radius=None,
-                 **weights):
+    def __init__(self, params: PlatformParams, control_dt: float, *, max_payload=None, payload_radius=None, **weights):
         mass = params.platform.mass
         radius = float(np.mean(np.linalg.norm(params.platform_joints[:, :2], axis=1)))
-        self.max_payload = (0.5 * mass if max_payload is None
-                            else real(option("max_payload"), max_payload, 0.0, MAX_PAYLOAD * mass))
-        self.payload_radius = (0.5 * radius if payload_radius is None
-                               else real(option("payload_radius"), payload_radius, 0.0, radius))
+        self.max_payload = (
+            0.5 * mass if max_payload is None else real(option("max_payload"), max_payload, 0.0, MAX_PAYLOAD * mass)
+        )
+        self.payload_radius = (
+            0.5 * radius if payload_radius is None else real(option("payload_radius"), payload_radius, 0.0, radius)
+        )
         self._home_rotation = rpy_to_matrix(params.home_rpy)
         super().__init__(params, control_dt, **weights)
 
@@ -60,8 +61,12 @@ class HoldTask(Task):
         angle = rng.uniform(0.0, 2.0 * np.pi)
         p = self.params
         start = PlatformState(p.home_position.copy(), self._home_rotation.copy(), np.zeros(3), np.zeros(3))
-        return start, {"target_position": p.home_position, "target_rotation": self._home_rotation,
-                       "payload_mass": mass, "payload_offset": np.array([r * np.cos(angle), r * np.sin(angle), 0.0])}
+        return start, {
+            "target_position": p.home_position,
+            "target_rotation": self._home_rotation,
+            "payload_mass": mass,
+            "payload_offset": np.array([r * np.cos(angle), r * np.sin(angle), 0.0]),
+        }
 
     def external_wrench(self, view: StepView, dt, out) -> None:
         force = view.episode["payload_mass"][:, None] * self.params.gravity

@@ -43,17 +43,23 @@ def paper_case(params: PlatformParams, *, check_stroke: bool = True) -> PaperCas
     on the dasgupta1998 geometry, and on another platform the same offsets need not be reachable.
     """
     home_p, home_r = params.home_position, params.home_rpy
-    case = PaperCase(home_p + PAPER_START_OFFSET, home_r + PAPER_RPY_OFFSET,
-                     home_p + PAPER_TARGET_OFFSET, home_r + PAPER_RPY_OFFSET)
+    case = PaperCase(
+        home_p + PAPER_START_OFFSET, home_r + PAPER_RPY_OFFSET, home_p + PAPER_TARGET_OFFSET, home_r + PAPER_RPY_OFFSET
+    )
     if not check_stroke:
         return case
     lo, hi = params.limits.leg_length
     problems = []
-    for which, position, rpy in (("start", case.start_position, case.start_rpy),
-                                 ("target", case.target_position, case.target_rpy)):
+    for which, position, rpy in (
+        ("start", case.start_position, case.start_rpy),
+        ("target", case.target_position, case.target_rpy),
+    ):
         lengths, _ = inverse_kinematics(params, position, rpy_to_matrix(rpy))
-        problems += [f"at the {which} pose leg {i} is {length:.4f} m long"
-                     for i, length in enumerate(lengths) if not lo <= length <= hi]
+        problems += [
+            f"at the {which} pose leg {i} is {length:.4f} m long"
+            for i, length in enumerate(lengths)
+            if not lo <= length <= hi
+        ]
     if problems:
         raise ValueError(
             f"platform {params.name!r}: the case study of He et al. (2018) (home + {PAPER_START_OFFSET.tolist()} m "
@@ -93,13 +99,25 @@ class SetpointTask(Task):
 
     name = "setpoint"
 
-    def __init__(self, params: PlatformParams, control_dt: float, *, randomize: bool = True,
-                 position_range=None, angle_range=None, start_position=None, start_rpy=None,
-                 target_position=None, target_rpy=None, **weights):
+    def __init__(
+        self,
+        params: PlatformParams,
+        control_dt: float,
+        *,
+        randomize: bool = True,
+        position_range=None,
+        angle_range=None,
+        start_position=None,
+        start_rpy=None,
+        target_position=None,
+        target_rpy=None,
+        **weights,
+    ):
         super().__init__(params, control_dt, **weights)
         self.randomize = flag(option("randomize"), randomize)
-        self.position_range, self.angle_range = motion_ranges(params, position_range, angle_range,
-                                                              ("position_range", "angle_range"))
+        self.position_range, self.angle_range = motion_ranges(
+            params, position_range, angle_range, ("position_range", "angle_range")
+        )
         # unchecked: random episodes never use these defaults, and fixed ones are checked below
         case = paper_case(params, check_stroke=False)
         poses = {
@@ -108,8 +126,10 @@ class SetpointTask(Task):
             "target_position": (target_position, case.target_position),
             "target_rpy": (target_rpy, case.target_rpy),
         }
-        fixed = {k: (default if v is None else vector(option(k), v, 3, -_MAX_POSE, _MAX_POSE))
-                 for k, (v, default) in poses.items()}
+        fixed = {
+            k: (default if v is None else vector(option(k), v, 3, -_MAX_POSE, _MAX_POSE))
+            for k, (v, default) in poses.items()
+        }
         self.start_position, self.start_rpy = fixed["start_position"], fixed["start_rpy"]
         self.target_position, self.target_rpy = fixed["target_position"], fixed["target_rpy"]
         if not self.randomize:
@@ -175,8 +195,10 @@ class SetpointTask(Task):
                 # the start is accepted; the target had one rejected draw if the start was the first
                 target_p[j], target_r[j] = self._draw_pose(rng, _MAX_DRAWS - int(ok[j, 0]))
         zero = np.zeros((m, 3))
-        return (PlatformState(start_p, start_r, zero, zero.copy()),
-                {"target_position": target_p, "target_rotation": target_r})
+        return (
+            PlatformState(start_p, start_r, zero, zero.copy()),
+            {"target_position": target_p, "target_rotation": target_r},
+        )
 
     def initialize_episode(self, rng):
         if self.randomize:

@@ -9,8 +9,19 @@ import numpy as np
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rotation_error
 from stewart_env.state import PlatformState, Reference
-from stewart_env.tasks.base import (BASE_SCALE_OPTIONS, MAX_FREQUENCY, PRECISE_REWARD_SCALES, Scales, StepView, Task,
-                                     motion_ranges, option, pose_margins, sinusoid_reference, zero_reference)
+from stewart_env.tasks.base import (
+    BASE_SCALE_OPTIONS,
+    MAX_FREQUENCY,
+    PRECISE_REWARD_SCALES,
+    Scales,
+    StepView,
+    Task,
+    motion_ranges,
+    option,
+    pose_margins,
+    sinusoid_reference,
+    zero_reference,
+)
 from stewart_env.validation import integer, interval, real
 
 # Amplitudes that put a corner of the reference's range outside the limits are scaled down by this
@@ -64,18 +75,35 @@ class TrackingTask(Task):
     name = "tracking"
     version_defaults = {0: BASE_SCALE_OPTIONS}
 
-    def __init__(self, params: PlatformParams, control_dt: float, *, position_amplitude=None,
-                 angle_amplitude=None, frequency_range=(0.1, 0.5), preview: int = 3,
-                 preview_interval: float = 0.1, position_reward_scale: float = PRECISE_REWARD_SCALES[0],
-                 orientation_reward_scale: float = PRECISE_REWARD_SCALES[1], **weights):
-        super().__init__(params, control_dt, position_reward_scale=position_reward_scale,
-                         orientation_reward_scale=orientation_reward_scale, **weights)
+    def __init__(
+        self,
+        params: PlatformParams,
+        control_dt: float,
+        *,
+        position_amplitude=None,
+        angle_amplitude=None,
+        frequency_range=(0.1, 0.5),
+        preview: int = 3,
+        preview_interval: float = 0.1,
+        position_reward_scale: float = PRECISE_REWARD_SCALES[0],
+        orientation_reward_scale: float = PRECISE_REWARD_SCALES[1],
+        **weights,
+    ):
+        super().__init__(
+            params,
+            control_dt,
+            position_reward_scale=position_reward_scale,
+            orientation_reward_scale=orientation_reward_scale,
+            **weights,
+        )
         self.position_amplitude, self.angle_amplitude = motion_ranges(
-            params, position_amplitude, angle_amplitude, ("position_amplitude", "angle_amplitude"))
+            params, position_amplitude, angle_amplitude, ("position_amplitude", "angle_amplitude")
+        )
         self.frequency_range = interval(option("frequency_range"), frequency_range, 0.0, MAX_FREQUENCY, low_open=True)
         self.preview = integer(option("preview"), preview, 0, MAX_PREVIEW)
-        self.preview_interval = real(option("preview_interval"), preview_interval, 0.0, MAX_PREVIEW_INTERVAL,
-                                     low_open=True)
+        self.preview_interval = real(
+            option("preview_interval"), preview_interval, 0.0, MAX_PREVIEW_INTERVAL, low_open=True
+        )
         self._corners = np.array(list(itertools.product((-1.0, 1.0), repeat=6)))
 
     def episode_fields(self):
@@ -102,8 +130,9 @@ class TrackingTask(Task):
 
     def reference(self, episode, time, out: Reference) -> None:
         p = self.params
-        sinusoid_reference(p.home_position, p.home_rpy, episode["amplitude"], episode["omega"],
-                           episode["phase"], time, out)
+        sinusoid_reference(
+            p.home_position, p.home_rpy, episode["amplitude"], episode["omega"], episode["phase"], time, out
+        )
 
     def observation_terms(self, scales: Scales):
         angle = np.full(3, scales.angle)

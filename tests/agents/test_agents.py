@@ -27,11 +27,20 @@ from stewart_env.state import PlatformState, Reference
 @pytest.fixture
 def moving_state(dasgupta, rng):
     """A state near the paper's case pose, moving, and a reference a little away from it."""
-    state = PlatformState(np.array([0.1, 0.01, 0.39]), se.rpy_to_matrix([0.03, -0.02, -0.18]),
-                          rng.normal(scale=0.05, size=3), rng.normal(scale=0.1, size=3))
-    reference = Reference(np.array([0.1, 0.0, 0.4]), se.rpy_to_matrix([0.0, 0.0, -0.2]),
-                          rng.normal(scale=0.05, size=3), rng.normal(scale=0.1, size=3),
-                          rng.normal(size=3), rng.normal(size=3))
+    state = PlatformState(
+        np.array([0.1, 0.01, 0.39]),
+        se.rpy_to_matrix([0.03, -0.02, -0.18]),
+        rng.normal(scale=0.05, size=3),
+        rng.normal(scale=0.1, size=3),
+    )
+    reference = Reference(
+        np.array([0.1, 0.0, 0.4]),
+        se.rpy_to_matrix([0.0, 0.0, -0.2]),
+        rng.normal(scale=0.05, size=3),
+        rng.normal(scale=0.1, size=3),
+        rng.normal(size=3),
+        rng.normal(size=3),
+    )
     return state, reference
 
 
@@ -76,8 +85,7 @@ def test_computed_torque_with_the_plant_model_gives_the_commanded_acceleration(d
         ct = ComputedTorque(dasgupta, internal_model=name)
         lin, ang = se.make_dynamics(name, dasgupta).forward(*state, ct(state, reference))
         # forward(inverse(a)) == a to the rounding of the 6x6 solves (accelerations ~ 1e2)
-        np.testing.assert_allclose(np.concatenate([lin, ang]), ct.commanded_acceleration(state, reference),
-                                   atol=1e-8)
+        np.testing.assert_allclose(np.concatenate([lin, ang]), ct.commanded_acceleration(state, reference), atol=1e-8)
 
 
 def test_computed_torque_solves_the_equations_of_motion_with_the_models_mass_matrix_and_bias(dasgupta, moving_state):
@@ -105,15 +113,20 @@ def test_computed_torque_feeds_the_reference_accelerations_forward(dasgupta, mov
 
 def test_pd_control_params_follow_the_layout(dasgupta, moving_state):
     _, reference = moving_state
-    params = pd_control_params(dasgupta, reference, kp=2.0, kd=3.0, gravity_compensation=True, gravity_model="classical")
+    params = pd_control_params(
+        dasgupta, reference, kp=2.0, kd=3.0, gravity_compensation=True, gravity_model="classical"
+    )
     offsets = np.cumsum([0] + [size for _, size in PD_LAYOUT])
-    part = {name: params[offsets[k]:offsets[k + 1]] for k, (name, _) in enumerate(PD_LAYOUT)}
+    part = {name: params[offsets[k] : offsets[k + 1]] for k, (name, _) in enumerate(PD_LAYOUT)}
     assert params.shape == (offsets[-1],)
     np.testing.assert_array_equal(part["kp"], np.full(6, 2.0))
     np.testing.assert_array_equal(part["kd"], np.full(6, 3.0))
     np.testing.assert_array_equal(part["rotation"], reference.rotation.ravel())
     np.testing.assert_array_equal(part["angular_velocity"], reference.angular_velocity)
-    assert part["gravity_compensation"][0] == 1.0 and part["gravity_flags"][0] == se.make_dynamics("classical", dasgupta).flags
+    assert (
+        part["gravity_compensation"][0] == 1.0
+        and part["gravity_flags"][0] == se.make_dynamics("classical", dasgupta).flags
+    )
     np.testing.assert_array_equal(part["platform"], se.make_dynamics("classical", dasgupta).packed[0])
     batched = pd_control_params(dasgupta, Reference(*(np.stack([x, x]) for x in reference[:4])))
     assert batched.shape == (2, offsets[-1])
@@ -123,12 +136,23 @@ def test_pd_control_law_in_a_closed_loop_rollout_holds_a_set_point(dasgupta):
     """The example of docs/guides/physics-api.md: the paper's PD law with gravity compensation,
     compiled, in rollout."""
     model = se.make_dynamics("improved", dasgupta)
-    target = Reference(dasgupta.home_position + [0.0, 0.0, 0.01], se.rpy_to_matrix(dasgupta.home_rpy),
-                       np.zeros(3), np.zeros(3))
+    target = Reference(
+        dasgupta.home_position + [0.0, 0.0, 0.01], se.rpy_to_matrix(dasgupta.home_rpy), np.zeros(3), np.zeros(3)
+    )
     params = pd_control_params(dasgupta, target, PAPER_KP, PAPER_KD, gravity_compensation=True)
     zero = np.zeros(3)
-    run = se.rollout(model, dasgupta.home_position, se.rpy_to_matrix(dasgupta.home_rpy), zero, zero,
-                     dt=2e-4, steps=2500, control_law=pd_control_law, control_params=params, record_every=250)
+    run = se.rollout(
+        model,
+        dasgupta.home_position,
+        se.rpy_to_matrix(dasgupta.home_rpy),
+        zero,
+        zero,
+        dt=2e-4,
+        steps=2500,
+        control_law=pd_control_law,
+        control_params=params,
+        record_every=250,
+    )
     # gravity compensated exactly, slowest pole near 40 rad/s: after 0.5 s (20 time constants) the
     # error is at the rounding of the 0.41 m height (observed 2e-15)
     np.testing.assert_allclose(run.position[-1], target.position, rtol=0, atol=1e-12)
@@ -212,8 +236,14 @@ def test_preview_acceleration_of_a_sinusoid():
 
 def test_pd_with_gravity_compensation_settles_the_setpoint_task_on_both_models():
     for model in ("classical", "improved"):
-        result = evaluate(lambda env: PDPolicy(env, gravity_compensation=True), {"model": model, "task": "setpoint"},
-                          episodes=2, seed=0, max_steps=150, progress=False)
+        result = evaluate(
+            lambda env: PDPolicy(env, gravity_compensation=True),
+            {"model": model, "task": "setpoint"},
+            episodes=2,
+            seed=0,
+            max_steps=150,
+            progress=False,
+        )
         for ep in result.episodes:
             m = ep.metrics
             assert ep.termination is None
@@ -245,8 +275,9 @@ def test_pd_without_compensation_sags_until_its_wrench_holds_the_weight():
     # and the law makes that wrench from the error alone: J^T F_hold = Kp e, so the sag is Kp^-1 J^T F_hold
     # (up to the same float32 action rounding, mapped through J^T: below 1e-3 N, N m)
     jac = se.jacobian(base.model, state.position, state.rotation)
-    error = np.concatenate([target.position - state.position,
-                            se.matrix_to_rpy(target.rotation) - se.matrix_to_rpy(state.rotation)])
+    error = np.concatenate(
+        [target.position - state.position, se.matrix_to_rpy(target.rotation) - se.matrix_to_rpy(state.rotation)]
+    )
     np.testing.assert_allclose(policy.controller.kp * error, jac.T @ holding, rtol=1e-6, atol=1e-3)
     assert 0.02 < target.position[2] - state.position[2] < 0.035  # 480 N of weight / Kp_z: 27 mm
 
@@ -256,10 +287,14 @@ def test_computed_torque_with_the_plant_model_beats_pd_on_tracking():
         env_kwargs = {"model": model, "task": "tracking"}
         runs = {
             label: evaluate(policy, env_kwargs, episodes=2, seed=0, max_steps=150, progress=False)
-            for label, policy in (("pd", lambda env: PDPolicy(env, gravity_compensation=True)),
-                                  ("matched", lambda env, m=model: ComputedTorquePolicy(env, m)),
-                                  ("mismatched", lambda env, m=model: ComputedTorquePolicy(
-                                      env, "classical" if m == "improved" else "improved")))
+            for label, policy in (
+                ("pd", lambda env: PDPolicy(env, gravity_compensation=True)),
+                ("matched", lambda env, m=model: ComputedTorquePolicy(env, m)),
+                (
+                    "mismatched",
+                    lambda env, m=model: ComputedTorquePolicy(env, "classical" if m == "improved" else "improved"),
+                ),
+            )
         }
         rms = {k: np.mean([ep.metrics["rms_position_error"] for ep in r.episodes]) for k, r in runs.items()}
         # feedforward + the right model: ~15x below PD's lag on 0.1-0.5 Hz sinusoids; 5x is the bound

@@ -19,8 +19,10 @@ import yaml
 
 # PPO runs here are rollouts of 2 platforms x 16 steps, smaller than any sensible minibatch on purpose.
 # Every test here trains or loads an agent: stable-baselines3 and torch (the rl extra).
-pytestmark = [pytest.mark.extra("rl"),
-              pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning")]
+pytestmark = [
+    pytest.mark.extra("rl"),
+    pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning"),
+]
 
 import stewart_env  # noqa: E402,F401  (registers the environment)
 from stewart_env.agents import training  # noqa: E402
@@ -38,12 +40,27 @@ from stewart_env.agents.training import (  # noqa: E402
 from stewart_env.files import sha256_file as _sha256_file  # noqa: E402
 
 TINY = {
-    "ppo": {"n_timesteps": 1000, "policy": "MlpPolicy", "n_envs": 2,
-            "normalize": "dict(norm_obs=True, norm_reward=True)", "n_steps": 16, "batch_size": 32, "n_epochs": 1,
-            "learning_rate": "lin_3e-4", "policy_kwargs": "dict(net_arch=dict(pi=[16], vf=[16]), activation_fn=nn.Tanh)"},
-    "sac": {"n_timesteps": 1000, "policy": "MlpPolicy", "n_envs": 2,
-            "normalize": "dict(norm_obs=True, norm_reward=False)", "buffer_size": 5000, "batch_size": 16,
-            "learning_starts": 0, "policy_kwargs": "dict(net_arch=[16])"},
+    "ppo": {
+        "n_timesteps": 1000,
+        "policy": "MlpPolicy",
+        "n_envs": 2,
+        "normalize": "dict(norm_obs=True, norm_reward=True)",
+        "n_steps": 16,
+        "batch_size": 32,
+        "n_epochs": 1,
+        "learning_rate": "lin_3e-4",
+        "policy_kwargs": "dict(net_arch=dict(pi=[16], vf=[16]), activation_fn=nn.Tanh)",
+    },
+    "sac": {
+        "n_timesteps": 1000,
+        "policy": "MlpPolicy",
+        "n_envs": 2,
+        "normalize": "dict(norm_obs=True, norm_reward=False)",
+        "buffer_size": 5000,
+        "batch_size": 16,
+        "learning_starts": 0,
+        "policy_kwargs": "dict(net_arch=[16])",
+    },
 }
 
 
@@ -60,7 +77,9 @@ def tiny_config(path: Path, algo: str, **changes) -> Path:
 # -- configs are data ---------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name", ["ppo.yml", "ppo_6m.yml", "ppo_integral_6m.yml", "sac.yml", "td3.yml", "tqc.yml", "crossq.yml"])
+@pytest.mark.parametrize(
+    "name", ["ppo.yml", "ppo_6m.yml", "ppo_integral_6m.yml", "sac.yml", "td3.yml", "tqc.yml", "crossq.yml"]
+)
 def test_shipped_configs_parse_to_what_python_would_evaluate(name):
     import torch
 
@@ -75,28 +94,40 @@ def test_shipped_configs_parse_to_what_python_would_evaluate(name):
 def test_parser_accepts_the_zoo_vocabulary():
     import torch
 
-    text = ("dict(activation_fn=th.nn.ReLU, net_arch=dict(pi=[64, 64], vf=[64]), log_std_init=-2.0, ortho_init=False, "
-            "squash=None, shape=(1, -2), extra={'a': 1, 2: 'b'}, act=nn.LeakyReLU)")
+    text = (
+        "dict(activation_fn=th.nn.ReLU, net_arch=dict(pi=[64, 64], vf=[64]), log_std_init=-2.0, ortho_init=False, "
+        "squash=None, shape=(1, -2), extra={'a': 1, 2: 'b'}, act=nn.LeakyReLU)"
+    )
     assert zoo_eval(text, "policy_kwargs") == {
-        "activation_fn": torch.nn.ReLU, "net_arch": {"pi": [64, 64], "vf": [64]}, "log_std_init": -2.0,
-        "ortho_init": False, "squash": None, "shape": (1, -2), "extra": {"a": 1, 2: "b"}, "act": torch.nn.LeakyReLU}
+        "activation_fn": torch.nn.ReLU,
+        "net_arch": {"pi": [64, 64], "vf": [64]},
+        "log_std_init": -2.0,
+        "ortho_init": False,
+        "squash": None,
+        "shape": (1, -2),
+        "extra": {"a": 1, 2: "b"},
+        "act": torch.nn.LeakyReLU,
+    }
 
 
-@pytest.mark.parametrize("text, what", [
-    ("np.__builtins__['__import__']('os').system('touch {marker}')", "the call"),
-    ("__import__('os').system('touch {marker}')", "the call __import__"),
-    ("dict(a=nn.Module.__subclasses__)", "nn.Module.__subclasses__"),
-    ("dict(a=nn.Tanh.__init__.__globals__)", "nn.Tanh.__init__.__globals__"),
-    ("dict(a=open('{marker}', 'w'))", "the call open"),
-    ("dict(a=nn.Linear)", "nn.Linear"),
-    ("dict(a=th.load)", "th.load"),
-    ("dict(a=lambda: 0)", "a lambda"),
-    ("dict(a=[x for x in (1, 2)])", "a comprehension"),
-    ("dict(**{'a': 1})", "the call dict"),
-    ("{**{'a': 1}}", "the expression"),
-    ("dict(a=1 + 2)", "the expression"),
-    ("dict(a=os)", "the name os"),
-])
+@pytest.mark.parametrize(
+    "text, what",
+    [
+        ("np.__builtins__['__import__']('os').system('touch {marker}')", "the call"),
+        ("__import__('os').system('touch {marker}')", "the call __import__"),
+        ("dict(a=nn.Module.__subclasses__)", "nn.Module.__subclasses__"),
+        ("dict(a=nn.Tanh.__init__.__globals__)", "nn.Tanh.__init__.__globals__"),
+        ("dict(a=open('{marker}', 'w'))", "the call open"),
+        ("dict(a=nn.Linear)", "nn.Linear"),
+        ("dict(a=th.load)", "th.load"),
+        ("dict(a=lambda: 0)", "a lambda"),
+        ("dict(a=[x for x in (1, 2)])", "a comprehension"),
+        ("dict(**{'a': 1})", "the call dict"),
+        ("{**{'a': 1}}", "the expression"),
+        ("dict(a=1 + 2)", "the expression"),
+        ("dict(a=os)", "the name os"),
+    ],
+)
 def test_parser_refuses_code_naming_the_key(text, what, tmp_path):
     marker = tmp_path / "ran"
     entry = {**read_hyperparameters("ppo"), "policy_kwargs": text.replace("{marker}", str(marker))}
@@ -106,7 +137,9 @@ def test_parser_refuses_code_naming_the_key(text, what, tmp_path):
     assert not marker.exists()
     # the normaliser's string goes through the same parser
     with pytest.raises(TrainingError, match="hyperparameter normalize"):
-        parse_hyperparameters("ppo", {**read_hyperparameters("ppo"), "normalize": text.replace("{marker}", str(marker))})
+        parse_hyperparameters(
+            "ppo", {**read_hyperparameters("ppo"), "normalize": text.replace("{marker}", str(marker))}
+        )
     assert not marker.exists()
 
 
@@ -145,8 +178,15 @@ def test_checkpoints_are_complete_folders_with_manifests_and_pruned(tiny_run):
 
 def test_keep_checkpoints_prunes_to_the_newest(tmp_path):
     config = tiny_config(tmp_path / "ppo.yml", "ppo")
-    train("ppo", tmp_path / "run", timesteps=128, checkpoint_freq=32, keep_checkpoints=2, config=config,
-          progress_bar=False)
+    train(
+        "ppo",
+        tmp_path / "run",
+        timesteps=128,
+        checkpoint_freq=32,
+        keep_checkpoints=2,
+        config=config,
+        progress_bar=False,
+    )
     assert sorted(p.name for p in (tmp_path / "run" / "checkpoints").glob("step_*")) == ["step_128", "step_96"]
 
 
@@ -220,14 +260,19 @@ def test_resume_with_changed_settings_is_refused_listing_each_key(tiny_run, tmp_
     out, _, _ = tiny_run
     run = _copy(out, tmp_path / "run")
     before = (run / "run.json").read_text()
-    changed = tiny_config(tmp_path / "changed.yml", "ppo", normalize=False, n_steps=64, learning_rate=0.1,
-                          n_timesteps=5)
+    changed = tiny_config(
+        tmp_path / "changed.yml", "ppo", normalize=False, n_steps=64, learning_rate=0.1, n_timesteps=5
+    )
     with pytest.raises(TrainingError) as err:
         train("ppo", run, config=changed, resume=True, seed=4, model="classical", timesteps=10)
     message = str(err.value)
-    for line in ('hyperparameter normalize: "dict(norm_obs=True, norm_reward=True)" -> false',
-                 "hyperparameter n_steps: 16 -> 64", 'hyperparameter learning_rate: "lin_3e-4" -> 0.1',
-                 'environment kwarg model: "improved" -> "classical"', "seed: 0 -> 4"):
+    for line in (
+        'hyperparameter normalize: "dict(norm_obs=True, norm_reward=True)" -> false',
+        "hyperparameter n_steps: 16 -> 64",
+        'hyperparameter learning_rate: "lin_3e-4" -> 0.1',
+        'environment kwarg model: "improved" -> "classical"',
+        "seed: 0 -> 4",
+    ):
         assert line in message
     assert "n_timesteps" not in message  # the budget may change
     assert (run / "run.json").read_text() == before
@@ -258,15 +303,32 @@ def test_new_run_refuses_a_directory_holding_anything_else(tiny_run, tmp_path):
 def _start(out: Path, config: Path, algo: str, pause: float) -> subprocess.Popen:
     """`stewart-env train` in a child process that pauses ``pause`` s inside every checkpoint write,
     in its own session with the default signal dispositions (whatever the test runner's are)."""
+
     def defaults():
         for s in (signal.SIGINT, signal.SIGTERM):
             signal.signal(s, signal.SIG_DFL)
 
     env = {**os.environ, PAUSE_IN_CHECKPOINT_ENV: str(pause)}
-    cmd = [sys.executable, "-m", "stewart_env.cli", "train", "--algo", algo, "--config", str(config), "--timesteps",
-           "10000000", "--checkpoint-freq", "64", "--out", str(out), "--no-progress"]
-    return subprocess.Popen(cmd, env=env, stderr=subprocess.PIPE, text=True, preexec_fn=defaults,
-                            start_new_session=True)
+    cmd = [
+        sys.executable,
+        "-m",
+        "stewart_env.cli",
+        "train",
+        "--algo",
+        algo,
+        "--config",
+        str(config),
+        "--timesteps",
+        "10000000",
+        "--checkpoint-freq",
+        "64",
+        "--out",
+        str(out),
+        "--no-progress",
+    ]
+    return subprocess.Popen(
+        cmd, env=env, stderr=subprocess.PIPE, text=True, preexec_fn=defaults, start_new_session=True
+    )
 
 
 def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 60) -> None:
@@ -279,8 +341,9 @@ def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 60) -> None:
         time.sleep(0.02)
 
 
-def _signal_during_writes(out: Path, algo: str, pause: float, sig: signal.Signals, *waits: str,
-                          timeout: float) -> tuple[int, str]:
+def _signal_during_writes(
+    out: Path, algo: str, pause: float, sig: signal.Signals, *waits: str, timeout: float
+) -> tuple[int, str]:
     """Start `stewart-env train` (see _start), wait for each of ``waits`` under out/checkpoints in
     turn, send ``sig`` and wait up to ``timeout`` s for the exit: its return code and stderr."""
     proc = _start(out, tiny_config(out.parent / f"{algo}.yml", algo), algo, pause=pause)
@@ -331,10 +394,11 @@ def test_kill_during_a_checkpoint_write_resumes_from_the_newest_complete(tmp_pat
 
     said = []
     resumed = train("sac", out, timesteps=6, resume=True, progress_bar=False, report=said.append)
-    assert said == [f"skipping checkpoints/{unfinished.name}: a checkpoint write that did not finish",
-                    "skipping checkpoints/step_100: incomplete or corrupt (replay_buffer.pkl does not match its "
-                    "sha256)",
-                    "resuming from checkpoints/step_64 (64 steps)"]
+    assert said == [
+        f"skipping checkpoints/{unfinished.name}: a checkpoint write that did not finish",
+        "skipping checkpoints/step_100: incomplete or corrupt (replay_buffer.pkl does not match its sha256)",
+        "resuming from checkpoints/step_64 (64 steps)",
+    ]
     assert resumed.num_timesteps == 70 and not unfinished.exists()
     with open(ckpt / "step_70" / "replay_buffer.pkl", "rb") as f:
         assert pickle.load(f).size() == 70 // 2  # rows of 2 platforms: the 64 saved steps and 6 more

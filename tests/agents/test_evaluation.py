@@ -87,8 +87,16 @@ def test_episode_metrics_of_a_synthetic_step():
     orientation_error = np.outer(1 - y, [0.0, 0.0, 0.2])  # and 0.2 rad about z
     forces = np.full((500, 6), 100.0)
     rates = np.zeros((501, 6))
-    m = episode_metrics(t, position_error, orientation_error, forces, rates, terminated=False,
-                        position_tolerance=2e-3, orientation_tolerance=1e-2)
+    m = episode_metrics(
+        t,
+        position_error,
+        orientation_error,
+        forces,
+        rates,
+        terminated=False,
+        position_tolerance=2e-3,
+        orientation_tolerance=1e-2,
+    )
     expected_overshoot = 100 * math.exp(-math.pi * 0.5 / math.sqrt(0.75))  # 16.3 %
     # a 10 ms grid against a 0.45 s oscillation period: the sampled peak is within 0.1 % of the true one
     assert m["position_overshoot"] == pytest.approx(expected_overshoot, rel=1e-3)
@@ -122,10 +130,18 @@ def test_success_is_the_final_window_rule():
         orientation_error = np.outer(scale * rng.uniform(0.3, 1.2, steps + 1), [0.0, 0.0, 1e-2])
         terminated = bool(rng.random() < 0.1)
         inside = (np.linalg.norm(position_error, axis=1) <= POSITION_TOLERANCE) & (
-            np.linalg.norm(orientation_error, axis=1) <= ORIENTATION_TOLERANCE)
+            np.linalg.norm(orientation_error, axis=1) <= ORIENTATION_TOLERANCE
+        )
         written = float(not terminated and bool(inside[final_window_mask(time, final_window)].all()))
-        metrics = episode_metrics(time, position_error, orientation_error, np.zeros((steps, 6)),
-                                  np.zeros((steps + 1, 6)), terminated, final_window=final_window)
+        metrics = episode_metrics(
+            time,
+            position_error,
+            orientation_error,
+            np.zeros((steps, 6)),
+            np.zeros((steps + 1, 6)),
+            terminated,
+            final_window=final_window,
+        )
         assert metrics["success"] == written
         verdicts.add(written)
     assert verdicts == {0.0, 1.0}
@@ -158,8 +174,9 @@ def test_evaluate_is_deterministic_and_matches_the_single_environment():
     for _ in range(3):
         obs, *_ = env.step(policy.predict(obs)[0])
     u = env.unwrapped
-    np.testing.assert_allclose(a.episodes[1].position_error[3], u.target.position - u.state.position,
-                               rtol=0, atol=1e-12)  # the same arithmetic; batched solves may round differently
+    np.testing.assert_allclose(
+        a.episodes[1].position_error[3], u.target.position - u.state.position, rtol=0, atol=1e-12
+    )  # the same arithmetic; batched solves may round differently
 
 
 def test_report_files(tmp_path):
@@ -192,8 +209,9 @@ def _decaying_result(label: str, model: str, zero_after: float | None) -> Evalua
     error = np.outer(np.exp(-5.0 * t), [0.05, 0.0, 0.0])
     if zero_after is not None:
         error[t > zero_after] = 0.0
-    episodes = [Episode(seed, t, error, 2.0 * error, np.zeros((200, 6)), np.zeros((201, 6)), None, 0.0)
-                for seed in (0, 1)]
+    episodes = [
+        Episode(seed, t, error, 2.0 * error, np.zeros((200, 6)), np.zeros((201, 6)), None, 0.0) for seed in (0, 1)
+    ]
     return EvaluationResult(label, {"model": model}, 0, episodes)
 
 
@@ -269,8 +287,9 @@ class _FullThrust:
 def test_the_table_counts_the_episodes_ended_early_with_their_most_common_reason():
     from stewart_env.agents.evaluation import ENDED_EARLY, ended_early
 
-    crashed = evaluate(_FullThrust(), {"model": "improved"}, episodes=2, seed=0, label="thrust", max_steps=200,
-                       progress=False)
+    crashed = evaluate(
+        _FullThrust(), {"model": "improved"}, episodes=2, seed=0, label="thrust", max_steps=200, progress=False
+    )
     assert [ep.termination for ep in crashed.episodes] == ["leg_stroke", "leg_stroke"]  # within a few steps
     held = evaluate(PDPolicy, {"model": "improved"}, episodes=1, seed=0, label="PD", max_steps=20, progress=False)
     assert ended_early(held) == "0"

@@ -34,15 +34,42 @@ from stewart_env.errors import UsageError  # noqa: E402
 TEST_MODELS = ["classical", "improved", "improved_centroidal"]
 # Metrics defined for every episode (settling time and overshoot are NaN by definition when an
 # episode never settles, as in 40 steps of an untrained agent).
-ALWAYS_DEFINED = ("success", "rms_position_error", "rms_orientation_error", "steady_state_position_error",
-                  "steady_state_orientation_error", "peak_leg_force", "control_energy")
-EXPECTED_ROWS = ["PD + gravity comp. [classical]", "PD + gravity comp. [improved]",
-                 "PD + gravity comp. [improved+c2]", "CT [classical]", "CT [improved]", "CT [improved+c2]",
-                 "PPO [classical]", "PPO [improved]", "PPO [improved+c2]", "PPO [improved + DR]"]
+ALWAYS_DEFINED = (
+    "success",
+    "rms_position_error",
+    "rms_orientation_error",
+    "steady_state_position_error",
+    "steady_state_orientation_error",
+    "peak_leg_force",
+    "control_energy",
+)
+EXPECTED_ROWS = [
+    "PD + gravity comp. [classical]",
+    "PD + gravity comp. [improved]",
+    "PD + gravity comp. [improved+c2]",
+    "CT [classical]",
+    "CT [improved]",
+    "CT [improved+c2]",
+    "PPO [classical]",
+    "PPO [improved]",
+    "PPO [improved+c2]",
+    "PPO [improved + DR]",
+]
 SEEDS = [0, 1]
 # PPO's smallest run: one rollout of 2 platforms x 128 steps per agent; 40-step episodes
-STUDY = dict(train_models=["classical", "improved"], test_models=TEST_MODELS, algo="ppo", timesteps=200, n_envs=2,
-             episodes=3, seeds=SEEDS, domain_randomization=True, simplifications=["c2"], max_steps=40, progress=False)
+STUDY = dict(
+    train_models=["classical", "improved"],
+    test_models=TEST_MODELS,
+    algo="ppo",
+    timesteps=200,
+    n_envs=2,
+    episodes=3,
+    seeds=SEEDS,
+    domain_randomization=True,
+    simplifications=["c2"],
+    max_steps=40,
+    progress=False,
+)
 
 
 @pytest.fixture(scope="module")
@@ -118,10 +145,12 @@ def test_costs_of_the_simplifications(study):
     families = {"PD", "CT", "PPO"}
     names = {"classical model", "C2"}
     assert set(costs) == {(f, s, m) for f in families for s in names for m in RANKING_METRICS} | {
-        ("PPO", "domain randomisation", m) for m in RANKING_METRICS}
+        ("PPO", "domain randomisation", m) for m in RANKING_METRICS
+    }
     # a double difference where the simplified model is a test plant: the classical model, not C2 or DR
-    doubles = {(d.family, d.simplification, d.metric) for d in result.differences
-               if d.measure == mismatch.DOUBLE_DIFFERENCE}
+    doubles = {
+        (d.family, d.simplification, d.metric) for d in result.differences if d.measure == mismatch.DOUBLE_DIFFERENCE
+    }
     assert doubles == {(f, "classical model", m) for f in families for m in RANKING_METRICS}
     # C2 is a static term: CT built on it stops off target, far outside the rounding of the exact CT
     c2 = costs["CT", "C2", "steady_state_orientation_error"]
@@ -131,8 +160,12 @@ def test_costs_of_the_simplifications(study):
     with open(out / "differences.csv") as f:
         lines = list(csv.DictReader(f))
     assert len(lines) == len(costs) + len(doubles)
-    line = next(x for x in lines if (x["family"], x["simplification"], x["metric"], x["measure"]) ==
-                ("CT", "C2", "steady_state_orientation_error", mismatch.COST))
+    line = next(
+        x
+        for x in lines
+        if (x["family"], x["simplification"], x["metric"], x["measure"])
+        == ("CT", "C2", "steady_state_orientation_error", mismatch.COST)
+    )
     assert float(line["difference"]) == pytest.approx(c2.interval.estimate, rel=1e-8)  # printed to 9 digits
     assert (line["resolved"], line["failed"], line["statistic"]) == ("1", "0", "iqm")
     assert line["seeds_to_resolve"] == ""  # resolved, and on one seed: no planning figure
@@ -199,7 +232,13 @@ def test_cells_written_without_their_time_are_named_not_projected(study, tmp_pat
 
 def test_durations_read_in_the_unit_they_need():
     assert [timing.duration(t) for t in (0.0123, 59.04, 894.0, 8000.0, None, math.inf)] == [
-        "0.0123 s", "59 s", "14.9 min", "2.22 h", "-", "-"]
+        "0.0123 s",
+        "59 s",
+        "14.9 min",
+        "2.22 h",
+        "-",
+        "-",
+    ]
     assert timing.describe([302.0, 894.0, 1460.0]) == "median 14.9 min (5.0 min to 24.3 min), 44.3 min in all"
     assert timing.describe([]) == "none"
 
@@ -249,8 +288,15 @@ def test_an_interrupted_study_keeps_its_finished_cells(tmp_path, monkeypatch):
             raise KeyboardInterrupt
         return evaluate(policy, env_kwargs, **kwargs)
 
-    kwargs = dict(train_models=["improved"], test_models=["improved"], algo=None, episodes=1, simplifications=["c2"],
-                  max_steps=5, progress=False)
+    kwargs = dict(
+        train_models=["improved"],
+        test_models=["improved"],
+        algo=None,
+        episodes=1,
+        simplifications=["c2"],
+        max_steps=5,
+        progress=False,
+    )
     monkeypatch.setattr(evaluation, "evaluate", interrupted)
     with pytest.raises(KeyboardInterrupt):
         run_mismatch(tmp_path, **kwargs)
@@ -263,29 +309,38 @@ def test_an_interrupted_study_keeps_its_finished_cells(tmp_path, monkeypatch):
     assert len(list((tmp_path / "cells").rglob("*.json"))) == len(result.rows) == 4
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    ({"train_models": ["clasical"]}, "train models: 'clasical' is not a model"),
-    ({"agent_models": ["nope"]}, "agent models: 'nope' is not a model"),
-    ({"simplifications": ["c5"]}, "simplifications: unknown c5"),
-    ({"env_kwargs": {"model": "classical"}}, "env kwargs: model is set by the study"),
-    ({"task": "juggling"}, "task: unknown task 'juggling'"),
-    ({"platform": "no_such_platform"}, "platform: "),
-    ({"seeds": [0, 0]}, "seeds: each seed once"),
-    ({"seeds": [-1]}, r"seeds: expected one or more integers in \[0, 4294967295\]"),
-    ({"seeds": [2**32]}, r"seeds: expected one or more integers in \[0, 4294967295\]"),
-    ({"max_steps": 10**7 + 1}, "max_steps: at most 10000000 control steps"),
-    ({"episodes": 0}, "episodes: expected a positive integer"),
-    ({"max_steps": 0}, "max_steps: expected a positive integer"),
-    ({"backend": "dask"}, "backend: expected one of local, ray"),
-    ({"ray_address": "auto"}, "--ray-address: only with --backend ray"),
-    ({"backend": "ray", "ray_address": "localhost"}, "--ray-address: expected auto, HOST:PORT or ray://HOST:PORT"),
-    ({"backend": "ray", "ray_address": "head:99999"}, "--ray-address: expected auto, HOST:PORT or ray://HOST:PORT"),
-    ({"backend": "ray", "ray_address": "ray://:10001"}, "--ray-address: expected auto, HOST:PORT or ray://HOST:PORT"),
-    ({"config": "configs/agents/ppo.yml"}, "config: only with an RL algorithm"),
-    ({"position_tolerance": 0.0}, "position_tolerance: expected a finite positive number"),
-    ({"cost_plant": "classical"}, "cost plant: 'classical' is not one of the test models .improved.; pass --cost-plant"),
-    ({"orientation_tolerance": float("nan")}, "orientation_tolerance: expected a finite positive number"),
-])
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"train_models": ["clasical"]}, "train models: 'clasical' is not a model"),
+        ({"agent_models": ["nope"]}, "agent models: 'nope' is not a model"),
+        ({"simplifications": ["c5"]}, "simplifications: unknown c5"),
+        ({"env_kwargs": {"model": "classical"}}, "env kwargs: model is set by the study"),
+        ({"task": "juggling"}, "task: unknown task 'juggling'"),
+        ({"platform": "no_such_platform"}, "platform: "),
+        ({"seeds": [0, 0]}, "seeds: each seed once"),
+        ({"seeds": [-1]}, r"seeds: expected one or more integers in \[0, 4294967295\]"),
+        ({"seeds": [2**32]}, r"seeds: expected one or more integers in \[0, 4294967295\]"),
+        ({"max_steps": 10**7 + 1}, "max_steps: at most 10000000 control steps"),
+        ({"episodes": 0}, "episodes: expected a positive integer"),
+        ({"max_steps": 0}, "max_steps: expected a positive integer"),
+        ({"backend": "dask"}, "backend: expected one of local, ray"),
+        ({"ray_address": "auto"}, "--ray-address: only with --backend ray"),
+        ({"backend": "ray", "ray_address": "localhost"}, "--ray-address: expected auto, HOST:PORT or ray://HOST:PORT"),
+        ({"backend": "ray", "ray_address": "head:99999"}, "--ray-address: expected auto, HOST:PORT or ray://HOST:PORT"),
+        (
+            {"backend": "ray", "ray_address": "ray://:10001"},
+            "--ray-address: expected auto, HOST:PORT or ray://HOST:PORT",
+        ),
+        ({"config": "configs/agents/ppo.yml"}, "config: only with an RL algorithm"),
+        ({"position_tolerance": 0.0}, "position_tolerance: expected a finite positive number"),
+        (
+            {"cost_plant": "classical"},
+            "cost plant: 'classical' is not one of the test models .improved.; pass --cost-plant",
+        ),
+        ({"orientation_tolerance": float("nan")}, "orientation_tolerance: expected a finite positive number"),
+    ],
+)
 def test_bad_requests_are_named_before_any_work(tmp_path, kwargs, message):
     out = tmp_path / "study"
     with pytest.raises(MismatchError, match=message):
@@ -300,8 +355,9 @@ def test_an_address_where_nothing_answers_is_refused_at_once(tmp_path):
         port = probe.getsockname()[1]
     start = time.perf_counter()
     with pytest.raises(MismatchError, match=rf"--ray-address 127.0.0.1:{port}: nothing answers there"):
-        run_mismatch(tmp_path / "study", ["improved"], ["improved"], algo=None, backend="ray",
-                     ray_address=f"127.0.0.1:{port}")
+        run_mismatch(
+            tmp_path / "study", ["improved"], ["improved"], algo=None, backend="ray", ray_address=f"127.0.0.1:{port}"
+        )
     # Ray itself would retry for ever; the study gives up after its connect timeout at most
     assert time.perf_counter() - start < mismatch.RAY_CONNECT_TIMEOUT + 5.0
 
@@ -319,21 +375,24 @@ def _parser():
     return parser
 
 
-@pytest.mark.parametrize("flag, value, message", [
-    ("--seeds", "0,0", "argument --seeds: expected comma-separated distinct integers"),
-    ("--seeds", "4294967296", "argument --seeds: expected comma-separated distinct integers in [0, 4294967295]"),
-    ("--max-steps", "99999999999", "argument --max-steps: expected an integer in [1, 10000000]"),
-    ("--seeds", "a", "argument --seeds: expected comma-separated distinct integers"),
-    ("--task", "juggling", "argument --task: invalid choice: 'juggling'"),
-    ("--platform", "no_such_platform", "argument --platform: "),
-    ("--backend", "dask", "argument --backend: invalid choice: 'dask'"),
-    ("--episodes", "0", "argument --episodes: expected a positive integer"),
-    ("--max-steps", "-3", "argument --max-steps: expected an integer in [1, 10000000]"),
-    ("--timesteps", "x", "argument --timesteps: expected a positive integer"),
-    ("--algo", "dqn", "argument --algo: invalid choice: 'dqn'"),
-    ("--position-tolerance", "0", "argument --position-tolerance: expected a finite positive number"),
-    ("--config", "no/such.yml", "argument --config: hyperparameter file not found: no/such.yml"),
-])
+@pytest.mark.parametrize(
+    "flag, value, message",
+    [
+        ("--seeds", "0,0", "argument --seeds: expected comma-separated distinct integers"),
+        ("--seeds", "4294967296", "argument --seeds: expected comma-separated distinct integers in [0, 4294967295]"),
+        ("--max-steps", "99999999999", "argument --max-steps: expected an integer in [1, 10000000]"),
+        ("--seeds", "a", "argument --seeds: expected comma-separated distinct integers"),
+        ("--task", "juggling", "argument --task: invalid choice: 'juggling'"),
+        ("--platform", "no_such_platform", "argument --platform: "),
+        ("--backend", "dask", "argument --backend: invalid choice: 'dask'"),
+        ("--episodes", "0", "argument --episodes: expected a positive integer"),
+        ("--max-steps", "-3", "argument --max-steps: expected an integer in [1, 10000000]"),
+        ("--timesteps", "x", "argument --timesteps: expected a positive integer"),
+        ("--algo", "dqn", "argument --algo: invalid choice: 'dqn'"),
+        ("--position-tolerance", "0", "argument --position-tolerance: expected a finite positive number"),
+        ("--config", "no/such.yml", "argument --config: hyperparameter file not found: no/such.yml"),
+    ],
+)
 def test_cli_rejects_bad_flag_values(tmp_path, capsys, flag, value, message):
     with pytest.raises(SystemExit):
         _parser().parse_args(["mismatch", "--out", str(tmp_path), flag, value])
@@ -350,14 +409,35 @@ def test_cli_reports_a_failed_cluster_and_how_to_continue(tmp_path, capsys, monk
     assert args.func(args) == 1
     assert capsys.readouterr().err == (
         "stewart-env mismatch: error: the Ray cluster failed: LocalRayletDiedError: The task's local raylet died; "
-        f"finished agents and cells are kept in {tmp_path} (run the same command again to continue)\n")
+        f"finished agents and cells are kept in {tmp_path} (run the same command again to continue)\n"
+    )
 
 
 def test_cli_model_based_rows_on_another_task_and_platform(tmp_path, capsys):
-    args = _parser().parse_args(["mismatch", "--train-models", "improved", "--test-models", "classical,improved",
-                                 "--algo", "none", "--simplifications", "c1", "--episodes", "2", "--max-steps", "20",
-                                 "--task", "tracking", "--platform", "motion_simulator", "--out", str(tmp_path),
-                                 "--no-progress"])
+    args = _parser().parse_args(
+        [
+            "mismatch",
+            "--train-models",
+            "improved",
+            "--test-models",
+            "classical,improved",
+            "--algo",
+            "none",
+            "--simplifications",
+            "c1",
+            "--episodes",
+            "2",
+            "--max-steps",
+            "20",
+            "--task",
+            "tracking",
+            "--platform",
+            "motion_simulator",
+            "--out",
+            str(tmp_path),
+            "--no-progress",
+        ]
+    )
     assert args.func(args) == 0
     assert "4 controllers x 2 plants" in capsys.readouterr().out
     assert len(_rows(tmp_path)) == 8
@@ -375,9 +455,17 @@ def _constructed_study(ppo_success: float, shift: float = 1.0):
     1000 times CT's, and PPO succeeds in ``ppo_success`` of the episodes."""
     rng = np.random.default_rng(0)
     difficulty = rng.lognormal(0.0, 0.5, size=(2, 8)) * 1e-6
-    rows = [mismatch.Row(f"{family} [{model}]", family, model, "ct" if family == "CT" else "agent",
-                         seeds=() if family == "CT" else (0, 1))
-            for family in ("CT", "PPO") for model in ("improved", "improved+c2")]
+    rows = [
+        mismatch.Row(
+            f"{family} [{model}]",
+            family,
+            model,
+            "ct" if family == "CT" else "agent",
+            seeds=() if family == "CT" else (0, 1),
+        )
+        for family in ("CT", "PPO")
+        for model in ("improved", "improved+c2")
+    ]
     cells = {}
     for row in rows:
         scale = 1e3 if row.family == "PPO" else 1.0
@@ -386,8 +474,10 @@ def _constructed_study(ppo_success: float, shift: float = 1.0):
         cells[row.label] = {key: scale * (base + offset) for key, *_ in METRICS}
         success = ppo_success if row.family == "PPO" else 1.0
         cells[row.label]["success"] = (np.arange(base.size).reshape(base.shape) < success * base.size).astype(float)
-    summary = {r.label: {"improved": {k: stratified_bootstrap(v, mismatch.statistic(k))
-                                      for k, v in cells[r.label].items()}} for r in rows}
+    summary = {
+        r.label: {"improved": {k: stratified_bootstrap(v, mismatch.statistic(k)) for k, v in cells[r.label].items()}}
+        for r in rows
+    }
     result = mismatch.MismatchResult(rows, ["improved"], summary, 8)
     result.differences = mismatch.simplification_costs(result, values=lambda r, plant, key: cells[r.label][key])
     return result
@@ -419,6 +509,7 @@ def test_failed_agents_rank_no_simplification(tmp_path):
 
 def test_text_report_draws_no_figure(tmp_path, monkeypatch):
     """matrix.md, matrix.csv and differences.csv alone: no figure is drawn (any attempt fails here)."""
+
     def no_figure(*args, **kwargs):
         raise AssertionError("a figure was drawn")
 
@@ -430,8 +521,10 @@ def test_text_report_draws_no_figure(tmp_path, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["differences.csv", "matrix.csv", "matrix.md"]
     text = files["markdown"].read_text()
     assert text.startswith("# Model mismatch on the setpoint task, platform dasgupta1998")
-    assert "training seeds (0, 1; one for the model-based rows) and the 8 episodes (evaluation seeds " \
-           "100000..100007" in text
+    assert (
+        "training seeds (0, 1; one for the model-based rows) and the 8 episodes (evaluation seeds "
+        "100000..100007" in text
+    )
     assert text.endswith("Backend: local. Wall time of this run: 3 s.\n")
     lines = _rows(tmp_path)
     assert [(x["controller"], x["test_model"]) for x in lines] == [(r.label, "improved") for r in study.rows]
@@ -489,8 +582,12 @@ def _two_plant_study(shift: float):
     plants = ["improved", "improved+c2"]
     rows = [mismatch.Row(f"PPO [{m}]", "PPO", m, "agent", seeds=(0, 1, 2, 3)) for m in plants]
     cells = _two_plant_cells(shift)
-    summary = {r.label: {p: {k: stratified_bootstrap(v, mismatch.statistic(k)) for k, v in cells[r.label, p].items()}
-                         for p in plants} for r in rows}
+    summary = {
+        r.label: {
+            p: {k: stratified_bootstrap(v, mismatch.statistic(k)) for k, v in cells[r.label, p].items()} for p in plants
+        }
+        for r in rows
+    }
     result = mismatch.MismatchResult(rows, plants, summary, 20)
     result.differences = mismatch.simplification_costs(result, values=lambda r, plant, key: cells[r.label, plant][key])
     return result
@@ -517,8 +614,13 @@ def test_every_learned_difference_gets_a_welch_test_on_its_seeds():
     cost = next(d for d in result.differences if d.measure == mismatch.COST and d.metric == "rms_position_error")
     # the per-seed IQMs: 5 mm + the seed's bias + the episodes' common difficulty (+ 0.2 mm for C2 on the exact plant)
     rows = {r.model: r for r in result.rows}
-    per_seed = {m: [stratified_bootstrap(v, "iqm").estimate for v in
-                    _two_plant_cells()[rows[m].label, "improved"]["rms_position_error"]] for m in rows}
+    per_seed = {
+        m: [
+            stratified_bootstrap(v, "iqm").estimate
+            for v in _two_plant_cells()[rows[m].label, "improved"]["rms_position_error"]
+        ]
+        for m in rows
+    }
     expected = ttest_ind(per_seed["improved+c2"], per_seed["improved"], equal_var=False).pvalue
     assert cost.seed_p == pytest.approx(expected, rel=1e-12)  # the same numbers, the same test
     assert 0.05 < cost.seed_p  # the seeds' spread hides the 0.2 mm here too
@@ -532,11 +634,15 @@ def test_double_differences_are_written_apart_and_not_ranked(tmp_path):
     costs, doubles = files["markdown"].read_text().split("## Double differences on the improved plant")
     # the cost's interval at 4 seeds, sized for half the double difference, 0.2 mm
     line = next(x for x in costs.splitlines() if x.startswith("- RMS pos. err. (mm), resolved costs"))
-    cost = next(d for d in _two_plant_study(shift=0.2).differences
-                if d.measure == mismatch.COST and d.metric == "rms_position_error")
+    cost = next(
+        d
+        for d in _two_plant_study(shift=0.2).differences
+        if d.measure == mismatch.COST and d.metric == "rms_position_error"
+    )
     seeds = math.ceil(4 * (0.5 * (cost.interval.high - cost.interval.low) / 0.2e-3) ** 2)
-    assert seeds > 4 and line.endswith(f"not resolved: C2 (about {seeds} seeds a row would resolve it, at half the "
-                                       "double difference, 0.2).")
+    assert seeds > 4 and line.endswith(
+        f"not resolved: C2 (about {seeds} seeds a row would resolve it, at half the double difference, 0.2)."
+    )
     assert "**0.4 [0.4, 0.4]**" in doubles and "largest first" not in doubles
     with open(files["differences"]) as f:
         lines = list(csv.DictReader(f))
@@ -586,9 +692,15 @@ def test_a_row_stopped_while_training_continues_from_its_checkpoint(study, tmp_p
     (row / VECNORMALIZE_FILE).unlink(missing_ok=True)
     manifest = read_manifest(row)
     steps, _ = newest_checkpoint(row, "ppo", bool(manifest["normalize"]))
-    training = dict(algo="ppo", model=manifest["model"], task=manifest["task"], seed=manifest["seed"], n_envs=2,
-                    checkpoint_freq=0, env_kwargs={k: v for k, v in manifest["env_kwargs"].items()
-                                                   if k not in ("model", "task")})
+    training = dict(
+        algo="ppo",
+        model=manifest["model"],
+        task=manifest["task"],
+        seed=manifest["seed"],
+        n_envs=2,
+        checkpoint_freq=0,
+        env_kwargs={k: v for k, v in manifest["env_kwargs"].items() if k not in ("model", "task")},
+    )
     with pytest.raises(TrainingError, match="seed"):  # a row of another seed is not continued silently
         mismatch.train_agent(row, {**training, "seed": manifest["seed"] + 1}, steps + 1)
     mismatch.train_agent(row, training, steps + 1)
@@ -603,8 +715,15 @@ def test_interval_formatting():
 
 
 def test_agent_models_pick_the_learned_rows(tmp_path):
-    rows = mismatch.build_rows(tmp_path, ["classical", "improved", "improved+c2"], "ppo", [0, 3], True,
-                               "dasgupta1998", agent_models=["improved"])
+    rows = mismatch.build_rows(
+        tmp_path,
+        ["classical", "improved", "improved+c2"],
+        "ppo",
+        [0, 3],
+        True,
+        "dasgupta1998",
+        agent_models=["improved"],
+    )
     assert [r.label for r in rows if r.kind == "agent"] == ["PPO [improved]", "PPO [improved + DR]"]
     assert [r.label for r in rows if r.kind == "ct"] == ["CT [classical]", "CT [improved]", "CT [improved+c2]"]
     agent = next(r for r in rows if r.kind == "agent")
@@ -621,12 +740,24 @@ def test_config_file_is_part_of_the_study(tmp_path):
     with pytest.raises(TrainingError, match="StewartPlatform-v1"):
         run_mismatch(tmp_path / "study", ["improved"], ["improved"], algo="ppo", config=bad)
     assert not (tmp_path / "study").exists()
-    parser_args = _parser().parse_args(["mismatch", "--out", str(tmp_path), "--config",
-                                        str(config_path("ppo", None).with_name("ppo_integral_6m.yml"))])
+    parser_args = _parser().parse_args(
+        ["mismatch", "--out", str(tmp_path), "--config", str(config_path("ppo", None).with_name("ppo_integral_6m.yml"))]
+    )
     assert parser_args.config.endswith("ppo_integral_6m.yml")
     # the agents train on the config's environment: ppo_integral_6m.yml observes the error integral
-    run_mismatch(tmp_path / "integral", ["improved"], ["improved"], algo="ppo", timesteps=100, n_envs=2, episodes=1,
-                 simplifications=[], max_steps=5, config=parser_args.config, progress=False)
+    run_mismatch(
+        tmp_path / "integral",
+        ["improved"],
+        ["improved"],
+        algo="ppo",
+        timesteps=100,
+        n_envs=2,
+        episodes=1,
+        simplifications=[],
+        max_steps=5,
+        config=parser_args.config,
+        progress=False,
+    )
     manifest = json.loads((tmp_path / "integral" / "agents" / "improved" / "seed_0" / "run.json").read_text())
     assert manifest["env_kwargs"]["error_integral"] is True
     settings = json.loads((tmp_path / "integral" / mismatch.STUDY_FILE).read_text())
@@ -638,13 +769,29 @@ def test_mujoco_as_a_test_plant_and_a_training_model(tmp_path):
     """Cross-engine: CT on each closed-form model and an agent trained in MuJoCo, run on MuJoCo's
     plant and on the exact one; the costs measured on the MuJoCo plant."""
     pytest.importorskip("mujoco")
-    result = run_mismatch(tmp_path, ["classical", "improved"], ["improved", "mujoco"], algo="ppo", timesteps=100,
-                          n_envs=2, episodes=2, simplifications=[], max_steps=10, agent_models=["mujoco"],
-                          cost_plant="mujoco", progress=False)
+    result = run_mismatch(
+        tmp_path,
+        ["classical", "improved"],
+        ["improved", "mujoco"],
+        algo="ppo",
+        timesteps=100,
+        n_envs=2,
+        episodes=2,
+        simplifications=[],
+        max_steps=10,
+        agent_models=["mujoco"],
+        cost_plant="mujoco",
+        progress=False,
+    )
     labels = [r.label for r in result.rows]
     # no PD or CT row is built on MuJoCo (it has no closed-form inverse dynamics); an agent is trained in it
-    assert labels == ["PD + gravity comp. [classical]", "PD + gravity comp. [improved]", "CT [classical]",
-                      "CT [improved]", "PPO [mujoco]"]
+    assert labels == [
+        "PD + gravity comp. [classical]",
+        "PD + gravity comp. [improved]",
+        "CT [classical]",
+        "CT [improved]",
+        "PPO [mujoco]",
+    ]
     ct = result.summary["CT [improved]"]
     # MuJoCo is another simulation of the same mechanism: close to the exact plant, not equal to it
     a, b = ct["improved"]["rms_position_error"].estimate, ct["mujoco"]["rms_position_error"].estimate

@@ -20,8 +20,16 @@ from stewart_env.cli import mismatch as mismatch_cli
 
 CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs" / "platforms"
 # CT only, on the truth's plant: 2 episodes of 40 steps per cell
-TINY = dict(train_models=["classical", "improved"], test_models=["improved"], task="tracking", algo=None,
-            simplifications=(), episodes=2, max_steps=40, progress=False)
+TINY = dict(
+    train_models=["classical", "improved"],
+    test_models=["improved"],
+    task="tracking",
+    algo=None,
+    simplifications=(),
+    episodes=2,
+    max_steps=40,
+    progress=False,
+)
 
 
 def _platform(path: Path, platform_mass: float) -> Path:
@@ -52,29 +60,44 @@ def _rows(out):
 def test_ct_on_an_identified_platform_is_compared_on_the_truth_s_plant(tmp_path, platforms):
     truth, identified, nominal = platforms
     out = tmp_path / "study"
-    result = run_mismatch(out, platform=str(truth), controller_platforms=[f"identified={identified}", str(nominal)],
-                          **TINY)
+    result = run_mismatch(
+        out, platform=str(truth), controller_platforms=[f"identified={identified}", str(nominal)], **TINY
+    )
     labels = [r.label for r in result.rows]
-    assert labels == ["PD + gravity comp. [classical]", "PD + gravity comp. [improved]", "CT [classical]",
-                      "CT [improved]", "PD + gravity comp. [classical @ identified]",
-                      "PD + gravity comp. [improved @ identified]", "CT [classical @ identified]",
-                      "CT [improved @ identified]", "PD + gravity comp. [classical @ nominal]",
-                      "PD + gravity comp. [improved @ nominal]", "CT [classical @ nominal]", "CT [improved @ nominal]"]
+    assert labels == [
+        "PD + gravity comp. [classical]",
+        "PD + gravity comp. [improved]",
+        "CT [classical]",
+        "CT [improved]",
+        "PD + gravity comp. [classical @ identified]",
+        "PD + gravity comp. [improved @ identified]",
+        "CT [classical @ identified]",
+        "CT [improved @ identified]",
+        "PD + gravity comp. [classical @ nominal]",
+        "PD + gravity comp. [improved @ nominal]",
+        "CT [classical @ nominal]",
+        "CT [improved @ nominal]",
+    ]
     rows = _rows(out)
     assert set(rows) == set(labels)
     # the identified platform is the truth's parameters: the same controller, the same episodes, bit for bit
     for key in ("rms_position_error", "peak_leg_force", "control_energy"):
         assert rows["CT [improved @ identified]"][key] == rows["CT [improved]"][key]
     # the nominal platform's 4 kg too little leaves CT a steady error in height that the exact model has not
-    assert float(rows["CT [improved @ nominal]"]["rms_position_error"]) > 5 * float(rows["CT [improved]"]["rms_position_error"])
+    assert float(rows["CT [improved @ nominal]"]["rms_position_error"]) > 5 * float(
+        rows["CT [improved]"]["rms_position_error"]
+    )
     spec = json.loads((out / "cells" / "ct_improved_identified" / "improved" / "model_based.json").read_text())["spec"]
     assert spec["design_platform"] == str(identified) and spec["env_kwargs"]["platform"] == str(truth)
     # the plain rows' cells name no controller platform: studies from before it resume unchanged
-    assert "design_platform" not in json.loads(
-        (out / "cells" / "ct_improved" / "improved" / "model_based.json").read_text())["spec"]
+    assert (
+        "design_platform"
+        not in json.loads((out / "cells" / "ct_improved" / "improved" / "model_based.json").read_text())["spec"]
+    )
 
-    shares = {(d.family, d.simplification, d.metric): d for d in result.differences
-              if d.measure == mismatch.SHARE_REMOVED}
+    shares = {
+        (d.family, d.simplification, d.metric): d for d in result.differences if d.measure == mismatch.SHARE_REMOVED
+    }
     costs = {(d.family, d.simplification, d.metric): d for d in result.differences if d.measure == mismatch.COST}
     assert costs["CT", "platform identified", "rms_position_error"].interval.estimate == 0.0
     # a perfect identification removes all of the classical model's cost, in every resample
@@ -85,7 +108,10 @@ def test_ct_on_an_identified_platform_is_compared_on_the_truth_s_plant(tmp_path,
     assert "## Share of the classical model's cost removed on the improved plant" in text
     assert "| platform identified | 100 [100, 100] |" in text
     recorded = json.loads((out / mismatch.STUDY_FILE).read_text())["controller_platforms"]
-    assert [(p["name"], p["platform"]) for p in recorded] == [("identified", str(identified)), ("nominal", str(nominal))]
+    assert [(p["name"], p["platform"]) for p in recorded] == [
+        ("identified", str(identified)),
+        ("nominal", str(nominal)),
+    ]
 
 
 @pytest.mark.extra("rl")
@@ -118,22 +144,35 @@ def test_cli_refuses_a_controller_platform_that_does_not_load_in_one_line(tmp_pa
     from stewart_env.cli import main
 
     with pytest.raises(SystemExit) as stop:  # refused while the command line is parsed, before any work
-        main(["mismatch", "--algo", "none", "--controller-platform", value, "--out", str(tmp_path / "out"),
-              "--no-progress"])
+        main(
+            [
+                "mismatch",
+                "--algo",
+                "none",
+                "--controller-platform",
+                value,
+                "--out",
+                str(tmp_path / "out"),
+                "--no-progress",
+            ]
+        )
     assert stop.value.code == 2
     last = capsys.readouterr().err.strip().splitlines()[-1]  # argparse's usage lines, then the error
     assert last.startswith("stewart-env mismatch: error: argument --controller-platform: "), last
     assert not (tmp_path / "out").exists()
 
 
-@pytest.mark.parametrize("platforms, message", [
-    (["dasgupta1998", "dasgupta1998"], "two platforms named 'dasgupta1998'"),
-    (["a=dasgupta1998", "A=motion_simulator"], "two platforms named 'A'"),  # one file name for their rows
-    ([(".hidden", "dasgupta1998")], "cannot name a platform"),
-    ("dasgupta1998", "expected a list of platforms"),
-    ([3], "expected NAME=PLATFORM or PLATFORM"),
-    (["c2=dasgupta1998"], "makes the rows of improved on it share their files"),  # [improved @ c2], [improved+c2]
-])
+@pytest.mark.parametrize(
+    "platforms, message",
+    [
+        (["dasgupta1998", "dasgupta1998"], "two platforms named 'dasgupta1998'"),
+        (["a=dasgupta1998", "A=motion_simulator"], "two platforms named 'A'"),  # one file name for their rows
+        ([(".hidden", "dasgupta1998")], "cannot name a platform"),
+        ("dasgupta1998", "expected a list of platforms"),
+        ([3], "expected NAME=PLATFORM or PLATFORM"),
+        (["c2=dasgupta1998"], "makes the rows of improved on it share their files"),  # [improved @ c2], [improved+c2]
+    ],
+)
 def test_controller_platforms_are_checked(platforms, message):
     with pytest.raises(MismatchError, match=message):
         MismatchSettings(algo=None, controller_platforms=platforms)
@@ -141,12 +180,23 @@ def test_controller_platforms_are_checked(platforms, message):
 
 def test_an_agent_on_a_controller_platform_is_trained_on_it(tmp_path):
     settings = MismatchSettings(algo="ppo", controller_platforms=["sim=motion_simulator"], simplifications=())
-    rows = build_rows(tmp_path, settings.design_models, "ppo", (0,), False, settings.platform, None,
-                      settings.controller_platforms, settings.train_models)
+    rows = build_rows(
+        tmp_path,
+        settings.design_models,
+        "ppo",
+        (0,),
+        False,
+        settings.platform,
+        None,
+        settings.controller_platforms,
+        settings.train_models,
+    )
     agent = next(r for r in rows if r.label == "PPO [improved @ sim]")
     assert agent.agents[0] == tmp_path / "agents" / "improved_sim" / "seed_0"
     training = training_keywords("ppo", agent, 0, settings.env_kwargs, "setpoint", None)
-    assert training["env_kwargs"]["platform"] == "motion_simulator" and settings.env_kwargs["platform"] == "dasgupta1998"
+    assert (
+        training["env_kwargs"]["platform"] == "motion_simulator" and settings.env_kwargs["platform"] == "dasgupta1998"
+    )
 
 
 def test_share_removed_on_constructed_cells():
@@ -162,9 +212,19 @@ def test_share_removed_on_constructed_cells():
 def test_an_agent_on_a_controller_platform_runs_on_the_truth_s_plant(tmp_path, platforms):
     truth, identified, _ = platforms
     out = tmp_path / "study"
-    kwargs = dict(platform=str(truth), controller_platforms=[f"identified={identified}"], train_models=["improved"],
-                  test_models=["improved"], algo="ppo", timesteps=200, n_envs=2, simplifications=(), episodes=1,
-                  max_steps=10, progress=False)
+    kwargs = dict(
+        platform=str(truth),
+        controller_platforms=[f"identified={identified}"],
+        train_models=["improved"],
+        test_models=["improved"],
+        algo="ppo",
+        timesteps=200,
+        n_envs=2,
+        simplifications=(),
+        episodes=1,
+        max_steps=10,
+        progress=False,
+    )
     result = run_mismatch(out, **kwargs)
     assert [r.label for r in result.rows if r.kind == "agent"] == ["PPO [improved]", "PPO [improved @ identified]"]
     run = json.loads((out / "agents" / "improved_identified" / "seed_0" / "run.json").read_text())

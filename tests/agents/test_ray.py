@@ -11,14 +11,26 @@ import pytest
 ray = pytest.importorskip("ray")
 
 # PPO runs here are a rollout of 2 platforms, smaller than the config's minibatch on purpose.
-pytestmark = [pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning"),
-              pytest.mark.slow]  # a local Ray instance starts in about 5-10 s, then trains and evaluates
+pytestmark = [
+    pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning"),
+    pytest.mark.slow,
+]  # a local Ray instance starts in about 5-10 s, then trains and evaluates
 
 from stewart_env.agents.mismatch import run_mismatch  # noqa: E402
 
 # four tiny agents (the exact model and C2, two seeds each), CT and PD on two models, two plants, 2 episodes of 20 steps
-STUDY = dict(train_models=["improved"], test_models=["classical", "improved"], algo="ppo", timesteps=100, n_envs=2,
-             episodes=2, seeds=[0, 1], simplifications=["c2"], max_steps=20, progress=False)
+STUDY = dict(
+    train_models=["improved"],
+    test_models=["classical", "improved"],
+    algo="ppo",
+    timesteps=100,
+    n_envs=2,
+    episodes=2,
+    seeds=[0, 1],
+    simplifications=["c2"],
+    max_steps=20,
+    progress=False,
+)
 
 
 @pytest.fixture(scope="module")

@@ -10,8 +10,10 @@ ray = pytest.importorskip("ray")
 cluster_utils = pytest.importorskip("ray.cluster_utils")
 
 # PPO runs here are a rollout of 2 platforms, smaller than the config's minibatch on purpose.
-pytestmark = [pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning"),
-              pytest.mark.slow]  # three Ray nodes start in about 10-20 s
+pytestmark = [
+    pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning"),
+    pytest.mark.slow,
+]  # three Ray nodes start in about 10-20 s
 
 from stewart_env.agents.mismatch import run_mismatch  # noqa: E402
 

@@ -130,11 +130,14 @@ def test_seeds_to_resolve_follows_the_width_of_more_seeds():
     assert repeated(-(-2 * needed // 4)).resolved
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    ({"statistic": "median"}, "statistic: expected one of mean, iqm"),
-    ({"confidence": 1.5}, "confidence"),
-    ({"resamples": 0}, "resamples"),
-])
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"statistic": "median"}, "statistic: expected one of mean, iqm"),
+        ({"confidence": 1.5}, "confidence"),
+        ({"resamples": 0}, "resamples"),
+    ],
+)
 def test_bad_arguments_are_named(kwargs, message):
     with pytest.raises(ValueError, match=message):
         stratified_bootstrap([1.0, 2.0], **kwargs)

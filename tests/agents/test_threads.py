@@ -31,8 +31,13 @@ def test_a_ray_worker_uses_as_many_physics_threads_as_it_has_cpus():
     from stewart_env.agents.mismatch import RayBackend
 
     # the workers' environment asks for 3 threads: the job's CPUs must win over it
-    ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR", log_to_driver=False,
-             runtime_env={"env_vars": {"STEWART_ENV_THREADS": "3"}})
+    ray.init(
+        num_cpus=2,
+        include_dashboard=False,
+        logging_level="ERROR",
+        log_to_driver=False,
+        runtime_env={"env_vars": {"STEWART_ENV_THREADS": "3"}},
+    )
     try:
         backend = RayBackend()
         counts = [count for _, count in backend.run(se.get_num_threads, [(), (), ()])]

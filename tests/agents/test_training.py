@@ -16,8 +16,10 @@ import yaml
 
 # PPO runs here are a rollout or two of 2 platforms, smaller than the config's minibatch on purpose.
 # Every test here trains or loads an agent: stable-baselines3 and torch (the rl extra).
-pytestmark = [pytest.mark.extra("rl"),
-              pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning")]
+pytestmark = [
+    pytest.mark.extra("rl"),
+    pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning"),
+]
 
 import stewart_env  # noqa: E402,F401  (registers the environment)
 from stewart_env.agents import training  # noqa: E402
@@ -36,8 +38,20 @@ from stewart_env.agents.training import (  # noqa: E402
 
 # Keys rl_zoo3 consumes itself before the rest goes to the algorithm's constructor (rl_zoo3
 # ExperimentManager._preprocess_hyperparameters), written out here independently of the training package.
-ZOO_OWN_KEYS = {"n_timesteps", "policy", "normalize", "n_envs", "frame_stack", "env_wrapper", "vec_env_wrapper",
-                "callback", "env_kwargs", "monitor_kwargs", "noise_type", "noise_std"}
+ZOO_OWN_KEYS = {
+    "n_timesteps",
+    "policy",
+    "normalize",
+    "n_envs",
+    "frame_stack",
+    "env_wrapper",
+    "vec_env_wrapper",
+    "callback",
+    "env_kwargs",
+    "monitor_kwargs",
+    "noise_type",
+    "noise_std",
+}
 
 
 #: every shipped hyperparameter file and the algorithm it configures
@@ -82,8 +96,25 @@ def test_zoo_config_builds_the_algorithm(algo, name):
 
 def test_rl_zoo3_trains_from_the_config(tmp_path):
     """`python -m rl_zoo3.train --gym-packages stewart_env --conf-file configs/agents/sac.yml` runs."""
-    cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "sac", "--env", ENV_ID, "--gym-packages", "stewart_env",
-           "--conf-file", str(CONFIG_DIR / "sac.yml"), "-n", "200", "-f", str(tmp_path), "--seed", "0"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "rl_zoo3.train",
+        "--algo",
+        "sac",
+        "--env",
+        ENV_ID,
+        "--gym-packages",
+        "stewart_env",
+        "--conf-file",
+        str(CONFIG_DIR / "sac.yml"),
+        "-n",
+        "200",
+        "-f",
+        str(tmp_path),
+        "--seed",
+        "0",
+    ]
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-2000:]
     assert (tmp_path / "sac" / f"{ENV_ID}_1" / f"{ENV_ID}.zip").is_file()
@@ -114,9 +145,14 @@ def test_zoo_schedule_and_noise_are_converted():
 
 def test_parse_env_kwargs_json_and_pairs():
     assert parse_env_kwargs(['{"observation_noise": 0.01, "task_options": {"randomize": false}}']) == {
-        "observation_noise": 0.01, "task_options": {"randomize": False}}
+        "observation_noise": 0.01,
+        "task_options": {"randomize": False},
+    }
     assert parse_env_kwargs(["control_dt=0.02", "platform=dasgupta1998", "observation_delay=2"]) == {
-        "control_dt": 0.02, "platform": "dasgupta1998", "observation_delay": 2}
+        "control_dt": 0.02,
+        "platform": "dasgupta1998",
+        "observation_delay": 2,
+    }
     with pytest.raises(TrainingError, match="key=value"):
         parse_env_kwargs(["control_dt"])
 
@@ -141,8 +177,12 @@ def test_training_writes_a_run_that_loads_and_evaluates(ppo_run):
     manifest = json.loads((out / "run.json").read_text())
     assert manifest["algo"] == "ppo" and manifest["seed"] == 3 and manifest["num_timesteps"] == 320
     # the config's environment keywords, then the run's
-    assert manifest["env_kwargs"] == {"error_integral": True, "error_integral_band": 0.01, "model": "improved",
-                                      "task": "setpoint"}
+    assert manifest["env_kwargs"] == {
+        "error_integral": True,
+        "error_integral_band": 0.01,
+        "model": "improved",
+        "task": "setpoint",
+    }
     assert manifest["finished"] and {"torch", "stable_baselines3", "stewart_env"} <= set(manifest["versions"])
     assert set(manifest["files"]) == {"model.zip", "vecnormalize.pkl"}
 
@@ -251,8 +291,19 @@ def test_cli_reports_errors_with_exit_code(tmp_path, capsys):
         parser.parse_args(["train", "--algo", "a2c", "--out", str(tmp_path / "run")])
     assert stop.value.code == 2
     assert "argument --algo: invalid choice: 'a2c'" in capsys.readouterr().err
-    args = parser.parse_args(["train", "--algo", "ppo", "--out", str(tmp_path / "run"),
-                              "--env-kwargs", "contol_dt=0.02", "--timesteps", "10"])
+    args = parser.parse_args(
+        [
+            "train",
+            "--algo",
+            "ppo",
+            "--out",
+            str(tmp_path / "run"),
+            "--env-kwargs",
+            "contol_dt=0.02",
+            "--timesteps",
+            "10",
+        ]
+    )
     assert train_verb.run(args) == 2
     assert "contol_dt" in capsys.readouterr().err
     assert not (tmp_path / "run" / "run.json").exists()
@@ -269,8 +320,9 @@ def _interrupt_after(original):
 
 
 @pytest.mark.parametrize("point", ["make_training_env", "publish"])
-def test_a_start_interrupted_before_the_first_checkpoint_leaves_a_folder_a_rerun_accepts(point, tmp_path, monkeypatch,
-                                                                                        capsys):
+def test_a_start_interrupted_before_the_first_checkpoint_leaves_a_folder_a_rerun_accepts(
+    point, tmp_path, monkeypatch, capsys
+):
     """Ctrl-C once the environment wrote its monitor file (before the run's manifest), or once the
     manifest is published (before the first checkpoint): the same command starts the run again,
     and --resume says to run it without --resume."""
@@ -282,8 +334,10 @@ def test_a_start_interrupted_before_the_first_checkpoint_leaves_a_folder_a_rerun
     with monkeypatch.context() as patch:
         patch.setattr(trainer, point, _interrupt_after(getattr(trainer, point)))
         assert main(argv) == 130
-    assert "interrupted before training started; nothing saved (run the same command to start it again)" in \
-        capsys.readouterr().err
+    assert (
+        "interrupted before training started; nothing saved (run the same command to start it again)"
+        in capsys.readouterr().err
+    )
     assert main([*argv, "--resume"]) == 2
     assert "start it again without --resume" in capsys.readouterr().err
     assert main(argv) == 0

@@ -19,8 +19,16 @@ def test_scaling_table_and_plot(dasgupta, tmp_path):
     r = bench.bench_scaling(dasgupta, sizes=(1, 9), repeats=1, seconds=1e-3, substeps=2)
     assert [row["n"] for row in r["rows"]] == [1, 9]
     for row in r["rows"]:
-        for key in ("evals_per_s", "evals_per_cpu_s", "evals_peak", "evals_core_peak",
-                    "steps_per_s", "steps_per_cpu_s", "steps_peak", "steps_core_peak"):
+        for key in (
+            "evals_per_s",
+            "evals_per_cpu_s",
+            "evals_peak",
+            "evals_core_peak",
+            "steps_per_s",
+            "steps_per_cpu_s",
+            "steps_peak",
+            "steps_core_peak",
+        ):
             assert math.isfinite(row[key]) and row[key] > 0, key
     table = bench.scaling_table(r)
     assert f"{r['flops']:,} flops per forward evaluation" in table

@@ -13,11 +13,14 @@ from stewart_env.cli import main
 from conftest import exit_code
 
 
-@pytest.mark.parametrize("command, expected", [
-    ("demo", "--episodes"),
-    ("evaluate", "--internal-model"),
-    ("reproduce", "--duration"),
-])
+@pytest.mark.parametrize(
+    "command, expected",
+    [
+        ("demo", "--episodes"),
+        ("evaluate", "--internal-model"),
+        ("reproduce", "--duration"),
+    ],
+)
 def test_subcommand_help(command, expected, capsys):
     with pytest.raises(SystemExit) as stop:
         main([command, "--help"])
@@ -58,13 +61,38 @@ def test_demo_prints_the_comparison_table(capsys):
     out = capsys.readouterr().out
     # without compensation the platform sags 27 mm, outside the 2 mm success band; with it, it settles
     rows = {tuple(line.split()[:-5]): line.split()[-5] for line in out.splitlines()[4:8]}  # name -> success
-    assert rows == {("PD", "classical"): "0%", ("PD", "improved"): "0%", ("PD", "+", "gravity", "comp.", "classical"):
-                    "100%", ("PD", "+", "gravity", "comp.", "improved"): "100%"}, out
+    assert rows == {
+        ("PD", "classical"): "0%",
+        ("PD", "improved"): "0%",
+        ("PD", "+", "gravity", "comp.", "classical"): "100%",
+        ("PD", "+", "gravity", "comp.", "improved"): "100%",
+    }, out
 
 
 def test_evaluate_writes_a_report(tmp_path, capsys):
-    assert main(["evaluate", "--policy", "pd", "ct", "--internal-model", "classical", "--model", "improved",
-                 "--task", "tracking", "--episodes", "1", "--max-steps", "10", "--out", str(tmp_path)]) == 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--policy",
+                "pd",
+                "ct",
+                "--internal-model",
+                "classical",
+                "--model",
+                "improved",
+                "--task",
+                "tracking",
+                "--episodes",
+                "1",
+                "--max-steps",
+                "10",
+                "--out",
+                str(tmp_path),
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "| PD | improved | tracking |" in out and "| CT (classical) | improved | tracking |" in out
     assert (tmp_path / "results.md").exists() and (tmp_path / "episodes.csv").exists()
@@ -78,14 +106,43 @@ def test_evaluate_a_trained_agent_beside_a_baseline(tmp_path, capsys):
 
     # a few hundred steps of PPO: an untrained agent, enough to test loading and evaluating it
     train("ppo", tmp_path / "agent", timesteps=64, n_envs=2, checkpoint_freq=0, progress_bar=False)
-    assert main(["evaluate", "--agent", str(tmp_path / "agent"), "--policy", "pd", "--model", "classical",
-                 "--episodes", "1", "--max-steps", "5"]) == 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--agent",
+                str(tmp_path / "agent"),
+                "--policy",
+                "pd",
+                "--model",
+                "classical",
+                "--episodes",
+                "1",
+                "--max-steps",
+                "5",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "| PPO (improved) | classical | setpoint | 1 |" in out and "| PD | classical | setpoint | 1 |" in out
     # two agents of one algorithm and model: their rows are named by run directory
     shutil.copytree(tmp_path / "agent", tmp_path / "agent_b")
-    assert main(["evaluate", "--agent", str(tmp_path / "agent"), str(tmp_path / "agent_b"), "--episodes", "1",
-                 "--max-steps", "2"]) == 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--agent",
+                str(tmp_path / "agent"),
+                str(tmp_path / "agent_b"),
+                "--episodes",
+                "1",
+                "--max-steps",
+                "2",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "| PPO (improved) agent | improved |" in out and "| PPO (improved) agent_b | improved |" in out
     assert main(["evaluate", "--agent", str(tmp_path / "missing")]) == 2
@@ -105,11 +162,14 @@ def test_console_script():
     assert done.returncode == 0 and "--out" in done.stdout
 
 
-@pytest.mark.parametrize("argv", [
-    ["train", "--algo", "ppo", "--timesteps", "10"],
-    ["evaluate", "--agent", "runs/ppo"],
-    ["mismatch", "--algo", "ppo"],
-])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["train", "--algo", "ppo", "--timesteps", "10"],
+        ["evaluate", "--agent", "runs/ppo"],
+        ["mismatch", "--algo", "ppo"],
+    ],
+)
 def test_commands_that_need_stable_baselines3_say_which_extra_before_writing(argv, tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "stable_baselines3", None)  # find_spec: not installed
     out = tmp_path / "out"
@@ -120,10 +180,16 @@ def test_commands_that_need_stable_baselines3_say_which_extra_before_writing(arg
     assert not out.exists()
 
 
-@pytest.mark.parametrize("argv", [
-    ["demo"], ["evaluate"], ["reproduce"], pytest.param(["train", "--algo", "ppo"], marks=pytest.mark.extra("rl")),
-    ["mismatch", "--algo", "none"],
-])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["demo"],
+        ["evaluate"],
+        ["reproduce"],
+        pytest.param(["train", "--algo", "ppo"], marks=pytest.mark.extra("rl")),
+        ["mismatch", "--algo", "none"],
+    ],
+)
 def test_unwritable_out_is_refused_before_any_work(argv, tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("")  # a directory cannot be made below a file, even by root
@@ -148,25 +214,28 @@ def test_the_out_probe_leaves_nothing_behind(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("argv, flag", [
-    (["train", "--algo", "a2c"], "--algo"),
-    (["train", "--algo", "ppo", "--timesteps", "0"], "--timesteps"),
-    (["train", "--algo", "ppo", "--timesteps", "1e5"], "--timesteps"),
-    (["train", "--algo", "ppo", "--seed", "-1"], "--seed"),
-    (["train", "--algo", "ppo", "--n-envs", "two"], "--n-envs"),
-    (["train", "--algo", "ppo", "--checkpoint-freq", "-5"], "--checkpoint-freq"),
-    (["train", "--algo", "ppo", "--keep-checkpoints", "0"], "--keep-checkpoints"),
-    (["train", "--algo", "ppo", "--config", "missing.yml"], "--config"),
-    (["train", "--algo", "ppo", "--task", "hover"], "--task"),
-    (["train", "--algo", "ppo", "--model", "newtonian"], "--model"),
-    (["train", "--algo", "ppo", "--env-kwargs", "control_dt"], "--env-kwargs"),
-    (["demo", "--episodes", "0"], "--episodes"),
-    (["demo", "--seed", "-3"], "--seed"),
-    (["demo", "--platform", "nowhere"], "--platform"),
-    (["evaluate", "--max-steps", "0"], "--max-steps"),
-    (["reproduce", "--duration", "nan"], "--duration"),
-    (["reproduce", "--dt", "inf"], "--dt"),
-])
+@pytest.mark.parametrize(
+    "argv, flag",
+    [
+        (["train", "--algo", "a2c"], "--algo"),
+        (["train", "--algo", "ppo", "--timesteps", "0"], "--timesteps"),
+        (["train", "--algo", "ppo", "--timesteps", "1e5"], "--timesteps"),
+        (["train", "--algo", "ppo", "--seed", "-1"], "--seed"),
+        (["train", "--algo", "ppo", "--n-envs", "two"], "--n-envs"),
+        (["train", "--algo", "ppo", "--checkpoint-freq", "-5"], "--checkpoint-freq"),
+        (["train", "--algo", "ppo", "--keep-checkpoints", "0"], "--keep-checkpoints"),
+        (["train", "--algo", "ppo", "--config", "missing.yml"], "--config"),
+        (["train", "--algo", "ppo", "--task", "hover"], "--task"),
+        (["train", "--algo", "ppo", "--model", "newtonian"], "--model"),
+        (["train", "--algo", "ppo", "--env-kwargs", "control_dt"], "--env-kwargs"),
+        (["demo", "--episodes", "0"], "--episodes"),
+        (["demo", "--seed", "-3"], "--seed"),
+        (["demo", "--platform", "nowhere"], "--platform"),
+        (["evaluate", "--max-steps", "0"], "--max-steps"),
+        (["reproduce", "--duration", "nan"], "--duration"),
+        (["reproduce", "--dt", "inf"], "--dt"),
+    ],
+)
 def test_bad_flag_values_are_argparse_errors_naming_the_flag(argv, flag, tmp_path, capsys):
     with pytest.raises(SystemExit) as stop:
         main(argv + ["--out", str(tmp_path / "out")])
@@ -178,10 +247,14 @@ def test_bad_flag_values_are_argparse_errors_naming_the_flag(argv, flag, tmp_pat
 @pytest.mark.extra("rl")
 def test_train_cli_says_how_many_steps_it_ran(tmp_path, capsys):
     config = tmp_path / "ppo.yml"
-    config.write_text("StewartPlatform-v1:\n  n_timesteps: 1000\n  policy: MlpPolicy\n  n_envs: 2\n  n_steps: 16\n"
-                      "  batch_size: 32\n  n_epochs: 1\n  policy_kwargs: \"dict(net_arch=[8])\"\n")
-    assert main(["train", "--algo", "ppo", "--config", str(config), "--timesteps", "40", "--out",
-                 str(tmp_path / "run")]) == 0
+    config.write_text(
+        "StewartPlatform-v1:\n  n_timesteps: 1000\n  policy: MlpPolicy\n  n_envs: 2\n  n_steps: 16\n"
+        '  batch_size: 32\n  n_epochs: 1\n  policy_kwargs: "dict(net_arch=[8])"\n'
+    )
+    assert (
+        main(["train", "--algo", "ppo", "--config", str(config), "--timesteps", "40", "--out", str(tmp_path / "run")])
+        == 0
+    )
     # rollouts of 2 platforms x 16 steps: 40 requested steps take 2 of them
     assert "requested 40 steps, ran 64 (whole rollouts of 32)" in capsys.readouterr().out
 
@@ -213,13 +286,19 @@ def test_export_mjcf_writes_a_model_mujoco_loads(tmp_path, capsys):
     assert mujoco.MjModel.from_xml_path(str(out)).opt.timestep == 0.002
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["--out", "{tmp}"], "argument --out: '{tmp}' is a directory"),
-    (["--out", "{tmp}/file/model.xml"], "argument --out: output directory '{tmp}/file' is not writable"),
-    (["--out", "{tmp}/m.xml", "--solimp", "1", "1", "0.001", "0.5", "2"], "argument --solimp: d_min and d_max"),
-    (["--out", "{tmp}/m.xml", "--solref", "0.02", "nan"], "argument --solref: expected a finite number"),
-    (["--out", "{tmp}/m.xml", "--timestep", "1e300"], "argument --timestep: must be a number of seconds in (0, 0.1]"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--out", "{tmp}"], "argument --out: '{tmp}' is a directory"),
+        (["--out", "{tmp}/file/model.xml"], "argument --out: output directory '{tmp}/file' is not writable"),
+        (["--out", "{tmp}/m.xml", "--solimp", "1", "1", "0.001", "0.5", "2"], "argument --solimp: d_min and d_max"),
+        (["--out", "{tmp}/m.xml", "--solref", "0.02", "nan"], "argument --solref: expected a finite number"),
+        (
+            ["--out", "{tmp}/m.xml", "--timestep", "1e300"],
+            "argument --timestep: must be a number of seconds in (0, 0.1]",
+        ),
+    ],
+)
 def test_export_mjcf_errors_name_the_argument(argv, message, tmp_path, capsys):
     pytest.importorskip("mujoco")
     (tmp_path / "file").write_text("")
@@ -258,8 +337,10 @@ def test_export_mjcf_without_mujoco_names_the_extra(tmp_path, monkeypatch, capsy
 
 def test_evaluate_runs_a_baseline_on_the_mujoco_plant(capsys):
     pytest.importorskip("mujoco")
-    assert main(["evaluate", "--policy", "pd", "--model", "improved", "mujoco", "--episodes", "1",
-                 "--max-steps", "5"]) == 0
+    assert (
+        main(["evaluate", "--policy", "pd", "--model", "improved", "mujoco", "--episodes", "1", "--max-steps", "5"])
+        == 0
+    )
     out = capsys.readouterr().out
     assert "| PD | improved | setpoint | 1 |" in out and "| PD | mujoco | setpoint | 1 |" in out
     with pytest.raises(SystemExit):
@@ -279,8 +360,13 @@ def test_version(capsys):
     assert capsys.readouterr().out == f"stewart-env {stewart_env.__version__}\n"
 
 
-@pytest.mark.parametrize("argv, expected", [(["--help"], "usage: stewart-env [-h] [--version] COMMAND"),
-                                            (["evaluate", "--help"], "usage: stewart-env evaluate")])
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (["--help"], "usage: stewart-env [-h] [--version] COMMAND"),
+        (["evaluate", "--help"], "usage: stewart-env evaluate"),
+    ],
+)
 def test_python_m_stewart_env_is_the_command(argv, expected):
     done = subprocess.run([sys.executable, "-m", "stewart_env", *argv], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
@@ -300,22 +386,29 @@ def test_help_texts_say_what_the_user_needs(capsys):
 def _without(module: str, argv: list[str]) -> subprocess.CompletedProcess:
     """``stewart-env argv`` in a fresh interpreter where ``module`` cannot be imported, as for a
     user who did not install its extra."""
-    code = (f"import sys; sys.modules[{module!r}] = None\n"
-            f"from stewart_env.cli import main\nsys.exit(main({argv!r}))")
+    code = f"import sys; sys.modules[{module!r}] = None\nfrom stewart_env.cli import main\nsys.exit(main({argv!r}))"
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
 
 
-@pytest.mark.parametrize("module, argv, extra", [
-    ("mujoco", ["evaluate", "--model", "mujoco", "--episodes", "1"], "mujoco"),
-    pytest.param("mujoco", ["train", "--algo", "ppo", "--model", "mujoco", "--out", "OUT"], "mujoco",
-                 marks=pytest.mark.extra("rl")),  # without rl, train names that extra first
-    ("mujoco", ["bench", "--mujoco"], "mujoco"),
-    ("mujoco", ["export-mjcf", "--platform", "dasgupta1998", "--out", "OUT/m.xml"], "mujoco"),
-    ("stable_baselines3", ["evaluate", "--agent", "OUT"], "rl"),
-    ("torch", ["train", "--algo", "ppo", "--out", "OUT"], "rl"),
-    ("stable_baselines3", ["mismatch", "--out", "OUT"], "rl"),
-    ("ray", ["mismatch", "--backend", "ray", "--algo", "none", "--out", "OUT"], "distributed"),
-], ids=lambda x: x if isinstance(x, str) else None)
+@pytest.mark.parametrize(
+    "module, argv, extra",
+    [
+        ("mujoco", ["evaluate", "--model", "mujoco", "--episodes", "1"], "mujoco"),
+        pytest.param(
+            "mujoco",
+            ["train", "--algo", "ppo", "--model", "mujoco", "--out", "OUT"],
+            "mujoco",
+            marks=pytest.mark.extra("rl"),
+        ),  # without rl, train names that extra first
+        ("mujoco", ["bench", "--mujoco"], "mujoco"),
+        ("mujoco", ["export-mjcf", "--platform", "dasgupta1998", "--out", "OUT/m.xml"], "mujoco"),
+        ("stable_baselines3", ["evaluate", "--agent", "OUT"], "rl"),
+        ("torch", ["train", "--algo", "ppo", "--out", "OUT"], "rl"),
+        ("stable_baselines3", ["mismatch", "--out", "OUT"], "rl"),
+        ("ray", ["mismatch", "--backend", "ray", "--algo", "none", "--out", "OUT"], "distributed"),
+    ],
+    ids=lambda x: x if isinstance(x, str) else None,
+)
 def test_a_missing_extra_is_one_line_naming_it(module, argv, extra, tmp_path):
     out = tmp_path / "out"
     done = _without(module, [str(out) if a == "OUT" else a.replace("OUT", str(out)) for a in argv])
@@ -365,8 +458,10 @@ def test_config_by_an_unknown_name_lists_the_shipped_ones(tmp_path, capsys):
     assert "crossq, ppo, ppo_6m, ppo_integral_6m, sac, td3, tqc" in err
 
 
-@pytest.mark.parametrize("module, usage", [("stewart_env.mujoco", "usage: python -m stewart_env.mujoco"),
-                                           ("stewart_env.cli", "usage: stewart-env [-h]")])
+@pytest.mark.parametrize(
+    "module, usage",
+    [("stewart_env.mujoco", "usage: python -m stewart_env.mujoco"), ("stewart_env.cli", "usage: stewart-env [-h]")],
+)
 def test_the_modules_run_with_python_m_go_through_the_command_line(module, usage):
     done = subprocess.run([sys.executable, "-m", module, "--help"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
@@ -384,6 +479,7 @@ def test_evaluate_runs_controllers_on_the_mujoco_plant(capsys):
 
 def test_train_takes_the_mujoco_plant_as_its_model():
     from stewart_env.cli import build_parser
+
     args = build_parser().parse_args(["train", "--algo", "ppo", "--out", "run", "--model", "mujoco"])
     assert args.model == "mujoco"
 
@@ -393,8 +489,9 @@ def test_evaluate_keeps_the_internal_model_closed_form(capsys):
     assert "argument --internal-model" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("flag, value", [("--seeds", str(2**32)), ("--seeds", "0,0"), ("--max-steps", str(10**11)),
-                                         ("--episodes", "0")])
+@pytest.mark.parametrize(
+    "flag, value", [("--seeds", str(2**32)), ("--seeds", "0,0"), ("--max-steps", str(10**11)), ("--episodes", "0")]
+)
 def test_mismatch_refuses_a_setting_that_cannot_run_naming_the_flag(tmp_path, capsys, flag, value):
     assert exit_code(["mismatch", "--out", str(tmp_path / "study"), "--algo", "none", flag, value]) == 2
     assert f"argument {flag}" in capsys.readouterr().err
@@ -402,8 +499,22 @@ def test_mismatch_refuses_a_setting_that_cannot_run_naming_the_flag(tmp_path, ca
 
 
 def test_mismatch_says_how_to_fix_a_cost_plant_missing_from_the_test_models(tmp_path, capsys):
-    code = exit_code(["mismatch", "--out", str(tmp_path / "study"), "--algo", "none", "--test-models", "classical",
-                       "--train-models", "improved", "--simplifications", "none", "--no-progress"])
+    code = exit_code(
+        [
+            "mismatch",
+            "--out",
+            str(tmp_path / "study"),
+            "--algo",
+            "none",
+            "--test-models",
+            "classical",
+            "--train-models",
+            "improved",
+            "--simplifications",
+            "none",
+            "--no-progress",
+        ]
+    )
     assert code == 2
     assert "pass --cost-plant" in capsys.readouterr().err
 
@@ -416,24 +527,33 @@ def _run_without(package: str, code: str) -> subprocess.CompletedProcess:
 
 
 def test_export_mjcf_without_mujoco_names_the_extra_without_a_traceback(tmp_path):
-    run = _run_without("mujoco", "from stewart_env.cli import main\n"
-                                 f"sys.exit(main(['export-mjcf', '--platform', 'dasgupta1998', '--out', {str(tmp_path / 'x.xml')!r}]))")
+    run = _run_without(
+        "mujoco",
+        "from stewart_env.cli import main\n"
+        f"sys.exit(main(['export-mjcf', '--platform', 'dasgupta1998', '--out', {str(tmp_path / 'x.xml')!r}]))",
+    )
     assert run.returncode == 2
     assert run.stderr.startswith("stewart-env export-mjcf: error: ") and len(run.stderr.splitlines()) == 1
     assert 'pip install -e ".[mujoco]"' in run.stderr and "stewart-env[" not in run.stderr
 
 
 def test_mujoco_env_without_mujoco_raises_import_error_naming_the_extra():
-    run = _run_without("mujoco", "import gymnasium as gym, stewart_env\n"
-                                 "try:\n    gym.make('StewartPlatform-v1', model='mujoco')\n"
-                                 "except ImportError as e:\n    print(e)\n    sys.exit(3)\n")
+    run = _run_without(
+        "mujoco",
+        "import gymnasium as gym, stewart_env\n"
+        "try:\n    gym.make('StewartPlatform-v1', model='mujoco')\n"
+        "except ImportError as e:\n    print(e)\n    sys.exit(3)\n",
+    )
     assert run.returncode == 3, run.stderr
     assert "model='mujoco'" in run.stdout and "[mujoco]" in run.stdout
 
 
 def test_mismatch_ray_backend_without_ray_names_the_extra(tmp_path):
-    run = _run_without("ray", "from stewart_env.cli import main\n"
-                              f"sys.exit(main(['mismatch', '--backend', 'ray', '--algo', 'none', '--out', {str(tmp_path)!r}]))")
+    run = _run_without(
+        "ray",
+        "from stewart_env.cli import main\n"
+        f"sys.exit(main(['mismatch', '--backend', 'ray', '--algo', 'none', '--out', {str(tmp_path)!r}]))",
+    )
     assert run.returncode == 2
     assert "[distributed]" in run.stderr and "Traceback" not in run.stderr
 
@@ -442,6 +562,7 @@ def _subcommands():
     import argparse
 
     from stewart_env.cli import build_parser
+
     parser = build_parser()
     action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     return sorted(action.choices.items())

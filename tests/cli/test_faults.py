@@ -31,11 +31,20 @@ from stewart_env.cli import main  # noqa: E402
 from stewart_env.files import FileError, FolderBusy, WriteError, lock_folder  # noqa: E402
 
 FILES_MODULE = Path(files.__file__)
-TINY_PPO = {"n_timesteps": 1000, "policy": "MlpPolicy", "n_envs": 2,
-            "normalize": "dict(norm_obs=True, norm_reward=True)", "n_steps": 16, "batch_size": 32, "n_epochs": 1,
-            "policy_kwargs": "dict(net_arch=dict(pi=[16], vf=[16]))"}
-BUSY = re.compile(r"output directory '(?P<folder>[^']+)' is in use by another stewart-env command "
-                  r"\(PID (?P<pid>\d+)\); wait for it to end, or choose another output directory")
+TINY_PPO = {
+    "n_timesteps": 1000,
+    "policy": "MlpPolicy",
+    "n_envs": 2,
+    "normalize": "dict(norm_obs=True, norm_reward=True)",
+    "n_steps": 16,
+    "batch_size": 32,
+    "n_epochs": 1,
+    "policy_kwargs": "dict(net_arch=dict(pi=[16], vf=[16]))",
+}
+BUSY = re.compile(
+    r"output directory '(?P<folder>[^']+)' is in use by another stewart-env command "
+    r"\(PID (?P<pid>\d+)\); wait for it to end, or choose another output directory"
+)
 # A hostile file must be refused well within this (a FIFO would block for ever, /dev/zero never ends).
 REFUSAL_SECONDS = 10.0
 
@@ -52,14 +61,17 @@ def snapshot(folder: Path) -> dict[str, bytes]:
 
 def hold_lock(folder: Path) -> subprocess.Popen:
     """A process that holds ``folder``'s lock until killed (stewart_env.files loaded on its own: fast)."""
-    code = ("import importlib.util, sys, time\n"
-            "spec = importlib.util.spec_from_file_location('files', sys.argv[1])\n"
-            "files = importlib.util.module_from_spec(spec); spec.loader.exec_module(files)\n"
-            "with files.lock_folder(sys.argv[2]):\n"
-            "    print('locked', flush=True)\n"
-            "    time.sleep(600)\n")
-    proc = subprocess.Popen([sys.executable, "-c", code, str(FILES_MODULE), str(folder)], stdout=subprocess.PIPE,
-                            text=True)
+    code = (
+        "import importlib.util, sys, time\n"
+        "spec = importlib.util.spec_from_file_location('files', sys.argv[1])\n"
+        "files = importlib.util.module_from_spec(spec); spec.loader.exec_module(files)\n"
+        "with files.lock_folder(sys.argv[2]):\n"
+        "    print('locked', flush=True)\n"
+        "    time.sleep(600)\n"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code, str(FILES_MODULE), str(folder)], stdout=subprocess.PIPE, text=True
+    )
     assert proc.stdout.readline().strip() == "locked"
     return proc
 
@@ -123,13 +135,30 @@ def test_train_on_a_locked_folder_touches_nothing(held):
 
 
 @pytest.mark.extra("rl")
-@pytest.mark.parametrize("command", [
-    ["train", "--algo", "ppo", "--timesteps", "10", "--no-progress"],
-    ["train", "--algo", "ppo", "--timesteps", "10", "--resume", "--no-progress"],
-    ["mismatch", "--algo", "none", "--train-models", "improved", "--test-models", "improved", "--simplifications",
-     "none", "--episodes", "1", "--max-steps", "5", "--no-progress"],
-    ["evaluate", "--policy", "pd", "--episodes", "1", "--max-steps", "5"],
-])
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["train", "--algo", "ppo", "--timesteps", "10", "--no-progress"],
+        ["train", "--algo", "ppo", "--timesteps", "10", "--resume", "--no-progress"],
+        [
+            "mismatch",
+            "--algo",
+            "none",
+            "--train-models",
+            "improved",
+            "--test-models",
+            "improved",
+            "--simplifications",
+            "none",
+            "--episodes",
+            "1",
+            "--max-steps",
+            "5",
+            "--no-progress",
+        ],
+        ["evaluate", "--policy", "pd", "--episodes", "1", "--max-steps", "5"],
+    ],
+)
 def test_a_command_on_a_locked_folder_exits_with_one_line(held, command, capsys):
     folder, pid = held
     before = snapshot(folder)
@@ -168,14 +197,20 @@ def test_a_study_refuses_agents_shared_through_a_symbolic_link(tmp_path):
     out.mkdir()
     (out / "agents").symlink_to(shared)
     with pytest.raises(mismatch.MismatchError, match=r"agents is a symbolic link: a study's agents are not shared"):
-        mismatch.run_mismatch(out, ["improved"], ["improved"], algo=None, episodes=1, max_steps=5, simplifications=[],
-                              progress=False)
+        mismatch.run_mismatch(
+            out, ["improved"], ["improved"], algo=None, episodes=1, max_steps=5, simplifications=[], progress=False
+        )
     assert not (out / mismatch.STUDY_FILE).exists()
 
 
 def _cli(*args: str, env: dict | None = None) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "stewart_env.cli", *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env={**os.environ, "MPLBACKEND": "Agg", **(env or {})})
+    return subprocess.Popen(
+        [sys.executable, "-m", "stewart_env.cli", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MPLBACKEND": "Agg", **(env or {})},
+    )
 
 
 #: Seconds a command may take before a test calls it hung: a guard against a hang, not a speed
@@ -197,8 +232,20 @@ def _wait_for_holder(folder: Path, proc: subprocess.Popen, timeout: float = HANG
 @pytest.mark.slow  # two training processes: about 30 s
 def test_two_train_commands_on_one_folder_one_runs_the_other_is_refused(tmp_path):
     out, config = tmp_path / "run", tiny_config(tmp_path / "ppo.yml")
-    common = ["train", "--algo", "ppo", "--config", str(config), "--timesteps", "64", "--checkpoint-freq", "32",
-              "--out", str(out), "--no-progress"]
+    common = [
+        "train",
+        "--algo",
+        "ppo",
+        "--config",
+        str(config),
+        "--timesteps",
+        "64",
+        "--checkpoint-freq",
+        "32",
+        "--out",
+        str(out),
+        "--no-progress",
+    ]
     # the first pauses inside each checkpoint write, so the second surely starts while it runs
     first = _cli(*common, "--seed", "1", env={PAUSE_IN_CHECKPOINT_ENV: "10"})
     _wait_for_holder(out, first)
@@ -220,9 +267,30 @@ def test_two_train_commands_on_one_folder_one_runs_the_other_is_refused(tmp_path
 @pytest.mark.slow  # two studies in two processes, one training a tiny agent: about 40 s
 def test_two_mismatch_commands_on_one_folder_one_runs_the_other_is_refused(tmp_path):
     out, config = tmp_path / "study", tiny_config(tmp_path / "ppo.yml")
-    common = ["mismatch", "--algo", "ppo", "--config", str(config), "--timesteps", "32", "--n-envs", "2",
-              "--train-models", "improved", "--test-models", "improved", "--simplifications", "none",
-              "--episodes", "1", "--max-steps", "5", "--out", str(out), "--no-progress"]
+    common = [
+        "mismatch",
+        "--algo",
+        "ppo",
+        "--config",
+        str(config),
+        "--timesteps",
+        "32",
+        "--n-envs",
+        "2",
+        "--train-models",
+        "improved",
+        "--test-models",
+        "improved",
+        "--simplifications",
+        "none",
+        "--episodes",
+        "1",
+        "--max-steps",
+        "5",
+        "--out",
+        str(out),
+        "--no-progress",
+    ]
     # the first pauses inside its agent's final checkpoint write, holding the study's lock
     first = _cli(*common, env={PAUSE_IN_CHECKPOINT_ENV: "15"})
     _wait_for_holder(out, first)
@@ -254,6 +322,7 @@ def _full_disk_at_checkpoint(monkeypatch, failing_step: int) -> None:
     def failing(model, replay_buffer):
         found = writers(model, replay_buffer)
         if int(model.num_timesteps) == failing_step:
+
             def full(path):
                 Path(path).write_bytes(b"partial")
                 raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
@@ -268,12 +337,28 @@ def _full_disk_at_checkpoint(monkeypatch, failing_step: int) -> None:
 def test_a_full_disk_during_a_checkpoint_is_one_line_and_resume_continues(tmp_path, monkeypatch, capsys):
     out, config = tmp_path / "run", tiny_config(tmp_path / "ppo.yml")
     _full_disk_at_checkpoint(monkeypatch, 64)
-    code = main(["train", "--algo", "ppo", "--config", str(config), "--timesteps", "96", "--checkpoint-freq", "32",
-                 "--out", str(out), "--no-progress"])
+    code = main(
+        [
+            "train",
+            "--algo",
+            "ppo",
+            "--config",
+            str(config),
+            "--timesteps",
+            "96",
+            "--checkpoint-freq",
+            "32",
+            "--out",
+            str(out),
+            "--no-progress",
+        ]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2
-    assert err[-1] == (f"stewart-env train: error: cannot write {out / 'checkpoints' / 'step_64'}: No space left on "
-                       "device; the complete checkpoints are kept (--resume continues from the newest)")
+    assert err[-1] == (
+        f"stewart-env train: error: cannot write {out / 'checkpoints' / 'step_64'}: No space left on "
+        "device; the complete checkpoints are kept (--resume continues from the newest)"
+    )
     assert not [p for p in (*out.iterdir(), *(out / "checkpoints").iterdir()) if p.name.startswith(".tmp")]
     assert sorted(p.name for p in (out / "checkpoints").glob("step_*")) == ["step_32"]
     assert training.checkpoint_problem(out / "checkpoints" / "step_32", 32, "ppo", True) is None
@@ -302,8 +387,10 @@ def test_a_full_disk_at_the_final_save_keeps_the_checkpoint_and_resume_continues
     with pytest.raises(WriteError) as caught:
         train("ppo", out, timesteps=32, resume=True, progress_bar=False)
     monkeypatch.undo()
-    assert str(caught.value) == (f"cannot write {out / 'run.json'}: No space left on device; the complete checkpoints "
-                                 "are kept (--resume continues from the newest)")
+    assert str(caught.value) == (
+        f"cannot write {out / 'run.json'}: No space left on device; the complete checkpoints "
+        "are kept (--resume continues from the newest)"
+    )
     assert json.loads((out / "run.json").read_text())["num_timesteps"] == 32  # the one written before: whole
     assert not [p for p in out.iterdir() if p.name.startswith(".tmp")]
     said = []
@@ -313,8 +400,24 @@ def test_a_full_disk_at_the_final_save_keeps_the_checkpoint_and_resume_continues
 
 
 def test_a_full_disk_while_a_study_writes_a_cell_keeps_the_finished_cells(tmp_path, monkeypatch, capsys):
-    kwargs = ["mismatch", "--algo", "none", "--train-models", "improved", "--test-models", "improved",
-              "--simplifications", "c2", "--episodes", "1", "--max-steps", "5", "--no-progress", "--out", str(tmp_path)]
+    kwargs = [
+        "mismatch",
+        "--algo",
+        "none",
+        "--train-models",
+        "improved",
+        "--test-models",
+        "improved",
+        "--simplifications",
+        "c2",
+        "--episodes",
+        "1",
+        "--max-steps",
+        "5",
+        "--no-progress",
+        "--out",
+        str(tmp_path),
+    ]
     publish, written = files.publish, []
 
     def full_after_two(path, data):
@@ -330,9 +433,12 @@ def test_a_full_disk_while_a_study_writes_a_cell_keeps_the_finished_cells(tmp_pa
     monkeypatch.setattr(files, "publish", full_after_two)
     assert main(kwargs) == 1
     err = capsys.readouterr().err.strip().splitlines()[-1]
-    assert re.fullmatch(rf"stewart-env mismatch: error: cannot write {re.escape(str(tmp_path))}/cells/\S+\.json: No "
-                        rf"space left on device; finished agents and cells are kept in {re.escape(str(tmp_path))} "
-                        r"\(run the same command again to continue\)", err), err
+    assert re.fullmatch(
+        rf"stewart-env mismatch: error: cannot write {re.escape(str(tmp_path))}/cells/\S+\.json: No "
+        rf"space left on device; finished agents and cells are kept in {re.escape(str(tmp_path))} "
+        r"\(run the same command again to continue\)",
+        err,
+    ), err
     finished = sorted((tmp_path / "cells").rglob("*.json"))
     assert finished == sorted(written) and all(json.loads(p.read_text())["metrics"] for p in finished)
     assert not list(tmp_path.rglob(".tmp*"))
@@ -379,8 +485,11 @@ def _in_time(fn, seconds: float = REFUSAL_SECONDS, fails: bool = True):
     return value[0]
 
 
-PROBLEM = {"fifo": "not a regular file (a FIFO, socket or device)", "zero": "not a regular file (a FIFO, socket or "
-           "device)", "directory": "a directory, not a"}
+PROBLEM = {
+    "fifo": "not a regular file (a FIFO, socket or device)",
+    "zero": "not a regular file (a FIFO, socket or device)",
+    "directory": "a directory, not a",
+}
 
 
 @pytest.mark.extra("rl")
@@ -404,8 +513,11 @@ def test_special_files_in_a_checkpoint_are_passed_over_when_resuming(tiny_run, t
     _replace(run / "checkpoints" / "step_96" / "model.zip", kind)
     _replace(run / "checkpoints" / "step_64" / "manifest.json", kind)
     said = []
-    resumed = _in_time(lambda: train("ppo", run, timesteps=16, resume=True, progress_bar=False, report=said.append),
-                       seconds=60, fails=False)
+    resumed = _in_time(
+        lambda: train("ppo", run, timesteps=16, resume=True, progress_bar=False, report=said.append),
+        seconds=60,
+        fails=False,
+    )
     assert resumed.num_timesteps == 64  # one rollout of 2 x 16 steps after the 32 of step_32
     assert said[0].startswith(f"skipping checkpoints/step_96: incomplete or corrupt (model.zip: {PROBLEM[kind]}")
     assert said[1].startswith(f"skipping checkpoints/step_64: incomplete or corrupt (manifest.json: {PROBLEM[kind]}")
@@ -424,11 +536,19 @@ def test_oversized_run_manifest_is_refused_before_reading(tiny_run, tmp_path):
 @pytest.mark.parametrize("kind", ["fifo", "zero", "directory"])
 @pytest.mark.parametrize("which", ["study", "cell"])
 def test_special_files_in_a_study_folder_are_refused_at_once(tmp_path, which, kind):
-    kwargs = dict(train_models=["improved"], test_models=["improved"], algo=None, episodes=1, simplifications=[],
-                  max_steps=5, progress=False)
+    kwargs = dict(
+        train_models=["improved"],
+        test_models=["improved"],
+        algo=None,
+        episodes=1,
+        simplifications=[],
+        max_steps=5,
+        progress=False,
+    )
     mismatch.run_mismatch(tmp_path, **kwargs)
-    target = (tmp_path / mismatch.STUDY_FILE if which == "study"
-              else next((tmp_path / mismatch.CELLS_DIR).rglob("*.json")))
+    target = (
+        tmp_path / mismatch.STUDY_FILE if which == "study" else next((tmp_path / mismatch.CELLS_DIR).rglob("*.json"))
+    )
     _replace(target, kind)
     error = _in_time(lambda: mismatch.run_mismatch(tmp_path, **kwargs))
     assert isinstance(error, FileError) and str(error).startswith(f"{target}: {PROBLEM[kind]}")

@@ -37,10 +37,14 @@ BLOCK_LEVELS = 1200
 
 def capped(code: str, *args: str) -> subprocess.CompletedProcess:
     """``code`` run by a new Python whose address space is capped at ADDRESS_SPACE."""
-    prelude = ("import resource, sys\n"
-               f"resource.setrlimit(resource.RLIMIT_AS, ({ADDRESS_SPACE}, {ADDRESS_SPACE}))\n")
-    return subprocess.run([sys.executable, "-c", prelude + code, *args], capture_output=True, text=True,
-                          timeout=600, env={**os.environ, "MPLBACKEND": "Agg"})
+    prelude = f"import resource, sys\nresource.setrlimit(resource.RLIMIT_AS, ({ADDRESS_SPACE}, {ADDRESS_SPACE}))\n"
+    return subprocess.run(
+        [sys.executable, "-c", prelude + code, *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
 
 
 def run_cli(argv: list[str], capsys) -> tuple[int, str]:
@@ -58,8 +62,10 @@ def run_cli(argv: list[str], capsys) -> tuple[int, str]:
 def test_a_small_file_is_read_with_the_agent_bound_in_an_address_space_smaller_than_the_bound(tmp_path):
     small = tmp_path / "model.zip"
     small.write_bytes(b"x" * 1000)
-    done = capped("from stewart_env.files import read_regular\n"
-                  f"print(len(read_regular(sys.argv[1], {AGENT_FILE_BOUND})))\n", str(small))
+    done = capped(
+        f"from stewart_env.files import read_regular\nprint(len(read_regular(sys.argv[1], {AGENT_FILE_BOUND})))\n",
+        str(small),
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip() == "1000"
 
@@ -79,12 +85,27 @@ def test_a_trained_agent_loads_in_an_address_space_smaller_than_the_bound_of_its
 
     assert MAX_AGENT_FILE_BYTES == AGENT_FILE_BOUND > ADDRESS_SPACE
     config = tmp_path / "ppo.yml"
-    config.write_text(yaml.safe_dump({ENV_ID: {
-        "n_timesteps": 32, "policy": "MlpPolicy", "n_envs": 2, "normalize": "dict(norm_obs=True, norm_reward=True)", "n_steps": 16,
-        "batch_size": 32, "n_epochs": 1, "policy_kwargs": "dict(net_arch=dict(pi=[8], vf=[8]))"}}))
+    config.write_text(
+        yaml.safe_dump(
+            {
+                ENV_ID: {
+                    "n_timesteps": 32,
+                    "policy": "MlpPolicy",
+                    "n_envs": 2,
+                    "normalize": "dict(norm_obs=True, norm_reward=True)",
+                    "n_steps": 16,
+                    "batch_size": 32,
+                    "n_epochs": 1,
+                    "policy_kwargs": "dict(net_arch=dict(pi=[8], vf=[8]))",
+                }
+            }
+        )
+    )
     train("ppo", tmp_path / "agent", timesteps=32, config=config, progress_bar=False)
-    done = capped("from stewart_env.agents.training import load_agent\n"
-                  "print(load_agent(sys.argv[1]).num_timesteps)\n", str(tmp_path / "agent"))
+    done = capped(
+        "from stewart_env.agents.training import load_agent\nprint(load_agent(sys.argv[1]).num_timesteps)\n",
+        str(tmp_path / "agent"),
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip() == "32"
 
@@ -190,19 +211,28 @@ def deep_yaml_mapping(levels: int) -> str:
     return "StewartPlatform-v1:\n" + "".join(" " * i + "k:\n" for i in range(1, levels)) + " " * levels + "v: 1\n"
 
 
-@pytest.mark.parametrize("text", ["[" * DEEP, "[" * 101 + "]" * 101, '{"k": ' * 101 + "1" + "}" * 101,
-                                  b"[" * DEEP], ids=["lists", "101 lists", "101 objects", "bytes"])
+@pytest.mark.parametrize(
+    "text",
+    ["[" * DEEP, "[" * 101 + "]" * 101, '{"k": ' * 101 + "1" + "}" * 101, b"[" * DEEP],
+    ids=["lists", "101 lists", "101 objects", "bytes"],
+)
 def test_load_json_refuses_a_deep_document_in_one_line(text):
     with pytest.raises(files.DocumentError, match=r"^not valid JSON \(nested more than 100 levels deep\)$"):
         files.load_json(text)
     assert files.load_json("[" * 100 + "]" * 100) is not None  # the bound itself is decoded
 
 
-@pytest.mark.parametrize("text", ["[" * DEEP, "{a: " * DEEP, deep_yaml_mapping(BLOCK_LEVELS)],
-                         ids=["flow lists", "flow mappings", "block mappings"])
+@pytest.mark.parametrize(
+    "text",
+    ["[" * DEEP, "{a: " * DEEP, deep_yaml_mapping(BLOCK_LEVELS)],
+    ids=["flow lists", "flow mappings", "block mappings"],
+)
 def test_load_yaml_refuses_a_deep_document_in_one_line(text):
-    with pytest.raises(files.DocumentError, match=r"^not valid YAML: line \d+, column \d+: nested more than 100 "
-                                                  r"levels deep$"):
+    with pytest.raises(
+        files.DocumentError,
+        match=r"^not valid YAML: line \d+, column \d+: nested more than 100 "
+        r"levels deep$",
+    ):
         files.load_yaml(text)
 
 
@@ -211,11 +241,14 @@ def test_a_deep_run_json_is_one_line_for_evaluate_and_resume(tmp_path, capsys):
     run = tmp_path / "run"
     run.mkdir()
     (run / "run.json").write_text("[" * DEEP)
-    for argv in (["evaluate", "--agent", str(run), "--episodes", "1"],
-                 ["train", "--algo", "ppo", "--resume", "--out", str(run), "--no-progress"]):
+    for argv in (
+        ["evaluate", "--agent", str(run), "--episodes", "1"],
+        ["train", "--algo", "ppo", "--resume", "--out", str(run), "--no-progress"],
+    ):
         code, err = run_cli(argv, capsys)
-        assert code == 2 and err.strip().endswith(f"{run / 'run.json'}: not valid JSON (nested more than 100 levels "
-                                                  "deep)"), err
+        assert code == 2 and err.strip().endswith(
+            f"{run / 'run.json'}: not valid JSON (nested more than 100 levels deep)"
+        ), err
         assert len(err.strip().splitlines()) == 1, err
 
 
@@ -223,33 +256,56 @@ def test_a_deep_report_is_one_line_for_identify_predicted_by(tmp_path, capsys):
     report = tmp_path / "report.json"
     report.write_text('{"a": ' * DEEP)
     code, err = run_cli(["identify", "--predicted-by", str(report), "--out", str(tmp_path / "run")], capsys)
-    assert code == 2 and err.strip() == (f"stewart-env identify: error: --predicted-by: {report}: not valid JSON "
-                                         "(nested more than 100 levels deep)")
+    assert code == 2 and err.strip() == (
+        f"stewart-env identify: error: --predicted-by: {report}: not valid JSON (nested more than 100 levels deep)"
+    )
 
 
-@pytest.mark.parametrize("token", ['{"a": ' * DEEP, "observation_noise=" + "[" * DEEP,
-                                   "observation_noise=" + "[" * 101 + "]" * 101],
-                         ids=["object", "key=lists", "key=101 lists"])
+@pytest.mark.parametrize(
+    "token",
+    ['{"a": ' * DEEP, "observation_noise=" + "[" * DEEP, "observation_noise=" + "[" * 101 + "]" * 101],
+    ids=["object", "key=lists", "key=101 lists"],
+)
 def test_deep_env_kwargs_are_one_line_naming_the_option(tmp_path, capsys, token):
     code, err = run_cli(["train", "--algo", "ppo", "--env-kwargs", token, "--out", str(tmp_path / "run")], capsys)
     assert code == 2 and "--env-kwargs" in err and "nested more than 100 levels deep" in err, err[-500:]
     assert "Traceback" not in err and len(err.strip().splitlines()[-1]) < 300
-    code, err = run_cli(["mismatch", "--algo", "none", "--train-models", "improved", "--test-models", "improved",
-                         "--env-kwargs", token, "--out", str(tmp_path / "study")], capsys)
+    code, err = run_cli(
+        [
+            "mismatch",
+            "--algo",
+            "none",
+            "--train-models",
+            "improved",
+            "--test-models",
+            "improved",
+            "--env-kwargs",
+            token,
+            "--out",
+            str(tmp_path / "study"),
+        ],
+        capsys,
+    )
     last = err.strip().splitlines()[-1]  # argparse's usage lines, then the error
-    assert code == 2 and last.startswith("stewart-env mismatch: error: argument --env-kwargs") and "nested more than" in last
+    assert (
+        code == 2
+        and last.startswith("stewart-env mismatch: error: argument --env-kwargs")
+        and "nested more than" in last
+    )
     assert "Traceback" not in err and len(last) < 300, err[-500:]
 
 
 def test_a_key_value_env_kwarg_that_is_not_json_is_still_a_string():
     from stewart_env.agents.training import parse_env_kwargs
 
-    assert parse_env_kwargs(["platform=dasgupta1998", "name=[draft"]) == {"platform": "dasgupta1998",
-                                                                           "name": "[draft"}
+    assert parse_env_kwargs(["platform=dasgupta1998", "name=[draft"]) == {"platform": "dasgupta1998", "name": "[draft"}
 
 
-@pytest.mark.parametrize("text", ["[" * DEEP, "{a: " * DEEP, deep_yaml_mapping(BLOCK_LEVELS)],
-                         ids=["flow lists", "flow mappings", "block mappings"])
+@pytest.mark.parametrize(
+    "text",
+    ["[" * DEEP, "{a: " * DEEP, deep_yaml_mapping(BLOCK_LEVELS)],
+    ids=["flow lists", "flow mappings", "block mappings"],
+)
 def test_a_deep_platform_yaml_is_a_config_error_naming_the_file(tmp_path, capsys, text):
     import gymnasium as gym
 
@@ -270,8 +326,21 @@ def test_a_deep_platform_yaml_is_a_config_error_naming_the_file(tmp_path, capsys
 def test_a_deep_hyperparameter_yaml_is_one_line_naming_the_file(tmp_path, capsys, text):
     config = tmp_path / "ppo.yml"
     config.write_text(text)
-    code, err = run_cli(["train", "--algo", "ppo", "--config", str(config), "--timesteps", "32",
-                         "--out", str(tmp_path / "run"), "--no-progress"], capsys)
+    code, err = run_cli(
+        [
+            "train",
+            "--algo",
+            "ppo",
+            "--config",
+            str(config),
+            "--timesteps",
+            "32",
+            "--out",
+            str(tmp_path / "run"),
+            "--no-progress",
+        ],
+        capsys,
+    )
     assert code == 2 and err.strip().startswith(f"stewart-env train: error: {config}: not valid YAML: line ")
     assert err.strip().endswith("nested more than 100 levels deep") and len(err.strip().splitlines()) == 1, err
 
@@ -281,9 +350,15 @@ def test_a_deep_hyperparameter_yaml_is_one_line_naming_the_file(tmp_path, capsys
 
 def minimal_report() -> dict:
     """The fields of a report.json that ``identify --predicted-by`` reads, as identify writes them."""
-    return {"platform": "dasgupta1998", "settings": {"model": "improved", "noise_force": 1.0}, "fitted_duration": 5.0,
-            "base_parameters": [{"name": "platform.m", "wls": 12.5, "wls_std": 0.1},
-                                {"name": "damping.b", "wls": 0.0, "wls_std": 0.02}]}
+    return {
+        "platform": "dasgupta1998",
+        "settings": {"model": "improved", "noise_force": 1.0},
+        "fitted_duration": 5.0,
+        "base_parameters": [
+            {"name": "platform.m", "wls": 12.5, "wls_std": 0.1},
+            {"name": "damping.b", "wls": 0.0, "wls_std": 0.02},
+        ],
+    }
 
 
 def edited(path: str, value) -> dict:
@@ -304,29 +379,39 @@ def edited(path: str, value) -> dict:
 removed = object()
 
 
-@pytest.mark.parametrize("path, value, says", [
-    ("settings.noise_force", 0, "settings.noise_force: expected a number > 0, got 0"),
-    ("settings.noise_force", "NaN", "settings.noise_force: expected a number > 0, got 'NaN'"),
-    ("settings.noise_force", removed, "not a report.json of stewart-env identify (no settings.noise_force)"),
-    ("fitted_duration", "5", "fitted_duration: expected a number > 0, got '5'"),
-    ("fitted_duration", -5.0, "fitted_duration: expected a number > 0, got -5.0"),
-    ("fitted_duration", None, "fitted_duration: expected a number > 0, got None"),
-    ("fitted_duration", [5.0], "fitted_duration: expected a number > 0, got [5.0]"),
-    ("fitted_duration", removed, "not a report.json of stewart-env identify (no fitted_duration)"),
-    ("base_parameters.1.wls_std", 0.0, "base_parameters[1].wls_std: expected a number > 0, got 0.0"),
-    ("base_parameters.1.wls_std", None, "base_parameters[1].wls_std: expected a number > 0, got None"),
-    ("base_parameters.1.wls_std", True, "base_parameters[1].wls_std: expected a number > 0, got True"),
-    ("base_parameters.0.wls", "12.5", "base_parameters[0].wls: expected a finite number, got '12.5'"),
-    ("base_parameters.0.wls", removed, "not a report.json of stewart-env identify (no base_parameters[0].wls)"),
-    ("base_parameters.0.name", 7, "base_parameters[0].name: expected text, got 7"),
-    ("base_parameters.0", [1.0], "not a report.json of stewart-env identify (base_parameters[0] is [1.0], not an "
-                                 "object)"),
-    ("base_parameters", [], "base_parameters: expected a list of base parameters, got []"),
-    ("base_parameters", {"platform.m": 1.0}, "base_parameters: expected a list of base parameters, got "
-                                             "{'platform.m': 1.0}"),
-    ("settings", None, "not a report.json of stewart-env identify (settings is None, not an object)"),
-    ("platform", 3, "platform: expected text, got 3"),
-], ids=lambda x: None)
+@pytest.mark.parametrize(
+    "path, value, says",
+    [
+        ("settings.noise_force", 0, "settings.noise_force: expected a number > 0, got 0"),
+        ("settings.noise_force", "NaN", "settings.noise_force: expected a number > 0, got 'NaN'"),
+        ("settings.noise_force", removed, "not a report.json of stewart-env identify (no settings.noise_force)"),
+        ("fitted_duration", "5", "fitted_duration: expected a number > 0, got '5'"),
+        ("fitted_duration", -5.0, "fitted_duration: expected a number > 0, got -5.0"),
+        ("fitted_duration", None, "fitted_duration: expected a number > 0, got None"),
+        ("fitted_duration", [5.0], "fitted_duration: expected a number > 0, got [5.0]"),
+        ("fitted_duration", removed, "not a report.json of stewart-env identify (no fitted_duration)"),
+        ("base_parameters.1.wls_std", 0.0, "base_parameters[1].wls_std: expected a number > 0, got 0.0"),
+        ("base_parameters.1.wls_std", None, "base_parameters[1].wls_std: expected a number > 0, got None"),
+        ("base_parameters.1.wls_std", True, "base_parameters[1].wls_std: expected a number > 0, got True"),
+        ("base_parameters.0.wls", "12.5", "base_parameters[0].wls: expected a finite number, got '12.5'"),
+        ("base_parameters.0.wls", removed, "not a report.json of stewart-env identify (no base_parameters[0].wls)"),
+        ("base_parameters.0.name", 7, "base_parameters[0].name: expected text, got 7"),
+        (
+            "base_parameters.0",
+            [1.0],
+            "not a report.json of stewart-env identify (base_parameters[0] is [1.0], not an object)",
+        ),
+        ("base_parameters", [], "base_parameters: expected a list of base parameters, got []"),
+        (
+            "base_parameters",
+            {"platform.m": 1.0},
+            "base_parameters: expected a list of base parameters, got {'platform.m': 1.0}",
+        ),
+        ("settings", None, "not a report.json of stewart-env identify (settings is None, not an object)"),
+        ("platform", 3, "platform: expected text, got 3"),
+    ],
+    ids=lambda x: None,
+)
 def test_an_edited_report_is_refused_naming_the_file_and_the_key(tmp_path, capsys, path, value, says):
     from stewart_env.identification.base import IdentificationError
     from stewart_env.identification.experiment import read_report
@@ -350,8 +435,11 @@ def test_a_report_with_a_non_finite_number_is_refused(tmp_path, literal):
 
     report = tmp_path / "report.json"
     report.write_text(json.dumps(minimal_report()).replace('"wls_std": 0.1', f'"wls_std": {literal}'))
-    with pytest.raises(IdentificationError, match=r"base_parameters\[0\]\.wls_std: expected a number > 0, got "
-                                                  r"-?(nan|inf)$"):
+    with pytest.raises(
+        IdentificationError,
+        match=r"base_parameters\[0\]\.wls_std: expected a number > 0, got "
+        r"-?(nan|inf)$",
+    ):
         read_report(report)
 
 
@@ -370,8 +458,10 @@ def test_the_unedited_report_is_read_and_the_python_keyword_is_checked_alike(tmp
 
 def strict_json(text: str):
     """JSON as the standard has it: NaN and Infinity are not JSON."""
+
     def refuse(name):
         raise ValueError(f"not strict JSON: {name}")
+
     return json.loads(text, parse_constant=refuse)
 
 
@@ -381,33 +471,75 @@ def test_the_report_written_is_strict_json_with_null_for_numbers_that_are_not_fi
 
     platform = load_platform("dasgupta1998")
     settings = experiment.Settings(noise_force=1.0)
-    row = {"name": "platform.m", "ols": 1.0, "ols_std": float("nan"), "wls": 1.0, "wls_std": float("inf"),
-           "rel_std": None, "duration_10pct": None, "noise_force_10pct": None, "near_zero": False, "consistent": 1.0,
-           "nominal": 1.0}
-    report = {"settings": settings.__dict__.copy(), "platform": platform.name, "samples": 10, "delay_samples": 0,
-              "fitted_duration": 5.0, "rank": 1, "n_theta": 1, "rank_tolerance": 1e-9,
-              "condition_number": float("inf"), "condition_number_start": float("nan"),
-              "residual_sigma_wls": [1.0, float("-inf")], "base_parameters_under_10pct_rel_std": 0,
-              "held_out_rms_force": 1.0,
-              "held_out_force_error": {"nominal": 1.0, "ols": 1.0, "wls": 1.0, "consistent": 1.0},
-              "base_parameters": [row]}
+    row = {
+        "name": "platform.m",
+        "ols": 1.0,
+        "ols_std": float("nan"),
+        "wls": 1.0,
+        "wls_std": float("inf"),
+        "rel_std": None,
+        "duration_10pct": None,
+        "noise_force_10pct": None,
+        "near_zero": False,
+        "consistent": 1.0,
+        "nominal": 1.0,
+    }
+    report = {
+        "settings": settings.__dict__.copy(),
+        "platform": platform.name,
+        "samples": 10,
+        "delay_samples": 0,
+        "fitted_duration": 5.0,
+        "rank": 1,
+        "n_theta": 1,
+        "rank_tolerance": 1e-9,
+        "condition_number": float("inf"),
+        "condition_number_start": float("nan"),
+        "residual_sigma_wls": [1.0, float("-inf")],
+        "base_parameters_under_10pct_rel_std": 0,
+        "held_out_rms_force": 1.0,
+        "held_out_force_error": {"nominal": 1.0, "ols": 1.0, "wls": 1.0, "consistent": 1.0},
+        "base_parameters": [row],
+    }
     folder = experiment.write(experiment.Result(settings, platform, platform, report), tmp_path / "run")
     written = strict_json((folder / "report.json").read_text())
     assert written["condition_number"] is None and written["condition_number_start"] is None
     assert written["residual_sigma_wls"] == [1.0, None]
     assert written["base_parameters"][0]["ols_std"] is None and written["base_parameters"][0]["wls_std"] is None
     assert written["fitted_duration"] == 5.0 and written["platform"] == "dasgupta1998"
-    assert "condition number of the stacked base regressor: inf (random start nan)" in (folder / "report.md").read_text()
+    assert (
+        "condition number of the stacked base regressor: inf (random start nan)" in (folder / "report.md").read_text()
+    )
 
 
 @pytest.mark.extra("rl")  # train names a missing rl extra before it reads the config
-@pytest.mark.parametrize("expression", ["-" * DEEP + "1", "a." * DEEP + "b", "dict(net_arch=" + "[" * DEEP],
-                         ids=["unary chain", "attribute chain", "brackets"])
+@pytest.mark.parametrize(
+    "expression",
+    ["-" * DEEP + "1", "a." * DEEP + "b", "dict(net_arch=" + "[" * DEEP],
+    ids=["unary chain", "attribute chain", "brackets"],
+)
 def test_a_deep_zoo_expression_in_a_hyperparameter_file_is_one_line_naming_the_key(tmp_path, capsys, expression):
     config = tmp_path / "ppo.yml"
-    config.write_text(yaml.safe_dump({"StewartPlatform-v1": {"n_timesteps": 32, "policy": "MlpPolicy",
-                                                             "policy_kwargs": expression}}, width=1 << 30))
-    code, err = run_cli(["train", "--algo", "ppo", "--config", str(config), "--timesteps", "32",
-                         "--out", str(tmp_path / "run"), "--no-progress"], capsys)
+    config.write_text(
+        yaml.safe_dump(
+            {"StewartPlatform-v1": {"n_timesteps": 32, "policy": "MlpPolicy", "policy_kwargs": expression}},
+            width=1 << 30,
+        )
+    )
+    code, err = run_cli(
+        [
+            "train",
+            "--algo",
+            "ppo",
+            "--config",
+            str(config),
+            "--timesteps",
+            "32",
+            "--out",
+            str(tmp_path / "run"),
+            "--no-progress",
+        ],
+        capsys,
+    )
     assert code == 2 and err.startswith("stewart-env train: error: ") and "policy_kwargs: not an expression" in err
     assert len(err.strip().splitlines()) == 1 and len(err) < 300, err[-300:]

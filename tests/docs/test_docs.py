@@ -15,9 +15,11 @@ PHYSICS = ROOT / "docs" / "physics.md"
 KERNELS = ROOT / "stewart_env" / "dynamics" / "kernels.py"
 #: The compiled kernels' sources by the module name the physics page's function table gives them:
 #: the one implementation of the physics (kernels.hpp) and of the integrator (rk4.hpp).
-CPP_SOURCES = {"kernels": ROOT / "stewart_env" / "dynamics" / "cpp" / "kernels.hpp",
-               "rk4": ROOT / "stewart_env" / "dynamics" / "cpp" / "rk4.hpp",
-               "regressor": ROOT / "stewart_env" / "dynamics" / "cpp" / "regressor.hpp"}
+CPP_SOURCES = {
+    "kernels": ROOT / "stewart_env" / "dynamics" / "cpp" / "kernels.hpp",
+    "rk4": ROOT / "stewart_env" / "dynamics" / "cpp" / "rk4.hpp",
+    "regressor": ROOT / "stewart_env" / "dynamics" / "cpp" / "regressor.hpp",
+}
 CODE_MODULES = {
     "kernels": "stewart_env.dynamics.kernels",
     "model": "stewart_env.dynamics.model",
@@ -40,8 +42,11 @@ def tracked_files():
 
 def markdown_files():
     """The README and the site's pages (the studies' outputs under docs/figures are not pages)."""
-    pages = [p for p in (ROOT / "docs").rglob("*.md")
-             if p.relative_to(ROOT / "docs").parts[0] not in ("figures", "_build", "_generated")]
+    pages = [
+        p
+        for p in (ROOT / "docs").rglob("*.md")
+        if p.relative_to(ROOT / "docs").parts[0] not in ("figures", "_build", "_generated")
+    ]
     return [ROOT / "README.md", *sorted(pages)]
 
 
@@ -60,8 +65,8 @@ def section(text, heading):
     """The text under a heading up to the next heading of the same or a higher level."""
     level = heading.split(" ")[0]
     start = text.index(heading + "\n")
-    end = re.search(rf"^#{{1,{len(level)}}} ", text[start + len(heading):], flags=re.M)
-    return text[start:start + len(heading) + end.start()] if end else text[start:]
+    end = re.search(rf"^#{{1,{len(level)}}} ", text[start + len(heading) :], flags=re.M)
+    return text[start : start + len(heading) + end.start()] if end else text[start:]
 
 
 def first_column_names(table):
@@ -79,8 +84,10 @@ def cpp_functions(path):
     body is not indented), with the ``//`` comment lines right above it joined into one text."""
     text = path.read_text()
     pattern = r'((?:^//.*\n)*)^(?:template <.*>\n)?(?:extern "C" )?(?:inline|constexpr)\b[^(;={}]*?\b(\w+)\('
-    return {m.group(2): " ".join(line[2:].strip() for line in m.group(1).splitlines())
-            for m in re.finditer(pattern, text, flags=re.M)}
+    return {
+        m.group(2): " ".join(line[2:].strip() for line in m.group(1).splitlines())
+        for m in re.finditer(pattern, text, flags=re.M)
+    }
 
 
 def cpp_structs(path):
@@ -148,8 +155,10 @@ def test_readme_links_and_images_are_files_of_the_repository():
             broken.append(f"{url}: no such file")
         elif image and not (target.is_file() and target.suffix in IMAGE_SUFFIXES):
             broken.append(f"{url}: not an image")
-        elif anchor and (target.suffix != ".md" or anchor not in
-                         {slug(h) for h in re.findall(r"^#+ (.+)$", prose(target.read_text()), flags=re.M)}):
+        elif anchor and (
+            target.suffix != ".md"
+            or anchor not in {slug(h) for h in re.findall(r"^#+ (.+)$", prose(target.read_text()), flags=re.M)}
+        ):
             broken.append(f"{url}: no heading #{anchor} in {path}")
     assert not broken
 
@@ -201,24 +210,36 @@ def test_every_code_name_in_the_symbol_table_occurs_in_the_code():
 def test_every_test_the_physics_page_cites_exists():
     cited = re.findall(r"`(tests/[\w/]+\.py)::(\w+)`", PHYSICS.read_text())
     assert len(cited) >= 10
-    missing = [f"{f}::{t}" for f, t in cited
-               if not (ROOT / f).is_file() or not re.search(rf"^def {t}\(", (ROOT / f).read_text(), flags=re.M)]
+    missing = [
+        f"{f}::{t}"
+        for f, t in cited
+        if not (ROOT / f).is_file() or not re.search(rf"^def {t}\(", (ROOT / f).read_text(), flags=re.M)
+    ]
     assert not missing
 
 
 def test_code_docstrings_cite_sections_that_exist():
     headings = set(re.findall(r"^#{2,3} (\d+(?:\.\d+)?)\.? ", PHYSICS.read_text(), flags=re.M))
     tree = ast.parse(KERNELS.read_text())
-    undocumented = [n.name for n in tree.body
-                    if isinstance(n, ast.FunctionDef) and "docs/physics.md" not in (ast.get_docstring(n) or "")]
-    undocumented += [f"{module}.{name}" for module, path in CPP_SOURCES.items()
-                     for name, comment in cpp_functions(path).items() if "docs/physics.md" not in comment]
+    undocumented = [
+        n.name
+        for n in tree.body
+        if isinstance(n, ast.FunctionDef) and "docs/physics.md" not in (ast.get_docstring(n) or "")
+    ]
+    undocumented += [
+        f"{module}.{name}"
+        for module, path in CPP_SOURCES.items()
+        for name, comment in cpp_functions(path).items()
+        if "docs/physics.md" not in comment
+    ]
     assert not undocumented
     cited = []
     sources = [importlib.import_module(m).__loader__.get_source(m) for m in CODE_MODULES.values()]
     # a C++ comment's lines joined, so that a citation broken over two lines is read whole
-    sources += [" ".join(re.sub(r"^\s*// ?", "", line) for line in path.read_text().splitlines())
-                for path in CPP_SOURCES.values()]
+    sources += [
+        " ".join(re.sub(r"^\s*// ?", "", line) for line in path.read_text().splitlines())
+        for path in CPP_SOURCES.values()
+    ]
     for source in sources:
         for ref in re.findall(r"docs/physics\.md\)? (sections? [0-9][0-9.,\- and]*)", source):
             cited += re.findall(r"(?<![\w.])\d+(?:\.\d+)?", ref)
@@ -242,15 +263,23 @@ def test_the_parameter_table_and_the_packed_layout_name_the_same_keys():
     packed = [key for key, _ in PACKED_LAYOUT]
     # the table splits damping into its three coefficients; limits and home are the environment's
     assert [k for k in packed if k not in table and not any(t.startswith(k + ".") for t in table)] == []
-    assert [t for t in table if t not in packed and t.partition(".")[0] not in packed
-            and t not in ("limits", "home")] == []
+    assert [
+        t for t in table if t not in packed and t.partition(".")[0] not in packed and t not in ("limits", "home")
+    ] == []
 
 
 def test_every_kernel_names_its_paper_equations_or_says_it_has_none():
     tree = ast.parse(KERNELS.read_text())
-    silent = [n.name for n in tree.body if isinstance(n, ast.FunctionDef)
-              and not re.search(r"\beqs?\.\s+\d|no\s+paper\s+equation", ast.get_docstring(n) or "")]
-    silent += [f"{module}.{name}" for module, path in CPP_SOURCES.items()
-               for name, comment in cpp_functions(path).items()
-               if not re.search(r"\beqs?\.\s+\d|no\s+paper\s+equation", comment)]
+    silent = [
+        n.name
+        for n in tree.body
+        if isinstance(n, ast.FunctionDef)
+        and not re.search(r"\beqs?\.\s+\d|no\s+paper\s+equation", ast.get_docstring(n) or "")
+    ]
+    silent += [
+        f"{module}.{name}"
+        for module, path in CPP_SOURCES.items()
+        for name, comment in cpp_functions(path).items()
+        if not re.search(r"\beqs?\.\s+\d|no\s+paper\s+equation", comment)
+    ]
     assert silent == []

@@ -69,31 +69,52 @@ def resolve(dotted: str):
 
 @pytest.mark.parametrize("name", ENTRY_POINTS)
 def test_the_example_runs(name):
-    tests = [test for test in doctest.DocTestFinder(recurse=False).find(resolve(name), name, globs={})
-             if test.examples]
+    tests = [test for test in doctest.DocTestFinder(recurse=False).find(resolve(name), name, globs={}) if test.examples]
     assert tests, f"{name} has no example (an Examples: section with >>> lines)"
     runner = doctest.DocTestRunner(optionflags=OPTIONS)
     for test in tests:
         runner.run(test)
     result = runner.summarize(verbose=False)
-    assert result.failed == 0, f"{name}: {result.failed} of {result.attempted} example lines failed (see the output above)"
+    assert result.failed == 0, (
+        f"{name}: {result.failed} of {result.attempted} example lines failed (see the output above)"
+    )
 
 
 #: Modules whose examples are listed above: the physics, the environments, the tasks, the MuJoCo
 #: twin and the baseline controllers (training, studies and commands keep their own lists).
-LISTED_PACKAGES = ("stewart_env.dynamics", "stewart_env.envs", "stewart_env.tasks", "stewart_env.params",
-                   "stewart_env.mujoco")
-LISTED_MODULES = ("stewart_env", "stewart_env.integrate", "stewart_env.kinematics", "stewart_env.rotations",
-                  "stewart_env.state", "stewart_env.randomization", "stewart_env.validation", "stewart_env.files",
-                  "stewart_env.errors", "agents.pd", "agents.computed_torque", "agents.statistics")
+LISTED_PACKAGES = (
+    "stewart_env.dynamics",
+    "stewart_env.envs",
+    "stewart_env.tasks",
+    "stewart_env.params",
+    "stewart_env.mujoco",
+)
+LISTED_MODULES = (
+    "stewart_env",
+    "stewart_env.integrate",
+    "stewart_env.kinematics",
+    "stewart_env.rotations",
+    "stewart_env.state",
+    "stewart_env.randomization",
+    "stewart_env.validation",
+    "stewart_env.files",
+    "stewart_env.errors",
+    "agents.pd",
+    "agents.computed_torque",
+    "agents.statistics",
+)
 
 
 def examples_in(modules) -> dict[str, str]:
     """{docstring: name} of every docstring with an example in ``modules`` and their members, by its
     text: doctest's line of a function shown under its package (``__module__`` reassigned) is a
     guess in the package's ``__init__.py``, which moves when the defining module's lines do."""
-    return {test.docstring: test.name for module in modules for test in doctest.DocTestFinder().find(module)
-            if test.examples}
+    return {
+        test.docstring: test.name
+        for module in modules
+        for test in doctest.DocTestFinder().find(module)
+        if test.examples
+    }
 
 
 @pytest.mark.extra("rl")  # the scan imports every public module, the SB3 vector env's too
@@ -101,9 +122,11 @@ def test_every_example_of_the_public_modules_is_listed():
     modules = [importlib.import_module(name) for name in LISTED_MODULES]
     for package in LISTED_PACKAGES:
         root = importlib.import_module(package)
-        modules += [root] + [importlib.import_module(info.name)
-                             for info in pkgutil.walk_packages(root.__path__, package + ".")
-                             if not info.name.endswith(("__main__", ".cli"))]
+        modules += [root] + [
+            importlib.import_module(info.name)
+            for info in pkgutil.walk_packages(root.__path__, package + ".")
+            if not info.name.endswith(("__main__", ".cli"))
+        ]
     listed = examples_in(resolve(getattr(entry, "values", (entry,))[0]) for entry in ENTRY_POINTS)
     unlisted = sorted(name for docstring, name in examples_in(modules).items() if docstring not in listed)
     assert not unlisted, f"examples not run by this test (add their objects to ENTRY_POINTS): {sorted(unlisted)}"

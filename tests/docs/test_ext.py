@@ -19,8 +19,10 @@ def test_the_card_is_split_between_the_markers_with_nothing_lost():
     card = stewart_docs.env_card()
     headings = [h for h, _ in stewart_docs.card_sections(card)]
     assert headings[:3] == ["Description", "Action Space", "Observation Space"]
-    page = ("# Page\n\n<!-- generated: env card: Description -->\n\nour text\n\n"
-            "<!-- generated: env card: Rewards, Action Space -->\n\n<!-- generated: env card -->\n")
+    page = (
+        "# Page\n\n<!-- generated: env card: Description -->\n\nour text\n\n"
+        "<!-- generated: env card: Rewards, Action Space -->\n\n<!-- generated: env card -->\n"
+    )
     out = stewart_docs.env_card_on_page(page)
     found = [line[3:] for line in out.splitlines() if line.startswith("## ")]
     rest = [h for h in headings if h not in ("Description", "Rewards", "Action Space")]
@@ -30,8 +32,11 @@ def test_the_card_is_split_between_the_markers_with_nothing_lost():
 
 
 def test_a_marker_of_a_section_the_card_lacks_is_one_clear_error():
-    with pytest.raises(ExtensionError, match=r"environment: the env card has no section 'Rewardz' \(its sections: "
-                                             r"Description, "):
+    with pytest.raises(
+        ExtensionError,
+        match=r"environment: the env card has no section 'Rewardz' \(its sections: "
+        r"Description, ",
+    ):
         stewart_docs.env_card_on_page("<!-- generated: env card: Description, Rewardz -->\n", "environment")
 
 
@@ -50,8 +55,10 @@ def test_the_extras_are_pyproject_s_each_with_its_purpose():
 
 def test_an_extra_without_a_comment_is_one_clear_error(tmp_path, monkeypatch):
     pyproject = tmp_path / "pyproject.toml"
-    pyproject.write_text('[project]\nname = "x"\n\n[project.optional-dependencies]\n# Plotting.\nplots = ["matplotlib"]\n'
-                         'docs = ["sphinx"]\n')
+    pyproject.write_text(
+        '[project]\nname = "x"\n\n[project.optional-dependencies]\n# Plotting.\nplots = ["matplotlib"]\n'
+        'docs = ["sphinx"]\n'
+    )
     monkeypatch.setattr(stewart_docs, "PYPROJECT", pyproject)
     with pytest.raises(ExtensionError, match=r"^pyproject.toml: the extra 'docs' has no comment above it"):
         stewart_docs.extras()

@@ -37,8 +37,9 @@ def package(tmp_path_factory) -> Path:
 
 
 def run(code: str, cwd: Path) -> str:
-    done = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], cwd=cwd, capture_output=True, text=True,
-                          timeout=RUN_TIMEOUT_S)
+    done = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)], cwd=cwd, capture_output=True, text=True, timeout=RUN_TIMEOUT_S
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     return done.stdout
 
@@ -53,7 +54,8 @@ def test_the_guide_usage_runs_and_prints_what_it_says(package):
 
 
 def test_the_users_id_steps_with_the_users_task_and_platform(package):
-    out = run("""
+    out = run(
+        """
         import gymnasium as gym
         import numpy as np
         import my_stewart
@@ -77,16 +79,21 @@ def test_the_users_id_steps_with_the_users_task_and_platform(package):
         result = evaluate(lambda e: PDPolicy(e, gravity_compensation=True), {"task": LiftTask, "platform": u.platform},
                           episodes=1, seed=0)
         print(result.summary()["success"])
-    """, package)
+    """,
+        package,
+    )
     assert float(out.split()[-1]) == 1.0  # PD with the exact holding forces reaches a 2 cm lift
 
 
 def test_the_module_qualified_id_imports_the_package(package):
     """Worker processes need the id that names its module; Gymnasium then imports the package."""
-    out = run("""
+    out = run(
+        """
         import gymnasium as gym
         env = gym.make("my_stewart:my_stewart/LiftPlatform-v0")
         env.reset(seed=0)
         print(env.unwrapped.task.name)
-    """, package)
+    """,
+        package,
+    )
     assert out.split() == ["lift"]

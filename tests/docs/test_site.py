@@ -75,10 +75,13 @@ def site(tmp_path_factory):
     for module in ("sphinx", "furo", "myst_parser"):
         pytest.importorskip(module, reason="the docs extra builds the site: pip install -e '.[docs]'")
     out = tmp_path_factory.mktemp("site") / "html"
-    done = subprocess.run([sys.executable, "-m", "sphinx", "-W", "-n", "--keep-going", "-E", "-q",
-                           "-b", "html", str(DOCS), str(out)],
-                          capture_output=True, text=True, timeout=BUILD_TIMEOUT_S,
-                          env={**os.environ, "MPLBACKEND": "Agg"})
+    done = subprocess.run(
+        [sys.executable, "-m", "sphinx", "-W", "-n", "--keep-going", "-E", "-q", "-b", "html", str(DOCS), str(out)],
+        capture_output=True,
+        text=True,
+        timeout=BUILD_TIMEOUT_S,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
     assert done.returncode == 0, f"the site does not build clean:\n{done.stderr[-6000:]}"
     return out
 
@@ -86,8 +89,11 @@ def site(tmp_path_factory):
 def test_every_page_is_in_the_contents(site):
     """No page is left out of the contents (Sphinx would warn), and the contents name only pages."""
     pages = site_pages()
-    sources = {str(p.relative_to(DOCS).with_suffix("")) for p in DOCS.rglob("*.md")
-               if not p.relative_to(DOCS).parts[0].startswith(("_", "figures"))}
+    sources = {
+        str(p.relative_to(DOCS).with_suffix(""))
+        for p in DOCS.rglob("*.md")
+        if not p.relative_to(DOCS).parts[0].startswith(("_", "figures"))
+    }
     assert set(pages) == sources
     assert all((site / f"{page}.html").is_file() for page in pages)
 
@@ -138,9 +144,11 @@ def test_the_figures_of_the_pages_are_in_the_site(site):
 
 
 # Inserted at the top of a page's <head>: after the page has loaded, every image must have loaded.
-PROBE = ('<script>window.addEventListener("load", () => { for (const img of document.images) {'
-         ' if (!img.complete || img.naturalWidth === 0) console.error("image did not load: " + img.src); }'
-         ' console.log("probe: " + document.images.length + " images checked"); });</script>')
+PROBE = (
+    '<script>window.addEventListener("load", () => { for (const img of document.images) {'
+    ' if (!img.complete || img.naturalWidth === 0) console.error("image did not load: " + img.src); }'
+    ' console.log("probe: " + document.images.length + " images checked"); });</script>'
+)
 
 
 @pytest.mark.parametrize("page", ["index", "environment"])
@@ -152,14 +160,30 @@ def test_a_browser_shows_the_page_without_errors(site, page, tmp_path):
     probe.write_text(original.read_text(encoding="utf-8").replace("<head>", "<head>" + PROBE, 1), encoding="utf-8")
     screenshot = tmp_path / f"{page}.png"
     done = subprocess.run(
-        [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-         "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}",
-         "--enable-logging=stderr", "--v=0", "--window-size=1280,1600", f"--screenshot={screenshot}",
-         probe.as_uri()],
-        capture_output=True, text=True, timeout=BROWSER_TIMEOUT_S)
+        [
+            CHROMIUM,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--no-first-run",
+            f"--user-data-dir={tmp_path / 'profile'}",
+            "--enable-logging=stderr",
+            "--v=0",
+            "--window-size=1280,1600",
+            f"--screenshot={screenshot}",
+            probe.as_uri(),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=BROWSER_TIMEOUT_S,
+    )
     console = [line.split("] ", 1)[-1] for line in done.stderr.splitlines() if ":CONSOLE" in line]
-    assert any(message.startswith('"probe: ') for message in console), \
+    assert any(message.startswith('"probe: ') for message in console), (
         f"the page did not finish loading:\n{done.stderr[-3000:]}"
+    )
     problems = [message for message in console if not message.startswith('"probe: ')]
     assert not problems, f"{page}.html: " + "\n".join(problems)
     assert screenshot.is_file() and screenshot.stat().st_size > 20_000, "no screenshot, or a blank one"
@@ -185,10 +209,25 @@ def chromium_dom(page: Path, profile: Path) -> str:
     """The DOM of a page of the site after its scripts have run, as headless Chromium shows it with
     every host name unresolvable (so offline)."""
     done = subprocess.run(
-        [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-         "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={profile}",
-         "--host-resolver-rules=MAP * ~NOTFOUND", "--virtual-time-budget=20000", "--dump-dom", page.as_uri()],
-        capture_output=True, text=True, timeout=BROWSER_TIMEOUT_S)
+        [
+            CHROMIUM,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--no-first-run",
+            f"--user-data-dir={profile}",
+            "--host-resolver-rules=MAP * ~NOTFOUND",
+            "--virtual-time-budget=20000",
+            "--dump-dom",
+            page.as_uri(),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=BROWSER_TIMEOUT_S,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     return done.stdout
 
@@ -204,9 +243,9 @@ def test_the_maths_renders_offline(site, page, tmp_path):
     dom = chromium_dom(site / f"{page}.html", tmp_path / "profile")
     assert dom.count("<mjx-container") == formulas, "MathJax did not typeset every formula offline"
     if page == "physics":  # a heading with maths, in the page's table of contents
-        toc = dom[dom.index('class="toc-tree"'):]
-        entry = toc[toc.index("5.2 The leg"):]
-        assert "<mjx-container" in entry[:entry.index("</a>")]
+        toc = dom[dom.index('class="toc-tree"') :]
+        entry = toc[toc.index("5.2 The leg") :]
+        assert "<mjx-container" in entry[: entry.index("</a>")]
 
 
 def test_the_environment_page_opens_with_its_summary(site):
@@ -220,7 +259,7 @@ def test_the_environment_page_opens_with_its_summary(site):
     from stewart_env.tasks import TASKS, RewardWeights
 
     text = html.unescape(re.sub(r"<[^>]+>", "", (site / "environment.html").read_text(encoding="utf-8")))
-    body = text[text.index("The environment: StewartPlatform-v1¶"):]
+    body = text[text.index("The environment: StewartPlatform-v1¶") :]
     description = body.index("Description¶")
     summary = body[:description]
     env = gym.make("StewartPlatform-v1")
@@ -229,7 +268,7 @@ def test_the_environment_page_opens_with_its_summary(site):
         assert str(gym.make("StewartPlatform-v1", task=task).observation_space) in summary
     assert 'gymnasium.make("StewartPlatform-v1")' in summary
     assert body.index("Action Space¶") > description
-    rewards = body[body.index("The reward in symbols¶"):body.index("Starting State¶")]
+    rewards = body[body.index("The reward in symbols¶") : body.index("Starting State¶")]
     for field in dataclasses.fields(RewardWeights):
         assert field.name in rewards, f"the reward's symbols leave out {field.name}"
     assert rewards.count("\\(") > 10  # the symbols are maths, not plain text
@@ -245,18 +284,21 @@ def test_the_extras_table_is_pyproject_s(site):
 
     declared = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
     page = (site / "getting-started.html").read_text(encoding="utf-8")
-    table = page[page.index("<th class=\"head\"><p>extra</p></th>"):]  # the rows after its header
-    table = table[:table.index("</table>")]
+    table = page[page.index('<th class="head"><p>extra</p></th>') :]  # the rows after its header
+    table = table[: table.index("</table>")]
     rows = re.findall(r"<tr[^>]*>(.*?)</tr>", table, flags=re.S)
-    cells = [[html.unescape(re.sub(r"<[^>]+>", "", cell)) for cell in re.findall(r"<td>(.*?)</td>", row, flags=re.S)]
-             for row in rows]
+    cells = [
+        [html.unescape(re.sub(r"<[^>]+>", "", cell)) for cell in re.findall(r"<td>(.*?)</td>", row, flags=re.S)]
+        for row in rows
+    ]
     assert [row[0] for row in cells] == list(declared)
-    for (extra, purpose, installs) in cells:
+    for extra, purpose, installs in cells:
         assert purpose.strip(), f"the extra {extra} has no purpose"
         assert [r.strip() for r in installs.split(",")] == declared[extra]
 
 
 # --- the pages run as written -----------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def pages_run(tmp_path_factory):
@@ -308,10 +350,14 @@ def test_tracking_table(pages_run):
         return float(row[{"pos.": "RMS pos. err. (mm)", "ori.": "RMS ori. err. (mrad)"}[unit]])
 
     plants = {"classical": "improved", "improved": "classical"}  # plant -> the other model
-    pd_over_ct = {unit: [rms("PD + gravity comp.", m, unit) / rms(f"CT ({m})", m, unit) for m in plants]
-                  for unit in ("pos.", "ori.")}
-    mismatch = {unit: [rms(f"CT ({other})", m, unit) / rms(f"CT ({m})", m, unit) for m, other in plants.items()]
-                for unit in ("pos.", "ori.")}
+    pd_over_ct = {
+        unit: [rms("PD + gravity comp.", m, unit) / rms(f"CT ({m})", m, unit) for m in plants]
+        for unit in ("pos.", "ori.")
+    }
+    mismatch = {
+        unit: [rms(f"CT ({other})", m, unit) / rms(f"CT ({m})", m, unit) for m, other in plants.items()]
+        for unit in ("pos.", "ori.")
+    }
     claims = {
         r"(\S+)-(\S+) times more closely in position": pd_over_ct["pos."],
         r"\((\S+)-(\S+) times in orientation\)": pd_over_ct["ori."],
@@ -323,8 +369,9 @@ def test_tracking_table(pages_run):
         stated = re.search(pattern, text)
         assert stated, f"{block.document}: the tracking prose no longer says {pattern!r}"
         for figure, value in zip(stated.groups(), sorted(values)):
-            assert same_figure(figure, f"{value:.{len(figure.partition('.')[2])}f}"), \
+            assert same_figure(figure, f"{value:.{len(figure.partition('.')[2])}f}"), (
                 f"{block.document}: tracking prose {stated.group(0)!r}, the table gives {sorted(values)}"
+            )
 
 
 def test_case_study_table(pages_run):

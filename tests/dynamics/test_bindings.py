@@ -35,8 +35,16 @@ def test_regressor_fourier_series_and_flop_count_take_converted_arrays(dasgupta)
     plain = np.empty((5, 6, _core.N_THETA))
     _core.regressor_batch(model.packed, model.flags, t, R, v, w, acc, plain)
     converted = np.empty_like(plain)
-    _core.regressor_batch(strided(model.packed), model.flags, strided(t), np.asfortranarray(R), strided(v),
-                          strided(w), strided(acc), converted)
+    _core.regressor_batch(
+        strided(model.packed),
+        model.flags,
+        strided(t),
+        np.asfortranarray(R),
+        strided(v),
+        strided(w),
+        strided(acc),
+        converted,
+    )
     assert np.array_equal(converted, plain)
 
     q0, a, b, times = rng.normal(size=6), rng.normal(size=(6, 3)), rng.normal(size=(6, 3)), np.linspace(0, 2, 7)
@@ -47,9 +55,9 @@ def test_regressor_fourier_series_and_flop_count_take_converted_arrays(dasgupta)
     assert np.array_equal(converted, plain)
 
     z, F = np.zeros(3), np.full(6, 180.0)
-    assert _core.forward_flops(strided(model.packed), model.flags, strided(t[0]), np.asfortranarray(R[0]), z, z,
-                               F.astype(np.float32)) == _core.forward_flops(model.packed, model.flags, t[0], R[0],
-                                                                             z, z, F)
+    assert _core.forward_flops(
+        strided(model.packed), model.flags, strided(t[0]), np.asfortranarray(R[0]), z, z, F.astype(np.float32)
+    ) == _core.forward_flops(model.packed, model.flags, t[0], R[0], z, z, F)
 
 
 def test_batch_kernels_take_converted_arrays(dasgupta):
@@ -62,14 +70,24 @@ def test_batch_kernels_take_converted_arrays(dasgupta):
     for kernel in (_core.forward_batch, _core.inverse_batch):
         plain, converted = np.empty((n, 6)), np.empty((n, 6))
         kernel(model.packed, model.flags, t, R, v32.astype(np.float64), w, F, W, plain)
-        kernel(strided(model.packed), model.flags, strided(t), np.asfortranarray(R), v32, strided(w), strided(F),
-               strided(W), converted)
+        kernel(
+            strided(model.packed),
+            model.flags,
+            strided(t),
+            np.asfortranarray(R),
+            v32,
+            strided(w),
+            strided(F),
+            strided(W),
+            converted,
+        )
         assert np.array_equal(converted, plain)
     M, h = np.empty((n, 6, 6)), np.empty((n, 6))
     M2, h2 = np.empty_like(M), np.empty_like(h)
     _core.mass_bias_batch(model.packed, model.flags, t, R, v, w, W, M, h)
-    _core.mass_bias_batch(strided(model.packed), model.flags, strided(t), np.asfortranarray(R), strided(v), strided(w),
-                          strided(W), M2, h2)
+    _core.mass_bias_batch(
+        strided(model.packed), model.flags, strided(t), np.asfortranarray(R), strided(v), strided(w), strided(W), M2, h2
+    )
     assert np.array_equal(M2, M) and np.array_equal(h2, h)
     states_after = []
     for convert in (False, True):

@@ -103,14 +103,29 @@ def test_every_build_holds_the_baseline():
     assert _core.TARGET in built
 
 
-@pytest.mark.parametrize(("requested", "built", "runnable", "message"), [
-    ("x86-64-v9", ["baseline", "x86-64-v3"], ["baseline", "x86-64-v3"],
-     "STEWART_ENV_CPU='x86-64-v9': not a target; choose one of baseline, x86-64-v3, x86-64-v4, or unset it"),
-    ("x86-64-v4", ["baseline", "x86-64-v3", "x86-64-v4"], ["baseline", "x86-64-v3"],
-     "STEWART_ENV_CPU='x86-64-v4': this processor cannot run it (it runs: baseline, x86-64-v3)"),
-    ("x86-64-v3", ["baseline"], ["baseline", "x86-64-v3"],
-     "STEWART_ENV_CPU='x86-64-v3': not built in this installation (built: baseline)"),
-])
+@pytest.mark.parametrize(
+    ("requested", "built", "runnable", "message"),
+    [
+        (
+            "x86-64-v9",
+            ["baseline", "x86-64-v3"],
+            ["baseline", "x86-64-v3"],
+            "STEWART_ENV_CPU='x86-64-v9': not a target; choose one of baseline, x86-64-v3, x86-64-v4, or unset it",
+        ),
+        (
+            "x86-64-v4",
+            ["baseline", "x86-64-v3", "x86-64-v4"],
+            ["baseline", "x86-64-v3"],
+            "STEWART_ENV_CPU='x86-64-v4': this processor cannot run it (it runs: baseline, x86-64-v3)",
+        ),
+        (
+            "x86-64-v3",
+            ["baseline"],
+            ["baseline", "x86-64-v3"],
+            "STEWART_ENV_CPU='x86-64-v3': not built in this installation (built: baseline)",
+        ),
+    ],
+)
 def test_a_target_that_cannot_be_had_is_an_error_naming_the_variable(requested, built, runnable, message):
     with pytest.raises(UsageError) as error:
         _core._choose(requested, built, runnable)
@@ -118,11 +133,15 @@ def test_a_target_that_cannot_be_had_is_an_error_naming_the_variable(requested, 
 
 
 def test_an_unknown_target_is_a_warning_naming_the_variable_and_the_fastest_target_runs():
-    result = run_with_target("avx512", "import stewart_env; from stewart_env.dynamics import _core; print(_core.TARGET)")
+    result = run_with_target(
+        "avx512", "import stewart_env; from stewart_env.dynamics import _core; print(_core.TARGET)"
+    )
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == _core.TARGET  # the default choice, as with the variable unset
-    assert ("RuntimeWarning: STEWART_ENV_CPU='avx512': not a target; choose one of baseline, x86-64-v3, x86-64-v4, "
-            f"or unset it for the fastest this processor runs; using {_core.TARGET}") in result.stderr
+    assert (
+        "RuntimeWarning: STEWART_ENV_CPU='avx512': not a target; choose one of baseline, x86-64-v3, x86-64-v4, "
+        f"or unset it for the fastest this processor runs; using {_core.TARGET}"
+    ) in result.stderr
 
 
 def test_an_unknown_target_leaves_the_command_line_working():
@@ -131,8 +150,10 @@ def test_an_unknown_target_leaves_the_command_line_working():
     assert "Traceback" not in result.stderr
 
 
-@pytest.mark.skipif(not (sys.platform.startswith("linux") and platform.machine() == "x86_64"),
-                    reason="reads the flags of Linux's /proc/cpuinfo on x86-64")
+@pytest.mark.skipif(
+    not (sys.platform.startswith("linux") and platform.machine() == "x86_64"),
+    reason="reads the flags of Linux's /proc/cpuinfo on x86-64",
+)
 def test_the_runnable_targets_agree_with_the_kernels_view_of_the_processor():
     """The compiled CPUID check against the flags Linux reports (the kernel clears a flag whose
     registers it does not save)."""
@@ -141,8 +162,24 @@ def test_the_runnable_targets_agree_with_the_kernels_view_of_the_processor():
         if line.startswith("flags"):
             flags = set(line.split(":", 1)[1].split())
             break
-    v3 = {"avx", "avx2", "bmi1", "bmi2", "f16c", "fma", "abm", "movbe", "xsave", "cx16", "lahf_lm", "popcnt", "pni",
-          "sse4_1", "sse4_2", "ssse3"}
+    v3 = {
+        "avx",
+        "avx2",
+        "bmi1",
+        "bmi2",
+        "f16c",
+        "fma",
+        "abm",
+        "movbe",
+        "xsave",
+        "cx16",
+        "lahf_lm",
+        "popcnt",
+        "pni",
+        "sse4_1",
+        "sse4_2",
+        "ssse3",
+    }
     v4 = {"avx512f", "avx512bw", "avx512cd", "avx512dq", "avx512vl"}
     expected = ["baseline"] + ["x86-64-v3"] * (v3 <= flags) + ["x86-64-v4"] * (v3 <= flags and v4 <= flags)
     assert _cpu_features.runnable() == expected

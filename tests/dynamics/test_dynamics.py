@@ -10,8 +10,16 @@ from physics_reference import dissipated_power, kinetic_energy, potential_energy
 
 pytestmark = pytest.mark.physics
 
-ALL_MODELS = ["improved", "improved_centroidal", "classical", "improved+c1", "improved+c2",
-              "improved+c3", "improved+c4", "improved_centroidal+c1+c3"]
+ALL_MODELS = [
+    "improved",
+    "improved_centroidal",
+    "classical",
+    "improved+c1",
+    "improved+c2",
+    "improved+c3",
+    "improved+c4",
+    "improved_centroidal+c1+c3",
+]
 
 
 @pytest.fixture(params=["dasgupta", "simulator"])
@@ -78,8 +86,9 @@ def test_classical_model_does_not_conserve_the_true_energy(dasgupta, rng):
 def test_power_balance_with_friction(platform, rng):
     d = platform.damping
     # friction scaled up so the dissipated energy is large next to the integration error
-    params = platform.replace(damping=Damping(max(d.universal, 1e-3) * 500, max(d.prismatic, 1e-3) * 500,
-                                              max(d.spherical, 1e-3) * 500))
+    params = platform.replace(
+        damping=Damping(max(d.universal, 1e-3) * 500, max(d.prismatic, 1e-3) * 500, max(d.spherical, 1e-3) * 500)
+    )
     model = se.make_dynamics("improved", params)
     t, R, v, w = random_state(params, rng, speed=0.2)
     F = holding_forces(model, t, R)
@@ -226,8 +235,12 @@ def _assert_each_row_equals_its_single_call(model, t, R, v, w, F):
 
 def test_batched_calls_equal_single_calls(dasgupta, simulator, rng):
     n = 7
-    params = [dasgupta.replace(platform=RigidBody(dasgupta.platform.mass * (1 + 0.1 * i), dasgupta.platform.com,
-                                                  dasgupta.platform.inertia)) for i in range(n)]
+    params = [
+        dasgupta.replace(
+            platform=RigidBody(dasgupta.platform.mass * (1 + 0.1 * i), dasgupta.platform.com, dasgupta.platform.inertia)
+        )
+        for i in range(n)
+    ]
     for model in (se.make_dynamics("improved", dasgupta), se.make_dynamics("classical", params)):
         states = [random_state(dasgupta, rng) for _ in range(n)]
         t, R, v, w = (np.array(x) for x in zip(*states))
@@ -255,8 +268,9 @@ def test_single_platform_calls_agree_whatever_the_argument_types(dasgupta, rng):
     lin_l, ang_l = model.forward(t.tolist(), R.tolist(), v.tolist(), w.tolist(), F.tolist(), W.tolist())
     assert np.array_equal(lin, lin_l) and np.array_equal(ang, ang_l)
     Fi = model.inverse(t, R, v, w, lin, ang, W)
-    assert np.array_equal(Fi, model.inverse(t.tolist(), R.tolist(), v.tolist(), w.tolist(), lin.tolist(),
-                                            ang.tolist(), W.tolist()))
+    assert np.array_equal(
+        Fi, model.inverse(t.tolist(), R.tolist(), v.tolist(), w.tolist(), lin.tolist(), ang.tolist(), W.tolist())
+    )
     np.testing.assert_allclose(Fi, F, rtol=0, atol=1e-9 * np.abs(F).max())  # solving both ways: rounding
 
 
@@ -265,8 +279,9 @@ def test_rk4_converges_at_fourth_order(dasgupta, rng):
     state = random_state(dasgupta, rng, speed=0.3)
     F = holding_forces(model, *state[:2]) * 1.1
     ref = se.rollout(model, *state, F, dt=0.25e-3, steps=800)
-    errors = [np.abs(se.rollout(model, *state, F, dt=dt, steps=round(0.2 / dt))[0] - ref[0]).max()
-              for dt in (4e-3, 2e-3)]
+    errors = [
+        np.abs(se.rollout(model, *state, F, dt=dt, steps=round(0.2 / dt))[0] - ref[0]).max() for dt in (4e-3, 2e-3)
+    ]
     # halving dt divides a 4th-order method's error by ~16
     assert 10 < errors[0] / errors[1] < 20
 
@@ -354,13 +369,18 @@ def test_rollout_reports_a_state_that_stops_being_finite(dasgupta):
     model = se.make_dynamics("improved", dasgupta)
     # a huge force throws the platform through a singular pose within a few steps
     with pytest.raises(FloatingPointError, match="non-finite in batch rows"):
-        se.rollout(model, dasgupta.home_position, np.eye(3), np.zeros(3), np.zeros(3), np.full(6, -1e9),
-                   dt=1e-3, steps=2000)
+        se.rollout(
+            model, dasgupta.home_position, np.eye(3), np.zeros(3), np.zeros(3), np.full(6, -1e9), dt=1e-3, steps=2000
+        )
 
 
 def test_replacing_rows_equals_packing_every_row(dasgupta):
-    heavier = [dasgupta.replace(platform=RigidBody(dasgupta.platform.mass * f, dasgupta.platform.com,
-                                                   dasgupta.platform.inertia)) for f in (1.1, 1.2, 1.3, 1.4)]
+    heavier = [
+        dasgupta.replace(
+            platform=RigidBody(dasgupta.platform.mass * f, dasgupta.platform.com, dasgupta.platform.inertia)
+        )
+        for f in (1.1, 1.2, 1.3, 1.4)
+    ]
     model = se.make_dynamics("improved", [dasgupta] * 4)
     swapped = model.with_rows([1, 3], [heavier[1], heavier[3]])
     expected = se.make_dynamics("improved", [dasgupta, heavier[1], dasgupta, heavier[3]])
@@ -374,34 +394,82 @@ def test_replacing_rows_equals_packing_every_row(dasgupta):
 # compiled with fused multiply-adds, reciprocals and inlined helpers (the state is set in the test below)
 RECORDED = {
     "improved": (
-        [1.622555526931937, -1.2763114373593376, 2.706567549557876, -11.817689396046802, -14.087960659715366,
-         29.1955333523591],
-        [197.15227867394682, 198.69827803365501, 213.5173375923025, 133.79595922166493, 191.11850383512973,
-         173.6679807021337],
+        [
+            1.622555526931937,
+            -1.2763114373593376,
+            2.706567549557876,
+            -11.817689396046802,
+            -14.087960659715366,
+            29.1955333523591,
+        ],
+        [
+            197.15227867394682,
+            198.69827803365501,
+            213.5173375923025,
+            133.79595922166493,
+            191.11850383512973,
+            173.6679807021337,
+        ],
         [0.029034671059815977, -0.032457522102736315, 0.457605418075476],
         [-1.2124120325252425, 0.007847139743641419, 2.1441374807167555],
     ),
     "improved_centroidal": (
-        [1.6225555269319363, -1.2763114373593372, 2.706567549557876, -11.817689396046807, -14.087960659715373,
-         29.1955333523591],
-        [197.1522786739467, 198.69827803365501, 213.5173375923025, 133.79595922166487, 191.11850383512973,
-         173.6679807021337],
+        [
+            1.6225555269319363,
+            -1.2763114373593372,
+            2.706567549557876,
+            -11.817689396046807,
+            -14.087960659715373,
+            29.1955333523591,
+        ],
+        [
+            197.1522786739467,
+            198.69827803365501,
+            213.5173375923025,
+            133.79595922166487,
+            191.11850383512973,
+            173.6679807021337,
+        ],
         [0.029034671059815977, -0.032457522102736315, 0.457605418075476],
         [-1.2124120325252425, 0.007847139743641488, 2.1441374807167555],
     ),
     "classical": (
-        [1.4654019006129273, -1.1530401198606512, 2.5001572116346296, -9.708325734226683, -11.400104479346558,
-         26.299229203406973],
-        [201.87094609107103, 199.0525664283846, 213.4633853418701, 137.69488590639327, 189.67787498903098,
-         178.7589391041661],
+        [
+            1.4654019006129273,
+            -1.1530401198606512,
+            2.5001572116346296,
+            -9.708325734226683,
+            -11.400104479346558,
+            26.299229203406973,
+        ],
+        [
+            201.87094609107103,
+            199.0525664283846,
+            213.4633853418701,
+            137.69488590639327,
+            189.67787498903098,
+            178.7589391041661,
+        ],
         [0.028831654384122593, -0.03231768044324798, 0.4573107138063616],
         [-1.074377112004858, 0.13742133516854543, 1.9850547173914879],
     ),
     "improved+c1+c3": (
-        [1.4797658888853749, -1.1548935360441748, 2.4912058228004317, -9.24812575099189, -11.197769548372229,
-         26.69839781808992],
-        [202.31467653307254, 198.87398757763003, 214.5730796088506, 136.9344746984935, 191.10458595890293,
-         176.63150087122415],
+        [
+            1.4797658888853749,
+            -1.1548935360441748,
+            2.4912058228004317,
+            -9.24812575099189,
+            -11.197769548372229,
+            26.69839781808992,
+        ],
+        [
+            202.31467653307254,
+            198.87398757763003,
+            214.5730796088506,
+            136.9344746984935,
+            191.10458595890293,
+            176.63150087122415,
+        ],
         [0.028857600652450494, -0.032300853716663726, 0.457304484969044],
         [-1.055055402155021, 0.15170602225347138, 2.002274073579269],
     ),
@@ -417,8 +485,12 @@ def test_compiled_kernels_reproduce_recorded_values(dasgupta, name):
     F = np.array([150.0, 260.0, 90.0, 310.0, 205.0, 170.0])
     W = np.array([12.0, -8.0, 30.0, 1.5, -2.0, 0.7])
     end = se.rollout(model, t, R, v, w, F, dt=1e-3, steps=50, external_wrench=W)
-    computed = (np.concatenate(model.forward(t, R, v, w, F, W)),
-                model.inverse(t, R, v, w, np.array([0.5, -1.0, 2.0]), np.array([3.0, -1.5, 0.8]), W), end[0], end[3])
+    computed = (
+        np.concatenate(model.forward(t, R, v, w, F, W)),
+        model.inverse(t, R, v, w, np.array([0.5, -1.0, 2.0]), np.array([3.0, -1.5, 0.8]), W),
+        end[0],
+        end[3],
+    )
     for got, recorded in zip(computed, RECORDED[name]):
         # fused multiply-adds and reciprocals change each operation by at most an ulp; a solve with
         # cond(M) ~ 10 and 50 RK4 steps keep the sum near 1e-15 of the largest component
@@ -433,8 +505,17 @@ def test_kernels_still_propagate_nan_and_inf(dasgupta):
     out = np.zeros((2, 6))  # finite, so a row the kernel leaves unwritten fails the assertion
     for b, bad in enumerate((np.nan, np.inf)):
         v = np.array([[0.0, bad, 0.0]])
-        K.forward_batch(model.packed, model.flags, state[0], state[1], v, state[3], np.full((1, 6), 180.0),
-                        np.zeros((1, 6)), out[b:b + 1])
+        K.forward_batch(
+            model.packed,
+            model.flags,
+            state[0],
+            state[1],
+            v,
+            state[3],
+            np.full((1, 6), 180.0),
+            np.zeros((1, 6)),
+            out[b : b + 1],
+        )
     # the kernels' floating-point licence assumes nothing about finiteness (no -ffast-math, cpp/CMakeLists.txt)
     assert not np.isfinite(out).all(axis=1).any()
 
@@ -448,8 +529,10 @@ def test_arguments_of_any_layout_and_number_type_give_the_same_result(dasgupta, 
     wide[:, 2] = t  # a strided column
     got = model.forward(wide[:, 2], np.asfortranarray(R), list(v), tuple(w), F)
     assert np.array_equal(np.concatenate(got), want)
-    assert np.array_equal(np.concatenate(model.forward(t, R, v, w, np.round(F).astype(int))),
-                          np.concatenate(model.forward(t, R, v, w, np.round(F))))
+    assert np.array_equal(
+        np.concatenate(model.forward(t, R, v, w, np.round(F).astype(int))),
+        np.concatenate(model.forward(t, R, v, w, np.round(F))),
+    )
 
 
 def test_a_pickled_model_keeps_its_rows_and_stays_read_only(dasgupta):
@@ -497,12 +580,16 @@ def test_forward_and_inverse_refuse_none_and_masked_arrays_naming_the_argument(d
         with pytest.raises(ValueError, match=rf"^{name}: a masked array with 1 masked value\(s\); give plain numbers"):
             call("masked")
         if name != "external_wrench":  # None is no wrench
-            with pytest.raises(ValueError, match=rf"^{name}: expected an array of numbers of shape \(\d(, \d)?,?\), "
-                                                 "got None$"):
+            with pytest.raises(
+                ValueError,
+                match=rf"^{name}: expected an array of numbers of shape \(\d(, \d)?,?\), "
+                "got None$",
+            ):
                 call(None)
     # a masked array with nothing masked is its numbers
-    assert np.array_equal(np.hstack(model.forward(t, R, z, z, np.ma.masked_array(F))),
-                          np.hstack(model.forward(t, R, z, z, F)))
+    assert np.array_equal(
+        np.hstack(model.forward(t, R, z, z, np.ma.masked_array(F))), np.hstack(model.forward(t, R, z, z, F))
+    )
     assert np.array_equal(model.inverse(t, R, z, z, np.ma.masked_array(z), z), model.inverse(t, R, z, z, z, z))
 
 
@@ -515,8 +602,10 @@ def test_model_calls_refuse_none_and_masked_arrays_naming_the_argument(dasgupta)
         (lambda: model.with_rows([0], None), r"^params: expected a sequence of PlatformParams"),
         (lambda: model.with_rows([0], [None]), r"^params: expected PlatformParams, got NoneType"),
         (lambda: model.with_packed_rows([0], None, [dasgupta]), r"^packed_rows: expected an array of shape"),
-        (lambda: model.with_packed_rows([0], _one_masked(model.packed[:1], 5), [dasgupta]),
-         r"^packed_rows: a masked array with 1 masked value\(s\)"),
+        (
+            lambda: model.with_packed_rows([0], _one_masked(model.packed[:1], 5), [dasgupta]),
+            r"^packed_rows: a masked array with 1 masked value\(s\)",
+        ),
         (lambda: model.with_packed_rows([0], model.packed[:1], None), r"^sources: expected a sequence"),
         (lambda: model.params_of(None), r"^row: expected an integer in \[0, 1\], got None"),
         (lambda: se.dynamics.pack_params(None), r"^params: expected a PlatformParams"),

@@ -20,8 +20,7 @@ def path(state, acc, s):
     t, R, v, w = state
     a, alpha = acc
     phi = w * s + 0.5 * alpha * s * s
-    return (t + v * s + 0.5 * a * s * s, rotvec_matrix(phi) @ R, v + a * s,
-            left_jacobian(phi) @ (w + alpha * s))
+    return (t + v * s + 0.5 * a * s * s, rotvec_matrix(phi) @ R, v + a * s, left_jacobian(phi) @ (w + alpha * s))
 
 
 @pytest.fixture(params=["dasgupta", "simulator"])
@@ -39,7 +38,7 @@ def test_leg_rates_and_jacobian_match_finite_differences(platform, rng):
         # central differences: truncation O(H^2) ~ 1e-10, rounding 1e-16 / H^2 ~ 1e-6 for the second
         np.testing.assert_allclose(k.lengths, L0, rtol=1e-14)  # one norm, two orders of summation
         np.testing.assert_allclose(k.rates, (Lp - Lm) / (2 * H), atol=1e-9)
-        np.testing.assert_allclose(k.accelerations, (Lp - 2 * L0 + Lm) / H ** 2, atol=2e-5)
+        np.testing.assert_allclose(k.accelerations, (Lp - 2 * L0 + Lm) / H**2, atol=2e-5)
         np.testing.assert_allclose(k.jacobian @ np.concatenate(state[2:]), k.rates, atol=1e-13)  # rounding of m/s terms
 
 
@@ -83,7 +82,9 @@ def test_classical_leg_kinematics_has_no_spin(dasgupta, rng):
 def test_leg_kinematics_follows_the_switches_of_a_dynamics_model(dasgupta, rng):
     state = random_state(dasgupta, rng)
     classical = se.leg_kinematics(se.make_dynamics("classical", dasgupta), *state)
-    np.testing.assert_allclose(np.einsum("ij,ij->i", classical.omega, classical.units), 0, atol=1e-15)  # rounding of a zero
+    np.testing.assert_allclose(
+        np.einsum("ij,ij->i", classical.omega, classical.units), 0, atol=1e-15
+    )  # rounding of a zero
     expected = se.leg_kinematics(dasgupta, *state, model="classical")
     assert np.array_equal(classical.omega, expected.omega) and np.array_equal(classical.alpha, expected.alpha)
     improved = se.leg_kinematics(se.make_dynamics("improved", dasgupta), *state, model="improved")
@@ -102,7 +103,9 @@ def test_forward_kinematics_inverts_inverse_kinematics(platform, rng):
     for _ in range(5):
         t, R, _, _ = random_state(platform, rng)
         lengths, _ = se.inverse_kinematics(platform, t, R)
-        t_fk, R_fk = se.forward_kinematics(platform, lengths, platform.home_position, se.rpy_to_matrix(platform.home_rpy))
+        t_fk, R_fk = se.forward_kinematics(
+            platform, lengths, platform.home_position, se.rpy_to_matrix(platform.home_rpy)
+        )
         np.testing.assert_allclose(t_fk, t, atol=1e-10)  # 1e-12 m leg residual, J cond < 10
         np.testing.assert_allclose(R_fk, R, atol=1e-10)
 

@@ -11,9 +11,19 @@ from physics_reference import kinetic_energy, random_state
 
 pytestmark = pytest.mark.physics
 
-ALL_MODELS = ["improved", "improved_centroidal", "classical", "improved+c1", "improved+c2",
-              "improved+c3", "improved+c4", "improved+c1+c2", "improved+c3+c4",
-              "improved_centroidal+c1+c3", "improved_centroidal+c2+c4"]
+ALL_MODELS = [
+    "improved",
+    "improved_centroidal",
+    "classical",
+    "improved+c1",
+    "improved+c2",
+    "improved+c3",
+    "improved+c4",
+    "improved+c1+c2",
+    "improved+c3+c4",
+    "improved_centroidal+c1+c3",
+    "improved_centroidal+c2+c4",
+]
 
 
 @pytest.fixture(params=["dasgupta", "simulator"])
@@ -47,8 +57,15 @@ def test_mass_matrix_and_bias_equal_unit_acceleration_probes_of_inverse_dynamics
     model = se.make_dynamics(name, platform)
     (t, R, v, w), _, W = random_case(platform, rng)
     probes = np.vstack([np.eye(6), np.zeros(6)])
-    forces = model.inverse(np.broadcast_to(t, (7, 3)), np.broadcast_to(R, (7, 3, 3)), np.broadcast_to(v, (7, 3)),
-                           np.broadcast_to(w, (7, 3)), probes[:, :3], probes[:, 3:], np.broadcast_to(W, (7, 6)))
+    forces = model.inverse(
+        np.broadcast_to(t, (7, 3)),
+        np.broadcast_to(R, (7, 3, 3)),
+        np.broadcast_to(v, (7, 3)),
+        np.broadcast_to(w, (7, 3)),
+        probes[:, :3],
+        probes[:, 3:],
+        np.broadcast_to(W, (7, 6)),
+    )
     J = se.jacobian(platform, t, R)
     M, h = model.mass_and_bias(t, R, v, w, W)
     # inverse dynamics is affine in the acceleration, so the probes are exact up to the
@@ -91,8 +108,14 @@ def test_mass_matrix_does_not_depend_on_the_rates(dasgupta, rng):
 
 def test_batched_mass_matrix_and_bias_equal_single_calls(dasgupta, rng):
     n = 20  # a batch of many rows: each row as the single call
-    params = [dasgupta.replace(platform=RigidBody(dasgupta.platform.mass * (1 + 0.05 * i), dasgupta.platform.com,
-                                                  dasgupta.platform.inertia)) for i in range(n)]
+    params = [
+        dasgupta.replace(
+            platform=RigidBody(
+                dasgupta.platform.mass * (1 + 0.05 * i), dasgupta.platform.com, dasgupta.platform.inertia
+            )
+        )
+        for i in range(n)
+    ]
     for model in (se.make_dynamics("improved", dasgupta), se.make_dynamics("classical", params)):
         cases = [random_case(dasgupta, rng) for _ in range(n)]
         t, R, v, w = (np.array(x) for x in zip(*(c[0] for c in cases)))

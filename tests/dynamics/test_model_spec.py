@@ -18,20 +18,54 @@ from stewart_env.errors import UsageError
 # The kernel flags every name had before ModelSpec (parse_model_name as released), for every base
 # and every subset of switches: the spec must give the same model to the kernels.
 FLAGS_BEFORE = {
-    'classical': 15, 'classical+c1': 15, 'classical+c2': 15, 'classical+c3': 15, 'classical+c4': 15,
-    'classical+c1+c2': 15, 'classical+c1+c3': 15, 'classical+c1+c4': 15, 'classical+c2+c3': 15,
-    'classical+c2+c4': 15, 'classical+c3+c4': 15, 'classical+c1+c2+c3': 15, 'classical+c1+c2+c4': 15,
-    'classical+c1+c3+c4': 15, 'classical+c2+c3+c4': 15, 'classical+c1+c2+c3+c4': 15,
-    'improved': 0, 'improved+c1': 1, 'improved+c2': 2, 'improved+c3': 4, 'improved+c4': 8, 'improved+c1+c2': 3,
-    'improved+c1+c3': 5, 'improved+c1+c4': 9, 'improved+c2+c3': 6, 'improved+c2+c4': 10, 'improved+c3+c4': 12,
-    'improved+c1+c2+c3': 7, 'improved+c1+c2+c4': 11, 'improved+c1+c3+c4': 13, 'improved+c2+c3+c4': 14,
-    'improved+c1+c2+c3+c4': 15,
-    'improved_centroidal': 16, 'improved_centroidal+c1': 17, 'improved_centroidal+c2': 18,
-    'improved_centroidal+c3': 20, 'improved_centroidal+c4': 24, 'improved_centroidal+c1+c2': 19,
-    'improved_centroidal+c1+c3': 21, 'improved_centroidal+c1+c4': 25, 'improved_centroidal+c2+c3': 22,
-    'improved_centroidal+c2+c4': 26, 'improved_centroidal+c3+c4': 28, 'improved_centroidal+c1+c2+c3': 23,
-    'improved_centroidal+c1+c2+c4': 27, 'improved_centroidal+c1+c3+c4': 29, 'improved_centroidal+c2+c3+c4': 30,
-    'improved_centroidal+c1+c2+c3+c4': 31,
+    "classical": 15,
+    "classical+c1": 15,
+    "classical+c2": 15,
+    "classical+c3": 15,
+    "classical+c4": 15,
+    "classical+c1+c2": 15,
+    "classical+c1+c3": 15,
+    "classical+c1+c4": 15,
+    "classical+c2+c3": 15,
+    "classical+c2+c4": 15,
+    "classical+c3+c4": 15,
+    "classical+c1+c2+c3": 15,
+    "classical+c1+c2+c4": 15,
+    "classical+c1+c3+c4": 15,
+    "classical+c2+c3+c4": 15,
+    "classical+c1+c2+c3+c4": 15,
+    "improved": 0,
+    "improved+c1": 1,
+    "improved+c2": 2,
+    "improved+c3": 4,
+    "improved+c4": 8,
+    "improved+c1+c2": 3,
+    "improved+c1+c3": 5,
+    "improved+c1+c4": 9,
+    "improved+c2+c3": 6,
+    "improved+c2+c4": 10,
+    "improved+c3+c4": 12,
+    "improved+c1+c2+c3": 7,
+    "improved+c1+c2+c4": 11,
+    "improved+c1+c3+c4": 13,
+    "improved+c2+c3+c4": 14,
+    "improved+c1+c2+c3+c4": 15,
+    "improved_centroidal": 16,
+    "improved_centroidal+c1": 17,
+    "improved_centroidal+c2": 18,
+    "improved_centroidal+c3": 20,
+    "improved_centroidal+c4": 24,
+    "improved_centroidal+c1+c2": 19,
+    "improved_centroidal+c1+c3": 21,
+    "improved_centroidal+c1+c4": 25,
+    "improved_centroidal+c2+c3": 22,
+    "improved_centroidal+c2+c4": 26,
+    "improved_centroidal+c3+c4": 28,
+    "improved_centroidal+c1+c2+c3": 23,
+    "improved_centroidal+c1+c2+c4": 27,
+    "improved_centroidal+c1+c3+c4": 29,
+    "improved_centroidal+c2+c3+c4": 30,
+    "improved_centroidal+c1+c2+c3+c4": 31,
 }
 
 
@@ -89,13 +123,20 @@ def test_round_trip(name):
     assert pickle.loads(pickle.dumps(spec)) == spec
 
 
-@pytest.mark.parametrize("value, argument, problem", [
-    ("newton", "model", r"unknown model 'newton'; choose one of improved, improved_centroidal, classical, "
-                        r"optionally with switches '\+c1'..'\+c4'$"),
-    ("improved+c5", "plant", r"unknown switch 'c5' in 'improved\+c5'; switches are c1, c2, c3, c4$"),
-    (3, "internal_model", r"expected a name such as 'improved', got 3$"),
-    (None, "model", r"expected a name such as 'improved', got None$"),
-])
+@pytest.mark.parametrize(
+    "value, argument, problem",
+    [
+        (
+            "newton",
+            "model",
+            r"unknown model 'newton'; choose one of improved, improved_centroidal, classical, "
+            r"optionally with switches '\+c1'..'\+c4'$",
+        ),
+        ("improved+c5", "plant", r"unknown switch 'c5' in 'improved\+c5'; switches are c1, c2, c3, c4$"),
+        (3, "internal_model", r"expected a name such as 'improved', got 3$"),
+        (None, "model", r"expected a name such as 'improved', got None$"),
+    ],
+)
 def test_errors_name_the_argument_as_data(value, argument, problem):
     with pytest.raises(UsageError) as info:
         ModelSpec.parse(value, argument)
@@ -155,8 +196,12 @@ def test_an_identify_report_of_another_spelling_of_the_model_is_the_same_model()
     params = se.load_platform("dasgupta1998")
     model = se.make_dynamics("classical", params)
     base = base_mod.base_parameters(model)
-    report = {"platform": params.name, "settings": {"model": "classical+c1", "noise_force": 1.0},
-              "fitted_duration": 5.0, "base_parameters": [{"name": n, "wls": 1.0, "wls_std": 0.1} for n in base.names]}
+    report = {
+        "platform": params.name,
+        "settings": {"model": "classical+c1", "noise_force": 1.0},
+        "fitted_duration": 5.0,
+        "base_parameters": [{"name": n, "wls": 1.0, "wls_std": 0.1} for n in base.names],
+    }
     settings = experiment.Settings(model="classical", noise_force=1.0)
     experiment._check_reference(report, settings, params, base, model.spec)  # accepted: the same kernel flags
     for other in ("improved", "improved+c9"):

@@ -140,20 +140,23 @@ def test_attributes_cannot_be_assigned():
         params.limits.max_angle = 1.0
 
 
-@pytest.mark.parametrize("getter", [
-    lambda p: p.base_joints,
-    lambda p: p.platform_joints,
-    lambda p: p.hooke_axes,
-    lambda p: p.gravity,
-    lambda p: p.home_position,
-    lambda p: p.home_rpy,
-    lambda p: p.platform.com,
-    lambda p: p.platform.inertia,
-    lambda p: p.upper_leg[2].inertia,
-    lambda p: p.lower_leg[4].com,
-    lambda p: p.limits.position_min,
-    lambda p: p.limits.position_max,
-])
+@pytest.mark.parametrize(
+    "getter",
+    [
+        lambda p: p.base_joints,
+        lambda p: p.platform_joints,
+        lambda p: p.hooke_axes,
+        lambda p: p.gravity,
+        lambda p: p.home_position,
+        lambda p: p.home_rpy,
+        lambda p: p.platform.com,
+        lambda p: p.platform.inertia,
+        lambda p: p.upper_leg[2].inertia,
+        lambda p: p.lower_leg[4].com,
+        lambda p: p.limits.position_min,
+        lambda p: p.limits.position_max,
+    ],
+)
 def test_arrays_are_float64_and_read_only(getter):
     arr = getter(load_platform("dasgupta1998"))
     assert arr.dtype == np.float64
@@ -276,69 +279,146 @@ FIVE_LEGS = [{"mass": 1.0, "com": [0, 0, 0], "inertia": [1, 1, 1]}] * 5
 
 # (key path to set, bad value, expected message), one per validation rule.
 INVALID = [
-    pytest.param(("upper_leg", "inertia"), unsymmetric(0.06), r"^upper_leg\.inertia: not symmetric",
-                 id="leg_inertia_unsymmetric"),
-    pytest.param(("platform", "inertia"), unsymmetric(2.5), r"^platform\.inertia: not symmetric",
-                 id="platform_inertia_unsymmetric"),
-    pytest.param(("platform", "mass"), -1, r"^platform\.mass: must be >= 1e-06 kg, got -1", id="platform_mass_negative"),
+    pytest.param(
+        ("upper_leg", "inertia"), unsymmetric(0.06), r"^upper_leg\.inertia: not symmetric", id="leg_inertia_unsymmetric"
+    ),
+    pytest.param(
+        ("platform", "inertia"),
+        unsymmetric(2.5),
+        r"^platform\.inertia: not symmetric",
+        id="platform_inertia_unsymmetric",
+    ),
+    pytest.param(
+        ("platform", "mass"), -1, r"^platform\.mass: must be >= 1e-06 kg, got -1", id="platform_mass_negative"
+    ),
     pytest.param(("platform", "mass"), 0.0, r"^platform\.mass: must be >= 1e-06 kg, got 0", id="platform_mass_zero"),
     pytest.param(("lower_leg", "mass"), -3.0, r"^lower_leg\.mass: must be >= 0, got -3", id="leg_mass_negative"),
     pytest.param(("upper_leg", "mass"), True, r"^upper_leg\.mass: must be a number", id="mass_is_bool"),
-    pytest.param(("damping", "universal"), "1e-4", r"^damping\.universal: must be a number.*1\.0e-4",
-                 id="number_as_yaml_text"),
-    pytest.param(("base_joints",), [[0.0, 0.0, 0.0]] * 5, r"^base_joints: expected shape \(6, 3\), got \(5, 3\)",
-                 id="base_joints_five_rows"),
-    pytest.param(("platform_joints",), [[0.0, 0.0]] + [[0.0, 0.0, 0.0]] * 5, r"^platform_joints: expected numbers of shape \(6, 3\), got rows of unequal lengths",
-                 id="platform_joints_ragged"),
-    pytest.param(("hooke_axes",), [0.0, 1.0], r"^hooke_axes: expected shape \(6, 3\) or \(3,\), got \(2,\)",
-                 id="hooke_axes_wrong_shape"),
-    pytest.param(("platform", "inertia"), [[1.0, 0.0], [0.0, 1.0]], r"^platform\.inertia: expected shape",
-                 id="inertia_wrong_shape"),
-    pytest.param(("platform", "com"), [0.0, 0.0], r"^platform\.com: expected shape \(3,\), got \(2,\)",
-                 id="com_wrong_shape"),
+    pytest.param(
+        ("damping", "universal"), "1e-4", r"^damping\.universal: must be a number.*1\.0e-4", id="number_as_yaml_text"
+    ),
+    pytest.param(
+        ("base_joints",),
+        [[0.0, 0.0, 0.0]] * 5,
+        r"^base_joints: expected shape \(6, 3\), got \(5, 3\)",
+        id="base_joints_five_rows",
+    ),
+    pytest.param(
+        ("platform_joints",),
+        [[0.0, 0.0]] + [[0.0, 0.0, 0.0]] * 5,
+        r"^platform_joints: expected numbers of shape \(6, 3\), got rows of unequal lengths",
+        id="platform_joints_ragged",
+    ),
+    pytest.param(
+        ("hooke_axes",),
+        [0.0, 1.0],
+        r"^hooke_axes: expected shape \(6, 3\) or \(3,\), got \(2,\)",
+        id="hooke_axes_wrong_shape",
+    ),
+    pytest.param(
+        ("platform", "inertia"),
+        [[1.0, 0.0], [0.0, 1.0]],
+        r"^platform\.inertia: expected shape",
+        id="inertia_wrong_shape",
+    ),
+    pytest.param(
+        ("platform", "com"), [0.0, 0.0], r"^platform\.com: expected shape \(3,\), got \(2,\)", id="com_wrong_shape"
+    ),
     pytest.param(("gravity",), [0.0, -9.81], r"^gravity: expected shape \(3,\)", id="gravity_wrong_shape"),
     pytest.param(("home", "rpy"), [0.0], r"^home\.rpy: expected shape \(3,\)", id="home_rpy_wrong_shape"),
-    pytest.param(("base_joints", 1, 2), float("nan"), r"^base_joints\[1\]\[2\]: not a finite number \(nan\)",
-                 id="base_joints_nan"),
-    pytest.param(("platform", "com", 0), float("inf"), r"^platform\.com\[0\]: not a finite number \(inf\)",
-                 id="com_inf"),
+    pytest.param(
+        ("base_joints", 1, 2),
+        float("nan"),
+        r"^base_joints\[1\]\[2\]: not a finite number \(nan\)",
+        id="base_joints_nan",
+    ),
+    pytest.param(
+        ("platform", "com", 0), float("inf"), r"^platform\.com\[0\]: not a finite number \(inf\)", id="com_inf"
+    ),
     pytest.param(("damping", "spherical"), float("nan"), r"^damping\.spherical: not a finite number", id="damping_nan"),
     pytest.param(("gravity", 2), float("-inf"), r"^gravity\[2\]: not a finite number \(-inf\)", id="gravity_inf"),
-    pytest.param(("limits", "leg_force", 1), float("nan"), r"^limits\.leg_force\[1\]: not a finite number",
-                 id="leg_force_nan"),
+    pytest.param(
+        ("limits", "leg_force", 1), float("nan"), r"^limits\.leg_force\[1\]: not a finite number", id="leg_force_nan"
+    ),
     pytest.param(("damping", "prismatic"), -1.0, r"^damping\.prismatic: must be >= 0", id="damping_negative"),
-    pytest.param(("damping",), {"universal": 0.0, "prismatic": 0.0}, r"^damping: missing key 'spherical'",
-                 id="damping_missing_key"),
+    pytest.param(
+        ("damping",),
+        {"universal": 0.0, "prismatic": 0.0},
+        r"^damping: missing key 'spherical'",
+        id="damping_missing_key",
+    ),
     pytest.param(("platform", "mas"), 40.0, r"^platform: unknown key 'mas'", id="platform_unknown_key"),
-    pytest.param(("limits", "workspace", "max_angel"), 0.3, r"^limits\.workspace: unknown key 'max_angel'",
-                 id="workspace_unknown_key"),
+    pytest.param(
+        ("limits", "workspace", "max_angel"),
+        0.3,
+        r"^limits\.workspace: unknown key 'max_angel'",
+        id="workspace_unknown_key",
+    ),
     pytest.param(("home", "yaw"), 0.3, r"^home: unknown key 'yaw'", id="home_unknown_key"),
     pytest.param(("platform",), 40.0, r"^platform: expected a mapping", id="platform_not_a_mapping"),
-    pytest.param(("platform", "inertia"), [2.5, 2.7, 0.0], r"^platform\.inertia: not positive definite",
-                 id="platform_inertia_singular"),
-    pytest.param(("lower_leg", "inertia"), [-0.0045, 0.12, 0.12], r"^lower_leg\.inertia: not positive semidefinite",
-                 id="leg_inertia_indefinite"),
-    pytest.param(("upper_leg", "mass"), 0.0, r"^upper_leg\.inertia: must be zero for a massless body",
-                 id="massless_leg_with_inertia"),
-    pytest.param(("upper_leg",), FIVE_LEGS, r"^upper_leg: expected one mapping or a list of six, got a list of 5",
-                 id="five_legs"),
-    pytest.param(("limits", "leg_length"), [1.0, 1.2],
-                 r"^limits\.leg_length: leg 0 is 1\.2613 m long at the home pose, outside \[1\.0, 1\.2\]",
-                 id="stroke_excludes_home_leg"),
-    pytest.param(("limits", "leg_length"), [0.0, 1.6], r"^limits\.leg_length: minimum must be > 0",
-                 id="stroke_min_not_positive"),
-    pytest.param(("limits", "leg_length"), [1.6, 1.0], r"^limits\.leg_length: expected \(min, max\) with min < max",
-                 id="stroke_reversed"),
-    pytest.param(("limits", "leg_force"), [100.0, 100.0], r"^limits\.leg_force: expected \(min, max\) with min < max",
-                 id="force_range_empty"),
-    pytest.param(("limits", "workspace", "position_max", 2), 0.25,
-                 r"^limits\.workspace: position_min .* must be below position_max", id="workspace_box_empty"),
-    pytest.param(("limits", "workspace", "position_max", 2), 0.35,
-                 r"^limits\.workspace: home position .* outside the box", id="workspace_excludes_home"),
-    pytest.param(("limits", "workspace", "max_angle"), 0.0, r"^limits\.workspace\.max_angle: must be in \(0, pi\]",
-                 id="max_angle_not_positive"),
-    pytest.param(("limits", "max_condition"), 0.5, r"^limits\.max_condition: must be > 1",
-                 id="max_condition_below_one"),
+    pytest.param(
+        ("platform", "inertia"),
+        [2.5, 2.7, 0.0],
+        r"^platform\.inertia: not positive definite",
+        id="platform_inertia_singular",
+    ),
+    pytest.param(
+        ("lower_leg", "inertia"),
+        [-0.0045, 0.12, 0.12],
+        r"^lower_leg\.inertia: not positive semidefinite",
+        id="leg_inertia_indefinite",
+    ),
+    pytest.param(
+        ("upper_leg", "mass"),
+        0.0,
+        r"^upper_leg\.inertia: must be zero for a massless body",
+        id="massless_leg_with_inertia",
+    ),
+    pytest.param(
+        ("upper_leg",), FIVE_LEGS, r"^upper_leg: expected one mapping or a list of six, got a list of 5", id="five_legs"
+    ),
+    pytest.param(
+        ("limits", "leg_length"),
+        [1.0, 1.2],
+        r"^limits\.leg_length: leg 0 is 1\.2613 m long at the home pose, outside \[1\.0, 1\.2\]",
+        id="stroke_excludes_home_leg",
+    ),
+    pytest.param(
+        ("limits", "leg_length"), [0.0, 1.6], r"^limits\.leg_length: minimum must be > 0", id="stroke_min_not_positive"
+    ),
+    pytest.param(
+        ("limits", "leg_length"),
+        [1.6, 1.0],
+        r"^limits\.leg_length: expected \(min, max\) with min < max",
+        id="stroke_reversed",
+    ),
+    pytest.param(
+        ("limits", "leg_force"),
+        [100.0, 100.0],
+        r"^limits\.leg_force: expected \(min, max\) with min < max",
+        id="force_range_empty",
+    ),
+    pytest.param(
+        ("limits", "workspace", "position_max", 2),
+        0.25,
+        r"^limits\.workspace: position_min .* must be below position_max",
+        id="workspace_box_empty",
+    ),
+    pytest.param(
+        ("limits", "workspace", "position_max", 2),
+        0.35,
+        r"^limits\.workspace: home position .* outside the box",
+        id="workspace_excludes_home",
+    ),
+    pytest.param(
+        ("limits", "workspace", "max_angle"),
+        0.0,
+        r"^limits\.workspace\.max_angle: must be in \(0, pi\]",
+        id="max_angle_not_positive",
+    ),
+    pytest.param(
+        ("limits", "max_condition"), 0.5, r"^limits\.max_condition: must be > 1", id="max_condition_below_one"
+    ),
 ]
 
 
@@ -433,8 +513,14 @@ def test_dataclasses_validate_on_direct_construction():
     with pytest.raises(ConfigError, match=r"^inertia: not symmetric"):
         RigidBody(mass=1.0, com=[0.0, 0.0, 0.0], inertia=unsymmetric(1.0))
     with pytest.raises(ConfigError, match=r"^workspace\.position_min: expected shape \(3,\)"):
-        Limits(leg_length=(1.0, 2.0), leg_force=(-1.0, 1.0), position_min=[0.0, 0.0],
-               position_max=[1.0, 1.0, 1.0], max_angle=0.5, max_condition=1000.0)
+        Limits(
+            leg_length=(1.0, 2.0),
+            leg_force=(-1.0, 1.0),
+            position_min=[0.0, 0.0],
+            position_max=[1.0, 1.0, 1.0],
+            max_angle=0.5,
+            max_condition=1000.0,
+        )
     params = load_platform("dasgupta1998")
     with pytest.raises(ConfigError, match=r"^upper_leg: expected a RigidBody or a sequence of six"):
         params.replace(upper_leg=params.upper_leg[:5])
@@ -476,11 +562,13 @@ def test_scale_packed_checks_the_factors_against_the_spec():
     r = Randomization({"mass": (0.5, 2.0), "com": (-1.0, 1.0)})
     nominal = pack_params(load_platform("dasgupta1998"))
     out = np.empty_like(nominal)
-    for factors, message in [({"mass": 2.5}, r"factors\['mass'\]: expected a number within \[0.5, 2.0\]"),
-                             ({"mass": float("nan")}, r"factors\['mass'\]"),
-                             ({"com": True}, r"factors\['com'\]"),
-                             ({"inertia": 1.0}, "factors: key 'inertia' is not in the randomisation spec"),
-                             ([1.0], "factors: expected a dict")]:
+    for factors, message in [
+        ({"mass": 2.5}, r"factors\['mass'\]: expected a number within \[0.5, 2.0\]"),
+        ({"mass": float("nan")}, r"factors\['mass'\]"),
+        ({"com": True}, r"factors\['com'\]"),
+        ({"inertia": 1.0}, "factors: key 'inertia' is not in the randomisation spec"),
+        ([1.0], "factors: expected a dict"),
+    ]:
         with pytest.raises(ConfigError, match=message):
             r.scale_packed(nominal, factors, out)
 
@@ -539,8 +627,9 @@ def test_rows_set_from_packed_numbers_build_their_params_only_when_read():
     reference = se.make_dynamics("improved", [params, r.apply(params, factors), params])
     t, R = params.home_position, np.eye(3)
     F = np.full((3, 6), 200.0)
-    assert np.array_equal(new.forward(t, R, np.zeros(3), np.zeros(3), F)[0],
-                          reference.forward(t, R, np.zeros(3), np.zeros(3), F)[0])
+    assert np.array_equal(
+        new.forward(t, R, np.zeros(3), np.zeros(3), F)[0], reference.forward(t, R, np.zeros(3), np.zeros(3), F)[0]
+    )
     with pytest.raises(ValueError, match=r"packed_rows: expected shape \(1, 229\)"):
         model.with_packed_rows([1], row[0], [source])
     with pytest.raises(ValueError, match="rows: 5 is outside the batch of 3"):

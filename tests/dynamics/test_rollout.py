@@ -42,11 +42,68 @@ def batch(dasgupta):
 #: rollout computed them before it gained control laws (its kernel then held the forces itself).
 BEFORE_CONTROL_LAWS = [
     # row 0
-    [0.0003713781220542542, 0.006672712028904253, 0.3956376191009799, 0.9996428562093037, -0.026698682894232675, 0.0011577397887891062, 0.026575575949221768, 0.9977221400818058, 0.062002177006525, -0.0028104790823778206, -0.06194926571231107, 0.9980753426896353, 0.019514897559763163, 0.14421907892201716, -0.07904854229053344, -0.2010502779767351, -0.06018034320603486, -0.19549291857176884],
+    [
+        0.0003713781220542542,
+        0.006672712028904253,
+        0.3956376191009799,
+        0.9996428562093037,
+        -0.026698682894232675,
+        0.0011577397887891062,
+        0.026575575949221768,
+        0.9977221400818058,
+        0.062002177006525,
+        -0.0028104790823778206,
+        -0.06194926571231107,
+        0.9980753426896353,
+        0.019514897559763163,
+        0.14421907892201716,
+        -0.07904854229053344,
+        -0.2010502779767351,
+        -0.06018034320603486,
+        -0.19549291857176884,
+    ],
     # row 16
-    [-0.00787737606652591, 0.018931076623587582, 0.40669608083951636, 0.998987775598808, 0.04378843981052877, -0.010295471970999944, -0.0425538403691858, 0.9941536888552128, 0.09923514299585007, 0.014580633524638037, -0.09869658289187452, 0.9950107485105314, -0.07681449128672917, -0.07475720810033074, -0.036672973826899026, 0.2072369036592213, 0.0026679632212407147, 0.16003315170468382],
+    [
+        -0.00787737606652591,
+        0.018931076623587582,
+        0.40669608083951636,
+        0.998987775598808,
+        0.04378843981052877,
+        -0.010295471970999944,
+        -0.0425538403691858,
+        0.9941536888552128,
+        0.09923514299585007,
+        0.014580633524638037,
+        -0.09869658289187452,
+        0.9950107485105314,
+        -0.07681449128672917,
+        -0.07475720810033074,
+        -0.036672973826899026,
+        0.2072369036592213,
+        0.0026679632212407147,
+        0.16003315170468382,
+    ],
     # row 3 alone
-    [-0.004863903620884143, 0.0029972046664817897, 0.4031963162312784, 0.9996472441472642, -0.008664153266063266, -0.0251061689025318, 0.008353595047268219, 0.9998876212286248, -0.012448387989965016, 0.025211202243577074, 0.012234269980044359, 0.9996072818459704, 0.08210725247976035, -0.08686427312938795, -0.029402252909733542, 0.06925116337800488, -0.0589828129853196, 0.22559559317367694],
+    [
+        -0.004863903620884143,
+        0.0029972046664817897,
+        0.4031963162312784,
+        0.9996472441472642,
+        -0.008664153266063266,
+        -0.0251061689025318,
+        0.008353595047268219,
+        0.9998876212286248,
+        -0.012448387989965016,
+        0.025211202243577074,
+        0.012234269980044359,
+        0.9996072818459704,
+        0.08210725247976035,
+        -0.08686427312938795,
+        -0.029402252909733542,
+        0.06925116337800488,
+        -0.0589828129853196,
+        0.22559559317367694,
+    ],
 ]
 
 
@@ -103,15 +160,30 @@ def test_per_row_parameters_equal_rows_run_alone(batch):
     params = np.hstack([F, np.linspace(0, 200, N_ROWS)[:, None], np.full((N_ROWS, 1), 30.0)])
     end = se.rollout(model, *state, dt=1e-3, steps=20, external_wrench=W, control_law=_swaying, control_params=params)
     for b in (0, 5, 16):
-        alone = se.rollout(model, *(x[b] for x in state), dt=1e-3, steps=20, external_wrench=W[b],
-                           control_law=_swaying, control_params=params[b])
+        alone = se.rollout(
+            model,
+            *(x[b] for x in state),
+            dt=1e-3,
+            steps=20,
+            external_wrench=W[b],
+            control_law=_swaying,
+            control_params=params[b],
+        )
         for a, x in zip(alone, end):
             np.testing.assert_array_equal(a, x[b])  # rows are independent: the batch changes nothing
     # one parameter row (P,) is shared by every platform of the batch
-    shared = se.rollout(model, *state, dt=1e-3, steps=20, external_wrench=W, control_law=_swaying,
-                        control_params=params[5])
-    tiled = se.rollout(model, *state, dt=1e-3, steps=20, external_wrench=W, control_law=_swaying,
-                       control_params=np.tile(params[5], (N_ROWS, 1)))
+    shared = se.rollout(
+        model, *state, dt=1e-3, steps=20, external_wrench=W, control_law=_swaying, control_params=params[5]
+    )
+    tiled = se.rollout(
+        model,
+        *state,
+        dt=1e-3,
+        steps=20,
+        external_wrench=W,
+        control_law=_swaying,
+        control_params=np.tile(params[5], (N_ROWS, 1)),
+    )
     for a, b in zip(shared, tiled):
         np.testing.assert_array_equal(a, b)
 
@@ -124,9 +196,19 @@ def test_a_time_dependent_law_converges_at_fourth_order(dasgupta):
     zero = np.zeros(3)
     hold = model.inverse(dasgupta.home_position, R, zero, zero, zero, zero)
     params = np.concatenate([hold, [300.0, 40.0]])
+
     def run(dt):
-        return se.rollout(model, dasgupta.home_position, R, zero, zero, dt=dt, steps=round(0.2 / dt),
-                          control_law=_swaying, control_params=params)[0]
+        return se.rollout(
+            model,
+            dasgupta.home_position,
+            R,
+            zero,
+            zero,
+            dt=dt,
+            steps=round(0.2 / dt),
+            control_law=_swaying,
+            control_params=params,
+        )[0]
 
     reference = run(1e-4)
     errors = [np.abs(run(dt) - reference).max() for dt in (4e-3, 2e-3)]
@@ -173,8 +255,9 @@ def test_recorded_trajectory(batch):
     expected = F[:, None, :] + 100.0 * np.sin(30.0 * run.time)[None, :, None]
     np.testing.assert_allclose(run.leg_forces, expected, rtol=1e-15, atol=1e-12)
     # one platform: no batch dimension
-    one = se.rollout(model, *(x[2] for x in state), dt=1e-3, steps=20, external_wrench=W[2], record_every=10,
-                     leg_forces=F[2])
+    one = se.rollout(
+        model, *(x[2] for x in state), dt=1e-3, steps=20, external_wrench=W[2], record_every=10, leg_forces=F[2]
+    )
     assert one.position.shape == (3, 3) and one.leg_forces.shape == (3, 6)
     np.testing.assert_array_equal(one.leg_forces, np.tile(F[2], (3, 1)))
 
@@ -259,10 +342,20 @@ def test_a_law_on_a_model_with_a_parameter_set_per_row(dasgupta):
     R = se.rpy_to_matrix(dasgupta.home_rpy)
     zero = np.zeros(3)
     params = np.concatenate([np.full(6, -300.0), [50.0, 20.0]])
-    end = se.rollout(model, dasgupta.home_position, R, zero, zero, steps=20, control_law=_swaying, control_params=params)
+    end = se.rollout(
+        model, dasgupta.home_position, R, zero, zero, steps=20, control_law=_swaying, control_params=params
+    )
     for row, platform in enumerate((dasgupta, heavy)):
-        alone = se.rollout(se.make_dynamics("improved", platform), dasgupta.home_position, R, zero, zero, steps=20,
-                           control_law=_swaying, control_params=params)
+        alone = se.rollout(
+            se.make_dynamics("improved", platform),
+            dasgupta.home_position,
+            R,
+            zero,
+            zero,
+            steps=20,
+            control_law=_swaying,
+            control_params=params,
+        )
         for a, x in zip(alone, end):
             np.testing.assert_array_equal(a, x[row])  # row by row the same arithmetic
     assert not np.allclose(end[0][0], end[0][1])  # and the heavier platform moves differently
@@ -281,17 +374,34 @@ def test_a_law_that_leaves_a_force_unwritten_stops_the_rollout(batch):
     one = [x[0] for x in state]
     with pytest.raises(FloatingPointError, match=r"rows \[0\].*left a leg force unwritten"):
         se.rollout(model, *one, control_law=_five_forces, control_params=F[0], steps=2)
-    run = se.rollout(model, *one, control_law=_five_forces, control_params=F[0], steps=2, record_every=1,
-                     check_finite=False)
+    run = se.rollout(
+        model, *one, control_law=_five_forces, control_params=F[0], steps=2, record_every=1, check_finite=False
+    )
     assert np.isnan(run.leg_forces[1, 5]) and np.isfinite(run.leg_forces[1, :5]).all()
 
 
-@pytest.mark.parametrize("name,value", [
-    ("steps", 2**63), ("steps", 10**30), ("steps", np.inf), ("steps", np.nan), ("steps", 1.5), ("steps", True),
-    ("dt", "1e-3"), ("dt", None), ("dt", np.ones(2)), ("dt", 0.0), ("dt", np.nan),
-    ("start_time", "0"), ("start_time", None), ("start_time", np.ones(2)),
-    ("record_every", np.nan), ("record_every", 0), ("record_every", 2.5),
-])
+@pytest.mark.parametrize(
+    "name,value",
+    [
+        ("steps", 2**63),
+        ("steps", 10**30),
+        ("steps", np.inf),
+        ("steps", np.nan),
+        ("steps", 1.5),
+        ("steps", True),
+        ("dt", "1e-3"),
+        ("dt", None),
+        ("dt", np.ones(2)),
+        ("dt", 0.0),
+        ("dt", np.nan),
+        ("start_time", "0"),
+        ("start_time", None),
+        ("start_time", np.ones(2)),
+        ("record_every", np.nan),
+        ("record_every", 0),
+        ("record_every", 2.5),
+    ],
+)
 def test_step_arguments_are_named(batch, name, value):
     """dt, steps, start_time and record_every are refused by name, never run (2**63 steps used to
     return the start unchanged) nor failing inside numba."""
@@ -342,8 +452,11 @@ def test_a_ctypes_function_is_a_control_law(batch):
 def test_a_law_declaring_its_row_length_refuses_other_rows(batch):
     model, state, F, W = batch
     law = rk4.ControlLaw(rk4.LAW_CTYPES(lambda *args: None), n_params=8, name="eight")
-    with pytest.raises(ValueError, match=r"^control_law: eight failed on control_params of shape \(1, 6\): it reads "
-                                         r"rows of 8 numbers"):
+    with pytest.raises(
+        ValueError,
+        match=r"^control_law: eight failed on control_params of shape \(1, 6\): it reads "
+        r"rows of 8 numbers",
+    ):
         se.rollout(model, *[x[0] for x in state], control_law=law, control_params=F[0], steps=1)
     with pytest.raises(ValueError, match="^n_params: "):
         rk4.ControlLaw(rk4.LAW_CTYPES(lambda *args: None), n_params=-1)
@@ -377,12 +490,16 @@ def _python_law(time, position, rotation, velocity, angular_velocity, params, fo
 #: the wrong signature.
 NOT_LAWS = {"python": _python_law, "lambda": lambda *a: None}
 if numba is not None:
-    NOT_LAWS.update({
-        "njit": numba.njit(_jitted),
-        "wrong-signature": numba.cfunc("void(float64, CPointer(float64))")(_wrong_signature),
-        "returns-a-value": numba.cfunc("float64(float64, CPointer(float64), CPointer(float64), CPointer(float64), "
-                                       "CPointer(float64), CPointer(float64), int64, CPointer(float64))")(_returns_a_value),
-    })
+    NOT_LAWS.update(
+        {
+            "njit": numba.njit(_jitted),
+            "wrong-signature": numba.cfunc("void(float64, CPointer(float64))")(_wrong_signature),
+            "returns-a-value": numba.cfunc(
+                "float64(float64, CPointer(float64), CPointer(float64), CPointer(float64), "
+                "CPointer(float64), CPointer(float64), int64, CPointer(float64))"
+            )(_returns_a_value),
+        }
+    )
 
 
 @pytest.mark.parametrize("law", list(NOT_LAWS.values()), ids=list(NOT_LAWS))
@@ -405,18 +522,23 @@ def test_rollout_law_giving_nan_forces_raises_naming_the_rows(model, home):
 @pytest.fixture(scope="module")
 def pd_row(dasgupta, model):
     from stewart_env.agents.pd import pd_control_params
+
     ws = model.workspace(1)
     z = np.zeros(3)
     return pd_control_params(dasgupta, se.Reference(ws.position[0].copy(), ws.rotation[0].copy(), z, z))
 
 
-@pytest.mark.parametrize("params, message", [
-    ("nan", r"^control_params: contains NaN or inf"),
-    ("3d", r"^control_params: expected an array \(P,\) or \(N, P\)"),
-    ("str", r"^control_params: "),
-])
+@pytest.mark.parametrize(
+    "params, message",
+    [
+        ("nan", r"^control_params: contains NaN or inf"),
+        ("3d", r"^control_params: expected an array \(P,\) or \(N, P\)"),
+        ("str", r"^control_params: "),
+    ],
+)
 def test_rollout_refuses_bad_control_params_naming_them(model, home, pd_row, params, message):
     from stewart_env.agents.pd import pd_control_law
+
     t, R, z = home
     value = {"nan": np.full_like(pd_row, np.nan), "3d": pd_row[None, None], "str": "abc"}[params]
     with pytest.raises(ValueError, match=message):
@@ -425,6 +547,7 @@ def test_rollout_refuses_bad_control_params_naming_them(model, home, pd_row, par
 
 def test_rollout_takes_leg_forces_or_a_law_not_both(model, home, pd_row):
     from stewart_env.agents.pd import pd_control_law
+
     t, R, z = home
     with pytest.raises(ValueError, match=r"^leg_forces: "):
         se.rollout(model, t, R, z, z, np.zeros(6), steps=10, control_law=pd_control_law, control_params=pd_row)
@@ -441,9 +564,11 @@ def test_rollout_refuses_a_record_every_that_does_not_divide_steps(model, home, 
 
 def test_rollout_records_the_pd_law_every_tenth_step(model, home, pd_row):
     from stewart_env.agents.pd import pd_control_law
+
     t, R, z = home
-    trajectory = se.rollout(model, t, R, z, z, dt=1e-3, steps=100, control_law=pd_control_law,
-                            control_params=pd_row, record_every=10)
+    trajectory = se.rollout(
+        model, t, R, z, z, dt=1e-3, steps=100, control_law=pd_control_law, control_params=pd_row, record_every=10
+    )
     assert trajectory.time.shape == (11,) and trajectory.position.shape == (11, 3)
     assert trajectory.leg_forces.shape == (11, 6)
     np.testing.assert_allclose(trajectory.time[[0, 1, -1]], [0.0, 0.01, 0.1], rtol=0, atol=1e-15)  # 10 * 1e-3 sums

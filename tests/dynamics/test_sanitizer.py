@@ -55,8 +55,17 @@ def sanitized(tmp_path_factory):
     # through the sanitizer's interceptor, which otherwise finds no __cxa_throw to call
     libstdcxx = gcc_library(gcc, "libstdc++.so")
     build = tmp_path_factory.mktemp("asan-build")
-    configure = [cmake, "-S", str(SOURCES), "-B", str(build), "-DSTEWART_ENV_SANITIZE=address",
-                 "-DSTEWART_ENV_PORTABLE=ON", f"-DCMAKE_CXX_COMPILER={gxx}", f"-DPython_EXECUTABLE={sys.executable}"]
+    configure = [
+        cmake,
+        "-S",
+        str(SOURCES),
+        "-B",
+        str(build),
+        "-DSTEWART_ENV_SANITIZE=address",
+        "-DSTEWART_ENV_PORTABLE=ON",
+        f"-DCMAKE_CXX_COMPILER={gxx}",
+        f"-DPython_EXECUTABLE={sys.executable}",
+    ]
     for step in (configure, [cmake, "--build", str(build), "-j", str(os.cpu_count() or 1)]):
         done = subprocess.run(step, capture_output=True, text=True, timeout=TIMEOUT)
         assert done.returncode == 0, f"{' '.join(step)} failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
@@ -101,8 +110,20 @@ def test_the_bindings_read_and_write_only_live_memory_under_address_sanitizer(sa
         "MPLBACKEND": "Agg",
         "OPENBLAS_NUM_THREADS": "1",
     }
-    command = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "asan_core", "-m", "not slow",
-               *(f"--ignore={path}" for path in LEFT_OUT), *UNDER_SANITIZER]
+    command = [
+        sys.executable,
+        "-m",
+        "pytest",
+        "-q",
+        "-p",
+        "no:cacheprovider",
+        "-p",
+        "asan_core",
+        "-m",
+        "not slow",
+        *(f"--ignore={path}" for path in LEFT_OUT),
+        *UNDER_SANITIZER,
+    ]
     done = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True, timeout=TIMEOUT)
     reports = "\n".join(path.read_text() for path in sorted(tmp_path.glob("asan.*")))
     assert "ERROR: AddressSanitizer" not in reports, reports[:6000]

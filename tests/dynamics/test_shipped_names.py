@@ -34,14 +34,17 @@ def test_the_default_platform_and_the_shipped_names_load_whatever_the_working_di
     assert gym.make("StewartPlatform-v1", platform="motion_simulator").unwrapped.platform.name == "motion_simulator"
 
 
-@pytest.mark.parametrize("given", ["./dasgupta1998", Path("dasgupta1998"), "./motion_simulator",
-                                   Path("motion_simulator")], ids=str)
+@pytest.mark.parametrize(
+    "given", ["./dasgupta1998", Path("dasgupta1998"), "./motion_simulator", Path("motion_simulator")], ids=str
+)
 def test_a_path_is_a_file_and_its_error_names_the_path(cluttered, given):
     with pytest.raises(ConfigError) as caught:
         load_platform(given)
     message = str(caught.value)
-    assert message.startswith(f"{given}: not a platform config: a config file's name ends in .yaml or .yml; "
-                              "a shipped platform is named by a string alone, with no path"), message
+    assert message.startswith(
+        f"{given}: not a platform config: a config file's name ends in .yaml or .yml; "
+        "a shipped platform is named by a string alone, with no path"
+    ), message
 
 
 def test_a_yaml_file_in_the_working_directory_is_read_by_its_suffix_or_its_separator(cluttered):
@@ -56,15 +59,29 @@ def test_a_yaml_file_in_the_working_directory_is_read_by_its_suffix_or_its_separ
 
 
 def test_an_unknown_name_says_how_a_path_is_told_apart(cluttered):
-    with pytest.raises(ConfigError, match=r"^unknown platform 'robot\.json'; available: dasgupta1998, "
-                                          r"motion_simulator \(a config file's path has a / or ends in \.yaml or "
-                                          r"\.yml\)$"):
+    with pytest.raises(
+        ConfigError,
+        match=r"^unknown platform 'robot\.json'; available: dasgupta1998, "
+        r"motion_simulator \(a config file's path has a / or ends in \.yaml or "
+        r"\.yml\)$",
+    ):
         load_platform("robot.json")
 
 
-@pytest.mark.parametrize("given, name", [("dasgupta1998", True), ("motion_simulator", True), ("robot.json", True),
-                                         ("robot.yaml", False), ("ROBOT.YML", False), ("./dasgupta1998", False),
-                                         ("dir/robot", False), (Path("dasgupta1998"), False)], ids=str)
+@pytest.mark.parametrize(
+    "given, name",
+    [
+        ("dasgupta1998", True),
+        ("motion_simulator", True),
+        ("robot.json", True),
+        ("robot.yaml", False),
+        ("ROBOT.YML", False),
+        ("./dasgupta1998", False),
+        ("dir/robot", False),
+        (Path("dasgupta1998"), False),
+    ],
+    ids=str,
+)
 def test_is_platform_name_is_the_rule(given, name):
     assert is_platform_name(given) is name
 

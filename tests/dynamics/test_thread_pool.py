@@ -87,20 +87,27 @@ def test_set_num_threads_refuses_what_is_not_a_thread_count(n, restore_threads):
     assert se.get_num_threads() == before
 
 
-@pytest.mark.parametrize("value, count, warning", [
-    (None, None, None),
-    ("", None, None),
-    ("  ", None, None),
-    ("1", 1, None),
-    (" 12 ", 12, None),
-    ("256", 256, None),
-    ("257", 256, r"^STEWART_ENV_THREADS: 257 threads is above the most, 256; using 256$"),
-    ("0", None, r"^STEWART_ENV_THREADS: expected a whole number of threads from 1 to 256, got '0'; using the default"),
-    ("-2", None, r"got '-2'; using the default"),
-    ("1.5", None, r"got '1.5'; using the default"),
-    ("four", None, r"got 'four'; using the default"),
-    ("1_0", None, r"got '1_0'; using the default"),
-])
+@pytest.mark.parametrize(
+    "value, count, warning",
+    [
+        (None, None, None),
+        ("", None, None),
+        ("  ", None, None),
+        ("1", 1, None),
+        (" 12 ", 12, None),
+        ("256", 256, None),
+        ("257", 256, r"^STEWART_ENV_THREADS: 257 threads is above the most, 256; using 256$"),
+        (
+            "0",
+            None,
+            r"^STEWART_ENV_THREADS: expected a whole number of threads from 1 to 256, got '0'; using the default",
+        ),
+        ("-2", None, r"got '-2'; using the default"),
+        ("1.5", None, r"got '1.5'; using the default"),
+        ("four", None, r"got 'four'; using the default"),
+        ("1_0", None, r"got '1_0'; using the default"),
+    ],
+)
 def test_the_environment_variable_is_a_count_or_warned_about(value, count, warning):
     got, message = threads.threads_from_environment(value)
     assert got == count
@@ -111,8 +118,9 @@ def run_python(code: str, environment: dict, timeout: float = 60) -> subprocess.
     """Run ``code`` in a new interpreter with ``environment`` added to this one's; one line of
     numpy's own threads, so they take no part in what is measured."""
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", **environment}
-    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=env, capture_output=True, text=True,
-                          timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)], env=env, capture_output=True, text=True, timeout=timeout
+    )
 
 
 def test_the_environment_variable_sets_the_threads_and_a_bad_one_is_named():
@@ -121,15 +129,18 @@ def test_the_environment_variable_sets_the_threads_and_a_bad_one_is_named():
     bad = run_python(code, {"STEWART_ENV_THREADS": "four"})
     default = run_python(code, {"STEWART_ENV_THREADS": ""})
     assert bad.returncode == 0 and bad.stdout == default.stdout
-    assert "RuntimeWarning: STEWART_ENV_THREADS: expected a whole number of threads from 1 to 256, got 'four'" \
+    assert (
+        "RuntimeWarning: STEWART_ENV_THREADS: expected a whole number of threads from 1 to 256, got 'four'"
         in bad.stderr
+    )
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     assert int(default.stdout) == min(cores, threads.MAX_THREADS)
 
 
 @pytest.mark.skipif(not LINUX, reason="caps the address space with setrlimit and reads /proc")
-def test_a_capped_address_space_gives_the_threads_the_system_allows_and_the_same_numbers(dasgupta, tmp_path,
-                                                                                         restore_threads):
+def test_a_capped_address_space_gives_the_threads_the_system_allows_and_the_same_numbers(
+    dasgupta, tmp_path, restore_threads
+):
     """256 threads asked for in a process whose address space leaves room for a few thread stacks
     (8 MB each by default): the threads the system refuses are done without, the batch finishes
     (before, the process hung) and gives the numbers of one thread."""

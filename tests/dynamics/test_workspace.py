@@ -43,8 +43,10 @@ def test_workspace_calls_equal_the_checked_calls_bit_for_bit(dasgupta, rng, name
     assert np.array_equal(Mw, M) and np.array_equal(hw, h)
     ws.leg_forces[:] = F
     ws.step(1e-3, steps=3)
-    for got, want in zip((ws.position, ws.rotation, ws.velocity, ws.angular_velocity),
-                         se.rollout(model, t, R, v, w, F, dt=1e-3, steps=3, external_wrench=W)):
+    for got, want in zip(
+        (ws.position, ws.rotation, ws.velocity, ws.angular_velocity),
+        se.rollout(model, t, R, v, w, F, dt=1e-3, steps=3, external_wrench=W),
+    ):
         assert np.array_equal(got, want)
 
 
@@ -89,9 +91,17 @@ def test_workspace_calls_allocate_no_python_objects(dasgupta):
 
 def test_workspace_arrays_are_preallocated_and_cannot_be_rebound(dasgupta):
     ws = se.make_dynamics("improved", dasgupta).workspace(4)
-    for name, shape in [("position", (4, 3)), ("rotation", (4, 3, 3)), ("velocity", (4, 3)),
-                        ("angular_velocity", (4, 3)), ("leg_forces", (4, 6)), ("external_wrench", (4, 6)),
-                        ("acceleration", (4, 6)), ("mass_matrix", (4, 6, 6)), ("bias", (4, 6))]:
+    for name, shape in [
+        ("position", (4, 3)),
+        ("rotation", (4, 3, 3)),
+        ("velocity", (4, 3)),
+        ("angular_velocity", (4, 3)),
+        ("leg_forces", (4, 6)),
+        ("external_wrench", (4, 6)),
+        ("acceleration", (4, 6)),
+        ("mass_matrix", (4, 6, 6)),
+        ("bias", (4, 6)),
+    ]:
         a = getattr(ws, name)
         assert a.shape == shape and a.dtype == np.float64 and a.flags.c_contiguous
         with pytest.raises(AttributeError):
@@ -100,12 +110,15 @@ def test_workspace_arrays_are_preallocated_and_cannot_be_rebound(dasgupta):
     assert ws.inverse() is ws.leg_forces
 
 
-@pytest.mark.parametrize("model, n, message", [
-    ("improved", 1, "model: expected a Dynamics"),
-    (None, 0, "n: expected a positive integer"),
-    (None, True, "n: expected a positive integer"),
-    (None, 2.0, "n: expected a positive integer"),
-])
+@pytest.mark.parametrize(
+    "model, n, message",
+    [
+        ("improved", 1, "model: expected a Dynamics"),
+        (None, 0, "n: expected a positive integer"),
+        (None, True, "n: expected a positive integer"),
+        (None, 2.0, "n: expected a positive integer"),
+    ],
+)
 def test_workspace_construction_names_the_argument(dasgupta, model, n, message):
     with pytest.raises(ValueError, match=message):
         Workspace(se.make_dynamics("improved", dasgupta) if model is None else model, n)
@@ -138,11 +151,24 @@ def test_set_state_and_check_apply_the_entry_points_checks(dasgupta):
         ws.check()
 
 
-@pytest.mark.parametrize("dt, steps, message", [
-    (0.0, 1, "dt:"), (np.nan, 1, "dt:"), (np.inf, 1, "dt:"), ("0.001", 1, "dt:"), (None, 1, "dt:"),
-    (np.array([1e-3, 1e-3]), 1, "dt:"), (1e-3, -1, "steps:"), (1e-3, 1.5, "steps:"), (1e-3, np.nan, "steps:"),
-    (1e-3, np.inf, "steps:"), (1e-3, "3", "steps:"), (1e-3, 10**30, "steps:"), (1e-3, True, "steps:"),
-])
+@pytest.mark.parametrize(
+    "dt, steps, message",
+    [
+        (0.0, 1, "dt:"),
+        (np.nan, 1, "dt:"),
+        (np.inf, 1, "dt:"),
+        ("0.001", 1, "dt:"),
+        (None, 1, "dt:"),
+        (np.array([1e-3, 1e-3]), 1, "dt:"),
+        (1e-3, -1, "steps:"),
+        (1e-3, 1.5, "steps:"),
+        (1e-3, np.nan, "steps:"),
+        (1e-3, np.inf, "steps:"),
+        (1e-3, "3", "steps:"),
+        (1e-3, 10**30, "steps:"),
+        (1e-3, True, "steps:"),
+    ],
+)
 def test_step_refuses_a_bad_step(dasgupta, dt, steps, message):
     ws = se.make_dynamics("improved", dasgupta).workspace()
     with pytest.raises(ValueError, match=message):
@@ -175,7 +201,9 @@ def test_complex_arguments_are_refused_naming_the_argument(dasgupta):
         model.workspace().set_state(t, np.eye(3), np.zeros(3), np.zeros(3))
     with pytest.raises(ValueError, match=message):
         model.forward(t, np.eye(3), np.zeros(3), np.zeros(3), np.zeros(6))
-    with pytest.raises(ValueError, match="position: expected an array of numbers of shape \\(3,\\), got an array of <U3"):
+    with pytest.raises(
+        ValueError, match="position: expected an array of numbers of shape \\(3,\\), got an array of <U3"
+    ):
         model.forward(np.array(["0.1", "0", "0.4"]), np.eye(3), np.zeros(3), np.zeros(3), np.zeros(6))
 
 
@@ -212,14 +240,17 @@ def test_workspace_n_must_match_the_models_parameter_rows(model, dasgupta):
         two_rows.workspace(3)
 
 
-@pytest.mark.parametrize("argument, value, message", [
-    ("position", [np.nan, 0.0, 0.4], r"^position: contains NaN or inf"),
-    ("velocity", [np.inf, 0.0, 0.0], r"^velocity: contains NaN or inf"),
-    ("rotation", 2 * np.eye(3), r"^rotation: not a rotation matrix"),
-    ("rotation", -np.eye(3), r"^rotation: not a rotation matrix"),
-    ("position", np.zeros(4), r"^position: expected shape \(3,\)"),
-    ("position", "abc", r"^position: expected an array of numbers"),
-])
+@pytest.mark.parametrize(
+    "argument, value, message",
+    [
+        ("position", [np.nan, 0.0, 0.4], r"^position: contains NaN or inf"),
+        ("velocity", [np.inf, 0.0, 0.0], r"^velocity: contains NaN or inf"),
+        ("rotation", 2 * np.eye(3), r"^rotation: not a rotation matrix"),
+        ("rotation", -np.eye(3), r"^rotation: not a rotation matrix"),
+        ("position", np.zeros(4), r"^position: expected shape \(3,\)"),
+        ("position", "abc", r"^position: expected an array of numbers"),
+    ],
+)
 def test_workspace_set_state_refuses_naming_the_argument(model, home, argument, value, message):
     t, R, z = home
     ws = model.workspace(1)
@@ -292,6 +323,7 @@ def test_a_copied_model_gives_the_same_numbers(model, home, how):
 
 def test_scale_packed_names_a_wrong_or_read_only_out_row(model):
     from stewart_env.randomization import Randomization
+
     rnd = Randomization({"platform.mass": (0.8, 1.2)})
     with pytest.raises(ValueError, match=r"^out_row: "):
         rnd.scale_packed(model.packed[0], {"platform.mass": 1.0}, np.empty(3))
@@ -358,18 +390,24 @@ def test_bound_workspace_keeps_the_parameter_copy_it_was_given(dasgupta):
     assert np.array_equal(arrays["acceleration"], expected)
 
 
-@pytest.mark.parametrize("value, message", [
-    (None, r"^packed: expected an array of real numbers of shape \(1, \d+\), got None$"),
-    ("masked", r"^packed: a masked array with 1 masked value"),
-    (np.zeros((2, 3)), r"^packed: expected shape \(1, \d+\), got \(2, 3\)$"),
-    ("nan", r"^packed: contains NaN"),
-])
+@pytest.mark.parametrize(
+    "value, message",
+    [
+        (None, r"^packed: expected an array of real numbers of shape \(1, \d+\), got None$"),
+        ("masked", r"^packed: a masked array with 1 masked value"),
+        (np.zeros((2, 3)), r"^packed: expected shape \(1, \d+\), got \(2, 3\)$"),
+        ("nan", r"^packed: contains NaN"),
+    ],
+)
 def test_assigning_packed_rows_refuses_what_is_not_a_row_of_numbers(dasgupta, value, message):
     model = se.make_dynamics("improved", dasgupta)
     before = model.packed
     if isinstance(value, str):
-        value = (np.ma.masked_array(before, mask=np.arange(before.size).reshape(before.shape) == 3)
-                 if value == "masked" else np.where(np.arange(before.size) == 3, np.nan, before))
+        value = (
+            np.ma.masked_array(before, mask=np.arange(before.size).reshape(before.shape) == 3)
+            if value == "masked"
+            else np.where(np.arange(before.size) == 3, np.nan, before)
+        )
     with pytest.raises(ValueError, match=message):
         model.packed = value
     assert model.packed is before

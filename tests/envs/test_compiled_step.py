@@ -13,8 +13,15 @@ import stewart_env  # noqa: F401  (registers StewartPlatform-v0)
 
 CASES = [
     {"task": "setpoint"},
-    {"task": "setpoint", "observation_noise": 0.01, "observation_delay": 2, "actuator_tau": 0.02,
-     "error_integral": True, "error_integral_band": 0.5, "randomization": {"platform.mass": (0.8, 1.2)}},
+    {
+        "task": "setpoint",
+        "observation_noise": 0.01,
+        "observation_delay": 2,
+        "actuator_tau": 0.02,
+        "error_integral": True,
+        "error_integral_band": 0.5,
+        "randomization": {"platform.mass": (0.8, 1.2)},
+    },
     {"task": "setpoint", "observation_mode": "sensors", "normalize_observation": False, "error_integral": True},
     {"task": "tracking", "observation_noise": 0.01},
     {"task": "hold", "actuator_tau": 0.02},
@@ -23,8 +30,9 @@ CASES = [
 
 
 def _run(kwargs, compiled: bool, num_envs=3, steps=60):
-    envs = gym.make_vec("StewartPlatform-v0", num_envs=num_envs, vectorization_mode="vector_entry_point",
-                        max_episode_steps=25, **kwargs)
+    envs = gym.make_vec(
+        "StewartPlatform-v0", num_envs=num_envs, vectorization_mode="vector_entry_point", max_episode_steps=25, **kwargs
+    )
     core = envs.unwrapped._core
     core.set_step_mode("fused" if compiled else "parts")
     rng = np.random.default_rng(1)

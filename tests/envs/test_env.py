@@ -85,11 +85,19 @@ def test_sb3_check_env(model, task):
 
 
 @pytest.mark.extra("rl")
-@pytest.mark.parametrize("kwargs", [
-    {"task": "tracking", "randomization": {"mass": (0.9, 1.1)}, "observation_noise": 0.01,
-     "observation_delay": 2, "actuator_tau": 0.02},
-    {"task": "disturbance", "observation_mode": "sensors", "normalize_observation": False},
-])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {
+            "task": "tracking",
+            "randomization": {"mass": (0.9, 1.1)},
+            "observation_noise": 0.01,
+            "observation_delay": 2,
+            "actuator_tau": 0.02,
+        },
+        {"task": "disturbance", "observation_mode": "sensors", "normalize_observation": False},
+    ],
+)
 def test_check_env_with_the_options_on(kwargs):
     from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
@@ -172,8 +180,10 @@ def test_env_card_arguments_table_is_the_configuration_records():
         assert f"| `{name}` | `{shown}` |" in card, name
 
 
-@pytest.mark.parametrize("cls, own", [(StewartPlatformEnv, ()),
-                                      (StewartPlatformVectorEnv, ("num_envs", "max_episode_steps", "autoreset_mode"))])
+@pytest.mark.parametrize(
+    "cls, own",
+    [(StewartPlatformEnv, ()), (StewartPlatformVectorEnv, ("num_envs", "max_episode_steps", "autoreset_mode"))],
+)
 def test_signature_shows_every_argument_of_the_records_with_its_default(cls, own):
     params = inspect.signature(cls).parameters
     assert [name for name in params if name not in own] == list(DEFAULTS)
@@ -194,8 +204,13 @@ def test_the_closed_form_plant_integrates_the_model_and_names_itself():
     assert "closure_error" not in env.step(np.zeros(6))[4]
 
 
-@pytest.mark.parametrize("plant, message", [("bullet", r"^plant: expected one of 'closed_form', 'mujoco', got 'bullet'"),
-                                            (3, r"^plant: expected one of .*got 3")])
+@pytest.mark.parametrize(
+    "plant, message",
+    [
+        ("bullet", r"^plant: expected one of 'closed_form', 'mujoco', got 'bullet'"),
+        (3, r"^plant: expected one of .*got 3"),
+    ],
+)
 def test_an_unknown_plant_is_refused_naming_the_argument(plant, message):
     with pytest.raises(ValueError, match=message):
         make(plant=plant)
@@ -231,15 +246,18 @@ def test_configuration_records_are_frozen_and_checked_once():
 # -- actions ---------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("action, message", [
-    (np.array([np.nan, 0, 0, 0, 0, 0]), "NaN"),
-    (np.array([0, 0, np.inf, 0, 0, 0]), "inf"),
-    (np.array([0, 0, 0, 0, 0, -np.inf]), "inf"),
-    (np.zeros(5), "shape"),
-    (np.zeros((1, 6)), "shape"),
-    (np.zeros(7), "shape"),
-    ("push", "action"),
-])
+@pytest.mark.parametrize(
+    "action, message",
+    [
+        (np.array([np.nan, 0, 0, 0, 0, 0]), "NaN"),
+        (np.array([0, 0, np.inf, 0, 0, 0]), "inf"),
+        (np.array([0, 0, 0, 0, 0, -np.inf]), "inf"),
+        (np.zeros(5), "shape"),
+        (np.zeros((1, 6)), "shape"),
+        (np.zeros(7), "shape"),
+        ("push", "action"),
+    ],
+)
 def test_bad_action_raises(action, message):
     env = make()
     env.reset(seed=0)
@@ -269,15 +287,19 @@ def test_float32_float64_strided_and_listed_actions_step_alike():
     """The compiled step reads a float32 or float64 array as it is (float32 widened exactly); any
     other form is converted first: the same numbers give the same step."""
     a64 = np.linspace(-0.4, 0.6, 6)
-    forms = [a64.astype(np.float32).astype(np.float64), a64.astype(np.float32),
-             np.repeat(a64.astype(np.float32).astype(np.float64), 2)[::2], a64.astype(np.float32).tolist()]
+    forms = [
+        a64.astype(np.float32).astype(np.float64),
+        a64.astype(np.float32),
+        np.repeat(a64.astype(np.float32).astype(np.float64), 2)[::2],
+        a64.astype(np.float32).tolist(),
+    ]
     runs = []
     for form in forms:
         env = make()
         env.reset(seed=5)
         runs.append([env.step(form) for _ in range(3)])
     for run in runs[1:]:
-        for (o, r, *_ , info), (o0, r0, *_, info0) in zip(run, runs[0]):
+        for (o, r, *_, info), (o0, r0, *_, info0) in zip(run, runs[0]):
             assert o.dtype == np.float32 and o.tobytes() == o0.tobytes() and r == r0
             assert {k: v.tobytes() for k, v in info.items()} == {k: v.tobytes() for k, v in info0.items()}
 
@@ -303,8 +325,9 @@ def test_actuator_lag_is_the_exact_first_order_discretisation():
     # At reset the actuators hold the start state: the inverse dynamics at zero acceleration.
     s = u.state
     z = np.zeros(3)
-    np.testing.assert_allclose(start, u.model.inverse(s.position, s.rotation, s.velocity, s.angular_velocity, z, z),
-                               rtol=1e-12, atol=1e-9)  # same computation, rounding only
+    np.testing.assert_allclose(
+        start, u.model.inverse(s.position, s.rotation, s.velocity, s.angular_velocity, z, z), rtol=1e-12, atol=1e-9
+    )  # same computation, rounding only
     command = np.full(6, 0.5)
     env.step(command)
     lo, hi = u.platform.limits.leg_force
@@ -320,28 +343,31 @@ def test_control_dt_must_be_a_multiple_of_physics_dt():
     make(control_dt=0.03, physics_dt=0.001)  # 30 substeps despite decimal rounding
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    ({"model": "newtonian"}, "model"),
-    ({"model": "improved+c9"}, "switch"),
-    ({"platform": "no_such_platform"}, "unknown platform"),
-    ({"platform": 3}, "platform"),
-    ({"task": "juggling"}, "task"),
-    ({"task_options": {"speed": 1}}, "task_options.*speed"),
-    ({"task_options": {"position_range": [0.1, 0.1]}}, "position_range"),
-    ({"control_dt": -0.01}, "control_dt"),
-    ({"physics_dt": 0.0}, "physics_dt"),
-    ({"actuator_tau": -1.0}, "actuator_tau"),
-    ({"observation_mode": "camera"}, "observation_mode"),
-    ({"observation_noise": -0.1}, "observation_noise"),
-    ({"observation_noise": {"altitude": 0.1}}, "observation_noise.*altitude"),
-    ({"observation_delay": 1.5}, "observation_delay"),
-    ({"ctrl_cost_weight": -1.0}, "ctrl_cost_weight"),
-    ({"position_reward_scale": 0.0}, "position_reward_scale"),
-    ({"randomization": {"colour": (0.9, 1.1)}}, "randomization.*colour"),
-    ({"randomization": {"platform.mass": (1.2, 0.8)}}, "platform.mass"),
-    ({"width": 0}, "width"),
-    ({"gravity": 1.0}, "gravity"),
-])
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"model": "newtonian"}, "model"),
+        ({"model": "improved+c9"}, "switch"),
+        ({"platform": "no_such_platform"}, "unknown platform"),
+        ({"platform": 3}, "platform"),
+        ({"task": "juggling"}, "task"),
+        ({"task_options": {"speed": 1}}, "task_options.*speed"),
+        ({"task_options": {"position_range": [0.1, 0.1]}}, "position_range"),
+        ({"control_dt": -0.01}, "control_dt"),
+        ({"physics_dt": 0.0}, "physics_dt"),
+        ({"actuator_tau": -1.0}, "actuator_tau"),
+        ({"observation_mode": "camera"}, "observation_mode"),
+        ({"observation_noise": -0.1}, "observation_noise"),
+        ({"observation_noise": {"altitude": 0.1}}, "observation_noise.*altitude"),
+        ({"observation_delay": 1.5}, "observation_delay"),
+        ({"ctrl_cost_weight": -1.0}, "ctrl_cost_weight"),
+        ({"position_reward_scale": 0.0}, "position_reward_scale"),
+        ({"randomization": {"colour": (0.9, 1.1)}}, "randomization.*colour"),
+        ({"randomization": {"platform.mass": (1.2, 0.8)}}, "platform.mass"),
+        ({"width": 0}, "width"),
+        ({"gravity": 1.0}, "gravity"),
+    ],
+)
 def test_bad_arguments_name_the_argument(kwargs, message):
     with pytest.raises(ValueError, match=message):
         make(**kwargs)
@@ -355,11 +381,17 @@ def test_bad_render_mode_is_refused():
 # -- observation -------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("kwargs", [
-    {}, {"task": "tracking"}, {"task": "disturbance"}, {"observation_mode": "sensors"},
-    {"task": "tracking", "observation_mode": "sensors", "actuator_tau": 0.02},
-    {"task": "tracking", "task_options": {"preview": 0}},
-])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {},
+        {"task": "tracking"},
+        {"task": "disturbance"},
+        {"observation_mode": "sensors"},
+        {"task": "tracking", "observation_mode": "sensors", "actuator_tau": 0.02},
+        {"task": "tracking", "task_options": {"preview": 0}},
+    ],
+)
 def test_observation_layout_covers_the_observation(kwargs):
     env = make(**kwargs)
     obs, _ = env.reset(seed=0)
@@ -451,11 +483,14 @@ def test_observation_delay_returns_the_observation_k_steps_ago():
 # -- determinism --------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("kwargs", [
-    {},
-    {"task": "tracking", "observation_noise": 0.01, "randomization": {"mass": (0.8, 1.2), "damping": (0.5, 2.0)}},
-    {"task": "disturbance", "actuator_tau": 0.03, "observation_delay": 2},
-])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {},
+        {"task": "tracking", "observation_noise": 0.01, "randomization": {"mass": (0.8, 1.2), "damping": (0.5, 2.0)}},
+        {"task": "disturbance", "actuator_tau": 0.03, "observation_delay": 2},
+    ],
+)
 def test_same_seed_gives_bit_identical_trajectories(kwargs):
     actions = np.random.default_rng(0).uniform(-0.2, 0.4, (80, 6))
     a = rollout(make(**kwargs), actions, seed=11)
@@ -470,9 +505,17 @@ def test_same_seed_gives_bit_identical_trajectories(kwargs):
 
 
 def test_reward_is_the_sum_of_its_terms_and_matches_the_formula():
-    weights = dict(position_reward_weight=0.7, position_reward_scale=0.02, orientation_reward_weight=0.3,
-                   orientation_reward_scale=0.2, velocity_cost_weight=0.2, velocity_cost_scale=0.4,
-                   angular_velocity_cost_scale=2.0, ctrl_cost_weight=0.3, termination_cost=5.0)
+    weights = dict(
+        position_reward_weight=0.7,
+        position_reward_scale=0.02,
+        orientation_reward_weight=0.3,
+        orientation_reward_scale=0.2,
+        velocity_cost_weight=0.2,
+        velocity_cost_scale=0.4,
+        angular_velocity_cost_scale=2.0,
+        ctrl_cost_weight=0.3,
+        termination_cost=5.0,
+    )
     env = make(task="tracking", task_options=weights)
     env.reset(seed=2)
     rng = np.random.default_rng(1)
@@ -480,24 +523,35 @@ def test_reward_is_the_sum_of_its_terms_and_matches_the_formula():
         a = holding_action(env) + rng.uniform(-0.05, 0.05, 6)
         _, reward, terminated, _, info = env.step(a)
         terms = {k: v for k, v in info.items() if k.startswith("reward_")}
-        assert set(terms) == {"reward_position", "reward_orientation", "reward_velocity", "reward_control",
-                              "reward_termination"}
+        assert set(terms) == {
+            "reward_position",
+            "reward_orientation",
+            "reward_velocity",
+            "reward_control",
+            "reward_termination",
+        }
         assert reward == pytest.approx(sum(terms.values()), abs=1e-12)  # the same five floats, summed
         s, tg = env.unwrapped.state, env.unwrapped.target
         ep = np.linalg.norm(tg.position - s.position)
         eo = np.linalg.norm(rotation_error(tg.rotation[None], s.rotation[None])[0])
         ev = np.linalg.norm(tg.velocity - s.velocity)
         ew = np.linalg.norm(tg.angular_velocity - s.angular_velocity)
-        expected = (0.7 * np.exp(-ep / 0.02) + 0.3 * np.exp(-eo / 0.2)
-                    - 0.2 * (1 - np.exp(-(ev / 0.4 + ew / 2.0))) - 0.3 * np.mean(np.clip(a, -1, 1) ** 2)
-                    - 5.0 * terminated)
+        expected = (
+            0.7 * np.exp(-ep / 0.02)
+            + 0.3 * np.exp(-eo / 0.2)
+            - 0.2 * (1 - np.exp(-(ev / 0.4 + ew / 2.0)))
+            - 0.3 * np.mean(np.clip(a, -1, 1) ** 2)
+            - 5.0 * terminated
+        )
         assert reward == pytest.approx(expected, abs=1e-9)  # same formula, other rounding order
         if terminated:
             break
 
 
-@pytest.mark.parametrize("task, position_scale, orientation_scale", [
-    ("setpoint", 0.05, 0.1), ("hold", 0.05, 0.1), ("tracking", 0.01, 0.02), ("disturbance", 0.01, 0.02)])
+@pytest.mark.parametrize(
+    "task, position_scale, orientation_scale",
+    [("setpoint", 0.05, 0.1), ("hold", 0.05, 0.1), ("tracking", 0.01, 0.02), ("disturbance", 0.01, 0.02)],
+)
 def test_reward_scales_default_per_task_and_give_way_to_options(task, position_scale, orientation_scale):
     env = make(task=task)
     env.reset(seed=3)
@@ -515,8 +569,11 @@ def test_reward_scales_default_per_task_and_give_way_to_options(task, position_s
 
 
 def test_reward_weights_given_as_environment_arguments_are_refused_pointing_to_task_options():
-    with pytest.raises(TypeError, match=r"unexpected keyword argument 'termination_cost'; the reward weights are "
-                                        r"options of the task: pass task_options=\{'termination_cost': \.\.\.\}"):
+    with pytest.raises(
+        TypeError,
+        match=r"unexpected keyword argument 'termination_cost'; the reward weights are "
+        r"options of the task: pass task_options=\{'termination_cost': \.\.\.\}",
+    ):
         make(termination_cost=50.0)
 
 
@@ -532,7 +589,7 @@ def test_reward_is_bounded_and_best_on_target():
     # Holding forces keep the platform on target to within ~1e-9 m over one step.
     assert info["reward_position"] == pytest.approx(0.5, abs=1e-6)
     assert info["reward_orientation"] == pytest.approx(0.5, abs=1e-6)
-    assert reward == pytest.approx(1.0 - 0.1 * np.mean(a ** 2), abs=1e-5)
+    assert reward == pytest.approx(1.0 - 0.1 * np.mean(a**2), abs=1e-5)
     rng = np.random.default_rng(0)
     for _ in range(3):
         env.reset(seed=int(rng.integers(1 << 30)))
@@ -584,8 +641,14 @@ def test_termination_workspace_box_and_angle():
 def test_termination_leg_stroke():
     nominal = load_platform("dasgupta1998")
     lim = nominal.limits
-    narrow = Limits(leg_length=(1.25, 1.27), leg_force=lim.leg_force, position_min=lim.position_min,
-                    position_max=lim.position_max, max_angle=lim.max_angle, max_condition=lim.max_condition)
+    narrow = Limits(
+        leg_length=(1.25, 1.27),
+        leg_force=lim.leg_force,
+        position_min=lim.position_min,
+        position_max=lim.position_max,
+        max_angle=lim.max_angle,
+        max_condition=lim.max_condition,
+    )
     env = make(platform=nominal.replace(limits=narrow), task="disturbance")  # starts at home
     # 3 cm below home (inside the box): the legs, 28 deg above the horizontal, get ~14 mm shorter.
     _, _, terminated, _, info = _step_from(env, [0.0, 0.0, 0.37])
@@ -597,8 +660,14 @@ def test_termination_singularity():
     lim = nominal.limits
     # The home pose's condition number is 3.62 and the paper's case pose's 3.81: a bound between
     # them makes the case pose "singular".
-    strict = Limits(leg_length=lim.leg_length, leg_force=lim.leg_force, position_min=lim.position_min,
-                    position_max=lim.position_max, max_angle=lim.max_angle, max_condition=3.7)
+    strict = Limits(
+        leg_length=lim.leg_length,
+        leg_force=lim.leg_force,
+        position_min=lim.position_min,
+        position_max=lim.position_max,
+        max_angle=lim.max_angle,
+        max_condition=3.7,
+    )
     env = make(platform=nominal.replace(limits=strict), task="disturbance")  # starts at home
     _, _, terminated, _, info = _step_from(env, [0.1, 0.0, 0.4], rpy=(0.0, 0.0, -0.2))
     assert terminated and env.unwrapped.termination_reasons[info["termination"]] == "singularity"
@@ -648,7 +717,12 @@ def test_bench_env_reports_rates():
     # one vector step is n_vector platform steps: the two rates of one run agree exactly
     assert result["vector_platform_steps_per_s"] == pytest.approx(4 * result["vector_steps_per_s"], rel=1e-12)
     # the settings measured are the defaults
-    assert (result["n_vector"], result["control_dt"], result["model"], result["task"]) == (4, 0.01, "improved", "setpoint")
+    assert (result["n_vector"], result["control_dt"], result["model"], result["task"]) == (
+        4,
+        0.01,
+        "improved",
+        "setpoint",
+    )
 
 
 @pytest.mark.parametrize("task", TASKS)

@@ -23,8 +23,14 @@ pytestmark = pytest.mark.env
 ENV_ID = "StewartPlatform-v1"
 # Every option that keeps state between steps: noise Generators, the delay ring, the actuator lag,
 # the error integral, per-episode parameters.
-STATEFUL = {"task": "tracking", "observation_noise": 0.02, "observation_delay": 2, "actuator_tau": 0.02,
-            "error_integral": True, "randomization": {"platform.mass": (0.8, 1.2)}}
+STATEFUL = {
+    "task": "tracking",
+    "observation_noise": 0.02,
+    "observation_delay": 2,
+    "actuator_tau": 0.02,
+    "error_integral": True,
+    "randomization": {"platform.mass": (0.8, 1.2)},
+}
 
 
 def actions(n_steps, shape, seed=0):
@@ -59,13 +65,13 @@ def numeric_only(value, where="info"):
 
 # -- exact copies ------------------------------------------------------------------------------------------
 
+
 def _single():
     return gym.make(ENV_ID, **STATEFUL)
 
 
 def _vector():
-    return gym.make_vec(ENV_ID, num_envs=3, vectorization_mode="vector_entry_point", max_episode_steps=20,
-                        **STATEFUL)
+    return gym.make_vec(ENV_ID, num_envs=3, vectorization_mode="vector_entry_point", max_episode_steps=20, **STATEFUL)
 
 
 def _sb3():
@@ -104,8 +110,11 @@ def _reset(env, kind):
     return env.reset(seed=3)
 
 
-KINDS = {"single": (_single, _run_single, (6,)), "vector": (_vector, _run_vector, (3, 6)),
-         "sb3": (_sb3, _run_sb3, (3, 6))}
+KINDS = {
+    "single": (_single, _run_single, (6,)),
+    "vector": (_vector, _run_vector, (3, 6)),
+    "sb3": (_sb3, _run_sb3, (3, 6)),
+}
 COPIES = {"deepcopy": copy.deepcopy, "pickle": lambda env: pickle.loads(pickle.dumps(env))}
 
 
@@ -138,6 +147,7 @@ def test_a_copy_renders_with_its_own_renderer():
 
 # -- infos -----------------------------------------------------------------------------------------------
 
+
 def test_single_infos_are_plain_numpy_values():
     env = gym.make(ENV_ID, randomization={"platform.mass": (0.8, 1.2)})
     _, info = env.reset(seed=0)
@@ -153,8 +163,13 @@ def test_single_infos_are_plain_numpy_values():
 
 
 def test_vector_infos_are_numeric_arrays_with_termination_codes():
-    envs = gym.make_vec(ENV_ID, num_envs=3, vectorization_mode="vector_entry_point", max_episode_steps=50,
-                        randomization={"platform.mass": (0.8, 1.2)})
+    envs = gym.make_vec(
+        ENV_ID,
+        num_envs=3,
+        vectorization_mode="vector_entry_point",
+        max_episode_steps=50,
+        randomization={"platform.mass": (0.8, 1.2)},
+    )
     _, infos = envs.reset(seed=0)
     numeric_only(infos)
     assert infos["randomization"]["platform.mass"].dtype == np.float64
@@ -172,6 +187,7 @@ def test_vector_infos_are_numeric_arrays_with_termination_codes():
 
 # -- construction errors -------------------------------------------------------------------------------------
 
+
 def _sb3_class():
     pytest.importorskip("stable_baselines3")
     from stewart_env.envs import StewartPlatformSB3VecEnv
@@ -179,12 +195,15 @@ def _sb3_class():
     return StewartPlatformSB3VecEnv
 
 
-@pytest.mark.parametrize("make, owner", [
-    (lambda **kw: StewartPlatformEnv(**kw), "StewartPlatformEnv"),
-    (lambda **kw: gym.make(ENV_ID, **kw), "StewartPlatformEnv"),
-    (lambda **kw: StewartPlatformVectorEnv(num_envs=2, **kw), "StewartPlatformVectorEnv"),
-    (lambda **kw: _sb3_class()(num_envs=2, **kw), "StewartPlatformSB3VecEnv"),
-])
+@pytest.mark.parametrize(
+    "make, owner",
+    [
+        (lambda **kw: StewartPlatformEnv(**kw), "StewartPlatformEnv"),
+        (lambda **kw: gym.make(ENV_ID, **kw), "StewartPlatformEnv"),
+        (lambda **kw: StewartPlatformVectorEnv(num_envs=2, **kw), "StewartPlatformVectorEnv"),
+        (lambda **kw: _sb3_class()(num_envs=2, **kw), "StewartPlatformSB3VecEnv"),
+    ],
+)
 def test_an_unknown_keyword_is_a_type_error_worded_as_pythons(make, owner):
     with pytest.raises(TypeError) as caught:
         make(frameskip=4)
@@ -209,47 +228,55 @@ def test_sb3_step_before_reset_names_reset():
         venv.step(np.zeros((2, 6)))
 
 
-@pytest.mark.parametrize("kwargs, name", [
-    ({"control_dt": 1e10, "physics_dt": 1e-10}, "control_dt"),
-    ({"control_dt": 1.0, "physics_dt": 1e-7}, "physics_dt"),  # 10**7 substeps
-    ({"observation_delay": 10**9}, "observation_delay"),
-    ({"observation_noise": 1e300}, "observation_noise"),
-    ({"observation_noise": {"position": float("nan")}}, "observation_noise"),
-    ({"error_integral": True, "error_integral_limit": 1e-320}, "error_integral_limit"),
-    ({"error_integral_band": float("inf")}, "error_integral_band"),
-    ({"actuator_tau": 1e300}, "actuator_tau"),
-    ({"task_options": {"position_reward_weight": 1e300}}, r"task_options\['position_reward_weight'\]"),
-    ({"task": "tracking", "task_options": {"velocity_cost_scale": float("nan")}},
-     r"task_options\['velocity_cost_scale'\]"),
-    ({"task": "hold", "task_options": {"max_payload": 1e300}}, "max_payload"),
-    ({"width": 10**6}, "width"),
-    ({"height": True}, "height"),
-    ({"normalize_observation": 1}, "normalize_observation"),
-    ({"task": "tracking", "task_options": {"frequency_range": (1e300, 1e300)}}, "frequency_range"),
-    ({"task": "tracking", "task_options": {"position_amplitude": 1e300}}, "position_amplitude"),
-    ({"task": "tracking", "task_options": {"preview": 10**9}}, "preview"),
-    ({"task": "disturbance", "task_options": {"n_impulses": 10**9}}, "n_impulses"),
-    ({"task": "disturbance", "task_options": {"sine_force": 1e300}}, "sine_force"),
-    ({"task": "disturbance", "task_options": {"horizon": 1e300}}, "horizon"),
-    ({"task_options": {"position_range": 10.0}}, "position_range"),
-    ({"task_options": {"randomize": "no"}}, "randomize"),
-])
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        ({"control_dt": 1e10, "physics_dt": 1e-10}, "control_dt"),
+        ({"control_dt": 1.0, "physics_dt": 1e-7}, "physics_dt"),  # 10**7 substeps
+        ({"observation_delay": 10**9}, "observation_delay"),
+        ({"observation_noise": 1e300}, "observation_noise"),
+        ({"observation_noise": {"position": float("nan")}}, "observation_noise"),
+        ({"error_integral": True, "error_integral_limit": 1e-320}, "error_integral_limit"),
+        ({"error_integral_band": float("inf")}, "error_integral_band"),
+        ({"actuator_tau": 1e300}, "actuator_tau"),
+        ({"task_options": {"position_reward_weight": 1e300}}, r"task_options\['position_reward_weight'\]"),
+        (
+            {"task": "tracking", "task_options": {"velocity_cost_scale": float("nan")}},
+            r"task_options\['velocity_cost_scale'\]",
+        ),
+        ({"task": "hold", "task_options": {"max_payload": 1e300}}, "max_payload"),
+        ({"width": 10**6}, "width"),
+        ({"height": True}, "height"),
+        ({"normalize_observation": 1}, "normalize_observation"),
+        ({"task": "tracking", "task_options": {"frequency_range": (1e300, 1e300)}}, "frequency_range"),
+        ({"task": "tracking", "task_options": {"position_amplitude": 1e300}}, "position_amplitude"),
+        ({"task": "tracking", "task_options": {"preview": 10**9}}, "preview"),
+        ({"task": "disturbance", "task_options": {"n_impulses": 10**9}}, "n_impulses"),
+        ({"task": "disturbance", "task_options": {"sine_force": 1e300}}, "sine_force"),
+        ({"task": "disturbance", "task_options": {"horizon": 1e300}}, "horizon"),
+        ({"task_options": {"position_range": 10.0}}, "position_range"),
+        ({"task_options": {"randomize": "no"}}, "randomize"),
+    ],
+)
 def test_every_argument_has_a_finite_range(kwargs, name):
     with pytest.raises(ValueError, match=name):
         StewartPlatformEnv(**kwargs)
 
 
-@pytest.mark.parametrize("action", [
-    np.ones(6, dtype=bool),
-    [True] * 6,
-    np.zeros(6, dtype=complex),
-    np.array(["0.1"] * 6),
-    b"012345",
-    np.array([datetime.timedelta(seconds=1)] * 6),
-    np.array([np.datetime64("2024-01-01")] * 6),
-    np.array([0.1] * 6, dtype=object),
-    [10**400] * 6,
-])
+@pytest.mark.parametrize(
+    "action",
+    [
+        np.ones(6, dtype=bool),
+        [True] * 6,
+        np.zeros(6, dtype=complex),
+        np.array(["0.1"] * 6),
+        b"012345",
+        np.array([datetime.timedelta(seconds=1)] * 6),
+        np.array([np.datetime64("2024-01-01")] * 6),
+        np.array([0.1] * 6, dtype=object),
+        [10**400] * 6,
+    ],
+)
 def test_actions_must_be_real_numbers(action):
     env = StewartPlatformEnv()
     env.reset(seed=0)
@@ -266,13 +293,16 @@ def test_set_state_takes_real_numbers_only(velocity):
         env.set_state(s.position, s.rotation, velocity=velocity)
 
 
-@pytest.mark.parametrize("action", [
-    [0, 0, 0, 0, 0, 1],
-    np.zeros(6, dtype=np.int8),
-    np.zeros(6, dtype=np.uint64),
-    np.full(6, 0.1, dtype=np.float16),
-    np.full(6, 0.1, dtype=np.longdouble),
-])
+@pytest.mark.parametrize(
+    "action",
+    [
+        [0, 0, 0, 0, 0, 1],
+        np.zeros(6, dtype=np.int8),
+        np.zeros(6, dtype=np.uint64),
+        np.full(6, 0.1, dtype=np.float16),
+        np.full(6, 0.1, dtype=np.longdouble),
+    ],
+)
 def test_integer_and_float_actions_of_any_width_are_accepted(action):
     env = StewartPlatformEnv()
     env.reset(seed=0)
@@ -282,11 +312,12 @@ def test_integer_and_float_actions_of_any_width_are_accepted(action):
 
 # -- the vector API ------------------------------------------------------------------------------------------
 
+
 def test_vector_get_attr_call_and_set_attr_follow_sync_vector_env():
-    envs = gym.make_vec(ENV_ID, num_envs=3, vectorization_mode="vector_entry_point", render_mode="rgb_array",
-                        width=48, height=48)
-    sync = gym.make_vec(ENV_ID, num_envs=3, vectorization_mode="sync", render_mode="rgb_array",
-                        width=48, height=48)
+    envs = gym.make_vec(
+        ENV_ID, num_envs=3, vectorization_mode="vector_entry_point", render_mode="rgb_array", width=48, height=48
+    )
+    sync = gym.make_vec(ENV_ID, num_envs=3, vectorization_mode="sync", render_mode="rgb_array", width=48, height=48)
     for venv in (envs, sync):
         venv.reset(seed=5)
     for name in ("dt", "render_mode", "observation_space", "action_space"):
@@ -317,10 +348,18 @@ def test_vector_get_attr_call_and_set_attr_follow_sync_vector_env():
 
 def test_vector_record_video(tmp_path):
     pytest.importorskip("moviepy")
-    envs = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point", render_mode="rgb_array",
-                        width=64, height=64, max_episode_steps=5)
-    envs = gym.wrappers.vector.RecordVideo(envs, str(tmp_path), step_trigger=lambda step: step == 0,
-                                           video_length=4, name_prefix="rows")
+    envs = gym.make_vec(
+        ENV_ID,
+        num_envs=2,
+        vectorization_mode="vector_entry_point",
+        render_mode="rgb_array",
+        width=64,
+        height=64,
+        max_episode_steps=5,
+    )
+    envs = gym.wrappers.vector.RecordVideo(
+        envs, str(tmp_path), step_trigger=lambda step: step == 0, video_length=4, name_prefix="rows"
+    )
     envs.reset(seed=0)
     for a in actions(6, (2, 6)):
         envs.step(a)
@@ -330,6 +369,7 @@ def test_vector_record_video(tmp_path):
 
 
 # -- headless human mode ---------------------------------------------------------------------------------
+
 
 def test_check_env_passes_headless(monkeypatch):
     """check_env makes the human-mode environment too: without a display it warns and draws nothing."""
@@ -344,6 +384,7 @@ def test_check_env_passes_headless(monkeypatch):
 
 # -- nothing non-finite leaves the environment ---------------------------------------------------------------
 
+
 def test_an_overflowing_state_ends_the_episode_with_a_finite_observation():
     env = StewartPlatformEnv(actuator_tau=0.02, error_integral=True)
     env.reset(seed=0)
@@ -352,8 +393,9 @@ def test_an_overflowing_state_ends_the_episode_with_a_finite_observation():
     obs, reward, terminated, _, info = env.step(np.zeros(6))
     assert terminated and env.termination_reasons[info["termination"]] == "non_finite"
     assert np.all(np.isfinite(obs)) and np.isfinite(reward)
-    assert reward == info["reward_termination"] + sum(v for k, v in info.items()
-                                                      if k.startswith("reward_") and k != "reward_termination")
+    assert reward == info["reward_termination"] + sum(
+        v for k, v in info.items() if k.startswith("reward_") and k != "reward_termination"
+    )
 
 
 def test_a_vector_row_that_overflows_ends_alone():
@@ -398,8 +440,9 @@ def test_set_state_refuses_what_the_physics_api_refuses():
     env.set_state(t, se.rpy_to_matrix([0.0, 0.0, 0.1]))  # a rotation is accepted by both
 
 
-@pytest.mark.parametrize("action", [[10**400] * 6, [10**5000] * 6, "abc" * 10_000],
-                         ids=["huge-ints", "ints-beyond-repr", "long-string"])
+@pytest.mark.parametrize(
+    "action", [[10**400] * 6, [10**5000] * 6, "abc" * 10_000], ids=["huge-ints", "ints-beyond-repr", "long-string"]
+)
 def test_errors_quote_a_hostile_value_briefly(action):
     env = gym.make("StewartPlatform-v1")
     env.reset(seed=0)

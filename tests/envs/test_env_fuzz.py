@@ -18,7 +18,7 @@ from stewart_env.envs import StewartPlatformEnv, StewartPlatformVectorEnv
 # Values of every kind a caller might pass by mistake, at every scale.
 ANY = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True),
-    st.integers(min_value=-10**400, max_value=10**400),
+    st.integers(min_value=-(10**400), max_value=10**400),
     st.booleans(),
     st.none(),
     st.text(max_size=4),
@@ -33,9 +33,11 @@ ENV_KEYWORDS = {
     "actuator_tau": st.one_of(st.floats(0.0, 200.0), ANY),
     "observation_mode": st.one_of(st.sampled_from(["pose", "sensors", "camera"]), ANY),
     "normalize_observation": st.one_of(st.booleans(), ANY),
-    "observation_noise": st.one_of(st.floats(0.0, 200.0), ANY,
-                                   st.dictionaries(st.sampled_from(["position", "velocity", "altitude"]), ANY,
-                                                   max_size=2)),
+    "observation_noise": st.one_of(
+        st.floats(0.0, 200.0),
+        ANY,
+        st.dictionaries(st.sampled_from(["position", "velocity", "altitude"]), ANY, max_size=2),
+    ),
     "observation_delay": st.one_of(st.integers(0, 5), ANY),
     "error_integral": st.one_of(st.booleans(), ANY),
     "error_integral_limit": st.one_of(st.floats(1e-9, 10.0), ANY),
@@ -73,7 +75,7 @@ TASK_OPTIONS = {
 ACTION = st.one_of(
     st.lists(st.floats(allow_nan=False, allow_infinity=False), min_size=6, max_size=6),
     st.lists(st.floats(-1.5, 1.5), min_size=6, max_size=6),
-    st.lists(st.integers(-10**30, 10**30), min_size=6, max_size=6),
+    st.lists(st.integers(-(10**30), 10**30), min_size=6, max_size=6),
     st.lists(ANY, min_size=5, max_size=7),
     ANY,
 )
@@ -101,8 +103,13 @@ def _finite(obs, reward) -> None:
 
 
 # No shrinking: a failing example is reported as drawn, at once (shrinking takes minutes here).
-FUZZ = settings(deadline=None, database=None, derandomize=True, phases=[Phase.explicit, Phase.generate],
-                suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(
+    deadline=None,
+    database=None,
+    derandomize=True,
+    phases=[Phase.explicit, Phase.generate],
+    suppress_health_check=[HealthCheck.too_slow],
+)
 
 
 @settings(FUZZ, max_examples=80)

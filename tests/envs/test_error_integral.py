@@ -46,8 +46,9 @@ def test_integral_is_the_clipped_sum_of_errors_times_dt(normalize, limit):
         observed = obs[sl] * bound if normalize else obs[sl]
         # The observation is float32 (relative rounding ~6e-8); atol covers components near 0.
         np.testing.assert_allclose(observed, expected, rtol=1e-6, atol=1e-9 * bound.max())
-        np.testing.assert_allclose(env.unwrapped.decode_observation(obs)["error_integral"], expected,
-                                   rtol=1e-6, atol=1e-9 * bound.max())
+        np.testing.assert_allclose(
+            env.unwrapped.decode_observation(obs)["error_integral"], expected, rtol=1e-6, atol=1e-9 * bound.max()
+        )
     # The start is ~0.1 m from the target: a 0.02 s bound clips within the first steps, 100 s never.
     clipped = np.isclose(np.abs(expected), bound, rtol=1e-12)  # np.clip returns the bound itself
     assert clipped.any() if limit < 1 else not clipped.any()
@@ -57,8 +58,9 @@ def test_integral_is_the_clipped_sum_of_errors_times_dt(normalize, limit):
 
 def test_a_band_integrates_only_the_error_components_within_it():
     band = 0.02
-    env = gym.make(ENV_ID, error_integral=True, error_integral_limit=100.0, error_integral_band=band,
-                   normalize_observation=False)
+    env = gym.make(
+        ENV_ID, error_integral=True, error_integral_limit=100.0, error_integral_band=band, normalize_observation=False
+    )
     sl = env.unwrapped.observation_layout["error_integral"]
     width = band * np.concatenate([H, np.full(3, A)])
     env.reset(seed=3)
@@ -114,8 +116,9 @@ def test_default_observation_is_unchanged_and_the_term_only_appends():
 def test_vector_rows_equal_single_envs_bit_for_bit_across_autoresets():
     n, seed, steps, horizon = 3, 11, 30, 8
     kwargs = {"error_integral": True, "error_integral_limit": 0.05, "observation_noise": 0.01}
-    envs = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point",
-                        max_episode_steps=horizon, **kwargs)
+    envs = gym.make_vec(
+        ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", max_episode_steps=horizon, **kwargs
+    )
     singles = [gym.make(ENV_ID, max_episode_steps=horizon, **kwargs) for _ in range(n)]
     actions = hold(steps, n)
     v_obs, _ = envs.reset(seed=seed)
@@ -135,8 +138,14 @@ def test_vector_rows_equal_single_envs_bit_for_bit_across_autoresets():
 
 
 def test_same_step_autoreset_starts_the_new_episode_at_zero():
-    envs = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point", max_episode_steps=3,
-                        autoreset_mode=AutoresetMode.SAME_STEP, error_integral=True)
+    envs = gym.make_vec(
+        ENV_ID,
+        num_envs=2,
+        vectorization_mode="vector_entry_point",
+        max_episode_steps=3,
+        autoreset_mode=AutoresetMode.SAME_STEP,
+        error_integral=True,
+    )
     sl = envs.unwrapped.observation_layout["error_integral"]
     envs.reset(seed=0)
     for a in hold(3, 2):
@@ -146,14 +155,17 @@ def test_same_step_autoreset_starts_the_new_episode_at_zero():
     assert all(np.all(infos["final_obs"][i][sl] != 0.0) for i in range(2))
 
 
-@pytest.mark.parametrize("kwargs, name", [
-    ({"error_integral": 1}, "error_integral"),
-    ({"error_integral": "yes"}, "error_integral"),
-    ({"error_integral": True, "error_integral_limit": 0.0}, "error_integral_limit"),
-    ({"error_integral": True, "error_integral_limit": float("inf")}, "error_integral_limit"),
-    ({"error_integral_limit": -1.0}, "error_integral_limit"),
-    ({"error_integral": True, "error_integral_band": 0.0}, "error_integral_band"),
-])
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        ({"error_integral": 1}, "error_integral"),
+        ({"error_integral": "yes"}, "error_integral"),
+        ({"error_integral": True, "error_integral_limit": 0.0}, "error_integral_limit"),
+        ({"error_integral": True, "error_integral_limit": float("inf")}, "error_integral_limit"),
+        ({"error_integral_limit": -1.0}, "error_integral_limit"),
+        ({"error_integral": True, "error_integral_band": 0.0}, "error_integral_band"),
+    ],
+)
 def test_bad_arguments_raise_naming_the_argument(kwargs, name):
     with pytest.raises(ValueError, match=f"^{name}:"):
         gym.make(ENV_ID, **kwargs)

@@ -29,8 +29,9 @@ def by_row(monkeypatch):
 def rollout(n, kwargs, mode, seed, steps=60):
     """Observations, rewards, flags and infos of a vector run under uniformly random actions, which
     lose the platform within a few steps: many rows reset at most steps."""
-    envs = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", autoreset_mode=mode,
-                        max_episode_steps=25, **kwargs)
+    envs = gym.make_vec(
+        ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", autoreset_mode=mode, max_episode_steps=25, **kwargs
+    )
     actions = np.random.default_rng(seed).uniform(-1.0, 1.0, (steps, n, 6)).astype(np.float32)
     out = [envs.reset(seed=seed)]
     resets = 0
@@ -79,8 +80,13 @@ def test_batched_reset_equals_row_by_row_reset(monkeypatch, task, randomization,
 
 
 def test_batched_reset_with_observation_noise_delay_lag_and_integral(monkeypatch):
-    kwargs = {"observation_noise": 0.02, "observation_delay": 2, "actuator_tau": 0.02, "error_integral": True,
-              "randomization": RANDOMIZATION}
+    kwargs = {
+        "observation_noise": 0.02,
+        "observation_delay": 2,
+        "actuator_tau": 0.02,
+        "error_integral": True,
+        "randomization": RANDOMIZATION,
+    }
     batched = rollout(6, kwargs, AutoresetMode.NEXT_STEP, 5)
     by_row(monkeypatch)
     assert_same(batched, rollout(6, kwargs, AutoresetMode.NEXT_STEP, 5))
@@ -142,11 +148,14 @@ def test_setpoint_batched_draws_equal_the_row_by_row_draws_with_many_rejections(
 
 def test_setpoint_batched_draws_keep_the_draw_limit(monkeypatch):
     from stewart_env.tasks import setpoint
+
     task = PlatformBatch(1, EnvConfig.of()).task
     monkeypatch.setattr(setpoint, "_MAX_DRAWS", 3)
-    monkeypatch.setattr(setpoint.SetpointTask, "_candidates",
-                        lambda self, unit: (np.zeros((len(unit), 3)), np.zeros((len(unit), 3, 3)),
-                                            np.zeros(len(unit), dtype=bool)))
+    monkeypatch.setattr(
+        setpoint.SetpointTask,
+        "_candidates",
+        lambda self, unit: (np.zeros((len(unit), 3)), np.zeros((len(unit), 3, 3)), np.zeros(len(unit), dtype=bool)),
+    )
     monkeypatch.setattr(setpoint, "pose_margins", lambda *a, **k: np.array([False]))
     rng = np.random.default_rng(0)
     with pytest.raises(RuntimeError, match="no pose inside the limits .* in 3 draws"):

@@ -60,7 +60,7 @@ def assert_not_quoted(message: str, content: str) -> None:
     """No 8-character stretch of `content` (beyond blanks and the file name) is in `message`."""
     for line in content.splitlines():
         for i in range(len(line) - 7):
-            window = line[i:i + 8]
+            window = line[i : i + 8]
             assert window.strip() != window or window not in message, f"{window!r} quoted in {message!r}"
 
 
@@ -98,8 +98,10 @@ def test_directory_is_refused(tmp_path):
 
 
 #: The refusal of a file whose name is not a config's.
-NOT_A_CONFIG_NAME = ("not a platform config: a config file's name ends in .yaml or .yml; a shipped platform is named "
-                     "by a string alone, with no path (dasgupta1998, motion_simulator)")
+NOT_A_CONFIG_NAME = (
+    "not a platform config: a config file's name ends in .yaml or .yml; a shipped platform is named "
+    "by a string alone, with no path (dasgupta1998, motion_simulator)"
+)
 
 
 @pytest.mark.parametrize("name", ["config.txt", "config.yaml.bak", "config", "passwd"])
@@ -134,8 +136,11 @@ def test_etc_passwd_is_never_quoted(tmp_path):
 def test_shadow_like_file_is_never_quoted(tmp_path):
     # Each line ends in ':', so YAML reads the lines as keys of a mapping.
     error = load_error(write(tmp_path / "shadow.yaml", SHADOW_LIKE))
-    assert re.match(r".*/shadow\.yaml: unknown key \(text of 77 characters\), \(text of 26 characters\), "
-                    r"\(text of 78 characters\) \(expected 'base_joints', ", str(error))
+    assert re.match(
+        r".*/shadow\.yaml: unknown key \(text of 77 characters\), \(text of 26 characters\), "
+        r"\(text of 78 characters\) \(expected 'base_joints', ",
+        str(error),
+    )
     assert_not_quoted(str(error), SHADOW_LIKE)
     as_text = SHADOW_LIKE.replace(":::\n", "\n")  # now one multi-line plain scalar
     error = load_error(write(tmp_path / "shadow2.yaml", as_text))
@@ -146,8 +151,10 @@ def test_shadow_like_file_is_never_quoted(tmp_path):
 def test_yaml_syntax_error_names_the_line_but_does_not_quote_it(tmp_path):
     text = "damping:\n  universal: [1.0e-4, hunter2-password\n"
     error = load_error(write(tmp_path / "broken.yaml", text))
-    assert str(error) == (f"{tmp_path / 'broken.yaml'}: not valid YAML: line 3, column 1: "
-                          "while parsing a flow sequence; expected ',' or ']', but got '<stream end>'")
+    assert str(error) == (
+        f"{tmp_path / 'broken.yaml'}: not valid YAML: line 3, column 1: "
+        "while parsing a flow sequence; expected ',' or ']', but got '<stream end>'"
+    )
     assert_not_quoted(str(error), text)
 
 
@@ -202,16 +209,24 @@ def test_billion_laughs_fails_fast_with_a_short_message(tmp_path):
     text = billion_laughs()
     assert len(text) < 4096  # expands to 9**10 = 3.5e9 strings
     error = load_error(write(tmp_path / "laughs.yaml", text))
-    assert re.fullmatch(r".*/laughs\.yaml: not valid YAML: line \d, column \d+: "
-                        r"more than 5000 values \(after expanding aliases\)", str(error))
+    assert re.fullmatch(
+        r".*/laughs\.yaml: not valid YAML: line \d, column \d+: "
+        r"more than 5000 values \(after expanding aliases\)",
+        str(error),
+    )
 
 
-@pytest.mark.parametrize("text, problem", [
-    ("base_joints: [" + ", ".join(["1.0"] * 150_000) + "]\n", "more than 5000 values"),
-    ("a0: &a0 [1.0]\n" + "".join(f"a{i}: &a{i} [*a{i - 1}]\n" for i in range(1, 40_000)), "more than 5000 values"),
-    ("a0: &a0 [1.0]\n" + "".join(f"a{i}: &a{i} [*a{i - 1}]\n" for i in range(1, 40)),
-     "nested more than 32 levels deep (after expanding aliases)"),
-])
+@pytest.mark.parametrize(
+    "text, problem",
+    [
+        ("base_joints: [" + ", ".join(["1.0"] * 150_000) + "]\n", "more than 5000 values"),
+        ("a0: &a0 [1.0]\n" + "".join(f"a{i}: &a{i} [*a{i - 1}]\n" for i in range(1, 40_000)), "more than 5000 values"),
+        (
+            "a0: &a0 [1.0]\n" + "".join(f"a{i}: &a{i} [*a{i - 1}]\n" for i in range(1, 40)),
+            "nested more than 32 levels deep (after expanding aliases)",
+        ),
+    ],
+)
 def test_long_documents_stop_early(tmp_path, text, problem):
     # The first two are about 1 MB each, which PyYAML would take 10-20 s to parse; refused after
     # 5000 values, about 0.3 s, or a few seconds on a busy machine.
@@ -220,8 +235,9 @@ def test_long_documents_stop_early(tmp_path, text, problem):
 
 
 def test_a_few_aliases_are_fine(tmp_path, dasgupta_config):
-    text = DASGUPTA.read_text(encoding="utf-8").replace("hooke_axes: [0.0, 0.0, 1.0]",
-                                                        "hooke_axes: [&up [0.0, 0.0, 1.0], *up, *up, *up, *up, *up]")
+    text = DASGUPTA.read_text(encoding="utf-8").replace(
+        "hooke_axes: [0.0, 0.0, 1.0]", "hooke_axes: [&up [0.0, 0.0, 1.0], *up, *up, *up, *up, *up]"
+    )
     assert load_platform(write(tmp_path / "aliases.yaml", text)).hooke_axes.tolist() == [[0.0, 0.0, 1.0]] * 6
 
 
@@ -229,7 +245,9 @@ def test_duplicate_keys_are_refused_but_merges_may_override(tmp_path):
     text = config_text("  mass: 40.0 ", "  mass: 40.0\n  mass: 4000.0 ")
     line = next(i for i, row in enumerate(text.splitlines(), 1) if row.startswith("  mass: 4000.0"))
     error = load_error(write(tmp_path / "twice.yaml", text))
-    assert str(error).endswith(f"not valid YAML: line {line}, column 3: while constructing a mapping; duplicate key 'mass'")
+    assert str(error).endswith(
+        f"not valid YAML: line {line}, column 3: while constructing a mapping; duplicate key 'mass'"
+    )
     text = config_text("  mass: 1.0 ", "  <<: {mass: 9.0, com: [0.0, 0.0, 0.0]}\n  mass: 1.0 ")
     assert load_platform(write(tmp_path / "override.yaml", text)).upper_leg[0].mass == 1.0
 
@@ -265,27 +283,60 @@ def config_text(replace: str, by: str) -> str:
     return text.replace(replace, by, 1)
 
 
-@pytest.mark.parametrize("replace, by, message", [
-    pytest.param("mass: 40.0", "mass: " + "1" + "0" * 400, r"platform\.mass: not a finite number \(10000000000{10,}[.][.][.]",
-                 id="int_10**400"),
-    pytest.param("mass: 40.0", "mass: .inf", r"platform\.mass: not a finite number \(inf\)", id="inf"),
-    pytest.param("mass: 40.0", "mass: .nan", r"platform\.mass: not a finite number \(nan\)", id="nan"),
-    pytest.param("mass: 40.0", "mass: 1.0e+400", r"platform\.mass: not a finite number \(inf\)", id="float_overflow"),
-    pytest.param("mass: 40.0", "mass: 1.0e+13", r"platform\.mass: magnitude above 1e\+12, got 1e\+13", id="too_large"),
-    pytest.param("mass: 40.0", "mass: true", r"platform\.mass: must be a number, got True", id="bool"),
-    pytest.param("mass: 1.0 ", "mass: yes ", r"upper_leg\.mass: must be a number, got True", id="yaml11_bool"),
-    pytest.param("[1.5, -0.15, -0.6]", "[1.5, -.inf, -0.6]", r"base_joints\[4\]\[1\]: not a finite number \(-inf\)",
-                 id="nested_inf"),
-    pytest.param("[0.17, 0.595, -0.4]", "[0.17, false, -0.4]", r"platform_joints\[0\]\[1\]: must be a number, got False",
-                 id="nested_bool"),
-    pytest.param("max_condition: 1000.0", "max_condition: 1" + "0" * 400,
-                 r"limits\.max_condition: not a finite number \(1000", id="limit_10**400"),
-    pytest.param("leg_force: [-2000.0, 2000.0]", "leg_force: [-2000.0, 1.0e+300]",
-                 r"limits\.leg_force\[1\]: magnitude above 1e\+12, got 1e\+300", id="limit_huge"),
-    pytest.param("gravity: [0.0, 0.0, -9.81]", "gravity: [0.0, [[[[[[1.0]]]]]], -9.81]",
-                 r"gravity\[1\]: must be a number, got \[\[\[\[[.][.][.]\]\]\]\]", id="nested_list_in_a_vector"),
-    pytest.param("mass: 40.0", "mass: 4.0e-7", r"platform\.mass: must be >= 1e-06 kg, got 4e-07", id="platform_mass_tiny"),
-])
+@pytest.mark.parametrize(
+    "replace, by, message",
+    [
+        pytest.param(
+            "mass: 40.0",
+            "mass: " + "1" + "0" * 400,
+            r"platform\.mass: not a finite number \(10000000000{10,}[.][.][.]",
+            id="int_10**400",
+        ),
+        pytest.param("mass: 40.0", "mass: .inf", r"platform\.mass: not a finite number \(inf\)", id="inf"),
+        pytest.param("mass: 40.0", "mass: .nan", r"platform\.mass: not a finite number \(nan\)", id="nan"),
+        pytest.param(
+            "mass: 40.0", "mass: 1.0e+400", r"platform\.mass: not a finite number \(inf\)", id="float_overflow"
+        ),
+        pytest.param(
+            "mass: 40.0", "mass: 1.0e+13", r"platform\.mass: magnitude above 1e\+12, got 1e\+13", id="too_large"
+        ),
+        pytest.param("mass: 40.0", "mass: true", r"platform\.mass: must be a number, got True", id="bool"),
+        pytest.param("mass: 1.0 ", "mass: yes ", r"upper_leg\.mass: must be a number, got True", id="yaml11_bool"),
+        pytest.param(
+            "[1.5, -0.15, -0.6]",
+            "[1.5, -.inf, -0.6]",
+            r"base_joints\[4\]\[1\]: not a finite number \(-inf\)",
+            id="nested_inf",
+        ),
+        pytest.param(
+            "[0.17, 0.595, -0.4]",
+            "[0.17, false, -0.4]",
+            r"platform_joints\[0\]\[1\]: must be a number, got False",
+            id="nested_bool",
+        ),
+        pytest.param(
+            "max_condition: 1000.0",
+            "max_condition: 1" + "0" * 400,
+            r"limits\.max_condition: not a finite number \(1000",
+            id="limit_10**400",
+        ),
+        pytest.param(
+            "leg_force: [-2000.0, 2000.0]",
+            "leg_force: [-2000.0, 1.0e+300]",
+            r"limits\.leg_force\[1\]: magnitude above 1e\+12, got 1e\+300",
+            id="limit_huge",
+        ),
+        pytest.param(
+            "gravity: [0.0, 0.0, -9.81]",
+            "gravity: [0.0, [[[[[[1.0]]]]]], -9.81]",
+            r"gravity\[1\]: must be a number, got \[\[\[\[[.][.][.]\]\]\]\]",
+            id="nested_list_in_a_vector",
+        ),
+        pytest.param(
+            "mass: 40.0", "mass: 4.0e-7", r"platform\.mass: must be >= 1e-06 kg, got 4e-07", id="platform_mass_tiny"
+        ),
+    ],
+)
 def test_bad_numbers_in_yaml_name_their_key(tmp_path, replace, by, message):
     path = write(tmp_path / "robot.yaml", config_text(replace, by))
     error = load_error(path)
@@ -296,8 +347,12 @@ def test_bad_numbers_in_yaml_name_their_key(tmp_path, replace, by, message):
 
 
 def test_python_values_beyond_float_range(dasgupta_config):
-    for value, shown in [(10**400, "(1000000000"), (-(10**400), "(-100000000"),
-                         (10**5000, "(an integer of about 5000 digits)"), (np.float64("inf"), "(inf)")]:
+    for value, shown in [
+        (10**400, "(1000000000"),
+        (-(10**400), "(-100000000"),
+        (10**5000, "(an integer of about 5000 digits)"),
+        (np.float64("inf"), "(inf)"),
+    ]:
         config = copy.deepcopy(dasgupta_config)
         config["base_joints"][3][1] = value
         with pytest.raises(ConfigError) as info:
@@ -309,7 +364,9 @@ def test_python_values_beyond_float_range(dasgupta_config):
 def test_tiny_platform_inertia_is_refused(dasgupta_config):
     dasgupta_config = copy.deepcopy(dasgupta_config)
     dasgupta_config["platform"]["inertia"] = [1e-16, 1e-16, 1e-16]
-    with pytest.raises(ConfigError, match=r"^platform\.inertia: smallest principal moment 1e-16 is below 1e-15 kg m\^2$"):
+    with pytest.raises(
+        ConfigError, match=r"^platform\.inertia: smallest principal moment 1e-16 is below 1e-15 kg m\^2$"
+    ):
         PlatformParams.from_dict(dasgupta_config)
 
 
@@ -318,7 +375,11 @@ def test_huge_and_deep_lists_fail_fast(dasgupta_config):
     for _ in range(100_000):
         deep = [deep]  # deeper than Python's recursion limit
     for path, value, message in [
-        (("base_joints",), [[0.0, 0.0, 0.0]] * 1_000_000, r"^base_joints: expected shape \(6, 3\), got a sequence of 1000000 items$"),
+        (
+            ("base_joints",),
+            [[0.0, 0.0, 0.0]] * 1_000_000,
+            r"^base_joints: expected shape \(6, 3\), got a sequence of 1000000 items$",
+        ),
         (("platform", "com"), np.zeros(10**6), r"^platform\.com: expected shape \(3,\), got \(1000000,\)$"),
         (("base_joints",), deep, r"^base_joints\[0\]\[0\]: must be a number, got \[\[\[\[[.][.][.]\]\]\]\]$"),
         (("upper_leg",), [{}] * 10**6, r"^upper_leg: expected one mapping or a list of six, got a list of 1000000$"),
@@ -339,7 +400,9 @@ def test_unknown_keys_are_quoted_only_when_they_look_like_names(dasgupta_config)
     config["p4ssw0rd:secret"] = 4
     with pytest.raises(ConfigError) as info:
         PlatformParams.from_dict(config)
-    assert str(info.value).startswith("unknown key 'platfrom', (text of 500 characters), (a tuple of 2 items) and 1 more (expected ")
+    assert str(info.value).startswith(
+        "unknown key 'platfrom', (text of 500 characters), (a tuple of 2 items) and 1 more (expected "
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -375,8 +438,24 @@ def get(node, path):
 
 HUGE_LIST = [1.0] * 100_000
 # Values that are no finite number in range: an error must name their own key path.
-NOT_A_NUMBER = [math.nan, math.inf, -math.inf, 1e308 * 10, 10**400, -(10**400), 1e13, "1.0", "abc", None,
-                True, False, HUGE_LIST, {}, {"mass": 1.0}, [[[[1.0]]]]]
+NOT_A_NUMBER = [
+    math.nan,
+    math.inf,
+    -math.inf,
+    1e308 * 10,
+    10**400,
+    -(10**400),
+    1e13,
+    "1.0",
+    "abc",
+    None,
+    True,
+    False,
+    HUGE_LIST,
+    {},
+    {"mass": 1.0},
+    [[[[1.0]]]],
+]
 # Finite numbers: may be valid, or make another check fail (e.g. the leg stroke).
 NUMBERS = [-1, 0, -1.0, 1e-320, 1e12, -1e12, 0.5, 7]
 
@@ -412,29 +491,47 @@ def test_fuzz_one_hostile_leaf(dasgupta_config, all_paths, data):
 # Randomisation specs
 
 
-@pytest.mark.parametrize("spec, message", [
-    ({"mass": (0.5, math.inf)}, r"^randomization\['mass'\]\[1\]: not a finite number \(inf\)$"),
-    ({"mass": (math.nan, 2.0)}, r"^randomization\['mass'\]\[0\]: not a finite number \(nan\)$"),
-    ({"mass": (10**400, 2.0)}, r"^randomization\['mass'\]\[0\]: not a finite number \(1000"),
-    ({"inertia": (True, 2.0)}, r"^randomization\['inertia'\]\[0\]: must be a number, got True$"),
-    ({"inertia": ("0.5", 2.0)}, r"^randomization\['inertia'\]\[0\]: must be a number, got '0\.5'"),
-    ({"mass": (2.0, 0.5)}, r"^randomization\['mass'\]: expected low <= high, got \(2\.0, 0\.5\)$"),
-    ({"mass": (1e-4, 2.0)}, r"^randomization\['mass'\]: factors must be > 0 and within \[0\.001, 1000\]"),
-    ({"legs.inertia": (0.5, 1e4)}, r"^randomization\['legs\.inertia'\]: factors must be > 0 and within \[0\.001, 1000\]"),
-    ({"damping.prismatic": (0.0, 1e6)}, r"^randomization\['damping\.prismatic'\]: factors must be >= 0 and <= 1000"),
-    ({"com": (-1e4, 1.0)}, r"^randomization\['com'\]: factors must be within \[-1000, 1000\]"),
-    ({"com": "0.9, 1.1"}, r"^randomization\['com'\]: expected \(low, high\), got '0\.9, 1\.1'$"),
-    ({"com": (0.9, 1.0, 1.1)}, r"^randomization\['com'\]: expected \(low, high\), got \(0\.9, 1\.0, 1\.1\)$"),
-    ({"com": {"low": 0.9, "high": 1.1}}, r"^randomization\['com'\]: expected \(low, high\), got \{"),
-    ({"com": None}, r"^randomization\['com'\]: expected \(low, high\), got None$"),
-    ({"com": np.array(1.0)}, r"^randomization\['com'\]: expected \(low, high\), got array\(1\.\)$"),
-    ({"com": np.ones((2, 2))}, r"^randomization\['com'\]: expected \(low, high\), got array\("),
-    ({"mass": HUGE_LIST}, r"^randomization\['mass'\]: expected \(low, high\), got \[1\.0, 1\.0, 1\.0, 1\.0, [.][.][.]\]$"),
-    ({"x" * 1000: (1.0, 1.0)}, r"^randomization: unknown key\(s\) \(text of 1000 characters\); valid keys: platform\.mass, "),
-    ({3: (1.0, 1.0)}, r"^randomization: unknown key\(s\) \(an int\); valid keys"),
-    ([("mass", (0.9, 1.1))], r"^randomization: expected a dict of key -> \(low, high\), got \[\('mass', \(0\.9, 1\.1\)\)\]$"),
-    ("mass", r"^randomization: expected a dict of key -> \(low, high\), got 'mass'$"),
-])
+@pytest.mark.parametrize(
+    "spec, message",
+    [
+        ({"mass": (0.5, math.inf)}, r"^randomization\['mass'\]\[1\]: not a finite number \(inf\)$"),
+        ({"mass": (math.nan, 2.0)}, r"^randomization\['mass'\]\[0\]: not a finite number \(nan\)$"),
+        ({"mass": (10**400, 2.0)}, r"^randomization\['mass'\]\[0\]: not a finite number \(1000"),
+        ({"inertia": (True, 2.0)}, r"^randomization\['inertia'\]\[0\]: must be a number, got True$"),
+        ({"inertia": ("0.5", 2.0)}, r"^randomization\['inertia'\]\[0\]: must be a number, got '0\.5'"),
+        ({"mass": (2.0, 0.5)}, r"^randomization\['mass'\]: expected low <= high, got \(2\.0, 0\.5\)$"),
+        ({"mass": (1e-4, 2.0)}, r"^randomization\['mass'\]: factors must be > 0 and within \[0\.001, 1000\]"),
+        (
+            {"legs.inertia": (0.5, 1e4)},
+            r"^randomization\['legs\.inertia'\]: factors must be > 0 and within \[0\.001, 1000\]",
+        ),
+        (
+            {"damping.prismatic": (0.0, 1e6)},
+            r"^randomization\['damping\.prismatic'\]: factors must be >= 0 and <= 1000",
+        ),
+        ({"com": (-1e4, 1.0)}, r"^randomization\['com'\]: factors must be within \[-1000, 1000\]"),
+        ({"com": "0.9, 1.1"}, r"^randomization\['com'\]: expected \(low, high\), got '0\.9, 1\.1'$"),
+        ({"com": (0.9, 1.0, 1.1)}, r"^randomization\['com'\]: expected \(low, high\), got \(0\.9, 1\.0, 1\.1\)$"),
+        ({"com": {"low": 0.9, "high": 1.1}}, r"^randomization\['com'\]: expected \(low, high\), got \{"),
+        ({"com": None}, r"^randomization\['com'\]: expected \(low, high\), got None$"),
+        ({"com": np.array(1.0)}, r"^randomization\['com'\]: expected \(low, high\), got array\(1\.\)$"),
+        ({"com": np.ones((2, 2))}, r"^randomization\['com'\]: expected \(low, high\), got array\("),
+        (
+            {"mass": HUGE_LIST},
+            r"^randomization\['mass'\]: expected \(low, high\), got \[1\.0, 1\.0, 1\.0, 1\.0, [.][.][.]\]$",
+        ),
+        (
+            {"x" * 1000: (1.0, 1.0)},
+            r"^randomization: unknown key\(s\) \(text of 1000 characters\); valid keys: platform\.mass, ",
+        ),
+        ({3: (1.0, 1.0)}, r"^randomization: unknown key\(s\) \(an int\); valid keys"),
+        (
+            [("mass", (0.9, 1.1))],
+            r"^randomization: expected a dict of key -> \(low, high\), got \[\('mass', \(0\.9, 1\.1\)\)\]$",
+        ),
+        ("mass", r"^randomization: expected a dict of key -> \(low, high\), got 'mass'$"),
+    ],
+)
 def test_bad_randomization_specs_name_their_key(spec, message):
     with pytest.raises(ConfigError, match=message) as info:
         Randomization(spec)
@@ -443,8 +540,12 @@ def test_bad_randomization_specs_name_their_key(spec, message):
 
 def test_randomization_accepts_the_extreme_valid_ranges():
     spec = {"mass": (1e-3, 1e3), "com": (-1e3, 1e3), "damping": (0.0, 1e3), "inertia": np.array([0.5, 2.0])}
-    assert Randomization(spec).ranges == {"mass": (1e-3, 1e3), "inertia": (0.5, 2.0), "com": (-1e3, 1e3),
-                                          "damping": (0.0, 1e3)}
+    assert Randomization(spec).ranges == {
+        "mass": (1e-3, 1e3),
+        "inertia": (0.5, 2.0),
+        "com": (-1e3, 1e3),
+        "damping": (0.0, 1e3),
+    }
 
 
 # ---------------------------------------------------------------------------------------------
@@ -487,8 +588,9 @@ def read_only_install(tmp_path):
     child's temporary directory (a fresh writable one by default)."""
     prefix = _unprivileged_prefix(tmp_path)
     if prefix is None:
-        pytest.skip("running as root and no way to drop the privilege to write read-only directories "
-                    "(setpriv or runuser)")
+        pytest.skip(
+            "running as root and no way to drop the privilege to write read-only directories (setpriv or runuser)"
+        )
     install = tmp_path / "install"
     package_dir = Path(stewart_env.__file__).resolve().parent
     shutil.copytree(package_dir, install / "stewart_env", ignore=shutil.ignore_patterns("__pycache__"))
@@ -512,14 +614,24 @@ def read_only_install(tmp_path):
     # the child starts without site (-S), so no editable install's path hook can point it at a
     # checkout: it finds stewart_env in the copy and the other packages in this Python's site dirs
     site_dirs = [p for p in sys.path if Path(p).name in ("site-packages", "dist-packages")]
-    env.update(HOME=str(home), PYTHONPATH=os.pathsep.join([str(install), *site_dirs]), TMPDIR=str(writable_tmp),
-               PYTHONDONTWRITEBYTECODE="1")
+    env.update(
+        HOME=str(home),
+        PYTHONPATH=os.pathsep.join([str(install), *site_dirs]),
+        TMPDIR=str(writable_tmp),
+        PYTHONDONTWRITEBYTECODE="1",
+    )
 
     def run(code: str, tempdir: Path | None = None) -> subprocess.CompletedProcess:
         setup = f"import tempfile; tempfile.tempdir = {str(tempdir)!r}\n" if tempdir else ""
         script = setup + textwrap.dedent(code)
-        return subprocess.run([*prefix, sys.executable, "-S", "-W", "always", "-c", script], env=env, cwd=str(home),
-                              capture_output=True, text=True, timeout=300)
+        return subprocess.run(
+            [*prefix, sys.executable, "-S", "-W", "always", "-c", script],
+            env=env,
+            cwd=str(home),
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
 
     yield run, tmp_path
     for root, _, _ in os.walk(tmp_path):  # let pytest remove the tree
@@ -579,8 +691,11 @@ def _faces():
     made.reset(seed=0)
     for _ in range(2):  # gymnasium's checker compares its first steps' data; a failed reset before confuses it
         made.step(np.zeros(6))
-    return [("class", StewartPlatformEnv(), (6,)), ("gymnasium.make", made, (6,)),
-            ("vector", StewartPlatformVectorEnv(num_envs=2), (2, 6))]
+    return [
+        ("class", StewartPlatformEnv(), (6,)),
+        ("gymnasium.make", made, (6,)),
+        ("vector", StewartPlatformVectorEnv(num_envs=2), (2, 6)),
+    ]
 
 
 @pytest.fixture(scope="module")
@@ -606,11 +721,14 @@ def test_unknown_reset_options_are_named(faces):
             env.reset(seed=0, options={"start": 1})
 
 
-@pytest.mark.parametrize("options, message", [
-    (5, r"expected a dict \(or None\) per row, got int"),
-    (["a", "b"], r"expected a dict \(or None\) per row, got str"),
-    ([{}, {}, {}], r"expected one dict for every row or a list of 2, got a list of 3"),
-])
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        (5, r"expected a dict \(or None\) per row, got int"),
+        (["a", "b"], r"expected a dict \(or None\) per row, got str"),
+        ([{}, {}, {}], r"expected one dict for every row or a list of 2, got a list of 3"),
+    ],
+)
 def test_sb3_set_options_that_cannot_be_options_are_named(options, message):
     pytest.importorskip("stable_baselines3")
     from stewart_env.envs import StewartPlatformSB3VecEnv
@@ -656,6 +774,9 @@ def test_masked_arrays_are_refused_with_masked_entries_and_read_without(faces):
         mask.flat[1] = True
         hidden = np.ma.masked_array(np.full(shape, 0.1), mask=mask)
         hidden.data.flat[1] = 1e300  # under the mask: never used
-        with pytest.raises(ValueError, match=r"^action: a masked array with 1 masked value\(s\); give plain numbers, "
-                                             r"e.g. action.filled\(0.0\)"):
+        with pytest.raises(
+            ValueError,
+            match=r"^action: a masked array with 1 masked value\(s\); give plain numbers, "
+            r"e.g. action.filled\(0.0\)",
+        ):
             env.step(hidden)

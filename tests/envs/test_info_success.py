@@ -47,6 +47,7 @@ def true_errors(unwrapped) -> tuple[np.ndarray, np.ndarray]:
 
 # -- the observation, reward, termination and truncation are those of before ------------------------
 
+
 def single_digest(env_id: str, steps: int = 400, seed: int = 7, **kwargs) -> tuple[str, dict[str, int]]:
     """sha256 of a rollout's observations, rewards, terminated and truncated flags, across resets:
     the platform held where it is, with small noise one episode and large noise the next, so that
@@ -60,7 +61,7 @@ def single_digest(env_id: str, steps: int = 400, seed: int = 7, **kwargs) -> tup
     for _ in range(steps):
         noise = 0.02 if episode % 2 == 0 else 0.5
         u = env.unwrapped
-        action = (holding_action(env, u.state.position, u.state.rotation) + noise * rng.standard_normal(6))
+        action = holding_action(env, u.state.position, u.state.rotation) + noise * rng.standard_normal(6)
         obs, reward, terminated, truncated, _ = env.step(action.astype(np.float32))
         digest.update(obs.tobytes() + np.float64(reward).tobytes() + bytes([terminated, truncated]))
         if terminated or truncated:
@@ -122,6 +123,7 @@ def test_a_vector_rollout_is_the_same_bits_as_before(env_id, task):
 
 # -- the keys and their values ----------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("task", TASKS)
 def test_every_step_reports_the_errors_the_harness_measures(task):
     env = make(task=task)
@@ -156,7 +158,7 @@ def test_is_success_at_every_step_is_the_criterion_on_the_episode_so_far():
         inside.append(bool(criterion.inside(info["position_error"], info["orientation_error"])))
         reported.append(bool(info["is_success"]))
     time = env.unwrapped.dt * np.arange(len(inside))
-    expected = [criterion.succeeded(time[:k + 1], np.array(inside[:k + 1]), False) for k in range(1, len(inside))]
+    expected = [criterion.succeeded(time[: k + 1], np.array(inside[: k + 1]), False) for k in range(1, len(inside))]
     assert reported == expected
     assert not inside[0] and reported[0] is False and reported[-1] is True  # from off target to on it
     assert 0 < reported.index(True) < 150  # the PD law settles within 1.5 s
@@ -202,6 +204,7 @@ def test_an_absurd_state_reports_finite_errors():
 
 # -- the same verdict as the evaluation harness ---------------------------------------------------------
 
+
 @pytest.mark.parametrize("episodes", [3, 6])  # a batch of a few rows goes row by row, a larger one at once
 @pytest.mark.parametrize("task", ["setpoint", "disturbance", "hold"])
 def test_the_vector_env_gives_the_harness_s_verdict_and_errors(task, episodes):
@@ -238,6 +241,7 @@ def test_the_single_env_gives_the_harness_s_verdict():
 
 
 # -- the vector environments' conventions -------------------------------------------------------------------
+
 
 def test_vector_infos_hold_the_keys_with_gymnasium_s_masks():
     envs = make_vec(3, max_episode_steps=50)
@@ -289,6 +293,7 @@ def test_the_sb3_vec_env_reports_is_success_at_an_episode_s_end():
 
 
 # -- outside tools ------------------------------------------------------------------------------------------
+
 
 def test_the_env_checkers_pass():
     sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
@@ -347,8 +352,7 @@ def test_eval_callback_logs_a_success_rate_while_training(tmp_path):
     from stable_baselines3.common.logger import configure
     from stable_baselines3.common.monitor import Monitor
 
-    model = PPO("MlpPolicy", make(max_episode_steps=50), n_steps=64, batch_size=64, n_epochs=1, seed=0,
-                device="cpu")
+    model = PPO("MlpPolicy", make(max_episode_steps=50), n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu")
     model.set_logger(configure(str(tmp_path), ["csv"]))
     model.learn(64, callback=EvalCallback(Monitor(make(max_episode_steps=50)), n_eval_episodes=2, eval_freq=64))
     model.logger.close()

@@ -13,12 +13,24 @@ from stewart_env.envs.render import LEG_FORCE_COLORMAP, PlatformRenderer
 
 # The project's example platform: joints in metres, b_i in {B}, p_i in {P}.
 BASE_JOINTS = np.array(
-    [(-0.62, 1.374, -0.6), (-0.88, 1.224, -0.6), (-0.88, -1.224, -0.6),
-     (-0.62, -1.374, -0.6), (1.5, -0.15, -0.6), (1.5, 0.15, -0.6)]
+    [
+        (-0.62, 1.374, -0.6),
+        (-0.88, 1.224, -0.6),
+        (-0.88, -1.224, -0.6),
+        (-0.62, -1.374, -0.6),
+        (1.5, -0.15, -0.6),
+        (1.5, 0.15, -0.6),
+    ]
 )
 PLATFORM_JOINTS = np.array(
-    [(0.17, 0.595, -0.4), (-0.6, 0.15, -0.4), (-0.6, -0.15, -0.4),
-     (0.17, -0.595, -0.4), (0.43, -0.445, -0.4), (0.43, 0.445, -0.4)]
+    [
+        (0.17, 0.595, -0.4),
+        (-0.6, 0.15, -0.4),
+        (-0.6, -0.15, -0.4),
+        (0.17, -0.595, -0.4),
+        (0.43, -0.445, -0.4),
+        (0.43, 0.445, -0.4),
+    ]
 )
 HOME = np.array([0.0, 0.0, 0.4])
 FORCE_RANGE = (-2000.0, 2000.0)
@@ -123,9 +135,10 @@ def test_render_rejects_bad_input(renderer, name, kwargs):
     ],
 )
 def test_constructor_rejects_bad_input(name, kwargs):
-    call = dict(
-        base_joints=BASE_JOINTS, platform_joints=PLATFORM_JOINTS, home_position=HOME, force_range=FORCE_RANGE
-    ) | kwargs
+    call = (
+        dict(base_joints=BASE_JOINTS, platform_joints=PLATFORM_JOINTS, home_position=HOME, force_range=FORCE_RANGE)
+        | kwargs
+    )
     with pytest.raises(ValueError, match=name):
         PlatformRenderer(**call)
 
@@ -187,8 +200,9 @@ def test_human_mode_with_a_window_draws_and_returns_none(monkeypatch, no_warning
     monkeypatch.setattr(plt, "get_backend", lambda: "TkAgg")
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
-        r = PlatformRenderer(BASE_JOINTS, PLATFORM_JOINTS, HOME, FORCE_RANGE, width=WIDTH, height=HEIGHT,
-                             render_mode="human")
+        r = PlatformRenderer(
+            BASE_JOINTS, PLATFORM_JOINTS, HOME, FORCE_RANGE, width=WIDTH, height=HEIGHT, render_mode="human"
+        )
         assert r.draws
         assert r.render(HOME, np.eye(3), np.full(6, 150.0), target_position=HOME, text="t = 0.01 s") is None
     assert not _display_warnings(record)
@@ -212,7 +226,9 @@ def test_check_env_passes_headless(environ):
         "    check_env(gym.make('StewartPlatform-v1').unwrapped)\n"
         "print(sum('no display is available' in str(w.message) for w in record))\n"
     )
-    done = subprocess.run([sys.executable, "-c", script], env=env | environ, capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-c", script], env=env | environ, capture_output=True, text=True, timeout=120
+    )
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "1"  # warned once, though check_env resets the human-mode env
 
@@ -259,8 +275,9 @@ def test_render_after_close_raises():
         r.render(HOME, np.eye(3), np.zeros(6))
 
 
-@pytest.mark.parametrize("width, height", [(1, 1), (4, 4), (16, 16), (1, 4096), (4096, 1), (8, 480), (480, 8),
-                                           (16, 480), (480, 16)])
+@pytest.mark.parametrize(
+    "width, height", [(1, 1), (4, 4), (16, 16), (1, 4096), (4096, 1), (8, 480), (480, 8), (16, 480), (480, 16)]
+)
 def test_every_size_the_env_card_allows_renders(width, height):
     # The environment takes widths and heights from 1 to 4096 px: tiny and very thin frames have
     # no room for the margins and the text line, and the scene then fills the frame.

@@ -29,11 +29,14 @@ def test_a_record_holds_the_arrays_it_points_into():
     assert (sys.getrefcount(action), sys.getrefcount(forces)) == before
 
 
-@pytest.mark.parametrize("action, message", [
-    (np.zeros((2, 6), dtype=np.float32), "action: expected a C-contiguous array of the step's dtype"),
-    (np.zeros((6, 2)).T, "action: expected a C-contiguous array of the step's dtype"),
-    (np.zeros((2, 5)), r"action: expected shape \(N, 6\), got \(2, 5\)"),
-])
+@pytest.mark.parametrize(
+    "action, message",
+    [
+        (np.zeros((2, 6), dtype=np.float32), "action: expected a C-contiguous array of the step's dtype"),
+        (np.zeros((6, 2)).T, "action: expected a C-contiguous array of the step's dtype"),
+        (np.zeros((2, 5)), r"action: expected shape \(N, 6\), got \(2, 5\)"),
+    ],
+)
 def test_a_record_refuses_an_array_it_would_have_to_convert(action, message):
     with pytest.raises(ValueError, match=message):
         _core.ActuatorRecord(1.0, 0.0, 0.0, action, np.zeros((2, 6)))
@@ -52,12 +55,30 @@ def test_the_step_refuses_records_of_other_batches():
 
 def _records_of(core):
     state = _core.StateRecord(
-        tuple(core._state), tuple(core._backup), core.external_wrench, core.steps, core.time, core._non_finite,
-        core.leg_lengths, core.leg_rates, core.condition, tuple(core.reference[:4]), core._error_vectors,
-        core._error_norms, core.nominal_model.packed, core.control_dt, core.platform.limits.max_condition)
+        tuple(core._state),
+        tuple(core._backup),
+        core.external_wrench,
+        core.steps,
+        core.time,
+        core._non_finite,
+        core.leg_lengths,
+        core.leg_rates,
+        core.condition,
+        tuple(core.reference[:4]),
+        core._error_vectors,
+        core._error_norms,
+        core.nominal_model.packed,
+        core.control_dt,
+        core.platform.limits.max_condition,
+    )
     outputs = _core.OutputRecord(core._code, core._terms, core._reward, core._bad, core._observation32)
-    return (state, core.plant.step_record(core.physics_dt, core.substeps), core.task.step_record(),
-            core.observations.step_record(), outputs)
+    return (
+        state,
+        core.plant.step_record(core.physics_dt, core.substeps),
+        core.task.step_record(),
+        core.observations.step_record(),
+        outputs,
+    )
 
 
 def test_the_step_mode_is_chosen_publicly_and_checked():

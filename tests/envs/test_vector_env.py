@@ -16,8 +16,12 @@ pytestmark = pytest.mark.env
 ENV_ID = "StewartPlatform-v1"
 CONFIGS = [
     {},
-    {"task": "tracking", "observation_noise": 0.02, "observation_delay": 1,
-     "randomization": {"mass": (0.8, 1.2), "inertia": (0.9, 1.1), "damping": (0.5, 2.0)}},
+    {
+        "task": "tracking",
+        "observation_noise": 0.02,
+        "observation_delay": 1,
+        "randomization": {"mass": (0.8, 1.2), "inertia": (0.9, 1.1), "damping": (0.5, 2.0)},
+    },
     {"task": "disturbance", "actuator_tau": 0.02, "model": "classical"},
     {"task": "hold", "error_integral": True, "randomization": {"platform.mass": (0.8, 1.2)}},
 ]
@@ -113,8 +117,9 @@ def test_domain_randomisation_per_row():
     masses = [p.platform.mass for p in model.params]
     assert len(set(masses)) == 4
     assert infos["_randomization"].all()
-    np.testing.assert_allclose(infos["randomization"]["platform.mass"] * envs.unwrapped.platform.platform.mass,
-                               masses, rtol=1e-15)  # the factor times the nominal mass
+    np.testing.assert_allclose(
+        infos["randomization"]["platform.mass"] * envs.unwrapped.platform.platform.mass, masses, rtol=1e-15
+    )  # the factor times the nominal mass
     assert envs.unwrapped.episode_params == tuple(model.params)
     assert envs.unwrapped.get_attr("episode_params") == tuple(model.params)
 
@@ -176,12 +181,15 @@ def test_vector_truncation_counts_each_row():
     assert flags == [[False, False], [False, False], [True, True]]
 
 
-@pytest.mark.parametrize("actions, message", [
-    (np.full((3, 6), np.nan), "NaN"),
-    (np.full((3, 6), np.inf), "inf"),
-    (np.zeros((3, 5)), "shape"),
-    (np.zeros(6), "shape"),
-])
+@pytest.mark.parametrize(
+    "actions, message",
+    [
+        (np.full((3, 6), np.nan), "NaN"),
+        (np.full((3, 6), np.inf), "inf"),
+        (np.zeros((3, 5)), "shape"),
+        (np.zeros(6), "shape"),
+    ],
+)
 def test_vector_bad_actions_raise(actions, message):
     envs = make_vec(3)
     envs.reset(seed=0)
@@ -222,8 +230,14 @@ def test_vector_exposes_state_target_model_and_forces():
     assert envs.state.position.shape == (3, 3) and envs.target.rotation.shape == (3, 3, 3)
     assert envs.leg_forces.shape == (3, 6) and np.all(envs.leg_forces == 500.0)  # 0.25 x 2000 N
     assert envs.model.name == "improved"
-    assert set(envs.observation_layout) >= {"position", "orientation", "velocity", "angular_velocity",
-                                            "position_error", "orientation_error"}
+    assert set(envs.observation_layout) >= {
+        "position",
+        "orientation",
+        "velocity",
+        "angular_velocity",
+        "position_error",
+        "orientation_error",
+    }
 
 
 # -- stable-baselines3 -------------------------------------------------------------------------------------------
@@ -281,8 +295,9 @@ def test_sb3_ppo_trains_a_few_steps(sb3):
 def test_sb3_render_and_reset_infos(sb3):
     from stewart_env.envs import StewartPlatformSB3VecEnv
 
-    venv = StewartPlatformSB3VecEnv(num_envs=2, render_mode="rgb_array", width=32, height=32,
-                                    randomization={"platform.mass": (0.9, 1.1)})
+    venv = StewartPlatformSB3VecEnv(
+        num_envs=2, render_mode="rgb_array", width=32, height=32, randomization={"platform.mass": (0.9, 1.1)}
+    )
     venv.seed(0)
     venv.reset()
     assert venv.render().shape == (32, 32, 3)
@@ -312,19 +327,22 @@ def test_a_row_that_goes_non_finite_is_marked_alone():
     np.testing.assert_array_equal(batches[1].position[1], degenerate)  # the last finite state
 
 
-@pytest.mark.parametrize("kwargs", [
-    {"max_episode_steps": 15, "randomization": {"platform.mass": (0.8, 1.2)}},
-    # every row ends at once, so that every row is reset at the same step, with noise and delay
-    {"max_episode_steps": 6, "observation_noise": 0.01, "observation_delay": 2},
-], ids=["rows_apart", "rows_together"])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"max_episode_steps": 15, "randomization": {"platform.mass": (0.8, 1.2)}},
+        # every row ends at once, so that every row is reset at the same step, with noise and delay
+        {"max_episode_steps": 6, "observation_noise": 0.01, "observation_delay": 2},
+    ],
+    ids=["rows_apart", "rows_together"],
+)
 @pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
 def test_native_vector_env_matches_gymnasiums_sync_vector_env(mode, kwargs):
     """Gymnasium's own SyncVectorEnv over the single env is the reference for the autoreset
     semantics and the info layout."""
     n, steps = 3, 60
     native = make_vec(n, autoreset_mode=mode, **kwargs)
-    sync = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="sync",
-                        vector_kwargs={"autoreset_mode": mode}, **kwargs)
+    sync = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode}, **kwargs)
     a_obs, a_info = native.reset(seed=8)
     b_obs, b_info = sync.reset(seed=8)
     np.testing.assert_array_equal(a_obs, b_obs)
@@ -340,8 +358,7 @@ def test_native_vector_env_matches_gymnasiums_sync_vector_env(mode, kwargs):
         extra = set(a_info) - set(b_info)
         assert set(b_info) <= set(a_info) and not any(a_info[k].any() for k in extra if k.startswith("_"))
         assert not extra or not any(b_info.get("_" + k, np.zeros(1)).any() for k in ("termination", "time"))
-        for key in ("reward_position", "_reward_position", "reward_termination", "termination", "_termination",
-                    "time"):
+        for key in ("reward_position", "_reward_position", "reward_termination", "termination", "_termination", "time"):
             if key in b_info:
                 assert list(a_info[key]) == list(b_info[key]), key
         if "final_obs" in b_info:

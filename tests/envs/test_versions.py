@@ -148,6 +148,7 @@ def test_an_agent_trained_under_v0_still_loads(tmp_path):
     agent = training.load_agent(out)
     assert agent.manifest["env_id"] == V0
     for version in (0, 1):
-        result = evaluate(agent, {**agent.env_kwargs, "version": version}, episodes=1, seed=0, max_steps=5,
-                          progress=False)
+        result = evaluate(
+            agent, {**agent.env_kwargs, "version": version}, episodes=1, seed=0, max_steps=5, progress=False
+        )
         assert np.isfinite(result.summary()["rms_position_error"])

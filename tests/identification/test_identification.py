@@ -16,8 +16,11 @@ from physics_reference import random_state
 
 # every combination of the four switches over both improved forms (classical = joint form + all four)
 SWITCH_SETS = [s for n in range(5) for s in itertools.combinations(("c1", "c2", "c3", "c4"), n)]
-ALL_MODELS = [base + "".join("+" + s for s in switches)
-              for base in ("improved", "improved_centroidal") for switches in SWITCH_SETS] + ["classical"]
+ALL_MODELS = [
+    base + "".join("+" + s for s in switches)
+    for base in ("improved", "improved_centroidal")
+    for switches in SWITCH_SETS
+] + ["classical"]
 
 
 def random_body(rng, mass_scale):
@@ -36,7 +39,8 @@ def random_params(base, rng):
         platform=random_body(rng, base.platform.mass),
         upper_leg=tuple(random_body(rng, 3.0) for _ in range(6)),
         lower_leg=tuple(random_body(rng, 3.0) for _ in range(6)),
-        damping=Damping(*rng.uniform(0.5, 5.0, 3)))
+        damping=Damping(*rng.uniform(0.5, 5.0, 3)),
+    )
 
 
 @pytest.mark.parametrize("name", ALL_MODELS)
@@ -129,7 +133,9 @@ def noise_free(dasgupta):
     model = se.make_dynamics("improved", dasgupta)
     base = base_mod.base_parameters(model)
     series = exc.random_excitation(dasgupta, model, rng, period=settings.period)
-    record = experiment.measure(plant, experiment.simulate(plant, truth, model, series, settings.duration), settings, rng)
+    record = experiment.measure(
+        plant, experiment.simulate(plant, truth, model, series, settings.duration), settings, rng
+    )
     A = experiment.rows_of(model, base, record)
     return model, base, A, record, base.of_theta(reg.theta_of(truth, model.flags))
 
@@ -205,8 +211,9 @@ def test_bad_inputs_end_in_clear_errors(noise_free, dasgupta):
     with pytest.raises(IdentificationError, match="--plant"):
         experiment.Settings(plant="newton").check()
     # a series far beyond the workspace: the legs leave their stroke
-    big = exc.Excitation(np.concatenate([dasgupta.home_position, dasgupta.home_rpy]),
-                         np.zeros((6, 1)), np.zeros((6, 1)), 2.0)
+    big = exc.Excitation(
+        np.concatenate([dasgupta.home_position, dasgupta.home_rpy]), np.zeros((6, 1)), np.zeros((6, 1)), 2.0
+    )
     big = exc.Excitation(big.q0, big.a + np.array([[1.5], [0], [0], [0], [0], [0]]), big.b, 2.0)
     with pytest.raises(IdentificationError, match="stroke|diverged"):
         experiment.simulate(model, dasgupta, model, big, 3.0)
@@ -229,15 +236,18 @@ def test_identify_command_rejects_bad_settings_before_writing(tmp_path, capsys):
     assert not out.exists() or not any(p.name != ".stewart-env.lock" for p in out.iterdir())
     code, _, err = run_cli(["--plant", "mujoco", "--derivatives", "exact", "--out", str(out)], capsys)
     # the setting's error carries its name: said of its flag, as argparse says its own
-    assert code == 2 and err.startswith("stewart-env identify: error: argument --derivatives: exact: the MuJoCo plant "
-                                        "gives no accelerations"), err
+    assert code == 2 and err.startswith(
+        "stewart-env identify: error: argument --derivatives: exact: the MuJoCo plant gives no accelerations"
+    ), err
 
 
 @pytest.mark.slow  # a 6 s simulation, two estimates and the constrained fit: about 20 s
 def test_identify_command_writes_a_platform_other_commands_load(tmp_path, capsys):
     out = tmp_path / "run"
-    code, text, err = run_cli(["--excitation", "random", "--duration", "6", "--period", "3", "--noise-force", "0.5",
-                               "--out", str(out)], capsys)
+    code, text, err = run_cli(
+        ["--excitation", "random", "--duration", "6", "--period", "3", "--noise-force", "0.5", "--out", str(out)],
+        capsys,
+    )
     assert code == 0, err
     assert "held-out leg-force RMS error" in text
     params = se.load_platform(str(out / "platform.yaml"))
@@ -248,16 +258,25 @@ def test_identify_command_writes_a_platform_other_commands_load(tmp_path, capsys
     err = report["held_out_force_error"]
     # identified from noisy forces, it predicts the held-out forces far better than the nominal
     assert err["wls"] < 0.2 * err["nominal"] and err["consistent"] < 0.2 * err["nominal"]
-    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["platform.yaml", "report.json",
-                                                                                   "report.md", "truth.yaml"]
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == [
+        "platform.yaml",
+        "report.json",
+        "report.md",
+        "truth.yaml",
+    ]
     # per base parameter: its relative standard deviation and what brings it to 10 %, as requirements says
     rows = report["base_parameters"]
-    need = est.requirements(np.array([p["wls"] for p in rows]), np.array([p["wls_std"] for p in rows]),
-                            report["fitted_duration"], 0.5)
+    need = est.requirements(
+        np.array([p["wls"] for p in rows]), np.array([p["wls_std"] for p in rows]), report["fitted_duration"], 0.5
+    )
     dropped = 6 - report["fitted_duration"]
     for p, rel, time, noise, zero in zip(rows, need.rel_std, need.duration, need.noise, need.near_zero):
         assert (p["rel_std"], p["duration_10pct"], p["noise_force_10pct"], p["near_zero"]) == (
-            rel, time + dropped, noise, zero)
+            rel,
+            time + dropped,
+            noise,
+            zero,
+        )
     assert report["base_parameters_under_10pct_rel_std"] == int(np.sum(need.rel_std < 0.1))
     table = (out / "report.md").read_text()
     assert "| base parameter | WLS | std | rel. std | --duration for 10 %, s | force noise for 10 %, N |" in table
@@ -265,8 +284,23 @@ def test_identify_command_writes_a_platform_other_commands_load(tmp_path, capsys
 
     # a second, longer run: the first one's standard deviations, scaled by sqrt(T), predict its own
     again = tmp_path / "again"
-    code, text, err = run_cli(["--excitation", "random", "--duration", "9", "--period", "3", "--noise-force", "1",
-                               "--predicted-by", str(out / "report.json"), "--out", str(again)], capsys)
+    code, text, err = run_cli(
+        [
+            "--excitation",
+            "random",
+            "--duration",
+            "9",
+            "--period",
+            "3",
+            "--noise-force",
+            "1",
+            "--predicted-by",
+            str(out / "report.json"),
+            "--out",
+            str(again),
+        ],
+        capsys,
+    )
     assert code == 0, err
     prediction = json.loads((again / "report.json").read_text())["predicted_by"]
     assert prediction["fitted_duration"] == report["fitted_duration"] and prediction["noise_force"] == 0.5
@@ -295,8 +329,11 @@ def test_the_series_is_evaluated_once_by_the_compiled_law(dasgupta):
     t = times[:, None, None]
     wk = series.wf * np.arange(1, series.harmonics + 1)
     s, c = np.sin(wk * t), np.cos(wk * t)
-    want = (series.q0 + np.sum((series.a * s - series.b * c) / wk, axis=2), np.sum(series.a * c + series.b * s, axis=2),
-            np.sum(wk * (series.b * c - series.a * s), axis=2))
+    want = (
+        series.q0 + np.sum((series.a * s - series.b * c) / wk, axis=2),
+        np.sum(series.a * c + series.b * s, axis=2),
+        np.sum(wk * (series.b * c - series.a * s), axis=2),
+    )
     for got, w in zip((q, qd, qdd), want):
         assert np.abs(got - w).max() <= 1e-14 * np.abs(w).max()  # five terms summed: rounding only
     # on the reference the law's feedback vanishes: its forces are the controller's inverse dynamics
@@ -305,8 +342,12 @@ def test_the_series_is_evaluated_once_by_the_compiled_law(dasgupta):
     from stewart_env.dynamics.rk4 import law_forces
 
     for k, time in enumerate(times):
-        F = law_forces(exc.FOURIER_COMPUTED_TORQUE, row, *(np.ascontiguousarray(x[k:k + 1]) for x in states[:4]),
-                       time=float(time))
+        F = law_forces(
+            exc.FOURIER_COMPUTED_TORQUE,
+            row,
+            *(np.ascontiguousarray(x[k : k + 1]) for x in states[:4]),
+            time=float(time),
+        )
         F_id = model.inverse(*(x[k] for x in states))
         # roll-pitch-yaw back from the rotation matrix and the rates through E: rounding, times cond ~ 10
         assert np.abs(F[0] - F_id).max() < 1e-9 * np.abs(F_id).max()
@@ -332,7 +373,7 @@ def test_no_delay_measures_as_before(plant_run):
     rot = se.rotations.rotvec_to_matrix(rng.normal(scale=1e-5, size=(n, 3))) @ traj.rotation
     forces = traj.leg_forces + rng.normal(scale=1.0, size=(n, 6))
     keep = traj.time >= experiment.SETTLE
-    keep[-(est.SAVGOL_WINDOW // 2 + 1):] = False
+    keep[-(est.SAVGOL_WINDOW // 2 + 1) :] = False
     assert np.array_equal(record.time, traj.time[keep]) and np.array_equal(record.forces, forces[keep])
     for got, want in zip(record.states, est.derivatives(experiment.SAMPLE_DT, pos, rot)):
         assert np.array_equal(got, want[keep])
@@ -343,8 +384,12 @@ def test_a_delay_shifts_the_poses_by_whole_samples(plant_run, derivatives):
     plant, traj = plant_run
     k = 4
     on_time = experiment.measure(plant, traj, experiment.Settings(derivatives=derivatives), np.random.default_rng(0))
-    late = experiment.measure(plant, traj, experiment.Settings(derivatives=derivatives, delay=k * experiment.SAMPLE_DT),
-                              np.random.default_rng(0))
+    late = experiment.measure(
+        plant,
+        traj,
+        experiment.Settings(derivatives=derivatives, delay=k * experiment.SAMPLE_DT),
+        np.random.default_rng(0),
+    )
     # the same samples kept, the forces of their own time, every motion quantity k samples old
     assert np.array_equal(late.time, on_time.time) and np.array_equal(late.forces, on_time.forces)
     if derivatives == "exact":
@@ -356,17 +401,22 @@ def test_a_delay_shifts_the_poses_by_whole_samples(plant_run, derivatives):
 
 
 def test_bad_delays_are_refused_naming_the_option(tmp_path, capsys):
-    for delay, says in ((0.003, "expected a whole number of samples"), (-0.005, "expected seconds"),
-                        (float("nan"), "expected"),
-                        (float("inf"), "expected"), (experiment.MAX_DELAY + experiment.SAMPLE_DT, "expected seconds")):
+    for delay, says in (
+        (0.003, "expected a whole number of samples"),
+        (-0.005, "expected seconds"),
+        (float("nan"), "expected"),
+        (float("inf"), "expected"),
+        (experiment.MAX_DELAY + experiment.SAMPLE_DT, "expected seconds"),
+    ):
         with pytest.raises(IdentificationError, match=f"^--delay: {says}"):
             experiment.Settings(delay=delay).check()
     experiment.Settings(delay=experiment.MAX_DELAY).check()
     assert experiment.Settings(delay=0.015).delay_samples == 3
     out = tmp_path / "run"
     for value in ("0.003", "-0.005", "nan", "1"):
-        code, _, err = run_cli_exit(["--excitation", "random", "--duration", "6", "--period", "3", "--delay", value,
-                                     "--out", str(out)], capsys)
+        code, _, err = run_cli_exit(
+            ["--excitation", "random", "--duration", "6", "--period", "3", "--delay", value, "--out", str(out)], capsys
+        )
         # argparse's refusal (a negative or non-finite number) follows its usage; the command's own is one line
         assert code == 2 and "--delay" in err.strip().splitlines()[-1], err
         assert not out.exists() or not any(p.name != ".stewart-env.lock" for p in out.iterdir())
@@ -401,7 +451,7 @@ def test_standard_deviations_shrink_as_one_over_the_square_root_of_the_record(no
     # the record's rows at 60 % of their time: the law T (RSD / target)^2 predicts the whole record's std
     need = est.requirements(one.beta, one.std, 1.0, noise=1.0, target=1.0)
     predicted = one.std * np.sqrt(period / A.shape[0])
-    assert np.allclose(need.duration, need.rel_std ** 2)
+    assert np.allclose(need.duration, need.rel_std**2)
     ratio = whole.std / predicted
     # the 0.8 period beyond the first is not a whole one, so A^T A grows only about linearly
     assert 0.8 < np.median(ratio) < 1.25, np.median(ratio)
@@ -417,14 +467,35 @@ def test_a_reference_report_that_does_not_fit_is_refused_before_any_work(tmp_pat
     import json
 
     bad = tmp_path / "bad.json"
-    for document, says in (({"platform": "dasgupta1998"}, "not a report.json"),
-                           ({"platform": "motion_simulator", "settings": {"model": "improved", "noise_force": 1.0},
-                             "fitted_duration": 5.0, "base_parameters": [{"name": "x", "wls": 1.0, "wls_std": 1.0}]},
-                            "a report of dasgupta1998's improved base parameters")):
+    for document, says in (
+        ({"platform": "dasgupta1998"}, "not a report.json"),
+        (
+            {
+                "platform": "motion_simulator",
+                "settings": {"model": "improved", "noise_force": 1.0},
+                "fitted_duration": 5.0,
+                "base_parameters": [{"name": "x", "wls": 1.0, "wls_std": 1.0}],
+            },
+            "a report of dasgupta1998's improved base parameters",
+        ),
+    ):
         bad.write_text(json.dumps(document))
         out = tmp_path / "run"
-        code, _, err = run_cli(["--excitation", "random", "--duration", "6", "--period", "3",
-                                "--predicted-by", str(bad), "--out", str(out)], capsys)
+        code, _, err = run_cli(
+            [
+                "--excitation",
+                "random",
+                "--duration",
+                "6",
+                "--period",
+                "3",
+                "--predicted-by",
+                str(bad),
+                "--out",
+                str(out),
+            ],
+            capsys,
+        )
         assert code == 2 and err.startswith("stewart-env identify: error: --predicted-by: ") and says in err, err
         assert not out.exists() or not any(p.name != ".stewart-env.lock" for p in out.iterdir())
     bad.write_text("{")

@@ -109,8 +109,9 @@ def test_make_vec_modes_agree_under_gymnasium_vector_wrappers():
 
 def test_vector_record_video_on_the_native_vector_env(tmp_path):
     env = gym.make_vec(ENV_ID, num_envs=N_ENVS, vectorization_mode="vector_entry_point", render_mode="rgb_array")
-    env = RecordVideo(env, str(tmp_path), episode_trigger=lambda episode: episode == 0, video_length=8,
-                      disable_logger=True)
+    env = RecordVideo(
+        env, str(tmp_path), episode_trigger=lambda episode: episode == 0, video_length=8, disable_logger=True
+    )
     env.reset(seed=0)
     for action in _actions(1, 10):
         env.step(action)
@@ -144,12 +145,12 @@ def _continue(env, actions, vector: bool):
     return out
 
 
-@pytest.mark.parametrize("copier", [copy.deepcopy, lambda env: pickle.loads(pickle.dumps(env))],
-                         ids=["deepcopy", "pickle"])
+@pytest.mark.parametrize(
+    "copier", [copy.deepcopy, lambda env: pickle.loads(pickle.dumps(env))], ids=["deepcopy", "pickle"]
+)
 @pytest.mark.parametrize("vector", [False, True], ids=["single", "vector"])
 def test_copy_mid_episode_continues_bit_identically(copier, vector):
-    env = (gym.make_vec(ENV_ID, num_envs=N_ENVS, vectorization_mode="vector_entry_point") if vector
-           else gym.make(ENV_ID))
+    env = gym.make_vec(ENV_ID, num_envs=N_ENVS, vectorization_mode="vector_entry_point") if vector else gym.make(ENV_ID)
     # Small forces, seed 11: the single platform runs for 17 steps, so it is copied at step 5 and
     # followed to step 15 inside its episode; the batch is followed to step 20, through both rows'
     # ends and the first autoreset (the copied random generators draw the new targets).
@@ -235,8 +236,9 @@ def _torchrl_rollout(num_envs: int, read_infos: bool, steps: int = 40):
         env.close()
 
 
-@pytest.mark.parametrize("num_envs, read_infos", [(1, False), (1, True), (N_ENVS, True)],
-                         ids=["single", "single-infos", "batched"])
+@pytest.mark.parametrize(
+    "num_envs, read_infos", [(1, False), (1, True), (N_ENVS, True)], ids=["single", "single-infos", "batched"]
+)
 def test_torchrl_gym_env_specs_and_rollout(num_envs, read_infos):
     td = _torchrl_rollout(num_envs, read_infos)
     batch = (40,) if num_envs == 1 else (num_envs, 40)
@@ -276,23 +278,40 @@ def test_tianshou_off_policy_sac_collects_and_trains():
     envs = DummyVectorEnv([lambda: gym.make(ENV_ID) for _ in range(N_ENVS)])
     envs.seed(0)
     obs_shape, act_shape = envs.observation_space[0].shape, envs.action_space[0].shape
-    actor = ContinuousActorProbabilistic(preprocess_net=Net(state_shape=obs_shape, hidden_sizes=[32]),
-                                         action_shape=act_shape, unbounded=True, conditioned_sigma=True)
-    critic = ContinuousCritic(preprocess_net=Net(state_shape=obs_shape, action_shape=act_shape,
-                                                 hidden_sizes=[32], concat=True))
-    algorithm = SAC(policy=SACPolicy(actor=actor, action_space=envs.action_space[0]),
-                    policy_optim=AdamOptimizerFactory(lr=1e-3), critic=critic,
-                    critic_optim=AdamOptimizerFactory(lr=1e-3))
+    actor = ContinuousActorProbabilistic(
+        preprocess_net=Net(state_shape=obs_shape, hidden_sizes=[32]),
+        action_shape=act_shape,
+        unbounded=True,
+        conditioned_sigma=True,
+    )
+    critic = ContinuousCritic(
+        preprocess_net=Net(state_shape=obs_shape, action_shape=act_shape, hidden_sizes=[32], concat=True)
+    )
+    algorithm = SAC(
+        policy=SACPolicy(actor=actor, action_space=envs.action_space[0]),
+        policy_optim=AdamOptimizerFactory(lr=1e-3),
+        critic=critic,
+        critic_optim=AdamOptimizerFactory(lr=1e-3),
+    )
     buffer = VectorReplayBuffer(2000, N_ENVS)
     collector = Collector(algorithm, envs, buffer, exploration_noise=True, raise_on_nan_in_buffer=True)
     try:
         collector.reset()
         warmup = collector.collect(n_step=200, random=True)
         assert warmup.n_collected_steps == 200 and warmup.n_collected_episodes >= 2
-        stats = algorithm.run_training(OffPolicyTrainerParams(
-            training_collector=collector, max_epochs=1, epoch_num_steps=100, collection_step_num_env_steps=20,
-            batch_size=32, update_step_num_gradient_steps_per_sample=0.1, test_collector=None,
-            verbose=False, show_progress=False))
+        stats = algorithm.run_training(
+            OffPolicyTrainerParams(
+                training_collector=collector,
+                max_epochs=1,
+                epoch_num_steps=100,
+                collection_step_num_env_steps=20,
+                batch_size=32,
+                update_step_num_gradient_steps_per_sample=0.1,
+                test_collector=None,
+                verbose=False,
+                show_progress=False,
+            )
+        )
         # 100 steps in collection steps of 20, each followed by one update step (2 gradient steps).
         assert stats.train_step == 100 and stats.update_step == 5
         assert len(buffer) == 300 and not buffer.hasnull()
@@ -318,8 +337,9 @@ def test_skrl_ppo_on_the_native_vector_env(tmp_path, headless):
         def __init__(self, observation_space, action_space, device):
             Model.__init__(self, observation_space=observation_space, action_space=action_space, device=device)
             GaussianMixin.__init__(self, clip_actions=True)
-            self.net = torch.nn.Sequential(torch.nn.Linear(self.num_observations, 32), torch.nn.Tanh(),
-                                           torch.nn.Linear(32, self.num_actions))
+            self.net = torch.nn.Sequential(
+                torch.nn.Linear(self.num_observations, 32), torch.nn.Tanh(), torch.nn.Linear(32, self.num_actions)
+            )
             self.log_std = torch.nn.Parameter(torch.full((self.num_actions,), -1.0))
 
         def compute(self, inputs, role=""):
@@ -329,28 +349,35 @@ def test_skrl_ppo_on_the_native_vector_env(tmp_path, headless):
         def __init__(self, observation_space, device):
             Model.__init__(self, observation_space=observation_space, device=device)
             DeterministicMixin.__init__(self)
-            self.net = torch.nn.Sequential(torch.nn.Linear(self.num_observations, 32), torch.nn.Tanh(),
-                                           torch.nn.Linear(32, 1))
+            self.net = torch.nn.Sequential(
+                torch.nn.Linear(self.num_observations, 32), torch.nn.Tanh(), torch.nn.Linear(32, 1)
+            )
 
         def compute(self, inputs, role=""):
             return self.net(inputs["observations"]), {}
 
     torch.manual_seed(0)
-    env = wrap_env(gym.make_vec(ENV_ID, num_envs=N_ENVS, vectorization_mode="vector_entry_point"),
-                   wrapper="gymnasium")
+    env = wrap_env(gym.make_vec(ENV_ID, num_envs=N_ENVS, vectorization_mode="vector_entry_point"), wrapper="gymnasium")
     assert env.num_envs == N_ENVS
     cfg = PPO_CFG(rollouts=16, learning_epochs=2, mini_batches=2)
     cfg.experiment.directory = str(tmp_path)
     cfg.experiment.write_interval = 0
     cfg.experiment.checkpoint_interval = 0
-    agent = PPO(models={"policy": Policy(env.observation_space, env.action_space, env.device),
-                        "value": Value(env.observation_space, env.device)},
-                memory=RandomMemory(memory_size=16, num_envs=env.num_envs, device=env.device),
-                observation_space=env.observation_space, action_space=env.action_space, device=env.device,
-                cfg=cfg)
+    agent = PPO(
+        models={
+            "policy": Policy(env.observation_space, env.action_space, env.device),
+            "value": Value(env.observation_space, env.device),
+        },
+        memory=RandomMemory(memory_size=16, num_envs=env.num_envs, device=env.device),
+        observation_space=env.observation_space,
+        action_space=env.action_space,
+        device=env.device,
+        cfg=cfg,
+    )
     # headless stays at its default, False: the trainer calls env.render() every step.
-    trainer = SequentialTrainer(env=env, agents=agent, cfg={"timesteps": 48, "disable_progressbar": True,
-                                                             "close_environment_at_exit": False})
+    trainer = SequentialTrainer(
+        env=env, agents=agent, cfg={"timesteps": 48, "disable_progressbar": True, "close_environment_at_exit": False}
+    )
     try:
         trainer.train()
         observations = agent.memory.get_tensor_by_name("observations")
@@ -437,8 +464,18 @@ def test_cleanrl_style_ppo_loop_on_sync_vector_env():
 
 
 def _zoo(module: str, *args: str, cwd) -> str:
-    cmd = [sys.executable, "-m", f"rl_zoo3.{module}", "--algo", "ppo", "--env", ENV_ID,
-           "--gym-packages", "stewart_env", *args]
+    cmd = [
+        sys.executable,
+        "-m",
+        f"rl_zoo3.{module}",
+        "--algo",
+        "ppo",
+        "--env",
+        ENV_ID,
+        "--gym-packages",
+        "stewart_env",
+        *args,
+    ]
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=cwd, env=_headless_env())
     assert run.returncode == 0, f"{' '.join(cmd)}\n{run.stdout[-2000:]}\n{run.stderr[-3000:]}"
     return run.stdout
@@ -447,15 +484,32 @@ def _zoo(module: str, *args: str, cwd) -> str:
 @pytest.mark.slow
 def test_rl_zoo3_trains_and_enjoys_with_the_shipped_config(tmp_path):
     # The shipped PPO entry, shrunk through rl_zoo3's own -params overrides.
-    _zoo("train", "--conf-file", os.path.join(CONFIG_DIR, "ppo.yml"), "-n", "128", "-f", str(tmp_path),
-         "--seed", "0", "--eval-freq", "-1", "-params", "n_envs:2", "n_steps:32", "batch_size:32", "n_epochs:1",
-         cwd=tmp_path)
+    _zoo(
+        "train",
+        "--conf-file",
+        os.path.join(CONFIG_DIR, "ppo.yml"),
+        "-n",
+        "128",
+        "-f",
+        str(tmp_path),
+        "--seed",
+        "0",
+        "--eval-freq",
+        "-1",
+        "-params",
+        "n_envs:2",
+        "n_steps:32",
+        "batch_size:32",
+        "n_epochs:1",
+        cwd=tmp_path,
+    )
     run_dir = tmp_path / "ppo" / f"{ENV_ID}_1"
     assert (run_dir / f"{ENV_ID}.zip").is_file()
     assert (run_dir / ENV_ID / "vecnormalize.pkl").is_file()
     # enjoy renders by default (render_mode "human"); headless it draws nothing and still plays.
-    out = _zoo("enjoy", "-f", str(tmp_path), "--exp-id", "1", "-n", "200", "--seed", "0", "--deterministic",
-               cwd=tmp_path)
+    out = _zoo(
+        "enjoy", "-f", str(tmp_path), "--exp-id", "1", "-n", "200", "--seed", "0", "--deterministic", cwd=tmp_path
+    )
     episodes = re.search(r"^(\d+) Episodes$", out, re.MULTILINE)
     mean = re.search(r"^Mean reward: (\S+) \+/- (\S+)$", out, re.MULTILINE)
     assert episodes and int(episodes.group(1)) >= 1, out[-2000:]

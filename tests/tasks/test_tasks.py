@@ -64,10 +64,18 @@ def test_rotation_error_matches_scipy():
 def test_tracking_errors_are_reference_minus_actual():
     rng = np.random.default_rng(3)
     n = 4
-    state = PlatformState(rng.normal(size=(n, 3)), Rotation.random(n, random_state=2).as_matrix(),
-                  rng.normal(size=(n, 3)), rng.normal(size=(n, 3)))
-    ref = Reference(rng.normal(size=(n, 3)), Rotation.random(n, random_state=3).as_matrix(),
-                    rng.normal(size=(n, 3)), rng.normal(size=(n, 3)))
+    state = PlatformState(
+        rng.normal(size=(n, 3)),
+        Rotation.random(n, random_state=2).as_matrix(),
+        rng.normal(size=(n, 3)),
+        rng.normal(size=(n, 3)),
+    )
+    ref = Reference(
+        rng.normal(size=(n, 3)),
+        Rotation.random(n, random_state=3).as_matrix(),
+        rng.normal(size=(n, 3)),
+        rng.normal(size=(n, 3)),
+    )
     e = tracking_errors(state, ref)
     np.testing.assert_array_equal(e.position, ref.position - state.position)
     np.testing.assert_array_equal(e.velocity, ref.velocity - state.velocity)
@@ -84,8 +92,9 @@ def test_pose_margins(dasgupta):
     assert pose_margins(p, p.home_position, [0, 0, 0.44])[0]
     # The condition bound: 3.62 at home, 3.81 at the paper's case pose (the config's comments).
     lim = p.limits
-    strict = p.replace(limits=type(lim)(lim.leg_length, lim.leg_force, lim.position_min, lim.position_max,
-                                        lim.max_angle, 3.7))
+    strict = p.replace(
+        limits=type(lim)(lim.leg_length, lim.leg_force, lim.position_min, lim.position_max, lim.max_angle, 3.7)
+    )
     assert pose_margins(strict, p.home_position, [0, 0, 0], margin=0.0)[0]
     assert not pose_margins(strict, [0.1, 0.0, 0.4], [0, 0, -0.2], margin=0.0)[0]
     assert pose_margins(p, [0.1, 0.0, 0.4], [0, 0, -0.2], margin=0.0)[0]
@@ -186,8 +195,7 @@ def test_tracking_reference_twist_is_its_derivative(dasgupta):
     np.testing.assert_allclose(ref.angular_velocity[1], omega, atol=1e-8)
     # The accelerations likewise, from the twist: the same truncation and rounding bounds.
     np.testing.assert_allclose(ref.lin_acc[1], (ref.velocity[2] - ref.velocity[0]) / (2 * h), atol=1e-8)
-    np.testing.assert_allclose(ref.ang_acc[1], (ref.angular_velocity[2] - ref.angular_velocity[0]) / (2 * h),
-                               atol=1e-8)
+    np.testing.assert_allclose(ref.ang_acc[1], (ref.angular_velocity[2] - ref.angular_velocity[0]) / (2 * h), atol=1e-8)
     assert np.abs(ref.ang_acc[1]).max() > 1e-3  # a moving reference: the check above is not of zeros
 
 
@@ -201,8 +209,12 @@ def test_fixed_targets_have_zero_accelerations():
 
 
 def test_tracking_starts_on_the_reference_and_previews_it():
-    env = gym.make("StewartPlatform-v1", task="tracking", normalize_observation=False,
-                   task_options={"preview": 2, "preview_interval": 0.05})
+    env = gym.make(
+        "StewartPlatform-v1",
+        task="tracking",
+        normalize_observation=False,
+        task_options={"preview": 2, "preview_interval": 0.05},
+    )
     env.reset(seed=9)
     u = env.unwrapped
     s, tg = u.state, u.target
@@ -220,8 +232,9 @@ def test_tracking_starts_on_the_reference_and_previews_it():
     for j, ahead in enumerate((5, 10)):
         ref = later[ahead]
         np.testing.assert_allclose(preview[j, :3], ref.position - s.position, atol=1e-6)  # float32
-        np.testing.assert_allclose(preview[j, 3:], rotation_error(ref.rotation[None], s.rotation[None])[0][0],
-                                   atol=1e-6)
+        np.testing.assert_allclose(
+            preview[j, 3:], rotation_error(ref.rotation[None], s.rotation[None])[0][0], atol=1e-6
+        )
 
 
 # -- disturbance --------------------------------------------------------------------------------------------
@@ -255,13 +268,20 @@ def test_disturbance_holds_home_under_a_wrench_it_does_not_observe():
     np.testing.assert_array_equal(u.target.position, p.home_position)
     env.step(np.full(6, 0.1))
     assert np.any(u.external_wrench != 0)
-    assert set(u.observation_layout) == {"position", "orientation", "velocity", "angular_velocity",
-                                         "position_error", "orientation_error"}
+    assert set(u.observation_layout) == {
+        "position",
+        "orientation",
+        "velocity",
+        "angular_velocity",
+        "position_error",
+        "orientation_error",
+    }
 
 
 def test_disturbance_wrench_moves_the_platform():
-    calm = gym.make("StewartPlatform-v1", task="disturbance", task_options={"sine_force": 0.0, "sine_moment": 0.0,
-                                                                            "n_impulses": 0})
+    calm = gym.make(
+        "StewartPlatform-v1", task="disturbance", task_options={"sine_force": 0.0, "sine_moment": 0.0, "n_impulses": 0}
+    )
     pushed = gym.make("StewartPlatform-v1", task="disturbance")
     for env in (calm, pushed):
         env.reset(seed=1)
@@ -276,17 +296,20 @@ def test_disturbance_wrench_moves_the_platform():
 # -- options ------------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("task, options, message", [
-    ("setpoint", {"position_rang": 0.1}, "position_rang"),
-    ("setpoint", {"angle_range": -0.1}, "angle_range"),
-    ("tracking", {"frequency_range": (1.0, 0.5)}, "frequency_range"),
-    ("tracking", {"preview": -1}, "preview"),
-    ("tracking", {"preview_interval": 0.0}, "preview_interval"),
-    ("disturbance", {"n_impulses": 1.5}, "n_impulses"),
-    ("disturbance", {"impulse_duration": 0.0}, "impulse_duration"),
-    ("disturbance", {"horizon": 0.01, "impulse_duration": 0.05}, "horizon"),
-    ("disturbance", {"sine_force": [1.0, 2.0]}, "sine_force"),
-])
+@pytest.mark.parametrize(
+    "task, options, message",
+    [
+        ("setpoint", {"position_rang": 0.1}, "position_rang"),
+        ("setpoint", {"angle_range": -0.1}, "angle_range"),
+        ("tracking", {"frequency_range": (1.0, 0.5)}, "frequency_range"),
+        ("tracking", {"preview": -1}, "preview"),
+        ("tracking", {"preview_interval": 0.0}, "preview_interval"),
+        ("disturbance", {"n_impulses": 1.5}, "n_impulses"),
+        ("disturbance", {"impulse_duration": 0.0}, "impulse_duration"),
+        ("disturbance", {"horizon": 0.01, "impulse_duration": 0.05}, "horizon"),
+        ("disturbance", {"sine_force": [1.0, 2.0]}, "sine_force"),
+    ],
+)
 def test_bad_task_options_name_the_option(dasgupta, task, options, message):
     with pytest.raises(ValueError, match=message):
         make_task(task, dasgupta, 0.01, options)
@@ -316,8 +339,14 @@ def test_randomization_validates_its_spec():
 
 
 def test_randomization_scales_the_declared_parameters(dasgupta):
-    spec = {"platform.mass": (0.5, 0.5), "legs.mass": (2.0, 2.0), "inertia": (3.0, 3.0),
-            "upper_leg.com": (-1.0, -1.0), "damping.prismatic": (4.0, 4.0), "mass": (1.5, 1.5)}
+    spec = {
+        "platform.mass": (0.5, 0.5),
+        "legs.mass": (2.0, 2.0),
+        "inertia": (3.0, 3.0),
+        "upper_leg.com": (-1.0, -1.0),
+        "damping.prismatic": (4.0, 4.0),
+        "mass": (1.5, 1.5),
+    }
     r = Randomization(spec)
     factors = r.sample(np.random.default_rng(0))
     assert list(factors) == [k for k in KEYS if k in spec]  # drawn in the order of KEYS
@@ -342,8 +371,13 @@ def test_randomization_order_does_not_depend_on_the_dict_order():
 
 
 def test_randomized_env_draws_new_params_each_episode_and_reports_them():
-    spec = {"platform.mass": (0.8, 1.2), "legs.mass": (0.9, 1.1), "inertia": (0.8, 1.2), "com": (0.9, 1.1),
-            "damping": (0.5, 2.0)}
+    spec = {
+        "platform.mass": (0.8, 1.2),
+        "legs.mass": (0.9, 1.1),
+        "inertia": (0.8, 1.2),
+        "com": (0.9, 1.1),
+        "damping": (0.5, 2.0),
+    }
     env = gym.make("StewartPlatform-v1", randomization=spec)
     _, info1 = env.reset(seed=0)
     params1 = env.unwrapped.model.params[0]
@@ -359,8 +393,9 @@ def test_randomized_env_draws_new_params_each_episode_and_reports_them():
     assert params1 != params2
     nominal = env.unwrapped.platform
     # One multiplication: equal to rounding.
-    assert params1.platform.mass == pytest.approx(nominal.platform.mass * info1["randomization"]["platform.mass"],
-                                                  rel=1e-15)
+    assert params1.platform.mass == pytest.approx(
+        nominal.platform.mass * info1["randomization"]["platform.mass"], rel=1e-15
+    )
     _, again = env.reset(seed=0)
     assert again["randomization"] == info1["randomization"]
 
@@ -432,17 +467,27 @@ def test_a_task_sees_the_batch_read_only():
     np.testing.assert_array_equal(v.leg_forces[0], u.leg_forces)
     np.testing.assert_array_equal(v.state.position[0], u.state.position)
     assert v.time[0] == 0.01 and v.episode["target_position"].shape == (1, 3)
-    for array in (v.state.position, v.errors.position, v.errors.position_norm, v.leg_rates, v.condition, v.action,
-                  v.episode["target_rotation"]):
+    for array in (
+        v.state.position,
+        v.errors.position,
+        v.errors.position_norm,
+        v.leg_rates,
+        v.condition,
+        v.action,
+        v.episode["target_rotation"],
+    ):
         with pytest.raises(ValueError, match="read-only"):
             array[...] = 0.0
 
 
-@pytest.mark.parametrize("bad, message", [
-    ({"termination_reasons": ("reached",)}, "must begin with"),
-    ({"success_reasons": ("landed",)}, "success reason"),
-    ({"episode_fields": lambda self: {"goal": (3,)}}, "fixed target"),
-])
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        ({"termination_reasons": ("reached",)}, "must begin with"),
+        ({"success_reasons": ("landed",)}, "success reason"),
+        ({"episode_fields": lambda self: {"goal": (3,)}}, "fixed target"),
+    ],
+)
 def test_a_task_that_breaks_the_interface_is_refused_at_construction(dasgupta, bad, message):
     broken = type("Broken", (SetpointTask,), bad)
     with pytest.raises(TypeError, match=message):
@@ -474,9 +519,16 @@ def test_hold_payload_is_a_dead_weight_at_its_point(dasgupta):
     # The moment of the weight about P: (R c) x m g, checked against the triple product written out
     # (the two differ by rounding only: ~1e-15 relative, and atol for components that cancel to ~0).
     arm = R @ c
-    np.testing.assert_allclose(out[0, 3:], [arm[1] * force[2] - arm[2] * force[1],
-                                            arm[2] * force[0] - arm[0] * force[2],
-                                            arm[0] * force[1] - arm[1] * force[0]], rtol=1e-15, atol=1e-12)
+    np.testing.assert_allclose(
+        out[0, 3:],
+        [
+            arm[1] * force[2] - arm[2] * force[1],
+            arm[2] * force[0] - arm[0] * force[2],
+            arm[0] * force[1] - arm[1] * force[0],
+        ],
+        rtol=1e-15,
+        atol=1e-12,
+    )
 
 
 def test_hold_the_holding_forces_of_the_bare_platform_let_the_payload_pull_it_down():
@@ -497,8 +549,14 @@ def test_hold_the_holding_forces_of_the_bare_platform_let_the_payload_pull_it_do
     np.testing.assert_array_equal(u.external_wrench[3:], 0.0)
     # 0.2 s under a weight the forces do not carry: the platform has sunk, by more than rounding.
     assert u.state.position[2] < p.home_position[2] - 1e-4
-    assert set(u.observation_layout) == {"position", "orientation", "velocity", "angular_velocity",
-                                         "position_error", "orientation_error"}
+    assert set(u.observation_layout) == {
+        "position",
+        "orientation",
+        "velocity",
+        "angular_velocity",
+        "position_error",
+        "orientation_error",
+    }
 
 
 def test_hold_options_are_checked(dasgupta):
@@ -517,17 +575,32 @@ def test_old_reward_keywords_say_they_moved_to_task_options(make, name):
         make(**{name: 1.0})
 
 
-@pytest.mark.parametrize("name, value", [
-    ("termination_cost", np.nan), ("termination_cost", np.inf), ("ctrl_cost_weight", -1.0),
-    ("ctrl_cost_weight", 1e300), ("position_reward_scale", 0.0), ("velocity_cost_weight", "1"),
-])
+@pytest.mark.parametrize(
+    "name, value",
+    [
+        ("termination_cost", np.nan),
+        ("termination_cost", np.inf),
+        ("ctrl_cost_weight", -1.0),
+        ("ctrl_cost_weight", 1e300),
+        ("position_reward_scale", 0.0),
+        ("velocity_cost_weight", "1"),
+    ],
+)
 def test_hostile_reward_weights_are_refused_naming_the_option(make, name, value):
     with pytest.raises((ValueError, TypeError), match=rf"task_options\['{name}'\]"):
         make(task_options={name: value})
 
 
-@pytest.mark.parametrize("options", [{"max_payload": -1.0}, {"max_payload": np.nan}, {"max_payload": 401.0},
-                                     {"max_payload": True}, {"payload_radius": np.inf}])
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"max_payload": -1.0},
+        {"max_payload": np.nan},
+        {"max_payload": 401.0},
+        {"max_payload": True},
+        {"payload_radius": np.inf},
+    ],
+)
 def test_hold_task_refuses_hostile_payload_options(make, options):
     name = next(iter(options))
     with pytest.raises((ValueError, TypeError), match=rf"task_options\['{name}'\]"):

@@ -7,10 +7,26 @@ import pytest
 import stewart_env as se
 from stewart_env import bench
 
-MEASURES = ("forward_mujoco", "forward_api", "forward_workspace", "inverse_mujoco", "inverse_api",
-            "inverse_workspace", "mass_and_bias_workspace", "step_mujoco", "step_plant", "step_rollout",
-            "step_workspace", "step_env", "step_env_mujoco",
-            "batch_mujoco", "batch_vector_env", "batch_rollout", "reset_randomized", "reset_nominal")
+MEASURES = (
+    "forward_mujoco",
+    "forward_api",
+    "forward_workspace",
+    "inverse_mujoco",
+    "inverse_api",
+    "inverse_workspace",
+    "mass_and_bias_workspace",
+    "step_mujoco",
+    "step_plant",
+    "step_rollout",
+    "step_workspace",
+    "step_env",
+    "step_env_mujoco",
+    "batch_mujoco",
+    "batch_vector_env",
+    "batch_rollout",
+    "reset_randomized",
+    "reset_nominal",
+)
 
 
 def test_bench_mujoco_times_every_call_and_tabulates_the_ratios(dasgupta):
@@ -34,7 +50,7 @@ def test_bench_mujoco_without_mujoco_names_the_extra(monkeypatch, capsys):
     from stewart_env.cli import main
 
     assert main(["bench", "--mujoco"]) == 2
-    assert 'argument --mujoco' in capsys.readouterr().err
+    assert "argument --mujoco" in capsys.readouterr().err
 
 
 def test_bench_reset_is_per_row():

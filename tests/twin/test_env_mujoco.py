@@ -98,7 +98,9 @@ def test_a_copy_on_mujoco_continues_bit_for_bit(mujoco, how):
 
 def test_without_mujoco_the_error_names_the_model_and_the_extra(monkeypatch):
     monkeypatch.setattr(twin.library, "_mj", None)
-    with pytest.raises(ImportError, match=r"plant='mujoco' \(or model='mujoco'\): .*mujoco.* is not installed.*pip install"):
+    with pytest.raises(
+        ImportError, match=r"plant='mujoco' \(or model='mujoco'\): .*mujoco.* is not installed.*pip install"
+    ):
         gym.make(ENV_ID, model="mujoco")
 
 

@@ -227,8 +227,10 @@ def test_plant_copies_and_pickles_continue_bit_for_bit(dasgupta):
     state = [x.copy() for x in (t, R, v, w)]
     for _ in range(3):
         plant.step_inplace(*state, F, W, 1e-3, 10)
-    copies = [(copy.deepcopy(plant), [x.copy() for x in state]),
-              (pickle.loads(pickle.dumps(plant)), [x.copy() for x in state])]
+    copies = [
+        (copy.deepcopy(plant), [x.copy() for x in state]),
+        (pickle.loads(pickle.dumps(plant)), [x.copy() for x in state]),
+    ]
     for _ in range(5):
         plant.step_inplace(*state, F, W, 1e-3, 10)
         for other, other_state in copies:
@@ -255,12 +257,15 @@ def test_export_mjcf_writes_a_model_mujoco_loads_into_a_new_folder(tmp_path, cap
     assert m.neq == 6  # one connect constraint closes each leg's loop
 
 
-@pytest.mark.parametrize("content, message", [
-    ("hello: [\n", "not valid YAML"),
-    ("gravity: !!python/object/apply:os.system ['echo hi']\n", "not valid YAML"),
-    ("[]\n", "expected a mapping"),
-    ("", "expected a mapping"),
-])
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        ("hello: [\n", "not valid YAML"),
+        ("gravity: !!python/object/apply:os.system ['echo hi']\n", "not valid YAML"),
+        ("[]\n", "expected a mapping"),
+        ("", "expected a mapping"),
+    ],
+)
 def test_export_mjcf_refuses_a_hostile_platform_file_in_one_line(tmp_path, capsys, content, message):
     pytest.importorskip("mujoco")
     platform = tmp_path / "hostile.yaml"
@@ -292,8 +297,12 @@ def test_export_mjcf_write_failure_names_out_without_a_traceback(tmp_path, capsy
 @pytest.mark.parametrize("timestep", ["1e300", "0.5"])
 def test_export_mjcf_refuses_a_timestep_no_simulation_could_use(tmp_path, capsys, timestep):
     pytest.importorskip("mujoco")
-    assert exit_code(["export-mjcf", "--platform", "dasgupta1998", "--out", str(tmp_path / "x.xml"),
-                       "--timestep", timestep]) == 2
+    assert (
+        exit_code(
+            ["export-mjcf", "--platform", "dasgupta1998", "--out", str(tmp_path / "x.xml"), "--timestep", timestep]
+        )
+        == 2
+    )
     assert "argument --timestep" in capsys.readouterr().err
     assert not (tmp_path / "x.xml").exists()
 
@@ -301,6 +310,7 @@ def test_export_mjcf_refuses_a_timestep_no_simulation_could_use(tmp_path, capsys
 def test_to_mjcf_and_the_plant_refuse_bad_settings_naming_them(dasgupta):
     pytest.importorskip("mujoco")
     from stewart_env.mujoco import MujocoPlant, to_mjcf
+
     with pytest.raises(ValueError, match=r"^timestep: "):
         to_mjcf(dasgupta, timestep="x")
     with pytest.raises(ValueError, match=r"^nthread: "):
@@ -328,13 +338,14 @@ def test_mujoco_env_copies_continue_bit_for_bit(make, how):
 def test_mujoco_env_passes_gymnasiums_checker(make):
     pytest.importorskip("mujoco")
     from gymnasium.utils.env_checker import check_env
+
     env = make(model="mujoco", task="hold")
     with pytest.warns(UserWarning):  # the checker's note on an unbounded observation Box
         check_env(env.unwrapped, skip_render_check=True)
 
 
 def test_model_names_are_case_insensitive_and_mujoco_is_listed():
-    """"MuJoCo" is the MuJoCo plant as "Improved" is the improved model; an unknown name lists both."""
+    """ "MuJoCo" is the MuJoCo plant as "Improved" is the improved model; an unknown name lists both."""
     pytest.importorskip("mujoco")
     from stewart_env.envs import StewartPlatformEnv
 
