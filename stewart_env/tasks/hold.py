@@ -33,6 +33,7 @@ class HoldTask(Task):
         max_payload: kg, 0 to 10 m_p, default 0.5 m_p.
         payload_radius: m, 0 to r, default r / 2.
         **weights: the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
+
     Raises:
         ValueError: an unknown option or one out of its range (the message names it).
     """

@@ -93,6 +93,7 @@ class SetpointTask(Task):
             start (0.1, 0, 0.395) and target (0.1, 0, 0.4), rpy (0, 0, -0.2).  Each must lie
             inside the platform's limits.
         **weights: the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
+
     Raises:
         ValueError: an unknown option or one out of its range (the message names it).
     """
