@@ -313,9 +313,9 @@ class PlatformBatch:
             batch_infos: return one dict of the rows' infos instead of one dict per row.
 
         Returns:
-            One info dict per row: with randomisation, ``randomization`` (the factors, name ->
-            np.float64); with ``batch_infos``, one dict of the rows' infos instead, each value an
-            (m,) array in the order of ``rows``.
+            One info dict per row, which with randomisation holds ``randomization`` (the factors,
+            name -> np.float64); with ``batch_infos``, one dict of the rows' infos instead, each
+            value an (m,) array in the order of ``rows``.
         """
         drawn, factors = self._draw_episodes(rows, rngs)
         if drawn is not None:
