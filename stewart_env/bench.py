@@ -74,7 +74,7 @@ def bench_model(name: str, params, sizes=(1, 1024), repeats: int = 5) -> dict:
         repeats: the loops timed per figure, of which the best counts (2 for the rollouts of N > 1).
 
     Returns:
-        The figures by name: ``forward_per_s_N{n}`` (``Dynamics.forward``), ``kernel_per_s_N{n}``
+        The figures by name, ``forward_per_s_N{n}`` (``Dynamics.forward``), ``kernel_per_s_N{n}``
         (the compiled kernel alone) and ``rollout_1s_N{n}`` (s), for each n in ``sizes``.
     """
     model = se.make_dynamics(name, params)

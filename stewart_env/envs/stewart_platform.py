@@ -389,7 +389,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
             The start observation (D,) float32 and the reset's info dict.
 
         Raises:
-            ArgumentError: ``options`` not a mapping.
+            TypeError: ``options`` not a mapping (an ``ArgumentError``, a ``UsageError``).
             ValueError: a reset option (the message names ``options``).
         """
         reset_options(options)  # takes none; refused before the seed changes anything
@@ -412,9 +412,9 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
             is the TimeLimit wrapper's.
 
         Raises:
-            ArgumentError: an action that is not real numbers.
+            TypeError: an action that is not real numbers (an ``ArgumentError``, a ``UsageError``).
             ValueError: an action of another shape, or not finite.
-            ResetNeeded: a step before the first reset.
+            gymnasium.error.ResetNeeded: a step before the first reset.
         """
         self._check_reset()
         core = self._core
@@ -458,7 +458,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
             angular_velocity: (3,) rad/s, the platform's angular velocity in {B} (default zero).
 
         Raises:
-            ArgumentError: a value that is not real numbers.
+            TypeError: a value that is not real numbers (an ``ArgumentError``, a ``UsageError``).
             ValueError: a value of another shape or not finite, or a rotation not orthonormal.
         """
         values = {

@@ -285,7 +285,7 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
             The observations (num_envs, D) float32 and the rows' infos, one dict of arrays.
 
         Raises:
-            ArgumentError: ``options`` not a mapping, or a seed not an integer.
+            TypeError: ``options`` not a mapping, or a seed not an integer (an ``ArgumentError``, a ``UsageError``).
             ValueError: an unknown option, a mask of another dtype or shape, a list of seeds not
                 of num_envs entries, or a seed out of range.
         """
@@ -329,10 +329,10 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
             each of num_envs rows, infos one dict of arrays.
 
         Raises:
-            ArgumentError: actions that are not real numbers.
+            TypeError: actions that are not real numbers (an ``ArgumentError``, a ``UsageError``).
             ValueError: actions of another shape or not finite, or, with autoreset_mode DISABLED, a
                 step of rows that ended and were not reset.
-            ResetNeeded: a step before every row's first reset.
+            gymnasium.error.ResetNeeded: a step before every row's first reset.
         """
         self._check_reset()
         core, n = self._core, self.num_envs
