@@ -65,7 +65,18 @@ def _batch_state(model, n: int, rng: np.random.Generator):
 
 
 def bench_model(name: str, params, sizes=(1, 1024), repeats: int = 5) -> dict:
-    """Forward evaluations/s and 1 s rollout wall time (s) for each batch size."""
+    """Forward evaluations/s and 1 s rollout wall time (s) for each batch size.
+
+    Args:
+        name: the dynamics model's name.
+        params: the platform.
+        sizes: the batch sizes N.
+        repeats: the loops timed per figure, of which the best counts (2 for the rollouts of N > 1).
+
+    Returns:
+        The figures by name, ``forward_per_s_N{n}`` (``Dynamics.forward``), ``kernel_per_s_N{n}``
+        (the compiled kernel alone) and ``rollout_1s_N{n}`` (s), for each n in ``sizes``.
+    """
     model = se.make_dynamics(name, params)
     rng = np.random.default_rng(0)
     out = {}
@@ -73,14 +84,15 @@ def bench_model(name: str, params, sizes=(1, 1024), repeats: int = 5) -> dict:
         t, R, v, w, F = _batch_state(model, n, rng)
         calls = max(1, 20000 // n)
 
-        def forward_loop():
+        # the loops' functions run within their iteration; their defaults bind this iteration's values
+        def forward_loop(calls=calls, t=t, R=R, v=v, w=w, F=F):
             for _ in range(calls):
                 model.forward(t, R, v, w, F)
 
         acc = np.empty((n, 6))
         W = np.zeros((n, 6))
 
-        def kernel_loop():
+        def kernel_loop(calls=calls, t=t, R=R, v=v, w=w, F=F, W=W, acc=acc):
             for _ in range(calls):
                 K.forward_batch(model.packed, model.flags, t, R, v, w, F, W, acc)
 
@@ -89,7 +101,8 @@ def bench_model(name: str, params, sizes=(1, 1024), repeats: int = 5) -> dict:
         out[f"forward_per_s_N{n}"] = calls * n / _best_of(forward_loop, repeats)
         out[f"kernel_per_s_N{n}"] = calls * n / _best_of(kernel_loop, repeats)
         out[f"rollout_1s_N{n}"] = _best_of(
-            lambda: se.rollout(model, t, R, v, w, F, dt=1e-3, steps=1000), repeats if n == 1 else 2
+            lambda t=t, R=R, v=v, w=w, F=F: se.rollout(model, t, R, v, w, F, dt=1e-3, steps=1000),
+            repeats if n == 1 else 2,
         )
     return out
 
@@ -117,8 +130,10 @@ def _per_call(fns: dict, calls: int, repeats: int, clock=time.perf_counter, rese
 def bench_mujoco(
     params, n_batch: int = 1024, repeats: int = 10, calls: int = 1000, substeps: int = 10, dt: float = 1e-3
 ) -> dict:
-    """MuJoCo and stewart-env side by side on the same mechanism (stewart_env.mujoco's twin of
-    ``params``), the platform at home at rest under its holding forces.  Seconds per call:
+    """MuJoCo and stewart-env side by side on the same mechanism.
+
+    The mechanism is stewart_env.mujoco's twin of ``params``, the platform at home at rest under
+    its holding forces.  Seconds per call:
 
     * ``forward_mujoco`` (``mujoco.mj_forward``), ``forward_api`` (``Dynamics.forward``, N = 1,
       with its checks), ``forward_workspace`` (``Workspace.forward``, N = 1);
@@ -141,6 +156,20 @@ def bench_mujoco(
     the loops of a group taking turns.  The single-platform figures are CPU time of this process
     per call (``time.process_time``), the batch figures and the resets wall-clock time; the vector
     env's steps start from its reset (the resets are timed apart).
+
+    Args:
+        params: the platform.
+        n_batch: the platforms of the batch figures.
+        repeats: the loops timed per figure, of which the best counts.
+        calls: the calls per loop of the single-platform figures.
+        substeps: the RK4 steps of a control step.
+        dt: the RK4 step, s.
+
+    Returns:
+        The figures above by name (s), with ``substeps``, ``dt`` and ``n_batch``.
+
+    Raises:
+        MissingExtra: MuJoCo is not installed (the ``mujoco`` extra).
     """
     import gymnasium as gym
 
@@ -277,7 +306,11 @@ def bench_mujoco(
 
 def mujoco_table(r: dict) -> str:
     """The markdown table of :func:`bench_mujoco`'s result: each figure beside MuJoCo's, and the
-    ratio MuJoCo time / stewart-env time (above 1: stewart-env is faster)."""
+    ratio MuJoCo time / stewart-env time (above 1: stewart-env is faster).
+
+    Args:
+        r: the result of :func:`bench_mujoco`.
+    """
     us = lambda s: "" if s is None else f"{s * 1e6:,.1f} us"  # noqa: E731
     ratio = lambda ours, theirs: "" if theirs is None else f"{theirs / ours:.2f}x"  # noqa: E731
     step = f"{r['substeps'] * r['dt'] * 1e3:g} ms step ({r['substeps']} RK4 substeps)"
@@ -363,7 +396,11 @@ def vector_peak_flops() -> float:
 
 def forward_flops(model) -> int:
     """Floating-point operations (+, -, *, /, sqrt) of one forward evaluation of ``model``, at
-    home at rest under its holding forces: the compiled kernel run once on a counting number type."""
+    home at rest under its holding forces: the compiled kernel run once on a counting number type.
+
+    Args:
+        model: the dynamics model (its first parameter row counts).
+    """
     params = model.params_of(0)
     t, R = params.home_position, se.rpy_to_matrix(params.home_rpy)
     z = np.zeros(3)
@@ -386,7 +423,21 @@ def bench_scaling(
     machine changes far less); the best of ``repeats`` loops of about ``seconds`` each.  The
     fraction of :func:`vector_peak_flops` each reaches counts :func:`forward_flops` flops per
     evaluation, 4 evaluations per RK4 step (the integrator's own few hundred flops per step are
-    not counted); per CPU second, against one core's peak.  Returns {"flops", "peak", "rows"}."""
+    not counted); per CPU second, against one core's peak.
+
+    Args:
+        params: the platform.
+        model_name: the dynamics model's name.
+        sizes: the batch sizes N.
+        repeats: the loops timed per figure, of which the best counts.
+        seconds: the length of a loop, s.
+        substeps: the RK4 steps of a control step.
+        dt: the RK4 step, s.
+
+    Returns:
+        The result, a dict with ``model``, ``flops``, ``peak`` (flop/s), ``substeps``, ``dt`` and
+        ``rows``, one dict of figures per N.
+    """
     model = se.make_dynamics(model_name, params)
     flops, peak = forward_flops(model), vector_peak_flops()
     core_peak = peak / (os.cpu_count() or 1)
@@ -396,11 +447,12 @@ def bench_scaling(
         ws = model.workspace(n)
         start = (t, R, v, w)
 
-        def back_to_start():
+        # the loops' functions run within their iteration; their defaults bind this iteration's values
+        def back_to_start(ws=ws, start=start, F=F):
             ws.set_state(*start)
             ws.leg_forces[:] = F
 
-        def step():
+        def step(ws=ws):
             ws.step(dt, substeps)
 
         back_to_start()
@@ -420,7 +472,11 @@ def bench_scaling(
 
 
 def scaling_table(r: dict) -> str:
-    """The markdown table of :func:`bench_scaling`'s result, with the flop count and peak it assumes."""
+    """The markdown table of :func:`bench_scaling`'s result, with the flop count and peak it assumes.
+
+    Args:
+        r: the result of :func:`bench_scaling`.
+    """
     step = f"{r['substeps'] * r['dt'] * 1e3:g} ms"
     cores = os.cpu_count() or 1
     lines = [
@@ -444,7 +500,12 @@ def scaling_table(r: dict) -> str:
 
 def plot_scaling(r: dict, path) -> None:
     """Draw :func:`bench_scaling`'s result to the PNG ``path``: evaluations/s and platform-steps/s
-    over N, log-log, with the peak's evaluation rate for reference."""
+    over N, log-log, with the peak's evaluation rate for reference.
+
+    Args:
+        r: the result of :func:`bench_scaling`.
+        path: the PNG file to write.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -530,7 +591,18 @@ def run_bench(
     """Print the benchmark's tables: the machine, the first evaluation of a fresh process, each of
     the comma-separated ``models`` on ``platform``, the scaling table (drawn to the PNG file
     ``plot`` if given); with ``env`` the environments, with ``mujoco`` MuJoCo beside the kernels
-    (``stewart_env.extras.MissingExtra`` before any timing if the extra is not installed)."""
+    (``stewart_env.extras.MissingExtra`` before any timing if the extra is not installed).
+
+    Args:
+        platform: the shipped platform's name.
+        models: the comma-separated model names.
+        env: time the environments too.
+        mujoco: time MuJoCo beside the kernels.
+        plot: the PNG file to draw the scaling figure to, or None.
+
+    Raises:
+        MissingExtra: with ``mujoco``, MuJoCo is not installed.
+    """
     params = se.load_platform(platform)
     if mujoco:
         from stewart_env import mujoco as twin

@@ -268,22 +268,30 @@ class PlatformBatch:
 
     @property
     def obs_dim(self) -> int:
+        """D, the length of an observation row."""
         return self.observations.dim
 
     @property
     def observation_layout(self) -> dict[str, slice]:
+        """Each observation term's slice of an observation row, by name."""
         return self.observations.layout
 
     @property
     def error_integral(self) -> np.ndarray | None:
+        """The integral of the pose errors (n,6) [m s; rad s] that the observation carries, or None when off."""
         return self.observations.error_integral
 
     def decode_observation(self, observation: np.ndarray) -> dict[str, np.ndarray]:
-        """Observation(s) (..., D) back to physical units, by layout name."""
+        """Observation(s) (..., D) back to physical units, by layout name.
+
+        Args:
+            observation: (..., D) observation rows, as the batch returns them.
+        """
         return self.observations.decode(observation)
 
     @property
     def render_fps(self) -> float:
+        """Frames per second of a rendered episode: one frame per control step, 1 / control_dt."""
         return 1.0 / self.control_dt
 
     # -- episode start ----------------------------------------------------------------------------------
@@ -295,11 +303,19 @@ class PlatformBatch:
 
         Draw order within a row: randomisation factors, the task's episode, observation noise;
         rows with generators of their own draw all rows' factors, then all rows' episodes (the
-        same numbers, row by row, as drawing one row after the other).  Returns one info dict per
-        row: with randomisation, ``randomization`` (the factors, name -> np.float64); with
-        ``batch_infos``, one dict of the rows' infos instead, each value an (m,) array in the
-        order of ``rows``.  A randomised row's parameters are scaled in packed form; its
-        PlatformParams are built only when read (:meth:`episode_params`).
+        same numbers, row by row, as drawing one row after the other).  A randomised row's
+        parameters are scaled in packed form; its PlatformParams are built only when read
+        (:meth:`episode_params`).
+
+        Args:
+            rows: (m,) int, the rows to reset.
+            rngs: one Generator per row of ``rows``.
+            batch_infos: return one dict of the rows' infos instead of one dict per row.
+
+        Returns:
+            One info dict per row, which with randomisation holds ``randomization`` (the factors,
+            name -> np.float64); with ``batch_infos``, one dict of the rows' infos instead, each
+            value an (m,) array in the order of ``rows``.
         """
         drawn, factors = self._draw_episodes(rows, rngs)
         if drawn is not None:
@@ -427,16 +443,22 @@ class PlatformBatch:
     ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray] | None:
         """One control step of every row.
 
-        action (n,6) float64, finite (see :func:`stewart_env.validation.check_action`); clipped to
-        [-1, 1] here.  When :attr:`checks_action`, also an action not yet known to be finite, float64
-        or float32, C-contiguous, (n,6) or for one row (6,): the compiled step checks it before it
-        changes anything and, if it is not finite, the step returns None having done nothing.
-        rngs: one Generator per row (used only for observation noise).  skip: optional (n,) bool of
-        rows about to be reset by the caller: they are parked at home first (their outcome is
-        thrown away) and draw no noise.  reuse: write the outcome into arrays of the batch that the
-        next step overwrites (for a caller that reads them at once).  Returns (reward (n,),
-        termination code (n,) int, reward terms by name, each (n,), the latest observation (n, D)
-        as float32); codes index :attr:`termination_reasons` (0: none).
+        Args:
+            action: (n,6) float64, finite (see :func:`stewart_env.validation.check_action`); clipped
+                to [-1, 1] here.  When :attr:`checks_action`, also an action not yet known to be
+                finite, float64 or float32, C-contiguous, (n,6) or for one row (6,): the compiled
+                step checks it before it changes anything and, if it is not finite, the step
+                returns None having done nothing.
+            rngs: one Generator per row (used only for observation noise).
+            skip: optional (n,) bool of rows about to be reset by the caller: they are parked at
+                home first (their outcome is thrown away) and draw no noise.
+            reuse: write the outcome into arrays of the batch that the next step overwrites (for a
+                caller that reads them at once).
+
+        Returns:
+            The tuple (reward (n,), termination code (n,) int, reward terms by name, each (n,),
+            the latest observation (n, D) as float32), or None for a non-finite action as above;
+            codes index :attr:`termination_reasons` (0: none).
         """
         if skip is not None:
             if self.checks_action and self._observed and skip.all():
@@ -629,7 +651,16 @@ class PlatformBatch:
     def track_success_of_row(self, row: int, code: np.ndarray) -> tuple[float, float, bool]:
         """:meth:`track_success` of row ``row`` alone, as Python numbers: the same numbers at a
         fraction of the cost (the single environment's step, a batch of a few rows).  ``row`` is
-        one of the first ``_ROW_BY_ROW`` rows, whose errors the batch keeps views of."""
+        one of the first ``_ROW_BY_ROW`` rows, whose errors the batch keeps views of.
+
+        Args:
+            row: the row's index.
+            code: (n,) the step's termination codes (as :meth:`step` returns them).
+
+        Returns:
+            The row's position error |e_p| (m), orientation error (rad) and whether its episode,
+            ended at this step, succeeds.
+        """
         p, o = self._pose_errors[row].tolist()
         position, orientation = error_norm(p), error_norm(o)
         if position > _LARGEST:
@@ -651,9 +682,17 @@ class PlatformBatch:
 
     def episode_params(self, row: int) -> PlatformParams:
         """The PlatformParams of row ``row``'s episode: with domain randomisation the nominal ones
-        scaled by the episode's factors (built on first read), else the nominal ones."""
+        scaled by the episode's factors (built on first read), else the nominal ones.
+
+        Args:
+            row: the row's index.
+        """
         return self.platform if self.randomization is None else self.model.params_of(row)
 
     def reasons(self, code: np.ndarray) -> np.ndarray:
-        """Termination reason names (str array; "" for code 0) of codes."""
+        """Termination reason names (str array; "" for code 0) of codes.
+
+        Args:
+            code: termination codes, an int array indexing :attr:`termination_reasons` (0: none).
+        """
         return self._reason_array[code]

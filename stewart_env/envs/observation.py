@@ -29,9 +29,17 @@ _FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def finite_or_marked(raw: np.ndarray, reward: np.ndarray) -> np.ndarray | None:
-    """The rows (bool (rows,)) of an observation batch or its reward with an entry that is not
-    finite or beyond the float32 range, their observation entries made finite in place (NaN 0,
-    the rest clipped to the float32 range); None when every row is fine (one compiled pass)."""
+    """The rows of an observation batch or its reward with an entry that is not finite or beyond
+    the float32 range, their observation entries made finite in place (NaN 0, the rest clipped to
+    the float32 range), in one compiled pass.
+
+    Args:
+        raw: (rows, D) float64, the observations before scaling to float32, changed in place.
+        reward: (rows,) float64, their rewards.
+
+    Returns:
+        The marked rows, (rows,) bool, or None when every row is fine.
+    """
     if _core.within_float32(raw, reward, _FLOAT32_MAX):
         return None
     bad = ~((np.abs(raw) <= _FLOAT32_MAX).all(axis=1) & np.isfinite(reward))
@@ -206,7 +214,12 @@ class ObservationPipeline:
 
     def draw_noise(self, rngs: Sequence[np.random.Generator], skip: np.ndarray | None) -> np.ndarray | None:
         """This step's observation noise (n, D), drawn from rngs[i] for every row i not in ``skip``
-        (the others' rows are left unset), or None without noise."""
+        (the others' rows are left unset), or None without noise.
+
+        Args:
+            rngs: one Generator per row.
+            skip: optional (n,) bool, the rows that draw no noise.
+        """
         if self.noise_std is None:
             return None
         noise = np.empty(self._raw.shape)
@@ -226,7 +239,11 @@ class ObservationPipeline:
         return self._history[(self._head.item() + 1) % (self.delay + 1)]
 
     def decode(self, observation: np.ndarray) -> dict[str, np.ndarray]:
-        """Observation(s) (..., D) back to physical units, by layout name."""
+        """Observation(s) (..., D) back to physical units, by layout name.
+
+        Args:
+            observation: (..., D) scaled observation rows.
+        """
         physical = np.asarray(observation, dtype=np.float64) * self.scale + self.offset
         return {name: physical[..., sl] for name, sl in self.layout.items()}
 
@@ -236,7 +253,13 @@ class ObservationPipeline:
         """Start rows ``rows`` (the rows of ``view``, a view of them alone): a zero error
         integral, and the start observation, noise drawn from rngs[j] for row rows[j], in every
         slot of the delay ring (a delayed sensor has seen only the start).  A row whose start
-        observation is not finite terminates at its first step."""
+        observation is not finite terminates at its first step.
+
+        Args:
+            rows: (m,) int, the rows to start.
+            view: the :class:`~stewart_env.tasks.StepView` of those rows alone.
+            rngs: one Generator per row of ``rows``.
+        """
         m = len(rows)
         integral = None
         if self.error_integral is not None:
@@ -259,9 +282,18 @@ class ObservationPipeline:
     ) -> np.ndarray | None:
         """The observation after a step, seen through ``view`` (every row): the error integral
         advanced, the observation measured, noise drawn from rngs[i] for every row i not in
-        ``skip``, and pushed into the delay ring.  Returns the rows (bool (n,)) whose observation or
-        ``reward`` was not finite (their observation made finite) or whose start observation was
-        not, or None when there are none."""
+        ``skip``, and pushed into the delay ring.
+
+        Args:
+            view: the batch's :class:`~stewart_env.tasks.StepView` after the step.
+            reward: (n,) the step's rewards.
+            rngs: one Generator per row.
+            skip: optional (n,) bool, the rows that draw no noise.
+
+        Returns:
+            The rows, (n,) bool, whose observation or ``reward`` was not finite (their observation
+            made finite) or whose start observation was not, or None when there are none.
+        """
         if self.error_integral is not None:
             self._integrate(view.errors)
         raw = self._raw

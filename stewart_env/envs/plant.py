@@ -53,18 +53,39 @@ class Plant(Protocol):
         dt: float,
         steps: int,
     ) -> None:
-        """Advance every row ``steps`` steps of ``dt`` s, leg forces (N,6) and external wrench
-        (N,6) held; overwrite the state arrays (N,3), (N,3,3), (N,3), (N,3) in place.  No checks:
-        the per-step path.  A row that stops being finite comes back non-finite."""
+        """Advance every row ``steps`` steps of ``dt`` s, leg forces and external wrench held,
+        overwriting the state arrays in place.  No checks: the per-step path.  A row that stops
+        being finite comes back non-finite.
+
+        Args:
+            position: (N,3) m, the position of P's origin in {B}.
+            rotation: (N,3,3) rotation matrices, columns = {P} axes.
+            velocity: (N,3) m/s, the velocity of P's origin in {B}.
+            angular_velocity: (N,3) rad/s, the platform's angular velocity in {B}.
+            leg_forces: (N,6) N, the legs' actuator forces.
+            external_wrench: (N,6) [F_ext at P, N; M_ext, N m] in {B}.
+            dt: the step, s.
+            steps: the number of steps.
+        """
 
     def set_model(self, model: Dynamics, rows: Sequence[int]) -> None:
         """The batch's dynamics model is now ``model`` (one parameter row per platform), whose
-        rows ``rows`` hold new parameters (e.g. randomised at a reset)."""
+        rows ``rows`` hold new parameters (e.g. randomised at a reset).
+
+        Args:
+            model: the batch's dynamics model.
+            rows: the rows whose parameters are new.
+        """
 
     def step_record(self, physics_dt: float, substeps: int) -> _core.PlantRecord | None:
         """This plant's part of the batch's compiled step (docs/layout.md, "The compiled step's
         contract"), integrating ``substeps`` steps of ``physics_dt`` s per control step and kept up
-        to date by :meth:`set_model`; or None for a plant the compiled step cannot run."""
+        to date by :meth:`set_model`; or None for a plant the compiled step cannot run.
+
+        Args:
+            physics_dt: the integrator's step, s.
+            substeps: the integrator's steps per control step.
+        """
 
 
 class ClosedFormPlant:
@@ -88,20 +109,46 @@ class ClosedFormPlant:
     def step_inplace(
         self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench, dt: float, steps: int
     ) -> None:
+        """Integrate with RK4 (see :meth:`Plant.step_inplace`).
+
+        Args:
+            position: (N,3) m, the position of P's origin in {B}.
+            rotation: (N,3,3) rotation matrices, columns = {P} axes.
+            velocity: (N,3) m/s, the velocity of P's origin in {B}.
+            angular_velocity: (N,3) rad/s, the platform's angular velocity in {B}.
+            leg_forces: (N,6) N, the legs' actuator forces.
+            external_wrench: (N,6) [F_ext at P, N; M_ext, N m] in {B}.
+            dt: the step, s.
+            steps: the number of steps.
+        """
         rollout_inplace(
             self.model, position, rotation, velocity, angular_velocity, leg_forces, external_wrench, dt, steps
         )
 
     def set_model(self, model: Dynamics, rows: Sequence[int]) -> None:
+        """Take the batch's new model and update the compiled step's record of it (see :meth:`Plant.set_model`).
+
+        Args:
+            model: the batch's dynamics model.
+            rows: the rows whose parameters are new (the whole packed array is taken).
+        """
         self.model = model
         if self._record is not None:
             self._record.set_model(model.packed, model.flags)
 
     def step_record(self, physics_dt: float, substeps: int) -> _core.PlantRecord:
         """The closed-form plant's part of the compiled step: the model's packed parameters and
-        flags, the RK4 substeps.  Returns its ``_core.PlantRecord``, made on the first call
-        (and again for other ``physics_dt`` or ``substeps``) and kept up to date by
-        :meth:`set_model`, so every step made of it sees the parameters of each reset."""
+        flags, the RK4 substeps.
+
+        Args:
+            physics_dt: the integrator's step, s.
+            substeps: the RK4 steps per control step.
+
+        Returns:
+            Its ``_core.PlantRecord``, made on the first call (and again for other ``physics_dt``
+            or ``substeps``) and kept up to date by :meth:`set_model`, so every step made of it
+            sees the parameters of each reset.
+        """
         record = self._record
         if record is None or (record.physics_dt, record.substeps) != (physics_dt, substeps):
             model = self.model
@@ -110,7 +157,16 @@ class ClosedFormPlant:
 
 
 def make_plant(physics: PhysicsConfig, model: Dynamics, n: int) -> Plant:
-    """The plant that ``physics.plant`` names, for n rows of the batch's dynamics model ``model``."""
+    """The plant that ``physics.plant`` names, for n rows of the batch's dynamics model ``model``.
+
+    Args:
+        physics: the environment's physics configuration (its ``plant``, ``platform`` and ``physics_dt``).
+        model: the batch's dynamics model.
+        n: the number of rows.
+
+    Raises:
+        ImportError: the MuJoCo plant without MuJoCo installed, naming the argument.
+    """
     if physics.plant == MUJOCO:
         from stewart_env.mujoco import MujocoPlant  # imports without MuJoCo; the plant names the extra
 

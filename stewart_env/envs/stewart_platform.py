@@ -360,7 +360,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     * v0: initial version, with every task's reward scales 0.05 m and 0.1 rad.  Since 2026-11-25
       the `plant` argument names what simulates the platform (`"closed_form"` or `"mujoco"`;
       `model="mujoco"` still means `plant="mujoco"` on the `"improved"` model), on both ids.
-    """
+    """  # noqa: D415  (the env card opens with its first section's heading, as Gymnasium's cards do)
 
     _rows = 0  # BatchAttributes: the single platform, no batch axis
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 100.0}
@@ -379,6 +379,19 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     # -- the Gymnasium API --------------------------------------------------------------------------
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start a new episode (Gymnasium's ``Env.reset``).
+
+        Args:
+            seed: the seed of the environment's generator, or None to go on with it.
+            options: must be None or empty: the environment takes no reset options.
+
+        Returns:
+            The start observation (D,) float32 and the reset's info dict.
+
+        Raises:
+            TypeError: ``options`` not a mapping (an ``ArgumentError``, a ``UsageError``).
+            ValueError: a reset option (the message names ``options``).
+        """
         reset_options(options)  # takes none; refused before the seed changes anything
         super().reset(seed=seed)
         self._rngs = (self.np_random,)
@@ -389,6 +402,20 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
         return self._core.observation[0].astype(np.float32), info
 
     def step(self, action):
+        """One control step (Gymnasium's ``Env.step``).
+
+        Args:
+            action: (6,) the leg forces scaled to [-1, 1] (clipped there), finite.
+
+        Returns:
+            The tuple (observation (D,) float32, reward, terminated, truncated, info); truncation
+            is the TimeLimit wrapper's.
+
+        Raises:
+            TypeError: an action that is not real numbers (an ``ArgumentError``, a ``UsageError``).
+            ValueError: an action of another shape, or not finite.
+            gymnasium.error.ResetNeeded: a step before the first reset.
+        """
         self._check_reset()
         core = self._core
         if core.checks_action and type(action) is np.ndarray and action.dtype in _FLOATS and action.shape == (6,):
@@ -406,6 +433,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
         return observation[0].copy(), float(reward[0]), bool(code[0]), False, info
 
     def render(self):
+        """The frame now, as ``render_mode`` says (an RGB array, or drawn in a window), or None without one."""
         if self.render_mode is None:
             gym.logger.warn(
                 "render() called without a render_mode; pass render_mode='rgb_array' or 'human' to gymnasium.make"
@@ -414,13 +442,25 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
         return self._draw()
 
     def close(self):
+        """Close the renderer's window, if any."""
         self._close_renderer()
 
     # -- introspection: see BatchAttributes ------------------------------------------------------
 
     def set_state(self, position, rotation, velocity=None, angular_velocity=None) -> None:
         """Put the platform in a state (in {B}; velocities default to zero); the episode goes on
-        from it at the next step.  Shapes (3,), (3,3), (3,), (3,); rotation must be orthonormal."""
+        from it at the next step.
+
+        Args:
+            position: (3,) m, the position of P's origin in {B}.
+            rotation: (3,3) rotation matrix, columns = {P} axes; orthonormal.
+            velocity: (3,) m/s, the velocity of P's origin in {B} (default zero).
+            angular_velocity: (3,) rad/s, the platform's angular velocity in {B} (default zero).
+
+        Raises:
+            TypeError: a value that is not real numbers (an ``ArgumentError``, a ``UsageError``).
+            ValueError: a value of another shape or not finite, or a rotation not orthonormal.
+        """
         values = {
             "position": (position, (3,)),
             "rotation": (rotation, (3, 3)),

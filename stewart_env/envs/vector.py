@@ -144,7 +144,7 @@ class _Row(BatchAttributes):
         return self._venv.single_action_space
 
     def render(self):
-        """The row's frame now, as the single environment's render()."""
+        """The row's frame now, as the single environment renders it."""
         venv = self._venv
         if venv.render_mode is None:
             return venv.render()
@@ -273,6 +273,22 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
     # -- the Gymnasium vector API --------------------------------------------------------------------
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None):
+        """Start new episodes (Gymnasium's ``VectorEnv.reset``), in every row or in the rows of a mask.
+
+        Args:
+            seed: one seed (row i seeded with ``seed + i``), a list of num_envs seeds (None: the
+                row goes on with its generator), or None.
+            options: None, or ``{"reset_mask": mask}`` with ``mask`` a (num_envs,) bool array of
+                the rows to reset.
+
+        Returns:
+            The observations (num_envs, D) float32 and the rows' infos, one dict of arrays.
+
+        Raises:
+            TypeError: ``options`` not a mapping, or a seed not an integer (an ``ArgumentError``, a ``UsageError``).
+            ValueError: an unknown option, a mask of another dtype or shape, a list of seeds not
+                of num_envs entries, or a seed out of range.
+        """
         n = self.num_envs
         mask = reset_options(options, ("reset_mask",)).get("reset_mask")
         if mask is None:
@@ -302,6 +318,22 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
         return self._core.observation.astype(np.float32), infos
 
     def step(self, actions):
+        """One control step of every row (Gymnasium's ``VectorEnv.step``), ended rows reset as
+        ``autoreset_mode`` says.
+
+        Args:
+            actions: (num_envs, 6) the leg forces scaled to [-1, 1] (clipped there), finite.
+
+        Returns:
+            The tuple (observations (num_envs, D) float32, rewards, terminated, truncated, infos),
+            each of num_envs rows, infos one dict of arrays.
+
+        Raises:
+            TypeError: actions that are not real numbers (an ``ArgumentError``, a ``UsageError``).
+            ValueError: actions of another shape or not finite, or, with autoreset_mode DISABLED, a
+                step of rows that ended and were not reset.
+            gymnasium.error.ResetNeeded: a step before every row's first reset.
+        """
         self._check_reset()
         core, n = self._core, self.num_envs
         a = check_action(actions, (n, 6))
@@ -404,7 +436,16 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
 
     def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
         """Gymnasium's vector ``call``: ``name`` of every row (see :class:`_Row`), called with the
-        arguments if callable; a tuple of one result per row."""
+        arguments if callable.
+
+        Args:
+            name: the attribute's name.
+            *args: the positional arguments of the call.
+            **kwargs: its keyword arguments.
+
+        Returns:
+            A tuple of one result per row.
+        """
         results = []
         for i in range(self.num_envs):
             value = getattr(self._row(i), name)
@@ -412,13 +453,25 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
         return tuple(results)
 
     def get_attr(self, name: str) -> tuple[Any, ...]:
-        """Gymnasium's vector ``get_attr``: the attribute ``name`` of every row, a tuple."""
+        """Gymnasium's vector ``get_attr``: the attribute ``name`` of every row, a tuple.
+
+        Args:
+            name: the attribute's name.
+        """
         return self.call(name)
 
     def set_attr(self, name: str, values: Any) -> None:
         """Gymnasium's vector ``set_attr``: one value for every row, or a list or tuple of one per
         row.  A row's own settable attribute (``np_random``) is set row by row; any other
-        attribute is shared by the whole batch and takes one value."""
+        attribute is shared by the whole batch and takes one value.
+
+        Args:
+            name: the attribute's name.
+            values: one value, or a list or tuple of num_envs values.
+
+        Raises:
+            ValueError: not one value or num_envs values, or different values of a shared attribute.
+        """
         n = self.num_envs
         if not isinstance(values, (list, tuple)):
             values = [values] * n
@@ -433,4 +486,9 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
             raise ValueError(f"set_attr: {name!r} is shared by all rows of the batch; give one value for all")
 
     def close_extras(self, **kwargs: Any) -> None:
+        """Close the renderer's window, if any (Gymnasium's ``VectorEnv.close`` calls it).
+
+        Args:
+            **kwargs: Gymnasium's arguments of ``close``, unused.
+        """
         self._close_renderer()

@@ -159,7 +159,15 @@ class MujocoPlant:
     def set_params(self, rows: Sequence[int], params: Sequence[PlatformParams]) -> None:
         """Give batch rows ``rows`` the parameters ``params`` (one each; e.g. randomised at a reset).
         The structure of the mechanism must stay that of the first row (six legs, the same joints),
-        which every PlatformParams has; those rows restart at their next step."""
+        which every PlatformParams has; those rows restart at their next step.
+
+        Args:
+            rows: the batch rows.
+            params: their new parameters, one per row.
+
+        Raises:
+            ValueError: not one PlatformParams per row, or a row outside the batch.
+        """
         rows = [int(r) for r in rows]
         if len(rows) != len(params):
             raise ValueError(f"params: expected one per row ({len(rows)}), got {len(params)}")
@@ -185,12 +193,22 @@ class MujocoPlant:
     def set_model(self, model, rows: Sequence[int]) -> None:
         """Give batch rows ``rows`` the parameters of those rows of ``model`` (a
         :class:`~stewart_env.dynamics.Dynamics` with one parameter row per batch row): the
-        environment's plant interface, see :meth:`set_params`."""
+        environment's plant interface, see :meth:`set_params`.
+
+        Args:
+            model: the batch's dynamics model.
+            rows: the batch rows whose parameters are new.
+        """
         self.set_params(rows, [model.params_of(i) for i in rows])
 
     def step_record(self, physics_dt: float, substeps: int) -> None:
         """The environment's plant interface: MuJoCo has no part in the batch's compiled step
-        (the batch steps it with :meth:`step_inplace`)."""
+        (the batch steps it with :meth:`step_inplace`).
+
+        Args:
+            physics_dt: the integrator's step, s (unused).
+            substeps: the integrator's steps per control step (unused).
+        """
         return None
 
     def step_inplace(
@@ -203,7 +221,18 @@ class MujocoPlant:
         arrays nor of ``dt`` and ``steps`` (the environment's per-step path, like
         ``rollout_inplace``: a NaN ``dt`` turns every row NaN, ``steps`` <= 0 does nothing).  A row whose state differs from what this plant returned
         last starts afresh from that state (legs by inverse kinematics, loops closed); a row
-        that is not finite, or that MuJoCo finds diverging, comes back NaN and stays so."""
+        that is not finite, or that MuJoCo finds diverging, comes back NaN and stays so.
+
+        Args:
+            position: (N,3) m, the position of P's origin in {B}.
+            rotation: (N,3,3) rotation matrices, columns = {P} axes.
+            velocity: (N,3) m/s, the velocity of P's origin in {B}.
+            angular_velocity: (N,3) rad/s, the platform's angular velocity in {B}.
+            leg_forces: (N,6) N, the legs' actuator forces.
+            external_wrench: (N,6) [F_ext at P, N; M_ext, N m] in {B}.
+            dt: MuJoCo's step, s.
+            steps: the number of steps.
+        """
         mj = require_mujoco()
         state = (position, rotation, velocity, angular_velocity)
         alive = (

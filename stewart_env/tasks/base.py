@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import inspect
 import math
-from dataclasses import dataclass
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -99,6 +99,14 @@ class Scales(NamedTuple):
 
     @classmethod
     def of(cls, params: PlatformParams) -> Scales:
+        """The scales of a platform: the half-ranges of its workspace box, leg stroke and leg force.
+
+        Args:
+            params: the platform, whose ``limits`` give the ranges.
+
+        Returns:
+            The platform's :class:`Scales`.
+        """
         lim = params.limits
         return cls(
             position=0.5 * (lim.position_max - lim.position_min),
@@ -179,13 +187,22 @@ class RewardWeights:
 
 
 def empty_errors(n: int) -> tuple[Errors, np.ndarray]:
-    """Preallocated :class:`Errors` of n rows and the (n, 4) array that holds their norms."""
+    """Preallocated :class:`Errors` of n rows and the (n, 4) array that holds their norms.
+
+    Args:
+        n: the number of rows.
+    """
     return errors_in(np.empty((4, n, 3)), np.empty((4, n)))
 
 
 def errors_in(vectors: np.ndarray, norms: np.ndarray) -> tuple[Errors, np.ndarray]:
     """:class:`Errors` whose fields are views of ``vectors`` (4, n, 3) and ``norms`` (4, n), and
-    the (n, 4) view of the norms that :func:`tracking_errors` writes."""
+    the (n, 4) view of the norms that :func:`tracking_errors` writes.
+
+    Args:
+        vectors: (4, n, 3) float64, the position, orientation, velocity and angular velocity errors.
+        norms: (4, n) float64, their norms.
+    """
     return Errors(*vectors, *norms), norms.T
 
 
@@ -214,7 +231,11 @@ def tracking_errors(state: PlatformState, reference: Reference, out: tuple[Error
 
 
 def zero_reference(n: int) -> Reference:
-    """A :class:`Reference` of n rows of zeros (rotation (n,3,3), every other field (n,3))."""
+    """A :class:`Reference` of n rows of zeros (rotation (n,3,3), every other field (n,3)).
+
+    Args:
+        n: the number of rows.
+    """
     return Reference(*(np.zeros((n, 3, 3) if name == "rotation" else (n, 3)) for name in Reference._fields))
 
 
@@ -299,11 +320,20 @@ class SuccessCriterion:
 
     def window_start(self, start_time, end_time):
         """The time t_end - final_window (t_end - t_0) from which samples are in the final window
-        of an episode from ``start_time`` to ``end_time`` (s; floats or arrays)."""
+        of an episode from ``start_time`` to ``end_time`` (s; floats or arrays).
+
+        Args:
+            start_time: t_0, the episode's first sample time, s.
+            end_time: t_end, its last sample time, s.
+        """
         return end_time - self.final_window * (end_time - start_time)
 
     def final_window_mask(self, time) -> np.ndarray:
-        """(T,) bool: the samples of an episode at ``time`` (T,) s in its final window."""
+        """The samples of an episode in its final window, (T,) bool.
+
+        Args:
+            time: (T,) s, the sample times, increasing.
+        """
         time = np.asarray(time, dtype=float)
         mask = time >= self.window_start(time[0], time[-1])
         mask[-1] = True
@@ -316,6 +346,11 @@ class SuccessCriterion:
         With the samples' times increasing, the latest sample outside the band comes before the
         window exactly when every sample of the window is inside (the last sample, always in the
         window, among them).  Floats give a bool, arrays a bool array.
+
+        Args:
+            latest_outside: the time of the latest sample outside the band, s (-inf if none).
+            start_time: t_0, the episode's first sample time, s.
+            end_time: t_end, its last sample time, s.
         """
         return latest_outside < self.window_start(start_time, end_time)
 
@@ -357,11 +392,23 @@ class SuccessTracker:
         self.latest_outside = np.full(n, -math.inf)
 
     def start(self, rows: np.ndarray, position_norm: np.ndarray, orientation_norm: np.ndarray) -> None:
-        """Start the episodes of ``rows`` with their samples at t = 0: norms (m,) m and rad."""
+        """Start the episodes of ``rows`` with their samples at t = 0.
+
+        Args:
+            rows: (m,) the rows' indices.
+            position_norm: (m,) m, |e_p| at t = 0.
+            orientation_norm: (m,) rad, |e_o| at t = 0.
+        """
         self.latest_outside[rows] = np.where(self.criterion.inside(position_norm, orientation_norm), -math.inf, 0.0)
 
     def start_row(self, row: int, position_norm: float, orientation_norm: float) -> None:
-        """:meth:`start` for one row, in Python numbers."""
+        """:meth:`start` for one row, in Python numbers.
+
+        Args:
+            row: the row's index.
+            position_norm: |e_p| at t = 0, m.
+            orientation_norm: |e_o| at t = 0, rad.
+        """
         self.latest_outside[row] = -math.inf if self.criterion.inside(position_norm, orientation_norm) else 0.0
 
     def step(
@@ -384,7 +431,18 @@ class SuccessTracker:
 
     def step_row(self, row: int, time: float, position_norm: float, orientation_norm: float, terminated: bool) -> bool:
         """:meth:`step` for one row, in Python numbers (a fraction of the array version's cost,
-        for a batch of a few rows): the same comparisons of the same numbers."""
+        for a batch of a few rows): the same comparisons of the same numbers.
+
+        Args:
+            row: the row's index.
+            time: the sample's time, s.
+            position_norm: |e_p|, m.
+            orientation_norm: |e_o|, rad.
+            terminated: whether the step terminated the row's episode.
+
+        Returns:
+            Whether the row's episode, ended at this step, succeeds.
+        """
         criterion = self.criterion
         if not criterion.inside(position_norm, orientation_norm):
             self.latest_outside[row] = time
@@ -401,13 +459,21 @@ def pose_margins(
 ) -> np.ndarray:
     """Whether poses lie safely inside the platform's limits, (M,) bool.
 
-    params: the platform, or a :class:`~stewart_env.dynamics.Dynamics` of it (its packed
-    parameters are then not packed again: the fast way for repeated calls).  position (M,3) m,
-    rpy (M,3) rad, rotation (M,3,3) their rotation matrices if already known.  Safe means:
-    position inside the workspace box shrunk by ``margin`` of its half-size on each side, each
+    Safe means: position inside the workspace box shrunk by ``margin`` of its half-size on each side, each
     angle within (1 - margin) max_angle of the home angle, every leg within the stroke shrunk by
     ``margin`` of its half-length at each end, and the Jacobian's condition number at most
     limits.max_condition (the leg lengths and the condition number from the kernel's leg sensors).
+
+    Args:
+        params: the platform, or a :class:`~stewart_env.dynamics.Dynamics` of it (its packed
+            parameters are then not packed again: the fast way for repeated calls).
+        position: (M,3) m, the positions of P's origin in {B}.
+        rpy: (M,3) rad, the roll, pitch and yaw angles.
+        margin: the fraction of each half-range kept clear.
+        rotation: (M,3,3) the rotation matrices of ``rpy``, if already known.
+
+    Returns:
+        Whether each pose is safe, (M,) bool.
     """
     model = params if isinstance(params, Dynamics) else make_dynamics("improved", params)
     p = model.params_of(0)
@@ -450,10 +516,18 @@ def sinusoid_reference(
 ) -> None:
     """Pose offsets a_k sin(omega_k t + phi_k) about home on x, y, z, roll, pitch, yaw.
 
-    amplitude, omega (rad/s), phase: (N,6); time (N,) s.  Writes the reference pose, twist and
-    accelerations into ``out``, all analytic: angular velocity = E(rpy) d(rpy)/dt (see
+    Writes the reference pose, twist and accelerations into ``out``, all analytic: angular velocity = E(rpy) d(rpy)/dt (see
     :func:`stewart_env.rotations.rpy_rate_matrix`) and angular acceleration = E d2(rpy)/dt2 +
     (dE/dt) d(rpy)/dt.
+
+    Args:
+        home_position: (3,) m, the home position of P's origin in {B}.
+        home_rpy: (3,) rad, the home roll, pitch and yaw.
+        amplitude: (N,6) a_k, m on x, y, z and rad on roll, pitch, yaw.
+        omega: (N,6) omega_k, rad/s.
+        phase: (N,6) phi_k, rad.
+        time: (N,) t, s.
+        out: the :class:`Reference` (N rows) written into.
     """
     arg = omega * time[:, None] + phase
     sin = np.sin(arg)
@@ -486,7 +560,15 @@ def sinusoid_reference(
 def check_option_names(task_cls: type, options: dict[str, Any]) -> None:
     """Refuse task options the task's constructor does not take, naming them and the valid ones:
     its keyword-only arguments and, while a constructor passes ``**options`` on, those of the
-    class it extends (the reward weights of :class:`Task`)."""
+    class it extends (the reward weights of :class:`Task`).
+
+    Args:
+        task_cls: the task's class.
+        options: the task options, name -> value.
+
+    Raises:
+        ValueError: an option the task does not take, named with the valid ones.
+    """
     valid: list[str] = []
     for cls in task_cls.__mro__:
         if "__init__" not in vars(cls):
@@ -504,7 +586,11 @@ def check_option_names(task_cls: type, options: dict[str, Any]) -> None:
 
 
 def option(name: str) -> str:
-    """How errors name a task option: ``task_options['name']``."""
+    """How errors name a task option: ``task_options['name']``.
+
+    Args:
+        name: the option's name.
+    """
     return f"task_options[{name!r}]"
 
 
@@ -512,7 +598,20 @@ def motion_ranges(params: PlatformParams, position, angle, names: tuple[str, str
     """A task's per-axis motion bounds: ``position`` (3,) m and ``angle`` (3,) rad as given (at
     most the workspace box's half-size and ``limits.max_angle``: beyond, no motion fits the
     limits), or by default 40 % of them, which leaves room for the platform to overshoot inside
-    the limits.  ``names`` are the option names for errors."""
+    the limits.
+
+    Args:
+        params: the platform, whose ``limits`` bound the ranges.
+        position: (3,) m, the position amplitudes, or None for the default.
+        angle: (3,) rad, the angle amplitudes, or None for the default.
+        names: the option names of ``position`` and ``angle``, for errors.
+
+    Returns:
+        The position bounds (3,) m and the angle bounds (3,) rad.
+
+    Raises:
+        UsageError: a bound outside its range, naming the option.
+    """
     lim = params.limits
     half = 0.5 * (lim.position_max - lim.position_min)
     return (
@@ -684,7 +783,11 @@ class Task:
         raise NotImplementedError
 
     def initialize_episode(self, rng: np.random.Generator) -> tuple[PlatformState, dict[str, np.ndarray]]:
-        """Draw one row's episode: its initial state and its ``episode_fields`` values."""
+        """Draw one row's episode: its initial state and its ``episode_fields`` values.
+
+        Args:
+            rng: the row's generator.
+        """
         raise NotImplementedError
 
     def initialize_episodes(self, rngs: Sequence[np.random.Generator]) -> tuple[PlatformState, dict[str, np.ndarray]]:
@@ -713,7 +816,13 @@ class Task:
     def reference(self, episode: Mapping[str, np.ndarray], time: np.ndarray, out: Reference) -> None:
         """Write the reference at ``time`` (N,) s into ``out`` (N rows).  This default is a fixed
         target at rest: the pose ``episode["target_position"]``, ``["target_rotation"]``, every
-        rate zero."""
+        rate zero.
+
+        Args:
+            episode: the episode arrays, name -> (N, ...).
+            time: (N,) s, the rows' times.
+            out: the :class:`Reference` (N rows) written into.
+        """
         out.position[:] = episode["target_position"]
         out.rotation[:] = episode["target_rotation"]
         for name in out._fields[2:]:
@@ -722,18 +831,33 @@ class Task:
     def external_wrench(self, view: StepView, dt: float, out: np.ndarray) -> None:
         """Write the wrench [F_ext at P (3), N; M_ext (3), N m] in {B} held over the step
         [view.time, view.time + dt] from the state ``view.state`` into ``out`` (N,6).  This
-        default applies none (the environment keeps zeros and does not call it)."""
+        default applies none (the environment keeps zeros and does not call it).
+
+        Args:
+            view: the batch's :class:`StepView` at the step's start.
+            dt: the step's length, s.
+            out: (N,6) the wrench written into.
+        """
 
     # -- observation ------------------------------------------------------------------------------
 
     def observation_terms(self, scales: Scales) -> list[tuple[str, np.ndarray]]:
-        """(name, scale) of each task observation term, scale (size,) in the term's units."""
+        """(name, scale) of each task observation term, scale (size,) in the term's units.
+
+        Args:
+            scales: the platform's :class:`Scales`.
+        """
         angle = np.full(3, scales.angle)
         return [("position_error", scales.position.copy()), ("orientation_error", angle)]
 
     def observe(self, view: StepView, out: dict[str, np.ndarray]) -> None:
         """Write each term of :meth:`observation_terms`, in physical units, into ``out[name]``
-        (N, size)."""
+        (N, size).
+
+        Args:
+            view: the batch's :class:`StepView`.
+            out: the terms' arrays, name -> (N, size).
+        """
         out["position_error"][:] = view.errors.position
         out["orientation_error"][:] = view.errors.orientation
 
@@ -741,7 +865,11 @@ class Task:
 
     def reward_terms(self, view: StepView) -> dict[str, np.ndarray]:
         """Reward terms (N,) each, by name, of a step that does not end (see :class:`RewardWeights`;
-        the end of an episode adds :meth:`termination_reward`)."""
+        the end of an episode adds :meth:`termination_reward`).
+
+        Args:
+            view: the batch's :class:`StepView` after the step.
+        """
         w, e = self.weights, view.errors
         out = np.empty((4, view.time.shape[0]))
         _core.tracking_reward(
@@ -764,7 +892,11 @@ class Task:
 
     def termination_reward(self, code: np.ndarray) -> np.ndarray:
         """The reward term ``termination`` (N,) of termination codes ``code``: -termination_cost
-        where the episode ends with a failure, 0 where it goes on or ends with a success."""
+        where the episode ends with a failure, 0 where it goes on or ends with a success.
+
+        Args:
+            code: (N,) int64, the termination codes of :meth:`termination`.
+        """
         return -self.weights.termination_cost * self._failure[code]
 
     def step_record(self) -> Any:
@@ -813,7 +945,11 @@ class Task:
         """Termination codes (N,) int64: 0 where the episode goes on, else k for the reason
         ``termination_reasons[k - 1]``.  This default ends an episode at the platform's limits
         (:data:`LIMIT_REASONS`, by priority); a subclass adds its own reasons after them with
-        :meth:`end`."""
+        :meth:`end`.
+
+        Args:
+            view: the batch's :class:`StepView` after the step.
+        """
         code = np.empty(view.time.shape[0], dtype=np.int64)
         state = view.state
         _core.limit_codes(
@@ -822,5 +958,11 @@ class Task:
         return code
 
     def end(self, code: np.ndarray, where: np.ndarray, reason: str) -> None:
-        """Set ``code`` to ``reason`` in the rows ``where`` that do not end for an earlier reason."""
+        """Set ``code`` to ``reason`` in the rows ``where`` that do not end for an earlier reason.
+
+        Args:
+            code: (N,) int64, the termination codes, changed in place.
+            where: (N,) bool, the rows that end for ``reason``.
+            reason: one of ``termination_reasons``.
+        """
         code[where & (code == 0)] = self.termination_reasons.index(reason) + 1

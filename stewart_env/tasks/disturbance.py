@@ -115,6 +115,7 @@ class DisturbanceTask(Task):
         )
 
     def episode_fields(self):
+        """The episode arrays (see :meth:`Task.episode_fields`): the target pose, the sinusoids' amplitudes, angular frequencies and phases, and the impulses' times and wrenches."""
         return {
             "target_position": (3,),
             "target_rotation": (3, 3),
@@ -126,6 +127,11 @@ class DisturbanceTask(Task):
         }
 
     def initialize_episode(self, rng):
+        """Draw one row's episode (see :meth:`Task.initialize_episode`): the start and target at home, the sinusoids and the impulses.
+
+        Args:
+            rng: the row's generator.
+        """
         amplitude = rng.uniform(0.0, 1.0, 6) * np.concatenate([self.sine_force, self.sine_moment])
         omega = 2.0 * np.pi * rng.uniform(*self.frequency_range, 6)
         phase = rng.uniform(0.0, 2.0 * np.pi, 6)
@@ -148,6 +154,13 @@ class DisturbanceTask(Task):
         }
 
     def external_wrench(self, view, dt, out) -> None:
+        """Write the wrench held over the step (see :meth:`Task.external_wrench`): the sinusoids averaged over the step plus the impulses' share of it.
+
+        Args:
+            view: the batch's :class:`StepView` at the step's start.
+            dt: the step's length, s.
+            out: (N,6) the wrench [F_ext at P, N; M_ext, N m] in {B}, written into.
+        """
         episode, time = view.episode, view.time
         omega, phase = episode["sine_omega"], episode["sine_phase"]
         t0 = omega * time[:, None] + phase

@@ -33,6 +33,7 @@ class HoldTask(Task):
         max_payload: kg, 0 to 10 m_p, default 0.5 m_p.
         payload_radius: m, 0 to r, default r / 2.
         **weights: the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
+
     Raises:
         ValueError: an unknown option or one out of its range (the message names it).
     """
@@ -52,9 +53,15 @@ class HoldTask(Task):
         super().__init__(params, control_dt, **weights)
 
     def episode_fields(self):
+        """The episode arrays (see :meth:`Task.episode_fields`): the target pose, the payload's mass and its offset from P's origin in {P}."""
         return {"target_position": (3,), "target_rotation": (3, 3), "payload_mass": (), "payload_offset": (3,)}
 
     def initialize_episode(self, rng):
+        """Draw one row's episode (see :meth:`Task.initialize_episode`): the start and target at home, a payload mass and an offset uniform over the disc.
+
+        Args:
+            rng: the row's generator.
+        """
         mass = rng.uniform(0.0, self.max_payload)
         # sqrt of a uniform radius fraction: uniform over the disc's area
         r = self.payload_radius * np.sqrt(rng.uniform())
@@ -69,6 +76,13 @@ class HoldTask(Task):
         }
 
     def external_wrench(self, view: StepView, dt, out) -> None:
+        """Write the wrench held over the step (see :meth:`Task.external_wrench`): the payload's weight m g at P and its moment (R c) x m g.
+
+        Args:
+            view: the batch's :class:`StepView` at the step's start.
+            dt: the step's length, s.
+            out: (N,6) the wrench [F_ext at P, N; M_ext, N m] in {B}, written into.
+        """
         force = view.episode["payload_mass"][:, None] * self.params.gravity
         arm = np.einsum("nij,nj->ni", view.state.rotation, view.episode["payload_offset"])
         out[:, :3] = force

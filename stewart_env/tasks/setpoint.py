@@ -38,9 +38,20 @@ class PaperCase(NamedTuple):
 def paper_case(params: PlatformParams, *, check_stroke: bool = True) -> PaperCase:
     """The case study of He et al. (2018) on ``params``: the paper's poses as offsets from home.
 
-    With ``check_stroke`` (the default), raises ValueError naming the platform and every leg that
-    the start or the target pose takes outside the stroke limits.leg_length: the case is defined
-    on the dasgupta1998 geometry, and on another platform the same offsets need not be reachable.
+    The case is defined on the dasgupta1998 geometry, and on another platform the same offsets
+    need not be reachable.
+
+    Args:
+        params: the platform.
+        check_stroke: whether to check that every leg stays within limits.leg_length at the start
+            and the target pose.
+
+    Returns:
+        The start and target poses, a :class:`PaperCase`.
+
+    Raises:
+        ValueError: with ``check_stroke``, a leg outside the stroke, naming the platform and every
+            such leg.
     """
     home_p, home_r = params.home_position, params.home_rpy
     case = PaperCase(
@@ -93,6 +104,7 @@ class SetpointTask(Task):
             start (0.1, 0, 0.395) and target (0.1, 0, 0.4), rpy (0, 0, -0.2).  Each must lie
             inside the platform's limits.
         **weights: the reward weights and scales of :class:`~stewart_env.tasks.RewardWeights`.
+
     Raises:
         ValueError: an unknown option or one out of its range (the message names it).
     """
@@ -142,6 +154,7 @@ class SetpointTask(Task):
                     )
 
     def episode_fields(self):
+        """The episode arrays (see :meth:`Task.episode_fields`): the target pose."""
         return {"target_position": (3,), "target_rotation": (3, 3)}
 
     def _draw_pose(self, rng: np.random.Generator, draws: int = _MAX_DRAWS) -> tuple[np.ndarray, np.ndarray]:
@@ -173,7 +186,14 @@ class SetpointTask(Task):
         """The start and target poses of every row at once, bit for bit those of
         :meth:`initialize_episode` row by row: each row draws its first two candidates (start,
         target) in one call, all are checked together, and the few rows that rejected one go on
-        drawing row by row, as :meth:`_draw_pose` would have."""
+        drawing row by row, as :meth:`_draw_pose` would have.
+
+        Args:
+            rngs: one generator per row.
+
+        Returns:
+            The rows' start states and their target poses, as :meth:`Task.initialize_episodes`.
+        """
         if not self.randomize:
             return super().initialize_episodes(rngs)
         m = len(rngs)
@@ -201,6 +221,11 @@ class SetpointTask(Task):
         )
 
     def initialize_episode(self, rng):
+        """Draw one row's episode (see :meth:`Task.initialize_episode`): the start and target poses, drawn when randomized, else the given ones.
+
+        Args:
+            rng: the row's generator.
+        """
         if self.randomize:
             start_p, start_r = self._draw_pose(rng)
             target_p, target_r = self._draw_pose(rng)

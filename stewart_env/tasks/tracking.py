@@ -107,6 +107,7 @@ class TrackingTask(Task):
         self._corners = np.array(list(itertools.product((-1.0, 1.0), repeat=6)))
 
     def episode_fields(self):
+        """The episode arrays (see :meth:`Task.episode_fields`): the sinusoids' amplitudes, angular frequencies and phases."""
         return {"amplitude": (6,), "omega": (6,), "phase": (6,)}
 
     def _bounded(self, amplitude: np.ndarray) -> np.ndarray:
@@ -119,6 +120,11 @@ class TrackingTask(Task):
         raise RuntimeError(f"tracking: no amplitude fits the limits of platform {p.name!r}")
 
     def initialize_episode(self, rng):
+        """Draw one row's episode (see :meth:`Task.initialize_episode`): sinusoids within the limits, the start on the reference at t = 0.
+
+        Args:
+            rng: the row's generator.
+        """
         max_amplitude = np.concatenate([self.position_amplitude, self.angle_amplitude])
         amplitude = self._bounded(rng.uniform(0.0, 1.0, 6) * max_amplitude)
         omega = 2.0 * np.pi * rng.uniform(*self.frequency_range, 6)
@@ -129,12 +135,24 @@ class TrackingTask(Task):
         return PlatformState(ref.position[0], ref.rotation[0], ref.velocity[0], ref.angular_velocity[0]), episode
 
     def reference(self, episode, time, out: Reference) -> None:
+        """Write the sinusoidal reference at ``time`` (see :func:`sinusoid_reference`).
+
+        Args:
+            episode: the episode arrays, name -> (N, ...).
+            time: (N,) s, the rows' times.
+            out: the :class:`Reference` (N rows) written into.
+        """
         p = self.params
         sinusoid_reference(
             p.home_position, p.home_rpy, episode["amplitude"], episode["omega"], episode["phase"], time, out
         )
 
     def observation_terms(self, scales: Scales):
+        """The pose errors, the velocity errors and, with a preview, the reference's future poses.
+
+        Args:
+            scales: the platform's :class:`Scales`.
+        """
         angle = np.full(3, scales.angle)
         terms = super().observation_terms(scales)
         terms += [("velocity_error", scales.position.copy()), ("angular_velocity_error", angle.copy())]
@@ -143,6 +161,12 @@ class TrackingTask(Task):
         return terms
 
     def observe(self, view: StepView, out) -> None:
+        """Write the terms of :meth:`observation_terms` into ``out``.
+
+        Args:
+            view: the batch's :class:`StepView`.
+            out: the terms' arrays, name -> (N, size).
+        """
         super().observe(view, out)
         out["velocity_error"][:] = view.errors.velocity
         out["angular_velocity_error"][:] = view.errors.angular_velocity
