@@ -33,7 +33,8 @@ import time
 import numpy as np
 
 import stewart_env as se
-from stewart_env.dynamics import MODEL_NAMES, _core
+from stewart_env import _core
+from stewart_env.dynamics import MODEL_NAMES
 from stewart_env.dynamics import kernels as K
 from stewart_env.progress import on_terminal, progress
 

@@ -32,7 +32,7 @@ import re
 import warnings
 
 from stewart_env import validation
-from stewart_env.dynamics import _core
+from stewart_env import _core
 
 __all__ = ["MAX_THREADS", "THREADS_VARIABLE", "get_num_threads", "set_num_threads"]
 

@@ -28,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from stewart_env.dynamics import Dynamics, _core
+from stewart_env import _core
+from stewart_env.dynamics import Dynamics
 from stewart_env.envs.config import EnvConfig
 from stewart_env.envs.observation import ObservationPipeline
 from stewart_env.envs.plant import Plant, make_plant
