@@ -134,9 +134,7 @@ def test_a_target_that_cannot_be_had_is_an_error_naming_the_variable(requested, 
 
 
 def test_an_unknown_target_is_a_warning_naming_the_variable_and_the_fastest_target_runs():
-    result = run_with_target(
-        "avx512", "import stewart_env; from stewart_env import _core; print(_core.TARGET)"
-    )
+    result = run_with_target("avx512", "import stewart_env; from stewart_env import _core; print(_core.TARGET)")
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == _core.TARGET  # the default choice, as with the variable unset
     assert (
