@@ -33,7 +33,8 @@ import time
 import numpy as np
 
 import stewart_env as se
-from stewart_env.dynamics import MODEL_NAMES, _core
+from stewart_env import _core
+from stewart_env.dynamics import MODEL_NAMES
 from stewart_env.dynamics import kernels as K
 from stewart_env.progress import on_terminal, progress
 
@@ -568,7 +569,7 @@ def first_evaluation_seconds() -> float:
 
 def machine() -> str:
     """One line naming the machine the figures come from, and the instruction-set target of the
-    kernels that ran (``stewart_env.dynamics._core.TARGET``)."""
+    kernels that ran (``stewart_env._core.TARGET``)."""
     cpu = _platform.processor() or _platform.machine()
     try:
         with open("/proc/cpuinfo") as f:

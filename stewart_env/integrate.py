@@ -8,8 +8,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from stewart_env import validation
-from stewart_env.dynamics import _core, rk4
+from stewart_env import _core, validation
+from stewart_env.dynamics import rk4
 from stewart_env.dynamics.model import Dynamics, batch_args, check_step
 
 __all__ = ["Trajectory", "rollout", "rollout_inplace"]

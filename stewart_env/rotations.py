@@ -7,6 +7,8 @@ rotation vector between two orientations.
 
 import numpy as np
 
+from stewart_env import _core
+
 
 def rpy_to_matrix(rpy):
     """Rotation matrix of roll-pitch-yaw angles, R = Rz(yaw) Ry(pitch) Rx(roll).
@@ -128,10 +130,7 @@ def rotation_error(rotation_ref: np.ndarray, rotation: np.ndarray) -> tuple[np.n
         The pair (phi, angle), phi (N,3) rad and |phi| (N,) rad; one pair of rotations gives (3,)
     and a scalar.
     """
-    # the compiled kernel the tasks' step uses, so both give the same bits; imported here because
-    # the dynamics package imports this module (through the platform parameters)
-    from stewart_env.dynamics import _core
-
+    # the compiled kernel the tasks' step uses, so both give the same bits
     ref = np.ascontiguousarray(rotation_ref, dtype=np.float64)
     cur = np.ascontiguousarray(rotation, dtype=np.float64)
     single = cur.ndim == 2

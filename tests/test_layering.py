@@ -1,5 +1,7 @@
-"""The package's layers import one way: physics <- tasks <- envs <- agents <- cli.
+"""The package's layers import one way: core <- physics <- tasks <- envs <- agents <- cli.
 
+The core (``stewart_env._core``, the compiled extension, and ``stewart_env.errors``) is a leaf:
+every layer may import it and it imports nothing else of the package.
 The physics (parameters, kinematics, dynamics, integration, the MuJoCo twin) knows no task and no
 environment; a task knows no integrator; the environment knows no agent; agents reach the rest of
 the package through public names only.  Read from the source with ``ast``, so a lazy import inside
@@ -17,9 +19,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 # module (dotted, as installed) -> layer; a package name covers its modules
 LAYERS = {
+    "stewart_env._core": "core",
+    "stewart_env.errors": "core",
     "stewart_env.validation": "physics",
     "stewart_env.files": "physics",
-    "stewart_env.errors": "physics",
     "stewart_env.extras": "physics",
     "stewart_env.state": "physics",
     "stewart_env.rotations": "physics",
@@ -44,7 +47,7 @@ LAYERS = {
 }
 # the package's face re-exports the physics API and registers the environment with Gymnasium
 PACKAGE = "stewart_env"
-ORDER = ("physics", "tasks", "envs", "agents", "cli")
+ORDER = ("core", "physics", "tasks", "envs", "agents", "cli")
 OWN_PARSERS = ()
 # the integrator: a task gets the state it is given and never advances it
 INTEGRATOR = ("stewart_env.integrate", "stewart_env.dynamics.rk4")
@@ -220,6 +223,93 @@ def test_the_mismatch_study_s_work_modules_import_no_argparse(name, path):
     ] == [], "argparse types belong to the command line"
 
 
+def test_the_core_imports_nothing_of_the_package_but_its_errors():
+    core = [(name, path) for name, path in MODULES if layer_of(name) == "core"]
+    assert {name for name, _ in core} == {"stewart_env._core", "stewart_env.errors"}
+    found = [
+        f"{name} line {line}: {module}"
+        for name, path in core
+        for module, _, line in imports(path)
+        if layer_of(module) != "core" or module == PACKAGE
+    ]
+    assert found == []
+
+
+def import_graph(modules: list[tuple[str, Path]]) -> dict[str, set[str]]:
+    """module -> the package's modules its import runs, inside functions too: each module imported
+    and the packages above it (their __init__ runs first), but not the root package (the face,
+    imported before any of its modules) nor the importer's own packages (already importing)."""
+    names = {name for name, _ in modules}
+    graph = {}
+    for name, path in modules:
+        own = {name.rsplit(".", k)[0] for k in range(1, name.count(".") + 1)}
+        targets = set()
+        for module, _, _ in imports(path):
+            parts = module.split(".")
+            for k in range(2, len(parts) + 1):
+                prefix = ".".join(parts[:k])
+                if prefix in names and prefix not in own and prefix != name:
+                    targets.add(prefix)
+        graph[name] = targets
+    return graph
+
+
+def find_circle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One circle of ``graph`` (its modules, the first repeated at the end), or None if acyclic."""
+    state: dict[str, int] = {}  # 1: on the current path, 2: done
+    path: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        path.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                return [*path[path.index(nxt) :], nxt]
+            if nxt not in state and (circle := visit(nxt)):
+                return circle
+        path.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state and (circle := visit(node)):
+            return circle
+    return None
+
+
+# The one import left out of the circle check: Dynamics.workspace() makes the Workspace, a class
+# built on the model (workspace imports model), by a lazy import inside that method.
+LAZY_EDGES = {("stewart_env.dynamics.model", "stewart_env.dynamics.workspace")}
+
+
+def test_no_import_circle_among_the_package_s_modules():
+    graph = import_graph(MODULES)
+    for importer, imported in LAZY_EDGES:
+        assert imported in graph[importer], f"{importer} no longer imports {imported}: drop it from LAZY_EDGES"
+        graph[importer].discard(imported)
+    circle = find_circle(graph)
+    assert circle is None, "import circle: " + " -> ".join(circle or [])
+
+
+def test_the_circle_check_finds_a_circle(tmp_path):
+    """The check itself can fail: a lazy import that closes a circle through a package is found."""
+    (tmp_path / "a.py").write_text("def f():\n    from stewart_env.dynamics import model\n")
+    (tmp_path / "b.py").write_text("from stewart_env.params import bodies\n")
+    (tmp_path / "c.py").write_text("import stewart_env.rotations\n")
+    modules = [
+        ("stewart_env.rotations", tmp_path / "a.py"),
+        ("stewart_env.dynamics.model", tmp_path / "b.py"),
+        ("stewart_env.params.bodies", tmp_path / "c.py"),
+    ]
+    assert find_circle(import_graph(modules)) == [
+        "stewart_env.dynamics.model",
+        "stewart_env.params.bodies",
+        "stewart_env.rotations",
+        "stewart_env.dynamics.model",
+    ]
+    assert find_circle({"x": {"y"}, "y": set()}) is None
+
+
 def test_the_rule_catches_an_upward_import(tmp_path):
     """The check itself can fail: a physics module importing the environment is reported."""
     bad = tmp_path / "bad.py"
@@ -283,6 +373,7 @@ def test_every_verb_is_a_module_of_the_command_line_with_its_two_functions():
     ):
         assert layer_of(importlib.import_module(f"stewart_env.{name}").__name__) == "agents"
     assert layer_of("stewart_env.extras") == "physics"
+    assert layer_of("stewart_env._core") == "core"
 
 
 def test_the_argparse_rule_catches_an_import(tmp_path):

@@ -111,7 +111,7 @@ def test_the_wheel_holds_the_compiled_extensions_and_the_configs(tmp_path):
     extensions = {
         n.split("/")[-1].split(".")[0]: n
         for n in names
-        if n.startswith("stewart_env/dynamics/_") and n.endswith((".so", ".pyd"))
+        if n.startswith("stewart_env/_core/_") and n.endswith((".so", ".pyd"))
     }
     targets = ["_core_baseline"]
     if sys.platform.startswith("linux") and platform.machine() == "x86_64":
@@ -122,7 +122,7 @@ def test_the_wheel_holds_the_compiled_extensions_and_the_configs(tmp_path):
         "stewart_env/configs/agents/ppo.yml",
         "stewart_env/agents/pd.py",
         "stewart_env/dynamics/kernels.py",
-        "stewart_env/dynamics/_core.py",
+        "stewart_env/_core/__init__.py",
     ):
         assert shipped in names
     assert not [n for n in names if "/cpp/" in n or n.endswith((".hpp", ".cpp"))]

@@ -2,10 +2,11 @@
 
 The one implementation of the Stewart platform's kinematics and dynamics is C++, compiled into
 one extension per instruction-set target when the package is installed, the fastest the
-processor runs imported as ``stewart_env.dynamics._core``; its sources are
-``stewart_env/dynamics/cpp/kernels.hpp`` (kinematics and dynamics), ``rk4.hpp`` (the integrator)
-and ``laws.hpp`` (the compiled control laws); beside them ``task_kernels.hpp`` (the tasks' errors,
-termination and reward) and ``env_step.hpp`` (the environment's control step) compile the
+processor runs imported as ``stewart_env._core``; its sources are
+``stewart_env/_core/cpp/physics/kernels.hpp`` (kinematics and dynamics), ``physics/rk4.hpp`` (the
+integrator) and ``physics/laws.hpp`` (the compiled control laws); beside them
+``tasks/task_kernels.hpp`` (the tasks' errors, termination and reward) and ``env/env_step.hpp``
+(the environment's control step) compile the
 per-step work of the tasks and the environment.  ``docs/physics.md`` in the repository is the full
 account of the physics, with a table of every function of those files (its section 3.2).
 
@@ -16,7 +17,7 @@ ValueError naming the one that does not fit; values are the callers' to check
 (:func:`stewart_env.dynamics.model.batch_args`).
 """
 
-from stewart_env.dynamics._core import (  # noqa: F401  (the kernels, re-exported)
+from stewart_env._core import (  # noqa: F401  (the kernels, re-exported)
     C1,
     C2,
     C3,

@@ -27,8 +27,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from stewart_env import validation
-from stewart_env.dynamics import _core
+from stewart_env import _core, validation
 from stewart_env.dynamics import kernels as K
 from stewart_env.dynamics.spec import BASE_MODELS, ModelSpec, Switch
 from stewart_env.params import ConfigError, PlatformParams

@@ -1,6 +1,6 @@
 """Control laws for the one RK4 integrator: compiled C functions evaluated at every RK4 stage.
 
-The integrator itself is C++ (``stewart_env/dynamics/cpp/rk4.hpp``, docs/physics.md section 5.6).
+The integrator itself is C++ (``stewart_env/_core/cpp/physics/rk4.hpp``, docs/physics.md section 5.6).
 A control law is a C function that returns nothing and writes six leg forces::
 
     void law(double time, const double *position, const double *rotation, const double *velocity,
@@ -31,7 +31,7 @@ import ctypes
 
 import numpy as np
 
-from stewart_env.dynamics import _core
+from stewart_env import _core
 
 __all__ = [
     "CONSTANT_FORCES",

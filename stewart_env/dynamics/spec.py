@@ -29,7 +29,7 @@ import enum
 from dataclasses import dataclass
 from typing import Any
 
-from stewart_env.dynamics import _core
+from stewart_env import _core
 from stewart_env.errors import UsageError
 
 __all__ = ["BASE_MODELS", "ModelSpec", "Switch"]

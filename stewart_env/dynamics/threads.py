@@ -31,8 +31,7 @@ import os
 import re
 import warnings
 
-from stewart_env import validation
-from stewart_env.dynamics import _core
+from stewart_env import _core, validation
 
 __all__ = ["MAX_THREADS", "THREADS_VARIABLE", "get_num_threads", "set_num_threads"]
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from stewart_env.dynamics import _core
+from stewart_env import _core
 from stewart_env.dynamics.model import Dynamics, batch_args, check_step
 from stewart_env.rotations import rpy_to_matrix
 

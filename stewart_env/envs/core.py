@@ -9,7 +9,7 @@ observation pipeline (:mod:`stewart_env.envs.observation`) makes every row's obs
 the closed-form plant and a task that keeps :class:`~stewart_env.tasks.Task`'s termination and
 reward, all of that but the task's Python hooks (a moving reference, an external wrench, its own
 observation terms) is one call of the compiled batch (``_core.BatchStep``,
-``stewart_env/dynamics/cpp/env_step.hpp``), the same arithmetic as the step of parts.  That step is
+``stewart_env/_core/cpp/env/env_step.hpp``), the same arithmetic as the step of parts.  That step is
 made of typed records, each built once by its owner (the batch's state and actuators here, the
 plant's, the task's and the observation's by them; docs/layout.md, "The compiled step's
 contract"), and :meth:`PlatformBatch.set_step_mode` chooses between it and the step of parts.  The
@@ -28,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from stewart_env.dynamics import Dynamics, _core
+from stewart_env import _core
+from stewart_env.dynamics import Dynamics
 from stewart_env.envs.config import EnvConfig
 from stewart_env.envs.observation import ObservationPipeline
 from stewart_env.envs.plant import Plant, make_plant

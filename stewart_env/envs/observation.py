@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from stewart_env.dynamics import _core
+from stewart_env import _core
 from stewart_env.envs.config import ObservationConfig
 from stewart_env.params import PlatformParams
 from stewart_env.tasks import Scales, StepView

@@ -23,7 +23,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from stewart_env.dynamics import Dynamics, _core
+from stewart_env import _core
+from stewart_env.dynamics import Dynamics
 from stewart_env.envs.config import CLOSED_FORM, MUJOCO, PhysicsConfig
 from stewart_env.integrate import rollout_inplace
 

@@ -6,7 +6,7 @@ Each task coordinate q_j (x, y, z of P's origin in {B}, m; roll, pitch, yaw, rad
     q_j(t) = q0_j + sum_{k=1..H} a_jk / (k wf) sin(k wf t) - b_jk / (k wf) cos(k wf t),
 
 a series of period 2 pi / wf (Swevers et al. 1997).  It is evaluated in one place, the compiled
-``stewart_env/dynamics/cpp/excitation_law.hpp``: its law tracks the series by computed torque on
+``stewart_env/_core/cpp/identification/excitation_law.hpp``: its law tracks the series by computed torque on
 the plant, and :meth:`Excitation.sample` calls the same function.
 """
 
@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.optimize
 
-from stewart_env.dynamics import _core
+from stewart_env import _core
 from stewart_env.dynamics.model import Dynamics
 from stewart_env.dynamics.rk4 import ControlLaw
 from stewart_env.identification import regressor as reg

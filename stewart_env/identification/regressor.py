@@ -1,6 +1,6 @@
 """The inverse dynamics linear in the inertial parameters: ``J^T F + W = Y(x, v, a) theta``.
 
-``Y`` comes from the compiled core (``stewart_env/dynamics/cpp/regressor.hpp``), batched; the
+``Y`` comes from the compiled core (``stewart_env/_core/cpp/identification/regressor.hpp``), batched; the
 parameter vector ``theta`` (:data:`N_THETA` numbers, names :data:`THETA_NAMES`) holds, per body,
 the mass, the first moment (mass times CoM) and the inertia tensor about a point fixed in the body:
 
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from stewart_env.dynamics import _core
+from stewart_env import _core
 from stewart_env.dynamics import kernels as K
 from stewart_env.dynamics.model import Dynamics, batch_args
 from stewart_env.params import PlatformParams

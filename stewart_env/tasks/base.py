@@ -25,7 +25,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from stewart_env.dynamics import Dynamics, _core, make_dynamics
+from stewart_env import _core
+from stewart_env.dynamics import Dynamics, make_dynamics
 from stewart_env.kinematics import leg_sensors_inplace
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_rate_matrix, rpy_to_matrix

@@ -16,9 +16,9 @@ KERNELS = ROOT / "stewart_env" / "dynamics" / "kernels.py"
 #: The compiled kernels' sources by the module name the physics page's function table gives them:
 #: the one implementation of the physics (kernels.hpp) and of the integrator (rk4.hpp).
 CPP_SOURCES = {
-    "kernels": ROOT / "stewart_env" / "dynamics" / "cpp" / "kernels.hpp",
-    "rk4": ROOT / "stewart_env" / "dynamics" / "cpp" / "rk4.hpp",
-    "regressor": ROOT / "stewart_env" / "dynamics" / "cpp" / "regressor.hpp",
+    "kernels": ROOT / "stewart_env" / "_core" / "cpp" / "physics" / "kernels.hpp",
+    "rk4": ROOT / "stewart_env" / "_core" / "cpp" / "physics" / "rk4.hpp",
+    "regressor": ROOT / "stewart_env" / "_core" / "cpp" / "identification" / "regressor.hpp",
 }
 CODE_MODULES = {
     "kernels": "stewart_env.dynamics.kernels",

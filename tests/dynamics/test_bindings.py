@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import stewart_env as se
-from stewart_env.dynamics import _core
+from stewart_env import _core
 
 from physics_reference import random_state
 

@@ -1,4 +1,4 @@
-"""The kernels' instruction-set targets (stewart_env/dynamics/_core.py): every target the processor
+"""The kernels' instruction-set targets (stewart_env/_core/__init__.py): every target the processor
 runs gives the same numbers bit for bit, the best one is imported by default, ``STEWART_ENV_CPU``
 chooses another, and a value it cannot honour is a warning naming the variable."""
 
@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from stewart_env.dynamics import _core, _cpu_features
+from stewart_env import _core
+from stewart_env._core import _cpu_features
 from stewart_env.errors import UsageError
 
 # Run in a fresh interpreter with STEWART_ENV_CPU set: prints the target imported and one hash of
@@ -22,7 +23,7 @@ import hashlib
 import gymnasium as gym
 import numpy as np
 import stewart_env as se
-from stewart_env.dynamics import _core
+from stewart_env import _core
 from stewart_env.agents.pd import pd_control_law, pd_control_params
 
 digest = hashlib.sha256()
@@ -133,9 +134,7 @@ def test_a_target_that_cannot_be_had_is_an_error_naming_the_variable(requested, 
 
 
 def test_an_unknown_target_is_a_warning_naming_the_variable_and_the_fastest_target_runs():
-    result = run_with_target(
-        "avx512", "import stewart_env; from stewart_env.dynamics import _core; print(_core.TARGET)"
-    )
+    result = run_with_target("avx512", "import stewart_env; from stewart_env import _core; print(_core.TARGET)")
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == _core.TARGET  # the default choice, as with the variable unset
     assert (

@@ -10,7 +10,7 @@ import re
 import pytest
 
 import stewart_env as se
-from stewart_env.dynamics import _core
+from stewart_env import _core
 from stewart_env.dynamics.model import MODEL_NAMES, SWITCHES, parse_model_name
 from stewart_env.dynamics.spec import ModelSpec, Switch
 from stewart_env.errors import UsageError

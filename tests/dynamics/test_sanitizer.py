@@ -22,7 +22,7 @@ import pytest
 pytestmark = pytest.mark.slow  # a build of the extension (about 20 s of CPU time) and the tests under the sanitizer
 
 ROOT = Path(__file__).resolve().parents[2]
-SOURCES = ROOT / "stewart_env" / "dynamics" / "cpp"
+SOURCES = ROOT / "stewart_env" / "_core" / "cpp"
 #: The test files run under the sanitizer: the bindings' own and the environment's compiled step.
 UNDER_SANITIZER = ["tests/dynamics", "tests/envs/test_compiled_step.py", "tests/envs/test_step_contract.py"]
 #: Left out: this file, and the choice of the instruction-set target (the run imports the baseline's).
@@ -74,14 +74,14 @@ def sanitized(tmp_path_factory):
 
 
 PLUGIN = '''
-"""Loads the AddressSanitizer build of the kernels as stewart_env.dynamics._core_baseline, before
+"""Loads the AddressSanitizer build of the kernels as stewart_env._core._core_baseline, before
 the package is imported (a pytest plugin given with -p is imported before any conftest);
-STEWART_ENV_CPU=baseline then has stewart_env.dynamics._core take it."""
+STEWART_ENV_CPU=baseline then has stewart_env._core take it."""
 import importlib.util
 import sys
 
 PATH = {path!r}
-NAME = "stewart_env.dynamics._core_baseline"
+NAME = "stewart_env._core._core_baseline"
 spec = importlib.util.spec_from_file_location(NAME, PATH)
 module = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(module)
@@ -89,7 +89,7 @@ sys.modules[NAME] = module
 
 
 def pytest_configure(config):
-    from stewart_env.dynamics import _core
+    from stewart_env import _core
 
     if _core._kernels.__file__ != PATH:
         raise RuntimeError("the sanitized kernels are not the ones stewart_env imported")

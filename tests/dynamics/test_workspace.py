@@ -374,7 +374,7 @@ def test_packed_rows_assigned_in_any_layout_give_the_numbers_of_a_plain_array(da
 def test_bound_workspace_keeps_the_parameter_copy_it_was_given(dasgupta):
     """The compiled workspace given a parameter array it must convert (strided) holds the copy:
     its calls after the caller's temporary is gone still read the model's numbers."""
-    from stewart_env.dynamics import _core
+    from stewart_env import _core
     from stewart_env.dynamics.workspace import _ARRAYS
 
     model = se.make_dynamics("improved", dasgupta)

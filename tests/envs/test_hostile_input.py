@@ -596,9 +596,9 @@ def read_only_install(tmp_path):
     shutil.copytree(package_dir, install / "stewart_env", ignore=shutil.ignore_patterns("__pycache__"))
     # the compiled extensions (one per instruction-set target, and the processor's features):
     # beside the sources in a normal install, elsewhere in an editable one
-    for extension in Path(stewart_env.dynamics._core._kernels.__file__).parent.glob("_*.so"):
-        if not (install / "stewart_env" / "dynamics" / extension.name).exists():
-            shutil.copy2(extension, install / "stewart_env" / "dynamics" / extension.name)
+    for extension in Path(stewart_env._core._kernels.__file__).parent.glob("_*.so"):
+        if not (install / "stewart_env" / "_core" / extension.name).exists():
+            shutil.copy2(extension, install / "stewart_env" / "_core" / extension.name)
     shutil.copytree(package_dir.parent / "configs", install / "configs", ignore=shutil.ignore_patterns("__pycache__"))
     home = tmp_path / "home"
     home.mkdir()

@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from stewart_env.dynamics import _core
+from stewart_env import _core
 from stewart_env.envs import StewartPlatformEnv
 
 

@@ -15,8 +15,8 @@
 #include <cmath>
 #include <cstdint>
 
-#include "kernels.hpp"
-#include "laws.hpp"
+#include "physics/kernels.hpp"
+#include "physics/laws.hpp"
 
 namespace excitation {
 

@@ -21,8 +21,8 @@
 #include <cstdint>
 #include <limits>
 
-#include "kernels.hpp"
-#include "lanes.hpp"
+#include "physics/kernels.hpp"
+#include "physics/lanes.hpp"
 
 namespace rk4 {
 

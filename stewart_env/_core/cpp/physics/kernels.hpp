@@ -66,7 +66,7 @@
 #include <type_traits>
 #include <vector>
 
-#include "lanes.hpp"
+#include "physics/lanes.hpp"
 
 namespace kernels {
 

@@ -1,15 +1,17 @@
 """The compiled kernels, in the build the processor runs fastest.
 
-The C++ kernels (``stewart_env/dynamics/cpp/``) are compiled once per instruction-set target into
+The C++ kernels (``stewart_env/_core/cpp/``, by layer: ``physics/``, ``identification/``,
+``tasks/``, ``env/``) are compiled once per instruction-set target into
 an extension of their own: ``_core_baseline`` (the architecture's baseline, which any processor of
 it runs) and, on x86-64, ``_core_x86_64_v3`` (AVX2, FMA, BMI2) and ``_core_x86_64_v4``
 (AVX-512).  On import this module takes the most demanding target the processor runs, or the one
 the environment variable ``STEWART_ENV_CPU`` names (``baseline``, ``x86-64-v3`` or
 ``x86-64-v4``; a value that cannot be had is a RuntimeWarning naming it, and the fastest target
 is used), imports its extension and re-exports its names, so that ``from
-stewart_env.dynamics import _core`` reaches the kernels whichever was chosen.  Every target
+stewart_env import _core`` reaches the kernels whichever was chosen.  Every target
 computes the same numbers bit for bit (no fused multiply-adds on any target); they differ in speed
-only.
+only.  This package is the lowest layer: it imports nothing of ``stewart_env`` but
+``stewart_env.errors``, and every layer may import it.
 
 Attributes:
     TARGET: the name of the target imported, e.g. ``"x86-64-v4"``.
@@ -22,7 +24,7 @@ import importlib.util as _importlib_util
 import os as _os
 import warnings as _warnings
 
-from stewart_env.dynamics import _cpu_features
+from stewart_env._core import _cpu_features
 from stewart_env.errors import UsageError as _UsageError
 
 _VARIABLE = "STEWART_ENV_CPU"
@@ -59,7 +61,7 @@ def _choose(requested: str | None, built: list[str], runnable: list[str]) -> str
         usable = [t for t in built if t in runnable]
         if not usable:
             raise ImportError(
-                f"stewart_env.dynamics: no compiled kernels this processor runs (built: "
+                f"stewart_env._core: no compiled kernels this processor runs (built: "
                 f"{', '.join(built) or 'none'}); reinstall the package to compile them"
             )
         return usable[-1]

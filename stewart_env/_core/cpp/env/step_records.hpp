@@ -22,9 +22,9 @@
 #include <cstdint>
 #include <string>
 
-#include "array_checks.hpp"
-#include "env_step.hpp"
-#include "kernels.hpp"
+#include "physics/array_checks.hpp"
+#include "env/env_step.hpp"
+#include "physics/kernels.hpp"
 
 namespace step_records {
 

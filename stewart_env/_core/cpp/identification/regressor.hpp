@@ -26,7 +26,7 @@
 #include <algorithm>
 #include <cstdint>
 
-#include "kernels.hpp"
+#include "physics/kernels.hpp"
 
 namespace regressor {
 

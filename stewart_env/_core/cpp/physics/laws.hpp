@@ -12,8 +12,8 @@
 #include <cstdint>
 #include <limits>
 
-#include "kernels.hpp"
-#include "rk4.hpp"
+#include "physics/kernels.hpp"
+#include "physics/rk4.hpp"
 
 namespace laws {
 

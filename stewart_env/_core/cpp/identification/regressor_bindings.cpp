@@ -7,9 +7,9 @@
 #include <cstdint>
 #include <string>
 
-#include "array_checks.hpp"
-#include "excitation_law.hpp"
-#include "regressor.hpp"
+#include "physics/array_checks.hpp"
+#include "identification/excitation_law.hpp"
+#include "identification/regressor.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;

@@ -1,4 +1,4 @@
-// Python bindings of the compiled kernels (stewart_env.dynamics._core): every function checks the
+// Python bindings of the compiled kernels (stewart_env._core): every function checks the
 // shapes of the arrays it is given, so no call from Python can read or write outside them, and
 // hands the raw pointers to kernels.hpp, rk4.hpp and laws.hpp.
 #include <nanobind/nanobind.h>
@@ -8,13 +8,13 @@
 #include <string>
 #include <vector>
 
-#include "array_checks.hpp"
-#include "env_step.hpp"
-#include "kernels.hpp"
-#include "laws.hpp"
-#include "rk4.hpp"
-#include "step_records.hpp"
-#include "task_kernels.hpp"
+#include "physics/array_checks.hpp"
+#include "env/env_step.hpp"
+#include "physics/kernels.hpp"
+#include "physics/laws.hpp"
+#include "physics/rk4.hpp"
+#include "env/step_records.hpp"
+#include "tasks/task_kernels.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;

@@ -1,7 +1,7 @@
-// Which instruction-set targets of the kernels this processor runs (stewart_env.dynamics._cpu_features).
+// Which instruction-set targets of the kernels this processor runs (stewart_env._core._cpu_features).
 //
 // Compiled for the architecture's baseline, so any processor of it imports this module;
-// stewart_env/dynamics/_core.py asks it before it imports a module of the kernels.  On x86-64 it
+// stewart_env/_core/__init__.py asks it before it imports a module of the kernels.  On x86-64 it
 // reads the processor's features with CPUID and, for the AVX and AVX-512 registers, asks the
 // operating system (XGETBV) whether it saves them: a processor with AVX-512 under a system that
 // does not save the registers cannot run x86-64-v4 code.  The targets' feature lists are those of

@@ -13,9 +13,9 @@
 #include <cstdint>
 #include <cstring>
 
-#include "kernels.hpp"
-#include "rk4.hpp"
-#include "task_kernels.hpp"
+#include "physics/kernels.hpp"
+#include "physics/rk4.hpp"
+#include "tasks/task_kernels.hpp"
 
 namespace env_step {
 
