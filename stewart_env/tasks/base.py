@@ -864,21 +864,11 @@ class Task:
 
     # -- reward and termination -------------------------------------------------------------------
 
-    def reward_terms(self, view: StepView) -> dict[str, np.ndarray]:
-        """Reward terms (N,) each, by name, of a step that does not end (see :class:`RewardWeights`;
-        the end of an episode adds :meth:`termination_reward`).
-
-        Args:
-            view: the batch's :class:`StepView` after the step.
-        """
-        w, e = self.weights, view.errors
-        out = np.empty((4, view.time.shape[0]))
-        _core.tracking_reward(
-            e.position_norm,
-            e.orientation_norm,
-            e.velocity_norm,
-            e.angular_velocity_norm,
-            view.action,
+    def _kernel_weights(self) -> tuple[float, ...]:
+        """The reward weights and scales in the order the compiled reward takes them (its Python
+        call and the step's task record both read this)."""
+        w = self.weights
+        return (
             w.position_reward_weight,
             w.position_reward_scale,
             w.orientation_reward_weight,
@@ -887,6 +877,24 @@ class Task:
             w.velocity_cost_scale,
             w.angular_velocity_cost_scale,
             w.ctrl_cost_weight,
+        )
+
+    def reward_terms(self, view: StepView) -> dict[str, np.ndarray]:
+        """Reward terms (N,) each, by name, of a step that does not end (see :class:`RewardWeights`;
+        the end of an episode adds :meth:`termination_reward`).
+
+        Args:
+            view: the batch's :class:`StepView` after the step.
+        """
+        e = view.errors
+        out = np.empty((4, view.time.shape[0]))
+        _core.tracking_reward(
+            e.position_norm,
+            e.orientation_norm,
+            e.velocity_norm,
+            e.angular_velocity_norm,
+            view.action,
+            *self._kernel_weights(),
             out,
         )
         return {"position": out[0], "orientation": out[1], "velocity": out[2], "control": out[3]}
@@ -915,20 +923,8 @@ class Task:
             for name in ("termination", "reward_terms", "termination_reward")
         ):
             return None
-        w = self.weights
         position_min, position_max, home_rpy, max_angle, length_min, length_max, max_condition = self._limits
-        weights = np.array(
-            [
-                w.position_reward_weight,
-                w.position_reward_scale,
-                w.orientation_reward_weight,
-                w.orientation_reward_scale,
-                w.velocity_cost_weight,
-                w.velocity_cost_scale,
-                w.angular_velocity_cost_scale,
-                w.ctrl_cost_weight,
-            ]
-        )
+        weights = np.array(self._kernel_weights())
         return _core.TaskRecord(
             position_min,
             position_max,
@@ -938,7 +934,7 @@ class Task:
             length_max,
             max_condition,
             weights,
-            w.termination_cost,
+            self.weights.termination_cost,
             self._failure,
         )
 
