@@ -29,6 +29,7 @@ LAYERS = {
     "stewart_env.params": "physics",
     "stewart_env.randomization": "physics",
     "stewart_env.kinematics": "physics",
+    "stewart_env.actuators": "physics",
     "stewart_env.dynamics": "physics",
     "stewart_env.integrate": "physics",
     "stewart_env.progress": "physics",
