@@ -151,12 +151,10 @@ class Constraints:
         chosen = set()
         for name in terminate_on:
             if name not in self.names:
-                key = f"{name}.max_angle" if name.endswith("_joint") else name
-                absent = (
-                    f" ({self.params.name!r} has no {name} limit: limits.{key} is absent)"
-                    if name in CONSTRAINT_NAMES
-                    else ""
-                )
+                absent = ""
+                if name in CONSTRAINT_NAMES:
+                    key = f"{name}.max_angle" if name.endswith("_joint") else name
+                    absent = f" ({self.params.name!r} has no {name} limit: limits.{key} is absent)"
                 shown = repr(name)[:40] if isinstance(name, str) else type(name).__name__
                 raise UsageError.about(
                     "terminate_on", f"unknown constraint {shown}{absent}; choose from {', '.join(self.names)}"
