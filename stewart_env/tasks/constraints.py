@@ -110,7 +110,9 @@ class Constraints:
             lists the choices), or a control_dt that is not a finite number > 0.
     """
 
-    def __init__(self, params: PlatformParams, control_dt: float, *, terminate_on: Iterable[str] = DEFAULT_TERMINATE_ON):
+    def __init__(
+        self, params: PlatformParams, control_dt: float, *, terminate_on: Iterable[str] = DEFAULT_TERMINATE_ON
+    ):
         if not isinstance(params, PlatformParams):
             raise UsageError.about("params", f"expected a PlatformParams, got {type(params).__name__}")
         self.params = params

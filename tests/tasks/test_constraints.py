@@ -275,7 +275,9 @@ def test_each_crafted_violation_costs_one(case):
     info = constraints.info(out, 0)
     assert info["cost"] == 1.0 and info[f"cost_{name}"] == 1.0
     # not among the constraints that end an episode: a cost, no termination
-    assert evaluate(Constraints(params, DT, terminate_on=()), state, previous_rates, previous_forces, forces).code[0] == 0
+    assert (
+        evaluate(Constraints(params, DT, terminate_on=()), state, previous_rates, previous_forces, forces).code[0] == 0
+    )
 
 
 def test_codes_name_the_first_terminating_violation(simulator):
@@ -295,7 +297,9 @@ def test_batch_info_and_the_platform_without_optional_limits(dasgupta, rng):
     out = evaluate(constraints, *random_batch(dasgupta, rng, 50))
     info = constraints.info(out)
     assert tuple(info) == constraints.info_keys == ("cost", "cost_leg_length", "cost_leg_force", "cost_workspace")
-    np.testing.assert_array_equal(info["cost"], info["cost_leg_length"] + info["cost_leg_force"] + info["cost_workspace"])
+    np.testing.assert_array_equal(
+        info["cost"], info["cost_leg_length"] + info["cost_leg_force"] + info["cost_workspace"]
+    )
     # the absent limits never cost, whatever the rates
     assert not out.violated[:, [K["leg_velocity"], K["leg_acceleration"], K["force_rate"]]].any()
     assert (out.margins[:, K["universal_joint"]] == np.inf).all()
