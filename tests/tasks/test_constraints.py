@@ -3,6 +3,7 @@ stewart_env/_core/cpp/tasks/constraints.hpp): hand-computed values, a numpy refe
 indicator costs of crafted violations, batch-size invariance and hostile input."""
 
 import dataclasses
+import importlib
 import math
 import pickle
 
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 
 from stewart_env import _core
+from stewart_env._core import _cpu_features
 from stewart_env.errors import UsageError
 from stewart_env.params import load_platform
 from stewart_env.rotations import matrix_to_rpy, rpy_to_matrix
@@ -377,3 +379,24 @@ def test_leg_rates_of_a_start_state(simulator_constraints, simulator):
     state = states(simulator.home_position, np.eye(3), [0.0, 0.0, 0.5])
     # rounding: the axes' six printed digits against the exact home directions
     np.testing.assert_allclose(simulator_constraints.leg_rates(state), 0.5 * 0.878105, rtol=1e-6)
+
+
+def test_every_instruction_set_target_gives_the_same_numbers(simulator, rng):
+    constraints = Constraints(simulator, DT, terminate_on=CONSTRAINT_NAMES)
+    batch = random_batch(simulator, rng, 128)
+    expected = evaluate(constraints, *batch)
+    lim = simulator.limits
+    runnable = [t for t in _core._built_targets() if t in _cpu_features.runnable()]
+    for target in runnable:
+        kernels = importlib.import_module(f"stewart_env._core.{_core._module_name(target)}")
+        # each target's extension has its own types: its bounds are built from the same numbers
+        bounds = kernels.ConstraintBounds(
+            *lim.leg_length, lim.max_leg_velocity, lim.max_leg_acceleration, *lim.leg_force, lim.max_force_rate,
+            lim.max_universal_angle, lim.max_spherical_angle, lim.universal_axes, lim.spherical_axes,
+            lim.position_min, lim.position_max, simulator.home_rpy, lim.max_angle,
+        )  # fmt: skip
+        out = constraints.arrays(128)
+        state, *rest = batch
+        kernels.evaluate_constraints(bounds, 255, constraints.prm, *state, *rest, DT, *out)
+        for got, want in zip(out, expected):
+            np.testing.assert_array_equal(got, want)
