@@ -65,8 +65,8 @@ class ActionDelay:
             action: (n, dim) the actions the policy gives now.
 
         Returns:
-            (n, dim) float64, the actions that reach the platform now: ``action``'s values when
-            ``delay_steps`` is 0. The array is the buffer's own, overwritten by the next push.
+            The actions that reach the platform now, (n, dim) float64 (``action``'s values when
+            ``delay_steps`` is 0). The array is the buffer's own, overwritten by the next push.
 
         Raises:
             ValueError: an action of another shape (the message names ``action``).

@@ -39,12 +39,12 @@ __all__ = [
     "Constraints",
 ]
 
-#: Every constraint, in the order of the compiled evaluation's arrays: the leg stroke, leg rate,
+#: Every constraint, in the order of the compiled evaluation's arrays (the leg stroke, leg rate,
 #: leg acceleration, leg force, force rate, universal-joint cone, spherical-joint cone and the
-#: workspace (the box and the angles about home).
+#: workspace, the box and the angles about home).
 CONSTRAINT_NAMES: tuple[str, ...] = tuple(_core.CONSTRAINT_NAMES)
-#: The constraints that end an episode by default: the leg stroke and the workspace, the
-#: termination reasons ``leg_stroke`` and ``workspace`` of every task (tasks.LIMIT_REASONS).
+#: The constraints that end an episode by default, the leg stroke and the workspace (the
+#: termination reasons ``leg_stroke`` and ``workspace`` of every task, tasks.LIMIT_REASONS).
 DEFAULT_TERMINATE_ON = ("leg_length", "workspace")
 # A platform has these whatever its config says (Limits requires them).
 _ALWAYS = ("leg_length", "leg_force", "workspace")
@@ -92,7 +92,7 @@ class Constraints:
         params: the platform's nominal parameters (its limits and geometry).
         control_dt: the control period, s, > 0: the step of the leg acceleration and force rate.
         terminate_on: the names of the constraints that end an episode, a subset of
-            :attr:`names` (default :data:`DEFAULT_TERMINATE_ON`); () for none.
+            ``names`` (default :data:`DEFAULT_TERMINATE_ON`); () for none.
 
     Attributes:
         params: the platform's parameters.
@@ -227,7 +227,7 @@ class Constraints:
             forces: (N,6) the leg forces applied over this step, N.
             out: the arrays of :meth:`arrays` (N), written into.
             prm: (1 or N, N_PARAMS) packed parameter rows to measure the legs with (the rows of
-                a randomised geometry); default :attr:`prm`, the nominal platform's.
+                a randomised geometry); default ``self.prm``, the nominal platform's.
 
         Returns:
             ``out``.
@@ -270,7 +270,7 @@ class Constraints:
 
     def info(self, out: ConstraintArrays, row: int | None = None) -> dict[str, float | np.ndarray]:
         """The ``info`` entries of an evaluation: ``"cost"`` (the sum) and ``"cost_<name>"`` of
-        each constraint the platform has (:attr:`names`).
+        each constraint the platform has (``names``).
 
         Args:
             out: the evaluated arrays.
@@ -278,7 +278,7 @@ class Constraints:
                 of the whole batch.
 
         Returns:
-            The entries by key: floats for a row, (N,) float64 arrays for the batch.
+            The entries by key, floats for a row and (N,) float64 arrays for the batch.
         """
         if row is None:
             entries = {"cost": out.cost.copy()}
@@ -292,7 +292,7 @@ class Constraints:
     @property
     def info_keys(self) -> tuple[str, ...]:
         """The keys of :meth:`info`, in its order: ``"cost"``, then ``"cost_<name>"`` per
-        constraint of :attr:`names`."""
+        constraint of ``names``."""
         return self._info_keys
 
 
