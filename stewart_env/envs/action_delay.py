@@ -37,12 +37,8 @@ class ActionDelay:
     Raises:
         UsageError: an argument out of its range (the message names it).
 
-    Examples:
-        >>> import numpy as np
-        >>> from stewart_env.envs.action_delay import ActionDelay
-        >>> delay = ActionDelay(1, 2, dim=1)
-        >>> [float(delay.push(np.array([[a]]))[0, 0]) for a in (1.0, 2.0, 3.0, 4.0)]
-        [0.0, 0.0, 1.0, 2.0]
+    With ``delay_steps=2``, pushing 1, 2, 3, 4 gives back 0, 0, 1, 2 (the start action, zeros,
+    then the actions two steps late).
     """
 
     def __init__(self, n: int, delay_steps: int, dim: int = 6):
