@@ -15,6 +15,11 @@ A platform is described by one config (a YAML file or a plain dict) with these k
       leg_force: [min, max]              # actuator force range, N
       workspace: {position_min: [..], position_max: [..], max_angle: rad}
       max_condition: 1000.0              # bound on the leg Jacobian's condition number
+      leg_velocity: v_max                # bound on |dL_i/dt|, m/s
+      leg_acceleration: a_max            # bound on |d2L_i/dt2| over a control step, m/s^2
+      force_rate: fdot_max               # bound on |dF_i/dt| over a control step, N/s
+      universal_joint: {max_angle: rad, axes: [..]}   # cone of the base joints; axes in {B}
+      spherical_joint: {max_angle: rad, axes: [..]}   # cone of the platform joints; axes in {P}
     home: {position: [x, y, z], rpy: [roll, pitch, yaw]}   # optional (see below)
 
 `inertia` is a 3x3 nested list or a 3-list, the shorthand for a diagonal matrix. The leg CoMs are
@@ -33,6 +38,12 @@ built from the physical keys alone:
   (|g| = 9.81 when gravity is zero, so that the range is never empty).
 - limits.workspace.position_min / position_max: the home position -/+ 0.5 mean_i L_i on each axis.
 - limits.workspace.max_angle: 0.5 rad.  limits.max_condition: 1000.
+- limits.leg_velocity, leg_acceleration, force_rate and each joint's max_angle: no bound (each, when
+  given, > 0; a cone's max_angle in (0, pi]). A joint's axes (six rows or one shared row, normalised
+  on load): its mounting axis, the leg direction at the centre of its cone; the z axis of {B}
+  (universal joints) or {P} (spherical joints) by default. The cone angle of leg i is the angle
+  between its axis e_i and the mounting axis (R c_i for a spherical joint); the home pose must
+  keep every cone angle within its bound.
 
 Every number must be a real number (not a boolean), finite as a float64 and at most 1e12 in
 magnitude, so that nothing overflows in the dynamics; the platform's mass must be at least 1e-6 kg

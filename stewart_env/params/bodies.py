@@ -10,6 +10,7 @@ and raises :class:`~stewart_env.params.ConfigError` naming the field.
 # stewart_env.params, whose namespace could not resolve their names for typing.get_type_hints.
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -17,7 +18,10 @@ import numpy as np
 
 from stewart_env.params.checks import ConfigError, array, frozen_array, interval, mapping, number
 
-__all__ = ["set_field", "RigidBody", "Damping", "Limits"]
+__all__ = ["N_LEGS", "set_field", "unit_rows", "RigidBody", "Damping", "Limits"]
+
+#: The platform's legs (six: a 6-UPS mechanism); its rows of per-leg arrays.
+N_LEGS = 6
 
 
 class _ValueObject:
@@ -56,6 +60,30 @@ def set_field(obj: object, name: str, value: object) -> None:
         value: the checked value.
     """
     object.__setattr__(obj, name, value)
+
+
+def unit_rows(axes: np.ndarray, key: str) -> np.ndarray:
+    """(N_LEGS, 3) unit rows from (N_LEGS, 3) rows or one shared (3,) row. Rows already unit to
+    1e-12 are kept as given, so that loading a saved config reproduces it bit for bit.
+
+    Args:
+        axes: the checked float64 rows (of :func:`~stewart_env.params.checks.array`).
+        key: the rows' key path in the config, which the error names, e.g. ``hooke_axes``.
+
+    Returns:
+        A new (N_LEGS, 3) array of unit rows.
+
+    Raises:
+        ConfigError: a zero row (named ``key[i]``).
+    """
+    axes = np.broadcast_to(axes, (N_LEGS, 3)).copy()
+    for i, row in enumerate(axes):
+        norm = float(np.linalg.norm(row))
+        if norm < 1e-12:
+            raise ConfigError(f"{key}[{i}]", "zero vector")
+        if abs(norm - 1.0) > 1e-12:
+            axes[i] = row / norm
+    return axes
 
 
 def _symmetric_eigenvalues(matrix: np.ndarray, key: str) -> np.ndarray:
@@ -169,6 +197,11 @@ class Damping(_ValueObject):
         return {"universal": self.universal, "prismatic": self.prismatic, "spherical": self.spherical}
 
 
+#: The default mounting axis of every joint of a joint cone limit: the z axis of its body's frame
+#: ({B} for the universal joints, {P} for the spherical joints).
+_Z_AXES = np.tile([0.0, 0.0, 1.0], (N_LEGS, 1))
+
+
 @dataclass(frozen=True, eq=False)
 class Limits(_ValueObject):
     """Operating limits used by the environment (the dynamics ignores them).
@@ -181,8 +214,25 @@ class Limits(_ValueObject):
         max_angle: rad, in (0, pi]: bound on the deviation of each of roll, pitch, yaw from the
             home rpy.
         max_condition: bound on the condition number of the 6x6 leg Jacobian, > 1.
+        max_leg_velocity: bound on each leg's rate |dL_i/dt|, m/s, > 0; inf (the default) for
+            none.
+        max_leg_acceleration: bound on each leg's acceleration |d2L_i/dt2| over a control step,
+            m/s^2, > 0; inf for none.
+        max_force_rate: bound on each leg force's rate |dF_i/dt| over a control step, N/s, > 0;
+            inf for none.
+        max_universal_angle: bound on each universal joint's cone angle, the angle between the
+            leg axis e_i and the joint's mounting axis, rad, in (0, pi]; inf for none.
+        universal_axes: (6, 3) unit mounting axes of the universal joints in {B} (a (3,) value
+            is shared by all joints; rows are normalised); the base's z axis by default.
+        max_spherical_angle: bound on each spherical joint's cone angle, between e_i and the
+            joint's mounting axis R c_i, rad, in (0, pi]; inf for none.
+        spherical_axes: (6, 3) unit mounting axes c_i of the spherical joints in {P}, as
+            universal_axes; the platform's z axis by default.
 
-    Error messages use the config's key names (``workspace.position_min``).
+    A mounting axis is the leg's direction, from the base joint towards the platform joint, at
+    which the joint sits at the centre of its cone (docs/physics.md, "Limits and constraint
+    costs"). Error messages use the config's key names (``workspace.position_min``,
+    ``universal_joint.max_angle``).
 
     Raises:
         ConfigError: a value that fails its check (the message names the config key).
@@ -194,6 +244,13 @@ class Limits(_ValueObject):
     position_max: np.ndarray
     max_angle: float
     max_condition: float
+    max_leg_velocity: float = math.inf
+    max_leg_acceleration: float = math.inf
+    max_force_rate: float = math.inf
+    max_universal_angle: float = math.inf
+    universal_axes: np.ndarray | None = None
+    max_spherical_angle: float = math.inf
+    spherical_axes: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         leg_length = interval(self.leg_length, "leg_length")
@@ -220,10 +277,26 @@ class Limits(_ValueObject):
         set_field(self, "position_max", frozen_array(position_max))
         set_field(self, "max_angle", max_angle)
         set_field(self, "max_condition", max_condition)
+        for name, key in (
+            ("max_leg_velocity", "leg_velocity"),
+            ("max_leg_acceleration", "leg_acceleration"),
+            ("max_force_rate", "force_rate"),
+        ):
+            set_field(self, name, _optional_bound(getattr(self, name), key))
+        for joint in ("universal", "spherical"):
+            key = f"{joint}_joint"
+            bound = _optional_bound(getattr(self, f"max_{joint}_angle"), f"{key}.max_angle")
+            if np.pi < bound < math.inf:
+                raise ConfigError(f"{key}.max_angle", f"must be in (0, pi] rad, got {bound}")
+            axes = getattr(self, f"{joint}_axes")
+            axes = _Z_AXES if axes is None else unit_rows(array(axes, f"{key}.axes", (N_LEGS, 3), (3,)), f"{key}.axes")
+            set_field(self, f"max_{joint}_angle", bound)
+            set_field(self, f"{joint}_axes", frozen_array(axes))
 
     def to_dict(self) -> dict:
-        """The config mapping of the limits, as a platform config's ``limits`` holds them."""
-        return {
+        """The config mapping of the limits, as a platform config's ``limits`` holds them (a
+        bound that is absent, inf, is left out, and so are default mounting axes)."""
+        d = {
             "leg_length": list(self.leg_length),
             "leg_force": list(self.leg_force),
             "workspace": {
@@ -233,3 +306,30 @@ class Limits(_ValueObject):
             },
             "max_condition": self.max_condition,
         }
+        for name, key in (
+            ("max_leg_velocity", "leg_velocity"),
+            ("max_leg_acceleration", "leg_acceleration"),
+            ("max_force_rate", "force_rate"),
+        ):
+            if getattr(self, name) != math.inf:
+                d[key] = getattr(self, name)
+        for joint in ("universal", "spherical"):
+            joint_limit = {}
+            if getattr(self, f"max_{joint}_angle") != math.inf:
+                joint_limit["max_angle"] = getattr(self, f"max_{joint}_angle")
+            axes = getattr(self, f"{joint}_axes")
+            if not np.array_equal(axes, _Z_AXES):
+                joint_limit["axes"] = axes.tolist()
+            if joint_limit:
+                d[f"{joint}_joint"] = joint_limit
+        return d
+
+
+def _optional_bound(value: object, key: str) -> float:
+    """A bound that may be absent: inf as given (no limit), else a number > 0 (``key`` names it)."""
+    if isinstance(value, (float, np.floating)) and value == math.inf:
+        return math.inf
+    bound = number(value, key)
+    if not bound > 0:
+        raise ConfigError(key, f"must be > 0, got {bound}")
+    return bound

@@ -10,6 +10,7 @@ Jacobian there is checked where a platform becomes a model
 # stewart_env.params, whose namespace could not resolve their names for typing.get_type_hints.
 
 import dataclasses
+import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -17,14 +18,13 @@ from pathlib import Path
 
 import numpy as np
 
-from stewart_env.params.bodies import Damping, Limits, RigidBody, _ValueObject, set_field
+from stewart_env.params.bodies import N_LEGS, Damping, Limits, RigidBody, _ValueObject, set_field, unit_rows
 from stewart_env.params.checks import ConfigError, array, describe, frozen_array, mapping, number, within
 from stewart_env.params.reader import parse_config, read_config_text
 from stewart_env.rotations import rpy_to_matrix
 
 __all__ = ["N_LEGS", "MIN_PLATFORM_MASS", "MIN_PLATFORM_INERTIA", "PlatformParams", "from_text"]
 
-N_LEGS = 6
 # A Hooke axis closer than this to its leg (|k x e| = sine of the angle between them) makes the
 # U-joint frame y = normalize(k x e) ill-defined: about 0.06 deg.
 _MIN_HOOKE_SINE = 1e-3
@@ -103,7 +103,7 @@ class PlatformParams(_ValueObject):
             raise ConfigError("name", f"must be a string, got {describe(self.name)}")
         base = array(self.base_joints, "base_joints", (N_LEGS, 3))
         plat = array(self.platform_joints, "platform_joints", (N_LEGS, 3))
-        hooke = _unit_rows(array(self.hooke_axes, "hooke_axes", (N_LEGS, 3), (3,)))
+        hooke = unit_rows(array(self.hooke_axes, "hooke_axes", (N_LEGS, 3), (3,)), "hooke_axes")
         platform = _instance(self.platform, RigidBody, "platform")
         _check_platform_mass(platform.mass)
         eigenvalues = np.linalg.eigvalsh(platform.inertia)
@@ -136,6 +136,7 @@ class PlatformParams(_ValueObject):
                 f"home position {position.tolist()} lies outside the box "
                 f"[{limits.position_min.tolist()}, {limits.position_max.tolist()}]",
             )
+        _check_home_cone_angles(base, plat, position, rpy, limits)
 
         set_field(self, "base_joints", frozen_array(base))
         set_field(self, "platform_joints", frozen_array(plat))
@@ -161,7 +162,7 @@ class PlatformParams(_ValueObject):
         d = mapping(d, "", _TOP_KEYS_REQUIRED, _TOP_KEYS_OPTIONAL)
         base = array(d["base_joints"], "base_joints", (N_LEGS, 3))
         plat = array(d["platform_joints"], "platform_joints", (N_LEGS, 3))
-        hooke = _unit_rows(array(d["hooke_axes"], "hooke_axes", (N_LEGS, 3), (3,)))
+        hooke = unit_rows(array(d["hooke_axes"], "hooke_axes", (N_LEGS, 3), (3,)), "hooke_axes")
         with within("platform"):
             body = mapping(d["platform"], "", ("mass", "com", "inertia"))
         # Checked before RigidBody, which accepts a massless body and would word it ">= 0".
@@ -302,6 +303,26 @@ def _home_leg_lengths(
     return lengths
 
 
+def _check_home_cone_angles(
+    base: np.ndarray, plat: np.ndarray, position: np.ndarray, rpy: np.ndarray, limits: Limits
+) -> None:
+    """Every joint's cone angle at the home pose within its bound (docs/physics.md, "Limits and
+    constraint costs": the angle between the leg axis e_i and the joint's mounting axis)."""
+    rotation = rpy_to_matrix(rpy)
+    legs = position + plat @ rotation.T - base
+    e = legs / np.linalg.norm(legs, axis=1)[:, None]
+    for joint, axes in (("universal", limits.universal_axes), ("spherical", limits.spherical_axes @ rotation.T)):
+        bound = getattr(limits, f"max_{joint}_angle")
+        angles = np.arctan2(np.linalg.norm(np.cross(axes, e), axis=1), np.sum(axes * e, axis=1))
+        for i, angle in enumerate(angles):
+            if angle > bound:
+                raise ConfigError(
+                    f"limits.{joint}_joint.max_angle",
+                    f"leg {i} is {np.degrees(angle):.1f} deg from its mounting axis at the home pose, "
+                    f"above {np.degrees(bound):.1f} deg",
+                )
+
+
 # ----------------------------------------------------------------------------------------------
 # Fields of PlatformParams.
 
@@ -309,19 +330,6 @@ def _home_leg_lengths(
 def _check_platform_mass(mass: float) -> None:
     if not mass >= MIN_PLATFORM_MASS:
         raise ConfigError("platform.mass", f"must be >= {MIN_PLATFORM_MASS:g} kg, got {mass}")
-
-
-def _unit_rows(axes: np.ndarray) -> np.ndarray:
-    """(6, 3) unit rows from (6, 3) or one shared (3,) row. Rows already unit to 1e-12 are kept as
-    given, so that loading a saved config reproduces it bit for bit."""
-    axes = np.broadcast_to(axes, (N_LEGS, 3)).copy()
-    for i, row in enumerate(axes):
-        norm = float(np.linalg.norm(row))
-        if norm < 1e-12:
-            raise ConfigError(f"hooke_axes[{i}]", "zero vector")
-        if abs(norm - 1.0) > 1e-12:
-            axes[i] = row / norm
-    return axes
 
 
 def _legs(value: object, key: str) -> tuple[RigidBody, ...]:
@@ -367,9 +375,29 @@ def _limits_from_config(
     value: object, lengths: np.ndarray, position: np.ndarray, gravity: np.ndarray, total_mass: float
 ) -> Limits:
     """Limits from the config's `limits` mapping, each missing entry replaced by its default
-    (the schema of stewart_env.params), computed from the home leg lengths, home position and the weight."""
-    limits = mapping(value, "", (), ("leg_length", "leg_force", "workspace", "max_condition"))
+    (the schema of stewart_env.params), computed from the home leg lengths, home position and the weight;
+    a missing bound of the leg velocity, acceleration, force rate or a joint cone is no bound (inf)."""
+    limits = mapping(
+        value,
+        "",
+        (),
+        (
+            "leg_length",
+            "leg_force",
+            "workspace",
+            "max_condition",
+            "leg_velocity",
+            "leg_acceleration",
+            "force_rate",
+            "universal_joint",
+            "spherical_joint",
+        ),
+    )
     workspace = mapping(limits.get("workspace", {}), "workspace", (), ("position_min", "position_max", "max_angle"))
+    joints = {
+        joint: mapping(limits.get(f"{joint}_joint", {}), f"{joint}_joint", (), ("max_angle", "axes"))
+        for joint in ("universal", "spherical")
+    }
     g = float(np.linalg.norm(gravity)) or _G0
     leg_weight = total_mass * g / N_LEGS
     half_box = 0.5 * float(np.mean(lengths))
@@ -380,4 +408,23 @@ def _limits_from_config(
         position_max=workspace.get("position_max", position + half_box),
         max_angle=workspace.get("max_angle", _DEFAULT_MAX_ANGLE),
         max_condition=limits.get("max_condition", _DEFAULT_MAX_CONDITION),
+        max_leg_velocity=_bound_from_config(limits, "leg_velocity"),
+        max_leg_acceleration=_bound_from_config(limits, "leg_acceleration"),
+        max_force_rate=_bound_from_config(limits, "force_rate"),
+        max_universal_angle=_bound_from_config(joints["universal"], "max_angle", "universal_joint.max_angle"),
+        universal_axes=joints["universal"].get("axes"),
+        max_spherical_angle=_bound_from_config(joints["spherical"], "max_angle", "spherical_joint.max_angle"),
+        spherical_axes=joints["spherical"].get("axes"),
     )
+
+
+def _bound_from_config(section: Mapping, key: str, name: str | None = None) -> object:
+    """The config's bound `key` of `section` as given (Limits checks it), inf when absent: no
+    limit. A bound written as inf is refused (every number of a config is finite): leaving the key
+    out says "no limit". `name` is the key path the error names (default `key`)."""
+    if key not in section:
+        return math.inf
+    value = section[key]
+    if isinstance(value, (float, np.floating)) and math.isinf(value):
+        raise ConfigError(name or key, f"not a finite number ({value}); leave the key out for no limit")
+    return value

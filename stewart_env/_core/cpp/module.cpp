@@ -20,6 +20,7 @@ namespace nb = nanobind;
 using namespace nb::literals;
 
 void bind_regressor(nb::module_& m);  // regressor_bindings.cpp
+void bind_constraints(nb::module_& m);  // tasks/constraints_bindings.cpp
 
 using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
 using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
@@ -285,6 +286,7 @@ NB_MODULE(STEWART_ENV_CORE_MODULE, m) {  // _core_<instruction-set target> (CMak
     }, "total"_a, "The thread count the pool is made with when first needed (STEWART_ENV_THREADS); nothing starts.");
 
     bind_regressor(m);
+    bind_constraints(m);
     def_solve_batch<kernels::forward_batch>(m, "forward_batch", "F", "leg_forces");
     def_solve_batch<kernels::inverse_batch>(m, "inverse_batch", "acc", "acceleration");
 
