@@ -40,7 +40,8 @@ LAYERS = {
     "stewart_env.registration": "envs",
     "stewart_env.agents": "agents",
     "stewart_env.configs": "agents",
-    "stewart_env.bench": "cli",
+    # the benchmark times the environments and the twin as a user does; nothing below imports it
+    "stewart_env.benchmarks": "agents",
     "stewart_env.cli": "cli",
     # `python -m stewart_env` and `python -m stewart_env.mujoco`: entry points into the command line
     "stewart_env.__main__": "cli",
