@@ -333,7 +333,7 @@ def test_the_study_checks_its_counts_with_the_command_lines_constraints():
     setting as data, and a numpy integer is a count."""
     import numpy as np
 
-    from stewart_env.agents.mismatch.settings import COUNT, TOLERANCE, _checked
+    from stewart_env.agents.studies.mismatch.settings import COUNT, TOLERANCE, _checked
 
     assert _checked(COUNT, "episodes", np.int64(3)) == 3 and _checked(TOLERANCE, "position_tolerance", 1) == 1.0
     cases = (

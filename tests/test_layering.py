@@ -211,7 +211,7 @@ def test_the_environments_reach_a_simulator_only_through_their_plant(simulator):
 
 
 # The mismatch study's work modules; its command line (argparse) is stewart_env.cli.mismatch.
-MISMATCH = [(name, path) for name, path in MODULES if name.startswith("stewart_env.agents.mismatch")]
+MISMATCH = [(name, path) for name, path in MODULES if name.startswith("stewart_env.agents.studies.mismatch")]
 
 
 @pytest.mark.parametrize("name,path", MISMATCH, ids=[name for name, _ in MISMATCH])

@@ -1,5 +1,5 @@
 """``stewart-env time-to-agent``: the training wall time to a precise agent
-(:mod:`stewart_env.agents.time_to_agent`) from the command line.  :func:`add_parser` registers the
+(:mod:`stewart_env.agents.studies.time_to_agent`) from the command line.  :func:`add_parser` registers the
 verb with its options, :func:`run` runs it and returns the exit code: 0 measured (whether or not
 the target was reached: the table says), 1 stopped by a failing write (the points taken are kept),
 2 a bad request, 130 interrupted (Ctrl-C; the points taken are kept)."""
@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from stewart_env.agents.time_to_agent import SeedResult, resolve_config, summary_table, time_to_agent
+from stewart_env.agents.studies.time_to_agent import SeedResult, resolve_config, summary_table, time_to_agent
 from stewart_env.agents.training import ALGORITHMS, TrainingError
 from stewart_env.cli.arguments import (
     TASKS,

@@ -24,7 +24,7 @@ import gymnasium as gym
 import numpy as np
 import stewart_env as se
 from stewart_env import _core
-from stewart_env.agents.pd import pd_control_law, pd_control_params
+from stewart_env.agents.controllers.pd import pd_control_law, pd_control_params
 
 digest = hashlib.sha256()
 def add(*arrays):
