@@ -56,6 +56,7 @@ from stewart_env.agents.training import (
     save_agent,
     single_thread,
 )
+from stewart_env.errors import UsageError
 from stewart_env.files import LOCK_FILE, TMP_PREFIX, lock_folder, publish, publishing
 from stewart_env.progress import on_terminal, progress
 from stewart_env.validation import MAX_SEED, real
@@ -85,7 +86,9 @@ AGENTS_DIR = "agents"
 
 
 class TimeToAgentError(TrainingError):
-    """A time-to-agent request that cannot be carried out; the message names the argument."""
+    """A time-to-agent request that cannot be carried out: the argument's name is its
+    :attr:`~stewart_env.errors.UsageError.argument` (``"out"``, ``"config"``, ...) and the message
+    begins with it."""
 
 
 @dataclass
@@ -182,20 +185,20 @@ def resolve_config(algo: str, config: str | os.PathLike | None) -> Path:
         config: a path, a shipped config's name, or None for the algorithm's shipped config.
 
     Raises:
-        TimeToAgentError: no such file or config (the message says ``config:``).
+        TimeToAgentError: no such file or config (its argument is ``"config"``).
     """
     try:
         return config_path(algo, config)
     except TrainingError as err:
-        raise TimeToAgentError(f"config: {err}") from None
+        raise TimeToAgentError.about("config", err.problem) from None
 
 
 def _number(name: str, value: Any, low: float, high: float = math.inf, low_open: bool = False) -> float:
     """``value`` checked by the package's one number check, as this module's error."""
     try:
         return real(name, value, low, high, low_open=low_open)
-    except ValueError as err:
-        raise TimeToAgentError(str(err)) from None
+    except UsageError as err:
+        raise TimeToAgentError.about(err.argument or name, err.problem) from None
 
 
 def _seeds(seeds: Sequence[int]) -> list[int]:
@@ -205,7 +208,7 @@ def _seeds(seeds: Sequence[int]) -> list[int]:
         or any(isinstance(s, bool) or not isinstance(s, (int, np.integer)) or not 0 <= s <= MAX_SEED for s in seeds)
         or len(set(seeds)) != len(seeds)
     ):
-        raise TimeToAgentError(f"seeds: expected distinct integers in [0, {MAX_SEED}], got {seeds!r}")
+        raise TimeToAgentError.about("seeds", f"expected distinct integers in [0, {MAX_SEED}], got {seeds!r}")
     return [int(s) for s in seeds]
 
 
@@ -213,9 +216,9 @@ def _check_out(out: Path) -> None:
     """Refuse an output folder that holds anything else than a lock or unfinished writes: another
     measurement's files are never overwritten."""
     if out.exists() and not out.is_dir():
-        raise TimeToAgentError(f"out: {str(out)!r} is not a directory")
+        raise TimeToAgentError.about("out", f"{str(out)!r} is not a directory")
     if out.is_dir() and [n for n in os.listdir(out) if n != LOCK_FILE and not n.startswith(TMP_PREFIX)]:
-        raise TimeToAgentError(f"out: {str(out)!r} is not empty; choose a new or empty output directory")
+        raise TimeToAgentError.about("out", f"{str(out)!r} is not empty; choose a new or empty output directory")
 
 
 # -- one seed --------------------------------------------------------------------------------------
@@ -431,9 +434,9 @@ def time_to_agent(
     budget = _number("budget", budget, 0.0, low_open=True)
     interval = _number("interval", interval, 0.0, low_open=True)
     if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or not 1 <= episodes <= 2**31 - 1:
-        raise TimeToAgentError(f"episodes: expected an integer in [1, {2**31 - 1}], got {episodes!r}")
+        raise TimeToAgentError.about("episodes", f"expected an integer in [1, {2**31 - 1}], got {episodes!r}")
     if n_envs is not None and (isinstance(n_envs, bool) or not isinstance(n_envs, (int, np.integer)) or n_envs < 1):
-        raise TimeToAgentError(f"n_envs: expected a positive integer, got {n_envs!r}")
+        raise TimeToAgentError.about("n_envs", f"expected a positive integer, got {n_envs!r}")
     seeds = _seeds(seeds)
     cfg = resolve_config(algo, config)
     hp = parse_hyperparameters(algo, read_hyperparameters(algo, cfg))

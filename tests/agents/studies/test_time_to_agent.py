@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from stewart_env.agents.evaluation import evaluate
+from stewart_env.agents.evaluation.evaluation import evaluate
 from stewart_env.agents.studies.time_to_agent import AGENTS_DIR, EVALUATION_SEED, FILES, TimeToAgentError, time_to_agent
 from stewart_env.agents.training import ENV_ID, load_agent
 from stewart_env.cli import main
@@ -132,15 +132,18 @@ def test_an_unreachable_target_stops_at_the_budget_and_writes_the_files(tiny, tm
 )
 def test_bad_arguments_are_refused_by_name_before_anything_is_written(kwargs, name, tmp_path):
     out = tmp_path / "out"
-    with pytest.raises(TimeToAgentError, match=rf"^{name}: "):
+    with pytest.raises(TimeToAgentError, match=rf"^{name}: ") as err:
         time_to_agent("ppo", out, **kwargs)
+    # the argument is data, so the command line says it of its flag without reading the text
+    assert err.value.argument == name and not err.value.problem.startswith(f"{name}: ")
     assert not out.exists()
 
 
 def test_another_measurement_s_folder_is_not_overwritten(tmp_path):
     (tmp_path / FILES["json"]).write_text("{}")
-    with pytest.raises(TimeToAgentError, match="^out: .* is not empty"):
+    with pytest.raises(TimeToAgentError, match="^out: .* is not empty") as err:
         time_to_agent("ppo", tmp_path)
+    assert err.value.argument == "out" and err.value.problem.endswith("choose a new or empty output directory")
     assert (tmp_path / FILES["json"]).read_text() == "{}"
 
 
