@@ -8,7 +8,8 @@ The package, one module per job:
 - :mod:`~stewart_env.agents.training.rundir`: the run directory (manifest, checkpoints, hashes),
   written and read through :mod:`stewart_env.files`;
 - :mod:`~stewart_env.agents.training.signals`: SIGINT and SIGTERM while training;
-- :mod:`~stewart_env.agents.training.environment`: the training VecEnv and its threads;
+- :mod:`~stewart_env.agents.training.environment`: the training VecEnv and its threads, SB3's
+  ``SubprocVecEnv`` with its workers' physics threads sized to the cores;
 - :mod:`~stewart_env.agents.training.trainer`: :func:`train`;
 - :mod:`~stewart_env.agents.training.agent`: :func:`load_agent` and :class:`TrainedAgent`.
 
@@ -19,7 +20,15 @@ package's one :data:`stewart_env.validation.MAX_SEED`.
 
 from stewart_env.agents.training.agent import TrainedAgent, load_agent
 from stewart_env.agents.training.env_kwargs import jsonable, parse_env_kwargs
-from stewart_env.agents.training.environment import make_training_env, progress_bar_available, single_thread
+from stewart_env.agents.training.environment import (
+    SizedEnvFactory,
+    available_cores,
+    make_subprocess_env,
+    make_training_env,
+    progress_bar_available,
+    single_thread,
+    worker_threads,
+)
 from stewart_env.agents.training.errors import TrainingError, TrainingInterrupted, check_rl_installed
 from stewart_env.agents.training.hyperparameters import (
     ACTIVATIONS,
@@ -89,17 +98,20 @@ __all__ = [
     "ZOO_KEYS_ZOO_ONLY",
     "ZOO_SCHEDULE_KEYS",
     "Hyperparameters",
+    "SizedEnvFactory",
     "TrainResult",
     "TrainedAgent",
     "TrainingError",
     "TrainingInterrupted",
     "algorithm_class",
+    "available_cores",
     "check_hyperparameter_names",
     "check_rl_installed",
     "config_path",
     "jsonable",
     "load_agent",
     "log_progress",
+    "make_subprocess_env",
     "make_training_env",
     "newest_checkpoint",
     "parse_env_kwargs",
@@ -115,5 +127,6 @@ __all__ = [
     "shipped_configs",
     "single_thread",
     "train",
+    "worker_threads",
     "zoo_eval",
 ]
