@@ -44,6 +44,7 @@ import numpy as np
 from stewart_env.agents.evaluation.evaluation import curve_style, evaluate, new_figure
 from stewart_env.agents.training import (
     ALGORITHM_NAMES,
+    Hyperparameters,
     TrainedAgent,
     TrainingError,
     algorithm_class,
@@ -55,6 +56,7 @@ from stewart_env.agents.training import (
     run_manifest,
     save_agent,
     single_thread,
+    timer_callback,
 )
 from stewart_env.errors import UsageError
 from stewart_env.files import LOCK_FILE, TMP_PREFIX, lock_folder, publish, publishing
@@ -69,6 +71,7 @@ __all__ = [
     "SeedResult",
     "TimeToAgentError",
     "TimeToAgentResult",
+    "TimeToAgentSettings",
     "learning_curve_figure",
     "resolve_config",
     "summary_table",
@@ -221,73 +224,119 @@ def _check_out(out: Path) -> None:
         raise TimeToAgentError.about("out", f"{str(out)!r} is not empty; choose a new or empty output directory")
 
 
+@dataclass(frozen=True)
+class TimeToAgentSettings:
+    """What a time-to-agent measurement is asked for, checked at construction (a bad value raises
+    :class:`TimeToAgentError` naming it, before anything is written) and completed from the
+    algorithm's config: built once by :func:`time_to_agent`, read by every seed's run.
+
+    Attributes:
+        algo: one of ``ALGORITHMS`` of :mod:`stewart_env.agents.training`.
+        config: the zoo hyperparameter file, a path or a shipped config's name (None: the
+            algorithm's); once made, the file's path.
+        task: the task.
+        model: the plant's dynamics model.
+        seeds: the training seeds, distinct; once made, a tuple of ints.
+        target_success: the fraction of held-out episodes that must succeed, in [0, 1].
+        target_error_mm: the bound of the median steady-state position error, mm (>= 0).
+        budget: training wall time per seed, s (> 0).
+        interval: training wall time between points, s (> 0).
+        episodes: held-out episodes per point.
+        n_envs: platforms in the training batch (None: the config's); once made, an int.
+        env_kwargs: further environment keywords; once made, the environment's keywords: the
+            config's, these, the model and the task.
+        hyperparameters: the config's entry, split (made from ``config``).
+    """
+
+    algo: str
+    config: str | os.PathLike | None = None
+    task: str = "setpoint"
+    model: str = "improved"
+    seeds: Sequence[int] = (0,)
+    target_success: float = 0.98
+    target_error_mm: float = 0.5
+    budget: float = 300.0
+    interval: float = 30.0
+    episodes: int = 50
+    n_envs: int | None = None
+    env_kwargs: Mapping[str, Any] | None = None
+    hyperparameters: Hyperparameters = field(init=False, repr=False)
+
+    def __post_init__(self):
+        algorithm_class(self.algo)
+        made = {
+            "target_success": _number("target_success", self.target_success, 0.0, 1.0),
+            "target_error_mm": _number("target_error_mm", self.target_error_mm, 0.0),
+            "budget": _number("budget", self.budget, 0.0, low_open=True),
+            "interval": _number("interval", self.interval, 0.0, low_open=True),
+        }
+        episodes, n_envs = self.episodes, self.n_envs
+        if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or not 1 <= episodes <= 2**31 - 1:
+            raise TimeToAgentError.about("episodes", f"expected an integer in [1, {2**31 - 1}], got {episodes!r}")
+        if n_envs is not None and (isinstance(n_envs, bool) or not isinstance(n_envs, (int, np.integer)) or n_envs < 1):
+            raise TimeToAgentError.about("n_envs", f"expected a positive integer, got {n_envs!r}")
+        made["seeds"] = tuple(_seeds(self.seeds))
+        made["config"] = resolve_config(self.algo, self.config)
+        hp = parse_hyperparameters(self.algo, read_hyperparameters(self.algo, made["config"]))
+        kwargs = {**hp.env_kwargs, **(self.env_kwargs or {}), "model": self.model, "task": self.task}
+        jsonable(kwargs)
+        from stewart_env.envs import StewartPlatformEnv
+
+        StewartPlatformEnv(**kwargs).close()  # a bad environment keyword fails here, before anything is written
+        made.update(
+            episodes=int(episodes),
+            n_envs=int(hp.n_envs if n_envs is None else n_envs),
+            env_kwargs=kwargs,
+            hyperparameters=hp,
+        )
+        for name, value in made.items():
+            object.__setattr__(self, name, value)
+
+    @property
+    def algorithm(self) -> type:
+        """The SB3 (or sb3-contrib) class of :attr:`algo`."""
+        return algorithm_class(self.algo)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The settings as the measurement's JSON file records them.
+
+        Returns:
+            The JSON-fit settings, with the first held-out episode's seed and the hyperparameters.
+        """
+        return {
+            "algo": self.algo,
+            "config": str(self.config),
+            "task": self.task,
+            "model": self.model,
+            "env_kwargs": jsonable(self.env_kwargs),
+            "n_envs": self.n_envs,
+            "seeds": list(self.seeds),
+            "target_success": self.target_success,
+            "target_error_mm": self.target_error_mm,
+            "budget_s": self.budget,
+            "interval_s": self.interval,
+            "episodes": self.episodes,
+            "evaluation_seed": EVALUATION_SEED,
+            "hyperparameters": jsonable(self.hyperparameters.raw),
+        }
+
+
 # -- one seed --------------------------------------------------------------------------------------
 
 
-def _timer_callback(clock: Callable[[], float], on_point: Callable[[], bool]):
-    """An SB3 callback that times collection (``_on_rollout_start`` to ``_on_rollout_end``) and
-    learning (``_on_rollout_end`` to the next ``_on_rollout_start``: the update), and at every
-    rollout start after the first calls ``on_point``; training stops at the next step once it
-    returns True."""
-    from stable_baselines3.common.callbacks import BaseCallback
-
-    class Timer(BaseCallback):
-        def _on_training_start(self) -> None:
-            self.collection_time = self.learning_time = 0.0
-            self.collection_steps = self.learning_steps = 0
-            self.rollout_start = self.rollout_end = None
-            self.steps_at_start = 0
-            self.stop = False
-
-        def finish(self) -> bool:
-            """Count the update that just ended (if any); whether there was one."""
-            if self.rollout_end is None:
-                return False
-            self.learning_time += clock() - self.rollout_end
-            self.learning_steps += self.last_rollout
-            self.rollout_end = None
-            return True
-
-        def _on_rollout_start(self) -> None:
-            if self.finish():  # the update of the previous rollout just ended
-                self.stop = on_point()
-            self.rollout_start = clock()
-            self.steps_at_start = self.model.num_timesteps
-
-        def _on_step(self) -> bool:
-            return not self.stop
-
-        def _on_rollout_end(self) -> None:
-            self.rollout_end = clock()
-            self.collection_time += self.rollout_end - self.rollout_start
-            self.last_rollout = self.model.num_timesteps - self.steps_at_start
-            self.collection_steps += self.last_rollout
-
-    return Timer()
-
-
 def _run_seed(
-    cls,
-    algo,
-    hp,
-    env_kwargs,
-    seed,
-    n_envs,
-    *,
-    target_success,
-    target_error,
-    budget,
-    interval,
-    episodes,
+    settings: TimeToAgentSettings,
+    seed: int,
     bar,
     publish_point: Callable[[SeedResult], None],
     agent_dir: Path,
-    config: str,
 ) -> SeedResult:
     """Train one seed until the target or the budget; the points and throughputs of the run.
     ``publish_point`` gets the seed's result so far after every point (training paused).  The
     policy of the last point, the one that met the target if one did, is saved into ``agent_dir``
     as a run of ``stewart-env train`` (``evaluate --agent`` loads it)."""
+    algo, hp, env_kwargs, n_envs = settings.algo, settings.hyperparameters, settings.env_kwargs, settings.n_envs
+    budget, interval, episodes = settings.budget, settings.interval, settings.episodes
     result = SeedResult(seed)
     paused = {"evaluation": 0.0, "writing": 0.0}
 
@@ -302,7 +351,7 @@ def _run_seed(
     next_point = interval
     env = make_training_env(n_envs, env_kwargs, seed, hp.normalize)
     try:
-        agent = cls(env=env, seed=seed, device="cpu", verbose=0, **hp.algorithm_kwargs)
+        agent = settings.algorithm(env=env, seed=seed, device="cpu", verbose=0, **hp.algorithm_kwargs)
         policy = TrainedAgent(Path("."), {"algo": algo, "env_kwargs": env_kwargs}, agent, agent.get_vec_normalize_env())
 
         def on_point(force: bool = False) -> bool:
@@ -322,7 +371,7 @@ def _run_seed(
             bar.set_postfix_str(f"success {success:.0%}, error {error:.3g} mm")
             while next_point <= now:
                 next_point += interval
-            reached = success >= target_success and error <= target_error
+            reached = success >= settings.target_success and error <= settings.target_error_mm
             if reached:
                 result.reached, result.wall_time, result.steps = True, now, point.steps
             begin = time.perf_counter()
@@ -339,7 +388,7 @@ def _run_seed(
                         seed=seed,
                         n_envs=n_envs,
                         env_kwargs=jsonable(env_kwargs),
-                        config=config,
+                        config=str(settings.config),
                         hyperparameters=jsonable(hp.raw),
                         normalize=hp.normalize is not None,
                         num_timesteps=point.steps,
@@ -352,7 +401,7 @@ def _run_seed(
             paused["writing"] += time.perf_counter() - begin
             return last
 
-        timer = _timer_callback(clock, on_point)
+        timer = timer_callback(clock, on_point)
         start = time.perf_counter()
         # the schedule's horizon: the config's budget (see the module docstring); training ends
         # through the callback long before, or at it if the config's budget is smaller
@@ -428,73 +477,44 @@ def time_to_agent(
     (:class:`~stewart_env.files.FolderBusy` if another command holds it); a failing write raises
     :class:`~stewart_env.files.WriteError`.
     """
-    cls = algorithm_class(algo)
-    target_success = _number("target_success", target_success, 0.0, 1.0)
-    target_error_mm = _number("target_error_mm", target_error_mm, 0.0)
-    budget = _number("budget", budget, 0.0, low_open=True)
-    interval = _number("interval", interval, 0.0, low_open=True)
-    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or not 1 <= episodes <= 2**31 - 1:
-        raise TimeToAgentError.about("episodes", f"expected an integer in [1, {2**31 - 1}], got {episodes!r}")
-    if n_envs is not None and (isinstance(n_envs, bool) or not isinstance(n_envs, (int, np.integer)) or n_envs < 1):
-        raise TimeToAgentError.about("n_envs", f"expected a positive integer, got {n_envs!r}")
-    seeds = _seeds(seeds)
-    cfg = resolve_config(algo, config)
-    hp = parse_hyperparameters(algo, read_hyperparameters(algo, cfg))
-    kwargs = {**hp.env_kwargs, **(env_kwargs or {}), "model": model, "task": task}
-    jsonable(kwargs)
-    from stewart_env.envs import StewartPlatformEnv
-
-    StewartPlatformEnv(**kwargs).close()  # a bad environment keyword fails here, before anything is written
-    n_envs = int(hp.n_envs if n_envs is None else n_envs)
+    settings = TimeToAgentSettings(
+        algo,
+        config=config,
+        task=task,
+        model=model,
+        seeds=seeds,
+        target_success=target_success,
+        target_error_mm=target_error_mm,
+        budget=budget,
+        interval=interval,
+        episodes=episodes,
+        n_envs=n_envs,
+        env_kwargs=env_kwargs,
+    )
     out = Path(out)
     _check_out(out)
-    settings = {
-        "algo": algo,
-        "config": str(cfg),
-        "task": task,
-        "model": model,
-        "env_kwargs": jsonable(kwargs),
-        "n_envs": n_envs,
-        "seeds": seeds,
-        "target_success": target_success,
-        "target_error_mm": target_error_mm,
-        "budget_s": budget,
-        "interval_s": interval,
-        "episodes": int(episodes),
-        "evaluation_seed": EVALUATION_SEED,
-        "hyperparameters": jsonable(hp.raw),
-    }
-    result = TimeToAgentResult(settings, [])
+    recorded = settings.as_dict()
+    result = TimeToAgentResult(recorded, [])
     with lock_folder(out) as folder:
         _check_out(folder)  # again, under the lock
         with single_thread():
-            _warm_up(kwargs)
-            for seed in seeds:
+            _warm_up(settings.env_kwargs)
+            for seed in settings.seeds:
                 with progress(
-                    total=budget,
+                    total=settings.budget,
                     desc=f"{algo} seed {seed}",
                     unit="s",
                     disable=not (progress_bar and on_terminal()),
                     leave=False,
                 ) as bar:
                     done = _run_seed(
-                        cls,
-                        algo,
-                        hp,
-                        kwargs,
+                        settings,
                         seed,
-                        n_envs,
-                        target_success=target_success,
-                        target_error=target_error_mm,
-                        budget=budget,
-                        interval=interval,
-                        episodes=int(episodes),
-                        bar=bar,
+                        bar,
                         publish_point=lambda partial: write_files(
-                            TimeToAgentResult(settings, [*result.seeds, partial]), folder
+                            TimeToAgentResult(recorded, [*result.seeds, partial]), folder
                         ),
                         agent_dir=folder / AGENTS_DIR / f"seed_{seed}",
-                        config=str(cfg),
                     )
                 result.seeds.append(done)
                 result.files = write_files(result, folder)

@@ -218,3 +218,33 @@ def test_the_files_hold_every_point_while_a_seed_trains(tiny, tmp_path, monkeypa
     assert n >= 2
     # one write per point while training, then the finished seed
     assert seen == [[(0, False, k)] for k in range(1, n + 1)] + [[(0, True, n)]]
+
+
+def test_the_settings_are_one_record_completed_from_the_config():
+    """Built once by time_to_agent and read by every seed: the config's platforms and environment
+    keywords filled in, and the JSON record's keys as the measurement's file has them."""
+    from stewart_env.agents.studies.time_to_agent import TimeToAgentSettings
+    from stewart_env.agents.training import parse_hyperparameters, read_hyperparameters
+
+    settings = TimeToAgentSettings("ppo", seeds=[2, 1], task="tracking", env_kwargs={"control_dt": 0.02})
+    hp = parse_hyperparameters("ppo", read_hyperparameters("ppo"))
+    assert settings.n_envs == hp.n_envs and settings.seeds == (2, 1)
+    assert settings.env_kwargs == {**hp.env_kwargs, "control_dt": 0.02, "model": "improved", "task": "tracking"}
+    recorded = settings.as_dict()
+    assert list(recorded) == [
+        "algo",
+        "config",
+        "task",
+        "model",
+        "env_kwargs",
+        "n_envs",
+        "seeds",
+        "target_success",
+        "target_error_mm",
+        "budget_s",
+        "interval_s",
+        "episodes",
+        "evaluation_seed",
+        "hyperparameters",
+    ]
+    assert recorded["config"].endswith("ppo.yml") and recorded["evaluation_seed"] == EVALUATION_SEED
