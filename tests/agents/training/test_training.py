@@ -165,6 +165,24 @@ def ppo_run(tmp_path_factory):
     return out, result
 
 
+def test_a_run_s_files_name_no_module_of_the_package(ppo_run):
+    """The model zip, the statistics and the manifests hold no module path of stewart_env (``stewart_env.<module>``), so a
+    run stays loadable when the package's modules move (agents/ was regrouped by job)."""
+    import zipfile
+
+    out, _ = ppo_run
+    named = []
+    for path in sorted(p for p in out.rglob("*") if p.is_file() and "tensorboard" not in p.parts):
+        parts = (
+            [zipfile.ZipFile(path).read(n) for n in zipfile.ZipFile(path).namelist()]
+            if path.suffix == ".zip"
+            else [path.read_bytes()]
+        )
+        named += [str(path.relative_to(out)) for data in parts if b"stewart_env." in data]
+    assert len(list(out.rglob("*.zip"))) >= 2, "the run's model files were not found"
+    assert named == []
+
+
 def test_training_writes_a_run_that_loads_and_evaluates(ppo_run):
     out, result = ppo_run
     # PPO collects whole rollouts: 300 requested steps are 5 rollouts of 2 x 32
