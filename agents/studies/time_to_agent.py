@@ -90,7 +90,7 @@ AGENTS_DIR = "agents"
 
 class TimeToAgentError(TrainingError):
     """A time-to-agent request that cannot be carried out: the argument's name is its
-    :attr:`~stewart_env.errors.UsageError.argument` (``"out"``, ``"config"``, ...) and the message
+    ``argument`` (``"out"``, ``"config"``, ...; see :class:`~stewart_env.errors.UsageError`) and the message
     begins with it."""
 
 
@@ -294,7 +294,7 @@ class TimeToAgentSettings:
 
     @property
     def algorithm(self) -> type:
-        """The SB3 (or sb3-contrib) class of :attr:`algo`."""
+        """The SB3 (or sb3-contrib) class of ``algo``."""
         return algorithm_class(self.algo)
 
     def as_dict(self) -> dict[str, Any]:

@@ -99,7 +99,7 @@ def worker_threads(workers: int, cores: int | None = None) -> int:
 
     Args:
         workers: the processes side by side, at least 1.
-        cores: the cores they share (default :func:`available_cores`).
+        cores: the cores they share (default ``available_cores()``).
 
     Returns:
         The thread count for each worker's :func:`stewart_env.set_num_threads`.
@@ -148,7 +148,7 @@ def make_subprocess_env(
     Args:
         env_fns: the environments' factories (e.g. ``lambda: gymnasium.make("StewartPlatform-v1")``).
         start_method: the multiprocessing start method (SB3's default: forkserver where there is one).
-        cores: the cores the workers share (default :func:`available_cores`).
+        cores: the cores the workers share (default ``available_cores()``).
 
     Returns:
         The ``SubprocVecEnv``.

@@ -82,7 +82,7 @@ class TrainSettings:
 
     @property
     def algorithm(self) -> type:
-        """The SB3 (or sb3-contrib) class of :attr:`algo`."""
+        """The SB3 (or sb3-contrib) class of ``algo``."""
         return algorithm_class(self.algo)
 
 
