@@ -1,12 +1,30 @@
 """Baseline controllers, the evaluation harness and the reproduction of He et al. (2018).
 
+The package by job: controllers (PD, computed torque), evaluation (the harness, the statistics),
+studies (the reproduction, time to a precise agent, the model-mismatch study) and training
+(stable-baselines3); the names below are re-exported from them.
+
 Importable as ``stewart_env.agents``::
 
     from stewart_env.agents import PDPolicy, ComputedTorquePolicy, evaluate
     result = evaluate(PDPolicy, {"model": "classical", "task": "setpoint"}, episodes=5, seed=0)
 """
 
-from stewart_env.agents.computed_torque import ComputedTorque, ComputedTorquePolicy, preview_acceleration
+from stewart_env.agents.controllers import (
+    PAPER_KD,
+    PAPER_KP,
+    PD_LAYOUT,
+    ComputedTorque,
+    ComputedTorquePolicy,
+    PDPolicy,
+    TaskSpacePD,
+    pd_control_law,
+    pd_control_params,
+    preview_acceleration,
+    task_space_inertia,
+    zoh_pd_gains,
+    zoh_spectral_radius,
+)
 from stewart_env.agents.evaluation import (
     METRICS,
     EvaluationResult,
@@ -17,19 +35,7 @@ from stewart_env.agents.evaluation import (
     markdown_table,
     write_report,
 )
-from stewart_env.agents.pd import (
-    PAPER_KD,
-    PAPER_KP,
-    PD_LAYOUT,
-    PDPolicy,
-    TaskSpacePD,
-    pd_control_law,
-    pd_control_params,
-    task_space_inertia,
-    zoh_pd_gains,
-    zoh_spectral_radius,
-)
-from stewart_env.agents.reproduce import reproduce
+from stewart_env.agents.studies.reproduce import reproduce
 
 __all__ = [
     "METRICS",

@@ -66,7 +66,8 @@ nitpick_ignore_regex += [
     (
         r"py:.*",
         r"stewart_env\.(dynamics\.(rk4|kernels|model\.batch_args|model\.ROTATION_TOLERANCE)"
-        r"|validation|envs\.\w+\.BatchAttributes|agents\.pd\.EnvPolicy|agents\.evaluation\.Episode"
+        r"|validation|envs\.\w+\.BatchAttributes|agents\.controllers\.pd\.EnvPolicy|agents\.evaluation\.evaluation\.Episode"
+        r"|agents\.training\.hyperparameters\.Hyperparameters"
         r"|rotations\.rpy_rate_matrix)",
     ),
     (

@@ -240,8 +240,6 @@ TEXT_READERS = {
 KNOWN = {
     # stewart_env.mujoco.twin names --solref/--solimp only in its messages
     ("stewart_env/cli/export_mjcf.py", "run"),
-    # agents/time_to_agent.py raises TimeToAgentError("out: ...")/("config: ...") with no argument
-    ("stewart_env/cli/time_to_agent.py", "run"),
     # the bounded YAML loader's depth error is told by its words ("levels deep")
     ("stewart_env/files.py", "load_yaml"),
 }
@@ -333,7 +331,7 @@ def test_the_study_checks_its_counts_with_the_command_lines_constraints():
     setting as data, and a numpy integer is a count."""
     import numpy as np
 
-    from stewart_env.agents.mismatch.settings import COUNT, TOLERANCE, _checked
+    from stewart_env.agents.studies.mismatch.settings import COUNT, TOLERANCE, _checked
 
     assert _checked(COUNT, "episodes", np.int64(3)) == 3 and _checked(TOLERANCE, "position_tolerance", 1) == 1.0
     cases = (

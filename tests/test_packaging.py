@@ -120,7 +120,7 @@ def test_the_wheel_holds_the_compiled_extensions_and_the_configs(tmp_path):
     for shipped in (
         "stewart_env/configs/platforms/dasgupta1998.yaml",
         "stewart_env/configs/agents/ppo.yml",
-        "stewart_env/agents/pd.py",
+        "stewart_env/agents/controllers/pd.py",
         "stewart_env/dynamics/kernels.py",
         "stewart_env/_core/__init__.py",
     ):

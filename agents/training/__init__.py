@@ -8,7 +8,12 @@ The package, one module per job:
 - :mod:`~stewart_env.agents.training.rundir`: the run directory (manifest, checkpoints, hashes),
   written and read through :mod:`stewart_env.files`;
 - :mod:`~stewart_env.agents.training.signals`: SIGINT and SIGTERM while training;
-- :mod:`~stewart_env.agents.training.environment`: the training VecEnv and its threads;
+- :mod:`~stewart_env.agents.training.environment`: the training VecEnv and its threads, SB3's
+  ``SubprocVecEnv`` with its workers' physics threads sized to the cores;
+- :mod:`~stewart_env.agents.training.settings`: :class:`TrainSettings`, a run's request as one
+  checked frozen record, and :class:`RunPlan`, the run it resolves to;
+- :mod:`~stewart_env.agents.training.callbacks`: the SB3 callbacks (checkpoints and the stop on a
+  signal, the timer of collection and learning);
 - :mod:`~stewart_env.agents.training.trainer`: :func:`train`;
 - :mod:`~stewart_env.agents.training.agent`: :func:`load_agent` and :class:`TrainedAgent`.
 
@@ -18,8 +23,17 @@ package's one :data:`stewart_env.validation.MAX_SEED`.
 """
 
 from stewart_env.agents.training.agent import TrainedAgent, load_agent
+from stewart_env.agents.training.callbacks import checkpoint_callback, timer_callback
 from stewart_env.agents.training.env_kwargs import jsonable, parse_env_kwargs
-from stewart_env.agents.training.environment import make_training_env, progress_bar_available, single_thread
+from stewart_env.agents.training.environment import (
+    SizedEnvFactory,
+    available_cores,
+    make_subprocess_env,
+    make_training_env,
+    progress_bar_available,
+    single_thread,
+    worker_threads,
+)
 from stewart_env.agents.training.errors import TrainingError, TrainingInterrupted, check_rl_installed
 from stewart_env.agents.training.hyperparameters import (
     ACTIVATIONS,
@@ -60,6 +74,7 @@ from stewart_env.agents.training.rundir import (
     save_agent,
     save_checkpoint,
 )
+from stewart_env.agents.training.settings import RunPlan, TrainSettings
 from stewart_env.agents.training.trainer import TrainResult, rollout_steps, run_changes, train
 from stewart_env.registration import ENV_ID
 from stewart_env.validation import MAX_SEED
@@ -89,17 +104,23 @@ __all__ = [
     "ZOO_KEYS_ZOO_ONLY",
     "ZOO_SCHEDULE_KEYS",
     "Hyperparameters",
+    "RunPlan",
+    "SizedEnvFactory",
     "TrainResult",
+    "TrainSettings",
     "TrainedAgent",
     "TrainingError",
     "TrainingInterrupted",
     "algorithm_class",
+    "available_cores",
     "check_hyperparameter_names",
+    "checkpoint_callback",
     "check_rl_installed",
     "config_path",
     "jsonable",
     "load_agent",
     "log_progress",
+    "make_subprocess_env",
     "make_training_env",
     "newest_checkpoint",
     "parse_env_kwargs",
@@ -114,6 +135,8 @@ __all__ = [
     "save_checkpoint",
     "shipped_configs",
     "single_thread",
+    "timer_callback",
     "train",
+    "worker_threads",
     "zoo_eval",
 ]

@@ -16,21 +16,18 @@ import contextlib
 import io
 import json
 import os
-import sys
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from stewart_env import validation
+from stewart_env.agents.training.callbacks import checkpoint_callback
 from stewart_env.agents.training.env_kwargs import jsonable
 from stewart_env.agents.training.environment import make_training_env, progress_bar_available, single_thread
 from stewart_env.agents.training.errors import TrainingError, TrainingInterrupted
 from stewart_env.agents.training.hyperparameters import (
     OFF_POLICY,
-    algorithm_class,
-    check_count,
     config_path,
     parse_hyperparameters,
     read_hyperparameters,
@@ -58,48 +55,11 @@ from stewart_env.agents.training.rundir import (
     unpickle_statistics,
     verified_bytes,
 )
+from stewart_env.agents.training.settings import RunPlan, TrainSettings
 from stewart_env.agents.training.signals import StopRequest, stop_on_signals
-from stewart_env.errors import UsageError
 from stewart_env.files import WriteError, check_not_busy, lock_folder, publish, write_error
 
-__all__ = ["TrainResult", "checkpoint_callback", "rollout_steps", "run_changes", "train"]
-
-
-def checkpoint_callback(directory: Path, algo: str, freq: int, keep: int, wall_offset: float, stop: StopRequest):
-    """An SB3 callback that stops training once ``stop`` holds a signal, and otherwise calls
-    :func:`save_checkpoint` at the first rollout end ``freq`` environment steps after the last
-    checkpoint (0: never), logging each checkpoint's step count and training wall time (s,
-    ``wall_offset`` plus the time since this call started) to DIR/checkpoints/progress.csv, so
-    that a point of the learning curve can be matched to its budget.
-
-    Args:
-        directory: the run directory.
-        algo: the algorithm's name, one of :data:`ALGORITHMS`.
-        freq: environment steps between checkpoints (0: none).
-        keep: how many of the newest checkpoints to keep.
-        wall_offset: the training wall time of earlier segments of the run, s.
-        stop: the signal request that stops training.
-    """
-    from stable_baselines3.common.callbacks import BaseCallback
-
-    class Checkpoints(BaseCallback):
-        def _on_training_start(self) -> None:
-            self.last = self.model.num_timesteps
-            self.start = time.perf_counter() - wall_offset
-
-        def _on_step(self) -> bool:
-            return stop.signum is None
-
-        def _on_rollout_end(self) -> None:
-            # at the end of a rollout, not in _on_step: off-policy, SB3 stores a step's transition
-            # after the step's callback, so a checkpoint taken there would miss it
-            steps = self.model.num_timesteps
-            if freq and steps - self.last >= freq and stop.signum is None:
-                self.last = steps
-                save_checkpoint(self.model, directory, algo, keep)
-                log_progress(directory, steps, time.perf_counter() - self.start)
-
-    return Checkpoints()
+__all__ = ["TrainResult", "rollout_steps", "run_changes", "train"]
 
 
 @dataclass
@@ -172,10 +132,6 @@ def run_changes(
     return changes
 
 
-def _stderr_report(message: str) -> None:
-    print(f"stewart-env train: {message}", file=sys.stderr)
-
-
 def train(
     algo: str,
     out: str | os.PathLike,
@@ -192,7 +148,7 @@ def train(
     resume: bool = False,
     progress_bar: bool = True,
     verbose: int = 0,
-    report: Callable[[str], None] = _stderr_report,
+    report: Callable[[str], None] = TrainSettings.report,
 ) -> TrainResult:
     """Train (or, with ``resume``, continue training) an SB3 agent on StewartPlatform-v1.
 
@@ -236,65 +192,36 @@ def train(
             checkpoints are kept and ``resume`` continues from the newest.
         stewart_env.files.FileError: a file of the run is not a regular file, or is too large.
     """
-    cls = algorithm_class(algo)
-    for name, value in (("timesteps", timesteps), ("n_envs", n_envs)):
-        if value is not None:
-            check_count(name, value, 1)
-    if seed is not None:
-        try:
-            validation.seed("seed", seed)
-        except UsageError as err:
-            raise TrainingError(str(err), argument=err.argument, problem=err.problem) from None
-    check_count("checkpoint_freq", checkpoint_freq, 0)
-    check_count("keep_checkpoints", keep_checkpoints, 1)
-    directory = Path(out)
+    settings = TrainSettings(
+        algo,
+        Path(out),
+        model=model,
+        task=task,
+        timesteps=timesteps,
+        seed=seed,
+        n_envs=n_envs,
+        checkpoint_freq=checkpoint_freq,
+        keep_checkpoints=keep_checkpoints,
+        env_kwargs=env_kwargs,
+        config=config,
+        resume=resume,
+        progress_bar=progress_bar,
+        verbose=verbose,
+        report=report,
+    )
     with contextlib.ExitStack() as held:
-        return _train(
-            cls,
-            algo,
-            directory,
-            held,
-            model=model,
-            task=task,
-            timesteps=timesteps,
-            seed=seed,
-            n_envs=n_envs,
-            checkpoint_freq=checkpoint_freq,
-            keep_checkpoints=keep_checkpoints,
-            env_kwargs=env_kwargs,
-            config=config,
-            resume=resume,
-            progress_bar=progress_bar,
-            verbose=verbose,
-            report=report,
-        )
+        return _train(settings, held)
 
 
-def _train(
-    cls,
-    algo: str,
-    directory: Path,
-    held: contextlib.ExitStack,
-    *,
-    model,
-    task,
-    timesteps,
-    seed,
-    n_envs,
-    checkpoint_freq,
-    keep_checkpoints,
-    env_kwargs,
-    config,
-    resume,
-    progress_bar,
-    verbose,
-    report,
-) -> TrainResult:
+def _train(settings: TrainSettings, held: contextlib.ExitStack) -> TrainResult:
     """The body of :func:`train`: the run directory's lock is entered on ``held`` once every check
     that needs no file of the run has passed, and the run's state is read under it."""
-    steps_done, segments, checkpoint = 0, [], None
+    algo, directory, config, report = settings.algo, settings.out, settings.config, settings.report
+    model, task, env_kwargs = settings.model, settings.task, settings.env_kwargs
+    seed, n_envs = settings.seed, settings.n_envs
+    steps_done, segments, checkpoint, saved = 0, [], None, {}
     check_not_busy(directory)  # before any look at the run: a run in progress is reported as such
-    if resume:
+    if settings.resume:
         if holds_no_run(directory) and any(os.path.lexists(directory / name) for name in START_UP_FILES):
             raise TrainingError(
                 f"--resume: {directory} holds no run to continue: its start was interrupted before "
@@ -352,32 +279,23 @@ def _train(
         check_fresh_directory(directory, algo)  # again, under the lock: another run may have started meanwhile
         remove_unfinished_writes(directory)
         remove_start_up_files(directory)  # of a start interrupted before its manifest
-    timesteps = hp.n_timesteps if timesteps is None else int(timesteps)
-    progress_bar = progress_bar and progress_bar_available()
-
+    plan = RunPlan(
+        hyperparameters=hp,
+        env_kwargs=kwargs,
+        seed=seed,
+        n_envs=n_envs,
+        timesteps=hp.n_timesteps if settings.timesteps is None else int(settings.timesteps),
+        config=cfg_path,
+        monitor="monitor.csv" if not settings.resume else f"resumed_{steps_done}.monitor.csv",
+        progress_bar=settings.progress_bar and progress_bar_available(),
+        resume=settings.resume,
+        steps_done=steps_done,
+        segments=segments,
+        saved=saved,
+    )
     stop = StopRequest()
-    monitor = "monitor.csv" if not resume else f"resumed_{steps_done}.monitor.csv"
     try:
-        agent, steps, wall, checkpoint = _learn(
-            cls,
-            algo,
-            directory,
-            hp,
-            kwargs,
-            seed,
-            n_envs,
-            steps_done,
-            segments,
-            saved if resume else {},
-            cfg_path,
-            timesteps,
-            monitor,
-            stop,
-            checkpoint_freq,
-            keep_checkpoints,
-            progress_bar,
-            verbose,
-        )
+        agent, steps, wall, checkpoint = _learn(settings, plan, stop)
     except (OSError, WriteError) as err:  # a full disk or a failing device, in our writes or SB3's own
         cause = err if isinstance(err, WriteError) else write_error(err.filename or directory, err)
         kept = (
@@ -388,37 +306,25 @@ def _train(
         raise WriteError(cause.path, f"{cause.problem}; {kept}") from None
     if stop.signum is not None:
         raise TrainingInterrupted(stop.signum, checkpoint)
-    return TrainResult(directory, steps, steps - steps_done, wall, timesteps, rollout_steps(agent, algo))
+    return TrainResult(directory, steps, steps - steps_done, wall, plan.timesteps, rollout_steps(agent, algo))
 
 
-def _learn(
-    cls,
-    algo,
-    directory,
-    hp,
-    kwargs,
-    seed,
-    n_envs,
-    steps_done,
-    segments,
-    saved,
-    cfg_path,
-    timesteps,
-    monitor,
-    stop,
-    checkpoint_freq,
-    keep_checkpoints,
-    progress_bar,
-    verbose,
-):
+def _learn(settings: TrainSettings, plan: RunPlan, stop: StopRequest):
     """The training of :func:`_train` once the run's state is known: (agent, steps, wall time,
     last checkpoint)."""
-    resume = bool(saved)
+    algo, directory, hp, kwargs = settings.algo, settings.out, plan.hyperparameters, plan.env_kwargs
+    seed, n_envs, steps_done, saved, resume = plan.seed, plan.n_envs, plan.steps_done, plan.saved, plan.resume
+    cls = settings.algorithm
     with single_thread():
         statistics = unpickle_statistics(saved[VECNORMALIZE_FILE]) if resume and hp.normalize is not None else None
         agent = None
         env = make_training_env(
-            n_envs, kwargs, seed + steps_done, hp.normalize, monitor_path=directory / monitor, statistics=statistics
+            n_envs,
+            kwargs,
+            seed + steps_done,
+            hp.normalize,
+            monitor_path=directory / plan.monitor,
+            statistics=statistics,
         )
         try:
             if not resume:
@@ -426,7 +332,7 @@ def _learn(
                     env=env,
                     seed=seed,
                     device="cpu",
-                    verbose=verbose,
+                    verbose=settings.verbose,
                     tensorboard_log=str(directory / "tensorboard"),
                     **hp.algorithm_kwargs,
                 )
@@ -444,25 +350,30 @@ def _learn(
                 seed=seed,
                 n_envs=n_envs,
                 env_kwargs=jsonable(kwargs),
-                config=cfg_path,
+                config=plan.config,
                 hyperparameters=jsonable(hp.raw),
                 normalize=hp.normalize is not None,
                 num_timesteps=steps_done,
-                segments=segments,
+                segments=plan.segments,
                 finished=False,
                 files={},
             )
             publish(directory / MANIFEST, json.dumps(manifest, indent=2) + "\n")
 
             callback = checkpoint_callback(
-                directory, algo, int(checkpoint_freq), int(keep_checkpoints), manifest["wall_time"], stop
+                directory,
+                algo,
+                int(settings.checkpoint_freq),
+                int(settings.keep_checkpoints),
+                manifest["wall_time"],
+                stop,
             )
             start = time.perf_counter()
             with stop_on_signals(stop):
                 agent.learn(
-                    total_timesteps=timesteps,
+                    total_timesteps=plan.timesteps,
                     callback=callback,
-                    progress_bar=progress_bar,
+                    progress_bar=plan.progress_bar,
                     tb_log_name=algo,
                     reset_num_timesteps=not resume,
                 )
@@ -470,7 +381,7 @@ def _learn(
                 steps = int(agent.num_timesteps)
                 checkpoint = directory / CHECKPOINT_DIR / f"step_{steps}"
                 if getattr(callback, "last", None) != steps or not checkpoint.is_dir():  # else just saved
-                    checkpoint = save_checkpoint(agent, directory, algo, int(keep_checkpoints))
+                    checkpoint = save_checkpoint(agent, directory, algo, int(settings.keep_checkpoints))
                     log_progress(directory, steps, manifest["wall_time"] + wall)
                 files = publish_final(agent, directory)
                 manifest["segments"].append(

@@ -7,7 +7,7 @@ export-mjcf.
     stewart-env reproduce --out figures/   the case study of He et al. (2018), Fig. 6-10
     stewart-env train ... / mismatch ...   stewart_env.agents.training and .mismatch
     stewart-env identify --platform dasgupta1998 --out runs/ident   identification on a stand-in plant
-    stewart-env bench ...                  the benchmark (stewart_env.bench)
+    stewart-env bench ...                  the benchmark (stewart_env.benchmarks)
     stewart-env export-mjcf --platform dasgupta1998 --out stewart.xml   the MuJoCo twin as MJCF
 
 Each subcommand has ``--help``.  One module per verb in this package, each with

@@ -15,7 +15,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from stewart_env.agents.mismatch.constants import MAX_STEPS as MAX_EPISODE_STEPS
+from stewart_env.agents.studies.mismatch.constants import MAX_STEPS as MAX_EPISODE_STEPS
 from stewart_env.errors import UsageError
 from stewart_env.tasks import TASKS as _TASK_CLASSES
 from stewart_env.validation import MAX_SEED, Constraint, Interval, StrOptions, quoted

@@ -1,4 +1,4 @@
-"""``stewart-env bench``: the benchmark of the compiled core (:mod:`stewart_env.bench`)."""
+"""``stewart-env bench``: the benchmark of the compiled core (:mod:`stewart_env.benchmarks`)."""
 
 from __future__ import annotations
 
@@ -19,12 +19,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     Returns:
         The command's parser.
     """
-    from stewart_env.bench import MODEL_NAMES
-    from stewart_env.bench import __doc__ as description
+    from stewart_env.benchmarks import MODEL_NAMES
+    from stewart_env.benchmarks import __doc__ as description
 
     p = subparsers.add_parser(
         VERB,
-        help="the benchmark of the compiled core (stewart_env.bench)",
+        help="the benchmark of the compiled core (stewart_env.benchmarks)",
         description=description.split("\n\n")[0].replace("``", ""),
     )
     p.add_argument(
@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     Returns:
         The exit status, 0 on success.
     """
-    from stewart_env.bench import run_bench
+    from stewart_env.benchmarks import run_bench
 
     problem = check_extras([("mujoco", "--mujoco")] if args.mujoco else [])
     if problem is not None:

@@ -114,8 +114,8 @@ def controllers(names: Sequence[str], internal_model: str) -> dict:
         names: the controllers' names (``pd``, ``pd-gc``, ``ct``).
         internal_model: the dynamics model computed torque uses.
     """
-    from stewart_env.agents.computed_torque import ComputedTorquePolicy
-    from stewart_env.agents.pd import PDPolicy
+    from stewart_env.agents.controllers.computed_torque import ComputedTorquePolicy
+    from stewart_env.agents.controllers.pd import PDPolicy
 
     out = {}
     for name in names:

@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     Returns:
         The exit status, 0 on success.
     """
-    from stewart_env.agents.evaluation import compact_table, compare, write_report
+    from stewart_env.agents.evaluation.evaluation import compact_table, compare, write_report
 
     problem = check_out(args)
     if problem is not None:

@@ -102,7 +102,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def _evaluate(args: argparse.Namespace) -> str:
     """The table of every controller and agent on every --model."""
-    from stewart_env.agents.evaluation import evaluate, markdown_table, write_report
+    from stewart_env.agents.evaluation.evaluation import evaluate, markdown_table, write_report
 
     runs = []  # (label, policy or factory, environment kwargs without the model)
     baseline_kwargs = {"task": args.task or "setpoint", "platform": args.platform or "dasgupta1998"}

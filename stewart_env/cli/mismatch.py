@@ -1,4 +1,4 @@
-"""``stewart-env mismatch``: the model-mismatch study (:mod:`stewart_env.agents.mismatch`) from
+"""``stewart-env mismatch``: the model-mismatch study (:mod:`stewart_env.agents.studies.mismatch`) from
 the command line.  :func:`add_parser` registers the verb with its options, :func:`run` runs it
 and returns the exit code: 0 done, 1 stopped by a failed backend or write (what finished is
 kept), 2 a bad request, 128 + N stopped by signal N."""
@@ -9,8 +9,8 @@ import argparse
 import signal
 import sys
 
-from stewart_env.agents.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
-from stewart_env.agents.mismatch import (
+from stewart_env.agents.evaluation.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
+from stewart_env.agents.studies.mismatch import (
     BACKENDS,
     FAILURE_THRESHOLD,
     QUICK_TIMESTEPS,
@@ -63,7 +63,7 @@ def controller_platform(text: str) -> str:
     Args:
         text: the command-line text.
     """
-    from stewart_env.agents.mismatch.settings import MismatchError, check_controller_platforms
+    from stewart_env.agents.studies.mismatch.settings import MismatchError, check_controller_platforms
 
     try:
         check_controller_platforms([text])  # the study's own rule for NAME and PLATFORM

@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     Returns:
         The exit status, 0 on success.
     """
-    from stewart_env.agents.reproduce import reproduce
+    from stewart_env.agents.studies.reproduce import reproduce
 
     if args.dt > args.duration:
         return error(VERB, f"argument --dt: the step {args.dt:g} s is longer than --duration {args.duration:g} s")

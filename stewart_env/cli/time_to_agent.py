@@ -1,5 +1,5 @@
 """``stewart-env time-to-agent``: the training wall time to a precise agent
-(:mod:`stewart_env.agents.time_to_agent`) from the command line.  :func:`add_parser` registers the
+(:mod:`stewart_env.agents.studies.time_to_agent`) from the command line.  :func:`add_parser` registers the
 verb with its options, :func:`run` runs it and returns the exit code: 0 measured (whether or not
 the target was reached: the table says), 1 stopped by a failing write (the points taken are kept),
 2 a bad request, 130 interrupted (Ctrl-C; the points taken are kept)."""
@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from stewart_env.agents.time_to_agent import SeedResult, resolve_config, summary_table, time_to_agent
+from stewart_env.agents.studies.time_to_agent import SeedResult, resolve_config, summary_table, time_to_agent
 from stewart_env.agents.training import ALGORITHMS, TrainingError
 from stewart_env.cli.arguments import (
     TASKS,
@@ -20,6 +20,7 @@ from stewart_env.cli.arguments import (
     real,
     seed_list,
 )
+from stewart_env.cli.common import error
 from stewart_env.files import WriteError
 
 __all__ = ["add_parser", "run"]
@@ -109,9 +110,8 @@ def run(args: argparse.Namespace) -> int:
     prog = "stewart-env time-to-agent"
     try:
         config = resolve_config(args.algo, args.config)
-    except TrainingError as exc:
-        print(f"{prog}: error: argument --config: {str(exc).removeprefix('config: ')}", file=sys.stderr)
-        return 2
+    except TrainingError as exc:  # a TimeToAgentError about "config": said of --config
+        return error(VERB, exc)
     try:
         result = time_to_agent(
             args.algo,
@@ -134,11 +134,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{prog}: interrupted; the points taken are kept in {args.out}", file=sys.stderr)
         return 130
     except ValueError as exc:  # TrainingError, TimeToAgentError, FolderBusy, a bad environment keyword
-        message = str(exc)
-        if message.startswith("out: "):
-            message = "argument --out: " + message.removeprefix("out: ")
-        print(f"{prog}: error: {message}", file=sys.stderr)
-        return 2
+        # a usage error about an argument a flag sets (out, config, model, ...) is said of that flag
+        return error(VERB, exc)
     print(summary_table(result))
     print(f"\n{result.reached}/{len(result.seeds)} seeds reached the target -> {result.files['markdown'].parent}")
     return 0

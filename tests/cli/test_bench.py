@@ -3,7 +3,7 @@
 import math
 
 import stewart_env as se
-from stewart_env import bench
+from stewart_env import benchmarks as bench
 
 
 def test_the_flop_count_is_the_kernels_and_the_same_at_every_call(dasgupta):

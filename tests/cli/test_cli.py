@@ -37,10 +37,10 @@ def test_top_level_help_lists_the_subcommands(capsys):
 
 
 def test_bench_is_dispatched_with_its_arguments(monkeypatch):
-    import stewart_env.bench
+    import stewart_env.benchmarks
 
     seen = []
-    monkeypatch.setattr(stewart_env.bench, "run_bench", lambda *args, **kwargs: seen.append((args, kwargs)))
+    monkeypatch.setattr(stewart_env.benchmarks, "run_bench", lambda *args, **kwargs: seen.append((args, kwargs)))
     assert main(["bench", "--models", "improved", "--env"]) == 0
     assert seen == [(("dasgupta1998", "improved"), {"env": True, "mujoco": False, "plot": None})]
 

@@ -1,6 +1,6 @@
 """The demo's table fits an 80-column terminal; --out keeps the table of every metric."""
 
-from stewart_env.agents.evaluation import COMPACT_COLUMNS, METRICS, compact_table, markdown_table
+from stewart_env.agents.evaluation.evaluation import COMPACT_COLUMNS, METRICS, compact_table, markdown_table
 from stewart_env.cli import main
 
 

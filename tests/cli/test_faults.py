@@ -25,7 +25,8 @@ pytestmark = pytest.mark.filterwarnings("ignore:You have specified a mini-batch 
 
 import stewart_env  # noqa: E402,F401  (registers the environment)
 from stewart_env import files  # noqa: E402
-from stewart_env.agents import mismatch, training  # noqa: E402
+from stewart_env.agents import training  # noqa: E402
+from stewart_env.agents.studies import mismatch  # noqa: E402
 from stewart_env.agents.training import ENV_ID, PAUSE_IN_CHECKPOINT_ENV, load_agent, train  # noqa: E402
 from stewart_env.cli import main  # noqa: E402
 from stewart_env.files import FileError, FolderBusy, WriteError, lock_folder  # noqa: E402

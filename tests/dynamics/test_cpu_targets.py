@@ -24,7 +24,7 @@ import gymnasium as gym
 import numpy as np
 import stewart_env as se
 from stewart_env import _core
-from stewart_env.agents.pd import pd_control_law, pd_control_params
+from stewart_env.agents.controllers.pd import pd_control_law, pd_control_params
 
 digest = hashlib.sha256()
 def add(*arrays):
@@ -185,6 +185,6 @@ def test_the_runnable_targets_agree_with_the_kernels_view_of_the_processor():
 
 
 def test_the_benchmark_names_the_target_that_runs():
-    result = run_with_target("baseline", "from stewart_env.bench import machine; print(machine())")
+    result = run_with_target("baseline", "from stewart_env.benchmarks import machine; print(machine())")
     assert result.returncode == 0, result.stderr[-3000:]
     assert ", kernels for baseline, Python " in result.stdout

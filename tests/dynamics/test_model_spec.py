@@ -155,16 +155,16 @@ def test_everything_that_takes_a_name_takes_a_spec():
     env = StewartPlatformEnv(model=spec)
     assert env.unwrapped.model.name == "improved+c2" and env.unwrapped.model.flags == 2
     env.close()
-    from stewart_env.agents.computed_torque import ComputedTorque
-    from stewart_env.agents.pd import TaskSpacePD
+    from stewart_env.agents.controllers.computed_torque import ComputedTorque
+    from stewart_env.agents.controllers.pd import TaskSpacePD
 
     assert ComputedTorque(params, spec).internal_model == "improved+c2"
     assert TaskSpacePD(params, gravity_model=spec).gravity_model == "improved+c2"
 
 
 def test_controllers_name_their_own_model_argument():
-    from stewart_env.agents.computed_torque import ComputedTorque
-    from stewart_env.agents.pd import TaskSpacePD
+    from stewart_env.agents.controllers.computed_torque import ComputedTorque
+    from stewart_env.agents.controllers.pd import TaskSpacePD
 
     params = se.load_platform("dasgupta1998")
     with pytest.raises(UsageError, match=r"^internal_model: unknown model 'newton'") as info:

@@ -521,7 +521,7 @@ def test_rollout_law_giving_nan_forces_raises_naming_the_rows(model, home):
 
 @pytest.fixture(scope="module")
 def pd_row(dasgupta, model):
-    from stewart_env.agents.pd import pd_control_params
+    from stewart_env.agents.controllers.pd import pd_control_params
 
     ws = model.workspace(1)
     z = np.zeros(3)
@@ -537,7 +537,7 @@ def pd_row(dasgupta, model):
     ],
 )
 def test_rollout_refuses_bad_control_params_naming_them(model, home, pd_row, params, message):
-    from stewart_env.agents.pd import pd_control_law
+    from stewart_env.agents.controllers.pd import pd_control_law
 
     t, R, z = home
     value = {"nan": np.full_like(pd_row, np.nan), "3d": pd_row[None, None], "str": "abc"}[params]
@@ -546,7 +546,7 @@ def test_rollout_refuses_bad_control_params_naming_them(model, home, pd_row, par
 
 
 def test_rollout_takes_leg_forces_or_a_law_not_both(model, home, pd_row):
-    from stewart_env.agents.pd import pd_control_law
+    from stewart_env.agents.controllers.pd import pd_control_law
 
     t, R, z = home
     with pytest.raises(ValueError, match=r"^leg_forces: "):
@@ -563,7 +563,7 @@ def test_rollout_refuses_a_record_every_that_does_not_divide_steps(model, home, 
 
 
 def test_rollout_records_the_pd_law_every_tenth_step(model, home, pd_row):
-    from stewart_env.agents.pd import pd_control_law
+    from stewart_env.agents.controllers.pd import pd_control_law
 
     t, R, z = home
     trajectory = se.rollout(

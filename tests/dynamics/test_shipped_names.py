@@ -87,7 +87,7 @@ def test_is_platform_name_is_the_rule(given, name):
 
 
 def test_the_command_line_and_the_mismatch_study_keep_the_shipped_name(cluttered, capsys):
-    from stewart_env.agents.mismatch import MismatchSettings
+    from stewart_env.agents.studies.mismatch import MismatchSettings
     from stewart_env.cli import main
 
     assert MismatchSettings(test_models=["improved"], algo=None, platform="dasgupta1998").platform == "dasgupta1998"

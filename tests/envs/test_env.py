@@ -711,7 +711,7 @@ def test_reset_rejects_unknown_options():
 
 
 def test_bench_env_reports_rates():
-    from stewart_env.envs.bench_env import bench_env
+    from stewart_env.benchmarks import bench_env
 
     result = bench_env(n_vector=4, seconds=0.05)
     # one vector step is n_vector platform steps: the two rates of one run agree exactly

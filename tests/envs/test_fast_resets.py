@@ -192,7 +192,7 @@ def test_scale_packed_rows_equals_scale_packed_and_names_a_refused_factor():
 
 
 def test_bench_resets_in_steps_reports_the_step_with_and_without_resets():
-    from stewart_env.envs.bench_env import bench_resets_in_steps
+    from stewart_env.benchmarks import bench_resets_in_steps
 
     r = bench_resets_in_steps(n=8, steps=20, repeats=1)
     assert r["resets_step"] == 0.0  # held, no row ends within the run

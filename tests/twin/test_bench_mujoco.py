@@ -5,7 +5,7 @@ import math
 import pytest
 
 import stewart_env as se
-from stewart_env import bench
+from stewart_env import benchmarks as bench
 
 MEASURES = (
     "forward_mujoco",
@@ -54,6 +54,6 @@ def test_bench_mujoco_without_mujoco_names_the_extra(monkeypatch, capsys):
 
 
 def test_bench_reset_is_per_row():
-    from stewart_env.envs.bench_env import bench_reset
+    from stewart_env.benchmarks import bench_reset
 
     assert 0 < bench_reset(2, repeats=1, platform=se.load_platform("dasgupta1998")) < 1.0  # s per row

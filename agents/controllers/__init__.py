@@ -1,0 +1,39 @@
+"""The baseline controllers: the task-space PD law (He et al. 2018, eq. 56) and computed torque,
+each as a control law and as a policy of the environment.
+
+The package, one module per controller: :mod:`~stewart_env.agents.controllers.pd` (the PD law,
+its compiled form and its discrete-time gains) and
+:mod:`~stewart_env.agents.controllers.computed_torque` (the inverse-dynamics controller).
+"""
+
+from stewart_env.agents.controllers.computed_torque import ComputedTorque, ComputedTorquePolicy, preview_acceleration
+from stewart_env.agents.controllers.pd import (
+    PAPER_KD,
+    PAPER_KP,
+    PD_LAYOUT,
+    EnvPolicy,
+    PDPolicy,
+    TaskSpacePD,
+    pd_control_law,
+    pd_control_params,
+    task_space_inertia,
+    zoh_pd_gains,
+    zoh_spectral_radius,
+)
+
+__all__ = [
+    "PAPER_KD",
+    "PAPER_KP",
+    "PD_LAYOUT",
+    "ComputedTorque",
+    "ComputedTorquePolicy",
+    "EnvPolicy",
+    "PDPolicy",
+    "TaskSpacePD",
+    "pd_control_law",
+    "pd_control_params",
+    "preview_acceleration",
+    "task_space_inertia",
+    "zoh_pd_gains",
+    "zoh_spectral_radius",
+]
