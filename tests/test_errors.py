@@ -238,12 +238,8 @@ TEXT_READERS = {
 }
 #: Places that still read an error's text, each with the reason it cannot stop here.
 KNOWN = {
-    # stewart_env.mujoco.twin names --solref/--solimp only in its messages
-    ("stewart_env/cli/export_mjcf.py", "run"),
     # agents/time_to_agent.py raises TimeToAgentError("out: ...")/("config: ...") with no argument
     ("stewart_env/cli/time_to_agent.py", "run"),
-    # the bounded YAML loader's depth error is told by its words ("levels deep")
-    ("stewart_env/files.py", "load_yaml"),
 }
 
 

@@ -44,6 +44,9 @@ FLAGS = {
     "delay": "--delay",
     "perturb": "--perturb",
     "max_iterations": "--iterations",
+    "timestep": "--timestep",
+    "solref": "--solref",
+    "solimp": "--solimp",
 }
 
 
