@@ -67,6 +67,7 @@ __all__ = [
     "FolderBusy",
     "NotWritable",
     "WriteError",
+    "YAMLNestedTooDeep",
     "check_not_busy",
     "check_writable",
     "load_json",
@@ -629,6 +630,20 @@ def load_json(text: str | bytes) -> Any:
     return document
 
 
+class YAMLNestedTooDeep(yaml.composer.ComposerError):
+    """A YAML document nested deeper than a bounded loader allows: what such a loader raises, so
+    that :func:`load_yaml` tells the depth from the other errors by the type
+    (:attr:`DocumentError.nested`), not by the message's words.
+
+    Args:
+        limit: the loader's bound, levels.
+        mark: where the level beyond it starts (a YAML mark).
+    """
+
+    def __init__(self, limit: int, mark: yaml.Mark | None):
+        super().__init__(None, None, f"nested more than {limit} levels deep", mark)
+
+
 class _BoundedLoader(yaml.SafeLoader):
     """YAML's safe loader, nesting at most :data:`MAX_DEPTH` levels: its composer recurses once
     per level, so the bound comes before Python's recursion limit."""
@@ -641,9 +656,7 @@ class _BoundedLoader(yaml.SafeLoader):
         self._depth += 1
         try:
             if self._depth > MAX_DEPTH:
-                raise yaml.composer.ComposerError(
-                    None, None, f"nested more than {MAX_DEPTH} levels deep", self.peek_event().start_mark
-                )
+                raise YAMLNestedTooDeep(MAX_DEPTH, self.peek_event().start_mark)
             return super().compose_node(parent, index)
         finally:
             self._depth -= 1
@@ -670,7 +683,8 @@ def load_yaml(text: str | bytes, loader: type[yaml.SafeLoader] | None = None) ->
     Args:
         text: the document; bytes are read as YAML reads them (UTF-8 or UTF-16).
         loader: a loader class derived from ``yaml.SafeLoader`` with bounds of its own (a
-            platform config's); by default the safe loader nesting at most :data:`MAX_DEPTH` levels.
+            platform config's), which raises :class:`YAMLNestedTooDeep` beyond its depth; by
+            default the safe loader nesting at most :data:`MAX_DEPTH` levels.
 
     Returns:
         The decoded document.
@@ -681,7 +695,9 @@ def load_yaml(text: str | bytes, loader: type[yaml.SafeLoader] | None = None) ->
     try:
         return yaml.load(text, Loader=loader or _BoundedLoader)
     except yaml.YAMLError as err:
-        raise DocumentError(f"not valid YAML: {_yaml_problem(err)}", nested="levels deep" in str(err.problem)) from None
+        raise DocumentError(
+            f"not valid YAML: {_yaml_problem(err)}", nested=isinstance(err, YAMLNestedTooDeep)
+        ) from None
     except RecursionError:  # a loader without a depth bound
         raise DocumentError("not valid YAML: nested too deeply", nested=True) from None
 

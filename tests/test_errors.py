@@ -237,12 +237,7 @@ TEXT_READERS = {
     "replace",
 }
 #: Places that still read an error's text, each with the reason it cannot stop here.
-KNOWN = {
-    # stewart_env.mujoco.twin names --solref/--solimp only in its messages
-    ("stewart_env/cli/export_mjcf.py", "run"),
-    # the bounded YAML loader's depth error is told by its words ("levels deep")
-    ("stewart_env/files.py", "load_yaml"),
-}
+KNOWN: set[tuple[str, str]] = set()
 
 
 def _reads_error_text(handler: ast.ExceptHandler) -> bool:

@@ -279,16 +279,8 @@ def find_circle(graph: dict[str, set[str]]) -> list[str] | None:
     return None
 
 
-# The one import left out of the circle check: Dynamics.workspace() makes the Workspace, a class
-# built on the model (workspace imports model), by a lazy import inside that method.
-LAZY_EDGES = {("stewart_env.dynamics.model", "stewart_env.dynamics.workspace")}
-
-
 def test_no_import_circle_among_the_package_s_modules():
     graph = import_graph(MODULES)
-    for importer, imported in LAZY_EDGES:
-        assert imported in graph[importer], f"{importer} no longer imports {imported}: drop it from LAZY_EDGES"
-        graph[importer].discard(imported)
     circle = find_circle(graph)
     assert circle is None, "import circle: " + " -> ".join(circle or [])
 

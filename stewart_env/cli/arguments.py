@@ -13,12 +13,15 @@ import math
 import numbers
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from stewart_env.agents.studies.mismatch.constants import MAX_STEPS as MAX_EPISODE_STEPS
 from stewart_env.errors import UsageError
 from stewart_env.tasks import TASKS as _TASK_CLASSES
 from stewart_env.validation import MAX_SEED, Constraint, Interval, StrOptions, quoted
+
+if TYPE_CHECKING:
+    from stewart_env.dynamics import ModelSpec
 
 #: The task names the command line offers: those of the task registry.
 TASKS = tuple(_TASK_CLASSES)
@@ -247,36 +250,44 @@ def platform_name(text: str) -> str:
     return text
 
 
-def model_name(text: str) -> str:
-    """Argparse type: a dynamics model's canonical name (classical, improved, ... with +c1..+c4
-    switches; :class:`stewart_env.dynamics.ModelSpec`).
+def model_name(text: str) -> ModelSpec:
+    """Argparse type: a dynamics model's name (classical, improved, ... with +c1..+c4 switches)
+    parsed once into its :class:`stewart_env.dynamics.ModelSpec`, which the command passes on.
 
     Args:
         text: the command-line text.
+
+    Returns:
+        The model's spec (``str(spec)`` is its canonical name).
     """
     from stewart_env.dynamics import ModelSpec
 
     try:
-        return ModelSpec.parse(text).name
+        return ModelSpec.parse(text)
     except UsageError as err:
         raise argparse.ArgumentTypeError(err.problem) from None
 
 
-def plant_model_name(text: str) -> str:
-    """Argparse type: a value of the environment's ``model`` argument: a dynamics model name (see
-    :func:`model_name`) or ``"mujoco"``, MuJoCo's simulation of the same mechanism (a plant only:
-    it has no closed-form dynamics for a controller to use); the environment's configuration
-    checks it (:func:`stewart_env.envs.config.model_argument`).
+def plant_model_name(text: str) -> ModelSpec | str:
+    """Argparse type: a value of the environment's ``model`` argument, parsed once: a dynamics
+    model's :class:`~stewart_env.dynamics.ModelSpec` (see :func:`model_name`), or ``"mujoco"``,
+    MuJoCo's simulation of the same mechanism (a plant only: it has no closed-form dynamics for a
+    controller to use), as the environment's configuration reads it
+    (:func:`stewart_env.envs.config.model_spec`).
 
     Args:
         text: the command-line text.
+
+    Returns:
+        The model's spec, or ``"mujoco"``.
     """
-    from stewart_env.envs.config import model_argument
+    from stewart_env.envs.config import MUJOCO, model_spec
 
     try:
-        return model_argument(text)
+        spec = model_spec(text)
     except UsageError as err:
         raise argparse.ArgumentTypeError(err.problem) from None
+    return MUJOCO if spec is None else spec
 
 
 #: A list of plants: dynamics model names (with +c1..+c4 switches) or mujoco.

@@ -10,9 +10,13 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING
 
 from stewart_env.errors import UsageError
 from stewart_env.extras import require
+
+if TYPE_CHECKING:
+    from stewart_env.dynamics import ModelSpec
 
 #: The baseline controllers ``--policy`` offers.
 CONTROLLERS = ("pd", "pd-gc", "ct")
@@ -40,6 +44,9 @@ FLAGS = {
     "delay": "--delay",
     "perturb": "--perturb",
     "max_iterations": "--iterations",
+    "timestep": "--timestep",
+    "solref": "--solref",
+    "solimp": "--solimp",
 }
 
 
@@ -97,22 +104,22 @@ def check_extras(needs: Iterable[tuple[str, str]]) -> str | None:
     return None
 
 
-def plant_extras(models: Sequence[str] | None, flag: str = "--model") -> list[tuple[str, str]]:
+def plant_extras(models: Sequence[ModelSpec | str] | None, flag: str = "--model") -> list[tuple[str, str]]:
     """The extra a plant of ``models`` needs: MuJoCo's plant needs ``mujoco``.
 
     Args:
-        models: the plants' model names (None: the default plant).
+        models: the plants, each a model's spec or ``"mujoco"`` (None: the default plant).
         flag: the flag that names them, which the message gives.
     """
     return [("mujoco", f"{flag} mujoco")] if models and "mujoco" in models else []
 
 
-def controllers(names: Sequence[str], internal_model: str) -> dict:
+def controllers(names: Sequence[str], internal_model: ModelSpec) -> dict:
     """{table label: policy factory} of the baseline controllers ``names`` (see :data:`CONTROLLERS`).
 
     Args:
         names: the controllers' names (``pd``, ``pd-gc``, ``ct``).
-        internal_model: the dynamics model computed torque uses.
+        internal_model: the spec of the dynamics model computed torque uses.
     """
     from stewart_env.agents.controllers.computed_torque import ComputedTorquePolicy
     from stewart_env.agents.controllers.pd import PDPolicy

@@ -61,9 +61,12 @@ def run(args: argparse.Namespace) -> int:
     if problem is not None:
         return error(VERB, problem)
     start = time.perf_counter()
-    configs = [{"model": m, "task": "setpoint", "platform": args.platform} for m in ("classical", "improved")]
+    from stewart_env.dynamics import ModelSpec
+
+    models = [ModelSpec("classical"), ModelSpec("improved")]
+    configs = [{"model": m, "task": "setpoint", "platform": args.platform} for m in models]
     try:
-        results = compare(controllers(["pd", "pd-gc"], "improved"), configs, episodes=args.episodes, seed=args.seed)
+        results = compare(controllers(["pd", "pd-gc"], models[1]), configs, episodes=args.episodes, seed=args.seed)
         if args.out is not None:
             write_report(results, args.out, title="Demo: PD baseline, classical vs improved dynamics")
     except ValueError as err:  # --out in use by another command, or a write that failed (a full disk)

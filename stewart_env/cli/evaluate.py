@@ -42,6 +42,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     Returns:
         The command's parser.
     """
+    from stewart_env.dynamics import ModelSpec
+
     p = subparsers.add_parser(
         VERB,
         help="evaluate baseline controllers and trained agents (--agent) on a task and dynamics model(s)",
@@ -76,7 +78,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "--model",
         nargs="+",
         type=plant_model_name,
-        default=["improved"],
+        default=[ModelSpec("improved")],  # argparse converts a string default, not a list's items
         help="the plant's dynamics model(s): classical, improved, improved_centroidal, "
         "optionally with switches +c1..+c4, or mujoco (MuJoCo simulating the same "
         "mechanism, needs the extra mujoco) (default improved)",
@@ -136,7 +138,7 @@ def _problem(args: argparse.Namespace) -> str | None:
     from stewart_env.registration import MAX_EPISODE_STEPS
 
     for flag, values in (("--policy", args.policy), ("--agent", args.agent), ("--model", args.model)):
-        twice = sorted({v for v in values or () if values.count(v) > 1})
+        twice = sorted({str(v) for v in values or () if values.count(v) > 1})
         if twice:
             return f"argument {flag}: {', '.join(twice)} given twice"
     missing = [d for d in args.agent or () if not Path(d).is_dir()]

@@ -63,6 +63,7 @@ def run(args: argparse.Namespace) -> int:
         The exit status, 0 on success.
     """
     from stewart_env import mujoco as twin
+    from stewart_env.errors import UsageError
     from stewart_env.files import check_writable
     from stewart_env.params import load_platform
 
@@ -79,11 +80,8 @@ def run(args: argparse.Namespace) -> int:
     kwargs = {k: getattr(args, k) for k in ("solref", "solimp") if getattr(args, k) is not None}
     try:
         xml = twin.to_mjcf(load_platform(args.platform), timestep=args.timestep, **kwargs)
-    except ImportError as err:
+    except (ImportError, UsageError) as err:  # --timestep, --solref or --solimp out of range: said of its flag
         return error(VERB, err)
-    except ValueError as err:  # --solref or --solimp out of MuJoCo's range, named in the message
-        name, _, problem = str(err).partition(": ")
-        return error(VERB, f"argument --{name}: {problem}")
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(xml)

@@ -16,12 +16,14 @@ import argparse
 import math
 import sys
 import time
+from typing import TYPE_CHECKING
 
 from stewart_env.cli.arguments import (
     PLATFORM_RULE,
     checked,
     directory_name,
     model_name,
+    plant_model_name,
     platform_name,
     positive_int,
     quoted,
@@ -29,6 +31,9 @@ from stewart_env.cli.arguments import (
     seed,
 )
 from stewart_env.cli.common import error
+
+if TYPE_CHECKING:
+    from stewart_env.dynamics import ModelSpec
 
 VERB = "identify"
 #: Longest record, s.
@@ -46,15 +51,8 @@ perturb = checked(
 )
 
 
-def _plant(text: str) -> str:
-    """Argparse type of --plant: a model name (canonical) or ``mujoco``."""
-    if text.strip().lower() == "mujoco":
-        return "mujoco"
-    return model_name(text)
-
-
-def _model(text: str) -> str:
-    """Argparse type of --model: a closed-form model's canonical name."""
+def _model(text: str) -> ModelSpec:
+    """Argparse type of --model: a closed-form model's name, parsed once into its spec."""
     if text.strip().lower() == "mujoco":
         raise argparse.ArgumentTypeError("the identified structure is a closed-form model (improved, classical, ...)")
     return model_name(text)
@@ -118,7 +116,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--plant",
-        type=_plant,
+        type=plant_model_name,
         default="improved",
         help="the plant: a dynamics model (improved, classical or a name with switches) or mujoco, the MuJoCo "
         "twin (needs the extra mujoco; default improved)",

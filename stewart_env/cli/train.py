@@ -123,7 +123,8 @@ def run(args: argparse.Namespace) -> int:
         result = train(
             args.algo,
             args.out,
-            model=args.model,
+            # the run records its model by its canonical name (run.json)
+            model=None if args.model is None else str(args.model),
             task=args.task,
             timesteps=args.timesteps,
             seed=args.seed,

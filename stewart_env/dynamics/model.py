@@ -287,8 +287,9 @@ class Dynamics:
     """A dynamics model of one platform, or of a batch of platforms (one parameter set per row).
 
     The model is immutable: the ``with_*`` methods return new ones.  Its :meth:`workspace` holds
-    the preallocated arrays of a controller loop.  :func:`~stewart_env.make_dynamics` is the usual
-    way to make one.
+    the preallocated arrays of a controller loop (a method :mod:`stewart_env.dynamics.workspace`
+    defines, beside the data it makes, so that this module imports no module built on it).
+    :func:`~stewart_env.make_dynamics` is the usual way to make one.
 
     Args:
         name: the model's name (see the module docstring), e.g. ``"improved+c1"``, or its
@@ -471,20 +472,6 @@ class Dynamics:
         packed.setflags(write=False)
         new._packed = packed
         return new
-
-    def workspace(self, n: int = 1):
-        """Preallocated arrays for ``n`` platforms of this model, and the calls that use them without
-        checking or allocating.
-
-        Args:
-            n: the batch size.
-
-        Returns:
-            The :class:`stewart_env.dynamics.workspace.Workspace`.
-        """
-        from stewart_env.dynamics.workspace import Workspace  # it builds on this module
-
-        return Workspace(self, n)
 
     def forward(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench=None):
         """Forward dynamics: platform accelerations under given leg forces.

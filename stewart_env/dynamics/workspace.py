@@ -238,6 +238,29 @@ class Workspace:
         self._bound.step(dt, steps)
 
 
+def workspace(self: Dynamics, n: int = 1) -> Workspace:  # noqa: D417  (self: a method of Dynamics, below)
+    """Preallocated arrays for ``n`` platforms of this model, and the calls that use them without
+    checking or allocating.
+
+    Args:
+        n: the batch size.
+
+    Returns:
+        The :class:`Workspace`.
+
+    Raises:
+        ValueError: ``n`` not a positive integer that fits the model's parameter rows.
+    """
+    return Workspace(self, n)
+
+
+# The model makes its data: Dynamics.workspace is defined here, beside the Workspace it makes, so
+# that imports run one way, model <- workspace (the package's __init__ imports both, so every
+# Dynamics has the method).
+workspace.__qualname__ = "Dynamics.workspace"
+Dynamics.workspace = workspace
+
+
 def _workspace_holding(model: Dynamics, n: int, arrays: dict) -> Workspace:
     """A workspace of ``model`` for ``n`` platforms whose arrays hold ``arrays`` (name -> array):
     how a copied or unpickled workspace is made."""

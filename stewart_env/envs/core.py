@@ -12,7 +12,9 @@ observation terms) is one call of the compiled batch (``_core.BatchStep``,
 ``stewart_env/_core/cpp/env/env_step.hpp``), the same arithmetic as the step of parts.  That step is
 made of typed records, each built once by its owner (the batch's state and actuators here, the
 plant's, the task's and the observation's by them; docs/layout.md, "The compiled step's
-contract"), and :meth:`PlatformBatch.set_step_mode` chooses between it and the step of parts.  The
+contract").  The step is one object, chosen when the batch is made and by
+:meth:`PlatformBatch.set_step_mode`: a :class:`FusedStep` (that call) or a :class:`StepOfParts`
+(the plant, the task's hooks, the observation pipeline, one after the other).  The
 single environment is a batch of one, the vector environment a batch of N; both give a platform
 the same arithmetic, so a vector row reproduces a single environment bit for bit.  Per-row
 Python loops run only at episode start and for observation noise (each row draws from its own
@@ -40,7 +42,7 @@ from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks import LIMIT_REASONS, StepView, make_task, tracking_errors
 from stewart_env.tasks.base import SuccessTracker, error_norm, errors_in, zero_reference
 
-__all__ = ["TERMINATION_REASONS", "PlatformBatch"]
+__all__ = ["TERMINATION_REASONS", "FusedStep", "PlatformBatch", "StepOfParts"]
 
 #: The platform's limits as termination reasons, by priority: every task's reasons begin with them.
 TERMINATION_REASONS = LIMIT_REASONS
@@ -174,22 +176,20 @@ class PlatformBatch:
         self._term_views = dict(zip(REWARD_TERMS, self._terms))
         # the position and orientation errors (2, 3) of each row that track_success_of_row reads
         self._pose_errors = tuple(self._error_vectors[:2, i] for i in range(min(self.n, _ROW_BY_ROW)))
-        self._fused = self._compiled_step(self._step_mode)
+        self._step = self._make_step(self._step_mode)
         # the compiled step checks the action before it changes anything: nothing runs before it
-        self.checks_action = self._fused is not None and not (self._moving_reference or self._has_external_wrench)
-        # whether the compiled step makes the observation too
-        self._observed = self._fused is not None and self._fused.observes
+        self.checks_action = self._step.checks_action and not (self._moving_reference or self._has_external_wrench)
 
-    def _compiled_step(self, mode: str) -> _core.BatchStep | None:
-        """The whole control step as one compiled call over the step's records (built here, once),
-        or None for the step of parts: with ``mode`` "parts", or "auto" when the step needs Python
-        between its parts (a plant with no compiled part, a task with its own termination or
-        reward).  The observation is made in the same call unless the task observes terms of its
-        own (then :meth:`ObservationPipeline.step` makes it after the call).  Raises ValueError
-        for "fused" where the compiled step cannot run."""
-        plant = self._plant_record = self.plant.step_record(self.physics_dt, self.substeps)
+    def _make_step(self, mode: str) -> FusedStep | StepOfParts:
+        """The step object of ``mode``: the whole control step as one compiled call over the
+        step's records (built here, once), or the step of parts, with ``mode`` "parts", or "auto"
+        when the step needs Python between its parts (a plant with no compiled part, a task with
+        its own termination or reward).  The compiled call makes the observation too unless the
+        task observes terms of its own (then :meth:`ObservationPipeline.step` makes it after the
+        call).  Raises ValueError for "fused" where the compiled step cannot run."""
+        plant = self.plant.step_record(self.physics_dt, self.substeps)
         if mode == "parts":
-            return None
+            return StepOfParts(plant is not None)
         task = self.task.step_record()
         if plant is None or task is None:
             if mode == "fused":
@@ -199,7 +199,7 @@ class PlatformBatch:
                     else f"the task {self.task.name!r} has its own termination or reward"
                 )
                 raise ValueError(f"step_mode='fused': {why}; use 'auto' or 'parts'")
-            return None
+            return StepOfParts(plant is not None)
         state = _core.StateRecord(
             tuple(self._state),
             tuple(self._backup),
@@ -219,7 +219,7 @@ class PlatformBatch:
         )
         actuator = _core.ActuatorRecord(self._force_half, self._force_mid, self._lag, self._action, self.leg_forces)
         outputs = _core.OutputRecord(self._code, self._terms, self._reward, self._bad, self._observation32)
-        return _core.BatchStep(state, plant, actuator, task, self.observations.step_record(), outputs)
+        return FusedStep(_core.BatchStep(state, plant, actuator, task, self.observations.step_record(), outputs))
 
     @property
     def step_mode(self) -> str:
@@ -229,7 +229,7 @@ class PlatformBatch:
     @property
     def fused(self) -> bool:
         """Whether a control step is the one compiled call (else the step of parts)."""
-        return self._fused is not None
+        return self._step.fused
 
     def set_step_mode(self, mode: str) -> None:
         """Choose how every following control step is made, the same numbers either way.
@@ -246,14 +246,14 @@ class PlatformBatch:
         """
         if mode not in STEP_MODES:
             raise ValueError(f"step_mode: expected one of {', '.join(map(repr, STEP_MODES))}, got {mode!r}")
-        self._compiled_step(mode)  # raises before anything changes
+        self._make_step(mode)  # raises before anything changes
         self._step_mode = mode
         self._views()
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
-        del state["_state"], state["view"], state["_errors"], state["_fused"], state["_term_views"]
-        del state["_pose_errors"], state["_plant_record"]
+        del state["_state"], state["view"], state["_errors"], state["_step"], state["_term_views"]
+        del state["_pose_errors"]
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -462,7 +462,7 @@ class PlatformBatch:
             codes index :attr:`termination_reasons` (0: none).
         """
         if skip is not None:
-            if self.checks_action and self._observed and skip.all():
+            if self.checks_action and self._step.observes and skip.all():
                 # every row is about to be reset, which sets all a step would: nothing to compute
                 return self._nothing_stepped()
             self._park(skip)
@@ -472,41 +472,7 @@ class PlatformBatch:
             self._drive(action)
             driven = True
             self.task.external_wrench(self.view, self.control_dt, self.external_wrench)
-        if self._fused is not None:
-            return self._compiled_outcome(action, driven, rngs, skip, reuse)
-        self._physics(action, driven)
-        reward, code, terms = self._outcome(rngs, skip)
-        return reward, code, terms, self.observation.astype(np.float32)
-
-    def _compiled_outcome(self, action, driven, rngs, skip, reuse):
-        """:meth:`step` by the compiled batch: the reference at the step's end, then one call for
-        the actuators, the plant, the sensors, the errors, the termination, the reward and (unless
-        the task observes terms of its own) the observation, which it also gives as float32."""
-        obs = self.observations
-        if self._moving_reference:
-            # the reference at the end of the step, the time the call will set (it depends on no state)
-            self.task.reference(self.view.episode, (self.steps + 1) * self.control_dt, self.reference)
-        observed = self._observed
-        noise = obs.draw_noise(rngs, skip) if observed else None
-        found = self._fused.step(action, not driven, noise, skip)
-        if found == _core.NOT_FINITE_ACTION:
-            return None
-        self._any_non_finite = bool(found & _core.NON_FINITE_STATE)
-        if reuse:
-            code, terms, reward, observation = self._code, self._term_views, self._reward, self._observation32
-        else:
-            code, reward, observation = self._code.copy(), self._reward.copy(), self._observation32.copy()
-            terms = dict(zip(REWARD_TERMS, self._terms.copy()))
-        if observed:
-            obs.after_compiled_step()
-            bad = self._bad if found & _core.BAD_ROWS else None
-        else:
-            bad = obs.step(self.view, reward, rngs, skip)
-            observation = self.observation.astype(np.float32)
-        if bad is not None:
-            terms = dict(terms)  # _end_non_finite replaces a term: not in the batch's own views
-            reward = self._end_non_finite(bad, code, terms)
-        return reward, code, terms, observation
+        return self._step.run(self, action, driven, rngs, skip, reuse)
 
     def _nothing_stepped(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray]:
         """:meth:`step`'s outcome when every row is skipped: zeros, and the observation as it is."""
@@ -532,90 +498,6 @@ class PlatformBatch:
         """The actuators: the action clipped to [-1, 1] (kept as the applied action) and mapped
         onto the force range, applied directly or through the first-order lag."""
         _core.drive(action, self._force_half, self._force_mid, self._lag, self._action, self.leg_forces)
-
-    def _physics(self, action: np.ndarray, driven: bool) -> None:
-        """The actuators (unless ``driven`` already), the plant's step of every row, the clock and
-        the non-finite check, and the leg sensors.  A row whose state is no longer finite keeps
-        its last finite state, so that observation, reward and rendering stay finite."""
-        max_condition = self.platform.limits.max_condition
-        if self._plant_record is not None:
-            # the plant has a compiled part (the closed-form model, the batch's own): the whole
-            # control step of the plant in one compiled call
-            model = self.model
-            self._any_non_finite = _core.control_step(
-                model.packed,
-                model.flags,
-                self.nominal_model.packed,
-                self._force_half,
-                self._force_mid,
-                self._lag,
-                not driven,
-                self.physics_dt,
-                self.substeps,
-                self.control_dt,
-                max_condition,
-                action,
-                self._action,
-                self.leg_forces,
-                self.external_wrench,
-                *self._state,
-                *self._backup,
-                self.steps,
-                self.time,
-                self._non_finite,
-                self.leg_lengths,
-                self.leg_rates,
-                self.condition,
-            )
-            return
-        if not driven:
-            self._drive(action)
-        _core.copy_state(*self._state, *self._backup)
-        self.plant.step_inplace(
-            self.position,
-            self.rotation,
-            self.velocity,
-            self.angular_velocity,
-            self.leg_forces,
-            self.external_wrench,
-            self.physics_dt,
-            self.substeps,
-        )
-        self._any_non_finite = _core.after_physics(
-            *self._state, *self._backup, self.steps, self.control_dt, self.time, self._non_finite
-        )
-        leg_sensors_inplace(
-            self.nominal_model,
-            self.position,
-            self.rotation,
-            self.velocity,
-            self.angular_velocity,
-            max_condition,
-            self.leg_lengths,
-            self.leg_rates,
-            self.condition,
-        )
-
-    def _outcome(self, rngs, skip) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-        """Reference, then the task's termination and reward, and the observation after the
-        physics of a step."""
-        task, view = self.task, self.view
-        if self._moving_reference:
-            task.reference(view.episode, self.time, self.reference)
-        tracking_errors(self._state, self.reference, self._errors)
-
-        code = task.termination(view)
-        if self._any_non_finite:
-            # The state stopped being finite: whatever the task says, the episode ends so.
-            code[self._non_finite] = NON_FINITE
-        terms = task.reward_terms(view)
-        terms["termination"] = task.termination_reward(code)
-        reward = sum(terms.values())
-
-        bad = self.observations.step(view, reward, rngs, skip)
-        if bad is not None:
-            reward = self._end_non_finite(bad, code, terms)
-        return reward, code, terms
 
     # -- success -----------------------------------------------------------------------------------------
 
@@ -697,3 +579,197 @@ class PlatformBatch:
             code: termination codes, an int array indexing :attr:`termination_reasons` (0: none).
         """
         return self._reason_array[code]
+
+
+# -- the step objects: one chosen when the batch makes its step (PlatformBatch._make_step) -------------
+
+
+class FusedStep:
+    """A control step of the batch as one compiled call, ``_core.BatchStep`` over the step's records.
+
+    Before the call only the task's reference at the step's end (a moving reference) and the
+    observation noise are drawn in Python; the call makes the actuators, the plant, the sensors,
+    the errors, the termination, the reward and (unless the task observes terms of its own, then
+    the observation pipeline after it) the observation, which it also gives as float32.
+
+    Args:
+        compiled: the compiled step over the batch's records.
+    """
+
+    #: Whether the step is the one compiled call (:attr:`PlatformBatch.fused`).
+    fused = True
+    #: The compiled call checks the action before it changes anything.
+    checks_action = True
+
+    def __init__(self, compiled: _core.BatchStep):
+        self.compiled = compiled
+        #: Whether the compiled call makes the observation too.
+        self.observes: bool = compiled.observes
+
+    def run(self, batch: PlatformBatch, action, driven: bool, rngs, skip, reuse: bool):
+        """:meth:`PlatformBatch.step` of ``batch`` after its parked rows and the task's wrench.
+
+        Args:
+            batch: the batch whose records the compiled step holds.
+            action: as :meth:`PlatformBatch.step` takes it.
+            driven: whether the actuators were driven already (for the task's wrench).
+            rngs: one Generator per row (observation noise).
+            skip: (n,) bool of rows about to be reset, or None.
+            reuse: return the batch's own outcome arrays, which the next step overwrites.
+
+        Returns:
+            :meth:`PlatformBatch.step`'s outcome, or None for a non-finite action.
+        """
+        obs = batch.observations
+        if batch._moving_reference:
+            # the reference at the end of the step, the time the call will set (it depends on no state)
+            batch.task.reference(batch.view.episode, (batch.steps + 1) * batch.control_dt, batch.reference)
+        observed = self.observes
+        noise = obs.draw_noise(rngs, skip) if observed else None
+        found = self.compiled.step(action, not driven, noise, skip)
+        if found == _core.NOT_FINITE_ACTION:
+            return None
+        batch._any_non_finite = bool(found & _core.NON_FINITE_STATE)
+        if reuse:
+            code, terms, reward, observation = batch._code, batch._term_views, batch._reward, batch._observation32
+        else:
+            code, reward, observation = batch._code.copy(), batch._reward.copy(), batch._observation32.copy()
+            terms = dict(zip(REWARD_TERMS, batch._terms.copy()))
+        if observed:
+            obs.after_compiled_step()
+            bad = batch._bad if found & _core.BAD_ROWS else None
+        else:
+            bad = obs.step(batch.view, reward, rngs, skip)
+            observation = batch.observation.astype(np.float32)
+        if bad is not None:
+            terms = dict(terms)  # _end_non_finite replaces a term: not in the batch's own views
+            reward = batch._end_non_finite(bad, code, terms)
+        return reward, code, terms, observation
+
+
+class StepOfParts:
+    """A control step of the batch made of its parts: the plant's step, then the task's termination
+    and reward, then the observation pipeline; the numbers of :class:`FusedStep`.
+
+    The plant's step is the closed-form plant's compiled control step where the plant has a
+    compiled part, else the plant's ``step_inplace`` through the :class:`~stewart_env.envs.plant.Plant`
+    interface between the actuators and the sensors, chosen here once.
+
+    Args:
+        compiled_plant: whether the plant has a compiled part (its ``step_record`` is not None).
+    """
+
+    #: Whether the step is the one compiled call (:attr:`PlatformBatch.fused`).
+    fused = False
+    #: The action is checked by the caller (:func:`stewart_env.validation.check_action`).
+    checks_action = False
+    #: The observation pipeline makes the observation after the task's reward.
+    observes = False
+
+    def __init__(self, compiled_plant: bool):
+        self._physics = self._compiled_physics if compiled_plant else self._plant_physics
+
+    def run(self, batch: PlatformBatch, action, driven: bool, rngs, skip, reuse: bool):
+        """:meth:`PlatformBatch.step` of ``batch`` after its parked rows and the task's wrench.
+
+        Args:
+            batch: the batch to step.
+            action: as :meth:`PlatformBatch.step` takes it, finite.
+            driven: whether the actuators were driven already (for the task's wrench).
+            rngs: one Generator per row (observation noise).
+            skip: (n,) bool of rows about to be reset, or None.
+            reuse: unused: the outcome of the step of parts is the step's own.
+
+        Returns:
+            :meth:`PlatformBatch.step`'s outcome.
+        """
+        self._physics(batch, action, driven)
+        reward, code, terms = self._outcome(batch, rngs, skip)
+        return reward, code, terms, batch.observation.astype(np.float32)
+
+    @staticmethod
+    def _compiled_physics(batch: PlatformBatch, action, driven: bool) -> None:
+        """The actuators (unless ``driven`` already), the plant's substeps, the clock and the
+        non-finite check, and the leg sensors of every row in one compiled call (the closed-form
+        plant, the batch's own model).  A row whose state is no longer finite keeps its last
+        finite state, so that observation, reward and rendering stay finite."""
+        model = batch.model
+        batch._any_non_finite = _core.control_step(
+            model.packed,
+            model.flags,
+            batch.nominal_model.packed,
+            batch._force_half,
+            batch._force_mid,
+            batch._lag,
+            not driven,
+            batch.physics_dt,
+            batch.substeps,
+            batch.control_dt,
+            batch.platform.limits.max_condition,
+            action,
+            batch._action,
+            batch.leg_forces,
+            batch.external_wrench,
+            *batch._state,
+            *batch._backup,
+            batch.steps,
+            batch.time,
+            batch._non_finite,
+            batch.leg_lengths,
+            batch.leg_rates,
+            batch.condition,
+        )
+
+    @staticmethod
+    def _plant_physics(batch: PlatformBatch, action, driven: bool) -> None:
+        """:meth:`_compiled_physics` with the plant's ``step_inplace`` (a plant with no compiled
+        part, MuJoCo): the actuators, the plant, the clock and the non-finite check, the sensors."""
+        if not driven:
+            batch._drive(action)
+        _core.copy_state(*batch._state, *batch._backup)
+        batch.plant.step_inplace(
+            batch.position,
+            batch.rotation,
+            batch.velocity,
+            batch.angular_velocity,
+            batch.leg_forces,
+            batch.external_wrench,
+            batch.physics_dt,
+            batch.substeps,
+        )
+        batch._any_non_finite = _core.after_physics(
+            *batch._state, *batch._backup, batch.steps, batch.control_dt, batch.time, batch._non_finite
+        )
+        leg_sensors_inplace(
+            batch.nominal_model,
+            batch.position,
+            batch.rotation,
+            batch.velocity,
+            batch.angular_velocity,
+            batch.platform.limits.max_condition,
+            batch.leg_lengths,
+            batch.leg_rates,
+            batch.condition,
+        )
+
+    @staticmethod
+    def _outcome(batch: PlatformBatch, rngs, skip) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """Reference, then the task's termination and reward, and the observation after the
+        physics of a step."""
+        task, view = batch.task, batch.view
+        if batch._moving_reference:
+            task.reference(view.episode, batch.time, batch.reference)
+        tracking_errors(batch._state, batch.reference, batch._errors)
+
+        code = task.termination(view)
+        if batch._any_non_finite:
+            # The state stopped being finite: whatever the task says, the episode ends so.
+            code[batch._non_finite] = NON_FINITE
+        terms = task.reward_terms(view)
+        terms["termination"] = task.termination_reward(code)
+        reward = sum(terms.values())
+
+        bad = batch.observations.step(view, reward, rngs, skip)
+        if bad is not None:
+            reward = batch._end_non_finite(bad, code, terms)
+        return reward, code, terms

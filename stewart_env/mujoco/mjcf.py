@@ -30,6 +30,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from stewart_env.errors import UsageError
 from stewart_env.kinematics import leg_kinematics
 from stewart_env.mujoco.library import require_mujoco
 from stewart_env.params import PlatformParams
@@ -84,12 +85,13 @@ def _full_inertia(inertia: np.ndarray) -> str:
 
 
 def _check_pair(name: str, value, size: int) -> tuple[float, ...]:
+    """``value`` as ``size`` finite floats; a UsageError about the argument ``name`` otherwise."""
     try:
         v = tuple(float(x) for x in value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected {size} numbers, got {value!r}") from None
+        raise UsageError.about(name, f"expected {size} numbers, got {value!r}") from None
     if len(v) != size or not all(np.isfinite(v)):
-        raise ValueError(f"{name}: expected {size} finite numbers, got {value!r}")
+        raise UsageError.about(name, f"expected {size} finite numbers, got {value!r}")
     return v
 
 
@@ -126,7 +128,8 @@ def to_mjcf(
 
     Raises:
         ImportError: the ``mujoco`` extra is not installed.
-        ValueError: a bad argument, named in the message.
+        UsageError: a bad argument (a ValueError), its name as data (``err.argument``:
+            ``"timestep"``, ``"solref"``, ``"solimp"``, ``"params"``).
 
     Examples:
         >>> import stewart_env as se
@@ -137,17 +140,17 @@ def to_mjcf(
     """
     require_mujoco()
     if not isinstance(params, PlatformParams):
-        raise ValueError(f"params: expected PlatformParams, got {type(params).__name__}")
+        raise UsageError.about("params", f"expected PlatformParams, got {type(params).__name__}")
     try:
         step = float(timestep)
     except (TypeError, ValueError):
         step = np.nan
     if not (np.isfinite(step) and 0 < step <= MAX_TIMESTEP):
-        raise ValueError(f"timestep: must be a number of seconds in (0, {MAX_TIMESTEP:g}], got {timestep!r}")
+        raise UsageError.about("timestep", f"must be a number of seconds in (0, {MAX_TIMESTEP:g}], got {timestep!r}")
     solref = _check_pair("solref", solref, 2)
     solimp = _check_pair("solimp", solimp, 5)
     if not 0 < solimp[0] < 1 or not 0 < solimp[1] < 1:
-        raise ValueError(f"solimp: d_min and d_max must lie in (0, 1), got {solimp[:2]}")
+        raise UsageError.about("solimp", f"d_min and d_max must lie in (0, 1), got {solimp[:2]}")
 
     t0, R0 = params.home_position, home_rotation(params)
     legs = leg_kinematics(params, t0, R0)

@@ -171,6 +171,8 @@ def model_and_data(
 
     Raises:
         ImportError: the ``mujoco`` extra is not installed.
+        UsageError: a bad ``timestep``, ``solref`` or ``solimp``, its name as data
+            (``err.argument``), as :func:`~stewart_env.mujoco.to_mjcf` raises it.
     """
     mj = require_mujoco()
     z = np.zeros(3)

@@ -236,6 +236,22 @@ def test_load_yaml_refuses_a_deep_document_in_one_line(text):
         files.load_yaml(text)
 
 
+def test_load_yaml_tells_the_depth_by_the_error_type_not_its_words():
+    with pytest.raises(files.DocumentError) as info:
+        files.load_yaml("[" * 101 + "]" * 101)
+    assert info.value.nested
+
+    class Worded(yaml.SafeLoader):
+        """A loader whose own error (not the depth) says "levels deep"."""
+
+        def compose_node(self, parent, index):
+            raise yaml.composer.ComposerError(None, None, "three levels deep in a list", self.peek_event().start_mark)
+
+    with pytest.raises(files.DocumentError, match="three levels deep in a list$") as info:
+        files.load_yaml("[1]", Worded)
+    assert not info.value.nested
+
+
 @pytest.mark.extra("rl")  # evaluate --agent and train name a missing rl extra before they read a file
 def test_a_deep_run_json_is_one_line_for_evaluate_and_resume(tmp_path, capsys):
     run = tmp_path / "run"

@@ -165,3 +165,27 @@ def test_the_vector_environment_chooses_its_step_as_the_single_one_does():
     envs.unwrapped.set_step_mode("fused")  # the default task and plant: the fused step can run
     assert envs.unwrapped._core.fused
     envs.close()
+
+
+def test_the_step_is_one_object_chosen_once():
+    from stewart_env.envs.core import FusedStep, StepOfParts
+
+    env = StewartPlatformEnv()
+    core = env._core
+    assert type(core._step) is FusedStep
+    env.set_step_mode("parts")
+    assert type(core._step) is StepOfParts
+    env.reset(seed=0)
+
+    class Recorded(StepOfParts):
+        calls = 0
+
+        def run(self, batch, *args):
+            Recorded.calls += 1
+            return super().run(batch, *args)
+
+    # step() asks nothing of the mode: it calls the object it was given, whatever that is
+    core._step = Recorded(compiled_plant=True)
+    env.step(np.full(6, 0.1))
+    env.step(np.full(6, 0.1))
+    assert Recorded.calls == 2

@@ -354,3 +354,21 @@ def test_model_names_are_case_insensitive_and_mujoco_is_listed():
     env.close()
     with pytest.raises(ValueError, match=r"^model: unknown model 'nope'.*or 'mujoco'"):
         StewartPlatformEnv(model="nope")
+
+
+@pytest.mark.parametrize(
+    "kwargs, argument, problem",
+    [
+        ({"solimp": (1.0, 0.99, 0.001, 0.5, 2)}, "solimp", "d_min and d_max must lie in (0, 1), got (1.0, 0.99)"),
+        ({"solref": (0.02,)}, "solref", "expected 2 finite numbers, got (0.02,)"),
+        ({"solref": ("a", 1)}, "solref", "expected 2 numbers, got ('a', 1)"),
+        ({"timestep": 0.0}, "timestep", "must be a number of seconds in (0, 0.1], got 0.0"),
+    ],
+)
+def test_to_mjcf_carries_the_refused_argument_as_data(dasgupta, kwargs, argument, problem):
+    from stewart_env.errors import UsageError
+
+    with pytest.raises(UsageError) as info:
+        twin.to_mjcf(dasgupta, **kwargs)
+    assert (info.value.argument, info.value.problem) == (argument, problem)
+    assert str(info.value) == f"{argument}: {problem}"

@@ -831,8 +831,9 @@ def test_an_agent_stopped_by_a_signal_is_continued_not_reused(study, tmp_path):
 
 def test_plant_model_name_takes_mujoco_and_names_it_when_refusing():
     from stewart_env.cli.arguments import plant_model_name
+    from stewart_env.dynamics import ModelSpec, Switch
 
     assert plant_model_name("mujoco") == "mujoco"
-    assert plant_model_name("improved+c2") == "improved+c2"
+    assert plant_model_name("Improved+C2") == ModelSpec("improved", Switch.C2)  # the spec, parsed once
     with pytest.raises(argparse.ArgumentTypeError, match="or 'mujoco' .MuJoCo simulating the same mechanism."):
         plant_model_name("mujoko")

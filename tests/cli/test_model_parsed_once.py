@@ -1,0 +1,67 @@
+"""A model name is parsed once, where it enters (a flag, the environment's ``model``), and the
+ModelSpec is passed on from there: counted by wrapping ``ModelSpec.parse``."""
+
+from __future__ import annotations
+
+import collections
+
+import gymnasium as gym
+import pytest
+
+import stewart_env  # noqa: F401  (registers StewartPlatform-v1)
+from stewart_env.cli import main
+from stewart_env.dynamics import ModelSpec
+from stewart_env.identification.base import IdentificationError
+
+
+@pytest.fixture
+def parses(monkeypatch):
+    """The names ``ModelSpec.parse`` parsed (a spec passed through is no parse), counted by name."""
+    counted = collections.Counter()
+    parse = ModelSpec.parse.__func__
+
+    def counting(cls, model, *args, **kwargs):
+        if not isinstance(model, ModelSpec):
+            counted[model] += 1
+        return parse(cls, model, *args, **kwargs)
+
+    monkeypatch.setattr(ModelSpec, "parse", classmethod(counting))
+    return counted
+
+
+def test_gym_make_parses_the_model_once_and_takes_a_spec_unparsed(parses):
+    gym.make("StewartPlatform-v1", model="improved+C1").close()
+    assert parses["improved+C1"] == 1
+    spec = ModelSpec.parse("improved+c3")
+    env = gym.make("StewartPlatform-v1", model=spec)
+    assert env.unwrapped._core.model.spec == spec and parses["improved+c3"] == 1
+    env.close()
+
+
+def test_evaluate_parses_each_model_once(parses, capsys):
+    command = ["evaluate", "--policy", "pd", "ct", "--model", "classical", "improved+c1"]
+    command += ["--internal-model", "improved+c2", "--episodes", "1", "--max-steps", "3"]
+    assert main(command) == 0
+    out = capsys.readouterr().out
+    assert "| CT (improved+c2) | improved+c1 |" in out
+    # every name once, at its flag, though two controllers run on each plant (four environments)
+    assert (parses["classical"], parses["improved+c1"], parses["improved+c2"]) == (1, 1, 1)
+
+
+def test_identify_parses_the_plant_and_the_model_once(parses, monkeypatch, tmp_path, capsys):
+    from stewart_env.dynamics import Dynamics
+    from stewart_env.identification import experiment
+
+    built = []
+
+    def run(settings, nominal, predicted_by=None):
+        # run()'s start: the settings checked, the plant's and the model's dynamics built
+        plant, model = settings.check()
+        built.extend([Dynamics(plant, nominal), Dynamics(model, nominal)])
+        raise IdentificationError("stopped after the settings")
+
+    monkeypatch.setattr(experiment, "run", run)
+    assert main(["identify", "--plant", "Improved+C1", "--model", "improved+c3", "--out", str(tmp_path / "i")]) == 2
+    assert "stopped after the settings" in capsys.readouterr().err
+    assert [m.spec.name for m in built] == ["improved+c1", "improved+c3"]
+    assert parses == {"Improved+C1": 1, "improved+c3": 1}  # not again by their canonical names
