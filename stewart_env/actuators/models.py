@@ -130,7 +130,7 @@ class ElectricActuator:
 
     @property
     def stall_force(self) -> float:
-        """eta k K_t i_max, the largest leg force at rest (friction aside), N."""
+        """The largest leg force at rest (friction aside), eta k K_t i_max, N."""
         return float(self.screw.leg_force_from_current(self.params.current_limit))
 
     @property
@@ -205,7 +205,9 @@ class HydraulicActuator:
             area_a=params.area_a,
             area_b=params.area_b,
             # K = C_d w sqrt(2 / rho): the orifice equation's constant per metre of spool
-            orifice_gain=params.discharge_coefficient * params.valve_area_gradient * math.sqrt(2.0 / params.oil_density),
+            orifice_gain=params.discharge_coefficient
+            * params.valve_area_gradient
+            * math.sqrt(2.0 / params.oil_density),
         )
         self.packed = _packed(_core.HYDRAULIC_KEYS, values)
         self.state = np.zeros((self.n, N_LEGS, 3))

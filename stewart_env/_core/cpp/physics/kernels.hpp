@@ -766,9 +766,12 @@ inline void add_reflected_mass(const T* prm, int64_t flags, const T* t, const T*
         const LegAccel<T> rates = leg_accel<T>(flags, leg.frame, leg.Ldot, leg.sigma, leg.w1, leg.w2, leg.a_vel[0],
                                                leg.a_vel[1], leg.a_vel[2]);
         const T mr = m_r[i];
+        // a leg without drive inertia adds nothing, not even a signed zero (lane by lane)
+        const auto inert = mr != T(0.0);
+        if (!lanes::any(inert)) continue;
         for (int r = 0; r < 6; ++r) {
-            h[r] += mr * rates.Lddot * jac[r];
-            for (int c = 0; c < 6; ++c) M[6 * r + c] += mr * jac[r] * jac[c];
+            h[r] = lanes::select(inert, h[r] + mr * rates.Lddot * jac[r], h[r]);
+            for (int c = 0; c < 6; ++c) M[6 * r + c] = lanes::select(inert, M[6 * r + c] + mr * jac[r] * jac[c], M[6 * r + c]);
         }
     }
 }
@@ -783,7 +786,7 @@ inline void add_reflected_force(const T* prm, int64_t flags, const T* t, const T
         const LegState<T> leg = leg_state<T>(prm, i, flags, t, R, v, w);
         const auto A = with_platform_acc<T>(acc, leg.frame, leg.a_vel);
         const LegAccel<T> la = leg_accel<T>(flags, leg.frame, leg.Ldot, leg.sigma, leg.w1, leg.w2, A[0], A[1], A[2]);
-        out[i] += m_r[i] * la.Lddot;
+        out[i] = lanes::select(m_r[i] != T(0.0), out[i] + m_r[i] * la.Lddot, out[i]);
     }
 }
 
