@@ -7,13 +7,13 @@ units, every key's range checked.
       hydraulic: {bore_diameter: m, rod_diameter: m, supply_pressure: Pa, ...}
 
 :class:`ElectricParams` and :class:`HydraulicParams` list each key with its unit and range
-(docs/guides/actuators.md is their reference page, docs/physics.md section 8 their equations).
+(docs/physics.md section 8.7 is their reference table, section 8 their equations).
 A value out of its range is a :class:`~stewart_env.params.ConfigError` naming its key, e.g.
 ``actuators.electric.lead: must be > 0 (a screw advances), got 0.0``.
 """
 
 # Annotations are evaluated here, not postponed: the classes are shown and pickled under
-# stewart_env.params, whose namespace could not resolve their names for typing.get_type_hints.
+# stewart_env.actuators, whose namespace could not resolve their names for typing.get_type_hints.
 
 import dataclasses
 import math
