@@ -7,7 +7,7 @@ parameter sets of a platform config's ``actuators:`` section (electric, hydrauli
 leg servo (docs/physics.md section 8).
 """
 
-from stewart_env.actuators.models import ElectricActuator, HydraulicActuator, LagActuator, LegServo
+from stewart_env.actuators.models import ElectricActuator, HydraulicActuator, IdealActuator, LagActuator, LegServo
 from stewart_env.actuators.params import ActuatorSets, ElectricParams, HydraulicParams, load_actuators
 from stewart_env.actuators.transmission import BallScrew
 
@@ -17,6 +17,7 @@ __all__ = [
     "HydraulicParams",
     "ActuatorSets",
     "load_actuators",
+    "IdealActuator",
     "LagActuator",
     "ElectricActuator",
     "HydraulicActuator",

@@ -2,6 +2,7 @@
 each owns its state arrays, rows x 6 legs, and advances them by one call of the compiled batch
 step, the call the environment's compiled step makes per physics substep.
 
+- :class:`IdealActuator`: the force source, force = command;
 - :class:`LagActuator`: a first-order lag of time constant tau (tau = 0: the ideal force source);
 - :class:`ElectricActuator`: a current-controlled servo motor on a ball screw (command: the
   q-axis current set point, A), its reflected mass for the dynamics;
@@ -26,7 +27,7 @@ from stewart_env.actuators.transmission import BallScrew
 from stewart_env.params.actuators import ElectricParams, HydraulicParams
 from stewart_env.validation import Interval
 
-__all__ = ["LagActuator", "ElectricActuator", "HydraulicActuator", "LegServo", "N_LEGS"]
+__all__ = ["IdealActuator", "LagActuator", "ElectricActuator", "HydraulicActuator", "LegServo", "N_LEGS"]
 
 N_LEGS = 6
 
@@ -47,6 +48,16 @@ def _legs(value, name: str, n: int) -> np.ndarray:
     except ValueError:
         raise ValueError(f"{name}: expected shape ({n}, {N_LEGS}) or one broadcast to it, got {arr.shape}") from None
     return np.ascontiguousarray(arr)
+
+
+def _rows(rows, n: int):
+    """The rows a reset touches: all (None) or the given indices, checked."""
+    if rows is None:
+        return slice(None)
+    index = np.asarray(rows, dtype=np.intp).reshape(-1)
+    if index.size and (index.min() < -n or index.max() >= n):
+        raise IndexError(f"rows: expected indices of a batch of {n}, got {index.tolist()[:5]}")
+    return index
 
 
 def _packed(keys: tuple[str, ...], values: dict) -> np.ndarray:
@@ -74,6 +85,18 @@ class LagActuator:
         self.tau = _TIME_CONSTANT.check("tau", tau)
         self.force = np.zeros((self.n, N_LEGS))
 
+    def reset(self, rows=None, force=0.0) -> None:
+        """Set the lag's state.
+
+        Args:
+            rows: the rows to set (None: all).
+            force: the forces they start from, N (a scalar, a (6,) row or one per row).
+
+        Raises:
+            IndexError: a row outside the batch.
+        """
+        self.force[_rows(rows, self.n)] = force
+
     def step(self, command, dt: float) -> np.ndarray:
         """Advance by dt and return the leg forces (the state array itself).
 
@@ -86,6 +109,23 @@ class LagActuator:
         """
         _core.lag_step(self.tau, float(dt), _legs(command, "command", self.n), self.force)
         return self.force
+
+
+class IdealActuator(LagActuator):
+    """The ideal force source: the leg force is the command (a :class:`LagActuator` of tau = 0).
+
+    Args:
+        n: rows (platforms).
+
+    Attributes:
+        force: (n, 6) the leg forces, N.
+
+    Raises:
+        ArgumentError: `n` out of range.
+    """
+
+    def __init__(self, n: int = 1):
+        super().__init__(n=n, tau=0.0)
 
 
 class ElectricActuator:
@@ -122,6 +162,18 @@ class ElectricActuator:
         self.packed = _packed(_core.ELECTRIC_KEYS, values)
         self.current = np.zeros((self.n, N_LEGS))
         self.force = np.zeros((self.n, N_LEGS))
+
+    def reset(self, rows=None, current=0.0) -> None:
+        """Set the motor currents.
+
+        Args:
+            rows: the rows to set (None: all).
+            current: the currents they start from, A (a scalar, a (6,) row or one per row).
+
+        Raises:
+            IndexError: a row outside the batch.
+        """
+        self.current[_rows(rows, self.n)] = current
 
     @property
     def reflected_mass(self) -> float:
@@ -186,7 +238,7 @@ class HydraulicActuator:
     Attributes:
         params: the parameters.
         state: (n, 6, 3) spool position x_v, m, and chamber pressures P_A, P_B, Pa (the state);
-            at first the spool centred and both chambers at the mean of supply and return.
+            at first as :meth:`reset` leaves it: the spool centred, no net pressure force.
         force: (n, 6) the last step's leg forces, N.
 
     Raises:
@@ -211,8 +263,29 @@ class HydraulicActuator:
         )
         self.packed = _packed(_core.HYDRAULIC_KEYS, values)
         self.state = np.zeros((self.n, N_LEGS, 3))
-        self.state[..., 1:] = 0.5 * (params.supply_pressure + params.return_pressure)
         self.force = np.zeros((self.n, N_LEGS))
+        self.reset()
+
+    def reset(self, rows=None, force=0.0) -> None:
+        """Centre the spools and set the chamber pressures that push with `force` around the
+        mean of supply and return: P_A A_A - P_B A_B = force and P_A A_A + P_B A_B =
+        P_m (A_A + A_B), P_m = (P_s + P_r) / 2 (a centred, critically lapped spool passes no flow,
+        so these pressures stay).
+
+        Args:
+            rows: the rows to set (None: all).
+            force: the pressure force each leg starts with, N (a scalar, a (6,) row or one per row).
+
+        Raises:
+            IndexError: a row outside the batch.
+        """
+        p = self.params
+        total = 0.5 * (p.supply_pressure + p.return_pressure) * (p.area_a + p.area_b)
+        force = np.asarray(force, dtype=np.float64)
+        index = _rows(rows, self.n)
+        self.state[index, :, 0] = 0.0
+        self.state[index, :, 1] = (total + force) / (2.0 * p.area_a)
+        self.state[index, :, 2] = (total - force) / (2.0 * p.area_b)
 
     def chamber_volumes(self, leg_length) -> tuple[np.ndarray, np.ndarray]:
         """The chambers' volumes (V_A, V_B) at leg lengths l, m^3 (the piston clipped to its stroke).
@@ -291,6 +364,17 @@ class LegServo:
         self.gains = np.array([stiffness, damping, integral, force_per_unit], dtype=np.float64)
         self.integral_state = np.zeros((self.n, N_LEGS))
         self.command = np.zeros((self.n, N_LEGS))
+
+    def reset(self, rows=None) -> None:
+        """Clear the error integral.
+
+        Args:
+            rows: the rows to clear (None: all).
+
+        Raises:
+            IndexError: a row outside the batch.
+        """
+        self.integral_state[_rows(rows, self.n)] = 0.0
 
     @classmethod
     def from_bandwidth(

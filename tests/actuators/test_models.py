@@ -13,6 +13,7 @@ import pytest
 from stewart_env.actuators import (
     ElectricActuator,
     HydraulicActuator,
+    IdealActuator,
     LagActuator,
     LegServo,
     load_actuators,
@@ -57,6 +58,7 @@ def test_the_lag_s_step_response_is_exact():
 def test_the_ideal_actuator_passes_the_command():
     command = np.arange(12.0).reshape(2, 6)
     assert np.array_equal(LagActuator(n=2, tau=0.0).step(command, 1e-3), command)
+    assert np.array_equal(IdealActuator(n=2).step(command, 1e-3), command)
 
 
 # ---- electric -------------------------------------------------------------------------------------
@@ -305,3 +307,21 @@ def test_bad_arrays_and_steps_are_refused_by_name():
         drive.step(np.zeros((2, 6)), 0.0, 0.0)
     with pytest.raises(TypeError, match="params: expected an ElectricParams"):
         ElectricActuator(HYDRAULIC)
+
+
+def test_resets_set_the_rows_they_name():
+    cylinder = HydraulicActuator(HYDRAULIC, n=3)
+    pressure_force = cylinder.state[..., 1] * HYDRAULIC.area_a - cylinder.state[..., 2] * HYDRAULIC.area_b
+    # at first no net pressure force: differences of ~5e4 N products, rounding
+    assert np.abs(pressure_force).max() < 1e-9
+    cylinder.reset(rows=[1], force=2e4)
+    pressure_force = cylinder.state[..., 1] * HYDRAULIC.area_a - cylinder.state[..., 2] * HYDRAULIC.area_b
+    assert pressure_force[:, 0] == pytest.approx([0.0, 2e4, 0.0], abs=1e-9)  # rounding, as above
+    # a centred spool holds the pressures: over 1 ms only the piston's leakage moves them (~2 N)
+    assert cylinder.step(0.0, 2.96, 0.0, 1e-3)[:, 0] == pytest.approx([0.0, 2e4, 0.0], abs=5.0)
+    drive = ElectricActuator(ELECTRIC, n=2)
+    drive.step(50.0, 0.0, 1e-3)
+    drive.reset(rows=[0])
+    assert np.array_equal(drive.current[0], np.zeros(6)) and np.all(drive.current[1] > 0)
+    with pytest.raises(IndexError, match="rows: expected indices of a batch of 2"):
+        drive.reset(rows=[2])
