@@ -23,8 +23,3 @@ __all__ = [
     "HydraulicActuator",
     "LegServo",
 ]
-
-# Shown, documented and pickled under this package, their public home, whichever module defines them.
-for _public in (ElectricParams, HydraulicParams, ActuatorSets):
-    _public.__module__ = __name__
-del _public

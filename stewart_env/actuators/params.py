@@ -1,7 +1,8 @@
 """The actuator parameter sets of a platform config's ``actuators:`` section, as the actuators see
-them: :class:`ElectricParams`, :class:`HydraulicParams` and :class:`ActuatorSets` (defined, with
-their checks, beside the platform's other parameters in :mod:`stewart_env.params.actuators`, which
-reads them), and :func:`load_actuators`, a platform's sets by its name or file.
+them: :class:`~stewart_env.params.ElectricParams`, :class:`~stewart_env.params.HydraulicParams`
+and :class:`~stewart_env.params.ActuatorSets` (defined, with their checks, beside the platform's
+other parameters in ``stewart_env.params.actuators``, which reads them), and
+:func:`load_actuators`, a platform's sets by its name or file.
 """
 
 from __future__ import annotations

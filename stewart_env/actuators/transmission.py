@@ -63,7 +63,7 @@ class BallScrew:
         """The screw of an electric leg's parameter set.
 
         Args:
-            params: an :class:`~stewart_env.actuators.ElectricParams` (a platform config's
+            params: an :class:`~stewart_env.params.ElectricParams` (a platform config's
                 ``actuators.electric``).
 
         Returns:

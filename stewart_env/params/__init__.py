@@ -73,11 +73,12 @@ error (a merge, <<: *anchor, may still be overridden).
 
 The package's modules, one job each: ``checks`` (`ConfigError` and the checks of raw values),
 ``bodies`` (RigidBody, Damping, Limits), ``actuators`` (the ``actuators:`` section's parameter
-sets, ElectricParams and HydraulicParams, shown under `stewart_env.actuators`), ``platform``
+sets: ActuatorSets of ElectricParams and HydraulicParams), ``platform``
 (PlatformParams), ``reader`` (the bounded reader of config files) and ``shipped`` (the shipped
 configs by name, `load_platform`).
 """
 
+from stewart_env.params.actuators import ActuatorSets, ElectricParams, HydraulicParams
 from stewart_env.params.bodies import Damping, Limits, RigidBody
 from stewart_env.params.checks import ConfigError
 
@@ -93,12 +94,26 @@ __all__ = [
     "RigidBody",
     "Damping",
     "Limits",
+    "ElectricParams",
+    "HydraulicParams",
+    "ActuatorSets",
     "PlatformParams",
     "load_platform",
     "available_platforms",
 ]
 
 # Shown, documented and pickled under this package, their public home, whichever module defines them.
-for _public in (ConfigError, RigidBody, Damping, Limits, PlatformParams, load_platform, available_platforms):
+for _public in (
+    ConfigError,
+    RigidBody,
+    Damping,
+    Limits,
+    ElectricParams,
+    HydraulicParams,
+    ActuatorSets,
+    PlatformParams,
+    load_platform,
+    available_platforms,
+):
     _public.__module__ = __name__
 del _public

@@ -13,7 +13,7 @@ A value out of its range is a :class:`~stewart_env.params.ConfigError` naming it
 """
 
 # Annotations are evaluated here, not postponed: the classes are shown and pickled under
-# stewart_env.actuators, whose namespace could not resolve their names for typing.get_type_hints.
+# stewart_env.params, whose namespace could not resolve their names for typing.get_type_hints.
 
 import dataclasses
 import math
@@ -253,7 +253,7 @@ class ActuatorSets(_ValueObject):
         return self.electric is not None or self.hydraulic is not None
 
     def to_dict(self) -> dict:
-        """The config mapping of :func:`actuator_sets_from_config`, the sets given."""
+        """The config mapping (the ``actuators:`` section) of the sets given."""
         return {name: getattr(self, name).to_dict() for name in ("electric", "hydraulic") if getattr(self, name)}
 
     def check_stroke(self, leg_length: tuple[float, float]) -> None:
