@@ -147,3 +147,23 @@ def test_no_power_goes_missing_with_reflected_masses(simulator, rng):
     # the velocity term matters: dropping it (forward dynamics without it) leaves power unaccounted
     without = np.linalg.solve(mass_at(0.0), -model.bias(t, R, v, w))
     assert abs(twist @ mass_at(0.0) @ without + 0.5 * twist @ M_dot @ twist) > 1e-3 * abs(work)
+
+
+def test_a_row_s_numbers_with_reflected_masses_do_not_depend_on_its_batch(simulator, rng):
+    """Rows in blocks of vector lanes and a row alone run the same arithmetic: bit for bit."""
+    model = se.make_dynamics("improved", simulator)
+    n = 19
+    state = batch_of(simulator, rng, n)
+    m_r = rng.uniform(200.0, 1500.0, size=(n, 6))
+    F = rng.normal(scale=3e4, size=(n, 6))
+    W = rng.normal(scale=200.0, size=(n, 6))
+    acc = forward(model, state, F, W, m_r)
+    forces = inverse(model, state, acc, W, m_r)
+    for row in (0, 8, 17, 18):
+        alone = tuple(np.ascontiguousarray(x[row : row + 1]) for x in state)
+        assert np.array_equal(
+            forward(model, alone, F[row : row + 1], W[row : row + 1], m_r[row : row + 1]), acc[row : row + 1]
+        )
+        assert np.array_equal(
+            inverse(model, alone, acc[row : row + 1], W[row : row + 1], m_r[row : row + 1]), forces[row : row + 1]
+        )
