@@ -4,7 +4,7 @@
 motor's torque, current and speed are converted to a leg's force and velocity); ``params`` the
 parameter sets of a platform config's ``actuators:`` section (electric, hydraulic) and
 ``models`` the actuator models over the compiled batch step (lag, electric, hydraulic) and the
-leg servo (docs/physics.md section 8).
+leg servo (docs/physics.md section 10).
 """
 
 from stewart_env.actuators.models import ElectricActuator, HydraulicActuator, IdealActuator, LagActuator, LegServo

@@ -1,4 +1,4 @@
-"""The legs' actuator models as Python objects over the compiled step (docs/physics.md section 8):
+"""The legs' actuator models as Python objects over the compiled step (docs/physics.md section 10):
 each owns its state arrays, rows x 6 legs, and advances them by one call of the compiled batch
 step, the call the environment's compiled step makes per physics substep.
 
@@ -129,7 +129,7 @@ class IdealActuator(LagActuator):
 
 
 class ElectricActuator:
-    """Servo motors on ball screws, one per leg, in current control (docs/physics.md section 8.4).
+    """Servo motors on ball screws, one per leg, in current control (docs/physics.md section 10.4).
 
     The current loop is a first-order lag of bandwidth omega_c towards the set point clipped to
     the current limit and to the voltage envelope (U - K_e |omega_m|) / R at the leg's rate; the
@@ -221,7 +221,7 @@ class ElectricActuator:
 
 
 class HydraulicActuator:
-    """Valve-controlled single-rod cylinders, one per leg (Merritt 1967; docs/physics.md section 8.5).
+    """Valve-controlled single-rod cylinders, one per leg (Merritt 1967; docs/physics.md section 10.5).
 
     The spool follows its set point as a first-order lag of bandwidth omega_v; each chamber's
     pressure obeys dP/dt = beta / V(l) (Q - A l_dot -/+ leakage), Q through the open metering edge;
@@ -337,7 +337,7 @@ class HydraulicActuator:
 
 class LegServo:
     """The leg-length servo: command = (K_p (l_ref - l) - K_d l_dot + K_i integral) / g, the
-    actuator's command for the force the law asks (docs/physics.md section 8.6).
+    actuator's command for the force the law asks (docs/physics.md section 10.6).
 
     Args:
         stiffness: K_p, N/m, >= 0.

@@ -7,7 +7,7 @@ units, every key's range checked.
       hydraulic: {bore_diameter: m, rod_diameter: m, supply_pressure: Pa, ...}
 
 :class:`ElectricParams` and :class:`HydraulicParams` list each key with its unit and range
-(docs/physics.md section 8.7 is their reference table, section 8 their equations).
+(docs/physics.md section 10.7 is their reference table, section 10 their equations).
 A value out of its range is a :class:`~stewart_env.params.ConfigError` naming its key, e.g.
 ``actuators.electric.lead: must be > 0 (a screw advances), got 0.0``.
 """

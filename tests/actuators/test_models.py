@@ -1,4 +1,4 @@
-"""The actuator models (docs/physics.md section 8): hand cases to rounding, the current loop's and
+"""The actuator models (docs/physics.md section 10): hand cases to rounding, the current loop's and
 the leg servo's bandwidths measured by frequency sweeps, the hydraulic natural frequency of a
 simulated free oscillation and the step the oil's stiffness needs, determinism across batch
 sizes and pickling."""

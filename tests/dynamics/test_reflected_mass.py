@@ -1,4 +1,4 @@
-"""The legs' reflected masses in the dynamics (docs/physics.md section 8.2): none changes no
+"""The legs' reflected masses in the dynamics (docs/physics.md section 10.2): none changes no
 number, inverse and forward dynamics agree with them, a hand case at the home pose, and the
 kinetic energy that gains 1/2 m_r l_dot^2."""
 

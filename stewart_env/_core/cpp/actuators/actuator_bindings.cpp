@@ -74,11 +74,11 @@ void bind_actuators(nb::module_& m) {
     m.def("forward_reflected_batch", &solve_reflected<true>, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "F"_a,
           "W"_a, "m_r"_a, "out"_a.noconvert(),
           "Forward dynamics with the legs' reflected masses m_r (1 or N, 6), kg: (M + J^T diag(m_r) J) [a; alpha] + "
-          "h + J^T diag(m_r) Jdot [v; w] = J^T F + W (docs/physics.md section 8.2).");
+          "h + J^T diag(m_r) Jdot [v; w] = J^T F + W (docs/physics.md section 10.2).");
     m.def("inverse_reflected_batch", &solve_reflected<false>, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a,
           "acc"_a, "W"_a, "m_r"_a, "out"_a.noconvert(),
           "The drive forces F = f + m_r Lddot of the acceleration acc, with the legs' reflected masses m_r (1 or N, "
-          "6), kg (docs/physics.md section 8.2).");
+          "6), kg (docs/physics.md section 10.2).");
 
     m.def("lag_step", [](double tau, double dt, In command, Out force) {
         const int64_t n = rows(command, "command");
@@ -89,7 +89,7 @@ void bind_actuators(nb::module_& m) {
         actuators::lag_batch(tau, dt, command.data(), force.data(), n);
     }, "tau"_a, "dt"_a, "command"_a, "force"_a.noconvert(),
        "The lag actuator's exact step: force (N, 6) += (1 - exp(-dt / tau)) (command - force); tau = 0: the ideal "
-       "actuator, force = command (docs/physics.md section 8.3).");
+       "actuator, force = command (docs/physics.md section 10.3).");
 
     m.def("electric_step", [](In params, double dt, In command, In l_dot, Out current, Out force) {
         packed(params, "params (N_ELECTRIC,)", actuators::N_ELECTRIC);
@@ -102,7 +102,7 @@ void bind_actuators(nb::module_& m) {
         actuators::electric_batch(params.data(), dt, command.data(), l_dot.data(), current.data(), force.data(), n);
     }, "params"_a, "dt"_a, "command"_a, "l_dot"_a, "current"_a.noconvert(), "force"_a.noconvert(),
        "The electric drive's step over dt: current (N, 6) A advanced by the current loop, force (N, 6) N written "
-       "(docs/physics.md section 8.4).");
+       "(docs/physics.md section 10.4).");
 
     m.def("hydraulic_step", [](In params, double dt, int64_t substeps, In command, In l, In l_dot, Out state,
                                Out force) {
@@ -120,16 +120,16 @@ void bind_actuators(nb::module_& m) {
     }, "params"_a, "dt"_a, "substeps"_a, "command"_a, "l"_a, "l_dot"_a, "state"_a.noconvert(),
        "force"_a.noconvert(),
        "The hydraulic cylinders' step over dt in `substeps` steps: state (N, 6, 3) (spool m, P_A Pa, P_B Pa) "
-       "advanced, force (N, 6) N written (docs/physics.md section 8.5).");
+       "advanced, force (N, 6) N written (docs/physics.md section 10.5).");
 
     m.def("servo_gains", [](double omega_b, double zeta, double mass, double viscous, double force_per_unit) {
         const actuators::Servo s = actuators::servo_gains(omega_b, zeta, mass, viscous, force_per_unit);
         return nb::make_tuple(s.K_p, s.K_d, s.K_i, s.g);
     }, "omega_b"_a, "zeta"_a, "mass"_a, "viscous"_a, "force_per_unit"_a,
        "The leg servo's gains (SERVO_KEYS' order) for bandwidth omega_b rad/s and damping ratio zeta on a leg of "
-       "mass kg with viscous friction N s/m (docs/physics.md section 8.6).");
+       "mass kg with viscous friction N s/m (docs/physics.md section 10.6).");
     m.def("bandwidth_ratio", &actuators::bandwidth_ratio, "zeta"_a,
-          "omega_b / omega_n of a second-order loop of damping ratio zeta (docs/physics.md section 8.6).");
+          "omega_b / omega_n of a second-order loop of damping ratio zeta (docs/physics.md section 10.6).");
 
     m.def("leg_servo", [](In gains, double dt, In l_ref, In l, In l_dot, Out integral, Out command) {
         packed(gains, "gains (N_SERVO,)", actuators::N_SERVO);
@@ -144,5 +144,5 @@ void bind_actuators(nb::module_& m) {
                                    command.data(), n);
     }, "gains"_a, "dt"_a, "l_ref"_a, "l"_a, "l_dot"_a, "integral"_a.noconvert(), "command"_a.noconvert(),
        "The leg servo: command (N, 6) = (K_p (l_ref - l) - K_d l_dot + K_i integral) / g, integral advanced "
-       "(docs/physics.md section 8.6).");
+       "(docs/physics.md section 10.6).");
 }

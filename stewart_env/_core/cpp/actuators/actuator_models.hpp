@@ -1,5 +1,5 @@
 // The legs' actuator models: what turns a drive's command into the force along each leg, one
-// function per equation of docs/physics.md section 8 (named as there), batched over rows x 6 legs.
+// function per equation of docs/physics.md section 10 (named as there), batched over rows x 6 legs.
 //
 // Every model advances its per-leg state over one step dt with the leg's length and rate held,
 // and writes the force f (N, > 0 extends the leg) that the dynamics then holds over the step.  The
@@ -19,7 +19,7 @@ namespace actuators {
 
 // ---- packed parameters --------------------------------------------------------------------------
 
-//: The electric drive's packed parameters, in order (docs/physics.md section 8.4).
+//: The electric drive's packed parameters, in order (docs/physics.md section 10.4).
 constexpr const char* ELECTRIC_KEYS[] = {
     "current_bandwidth",   // omega_c, rad/s
     "current_limit",       // i_max, A
@@ -35,7 +35,7 @@ constexpr const char* ELECTRIC_KEYS[] = {
 };
 constexpr int N_ELECTRIC = sizeof(ELECTRIC_KEYS) / sizeof(ELECTRIC_KEYS[0]);
 
-//: The hydraulic cylinder's packed parameters, in order (docs/physics.md section 8.5).
+//: The hydraulic cylinder's packed parameters, in order (docs/physics.md section 10.5).
 constexpr const char* HYDRAULIC_KEYS[] = {
     "valve_bandwidth",     // omega_v, rad/s
     "valve_max_opening",   // x_max, m
@@ -57,7 +57,7 @@ constexpr const char* HYDRAULIC_KEYS[] = {
 };
 constexpr int N_HYDRAULIC = sizeof(HYDRAULIC_KEYS) / sizeof(HYDRAULIC_KEYS[0]);
 
-//: The leg servo's packed gains, in order (docs/physics.md section 8.6).
+//: The leg servo's packed gains, in order (docs/physics.md section 10.6).
 constexpr const char* SERVO_KEYS[] = {
     "stiffness",       // K_p, N/m
     "damping",         // K_d, N s/m
@@ -69,12 +69,12 @@ constexpr int N_SERVO = sizeof(SERVO_KEYS) / sizeof(SERVO_KEYS[0]);
 // ---- shared equations ---------------------------------------------------------------------------
 
 // The gain 1 - exp(-dt / tau) of a first-order lag's exact step with its input held over dt
-// (zero-order hold): x_{k+1} = x_k + lag_gain (u_k - x_k).  docs/physics.md section 8.3 (no paper
+// (zero-order hold): x_{k+1} = x_k + lag_gain (u_k - x_k).  docs/physics.md section 10.3 (no paper
 // equation).
 inline double lag_gain(double dt_over_tau) { return -std::expm1(-dt_over_tau); }
 
 // The friction of a leg: viscous b l_dot plus Coulomb f_c tanh(l_dot / v_s), opposing l_dot.
-// docs/physics.md section 8.4 (no paper equation).
+// docs/physics.md section 10.4 (no paper equation).
 inline double leg_friction(double viscous, double coulomb, double speed_scale, double l_dot) {
     return viscous * l_dot + coulomb * std::tanh(l_dot / speed_scale);
 }
@@ -83,7 +83,7 @@ inline double leg_friction(double viscous, double coulomb, double speed_scale, d
 
 // The lag actuator's step over a batch: force += lag_gain(dt / tau) (command - force), the exact
 // discretisation of tau f_dot = u - f with u held over dt (tau = 0: force = command, the ideal
-// actuator).  command and force (n, 6).  docs/physics.md section 8.3 (no paper equation).
+// actuator).  command and force (n, 6).  docs/physics.md section 10.3 (no paper equation).
 inline void lag_batch(double tau, double dt, const double* command, double* force, int64_t n) {
     const double a = tau > 0.0 ? lag_gain(dt / tau) : 1.0;
     for (int64_t k = 0; k < 6 * n; ++k) force[k] = tau > 0.0 ? force[k] + a * (command[k] - force[k]) : command[k];
@@ -97,34 +97,34 @@ struct Electric {
 };
 
 // The electric drive's parameters from their packed row (ELECTRIC_KEYS).  docs/physics.md section
-// 8.4 (no paper equation).
+// 10.4 (no paper equation).
 inline Electric electric_from(const double* p) {
     return {p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10]};
 }
 
 // The current the bus voltage can drive at motor speed omega_m: (U - K_e |omega_m|) / R, at least
-// 0 (the voltage envelope of the torque-speed curve).  docs/physics.md section 8.4 (no paper
+// 0 (the voltage envelope of the torque-speed curve).  docs/physics.md section 10.4 (no paper
 // equation).
 inline double voltage_current_limit(const Electric& d, double omega_m) {
     return std::max(0.0, (d.U - d.K_e * std::fabs(omega_m)) / d.R);
 }
 
 // The current set point the drive can follow: the command clipped to the current limit i_max and
-// to the voltage envelope at the leg's rate.  docs/physics.md section 8.4 (no paper equation).
+// to the voltage envelope at the leg's rate.  docs/physics.md section 10.4 (no paper equation).
 inline double current_reference(const Electric& d, double command, double l_dot) {
     const double bound = std::min(d.i_max, voltage_current_limit(d, d.k * l_dot));
     return std::clamp(command, -bound, bound);
 }
 
 // The leg force of a motor current: f = eta k K_t i minus the screw's friction at l_dot.
-// docs/physics.md section 8.4 (no paper equation).
+// docs/physics.md section 10.4 (no paper equation).
 inline double electric_force(const Electric& d, double current, double l_dot) {
     return d.eta * d.k * d.K_t * current - leg_friction(d.b, d.f_c, d.v_s, l_dot);
 }
 
 // One electric leg over dt: the current loop, first order of bandwidth omega_c, steps exactly
 // towards current_reference (held over dt), and the force follows from the new current.
-// docs/physics.md section 8.4 (no paper equation).
+// docs/physics.md section 10.4 (no paper equation).
 inline double electric_leg(const Electric& d, double gain, double command, double l_dot, double& current) {
     current += gain * (current_reference(d, command, l_dot) - current);
     return electric_force(d, current, l_dot);
@@ -132,7 +132,7 @@ inline double electric_leg(const Electric& d, double gain, double command, doubl
 
 // The electric drive's step over a batch: command (n, 6) current set points, A; l_dot (n, 6) leg
 // rates, m/s; current (n, 6) the motor currents, A, advanced; force (n, 6) written, N.
-// docs/physics.md section 8.4 (no paper equation).
+// docs/physics.md section 10.4 (no paper equation).
 inline void electric_batch(const double* packed, double dt, const double* command, const double* l_dot,
                            double* current, double* force, int64_t n) {
     const Electric d = electric_from(packed);
@@ -147,7 +147,7 @@ struct Hydraulic {
     double omega_v, x_max, K, P_s, P_r, A_A, A_B, beta, V_A0, V_B0, l_0, stroke, C_il, C_el, b, f_c, v_s;
 };
 
-// The cylinder's parameters from their packed row (HYDRAULIC_KEYS).  docs/physics.md section 8.5
+// The cylinder's parameters from their packed row (HYDRAULIC_KEYS).  docs/physics.md section 10.5
 // (no paper equation).
 inline Hydraulic hydraulic_from(const double* p) {
     return {p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12], p[13], p[14], p[15],
@@ -160,7 +160,7 @@ struct Volumes {
 };
 
 // The chambers' volumes at leg length l: x_p = l - l_0 clipped to the stroke, V_A = V_A0 + A_A x_p,
-// V_B = V_B0 + A_B (s - x_p).  docs/physics.md section 8.5 (no paper equation).
+// V_B = V_B0 + A_B (s - x_p).  docs/physics.md section 10.5 (no paper equation).
 inline Volumes chamber_volumes(const Hydraulic& c, double l) {
     const double x_p = std::clamp(l - c.l_0, 0.0, c.stroke);
     return {c.V_A0 + c.A_A * x_p, c.V_B0 + c.A_B * (c.stroke - x_p)};
@@ -168,7 +168,7 @@ inline Volumes chamber_volumes(const Hydraulic& c, double l) {
 
 // The orifice flow Q = C_d w x sqrt(2 |dP| / rho) sign(dP) = K x sign(dP) sqrt(|dP|) into a
 // chamber through a metering edge of opening x >= 0 from a port at P_port.  docs/physics.md
-// section 8.5; Merritt (1967), the turbulent orifice (no paper equation).
+// section 10.5; Merritt (1967), the turbulent orifice (no paper equation).
 inline double orifice_flow(double K, double x, double P_port, double P) {
     const double dP = P_port - P;
     return K * x * std::copysign(std::sqrt(std::fabs(dP)), dP);
@@ -179,7 +179,7 @@ inline double orifice_flow(double K, double x, double P_port, double P) {
 // through the open edge (K_x = K x, port P_port) at the new pressure and P_other held: solved in
 // closed form, since with s = sign(P_port - P) sqrt(|P_port - P|) it is the quadratic
 // a s|s| + c K_x s + D = 0.  Unconditionally stable, whatever the oil's stiffness; the pressure is
-// floored at 0 (the oil cannot pull: cavitation).  docs/physics.md section 8.5 (no paper equation).
+// floored at 0 (the oil cannot pull: cavitation).  docs/physics.md section 10.5 (no paper equation).
 inline double chamber_pressure(double P, double c, double K_x, double P_port, double q_piston, double C_il,
                                double C_el, double P_other) {
     const double a = 1.0 + c * (C_il + C_el);
@@ -191,7 +191,7 @@ inline double chamber_pressure(double P, double c, double K_x, double P_port, do
 }
 
 // The cylinder's force: P_A A_A - P_B A_B minus the friction at l_dot.  docs/physics.md section
-// 8.5 (no paper equation).
+// 10.5 (no paper equation).
 inline double hydraulic_force(const Hydraulic& c, double P_A, double P_B, double l_dot) {
     return P_A * c.A_A - P_B * c.A_B - leg_friction(c.b, c.f_c, c.v_s, l_dot);
 }
@@ -200,7 +200,7 @@ inline double hydraulic_force(const Hydraulic& c, double P_A, double P_B, double
 // point u x_max (first order of bandwidth omega_v, u in [-1, 1] held), then chamber A's pressure
 // and chamber B's (with A's new one) by chamber_pressure; x_v >= 0 opens A to supply and B to
 // return, x_v < 0 the other way (a critically lapped four-way valve).  state = (x_v, P_A, P_B).
-// docs/physics.md section 8.5 (no paper equation).
+// docs/physics.md section 10.5 (no paper equation).
 inline double hydraulic_leg(const Hydraulic& c, double h, int64_t substeps, double valve_gain, double command,
                             double l, double l_dot, double* state) {
     const double x_ref = std::clamp(command, -1.0, 1.0) * c.x_max;
@@ -224,7 +224,7 @@ inline double hydraulic_leg(const Hydraulic& c, double h, int64_t substeps, doub
 // The hydraulic cylinders' step over a batch: command (n, 6) spool set points in [-1, 1]; l, l_dot
 // (n, 6) leg lengths, m, and rates, m/s, held over dt; state (n, 6, 3) (x_v m, P_A Pa, P_B Pa),
 // advanced in `substeps` steps of dt / substeps; force (n, 6) written, N.  docs/physics.md section
-// 8.5 (no paper equation).
+// 10.5 (no paper equation).
 inline void hydraulic_batch(const double* packed, double dt, int64_t substeps, const double* command,
                             const double* l, const double* l_dot, double* state, double* force, int64_t n) {
     const Hydraulic c = hydraulic_from(packed);
@@ -243,7 +243,7 @@ struct Servo {
 
 // The -3 dB bandwidth of the closed loop omega_n^2 / (s^2 + 2 zeta omega_n s + omega_n^2) over its
 // natural frequency: omega_b / omega_n = sqrt(1 - 2 zeta^2 + sqrt((1 - 2 zeta^2)^2 + 1)).
-// docs/physics.md section 8.6 (no paper equation).
+// docs/physics.md section 10.6 (no paper equation).
 inline double bandwidth_ratio(double zeta) {
     const double r = 1.0 - 2.0 * zeta * zeta;
     return std::sqrt(r + std::sqrt(r * r + 1.0));
@@ -252,7 +252,7 @@ inline double bandwidth_ratio(double zeta) {
 // The servo's gains for a leg of mass m with viscous friction b: K_p = m omega_n^2 and
 // K_d = 2 zeta omega_n m - b, omega_n = omega_b / bandwidth_ratio(zeta), so that the leg follows its
 // set point with bandwidth omega_b and damping ratio zeta; K_i = 0; g the actuator's force per
-// unit of command.  docs/physics.md section 8.6 (no paper equation).
+// unit of command.  docs/physics.md section 10.6 (no paper equation).
 inline Servo servo_gains(double omega_b, double zeta, double m, double b, double g) {
     const double omega_n = omega_b / bandwidth_ratio(zeta);
     return {m * omega_n * omega_n, 2.0 * zeta * omega_n * m - b, 0.0, g};
@@ -260,7 +260,7 @@ inline Servo servo_gains(double omega_b, double zeta, double m, double b, double
 
 // The leg servo over a batch: the force K_p (l_ref - l) - K_d l_dot + K_i integral, divided by g
 // into the actuator's command (n, 6); integral (n, 6) of the length error, m s, advanced by
-// (l_ref - l) dt.  docs/physics.md section 8.6 (no paper equation).
+// (l_ref - l) dt.  docs/physics.md section 10.6 (no paper equation).
 inline void leg_servo_batch(const double* packed, double dt, const double* l_ref, const double* l,
                             const double* l_dot, double* integral, double* command, int64_t n) {
     const Servo s{packed[0], packed[1], packed[2], packed[3]};

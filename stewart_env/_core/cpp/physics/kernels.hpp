@@ -755,7 +755,7 @@ inline void leg_shares(const T* prm, int64_t flags, const T* t, const T* R, cons
 // behind a screw adds m_r along its leg's prismatic axis only, so the actuator force reaching the
 // leg is F_i - m_r,i Lddot_i with Lddot_i = j_i [a; alpha] + c_i (j_i the Jacobian row, c_i the
 // velocity part of leg_accel's Lddot): M gains m_r,i j_i^T j_i and h gains m_r,i c_i j_i^T.
-// docs/physics.md section 8.2 (reflected mass; no paper equation).
+// docs/physics.md section 10.2 (reflected mass; no paper equation).
 template <typename T>
 inline void add_reflected_mass(const T* prm, int64_t flags, const T* t, const T* R, const T* v, const T* w,
                                const T* m_r, T* M, T* h) {
@@ -771,14 +771,15 @@ inline void add_reflected_mass(const T* prm, int64_t flags, const T* t, const T*
         if (!lanes::any(inert)) continue;
         for (int r = 0; r < 6; ++r) {
             h[r] = lanes::select(inert, h[r] + mr * rates.Lddot * jac[r], h[r]);
-            for (int c = 0; c < 6; ++c) M[6 * r + c] = lanes::select(inert, M[6 * r + c] + mr * jac[r] * jac[c], M[6 * r + c]);
+            for (int c = 0; c < 6; ++c)
+                M[6 * r + c] = lanes::select(inert, M[6 * r + c] + mr * jac[r] * jac[c], M[6 * r + c]);
         }
     }
 }
 
 // Leg i's drive force F_i = f_i + m_r,i Lddot_i (out (6,) holds the forces f_i reaching the legs,
 // as inverse_one gives them): what the motors push with to make acc = [a; alpha].
-// docs/physics.md section 8.2 (reflected mass; no paper equation).
+// docs/physics.md section 10.2 (reflected mass; no paper equation).
 template <typename T>
 inline void add_reflected_force(const T* prm, int64_t flags, const T* t, const T* R, const T* v, const T* w,
                                 const T* acc, const T* m_r, T* out) {
@@ -817,7 +818,7 @@ inline void assemble_one(const T* prm, int64_t flags, const T* t, const T* R, co
 // Forward dynamics of one platform: out[:3] = a, out[3:] = alpha, {B}.
 // M (6,6) and h (6,) are scratch.  Assembles M [a; alpha] + h = J^T F + W and solves it; with the
 // legs' reflected masses m_r (6,) (nullptr: none), (M + J^T diag(m_r) J) [a; alpha] + h +
-// J^T diag(m_r) c = J^T F + W (add_reflected_mass).  docs/physics.md sections 5.4 and 8.2; paper
+// J^T diag(m_r) c = J^T F + W (add_reflected_mass).  docs/physics.md sections 5.4 and 10.2; paper
 // eq. 49 (joint form) or 55 (centroidal form).
 template <typename T>
 inline void forward_one(const T* prm, int64_t flags, const T* t, const T* R, const T* v,
@@ -833,7 +834,7 @@ inline void forward_one(const T* prm, int64_t flags, const T* t, const T* R, con
 // Each leg's force on the platform follows from its own equations at the given acceleration; the
 // platform's six equations then fix the six actuator forces through J^T F = wrench.  M (6,6) and
 // h (6,) are scratch.  With the legs' reflected masses m_r (6,) (nullptr: none) out holds the drive
-// forces F_i = f_i + m_r,i Lddot_i (add_reflected_force).  docs/physics.md sections 5.5 and 8.2;
+// forces F_i = f_i + m_r,i Lddot_i (add_reflected_force).  docs/physics.md sections 5.5 and 10.2;
 // paper eq. 49 (joint form) or 55 (centroidal form) solved for the forces.
 template <typename T>
 inline void inverse_one(const T* prm, int64_t flags, const T* t, const T* R, const T* v,
@@ -1014,7 +1015,7 @@ inline void inverse_batch(const double* prm, int64_t n_prm, int64_t flags, const
 
 // forward_batch (forward true) or inverse_batch with the legs' reflected masses m_r (n_mr, 6), kg,
 // n_mr 1 (one row for the batch) or n: forward dynamics of the drive forces F, or the drive forces
-// of acc (forward_one and inverse_one with m_r).  docs/physics.md sections 5.4-5.5 and 8.2; paper eq. 49 or 55.
+// of acc (forward_one and inverse_one with m_r).  docs/physics.md sections 5.4-5.5 and 10.2; paper eq. 49 or 55.
 template <bool forward>
 inline void reflected_batch(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
                             const double* v, const double* w, const double* x, const double* W, const double* m_r,
