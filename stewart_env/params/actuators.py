@@ -147,7 +147,8 @@ class HydraulicParams(_ValueObject):
         rod_diameter: d, m, in [0, D): annulus area A_B = pi (D^2 - d^2) / 4.
         stroke: s, m, in (0, 100].
         retracted_length: l_0, the leg's length with the piston at the retracted end, m, in
-            (0, 100]; the platform's limits.leg_length must lie within [l_0, l_0 + s].
+            (0, 100]; :meth:`ActuatorSets.check_stroke` checks that [l_0, l_0 + s] covers a
+            platform's limits.leg_length.
         dead_volume_a: V_A0, chamber A's oil at the retracted end with its line, m^3, in (0, 10].
         dead_volume_b: V_B0, chamber B's oil at the extended end with its line, m^3, in (0, 10].
         supply_pressure: P_s, Pa, in (0, 1e9].
@@ -257,7 +258,9 @@ class ActuatorSets(_ValueObject):
         return {name: getattr(self, name).to_dict() for name in ("electric", "hydraulic") if getattr(self, name)}
 
     def check_stroke(self, leg_length: tuple[float, float]) -> None:
-        """Check that the hydraulic cylinder's stroke covers the platform's leg-length range.
+        """Check that the hydraulic cylinder's stroke covers a platform's leg-length range: what a
+        platform driven by the cylinder needs (its limits may change after loading, so loading
+        does not ask it).
 
         Args:
             leg_length: (min, max) of the platform's limits.leg_length, m.

@@ -63,8 +63,7 @@ class PlatformParams(_ValueObject):
         home_position: (3,) P's origin at the home pose, in {B}, m.
         home_rpy: (3,) roll, pitch, yaw at the home pose, rad.
         actuators: the legs' actuator parameter sets (electric, hydraulic), empty where the config
-            has no ``actuators`` section; a hydraulic cylinder's stroke must cover
-            limits.leg_length.
+            has no ``actuators`` section.
 
     Besides each value's own checks, the home pose must be valid: every leg of nonzero length,
     no Hooke axis parallel to its leg, leg lengths inside limits.leg_length and the position
@@ -126,9 +125,7 @@ class PlatformParams(_ValueObject):
         limits = _instance(self.limits, Limits, "limits")
         position = array(self.home_position, "home.position", (3,))
         rpy = array(self.home_rpy, "home.rpy", (3,))
-        actuators = _instance(self.actuators, ActuatorSets, "actuators")
-        with within("actuators"):
-            actuators.check_stroke(limits.leg_length)
+        _instance(self.actuators, ActuatorSets, "actuators")
 
         lengths = _home_leg_lengths(base, plat, hooke, position, rpy)
         lo, hi = limits.leg_length
