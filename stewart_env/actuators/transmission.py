@@ -58,6 +58,25 @@ class BallScrew:
         ):
             object.__setattr__(self, name, constraint.check(name, getattr(self, name)))
 
+    @classmethod
+    def from_params(cls, params) -> BallScrew:
+        """The screw of an electric leg's parameter set.
+
+        Args:
+            params: an :class:`~stewart_env.params.ElectricParams` (a platform config's
+                ``actuators.electric``).
+
+        Returns:
+            Its lead, gear ratio, efficiency, torque constant and rotor inertia as a BallScrew.
+        """
+        return cls(
+            lead=params.lead,
+            gear_ratio=params.gear_ratio,
+            efficiency=params.efficiency,
+            torque_constant=params.torque_constant,
+            rotor_inertia=params.rotor_inertia,
+        )
+
     @property
     def ratio(self) -> float:
         """The transmission ratio k = 2 pi N / p: motor radians per metre of leg travel."""
@@ -75,6 +94,14 @@ class BallScrew:
             leg_velocity: leg extension speeds l_dot, m/s.
         """
         return self.ratio * np.asarray(leg_velocity, dtype=float)
+
+    def leg_velocity(self, motor_speed):
+        """The leg's extension speed l_dot = omega_m / k, m/s: the inverse of :meth:`motor_speed`.
+
+        Args:
+            motor_speed: motor speeds omega_m, rad/s.
+        """
+        return np.asarray(motor_speed, dtype=float) / self.ratio
 
     def leg_force_from_torque(self, motor_torque):
         """The leg force f = eta k tau_m, N.

@@ -21,6 +21,9 @@ A platform is described by one config (a YAML file or a plain dict) with these k
       universal_joint: {max_angle: rad, axes: [..]}   # cone of the base joints; axes in {B}
       spherical_joint: {max_angle: rad, axes: [..]}   # cone of the platform joints; axes in {P}
     home: {position: [x, y, z], rpy: [roll, pitch, yaw]}   # optional (see below)
+    actuators:                           # optional: the legs' actuator parameter sets, SI units
+      electric: {lead: .., torque_constant: .., ...}       # stewart_env.params.actuators
+      hydraulic: {bore_diameter: .., supply_pressure: .., ...}
 
 `inertia` is a 3x3 nested list or a 3-list, the shorthand for a diagonal matrix. The leg CoMs are
 given in the leg frame {D_i} = [e_i, y_i, z_i]: the upper leg's from the platform joint P_i
@@ -69,10 +72,13 @@ deep and at most 5000 values once aliases are expanded; a key given twice in one
 error (a merge, <<: *anchor, may still be overridden).
 
 The package's modules, one job each: ``checks`` (`ConfigError` and the checks of raw values),
-``bodies`` (RigidBody, Damping, Limits), ``platform`` (PlatformParams), ``reader`` (the bounded
-reader of config files) and ``shipped`` (the shipped configs by name, `load_platform`).
+``bodies`` (RigidBody, Damping, Limits), ``actuators`` (the ``actuators:`` section's parameter
+sets: ActuatorSets of ElectricParams and HydraulicParams), ``platform``
+(PlatformParams), ``reader`` (the bounded reader of config files) and ``shipped`` (the shipped
+configs by name, `load_platform`).
 """
 
+from stewart_env.params.actuators import ActuatorSets, ElectricParams, HydraulicParams
 from stewart_env.params.bodies import Damping, Limits, RigidBody
 from stewart_env.params.checks import ConfigError
 
@@ -88,12 +94,26 @@ __all__ = [
     "RigidBody",
     "Damping",
     "Limits",
+    "ElectricParams",
+    "HydraulicParams",
+    "ActuatorSets",
     "PlatformParams",
     "load_platform",
     "available_platforms",
 ]
 
 # Shown, documented and pickled under this package, their public home, whichever module defines them.
-for _public in (ConfigError, RigidBody, Damping, Limits, PlatformParams, load_platform, available_platforms):
+for _public in (
+    ConfigError,
+    RigidBody,
+    Damping,
+    Limits,
+    ElectricParams,
+    HydraulicParams,
+    ActuatorSets,
+    PlatformParams,
+    load_platform,
+    available_platforms,
+):
     _public.__module__ = __name__
 del _public

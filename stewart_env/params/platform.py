@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from stewart_env.params.actuators import ActuatorSets, actuator_sets_from_config
 from stewart_env.params.bodies import N_LEGS, Damping, Limits, RigidBody, _ValueObject, set_field, unit_rows
 from stewart_env.params.checks import ConfigError, array, describe, frozen_array, mapping, number, within
 from stewart_env.params.reader import parse_config, read_config_text
@@ -38,7 +39,7 @@ MIN_PLATFORM_MASS = 1e-6
 MIN_PLATFORM_INERTIA = 1e-15
 
 _TOP_KEYS_REQUIRED = ("base_joints", "platform_joints", "hooke_axes", "platform", "upper_leg", "lower_leg", "damping")
-_TOP_KEYS_OPTIONAL = ("gravity", "limits", "home")
+_TOP_KEYS_OPTIONAL = ("gravity", "limits", "home", "actuators")
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,6 +62,8 @@ class PlatformParams(_ValueObject):
         limits: the environment's operating limits.
         home_position: (3,) P's origin at the home pose, in {B}, m.
         home_rpy: (3,) roll, pitch, yaw at the home pose, rad.
+        actuators: the legs' actuator parameter sets (electric, hydraulic), empty where the config
+            has no ``actuators`` section.
 
     Besides each value's own checks, the home pose must be valid: every leg of nonzero length,
     no Hooke axis parallel to its leg, leg lengths inside limits.leg_length and the position
@@ -97,6 +100,7 @@ class PlatformParams(_ValueObject):
     limits: Limits
     home_position: np.ndarray
     home_rpy: np.ndarray
+    actuators: ActuatorSets = ActuatorSets()
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str):
@@ -121,6 +125,7 @@ class PlatformParams(_ValueObject):
         limits = _instance(self.limits, Limits, "limits")
         position = array(self.home_position, "home.position", (3,))
         rpy = array(self.home_rpy, "home.rpy", (3,))
+        _instance(self.actuators, ActuatorSets, "actuators")
 
         lengths = _home_leg_lengths(base, plat, hooke, position, rpy)
         lo, hi = limits.leg_length
@@ -196,6 +201,8 @@ class PlatformParams(_ValueObject):
             limits = _limits_from_config(
                 d.get("limits", {}), lengths, position, gravity, platform.mass + N_LEGS * _mean_mass(upper, lower)
             )
+        with within("actuators"):
+            actuators = actuator_sets_from_config(d["actuators"]) if "actuators" in d else ActuatorSets()
         return cls(
             name=name,
             base_joints=base,
@@ -209,6 +216,7 @@ class PlatformParams(_ValueObject):
             limits=limits,
             home_position=position,
             home_rpy=rpy,
+            actuators=actuators,
         )
 
     @classmethod
@@ -235,7 +243,7 @@ class PlatformParams(_ValueObject):
                 return bodies[0].to_dict()
             return [body.to_dict() for body in bodies]
 
-        return {
+        config = {
             "base_joints": self.base_joints.tolist(),
             "platform_joints": self.platform_joints.tolist(),
             "hooke_axes": self.hooke_axes.tolist(),
@@ -247,6 +255,9 @@ class PlatformParams(_ValueObject):
             "limits": self.limits.to_dict(),
             "home": {"position": self.home_position.tolist(), "rpy": self.home_rpy.tolist()},
         }
+        if self.actuators:
+            config["actuators"] = self.actuators.to_dict()
+        return config
 
     def replace(self, **changes) -> "PlatformParams":
         """A copy with some fields changed (dataclass field names), validated again.

@@ -751,6 +751,46 @@ inline void leg_shares(const T* prm, int64_t flags, const T* t, const T* R, cons
         leg_share<T>(prm, flags, i, t, R, v, w, acc, h_leg[i], M_leg == nullptr ? nullptr : M_leg[i], jac[i]);
 }
 
+// The reflected masses m_r (6,) of the legs' drives entered into M (6,6) and h (6,), {B}: a rotor
+// behind a screw adds m_r along its leg's prismatic axis only, so the actuator force reaching the
+// leg is F_i - m_r,i Lddot_i with Lddot_i = j_i [a; alpha] + c_i (j_i the Jacobian row, c_i the
+// velocity part of leg_accel's Lddot): M gains m_r,i j_i^T j_i and h gains m_r,i c_i j_i^T.
+// docs/physics.md section 10.2 (reflected mass; no paper equation).
+template <typename T>
+inline void add_reflected_mass(const T* prm, int64_t flags, const T* t, const T* R, const T* v, const T* w,
+                               const T* m_r, T* M, T* h) {
+    for (int i = 0; i < 6; ++i) {
+        const LegState<T> leg = leg_state<T>(prm, i, flags, t, R, v, w);
+        const Row6<T> jac = jacobian_row<T>(leg.frame);
+        // Lddot at zero platform acceleration: P_i's acceleration is a_vel alone
+        const LegAccel<T> rates = leg_accel<T>(flags, leg.frame, leg.Ldot, leg.sigma, leg.w1, leg.w2, leg.a_vel[0],
+                                               leg.a_vel[1], leg.a_vel[2]);
+        const T mr = m_r[i];
+        // a leg without drive inertia adds nothing, not even a signed zero (lane by lane)
+        const auto inert = mr != T(0.0);
+        if (!lanes::any(inert)) continue;
+        for (int r = 0; r < 6; ++r) {
+            h[r] = lanes::select(inert, h[r] + mr * rates.Lddot * jac[r], h[r]);
+            for (int c = 0; c < 6; ++c)
+                M[6 * r + c] = lanes::select(inert, M[6 * r + c] + mr * jac[r] * jac[c], M[6 * r + c]);
+        }
+    }
+}
+
+// Leg i's drive force F_i = f_i + m_r,i Lddot_i (out (6,) holds the forces f_i reaching the legs,
+// as inverse_one gives them): what the motors push with to make acc = [a; alpha].
+// docs/physics.md section 10.2 (reflected mass; no paper equation).
+template <typename T>
+inline void add_reflected_force(const T* prm, int64_t flags, const T* t, const T* R, const T* v, const T* w,
+                                const T* acc, const T* m_r, T* out) {
+    for (int i = 0; i < 6; ++i) {
+        const LegState<T> leg = leg_state<T>(prm, i, flags, t, R, v, w);
+        const auto A = with_platform_acc<T>(acc, leg.frame, leg.a_vel);
+        const LegAccel<T> la = leg_accel<T>(flags, leg.frame, leg.Ldot, leg.sigma, leg.w1, leg.w2, A[0], A[1], A[2]);
+        out[i] = lanes::select(m_r[i] != T(0.0), out[i] + m_r[i] * la.Lddot, out[i]);
+    }
+}
+
 // The equations of motion of one platform, {B}: M (6,6) and h (6,) overwritten with the mass
 // matrix and h - J^T F, so that M [a; alpha] + h = W.
 // With F = 0, h is the bias: velocity products, gravity and joint friction.  The actuator forces
@@ -776,12 +816,16 @@ inline void assemble_one(const T* prm, int64_t flags, const T* t, const T* R, co
 }
 
 // Forward dynamics of one platform: out[:3] = a, out[3:] = alpha, {B}.
-// M (6,6) and h (6,) are scratch.  Assembles M [a; alpha] + h = J^T F + W and solves it.
-// docs/physics.md section 5.4; paper eq. 49 (joint form) or 55 (centroidal form).
+// M (6,6) and h (6,) are scratch.  Assembles M [a; alpha] + h = J^T F + W and solves it; with the
+// legs' reflected masses m_r (6,) (nullptr: none), (M + J^T diag(m_r) J) [a; alpha] + h +
+// J^T diag(m_r) c = J^T F + W (add_reflected_mass).  docs/physics.md sections 5.4 and 10.2; paper
+// eq. 49 (joint form) or 55 (centroidal form).
 template <typename T>
 inline void forward_one(const T* prm, int64_t flags, const T* t, const T* R, const T* v,
-                        const T* w, const T* F, const T* W, T* M, T* h, T* out) {
+                        const T* w, const T* F, const T* W, T* M, T* h, T* out, const T* m_r = nullptr) {
     assemble_one<T>(prm, flags, t, R, v, w, F, M, h);
+    // nullptr: no drive inertia, and not one operation more (the results bit for bit as without)
+    if (m_r != nullptr) add_reflected_mass<T>(prm, flags, t, R, v, w, m_r, M, h);
     for (int r = 0; r < 6; ++r) h[r] = W[r] - h[r];
     solve6<T>(M, h, out);
 }
@@ -789,11 +833,12 @@ inline void forward_one(const T* prm, int64_t flags, const T* t, const T* R, con
 // Inverse dynamics of one platform: leg forces out (6,) for acc = [a; alpha], {B}.
 // Each leg's force on the platform follows from its own equations at the given acceleration; the
 // platform's six equations then fix the six actuator forces through J^T F = wrench.  M (6,6) and
-// h (6,) are scratch.  docs/physics.md section 5.5; paper eq. 49 (joint form) or 55 (centroidal
-// form) solved for the forces.
+// h (6,) are scratch.  With the legs' reflected masses m_r (6,) (nullptr: none) out holds the drive
+// forces F_i = f_i + m_r,i Lddot_i (add_reflected_force).  docs/physics.md sections 5.5 and 10.2;
+// paper eq. 49 (joint form) or 55 (centroidal form) solved for the forces.
 template <typename T>
 inline void inverse_one(const T* prm, int64_t flags, const T* t, const T* R, const T* v,
-                        const T* w, const T* acc, const T* W, T* M, T* h, T* out) {
+                        const T* w, const T* acc, const T* W, T* M, T* h, T* out, const T* m_r = nullptr) {
     T h_leg[6][6];
     Row6<T> jac[6];
     leg_shares<T>(prm, flags, t, R, v, w, acc, h_leg, nullptr, jac);
@@ -813,6 +858,7 @@ inline void inverse_one(const T* prm, int64_t flags, const T* t, const T* R, con
         h[r] = total;
     }
     solve6<T>(M, h, out);
+    if (m_r != nullptr) add_reflected_force<T>(prm, flags, t, R, v, w, acc, m_r, out);
 }
 
 // Leg kinematics of one platform, {B}: frames (6,3,3) T_i = [e y z] as columns, lengths (6,),
@@ -890,9 +936,13 @@ struct ParamScratch {
 // the leg forces or the accelerations.  docs/physics.md sections 5.4-5.5; paper eq. 49 or 55.
 template <typename T, bool forward>
 inline void solve_row(const ParamRows& prm, int64_t flags, const double* t, const double* R, const double* v,
-                      const double* w, const double* x, const double* W, double* out, int64_t b) {
+                      const double* w, const double* x, const double* W, double* out, int64_t b,
+                      const double* m_r = nullptr, int64_t n_mr = 0) {
     ParamScratch<T> scratch;
-    T tl[3], Rl[9], vl[3], wl[3], xl[6], Wl[6], M[36], h[6], o[6];
+    T tl[3], Rl[9], vl[3], wl[3], xl[6], Wl[6], M[36], h[6], o[6], mr[6];
+    // the reflected masses (n_mr, 6): the row's own, or the only row (stride 0) for every row
+    if (m_r != nullptr) lanes::load(m_r, n_mr == 1 ? 0 : 6, n_mr == 1 ? 0 : b, 6, mr);
+    const T* mrl = m_r == nullptr ? nullptr : mr;
     lanes::load(t, 3, b, 3, tl);
     lanes::load(R, 9, b, 9, Rl);
     lanes::load(v, 3, b, 3, vl);
@@ -901,9 +951,9 @@ inline void solve_row(const ParamRows& prm, int64_t flags, const double* t, cons
     lanes::load(W, 6, b, 6, Wl);
     const T* p = prm.rows(b, scratch.rows);
     if constexpr (forward) {
-        forward_one<T>(p, flags, tl, Rl, vl, wl, xl, Wl, M, h, o);
+        forward_one<T>(p, flags, tl, Rl, vl, wl, xl, Wl, M, h, o, mrl);
     } else {
-        inverse_one<T>(p, flags, tl, Rl, vl, wl, xl, Wl, M, h, o);
+        inverse_one<T>(p, flags, tl, Rl, vl, wl, xl, Wl, M, h, o, mrl);
     }
     lanes::store(o, 6, out, 6, b);
 }
@@ -960,6 +1010,19 @@ inline void inverse_batch(const double* prm, int64_t n_prm, int64_t flags, const
     const ParamRows rows(prm, n_prm, n);
     lanes::for_rows(n, 1, [&](int64_t b, auto tag) {
         solve_row<decltype(tag), false>(rows, flags, t, R, v, w, acc, W, out, b);
+    });
+}
+
+// forward_batch (forward true) or inverse_batch with the legs' reflected masses m_r (n_mr, 6), kg,
+// n_mr 1 (one row for the batch) or n: forward dynamics of the drive forces F, or the drive forces
+// of acc (forward_one and inverse_one with m_r).  docs/physics.md sections 5.4-5.5 and 10.2; paper eq. 49 or 55.
+template <bool forward>
+inline void reflected_batch(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
+                            const double* v, const double* w, const double* x, const double* W, const double* m_r,
+                            int64_t n_mr, double* out, int64_t n) {
+    const ParamRows rows(prm, n_prm, n);
+    lanes::for_rows(n, 1, [&](int64_t b, auto tag) {
+        solve_row<decltype(tag), forward>(rows, flags, t, R, v, w, x, W, out, b, m_r, n_mr);
     });
 }
 
