@@ -289,7 +289,9 @@ def _check_samples(path: str, header: dict[str, str], data: dict[str, np.ndarray
     if back.size:
         k = int(back[0]) + 1
         what = "repeats" if step[k - 1] == 0 else "is before"
-        raise LogError(path, f"time stamp {time[k]!r} s {what} row {k}'s {time[k - 1]!r} s", row=k + 1, column="time")
+        raise LogError(
+            path, f"time stamp {float(time[k])!r} s {what} row {k}'s {float(time[k - 1])!r} s", row=k + 1, column="time"
+        )
     bound = MAX_GAP_PERIODS / float(header["rate_hz"])
     gap = np.flatnonzero(step > bound)
     if gap.size:
