@@ -72,8 +72,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument(
         "--max-leg-speed",
         type=leg_speed,
-        default=1.0,
-        help="the legs' top speed the set points keep under, m/s (default 1)",
+        help="the legs' top speed the set points keep under, m/s (default 0.85 of the platform's "
+        "limits.leg_velocity, or 1 where it has none)",
     )
     p.add_argument("--random", action="store_true", help="the random series, not optimised")
     p.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")

@@ -81,7 +81,7 @@ def excitation_log(
     period: float = 10.0,
     harmonics: int = 5,
     max_iterations: int = 30,
-    max_leg_speed: float = MAX_LEG_SPEED,
+    max_leg_speed: float | None = None,
 ) -> tuple[logs.Log, ExcitationChecks]:
     """The excitation as a log of kind ``excitation``.
 
@@ -95,7 +95,9 @@ def excitation_log(
         period: the series' period, s.
         harmonics: its number of harmonics.
         max_iterations: the optimiser's iteration limit.
-        max_leg_speed: the legs' top speed, m/s.
+        max_leg_speed: the legs' top speed, m/s; None: the excitation's share
+            (:data:`~stewart_env.identification.excitation.LIMIT_SHARE`) of the platform's
+            ``limits.leg_velocity`` where it has one, else :data:`MAX_LEG_SPEED`.
 
     Returns:
         (the log, the checks along its samples).
@@ -123,8 +125,14 @@ def excitation_log(
     t, R, v, w, a, alpha = exc.task_states(q, qd, qdd)
     lengths, _ = inverse_kinematics(nominal, t, R)
     speed = np.abs(np.einsum("nij,nj->ni", jacobian(nominal, t, R), np.concatenate([v, w], axis=1)))
-    if speed.max() > max_leg_speed:
-        problem = f"the set points' legs reach {speed.max():.3g} m/s, above {max_leg_speed:g} m/s"
+    bound, source = max_leg_speed, "--max-leg-speed"
+    if max_leg_speed is None:
+        limit = nominal.limits.max_leg_velocity
+        finite = math.isfinite(limit)
+        bound = exc.LIMIT_SHARE * limit if finite else MAX_LEG_SPEED
+        source = f"{exc.LIMIT_SHARE:g} of the platform's leg_velocity" if finite else "the default --max-leg-speed"
+    if speed.max() > bound:
+        problem = f"the set points' legs reach {speed.max():.3g} m/s, above {bound:g} m/s ({source})"
         raise IdentificationError(
             f"--max-leg-speed: {problem}; a longer --period slows them",
             argument="max_leg_speed",

@@ -47,7 +47,7 @@ def test_too_fast_set_points_and_a_rate_off_the_plant_steps_are_refused(tmp_path
     code, _, err = run([*base, "--max-leg-speed", "0.01"], capsys)
     assert code == 2
     assert "stewart-env excitation: error: --max-leg-speed: the set points' legs reach" in err
-    assert "above 0.01 m/s; a longer --period slows them" in err
+    assert "above 0.01 m/s (--max-leg-speed); a longer --period slows them" in err
     code, _, err = run([*base, "--rate", "300"], capsys)
     assert code == 2 and "--rate: 300 Hz: its period must be a whole number of the plant's 0.001 s steps" in err
     assert not out.exists()
