@@ -44,6 +44,17 @@ MAX_DURATION = 3600.0
 noise_position = real(0, 1.0, doc="argparse type of --noise-position, m.")
 noise_angle = real(0, math.pi, doc="argparse type of --noise-angle, rad.")
 noise_force = real(0, 1e6, doc="argparse type of --noise-force, N.")
+def log_file(text: str) -> str:
+    """Argparse type of --record: a non-blank path (the reader names a missing or unreadable file).
+
+    Args:
+        text: the command-line text.
+    """
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a log file, got ''")
+    return text
+
+
 held_out = checked(
     float, lambda v: 0 < v < 1, "a share in (0, 1)", "argparse type of --held-out: a share of the log in (0, 1)."
 )
@@ -187,7 +198,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--out", type=directory_name, required=True, help="output directory (locked while written)")
     p.add_argument(
         "--record",
-        type=existing_file,
+        type=log_file,
         metavar="LOG",
         help="identify from a machine's log (docs/guides/log-format.md) instead of a stand-in plant: leg lengths "
         "to poses by forward kinematics, --derivatives, the forces or the motor currents; the plant, noise, "
