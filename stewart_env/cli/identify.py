@@ -44,6 +44,8 @@ MAX_DURATION = 3600.0
 noise_position = real(0, 1.0, doc="argparse type of --noise-position, m.")
 noise_angle = real(0, math.pi, doc="argparse type of --noise-angle, rad.")
 noise_force = real(0, 1e6, doc="argparse type of --noise-force, N.")
+
+
 def log_file(text: str) -> str:
     """Argparse type of --record: a non-blank path (the reader names a missing or unreadable file).
 
