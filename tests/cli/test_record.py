@@ -150,3 +150,32 @@ def test_record_refuses_a_log_that_is_not_an_excitation(tmp_path, capsys, excita
         ["record", "--trajectory", str(excitation), "--out", str(tmp_path / "x.csv"), "--currents"], capsys
     )
     assert code == 2 and "--currents and --drive go together" in err
+
+
+def test_jittered_stamps_are_resampled_onto_the_rate_grid(dasgupta):
+    from stewart_env.identification import logged
+
+    rng = np.random.default_rng(0)
+    n, rate = 401, 200.0
+    grid = np.arange(n) / rate
+    stamps = grid + rng.uniform(-0.2, 0.2, n) / rate  # a fifth of a period of jitter
+    stamps[0], stamps[-1] = grid[0], grid[-1]
+
+    def pose(t):
+        position = dasgupta.home_position + 0.01 * np.stack([np.sin(t), np.cos(t) - 1, 0.5 * np.sin(2 * t)], axis=1)
+        return position, se.rpy_to_matrix(0.02 * np.stack([np.sin(t), np.sin(3 * t), 0 * t], axis=1))
+
+    t, R = pose(stamps)
+    forces = np.stack([100 + np.sin(stamps + i) for i in range(6)], axis=1)
+    header = {"format": logs.FORMAT, "kind": "record", "platform": "dasgupta1998", "rate_hz": "200"}
+    lengths, _ = se.inverse_kinematics(dasgupta, t, R)
+    log = logs.Log(header, {"time": stamps, "leg_length": lengths, "leg_force": forces})
+    time, t_grid, R_grid, F_grid, resampled = logged._resampled(log, t, R, forces)
+    assert resampled is not None and np.abs(time - grid).max() < 1e-15  # k / rate against k * (1 / rate)
+    want_t, want_R = pose(grid)
+    # cubic splines of a motion smooth on the scale of the samples: errors of order (dt)^4 f''''
+    assert np.abs(t_grid - want_t).max() < 1e-9
+    assert np.abs(R_grid - want_R).max() < 1e-9
+    # linear interpolation of the forces: h^2 / 8 of their second derivative (1 N/s^2) over stamps
+    # up to h = 1.4 periods apart, 6e-6 N
+    assert np.abs(F_grid - np.stack([100 + np.sin(grid + i) for i in range(6)], axis=1)).max() < 1e-5
