@@ -14,9 +14,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from stewart_env.cli.arguments import PLATFORM_RULE, existing_file, platform_name, real, seed, writable_file
+from stewart_env.cli.arguments import (
+    PLATFORM_RULE,
+    existing_file,
+    plant_model_name,
+    platform_name,
+    real,
+    seed,
+    writable_file,
+)
 from stewart_env.cli.common import error
-from stewart_env.cli.identify import _plant, delay, noise_force, perturb
+from stewart_env.cli.identify import delay, noise_force, perturb
 
 VERB = "record"
 noise_length = real(0, 0.1, doc="argparse type of --noise-length, m.")
@@ -41,7 +49,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--plant",
-        type=_plant,
+        type=plant_model_name,
         default="improved",
         help="the plant: a dynamics model (improved, classical or a name with switches) or mujoco (needs the "
         "extra mujoco; default improved)",
@@ -144,5 +152,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as err:  # IdentificationError, LogError, an unwritable file: the message names the cause
         return error(VERB, err)
     forces = "motor currents" if drive is not None else "leg forces"
-    print(f"{args.out}: {record.time.size} samples of leg lengths and {forces} on the plant {args.plant}")
+    print(
+        f"{args.out}: {record.time.size} samples of leg lengths and {forces} on the plant {getattr(args.plant, 'name', args.plant)}"
+    )
     return 0

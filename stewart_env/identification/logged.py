@@ -96,12 +96,14 @@ def read_drive(path: str | Path) -> BallScrew:
         raise UsageError(f"{path}: {err}") from None
 
 
-def drive_for(record: logs.Log, drive: BallScrew | None) -> BallScrew:
-    """The drive of a log of motor currents: ``drive``, or the ``drive.yaml`` beside the log.
+def drive_for(record: logs.Log, drive: BallScrew | None, nominal: PlatformParams | None = None) -> BallScrew:
+    """The drive of a log of motor currents: ``drive``, or the ``drive.yaml`` beside the log, or
+    the ball screw of the platform config's ``actuators.electric`` section.
 
     Args:
         record: the log.
         drive: the drive given, or None.
+        nominal: the platform, whose electric actuator (if its config has one) is the last resort.
 
     Returns:
         The drive.
@@ -112,10 +114,14 @@ def drive_for(record: logs.Log, drive: BallScrew | None) -> BallScrew:
     if drive is not None:
         return drive
     beside = Path(record.source).parent / DRIVE_FILE
+    electric = None if nominal is None else nominal.actuators.electric
+    if not beside.is_file() and electric is not None:
+        return BallScrew.from_params(electric)
     if not beside.is_file():
         raise UsageError(
             f"{record.source}: motor currents need the drive constants: a {DRIVE_FILE} beside the log "
-            f"(keys {', '.join(BallScrew.__dataclass_fields__)}) or --drive FILE",
+            f"(keys {', '.join(BallScrew.__dataclass_fields__)}), --drive FILE or the platform config's "
+            "actuators.electric",
             argument="drive",
             problem="missing",
         )
@@ -215,7 +221,7 @@ def identify_log(record: logs.Log, nominal: PlatformParams, settings: LogSetting
     spec = ModelSpec.parse(settings.model, "model")
     source = record.source or "log"
     if "motor_current" in record.data:
-        drive = drive_for(record, settings.drive)
+        drive = drive_for(record, settings.drive, nominal)
         forces = drive.leg_force_from_current(record.data["motor_current"])
         force_source = "motor currents"
     else:

@@ -199,7 +199,7 @@ class RecordSettings:
     whether the plant's own twist and acceleration are logged too (``exact``, a closed-form
     plant's, a simulation-only check)."""
 
-    plant: str = "improved"
+    plant: str | ModelSpec = "improved"
     perturb: float = 0.0
     seed: int = 0
     noise_length: float = 0.0
@@ -236,6 +236,7 @@ def record_log(
         problem = f"expected whole samples of {sample_dt:g} s in [0, {experiment.MAX_DELAY}], got {settings.delay!r}"
         raise IdentificationError(f"--delay: {problem}", argument="delay", problem=problem)
     plant_spec = None if settings.plant == "mujoco" else ModelSpec.parse(settings.plant, "plant")
+    plant_name = "mujoco" if plant_spec is None else plant_spec.name
     if settings.exact and plant_spec is None:
         problem = "the MuJoCo plant gives no accelerations"
         raise IdentificationError(f"--derivatives exact: {problem}", argument="derivatives", problem=problem)
@@ -263,7 +264,7 @@ def record_log(
         "kind": "record",
         "platform": trajectory.header["platform"],
         "rate_hz": trajectory.header["rate_hz"],
-        "what": f"the excitation followed on the plant {settings.plant} (parameters perturbed by "
+        "what": f"the excitation followed on the plant {plant_name} (parameters perturbed by "
         f"{settings.perturb:g}, seed {settings.seed}); noise: leg length {settings.noise_length:g} m, "
         f"leg force {settings.noise_force:g} N; leg lengths {settings.delay:g} s late",
     }
