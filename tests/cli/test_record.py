@@ -179,3 +179,13 @@ def test_jittered_stamps_are_resampled_onto_the_rate_grid(dasgupta):
     # linear interpolation of the forces: h^2 / 8 of their second derivative (1 N/s^2) over stamps
     # up to h = 1.4 periods apart, 6e-6 N
     assert np.abs(F_grid - np.stack([100 + np.sin(grid + i) for i in range(6)], axis=1)).max() < 1e-5
+
+
+def test_without_a_drive_file_the_platform_config_s_electric_drive_is_used(tmp_path, simulator):
+    from stewart_env.identification import logged
+
+    log = logs.Log({"kind": "record"}, {}, str(tmp_path / "rec.csv"))
+    drive = logged.drive_for(log, None, simulator)  # motion_simulator's actuators.electric
+    assert (drive.lead, drive.torque_constant, drive.efficiency) == (0.025, 1.95, 0.9)
+    (tmp_path / "drive.yaml").write_text("lead: 0.01\n")
+    assert logged.drive_for(log, None, simulator).lead == 0.01  # the file beside the log first
