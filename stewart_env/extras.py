@@ -2,8 +2,8 @@
 
 Each extra brings the libraries of one kind of work: ``rl`` (training and loading agents),
 ``mujoco`` (the MuJoCo twin), ``distributed`` (the study on a Ray cluster), ``laws`` (a user's own
-control laws as numba cfuncs).  :func:`require` looks the libraries up without importing them, so
-a command checks its extras before it does any work; :func:`extra_of` names the extra a failed
+control laws as numba cfuncs), ``logs`` (drive logs in HDF5).  :func:`require` looks the libraries
+up without importing them, so a command checks its extras before it does any work; :func:`extra_of` names the extra a failed
 import belongs to, so that the command line turns any such ``ImportError`` into one line.
 
 The install hints work from a clone of the repository (``pip install -e ".[rl]"``): the package
@@ -26,6 +26,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "mujoco": ("mujoco",),
     "distributed": ("ray",),
     "laws": ("numba",),
+    "logs": ("h5py",),
 }
 #: What an extra asks of the user before ``pip install`` (torch's CPU build for ``rl``: the
 #: default index serves the CUDA build, gigabytes this package does not use).

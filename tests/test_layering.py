@@ -333,6 +333,8 @@ VERB_MODULES = (
     "identify",
     "bench",
     "export_mjcf",
+    "excitation",
+    "record",
 )
 
 

@@ -17,7 +17,9 @@ site never carries a hand-kept copy of what the code says:
 - ``<!-- generated: command line -->``: every ``stewart-env`` verb's usage and help, from the
   argparse parser that :func:`stewart_env.cli.build_parser` builds;
 - ``<!-- generated: extras -->``: the optional extras of ``pyproject.toml``, each with its purpose,
-  the first line of the comment above it there, and its requirements.
+  the first line of the comment above it there, and its requirements;
+- ``<!-- generated: log format -->``: the drive-log schema, its header's entries, its kinds and every
+  column with its unit, from :func:`stewart_env.identification.log.schema_markdown`.
 
 The environment page's picture, frames of one seeded episode drawn by the environment's own
 renderer, is drawn at build time too (:func:`episode_figure`).
@@ -42,6 +44,7 @@ ENV_SUMMARY = "<!-- generated: env summary -->"
 REWARD_SYMBOLS = "<!-- generated: reward symbols -->"
 COMMAND_LINE = "<!-- generated: command line -->"
 EXTRAS = "<!-- generated: extras -->"
+LOG_FORMAT = "<!-- generated: log format -->"
 PYPROJECT = Path(__file__).resolve().parents[2] / "pyproject.toml"
 #: The symbol of each weight and scale of the reward (stewart_env.tasks.RewardWeights) in the
 #: environment page's formula.
@@ -316,6 +319,10 @@ def _generate(app, docname: str, source: list[str]) -> None:
         text = text.replace(COMMAND_LINE, command_line())
     if EXTRAS in text:
         text = text.replace(EXTRAS, extras_table())
+    if LOG_FORMAT in text:
+        from stewart_env.identification.log import schema_markdown
+
+        text = text.replace(LOG_FORMAT, schema_markdown())
     source[0] = text
 
 

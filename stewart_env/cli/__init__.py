@@ -1,5 +1,5 @@
 """The ``stewart-env`` command: demo, evaluate, reproduce, train, time-to-agent, mismatch, identify, bench,
-export-mjcf.
+export-mjcf, excitation, record.
 
     stewart-env demo                       PD baseline on the classical and improved models
     stewart-env evaluate --policy pd ct --model classical improved --task tracking --out results/
@@ -9,6 +9,8 @@ export-mjcf.
     stewart-env identify --platform dasgupta1998 --out runs/ident   identification on a stand-in plant
     stewart-env bench ...                  the benchmark (stewart_env.benchmarks)
     stewart-env export-mjcf --platform dasgupta1998 --out stewart.xml   the MuJoCo twin as MJCF
+    stewart-env excitation --platform dasgupta1998 --out exc.csv   the excitation as set points
+    stewart-env record --trajectory exc.csv --out log.csv   a stand-in machine's drive log
 
 Each subcommand has ``--help``.  One module per verb in this package, each with
 ``add_parser(subparsers)`` and ``run(args) -> int``; :data:`VERBS` is the table :func:`main`
@@ -26,7 +28,19 @@ import sys
 from collections.abc import Sequence
 from types import ModuleType
 
-from stewart_env.cli import bench, demo, evaluate, export_mjcf, identify, mismatch, reproduce, time_to_agent, train
+from stewart_env.cli import (
+    bench,
+    demo,
+    evaluate,
+    excitation,
+    export_mjcf,
+    identify,
+    mismatch,
+    record,
+    reproduce,
+    time_to_agent,
+    train,
+)
 from stewart_env.cli.common import error
 from stewart_env.errors import UsageError
 from stewart_env.extras import extra_of, install_hint
@@ -37,7 +51,19 @@ __all__ = ["VERBS", "build_parser", "main"]
 #: Each verb's module, in the order ``--help`` lists them.
 VERBS: dict[str, ModuleType] = {
     module.VERB: module
-    for module in (demo, evaluate, reproduce, train, time_to_agent, mismatch, identify, bench, export_mjcf)
+    for module in (
+        demo,
+        evaluate,
+        reproduce,
+        train,
+        time_to_agent,
+        mismatch,
+        identify,
+        bench,
+        export_mjcf,
+        excitation,
+        record,
+    )
 }
 
 

@@ -22,6 +22,7 @@ from stewart_env.cli.arguments import (
     PLATFORM_RULE,
     checked,
     directory_name,
+    existing_file,
     model_name,
     plant_model_name,
     platform_name,
@@ -43,6 +44,22 @@ MAX_DURATION = 3600.0
 noise_position = real(0, 1.0, doc="argparse type of --noise-position, m.")
 noise_angle = real(0, math.pi, doc="argparse type of --noise-angle, rad.")
 noise_force = real(0, 1e6, doc="argparse type of --noise-force, N.")
+
+
+def log_file(text: str) -> str:
+    """Argparse type of --record: a non-blank path (the reader names a missing or unreadable file).
+
+    Args:
+        text: the command-line text.
+    """
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a log file, got ''")
+    return text
+
+
+held_out = checked(
+    float, lambda v: 0 < v < 1, "a share in (0, 1)", "argparse type of --held-out: a share of the log in (0, 1)."
+)
 perturb = checked(
     float,
     lambda v: 0 <= v < 1,
@@ -181,7 +198,53 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
     p.add_argument("--out", type=directory_name, required=True, help="output directory (locked while written)")
+    p.add_argument(
+        "--record",
+        type=log_file,
+        metavar="LOG",
+        help="identify from a machine's log (docs/guides/log-format.md) instead of a stand-in plant: leg lengths "
+        "to poses by forward kinematics, --derivatives, the forces or the motor currents; the plant, noise, "
+        "delay, perturbation and excitation options do not apply",
+    )
+    p.add_argument(
+        "--drive",
+        type=existing_file,
+        help="with --record of motor currents: YAML of the drive constants (default drive.yaml beside the log)",
+    )
+    p.add_argument(
+        "--held-out",
+        type=held_out,
+        default=0.25,
+        help="with --record: the share of the log, at its end, held out for validation (default 0.25)",
+    )
     return p
+
+
+def _run_record(args: argparse.Namespace) -> int:
+    """``identify --record``: identification from a log (stewart_env.identification.logged)."""
+    from stewart_env.files import check_writable
+    from stewart_env.identification import log, logged
+    from stewart_env.identification.experiment import SETTLE
+    from stewart_env.params import load_platform
+
+    if args.record.lower().endswith(log.HDF5_SUFFIXES):
+        from stewart_env.extras import require
+
+        require("logs", "--record (an HDF5 log)")
+    try:
+        check_writable(args.out, create=False)
+        nominal = load_platform(args.platform)
+        drive = None if args.drive is None else logged.read_drive(args.drive)
+        record = log.read(args.record, nominal, min_duration=2 * SETTLE + 0.5)
+        settings = logged.LogSettings(
+            model=args.model, derivatives=args.derivatives, held_out=args.held_out, drive=drive
+        )
+        folder = logged.write(logged.identify_log(record, nominal, settings), args.out)
+    except ValueError as err:  # LogError, IdentificationError, a busy or unwritable --out: the message names it
+        return error(VERB, err)
+    print((folder / "report.md").read_text().split("\n| base parameter")[0].rstrip())
+    print(f"\nidentified platform: {folder / 'platform.yaml'}")
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -197,6 +260,8 @@ def run(args: argparse.Namespace) -> int:
     from stewart_env.identification import experiment
     from stewart_env.params import load_platform
 
+    if args.record is not None:
+        return _run_record(args)
     start = time.perf_counter()
     try:
         settings = experiment.Settings(

@@ -5,7 +5,10 @@
 * :mod:`.base`: the base (identifiable) parameters and their map back to a platform;
 * :mod:`.excitation`: Fourier-series excitation trajectories optimised for the condition number;
 * :mod:`.estimate`: filtering, ordinary, weighted and physically consistent least squares;
-* :mod:`.experiment`: the whole experiment on a stand-in plant, as the ``identify`` command runs it.
+* :mod:`.experiment`: the whole experiment on a stand-in plant, as the ``identify`` command runs it;
+* :mod:`.log`: the drive-log format (schema, checked reader and writer);
+* :mod:`.recording`: the excitation as set points, and a stand-in plant's drive log;
+* :mod:`.logged`: identification from a drive log (``identify --record``).
 
 docs/guides/identification.md is the user's guide.
 """

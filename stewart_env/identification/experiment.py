@@ -224,7 +224,12 @@ def _simulate_mujoco(truth: PlatformParams, row: np.ndarray, start: tuple, steps
 
 
 def simulate(
-    plant: Dynamics | str, truth: PlatformParams, controller: Dynamics, series: exc.Excitation, duration: float
+    plant: Dynamics | str,
+    truth: PlatformParams,
+    controller: Dynamics,
+    series: exc.Excitation,
+    duration: float,
+    sample_dt: float = SAMPLE_DT,
 ):
     """Drive the plant (a closed-form model, or ``"mujoco"`` on the truth) along the series by
     the compiled computed-torque law; returns the recorded Trajectory.  IdentificationError
@@ -236,11 +241,12 @@ def simulate(
         controller: the computed-torque controller's dynamics model.
         series: the excitation to follow.
         duration: the record's length, s.
+        sample_dt: the sampling period of the record, s, a whole number of PLANT_DT steps.
     """
     q, qd, qdd = series.sample([0.0])
     t0, R0, v0, w0, _, _ = exc.task_states(q, qd, qdd)
     steps = int(round(duration / PLANT_DT))
-    every = int(round(SAMPLE_DT / PLANT_DT))
+    every = int(round(sample_dt / PLANT_DT))
     steps -= steps % every
     row = series.law_row(controller)
     if isinstance(plant, str):

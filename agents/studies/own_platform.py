@@ -1,0 +1,211 @@
+"""Your own platform, the loop closed on a stand-in machine: excitation -> record -> identify from
+the file -> computed torque on the identified model, measured on the tracking task.
+
+The unknown machine is the MuJoCo twin of the platform with every inertial and friction parameter
+perturbed (:func:`stewart_env.identification.experiment.perturbed`).  :func:`run` exports the
+optimised excitation, records the machine following it (leg lengths and leg forces with sensor
+noise, in the drive-log format), identifies the platform from that file alone, and evaluates
+computed torque built on the identified, the true and the nominal parameters on the tracking task
+on the same machine; it writes every file of the path and ``summary.md`` / ``summary.json`` with
+the RMS errors, the machine and the date into ``out``::
+
+    python -m stewart_env.agents.studies.own_platform runs/own-platform
+
+docs/guides/your-own-platform.md shows its numbers.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import platform as host
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+from stewart_env import files
+from stewart_env.agents import ComputedTorquePolicy, evaluate
+from stewart_env.identification import experiment, logged, recording
+from stewart_env.identification import log as logs
+from stewart_env.params import load_platform
+
+#: The controllers compared, by the parameters their computed torque is built on.
+BELIEFS = ("identified", "true", "nominal")
+
+
+def _processor() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return host.processor() or host.machine()
+
+
+def run(
+    out: str | Path,
+    platform: str = "dasgupta1998",
+    perturb: float = 0.2,
+    seed: int = 0,
+    duration: float = 60.0,
+    period: float = 10.0,
+    noise_length: float = 1e-6,
+    noise_force: float = 1.0,
+    episodes: int = 5,
+    plant: str = "mujoco",
+    random: bool = False,
+) -> dict:
+    """The whole path on a stand-in machine (see the module docstring).
+
+    Args:
+        out: the folder of the files (excitation.csv, record.csv, truth.yaml, identified/,
+            summary.md, summary.json), created if missing.
+        platform: the nominal platform (a shipped name or a config path).
+        perturb: the relative perturbation of the machine's parameters from the nominal.
+        seed: the seed of the perturbation, the excitation's start, the noise and the episodes.
+        duration: the excitation's length, s.
+        period: the excitation's period, s.
+        noise_length: the leg lengths' noise, standard deviation in m.
+        noise_force: the leg forces' noise, standard deviation in N.
+        episodes: the tracking episodes per controller.
+        plant: the machine: ``mujoco`` (the twin) or a closed-form model's name.
+        random: a random excitation instead of the optimised one (a quick check).
+
+    Returns:
+        The summary (what summary.json holds).
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    nominal = load_platform(platform)
+    excitation, checks = recording.excitation_log(
+        nominal, platform, duration=duration, period=period, seed=seed, random=random
+    )
+    logs.write(out / "excitation.csv", excitation, nominal)
+    settings = recording.RecordSettings(
+        plant=plant, perturb=perturb, seed=seed, noise_length=noise_length, noise_force=noise_force
+    )
+    record, truth = recording.record_log(logs.read(out / "excitation.csv", nominal), nominal, settings)
+    logs.write(out / "record.csv", record, nominal)
+    files.publish(out / "truth.yaml", yaml.safe_dump(truth.to_dict(), sort_keys=False))
+    # identification sees the file only
+    result = logged.identify_log(
+        logs.read(out / "record.csv", nominal, min_duration=2 * experiment.SETTLE + 0.5), nominal
+    )
+    logged.write(result, out / "identified")
+    identified = result["identified"]
+    believed = {"identified": identified, "true": truth, "nominal": nominal}
+    env_kwargs = {"model": plant, "platform": truth, "task": "tracking", "observation_mode": "pose"}
+    rows = {}
+    for name in BELIEFS:
+        evaluation = evaluate(
+            lambda env, p=believed[name]: ComputedTorquePolicy(env, "improved", platform=p),
+            env_kwargs,
+            episodes=episodes,
+            seed=seed,
+            label=f"CT ({name})",
+            progress=False,
+        )
+        summary = evaluation.summary()
+        rows[name] = {
+            "rms_position_error_mm": 1e3 * summary["rms_position_error"],
+            "rms_orientation_error_mrad": 1e3 * summary["rms_orientation_error"],
+            "success": summary["success"],
+        }
+    report = result["report"]
+    summary = {
+        "command": "python -m stewart_env.agents.studies.own_platform " + " ".join(sys.argv[1:]),
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "machine": f"{_processor()}, {os.cpu_count()} logical CPUs, Python {host.python_version()}",
+        "settings": {
+            "platform": platform,
+            "plant": plant,
+            "perturb": perturb,
+            "seed": seed,
+            "duration": duration,
+            "period": period,
+            "noise_length": noise_length,
+            "noise_force": noise_force,
+            "episodes": episodes,
+            "excitation": "random" if random else "optimized",
+        },
+        "excitation_condition_number": checks.condition,
+        "held_out_force_error": report["held_out_force_error"],
+        "held_out_rms_force": report["held_out_rms_force"],
+        "base_parameters_under_10pct_rel_std": report["base_parameters_under_10pct_rel_std"],
+        "rank": report["rank"],
+        "tracking": rows,
+        "ratio_identified_to_true": rows["identified"]["rms_position_error_mm"] / rows["true"]["rms_position_error_mm"],
+        "wall_time_s": time.perf_counter() - start,
+    }
+    files.publish(out / "summary.json", json.dumps(experiment._strict(summary), indent=1) + "\n")
+    files.publish(out / "summary.md", markdown(summary))
+    return summary
+
+
+def markdown(summary: dict) -> str:
+    """summary.md: the settings, the identification's held-out error and the tracking table.
+
+    Args:
+        summary: what :func:`run` returns.
+
+    Returns:
+        The Markdown text.
+    """
+    s, e = summary["settings"], summary["held_out_force_error"]
+    lines = [
+        f"# Your own platform on a stand-in machine: {s['platform']}",
+        "",
+        f"`{summary['command']}`, {summary['date']}, {summary['machine']}, {summary['wall_time_s']:.0f} s",
+        "",
+        f"machine: {s['plant']} with the parameters perturbed by {s['perturb']:g} (seed {s['seed']}); excitation "
+        f"{s['duration']:g} s of period {s['period']:g} s (condition number {summary['excitation_condition_number']:.4g}); "
+        f"noise: leg length {s['noise_length']:g} m, leg force {s['noise_force']:g} N",
+        "",
+        f"identified from record.csv: {summary['base_parameters_under_10pct_rel_std']} of {summary['rank']} base "
+        f"parameters under 10 % relative standard deviation; held-out leg-force RMS error (RMS force "
+        f"{summary['held_out_rms_force']:.4g} N): nominal {e['nominal']:.4g} N, WLS {e['wls']:.4g} N, "
+        f"consistent {e['consistent']:.4g} N",
+        "",
+        f"Computed torque on the tracking task on the machine, {s['episodes']} episodes:",
+        "",
+        "| built on | RMS position error (mm) | RMS orientation error (mrad) | success |",
+        "|---|---|---|---|",
+    ]
+    for name, row in summary["tracking"].items():
+        lines.append(
+            f"| {name} | {row['rms_position_error_mm']:.4g} | {row['rms_orientation_error_mrad']:.4g} "
+            f"| {100 * row['success']:.0f} % |"
+        )
+    lines += ["", f"identified / true RMS position error: {summary['ratio_identified_to_true']:.3g}"]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    """Run :func:`run` with its defaults into the folder the one argument names.
+
+    Args:
+        argv: the arguments, ``[OUT]`` (default the process's).
+
+    Returns:
+        The exit status.
+    """
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if len(argv) != 1 or argv[0].startswith("-"):
+        print("usage: python -m stewart_env.agents.studies.own_platform OUT", file=sys.stderr)
+        return 2
+    try:
+        summary = run(argv[0])
+    except ValueError as err:  # a usage error: the message names the cause
+        print(f"own_platform: error: {err}", file=sys.stderr)
+        return 2
+    print(markdown(summary))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
