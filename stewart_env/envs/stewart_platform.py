@@ -427,7 +427,9 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
         else:
             outcome = core.step(check_action(action, (6,)).reshape(1, 6), self._rngs, reuse=True)
         reward, code, terms, observation = outcome
-        info = row_info(terms, code, core.time, core.plant.closure_error, 0, core.track_success_of_row(0, code))
+        info = row_info(
+            terms, code, core.time, core.plant.closure_error, 0, core.track_success_of_row(0, code), core.costs.info(0)
+        )
         if self.render_mode == "human":
             self.render()
         return observation[0].copy(), float(reward[0]), bool(code[0]), False, info
