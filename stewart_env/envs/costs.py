@@ -98,6 +98,16 @@ class BatchCosts:
         self._fresh[rows] = True
         self._any_fresh = True
 
+    def set_state(self, rows: np.ndarray, state: PlatformState) -> None:
+        """Rows put in a state within their episode (``set_state``): their previous leg rates
+        become those of the state, as if a step had ended in it; their previous forces stay.
+
+        Args:
+            rows: (m,) int, the rows.
+            state: their new states, a PlatformState of (m, ...) arrays.
+        """
+        self.previous_rates[rows] = self.constraints.leg_rates(state)
+
     def after_step(
         self,
         state: PlatformState,

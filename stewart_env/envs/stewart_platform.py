@@ -15,6 +15,7 @@ from stewart_env.envs.core import PlatformBatch
 from stewart_env.envs.infos import row_info
 from stewart_env.envs.keywords import check_arguments, with_signature
 from stewart_env.rotations import rpy_to_matrix
+from stewart_env.state import PlatformState
 from stewart_env.validation import check_action, real_array, reset_options
 
 __all__ = ["StewartPlatformEnv", "holding_action"]
@@ -515,3 +516,5 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
         c = self._core
         c.position[0], c.rotation[0] = checked["position"], R
         c.velocity[0], c.angular_velocity[0] = checked["velocity"], checked["angular_velocity"]
+        # the leg accelerations of the next step are measured from this state's leg rates
+        c.costs.set_state(_ROW0, PlatformState(*(x[_ROW0] for x in c._state)))
