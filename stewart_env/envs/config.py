@@ -265,9 +265,7 @@ class ConstraintConfig(_Record):
     def __post_init__(self) -> None:
         names = self.terminate_on
         if isinstance(names, str) or not isinstance(names, (tuple, list, set, frozenset)):
-            raise UsageError.about(
-                "terminate_on", f"expected a tuple of constraint names, got {type(names).__name__}"
-            )
+            raise UsageError.about("terminate_on", f"expected a tuple of constraint names, got {type(names).__name__}")
         for name in names:
             if name not in CONSTRAINT_NAMES:
                 shown = repr(name)[:40] if isinstance(name, str) else type(name).__name__

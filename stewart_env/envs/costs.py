@@ -67,9 +67,7 @@ class BatchCosts:
         self._any_fresh = False
         chosen = constraints.terminate_on
         self.added_reasons = tuple(name for name in chosen if name not in TASK_LIMIT_REASONS)
-        self.disabled_reasons = tuple(
-            reason for name, reason in TASK_LIMIT_REASONS.items() if name not in chosen
-        )
+        self.disabled_reasons = tuple(reason for name, reason in TASK_LIMIT_REASONS.items() if name not in chosen)
         self._added = np.array([CONSTRAINT_NAMES.index(name) for name in self.added_reasons], dtype=np.int64)
         self._first_code = 0  # set by the batch: the code of added_reasons[0]
 

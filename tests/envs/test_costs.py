@@ -82,8 +82,10 @@ def test_leg_force_costs_one_for_a_force_outside_the_range():
     # the action map keeps the forces inside the range: the batch's costs are given one outside
     costs = BatchCosts(SIMULATOR, 0.01, 2, ("leg_length", "workspace"))
     home = PlatformState(
-        np.tile(SIMULATOR.home_position, (2, 1)), np.tile(rpy_to_matrix(SIMULATOR.home_rpy), (2, 1, 1)),
-        np.zeros((2, 3)), np.zeros((2, 3)),
+        np.tile(SIMULATOR.home_position, (2, 1)),
+        np.tile(rpy_to_matrix(SIMULATOR.home_rpy), (2, 1, 1)),
+        np.zeros((2, 3)),
+        np.zeros((2, 3)),
     )
     rows = np.arange(2)
     costs.reset_rows(rows, home)
@@ -102,7 +104,10 @@ def test_dasgupta_has_the_three_constraints_of_its_limits():
     env.reset(seed=0)
     info = env.step(np.zeros(6, np.float32))[-1]
     assert [key for key in info if key.startswith("cost")] == [
-        "cost", "cost_leg_length", "cost_leg_force", "cost_workspace"
+        "cost",
+        "cost_leg_length",
+        "cost_leg_force",
+        "cost_workspace",
     ]
 
 
@@ -226,7 +231,10 @@ def test_default_terminate_on_is_todays_reasons():
     "kwargs, message",
     [
         (dict(terminate_on=("leg_velocity",)), "terminate_on: unknown constraint 'leg_velocity' ('dasgupta1998' has"),
-        (dict(terminate_on=("speed",)), "terminate_on: unknown constraint 'speed'; choose from leg_length, leg_velocity"),
+        (
+            dict(terminate_on=("speed",)),
+            "terminate_on: unknown constraint 'speed'; choose from leg_length, leg_velocity",
+        ),
         (dict(terminate_on="workspace"), "terminate_on: expected a tuple of constraint names, got str"),
         (dict(action_delay=-1), "action_delay"),
         (dict(action_delay=1001), "action_delay"),
