@@ -28,11 +28,19 @@ samples at t = 0 and after every control step; see the functions of the same nam
 * ``success``: the episode ran to its time limit without termination and every sample of the
   final window is inside both tolerances (:class:`stewart_env.tasks.base.SuccessCriterion`, the
   criterion of the environment's ``info["is_success"]`` too).
+
+The constraint costs of the environment's step infos (``info["cost"]``, ``info["cost_<name>"]``,
+docs/physics.md, "Limits and constraint costs") give two more numbers per controller, beside the
+metrics: the **cost rate**, the mean cost per control step over every step of every episode
+(:meth:`EvaluationResult.cost_rate`; 0 inside every limit), and the **limit hits**, the steps
+after which each constraint was violated, summed over the episodes
+(:meth:`EvaluationResult.limit_hits`).  The tables, the CSV and ``results.json`` show both.
 """
 
 from __future__ import annotations
 
 import csv
+import json
 import math
 import re
 from collections import Counter
@@ -235,6 +243,10 @@ class Episode:
     termination: str | None
     reward: float
     metrics: dict[str, float] = field(default_factory=dict)
+    #: the step infos' cost (T,), the sum over the constraints (none: not recorded)
+    cost: np.ndarray | None = None
+    #: the steps after which each constraint of the platform was violated, by name
+    limit_hits: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass
@@ -254,6 +266,22 @@ class EvaluationResult:
             values = np.array([ep.metrics[key] for ep in self.episodes], dtype=float)
             out[key] = float(np.mean(values[np.isfinite(values)])) if np.isfinite(values).any() else math.nan
         return out
+
+    def cost_rate(self) -> float:
+        """The mean constraint cost per control step over every step of every episode (the sum of
+        the steps' ``info["cost"]`` over the number of steps); NaN when no cost was recorded."""
+        costs = [ep.cost for ep in self.episodes if ep.cost is not None]
+        steps = sum(len(c) for c in costs)
+        return float(sum(float(c.sum()) for c in costs) / steps) if steps else math.nan
+
+    def limit_hits(self) -> dict[str, int]:
+        """The steps after which each constraint was violated, summed over the episodes, by
+        constraint name (the platform's constraints, in the environment's order)."""
+        hits: dict[str, int] = {}
+        for ep in self.episodes:
+            for name, count in ep.limit_hits.items():
+                hits[name] = hits.get(name, 0) + count
+        return hits
 
     @property
     def model(self) -> str:
@@ -336,7 +364,8 @@ def evaluate(
         raise ValueError("max_steps: the environment has no time limit; give max_steps")
     obs, _ = env.reset(seed=int(seed))
     pos_err, ori_err, rates = _measure(base)
-    record = {"p": [pos_err], "o": [ori_err], "r": [rates], "f": []}
+    record = {"p": [pos_err], "o": [ori_err], "r": [rates], "f": [], "c": [], "k": []}
+    constraints: list[str] = []  # the platform's, from the step infos' cost_<name> keys
     alive = np.ones(n, dtype=bool)
     length = np.full(n, steps)
     reasons: list[str | None] = [None] * n
@@ -353,6 +382,10 @@ def evaluate(
             obs, reward, terminated, truncated, info = env.step(np.asarray(action, dtype=np.float32))
             returns[alive] += reward[alive]
             record["f"].append(np.array(base.leg_forces))
+            if k == 0:
+                constraints = [key[len("cost_") :] for key in info if key.startswith("cost_")]
+            record["c"].append(np.array(info["cost"], dtype=float))
+            record["k"].append(np.stack([info[f"cost_{name}"] for name in constraints], axis=1) > 0)
             pos_err, ori_err, rates = _measure(base)
             record["p"].append(pos_err)
             record["o"].append(ori_err)
@@ -378,6 +411,8 @@ def evaluate(
             arrays["r"][i, : t_end + 1],
             reasons[i],
             float(returns[i]),
+            cost=arrays["c"][i, :t_end],
+            limit_hits=dict(zip(constraints, arrays["k"][i, :t_end].sum(axis=0).tolist())),
         )
         ep.metrics = episode_metrics(
             ep.time,
@@ -413,6 +448,19 @@ def _fmt(value: float, factor: float, spec: str) -> str:
 
 #: The column of :func:`markdown_table` that counts the episodes ended before their time limit.
 ENDED_EARLY = "ended early"
+#: The columns of :func:`markdown_table` after the metrics: the cost rate and the limit hits.
+COST_RATE, LIMIT_HITS = "cost rate", "limit hits (steps)"
+
+
+def limit_hits_cell(result: EvaluationResult) -> str:
+    """The limit hits of ``result`` as a table shows them: each violated constraint with its
+    steps, e.g. ``"leg_velocity 12, force_rate 3"``, or ``"0"`` when no limit was hit.
+
+    Args:
+        result: the evaluated episodes.
+    """
+    hits = [f"{name} {count}" for name, count in result.limit_hits().items() if count]
+    return ", ".join(hits) if hits else "0"
 
 
 def ended_early(result: EvaluationResult) -> str:
@@ -432,7 +480,8 @@ def ended_early(result: EvaluationResult) -> str:
 def markdown_table(results: Sequence[EvaluationResult]) -> str:
     """A markdown table of the mean metrics of each result (one row per result), with the count
     of episodes ended early and their most common reason (``ended_early``) after the success
-    rate: a controller that loses the platform at once has no overshoot to show, but shows here.
+    rate: a controller that loses the platform at once has no overshoot to show, but shows here;
+    the cost rate and the limit hits (:data:`COST_RATE`, :data:`LIMIT_HITS`) end the row.
 
     Args:
         results: the evaluations, one row each.
@@ -440,11 +489,13 @@ def markdown_table(results: Sequence[EvaluationResult]) -> str:
     titles = [m.title for m in METRICS]
     at = [m.key for m in METRICS].index("success") + 1
     head = ["controller", "model", "task", "episodes"] + titles[:at] + [ENDED_EARLY] + titles[at:]
+    head += [COST_RATE, LIMIT_HITS]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in results:
         s = r.summary()
         metrics = [_fmt(s[m.key], m.factor, m.spec) for m in METRICS]
         cells = [r.label, r.model, r.task, str(len(r.episodes))] + metrics[:at] + [ended_early(r)] + metrics[at:]
+        cells += [_fmt(r.cost_rate(), 1.0, ".3g"), limit_hits_cell(r)]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -503,7 +554,8 @@ def slug(text: str) -> str:
 
 def write_report(results: Sequence[EvaluationResult], out, title: str = "Controller evaluation") -> dict[str, Path]:
     """Write ``results.md`` (the table and the definitions' source), ``episodes.csv`` (one row per
-    episode, SI units), ``error_norms.png`` (every result's error norms over time) and one
+    episode, SI units, with its cost rate and limit hits), ``results.json`` (each result's mean
+    metrics, cost rate and limit hits), ``error_norms.png`` (every result's error norms over time) and one
     ``trajectory_<label>_<model>.png`` per result (error components and leg forces of its first
     episode) into the directory ``out``.
 
@@ -526,26 +578,40 @@ def write_report(results: Sequence[EvaluationResult], out, title: str = "Control
 
 
 def _write_report(results: Sequence[EvaluationResult], out: Path, title: str) -> dict[str, Path]:
-    paths = {"markdown": out / "results.md", "csv": out / "episodes.csv", "error_norms": out / "error_norms.png"}
+    paths = {
+        "markdown": out / "results.md",
+        "csv": out / "episodes.csv",
+        "json": out / "results.json",
+        "error_norms": out / "error_norms.png",
+    }
+    constraints = list(dict.fromkeys(name for r in results for ep in r.episodes for name in ep.limit_hits))
     publish(
         paths["markdown"],
         f"# {title}\n\n" + markdown_table(results) + "\n\n"
         "Means over the episodes (settling time and overshoot over the episodes where they are defined; "
-        "'-' where none). Metric definitions: `stewart_env.agents.evaluation`.\n",
+        "'-' where none); the cost rate is the mean constraint cost per step, the limit hits the steps "
+        "with each constraint violated, summed over the episodes. Metric definitions: "
+        "`stewart_env.agents.evaluation`.\n",
     )
     with publishing(paths["csv"]) as tmp, tmp.open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(
-            ["controller", "model", "task", "platform", "seed", "termination", "return"] + [m.key for m in METRICS]
+            ["controller", "model", "task", "platform", "seed", "termination", "return"]
+            + [m.key for m in METRICS]
+            + ["cost_rate"]
+            + [f"hits_{name}" for name in constraints]
         )
         for r in results:
-            platform = r.env_kwargs.get("platform", "dasgupta1998")
-            platform = platform.name if isinstance(platform, se.PlatformParams) else str(platform)
+            platform = _platform_name(r)
             for ep in r.episodes:
+                rate = float(ep.cost.mean()) if ep.cost is not None and len(ep.cost) else math.nan
                 writer.writerow(
                     [r.label, r.model, r.task, platform, ep.seed, ep.termination or "", f"{ep.reward:.6g}"]
                     + [f"{ep.metrics[m.key]:.9g}" for m in METRICS]
+                    + [f"{rate:.9g}"]
+                    + [ep.limit_hits.get(name, "") for name in constraints]
                 )
+    publish(paths["json"], json.dumps([_result_record(r) for r in results], indent=2) + "\n")
     with publishing(paths["error_norms"]) as tmp:
         error_norms_figure(results).savefig(tmp, dpi=110)
     for r in results:
@@ -553,6 +619,33 @@ def _write_report(results: Sequence[EvaluationResult], out: Path, title: str) ->
         _plot_trajectory(r, path)
         paths[f"trajectory {r.label} {r.model}"] = path
     return paths
+
+
+def _platform_name(result: EvaluationResult) -> str:
+    """The name of the platform ``result`` ran on."""
+    platform = result.env_kwargs.get("platform", "dasgupta1998")
+    return platform.name if isinstance(platform, se.PlatformParams) else str(platform)
+
+
+def _result_record(result: EvaluationResult) -> dict:
+    """A result as ``results.json`` holds it: its configuration, mean metrics (SI units), cost rate
+    and limit hits; a number that is not finite (an undefined metric) as null."""
+
+    def number(value: float) -> float | None:
+        return value if math.isfinite(value) else None
+
+    return {
+        "controller": result.label,
+        "model": result.model,
+        "task": result.task,
+        "platform": _platform_name(result),
+        "episodes": len(result.episodes),
+        "seed": result.seed,
+        "ended_early": ended_early(result),
+        "metrics": {key: number(value) for key, value in result.summary().items()},
+        "cost_rate": number(result.cost_rate()),
+        "limit_hits": result.limit_hits(),
+    }
 
 
 #: Error norms below this (mm, mrad) are drawn at it: a log axis would otherwise spread rounding

@@ -49,7 +49,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help="evaluate baseline controllers and trained agents (--agent) on a task and dynamics model(s)",
         description="Run seeded episodes of the baseline controllers (--policy) and of agents trained by "
         "`stewart-env train` (--agent) and report RMS errors, settling time, overshoot, steady-state "
-        "error, peak leg force, control energy, success rate and early terminations (definitions: "
+        "error, peak leg force, control energy, success rate, early terminations, the constraint cost rate "
+        "and the steps each limit was hit (definitions: "
         "stewart_env.agents.evaluation).  Every controller runs on every model, with the same seeds.",
     )
     p.add_argument(
@@ -97,7 +98,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "--max-steps", type=episode_steps, help="episode length in control steps (default the registered 500)"
     )
     p.add_argument(
-        "--out", type=directory_name, help="write the report (results.md, episodes.csv, PNG plots) into this directory"
+        "--out",
+        type=directory_name,
+        help="write the report (results.md, results.json, episodes.csv, PNG plots) into this directory",
     )
     return p
 

@@ -3,7 +3,7 @@
 The keyword arguments of :class:`~stewart_env.envs.StewartPlatformEnv` (and of the vector
 environment) are grouped by what they configure: :class:`PhysicsConfig` (model, plant, platform,
 time steps, domain randomisation), :class:`TaskConfig`, :class:`ActuatorConfig`,
-:class:`ObservationConfig` and :class:`RenderConfig`.  A record checks its fields with the shared
+:class:`ConstraintConfig`, :class:`ObservationConfig` and :class:`RenderConfig`.  A record checks its fields with the shared
 validators of :mod:`stewart_env.validation` (errors name the argument) and keeps them in checked
 form (floats, a loaded :class:`~stewart_env.params.PlatformParams`, a
 :class:`~stewart_env.randomization.Randomization`).  Every field carries its description (field
@@ -22,10 +22,12 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from stewart_env.dynamics import Dynamics, ModelSpec, make_dynamics
+from stewart_env.envs.action_delay import MAX_DELAY_STEPS
 from stewart_env.errors import UsageError
 from stewart_env.params import PlatformParams, load_platform
 from stewart_env.randomization import Randomization
 from stewart_env.registration import CURRENT_VERSION
+from stewart_env.tasks.constraints import CONSTRAINT_NAMES, DEFAULT_TERMINATE_ON
 from stewart_env.validation import ArgumentError, check_keywords, choice, flag, integer, real
 
 if TYPE_CHECKING:
@@ -35,6 +37,7 @@ __all__ = [
     "PLANTS",
     "RECORDS",
     "ActuatorConfig",
+    "ConstraintConfig",
     "EnvConfig",
     "ObservationConfig",
     "PhysicsConfig",
@@ -244,6 +247,36 @@ class ActuatorConfig(_Record):
 
 
 @dataclass(frozen=True)
+class ConstraintConfig(_Record):
+    """Which of the platform's limits end an episode, and the action's delay.  ``terminate_on`` is
+    kept as a tuple in the order of the constraints (``stewart_env.tasks.constraints``); the batch
+    checks it against the platform's constraints (those whose limit the platform has)."""
+
+    terminate_on: tuple[str, ...] = _argument(
+        DEFAULT_TERMINATE_ON,
+        "the constraints that end an episode, a tuple of the platform's: "
+        f"{', '.join(f'`{name!r}`' for name in CONSTRAINT_NAMES)} (see Constraint Costs); "
+        "`()` for none",
+    )
+    action_delay: int = _argument(
+        0, f"control steps between the action and the actuators, 0 to {MAX_DELAY_STEPS} (see Constraint Costs)"
+    )
+
+    def __post_init__(self) -> None:
+        names = self.terminate_on
+        if isinstance(names, str) or not isinstance(names, (tuple, list, set, frozenset)):
+            raise UsageError.about("terminate_on", f"expected a tuple of constraint names, got {type(names).__name__}")
+        for name in names:
+            if name not in CONSTRAINT_NAMES:
+                shown = repr(name)[:40] if isinstance(name, str) else type(name).__name__
+                raise UsageError.about(
+                    "terminate_on", f"unknown constraint {shown}; choose from {', '.join(CONSTRAINT_NAMES)}"
+                )
+        self._set("terminate_on", tuple(name for name in CONSTRAINT_NAMES if name in names))
+        self._set("action_delay", integer("action_delay", self.action_delay, 0, MAX_DELAY_STEPS))
+
+
+@dataclass(frozen=True)
 class ObservationConfig(_Record):
     """What the agent observes and how.  ``observation_noise`` is kept as a number or a dict of
     checked numbers; its term names are checked against the observation layout by the batch."""
@@ -300,7 +333,14 @@ class RenderConfig(_Record):
 
 
 #: The records of the environment's arguments, in the order of its signature and of the card's table.
-RECORDS: tuple[type, ...] = (PhysicsConfig, TaskConfig, ActuatorConfig, ObservationConfig, RenderConfig)
+RECORDS: tuple[type, ...] = (
+    PhysicsConfig,
+    TaskConfig,
+    ActuatorConfig,
+    ConstraintConfig,
+    ObservationConfig,
+    RenderConfig,
+)
 
 
 def _arguments(record: type) -> list[dataclasses.Field]:
@@ -315,6 +355,7 @@ class EnvConfig:
         physics: the :class:`~stewart_env.envs.config.PhysicsConfig`.
         task: the :class:`~stewart_env.envs.config.TaskConfig`.
         actuator: the :class:`~stewart_env.envs.config.ActuatorConfig`.
+        constraints: the :class:`~stewart_env.envs.config.ConstraintConfig`.
         observation: the :class:`~stewart_env.envs.config.ObservationConfig`.
         render: the :class:`~stewart_env.envs.config.RenderConfig`.
     """
@@ -322,6 +363,7 @@ class EnvConfig:
     physics: PhysicsConfig
     task: TaskConfig
     actuator: ActuatorConfig
+    constraints: ConstraintConfig
     observation: ObservationConfig
     render: RenderConfig
 

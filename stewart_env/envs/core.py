@@ -32,7 +32,9 @@ import numpy as np
 
 from stewart_env import _core
 from stewart_env.dynamics import Dynamics
+from stewart_env.envs.action_delay import ActionDelay
 from stewart_env.envs.config import EnvConfig
+from stewart_env.envs.costs import BatchCosts
 from stewart_env.envs.observation import ObservationPipeline
 from stewart_env.envs.plant import Plant, make_plant
 from stewart_env.kinematics import leg_sensors_inplace
@@ -91,6 +93,7 @@ class PlatformBatch:
         self._step_mode = "auto"
         self._init_physics(config)
         self._init_task(config)
+        self._init_constraints(config, n)
         self._init_state(n)
         self.observations = ObservationPipeline(
             config.observation, self.platform, self.task, self.actuator_tau > 0, self.control_dt, n
@@ -123,6 +126,18 @@ class PlatformBatch:
         self._reason_array = np.array(self.termination_reasons, dtype=str)
         self._moving_reference = task.moving_reference
         self._has_external_wrench = task.has_external_wrench
+
+    def _init_constraints(self, config: EnvConfig, n: int) -> None:
+        """The constraint costs and the constraints that end an episode (``terminate_on``), and
+        the action delay (``action_delay``; None for none, today's step)."""
+        chosen = config.constraints
+        self.costs = BatchCosts(self.platform, self.control_dt, n, chosen.terminate_on)
+        # before the step's task record is made (_views), which reads the task's limits
+        self.task.disable_limit_reasons(self.costs.disabled_reasons)
+        self.costs.set_first_code(len(self.termination_reasons))
+        self.termination_reasons += self.costs.added_reasons
+        self._reason_array = np.array(self.termination_reasons, dtype=str)
+        self._delay = ActionDelay(n, chosen.action_delay) if chosen.action_delay else None
 
     def _init_state(self, n: int) -> None:
         self.position = np.zeros((n, 3))
@@ -328,6 +343,9 @@ class PlatformBatch:
         self._action[rows] = 0.0
         state = PlatformState(*(x[rows] for x in self._state))
         self.leg_forces[rows] = self._start_forces(state, drawn)
+        self.costs.reset_rows(rows, state)
+        if self._delay is not None:
+            self._delay.reset_rows(rows, self._action[rows])
         view = self._start_view(rows, state)
         self._start_success(rows, view.errors)
         self.observations.reset_rows(rows, view, rngs)
@@ -466,13 +484,24 @@ class PlatformBatch:
                 # every row is about to be reset, which sets all a step would: nothing to compute
                 return self._nothing_stepped()
             self._park(skip)
+        if self._delay is not None:
+            # the actions reach the actuators delay steps late; a non-finite one is refused before
+            # it enters the delay line, as the step refuses it before it changes anything
+            action = np.asarray(action, dtype=np.float64).reshape(self.n, 6)
+            if not np.isfinite(action).all():
+                return None
+            action = self._delay.push(action)
         driven = False
         if self._has_external_wrench:
             # the task's wrench sees the action and the leg forces of this step
             self._drive(action)
             driven = True
             self.task.external_wrench(self.view, self.control_dt, self.external_wrench)
-        return self._step.run(self, action, driven, rngs, skip, reuse)
+        outcome = self._step.run(self, action, driven, rngs, skip, reuse)
+        if outcome is not None:
+            reward, code, terms, _ = outcome
+            self.costs.after_step(self._state, self.leg_forces, code, terms, reward, self.task.weights.termination_cost)
+        return outcome
 
     def _nothing_stepped(self) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray]:
         """:meth:`step`'s outcome when every row is skipped: zeros, and the observation as it is."""

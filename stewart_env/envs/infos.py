@@ -30,12 +30,14 @@ def step_values(
     time: np.ndarray,
     closure_error: np.ndarray | None,
     success: tuple[np.ndarray, np.ndarray, np.ndarray],
+    costs: dict[str, np.ndarray] | None = None,
 ) -> dict[str, np.ndarray]:
     """Every row's step info, by key: ``reward_<term>`` (float64), ``termination`` (int64 code),
     ``time`` (float64, s), when the plant reports it ``closure_error`` (float64, m), and
     ``position_error``, ``orientation_error`` (float64, m and rad) and ``is_success`` (bool), the
-    arrays ``success`` of :meth:`~stewart_env.envs.core.PlatformBatch.track_success`; each an
-    (n,) array of its own (copied where the batch goes on writing into it).
+    arrays ``success`` of :meth:`~stewart_env.envs.core.PlatformBatch.track_success`, then the
+    constraint costs ``cost`` and ``cost_<constraint>`` (float64); each an (n,) array of its own
+    (copied where the batch goes on writing into it).
 
     Args:
         terms: each reward term's values, by name, (n,) arrays.
@@ -44,6 +46,8 @@ def step_values(
         closure_error: each row's loop-closure error (n,), m, or None when the plant does not report it.
         success: the (position error, orientation error, success) arrays (n,) of
             :meth:`~stewart_env.envs.core.PlatformBatch.track_success`.
+        costs: the step's constraint costs by key, (n,) arrays of their own
+            (:meth:`~stewart_env.envs.costs.BatchCosts.info`), or None.
     """
     values = {term_key(k): v for k, v in terms.items()}
     values["termination"] = code.copy()
@@ -51,6 +55,8 @@ def step_values(
     if closure_error is not None:
         values["closure_error"] = closure_error.copy()
     values.update(zip(SUCCESS_KEYS, success))
+    if costs is not None:
+        values.update(costs)
     return values
 
 
@@ -61,6 +67,7 @@ def row_info(
     closure_error: np.ndarray | None,
     row: int,
     success: tuple[float, float, bool],
+    costs: dict[str, float] | None = None,
 ) -> dict[str, np.generic]:
     """Row ``row``'s step info, the values of :func:`step_values` as numpy numbers (the single
     environment's info), read straight from the batch's arrays, and ``success`` the row's
@@ -75,6 +82,8 @@ def row_info(
         row: the row whose info it is.
         success: the row's (position error, m; orientation error, rad; success) of
             :meth:`~stewart_env.envs.core.PlatformBatch.track_success_of_row`.
+        costs: the row's constraint costs by key (:meth:`~stewart_env.envs.costs.BatchCosts.info`
+            of the row), given as float64, or None.
     """
     info = {term_key(k): v[row] for k, v in terms.items()}
     info["termination"] = code[row]
@@ -85,4 +94,7 @@ def row_info(
     info["position_error"] = np.float64(position)
     info["orientation_error"] = np.float64(orientation)
     info["is_success"] = np.bool_(succeeded)
+    if costs is not None:
+        for key, value in costs.items():
+            info[key] = np.float64(value)
     return info

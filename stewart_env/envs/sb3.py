@@ -31,7 +31,8 @@ class StewartPlatformSB3VecEnv(VecEnv):
     the environment's (an index into ``termination_reasons``; 0 when truncated), and
     ``infos[i]["is_success"]`` whether the episode met the task's success criterion, as the
     environment's ``info["is_success"]`` (what SB3's ``EvalCallback`` and ``Monitor`` read at an
-    episode's end).  ``seed(s)`` seeds row i with s + i at the next ``reset()``, as SB3's own VecEnvs
+    episode's end).  Every row's info holds the step's constraint costs, ``cost`` and
+    ``cost_<constraint>`` (floats), as the environment's.  ``seed(s)`` seeds row i with s + i at the next ``reset()``, as SB3's own VecEnvs
     do, so row i reproduces ``gymnasium.make("StewartPlatform-v1")`` reset with seed s + i.
     Wrap in ``VecMonitor`` for episode statistics.
 
@@ -147,6 +148,7 @@ class StewartPlatformSB3VecEnv(VecEnv):
         done = terminated | truncated
         time_limit = truncated & ~terminated
         row_infos = [{"TimeLimit.truncated": bool(time_limit[i])} for i in range(self.num_envs)]
+        self._add_costs(row_infos, infos, done)
         if done.any():
             rows = np.flatnonzero(done)
             codes, success = infos["final_info"]["termination"], infos["final_info"]["is_success"]
@@ -156,6 +158,18 @@ class StewartPlatformSB3VecEnv(VecEnv):
                 row_infos[i]["is_success"] = success[i]
                 self.reset_infos[i] = info
         return obs, reward.astype(np.float32), done, row_infos
+
+    def _add_costs(self, row_infos: list[dict[str, Any]], infos: dict[str, Any], done: np.ndarray) -> None:
+        """Each row's constraint costs of the step (``cost``, ``cost_<constraint>``, floats), read
+        from the vector infos: a done row's from its final info."""
+        final = infos.get("final_info", {})
+        for key in self.venv._core.costs.info_keys:
+            values = infos[key].tolist()
+            if done.any():
+                for i, value in zip(np.flatnonzero(done).tolist(), final[key][done].tolist()):
+                    values[i] = value
+            for info, value in zip(row_infos, values):
+                info[key] = value
 
     @staticmethod
     def _row_infos(infos: dict[str, Any], rows: Iterable[int]) -> list[dict[str, Any]]:

@@ -15,6 +15,7 @@ from stewart_env.envs.core import PlatformBatch
 from stewart_env.envs.infos import row_info
 from stewart_env.envs.keywords import check_arguments, with_signature
 from stewart_env.rotations import rpy_to_matrix
+from stewart_env.state import PlatformState
 from stewart_env.validation import check_action, real_array, reset_options
 
 __all__ = ["StewartPlatformEnv", "holding_action"]
@@ -239,15 +240,53 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     returns a finite observation (NaN as 0, the rest clipped to the float32 range) and a finite
     reward; a start state whose observation is not finite ends the episode so at the first step.
 
+    `terminate_on` chooses which of the platform's limits end an episode (see Constraint Costs):
+    left out of it, `leg_length` and `workspace` no longer end one (their reasons stay in
+    `termination_reasons`, never reported); each other constraint in it ends an episode that the
+    task did not end at that step, as a failure that pays `termination_cost`, with the
+    constraint's name as its reason, after the task's own in `termination_reasons` (e.g.
+    `terminate_on=("leg_length", "leg_velocity", "workspace")` adds `"leg_velocity"`).
+
     ### Truncation
     Only by the time limit: 500 steps (5 s at the default `control_dt`), set by `max_episode_steps`
     of `gymnasium.make` (the `TimeLimit` wrapper) or of `gymnasium.make_vec`.
+
+    ## Constraint Costs
+
+    Every step's `info` holds the platform's constraint costs, the safety-gymnasium convention for
+    constrained RL (a Lagrangian PPO or any CMDP learner reads them): `cost_<constraint>` is 1.0
+    when after the step any leg (any workspace axis) is outside that limit, else 0.0, and `cost`
+    their sum, 0.0 inside every limit; numpy float64, never NaN (a value that is not finite
+    violates its limit).  The constraints are those whose limit the platform's config sets (the
+    `limits` section; `dasgupta1998` has the first three of these, the shipped `motion_simulator`
+    all eight):
+
+    | key | violated when | limit (`limits` key, units) |
+    |---|---|---|
+    | `cost_leg_length` | a leg length outside the stroke | `leg_length`, m |
+    | `cost_leg_force` | a leg force applied over the step outside the force range | `leg_force`, N |
+    | `cost_workspace` | P outside the workspace box, or roll, pitch or yaw further than `max_angle` from home | `workspace.position_min`, `position_max`, m; `workspace.max_angle`, rad |
+    | `cost_leg_velocity` | a leg rate beyond the bound | `leg_velocity`, m/s |
+    | `cost_leg_acceleration` | a leg's mean acceleration over the step beyond the bound | `leg_acceleration`, m/s^2 |
+    | `cost_force_rate` | a leg force's change over the step, per s, beyond the bound (0 at an episode's first step) | `force_rate`, N/s |
+    | `cost_universal_joint` | a leg's angle to its universal joint's mounting axis beyond the cone | `universal_joint.max_angle`, rad |
+    | `cost_spherical_joint` | a leg's angle to its spherical joint's mounting axis beyond the cone | `spherical_joint.max_angle`, rad |
+
+    The legs are measured on the nominal geometry, as the leg sensors are; docs/physics.md,
+    "Limits and constraint costs", defines each value (eqs. L0-L7).  The vector environment's
+    infos hold the same keys as (N,) arrays, and `StewartPlatformSB3VecEnv`'s row infos the row's
+    floats.  By default only `leg_length` and `workspace` end an episode (as the termination
+    reasons `leg_stroke` and `workspace`): the other constraints cost without ending it, unless
+    `terminate_on` names them (see Episode End).  `action_delay=d` applies at every step the action
+    given d steps earlier (the first d steps of an episode apply the zero action, the one a row
+    starts with), as a command reaches a real machine's drives through its fieldbus; the reward's
+    control term is of the action applied.
 
     ## Arguments
 
     `gymnasium.make("StewartPlatform-v1", **kwargs)` and `StewartPlatformEnv(**kwargs)` take these
     keyword arguments (`inspect.signature` shows them), grouped into frozen records of
-    `stewart_env.envs.config` (physics, task, actuator, observation, rendering) that check each at
+    `stewart_env.envs.config` (physics, task, actuator, constraints, observation, rendering) that check each at
     construction against a finite range (outside it, or of the wrong kind, a `ValueError` naming
     the argument); an unknown keyword raises, as Python does, `StewartPlatformEnv.__init__() got
     an unexpected keyword argument '...'` (an error that is both a `TypeError` and a `ValueError`):
@@ -264,6 +303,8 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     | `task_options` | `None` | dict of the task's options, its reward weights included (see Starting State, Rewards and `stewart_env.tasks`) |
     | `version` | `1` | the environment's version, 0 to 1, set by the id `StewartPlatform-v<version>`: its tasks' defaults (see Version History) |
     | `actuator_tau` | `0.0` | s, first-order actuator lag time constant, 0 to 100; 0 applies the commanded forces directly |
+    | `terminate_on` | `('leg_length', 'workspace')` | the constraints that end an episode, a tuple of the platform's: `'leg_length'`, `'leg_velocity'`, `'leg_acceleration'`, `'leg_force'`, `'force_rate'`, `'universal_joint'`, `'spherical_joint'`, `'workspace'` (see Constraint Costs); `()` for none |
+    | `action_delay` | `0` | control steps between the action and the actuators, 0 to 1000 (see Constraint Costs) |
     | `observation_mode` | `"pose"` | `"pose"` (pose and twist) or `"sensors"` (leg lengths and rates) |
     | `normalize_observation` | `True` | scale the observation by the platform's limits (see Observation Space) |
     | `observation_noise` | `0.0` | Gaussian noise std in observation units, 0 to 100: a number, or a dict term name -> std |
@@ -427,7 +468,9 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
         else:
             outcome = core.step(check_action(action, (6,)).reshape(1, 6), self._rngs, reuse=True)
         reward, code, terms, observation = outcome
-        info = row_info(terms, code, core.time, core.plant.closure_error, 0, core.track_success_of_row(0, code))
+        info = row_info(
+            terms, code, core.time, core.plant.closure_error, 0, core.track_success_of_row(0, code), core.costs.info(0)
+        )
         if self.render_mode == "human":
             self.render()
         return observation[0].copy(), float(reward[0]), bool(code[0]), False, info
@@ -473,3 +516,5 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
         c = self._core
         c.position[0], c.rotation[0] = checked["position"], R
         c.velocity[0], c.angular_velocity[0] = checked["velocity"], checked["angular_velocity"]
+        # the leg accelerations of the next step are measured from this state's leg rates
+        c.costs.set_state(_ROW0, PlatformState(*(x[_ROW0] for x in c._state)))

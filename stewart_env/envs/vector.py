@@ -391,7 +391,9 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
 
     def _step_infos(self, terms: dict[str, np.ndarray], code: np.ndarray, stepped: np.ndarray) -> dict[str, Any]:
         core = self._core
-        values = step_values(terms, code, core.time, core.plant.closure_error, core.track_success(code))
+        values = step_values(
+            terms, code, core.time, core.plant.closure_error, core.track_success(code), core.costs.info()
+        )
         all_rows = bool(stepped.all())
         infos: dict[str, Any] = {}
         for key, value in values.items():

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import inspect
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -953,6 +953,27 @@ class Task:
             state.position, state.rotation, view.leg_lengths, view.condition, view.non_finite, *self._limits, code
         )
         return code
+
+    def disable_limit_reasons(self, reasons: Iterable[str]) -> None:
+        """Stop limit reasons from ending an episode (the environment's ``terminate_on`` without
+        their constraints): their bounds become infinite in :meth:`termination` and the compiled
+        step's task record, which this must precede; the constraint costs still measure them.
+
+        Args:
+            reasons: a subset of ("leg_stroke", "workspace").
+
+        Raises:
+            ValueError: another reason.
+        """
+        position_min, position_max, home_rpy, max_angle, length_min, length_max, max_condition = self._limits
+        for reason in reasons:
+            if reason == "leg_stroke":
+                length_min, length_max = -math.inf, math.inf
+            elif reason == "workspace":
+                position_min, position_max, max_angle = np.full(3, -math.inf), np.full(3, math.inf), math.inf
+            else:
+                raise ValueError(f"reasons: expected 'leg_stroke' or 'workspace', got {reason!r}")
+        self._limits = (position_min, position_max, home_rpy, max_angle, length_min, length_max, max_condition)
 
     def end(self, code: np.ndarray, where: np.ndarray, reason: str) -> None:
         """Set ``code`` to ``reason`` in the rows ``where`` that do not end for an earlier reason.

@@ -300,3 +300,37 @@ def test_the_table_counts_the_episodes_ended_early_with_their_most_common_reason
     columns = [c.strip() for c in header.strip("|").split("|")]
     assert columns[4:6] == ["success", ENDED_EARLY]
     assert [[c.strip() for c in row.strip("|").split("|")][5] for row in rows] == [ended_early(crashed), "0"]
+
+
+def test_cost_rate_and_limit_hits_are_the_step_infos_costs(tmp_path):
+    """Full thrust on the motion simulator: its legs exceed their acceleration and rate bounds.
+    The harness's cost rate and limit hits are those the single environment's infos give."""
+    import json
+
+    from stewart_env.agents import markdown_table
+    from stewart_env.agents.evaluation.evaluation import LIMIT_HITS, limit_hits_cell
+
+    kwargs = {"platform": "motion_simulator"}
+    result = evaluate(_FullThrust(), kwargs, episodes=2, seed=4, label="thrust", max_steps=6, progress=False)
+    total, steps, hits = 0.0, 0, {}
+    for seed in (4, 5):
+        env = gym.make("StewartPlatform-v1", **kwargs)
+        env.reset(seed=seed)
+        for _ in range(6):
+            *_, terminated, _, info = env.step(np.ones(6, np.float32))
+            total, steps = total + info["cost"], steps + 1
+            for key in info:
+                if key.startswith("cost_"):
+                    hits[key[5:]] = hits.get(key[5:], 0) + int(info[key])
+            if terminated:
+                break
+    assert result.cost_rate() == total / steps
+    assert result.limit_hits() == hits and hits["leg_acceleration"] > 0
+    header, _, row = markdown_table([result]).splitlines()
+    assert header.split("|")[-2].strip() == LIMIT_HITS and row.split("|")[-2].strip() == limit_hits_cell(result)
+    assert limit_hits_cell(result).startswith("leg_velocity ") or "leg_acceleration " in limit_hits_cell(result)
+    record = json.loads(write_report([result], tmp_path)["json"].read_text())[0]
+    assert record["cost_rate"] == result.cost_rate() and record["limit_hits"] == hits
+    with (tmp_path / "episodes.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert sum(int(r["hits_leg_acceleration"]) for r in rows) == hits["leg_acceleration"]
