@@ -17,7 +17,7 @@ from stewart_env.mujoco.library import require_mujoco
 from stewart_env.mujoco.mjcf import DEFAULT_SOLIMP, DEFAULT_SOLREF, home_rotation, quaternion, to_mjcf
 from stewart_env.params import PlatformParams
 
-__all__ = ["Twin", "model_and_data", "platform_acceleration", "wrench_at_com"]
+__all__ = ["Twin", "joint_mass_matrix", "model_and_data", "platform_acceleration", "wrench_at_com"]
 
 
 class Twin:
@@ -238,3 +238,22 @@ def platform_acceleration(model, data) -> tuple[np.ndarray, np.ndarray]:
     body = mj.mj_name2id(model, mj.mjtObj.mjOBJ_BODY, "platform")
     acc = data.qacc[model.jnt_dofadr[joint] : model.jnt_dofadr[joint] + 6]
     return acc[:3].copy(), data.xmat[body].reshape(3, 3) @ acc[3:]
+
+
+def joint_mass_matrix(model, data) -> np.ndarray:
+    """MuJoCo's joint-space mass matrix (nv, nv), the slides' armature on its diagonal.
+
+    Args:
+        model: the twin's MjModel.
+        data: its MjData after ``mujoco.mj_forward`` (which computes the matrix).
+
+    Returns:
+        The dense symmetric matrix, in MuJoCo's joint coordinates.
+    """
+    mj = require_mujoco()
+    out = np.zeros((model.nv, model.nv))
+    try:  # MuJoCo 4 reads the matrix from data
+        mj.mj_fullM(model, data, out)
+    except TypeError:  # MuJoCo 3 takes the sparse matrix itself
+        mj.mj_fullM(model, out, data.qM)
+    return out
