@@ -293,8 +293,16 @@ def reflected_mass_error(params: PlatformParams, seed: int = 0) -> tuple[float, 
     z = np.zeros((n, 3))
     forces = np.empty((n, 6))
     _core.inverse_reflected_batch(
-        model.packed, model.flags, np.tile(t, (n, 1)), np.tile(R, (n, 1, 1)), z, z.copy(), acc,
-        np.zeros((n, 6)), np.full((1, 6), drive.reflected_mass), forces,
+        model.packed,
+        model.flags,
+        np.tile(t, (n, 1)),
+        np.tile(R, (n, 1, 1)),
+        z,
+        z.copy(),
+        acc,
+        np.zeros((n, 6)),
+        np.full((1, 6), drive.reflected_mass),
+        forces,
     )
     closed = leg_kinematics(params, t, R).jacobian.T @ (forces[1:] - forces[0]).T
     return float(np.abs(twin_matrix - closed).max()), float(np.abs(closed).max())
@@ -355,8 +363,10 @@ def electric_agreement(
     steps = int(round(seconds / dt))
     phase = 2 * np.pi * np.arange(6) / 6
     state = home
-    records = {name: np.empty((steps,) + shape) for name, shape in
-               (("t", (3,)), ("R", (3, 3)), ("v", (3,)), ("w", (3,)), ("acc", (6,)), ("F", (6,)))}
+    records = {
+        name: np.empty((steps,) + shape)
+        for name, shape in (("t", (3,)), ("R", (3, 3)), ("v", (3,)), ("w", (3,)), ("acc", (6,)), ("F", (6,)))
+    }
     peak_current = peak_speed = 0.0
     wrench = np.zeros((1, 6))
     for k in range(steps):

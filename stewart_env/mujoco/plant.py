@@ -220,7 +220,9 @@ class MujocoPlant:
         try:
             value = np.broadcast_to(np.asarray(current, dtype=np.float64), (index.size, 6))
         except ValueError:
-            raise ValueError(f"current: expected a scalar, (6,) or ({index.size}, 6), got {np.shape(current)}") from None
+            raise ValueError(
+                f"current: expected a scalar, (6,) or ({index.size}, 6), got {np.shape(current)}"
+            ) from None
         if not np.isfinite(value).all():
             raise ValueError("current: expected finite currents, A")
         self.current[index] = value
@@ -333,12 +335,13 @@ class MujocoPlant:
             self._spherical_friction(alive, state)
         steps = int(steps)
         if self.actuator == "electric":
+            command = np.broadcast_to(leg_forces, (len(self.twins), 6))  # as the ideal controls broadcast
             for _ in range(steps):
                 rows = np.flatnonzero(alive)
                 if not rows.size:
                     break
                 # the drives at the legs' rates of the step's start, their force held over the step
-                control[rows, :6] = self._drive(rows, leg_forces, dt)
+                control[rows, :6] = self._drive(rows, command, dt)
                 self._advance(alive, rows, 1, dt)
         else:
             self._advance(alive, np.flatnonzero(alive), steps, dt)
