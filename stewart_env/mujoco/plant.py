@@ -167,7 +167,6 @@ class MujocoPlant:
         self._xfrc = m.nu + 6 * first.body
         self._uppers = m.nu + 6 * np.array([mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, f"upper_{i}") for i in range(6)])
         self._slide = 1 + m.nq + first.v_slide  # the slides' rates dL/dt in MuJoCo's state vector
-        self._force_range = m.actuator_ctrlrange[0].copy()
         self._drives: dict[ElectricParams, np.ndarray] = {}  # the packed row of each drive in use
         self._com = np.array([p.platform.com for p in self.params])
         self._legs = make_dynamics("improved", list(self.params))  # the legs' angular velocities, for C_s
@@ -197,6 +196,7 @@ class MujocoPlant:
         return params.actuators.electric if self.actuator == "electric" else None
 
     def _check_drive(self, params: PlatformParams) -> None:
+        """A ValueError naming ``actuator`` if the plant's actuator needs a section ``params`` lacks."""
         if self.actuator == "electric" and params.actuators.electric is None:
             raise ValueError(
                 f"actuator: 'electric' needs the platform config's actuators: electric: section, "
@@ -351,8 +351,8 @@ class MujocoPlant:
         """The electric drives of ``rows`` over one step of ``dt``: their currents advanced by the
         compiled drive law (``electric_step``, the step of
         :class:`~stewart_env.actuators.ElectricActuator`) at the slides' rates dL/dt, and the leg
-        forces it gives within the config's force limits (MuJoCo's ``ctrlrange`` clamps to them
-        too), recorded in ``drive_force``."""
+        forces it gives within each row's force limits (its model's ``ctrlrange``, where MuJoCo
+        would clamp them too), recorded in ``drive_force``."""
         groups: dict[ElectricParams, list[int]] = {}
         for r in rows:
             groups.setdefault(self.params[r].actuators.electric, []).append(int(r))
@@ -371,7 +371,9 @@ class MujocoPlant:
                 force,
             )
             self.current[index] = current
-            self.drive_force[index] = np.clip(force, *self._force_range)
+            # each row's own force limits, which the row's compiled model has as ctrlrange
+            limits = np.array([self.models[r].actuator_ctrlrange for r in members])  # (k, 6, 2)
+            self.drive_force[index] = np.clip(force, limits[..., 0], limits[..., 1])
         return self.drive_force[rows]
 
     def _advance(self, alive: np.ndarray, rows: np.ndarray, steps: int, dt: float) -> None:

@@ -2,6 +2,7 @@
 closed form's reflected masses (docs/physics.md section 10)."""
 
 import copy
+import dataclasses
 import pickle
 
 import numpy as np
@@ -155,3 +156,15 @@ def test_accuracy_command_refuses_electric_on_a_platform_without_it(capsys):
     assert stop.value.code == 2
     err = capsys.readouterr().err
     assert "argument --actuator: 'electric' needs" in err and "'dasgupta1998'" in err and "Traceback" not in err
+
+
+def test_drive_forces_stay_within_each_rows_force_limits(simulator, drive):
+    tight = simulator.replace(limits=dataclasses.replace(simulator.limits, leg_force=(-2e4, 2e4)))
+    state = _at_home(simulator, 2)
+    plant = twin.MujocoPlant([simulator, tight], nthread=0, actuator="electric")
+    plant.reset_currents(None, drive.params.current_limit)  # the stall force, 3.97e4 N, at once
+    plant.step_inplace(*state, np.full((2, 6), 1e3), np.zeros((2, 6)), 1e-3, 1)
+    # row 0 pushes with the drive's stall force less the friction at its rate (300 N at most)
+    assert np.all(np.abs(plant.drive_force[0] - drive.stall_force) <= 300.0)
+    # row 1's config allows 2e4 N: the drive's force is clipped there, as MuJoCo's ctrlrange would
+    np.testing.assert_array_equal(plant.drive_force[1], np.full(6, 2e4))
