@@ -168,3 +168,14 @@ def test_drive_forces_stay_within_each_rows_force_limits(simulator, drive):
     assert np.all(np.abs(plant.drive_force[0] - drive.stall_force) <= 300.0)
     # row 1's config allows 2e4 N: the drive's force is clipped there, as MuJoCo's ctrlrange would
     np.testing.assert_array_equal(plant.drive_force[1], np.full(6, 2e4))
+
+
+def test_accuracy_command_reports_the_electric_drive(capsys):
+    from stewart_env.cli.mujoco_accuracy import main
+
+    assert main(["motion_simulator", "--actuator", "electric"]) == 0
+    out = capsys.readouterr().out
+    assert "| twin default (0.002 1.0; 0.9999) | 7.6" in out  # the ideal report first, as without the option
+    assert "m_r = 947.5 kg per leg as the slides' armature" in out
+    # the figures the MuJoCo guide quotes (docs/guides/mujoco.md)
+    assert "| 0.9999 | 17.8 N / 4e+04 N | 3.31e-03 | 90 A / 90 A |" in out
