@@ -1,4 +1,4 @@
-"""``python -m stewart_env.mujoco [PLATFORM ...]``: the accuracy report of MuJoCo's twin
+"""``python -m stewart_env.mujoco [PLATFORM ...] [--actuator electric]``: the accuracy report of MuJoCo's twin
 (:func:`stewart_env.mujoco.accuracy_report`).  Not a verb of ``stewart-env``: the module's own
 entry point, whose parser lives here with the others."""
 
@@ -23,6 +23,13 @@ def build_parser() -> argparse.ArgumentParser:
         default=["dasgupta1998", "motion_simulator"],
         help="platform config names or YAML paths (default: both shipped platforms)",
     )
+    parser.add_argument(
+        "--actuator",
+        choices=["ideal", "electric"],
+        default="ideal",
+        help="the legs' actuator: the ideal force source (default) or the platform config's electric "
+        "drive (actuators: electric:), compared with the closed form's reflected masses",
+    )
     return parser
 
 
@@ -43,10 +50,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     problem = check_extras([("mujoco", PROG)])
     if problem is not None:
         parser.error(problem)
-    for i, name in enumerate(args.platforms):
+    platforms = []
+    for name in args.platforms:
         try:
-            params = load_platform(name)
+            platforms.append(load_platform(name))
         except (ValueError, OSError) as err:
             parser.error(f"argument platforms: {err}")
-        print(("\n" if i else "") + accuracy_report(params))
+        if args.actuator == "electric" and platforms[-1].actuators.electric is None:
+            parser.error(
+                f"argument --actuator: 'electric' needs the platform config's actuators: electric: section, "
+                f"which {name!r} has not"
+            )
+    for i, params in enumerate(platforms):
+        print(("\n" if i else "") + accuracy_report(params, args.actuator))
     return 0

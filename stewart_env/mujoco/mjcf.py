@@ -30,6 +30,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from stewart_env.actuators import BallScrew, ElectricParams
 from stewart_env.errors import UsageError
 from stewart_env.kinematics import leg_kinematics
 from stewart_env.mujoco.library import require_mujoco
@@ -102,6 +103,7 @@ def to_mjcf(
     solimp: Sequence[float] = DEFAULT_SOLIMP,
     integrator: str = "RK4",
     geometry: bool = True,
+    electric: ElectricParams | None = None,
 ) -> str:
     """MJCF text of the mechanism of ``params`` (see the module docstring), at its home pose.
 
@@ -122,6 +124,10 @@ def to_mjcf(
         geometry: add massless, non-colliding shapes (legs as capsules, the platform and base as
             outlines) so the model shows in MuJoCo's viewer; they carry no mass (inertias are
             explicit) and never collide.
+        electric: an electric drive on every leg (e.g. ``params.actuators.electric``): its reflected
+            mass becomes each slide's ``armature`` (see the module docstring); its friction and
+            force envelope are the drive law's, applied by :class:`~stewart_env.mujoco.MujocoPlant`.
+            None: the ideal force source, no armature.
 
     Returns:
         The MJCF document, text that ``mujoco.MjModel.from_xml_string`` loads.
@@ -129,7 +135,7 @@ def to_mjcf(
     Raises:
         ImportError: the ``mujoco`` extra is not installed.
         UsageError: a bad argument (a ValueError), its name as data (``err.argument``:
-            ``"timestep"``, ``"solref"``, ``"solimp"``, ``"params"``).
+            ``"timestep"``, ``"solref"``, ``"solimp"``, ``"params"``, ``"electric"``).
 
     Examples:
         >>> import stewart_env as se
@@ -151,6 +157,10 @@ def to_mjcf(
     solimp = _check_pair("solimp", solimp, 5)
     if not 0 < solimp[0] < 1 or not 0 < solimp[1] < 1:
         raise UsageError.about("solimp", f"d_min and d_max must lie in (0, 1), got {solimp[:2]}")
+
+    if electric is not None and not isinstance(electric, ElectricParams):
+        raise UsageError.about("electric", f"expected ElectricParams or None, got {type(electric).__name__}")
+    armature = "" if electric is None else f' armature="{number_list(BallScrew.from_params(electric).reflected_mass)}"'
 
     t0, R0 = params.home_position, home_rotation(params)
     legs = leg_kinematics(params, t0, R0)
@@ -193,7 +203,7 @@ def to_mjcf(
             )
         out += [
             f'      <body name="upper_{i}">',
-            f'        <joint name="slide_{i}" type="slide" axis="1 0 0" damping="{number_list(d.prismatic)}"/>',
+            f'        <joint name="slide_{i}" type="slide" axis="1 0 0" damping="{number_list(d.prismatic)}"{armature}/>',
             _inertial(up.mass, np.array([L, 0.0, 0.0]) + up.com, up.inertia, "        "),
             f'        <site name="tip_{i}" pos="{number_list(L)} 0 0"/>',
         ]

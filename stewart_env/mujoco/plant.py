@@ -5,6 +5,14 @@ put back as torques held over each call (zero-order hold over a control step, fr
 the step's start; ``spherical_friction``).  :func:`~stewart_env.mujoco.spherical_friction_effect`
 measures what omitting it changes, and :func:`~stewart_env.mujoco.plant_difference` what the held
 torques leave (``python -m stewart_env.mujoco``; figures in the README).
+
+With ``actuator="electric"`` the legs are the platform config's electric drives (docs/physics.md
+section 10.4): the plant's command is then the six current set points, A, and at every MuJoCo step
+the plant advances the current loops by the compiled ``electric_step`` (the drive law of
+:class:`~stewart_env.actuators.ElectricActuator`: current limit, back-EMF voltage envelope,
+first-order current loop, viscous and smooth Coulomb friction) at the legs' rates of the step's
+start, and holds the force it gives over the step, as the closed-form environment steps its
+drive; the rotor's reflected mass is the slides' armature (:func:`~stewart_env.mujoco.to_mjcf`).
 """
 
 from __future__ import annotations
@@ -14,6 +22,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from stewart_env import _core
+from stewart_env.actuators import ElectricActuator, ElectricParams
 from stewart_env.dynamics.model import make_dynamics
 from stewart_env.kinematics import leg_kinematics
 from stewart_env.mujoco.library import quiet_mujoco, require_mujoco, require_rollout
@@ -21,7 +31,11 @@ from stewart_env.mujoco.mjcf import DEFAULT_SOLIMP, DEFAULT_SOLREF
 from stewart_env.mujoco.twin import Twin, wrench_at_com
 from stewart_env.params import PlatformParams
 
-__all__ = ["MujocoPlant"]
+__all__ = ["ACTUATORS", "MujocoPlant"]
+
+#: The legs' actuators the plant simulates (its ``actuator`` argument): the ideal force source, or
+#: the platform config's electric drives.
+ACTUATORS = ("ideal", "electric")
 
 
 class MujocoPlant:
@@ -29,6 +43,11 @@ class MujocoPlant:
 
     ``closure_error`` (N,), m: the largest loop-closure gap |tip_i - joint_i| of each row after
     the last :meth:`step_inplace` (NaN for a row that is not finite).
+
+    With ``actuator="electric"``, ``current`` (N, 6), A, holds the motor currents (the drives'
+    state, carried from call to call; :meth:`reset_currents` sets them, e.g. at an episode's
+    start) and ``drive_force`` (N, 6), N, the leg forces the drives applied over the last MuJoCo
+    step.
 
     Args:
         params_rows: one PlatformParams for every row, or a sequence of N (e.g.
@@ -39,6 +58,9 @@ class MujocoPlant:
             default: every core when N > 1, else the calling thread).
         spherical_friction: add the spherical joints' friction, which the MJCF model cannot
             carry, as torques held over each call (see the module docstring).
+        actuator: ``"ideal"`` (the default: :meth:`step_inplace`'s command is the leg forces, N)
+            or ``"electric"`` (every row's ``params.actuators.electric`` drives its legs; the
+            command is the current set points, A; see the module docstring).
 
     Raises:
         ImportError: the ``mujoco`` extra is not installed (the message says how to install it).
@@ -70,6 +92,9 @@ class MujocoPlant:
         "_settings",
         "_nthread",
         "spherical_friction",
+        "actuator",
+        "current",
+        "drive_force",
         "_states",
         "_control",
         "_last",
@@ -84,6 +109,7 @@ class MujocoPlant:
         solimp: Sequence[float] = DEFAULT_SOLIMP,
         nthread: int | None = None,
         spherical_friction: bool = True,
+        actuator: str = "ideal",
     ):
         mj = require_mujoco()
         rows = [params_rows] if isinstance(params_rows, PlatformParams) else list(params_rows)
@@ -100,6 +126,13 @@ class MujocoPlant:
             )
         self._nthread = ((os.cpu_count() or 1) if n > 1 else 0) if nthread is None else int(nthread)
         self.spherical_friction = bool(spherical_friction)
+        if actuator not in ACTUATORS:
+            raise ValueError(f"actuator: expected one of {', '.join(map(repr, ACTUATORS))}, got {actuator!r}")
+        self.actuator = actuator
+        for p in rows:
+            self._check_drive(p)
+        self.current = np.zeros((n, 6))
+        self.drive_force = np.zeros((n, 6))
         self._build()
         m = self.models[0]
         self._states = np.zeros((n, mj.mj_stateSize(m, self._spec)))
@@ -133,6 +166,8 @@ class MujocoPlant:
         self._v = 1 + m.nq + first.v_free
         self._xfrc = m.nu + 6 * first.body
         self._uppers = m.nu + 6 * np.array([mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, f"upper_{i}") for i in range(6)])
+        self._slide = 1 + m.nq + first.v_slide  # the slides' rates dL/dt in MuJoCo's state vector
+        self._drives: dict[ElectricParams, np.ndarray] = {}  # the packed row of each drive in use
         self._com = np.array([p.platform.com for p in self.params])
         self._legs = make_dynamics("improved", list(self.params))  # the legs' angular velocities, for C_s
 
@@ -151,10 +186,46 @@ class MujocoPlant:
     def _twin(self, params: PlatformParams) -> Twin:
         """The compiled model of ``params``, shared by every row with equal parameters."""
         if params not in self._twins:
-            tw = Twin(params, *self._settings)
+            tw = Twin(params, *self._settings, electric=self._electric(params))
             self._twins[params] = tw
             self._scratch[id(tw)] = require_mujoco().MjData(tw.model)
         return self._twins[params]
+
+    def _electric(self, params: PlatformParams) -> ElectricParams | None:
+        """The drive a row of ``params`` carries: its config's electric set, or None (ideal)."""
+        return params.actuators.electric if self.actuator == "electric" else None
+
+    def _check_drive(self, params: PlatformParams) -> None:
+        """A ValueError naming ``actuator`` if the plant's actuator needs a section ``params`` lacks."""
+        if self.actuator == "electric" and params.actuators.electric is None:
+            raise ValueError(
+                f"actuator: 'electric' needs the platform config's actuators: electric: section, "
+                f"which {params.name!r} has not"
+            )
+
+    def reset_currents(self, rows: Sequence[int] | None = None, current=0.0) -> None:
+        """Set the electric drives' motor currents (``actuator="electric"``), e.g. where an episode
+        starts: to 0, or to the current that holds the platform.
+
+        Args:
+            rows: the batch rows (None: all).
+            current: A, a scalar, a row of six or one row of six per row.
+
+        Raises:
+            ValueError: a row outside the batch, or currents of the wrong shape or not finite.
+        """
+        index = np.arange(len(self.twins)) if rows is None else np.asarray(rows, dtype=np.intp).reshape(-1)
+        if index.size and (index.min() < 0 or index.max() >= len(self.twins)):
+            raise ValueError(f"rows: expected rows of the batch of {len(self.twins)}, got {index.tolist()[:5]}")
+        try:
+            value = np.broadcast_to(np.asarray(current, dtype=np.float64), (index.size, 6))
+        except ValueError:
+            raise ValueError(
+                f"current: expected a scalar, (6,) or ({index.size}, 6), got {np.shape(current)}"
+            ) from None
+        if not np.isfinite(value).all():
+            raise ValueError("current: expected finite currents, A")
+        self.current[index] = value
 
     def set_params(self, rows: Sequence[int], params: Sequence[PlatformParams]) -> None:
         """Give batch rows ``rows`` the parameters ``params`` (one each; e.g. randomised at a reset).
@@ -172,6 +243,9 @@ class MujocoPlant:
         if len(rows) != len(params):
             raise ValueError(f"params: expected one per row ({len(rows)}), got {len(params)}")
         plist = list(self.params)
+        for p in params:
+            if isinstance(p, PlatformParams):
+                self._check_drive(p)
         for r, p in zip(rows, params):
             if not 0 <= r < len(plist):
                 raise ValueError(f"rows: {r} is outside the batch of {len(plist)} rows")
@@ -214,8 +288,9 @@ class MujocoPlant:
     def step_inplace(
         self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench, dt: float, steps: int
     ) -> None:
-        """Advance every row by ``steps`` MuJoCo steps of ``dt`` s, leg forces (N,6) and external
-        wrench (N,6) [force at P, N; moment, N m; {B}] held constant; overwrite position (N,3),
+        """Advance every row by ``steps`` MuJoCo steps of ``dt`` s, leg forces (N,6) (with
+        ``actuator="electric"``: the drives' current set points, A, the drives stepping at every
+        MuJoCo step) and external wrench (N,6) [force at P, N; moment, N m; {B}] held constant; overwrite position (N,3),
         rotation (N,3,3), velocity (N,3) and angular_velocity (N,3) (platform P's origin, {B},
         as the closed-form models) with MuJoCo's platform state.  No argument checks, of the
         arrays nor of ``dt`` and ``steps`` (the environment's per-step path, like
@@ -228,7 +303,8 @@ class MujocoPlant:
             rotation: (N,3,3) rotation matrices, columns = {P} axes.
             velocity: (N,3) m/s, the velocity of P's origin in {B}.
             angular_velocity: (N,3) rad/s, the platform's angular velocity in {B}.
-            leg_forces: (N,6) N, the legs' actuator forces.
+            leg_forces: (N,6) N, the legs' actuator forces; with ``actuator="electric"`` the
+                current set points, A.
             external_wrench: (N,6) [F_ext at P, N; M_ext, N m] in {B}.
             dt: MuJoCo's step, s.
             steps: the number of steps.
@@ -257,32 +333,77 @@ class MujocoPlant:
         control[:, self._xfrc : self._xfrc + 6] = wrench_at_com(rotation, self._com, external_wrench)
         if self.spherical_friction and alive.any():
             self._spherical_friction(alive, state)
-        rows = np.flatnonzero(alive)
         steps = int(steps)
-        if rows.size and steps > 0:
-            every = rows.size == len(self.twins)
-            models = self.models if every else [self.models[i] for i in rows]
-            initial = self._states if every else self._states[rows]
-            # the same controls at every step; shapes exact, so rollout's own checks are skipped
-            controls = np.empty((rows.size, steps, control.shape[1]))
-            controls[:] = (control if every else control[rows])[:, None, :]
-            out = np.empty((rows.size, steps, self._states.shape[1]))
-            with quiet_mujoco():
-                self._pool.rollout(
-                    models,
-                    self._datas,
-                    initial,
-                    controls,
-                    control_spec=self._control_spec,
-                    state=out,
-                    nstep=steps,
-                    skip_checks=True,
-                )
-            end = initial[:, 0] + steps * dt
-            self._states[rows] = out[:, -1]
-            # MuJoCo resets a diverging simulation to its home pose and time 0: the clock tells
-            alive[rows[np.abs(out[:, -1, 0] - end) > 0.5 * dt]] = False
+        if self.actuator == "electric":
+            command = np.broadcast_to(leg_forces, (len(self.twins), 6))  # as the ideal controls broadcast
+            for _ in range(steps):
+                rows = np.flatnonzero(alive)
+                if not rows.size:
+                    break
+                # the drives at the legs' rates of the step's start, their force held over the step
+                control[rows, :6] = self._drive(rows, command, dt)
+                self._advance(alive, rows, 1, dt)
+        else:
+            self._advance(alive, np.flatnonzero(alive), steps, dt)
         self._write(alive, state)
+
+    def _drive(self, rows: np.ndarray, command, dt: float) -> np.ndarray:
+        """The electric drives of ``rows`` over one step of ``dt``: their currents advanced by the
+        compiled drive law (``electric_step``, the step of
+        :class:`~stewart_env.actuators.ElectricActuator`) at the slides' rates dL/dt, and the leg
+        forces it gives within each row's force limits (its model's ``ctrlrange``, where MuJoCo
+        would clamp them too), recorded in ``drive_force``."""
+        groups: dict[ElectricParams, list[int]] = {}
+        for r in rows:
+            groups.setdefault(self.params[r].actuators.electric, []).append(int(r))
+        for drive, members in groups.items():
+            if drive not in self._drives:
+                self._drives[drive] = ElectricActuator(drive).packed
+            index = np.array(members)
+            current = np.ascontiguousarray(self.current[index])
+            force = np.empty_like(current)
+            _core.electric_step(
+                self._drives[drive],
+                float(dt),
+                np.ascontiguousarray(command[index], dtype=np.float64),
+                np.ascontiguousarray(self._states[index][:, self._slide]),
+                current,
+                force,
+            )
+            self.current[index] = current
+            # each row's own force limits, which the row's compiled model has as ctrlrange
+            limits = np.array([self.models[r].actuator_ctrlrange for r in members])  # (k, 6, 2)
+            self.drive_force[index] = np.clip(force, limits[..., 0], limits[..., 1])
+        return self.drive_force[rows]
+
+    def _advance(self, alive: np.ndarray, rows: np.ndarray, steps: int, dt: float) -> None:
+        """``steps`` MuJoCo steps of ``rows`` (the live rows) with their controls held; a row that
+        diverges is marked dead in ``alive``."""
+        if not rows.size or steps <= 0:
+            return
+        control = self._control
+        every = rows.size == len(self.twins)
+        models = self.models if every else [self.models[i] for i in rows]
+        initial = self._states if every else self._states[rows]
+        # the same controls at every step; shapes exact, so rollout's own checks are skipped
+        controls = np.empty((rows.size, steps, control.shape[1]))
+        controls[:] = (control if every else control[rows])[:, None, :]
+        out = np.empty((rows.size, steps, self._states.shape[1]))
+        with quiet_mujoco():
+            self._pool.rollout(
+                models,
+                self._datas,
+                initial,
+                controls,
+                control_spec=self._control_spec,
+                state=out,
+                nstep=steps,
+                skip_checks=True,
+            )
+        end = initial[:, 0] + steps * dt
+        self._states[rows] = out[:, -1]
+        # MuJoCo resets a diverging simulation to its home pose and time 0: the clock tells
+        alive[rows[np.abs(out[:, -1, 0] - end) > 0.5 * dt]] = False
 
     def _spherical_friction(self, alive, state) -> None:
         """The spherical joints' friction as applied torques held over the call (zero-order hold):

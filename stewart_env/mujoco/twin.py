@@ -11,21 +11,31 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from stewart_env.actuators import ElectricParams
 from stewart_env.kinematics import leg_kinematics
 from stewart_env.mujoco.library import require_mujoco
 from stewart_env.mujoco.mjcf import DEFAULT_SOLIMP, DEFAULT_SOLREF, home_rotation, quaternion, to_mjcf
 from stewart_env.params import PlatformParams
 
-__all__ = ["Twin", "model_and_data", "platform_acceleration", "wrench_at_com"]
+__all__ = ["Twin", "joint_mass_matrix", "model_and_data", "platform_acceleration", "wrench_at_com"]
 
 
 class Twin:
-    """One compiled MJCF model of a platform, with the addresses the plant reads and writes."""
+    """One compiled MJCF model of a platform, with the addresses the plant reads and writes.
 
-    def __init__(self, params: PlatformParams, timestep: float, solref, solimp):
+    Args:
+        params: the platform's parameters.
+        timestep, solref, solimp: as in :func:`~stewart_env.mujoco.to_mjcf`.
+        electric: the legs' electric drive (its reflected mass as the slides' armature), or None.
+    """
+
+    def __init__(self, params: PlatformParams, timestep: float, solref, solimp, electric: ElectricParams | None = None):
         mj = require_mujoco()
         self.params = params
-        self.model = mj.MjModel.from_xml_string(to_mjcf(params, timestep, solref, solimp, geometry=False))
+        self.electric = electric
+        self.model = mj.MjModel.from_xml_string(
+            to_mjcf(params, timestep, solref, solimp, geometry=False, electric=electric)
+        )
         m = self.model
         legs = leg_kinematics(params, params.home_position, home_rotation(params))
         self.home_frames = legs.frames.copy()  # T_i at home: the leg bodies' frames at zero joint angles
@@ -146,6 +156,7 @@ def model_and_data(
     timestep: float = 1e-3,
     solref: Sequence[float] = DEFAULT_SOLREF,
     solimp: Sequence[float] = DEFAULT_SOLIMP,
+    electric: ElectricParams | None = None,
 ):
     """MuJoCo's ``(MjModel, MjData)`` of the twin of ``params`` at a platform state.
 
@@ -165,13 +176,15 @@ def model_and_data(
         solref: the loop-closure constraints' (time constant s, damping ratio), as in
             :func:`~stewart_env.mujoco.to_mjcf`.
         solimp: the constraints' impedance, as in :func:`~stewart_env.mujoco.to_mjcf`.
+        electric: the legs' electric drive, as in :func:`~stewart_env.mujoco.to_mjcf` (its
+            reflected mass as the slides' armature; ``leg_forces`` are then the drive's forces).
 
     Returns:
         The pair (MjModel, MjData).
 
     Raises:
         ImportError: the ``mujoco`` extra is not installed.
-        UsageError: a bad ``timestep``, ``solref`` or ``solimp``, its name as data
+        UsageError: a bad ``timestep``, ``solref``, ``solimp`` or ``electric``, its name as data
             (``err.argument``), as :func:`~stewart_env.mujoco.to_mjcf` raises it.
     """
     mj = require_mujoco()
@@ -179,7 +192,7 @@ def model_and_data(
     t, R = np.asarray(position, float), np.asarray(rotation, float)
     v = z if velocity is None else np.asarray(velocity, float)
     w = z if angular_velocity is None else np.asarray(angular_velocity, float)
-    tw = Twin(params, timestep, solref, solimp)
+    tw = Twin(params, timestep, solref, solimp, electric)
     d = mj.MjData(tw.model)
     tw.set_state(d, t, R, v, w)
     tw.set_wrench(
@@ -225,3 +238,22 @@ def platform_acceleration(model, data) -> tuple[np.ndarray, np.ndarray]:
     body = mj.mj_name2id(model, mj.mjtObj.mjOBJ_BODY, "platform")
     acc = data.qacc[model.jnt_dofadr[joint] : model.jnt_dofadr[joint] + 6]
     return acc[:3].copy(), data.xmat[body].reshape(3, 3) @ acc[3:]
+
+
+def joint_mass_matrix(model, data) -> np.ndarray:
+    """MuJoCo's joint-space mass matrix (nv, nv), the slides' armature on its diagonal.
+
+    Args:
+        model: the twin's MjModel.
+        data: its MjData after ``mujoco.mj_forward`` (which computes the matrix).
+
+    Returns:
+        The dense symmetric matrix, in MuJoCo's joint coordinates.
+    """
+    mj = require_mujoco()
+    out = np.zeros((model.nv, model.nv))
+    try:  # MuJoCo 4 reads the matrix from data
+        mj.mj_fullM(model, data, out)
+    except TypeError:  # MuJoCo 3 takes the sparse matrix itself
+        mj.mj_fullM(model, out, data.qM)
+    return out
