@@ -213,8 +213,9 @@ struct Batch {
     double* time;
     bool* non_finite;
     double *lengths, *rates, *condition;
-    // the reference (n, ...) and the tracking errors: vectors (4,n,3), norms (4,n)
-    const double *rt, *rR, *rv, *rw;
+    // the reference (n, ...; the step reads it, a reset writes its rows) and the tracking errors:
+    // vectors (4,n,3), norms (4,n)
+    double *rt, *rR, *rv, *rw;
     double *errors, *norms;
     // the task: its limits, reward weights, and whether each termination code is a failure
     task_kernels::Limits limits;
@@ -350,6 +351,49 @@ inline int64_t step(Batch& B, const double* action, bool drive, const double* no
         if (B.observe && bad[b]) found |= BAD_ROWS;
     }
     return found;
+}
+
+// The start of new episodes in m rows of the batch (envs/core.py PlatformBatch.reset_rows): row
+// rows[j] takes the j-th row of each of these (m rows each, C-contiguous).
+struct Start {
+    const double *t, *R, *v, *w;      // the start state
+    const double* F;                  // the leg forces (m,6) that hold it, or null: none (no actuator lag)
+    const double *rt, *rR, *rv, *rw;  // the reference at t = 0
+};
+
+// Start rows rows[0 .. m - 1] (each in [0, n)): their state, a zero clock, external wrench and
+// applied action, their leg forces and reference; then their leg sensors (of the nominal
+// parameters) and tracking errors at the start state, each row computed alone as the step
+// computes it (kernels::leg_sensors_row, task_kernels::tracking_errors), so the numbers are those
+// of the batch's start in Python (PlatformBatch's step of parts).  The first observation is the
+// observation pipeline's (it draws the noise).
+inline void reset_rows(const Batch& B, const int64_t* rows, int64_t m, const Start& S) {
+    const int64_t n = B.n;
+    const kernels::ParamRows sensor_prm(B.c.sensor_prm, B.c.n_sensor_prm, n);
+    double* e = B.errors;
+    for (int64_t j = 0; j < m; ++j) {
+        const int64_t r = rows[j];
+        std::memcpy(B.s.t + 3 * r, S.t + 3 * j, sizeof(double) * 3);
+        std::memcpy(B.s.R + 9 * r, S.R + 9 * j, sizeof(double) * 9);
+        std::memcpy(B.s.v + 3 * r, S.v + 3 * j, sizeof(double) * 3);
+        std::memcpy(B.s.w + 3 * r, S.w + 3 * j, sizeof(double) * 3);
+        B.steps[r] = 0;
+        B.time[r] = 0.0;
+        for (int k = 0; k < 6; ++k) {
+            B.W[6 * r + k] = 0.0;
+            B.clipped[6 * r + k] = 0.0;
+            B.F[6 * r + k] = S.F != nullptr ? S.F[6 * j + k] : 0.0;
+        }
+        std::memcpy(B.rt + 3 * r, S.rt + 3 * j, sizeof(double) * 3);
+        std::memcpy(B.rR + 9 * r, S.rR + 9 * j, sizeof(double) * 9);
+        std::memcpy(B.rv + 3 * r, S.rv + 3 * j, sizeof(double) * 3);
+        std::memcpy(B.rw + 3 * r, S.rw + 3 * j, sizeof(double) * 3);
+        kernels::leg_sensors_row<double>(sensor_prm, B.s.t, B.s.R, B.s.v, B.s.w, B.c.max_condition, B.lengths,
+                                         B.rates, B.condition, r);
+        task_kernels::tracking_errors(B.s.t + 3 * r, B.s.R + 9 * r, B.s.v + 3 * r, B.s.w + 3 * r, B.rt + 3 * r,
+                                      B.rR + 9 * r, B.rv + 3 * r, B.rw + 3 * r, e + 3 * r, e + 3 * n + 3 * r,
+                                      e + 6 * n + 3 * r, e + 9 * n + 3 * r, B.norms + r, 1, n, 1);
+    }
 }
 
 }  // namespace env_step
