@@ -41,7 +41,7 @@ from stewart_env.params import ConfigError, Damping, PlatformParams, RigidBody
 from stewart_env.params.checks import MAX_MAGNITUDE, is_sequence, key_names, number, short
 from stewart_env.params.platform import MIN_PLATFORM_INERTIA, MIN_PLATFORM_MASS
 
-__all__ = ["KEYS", "Randomization"]
+__all__ = ["KEYS", "Randomization", "ScaledRows"]
 
 _BODIES = ("platform", "upper_leg", "lower_leg")
 _QUANTITIES = ("mass", "inertia", "com")
@@ -189,6 +189,20 @@ class Randomization:
             # the row by row check raises the error that names the parameter
             self.scale_packed(nominal_row, dict(zip(self.ranges, factors[j].tolist())), out[j])
 
+    def rows_params(self, params: PlatformParams, factors: np.ndarray) -> ScaledRows:
+        """The PlatformParams of rows drawn together, each built only when asked for.
+
+        Args:
+            params: the nominal platform.
+            factors: (m, k) the rows' factors in the order of ``self.ranges`` (what
+                :meth:`sample_rows` draws), kept as given.
+
+        Returns:
+            A :class:`ScaledRows`, ``rows(j)`` the :meth:`apply` of row j's factors: the source of
+            the rows' parameters that :meth:`stewart_env.dynamics.Dynamics.set_packed_rows` takes.
+        """
+        return ScaledRows(self, params, factors)
+
     def apply(self, params: PlatformParams, factors: Mapping[str, float]) -> PlatformParams:
         """``params`` with every parameter multiplied by the product of its keys' factors.
 
@@ -296,6 +310,28 @@ class Randomization:
         if self._moment_cache is None or self._moment_cache[0] != key:
             self._moment_cache = (key, float(np.linalg.eigvalsh(inertia.reshape(3, 3))[0]))
         return self._moment_cache[1]
+
+
+class ScaledRows:
+    """The PlatformParams of m rows scaled by their factors (:meth:`Randomization.rows_params`):
+    calling it with j builds row j's, ``spec.apply(params, factors of row j)``.
+
+    Args:
+        spec: the randomisation spec.
+        params: the nominal platform.
+        factors: (m, k) the rows' factors in the order of ``spec.ranges``.
+    """
+
+    def __init__(self, spec: Randomization, params: PlatformParams, factors: np.ndarray):
+        self.spec, self.params, self.factors = spec, params, factors
+
+    def __call__(self, j: int) -> PlatformParams:
+        """Row j's PlatformParams.
+
+        Args:
+            j: the row's index among the m rows.
+        """
+        return self.spec.apply(self.params, dict(zip(self.spec.ranges, self.factors[j].tolist())))
 
 
 def _parts() -> tuple[tuple[str, slice, tuple[str, ...]], ...]:
