@@ -152,8 +152,8 @@ class Randomization:
         """
         k = len(self.ranges)
         unit = np.empty((len(rngs), k))
-        for j, rng in enumerate(rngs):
-            unit[j] = rng.random(k)
+        for rng, row in zip(rngs, unit):
+            rng.random(out=row)  # random(k) drawn straight into the row: the same numbers
         bounds = np.array(list(self.ranges.values()), dtype=np.float64).reshape(k, 2)
         low = bounds[:, 0]
         return low + (bounds[:, 1] - low) * unit
@@ -179,12 +179,15 @@ class Randomization:
                 if key in column:
                     f = f * column[key]
             multipliers[:, p + 1] = f
-        np.multiply(nominal_row, multipliers[:, _PART_OF], out=out)
+        # out = multiplier * nominal, entry by entry, without a temporary of out's size
+        np.take(multipliers, _PART_OF, axis=1, out=out)
+        out *= nominal_row
         lows, highs = (np.array([r[i] for r in self.ranges.values()]) for i in (0, 1))
         smallest = multipliers[:, 1 + _PART_NAMES.index("platform.inertia")] * self._smallest_moment(nominal_row)
         ok = ((factors >= lows) & (factors <= highs)).all(axis=1)
-        ok &= (out[:, K.OFF_MP] >= MIN_PLATFORM_MASS) & (np.abs(out).max(axis=1) <= MAX_MAGNITUDE)
-        ok &= smallest >= MIN_PLATFORM_INERTIA
+        # |out| <= MAX_MAGNITUDE everywhere, as the largest and the smallest entries of each row say
+        ok &= (out[:, K.OFF_MP] >= MIN_PLATFORM_MASS) & (out.max(axis=1) <= MAX_MAGNITUDE)
+        ok &= (out.min(axis=1) >= -MAX_MAGNITUDE) & (smallest >= MIN_PLATFORM_INERTIA)
         for j in np.flatnonzero(~ok):
             # the row by row check raises the error that names the parameter
             self.scale_packed(nominal_row, dict(zip(self.ranges, factors[j].tolist())), out[j])

@@ -440,19 +440,19 @@ class PlatformBatch:
         episode = MappingProxyType({k: v[rows] for k, v in self.episode.items()})
         reference = zero_reference(m)
         self.task.reference(episode, np.zeros(m), reference)
+        lengths, rates, condition = np.empty((m, 6)), np.empty((m, 6)), np.empty(m)
+        vectors, norms = np.empty((4, m, 3)), np.empty((4, m))
         if self._step.fused:
-            pose_and_twist = PlatformState._fields
-            self._step.compiled.reset(rows, tuple(start), forces, tuple(getattr(reference, k) for k in pose_and_twist))
+            pose_and_twist = tuple(getattr(reference, k) for k in PlatformState._fields)
+            self._step.compiled.reset(
+                rows, tuple(start), forces, pose_and_twist, lengths, rates, condition, vectors, norms
+            )
             for k in Reference._fields[len(pose_and_twist) :]:  # the accelerations, which the step never reads
                 getattr(self.reference, k)[rows] = getattr(reference, k)
-            vectors, norms = self._error_vectors[:, rows], self._error_norms[:, rows]
-            lengths, rates, condition = self.leg_lengths[rows], self.leg_rates[rows], self.condition[rows]
         else:
-            lengths, rates, condition = np.empty((m, 6)), np.empty((m, 6)), np.empty(m)
             leg_sensors_inplace(
                 self.nominal_model, *start, self.platform.limits.max_condition, lengths, rates, condition
             )
-            vectors, norms = np.empty((4, m, 3)), np.empty((4, m))
             tracking_errors(start, reference, errors_in(vectors, norms))
             self.position[rows], self.rotation[rows], self.velocity[rows], self.angular_velocity[rows] = start
             self.steps[rows] = 0
@@ -464,17 +464,17 @@ class PlatformBatch:
                 dst[rows] = src
             self.leg_lengths[rows], self.leg_rates[rows], self.condition[rows] = lengths, rates, condition
             self._error_vectors[:, rows], self._error_norms[:, rows] = vectors, norms
-        zeros6 = np.zeros((m, 6))
+        zeros = np.zeros((m, 6))
         return StepView(
             start,
             reference,
             errors_in(vectors, norms)[0],
-            zeros6,
-            zeros6 if forces is None else forces,
+            zeros,
+            zeros if forces is None else forces,
             lengths,
             rates,
             condition,
-            zeros6,
+            zeros,
             np.zeros(m),
             np.zeros(m, dtype=bool),
             episode,

@@ -518,10 +518,12 @@ public:
 
     // Start new episodes in rows (int64 (m,), each in [0, n)): the start state (a tuple of the m
     // rows' position (m,3), rotation (m,3,3), velocity (m,3), angular velocity (m,3)), the leg
-    // forces that hold it (m,6) or None (zeros) and the reference at t = 0 (a tuple as the state)
-    // (env_step::reset_rows).  Every array is checked (dtype, C-contiguity, shape, the rows' range)
-    // before anything is written.
-    void reset(nb::handle rows_, nb::tuple start, nb::handle leg_forces, nb::tuple reference) {
+    // forces that hold it (m,6) or None (zeros), the reference at t = 0 (a tuple as the state); the
+    // rows' leg lengths (m,6), rates (m,6), condition numbers (m,), tracking errors (4,m,3) and norms
+    // (4,m) at the start are written into the last five (env_step::reset_rows).  Every array is
+    // checked (dtype, C-contiguity, shape, the rows' range) before anything is written.
+    void reset(nb::handle rows_, nb::tuple start, nb::handle leg_forces, nb::tuple reference, nb::handle lengths_,
+               nb::handle rates_, nb::handle condition_, nb::handle errors_, nb::handle norms_) {
         using step_records::take;
         const int64_t n = b_.n;
         const auto rows = take<InCodes>(rows_, "rows", {-1});
@@ -542,9 +544,15 @@ public:
         const auto rw = take<In>(reference[3], "reference angular_velocity", {m, 3});
         In forces;
         if (!leg_forces.is_none()) forces = take<In>(leg_forces, "leg_forces", {m, 6});
+        auto lengths = take<Out>(lengths_, "leg_lengths", {m, 6});
+        auto rates = take<Out>(rates_, "leg_rates", {m, 6});
+        auto condition = take<Out>(condition_, "condition", {m});
+        auto errors = take<Out>(errors_, "error_vectors", {4, m, 3});
+        auto norms = take<Out>(norms_, "error_norms", {4, m});
         const env_step::Start S{t.data(), R.data(), v.data(), w.data(), forces.is_valid() ? forces.data() : nullptr,
                                 rt.data(), rR.data(), rv.data(), rw.data()};
-        env_step::reset_rows(b_, rows.data(), m, S);
+        env_step::reset_rows(b_, rows.data(), m, S,
+                             {lengths.data(), rates.data(), condition.data(), errors.data(), norms.data()});
     }
 
     int64_t n_codes() const { return task_->n_codes(); }
@@ -639,9 +647,11 @@ void def_env_kernels(nb::module_& m) {
              "stopped being finite | a row's observation or reward was not (the rows in bad), or "
              "NOT_FINITE_ACTION (nothing done) for an action that is not finite.")
         .def("reset", &BatchStep::reset, "rows"_a, "start"_a, "leg_forces"_a.none(), "reference"_a,
+             "leg_lengths"_a, "leg_rates"_a, "condition"_a, "error_vectors"_a, "error_norms"_a,
              "Start new episodes in rows (int64 (m,)): their start state, the leg forces that hold it (or None: "
-             "zeros) and the reference at t = 0, each of m rows; a zero clock, external wrench and applied action, "
-             "and the rows' leg sensors and tracking errors at the start state.");
+             "zeros) and the reference at t = 0, each of m rows; a zero clock, external wrench and applied action; "
+             "the rows' leg sensors and tracking errors at the start state, written into the batch and into the "
+             "last five arrays (m rows).");
 
     m.def("rotation_error_rows", [](In r, In c, Out phi, Out angle) {
         expect(c, "rotation", {-1, 3, 3});

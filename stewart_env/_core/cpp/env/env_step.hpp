@@ -361,16 +361,28 @@ struct Start {
     const double *rt, *rR, *rv, *rw;  // the reference at t = 0
 };
 
-// Start rows rows[0 .. m - 1] (each in [0, n)): their state, a zero clock, external wrench and
-// applied action, their leg forces and reference; then their leg sensors (of the nominal
-// parameters) and tracking errors at the start state, each row computed alone as the step
-// computes it (kernels::leg_sensors_row, task_kernels::tracking_errors), so the numbers are those
-// of the batch's start in Python (PlatformBatch's step of parts).  The first observation is the
-// observation pipeline's (it draws the noise).
-inline void reset_rows(const Batch& B, const int64_t* rows, int64_t m, const Start& S) {
+// What reset_rows measures of the m rows at their start (m rows each): the leg lengths (m,6),
+// rates (m,6) and condition numbers (m,), the tracking errors (4,m,3) and their norms (4,m).
+struct StartSensors {
+    double *lengths, *rates, *condition, *errors, *norms;
+};
+
+// Start rows rows[0 .. m - 1] (each in [0, n)): measure the leg sensors (of the nominal
+// parameters) and the tracking errors of the start state S into out, the m rows as one batch
+// (kernels::leg_sensors_row over lanes::for_rows, task_kernels::tracking_errors: the numbers of
+// kernels::leg_sensors_batch and of the step); then write into each row of the batch its state, a
+// zero clock, external wrench and applied action, its leg forces and reference, and those sensors
+// and errors.  The first observation is the observation pipeline's (it draws the noise).
+inline void reset_rows(const Batch& B, const int64_t* rows, int64_t m, const Start& S, const StartSensors& out) {
     const int64_t n = B.n;
-    const kernels::ParamRows sensor_prm(B.c.sensor_prm, B.c.n_sensor_prm, n);
-    double* e = B.errors;
+    const kernels::ParamRows sensor_prm(B.c.sensor_prm, B.c.n_sensor_prm, m);
+    lanes::for_rows(m, 1, [&](int64_t b, auto tag) {
+        kernels::leg_sensors_row<decltype(tag)>(sensor_prm, S.t, S.R, S.v, S.w, B.c.max_condition, out.lengths,
+                                                out.rates, out.condition, b);
+    });
+    double* e = out.errors;
+    task_kernels::tracking_errors(S.t, S.R, S.v, S.w, S.rt, S.rR, S.rv, S.rw, e, e + 3 * m, e + 6 * m, e + 9 * m,
+                                  out.norms, 1, m, m);
     for (int64_t j = 0; j < m; ++j) {
         const int64_t r = rows[j];
         std::memcpy(B.s.t + 3 * r, S.t + 3 * j, sizeof(double) * 3);
@@ -388,11 +400,13 @@ inline void reset_rows(const Batch& B, const int64_t* rows, int64_t m, const Sta
         std::memcpy(B.rR + 9 * r, S.rR + 9 * j, sizeof(double) * 9);
         std::memcpy(B.rv + 3 * r, S.rv + 3 * j, sizeof(double) * 3);
         std::memcpy(B.rw + 3 * r, S.rw + 3 * j, sizeof(double) * 3);
-        kernels::leg_sensors_row<double>(sensor_prm, B.s.t, B.s.R, B.s.v, B.s.w, B.c.max_condition, B.lengths,
-                                         B.rates, B.condition, r);
-        task_kernels::tracking_errors(B.s.t + 3 * r, B.s.R + 9 * r, B.s.v + 3 * r, B.s.w + 3 * r, B.rt + 3 * r,
-                                      B.rR + 9 * r, B.rv + 3 * r, B.rw + 3 * r, e + 3 * r, e + 3 * n + 3 * r,
-                                      e + 6 * n + 3 * r, e + 9 * n + 3 * r, B.norms + r, 1, n, 1);
+        std::memcpy(B.lengths + 6 * r, out.lengths + 6 * j, sizeof(double) * 6);
+        std::memcpy(B.rates + 6 * r, out.rates + 6 * j, sizeof(double) * 6);
+        B.condition[r] = out.condition[j];
+        for (int term = 0; term < 4; ++term) {
+            std::memcpy(B.errors + 3 * (term * n + r), e + 3 * (term * m + j), sizeof(double) * 3);
+            B.norms[term * n + r] = out.norms[term * m + j];
+        }
     }
 }
 
