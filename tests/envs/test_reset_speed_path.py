@@ -320,3 +320,30 @@ def test_a_vector_env_with_next_step_and_same_step_autoresets_keeps_its_infos():
         assert source["termination"].dtype == np.int64 and source["is_success"].dtype == np.bool_
         assert source["time"].dtype == np.float64
         envs.close()
+
+
+def test_the_benchmark_row_gives_both_ratios_with_their_spread(monkeypatch):
+    from stewart_env.benchmarks import report
+
+    runs = iter([(1.0, 1.1, 1.3), (1.0, 1.2, 1.2), (2.0, 2.6, 2.2)])  # (step alone, nominal, randomised) s
+
+    def measured(n, steps):
+        step, nominal, randomized = next(runs)
+        return {
+            "n": n,
+            "step_s": step * 1e-6,
+            "reset_nominal_s": nominal * 1e-6,
+            "reset_randomized_s": randomized * 1e-6,
+            "reset_nominal_ratio": nominal / step,
+            "reset_randomized_ratio": randomized / step,
+            "resets_nominal": 0.09,
+            "resets_randomized": 0.1,
+        }
+
+    monkeypatch.setattr(report, "bench_resets_in_steps", measured)
+    row = report.resets_row(n=16, runs=3)
+    assert row.startswith("vector env N=16 under uniformly random actions, resets included (median of 3 runs")
+    assert "the step alone 1.00 us a platform-step" in row
+    # ratios 1.1, 1.2, 1.3 (median 1.2) and 1.3, 1.2, 1.1 (median 1.2): each with its lowest and highest
+    assert "with nominal resets 1.20 us, x1.20 [1.10, 1.30], 0.090 resets a platform-step" in row
+    assert "with randomised resets 1.30 us, x1.20 [1.10, 1.30], 0.100 resets a platform-step" in row
