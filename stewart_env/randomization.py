@@ -36,6 +36,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from stewart_env import _core
 from stewart_env.dynamics import kernels as K
 from stewart_env.params import ConfigError, Damping, PlatformParams, RigidBody
 from stewart_env.params.checks import MAX_MAGNITUDE, is_sequence, key_names, number, short
@@ -179,15 +180,17 @@ class Randomization:
                 if key in column:
                     f = f * column[key]
             multipliers[:, p + 1] = f
-        # out = multiplier * nominal, entry by entry, without a temporary of out's size
-        np.take(multipliers, _PART_OF, axis=1, out=out)
-        out *= nominal_row
+        # out = multiplier * nominal entry by entry, and each row's largest magnitude, in one pass
+        largest = np.empty(m)
+        direct = out.flags.c_contiguous and out.dtype == np.float64
+        rows = out if direct else np.empty((m, K.N_PARAMS))
+        _core.scale_parameter_rows(nominal_row, multipliers, _PART_OF, rows, largest)
+        if not direct:
+            out[...] = rows
         lows, highs = (np.array([r[i] for r in self.ranges.values()]) for i in (0, 1))
         smallest = multipliers[:, 1 + _PART_NAMES.index("platform.inertia")] * self._smallest_moment(nominal_row)
         ok = ((factors >= lows) & (factors <= highs)).all(axis=1)
-        # |out| <= MAX_MAGNITUDE everywhere, as the largest and the smallest entries of each row say
-        ok &= (out[:, K.OFF_MP] >= MIN_PLATFORM_MASS) & (out.max(axis=1) <= MAX_MAGNITUDE)
-        ok &= (out.min(axis=1) >= -MAX_MAGNITUDE) & (smallest >= MIN_PLATFORM_INERTIA)
+        ok &= (rows[:, K.OFF_MP] >= MIN_PLATFORM_MASS) & (largest <= MAX_MAGNITUDE) & (smallest >= MIN_PLATFORM_INERTIA)
         for j in np.flatnonzero(~ok):
             # the row by row check raises the error that names the parameter
             self.scale_packed(nominal_row, dict(zip(self.ranges, factors[j].tolist())), out[j])
@@ -360,7 +363,7 @@ _PART_NAMES = [name for name, _, _ in _PARTS]
 def _part_of() -> np.ndarray:
     """For each number of the packed row, 1 + the index of its part in ``_PARTS``, or 0 where
     nothing is randomised (the multiplier 1)."""
-    index = np.zeros(K.N_PARAMS, dtype=np.intp)
+    index = np.zeros(K.N_PARAMS, dtype=np.int64)
     for k, (_, part, _) in enumerate(_PARTS):
         index[part] = k + 1
     return index

@@ -12,9 +12,12 @@ import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
 
+import stewart_env.dynamics.kernels
+import stewart_env.randomization
 import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v1)
 from stewart_env.envs.config import EnvConfig
 from stewart_env.envs.core import PlatformBatch
+from stewart_env.params import ConfigError
 from stewart_env.randomization import Randomization, ScaledRows
 from stewart_env.state import PlatformState
 
@@ -347,3 +350,29 @@ def test_the_benchmark_row_gives_both_ratios_with_their_spread(monkeypatch):
     # ratios 1.1, 1.2, 1.3 (median 1.2) and 1.3, 1.2, 1.1 (median 1.2): each with its lowest and highest
     assert "with nominal resets 1.20 us, x1.20 [1.10, 1.30], 0.090 resets a platform-step" in row
     assert "with randomised resets 1.30 us, x1.20 [1.10, 1.30], 0.100 resets a platform-step" in row
+
+
+def test_scale_packed_rows_with_every_key_equals_scale_packed_in_any_output_layout():
+    # every key: parts scaled by the product of three factors, multiplied in _multipliers' order
+    spec = Randomization({key: (0.9, 1.1) for key in stewart_env.randomization.KEYS})
+    nominal = PlatformBatch(1, EnvConfig.of()).nominal_model.packed[0]
+    factors = spec.sample_rows([np.random.default_rng(s) for s in range(64)])
+    contiguous, strided = np.empty((64, nominal.size)), np.empty((nominal.size, 64)).T
+    spec.scale_packed_rows(nominal, factors, contiguous)
+    spec.scale_packed_rows(nominal, factors, strided)
+    for j in range(64):
+        row = np.empty_like(nominal)
+        spec.scale_packed(nominal, dict(zip(spec.ranges, factors[j].tolist())), row)
+        np.testing.assert_array_equal(contiguous[j], row)
+        np.testing.assert_array_equal(strided[j], row)
+
+
+def test_scale_packed_rows_names_a_parameter_beyond_its_magnitude():
+    spec = Randomization({"platform.inertia": (0.5, 1000.0)})
+    nominal = PlatformBatch(1, EnvConfig.of()).nominal_model.packed[0].copy()
+    nominal[stewart_env.dynamics.kernels.PACKED_SLICES["platform.inertia"]] *= (
+        1e9  # at most 4.2e9, within the 1e12 bound, which 1000 times it is not
+    )
+    factors = np.array([[1.0], [1000.0]])
+    with pytest.raises(ConfigError, match=r"platform\.inertia.*exceeds"):
+        spec.scale_packed_rows(nominal, factors, np.empty((2, nominal.size)))

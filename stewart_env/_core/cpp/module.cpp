@@ -801,6 +801,23 @@ void def_env_kernels(nb::module_& m) {
        "One control step of the closed-form plant for every row: actuators, RK4 substeps, clock and non-finite "
        "check, leg sensors (env_step.hpp).  Returns whether any row stopped being finite.");
 
+    m.def("scale_parameter_rows", [](In nominal, In multipliers, InCodes part_of, Out out, Out largest) {
+        expect(nominal, "nominal_row", {kernels::N_PARAMS});
+        expect(multipliers, "multipliers", {-1, -1});
+        const int64_t m = static_cast<int64_t>(multipliers.shape(0));
+        const int64_t parts = static_cast<int64_t>(multipliers.shape(1));
+        expect(part_of, "part_of", {kernels::N_PARAMS});
+        for (int64_t c = 0; c < kernels::N_PARAMS; ++c)
+            if (!(part_of.data()[c] >= 0 && part_of.data()[c] < parts))
+                throw nb::value_error("part_of: expected indices of the multipliers' columns");
+        expect(out, "out", {m, kernels::N_PARAMS});
+        expect(largest, "largest", {m});
+        env_step::scale_parameter_rows(nominal.data(), multipliers.data(), parts, part_of.data(), kernels::N_PARAMS,
+                                       out.data(), largest.data(), m);
+    }, "nominal_row"_a, "multipliers"_a, "part_of"_a, "out"_a.noconvert(), "largest"_a.noconvert(),
+       "The packed rows of m randomised platforms: out[j, c] = multipliers[j, part_of[c]] * nominal_row[c], "
+       "and largest[j] the largest magnitude of row j (Randomization.scale_packed_rows).");
+
     m.def("pose_block", [](In t, In R, In v, In w, Out raw) {
         expect(t, "position", {-1, 3});
         const int64_t n = static_cast<int64_t>(t.shape(0));

@@ -410,4 +410,24 @@ inline void reset_rows(const Batch& B, const int64_t* rows, int64_t m, const Sta
     }
 }
 
+// The packed parameters of m randomised rows (randomization.Randomization.scale_packed_rows): entry
+// c of row j is multipliers[j, part_of[c]] times nominal[c] (multipliers (m, parts), part_of (N,) in
+// [0, parts); one multiplication, as numpy's), and largest[j] the largest magnitude in row j.
+inline void scale_parameter_rows(const double* nominal, const double* multipliers, int64_t parts,
+                                 const int64_t* part_of, int64_t n_params, double* out, double* largest, int64_t m) {
+    for (int64_t j = 0; j < m; ++j) {
+        const double* f = multipliers + parts * j;
+        double* o = out + n_params * j;
+        double most = 0.0;
+        for (int64_t c = 0; c < n_params; ++c) {
+            o[c] = f[part_of[c]] * nominal[c];
+            // a plain comparison, not std::fmax's call: finite factors and parameters give no
+            // NaN, and an overflow to inf is the largest
+            const double size = std::fabs(o[c]);
+            most = size > most ? size : most;
+        }
+        largest[j] = most;
+    }
+}
+
 }  // namespace env_step
