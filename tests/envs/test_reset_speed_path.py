@@ -230,7 +230,7 @@ def test_the_compiled_reset_refuses_bad_arguments_before_writing_anything(change
     before = [x.copy() for x in (*core._state, core.leg_lengths, core.time, core._error_norms)]
     arguments = {**_batch_step_arguments(core, 2), **change}
     with pytest.raises(ValueError, match=message):
-        core._fused.reset(*arguments.values())
+        core._step.compiled.reset(*arguments.values())
     for x, y in zip(before, (*core._state, core.leg_lengths, core.time, core._error_norms)):
         np.testing.assert_array_equal(x, y)
 
