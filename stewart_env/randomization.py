@@ -36,12 +36,13 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from stewart_env import _core
 from stewart_env.dynamics import kernels as K
 from stewart_env.params import ConfigError, Damping, PlatformParams, RigidBody
 from stewart_env.params.checks import MAX_MAGNITUDE, is_sequence, key_names, number, short
 from stewart_env.params.platform import MIN_PLATFORM_INERTIA, MIN_PLATFORM_MASS
 
-__all__ = ["KEYS", "Randomization"]
+__all__ = ["KEYS", "Randomization", "ScaledRows"]
 
 _BODIES = ("platform", "upper_leg", "lower_leg")
 _QUANTITIES = ("mass", "inertia", "com")
@@ -152,8 +153,8 @@ class Randomization:
         """
         k = len(self.ranges)
         unit = np.empty((len(rngs), k))
-        for j, rng in enumerate(rngs):
-            unit[j] = rng.random(k)
+        for rng, row in zip(rngs, unit):
+            rng.random(out=row)  # random(k) drawn straight into the row: the same numbers
         bounds = np.array(list(self.ranges.values()), dtype=np.float64).reshape(k, 2)
         low = bounds[:, 0]
         return low + (bounds[:, 1] - low) * unit
@@ -179,15 +180,34 @@ class Randomization:
                 if key in column:
                     f = f * column[key]
             multipliers[:, p + 1] = f
-        np.multiply(nominal_row, multipliers[:, _PART_OF], out=out)
+        # out = multiplier * nominal entry by entry, and each row's largest magnitude, in one pass
+        largest = np.empty(m)
+        direct = out.flags.c_contiguous and out.dtype == np.float64
+        rows = out if direct else np.empty((m, K.N_PARAMS))
+        _core.scale_parameter_rows(nominal_row, multipliers, _PART_OF, rows, largest)
+        if not direct:
+            out[...] = rows
         lows, highs = (np.array([r[i] for r in self.ranges.values()]) for i in (0, 1))
         smallest = multipliers[:, 1 + _PART_NAMES.index("platform.inertia")] * self._smallest_moment(nominal_row)
         ok = ((factors >= lows) & (factors <= highs)).all(axis=1)
-        ok &= (out[:, K.OFF_MP] >= MIN_PLATFORM_MASS) & (np.abs(out).max(axis=1) <= MAX_MAGNITUDE)
-        ok &= smallest >= MIN_PLATFORM_INERTIA
+        ok &= (rows[:, K.OFF_MP] >= MIN_PLATFORM_MASS) & (largest <= MAX_MAGNITUDE) & (smallest >= MIN_PLATFORM_INERTIA)
         for j in np.flatnonzero(~ok):
             # the row by row check raises the error that names the parameter
             self.scale_packed(nominal_row, dict(zip(self.ranges, factors[j].tolist())), out[j])
+
+    def rows_params(self, params: PlatformParams, factors: np.ndarray) -> ScaledRows:
+        """The PlatformParams of rows drawn together, each built only when asked for.
+
+        Args:
+            params: the nominal platform.
+            factors: (m, k) the rows' factors in the order of ``self.ranges`` (what
+                :meth:`sample_rows` draws), kept as given.
+
+        Returns:
+            A :class:`ScaledRows`, ``rows(j)`` the :meth:`apply` of row j's factors: the source of
+            the rows' parameters that :meth:`stewart_env.dynamics.Dynamics.set_packed_rows` takes.
+        """
+        return ScaledRows(self, params, factors)
 
     def apply(self, params: PlatformParams, factors: Mapping[str, float]) -> PlatformParams:
         """``params`` with every parameter multiplied by the product of its keys' factors.
@@ -298,6 +318,28 @@ class Randomization:
         return self._moment_cache[1]
 
 
+class ScaledRows:
+    """The PlatformParams of m rows scaled by their factors (:meth:`Randomization.rows_params`):
+    calling it with j builds row j's, ``spec.apply(params, factors of row j)``.
+
+    Args:
+        spec: the randomisation spec.
+        params: the nominal platform.
+        factors: (m, k) the rows' factors in the order of ``spec.ranges``.
+    """
+
+    def __init__(self, spec: Randomization, params: PlatformParams, factors: np.ndarray):
+        self.spec, self.params, self.factors = spec, params, factors
+
+    def __call__(self, j: int) -> PlatformParams:
+        """Row j's PlatformParams.
+
+        Args:
+            j: the row's index among the m rows.
+        """
+        return self.spec.apply(self.params, dict(zip(self.spec.ranges, self.factors[j].tolist())))
+
+
 def _parts() -> tuple[tuple[str, slice, tuple[str, ...]], ...]:
     """The randomised parts of the packed row (``kernels.PACKED_LAYOUT``): (parameter name, its
     slice of the row, the keys whose factors multiply it, in the order they are multiplied)."""
@@ -321,7 +363,7 @@ _PART_NAMES = [name for name, _, _ in _PARTS]
 def _part_of() -> np.ndarray:
     """For each number of the packed row, 1 + the index of its part in ``_PARTS``, or 0 where
     nothing is randomised (the multiplier 1)."""
-    index = np.zeros(K.N_PARAMS, dtype=np.intp)
+    index = np.zeros(K.N_PARAMS, dtype=np.int64)
     for k, (_, part, _) in enumerate(_PARTS):
         index[part] = k + 1
     return index

@@ -16,6 +16,10 @@ batched forward evaluations per second, the 10 ms platform-steps per second (10 
 count of one evaluation it assumes (counted by running the kernel once on a number type that counts
 its operations); ``--plot PATH`` draws it to a PNG.
 
+The last row (:func:`resets_row`) is the native vector env's platform-step at N = 1024 under
+uniformly random actions, resets included, beside its step alone, nominal and randomised, as
+ratios with their spread over three runs.
+
 With ``--mujoco`` (needs the extra ``mujoco``), MuJoCo times the same mechanism in the same run
 (:func:`bench_mujoco`): one forward and one inverse evaluation, a 10 ms control step of RK4
 substeps for one platform and for a batch of 1024, and the vector env's reset with and without
@@ -41,7 +45,7 @@ from stewart_env.benchmarks.measurements import (
     vector_peak_flops,
 )
 from stewart_env.benchmarks.mujoco_comparison import bench_mujoco
-from stewart_env.benchmarks.report import mujoco_table, plot_scaling, run_bench, scaling_table
+from stewart_env.benchmarks.report import mujoco_table, plot_scaling, resets_row, run_bench, scaling_table
 from stewart_env.dynamics import MODEL_NAMES
 
 __all__ = [
@@ -60,6 +64,7 @@ __all__ = [
     "machine",
     "mujoco_table",
     "plot_scaling",
+    "resets_row",
     "run_bench",
     "scaling_table",
     "vector_peak_flops",

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
+
 import stewart_env as se
 from stewart_env.benchmarks.envs import bench_env, bench_resets_in_steps
 from stewart_env.benchmarks.measurements import (
@@ -176,6 +178,43 @@ def plot_scaling(r: dict, path) -> None:
     plt.close(fig)
 
 
+def resets_row(n: int = 1024, runs: int = 3, steps: int = 40) -> str:
+    """The report's row of the native vector env with resets: its platform-step under uniformly
+    random actions (a policy that still loses the platform, as at the start of training: a row
+    resets every ten or so steps), nominal and with
+    :data:`~stewart_env.benchmarks.envs.RESET_RANDOMIZATION`, beside its step alone (the held
+    platform, no resets), by :func:`~stewart_env.benchmarks.envs.bench_resets_in_steps` run
+    ``runs`` times: each ratio over the step alone is the median of the runs, with their lowest
+    and highest, so that a run slowed by other load on the machine shows as spread.
+
+    Args:
+        n: rows of the vector env.
+        runs: runs of the measurement, each of interleaved short loops.
+        steps: timed steps of each loop, 1 to 100.
+
+    Returns:
+        One line: the step alone and with resets, us a platform-step, the ratios with their
+        spread, and the resets a platform-step.
+    """
+    results = [bench_resets_in_steps(n=n, steps=steps) for _ in range(runs)]
+
+    def median(key: str) -> float:
+        return float(np.median([r[key] for r in results]))
+
+    def ratio(kind: str) -> str:
+        ratios = [r[f"reset_{kind}_ratio"] for r in results]
+        return (
+            f"{median(f'reset_{kind}_s') * 1e6:.2f} us, x{median(f'reset_{kind}_ratio'):.2f} "
+            f"[{min(ratios):.2f}, {max(ratios):.2f}], {median(f'resets_{kind}'):.3f} resets a platform-step"
+        )
+
+    return (
+        f"vector env N={n} under uniformly random actions, resets included (median of {runs} runs "
+        f"[lowest, highest]): the step alone {median('step_s') * 1e6:.2f} us a platform-step; "
+        f"with nominal resets {ratio('nominal')}; with randomised resets {ratio('randomized')}"
+    )
+
+
 def run_bench(
     platform: str = "dasgupta1998",
     models: str = ",".join(MODEL_NAMES),
@@ -185,7 +224,8 @@ def run_bench(
 ) -> None:
     """Print the benchmark's tables: the machine, the first evaluation of a fresh process, each of
     the comma-separated ``models`` on ``platform``, the scaling table (drawn to the PNG file
-    ``plot`` if given); with ``env`` the environments, with ``mujoco`` MuJoCo beside the kernels
+    ``plot`` if given); with ``env`` the environments; the vector env's step with resets beside
+    its step alone (:func:`resets_row`); with ``mujoco`` MuJoCo beside the kernels
     (``stewart_env.extras.MissingExtra`` before any timing if the extra is not installed).
 
     Args:
@@ -232,14 +272,8 @@ def run_bench(
         print()
         print(f"single env (gymnasium.make): {r['single_steps_per_s']:,.0f} steps/s")
         print(f"vector env N={r['n_vector']}: {r['vector_platform_steps_per_s']:,.0f} platform-steps/s")
-        r = bench_resets_in_steps()
-        print(
-            f"vector env N={r['n']} with resets (uniformly random actions; the step alone holds the platform): "
-            f"{r['step_s'] * 1e6:.2f} us a platform-step alone, {r['reset_nominal_s'] * 1e6:.2f} us with resets "
-            f"(x{r['reset_nominal_ratio']:.2f}, {r['resets_nominal']:.3f} resets a platform-step), "
-            f"{r['reset_randomized_s'] * 1e6:.2f} us randomised (x{r['reset_randomized_ratio']:.2f}, "
-            f"{r['resets_randomized']:.3f})"
-        )
+    print()
+    print(resets_row())
     if mujoco:
         from stewart_env.mujoco import require_mujoco
 

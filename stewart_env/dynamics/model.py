@@ -243,6 +243,8 @@ def check_step(dt, steps) -> tuple[float, int]:
 def _row_numbers(rows) -> list[int]:
     """The batch rows a ``with_*`` call replaces, as ints; ValueError naming ``rows`` unless they
     are integers (a sequence, range or integer array)."""
+    if isinstance(rows, np.ndarray) and rows.ndim == 1 and rows.dtype.kind in "iu":
+        return rows.tolist()  # a batch's row indices (np.flatnonzero): one call, not one per row
     try:
         return [operator.index(r) for r in rows]
     except TypeError:
@@ -253,7 +255,8 @@ class ParamsRows(Sequence):
     """The :class:`PlatformParams` of a model's parameter rows, built when first asked for.
 
     A row set from packed numbers (:meth:`Dynamics.with_packed_rows`) carries a zero-argument
-    function that builds its PlatformParams; ``rows[i]`` calls it once and keeps the result.
+    function that builds its PlatformParams, or a pair (function, j) of a function that builds
+    those of the j-th of the rows set together; ``rows[i]`` calls it once and keeps the result.
     ``len`` and the packed numbers never need it, so a randomised reset builds no PlatformParams.
     """
 
@@ -268,7 +271,7 @@ class ParamsRows(Sequence):
             return tuple(self[j] for j in range(*i.indices(len(self))))
         item = self._items[i]
         if not isinstance(item, PlatformParams):
-            item = item()
+            item = item[0](item[1]) if type(item) is tuple else item()
             if not isinstance(item, PlatformParams):
                 raise TypeError(f"params: the source of row {i} built a {type(item).__name__}, not PlatformParams")
             self._items[i] = item
@@ -423,9 +426,9 @@ class Dynamics:
             check_home_condition(p, row)
         return self.with_packed_rows(rows, packed, params)
 
-    def with_packed_rows(self, rows: Sequence[int], packed_rows, sources: Sequence) -> Dynamics:
+    def with_packed_rows(self, rows: Sequence[int], packed_rows, sources) -> Dynamics:
         """The same model with parameter rows ``rows`` replaced by packed numbers, no PlatformParams
-        built: the reset of a domain-randomised batch.
+        built: a new model, this one unchanged (:meth:`set_packed_rows` replaces them in place).
 
         The rows are trusted: the caller promises they are a valid platform's, as ``pack_params`` and
         ``scale_packed`` write them; only their finiteness is checked, and a row that is no
@@ -436,7 +439,8 @@ class Dynamics:
             packed_rows: (len(rows), N_PARAMS), e.g. from
                 :meth:`stewart_env.randomization.Randomization.scale_packed`.
             sources: one per row, each a PlatformParams or a zero-argument function returning the
-                PlatformParams the row was packed from (built only when ``params[row]`` is read).
+                PlatformParams the row was packed from (built only when ``params[row]`` is read);
+                or one function of j returning those of row ``rows[j]``.
 
         Returns:
             The new :class:`Dynamics`.
@@ -444,33 +448,106 @@ class Dynamics:
         Raises:
             ValueError: wrong rows, shapes, counts or non-finite numbers (the message names the argument).
         """
+        rows, packed_rows = self._checked_rows(rows, packed_rows, sources)
+        new = object.__new__(Dynamics)
+        new.spec, new.name, new.flags = self.spec, self.name, self.flags
+        new.params = ParamsRows(self.params._items)
+        new._packed = self._packed.copy()
+        new._write_rows(rows, packed_rows, sources)
+        return new
+
+    def set_packed_rows(self, rows: Sequence[int], packed_rows, sources) -> None:
+        """Replace parameter rows ``rows`` by packed numbers in place: :meth:`with_packed_rows`
+        without the copy of every row, for the owner of a model that nobody else holds (a batch
+        of the environment at a reset, which copies its model before it changes it once it has
+        handed it out).  Every holder of :attr:`packed` (a compiled step's record of this model)
+        sees the new rows.
+
+        Args:
+            rows: the batch rows to replace.
+            packed_rows: (len(rows), N_PARAMS), as :meth:`with_packed_rows` takes them.
+            sources: as :meth:`with_packed_rows` takes them.
+
+        Raises:
+            ValueError: wrong rows, shapes, counts or non-finite numbers (the message names the
+                argument); the model is then unchanged.
+        """
+        rows, packed_rows = self._checked_rows(rows, packed_rows, sources)
+        packed = self._packed
+        if not packed.flags.owndata:
+            # a copy of its own to write into (a packed array that is a view of another's)
+            packed = self._packed = packed.copy()
+        self._write_rows(rows, packed_rows, sources)
+
+    def _checked_rows(self, rows, packed_rows, sources) -> tuple[list[int], np.ndarray]:
+        """The rows (ints) and packed rows (C-contiguous float64) of :meth:`with_packed_rows`,
+        checked; ValueError naming the argument otherwise."""
         rows = _row_numbers(rows)
         if packed_rows is None:
             raise ValueError(f"packed_rows: expected an array of shape ({len(rows)}, {K.N_PARAMS}), got None")
         packed_rows = np.ascontiguousarray(validation.plain("packed_rows", packed_rows), dtype=np.float64)
         if packed_rows.shape != (len(rows), K.N_PARAMS):
             raise ValueError(f"packed_rows: expected shape ({len(rows)}, {K.N_PARAMS}), got {packed_rows.shape}")
-        if not isinstance(sources, Sequence):
-            raise ValueError(f"sources: expected a sequence, one per row, got {type(sources).__name__}")
-        if len(sources) != len(rows):
-            raise ValueError(f"sources: expected one per row ({len(rows)}), got {len(sources)}")
+        if isinstance(sources, Sequence):
+            if len(sources) != len(rows):
+                raise ValueError(f"sources: expected one per row ({len(rows)}), got {len(sources)}")
+            for source in sources:
+                if not (isinstance(source, PlatformParams) or callable(source)):
+                    raise ValueError(
+                        f"sources: expected PlatformParams or a function returning them, got {type(source).__name__}"
+                    )
+        elif not callable(sources):
+            raise ValueError(
+                f"sources: expected a sequence, one per row, or a function of the row, got {type(sources).__name__}"
+            )
         if K.first_nonfinite((packed_rows,)) >= 0:
             raise ValueError("packed_rows: contains NaN or inf")
-        items = list(self.params._items)
-        packed = self._packed.copy()
-        for j, r in enumerate(rows):
-            if not 0 <= r < len(items):
-                raise ValueError(f"rows: {r} is outside the batch of {len(items)} parameter rows")
-            if not (isinstance(sources[j], PlatformParams) or callable(sources[j])):
-                raise ValueError(
-                    f"sources: expected PlatformParams or a function returning them, got {type(sources[j]).__name__}"
-                )
-            items[r] = sources[j]
-            packed[r] = packed_rows[j]
+        size = len(self.params)
+        for r in rows:
+            if not 0 <= r < size:
+                raise ValueError(f"rows: {r} is outside the batch of {size} parameter rows")
+        return rows, packed_rows
+
+    def _write_rows(self, rows: list[int], packed_rows: np.ndarray, sources) -> None:
+        """Write checked rows (:meth:`_checked_rows`) into this model's own packed array and params."""
+        items = self.params._items
+        if isinstance(sources, Sequence):
+            for r, source in zip(rows, sources):
+                items[r] = source
+        else:
+            for j, r in enumerate(rows):
+                items[r] = (sources, j)
+        packed = self._packed
+        packed.setflags(write=True)  # its own array (a copy or the model's): read-only again below
+        try:
+            packed[rows] = packed_rows
+        finally:
+            packed.setflags(write=False)
+
+    def subset(self, rows: Sequence[int]) -> Dynamics:
+        """The model of some of its parameter rows, in the order of ``rows`` (e.g. the rows a batch
+        resets): the same numbers row for row.
+
+        Args:
+            rows: the parameter rows to keep (integers in [0, Np - 1]).
+
+        Returns:
+            The new :class:`Dynamics`, of len(rows) parameter rows.
+
+        Raises:
+            ValueError: rows that are not integers within the model's rows.
+        """
+        rows = _row_numbers(rows)
+        for r in rows:
+            if not 0 <= r < len(self.params):
+                raise ValueError(f"rows: {r} is outside the batch of {len(self.params)} parameter rows")
+        if not rows:
+            raise ValueError("rows: expected at least one row")
         new = object.__new__(Dynamics)
-        new.spec, new.name, new.flags, new.params = self.spec, self.name, self.flags, ParamsRows(items)
-        packed.setflags(write=False)
-        new._packed = packed
+        new.spec, new.name, new.flags = self.spec, self.name, self.flags
+        new.params = ParamsRows(self.params._items[r] for r in rows)
+        new._packed = self._packed[rows]
+        new._packed.setflags(write=False)
         return new
 
     def forward(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench=None):

@@ -23,7 +23,6 @@ Generator).
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Sequence
 from types import MappingProxyType
 from typing import Any
@@ -105,13 +104,15 @@ class PlatformBatch:
         physics = config.physics
         self.platform: PlatformParams = physics.platform
         self.nominal_model: Dynamics = physics.dynamics
-        self.model: Dynamics = self.nominal_model
+        self._model: Dynamics = self.nominal_model
+        # whether :attr:`model` has handed the batch's model out: a reset then copies it first
+        self._model_handed_out = False
         self.control_dt, self.physics_dt, self.substeps = physics.control_dt, physics.physics_dt, physics.substeps
         self.randomization = physics.randomization
         if self.randomization is not None:
             # One parameter row per platform, each set at its reset from the nominal packed row.
-            self.model = self.nominal_model.with_params([self.platform] * self.n)
-        self.plant: Plant = make_plant(physics, self.model, self.n)
+            self._model = self.nominal_model.with_params([self.platform] * self.n)
+        self.plant: Plant = make_plant(physics, self._model, self.n)
         self.actuator_tau = config.actuator.actuator_tau
         self._lag = config.actuator.lag(self.control_dt)
         lo, hi = self.platform.limits.leg_force
@@ -237,6 +238,15 @@ class PlatformBatch:
         return FusedStep(_core.BatchStep(state, plant, actuator, task, self.observations.step_record(), outputs))
 
     @property
+    def model(self) -> Dynamics:
+        """The episode's closed-form dynamics model: one parameter row per platform with domain
+        randomisation, else the nominal model.  A model read here never changes: the batch writes
+        a reset's randomised rows into its own model in place until it has handed it out, and
+        into a copy after."""
+        self._model_handed_out = True
+        return self._model
+
+    @property
     def step_mode(self) -> str:
         """The step mode chosen (:meth:`set_step_mode`; "auto" unless chosen otherwise)."""
         return self._step_mode
@@ -272,6 +282,8 @@ class PlatformBatch:
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
+        if "model" in state:  # pickled before the batch kept its model as _model
+            state["_model"], state["_model_handed_out"] = state.pop("model"), True
         self.__dict__.update(state)
         self._views()
 
@@ -320,8 +332,11 @@ class PlatformBatch:
         Draw order within a row: randomisation factors, the task's episode, observation noise;
         rows with generators of their own draw all rows' factors, then all rows' episodes (the
         same numbers, row by row, as drawing one row after the other).  A randomised row's
-        parameters are scaled in packed form; its PlatformParams are built only when read
-        (:meth:`episode_params`).
+        parameters are scaled in packed form and written into the rows of the batch's model in
+        place (a model handed out by :attr:`model` is copied first, and never changes); its
+        PlatformParams are built only when read (:meth:`episode_params`).  With the fused step,
+        the rows' state, clock, leg sensors, reference and tracking errors are set in one
+        compiled call (``BatchStep.reset``), the same numbers as the step of parts sets them.
 
         Args:
             rows: (m,) int, the rows to reset.
@@ -333,20 +348,17 @@ class PlatformBatch:
             name -> np.float64); with ``batch_infos``, one dict of the rows' infos instead, each
             value an (m,) array in the order of ``rows``.
         """
-        drawn, factors = self._draw_episodes(rows, rngs)
-        if drawn is not None:
-            self.model = self.model.with_packed_rows(rows, *drawn)
-            self.plant.set_model(self.model, rows)  # which updates its record of the compiled step
-        self.steps[rows] = 0
-        self.time[rows] = 0.0
-        self.external_wrench[rows] = 0.0
-        self._action[rows] = 0.0
-        state = PlatformState(*(x[rows] for x in self._state))
-        self.leg_forces[rows] = self._start_forces(state, drawn)
-        self.costs.reset_rows(rows, state)
+        rows = np.asarray(rows, dtype=np.int64)
+        factors, start, episode = self._draw_episodes(rows, rngs)
+        for k, v in episode.items():
+            self.episode[k][rows] = v
+        if factors is not None:
+            self._set_parameters(rows, factors)
+        forces = self._start_forces(rows, start, factors is not None)
+        view = self._start_rows(rows, start, forces)
+        self.costs.reset_rows(rows, view.state)
         if self._delay is not None:
-            self._delay.reset_rows(rows, self._action[rows])
-        view = self._start_view(rows, state)
+            self._delay.reset_rows(rows)  # the rows held no action before their start: zeros
         self._start_success(rows, view.errors)
         self.observations.reset_rows(rows, view, rngs)
         keys = () if factors is None else tuple(self.randomization.ranges)
@@ -358,95 +370,112 @@ class PlatformBatch:
 
     def _draw_episodes(
         self, rows: np.ndarray, rngs: Sequence[np.random.Generator]
-    ) -> tuple[tuple[np.ndarray, list] | None, np.ndarray | None]:
-        """Draw each row's randomisation factors and the task's episode, and set the start state.
-        Returns the rows' randomised parameters, (packed rows, their sources) as
-        :meth:`~stewart_env.dynamics.Dynamics.with_packed_rows` takes them, and their factors
-        (m, k) in the order of the spec's keys; (None, None) without randomisation."""
+    ) -> tuple[np.ndarray | None, PlatformState, dict[str, np.ndarray]]:
+        """Draw each row's randomisation factors and the task's episode.  Returns the factors
+        (m, k) in the order of the spec's keys (None without randomisation), the rows' start
+        states (a PlatformState of (m, ...) arrays) and their episode arrays by name."""
         rnd = self.randomization
         if len(rngs) == 1 or len({id(rng) for rng in rngs}) < len(rngs):
             # one row (the single environment), which numpy's overhead per call makes cheaper row by
             # row, or a generator shared by rows, whose draws must go row after row
             return self._draw_episodes_by_row(rows, rngs)
-        if rnd is None:
-            factors = None
-        else:
-            nominal = self.nominal_model.packed[0]
-            packed = np.empty((len(rows), nominal.shape[0]))
-            factors = rnd.sample_rows(rngs)
-            rnd.scale_packed_rows(nominal, factors, packed)
-            keys = tuple(rnd.ranges)
-            sources = [
-                functools.partial(rnd.apply, self.platform, dict(zip(keys, values))) for values in factors.tolist()
-            ]
+        factors = None if rnd is None else rnd.sample_rows(rngs)
         start, episode = self.task.initialize_episodes(rngs)
-        self.position[rows], self.rotation[rows], self.velocity[rows], self.angular_velocity[rows] = start
-        for k, v in episode.items():
-            self.episode[k][rows] = v
-        return (None, None) if rnd is None else ((packed, sources), factors)
+        return factors, start, episode
 
     def _draw_episodes_by_row(
         self, rows: np.ndarray, rngs: Sequence[np.random.Generator]
-    ) -> tuple[tuple[np.ndarray, list] | None, np.ndarray | None]:
+    ) -> tuple[np.ndarray | None, PlatformState, dict[str, np.ndarray]]:
         """:meth:`_draw_episodes` one row after the other, every draw of a row before the next
         row's: for rows that share a generator."""
-        rnd = self.randomization
-        if rnd is not None:
-            nominal = self.nominal_model.packed[0]
-            packed = np.empty((len(rows), nominal.shape[0]))
-            factors = np.empty((len(rows), len(rnd.ranges)))
-            sources = []
-        for j, i in enumerate(rows):
+        rnd, m = self.randomization, len(rows)
+        factors = None if rnd is None else np.empty((m, len(rnd.ranges)))
+        start = PlatformState(np.empty((m, 3)), np.empty((m, 3, 3)), np.empty((m, 3)), np.empty((m, 3)))
+        episode = {k: np.empty((m, *shape)) for k, shape in self.task.episode_fields().items()}
+        for j, rng in enumerate(rngs):
             if rnd is not None:
-                row_factors = rnd.sample(rngs[j])
-                rnd.scale_packed(nominal, row_factors, packed[j])
-                sources.append(functools.partial(rnd.apply, self.platform, row_factors))
-                factors[j] = list(row_factors.values())
-            start, episode = self.task.initialize_episode(rngs[j])
-            self.position[i], self.rotation[i], self.velocity[i], self.angular_velocity[i] = start
-            for k, v in episode.items():
-                self.episode[k][i] = v
-        return (None, None) if rnd is None else ((packed, sources), factors)
+                factors[j] = list(rnd.sample(rng).values())
+            state, values = self.task.initialize_episode(rng)
+            for dst, src in zip(start, state):
+                dst[j] = src
+            for k, v in values.items():
+                episode[k][j] = v
+        return factors, start, episode
 
-    def _start_forces(self, state: PlatformState, drawn: tuple[np.ndarray, list] | None) -> np.ndarray:
-        """The leg forces at a start state of m rows: without actuator lag none (the first action
-        sets them); with it, the actuators hold the start state: the forces of zero acceleration of
-        the rows' own model (``drawn``, their randomised parameters, or the nominal model), as far
-        as the actuators reach."""
-        m = state.position.shape[0]
-        if not self._lag:
-            return np.zeros((m, 6))
-        model = self.nominal_model
-        if drawn is not None:
-            # the batch's model has n rows; the holding forces need the m reset rows' alone
-            model = model.with_params([self.platform] * m).with_packed_rows(range(m), *drawn)
-        zero = np.zeros((m, 3))
+    def _set_parameters(self, rows: np.ndarray, factors: np.ndarray) -> None:
+        """The randomised parameters of ``rows``: the nominal packed row scaled by each row's
+        ``factors`` (m, k), written into those rows of the batch's model in place (the plant's
+        record of the compiled step points at the model's array, so it sees them), or into a copy
+        of a model that :attr:`model` has handed out, which the batch then goes on with."""
+        rnd = self.randomization
+        packed = np.empty((len(rows), self.nominal_model.packed.shape[1]))
+        rnd.scale_packed_rows(self.nominal_model.packed[0], factors, packed)
+        params = rnd.rows_params(self.platform, factors)
+        if self._model_handed_out:
+            self._model = self._model.with_packed_rows(rows, packed, params)
+            self._model_handed_out = False
+        else:
+            self._model.set_packed_rows(rows, packed, params)
+        self.plant.set_model(self._model, rows)
+
+    def _start_forces(self, rows: np.ndarray, start: PlatformState, randomised: bool) -> np.ndarray | None:
+        """The leg forces at the start state of ``rows``: without actuator lag None (none; the
+        first action sets them); with it, the actuators hold the start state: the forces of zero
+        acceleration of the rows' own model (their randomised parameters, or the nominal model),
+        as far as the actuators reach."""
+        if not self._lag or not len(rows):
+            return None
+        model = self._model.subset(rows) if randomised else self.nominal_model
+        zero = np.zeros((len(rows), 3))
         lo, hi = self.platform.limits.leg_force
-        return np.clip(model.inverse(*state, zero, zero), lo, hi)
+        return np.clip(model.inverse(*start, zero, zero), lo, hi)
 
-    def _start_view(self, rows: np.ndarray, state: PlatformState) -> StepView:
-        """The leg sensors and the reference of rows ``rows`` at their start state (written into
-        the batch), and a view of those rows alone for the first observation."""
+    def _start_rows(self, rows: np.ndarray, start: PlatformState, forces: np.ndarray | None) -> StepView:
+        """Set the rows' start state, a zero clock, external wrench and applied action, their leg
+        forces, the reference at t = 0, and their leg sensors and tracking errors at the start
+        state: in one compiled call with the fused step, else by the batch's numpy arrays, the
+        same numbers.  Returns a view of those rows alone for the first observation."""
         m = len(rows)
-        lengths, rates, cond = np.empty((m, 6)), np.empty((m, 6)), np.empty(m)
-        leg_sensors_inplace(self.nominal_model, *state, self.platform.limits.max_condition, lengths, rates, cond)
-        self.leg_lengths[rows], self.leg_rates[rows], self.condition[rows] = lengths, rates, cond
+        start = PlatformState(*(np.ascontiguousarray(x, dtype=np.float64) for x in start))
         episode = MappingProxyType({k: v[rows] for k, v in self.episode.items()})
-        ref = zero_reference(m)
-        self.task.reference(episode, self.time[rows], ref)
-        for dst, src in zip(self.reference, ref):
-            dst[rows] = src
+        reference = zero_reference(m)
+        self.task.reference(episode, np.zeros(m), reference)
+        lengths, rates, condition = np.empty((m, 6)), np.empty((m, 6)), np.empty(m)
+        vectors, norms = np.empty((4, m, 3)), np.empty((4, m))
+        if self._step.fused:
+            pose_and_twist = tuple(getattr(reference, k) for k in PlatformState._fields)
+            self._step.compiled.reset(
+                rows, tuple(start), forces, pose_and_twist, lengths, rates, condition, vectors, norms
+            )
+            for k in Reference._fields[len(pose_and_twist) :]:  # the accelerations, which the step never reads
+                getattr(self.reference, k)[rows] = getattr(reference, k)
+        else:
+            leg_sensors_inplace(
+                self.nominal_model, *start, self.platform.limits.max_condition, lengths, rates, condition
+            )
+            tracking_errors(start, reference, errors_in(vectors, norms))
+            self.position[rows], self.rotation[rows], self.velocity[rows], self.angular_velocity[rows] = start
+            self.steps[rows] = 0
+            self.time[rows] = 0.0
+            self.external_wrench[rows] = 0.0
+            self._action[rows] = 0.0
+            self.leg_forces[rows] = 0.0 if forces is None else forces
+            for dst, src in zip(self.reference, reference):
+                dst[rows] = src
+            self.leg_lengths[rows], self.leg_rates[rows], self.condition[rows] = lengths, rates, condition
+            self._error_vectors[:, rows], self._error_norms[:, rows] = vectors, norms
+        zeros = np.zeros((m, 6))
         return StepView(
-            state,
-            ref,
-            tracking_errors(state, ref),
-            self._action[rows],
-            self.leg_forces[rows],
+            start,
+            reference,
+            errors_in(vectors, norms)[0],
+            zeros,
+            zeros if forces is None else forces,
             lengths,
             rates,
-            cond,
-            self.external_wrench[rows],
-            self.time[rows],
+            condition,
+            zeros,
+            np.zeros(m),
             np.zeros(m, dtype=bool),
             episode,
         )
@@ -599,7 +628,7 @@ class PlatformBatch:
         Args:
             row: the row's index.
         """
-        return self.platform if self.randomization is None else self.model.params_of(row)
+        return self.platform if self.randomization is None else self._model.params_of(row)
 
     def reasons(self, code: np.ndarray) -> np.ndarray:
         """Termination reason names (str array; "" for code 0) of codes.
@@ -722,7 +751,7 @@ class StepOfParts:
         non-finite check, and the leg sensors of every row in one compiled call (the closed-form
         plant, the batch's own model).  A row whose state is no longer finite keeps its last
         finite state, so that observation, reward and rendering stay finite."""
-        model = batch.model
+        model = batch._model  # the batch's own (reading .model would hand it out)
         batch._any_non_finite = _core.control_step(
             model.packed,
             model.flags,

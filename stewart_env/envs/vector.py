@@ -95,10 +95,8 @@ def _autoreset_mode(value: Any) -> AutoresetMode:
 
 
 def _masked(value: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """``value`` (a step info array: float or int codes) where ``mask``, else 0."""
-    out = np.zeros_like(value)
-    out[mask] = value[mask]
-    return out
+    """``value`` (a step info array: float or int codes) where ``mask``, else 0 (of its dtype)."""
+    return np.where(mask, value, np.zeros((), dtype=value.dtype))
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -306,10 +304,10 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
             seeds = [seed + i for i in range(n)]
             self._np_random, self._np_random_seed = seeding.np_random(seed)
         rows = np.flatnonzero(mask)
-        for i in rows:
+        for i in rows.tolist():
             if seeds[i] is not None or self._rngs[i] is None:
                 self._rngs[i] = seeding.np_random(seeds[i])[0]
-        infos = self._reset_infos({}, rows, self._core.reset_rows(rows, [self._rngs[i] for i in rows], True))
+        infos = self._reset_infos({}, rows, self._core.reset_rows(rows, self._rngs_of(rows), True))
         self._reset_done = all(rng is not None for rng in self._rngs)
         self._elapsed[rows] = 0
         self._autoreset[rows] = False
@@ -385,9 +383,14 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
         return observation, reward, terminated, truncated, infos
 
     def _reset_rows(self, rows: np.ndarray, infos: dict[str, Any]) -> None:
-        row_infos = self._core.reset_rows(rows, [self._rngs[i] for i in rows], True)
+        row_infos = self._core.reset_rows(rows, self._rngs_of(rows), True)
         self._elapsed[rows] = 0
         self._reset_infos(infos, rows, row_infos)
+
+    def _rngs_of(self, rows: np.ndarray) -> list[np.random.Generator]:
+        """The Generators of ``rows`` (an int array), in their order."""
+        rngs = self._rngs
+        return [rngs[i] for i in rows.tolist()]
 
     def _step_infos(self, terms: dict[str, np.ndarray], code: np.ndarray, stepped: np.ndarray) -> dict[str, Any]:
         core = self._core

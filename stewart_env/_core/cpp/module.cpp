@@ -29,6 +29,7 @@ using Flags = nb::ndarray<bool, nb::c_contig, nb::device::cpu>;
 using InFlags = nb::ndarray<const bool, nb::c_contig, nb::device::cpu>;
 using Codes = nb::ndarray<int64_t, nb::c_contig, nb::device::cpu>;
 using InSingles = nb::ndarray<const float, nb::c_contig, nb::device::cpu>;
+using InCodes = nb::ndarray<const int64_t, nb::c_contig, nb::device::cpu>;
 using Singles = nb::ndarray<float, nb::c_contig, nb::device::cpu>;
 
 namespace {
@@ -515,6 +516,45 @@ public:
                               o.bad.data());
     }
 
+    // Start new episodes in rows (int64 (m,), each in [0, n)): the start state (a tuple of the m
+    // rows' position (m,3), rotation (m,3,3), velocity (m,3), angular velocity (m,3)), the leg
+    // forces that hold it (m,6) or None (zeros), the reference at t = 0 (a tuple as the state); the
+    // rows' leg lengths (m,6), rates (m,6), condition numbers (m,), tracking errors (4,m,3) and norms
+    // (4,m) at the start are written into the last five (env_step::reset_rows).  Every array is
+    // checked (dtype, C-contiguity, shape, the rows' range) before anything is written.
+    void reset(nb::handle rows_, nb::tuple start, nb::handle leg_forces, nb::tuple reference, nb::handle lengths_,
+               nb::handle rates_, nb::handle condition_, nb::handle errors_, nb::handle norms_) {
+        using step_records::take;
+        const int64_t n = b_.n;
+        const auto rows = take<InCodes>(rows_, "rows", {-1});
+        const int64_t m = static_cast<int64_t>(rows.shape(0));
+        for (int64_t j = 0; j < m; ++j)
+            if (!(rows.data()[j] >= 0 && rows.data()[j] < n))
+                throw nb::value_error(("rows: " + std::to_string(rows.data()[j]) + " is outside the batch of " +
+                                       std::to_string(n) + " rows").c_str());
+        if (start.size() != 4 || reference.size() != 4)
+            throw nb::value_error("start, reference: expected (position, rotation, velocity, angular_velocity)");
+        const auto t = take<In>(start[0], "start position", {m, 3});
+        const auto R = take<In>(start[1], "start rotation", {m, 3, 3});
+        const auto v = take<In>(start[2], "start velocity", {m, 3});
+        const auto w = take<In>(start[3], "start angular_velocity", {m, 3});
+        const auto rt = take<In>(reference[0], "reference position", {m, 3});
+        const auto rR = take<In>(reference[1], "reference rotation", {m, 3, 3});
+        const auto rv = take<In>(reference[2], "reference velocity", {m, 3});
+        const auto rw = take<In>(reference[3], "reference angular_velocity", {m, 3});
+        In forces;
+        if (!leg_forces.is_none()) forces = take<In>(leg_forces, "leg_forces", {m, 6});
+        auto lengths = take<Out>(lengths_, "leg_lengths", {m, 6});
+        auto rates = take<Out>(rates_, "leg_rates", {m, 6});
+        auto condition = take<Out>(condition_, "condition", {m});
+        auto errors = take<Out>(errors_, "error_vectors", {4, m, 3});
+        auto norms = take<Out>(norms_, "error_norms", {4, m});
+        const env_step::Start S{t.data(), R.data(), v.data(), w.data(), forces.is_valid() ? forces.data() : nullptr,
+                                rt.data(), rR.data(), rv.data(), rw.data()};
+        env_step::reset_rows(b_, rows.data(), m, S,
+                             {lengths.data(), rates.data(), condition.data(), errors.data(), norms.data()});
+    }
+
     int64_t n_codes() const { return task_->n_codes(); }
     bool observes() const { return observation_ != nullptr; }
 
@@ -605,7 +645,13 @@ void def_env_kernels(nb::module_& m) {
         .def("step", &BatchStep::step, "action"_a, "drive"_a, "noise"_a.none(), "skip"_a.none(),
              "One control step of every row into the output record; returns 1 | 2 as a row's state "
              "stopped being finite | a row's observation or reward was not (the rows in bad), or "
-             "NOT_FINITE_ACTION (nothing done) for an action that is not finite.");
+             "NOT_FINITE_ACTION (nothing done) for an action that is not finite.")
+        .def("reset", &BatchStep::reset, "rows"_a, "start"_a, "leg_forces"_a.none(), "reference"_a,
+             "leg_lengths"_a, "leg_rates"_a, "condition"_a, "error_vectors"_a, "error_norms"_a,
+             "Start new episodes in rows (int64 (m,)): their start state, the leg forces that hold it (or None: "
+             "zeros) and the reference at t = 0, each of m rows; a zero clock, external wrench and applied action; "
+             "the rows' leg sensors and tracking errors at the start state, written into the batch and into the "
+             "last five arrays (m rows).");
 
     m.def("rotation_error_rows", [](In r, In c, Out phi, Out angle) {
         expect(c, "rotation", {-1, 3, 3});
@@ -754,6 +800,23 @@ void def_env_kernels(nb::module_& m) {
        "non_finite"_a.noconvert(), "lengths"_a.noconvert(), "rates"_a.noconvert(), "condition"_a.noconvert(),
        "One control step of the closed-form plant for every row: actuators, RK4 substeps, clock and non-finite "
        "check, leg sensors (env_step.hpp).  Returns whether any row stopped being finite.");
+
+    m.def("scale_parameter_rows", [](In nominal, In multipliers, InCodes part_of, Out out, Out largest) {
+        expect(nominal, "nominal_row", {kernels::N_PARAMS});
+        expect(multipliers, "multipliers", {-1, -1});
+        const int64_t m = static_cast<int64_t>(multipliers.shape(0));
+        const int64_t parts = static_cast<int64_t>(multipliers.shape(1));
+        expect(part_of, "part_of", {kernels::N_PARAMS});
+        for (int64_t c = 0; c < kernels::N_PARAMS; ++c)
+            if (!(part_of.data()[c] >= 0 && part_of.data()[c] < parts))
+                throw nb::value_error("part_of: expected indices of the multipliers' columns");
+        expect(out, "out", {m, kernels::N_PARAMS});
+        expect(largest, "largest", {m});
+        env_step::scale_parameter_rows(nominal.data(), multipliers.data(), parts, part_of.data(), kernels::N_PARAMS,
+                                       out.data(), largest.data(), m);
+    }, "nominal_row"_a, "multipliers"_a, "part_of"_a, "out"_a.noconvert(), "largest"_a.noconvert(),
+       "The packed rows of m randomised platforms: out[j, c] = multipliers[j, part_of[c]] * nominal_row[c], "
+       "and largest[j] the largest magnitude of row j (Randomization.scale_packed_rows).");
 
     m.def("pose_block", [](In t, In R, In v, In w, Out raw) {
         expect(t, "position", {-1, 3});

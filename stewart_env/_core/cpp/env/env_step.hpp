@@ -213,8 +213,9 @@ struct Batch {
     double* time;
     bool* non_finite;
     double *lengths, *rates, *condition;
-    // the reference (n, ...) and the tracking errors: vectors (4,n,3), norms (4,n)
-    const double *rt, *rR, *rv, *rw;
+    // the reference (n, ...; the step reads it, a reset writes its rows) and the tracking errors:
+    // vectors (4,n,3), norms (4,n)
+    double *rt, *rR, *rv, *rw;
     double *errors, *norms;
     // the task: its limits, reward weights, and whether each termination code is a failure
     task_kernels::Limits limits;
@@ -350,6 +351,83 @@ inline int64_t step(Batch& B, const double* action, bool drive, const double* no
         if (B.observe && bad[b]) found |= BAD_ROWS;
     }
     return found;
+}
+
+// The start of new episodes in m rows of the batch (envs/core.py PlatformBatch.reset_rows): row
+// rows[j] takes the j-th row of each of these (m rows each, C-contiguous).
+struct Start {
+    const double *t, *R, *v, *w;      // the start state
+    const double* F;                  // the leg forces (m,6) that hold it, or null: none (no actuator lag)
+    const double *rt, *rR, *rv, *rw;  // the reference at t = 0
+};
+
+// What reset_rows measures of the m rows at their start (m rows each): the leg lengths (m,6),
+// rates (m,6) and condition numbers (m,), the tracking errors (4,m,3) and their norms (4,m).
+struct StartSensors {
+    double *lengths, *rates, *condition, *errors, *norms;
+};
+
+// Start rows rows[0 .. m - 1] (each in [0, n)): measure the leg sensors (of the nominal
+// parameters) and the tracking errors of the start state S into out, the m rows as one batch
+// (kernels::leg_sensors_row over lanes::for_rows, task_kernels::tracking_errors: the numbers of
+// kernels::leg_sensors_batch and of the step); then write into each row of the batch its state, a
+// zero clock, external wrench and applied action, its leg forces and reference, and those sensors
+// and errors.  The first observation is the observation pipeline's (it draws the noise).
+inline void reset_rows(const Batch& B, const int64_t* rows, int64_t m, const Start& S, const StartSensors& out) {
+    const int64_t n = B.n;
+    const kernels::ParamRows sensor_prm(B.c.sensor_prm, B.c.n_sensor_prm, m);
+    lanes::for_rows(m, 1, [&](int64_t b, auto tag) {
+        kernels::leg_sensors_row<decltype(tag)>(sensor_prm, S.t, S.R, S.v, S.w, B.c.max_condition, out.lengths,
+                                                out.rates, out.condition, b);
+    });
+    double* e = out.errors;
+    task_kernels::tracking_errors(S.t, S.R, S.v, S.w, S.rt, S.rR, S.rv, S.rw, e, e + 3 * m, e + 6 * m, e + 9 * m,
+                                  out.norms, 1, m, m);
+    for (int64_t j = 0; j < m; ++j) {
+        const int64_t r = rows[j];
+        std::memcpy(B.s.t + 3 * r, S.t + 3 * j, sizeof(double) * 3);
+        std::memcpy(B.s.R + 9 * r, S.R + 9 * j, sizeof(double) * 9);
+        std::memcpy(B.s.v + 3 * r, S.v + 3 * j, sizeof(double) * 3);
+        std::memcpy(B.s.w + 3 * r, S.w + 3 * j, sizeof(double) * 3);
+        B.steps[r] = 0;
+        B.time[r] = 0.0;
+        for (int k = 0; k < 6; ++k) {
+            B.W[6 * r + k] = 0.0;
+            B.clipped[6 * r + k] = 0.0;
+            B.F[6 * r + k] = S.F != nullptr ? S.F[6 * j + k] : 0.0;
+        }
+        std::memcpy(B.rt + 3 * r, S.rt + 3 * j, sizeof(double) * 3);
+        std::memcpy(B.rR + 9 * r, S.rR + 9 * j, sizeof(double) * 9);
+        std::memcpy(B.rv + 3 * r, S.rv + 3 * j, sizeof(double) * 3);
+        std::memcpy(B.rw + 3 * r, S.rw + 3 * j, sizeof(double) * 3);
+        std::memcpy(B.lengths + 6 * r, out.lengths + 6 * j, sizeof(double) * 6);
+        std::memcpy(B.rates + 6 * r, out.rates + 6 * j, sizeof(double) * 6);
+        B.condition[r] = out.condition[j];
+        for (int term = 0; term < 4; ++term) {
+            std::memcpy(B.errors + 3 * (term * n + r), e + 3 * (term * m + j), sizeof(double) * 3);
+            B.norms[term * n + r] = out.norms[term * m + j];
+        }
+    }
+}
+
+// The packed parameters of m randomised rows (randomization.Randomization.scale_packed_rows): entry
+// c of row j is multipliers[j, part_of[c]] times nominal[c] (multipliers (m, parts), part_of (N,) in
+// [0, parts); one multiplication, as numpy's), and largest[j] the largest magnitude in row j.
+inline void scale_parameter_rows(const double* nominal, const double* multipliers, int64_t parts,
+                                 const int64_t* part_of, int64_t n_params, double* out, double* largest, int64_t m) {
+    for (int64_t j = 0; j < m; ++j) {
+        const double* f = multipliers + parts * j;
+        double* o = out + n_params * j;
+        double most = 0.0;
+        for (int64_t c = 0; c < n_params; ++c) {
+            o[c] = f[part_of[c]] * nominal[c];
+            // a plain comparison, not std::fmax's call: finite factors and parameters give no
+            // NaN, and an overflow to inf is the largest
+            const double size = std::fabs(o[c]);
+            most = size > most ? size : most;
+        }
+        largest[j] = most;
+    }
 }
 
 }  // namespace env_step
