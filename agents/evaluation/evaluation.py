@@ -481,7 +481,7 @@ def markdown_table(results: Sequence[EvaluationResult]) -> str:
     """A markdown table of the mean metrics of each result (one row per result), with the count
     of episodes ended early and their most common reason (``ended_early``) after the success
     rate: a controller that loses the platform at once has no overshoot to show, but shows here;
-    the cost rate and the limit hits (:data:`COST_RATE`, :data:`LIMIT_HITS`) end the row.
+    the cost rate and the limit hits (the columns "cost rate" and "limit hits (steps)") end the row.
 
     Args:
         results: the evaluations, one row each.

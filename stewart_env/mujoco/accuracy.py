@@ -260,7 +260,7 @@ def reflected_mass_error(params: PlatformParams, seed: int = 0) -> tuple[float, 
 
     At the pose of :func:`acceleration_error`, at rest: MuJoCo's joint-space mass matrix M_q
     projected on the platform's twist [v; omega] ({B}) by G, the joint rates of each unit twist
-    (inverse kinematics, :meth:`Twin.set_state`), G^T M_q G; the closed form's matrix is column by
+    (inverse kinematics, the twin's ``set_state``), G^T M_q G; the closed form's matrix is column by
     column J^T (F(e_k) - F(0)), F the drive forces of ``inverse_reflected_batch`` at zero twist
     and no gravity's change (it cancels in the difference).
 
