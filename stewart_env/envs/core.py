@@ -117,12 +117,6 @@ class PlatformBatch:
         if self.randomization is not None:
             # One parameter row per platform, each set at its reset from the nominal packed row.
             self._model = self.nominal_model.with_params([self.platform] * self.n)
-        self.plant: Plant = make_plant(physics, self._model, self.n)
-        self.actuator_tau = config.actuator.actuator_tau
-        self._lag = config.actuator.lag(self.control_dt)
-        lo, hi = self.platform.limits.leg_force
-        self._force_mid = 0.5 * (lo + hi)
-        self._force_half = 0.5 * (hi - lo)
         # the action mode's inner loop and the actuator at the physics rate, or None: the forces
         # of the action (through the lag) held over the control step
         self.actuation: Actuation | None = None
@@ -135,6 +129,12 @@ class PlatformBatch:
                     f"actuator={config.actuator.actuator!r})",
                 )
             self.actuation = Actuation(config.actuator, self.platform, self.nominal_model, self.n)
+        self.plant: Plant = make_plant(physics, self._model, self.n)
+        self.actuator_tau = config.actuator.actuator_tau
+        self._lag = config.actuator.lag(self.control_dt)
+        lo, hi = self.platform.limits.leg_force
+        self._force_mid = 0.5 * (lo + hi)
+        self._force_half = 0.5 * (hi - lo)
 
     def _init_task(self, config: EnvConfig) -> None:
         self.task = task = make_task(
