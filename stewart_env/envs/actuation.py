@@ -5,7 +5,7 @@ When the action is not a leg force held over the control step (``action_mode="le
 ``"hydraulic"``), the compiled step runs, per RK4 substep, the leg sensors, the inner loop that
 turns the action's set point into leg-force set points, the actuator that turns those into the
 forces the legs feel, and the dynamics with the electric drive's reflected masses
-(``stewart_env/_core/cpp/env/actuation.hpp``; docs/physics.md section 10.7).  :class:`Actuation`
+(``stewart_env/_core/cpp/env/actuation.hpp``; docs/physics.md section 10.8).  :class:`Actuation`
 gathers what that step reads from the platform and the arguments, holds the actuators' state
 (n, 6, 3) and sets it at a reset; :meth:`Actuation.record` is its part of the compiled step.
 """

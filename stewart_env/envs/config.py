@@ -251,7 +251,7 @@ class ActuatorConfig(_Record):
     action_mode: str = _argument(
         "force",
         '`"force"` (six leg-force set points over `limits.leg_force`, N), `"leg_length"` (six leg-length set '
-        'points over the stroke `limits.leg_length`, m, each tracked by a leg servo at the physics rate) or '
+        "points over the stroke `limits.leg_length`, m, each tracked by a leg servo at the physics rate) or "
         '`"pose"` (a pose set point over the workspace box `limits.position_min`..`position_max`, m, and '
         "`home_rpy` +- `max_angle`, rad, tracked at the physics rate by `pose_law`); see Action Space",
     )

@@ -90,7 +90,9 @@ def test_every_mode_and_actuator_passes_sb3_check_env(kwargs):
 
 
 def _vector_run(kwargs, mode, num_envs=3, steps=40, seed=3):
-    envs = gym.make_vec(ENV_ID, num_envs=num_envs, vectorization_mode="vector_entry_point", max_episode_steps=15, **kwargs)
+    envs = gym.make_vec(
+        ENV_ID, num_envs=num_envs, vectorization_mode="vector_entry_point", max_episode_steps=15, **kwargs
+    )
     core = envs.unwrapped._core
     core.set_step_mode(mode)
     rng = np.random.default_rng(1)

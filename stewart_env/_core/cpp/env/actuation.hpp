@@ -1,4 +1,4 @@
-// The environment's actuation at the physics rate (docs/physics.md section 10.7): what turns the
+// The environment's actuation at the physics rate (docs/physics.md section 10.8): what turns the
 // policy's action into the leg forces the dynamics holds over each RK4 substep, when the action is
 // not a leg force applied directly (action_mode "leg_length" or "pose") or the actuator is a drive
 // with states of its own (actuator "electric" or "hydraulic").  Per substep of a row: the leg
@@ -119,7 +119,7 @@ inline void set_point(const Actuation& A, double force_half, double force_mid, c
 // the task-space PD law with gravity compensation (laws::pd_control_law); computed torque
 // F = inverse dynamics at a = K_p e - K_d [v; w] (e: the position error and the rotation vector of
 // R_ref R^T), the reflected masses' forces included.  All on the nominal model.  Clipped to the
-// leg-force range.  docs/physics.md section 10.7.
+// leg-force range.  docs/physics.md section 10.8.
 inline void inner_loop(const Actuation& A, const double* nominal, const SetPoint& sp, const double* t,
                        const double* R, const double* v, const double* w, const double* L, const double* Ldot,
                        double* f) {
@@ -148,7 +148,7 @@ inline void inner_loop(const Actuation& A, const double* nominal, const SetPoint
 // F (6,) the legs feel, N.  ideal: F = f; lag: F += lag (f - F); electric: the current set point
 // f / (eta k K_t) through the current loop (actuators::electric_leg); hydraulic: a force loop
 // onto the valve, spool command force_gain (f - (P_A A_A - P_B A_B)), through the spool and the
-// chambers (actuators::hydraulic_leg).  state (6, STATES).  docs/physics.md section 10.7.
+// chambers (actuators::hydraulic_leg).  state (6, STATES).  docs/physics.md section 10.8.
 inline void drive_legs(const Actuation& A, double dt, const double* f, const double* L, const double* Ldot,
                        double* state, double* F) {
     for (int i = 0; i < 6; ++i) {
@@ -175,7 +175,7 @@ inline void drive_legs(const Actuation& A, double dt, const double* f, const dou
 // One control step's physics of row r: its set point from the applied action a (6,), then per
 // substep the leg sensors, the inner loop, the actuators and one RK4 step of physics_dt with the
 // row's forces F (n,6) and wrench W (n,6) held.  prm: the plant's parameter rows; nominal the
-// nominal model's row; (t, R, v, w) the batch's state arrays.  docs/physics.md section 10.7.
+// nominal model's row; (t, R, v, w) the batch's state arrays.  docs/physics.md section 10.8.
 inline void step_row(const Actuation& A, const kernels::ParamRows& prm, int64_t flags, const double* nominal,
                      double force_half, double force_mid, double physics_dt, int64_t substeps, const double* a,
                      double* F, const double* W, double* t, double* R, double* v, double* w, int64_t n, int64_t r) {
