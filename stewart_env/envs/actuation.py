@@ -22,6 +22,7 @@ from stewart_env.dynamics import Dynamics
 from stewart_env.envs.config import ACTION_MODES, ACTUATORS, DRIVES, POSE_LAWS, ActuatorConfig
 from stewart_env.errors import UsageError
 from stewart_env.params import PlatformParams
+from stewart_env.rotations import matrix_to_rpy
 
 __all__ = ["SERVO_BANDWIDTH", "SERVO_DAMPING_RATIO", "Actuation"]
 
@@ -164,6 +165,20 @@ class Actuation:
         elif self._hydraulic is not None:
             self._hydraulic.reset(rows, force=holding)
             self.state[rows] = self._hydraulic.state[rows]
+
+    def pose_command(self, position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+        """The pose mode's action that commands a pose: (position, roll-pitch-yaw) normalised
+        over the workspace box and the angles' range (the inverse of the mode's map).
+
+        Args:
+            position: (3,) the pose's position of P in {B}, m.
+            rotation: (3, 3) its rotation.
+
+        Returns:
+            The (6,) action (outside [-1, 1] where the pose is outside the ranges).
+        """
+        pose = np.concatenate([np.asarray(position, dtype=np.float64), matrix_to_rpy(np.asarray(rotation))])
+        return (pose - self.pose_mid) / self.pose_half
 
     def record(self, physics_dt: float) -> _core.ActuationRecord:
         """The actuation's part of the compiled step, holding :attr:`state`.
