@@ -172,30 +172,21 @@ inline void drive_legs(const Actuation& A, double dt, const double* f, const dou
     }
 }
 
-// One control step's physics of row r: its set point from the applied action a (6,), then per
-// substep the leg sensors, the inner loop, the actuators and one RK4 step of physics_dt with the
-// row's forces F (n,6) and wrench W (n,6) held.  prm: the plant's parameter rows; nominal the
-// nominal model's row; (t, R, v, w) the batch's state arrays.  docs/physics.md section 10.8.
-inline void step_row(const Actuation& A, const kernels::ParamRows& prm, int64_t flags, const double* nominal,
-                     double force_half, double force_mid, double physics_dt, int64_t substeps, const double* a,
-                     double* F, const double* W, double* t, double* R, double* v, double* w, int64_t n, int64_t r) {
-    SetPoint sp;
-    set_point(A, force_half, force_mid, nominal, a, sp);
-    double* state = A.state + 6 * STATES * r;
-    double* Fr = F + 6 * r;
+// The forces of row r for its next physics step: the leg sensors of the nominal model at the
+// row's state, the inner loop towards the set point sp, the actuators (their state advanced by
+// dt) into the row's forces F (n,6).  nominal: the nominal model's row; (t, R, v, w) the batch's
+// state arrays.  docs/physics.md section 10.8.
+inline void substep_forces(const Actuation& A, const double* nominal, const SetPoint& sp, double dt, double* F,
+                           const double* t, const double* R, const double* v, const double* w, int64_t r) {
+    const double *tr = t + 3 * r, *Rr = R + 9 * r, *vr = v + 3 * r, *wr = w + 3 * r;
     double L[6], Ldot[6], f[6];
-    for (int64_t k = 0; k < substeps; ++k) {
-        const double *tr = t + 3 * r, *Rr = R + 9 * r, *vr = v + 3 * r, *wr = w + 3 * r;
-        for (int i = 0; i < 6; ++i) {
-            const auto leg = kernels::leg_state<double>(nominal, i, 0, tr, Rr, vr, wr);
-            L[i] = leg.frame.L;
-            Ldot[i] = leg.Ldot;
-        }
-        inner_loop(A, nominal, sp, tr, Rr, vr, wr, L, Ldot, f);
-        drive_legs(A, physics_dt, f, L, Ldot, state, Fr);
-        rk4::rollout_row<double>(prm, flags, t, R, v, w, nullptr, F, n, 6, W, 0.0, physics_dt, 1, 0, nullptr, r,
-                                 A.reflected ? A.m_r : nullptr);
+    for (int i = 0; i < 6; ++i) {
+        const auto leg = kernels::leg_state<double>(nominal, i, 0, tr, Rr, vr, wr);
+        L[i] = leg.frame.L;
+        Ldot[i] = leg.Ldot;
     }
+    inner_loop(A, nominal, sp, tr, Rr, vr, wr, L, Ldot, f);
+    drive_legs(A, dt, f, L, Ldot, A.state + 6 * STATES * r, F + 6 * r);
 }
 
 }  // namespace actuation

@@ -118,13 +118,22 @@ inline void control_rows(const ControlStep& c, const kernels::ParamRows& prm, co
     const int64_t rows = lanes::width<T>;
     const State from{s.t + 3 * b, s.R + 9 * b, s.v + 3 * b, s.w + 3 * b};
     if (c.act != nullptr) {
-        // the actuation at the physics rate, row by row: its inner loops are scalar laws
+        // the actuation at the physics rate (actuation.hpp): per physics step, the inner loops and
+        // the drives row by row (scalar laws), then one RK4 step of the block in the lanes
+        const actuation::Actuation& A = *c.act;
         if (c.drive) clip_action(action + 6 * b, clipped + 6 * b, rows);
         copy_state(from, {start.t + 3 * b, start.R + 9 * b, start.v + 3 * b, start.w + 3 * b}, rows);
-        for (int64_t r = b; r < b + rows; ++r)
-            actuation::step_row(*c.act, prm, c.flags, kernels::params_row(c.sensor_prm, c.n_sensor_prm, r),
-                                c.force_half, c.force_mid, c.physics_dt, c.substeps, clipped + 6 * r, F, W, s.t, s.R,
-                                s.v, s.w, n, r);
+        actuation::SetPoint sp[lanes::width<T>];
+        for (int64_t j = 0; j < rows; ++j)
+            actuation::set_point(A, c.force_half, c.force_mid, kernels::params_row(c.sensor_prm, c.n_sensor_prm, b + j),
+                                 clipped + 6 * (b + j), sp[j]);
+        for (int64_t k = 0; k < c.substeps; ++k) {
+            for (int64_t j = 0; j < rows; ++j)
+                actuation::substep_forces(A, kernels::params_row(c.sensor_prm, c.n_sensor_prm, b + j), sp[j],
+                                          c.physics_dt, F, s.t, s.R, s.v, s.w, b + j);
+            rk4::rollout_row<T>(prm, c.flags, s.t, s.R, s.v, s.w, nullptr, F, n, 6, W, 0.0, c.physics_dt, 1, 0,
+                                nullptr, b, A.reflected ? A.m_r : nullptr);
+        }
     } else {
         if (c.drive) drive(action + 6 * b, c.force_half, c.force_mid, c.lag, clipped + 6 * b, F + 6 * b, rows);
         copy_state(from, {start.t + 3 * b, start.R + 9 * b, start.v + 3 * b, start.w + 3 * b}, rows);
