@@ -344,12 +344,12 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     | `task_options` | `None` | dict of the task's options, its reward weights included (see Starting State, Rewards and `stewart_env.tasks`) |
     | `version` | `1` | the environment's version, 0 to 1, set by the id `StewartPlatform-v<version>`: its tasks' defaults (see Version History) |
     | `actuator_tau` | `0.0` | s, first-order actuator lag time constant, 0 to 100; 0 applies the commanded forces directly |
-    | `terminate_on` | `('leg_length', 'workspace')` | the constraints that end an episode, a tuple of the platform's: `'leg_length'`, `'leg_velocity'`, `'leg_acceleration'`, `'leg_force'`, `'force_rate'`, `'universal_joint'`, `'spherical_joint'`, `'workspace'` (see Constraint Costs); `()` for none |
-    | `action_delay` | `0` | control steps between the action and the actuators, 0 to 1000 (see Constraint Costs) |
     | `action_mode` | `"force"` | `"force"` (six leg-force set points over `limits.leg_force`, N), `"leg_length"` (six leg-length set points over the stroke `limits.leg_length`, m, each tracked by a leg servo at the physics rate) or `"pose"` (a pose set point over the workspace box `limits.position_min`..`position_max`, m, and `home_rpy` +- `max_angle`, rad, tracked at the physics rate by `pose_law`); see Action Space |
     | `pose_law` | `"ik"` | the pose mode's inner loop: `"ik"` (inverse kinematics into the leg servos), `"pd_gravity"` (task-space PD with gravity compensation) or `"computed_torque"`, on the nominal model |
     | `actuator` | `None` | `"ideal"` (a force source), `"lag"` (first-order lag of `actuator_tau`), `"electric"` (motor and ball screw) or `"hydraulic"` (valve-controlled cylinder), the last two from the platform's `actuators:` section; None: `"lag"` when `actuator_tau` > 0, else `"ideal"` |
     | `observe_actuators` | `False` | append the states a drive reports to the observation: motor currents (electric, over the current limit) or chamber pressures A and B (hydraulic, over the supply-return span) |
+    | `terminate_on` | `('leg_length', 'workspace')` | the constraints that end an episode, a tuple of the platform's: `'leg_length'`, `'leg_velocity'`, `'leg_acceleration'`, `'leg_force'`, `'force_rate'`, `'universal_joint'`, `'spherical_joint'`, `'workspace'` (see Constraint Costs); `()` for none |
+    | `action_delay` | `0` | control steps between the action and the actuators, 0 to 1000 (see Constraint Costs) |
     | `observation_mode` | `"pose"` | `"pose"` (pose and twist) or `"sensors"` (leg lengths and rates) |
     | `normalize_observation` | `True` | scale the observation by the platform's limits (see Observation Space) |
     | `observation_noise` | `0.0` | Gaussian noise std in observation units, 0 to 100: a number, or a dict term name -> std |
