@@ -127,7 +127,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     | `pose_law` | the leg-force set points f (N) at each physics step |
     |---|---|
-    | (leg_length mode) and `"ik"` | leg servo per leg, f_i = K_p (l_ref,i - l_i) - K_d l_dot_i + the holding forces of the current pose; in pose mode l_ref by the inverse kinematics of the pose set point |
+    | (leg_length mode) and `"ik"` | leg servo per leg, f_i = K_p (l_ref,i - l_i) - K_d l_dot_i + the forces holding at rest the commanded pose (ik) or the pose at the control step's start (leg_length); in pose mode l_ref by the inverse kinematics of the pose set point |
     | `"pd_gravity"` | task-space PD with gravity compensation, f = J^-T (K_p e + K_d e_dot) + holding forces (paper eq. 56; e the pose error, rpy angles) |
     | `"computed_torque"` | f = inverse dynamics at the acceleration K_p e - K_d [v; w] (e: position error and rotation vector of R_ref R^T), the reflected masses included |
 

@@ -71,21 +71,27 @@ inline void rpy_to_matrix(const double* rpy, double* R) {
 //: A row's set point for a control step, from its applied action.
 struct SetPoint {
     double target[6];  // force: leg-force set points, N; leg_length and pose ik: leg lengths, m
+    double hold[6];    // leg_length and pose ik: the leg servos' feedforward, N
     double t[3], R[9];  // pose: the platform's pose set point
     double pd[laws::PD_N_PARAMS];  // pose pd_gravity: the compiled PD law's parameter row
 };
 
 // The set point of action a (6,) in [-1, 1]: force a half + mid N; leg lengths over the stroke;
 // a pose over the workspace box and the angles' range, into leg lengths by the nominal model's
-// inverse kinematics (ik) or into the PD law's row (pd_gravity).  nominal: the nominal model's row.
+// inverse kinematics (ik) or into the PD law's row (pd_gravity).  The leg servos' feedforward: the
+// forces that hold the commanded pose at rest (ik), or the row's pose (t, R) at the control step's
+// start (leg_length, whose commanded pose is not known), so that either holds its set point
+// without a steady error.  nominal: the nominal model's row.
 inline void set_point(const Actuation& A, double force_half, double force_mid, const double* nominal,
-                      const double* a, SetPoint& sp) {
+                      const double* a, const double* t, const double* R, SetPoint& sp) {
+    static const double zero[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
     if (A.mode == FORCE) {
         for (int i = 0; i < 6; ++i) sp.target[i] = a[i] * force_half + force_mid;
         return;
     }
     if (A.mode == LEG_LENGTH) {
         for (int i = 0; i < 6; ++i) sp.target[i] = A.length_mid + a[i] * A.length_half;
+        rk4::law_inverse_dynamics(nominal, A.nominal_flags, t, R, zero, zero, zero, zero, sp.hold);
         return;
     }
     double pose[6];
@@ -95,6 +101,7 @@ inline void set_point(const Actuation& A, double force_half, double force_mid, c
     if (A.law == IK) {
         // the inverse kinematics of the package (paper eq. 7): the legs' lengths at the pose
         for (int i = 0; i < 6; ++i) sp.target[i] = kernels::leg_frame<double>(nominal, i, sp.t, sp.R).L;
+        rk4::law_inverse_dynamics(nominal, A.nominal_flags, sp.t, sp.R, zero, zero, zero, zero, sp.hold);
     } else if (A.law == PD_GRAVITY) {
         double* p = sp.pd;
         for (int j = 0; j < 6; ++j) {
@@ -115,7 +122,7 @@ inline void set_point(const Actuation& A, double force_half, double force_mid, c
 
 // The inner loop's leg-force set points f (6,), N, at a substep's state (t, R, v, w) with the
 // legs' lengths L and rates Ldot: the set point itself (force); the leg servo
-// K_p (l_ref - L) - K_d Ldot plus the holding forces of the current pose (leg_length, pose ik);
+// K_p (l_ref - L) - K_d Ldot plus the set point's feedforward (leg_length, pose ik);
 // the task-space PD law with gravity compensation (laws::pd_control_law); computed torque
 // F = inverse dynamics at a = K_p e - K_d [v; w] (e: the position error and the rotation vector of
 // R_ref R^T), the reflected masses' forces included.  All on the nominal model.  Clipped to the
@@ -127,8 +134,7 @@ inline void inner_loop(const Actuation& A, const double* nominal, const SetPoint
     if (A.mode == FORCE) {
         for (int i = 0; i < 6; ++i) f[i] = sp.target[i];
     } else if (A.mode == LEG_LENGTH || A.law == IK) {
-        rk4::law_inverse_dynamics(nominal, A.nominal_flags, t, R, zero, zero, zero, zero, f);
-        for (int i = 0; i < 6; ++i) f[i] += A.servo_kp * (sp.target[i] - L[i]) - A.servo_kd * Ldot[i];
+        for (int i = 0; i < 6; ++i) f[i] = sp.hold[i] + A.servo_kp * (sp.target[i] - L[i]) - A.servo_kd * Ldot[i];
     } else if (A.law == PD_GRAVITY) {
         laws::pd_control_law(0.0, t, R, v, w, sp.pd, laws::PD_N_PARAMS, f);
     } else {
