@@ -100,7 +100,7 @@ class PlatformBatch:
         if self.actuation is not None and self.actuation.report is not None:
             report = (*self.actuation.report, self.actuation.reported)
         self.observations = ObservationPipeline(
-            config.observation, self.platform, self.task, self.actuator_tau > 0, self.control_dt, n, report
+            config.observation, self.platform, self.task, config.actuator.actuator == "lag", self.control_dt, n, report
         )
         self._observation32 = np.zeros((n, self.observations.dim), dtype=np.float32)
         self._views()

@@ -105,7 +105,14 @@ def _vector_run(kwargs, mode, num_envs=3, steps=40, seed=3):
     return out, core
 
 
-@pytest.mark.parametrize("kwargs", COMBOS, ids=IDS)
+RANDOMIZED = {"randomization": {"mass": (0.8, 1.2)}, "observation_noise": {"actuator_states": 0.01}}
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [*COMBOS, {**COMBOS[10], **RANDOMIZED}, {**COMBOS[19], **RANDOMIZED}],
+    ids=[*IDS, "randomized-electric", "randomized-hydraulic"],
+)
 def test_the_fused_step_is_the_step_of_parts_bit_for_bit(kwargs):
     fused, core = _vector_run(kwargs, "fused")
     assert core.fused
@@ -296,6 +303,7 @@ def test_drives_start_at_equilibrium_and_are_observed(actuator):
         ({"actuator": "pneumatic"}, r"^actuator: expected one of 'ideal', 'lag', 'electric', 'hydraulic'"),
         ({"actuator": "lag"}, r'^actuator_tau: must be > 0 for actuator="lag"'),
         ({"observe_actuators": True}, r"^observe_actuators: the 'ideal' actuator reports no state"),
+        ({"actuator": "ideal", "actuator_tau": 0.1, "observation_noise": {"leg_forces": 0.1}}, r"leg_forces"),
         ({"actuator": "electric"}, r"^actuator: the platform 'dasgupta1998' has no 'electric' set"),
         ({"action_mode": "pose", "plant": "mujoco"}, r"^action_mode: the 'mujoco' plant takes leg forces only"),
     ],
