@@ -33,7 +33,7 @@ def _timed(step, seconds: float, batch: int = 64) -> tuple[int, float, float]:
 
 def held_env(**kwargs) -> tuple[gym.Env, np.ndarray]:
     """``gymnasium.make("StewartPlatform-v1", **kwargs)`` reset with seed 0, and the float32 action
-    that holds the platform at that start pose.  Held so, the open-loop platform drifts off slowly:
+    that holds the platform at that start pose (in the pose mode, the start pose commanded).  Held so, the open-loop platform drifts off slowly:
     an episode runs for hundreds of steps, so a timing loop times steps, not resets.
 
     Args:
@@ -42,6 +42,10 @@ def held_env(**kwargs) -> tuple[gym.Env, np.ndarray]:
     env = gym.make(ENV_ID, **kwargs)
     env.reset(seed=0)
     state = env.unwrapped.state
+    if kwargs.get("action_mode") == "pose":
+        # the pose mode's inner loop holds the start pose commanded
+        action = env.unwrapped._core.actuation.pose_command(state.position, state.rotation)
+        return env, action.astype(np.float32)
     return env, holding_action(env, state.position, state.rotation).astype(np.float32)
 
 

@@ -31,9 +31,12 @@ def bench_mujoco(
       ``step_env`` (``StewartPlatform-v1`` through ``gymnasium.make``, the set-point task from its
       fixed start held by its holding forces), ``step_env_mujoco`` (the same env with
       ``model="mujoco"``),
-      ``step_rollout`` (``rollout_inplace``, N = 1), ``step_workspace`` (``Workspace.step``);
+      ``step_rollout`` (``rollout_inplace``, N = 1), ``step_workspace`` (``Workspace.step``),
+      ``step_env_pose_electric`` (the env in the pose mode, ``"ik"`` law, on the electric actuator:
+      the inner loop and the drive at every RK4 step; None for a platform without an electric set);
     * the same step for ``n_batch`` platforms, per platform: ``batch_mujoco`` (``mujoco.rollout``
-      on every core), ``batch_vector_env`` (the native vector env), ``batch_rollout``
+      on every core), ``batch_vector_env`` (the native vector env), ``batch_vector_env_pose_electric``
+      (the same in the pose mode on the electric actuator, or None), ``batch_rollout``
       (``rollout_inplace``, N = ``n_batch``);
     * ``reset_randomized`` and ``reset_nominal``: ``reset()`` of the vector env of ``n_batch``
       rows, per row, with :data:`~stewart_env.benchmarks.envs.RESET_RANDOMIZATION` and without.
@@ -120,6 +123,10 @@ def bench_mujoco(
     env_kwargs = dict(task_options={"randomize": False}, platform=params, control_dt=dt * substeps, physics_dt=dt)
     env, env_action = held_env(**env_kwargs)
     mj_env, mj_env_action = held_env(model="mujoco", **env_kwargs)
+    # the pose mode on the electric actuator, where the platform has an electric set
+    actuated_kwargs = dict(env_kwargs, action_mode="pose", actuator="electric")
+    actuated = params.actuators.electric is not None
+    pose_env, pose_action = held_env(**actuated_kwargs) if actuated else (None, None)
 
     def back_to_start():
         # the platform at rest under its holding forces is an unstable equilibrium: the rounding
@@ -132,6 +139,8 @@ def bench_mujoco(
         ws.set_state(t, R, z, z)
         env.reset(seed=0)
         mj_env.reset(seed=0)
+        if actuated:
+            pose_env.reset(seed=0)
 
     out.update(
         _per_call(
@@ -142,6 +151,7 @@ def bench_mujoco(
                 "step_workspace": lambda: ws.step(dt, substeps),
                 "step_env": lambda: env.step(env_action),
                 "step_env_mujoco": lambda: mj_env.step(mj_env_action),
+                **({"step_env_pose_electric": lambda: pose_env.step(pose_action)} if actuated else {}),
             },
             step_calls,
             repeats,
@@ -151,6 +161,9 @@ def bench_mujoco(
     )
     env.close()
     mj_env.close()
+    out.setdefault("step_env_pose_electric", None)
+    if actuated:
+        pose_env.close()
     bar.update()
 
     # the batch: MuJoCo's threaded rollout of n_batch platforms from the same state, open loop
@@ -167,19 +180,34 @@ def bench_mujoco(
     venv = gym.make_vec(ENV_ID, num_envs=n_batch, vectorization_mode="vector_entry_point", **env_kwargs)
     venv_actions = np.tile(env_action, (n_batch, 1))
     venv.reset(seed=0)
+    pose_venv = None
+    if actuated:
+        pose_venv = gym.make_vec(ENV_ID, num_envs=n_batch, vectorization_mode="vector_entry_point", **actuated_kwargs)
+        pose_venv_actions = np.tile(pose_action, (n_batch, 1))
+        pose_venv.reset(seed=0)
+
+    def reset_vector_envs():
+        venv.reset(seed=0)
+        if pose_venv is not None:
+            pose_venv.reset(seed=0)
+
     with mujoco_rollout.Rollout(nthread=nthread) as pool:
         batch = _per_call(
             {
                 "batch_mujoco": lambda: pool.rollout(m, datas, initial, control, state=states),
                 "batch_rollout": lambda: rollout_inplace(model, bt, bR, bv, bw, bF, bW, dt, substeps),
                 "batch_vector_env": lambda: venv.step(venv_actions),
+                **({"batch_vector_env_pose_electric": lambda: pose_venv.step(pose_venv_actions)} if actuated else {}),
             },
             1,
             repeats,
-            reset=lambda: venv.reset(seed=0),
+            reset=reset_vector_envs,
         )
     venv.close()
-    out.update({name: seconds / n_batch for name, seconds in batch.items()})
+    if pose_venv is not None:
+        pose_venv.close()
+    batch.setdefault("batch_vector_env_pose_electric", None)
+    out.update({name: None if seconds is None else seconds / n_batch for name, seconds in batch.items()})
     bar.update(2)
 
     bar.update(3)

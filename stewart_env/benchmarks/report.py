@@ -50,6 +50,7 @@ def mujoco_table(r: dict) -> str:
             r["step_mujoco"],
             [
                 ("env.step (gymnasium.make)", r["step_env"]),
+                ('env.step (action_mode="pose", actuator="electric")', r["step_env_pose_electric"]),
                 ("Workspace.step", r["step_workspace"]),
                 ("rollout_inplace", r["step_rollout"]),
             ],
@@ -70,7 +71,11 @@ def mujoco_table(r: dict) -> str:
             f"{step}, {r['n_batch']} platforms, per platform",
             "mujoco.rollout",
             r["batch_mujoco"],
-            [("vector env step", r["batch_vector_env"]), ("rollout_inplace", r["batch_rollout"])],
+            [
+                ("vector env step", r["batch_vector_env"]),
+                ("vector env step (pose, electric)", r["batch_vector_env_pose_electric"]),
+                ("rollout_inplace", r["batch_rollout"]),
+            ],
         ),
     ]
     lines = [
@@ -81,6 +86,8 @@ def mujoco_table(r: dict) -> str:
     ]
     for what, theirs_name, theirs, ours in rows:
         for name, value in ours:
+            if value is None:  # not measured (the pose mode's electric rows need the platform's electric set)
+                continue
             lines.append(f"| {what} | {theirs_name} | {us(theirs)} | {name} | {us(value)} | {ratio(value, theirs)} |")
     lines.append(
         f"| vector env reset, {r['n_batch']} rows, per row | | | randomised / nominal "

@@ -34,7 +34,10 @@ if TYPE_CHECKING:
     from stewart_env.tasks import Task
 
 __all__ = [
+    "ACTION_MODES",
+    "ACTUATORS",
     "PLANTS",
+    "POSE_LAWS",
     "RECORDS",
     "ActuatorConfig",
     "ConstraintConfig",
@@ -225,16 +228,70 @@ class TaskConfig(_Record):
         self._set("version", integer("version", self.version, 0, CURRENT_VERSION))
 
 
+#: What the action commands (the ``action_mode`` argument): leg forces, leg lengths, a platform pose.
+ACTION_MODES = ("force", "leg_length", "pose")
+#: The inner loops of the pose mode (the ``pose_law`` argument), in the compiled step's order.
+POSE_LAWS = ("ik", "pd_gravity", "computed_torque")
+#: The actuator models (the ``actuator`` argument), in the compiled step's order.
+ACTUATORS = ("ideal", "lag", "electric", "hydraulic")
+#: The drives whose parameters come from the platform's ``actuators:`` section.
+DRIVES = ("electric", "hydraulic")
+
+
 @dataclass(frozen=True)
 class ActuatorConfig(_Record):
-    """The legs' actuators."""
+    """The legs' actuators and what the action commands.  ``actuator`` is kept resolved: None
+    becomes ``"lag"`` when ``actuator_tau > 0``, else ``"ideal"``.  Derived: ``physics_rate``,
+    whether the actuation runs at the physics rate in the compiled step (a mode other than force,
+    or a drive with states of its own) rather than as forces held over the control step."""
 
     actuator_tau: float = _argument(
         0.0, "s, first-order actuator lag time constant, 0 to 100; 0 applies the commanded forces directly"
     )
+    action_mode: str = _argument(
+        "force",
+        '`"force"` (six leg-force set points over `limits.leg_force`, N), `"leg_length"` (six leg-length set '
+        "points over the stroke `limits.leg_length`, m, each tracked by a leg servo at the physics rate) or "
+        '`"pose"` (a pose set point over the workspace box `limits.position_min`..`position_max`, m, and '
+        "`home_rpy` +- `max_angle`, rad, tracked at the physics rate by `pose_law`); see Action Space",
+    )
+    pose_law: str = _argument(
+        "ik",
+        'the pose mode\'s inner loop: `"ik"` (inverse kinematics into the leg servos), `"pd_gravity"` '
+        '(task-space PD with gravity compensation) or `"computed_torque"`, on the nominal model',
+    )
+    actuator: str | None = _argument(
+        None,
+        '`"ideal"` (a force source), `"lag"` (first-order lag of `actuator_tau`), `"electric"` (motor and '
+        'ball screw) or `"hydraulic"` (valve-controlled cylinder), the last two from the platform\'s '
+        '`actuators:` section; None: `"lag"` when `actuator_tau` > 0, else `"ideal"`',
+    )
+    observe_actuators: bool = _argument(
+        False,
+        "append the states a drive reports to the observation: motor currents (electric, over the current "
+        "limit) or chamber pressures A and B (hydraulic, over the supply-return span)",
+    )
+    physics_rate: bool = _derived()
 
     def __post_init__(self) -> None:
-        self._set("actuator_tau", real("actuator_tau", self.actuator_tau, 0.0, 100.0))
+        tau = real("actuator_tau", self.actuator_tau, 0.0, 100.0)
+        self._set("actuator_tau", tau)
+        self._set("action_mode", choice("action_mode", self.action_mode, ACTION_MODES))
+        self._set("pose_law", choice("pose_law", self.pose_law, POSE_LAWS))
+        actuator = self.actuator
+        if actuator is None:
+            actuator = "lag" if tau > 0 else "ideal"
+        actuator = choice("actuator", actuator, ACTUATORS)
+        if actuator == "lag" and tau == 0:
+            raise UsageError.about("actuator_tau", 'must be > 0 for actuator="lag"')
+        self._set("actuator", actuator)
+        observe = flag("observe_actuators", self.observe_actuators)
+        if observe and actuator not in DRIVES:
+            raise UsageError.about(
+                "observe_actuators", f"the {actuator!r} actuator reports no state; choose actuator= one of {DRIVES}"
+            )
+        self._set("observe_actuators", observe)
+        self._set("physics_rate", self.action_mode != "force" or actuator in DRIVES)
 
     def lag(self, control_dt: float) -> float:
         """The fraction of the command error closed per control step of ``control_dt`` (0: none).
@@ -243,7 +300,11 @@ class ActuatorConfig(_Record):
             control_dt: the control step, s.
         """
         tau = self.actuator_tau
-        return 1.0 - math.exp(-control_dt / tau) if tau > 0 else 0.0
+        # the lag held over the control step is the force mode's; at the physics rate the
+        # compiled actuation steps its own lag
+        if self.actuator != "lag" or self.physics_rate:
+            return 0.0
+        return 1.0 - math.exp(-control_dt / tau)
 
 
 @dataclass(frozen=True)

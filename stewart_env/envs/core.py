@@ -32,10 +32,12 @@ import numpy as np
 from stewart_env import _core
 from stewart_env.dynamics import Dynamics
 from stewart_env.envs.action_delay import ActionDelay
-from stewart_env.envs.config import EnvConfig
+from stewart_env.envs.actuation import Actuation
+from stewart_env.envs.config import CLOSED_FORM, EnvConfig
 from stewart_env.envs.costs import BatchCosts
 from stewart_env.envs.observation import ObservationPipeline
 from stewart_env.envs.plant import Plant, make_plant
+from stewart_env.errors import UsageError
 from stewart_env.kinematics import leg_sensors_inplace
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
@@ -94,8 +96,11 @@ class PlatformBatch:
         self._init_task(config)
         self._init_constraints(config, n)
         self._init_state(n)
+        report = None
+        if self.actuation is not None and self.actuation.report is not None:
+            report = (*self.actuation.report, self.actuation.reported)
         self.observations = ObservationPipeline(
-            config.observation, self.platform, self.task, self.actuator_tau > 0, self.control_dt, n
+            config.observation, self.platform, self.task, config.actuator.actuator == "lag", self.control_dt, n, report
         )
         self._observation32 = np.zeros((n, self.observations.dim), dtype=np.float32)
         self._views()
@@ -112,6 +117,18 @@ class PlatformBatch:
         if self.randomization is not None:
             # One parameter row per platform, each set at its reset from the nominal packed row.
             self._model = self.nominal_model.with_params([self.platform] * self.n)
+        # the action mode's inner loop and the actuator at the physics rate, or None: the forces
+        # of the action (through the lag) held over the control step
+        self.actuation: Actuation | None = None
+        if config.actuator.physics_rate:
+            if physics.plant != CLOSED_FORM:
+                raise UsageError.about(
+                    "actuator" if config.actuator.action_mode == "force" else "action_mode",
+                    f"the {physics.plant!r} plant takes leg forces only: action_mode='force' with an ideal or "
+                    f"lag actuator (got action_mode={config.actuator.action_mode!r}, "
+                    f"actuator={config.actuator.actuator!r})",
+                )
+            self.actuation = Actuation(config.actuator, self.platform, self.nominal_model, self.n)
         self.plant: Plant = make_plant(physics, self._model, self.n)
         self.actuator_tau = config.actuator.actuator_tau
         self._lag = config.actuator.lag(self.control_dt)
@@ -192,6 +209,7 @@ class PlatformBatch:
         self._term_views = dict(zip(REWARD_TERMS, self._terms))
         # the position and orientation errors (2, 3) of each row that track_success_of_row reads
         self._pose_errors = tuple(self._error_vectors[:2, i] for i in range(min(self.n, _ROW_BY_ROW)))
+        self._actuation_record = None if self.actuation is None else self.actuation.record(self.physics_dt)
         self._step = self._make_step(self._step_mode)
         # the compiled step checks the action before it changes anything: nothing runs before it
         self.checks_action = self._step.checks_action and not (self._moving_reference or self._has_external_wrench)
@@ -235,7 +253,10 @@ class PlatformBatch:
         )
         actuator = _core.ActuatorRecord(self._force_half, self._force_mid, self._lag, self._action, self.leg_forces)
         outputs = _core.OutputRecord(self._code, self._terms, self._reward, self._bad, self._observation32)
-        return FusedStep(_core.BatchStep(state, plant, actuator, task, self.observations.step_record(), outputs))
+        step = _core.BatchStep(
+            state, plant, actuator, task, self.observations.step_record(), outputs, self._actuation_record
+        )
+        return FusedStep(step)
 
     @property
     def model(self) -> Dynamics:
@@ -278,7 +299,7 @@ class PlatformBatch:
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
         del state["_state"], state["view"], state["_errors"], state["_step"], state["_term_views"]
-        del state["_pose_errors"]
+        del state["_pose_errors"], state["_actuation_record"]
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -355,6 +376,9 @@ class PlatformBatch:
         if factors is not None:
             self._set_parameters(rows, factors)
         forces = self._start_forces(rows, start, factors is not None)
+        if self.actuation is not None and forces is not None:
+            # the drives at equilibrium with the holding forces (the platform at rest)
+            self.actuation.reset_rows(rows, forces)
         view = self._start_rows(rows, start, forces)
         self.costs.reset_rows(rows, view.state)
         if self._delay is not None:
@@ -420,10 +444,11 @@ class PlatformBatch:
 
     def _start_forces(self, rows: np.ndarray, start: PlatformState, randomised: bool) -> np.ndarray | None:
         """The leg forces at the start state of ``rows``: without actuator lag None (none; the
-        first action sets them); with it, the actuators hold the start state: the forces of zero
+        first action sets them); with it, or with the actuation at the physics rate
+        (:attr:`actuation`), the actuators hold the start state: the forces of zero
         acceleration of the rows' own model (their randomised parameters, or the nominal model),
         as far as the actuators reach."""
-        if not self._lag or not len(rows):
+        if (not self._lag and self.actuation is None) or not len(rows):
             return None
         model = self._model.subset(rows) if randomised else self.nominal_model
         zero = np.zeros((len(rows), 3))
@@ -554,7 +579,11 @@ class PlatformBatch:
 
     def _drive(self, action: np.ndarray) -> None:
         """The actuators: the action clipped to [-1, 1] (kept as the applied action) and mapped
-        onto the force range, applied directly or through the first-order lag."""
+        onto the force range, applied directly or through the first-order lag; at the physics rate,
+        only clipped (the compiled step's actuation reads the applied action)."""
+        if self.actuation is not None:
+            np.clip(action, -1.0, 1.0, out=self._action)
+            return
         _core.drive(action, self._force_half, self._force_mid, self._lag, self._action, self.leg_forces)
 
     # -- success -----------------------------------------------------------------------------------------
@@ -776,6 +805,7 @@ class StepOfParts:
             batch.leg_lengths,
             batch.leg_rates,
             batch.condition,
+            batch._actuation_record,
         )
 
     @staticmethod

@@ -65,6 +65,7 @@ class ObservationPipeline:
         lagged_forces: bool,
         control_dt: float,
         n: int,
+        actuator_report: tuple[np.ndarray, np.ndarray, Any] | None = None,
     ):
         lim = platform.limits
         self._task = task
@@ -91,6 +92,11 @@ class ObservationPipeline:
             ]
         if lagged_forces:
             terms.append(("leg_forces", np.full(6, scales.leg_force), np.full(6, force_mid)))
+        # the states a drive reports (scale, offset, and the batch's reported(rows) giving them)
+        self._actuator_states = None
+        if actuator_report is not None:
+            scale, offset, self._actuator_states = actuator_report
+            terms.append(("actuator_states", scale, offset))
         terms += [(name, scale, np.zeros(scale.size)) for name, scale in task.observation_terms(scales)]
         self.error_integral_limit = config.error_integral_limit
         # Anti-windup bound (6,) [m s; rad s]: error_integral_limit seconds of an error of one
@@ -166,7 +172,9 @@ class ObservationPipeline:
         """Whether the environment's compiled step can make the observation (:meth:`step_record`):
         the task observes only the position and orientation errors, as :class:`Task` does."""
         task = type(self._task)
-        return task.observe is Task.observe and task.observation_terms is Task.observation_terms
+        own = task.observe is Task.observe and task.observation_terms is Task.observation_terms
+        # the drives' states are measured here, after the compiled step
+        return own and self._actuator_states is None
 
     def step_record(self) -> _core.ObservationRecord | None:
         """The observation's part of the environment's compiled step (docs/layout.md, "The
@@ -266,7 +274,7 @@ class ObservationPipeline:
             self.error_integral[rows] = 0.0
             integral = self.error_integral[rows]
         raw = np.empty((m, self.dim))
-        self._measure(view, integral, raw)
+        self._measure(view, integral, raw, rows)
         if self.noise_std is not None:
             for j in range(m):
                 raw[j] += rngs[j].normal(size=self.dim) * self.noise_std
@@ -326,9 +334,10 @@ class ObservationPipeline:
         s += step
         np.clip(s, -self.error_integral_bound, self.error_integral_bound, out=s)
 
-    def _measure(self, view: StepView, integral, raw: np.ndarray) -> None:
+    def _measure(self, view: StepView, integral, raw: np.ndarray, rows=slice(None)) -> None:
         """Write the clean observation of a batch (any number of rows) seen through ``view`` into
-        ``raw``; integral is the batch's error integral (rows, 6), or None when it is not observed."""
+        ``raw``; integral is the batch's error integral (rows, 6), or None when it is not observed;
+        rows: the batch's rows that ``view`` shows (for the drives' reported states)."""
         views = self._raw_views if raw is self._raw else self._views_of(raw)
         if self.mode == "pose":
             _core.pose_block(*view.state, raw)
@@ -340,5 +349,7 @@ class ObservationPipeline:
         self._task.observe(view, views)
         if integral is not None:
             views["error_integral"][:] = integral
+        if self._actuator_states is not None:
+            views["actuator_states"][:] = self._actuator_states(rows)
         if self.normalize:
             _core.normalize(raw, self.offset, self._inv_scale)

@@ -111,6 +111,47 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     Note that a = 0 is zero force: the platform falls unless the policy holds it (about 130-225 N per
     leg, a ~ 0.1, for dasgupta1998).
 
+    **Action modes** (`action_mode`), **pose laws** (`pose_law`) and **actuators** (`actuator`).
+    The action is always `Box(-1.0, 1.0, (6,), float32)`, refused and clipped as above; what it
+    commands depends on `action_mode`:
+
+    | `action_mode` | a_i commands | mapping | unit |
+    |---|---|---|---|
+    | `"force"` (default) | leg i's force set point | F_i = (F_max + F_min) / 2 + a_i (F_max - F_min) / 2 over `limits.leg_force` | N |
+    | `"leg_length"` | leg i's length set point | l_i = (l_max + l_min) / 2 + a_i (l_max - l_min) / 2 over `limits.leg_length` | m |
+    | `"pose"` | [x, y, z, roll, pitch, yaw] of P | p = c + a h over the workspace box (c, h as in Observation Space); angle = home_rpy + a A (`limits.max_angle`) | m, rad |
+
+    In the leg_length and pose modes an inner loop runs at the physics rate, inside the compiled
+    step (every `physics_dt`, the action held over the control step, as on a machine whose policy
+    runs slower than its servo), on the nominal model `model`:
+
+    | `pose_law` | the leg-force set points f (N) at each physics step |
+    |---|---|
+    | (leg_length mode) and `"ik"` | leg servo per leg, f_i = K_p (l_ref,i - l_i) - K_d l_dot_i + the forces holding at rest the commanded pose (ik) or the pose at the control step's start (leg_length); in pose mode l_ref by the inverse kinematics of the pose set point |
+    | `"pd_gravity"` | task-space PD with gravity compensation, f = J^-T (K_p e + K_d e_dot) + holding forces (paper eq. 56; e the pose error, rpy angles) |
+    | `"computed_torque"` | f = inverse dynamics at the acceleration K_p e - K_d [v; w] (e: position error and rotation vector of R_ref R^T), the reflected masses included |
+
+    The loops are tuned to a 5 Hz bandwidth with damping ratio 0.7 (`stewart_env.envs.actuation`):
+    the leg servo for a leg carrying a sixth of the platform, its upper leg and its reflected mass;
+    PD for the platform's mass and inertia; computed torque K_p = omega_n^2 (1/s^2), K_d = 2 zeta
+    omega_n (1/s).  f is clipped to `limits.leg_force`.  The actuator turns f into the forces the
+    legs feel:
+
+    | `actuator` | model | state (`observe_actuators=True` appends it) |
+    |---|---|---|
+    | `"ideal"` | a force source, F = f | none |
+    | `"lag"` | first-order lag of `actuator_tau` s (in force mode per control step, as above; otherwise per physics step) | none |
+    | `"electric"` | servo motor on a ball screw in current control: current set point f / (eta k K_t) A through the current loop, its limit and the voltage envelope, less the screw's friction; the rotor's reflected mass m_r = k^2 J_m kg in the dynamics | motor currents (6, A, / current_limit) |
+    | `"hydraulic"` | valve-controlled cylinder (Merritt): a force loop onto the valve, spool command (f - (P_A A_A - P_B A_B)) / (P_s A_A), through the spool, the orifices and the compressible chambers | chamber pressures P_A, P_B of each leg (12, Pa, (P - (P_s + P_r) / 2) / ((P_s - P_r) / 2)) |
+
+    `actuator=None` (default) is `"lag"` when `actuator_tau > 0`, else `"ideal"`: today's force
+    mode, unchanged.  The electric and hydraulic actuators read their parameters from the
+    platform's `actuators:` section (`motion_simulator` has both; docs/physics.md section 10) and
+    refuse a platform without that set.  Their states, the lag's and the inner loops' are stepped
+    at the physics rate and held over the RK4 substep; at a reset the actuators start at
+    equilibrium with the forces that hold the start state at rest.  These modes need the
+    closed-form plant.
+
     ## Observation Space
 
     `Box(-inf, inf, (D,), float32)`.  `env.unwrapped.observation_layout` maps each term's name to its
@@ -303,6 +344,10 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     | `task_options` | `None` | dict of the task's options, its reward weights included (see Starting State, Rewards and `stewart_env.tasks`) |
     | `version` | `1` | the environment's version, 0 to 1, set by the id `StewartPlatform-v<version>`: its tasks' defaults (see Version History) |
     | `actuator_tau` | `0.0` | s, first-order actuator lag time constant, 0 to 100; 0 applies the commanded forces directly |
+    | `action_mode` | `"force"` | `"force"` (six leg-force set points over `limits.leg_force`, N), `"leg_length"` (six leg-length set points over the stroke `limits.leg_length`, m, each tracked by a leg servo at the physics rate) or `"pose"` (a pose set point over the workspace box `limits.position_min`..`position_max`, m, and `home_rpy` +- `max_angle`, rad, tracked at the physics rate by `pose_law`); see Action Space |
+    | `pose_law` | `"ik"` | the pose mode's inner loop: `"ik"` (inverse kinematics into the leg servos), `"pd_gravity"` (task-space PD with gravity compensation) or `"computed_torque"`, on the nominal model |
+    | `actuator` | `None` | `"ideal"` (a force source), `"lag"` (first-order lag of `actuator_tau`), `"electric"` (motor and ball screw) or `"hydraulic"` (valve-controlled cylinder), the last two from the platform's `actuators:` section; None: `"lag"` when `actuator_tau` > 0, else `"ideal"` |
+    | `observe_actuators` | `False` | append the states a drive reports to the observation: motor currents (electric, over the current limit) or chamber pressures A and B (hydraulic, over the supply-return span) |
     | `terminate_on` | `('leg_length', 'workspace')` | the constraints that end an episode, a tuple of the platform's: `'leg_length'`, `'leg_velocity'`, `'leg_acceleration'`, `'leg_force'`, `'force_rate'`, `'universal_joint'`, `'spherical_joint'`, `'workspace'` (see Constraint Costs); `()` for none |
     | `action_delay` | `0` | control steps between the action and the actuators, 0 to 1000 (see Constraint Costs) |
     | `observation_mode` | `"pose"` | `"pose"` (pose and twist) or `"sensors"` (leg lengths and rates) |

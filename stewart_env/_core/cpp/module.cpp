@@ -443,13 +443,14 @@ env_step::State state_of(Out& t, Out& R, Out& v, Out& w) { return {t.data(), R.d
 class BatchStep {
 public:
     BatchStep(nb::object state, nb::object plant, nb::object actuator, nb::object task, nb::object observation,
-              nb::object outputs)
+              nb::object outputs, nb::object actuation)
         : state_(nb::cast<step_records::StateRecord*>(state)), plant_(nb::cast<step_records::PlantRecord*>(plant)),
           actuator_(nb::cast<step_records::ActuatorRecord*>(actuator)),
           task_(nb::cast<step_records::TaskRecord*>(task)),
           observation_(observation.is_none() ? nullptr : nb::cast<step_records::ObservationRecord*>(observation)),
           outputs_(nb::cast<step_records::OutputRecord*>(outputs)),
-          held_{state, plant, actuator, task, observation, outputs} {
+          actuation_(actuation.is_none() ? nullptr : nb::cast<step_records::ActuationRecord*>(actuation)),
+          held_{state, plant, actuator, task, observation, outputs, actuation} {
         if (!(state_ && plant_ && actuator_ && task_ && outputs_))
             throw nb::value_error("state, plant, actuator, task, outputs: expected a record each, not None");
         const int64_t n = state_->n;
@@ -461,8 +462,11 @@ public:
             if (static_cast<int64_t>(outputs_->observation.shape(1)) != observation_->dim())
                 throw nb::value_error("outputs: expected an observation of the observation record's columns");
         }
+        if (actuation_ != nullptr && actuation_->rows() != n)
+            throw nb::value_error("actuation: expected a record of the batch's rows");
         state_->fill(b_);
         actuator_->fill(b_);
+        if (actuation_ != nullptr) actuation_->fill(b_);
         task_->fill(b_);
         b_.observe = observation_ != nullptr;
         if (observation_ != nullptr) observation_->fill(b_);
@@ -574,8 +578,9 @@ private:
     step_records::TaskRecord* task_;
     step_records::ObservationRecord* observation_;
     step_records::OutputRecord* outputs_;
+    step_records::ActuationRecord* actuation_;
     // the records themselves, alive while the step points into them
-    nb::object held_[6];
+    nb::object held_[7];
     env_step::Batch b_{};
     std::vector<double> action_;  // a float32 action widened
 };
@@ -612,6 +617,16 @@ void def_env_kernels(nb::module_& m) {
         .def(nb::init<double, double, double, nb::handle, nb::handle>(), "force_half"_a, "force_mid"_a, "lag"_a,
              "action"_a, "leg_forces"_a)
         .def_ro("lag", &ActuatorRecord::lag);
+    nb::class_<step_records::ActuationRecord>(m, "ActuationRecord",
+        "The actuation at the physics rate (actuation.hpp): the action mode, pose law and actuator codes, the "
+        "nominal model's flags, the set points' maps, the loops' gains, the drives' packed parameters and the "
+        "actuators' state (n, 6, 3).")
+        .def(nb::init<int64_t, int64_t, int64_t, int64_t, nb::handle, nb::handle, nb::handle, nb::handle, nb::handle,
+                      nb::handle, nb::handle, double, nb::handle, double, double, nb::handle, double, double,
+                      nb::handle, nb::handle>(),
+             "mode"_a, "law"_a, "kind"_a, "nominal_flags"_a, "force_range"_a, "length_map"_a, "pose_mid"_a,
+             "pose_half"_a, "servo"_a, "task_kp"_a, "task_kd"_a, "lag"_a, "electric"_a, "current_gain"_a,
+             "force_per_amp"_a, "hydraulic"_a, "valve_gain"_a, "force_gain"_a, "reflected_mass"_a, "state"_a);
     nb::class_<TaskRecord>(m, "TaskRecord",
         "The task's part of the compiled step: the platform's limits, the reward weights (8,), the termination "
         "cost and whether each termination code is a failure.")
@@ -639,8 +654,9 @@ void def_env_kernels(nb::module_& m) {
     nb::class_<BatchStep>(m, "BatchStep",
         "The compiled control step of a batch of the environment (env_step.hpp): built once from the step's "
         "records (the observation's may be None: the caller makes the observation), then one call per step.")
-        .def(nb::init<nb::object, nb::object, nb::object, nb::object, nb::object, nb::object>(), "state"_a.none(),
-             "plant"_a.none(), "actuator"_a.none(), "task"_a.none(), "observation"_a.none(), "outputs"_a.none())
+        .def(nb::init<nb::object, nb::object, nb::object, nb::object, nb::object, nb::object, nb::object>(),
+             "state"_a.none(), "plant"_a.none(), "actuator"_a.none(), "task"_a.none(), "observation"_a.none(),
+             "outputs"_a.none(), "actuation"_a.none() = nb::none())
         .def_prop_ro("observes", &BatchStep::observes)
         .def("step", &BatchStep::step, "action"_a, "drive"_a, "noise"_a.none(), "skip"_a.none(),
              "One control step of every row into the output record; returns 1 | 2 as a row's state "
@@ -768,7 +784,8 @@ void def_env_kernels(nb::module_& m) {
     m.def("control_step", [](In prm, int64_t flags, In sensor_prm, double half, double mid, double lag, bool drive,
                              double physics_dt, int64_t substeps, double control_dt, double max_condition, In action,
                              Out clipped, Out F, In W, Out t, Out R, Out v, Out w, Out t0, Out R0, Out v0, Out w0,
-                             Codes steps, Out time, Flags non_finite, Out lengths, Out rates, Out condition) {
+                             Codes steps, Out time, Flags non_finite, Out lengths, Out rates, Out condition,
+                             nb::handle actuation) {
         const int64_t n = batch(prm, In(t));
         state(t, R, v, w, n);
         state(t0, R0, v0, w0, n);
@@ -786,9 +803,14 @@ void def_env_kernels(nb::module_& m) {
         expect(rates, "rates", {n, 6});
         expect(condition, "condition", {n});
         if (substeps < 0) throw nb::value_error("substeps: expected a non-negative integer");
-        const env_step::ControlStep c{prm.data(), static_cast<int64_t>(prm.shape(0)), flags, sensor_prm.data(),
-                                      static_cast<int64_t>(sensor_prm.shape(0)), half, mid, lag, drive, physics_dt,
-                                      substeps, control_dt, max_condition};
+        env_step::ControlStep c{prm.data(), static_cast<int64_t>(prm.shape(0)), flags, sensor_prm.data(),
+                                static_cast<int64_t>(sensor_prm.shape(0)), half, mid, lag, drive, physics_dt,
+                                substeps, control_dt, max_condition};
+        if (!actuation.is_none()) {
+            const auto* record = nb::cast<step_records::ActuationRecord*>(actuation);
+            if (record->rows() != n) throw nb::value_error("actuation: expected a record of the batch's rows");
+            c.act = &record->a;
+        }
         nb::gil_scoped_release release;
         return env_step::control_step(c, action.data(), clipped.data(), F.data(), W.data(), state_of(t, R, v, w),
                                       state_of(t0, R0, v0, w0), steps.data(), time.data(), non_finite.data(),
@@ -798,8 +820,10 @@ void def_env_kernels(nb::module_& m) {
        "t"_a.noconvert(), "R"_a.noconvert(), "v"_a.noconvert(), "w"_a.noconvert(), "t0"_a.noconvert(),
        "R0"_a.noconvert(), "v0"_a.noconvert(), "w0"_a.noconvert(), "steps"_a.noconvert(), "time"_a.noconvert(),
        "non_finite"_a.noconvert(), "lengths"_a.noconvert(), "rates"_a.noconvert(), "condition"_a.noconvert(),
-       "One control step of the closed-form plant for every row: actuators, RK4 substeps, clock and non-finite "
-       "check, leg sensors (env_step.hpp).  Returns whether any row stopped being finite.");
+       "actuation"_a.none() = nb::none(),
+       "One control step of the closed-form plant for every row: actuators (with an ActuationRecord, the action "
+       "mode's inner loop and the actuator model at the physics rate), RK4 substeps, clock and non-finite check, "
+       "leg sensors (env_step.hpp).  Returns whether any row stopped being finite.");
 
     m.def("scale_parameter_rows", [](In nominal, In multipliers, InCodes part_of, Out out, Out largest) {
         expect(nominal, "nominal_row", {kernels::N_PARAMS});

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <cstring>
 
+#include "env/actuation.hpp"
 #include "physics/kernels.hpp"
 #include "physics/rk4.hpp"
 #include "tasks/task_kernels.hpp"
@@ -92,7 +93,15 @@ struct ControlStep {
     int64_t substeps;
     double control_dt;
     double max_condition;
+    // the actuation at the physics rate (actuation.hpp), or nullptr: the forces drive() gives,
+    // held over the control step
+    const actuation::Actuation* act = nullptr;
 };
+
+// The applied action of rows (n,6): the action clipped to [-1, 1] (drive's clip, no forces).
+inline void clip_action(const double* action, double* clipped, int64_t n) {
+    for (int64_t k = 0; k < 6 * n; ++k) clipped[k] = std::fmin(std::fmax(action[k], -1.0), 1.0);
+}
 
 // One control step of the rows b, b + 1, ... (as many as T carries) of the closed-form plant:
 // drive the actuators (unless already driven), remember the start state, integrate substeps RK4
@@ -107,11 +116,30 @@ inline void control_rows(const ControlStep& c, const kernels::ParamRows& prm, co
                          const State& start, int64_t* steps, double* time, bool* non_finite, double* lengths,
                          double* rates, double* condition, int64_t n, int64_t b) {
     const int64_t rows = lanes::width<T>;
-    if (c.drive) drive(action + 6 * b, c.force_half, c.force_mid, c.lag, clipped + 6 * b, F + 6 * b, rows);
     const State from{s.t + 3 * b, s.R + 9 * b, s.v + 3 * b, s.w + 3 * b};
-    copy_state(from, {start.t + 3 * b, start.R + 9 * b, start.v + 3 * b, start.w + 3 * b}, rows);
-    rk4::rollout_row<T>(prm, c.flags, s.t, s.R, s.v, s.w, nullptr, F, n, 6, W, 0.0, c.physics_dt, c.substeps, 0,
-                        nullptr, b);
+    if (c.act != nullptr) {
+        // the actuation at the physics rate (actuation.hpp): per physics step, the inner loops and
+        // the drives row by row (scalar laws), then one RK4 step of the block in the lanes
+        const actuation::Actuation& A = *c.act;
+        if (c.drive) clip_action(action + 6 * b, clipped + 6 * b, rows);
+        copy_state(from, {start.t + 3 * b, start.R + 9 * b, start.v + 3 * b, start.w + 3 * b}, rows);
+        actuation::SetPoint sp[lanes::width<T>];
+        for (int64_t j = 0; j < rows; ++j)
+            actuation::set_point(A, c.force_half, c.force_mid, kernels::params_row(c.sensor_prm, c.n_sensor_prm, b + j),
+                                 clipped + 6 * (b + j), s.t + 3 * (b + j), s.R + 9 * (b + j), sp[j]);
+        for (int64_t k = 0; k < c.substeps; ++k) {
+            for (int64_t j = 0; j < rows; ++j)
+                actuation::substep_forces(A, kernels::params_row(c.sensor_prm, c.n_sensor_prm, b + j), sp[j],
+                                          c.physics_dt, F, s.t, s.R, s.v, s.w, b + j);
+            rk4::rollout_row<T>(prm, c.flags, s.t, s.R, s.v, s.w, nullptr, F, n, 6, W, 0.0, c.physics_dt, 1, 0,
+                                nullptr, b, A.reflected ? A.m_r : nullptr);
+        }
+    } else {
+        if (c.drive) drive(action + 6 * b, c.force_half, c.force_mid, c.lag, clipped + 6 * b, F + 6 * b, rows);
+        copy_state(from, {start.t + 3 * b, start.R + 9 * b, start.v + 3 * b, start.w + 3 * b}, rows);
+        rk4::rollout_row<T>(prm, c.flags, s.t, s.R, s.v, s.w, nullptr, F, n, 6, W, 0.0, c.physics_dt, c.substeps, 0,
+                            nullptr, b);
+    }
     for (int64_t r = b; r < b + rows; ++r) after_physics_row(s, start, steps, c.control_dt, time, non_finite, r);
     kernels::leg_sensors_row<T>(sensor_prm, s.t, s.R, s.v, s.w, c.max_condition, lengths, rates, condition, b);
 }

@@ -5,6 +5,8 @@
 //   StateRecord        the batch's state, start state, clock, sensors, reference, errors (envs/core.py)
 //   PlantRecord        the plant's parameters and its integration (envs/plant.py ClosedFormPlant)
 //   ActuatorRecord     the actuators' force map, lag, applied action and leg forces (envs/core.py)
+//   ActuationRecord    the action mode's inner loop and the actuator model at the physics rate, with the
+//                      actuators' state (envs/core.py; optional: none, the forces held over the step)
 //   TaskRecord         the task's limits, reward weights and failure codes (tasks/base.py Task)
 //   ObservationRecord  the observation's layout, scaling, error integral, delay ring (envs/observation.py)
 //   OutputRecord       where a step's outcome goes: codes, reward terms, reward, bad rows, float32 observation
@@ -176,6 +178,72 @@ struct ActuatorRecord {
         B.clipped = action.data();
         B.F = leg_forces.data();
     }
+};
+
+// The actuation at the physics rate (actuation.hpp): the action mode, the pose law and the actuator
+// (their codes), the nominal model's flags, the set points' maps, the loops' gains, the drives'
+// packed parameters (actuator_models.hpp; empty when not that actuator) and the actuators' state
+// (n, 6, 3), held.
+struct ActuationRecord {
+    actuation::Actuation a{};
+    Out state;
+
+    ActuationRecord(int64_t mode, int64_t law, int64_t kind, int64_t nominal_flags, nb::handle force_range,
+                    nb::handle length_map, nb::handle pose_mid, nb::handle pose_half, nb::handle servo,
+                    nb::handle task_kp, nb::handle task_kd, double lag, nb::handle electric, double current_gain,
+                    double force_per_amp, nb::handle hydraulic, double valve_gain, double force_gain,
+                    nb::handle reflected_mass, nb::handle state_) {
+        if (mode < actuation::FORCE || mode > actuation::POSE) throw nb::value_error("mode: expected 0, 1 or 2");
+        if (law < actuation::IK || law > actuation::COMPUTED_TORQUE) throw nb::value_error("law: expected 0, 1 or 2");
+        if (kind < actuation::IDEAL || kind > actuation::HYDRAULIC)
+            throw nb::value_error("kind: expected 0, 1, 2 or 3");
+        a.mode = mode;
+        a.law = law;
+        a.kind = kind;
+        a.nominal_flags = nominal_flags;
+        const auto copy = [](nb::handle h, const char* name, int64_t size, double* out) {
+            In x = take<In>(h, name, {size});
+            for (int64_t k = 0; k < size; ++k) out[k] = x.data()[k];
+        };
+        double pair[2];
+        copy(force_range, "force_range", 2, pair);
+        a.force_lo = pair[0];
+        a.force_hi = pair[1];
+        copy(length_map, "length_map", 2, pair);
+        a.length_mid = pair[0];
+        a.length_half = pair[1];
+        copy(pose_mid, "pose_mid", 6, a.pose_mid);
+        copy(pose_half, "pose_half", 6, a.pose_half);
+        copy(servo, "servo", 2, pair);
+        a.servo_kp = pair[0];
+        a.servo_kd = pair[1];
+        copy(task_kp, "task_kp", 6, a.task_kp);
+        copy(task_kd, "task_kd", 6, a.task_kd);
+        a.lag = lag;
+        if (kind == actuation::ELECTRIC) {
+            double p[actuators::N_ELECTRIC];
+            copy(electric, "electric", actuators::N_ELECTRIC, p);
+            a.electric = actuators::electric_from(p);
+        }
+        a.current_gain = current_gain;
+        a.force_per_amp = force_per_amp;
+        if (kind == actuation::HYDRAULIC) {
+            double p[actuators::N_HYDRAULIC];
+            copy(hydraulic, "hydraulic", actuators::N_HYDRAULIC, p);
+            a.hydraulic = actuators::hydraulic_from(p);
+        }
+        a.valve_gain = valve_gain;
+        a.force_gain = force_gain;
+        copy(reflected_mass, "reflected_mass", 6, a.m_r);
+        a.reflected = false;
+        for (int i = 0; i < 6; ++i) a.reflected = a.reflected || a.m_r[i] != 0.0;
+        state = take<Out>(state_, "actuator_state", {-1, 6, actuation::STATES});
+        a.state = state.data();
+    }
+
+    int64_t rows() const { return static_cast<int64_t>(state.shape(0)); }
+
+    void fill(env_step::Batch& B) const { B.c.act = &a; }
 };
 
 // The task's termination and reward as Task keeps them: the platform's limits, the eight reward

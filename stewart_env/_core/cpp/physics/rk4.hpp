@@ -162,10 +162,10 @@ inline void matrix_to_quat(const double* R, double* q) {
 // scratch.  docs/physics.md section 5.6; the accelerations from paper eq. 49 or 55.
 template <typename T, typename Mask>
 inline void state_derivative(const T* prm, int64_t flags, const LawRows<T>& src, double time, const T* x, T* F,
-                             const T* W, T* R, T* M, T* h, T* acc, Mask skip, T* dx) {
+                             const T* W, T* R, T* M, T* h, T* acc, Mask skip, T* dx, const T* m_r = nullptr) {
     quat_to_matrix<T>(x + 3, R);
     const T* forces = leg_forces<T>(src, time, x, R, skip, F);
-    kernels::forward_one<T>(prm, flags, x, R, x + 7, x + 10, forces, W, M, h, acc);
+    kernels::forward_one<T>(prm, flags, x, R, x + 7, x + 10, forces, W, M, h, acc, m_r);
     dx[0] = x[7];
     dx[1] = x[8];
     dx[2] = x[9];
@@ -209,10 +209,12 @@ inline void record(const LawRows<T>& src, double time, const T* x, int k, const 
 // (docs/physics.md section 5.6; no paper equation); rec the record arrays, or nullptr (nothing
 // recorded).  ctrl (n_ctrl_rows, n_ctrl): the law's parameter rows, or the held forces
 // (n_ctrl = 6).  A lane whose state stops being finite keeps that state while the others go on.
+// m_r (6,): the legs' reflected masses in the dynamics (kernels::forward_one), nullptr: none.
 template <typename T>
 inline void rollout_row(const kernels::ParamRows& prm, int64_t flags, double* t, double* R, double* v, double* w,
                         ControlLaw law, const double* ctrl, int64_t n_ctrl_rows, int64_t n_ctrl, const double* W,
-                        double time, double dt, int64_t steps, int64_t every, const Record* rec, int64_t b) {
+                        double time, double dt, int64_t steps, int64_t every, const Record* rec, int64_t b,
+                        const double* m_r = nullptr) {
     constexpr int width = lanes::width<T>;
     using Mask = decltype(lanes::finite(T{}));
     kernels::ParamScratch<T> scratch;
@@ -223,7 +225,10 @@ inline void rollout_row(const kernels::ParamRows& prm, int64_t flags, double* t,
     const LawRows<T> src{law, ctrl, stride, n_ctrl, b, law == nullptr ? held : nullptr};
     T Wb[6];
     lanes::load(W, 6, b, 6, Wb);
-    T x[13], xs[13], xn[13], k[4][13], F[6], Rs[9], M[36], h[6], acc[6];
+    T x[13], xs[13], xn[13], k[4][13], F[6], Rs[9], M[36], h[6], acc[6], mr[6];
+    if (m_r != nullptr)
+        for (int i = 0; i < 6; ++i) mr[i] = T(m_r[i]);
+    const T* reflected = m_r != nullptr ? mr : nullptr;
     lanes::load(t, 3, b, 3, x);
     lanes::load(v, 3, b, 3, x + 7);
     lanes::load(w, 3, b, 3, x + 10);
@@ -242,13 +247,13 @@ inline void rollout_row(const kernels::ParamRows& prm, int64_t flags, double* t,
     Mask stopped = none;
     for (int64_t step = 0; step < steps; ++step) {
         const double t0 = time + static_cast<double>(step) * dt;
-        state_derivative<T>(p, flags, src, t0, x, F, Wb, Rs, M, h, acc, stopped, k[0]);
+        state_derivative<T>(p, flags, src, t0, x, F, Wb, Rs, M, h, acc, stopped, k[0], reflected);
         for (int j = 0; j < 13; ++j) xs[j] = x[j] + 0.5 * dt * k[0][j];
-        state_derivative<T>(p, flags, src, t0 + 0.5 * dt, xs, F, Wb, Rs, M, h, acc, stopped, k[1]);
+        state_derivative<T>(p, flags, src, t0 + 0.5 * dt, xs, F, Wb, Rs, M, h, acc, stopped, k[1], reflected);
         for (int j = 0; j < 13; ++j) xs[j] = x[j] + 0.5 * dt * k[1][j];
-        state_derivative<T>(p, flags, src, t0 + 0.5 * dt, xs, F, Wb, Rs, M, h, acc, stopped, k[2]);
+        state_derivative<T>(p, flags, src, t0 + 0.5 * dt, xs, F, Wb, Rs, M, h, acc, stopped, k[2], reflected);
         for (int j = 0; j < 13; ++j) xs[j] = x[j] + dt * k[2][j];
-        state_derivative<T>(p, flags, src, t0 + dt, xs, F, Wb, Rs, M, h, acc, stopped, k[3]);
+        state_derivative<T>(p, flags, src, t0 + dt, xs, F, Wb, Rs, M, h, acc, stopped, k[3], reflected);
         Mask finite = !none;
         for (int j = 0; j < 13; ++j) {
             xn[j] = x[j] + dt / 6.0 * (k[0][j] + 2.0 * k[1][j] + 2.0 * k[2][j] + k[3][j]);
