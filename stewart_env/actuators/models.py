@@ -77,7 +77,7 @@ class LagActuator:
         force: (n, 6) the leg forces, N (the state).
 
     Raises:
-        ArgumentError: `n` or `tau` out of range (naming it).
+        UsageError: `n` or `tau` out of range (naming it).
     """
 
     def __init__(self, n: int = 1, tau: float = 0.0):
@@ -121,7 +121,7 @@ class IdealActuator(LagActuator):
         force: (n, 6) the leg forces, N.
 
     Raises:
-        ArgumentError: `n` out of range.
+        UsageError: `n` out of range.
     """
 
     def __init__(self, n: int = 1):
@@ -147,7 +147,7 @@ class ElectricActuator:
         force: (n, 6) the last step's leg forces, N.
 
     Raises:
-        ArgumentError: `n` out of range.
+        UsageError: `n` out of range.
         TypeError: `params` not an ElectricParams.
     """
 
@@ -207,7 +207,7 @@ class ElectricActuator:
             dt: the step, s.
 
         Returns:
-            The (n, 6) leg forces at the step's end, N (the array :attr:`force`).
+            The (n, 6) leg forces at the step's end, N (the array ``force``).
         """
         _core.electric_step(
             self.packed,
@@ -242,7 +242,7 @@ class HydraulicActuator:
         force: (n, 6) the last step's leg forces, N.
 
     Raises:
-        ArgumentError: `n` or `substeps` out of range.
+        UsageError: `n` or `substeps` out of range.
         TypeError: `params` not a HydraulicParams.
     """
 
@@ -320,7 +320,7 @@ class HydraulicActuator:
             dt: the step, s.
 
         Returns:
-            The (n, 6) leg forces at the step's end, N (the array :attr:`force`).
+            The (n, 6) leg forces at the step's end, N (the array ``force``).
         """
         _core.hydraulic_step(
             self.packed,
@@ -352,7 +352,7 @@ class LegServo:
         integral_state: (n, 6) the integral of the length error, m s.
 
     Raises:
-        ArgumentError: a gain or `n` out of range (naming it).
+        UsageError: a gain or `n` out of range (naming it).
     """
 
     def __init__(self, stiffness: float, damping: float, integral: float = 0.0, force_per_unit: float = 1.0, n=1):
@@ -402,7 +402,7 @@ class LegServo:
             The servo.
 
         Raises:
-            ArgumentError: an argument out of range (naming it).
+            UsageError: an argument out of range (naming it).
         """
         gains = _core.servo_gains(
             _POSITIVE.check("bandwidth", bandwidth),
@@ -423,7 +423,7 @@ class LegServo:
             dt: the step, s.
 
         Returns:
-            The (n, 6) commands (the array :attr:`command`).
+            The (n, 6) commands (the array ``command``).
         """
         _core.leg_servo(
             self.gains,

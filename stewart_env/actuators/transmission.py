@@ -79,12 +79,12 @@ class BallScrew:
 
     @property
     def ratio(self) -> float:
-        """The transmission ratio k = 2 pi N / p: motor radians per metre of leg travel."""
+        """The transmission ratio k = 2 pi N / p, in motor radians per metre of leg travel."""
         return 2.0 * math.pi * self.gear_ratio / self.lead
 
     @property
     def reflected_mass(self) -> float:
-        """The reflected mass m_r = k^2 J_m: the rotor's inertia seen along the leg's prismatic axis, kg."""
+        """The reflected mass m_r = k^2 J_m, kg, the rotor's inertia seen along the leg's prismatic axis."""
         return self.ratio**2 * self.rotor_inertia
 
     def motor_speed(self, leg_velocity):

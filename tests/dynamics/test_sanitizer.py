@@ -24,7 +24,13 @@ pytestmark = pytest.mark.slow  # a build of the extension (about 20 s of CPU tim
 ROOT = Path(__file__).resolve().parents[2]
 SOURCES = ROOT / "stewart_env" / "_core" / "cpp"
 #: The test files run under the sanitizer: the bindings' own and the environment's compiled step.
-UNDER_SANITIZER = ["tests/dynamics", "tests/envs/test_compiled_step.py", "tests/envs/test_step_contract.py"]
+UNDER_SANITIZER = [
+    "tests/dynamics",
+    "tests/actuators",
+    "tests/envs/test_compiled_step.py",
+    "tests/envs/test_step_contract.py",
+    "tests/envs/test_reset_speed_path.py",
+]
 #: Left out: this file, and the choice of the instruction-set target (the run imports the baseline's).
 LEFT_OUT = ["tests/dynamics/test_sanitizer.py", "tests/dynamics/test_cpu_targets.py"]
 #: Seconds a build or the run of the tests may take before it counts as hung.
