@@ -71,6 +71,7 @@ from stewart_env.agents.studies.mismatch.cells import cell_path, cell_spec, cell
 from stewart_env.agents.studies.mismatch.constants import (
     AGENT_FILES,
     AGENTS_DIR,
+    AUTO_THREADS,
     BACKENDS,
     CELLS_DIR,
     CPUS_PER_JOB,
@@ -131,6 +132,7 @@ from stewart_env.agents.studies.mismatch.timing import JobTimes, makespan, scale
 __all__ = [
     "AGENTS_DIR",
     "AGENT_FILES",
+    "AUTO_THREADS",
     "BACKENDS",
     "CELLS_DIR",
     "COST",

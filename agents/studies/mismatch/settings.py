@@ -17,6 +17,7 @@ from stewart_env.agents.evaluation.evaluation import ORIENTATION_TOLERANCE, POSI
 from stewart_env.agents.studies.mismatch.backends import check_backend
 from stewart_env.agents.studies.mismatch.constants import (
     AGENTS_DIR,
+    AUTO_THREADS,
     EVAL_SEED_OFFSET,
     MAX_STEPS,
     QUICK_TIMESTEPS,
@@ -26,6 +27,7 @@ from stewart_env.agents.studies.mismatch.constants import (
     MismatchError,
 )
 from stewart_env.agents.training import ALGORITHMS, MAX_MANIFEST_BYTES, jsonable, read_hyperparameters
+from stewart_env.dynamics.threads import MAX_THREADS
 from stewart_env.envs.config import model_argument
 from stewart_env.errors import UsageError
 from stewart_env.files import publish, read_json, sha256_file
@@ -69,6 +71,11 @@ class MismatchSettings:
             the rows then the shipped name or the file's stem); each adds the rows of every
             training model built and trained on it, run on the plants of ``platform``.  Once
             made, ((name, platform), ...), a config by its absolute path.
+        physics_threads: the threads of each job's physics batches (:func:`stewart_env.set_num_threads`):
+            ``"auto"`` (the default), on Ray the CPUs the job was given
+            (:data:`~.constants.CPUS_PER_JOB`) and in this process the package's default (one per
+            core); or a count from 1 to ``MAX_THREADS`` for every job. Not recorded: the numbers are
+            the same on any count.
         hyperparameters: read from ``config`` when it is given (an edited file changes the agents).
     """
 
@@ -93,6 +100,7 @@ class MismatchSettings:
     orientation_tolerance: float = ORIENTATION_TOLERANCE
     cost_plant: str = TRUE_MODEL
     controller_platforms: Sequence[Any] = ()
+    physics_threads: int | str = AUTO_THREADS
     hyperparameters: Any = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -156,6 +164,8 @@ class MismatchSettings:
         env_kwargs["platform"] = platform
         set_("env_kwargs", jsonable(env_kwargs))
         check_backend(self.backend, self.ray_address)
+        if self.physics_threads != AUTO_THREADS:
+            set_("physics_threads", _checked(THREADS, "physics_threads", self.physics_threads))
         if self.config is not None:
             if self.algo is None:
                 raise MismatchError("config: only with an RL algorithm (--algo)")
@@ -204,6 +214,8 @@ class MismatchSettings:
 #: as the command line's --episodes ... and --position-tolerance ...).
 COUNT = Interval(numbers.Integral, 1, math.inf, expected="a positive integer")
 TOLERANCE = Interval(numbers.Real, 0.0, math.inf, low_open=True, expected="a finite positive number")
+#: A job's physics threads other than "auto" (:func:`stewart_env.set_num_threads`'s range).
+THREADS = Interval(numbers.Integral, 1, MAX_THREADS, expected=f"'auto' or an integer from 1 to {MAX_THREADS}")
 
 
 def _checked(constraint: Interval, name: str, value: Any) -> Any:

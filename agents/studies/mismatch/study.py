@@ -25,6 +25,7 @@ from stewart_env.agents.studies.mismatch.cells import (
     stored_cells,
 )
 from stewart_env.agents.studies.mismatch.constants import (
+    AUTO_THREADS,
     QUICK_TIMESTEPS,
     RANKING_METRICS,
     SIMPLIFICATIONS,
@@ -75,6 +76,7 @@ def run_mismatch(
     orientation_tolerance: float = ORIENTATION_TOLERANCE,
     cost_plant: str = TRUE_MODEL,
     controller_platforms: Sequence[Any] = (),
+    physics_threads: int | str = AUTO_THREADS,
     progress: bool = True,
 ) -> MismatchResult:
     """Run the mismatch study and write it to ``out`` (see :mod:`stewart_env.agents.studies.mismatch`).
@@ -107,6 +109,8 @@ def run_mismatch(
         cost_plant: the test plant the simplifications' costs are measured on.
         controller_platforms: further platforms controllers are built on, each ``"NAME=PLATFORM"`` or
             ``"PLATFORM"``.
+        physics_threads: each job's physics threads, ``"auto"`` (the CPUs a Ray job was given; this
+            process's count locally) or a count.
         progress: show a progress bar.
 
     Raises:
@@ -139,6 +143,7 @@ def run_mismatch(
         orientation_tolerance=orientation_tolerance,
         cost_plant=cost_plant,
         controller_platforms=controller_platforms,
+        physics_threads=physics_threads,
     )
     return run_study(out, settings, progress=progress)
 
@@ -159,7 +164,7 @@ def run_study(
     with lock_folder(out):  # one command at a time on a study, until this one ends
         check_own_agents(out)
         check_study(out, settings)
-        runner = make_backend(settings.backend, settings.ray_address)
+        runner = make_backend(settings.backend, settings.ray_address, settings.physics_threads)
         start = time.perf_counter()
         rows = build_rows(
             out,
