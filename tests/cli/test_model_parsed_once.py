@@ -65,3 +65,25 @@ def test_identify_parses_the_plant_and_the_model_once(parses, monkeypatch, tmp_p
     assert "stopped after the settings" in capsys.readouterr().err
     assert [m.spec.name for m in built] == ["improved+c1", "improved+c3"]
     assert parses == {"Improved+C1": 1, "improved+c3": 1}  # not again by their canonical names
+
+
+@pytest.mark.extra("rl")
+def test_train_parses_the_model_once_and_records_its_canonical_name(parses, monkeypatch, tmp_path, capsys):
+    from stewart_env.agents.training import TrainingError, trainer
+    from stewart_env.envs import StewartPlatformEnv
+
+    built = []
+
+    def make_training_env(n_envs, env_kwargs, *args, **kwargs):
+        # the training environment built from the run's keywords, then the run stopped
+        env = StewartPlatformEnv(**env_kwargs)
+        built.append(env.unwrapped._core.model.spec)
+        env.close()
+        raise TrainingError("stopped after the environment")
+
+    monkeypatch.setattr(trainer, "make_training_env", make_training_env)
+    out = tmp_path / "run"
+    assert main(["train", "--algo", "ppo", "--model", "Improved+C2+c1", "--out", str(out), "--no-progress"]) == 2
+    assert "stopped after the environment" in capsys.readouterr().err
+    assert [spec.name for spec in built] == ["improved+c1+c2"]
+    assert parses == {"Improved+C2+c1": 1}  # the check environment and the training one take the spec
