@@ -87,3 +87,31 @@ def test_train_parses_the_model_once_and_records_its_canonical_name(parses, monk
     assert "stopped after the environment" in capsys.readouterr().err
     assert [spec.name for spec in built] == ["improved+c1+c2"]
     assert parses == {"Improved+C2+c1": 1}  # the check environment and the training one take the spec
+
+
+def test_bench_parses_each_model_once(parses, monkeypatch, capsys):
+    import stewart_env as se
+    from stewart_env.benchmarks import report
+
+    class Stop(Exception):
+        """Ends the benchmark after its models' table, before the scaling's timings."""
+
+    timed = []
+
+    def bench_model(model, params):
+        timed.append(se.make_dynamics(model, params).spec)
+        keys = ("forward_per_s_N1", "kernel_per_s_N1", "forward_per_s_N1024", "kernel_per_s_N1024")
+        return dict.fromkeys(keys + ("rollout_1s_N1", "rollout_1s_N1024"), 1.0)
+
+    def bench_scaling(params):
+        raise Stop
+
+    monkeypatch.setattr(report, "first_evaluation_seconds", lambda: 0.0)
+    monkeypatch.setattr(report, "bench_model", bench_model)
+    monkeypatch.setattr(report, "bench_scaling", bench_scaling)
+    with pytest.raises(Stop):
+        main(["bench", "--models", "Classical,improved+C4"])
+    assert [spec.name for spec in timed] == ["classical", "improved+c4"]
+    assert parses == {"Classical": 1, "improved+C4": 1}
+    out = capsys.readouterr().out
+    assert "| classical | 1 / 1 |" in out and "| improved+c4 | 1 / 1 |" in out
