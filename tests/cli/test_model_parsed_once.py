@@ -10,7 +10,7 @@ import pytest
 
 import stewart_env  # noqa: F401  (registers StewartPlatform-v1)
 from stewart_env.cli import main
-from stewart_env.dynamics import ModelSpec
+from stewart_env.dynamics import ModelSpec, Switch
 from stewart_env.identification.base import IdentificationError
 
 
@@ -115,3 +115,37 @@ def test_bench_parses_each_model_once(parses, monkeypatch, capsys):
     assert parses == {"Classical": 1, "improved+C4": 1}
     out = capsys.readouterr().out
     assert "| classical | 1 / 1 |" in out and "| improved+c4 | 1 / 1 |" in out
+
+
+def test_mismatch_parses_each_model_once_and_its_jobs_take_the_specs(parses, tmp_path, capsys):
+    import json
+
+    out = tmp_path / "study"
+    command = ["mismatch", "--algo", "none", "--train-models", "Improved", "--test-models", "classical,improved"]
+    command += ["--cost-plant", "CLASSICAL", "--simplifications", "c1", "--episodes", "1", "--max-steps", "3"]
+    assert main([*command, "--no-progress", "--out", str(out)]) == 0
+    assert "4 controllers x 2 plants" in capsys.readouterr().out
+    # each name once, at its flag: not again by the check environments, the rows, the jobs or the tables
+    assert parses == {"Improved": 1, "classical": 1, "improved": 1, "CLASSICAL": 1}
+    cell = json.loads((out / "cells" / "ct_improved_c1" / "classical" / "model_based.json").read_text())
+    assert (cell["spec"]["design_model"], cell["spec"]["plant"]) == ("improved+c1", "classical")
+
+
+@pytest.mark.extra("rl")
+def test_mismatch_gives_its_trainings_the_spec(parses, monkeypatch, tmp_path, capsys):
+    from stewart_env.agents.studies.mismatch import rows
+    from stewart_env.agents.training import TrainingError
+
+    given = []
+
+    def train(**keywords):
+        given.append(keywords["model"])
+        raise TrainingError("stopped before training")
+
+    monkeypatch.setattr(rows, "train", train)
+    command = ["mismatch", "--train-models", "Improved+C3", "--test-models", "improved", "--cost-plant", "Improved"]
+    command += ["--simplifications", "none", "--timesteps", "64", "--no-progress", "--out", str(tmp_path / "s")]
+    assert main(command) == 2
+    assert "stopped before training" in capsys.readouterr().err
+    assert given == [ModelSpec("improved", Switch.C3)]
+    assert parses == {"Improved+C3": 1, "improved": 1, "Improved": 1}
