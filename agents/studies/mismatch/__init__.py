@@ -47,7 +47,9 @@ the study with the file it could not write; the finished agents and cells are ke
 
 Work runs on a backend: ``local`` (in this process, one job after another) or ``ray`` (every
 training run and every evaluation is a Ray task requesting :data:`CPUS_PER_JOB` CPUs, on a local
-Ray instance or an existing cluster).  Both give the same numbers for the same seeds.
+Ray instance or an existing cluster).  Both give the same numbers for the same seeds.  A Ray job
+runs its physics batches on as many threads as it was given CPUs; ``physics_threads``
+(``--physics-threads N``) sets another count for every job, on either backend.
 
 The package by job: :mod:`.constants` (the study's constants and its error),
 :mod:`.settings` (the settings as one checked frozen record, :class:`MismatchSettings`),
