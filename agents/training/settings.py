@@ -57,7 +57,7 @@ class TrainSettings:
         algo: one of ``ALGORITHMS`` (ppo, sac, td3, tqc, crossq).
         out: the run directory.
         model: the plant's dynamics model (None: improved, or the run's); once made, its
-            :class:`~stewart_env.dynamics.ModelSpec` or ``"mujoco"`` (:func:`plant_model`).
+            :class:`~stewart_env.dynamics.ModelSpec` or ``"mujoco"`` (``plant_model``).
         task: the task (None: setpoint, or the run's).
         timesteps: environment steps of this call, at least (None: the config's n_timesteps).
         seed: the first row's seed (None: 0, or the run's).
