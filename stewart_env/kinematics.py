@@ -13,7 +13,8 @@ from typing import NamedTuple
 import numpy as np
 
 from stewart_env.dynamics import kernels as K
-from stewart_env.dynamics.model import Dynamics, batch_args, pack_params, parse_model_name
+from stewart_env.dynamics.model import Dynamics, batch_args, pack_params
+from stewart_env.dynamics.spec import ModelSpec
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rotvec_to_matrix
 
@@ -58,15 +59,15 @@ def _packed(params: PlatformParams | Dynamics) -> np.ndarray:
     raise ValueError(f"params: expected PlatformParams or Dynamics, got {type(params).__name__}")
 
 
-def _flags(params: PlatformParams | Dynamics, model: str | None) -> int:
+def _flags(params: PlatformParams | Dynamics, model: str | ModelSpec | None) -> int:
     """The switch bits of the leg kinematics: a Dynamics' own, else those of ``model``."""
     if isinstance(params, Dynamics):
-        if model is not None and parse_model_name(model)[1] != params.flags:
+        if model is not None and ModelSpec.parse(model).flags != params.flags:
             raise ValueError(
                 f"model: {model!r} disagrees with the switches of the Dynamics given, {params.name!r}; leave model out"
             )
         return params.flags
-    return parse_model_name("improved" if model is None else model)[1]
+    return (ModelSpec() if model is None else ModelSpec.parse(model)).flags  # default: the improved model
 
 
 def leg_kinematics(

@@ -433,7 +433,7 @@ class PDPolicy(EnvPolicy):
         base = env.unwrapped
         believed = base.platform if platform is None else platform
         if kp is None or kd is None:
-            tuned = zoh_pd_gains(se.make_dynamics("improved", believed), base.dt, bandwidth, damping)
+            tuned = zoh_pd_gains(se.make_dynamics(ModelSpec(), believed), base.dt, bandwidth, damping)
             kp = tuned[0] if kp is None else kp
             kd = tuned[1] if kd is None else kd
         super().__init__(

@@ -16,9 +16,30 @@ from stewart_env import validation
 from stewart_env.agents.training.errors import TrainingError
 from stewart_env.agents.training.hyperparameters import Hyperparameters, algorithm_class, check_count
 from stewart_env.agents.training.rundir import DEFAULT_KEEP_CHECKPOINTS
+from stewart_env.dynamics import ModelSpec
 from stewart_env.errors import UsageError
 
-__all__ = ["RunPlan", "TrainSettings"]
+__all__ = ["RunPlan", "TrainSettings", "plant_model"]
+
+
+def plant_model(model: Any) -> ModelSpec | str:
+    """The environment's ``model`` argument parsed once, for the keywords of every environment
+    made from it: a dynamics model's :class:`~stewart_env.dynamics.ModelSpec`, or ``"mujoco"``
+    (:func:`stewart_env.envs.config.model_spec`); its canonical name is ``str()`` of it.
+
+    Args:
+        model: a model name, a ModelSpec or ``"mujoco"`` (any case).
+
+    Returns:
+        The spec, or ``"mujoco"``.
+
+    Raises:
+        UsageError: an unknown model or switch (``err.argument`` is ``"model"``).
+    """
+    from stewart_env.envs.config import MUJOCO, model_spec
+
+    spec = model_spec(model)
+    return MUJOCO if spec is None else spec
 
 
 def _stderr_report(message: str) -> None:
@@ -35,7 +56,8 @@ class TrainSettings:
     Attributes:
         algo: one of ``ALGORITHMS`` (ppo, sac, td3, tqc, crossq).
         out: the run directory.
-        model: the plant's dynamics model (None: improved, or the run's).
+        model: the plant's dynamics model (None: improved, or the run's); once made, its
+            :class:`~stewart_env.dynamics.ModelSpec` or ``"mujoco"`` (``plant_model``).
         task: the task (None: setpoint, or the run's).
         timesteps: environment steps of this call, at least (None: the config's n_timesteps).
         seed: the first row's seed (None: 0, or the run's).
@@ -52,7 +74,7 @@ class TrainSettings:
 
     algo: str
     out: Path
-    model: str | None = None
+    model: str | ModelSpec | None = None
     task: str | None = None
     timesteps: int | None = None
     seed: int | None = None
@@ -76,6 +98,11 @@ class TrainSettings:
                 validation.seed("seed", self.seed)
             except UsageError as err:
                 raise TrainingError(str(err), argument=err.argument, problem=err.problem) from None
+        if self.model is not None:  # parsed once: the run's environments take the spec
+            try:
+                object.__setattr__(self, "model", plant_model(self.model))
+            except UsageError as err:
+                raise TrainingError(str(err), argument=err.argument, problem=err.problem) from None
         check_count("checkpoint_freq", self.checkpoint_freq, 0)
         check_count("keep_checkpoints", self.keep_checkpoints, 1)
         object.__setattr__(self, "out", Path(self.out))
@@ -93,7 +120,9 @@ class RunPlan:
 
     Attributes:
         hyperparameters: the zoo entry, split.
-        env_kwargs: the environment's keywords, model and task included.
+        env_kwargs: the environment's keywords as run.json records them, model (by its
+            canonical name) and task included.
+        model: the plant's model, parsed once: what the run's environments are given as ``model``.
         seed: the first row's seed.
         n_envs: platforms in the batch.
         timesteps: environment steps of this call, at least.
@@ -109,6 +138,7 @@ class RunPlan:
 
     hyperparameters: Hyperparameters
     env_kwargs: Mapping[str, Any]
+    model: ModelSpec | str
     seed: int
     n_envs: int
     timesteps: int

@@ -55,8 +55,9 @@ from stewart_env.agents.training.rundir import (
     unpickle_statistics,
     verified_bytes,
 )
-from stewart_env.agents.training.settings import RunPlan, TrainSettings
+from stewart_env.agents.training.settings import RunPlan, TrainSettings, plant_model
 from stewart_env.agents.training.signals import StopRequest, stop_on_signals
+from stewart_env.dynamics import ModelSpec
 from stewart_env.files import WriteError, check_not_busy, lock_folder, publish, write_error
 
 __all__ = ["TrainResult", "rollout_steps", "run_changes", "train"]
@@ -136,7 +137,7 @@ def train(
     algo: str,
     out: str | os.PathLike,
     *,
-    model: str | None = None,
+    model: str | ModelSpec | None = None,
     task: str | None = None,
     timesteps: int | None = None,
     seed: int | None = None,
@@ -157,7 +158,8 @@ def train(
         out: the run directory (created; see the module docstring for its contents).  A new run
             refuses a directory that holds anything else than a run of ``algo`` with nothing
             saved yet.
-        model: the plant's dynamics model (default improved).
+        model: the plant's dynamics model, a name, a :class:`~stewart_env.dynamics.ModelSpec` or
+            ``"mujoco"`` (default improved); run.json records its canonical name.
         task: the task (default setpoint).
         timesteps: environment steps of this call, at least (default the config's n_timesteps):
             SB3 collects whole rollouts, so it runs ``timesteps`` rounded up to a multiple of
@@ -235,7 +237,7 @@ def _train(settings: TrainSettings, held: contextlib.ExitStack) -> TrainResult:
         entry = read_hyperparameters(algo, config) if config is not None else dict(previous["hyperparameters"])
         cfg_path = str(config_path(algo, config)) if config is not None else previous.get("config")
         hp = parse_hyperparameters(algo, entry)
-        given = {k: v for k, v in (("model", model), ("task", task)) if v is not None}
+        given = {k: v for k, v in (("model", None if model is None else str(model)), ("task", task)) if v is not None}
         changes = run_changes(previous, entry, {**previous["env_kwargs"], **(env_kwargs or {}), **given}, seed, n_envs)
         if changes:
             raise TrainingError(
@@ -244,6 +246,8 @@ def _train(settings: TrainSettings, held: contextlib.ExitStack) -> TrainResult:
                 "may differ: it sets the steps added), or start a new run in another --out"
             )
         kwargs, seed, n_envs = previous["env_kwargs"], previous["seed"], previous["n_envs"]
+        # the run's model parsed once, as it is read (given, it equals the run's)
+        model = plant_model(kwargs["model"]) if model is None else model
         found = newest_checkpoint(directory, algo, hp.normalize is not None, report)
         if found is None:
             older = list((directory / CHECKPOINT_DIR).glob("model_*_steps.zip"))
@@ -269,12 +273,15 @@ def _train(settings: TrainSettings, held: contextlib.ExitStack) -> TrainResult:
         hp = parse_hyperparameters(algo, read_hyperparameters(algo, cfg_path))
         seed = 0 if seed is None else seed
         n_envs = hp.n_envs if n_envs is None else n_envs
-        kwargs = {**hp.env_kwargs, **(env_kwargs or {}), "model": model or "improved", "task": task or "setpoint"}
+        model = ModelSpec() if model is None else model  # the improved model by default
+        # run.json records the model by its canonical name; the environments are given its spec
+        kwargs = {**hp.env_kwargs, **(env_kwargs or {}), "model": str(model), "task": task or "setpoint"}
         jsonable(kwargs)
         check_fresh_directory(directory, algo)
         from stewart_env.envs import StewartPlatformEnv
 
-        StewartPlatformEnv(**kwargs).close()  # a bad environment keyword fails here, before --out is made
+        # a bad environment keyword fails here, before --out is made
+        StewartPlatformEnv(**{**kwargs, "model": model}).close()
         held.enter_context(lock_folder(directory))
         check_fresh_directory(directory, algo)  # again, under the lock: another run may have started meanwhile
         remove_unfinished_writes(directory)
@@ -282,6 +289,7 @@ def _train(settings: TrainSettings, held: contextlib.ExitStack) -> TrainResult:
     plan = RunPlan(
         hyperparameters=hp,
         env_kwargs=kwargs,
+        model=model,
         seed=seed,
         n_envs=n_envs,
         timesteps=hp.n_timesteps if settings.timesteps is None else int(settings.timesteps),
@@ -320,7 +328,7 @@ def _learn(settings: TrainSettings, plan: RunPlan, stop: StopRequest):
         agent = None
         env = make_training_env(
             n_envs,
-            kwargs,
+            {**kwargs, "model": plan.model},
             seed + steps_done,
             hp.normalize,
             monitor_path=directory / plan.monitor,

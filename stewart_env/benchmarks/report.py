@@ -4,6 +4,7 @@ figure, and :func:`run_bench`, which runs the measurements and prints them (``st
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -17,7 +18,7 @@ from stewart_env.benchmarks.measurements import (
     machine,
 )
 from stewart_env.benchmarks.mujoco_comparison import bench_mujoco
-from stewart_env.dynamics import MODEL_NAMES
+from stewart_env.dynamics import MODEL_NAMES, ModelSpec
 
 
 def mujoco_table(r: dict) -> str:
@@ -224,27 +225,32 @@ def resets_row(n: int = 1024, runs: int = 3, steps: int = 40) -> str:
 
 def run_bench(
     platform: str = "dasgupta1998",
-    models: str = ",".join(MODEL_NAMES),
+    models: str | Sequence[str | ModelSpec] = MODEL_NAMES,
     env: bool = False,
     mujoco: bool = False,
     plot: str | None = None,
 ) -> None:
     """Print the benchmark's tables: the machine, the first evaluation of a fresh process, each of
-    the comma-separated ``models`` on ``platform``, the scaling table (drawn to the PNG file
+    the ``models`` on ``platform``, the scaling table (drawn to the PNG file
     ``plot`` if given); with ``env`` the environments; the vector env's step with resets beside
     its step alone (:func:`resets_row`); with ``mujoco`` MuJoCo beside the kernels
     (``stewart_env.extras.MissingExtra`` before any timing if the extra is not installed).
 
     Args:
         platform: the shipped platform's name.
-        models: the comma-separated model names.
+        models: the dynamics models, each a :class:`~stewart_env.dynamics.ModelSpec` (as the
+            command line's ``--models`` gives them) or a name parsed here, once; a string is read
+            as comma-separated names.
         env: time the environments too.
         mujoco: time MuJoCo beside the kernels.
         plot: the PNG file to draw the scaling figure to, or None.
 
     Raises:
         MissingExtra: with ``mujoco``, MuJoCo is not installed.
+        UsageError: an unknown model name (``err.argument`` is ``"models"``), before any timing.
     """
+    names = models.split(",") if isinstance(models, str) else models
+    specs = [ModelSpec.parse(m.strip() if isinstance(m, str) else m, "models") for m in names]
     params = se.load_platform(platform)
     if mujoco:
         from stewart_env import mujoco as twin
@@ -261,10 +267,10 @@ def run_bench(
         "| rollout 1 s N=1 | rollout 1 s N=1024 |"
     )
     print("|---|---|---|---|---|")
-    for name in models.split(","):
-        r = bench_model(name.strip(), params)
+    for spec in specs:
+        r = bench_model(spec, params)
         print(
-            f"| {name} | {r['forward_per_s_N1']:,.0f} / {r['kernel_per_s_N1']:,.0f} "
+            f"| {spec} | {r['forward_per_s_N1']:,.0f} / {r['kernel_per_s_N1']:,.0f} "
             f"| {r['forward_per_s_N1024']:,.0f} / {r['kernel_per_s_N1024']:,.0f} "
             f"| {r['rollout_1s_N1'] * 1e3:.2f} ms | {r['rollout_1s_N1024']:.2f} s |"
         )

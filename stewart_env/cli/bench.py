@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     if problem is not None:
         return error(VERB, f"argument --mujoco: {problem}")
     try:
-        run_bench(args.platform, ",".join(map(str, args.models)), env=args.env, mujoco=args.mujoco, plot=args.plot)
+        run_bench(args.platform, args.models, env=args.env, mujoco=args.mujoco, plot=args.plot)
     except ImportError as err:  # the MuJoCo library present but failing to load
         return error(VERB, f"argument --mujoco: {err}")
     return 0

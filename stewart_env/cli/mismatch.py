@@ -11,6 +11,7 @@ import sys
 
 from stewart_env.agents.evaluation.evaluation import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
 from stewart_env.agents.studies.mismatch import (
+    AUTO_THREADS,
     BACKENDS,
     FAILURE_THRESHOLD,
     QUICK_TIMESTEPS,
@@ -29,6 +30,7 @@ from stewart_env.cli.arguments import (
     distinct_list,
     env_kwargs_token,
     episode_steps,
+    integer,
     plant_list,
     plant_model_name,
     platform_count,
@@ -38,9 +40,10 @@ from stewart_env.cli.arguments import (
     seed_list,
 )
 from stewart_env.cli.common import check_extras, check_out, error
+from stewart_env.dynamics.threads import MAX_THREADS
 from stewart_env.files import WriteError
 
-__all__ = ["add_parser", "controller_platform", "run", "simplification_list"]
+__all__ = ["add_parser", "controller_platform", "physics_threads", "run", "simplification_list"]
 
 VERB = "mismatch"
 
@@ -70,6 +73,24 @@ def controller_platform(text: str) -> str:
     except MismatchError as err:
         raise argparse.ArgumentTypeError(err.problem) from None
     return text
+
+
+def physics_threads(text: str) -> int | str:
+    """Argparse type of --physics-threads: ``auto`` or a thread count from 1 to ``MAX_THREADS``.
+
+    Args:
+        text: the command-line text.
+
+    Returns:
+        ``"auto"`` or the count.
+    """
+    if text.strip().lower() == AUTO_THREADS:
+        return AUTO_THREADS
+    return thread_count(text)
+
+
+#: A thread count (:func:`stewart_env.set_num_threads`'s range).
+thread_count = integer(1, MAX_THREADS, f"'auto' or an integer from 1 to {MAX_THREADS}")
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -211,6 +232,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         default=None,
         help="with --backend ray: an existing cluster, 'auto' or HOST:PORT (default: a local Ray instance)",
     )
+    p.add_argument(
+        "--physics-threads",
+        type=physics_threads,
+        default=AUTO_THREADS,
+        metavar="auto|N",
+        help="each job's physics threads: auto, the CPUs a Ray job was given (one) or this process's "
+        "count with --backend local; or N for every job (default: auto)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
     return p
@@ -275,6 +304,7 @@ def run(args: argparse.Namespace) -> int:
             orientation_tolerance=args.orientation_tolerance,
             cost_plant=args.cost_plant,
             controller_platforms=args.controller_platform,
+            physics_threads=args.physics_threads,
             progress=not args.no_progress,
         )
     except (BackendError, WriteError) as exc:

@@ -123,8 +123,7 @@ def run(args: argparse.Namespace) -> int:
         result = train(
             args.algo,
             args.out,
-            # the run records its model by its canonical name (run.json)
-            model=None if args.model is None else str(args.model),
+            model=args.model,  # parsed once by --model's type; run.json records its canonical name
             task=args.task,
             timesteps=args.timesteps,
             seed=args.seed,

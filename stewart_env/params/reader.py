@@ -15,7 +15,7 @@ from pathlib import Path
 
 import yaml
 
-from stewart_env.files import DocumentError, FileError, load_yaml, read_regular
+from stewart_env.files import DocumentError, FileError, YAMLNestedTooDeep, load_yaml, read_regular
 from stewart_env.params.checks import ConfigError, key_names
 
 __all__ = ["CONFIG_SUFFIXES", "MAX_CONFIG_BYTES", "read_config_text", "parse_config"]
@@ -89,9 +89,7 @@ class _ConfigLoader(yaml.SafeLoader):
         self._nodes += 1
         try:
             if self._depth > _MAX_YAML_DEPTH:
-                raise yaml.composer.ComposerError(
-                    None, None, f"nested more than {_MAX_YAML_DEPTH} levels deep", self.peek_event().start_mark
-                )
+                raise YAMLNestedTooDeep(_MAX_YAML_DEPTH, self.peek_event().start_mark)
             if self._nodes > _MAX_YAML_VALUES:
                 raise yaml.composer.ComposerError(
                     None, None, f"more than {_MAX_YAML_VALUES} values", self.peek_event().start_mark
@@ -171,6 +169,6 @@ def _check_expansion(root: yaml.Node) -> None:
                 None, None, f"more than {_MAX_YAML_VALUES} values (after expanding aliases)", node.start_mark
             )
         if depths[key] > _MAX_YAML_DEPTH:
-            raise yaml.constructor.ConstructorError(
-                None, None, f"nested more than {_MAX_YAML_DEPTH} levels deep (after expanding aliases)", node.start_mark
-            )
+            deep = YAMLNestedTooDeep(_MAX_YAML_DEPTH, node.start_mark)
+            deep.problem += " (after expanding aliases)"
+            raise deep

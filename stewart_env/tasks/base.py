@@ -26,7 +26,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from stewart_env import _core
-from stewart_env.dynamics import Dynamics, make_dynamics
+from stewart_env.dynamics import Dynamics, ModelSpec, make_dynamics
 from stewart_env.kinematics import leg_sensors_inplace
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_rate_matrix, rpy_to_matrix
@@ -476,7 +476,7 @@ def pose_margins(
     Returns:
         Whether each pose is safe, (M,) bool.
     """
-    model = params if isinstance(params, Dynamics) else make_dynamics("improved", params)
+    model = params if isinstance(params, Dynamics) else make_dynamics(ModelSpec(), params)
     p = model.params_of(0)
     lim = p.limits
     position = np.ascontiguousarray(np.atleast_2d(position), dtype=np.float64)
@@ -726,7 +726,7 @@ class Task:
         self.params = params
         self.control_dt = float(control_dt)
         #: The platform's packed parameters for :func:`pose_margins` (packed once).
-        self.kinematics = make_dynamics("improved", params)
+        self.kinematics = make_dynamics(ModelSpec(), params)
         self.weights = RewardWeights(
             position_reward_weight,
             position_reward_scale,

@@ -38,11 +38,12 @@ def test_top_level_help_lists_the_subcommands(capsys):
 
 def test_bench_is_dispatched_with_its_arguments(monkeypatch):
     import stewart_env.benchmarks
+    from stewart_env.dynamics import ModelSpec
 
     seen = []
     monkeypatch.setattr(stewart_env.benchmarks, "run_bench", lambda *args, **kwargs: seen.append((args, kwargs)))
     assert main(["bench", "--models", "improved", "--env"]) == 0
-    assert seen == [(("dasgupta1998", "improved"), {"env": True, "mujoco": False, "plot": None})]
+    assert seen == [(("dasgupta1998", [ModelSpec()]), {"env": True, "mujoco": False, "plot": None})]
 
 
 def test_bench_is_a_subparser_with_its_own_help(capsys):

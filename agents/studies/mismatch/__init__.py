@@ -47,7 +47,9 @@ the study with the file it could not write; the finished agents and cells are ke
 
 Work runs on a backend: ``local`` (in this process, one job after another) or ``ray`` (every
 training run and every evaluation is a Ray task requesting :data:`CPUS_PER_JOB` CPUs, on a local
-Ray instance or an existing cluster).  Both give the same numbers for the same seeds.
+Ray instance or an existing cluster).  Both give the same numbers for the same seeds.  A Ray job
+runs its physics batches on as many threads as it was given CPUs; ``physics_threads``
+(``--physics-threads N``) sets another count for every job, on either backend.
 
 The package by job: :mod:`.constants` (the study's constants and its error),
 :mod:`.settings` (the settings as one checked frozen record, :class:`MismatchSettings`),
@@ -71,6 +73,7 @@ from stewart_env.agents.studies.mismatch.cells import cell_path, cell_spec, cell
 from stewart_env.agents.studies.mismatch.constants import (
     AGENT_FILES,
     AGENTS_DIR,
+    AUTO_THREADS,
     BACKENDS,
     CELLS_DIR,
     CPUS_PER_JOB,
@@ -131,6 +134,7 @@ from stewart_env.agents.studies.mismatch.timing import JobTimes, makespan, scale
 __all__ = [
     "AGENTS_DIR",
     "AGENT_FILES",
+    "AUTO_THREADS",
     "BACKENDS",
     "CELLS_DIR",
     "COST",

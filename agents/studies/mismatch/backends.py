@@ -8,6 +8,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 from stewart_env.agents.studies.mismatch.constants import (
+    AUTO_THREADS,
     BACKENDS,
     CPUS_PER_JOB,
     RAY_AUTH_HINT,
@@ -28,9 +29,23 @@ class BackendError(UsageError):
 
 
 class LocalBackend:
-    """Runs jobs in this process, one after another, in order."""
+    """Runs jobs in this process, one after another, in order; on ``threads`` physics threads
+    (:func:`stewart_env.set_num_threads`) until :meth:`close` when given, on this process's own
+    count otherwise.
+
+    Args:
+        threads: the physics threads of the jobs, or None to leave this process's count.
+    """
 
     name = "local"
+
+    def __init__(self, threads: int | None = None):
+        import stewart_env as se
+
+        self.restore = None
+        if threads is not None:
+            self.restore = se.get_num_threads()
+            se.set_num_threads(threads)
 
     def run(self, fn: Callable, jobs: Sequence[tuple]) -> Iterator[tuple[int, Any]]:
         """(index, fn(*args)) of each job, in order.
@@ -51,8 +66,12 @@ class LocalBackend:
         return value
 
     def close(self) -> None:
-        """Nothing to release: the jobs ran in this process."""
-        pass
+        """Gives this process back its physics threads' count, if the backend set it."""
+        if self.restore is not None:
+            import stewart_env as se
+
+            se.set_num_threads(self.restore)
+            self.restore = None
 
 
 class RayBackend:
@@ -60,14 +79,20 @@ class RayBackend:
     cluster at ``address`` ("auto", "HOST:PORT") or, without one, on a local Ray instance started
     here (or the one this process already joined).  A task sets its worker's physics threads to
     those CPUs (:func:`~.jobs.on_threads`): the workers side by side on a node share its cores
-    instead of each taking all of them."""
+    instead of each taking all of them; or to ``threads`` when given.
+
+    Args:
+        address: the cluster's address, or None for a local Ray instance.
+        threads: each task's physics threads, or None for the CPUs it requests.
+    """
 
     name = "ray"
 
-    def __init__(self, address: str | None = None):
+    def __init__(self, address: str | None = None, threads: int | None = None):
         import ray
 
         self.ray = ray
+        self.threads = CPUS_PER_JOB if threads is None else threads
         self.started = False
         if not ray.is_initialized():
             endpoint = None if address is None else ray_endpoint(address)
@@ -107,7 +132,7 @@ class RayBackend:
         ray = self.ray
         # each task under its job's name (train_job, evaluate_job), as Ray's state API and dashboard list it
         remote = ray.remote(num_cpus=CPUS_PER_JOB, max_retries=0)(on_threads).options(name=fn.__name__)
-        pending = {remote.remote(CPUS_PER_JOB, fn, *args): i for i, args in enumerate(jobs)}
+        pending = {remote.remote(self.threads, fn, *args): i for i, args in enumerate(jobs)}
         try:
             while pending:
                 done, _ = ray.wait(list(pending), num_returns=1)
@@ -175,12 +200,18 @@ def check_backend(name: str, address: str | None = None) -> None:
             raise MismatchError(f"--backend ray needs ray: {RAY_INSTALL_HINT}") from None
 
 
-def make_backend(name: str, address: str | None = None) -> LocalBackend | RayBackend:
+def make_backend(name: str, address: str | None = None, threads: int | str | None = None) -> LocalBackend | RayBackend:
     """The backend called ``name`` ("local" or "ray"); ``address`` only with "ray".
 
     Args:
         name: the backend's name (``--backend``).
         address: the Ray address (``--ray-address``), or None.
+        threads: the jobs' physics threads (``--physics-threads``): a count, or ``"auto"`` (or None)
+            for the backend's own (:class:`LocalBackend`, :class:`RayBackend`).
+
+    Returns:
+        The backend.
     """
     check_backend(name, address)
-    return LocalBackend() if name == "local" else RayBackend(address)
+    threads = None if threads == AUTO_THREADS else threads
+    return LocalBackend(threads) if name == "local" else RayBackend(address, threads)

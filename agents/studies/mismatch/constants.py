@@ -9,6 +9,7 @@ from stewart_env.errors import UsageError
 __all__ = [
     "AGENTS_DIR",
     "AGENT_FILES",
+    "AUTO_THREADS",
     "BACKENDS",
     "CELLS_DIR",
     "CPUS_PER_JOB",
@@ -84,6 +85,9 @@ DEFAULT_STATISTIC = "iqm"
 #: CPUs each training run and each evaluation requests from Ray: training runs on one torch
 #: thread (training.single_thread), and an evaluation steps one batch of platforms.
 CPUS_PER_JOB = 1
+#: ``--physics-threads``'s default: each job on the threads of the CPUs it was given (on Ray,
+#: CPUS_PER_JOB), or the package's default in this process (the local backend).
+AUTO_THREADS = "auto"
 BACKENDS = ("local", "ray")
 #: A cluster started with ``ray start`` checks a token when one exists in ~/.ray/auth_token (any
 #: earlier local Ray instance writes it), and a driver joining it by an explicit address sends the

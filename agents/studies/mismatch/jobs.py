@@ -15,6 +15,7 @@ from typing import Any
 import stewart_env as se
 from stewart_env.agents.studies.mismatch.constants import AGENT_FILES
 from stewart_env.agents.training import MAX_AGENT_FILE_BYTES, load_agent, train
+from stewart_env.dynamics import ModelSpec
 from stewart_env.files import read_regular
 
 __all__ = ["agent_files", "evaluate_job", "make_policy", "on_threads", "train_job"]
@@ -75,7 +76,7 @@ def _load_agent(agent):
         return load_agent(tmp)
 
 
-def make_policy(kind: str, model: str, agent=None, platform: str | None = None):
+def make_policy(kind: str, model: str | ModelSpec, agent=None, platform: str | None = None):
     """A policy (or a factory env -> policy) for :func:`~stewart_env.agents.evaluation.evaluate`:
     the PD law with model ``model``'s holding forces, CT with internal model ``model``, or the
     trained ``agent`` (a folder, or its files' bytes).  PD and CT are built on ``platform`` (a
@@ -83,7 +84,8 @@ def make_policy(kind: str, model: str, agent=None, platform: str | None = None):
 
     Args:
         kind: the controller's kind: ``"pd"``, ``"ct"`` or ``"agent"``.
-        model: the dynamics model the controller is built on.
+        model: the dynamics model the controller is built on, best its
+            :class:`~stewart_env.dynamics.ModelSpec` (a name is parsed by the controller).
         agent: the trained agent: its folder or its files' bytes (``kind="agent"`` only).
         platform: the platform PD and CT are built on (None: the plant's nominal platform).
     """
@@ -105,21 +107,29 @@ def make_policy(kind: str, model: str, agent=None, platform: str | None = None):
     raise ValueError(f"kind: expected 'pd', 'ct' or 'agent', got {kind!r}")
 
 
-def evaluate_job(spec: dict[str, Any], agent=None) -> dict[str, Any]:
+def evaluate_job(
+    spec: dict[str, Any], design_model: ModelSpec | str, plant: ModelSpec | str, agent=None
+) -> dict[str, Any]:
     """One evaluation: the controller of ``spec`` (a cell's spec) on its plant; every metric per
     episode, the episodes' terminations, and the job's wall time (s, the policy's loading included).
 
     Args:
-        spec: the cell's spec (:func:`~.cells.cell_spec`).
+        spec: the cell's spec (:func:`~.cells.cell_spec`), which names the models.
+        design_model: the model of ``spec["design_model"]``, parsed: its
+            :class:`~stewart_env.dynamics.ModelSpec` (:attr:`~.settings.MismatchSettings.models`).
+        plant: the model of ``spec["plant"]``, parsed: its spec, or ``"mujoco"``.
         agent: the trained agent of a learned row: its folder or its files' bytes.
+
+    Returns:
+        ``{"metrics": {key: [value per episode]}, "terminations": [...], "wall_time": s}``.
     """
     from stewart_env.agents.evaluation.evaluation import METRICS, evaluate
 
     start = time.perf_counter()
-    policy = make_policy(spec["kind"], spec["design_model"], agent, spec.get("design_platform"))
+    policy = make_policy(spec["kind"], design_model, agent, spec.get("design_platform"))
     result = evaluate(
         policy,
-        {**spec["env_kwargs"], "model": spec["plant"], "task": spec["task"]},
+        {**spec["env_kwargs"], "model": plant, "task": spec["task"]},
         episodes=spec["episodes"],
         seed=spec["eval_seed"],
         label=spec["controller"],

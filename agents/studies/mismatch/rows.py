@@ -7,9 +7,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from stewart_env.agents.studies.mismatch.constants import AGENTS_DIR, DEFAULT_RANDOMIZATION, MismatchError
+from stewart_env.agents.studies.mismatch.constants import AGENTS_DIR, DEFAULT_RANDOMIZATION, TRUE_MODEL, MismatchError
 from stewart_env.agents.studies.mismatch.results import Row
-from stewart_env.agents.studies.mismatch.settings import closed_form
+from stewart_env.agents.studies.mismatch.settings import Model, closed_form
 from stewart_env.agents.training import (
     ALGORITHM_NAMES,
     MANIFEST,
@@ -27,19 +27,20 @@ __all__ = ["build_rows", "config_env_kwargs", "finished_agent", "publish_agent",
 
 def build_rows(
     out: Path,
-    models: Sequence[str],
+    models: Sequence[Model],
     algo: str | None,
     seeds: Sequence[int],
     domain_randomization: bool,
     platform: str,
-    agent_models: Sequence[str] | None = None,
+    agent_models: Sequence[Model] | None = None,
     controller_platforms: Sequence[tuple[str, str]] = (),
-    platform_models: Sequence[str] = (),
+    platform_models: Sequence[Model] = (),
 ) -> list[Row]:
     """The study's controllers; learned rows (on ``agent_models``, default all ``models``) name
     their agent folders (trained or not yet).  Each of ``controller_platforms`` (name, platform)
     adds the rows of ``platform_models`` (those of ``agent_models`` for the learned rows) built on
-    it, labelled ``[model @ name]``.
+    it, labelled ``[model @ name]``.  The models are specs (:attr:`MismatchSettings.models
+    <.settings.MismatchSettings.models>`), a row's ``model`` the canonical name.
 
     Args:
         out: the study's folder, which holds the agents.
@@ -61,19 +62,19 @@ def build_rows(
 
 def _rows(
     out: Path,
-    models: Sequence[str],
+    models: Sequence[Model],
     algo: str | None,
     seeds: Sequence[int],
     domain_randomization: bool,
     platform: str,
-    agent_models: Sequence[str] | None,
+    agent_models: Sequence[Model] | None,
     platform_name: str | None = None,
 ) -> list[Row]:
     """The rows of ``models`` built on ``platform``; ``platform_name`` None for the study's own."""
     from stewart_env.agents.evaluation.evaluation import slug
 
-    def on(m: str) -> str:
-        return m if platform_name is None else f"{m} @ {platform_name}"
+    def on(m: Model) -> str:
+        return str(m) if platform_name is None else f"{m} @ {platform_name}"
 
     built = {} if platform_name is None else {"platform": platform, "platform_name": platform_name}
     where = "" if platform_name is None else f", on platform {platform_name}"
@@ -82,7 +83,7 @@ def _rows(
         Row(
             f"PD + gravity comp. [{on(m)}]",
             "PD",
-            m,
+            str(m),
             "pd",
             info=f"task-space PD, gravity compensation from this model's statics{where}",
             **built,
@@ -90,13 +91,13 @@ def _rows(
         for m in analytic
     ]
     rows += [
-        Row(f"CT [{on(m)}]", "CT", m, "ct", info=f"computed torque, this model's inverse dynamics{where}", **built)
+        Row(f"CT [{on(m)}]", "CT", str(m), "ct", info=f"computed torque, this model's inverse dynamics{where}", **built)
         for m in analytic
     ]
     if algo is None:
         return rows
     agent_models = models if agent_models is None else agent_models
-    trainings = [(m, False) for m in agent_models] + ([("improved", True)] if domain_randomization else [])
+    trainings = [(m, False) for m in agent_models] + ([(TRUE_MODEL, True)] if domain_randomization else [])
     for m, randomized in trainings:
         name = f"{m} + DR" if randomized else on(m)
         agents = {s: out / AGENTS_DIR / slug(name) / f"seed_{s}" for s in seeds}
@@ -104,7 +105,7 @@ def _rows(
             Row(
                 f"{ALGORITHM_NAMES[algo]} [{name}]",
                 ALGORITHM_NAMES[algo],
-                m,
+                str(m),
                 "agent",
                 tuple(seeds),
                 agents,
@@ -123,6 +124,7 @@ def training_keywords(
     task: str,
     n_envs: int | None,
     config: str | None = None,
+    models: Mapping[str, Model] | None = None,
 ) -> dict[str, Any]:
     """The keywords of :func:`~stewart_env.agents.training.train` for one agent of a learned row.
 
@@ -134,6 +136,11 @@ def training_keywords(
         task: the task.
         n_envs: platforms per training batch (None: the config's).
         config: the zoo hyperparameter file (None: the algorithm's shipped one).
+        models: the study's models by canonical name (:attr:`~.settings.MismatchSettings.models`),
+            so that the training is given the row's model parsed (None: by its name).
+
+    Returns:
+        The keywords.
     """
     rest = dict(env_kwargs)
     if row.platform is not None:  # trained on the platform the row is built on, e.g. an identified one
@@ -142,7 +149,7 @@ def training_keywords(
         rest["randomization"] = {k: list(v) for k, v in DEFAULT_RANDOMIZATION.items()}
     return dict(
         algo=algo,
-        model=row.model,
+        model=row.model if models is None else models[row.model],
         task=task,
         seed=seed,
         n_envs=n_envs,

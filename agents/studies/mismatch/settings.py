@@ -17,6 +17,7 @@ from stewart_env.agents.evaluation.evaluation import ORIENTATION_TOLERANCE, POSI
 from stewart_env.agents.studies.mismatch.backends import check_backend
 from stewart_env.agents.studies.mismatch.constants import (
     AGENTS_DIR,
+    AUTO_THREADS,
     EVAL_SEED_OFFSET,
     MAX_STEPS,
     QUICK_TIMESTEPS,
@@ -26,20 +27,30 @@ from stewart_env.agents.studies.mismatch.constants import (
     MismatchError,
 )
 from stewart_env.agents.training import ALGORITHMS, MAX_MANIFEST_BYTES, jsonable, read_hyperparameters
-from stewart_env.envs.config import model_argument
+from stewart_env.agents.training.settings import plant_model
+from stewart_env.dynamics import ModelSpec, Switch
+from stewart_env.dynamics.threads import MAX_THREADS
 from stewart_env.errors import UsageError
 from stewart_env.files import publish, read_json, sha256_file
 from stewart_env.params import MAX_CONFIG_BYTES
 from stewart_env.params.shipped import is_platform_name
 from stewart_env.validation import MAX_SEED, Interval, seed
 
-__all__ = ["MismatchSettings", "check_own_agents", "check_study", "closed_form", "design_models"]
+__all__ = ["MismatchSettings", "Model", "check_own_agents", "check_study", "closed_form", "design_models"]
+
+#: A model of the study once parsed: its spec, or "mujoco" for MuJoCo's plant.
+Model = ModelSpec | str
 
 
 @dataclass(frozen=True)
 class MismatchSettings:
     """Everything a mismatch study is asked for, checked at construction: a bad value raises
     :class:`~.constants.MismatchError` naming it, before any work.
+
+    The models (``train_models``, ``test_models``, ``agent_models``, ``cost_plant``) are given as
+    names or :class:`~stewart_env.dynamics.ModelSpec`; once made, each is parsed once into its
+    spec (``"mujoco"`` for MuJoCo's plant), which the study's environments and jobs are given;
+    the tables, the files and the rows' labels name each by its canonical name (``str()``).
 
     Attributes:
         train_models: models to build controllers on (PD's statics, CT's internal model, RL plants).
@@ -69,11 +80,16 @@ class MismatchSettings:
             the rows then the shipped name or the file's stem); each adds the rows of every
             training model built and trained on it, run on the plants of ``platform``.  Once
             made, ((name, platform), ...), a config by its absolute path.
+        physics_threads: the threads of each job's physics batches (:func:`stewart_env.set_num_threads`):
+            ``"auto"`` (the default), on Ray the CPUs the job was given
+            (:data:`~.constants.CPUS_PER_JOB`) and in this process the package's default (one per
+            core); or a count from 1 to ``MAX_THREADS`` for every job. Not recorded: the numbers are
+            the same on any count.
         hyperparameters: read from ``config`` when it is given (an edited file changes the agents).
     """
 
-    train_models: Sequence[str] = ("classical", "improved")
-    test_models: Sequence[str] = ("classical", "improved", "improved_centroidal")
+    train_models: Sequence[str | ModelSpec] = ("classical", "improved")
+    test_models: Sequence[str | ModelSpec] = ("classical", "improved", "improved_centroidal")
     task: str = "setpoint"
     algo: str | None = "ppo"
     timesteps: int = QUICK_TIMESTEPS
@@ -87,12 +103,13 @@ class MismatchSettings:
     platform: str = "dasgupta1998"
     backend: str = "local"
     ray_address: str | None = None
-    agent_models: Sequence[str] | None = None
+    agent_models: Sequence[str | ModelSpec] | None = None
     config: str | os.PathLike | None = None
     position_tolerance: float = POSITION_TOLERANCE
     orientation_tolerance: float = ORIENTATION_TOLERANCE
-    cost_plant: str = TRUE_MODEL
+    cost_plant: str | ModelSpec = TRUE_MODEL
     controller_platforms: Sequence[Any] = ()
+    physics_threads: int | str = AUTO_THREADS
     hyperparameters: Any = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -117,13 +134,13 @@ class MismatchSettings:
         set_("test_models", tuple(_check_models(self.test_models, "test models", platform)))
         set_("seeds", _check_seeds(self.seeds))
         try:
-            set_("cost_plant", model_argument(self.cost_plant))
+            set_("cost_plant", plant_model(self.cost_plant))
         except UsageError as err:
             raise MismatchError(f"cost plant: {err.problem}", argument="cost_plant", problem=err.problem) from None
         if self.cost_plant not in self.test_models:
             raise MismatchError(
-                f"cost plant: {self.cost_plant!r} is not one of the test models "
-                f"({', '.join(self.test_models)}); pass --cost-plant with one of them, or add "
+                f"cost plant: {str(self.cost_plant)!r} is not one of the test models "
+                f"({', '.join(map(str, self.test_models))}); pass --cost-plant with one of them, or add "
                 f"{self.cost_plant} to --test-models"
             )
         if self.agent_models is not None:
@@ -137,7 +154,7 @@ class MismatchSettings:
             set_(name, _checked(TOLERANCE, name, getattr(self, name)))
         set_("controller_platforms", check_controller_platforms(self.controller_platforms))
         # rows' cells and agents live in folders named by the slugs of their labels
-        own = {slug(m) for m in [*self.design_models, "improved + DR"]}
+        own = {slug(str(m)) for m in [*self.design_models, "improved + DR"]}
         for name, _ in self.controller_platforms:
             clash = [m for m in self.train_models if slug(f"{m} @ {name}") in own]
             if clash:
@@ -156,6 +173,8 @@ class MismatchSettings:
         env_kwargs["platform"] = platform
         set_("env_kwargs", jsonable(env_kwargs))
         check_backend(self.backend, self.ray_address)
+        if self.physics_threads != AUTO_THREADS:
+            set_("physics_threads", _checked(THREADS, "physics_threads", self.physics_threads))
         if self.config is not None:
             if self.algo is None:
                 raise MismatchError("config: only with an RL algorithm (--algo)")
@@ -163,9 +182,16 @@ class MismatchSettings:
             set_("hyperparameters", jsonable(read_hyperparameters(self.algo, self.config)))
 
     @property
-    def design_models(self) -> list[str]:
+    def design_models(self) -> list[Model]:
         """The models controllers are built on (:func:`design_models`)."""
         return design_models(self.train_models, self.simplifications)
+
+    @property
+    def models(self) -> dict[str, Model]:
+        """Every model of the study by its canonical name: the spec (or ``"mujoco"``) a job is
+        given for a row's or a plant's name, looked up, not parsed again."""
+        every = [*self.design_models, *self.test_models, *(self.agent_models or ()), ModelSpec(TRUE_MODEL)]  # DR
+        return {str(m): m for m in every}
 
     def evaluation(self) -> dict[str, Any]:
         """What every evaluation's numbers depend on besides its row and plant (part of each
@@ -204,6 +230,8 @@ class MismatchSettings:
 #: as the command line's --episodes ... and --position-tolerance ...).
 COUNT = Interval(numbers.Integral, 1, math.inf, expected="a positive integer")
 TOLERANCE = Interval(numbers.Real, 0.0, math.inf, low_open=True, expected="a finite positive number")
+#: A job's physics threads other than "auto" (:func:`stewart_env.set_num_threads`'s range).
+THREADS = Interval(numbers.Integral, 1, MAX_THREADS, expected=f"'auto' or an integer from 1 to {MAX_THREADS}")
 
 
 def _checked(constraint: Interval, name: str, value: Any) -> Any:
@@ -214,18 +242,22 @@ def _checked(constraint: Interval, name: str, value: Any) -> Any:
         raise MismatchError(str(err), argument=err.argument, problem=err.problem) from None
 
 
-def design_models(train_models: Sequence[str], simplifications: Sequence[str]) -> list[str]:
+def design_models(train_models: Sequence[Model], simplifications: Sequence[str]) -> list[Model]:
     """The models controllers are built on: the training models, then improved+cK per simplification.
 
     Args:
-        train_models: the training models.
+        train_models: the training models, each a :class:`~stewart_env.dynamics.ModelSpec` (or ``"mujoco"``).
         simplifications: the simplifications c1..c4 that get a row.
+
+    Returns:
+        The models' specs (``"mujoco"`` as given), the training models first.
     """
-    return list(train_models) + [f"improved+{c}" for c in simplifications if f"improved+{c}" not in train_models]
+    simplified = [ModelSpec(TRUE_MODEL, Switch[c.upper()]) for c in simplifications]
+    return list(train_models) + [m for m in simplified if m not in train_models]
 
 
-def _check_models(names: Sequence[str], what: str, platform: str) -> list[str]:
-    """The models' canonical names (:func:`stewart_env.envs.config.model_argument`: each name
+def _check_models(names: Sequence[str | ModelSpec], what: str, platform: str) -> list[Model]:
+    """The models' specs (:func:`~stewart_env.agents.training.settings.plant_model`: each name
     parsed once), each checked by building the environment on it (one source of truth for what
     the environment simulates, e.g. whether MuJoCo is installed)."""
     from stewart_env.envs import StewartPlatformEnv
@@ -233,11 +265,12 @@ def _check_models(names: Sequence[str], what: str, platform: str) -> list[str]:
     out = []
     for name in names:
         try:
-            canonical = model_argument(name)
-            StewartPlatformEnv(model=canonical, platform=platform).close()
+            model = plant_model(name)
+            StewartPlatformEnv(model=model, platform=platform).close()
         except (ValueError, KeyError, ImportError) as exc:
-            raise MismatchError(f"{what}: {name!r} is not a model the environment simulates ({exc})") from None
-        out.append(canonical)
+            shown = str(name) if isinstance(name, ModelSpec) else name
+            raise MismatchError(f"{what}: {shown!r} is not a model the environment simulates ({exc})") from None
+        out.append(model)
     if not out:
         raise MismatchError(f"{what}: give at least one model")
     return out

@@ -25,6 +25,7 @@ from stewart_env.agents.studies.mismatch.cells import (
     stored_cells,
 )
 from stewart_env.agents.studies.mismatch.constants import (
+    AUTO_THREADS,
     QUICK_TIMESTEPS,
     RANKING_METRICS,
     SIMPLIFICATIONS,
@@ -46,6 +47,7 @@ from stewart_env.agents.studies.mismatch.settings import MismatchSettings, chang
 from stewart_env.agents.studies.mismatch.tables import write_tables
 from stewart_env.agents.studies.mismatch.timing import JobTimes
 from stewart_env.agents.training import jsonable, read_manifest
+from stewart_env.dynamics import ModelSpec
 from stewart_env.files import check_not_busy, lock_folder, write_error
 from stewart_env.progress import progress as progress_bar
 
@@ -54,8 +56,8 @@ __all__ = ["run_mismatch", "run_study", "summarize", "write_outputs"]
 
 def run_mismatch(
     out: str | Path,
-    train_models: Sequence[str] = ("classical", "improved"),
-    test_models: Sequence[str] = ("classical", "improved", "improved_centroidal"),
+    train_models: Sequence[str | ModelSpec] = ("classical", "improved"),
+    test_models: Sequence[str | ModelSpec] = ("classical", "improved", "improved_centroidal"),
     task: str = "setpoint",
     algo: str | None = "ppo",
     timesteps: int = QUICK_TIMESTEPS,
@@ -69,12 +71,13 @@ def run_mismatch(
     platform: str = "dasgupta1998",
     backend: str = "local",
     ray_address: str | None = None,
-    agent_models: Sequence[str] | None = None,
+    agent_models: Sequence[str | ModelSpec] | None = None,
     config: str | os.PathLike | None = None,
     position_tolerance: float = POSITION_TOLERANCE,
     orientation_tolerance: float = ORIENTATION_TOLERANCE,
-    cost_plant: str = TRUE_MODEL,
+    cost_plant: str | ModelSpec = TRUE_MODEL,
     controller_platforms: Sequence[Any] = (),
+    physics_threads: int | str = AUTO_THREADS,
     progress: bool = True,
 ) -> MismatchResult:
     """Run the mismatch study and write it to ``out`` (see :mod:`stewart_env.agents.studies.mismatch`).
@@ -107,6 +110,8 @@ def run_mismatch(
         cost_plant: the test plant the simplifications' costs are measured on.
         controller_platforms: further platforms controllers are built on, each ``"NAME=PLATFORM"`` or
             ``"PLATFORM"``.
+        physics_threads: each job's physics threads, ``"auto"`` (the CPUs a Ray job was given; this
+            process's count locally) or a count.
         progress: show a progress bar.
 
     Raises:
@@ -139,6 +144,7 @@ def run_mismatch(
         orientation_tolerance=orientation_tolerance,
         cost_plant=cost_plant,
         controller_platforms=controller_platforms,
+        physics_threads=physics_threads,
     )
     return run_study(out, settings, progress=progress)
 
@@ -159,7 +165,7 @@ def run_study(
     with lock_folder(out):  # one command at a time on a study, until this one ends
         check_own_agents(out)
         check_study(out, settings)
-        runner = make_backend(settings.backend, settings.ray_address)
+        runner = make_backend(settings.backend, settings.ray_address, settings.physics_threads)
         start = time.perf_counter()
         rows = build_rows(
             out,
@@ -196,14 +202,16 @@ def run_jobs(
     """
     algo, task, config, env_kwargs = settings.algo, settings.task, settings.config, settings.env_kwargs
     common = settings.evaluation()
+    models = settings.models  # the jobs are given the models' specs, looked up by name
     trainings = []
     for row in rows:
         for seed, directory in row.agents.items():
-            training = training_keywords(algo, row, seed, env_kwargs, task, settings.n_envs, config)
+            training = training_keywords(algo, row, seed, env_kwargs, task, settings.n_envs, config, models)
             expected = {**config_env_kwargs(algo, config), **training["env_kwargs"], "model": row.model, "task": task}
             if not finished_agent(directory, algo, seed, jsonable(expected)):
                 trainings.append((directory, training))
-    cells = [(row, plant, seed) for row in rows for plant in settings.test_models for seed in (row.seeds or (None,))]
+    plants = [str(m) for m in settings.test_models]
+    cells = [(row, plant, seed) for row in rows for plant in plants for seed in (row.seeds or (None,))]
     bar = progress_bar(total=len(trainings) + len(cells), desc="mismatch study", unit="job", disable=not progress)
     with bar:
         if isinstance(runner, LocalBackend):
@@ -243,7 +251,7 @@ def run_jobs(
                 if key not in agents:
                     agents[key] = runner.put(key if isinstance(runner, LocalBackend) else agent_files(key))
                 agent = agents[key]
-            jobs.append((spec, agent))
+            jobs.append((spec, models[row.model], models[spec["plant"]], agent))
         for i, numbers in runner.run(evaluate_job, jobs):
             path, spec = todo[i][0], todo[i][1]
             try:
@@ -265,13 +273,14 @@ def summarize(out: Path, rows: list[Row], settings: MismatchSettings) -> Mismatc
         settings: the study's settings.
     """
     # every cell read once: the summary, the costs, the per-seed values and the timing draw on it
-    cells = {(r.label, m): stored_cells(out, r, m) for r in rows for m in settings.test_models}
+    plants, cost_plant = [str(m) for m in settings.test_models], str(settings.cost_plant)
+    cells = {(r.label, m): stored_cells(out, r, m) for r in rows for m in plants}
     stored = {key: [cell["metrics"] for cell in found] for key, found in cells.items()}
 
     def values(row: Row, plant: str, metric: str):
         return metric_values(stored[row.label, plant], metric)
 
-    summary = {r.label: {m: cell_intervals(stored[r.label, m]) for m in settings.test_models} for r in rows}
+    summary = {r.label: {m: cell_intervals(stored[r.label, m]) for m in plants} for r in rows}
     for r in rows:
         if r.kind == "agent":
             steps = sorted({read_manifest(d)["num_timesteps"] for d in r.agents.values()})
@@ -282,12 +291,10 @@ def summarize(out: Path, rows: list[Row], settings: MismatchSettings) -> Mismatc
         evaluation=[t for t in cell_times if t is not None],
         untimed_cells=sum(t is None for t in cell_times),
     )
-    result = MismatchResult(rows, list(settings.test_models), summary, settings.episodes, timing=timing)
-    result.differences = simplification_costs(result, values, plant=settings.cost_plant)
+    result = MismatchResult(rows, plants, summary, settings.episodes, timing=timing)
+    result.differences = simplification_costs(result, values, plant=cost_plant)
     result.per_seed = {
-        r.label: {
-            key: per_seed_estimates(values(r, settings.cost_plant, key), statistic(key)) for key in RANKING_METRICS
-        }
+        r.label: {key: per_seed_estimates(values(r, cost_plant, key), statistic(key)) for key in RANKING_METRICS}
         for r in rows
         if r.kind == "agent"
     }

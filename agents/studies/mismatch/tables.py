@@ -320,7 +320,7 @@ def markdown(result: MismatchResult, settings: MismatchSettings, wall_time: floa
             ]
             lines.append(f"| {r.label} | " + " | ".join(cells) + " |")
         lines.append("")
-    lines += _cost_lines(result) + _per_seed_lines(result, settings.cost_plant) + _scale_out_lines(result)
+    lines += _cost_lines(result) + _per_seed_lines(result, str(settings.cost_plant)) + _scale_out_lines(result)
     lines.append(f"Backend: {settings.backend}. Wall time of this run: {wall_time:.0f} s.")
     return "\n".join(lines) + "\n"
 
