@@ -24,6 +24,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from stewart_env import _core
 from stewart_env.params import PlatformParams
 from stewart_env.state import PlatformState
 from stewart_env.tasks.constraints import CONSTRAINT_NAMES, ConstraintArrays, Constraints
@@ -33,7 +34,6 @@ __all__ = ["TASK_LIMIT_REASONS", "BatchCosts"]
 #: The constraints that the task's own limit reasons end an episode at, and those reasons
 #: (tasks.LIMIT_REASONS).
 TASK_LIMIT_REASONS = {"leg_length": "leg_stroke", "workspace": "workspace"}
-_LEG_VELOCITY = CONSTRAINT_NAMES.index("leg_velocity")
 
 
 class BatchCosts:
@@ -48,7 +48,13 @@ class BatchCosts:
 
     Attributes:
         constraints: the platform's :class:`~stewart_env.tasks.constraints.Constraints`.
-        out: the latest step's evaluation (:class:`~stewart_env.tasks.constraints.ConstraintArrays`).
+        out: the latest step's costs, a :class:`~stewart_env.tasks.constraints.ConstraintArrays`
+            whose ``costs``, ``violated`` and ``cost`` are those of ``Constraints.evaluate`` bit for
+            bit and whose ``code`` is 0 or 1 + the index of the first violated constraint of
+            :attr:`added_reasons`; its ``values`` and ``margins`` are not kept, (n, K, 0) arrays
+            (``Constraints.evaluate`` gives them).
+        previous_rates: (n,6) the leg rates after the latest step, m/s (the next step's previous ones).
+        previous_forces: (n,6) the leg forces applied over the latest step, N.
         added_reasons: the constraints of ``terminate_on`` that the task does not end an episode at,
             in the order of CONSTRAINT_NAMES: the termination reasons this adds.
         disabled_reasons: the task's limit reasons that no longer end an episode.
@@ -59,16 +65,29 @@ class BatchCosts:
 
     def __init__(self, platform: PlatformParams, control_dt: float, n: int, terminate_on: Iterable[str]):
         self.constraints = constraints = Constraints(platform, control_dt, terminate_on=terminate_on)
-        self.out: ConstraintArrays = constraints.arrays(n)
+        k = len(CONSTRAINT_NAMES)
+        # one compiled call a step fills these in place (_core.constraint_costs): no values or margins
+        self.out = ConstraintArrays(
+            np.empty((n, k, 0)),
+            np.empty((n, k, 0)),
+            np.zeros((n, k)),
+            np.zeros((n, k), dtype=bool),
+            np.zeros(n),
+            np.zeros(n, dtype=np.int64),
+        )
         self.previous_rates = np.zeros((n, 6))
         self.previous_forces = np.zeros((n, 6))
         # rows whose next step is their episode's first: no force was applied before it
         self._fresh = np.zeros(n, dtype=bool)
-        self._any_fresh = False
         chosen = constraints.terminate_on
         self.added_reasons = tuple(name for name in chosen if name not in TASK_LIMIT_REASONS)
         self.disabled_reasons = tuple(reason for name, reason in TASK_LIMIT_REASONS.items() if name not in chosen)
-        self._added = np.array([CONSTRAINT_NAMES.index(name) for name in self.added_reasons], dtype=np.int64)
+        # the compiled code of the added reasons, 1 + their index in CONSTRAINT_NAMES, and from it
+        # each one's place in added_reasons
+        self._added_mask = sum(1 << CONSTRAINT_NAMES.index(name) for name in self.added_reasons)
+        self._added_place = np.zeros(k + 1, dtype=np.int64)
+        for place, name in enumerate(self.added_reasons):
+            self._added_place[1 + CONSTRAINT_NAMES.index(name)] = place
         self._first_code = 0  # set by the batch: the code of added_reasons[0]
 
     def set_first_code(self, code: int) -> None:
@@ -92,9 +111,8 @@ class BatchCosts:
             rows: (m,) int, the rows.
             state: their start states, a PlatformState of (m, ...) arrays.
         """
-        self.previous_rates[rows] = self.constraints.leg_rates(state)
+        self._leg_rates_into(rows, state)
         self._fresh[rows] = True
-        self._any_fresh = True
 
     def set_state(self, rows: np.ndarray, state: PlatformState) -> None:
         """Rows put in a state within their episode (``set_state``): their previous leg rates
@@ -104,7 +122,17 @@ class BatchCosts:
             rows: (m,) int, the rows.
             state: their new states, a PlatformState of (m, ...) arrays.
         """
-        self.previous_rates[rows] = self.constraints.leg_rates(state)
+        self._leg_rates_into(rows, state)
+
+    def _leg_rates_into(self, rows: np.ndarray, state: PlatformState) -> None:
+        """Write the leg rates of ``state`` (eq. L1, measured on the nominal geometry) into rows
+        ``rows`` of :attr:`previous_rates`, in one compiled call."""
+        _core.constraint_leg_rates(
+            self.constraints.prm,
+            *(np.ascontiguousarray(x, dtype=np.float64) for x in state),
+            np.ascontiguousarray(rows, dtype=np.int64),
+            self.previous_rates,
+        )
 
     def after_step(
         self,
@@ -131,19 +159,28 @@ class BatchCosts:
             reward: (n,) the step's rewards, changed in place.
             termination_cost: the task's cost of a failure.
         """
-        if self._any_fresh:
-            self.previous_forces[self._fresh] = forces[self._fresh]
-            self._fresh[:] = False
-            self._any_fresh = False
-        out = self.constraints.evaluate(state, self.previous_rates, self.previous_forces, forces, self.out)
-        self.previous_rates[:] = out.values[:, _LEG_VELOCITY]
-        self.previous_forces[:] = forces
-        if len(self._added):
-            violated = out.violated[:, self._added]
-            ends = (code == 0) & violated.any(axis=1)
+        c, out = self.constraints, self.out
+        # one compiled call: the costs, and this step's leg rates and forces kept for the next in place
+        _core.constraint_costs(
+            c.bounds,
+            self._added_mask,
+            c.prm,
+            *state,
+            self.previous_rates,
+            self.previous_forces,
+            forces,
+            self._fresh,
+            c.control_dt,
+            out.costs,
+            out.violated,
+            out.cost,
+            out.code,
+        )
+        if self._added_mask:
+            ends = (code == 0) & (out.code > 0)
             if ends.any():
                 rows = np.flatnonzero(ends)
-                code[rows] = self._first_code + np.argmax(violated[rows], axis=1)
+                code[rows] = self._first_code + self._added_place[out.code[rows]]
                 term = terms["termination"]
                 term[rows] = -termination_cost
                 reward[rows] = sum(t[rows] for t in terms.values())

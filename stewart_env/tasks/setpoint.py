@@ -177,8 +177,11 @@ class SetpointTask(Task):
         (``uniform(-1, 1)`` is ``-1 + 2 random()``, the same number): positions (M,3), rotations
         (M,3,3), and whether each is safely inside the limits (M,) bool."""
         p = self.params
-        position = p.home_position + (-1.0 + 2.0 * unit[:, :3]) * self.position_range
-        rpy = p.home_rpy + (-1.0 + 2.0 * unit[:, 3:]) * self.angle_range
+        # home + uniform(-1, 1) * range on all six coordinates at once: each number as _draw_pose's
+        pose = np.concatenate((p.home_position, p.home_rpy)) + (-1.0 + 2.0 * unit) * np.concatenate(
+            (self.position_range, self.angle_range)
+        )
+        position, rpy = np.ascontiguousarray(pose[:, :3]), np.ascontiguousarray(pose[:, 3:])
         rotation = rpy_to_matrix(rpy)
         return position, rotation, pose_margins(self.kinematics, position, rpy, rotation=rotation)
 
@@ -198,15 +201,16 @@ class SetpointTask(Task):
             return super().initialize_episodes(rngs)
         m = len(rngs)
         unit = np.empty((m, 2, 6))
-        for j, rng in enumerate(rngs):
-            unit[j] = rng.random(12).reshape(2, 6)
-        position, rotation, ok = (x.reshape(m, 2, *x.shape[1:]) for x in self._candidates(unit.reshape(2 * m, 6)))
-        start_p, start_r = position[:, 0].copy(), rotation[:, 0].copy()
+        for rng, row in zip(rngs, unit):
+            rng.random(out=row)  # random(12) drawn straight into the row: the same numbers
+        position, rotation, ok = self._candidates(unit.reshape(2 * m, 6))
+        position, rotation, ok = position.reshape(m, 2, 3), rotation.reshape(m, 2, 3, 3), ok.reshape(m, 2)
+        # a rejected start: the second candidate is the start's next draw (both rejected: redrawn below)
+        start_second = ~ok[:, 0]
+        start_p = np.where(start_second[:, None], position[:, 1], position[:, 0])
+        start_r = np.where(start_second[:, None, None], rotation[:, 1], rotation[:, 0])
         target_p, target_r = position[:, 1].copy(), rotation[:, 1].copy()
-        # a rejected start: the second candidate is the start's next draw
-        second = ~ok[:, 0] & ok[:, 1]
-        start_p[second], start_r[second] = position[second, 1], rotation[second, 1]
-        for j in np.flatnonzero(~(ok[:, 0] & ok[:, 1])).tolist():
+        for j in np.flatnonzero(start_second | ~ok[:, 1]).tolist():
             rng = rngs[j]
             if not ok[j, 0] and not ok[j, 1]:
                 start_p[j], start_r[j] = self._draw_pose(rng, _MAX_DRAWS - 2)

@@ -67,6 +67,26 @@ inline double cone_angle(const double* a, const kernels::V3<double>& e) {
     return std::atan2(std::sqrt(c0 * c0 + c1 * c1 + c2 * c2), a[0] * e[0] + a[1] * e[1] + a[2] * e[2]);
 }
 
+// (L5) the workspace: P in the box, each of roll, pitch, yaw (rotations.matrix_to_rpy, wrapped to
+// [-pi, pi) about home) within max_angle, as task_kernels::limit_codes decides it.  Out: value,
+// margin (6,), x, y, z then roll, pitch, yaw.
+inline void workspace_row(const double* t, const double* R, const Bounds& b, double* value, double* margin) {
+    const double s = std::fmin(std::fmax(-R[6], -1.0), 1.0);
+    const double rpy[3] = {std::atan2(R[7], R[8]), std::asin(s), std::atan2(R[3], R[0])};
+    for (int j = 0; j < 3; ++j) {
+        value[j] = t[j];
+        margin[j] = interval_margin(t[j], b.position_min[j], b.position_max[j]);
+        const double d =
+            task_kernels::python_mod(rpy[j] - b.home_rpy[j] + task_kernels::PI, 2.0 * task_kernels::PI) -
+            task_kernels::PI;
+        value[3 + j] = d;
+        margin[3 + j] = magnitude_margin(d, b.max_angle);
+    }
+}
+
+// Whether a margin is violated: below 0, or no number (a value that is none), as evaluate_row counts it.
+inline bool outside(double margin) { return !(margin >= 0.0); }
+
 // One row.  prm: the row's packed parameters (kernels::PACKED_LAYOUT); t (3,), R (3,3), v (3,),
 // w (3,) its state; rates_prev, forces_prev: the previous control step's leg rates (m/s) and leg
 // forces (N), forces: the leg forces applied over this step (6,) each; dt the control period, s;
@@ -111,19 +131,7 @@ inline void evaluate_row(const double* prm, const double* t, const double* R, co
         mar[UNIVERSAL_JOINT][i] = magnitude_margin(val[UNIVERSAL_JOINT][i], b.max_universal_angle);
         mar[SPHERICAL_JOINT][i] = magnitude_margin(val[SPHERICAL_JOINT][i], b.max_spherical_angle);
     }
-    // (L5) the workspace: P in the box, each of roll, pitch, yaw (rotations.matrix_to_rpy, wrapped
-    // to [-pi, pi) about home) within max_angle, as task_kernels::limit_codes decides it
-    const double s = std::fmin(std::fmax(-R[6], -1.0), 1.0);
-    const double rpy[3] = {std::atan2(R[7], R[8]), std::asin(s), std::atan2(R[3], R[0])};
-    for (int j = 0; j < 3; ++j) {
-        val[WORKSPACE][j] = t[j];
-        mar[WORKSPACE][j] = interval_margin(t[j], b.position_min[j], b.position_max[j]);
-        const double d =
-            task_kernels::python_mod(rpy[j] - b.home_rpy[j] + task_kernels::PI, 2.0 * task_kernels::PI) -
-            task_kernels::PI;
-        val[WORKSPACE][3 + j] = d;
-        mar[WORKSPACE][3 + j] = magnitude_margin(d, b.max_angle);
-    }
+    workspace_row(t, R, b, val[WORKSPACE], mar[WORKSPACE]);
     // (L6) the indicator cost of each constraint, (L7) their sum; a margin that is no number (a
     // value that is none) counts as violated and is reported as -inf, so no cost is ever NaN
     double sum = 0.0;
@@ -156,6 +164,88 @@ inline void evaluate_batch(const double* prm, int64_t n_prm, const double* t, co
                      rates_prev + 6 * r, forces_prev + 6 * r, forces + 6 * r, dt, b, terminate, value + block * r,
                      margin + block * r, cost + N_CONSTRAINTS * r, violated + N_CONSTRAINTS * r, total + r,
                      code + r);
+}
+
+// The costs of one row alone, as evaluate_row gives them bit for bit, with the bookkeeping of a batch
+// done in place: no values or margins are written, and a constraint whose bound is absent (inf, which
+// no value violates) is not computed.  rates, forces_prev (6,) the previous control step's leg rates
+// and forces, overwritten with this step's (the next step's previous ones); when *fresh (the row's
+// episode's first step: no force was applied before it) the previous forces are this step's, so the
+// force rate is 0, and *fresh is cleared.  Out: cost, violated (8,), *total and *code as evaluate_row's.
+inline void costs_row(const double* prm, const double* t, const double* R, const double* v, const double* w,
+                      double* rates, double* forces_prev, const double* forces, bool* fresh, double dt,
+                      const Bounds& b, int64_t terminate, double* cost, bool* violated, double* total,
+                      int64_t* code) {
+    const bool first_step = *fresh;
+    *fresh = false;
+    const bool acceleration_bound = b.max_acceleration != INF, force_rate_bound = b.max_force_rate != INF;
+    const bool universal_bound = b.max_universal_angle != INF, spherical_bound = b.max_spherical_angle != INF;
+    bool any[N_CONSTRAINTS] = {};
+    for (int i = 0; i < 6; ++i) {
+        const kernels::LegFrame<double> fr = kernels::leg_frame<double>(prm, i, t, R);
+        const kernels::Row6<double> row = kernels::jacobian_row<double>(fr);
+        // (L1)-(L3) as evaluate_row
+        const double rate = row[0] * v[0] + row[1] * v[1] + row[2] * v[2] + row[3] * w[0] + row[4] * w[1] +
+                            row[5] * w[2];
+        const double force_before = first_step ? forces[i] : forces_prev[i];
+        if (acceleration_bound)
+            any[LEG_ACCELERATION] |= outside(magnitude_margin((rate - rates[i]) / dt, b.max_acceleration));
+        if (force_rate_bound)
+            any[FORCE_RATE] |= outside(magnitude_margin((forces[i] - force_before) / dt, b.max_force_rate));
+        rates[i] = rate;
+        forces_prev[i] = forces[i];
+        any[LEG_LENGTH] |= outside(interval_margin(fr.L, b.length_min, b.length_max));
+        any[LEG_VELOCITY] |= outside(magnitude_margin(rate, b.max_velocity));
+        any[LEG_FORCE] |= outside(interval_margin(forces[i], b.force_min, b.force_max));
+        if (universal_bound)
+            any[UNIVERSAL_JOINT] |=
+                outside(magnitude_margin(cone_angle(b.universal_axes + 3 * i, fr.e), b.max_universal_angle));
+        if (spherical_bound) {
+            const double* c = b.spherical_axes + 3 * i;
+            const double rc[3] = {R[0] * c[0] + R[1] * c[1] + R[2] * c[2], R[3] * c[0] + R[4] * c[1] + R[5] * c[2],
+                                  R[6] * c[0] + R[7] * c[1] + R[8] * c[2]};
+            any[SPHERICAL_JOINT] |= outside(magnitude_margin(cone_angle(rc, fr.e), b.max_spherical_angle));
+        }
+    }
+    double value[N_ENTRIES], margin[N_ENTRIES];
+    workspace_row(t, R, b, value, margin);
+    for (int j = 0; j < N_ENTRIES; ++j) any[WORKSPACE] |= outside(margin[j]);
+    double sum = 0.0;
+    int64_t first = 0;
+    for (int k = 0; k < N_CONSTRAINTS; ++k) {
+        violated[k] = any[k];
+        cost[k] = any[k] ? 1.0 : 0.0;
+        sum += cost[k];
+        if (any[k] && first == 0 && ((terminate >> k) & 1)) first = k + 1;
+    }
+    *total = sum;
+    *code = first;
+}
+
+// costs_row over n rows, the arrays as evaluate_batch's; rates, forces_prev (n,6) in place, fresh (n,).
+inline void costs_batch(const double* prm, int64_t n_prm, const double* t, const double* R, const double* v,
+                        const double* w, double* rates, double* forces_prev, const double* forces, bool* fresh,
+                        double dt, const Bounds& b, int64_t terminate, double* cost, bool* violated, double* total,
+                        int64_t* code, int64_t n) {
+    for (int64_t r = 0; r < n; ++r)
+        costs_row(kernels::params_row(prm, n_prm, r), t + 3 * r, R + 9 * r, v + 3 * r, w + 3 * r, rates + 6 * r,
+                  forces_prev + 6 * r, forces + 6 * r, fresh + r, dt, b, terminate, cost + N_CONSTRAINTS * r,
+                  violated + N_CONSTRAINTS * r, total + r, code + r);
+}
+
+// The leg rates Ldot_i = J_i [v; w] (eq. L1) of m states into rows rows[j] of rates (n,6), m/s, as
+// evaluate_row's values: prm (1 or m rows), t (m,3), R (m,3,3), v, w (m,3).
+inline void leg_rates_into(const double* prm, int64_t n_prm, const double* t, const double* R, const double* v,
+                           const double* w, const int64_t* rows, int64_t m, double* rates) {
+    for (int64_t j = 0; j < m; ++j) {
+        const double* p = kernels::params_row(prm, n_prm, j);
+        const double *tj = t + 3 * j, *Rj = R + 9 * j, *vj = v + 3 * j, *wj = w + 3 * j;
+        for (int i = 0; i < 6; ++i) {
+            const kernels::Row6<double> row = kernels::jacobian_row<double>(kernels::leg_frame<double>(p, i, tj, Rj));
+            rates[6 * rows[j] + i] = row[0] * vj[0] + row[1] * vj[1] + row[2] * vj[2] + row[3] * wj[0] +
+                                     row[4] * wj[1] + row[5] * wj[2];
+        }
+    }
 }
 
 }  // namespace constraints

@@ -119,4 +119,64 @@ void bind_constraints(nb::module_& m) {
           "violated"_a.noconvert(), "cost"_a.noconvert(), "code"_a.noconvert(),
           "Each constraint's value and margin per row and leg, its indicator cost and violation per row, the "
           "summed cost and the first violated constraint of the terminate mask (constraints.hpp).");
+    m.def("constraint_costs",
+          [](const constraints::Bounds& b, int64_t terminate, In prm, In t, In R, In v, In w, Out rates,
+             Out forces_prev, In forces, Flags fresh, double control_dt, Out cost, Flags violated, Out total,
+             Codes code) {
+              expect(t, "position (N, 3)", {-1, 3});
+              const int64_t n = static_cast<int64_t>(t.shape(0));
+              expect(prm, "prm (1 or N, N_PARAMS)", {-1, kernels::N_PARAMS});
+              const int64_t np = static_cast<int64_t>(prm.shape(0));
+              if (!(np == 1 || np == n)) throw nb::value_error("prm: expected 1 or N parameter rows");
+              expect(R, "rotation (N, 3, 3)", {n, 3, 3});
+              expect(v, "velocity (N, 3)", {n, 3});
+              expect(w, "angular_velocity (N, 3)", {n, 3});
+              expect(rates, "previous_rates (N, 6)", {n, 6});
+              expect(forces_prev, "previous_forces (N, 6)", {n, 6});
+              expect(forces, "forces (N, 6)", {n, 6});
+              expect(fresh, "fresh (N,)", {n});
+              constexpr int64_t K = constraints::N_CONSTRAINTS;
+              expect(cost, "costs (N, N_CONSTRAINTS)", {n, K});
+              expect(violated, "violated (N, N_CONSTRAINTS)", {n, K});
+              expect(total, "cost (N,)", {n});
+              expect(code, "code (N,)", {n});
+              if (!(std::isfinite(control_dt) && control_dt > 0.0))
+                  throw nb::value_error("control_dt: expected a finite number > 0");
+              if (terminate < 0 || terminate >= (int64_t{1} << K))
+                  throw nb::value_error("terminate: expected a bit mask of the constraints");
+              nb::gil_scoped_release release;
+              constraints::costs_batch(prm.data(), np, t.data(), R.data(), v.data(), w.data(), rates.data(),
+                                       forces_prev.data(), forces.data(), fresh.data(), control_dt, b, terminate,
+                                       cost.data(), violated.data(), total.data(), code.data(), n);
+          },
+          "bounds"_a, "terminate"_a, "prm"_a, "t"_a, "R"_a, "v"_a, "w"_a, "previous_rates"_a.noconvert(),
+          "previous_forces"_a.noconvert(), "forces"_a, "fresh"_a.noconvert(), "control_dt"_a,
+          "costs"_a.noconvert(), "violated"_a.noconvert(), "cost"_a.noconvert(), "code"_a.noconvert(),
+          "The costs of evaluate_constraints alone, bit for bit, without values or margins, with the previous leg "
+          "rates and forces overwritten by this step's in place (a fresh row's force rate 0) (constraints.hpp).");
+
+    m.def("constraint_leg_rates",
+          [](In prm, In t, In R, In v, In w, nb::ndarray<const int64_t, nb::c_contig, nb::device::cpu> rows,
+             Out rates) {
+              expect(t, "position (M, 3)", {-1, 3});
+              const int64_t mrows = static_cast<int64_t>(t.shape(0));
+              expect(prm, "prm (1 or M, N_PARAMS)", {-1, kernels::N_PARAMS});
+              const int64_t np = static_cast<int64_t>(prm.shape(0));
+              if (!(np == 1 || np == mrows)) throw nb::value_error("prm: expected 1 or M parameter rows");
+              expect(R, "rotation (M, 3, 3)", {mrows, 3, 3});
+              expect(v, "velocity (M, 3)", {mrows, 3});
+              expect(w, "angular_velocity (M, 3)", {mrows, 3});
+              expect(rows, "rows (M,)", {mrows});
+              expect(rates, "rates (N, 6)", {-1, 6});
+              const int64_t n = static_cast<int64_t>(rates.shape(0));
+              for (int64_t j = 0; j < mrows; ++j)
+                  if (rows.data()[j] < 0 || rows.data()[j] >= n)
+                      throw nb::index_error("rows: expected rows of rates, 0 <= row < N");
+              nb::gil_scoped_release release;
+              constraints::leg_rates_into(prm.data(), np, t.data(), R.data(), v.data(), w.data(), rows.data(), mrows,
+                                          rates.data());
+          },
+          "prm"_a, "t"_a, "R"_a, "v"_a, "w"_a, "rows"_a, "rates"_a.noconvert(),
+          "The leg rates (eq. L1) of M states written into rows rows of rates, as evaluate_constraints' values "
+          "(constraints.hpp).");
 }
