@@ -1,6 +1,13 @@
 """The demo's table fits an 80-column terminal; --out keeps the table of every metric."""
 
-from stewart_env.agents.evaluation.evaluation import COMPACT_COLUMNS, METRICS, compact_table, markdown_table
+from stewart_env.agents.evaluation.evaluation import (
+    COMPACT_COLUMNS,
+    COST_RATE,
+    LIMIT_HITS,
+    METRICS,
+    compact_table,
+    markdown_table,
+)
 from stewart_env.cli import main
 
 
@@ -15,7 +22,9 @@ def test_the_demo_prints_a_table_an_80_column_terminal_shows_and_writes_every_me
     table = (tmp_path / "report" / "results.md").read_text()
     head = next(line for line in table.splitlines() if line.startswith("| controller"))
     # every metric, with the task, episodes and ended-early columns: 15 columns
-    assert len(head.strip("|").split("|")) == 4 + len(METRICS) + 1
+    # controller, model, task, episodes, every metric, ended early, then the cost rate and the limit hits
+    assert len(head.strip("|").split("|")) == 4 + len(METRICS) + 1 + 2
+    assert head.rstrip(" |").endswith(f"{COST_RATE} | {LIMIT_HITS}")
     assert all(m.title in head for m in METRICS)
 
 
