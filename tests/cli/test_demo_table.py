@@ -38,7 +38,7 @@ def test_the_compact_table_keeps_the_markdown_table_unchanged_and_takes_its_colu
 
     results = [evaluate(PDPolicy, {"model": "improved", "task": "setpoint"}, episodes=1, max_steps=20, label="PD")]
     full = markdown_table(results)
-    assert full.splitlines()[0].count("|") == 4 + len(METRICS) + 2  # 15 columns, as before
+    assert full.splitlines()[0].count("|") == 4 + len(METRICS) + 2 + 2  # 15 columns, then the two of the costs
     lines = compact_table(results, {"success": "ok", "peak_leg_force": "force N"}).splitlines()
     assert lines[0].split() == ["controller", "model", "ok", "force", "N"]
     assert lines[1].split()[:2] == ["PD", "improved"] and len(lines) == 2
