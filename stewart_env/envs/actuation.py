@@ -166,6 +166,40 @@ class Actuation:
             self._hydraulic.reset(rows, force=holding)
             self.state[rows] = self._hydraulic.state[rows]
 
+    def current_set_points(self, action: np.ndarray) -> np.ndarray:
+        """The electric drives' current set points (n, 6), A, of the applied actions (n, 6) in
+        [-1, 1]: the leg-force set points over the force range, per ``eta k K_t`` (``force_per_amp``,
+        as the compiled step's drive takes them).  For a plant that carries the drive (MuJoCo).
+
+        Args:
+            action: (n, 6) the applied actions.
+        """
+        lo, hi = self.force_range
+        return (action * (0.5 * (hi - lo)) + 0.5 * (lo + hi)) / self.force_per_amp
+
+    def start_plant_drives(self, plant, rows: np.ndarray) -> None:
+        """Start the drives of a plant that carries them (``MujocoPlant(..., actuator="electric")``)
+        at the currents of :meth:`reset_rows`; a plant without drives is left as it is.
+
+        Args:
+            plant: the batch's plant.
+            rows: (m,) int, the rows.
+        """
+        if getattr(plant, "actuator", "ideal") == "electric":
+            plant.reset_currents(rows, self.state[rows, :, 0])
+
+    def take_plant_drives(self, plant, leg_forces: np.ndarray) -> None:
+        """After a step of a plant that carries the drives: their currents into :attr:`state`
+        (what ``observe_actuators`` reports) and the forces they gave the legs last into
+        ``leg_forces`` (n, 6), N.
+
+        Args:
+            plant: the batch's plant (``MujocoPlant(..., actuator="electric")``).
+            leg_forces: (n, 6) the batch's leg forces, overwritten.
+        """
+        self.state[:, :, 0] = plant.current
+        leg_forces[...] = plant.drive_force
+
     def pose_command(self, position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
         """The pose mode's action that commands a pose: (position, roll-pitch-yaw) normalised
         over the workspace box and the angles' range (the inverse of the mode's map).

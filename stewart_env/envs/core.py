@@ -121,7 +121,9 @@ class PlatformBatch:
         # of the action (through the lag) held over the control step
         self.actuation: Actuation | None = None
         if config.actuator.physics_rate:
-            if physics.plant != CLOSED_FORM:
+            # the MuJoCo plant carries the electric drive itself (its current loops at its steps)
+            mujoco_drive = config.actuator.action_mode == "force" and config.actuator.actuator == "electric"
+            if physics.plant != CLOSED_FORM and not mujoco_drive:
                 raise UsageError.about(
                     "actuator" if config.actuator.action_mode == "force" else "action_mode",
                     f"the {physics.plant!r} plant takes leg forces only: action_mode='force' with an ideal or "
@@ -129,7 +131,9 @@ class PlatformBatch:
                     f"actuator={config.actuator.actuator!r})",
                 )
             self.actuation = Actuation(config.actuator, self.platform, self.nominal_model, self.n)
-        self.plant: Plant = make_plant(physics, self._model, self.n)
+        self.plant: Plant = make_plant(
+            physics, self._model, self.n, actuator="ideal" if self.actuation is None else config.actuator.actuator
+        )
         self.actuator_tau = config.actuator.actuator_tau
         self._lag = config.actuator.lag(self.control_dt)
         lo, hi = self.platform.limits.leg_force
@@ -379,6 +383,7 @@ class PlatformBatch:
         if self.actuation is not None and forces is not None:
             # the drives at equilibrium with the holding forces (the platform at rest)
             self.actuation.reset_rows(rows, forces)
+            self.actuation.start_plant_drives(self.plant, rows)
         view = self._start_rows(rows, start, forces)
         self.costs.reset_rows(rows, view.state)
         if self._delay is not None:
@@ -815,16 +820,20 @@ class StepOfParts:
         if not driven:
             batch._drive(action)
         _core.copy_state(*batch._state, *batch._backup)
+        actuation = batch.actuation
         batch.plant.step_inplace(
             batch.position,
             batch.rotation,
             batch.velocity,
             batch.angular_velocity,
-            batch.leg_forces,
+            # the plant's electric drives take current set points
+            batch.leg_forces if actuation is None else actuation.current_set_points(batch._action),
             batch.external_wrench,
             batch.physics_dt,
             batch.substeps,
         )
+        if actuation is not None:
+            actuation.take_plant_drives(batch.plant, batch.leg_forces)
         batch._any_non_finite = _core.after_physics(
             *batch._state, *batch._backup, batch.steps, batch.control_dt, batch.time, batch._non_finite
         )

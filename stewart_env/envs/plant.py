@@ -157,13 +157,15 @@ class ClosedFormPlant:
         return record
 
 
-def make_plant(physics: PhysicsConfig, model: Dynamics, n: int) -> Plant:
+def make_plant(physics: PhysicsConfig, model: Dynamics, n: int, actuator: str = "ideal") -> Plant:
     """The plant that ``physics.plant`` names, for n rows of the batch's dynamics model ``model``.
 
     Args:
         physics: the environment's physics configuration (its ``plant``, ``platform`` and ``physics_dt``).
         model: the batch's dynamics model.
         n: the number of rows.
+        actuator: ``"ideal"`` (leg forces) or ``"electric"`` (the MuJoCo plant's electric drives,
+            commanded by current set points: ``MujocoPlant(..., actuator="electric")``).
 
     Raises:
         ImportError: the MuJoCo plant without MuJoCo installed, naming the argument.
@@ -172,7 +174,7 @@ def make_plant(physics: PhysicsConfig, model: Dynamics, n: int) -> Plant:
         from stewart_env.mujoco import MujocoPlant  # imports without MuJoCo; the plant names the extra
 
         try:
-            return MujocoPlant([physics.platform] * n, timestep=physics.physics_dt)
+            return MujocoPlant([physics.platform] * n, timestep=physics.physics_dt, actuator=actuator)
         except ImportError as error:
             raise ImportError(f"plant={MUJOCO!r} (or model={MUJOCO!r}): {error}") from error
     return ClosedFormPlant(model, n)

@@ -677,13 +677,18 @@ inline void solve6(T* M, T* b, T* x) {
 // 38-41 and 47-49 (or 51 and 55).
 template <typename T>
 inline void leg_share(const T* prm, int64_t flags, int i, const T* t, const T* R, const T* v, const T* w,
-                      const T* acc, T* h_leg, T* M_leg, Row6<T>& jac) {
+                      const T* acc, T* h_leg, T* M_leg, Row6<T>& jac, T* Lddot_vel = nullptr) {
     std::fill(h_leg, h_leg + 6, -0.0);
     const LegState<T> leg = leg_state<T>(prm, i, flags, t, R, v, w);
     const LegFrame<T>& fr = leg.frame;
     const LegBodies<T> bodies = leg_bodies<T>(prm, i, flags, fr.L);
     leg_on_platform<T>(prm, flags, w, acc, h_leg, leg, bodies);
     jac = jacobian_row<T>(fr);
+    // the velocity part of Lddot (P_i's acceleration a_vel alone) from this frame, for the
+    // reflected masses (add_reflected_mass), so they need no second pass over the legs
+    if (Lddot_vel != nullptr)
+        *Lddot_vel = leg_accel<T>(flags, fr, leg.Ldot, leg.sigma, leg.w1, leg.w2, leg.a_vel[0], leg.a_vel[1],
+                                  leg.a_vel[2]).Lddot;
     if (M_leg == nullptr) return;
     std::fill(M_leg, M_leg + 36, -0.0);
     const auto& [e0, e1, e2] = fr.e;
@@ -708,12 +713,13 @@ inline void leg_share(const T* prm, int64_t flags, int i, const T* t, const T* R
 }
 
 // The six legs' shares (leg_share) of one platform, or of one platform per lane: h_leg (6,6),
-// M_leg (6,36) (nullptr: no columns), jac (6,) rows.  One platform (T = double) on a processor
+// M_leg (6,36) (nullptr: no columns), jac (6,) rows, Lddot_vel (6,) (nullptr: not wanted) the
+// velocity parts of the legs' accelerations.  One platform (T = double) on a processor
 // with vector lanes runs its six legs side by side, one per lane, with the same numbers as one by
 // one.  docs/physics.md sections 5.1 and 5.4-5.5; paper eqs. 38-41 and 47-49 (or 51 and 55).
 template <typename T>
 inline void leg_shares(const T* prm, int64_t flags, const T* t, const T* R, const T* v, const T* w, const T* acc,
-                       T (*h_leg)[6], T (*M_leg)[36], Row6<T>* jac) {
+                       T (*h_leg)[6], T (*M_leg)[36], Row6<T>* jac, T* Lddot_vel = nullptr) {
 #ifdef STEWART_ENV_VECTOR_EXTENSIONS
     if constexpr (std::is_same_v<T, double>) {
         using lanes::Lanes;
@@ -737,10 +743,12 @@ inline void leg_shares(const T* prm, int64_t flags, const T* t, const T* R, cons
         if (acc != nullptr)
             for (int j = 0; j < 6; ++j) al[j] = acc[j];
         Row6<Lanes> jl;
+        Lanes cl;
         leg_share<Lanes>(P, flags, 0, tl, Rl, vl, wl, acc == nullptr ? nullptr : al, hl,
-                         M_leg == nullptr ? nullptr : Ml, jl);
+                         M_leg == nullptr ? nullptr : Ml, jl, Lddot_vel == nullptr ? nullptr : &cl);
         for (int i = 0; i < 6; ++i) {
             for (int r = 0; r < 6; ++r) h_leg[i][r] = hl[r][i], jac[i][r] = jl[r][i];
+            if (Lddot_vel != nullptr) Lddot_vel[i] = cl[i];
             if (M_leg != nullptr)
                 for (int k = 0; k < 36; ++k) M_leg[i][k] = Ml[k][i];
         }
@@ -748,7 +756,8 @@ inline void leg_shares(const T* prm, int64_t flags, const T* t, const T* R, cons
     }
 #endif
     for (int i = 0; i < 6; ++i)
-        leg_share<T>(prm, flags, i, t, R, v, w, acc, h_leg[i], M_leg == nullptr ? nullptr : M_leg[i], jac[i]);
+        leg_share<T>(prm, flags, i, t, R, v, w, acc, h_leg[i], M_leg == nullptr ? nullptr : M_leg[i], jac[i],
+                     Lddot_vel == nullptr ? nullptr : Lddot_vel + i);
 }
 
 // The reflected masses m_r (6,) of the legs' drives entered into M (6,6) and h (6,), {B}: a rotor
@@ -756,21 +765,17 @@ inline void leg_shares(const T* prm, int64_t flags, const T* t, const T* R, cons
 // leg is F_i - m_r,i Lddot_i with Lddot_i = j_i [a; alpha] + c_i (j_i the Jacobian row, c_i the
 // velocity part of leg_accel's Lddot): M gains m_r,i j_i^T j_i and h gains m_r,i c_i j_i^T.
 // docs/physics.md section 10.2 (reflected mass; no paper equation).
+// jac (6,) the legs' Jacobian rows and Lddot_vel (6,) their c_i, as leg_shares gives them.
 template <typename T>
-inline void add_reflected_mass(const T* prm, int64_t flags, const T* t, const T* R, const T* v, const T* w,
-                               const T* m_r, T* M, T* h) {
+inline void add_reflected_mass(const Row6<T>* jac_rows, const T* Lddot_vel, const T* m_r, T* M, T* h) {
     for (int i = 0; i < 6; ++i) {
-        const LegState<T> leg = leg_state<T>(prm, i, flags, t, R, v, w);
-        const Row6<T> jac = jacobian_row<T>(leg.frame);
-        // Lddot at zero platform acceleration: P_i's acceleration is a_vel alone
-        const LegAccel<T> rates = leg_accel<T>(flags, leg.frame, leg.Ldot, leg.sigma, leg.w1, leg.w2, leg.a_vel[0],
-                                               leg.a_vel[1], leg.a_vel[2]);
+        const Row6<T>& jac = jac_rows[i];
         const T mr = m_r[i];
         // a leg without drive inertia adds nothing, not even a signed zero (lane by lane)
         const auto inert = mr != T(0.0);
         if (!lanes::any(inert)) continue;
         for (int r = 0; r < 6; ++r) {
-            h[r] = lanes::select(inert, h[r] + mr * rates.Lddot * jac[r], h[r]);
+            h[r] = lanes::select(inert, h[r] + mr * Lddot_vel[i] * jac[r], h[r]);
             for (int c = 0; c < 6; ++c)
                 M[6 * r + c] = lanes::select(inert, M[6 * r + c] + mr * jac[r] * jac[c], M[6 * r + c]);
         }
@@ -796,13 +801,15 @@ inline void add_reflected_force(const T* prm, int64_t flags, const T* t, const T
 // With F = 0, h is the bias: velocity products, gravity and joint friction.  The actuator forces
 // are folded in leg by leg, so forward dynamics needs no second pass over the legs.
 // docs/physics.md section 5.4; paper eq. 49 (joint form) or 55 (centroidal form).
+// With the legs' reflected masses m_r (6,) (nullptr: none) M and h also carry their terms
+// (add_reflected_mass), from the same pass over the legs.
 template <typename T>
 inline void assemble_one(const T* prm, int64_t flags, const T* t, const T* R, const T* v,
-                         const T* w, const T* F, T* M, T* h) {
-    T h_leg[6][6], M_leg[6][36];
+                         const T* w, const T* F, T* M, T* h, const T* m_r = nullptr) {
+    T h_leg[6][6], M_leg[6][36], Lddot_vel[6];
     Row6<T> jac[6];
     // bias: each leg's pull at zero platform acceleration, actuator force excluded
-    leg_shares<T>(prm, flags, t, R, v, w, nullptr, h_leg, M_leg, jac);
+    leg_shares<T>(prm, flags, t, R, v, w, nullptr, h_leg, M_leg, jac, m_r == nullptr ? nullptr : Lddot_vel);
     std::fill(M, M + 36, 0.0);
     std::fill(h, h + 6, 0.0);
     for (int i = 0; i < 6; ++i) {
@@ -813,6 +820,8 @@ inline void assemble_one(const T* prm, int64_t flags, const T* t, const T* R, co
         for (int r = 0; r < 6; ++r) h[r] -= Fi * jac[i][r];
     }
     platform_terms<T>(prm, flags, R, w, M, h);
+    // nullptr: no drive inertia, and not one operation more (the results bit for bit as without)
+    if (m_r != nullptr) add_reflected_mass<T>(jac, Lddot_vel, m_r, M, h);
 }
 
 // Forward dynamics of one platform: out[:3] = a, out[3:] = alpha, {B}.
@@ -823,9 +832,7 @@ inline void assemble_one(const T* prm, int64_t flags, const T* t, const T* R, co
 template <typename T>
 inline void forward_one(const T* prm, int64_t flags, const T* t, const T* R, const T* v,
                         const T* w, const T* F, const T* W, T* M, T* h, T* out, const T* m_r = nullptr) {
-    assemble_one<T>(prm, flags, t, R, v, w, F, M, h);
-    // nullptr: no drive inertia, and not one operation more (the results bit for bit as without)
-    if (m_r != nullptr) add_reflected_mass<T>(prm, flags, t, R, v, w, m_r, M, h);
+    assemble_one<T>(prm, flags, t, R, v, w, F, M, h, m_r);
     for (int r = 0; r < 6; ++r) h[r] = W[r] - h[r];
     solve6<T>(M, h, out);
 }
