@@ -9,6 +9,7 @@
 #include <initializer_list>
 #include <new>
 #include <string>
+#include <utility>
 
 #include "physics/array_checks.hpp"
 #include "tasks/constraints.hpp"
@@ -39,6 +40,19 @@ double bound(double x, const char* name) {
 void interval(double lo, double hi, const char* name) {
     if (!(std::isfinite(lo) && std::isfinite(hi) && lo < hi))
         throw nb::value_error((std::string(name) + ": expected finite (min, max) with min < max").c_str());
+}
+
+// The rows N of a batch's state (t, R, v, w) and its parameter rows (1 or N), each array checked.
+std::pair<int64_t, int64_t> checked_rows(const In& prm, const In& t, const In& R, const In& v, const In& w) {
+    expect(t, "position (N, 3)", {-1, 3});
+    const int64_t n = static_cast<int64_t>(t.shape(0));
+    expect(prm, "prm (1 or N, N_PARAMS)", {-1, kernels::N_PARAMS});
+    const int64_t np = static_cast<int64_t>(prm.shape(0));
+    if (!(np == 1 || np == n)) throw nb::value_error("prm: expected 1 or N parameter rows");
+    expect(R, "rotation (N, 3, 3)", {n, 3, 3});
+    expect(v, "velocity (N, 3)", {n, 3});
+    expect(w, "angular_velocity (N, 3)", {n, 3});
+    return {n, np};
 }
 
 }  // namespace
@@ -87,14 +101,7 @@ void bind_constraints(nb::module_& m) {
           [](const constraints::Bounds& b, int64_t terminate, In prm, In t, In R, In v, In w, In rates_prev,
              In forces_prev, In forces, double control_dt, Out value, Out margin, Out cost, Flags violated,
              Out total, Codes code) {
-              expect(t, "position (N, 3)", {-1, 3});
-              const int64_t n = static_cast<int64_t>(t.shape(0));
-              expect(prm, "prm (1 or N, N_PARAMS)", {-1, kernels::N_PARAMS});
-              const int64_t np = static_cast<int64_t>(prm.shape(0));
-              if (!(np == 1 || np == n)) throw nb::value_error("prm: expected 1 or N parameter rows");
-              expect(R, "rotation (N, 3, 3)", {n, 3, 3});
-              expect(v, "velocity (N, 3)", {n, 3});
-              expect(w, "angular_velocity (N, 3)", {n, 3});
+              const auto [n, np] = checked_rows(prm, t, R, v, w);
               expect(rates_prev, "previous_rates (N, 6)", {n, 6});
               expect(forces_prev, "previous_forces (N, 6)", {n, 6});
               expect(forces, "forces (N, 6)", {n, 6});
@@ -123,14 +130,7 @@ void bind_constraints(nb::module_& m) {
           [](const constraints::Bounds& b, int64_t terminate, In prm, In t, In R, In v, In w, Out rates,
              Out forces_prev, In forces, Flags fresh, double control_dt, Out cost, Flags violated, Out total,
              Codes code) {
-              expect(t, "position (N, 3)", {-1, 3});
-              const int64_t n = static_cast<int64_t>(t.shape(0));
-              expect(prm, "prm (1 or N, N_PARAMS)", {-1, kernels::N_PARAMS});
-              const int64_t np = static_cast<int64_t>(prm.shape(0));
-              if (!(np == 1 || np == n)) throw nb::value_error("prm: expected 1 or N parameter rows");
-              expect(R, "rotation (N, 3, 3)", {n, 3, 3});
-              expect(v, "velocity (N, 3)", {n, 3});
-              expect(w, "angular_velocity (N, 3)", {n, 3});
+              const auto [n, np] = checked_rows(prm, t, R, v, w);
               expect(rates, "previous_rates (N, 6)", {n, 6});
               expect(forces_prev, "previous_forces (N, 6)", {n, 6});
               expect(forces, "forces (N, 6)", {n, 6});
