@@ -1,0 +1,1 @@
+"""Motion cueing: the vehicle motion a simulator reproduces, and how a person perceives it."""
