@@ -118,7 +118,7 @@ def _header_and_table(path: str, text: str) -> tuple[dict[str, str], list[str], 
     for name in COLUMNS:
         if name not in seen:
             raise MotionFileError(path, "missing (every column of the format is needed)", k + 1, name)
-    if k + 1 >= len(lines):
+    if k + 1 >= len(lines) or not lines[k + 1].strip():
         raise MotionFileError(path, "no units row after the column names", k + 2)
     units = [unit.strip() for unit in lines[k + 1].rstrip("\r").split(",")]
     if len(units) != len(names):
@@ -154,7 +154,10 @@ def _check_time(path: str, time: np.ndarray, first: int) -> float:
         k = int(back[0]) + 1
         what = "repeats" if step[k - 1] == 0.0 else "is before"
         raise MotionFileError(
-            path, f"the time stamp {time[k]!r} s {what} the previous row's {time[k - 1]!r} s", first + k, "time_s"
+            path,
+            f"the time stamp {float(time[k])!r} s {what} the previous row's {float(time[k - 1])!r} s",
+            first + k,
+            "time_s",
         )
     dt = float(np.median(step))
     uneven = np.flatnonzero(np.abs(step - dt) > STEP_TOLERANCE * dt)
