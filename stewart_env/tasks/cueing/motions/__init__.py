@@ -75,12 +75,6 @@ def make_motion(name: str, seed: int, dt: float = 0.01) -> VehicleMotion:
 
     Raises:
         UsageError: an unknown name, a seed or dt out of range (the message names the argument).
-
-    Examples:
-        >>> from stewart_env.tasks.cueing.motions import make_motion
-        >>> motion = make_motion("braking", seed=3)
-        >>> motion.specific_force.shape[1], motion.dt
-        (3, 0.01)
     """
     if not isinstance(name, str) or name not in MOTIONS:
         raise UsageError.about("name", f"unknown motion {name!r}; the motions are {', '.join(MOTIONS)}")
