@@ -235,9 +235,9 @@ def slalom(seed: int, dt: float = 0.01) -> VehicleMotion:
     ``n`` cones, straight before and after.
 
     Drawn: the speed U(40, 70) km/h, the cone spacing U(15, 24) m, the path's peak lateral
-    acceleration U(2, 5) m/s² (within the tyres' grip), which sets the amplitude
-    ``A = a / (pi u / spacing)²`` (at most 2 m), the number of cones 4 to 7, the straight before
-    U(10, 25) m, the preview time U(0.4, 0.7) s.
+    acceleration U(1.5, 3.5) m/s² (the driver's overshoot stays within the tyres' grip), which sets
+    the amplitude ``A = a / (pi u / spacing)²`` (at most 2 m), the number of cones 4 to 7, the
+    straight before U(10, 25) m, the preview time U(0.6, 0.9) s.
 
     Args:
         seed: the seed.
@@ -249,11 +249,11 @@ def slalom(seed: int, dt: float = 0.01) -> VehicleMotion:
     rng = motion_rng("slalom", seed)
     speed = uniform(rng, 40.0, 70.0) / 3.6
     spacing = uniform(rng, 15.0, 24.0)
-    peak = uniform(rng, 2.0, 5.0)
+    peak = uniform(rng, 1.5, 3.5)
     amplitude = min(2.0, peak / (math.pi * speed / spacing) ** 2)
     cones = int(rng.integers(4, 8))
     lead = uniform(rng, 10.0, 25.0)
-    preview = uniform(rng, 0.4, 0.7)
+    preview = uniform(rng, 0.6, 0.9)
     length = cones * spacing
 
     def path(x):
@@ -263,7 +263,16 @@ def slalom(seed: int, dt: float = 0.01) -> VehicleMotion:
     t = _samples((lead + length) / speed + 3.0, dt)
     run = simulate(path, speed, np.zeros_like(t), dt, preview)
     return _at_driver(
-        "slalom", seed, dt, run, speed=speed, spacing=spacing, amplitude=amplitude, cones=cones, lead=lead
+        "slalom",
+        seed,
+        dt,
+        run,
+        speed=speed,
+        spacing=spacing,
+        amplitude=amplitude,
+        cones=cones,
+        lead=lead,
+        preview=preview,
     )
 
 

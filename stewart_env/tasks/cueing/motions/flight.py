@@ -14,10 +14,11 @@ aircraft's body axes turned to the package's convention (x forward, y left, z up
   lift-off and the flight path's pull-up to the climb angle.
 - ``turbulence``: steady level flight of a light aircraft (:data:`AIRCRAFT`) through gusts of
   the Dryden model of MIL-F-8785C (section 3.7.2.4; MIL-HDBK-1797 appendix A repeats it), at low
-  altitude (its scales and intensities below 1000 ft).  The aircraft's response is quasi-static:
-  the specific force changes with the gusts' lift, side force and drag (the gust sensitivities of
-  the lift, side-force and drag slopes), and the angular velocity is the air mass's rotation (the
-  rotary gusts); the aircraft's own short-period and Dutch-roll modes are not modelled.
+  altitude (its scales and intensities below 1000 ft).  The aircraft's response is its plunge and
+  sideslip only, at a fixed attitude: the specific force changes with the gusts' lift, side force
+  and drag (the lift, side-force and drag slopes) as the aircraft's velocity follows the gusts,
+  and the angular velocity is the air mass's rotation (the rotary gusts) through a first-order
+  lag of :data:`ROTARY_LAG`; the aircraft's short-period and Dutch-roll modes are not modelled.
 """
 
 from __future__ import annotations
@@ -36,6 +37,9 @@ __all__ = ["AIRCRAFT", "PILOT_HEAD", "Aircraft", "coordinated_turn", "dryden_gus
 #: The pilot's head from the centre of mass (x forward, y left, z up), m: a light aircraft's
 #: left seat.
 PILOT_HEAD = (1.0, 0.3, 0.5)
+#: The time constant of the aircraft's rotation following the air mass's (its roll, pitch and yaw
+#: damping taken as one first-order lag), s.
+ROTARY_LAG = 0.3
 #: Air density at sea level (ISA), kg/m³.
 AIR_DENSITY = 1.225
 _FEET = 0.3048
@@ -122,7 +126,7 @@ def takeoff_roll(seed: int, dt: float = 0.01) -> VehicleMotion:
 
     Along the runway ``V_dot = a0 (1 - (V / V_max)²)`` (thrust less drag), with the runway's
     roughness on the vertical specific force and on the roll and pitch rates (white noise through a
-    first-order filter of 3 Hz); the brakes are released 1 s into the run.  At V_R the aircraft
+    second-order Butterworth filter of 3 Hz, smooth enough for the rates' derivatives); the brakes are released 1 s into the run and the thrust builds up over 0.5 s.  At V_R the aircraft
     pitches up to the climb attitude theta over 2.5 s; lift-off comes 1.5 s later, and the flight
     path's angle gamma then rises to theta - 4 degrees over 3 s (``f_z`` rises with the pull-up's
     ``V gamma_dot``); the run ends 5 s after lift-off.
@@ -143,14 +147,17 @@ def takeoff_roll(seed: int, dt: float = 0.01) -> VehicleMotion:
     theta_climb = math.radians(uniform(rng, 8.0, 12.0))
     rough_f, rough_w = uniform(rng, 0.2, 0.6), uniform(rng, 0.01, 0.03)
     v_max = 1.6 * v_rotate
-    release = 1.0
-    # the time to reach V_R: V(t) = v_max tanh(a0 t / v_max)
-    t_rotate = release + v_max / a0 * math.atanh(v_rotate / v_max)
+    release, spool = 1.0, 0.5
+    # V_dot = a0 s(t) (1 - (V / v_max)²), s the thrust's smooth step from the brakes' release over
+    # `spool` seconds, gives V = v_max tanh(a0 run / v_max), run the integral of s
+    run_rotate = v_max / a0 * math.atanh(v_rotate / v_max)
+    t_rotate = release + run_rotate + spool / 2.0
     t_lift = t_rotate + 4.0
     t = _samples(t_lift + 5.0, dt)
-    run = np.clip(t - release, 0.0, None)
+    tau = np.clip(t - release, 0.0, None)
+    run = np.where(tau < spool, tau / 2.0 - spool / (2.0 * math.pi) * np.sin(math.pi * tau / spool), tau - spool / 2.0)
     speed = v_max * np.tanh(a0 * run / v_max)
-    along = np.gradient(speed, dt)
+    along = a0 * smoothstep(t, release, spool) * (1.0 - (speed / v_max) ** 2)
     theta = theta_climb * smoothstep(t, t_rotate, 2.5)
     gamma = max(theta_climb - math.radians(4.0), 0.0) * smoothstep(t, t_lift, 3.0)
     gamma_dot = np.gradient(gamma, dt)
@@ -166,7 +173,7 @@ def takeoff_roll(seed: int, dt: float = 0.01) -> VehicleMotion:
     omega[:, 1] = -np.gradient(theta, dt)
     # the runway's roughness while the wheels roll, growing with the speed
     on_ground = (t < t_lift) * np.clip(speed / v_rotate, 0.0, 1.0)
-    b, a = signal.butter(1, 3.0, fs=1.0 / dt)
+    b, a = signal.butter(2, 3.0, fs=1.0 / dt)
     noise = signal.lfilter(b, a, rng.standard_normal((len(t), 3)), axis=0)
     noise /= max(float(noise.std()), 1e-12)
     force[:, 2] += rough_f * on_ground * noise[:, 0]
@@ -245,13 +252,22 @@ def dryden_gusts(
     return np.stack([u_g, v_g, w_g, p_g, q_g, r_g], axis=1)
 
 
+def _ride(gain: float, gust: np.ndarray, dt: float) -> np.ndarray:
+    """The acceleration ``K (gust - v)``, ``v' = K (gust - v)``, of a body riding a gust: the gust
+    through ``K s / (s + K)`` (bilinear), from rest relative to the air."""
+    b, a = signal.bilinear([gain, 0.0], [1.0, gain], fs=1.0 / dt)
+    return signal.lfilter(b, a, gust)
+
+
 def turbulence(seed: int, dt: float = 0.01) -> VehicleMotion:
     """Steady level flight of :data:`AIRCRAFT` through Dryden turbulence (see :func:`dryden_gusts`).
 
     The gusts' loads at the centre of mass (our axes, y left, z up): an upward gust ``w`` adds the
-    lift ``q S C_L_alpha w / V``, a tailwind ``u`` takes off the lift ``2 g u / V`` and the drag
-    ``rho V S C_D u``, and a gust from the right moves the air to the left (v in our axes)
-    and pushes the aircraft with it, the side force ``q S |C_Y_beta| v / V``.
+    lift ``q S C_L_alpha (w - w_a) / V``, ``w_a`` the aircraft's own vertical velocity, which the
+    lift accelerates (the plunge mode, of time constant ``m V / (q S C_L_alpha)``, about 0.4 s:
+    the aircraft rides the gusts' slow part); a gust from the right moves the air to the left (v
+    in our axes) and pushes the aircraft with it, the side force ``q S |C_Y_beta| (v - v_a) / V``
+    likewise; a tailwind ``u`` takes off the lift ``2 g u / V`` and the drag ``rho V S C_D u``.
 
     Drawn: the airspeed U(45, 65) m/s, the altitude U(100, 300) m, the wind at 20 ft W20
     U(8, 15) kt (up to MIL-F-8785C's light turbulence, 15 kt), and the gusts; 20 s of flight.
@@ -268,21 +284,28 @@ def turbulence(seed: int, dt: float = 0.01) -> VehicleMotion:
     altitude = uniform(rng, 100.0, 300.0)
     wind20 = uniform(rng, 8.0, 15.0) * _KNOTS
     t = _samples(20.0, dt)
-    # a 10 s run-in first, so that the filters start in their stationary state
+    # a 10 s run-in first, cut off at the end, so that the filters start in their stationary state
     run_in = int(round(10.0 / dt))
-    gusts = dryden_gusts(rng, len(t) + run_in, dt, speed, altitude, wind20, AIRCRAFT.span)[run_in:]
+    gusts = dryden_gusts(rng, len(t) + run_in, dt, speed, altitude, wind20, AIRCRAFT.span)
     # MIL-F-8785C's axes (y right, z down) to ours (y left, z up)
     u_g, v_g, w_g = gusts[:, 0], -gusts[:, 1], -gusts[:, 2]
     omega = np.stack([gusts[:, 3], -gusts[:, 4], -gusts[:, 5]], axis=1)
     c = AIRCRAFT
     q_s = 0.5 * AIR_DENSITY * speed * c.wing_area / c.mass  # (dynamic pressure x area / mass) / V
+    # the aircraft plunges and side-slips with the gusts: ``a = K (gust - velocity)`` and
+    # ``velocity' = a`` make the load ``K s / (s + K)`` of the gust, a first-order high-pass
+    heave, sway = _ride(q_s * c.lift_slope, w_g, dt), _ride(q_s * c.side_force_slope, v_g, dt)
     force = np.stack(
         [
             AIR_DENSITY * speed * c.wing_area * c.drag_coefficient / c.mass * u_g,
-            q_s * c.side_force_slope * v_g,
-            STANDARD_GRAVITY + q_s * c.lift_slope * w_g - 2.0 * STANDARD_GRAVITY / speed * u_g,
+            sway,
+            STANDARD_GRAVITY + heave - 2.0 * STANDARD_GRAVITY / speed * u_g,
         ],
         axis=1,
-    )
+    )[run_in:]
+    # the aircraft turns with the air mass through its rotary damping, a lag of ROTARY_LAG seconds
+    # (which also keeps omega_dot, and the specific force at the head, free of the gusts' white noise)
+    b, a = signal.bilinear([1.0], [ROTARY_LAG, 1.0], fs=1.0 / dt)
+    omega = signal.lfilter(b, a, omega, axis=0)[run_in:]
     force = at_head(force, omega, PILOT_HEAD, dt)
     return motion("turbulence", seed, dt, force, omega, airspeed=speed, altitude=altitude, wind20=wind20)
