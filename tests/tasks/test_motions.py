@@ -181,6 +181,16 @@ def test_every_manoeuvre_stays_within_a_vehicle_s_range(name):
         assert 5.0 <= motion.duration <= 40.0, (name, seed)
 
 
+@pytest.mark.parametrize("name", list(TRAINING_MOTIONS))
+def test_no_manoeuvre_steps_between_samples(name):
+    for seed in (0, 1, 2):
+        motion = make_motion(name, seed)
+        jerk = np.abs(np.diff(motion.specific_force, axis=0)).max() / motion.dt
+        # a car's or an aircraft's jerk stays within tens of m/s³ (the take-off's runway roughness,
+        # seen 1 m ahead of the pitch axis, is the roughest at about 90); a step of a sample is 1/dt
+        assert jerk < 150.0, (name, seed, jerk)
+
+
 # -- the motion file ------------------------------------------------------------------------------
 
 
