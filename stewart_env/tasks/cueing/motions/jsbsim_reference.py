@@ -18,7 +18,9 @@ From a shell::
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -35,6 +37,21 @@ __all__ = ["MANOEUVRES", "jsbsim_motion", "main", "write_jsbsim_reference"]
 _FEET = 0.3048
 #: JSBSim's slowest integration rate, Hz: it steps at dt / k, k the fewest steps a sample reaching it.
 JSBSIM_RATE_HZ = 120.0
+
+
+@contextlib.contextmanager
+def _quiet_stdout():
+    """The process's standard output sent to the null device for the block: JSBSim's C++ prints
+    its banner there when a model is made, which would mix with a script's output."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 1)
+            yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def _doublet(t: float, start: float, width: float, size: float) -> float:
@@ -94,9 +111,10 @@ def jsbsim_motion(
     root = Path(jsbsim.get_default_root_dir())
     if not aircraft or not (root / "aircraft" / aircraft / f"{aircraft}.xml").is_file():
         raise UsageError.about("aircraft", f"JSBSim ships no aircraft {aircraft!r} (under {root / 'aircraft'})")
-    fdm = jsbsim.FGFDMExec(str(root))
-    fdm.set_debug_level(0)
-    fdm.load_model(aircraft)
+    with _quiet_stdout():
+        fdm = jsbsim.FGFDMExec(str(root))
+        fdm.set_debug_level(0)
+        fdm.load_model(aircraft)
     fdm.set_dt(dt / substeps)
     fdm["ic/h-sl-ft"] = float(altitude_ft)
     fdm["ic/vc-kts"] = float(airspeed_kt)
