@@ -311,6 +311,7 @@ def test_a_hostile_motion_file_is_refused_naming_the_file_row_and_column(tmp_pat
 def test_columns_in_another_order_and_other_spellings_of_the_units_are_read(tmp_path):
     rows = [f"0.0,{k * 0.02!r},9.80665,0.0,0.5,0.0,0.0" for k in range(10)]
     path = _file(tmp_path, rows, "f_x,time_s,f_z,f_y,omega_z,omega_x,omega_y\nm/s2,s,m/s²,m/s^2,rad/s,rad/s,rad/s")
+    path.write_text(path.read_text().replace("\n", "\r\n") + "\r\n\n")  # Windows line ends, blank lines at the end
     motion = read_motion(path)
     assert motion.dt == pytest.approx(0.02, rel=1e-12) and motion.name == "log"  # the times' sum rounds
     np.testing.assert_array_equal(motion.specific_force[0], [0.0, 0.0, 9.80665])

@@ -298,13 +298,10 @@ def braking(seed: int, dt: float = 0.01) -> VehicleMotion:
     t = _samples(onset + build + speed / decel + 2.5, dt)
     command = -decel * smoothstep(t, onset, build)
     # the speed is integrated here once, so that the deceleration fades as the car stops
-    u = np.empty_like(t)
     speed_now = speed
     for k, a in enumerate(command):
-        a = a * min(1.0, speed_now / 1.0)
-        command[k] = a
-        u[k] = speed_now
-        speed_now = max(0.0, speed_now + dt * a)
+        command[k] = a * min(1.0, speed_now / 1.0)
+        speed_now = max(0.0, speed_now + dt * command[k])
     run = simulate(lambda x: np.zeros_like(x), speed, command, dt, 0.5)
     return _at_driver("braking", seed, dt, run, speed=speed, deceleration=decel, onset=onset, build_up=build)
 

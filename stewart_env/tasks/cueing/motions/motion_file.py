@@ -96,7 +96,7 @@ class MotionFileError(files.FileError):
 def _header_and_table(path: str, text: str) -> tuple[dict[str, str], list[str], np.ndarray, int]:
     """The comment entries, the column names and the table; the line of the first sample."""
     lines = text.split("\n")
-    if lines and lines[-1] == "":
+    while lines and not lines[-1].strip():  # blank lines at the end
         lines.pop()
     header: dict[str, str] = {}
     k = 0
