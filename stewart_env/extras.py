@@ -2,7 +2,7 @@
 
 Each extra brings the libraries of one kind of work: ``rl`` (training and loading agents),
 ``mujoco`` (the MuJoCo twin), ``distributed`` (the study on a Ray cluster), ``laws`` (a user's own
-control laws as numba cfuncs), ``logs`` (drive logs in HDF5).  :func:`require` looks the libraries
+control laws as numba cfuncs), ``logs`` (drive logs in HDF5), ``jsbsim`` (flight references for the cueing task).  :func:`require` looks the libraries
 up without importing them, so a command checks its extras before it does any work; :func:`extra_of` names the extra a failed
 import belongs to, so that the command line turns any such ``ImportError`` into one line.
 
@@ -27,6 +27,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "distributed": ("ray",),
     "laws": ("numba",),
     "logs": ("h5py",),
+    "jsbsim": ("jsbsim",),
 }
 #: What an extra asks of the user before ``pip install`` (torch's CPU build for ``rl``: the
 #: default index serves the CUDA build, gigabytes this package does not use).

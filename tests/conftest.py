@@ -34,6 +34,7 @@ EXTRA_MODULES = {
     "integration": ("torchrl", "tianshou", "skrl", "rl_zoo3"),
     "docs": ("sphinx", "furo", "myst_parser"),
     "laws": ("numba",),
+    "jsbsim": ("jsbsim",),
 }
 
 
