@@ -148,8 +148,40 @@ class SensorFilter:
         if steady_input is not None:
             value = np.array(steady_input, dtype=np.float64)
             if value.ndim < 1 or value.shape[-1] != 3 or not np.isfinite(value).all():
-                raise UsageError.about("steady_input", f"must be a finite array of shape (..., 3), got shape {value.shape}")
+                raise UsageError.about(
+                    "steady_input", f"must be a finite array of shape (..., 3), got shape {value.shape}"
+                )
             self._steady_input = value
+
+    def start_rows(self, rows, steady_input) -> None:
+        """Put elements ``rows`` of the batch's leading axis in the steady state under ``steady_input``.
+
+        The filter has stepped (or been reset with ``steady_input``) a batch; the next step of
+        those elements starts as if they had been under ``steady_input`` for long, as
+        :meth:`reset` with ``steady_input`` starts a whole batch.
+
+        Args:
+            rows: (m,) int, indices into the batch's leading axis.
+            steady_input: (m, ..., 3) the rows' constant inputs before the next step.
+
+        Raises:
+            UsageError: the filter holds no batch yet, or ``steady_input``'s shape is not the rows'.
+        """
+        if self._state is None and self._steady_input is None:
+            raise UsageError.about(
+                "rows", "the filter holds no batch yet: reset it with a steady_input or step it first"
+            )
+        if self._state is None:
+            self._state = [gain * self._steady_input for gain in self._steady]
+            self._previous = self._steady_input.copy()
+        shape = self._state[0].shape
+        value = np.asarray(steady_input, dtype=np.float64)
+        rows = np.asarray(rows, dtype=np.int64)
+        if value.shape != (len(rows), *shape[1:]):
+            raise UsageError.about("steady_input", f"must have shape {(len(rows), *shape[1:])}, got {value.shape}")
+        for state, gain in zip(self._state, self._steady):
+            state[rows] = gain * value
+        self._previous[rows] = value
 
     def step(self, u) -> np.ndarray:
         """Advance one sample: the perceived signal for the input sample ``u``.
@@ -171,7 +203,8 @@ class SensorFilter:
             if self._steady_input is not None:
                 if self._steady_input.shape != u.shape:
                     raise UsageError.about(
-                        "u", f"has shape {u.shape} but the filter was reset with steady_input of shape {self._steady_input.shape}"
+                        "u",
+                        f"has shape {u.shape} but the filter was reset with steady_input of shape {self._steady_input.shape}",
                     )
                 base = self._steady_input
                 self._state = [gain * base for gain in self._steady]
@@ -180,7 +213,9 @@ class SensorFilter:
                 self._state = [np.zeros_like(u) for _ in range(self.order)]
                 self._previous = None
         elif u.shape != self._state[0].shape:
-            raise UsageError.about("u", f"has shape {u.shape}, but this filter has stepped inputs of shape {self._state[0].shape}")
+            raise UsageError.about(
+                "u", f"has shape {u.shape}, but this filter has stepped inputs of shape {self._state[0].shape}"
+            )
         if self._previous is not None:
             x = self._state
             state = []
