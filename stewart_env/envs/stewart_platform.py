@@ -514,7 +514,14 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
             outcome = core.step(check_action(action, (6,)).reshape(1, 6), self._rngs, reuse=True)
         reward, code, terms, observation = outcome
         info = row_info(
-            terms, code, core.time, core.plant.closure_error, 0, core.track_success_of_row(0, code), core.costs.info(0)
+            terms,
+            code,
+            core.time,
+            core.plant.closure_error,
+            0,
+            core.track_success_of_row(0, code),
+            core.costs.info(0),
+            core.task.step_info(),
         )
         if self.render_mode == "human":
             self.render()

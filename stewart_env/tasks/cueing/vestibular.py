@@ -11,8 +11,8 @@ Meiry, 1968, "A revised dynamic otolith model", Aerospace Medicine 39(6), and Za
       f_hat / f = K (tau_a s + 1) / ((tau_L s + 1)(tau_S s + 1)),
       K = 0.4, tau_a = 13.2 s, tau_L = 5.33 s, tau_S = 0.66 s;
 
-  its gain is about 1 between 0.2 and 1.5 rad/s (K tau_a / tau_L = 0.99) and 0.4 at rest, so
-  a sustained acceleration fades to 40 % of its size;
+  its gain peaks at 0.89 near 0.5 rad/s (above 0.8 from 0.23 to 1.06 rad/s) and is 0.4 at
+  rest, so a sustained acceleration fades to 40 % of its size;
 - the **semicircular canal** (angular velocity ``omega`` in, perceived angular velocity out)::
 
       omega_hat / omega = tau_L tau_a s^2 / ((tau_L s + 1)(tau_a s + 1)),
@@ -294,7 +294,8 @@ class Otolith(_LinearModel):
     """The otolith organs: specific force in, perceived specific force out (Telban and Cardullo, 2005).
 
     ``K (tau_a s + 1) / ((tau_L s + 1)(tau_S s + 1))`` on each axis of {H}, after Young and
-    Meiry (1968), scaled so that the gain is about 1 in the band where the otoliths sense best.
+    Meiry (1968), scaled so that the gain is near 1 (0.89 at its peak, near 0.5 rad/s) in the
+    band where the otoliths sense best.
 
     Attributes:
         gain: K, the gain at rest (0.4).
