@@ -15,7 +15,8 @@ from stewart_env.errors import UsageError
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.tasks import TASKS, make_task
 from stewart_env.tasks.cueing.head import head_motion
-from stewart_env.tasks.cueing.task import EVALUATION_SEEDS, TRAINING_SEED_BOUND, CueingTask
+from stewart_env.tasks.cueing.motions import EVALUATION_SEEDS, TRAINING_SEED_BOUND, make_motion, write_motion
+from stewart_env.tasks.cueing.task import CueingTask
 from stewart_env.tasks.cueing.vestibular import Otolith, SemicircularCanal
 
 pytestmark = pytest.mark.env
@@ -293,6 +294,23 @@ def test_a_copy_mid_episode_goes_on_as_the_original(copier):
 def test_hostile_options_are_refused_naming_the_option(options, message):
     with pytest.raises(ValueError, match=message):
         make(task_options=options)
+
+
+def test_a_motion_file_is_the_episode(tmp_path):
+    path = tmp_path / "braking.csv"
+    write_motion(make_motion("braking", 3), path)
+    env = make(action_mode="pose", task_options={"motions": str(path)})
+    obs, _ = env.reset(seed=0)
+    u = env.unwrapped
+    assert u.task.motion_names == ("braking",)  # the name the file records
+    expected = make_motion("braking", 3)
+    np.testing.assert_allclose(
+        u.decode_observation(obs)["vehicle_specific_force"], expected.specific_force[0], rtol=1e-6
+    )
+    bad = tmp_path / "bad.csv"
+    bad.write_text("not a motion\n")
+    with pytest.raises(UsageError, match="bad.csv"):
+        make(task_options={"motions": str(bad)})
 
 
 def test_options_error_is_a_usage_error():

@@ -22,7 +22,16 @@ from stewart_env.rotations import matrix_to_rpy, rpy_to_matrix
 from stewart_env.state import PlatformState
 from stewart_env.tasks.base import LIMIT_REASONS, Scales, StepView, SuccessCriterion, Task, option
 from stewart_env.tasks.cueing.head import head_at_rest, head_motion
-from stewart_env.tasks.cueing.motion import STANDARD_GRAVITY, VehicleMotion
+from stewart_env.tasks.cueing.motion import STANDARD_GRAVITY
+from stewart_env.tasks.cueing.motions import (
+    EVALUATION_MOTIONS,
+    EVALUATION_SEEDS,
+    MOTIONS,
+    TRAINING_MOTIONS,
+    TRAINING_SEED_BOUND,
+    make_motion,
+    read_motion,
+)
 from stewart_env.tasks.cueing.vestibular import Otolith, SemicircularCanal
 from stewart_env.validation import choice, integer, real, vector
 
@@ -34,56 +43,10 @@ DEFAULT_HEAD = (0.0, 0.0, 0.8)
 #: Bounds of the options: at most MAX_PREVIEW samples ahead, a head within MAX_HEAD m of P's origin.
 MAX_PREVIEW = 100
 MAX_HEAD = 10.0
-#: Training seeds are drawn below this; the evaluation split's seeds lie at or above it.
-TRAINING_SEED_BOUND = 2**30
 #: How many vehicle motions the task keeps resampled, the most recently used first.
 _CACHE_SIZE = 64
-
-try:  # the motion generators, when installed with the package
-    from stewart_env.tasks.cueing.motions import (  # type: ignore[import-not-found]
-        EVALUATION_MOTIONS,
-        EVALUATION_SEEDS,
-        MOTIONS,
-        TRAINING_MOTIONS,
-        make_motion,
-        read_motion,
-    )
-except ImportError:
-    # Without them, one stand-in motion: sines on every channel, drawn from the seed.
-    TRAINING_MOTIONS = EVALUATION_MOTIONS = ("sines",)
-    EVALUATION_SEEDS = tuple(TRAINING_SEED_BOUND + k for k in range(5))
-    read_motion = None
-
-    def make_motion(name: str, seed: int, dt: float = 0.01) -> VehicleMotion:
-        """A stand-in vehicle motion: sines of random amplitude, frequency and phase on each channel, 10 s.
-
-        Args:
-            name: ``"sines"``.
-            seed: the generator's seed.
-            dt: the sample period (s).
-
-        Returns:
-            The :class:`VehicleMotion`.
-
-        Raises:
-            UsageError: another name.
-        """
-        if name != "sines":
-            raise UsageError.about("motions", f"unknown motion {name!r}; choose from 'sines'")
-        rng = np.random.default_rng(seed)
-        time = np.arange(0.0, 10.0 + 0.5 * dt, dt)
-        amplitude = rng.uniform(0.0, 1.0, 6) * np.array([2.0, 2.0, 1.0, 0.2, 0.2, 0.2])
-        omega = 2 * np.pi * rng.uniform(0.1, 1.0, 6)
-        phase = rng.uniform(0.0, 2 * np.pi, 6)
-        # every channel starts at rest: sin(omega t) ramps in from 0 with a smooth envelope
-        envelope = np.minimum(time / 2.0, 1.0) ** 2
-        channels = envelope[:, None] * amplitude * np.sin(omega * time[:, None] + phase) - (
-            envelope[:, None] * amplitude * np.sin(phase)
-        )
-        specific_force = channels[:, :3] + np.array([0.0, 0.0, STANDARD_GRAVITY])
-        return VehicleMotion("sines", dt, specific_force, channels[:, 3:], source=f"sines seed {seed}")
-
-    MOTIONS = {"sines": make_motion}
+#: The largest sample period the motion generators take (s); a longer control step interpolates.
+_MAX_MOTION_DT = 0.1
 
 
 class CueingTask(Task):
@@ -205,8 +168,6 @@ class CueingTask(Task):
         if motions is None:
             return tuple(TRAINING_MOTIONS if self.split == "train" else EVALUATION_MOTIONS)
         if isinstance(motions, (str, os.PathLike)):
-            if read_motion is None:
-                raise UsageError.about(option("motions"), "reading a motion file needs the motion generators' module")
             self._file_motion = read_motion(motions)
             return (self._file_motion.name,)
         if not isinstance(motions, (tuple, list)) or not motions or not all(isinstance(m, str) for m in motions):
@@ -243,7 +204,9 @@ class CueingTask(Task):
         if samples is not None:
             self._motions.move_to_end(key)
             return samples
-        motion = self._file_motion if self._file_motion is not None else make_motion(self.motion_names[key[0]], key[1])
+        motion = self._file_motion
+        if motion is None:
+            motion = make_motion(self.motion_names[key[0]], key[1], min(self.control_dt, _MAX_MOTION_DT))
         steps = int(math.floor(motion.duration / self.control_dt + 1e-9))
         if steps < 1:
             raise UsageError.about(
