@@ -204,6 +204,8 @@ def test_evaluation_split_draws_held_out_seeds():
     assert seeds <= set(EVALUATION_SEEDS) and min(seeds) >= TRAINING_SEED_BOUND
     train = make_task("cueing", stewart_env_platform(), 0.01, {})
     assert all(train.initialize_episode(rng)[1]["seed"] < TRAINING_SEED_BOUND for _ in range(20))
+    pool = make_task("cueing", stewart_env_platform(), 0.01, {"training_seeds": 3})
+    assert {int(pool.initialize_episode(rng)[1]["seed"]) for _ in range(40)} == {0, 1, 2}
 
 
 def stewart_env_platform():
@@ -278,6 +280,8 @@ def test_a_copy_mid_episode_goes_on_as_the_original(copier):
         ({"preview": 101}, r"task_options\['preview'\]"),
         ({"preview": 1.5}, r"task_options\['preview'\]"),
         ({"split": "test"}, r"task_options\['split'\]"),
+        ({"training_seeds": 0}, r"task_options\['training_seeds'\]"),
+        ({"training_seeds": 2**31}, r"task_options\['training_seeds'\]"),
         ({"head": [0.0, 0.0]}, r"task_options\['head'\]"),
         ({"head": [0.0, 0.0, float("nan")]}, r"task_options\['head'\]"),
         ({"head": [0.0, 0.0, 1e9]}, r"task_options\['head'\]"),

@@ -85,6 +85,9 @@ class CueingTask(Task):
         motions: the motions' names (a tuple) or a motion file's path (a ``str`` or path),
             default: the split's motions.
         split: ``"train"`` or ``"evaluation"``, which seeds episodes draw.
+        training_seeds: None (training seeds uniform in [0, 2**30)) or n, 1 to 2**30: training
+            seeds uniform in [0, n), so that a few motions per name recur and the task generates
+            each once (it keeps the last 64); default None.
         preview: samples ahead observed, 0-100, default 0.
         head: (3,) m in {P}, the head point, default (0, 0, 0.8).
         specific_force_weight: default 1.0.
@@ -114,6 +117,7 @@ class CueingTask(Task):
         *,
         motions=None,
         split: str = "train",
+        training_seeds: int | None = None,
         preview: int = 0,
         head=DEFAULT_HEAD,
         specific_force_weight: float = 1.0,
@@ -127,6 +131,11 @@ class CueingTask(Task):
     ):
         self.split = choice(option("split"), split, ("train", "evaluation"))
         self.preview = integer(option("preview"), preview, 0, MAX_PREVIEW)
+        self.training_seeds = (
+            TRAINING_SEED_BOUND
+            if training_seeds is None
+            else integer(option("training_seeds"), training_seeds, 1, TRAINING_SEED_BOUND)
+        )
         self.head = vector(option("head"), head, 3, -MAX_HEAD, MAX_HEAD)
         self.cue_weights = {
             "specific_force_weight": real(option("specific_force_weight"), specific_force_weight, 0.0, 1e6),
@@ -232,7 +241,7 @@ class CueingTask(Task):
         if self._file_motion is not None:
             seed = 0
         elif self.split == "train":
-            seed = int(rng.integers(TRAINING_SEED_BOUND))
+            seed = int(rng.integers(self.training_seeds))
         else:
             seed = int(EVALUATION_SEEDS[int(rng.integers(len(EVALUATION_SEEDS)))])
         samples = self.motion_of(index, seed)

@@ -72,7 +72,7 @@ THRESHOLDS = types.MappingProxyType(
         "angular_velocity": _read_only(np.radians([3.0, 3.6, 2.6])),
     }
 )
-"""Perception thresholds per axis of {H}: ``"specific_force"`` (m/s²), ``"angular_velocity"`` (rad/s)."""
+"""The perception thresholds per axis of {H}, under ``"specific_force"`` in m/s² and ``"angular_velocity"`` in rad/s."""
 
 
 def _check_dt(dt) -> float:
@@ -318,7 +318,7 @@ class Otolith(_LinearModel):
         """The transfer function in s.
 
         Returns:
-            (numerator, denominator): coefficients in descending powers of s.
+            The numerator and the denominator, coefficients in descending powers of s.
         """
         numerator = self.gain * np.array([self.lead_time_constant, 1.0])
         denominator = np.polymul([self.long_time_constant, 1.0], [self.short_time_constant, 1.0])
@@ -349,7 +349,7 @@ class SemicircularCanal(_LinearModel):
         """The transfer function in s.
 
         Returns:
-            (numerator, denominator): coefficients in descending powers of s.
+            The numerator and the denominator, coefficients in descending powers of s.
         """
         product = self.long_time_constant * self.adaptation_time_constant
         numerator = np.array([product, 0.0, 0.0])
