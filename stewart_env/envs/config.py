@@ -204,7 +204,7 @@ class TaskConfig(_Record):
     """What the platform should do; the task checks its own options (see :mod:`stewart_env.tasks`)."""
 
     task: str | type[Task] = _argument(
-        "setpoint", '`"setpoint"`, `"tracking"`, `"disturbance"`, `"hold"` (or a `Task` subclass)'
+        "setpoint", '`"setpoint"`, `"tracking"`, `"disturbance"`, `"hold"`, `"cueing"` (or a `Task` subclass)'
     )
     task_options: dict[str, Any] | None = _argument(
         None,

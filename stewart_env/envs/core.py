@@ -159,6 +159,10 @@ class PlatformBatch:
         self.costs.set_first_code(len(self.termination_reasons))
         self.termination_reasons += self.costs.added_reasons
         self._reason_array = np.array(self.termination_reasons, dtype=str)
+        # code -> whether it ends the episode with a failure (a task's success reasons do not)
+        success = set(self.task.success_reasons)
+        self._failure_codes = tuple(k > 0 and r not in success for k, r in enumerate(self.termination_reasons))
+        self._failure_array = np.array(self._failure_codes)
         self._delay = ActionDelay(n, chosen.action_delay) if chosen.action_delay else None
 
     def _init_state(self, n: int) -> None:
@@ -621,7 +625,7 @@ class PlatformBatch:
         # both norms at once, of the (2, n, 3) position and orientation errors
         position, orientation = error_norm(self._error_vectors[:2])
         np.fmin(position, _LARGEST, out=position)
-        return position, orientation, self._success.step(self.time, position, orientation, code > 0)
+        return position, orientation, self._success.step(self.time, position, orientation, self._failure_array[code])
 
     def track_success_of_row(self, row: int, code: np.ndarray) -> tuple[float, float, bool]:
         """:meth:`track_success` of row ``row`` alone, as Python numbers: the same numbers at a
@@ -643,7 +647,9 @@ class PlatformBatch:
         return (
             position,
             orientation,
-            self._success.step_row(row, self.time.item(row), position, orientation, code.item(row) > 0),
+            self._success.step_row(
+                row, self.time.item(row), position, orientation, self._failure_codes[code.item(row)]
+            ),
         )
 
     def _park(self, rows: np.ndarray) -> None:

@@ -31,13 +31,15 @@ def step_values(
     closure_error: np.ndarray | None,
     success: tuple[np.ndarray, np.ndarray, np.ndarray],
     costs: dict[str, np.ndarray] | None = None,
+    task_values: dict[str, np.ndarray] | None = None,
 ) -> dict[str, np.ndarray]:
     """Every row's step info, by key: ``reward_<term>`` (float64), ``termination`` (int64 code),
     ``time`` (float64, s), when the plant reports it ``closure_error`` (float64, m), and
     ``position_error``, ``orientation_error`` (float64, m and rad) and ``is_success`` (bool), the
     arrays ``success`` of :meth:`~stewart_env.envs.core.PlatformBatch.track_success`, then the
-    constraint costs ``cost`` and ``cost_<constraint>`` (float64); each an (n,) array of its own
-    (copied where the batch goes on writing into it).
+    constraint costs ``cost`` and ``cost_<constraint>`` (float64), then the task's own values
+    (:meth:`~stewart_env.tasks.Task.step_info`); each an (n, ...) array of its own (copied where
+    the batch goes on writing into it).
 
     Args:
         terms: each reward term's values, by name, (n,) arrays.
@@ -48,6 +50,7 @@ def step_values(
             :meth:`~stewart_env.envs.core.PlatformBatch.track_success`.
         costs: the step's constraint costs by key, (n,) arrays of their own
             (:meth:`~stewart_env.envs.costs.BatchCosts.info`), or None.
+        task_values: the task's values by key, (n, ...) arrays of their own, or None.
     """
     values = {term_key(k): v for k, v in terms.items()}
     values["termination"] = code.copy()
@@ -57,6 +60,8 @@ def step_values(
     values.update(zip(SUCCESS_KEYS, success))
     if costs is not None:
         values.update(costs)
+    if task_values:
+        values.update(task_values)
     return values
 
 
@@ -68,6 +73,7 @@ def row_info(
     row: int,
     success: tuple[float, float, bool],
     costs: dict[str, float] | None = None,
+    task_values: dict[str, np.ndarray] | None = None,
 ) -> dict[str, np.generic]:
     """Row ``row``'s step info, the values of :func:`step_values` as numpy numbers (the single
     environment's info), read straight from the batch's arrays, and ``success`` the row's
@@ -84,6 +90,7 @@ def row_info(
             :meth:`~stewart_env.envs.core.PlatformBatch.track_success_of_row`.
         costs: the row's constraint costs by key (:meth:`~stewart_env.envs.costs.BatchCosts.info`
             of the row), given as float64, or None.
+        task_values: the task's values by key, (n, ...) arrays, or None; the row's entry of each.
     """
     info = {term_key(k): v[row] for k, v in terms.items()}
     info["termination"] = code[row]
@@ -97,4 +104,7 @@ def row_info(
     if costs is not None:
         for key, value in costs.items():
             info[key] = np.float64(value)
+    if task_values:
+        for key, value in task_values.items():
+            info[key] = value[row]
     return info

@@ -80,10 +80,11 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     says which plant runs.
 
     The default platform, `"dasgupta1998"`, is the published Dasgupta/Tsai test manipulator: a 40 kg
-    platform, legs of 1.26 m at home, stroke 1.0-1.6 m, forces within +-2000 N.  Four tasks:
+    platform, legs of 1.26 m at home, stroke 1.0-1.6 m, forces within +-2000 N.  Five tasks:
     `"setpoint"` (reach a pose and hold it), `"tracking"` (follow a six-axis sinusoidal reference),
-    `"disturbance"` (hold home against a random external wrench) and `"hold"` (hold home under a
-    random payload).  The task owns its observation terms, its reward terms and their weights, and
+    `"disturbance"` (hold home against a random external wrench), `"hold"` (hold home under a
+    random payload) and `"cueing"` (move so that a person on the platform perceives a vehicle's
+    motion).  The task owns its observation terms, its reward terms and their weights, and
     its termination; the environment adds nothing to them.
 
     Frames and units: {B} is the base frame (z up, gravity -z), {P} the platform frame with origin P;
@@ -183,6 +184,15 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     | 24-26 | angular_velocity_error | reference angular velocity - angular velocity | rad/s | e / A |
     | 27-44 | reference_preview | for j = 1, 2, 3: reference position at t + 0.1 j s minus the position (3), rotation vector of R_ref(t + 0.1 j s) R^T (3) | m, rad | / h, / A |
 
+    The cueing task observes no pose error; after the pose block it appends (D = 22 + 6 k):
+
+    | index | name | observation | unit | scaling |
+    |---|---|---|---|---|
+    | 15-17 | vehicle_specific_force | the vehicle's specific force at the head now, {H} | m/s² | / 9.80665 |
+    | 18-20 | vehicle_angular_velocity | the vehicle's angular velocity now, {H} | rad/s | none |
+    | 21 to 20 + 6 k | preview | with `task_options={"preview": k}`: for j = 1..k, the vehicle's specific force (3) and angular velocity (3) j control steps ahead | m/s², rad/s | / 9.80665, none |
+    | D-1 | motion_time_left | the time to the motion's end | s | / 10 |
+
     With `observation_mode="sensors"` the pose block (indices 0-14) is replaced by what leg encoders
     measure: `leg_lengths` (6, m, (L - stroke centre) / s) and `leg_rates` (6, m/s, / s); the task
     terms follow unchanged (D = 18 for setpoint).  With `actuator_tau > 0` the applied forces
@@ -209,8 +219,11 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
 
     ## Rewards
 
-    The task's reward terms, summed; every shipped task uses the tracking-error reward of its
-    reference.  Every step, with the errors e of the observation (reference minus actual; e_o as
+    The task's reward terms, summed; every shipped task but `cueing` uses the tracking-error reward
+    of its reference (the cueing task's reward compares what a person perceives in the vehicle
+    and on the platform, less its use of the workspace and the stroke: `reward_specific_force`,
+    `reward_angular_velocity`, `reward_workspace`, `reward_stroke`, `reward_control`,
+    `reward_termination`; the tasks page gives it).  Every step, with the errors e of the observation (reference minus actual; e_o as
     an angle):
 
         r = position_reward_weight    * exp(-|e_p| / position_reward_scale)
@@ -246,6 +259,9 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
       frequency uniform in `frequency_range` (0.1-0.5 Hz) and a uniform phase; the reference is home
       plus the six sinusoids, its amplitudes scaled down until every corner of its range lies inside
       the limits with 10 % margins.
+    - `cueing`: at rest at home.  Per episode a vehicle motion: a name drawn uniformly from
+      `motions` and a seed (below 2**30 in training, a held-out evaluation seed with
+      `split="evaluation"`); the episode lasts the motion's duration.
     - `disturbance`: at rest at home, the target.  Per episode: sinusoidal forces and moments on each
       axis (amplitudes up to 0.2 W and 0.2 W r, W the platform's weight, r its joint radius;
       0.2-2 Hz) plus `n_impulses` = 2 pulses of 0.05 s at random times in the first 5 s (force up to
@@ -275,7 +291,9 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     0 while the episode goes on, else the index of the reason in
     `env.unwrapped.termination_reasons` = `("", "non_finite", "singularity", "leg_stroke",
     "workspace")` followed by the task's own reasons (so `termination_reasons[code]` is its name);
-    the shipped tasks have none of their own.
+    of the shipped tasks only `cueing` has one, `"motion_end"`, a success at the vehicle motion's
+    last sample (its `info["is_success"]` is true; give `max_episode_steps` at least the longest
+    motion's steps, or the time limit truncates the motion first).
     No NaN or inf leaves the environment: a step whose observation or reward is not finite, or
     beyond the float32 range of the returned observation, also terminates as `"non_finite"` and
     returns a finite observation (NaN as 0, the rest clipped to the float32 range) and a finite
@@ -340,7 +358,7 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
     | `control_dt` | `0.01` | s per environment step, 1e-6 to 10 |
     | `physics_dt` | `0.001` | s per RK4 substep; `control_dt` must be a whole multiple of it, at most 10^6 substeps |
     | `randomization` | `None` | domain randomisation spec, e.g. `{"platform.mass": (0.8, 1.2), "legs.mass": (0.9, 1.1), "inertia": (0.9, 1.1), "com": (0.9, 1.1), "damping": (0.5, 2.0)}` |
-    | `task` | `"setpoint"` | `"setpoint"`, `"tracking"`, `"disturbance"`, `"hold"` (or a `Task` subclass) |
+    | `task` | `"setpoint"` | `"setpoint"`, `"tracking"`, `"disturbance"`, `"hold"`, `"cueing"` (or a `Task` subclass) |
     | `task_options` | `None` | dict of the task's options, its reward weights included (see Starting State, Rewards and `stewart_env.tasks`) |
     | `version` | `1` | the environment's version, 0 to 1, set by the id `StewartPlatform-v<version>`: its tasks' defaults (see Version History) |
     | `actuator_tau` | `0.0` | s, first-order actuator lag time constant, 0 to 100; 0 applies the commanded forces directly |
@@ -514,7 +532,14 @@ class StewartPlatformEnv(BatchAttributes, gym.Env):
             outcome = core.step(check_action(action, (6,)).reshape(1, 6), self._rngs, reuse=True)
         reward, code, terms, observation = outcome
         info = row_info(
-            terms, code, core.time, core.plant.closure_error, 0, core.track_success_of_row(0, code), core.costs.info(0)
+            terms,
+            code,
+            core.time,
+            core.plant.closure_error,
+            0,
+            core.track_success_of_row(0, code),
+            core.costs.info(0),
+            core.task.step_info(),
         )
         if self.render_mode == "human":
             self.render()

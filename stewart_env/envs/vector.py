@@ -95,8 +95,8 @@ def _autoreset_mode(value: Any) -> AutoresetMode:
 
 
 def _masked(value: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """``value`` (a step info array: float or int codes) where ``mask``, else 0 (of its dtype)."""
-    return np.where(mask, value, np.zeros((), dtype=value.dtype))
+    """``value`` (a step info array (n, ...): float or int codes) where ``mask`` (n,), else 0 (of its dtype)."""
+    return np.where(mask.reshape(mask.shape + (1,) * (value.ndim - 1)), value, np.zeros((), dtype=value.dtype))
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -395,7 +395,13 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
     def _step_infos(self, terms: dict[str, np.ndarray], code: np.ndarray, stepped: np.ndarray) -> dict[str, Any]:
         core = self._core
         values = step_values(
-            terms, code, core.time, core.plant.closure_error, core.track_success(code), core.costs.info()
+            terms,
+            code,
+            core.time,
+            core.plant.closure_error,
+            core.track_success(code),
+            core.costs.info(),
+            core.task.step_info(),
         )
         all_rows = bool(stepped.all())
         infos: dict[str, Any] = {}

@@ -1,8 +1,8 @@
 """Tasks of the Stewart platform environment: what the platform should do and how it is scored.
 
 ``setpoint`` (reach and hold a pose), ``tracking`` (follow a sinusoidal reference),
-``disturbance`` (hold home against a random external wrench) and ``hold`` (hold home under a
-random payload).  See :mod:`stewart_env.tasks.base` for the interface a task implements; a new
+``disturbance`` (hold home against a random external wrench), ``hold`` (hold home under a
+random payload) and ``cueing`` (make a person on the platform perceive a vehicle's motion).  See :mod:`stewart_env.tasks.base` for the interface a task implements; a new
 task is one module with a :class:`Task` subclass, added to :data:`TASKS` here.
 """
 
@@ -22,16 +22,20 @@ from stewart_env.tasks.base import (
     check_option_names,
     tracking_errors,
 )
+from stewart_env.tasks.cueing.task import CueingTask
 from stewart_env.tasks.disturbance import DisturbanceTask
 from stewart_env.tasks.hold import HoldTask
 from stewart_env.tasks.setpoint import SetpointTask
 from stewart_env.tasks.tracking import TrackingTask
 
-TASKS: dict[str, type[Task]] = {cls.name: cls for cls in (SetpointTask, TrackingTask, DisturbanceTask, HoldTask)}
+TASKS: dict[str, type[Task]] = {
+    cls.name: cls for cls in (SetpointTask, TrackingTask, DisturbanceTask, HoldTask, CueingTask)
+}
 
 __all__ = [
     "LIMIT_REASONS",
     "TASKS",
+    "CueingTask",
     "DisturbanceTask",
     "Errors",
     "HoldTask",

@@ -421,7 +421,8 @@ class SuccessTracker:
             time: (n,) s, the sample's time.
             position_norm: (n,) m.
             orientation_norm: (n,) rad.
-            terminated: (n,) bool, the rows whose episode the step terminated.
+            terminated: (n,) bool, the rows whose episode the step ended with a failure (an end
+                for one of the task's ``success_reasons`` is none).
 
         Returns:
             Whether each episode, ended at this step, succeeds, (n,) bool.
@@ -439,7 +440,7 @@ class SuccessTracker:
             time: the sample's time, s.
             position_norm: |e_p|, m.
             orientation_norm: |e_o|, rad.
-            terminated: whether the step terminated the row's episode.
+            terminated: whether the step ended the row's episode with a failure.
 
         Returns:
             Whether the row's episode, ended at this step, succeeds.
@@ -974,6 +975,15 @@ class Task:
             else:
                 raise ValueError(f"reasons: expected 'leg_stroke' or 'workspace', got {reason!r}")
         self._limits = (position_min, position_max, home_rpy, max_angle, length_min, length_max, max_condition)
+
+    def step_info(self) -> dict[str, np.ndarray]:
+        """What the task adds to the last step's ``info``, by key: (N, ...) arrays of their own.
+        This default adds nothing.
+
+        Returns:
+            The arrays by info key.
+        """
+        return {}
 
     def end(self, code: np.ndarray, where: np.ndarray, reason: str) -> None:
         """Set ``code`` to ``reason`` in the rows ``where`` that do not end for an earlier reason.
