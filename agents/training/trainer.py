@@ -59,6 +59,7 @@ from stewart_env.agents.training.settings import RunPlan, TrainSettings, plant_m
 from stewart_env.agents.training.signals import StopRequest, stop_on_signals
 from stewart_env.dynamics import ModelSpec
 from stewart_env.files import WriteError, check_not_busy, lock_folder, publish, write_error
+from stewart_env.validation import integer
 
 __all__ = ["TrainResult", "rollout_steps", "run_changes", "train"]
 
@@ -280,8 +281,12 @@ def _train(settings: TrainSettings, held: contextlib.ExitStack) -> TrainResult:
         check_fresh_directory(directory, algo)
         from stewart_env.envs import StewartPlatformEnv
 
-        # a bad environment keyword fails here, before --out is made
-        StewartPlatformEnv(**{**kwargs, "model": model}).close()
+        # a bad environment keyword fails here, before --out is made; the time limit is the
+        # training batch's (StewartPlatformSB3VecEnv), not the single environment's
+        if "max_episode_steps" in kwargs:
+            integer("max_episode_steps", kwargs["max_episode_steps"], 1, 2**62)
+        single = {key: value for key, value in kwargs.items() if key != "max_episode_steps"}
+        StewartPlatformEnv(**{**single, "model": model}).close()
         held.enter_context(lock_folder(directory))
         check_fresh_directory(directory, algo)  # again, under the lock: another run may have started meanwhile
         remove_unfinished_writes(directory)

@@ -300,6 +300,17 @@ def test_bad_environment_kwarg_is_named_before_training(tmp_path):
     assert not (tmp_path / "run").exists()  # nothing written for a request that cannot run
 
 
+def test_the_training_batch_s_time_limit_is_an_environment_keyword(tmp_path):
+    # the cueing task's motions outlast the default 500 steps: the batch's limit is a keyword
+    out = tmp_path / "run"
+    train("ppo", out, timesteps=64, seed=0, n_envs=2, env_kwargs={"max_episode_steps": 7}, progress_bar=False)
+    lengths = [int(line.split(",")[1]) for line in (out / "monitor.csv").read_text().splitlines()[2:]]
+    assert lengths and max(lengths) <= 7
+    with pytest.raises(ValueError, match="max_episode_steps"):
+        train("ppo", tmp_path / "bad", timesteps=10, env_kwargs={"max_episode_steps": 0}, progress_bar=False)
+    assert not (tmp_path / "bad").exists()
+
+
 def test_cli_reports_errors_with_exit_code(tmp_path, capsys):
     from stewart_env.cli import train as train_verb
 
