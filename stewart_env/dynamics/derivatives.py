@@ -103,10 +103,20 @@ def _step_args(dt, steps) -> tuple[float, int]:
     return dt, steps
 
 
-def _args(model: Dynamics, position, rotation, velocity, angular_velocity, leg_forces, external_wrench):
-    return model._args(
-        position, rotation, velocity, angular_velocity, leg_forces=(leg_forces, (6,)), external_wrench=external_wrench
+def _args(model: Dynamics, position, rotation, velocity, angular_velocity, leg_forces, external_wrench, reflected_mass):
+    extra = {} if reflected_mass is None else {"reflected_mass": (reflected_mass, (6,))}
+    n, batched, a = model._args(
+        position,
+        rotation,
+        velocity,
+        angular_velocity,
+        leg_forces=(leg_forces, (6,)),
+        external_wrench=external_wrench,
+        **extra,
     )
+    if reflected_mass is not None and not (a["reflected_mass"] >= 0.0).all():
+        raise ValueError("reflected_mass: expected masses >= 0 kg")
+    return n, batched, a
 
 
 def _nan_rows(finite: np.ndarray, *arrays: np.ndarray) -> None:
@@ -123,7 +133,15 @@ def _row_finite(*arrays: np.ndarray) -> np.ndarray:
 
 
 def acceleration_jacobians(  # noqa: D417  (self: a method of Dynamics, below)
-    self: Dynamics, position, rotation, velocity, angular_velocity, leg_forces, external_wrench=None
+    self: Dynamics,
+    position,
+    rotation,
+    velocity,
+    angular_velocity,
+    leg_forces,
+    external_wrench=None,
+    *,
+    reflected_mass=None,
 ) -> AccelerationJacobians:
     """The platform's acceleration and its exact Jacobians with respect to pose, twist and leg forces.
 
@@ -140,6 +158,8 @@ def acceleration_jacobians(  # noqa: D417  (self: a method of Dynamics, below)
         angular_velocity: (3,) angular velocity, rad/s.
         leg_forces: (6,) actuator forces F along the legs, N, positive extends the leg.
         external_wrench: (6,) [force at P, N; moment, N m], or None for none.
+        reflected_mass: (6,) the legs' reflected drive masses m_r, kg (docs/physics.md section
+            10.2), or None for none; F are then the drive forces.
 
     Returns:
         The :class:`AccelerationJacobians` (acceleration (6,), d_pose, d_twist, d_forces (6,6)),
@@ -149,13 +169,25 @@ def acceleration_jacobians(  # noqa: D417  (self: a method of Dynamics, below)
         ValueError: a wrong shape, a non-finite value or a rotation that is not orthonormal (as
             :meth:`forward`).
     """
-    n, batched, a = _args(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench)
+    n, batched, a = _args(
+        self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench, reflected_mass
+    )
     out = _acceleration_jacobians(self, a)
     return out if batched else AccelerationJacobians(*(x[0] for x in out))
 
 
 def step_jacobians(  # noqa: D417  (self: a method of Dynamics, below)
-    self: Dynamics, position, rotation, velocity, angular_velocity, leg_forces, dt, steps=1, external_wrench=None
+    self: Dynamics,
+    position,
+    rotation,
+    velocity,
+    angular_velocity,
+    leg_forces,
+    dt,
+    steps=1,
+    external_wrench=None,
+    *,
+    reflected_mass=None,
 ) -> StepJacobians:
     """One control step and its exact Jacobians with respect to the state and the leg forces.
 
@@ -176,6 +208,8 @@ def step_jacobians(  # noqa: D417  (self: a method of Dynamics, below)
         dt: the control step, s (> 0).
         steps: the RK4 substeps it is integrated in (>= 1).
         external_wrench: (6,) [force at P, N; moment, N m], held, or None for none.
+        reflected_mass: (6,) the legs' reflected drive masses m_r, kg (docs/physics.md section
+            10.2), or None for none; F are then the drive forces.
 
     Returns:
         The :class:`StepJacobians` (state: the next PlatformState, A (12,12), B (12,6)), each
@@ -186,7 +220,9 @@ def step_jacobians(  # noqa: D417  (self: a method of Dynamics, below)
             ``dt`` or ``steps`` out of range (named in the message).
     """
     dt, steps = _step_args(dt, steps)
-    n, batched, a = _args(self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench)
+    n, batched, a = _args(
+        self, position, rotation, velocity, angular_velocity, leg_forces, external_wrench, reflected_mass
+    )
     out = _step_jacobians(self, a, dt, steps)
     if batched:
         return out
@@ -197,26 +233,87 @@ def step_jacobians(  # noqa: D417  (self: a method of Dynamics, below)
 
 
 def _acceleration_jacobians(model: Dynamics, a: dict) -> AccelerationJacobians:
-    return _cd_acceleration(model, a, CENTRAL_DIFFERENCE_STEP)
+    """The compiled kernel on checked arguments (batch_args' arrays)."""
+    n = a["position"].shape[0]
+    acc, jac, finite = np.empty((n, 6)), np.empty((n, 6, 18)), np.empty(n, dtype=bool)
+    _core.acceleration_jacobian_batch(
+        model.packed,
+        model.flags,
+        a["position"],
+        a["rotation"],
+        a["velocity"],
+        a["angular_velocity"],
+        a["leg_forces"],
+        a["external_wrench"],
+        a.get("reflected_mass"),
+        acc,
+        jac,
+        finite,
+    )
+    return AccelerationJacobians(acc, jac[:, :, 0:6].copy(), jac[:, :, 6:12].copy(), jac[:, :, 12:18].copy())
 
 
 def _step_jacobians(model: Dynamics, a: dict, dt: float, steps: int) -> StepJacobians:
-    return _cd_step(model, a, dt, steps, CENTRAL_DIFFERENCE_STEP)
+    """The compiled kernel on checked arguments (batch_args' arrays); dt the whole control step."""
+    n = a["position"].shape[0]
+    t, R, v, w = np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 3))
+    jac, finite = np.empty((n, 12, 18)), np.empty(n, dtype=bool)
+    _core.step_jacobian_batch(
+        model.packed,
+        model.flags,
+        a["position"],
+        a["rotation"],
+        a["velocity"],
+        a["angular_velocity"],
+        a["leg_forces"],
+        a["external_wrench"],
+        a.get("reflected_mass"),
+        dt / steps,
+        steps,
+        t,
+        R,
+        v,
+        w,
+        jac,
+        finite,
+    )
+    return StepJacobians(PlatformState(t, R, v, w), jac[:, :, :12].copy(), jac[:, :, 12:].copy())
 
 
 # ---- central differences -----------------------------------------------------------------------
 
 
-def _forward(model: Dynamics, t, R, v, w, F, W) -> np.ndarray:
+def _forward(model: Dynamics, m_r, t, R, v, w, F, W) -> np.ndarray:
     out = np.empty((t.shape[0], 6))
-    _core.forward_batch(model.packed, model.flags, t, R, v, w, F, W, out)
+    if m_r is None:
+        _core.forward_batch(model.packed, model.flags, t, R, v, w, F, W, out)
+    else:
+        _core.forward_reflected_batch(model.packed, model.flags, t, R, v, w, F, W, m_r, out)
     return out
 
 
-def _rollout(model: Dynamics, t, R, v, w, F, W, dt: float, steps: int):
-    t, R, v, w = (np.array(x) for x in (t, R, v, w))
-    _core.rollout_batch(model.packed, model.flags, t, R, v, w, F, W, dt / steps, steps)
-    return t, R, v, w
+def _rollout(model: Dynamics, m_r, t, R, v, w, F, W, dt: float, steps: int):
+    """The next state of the step: rollout_batch's, or with reflected masses the step's values of
+    step_jacobian_batch (no other binding integrates them; its values are rollout_batch's
+    arithmetic, which the tests check without them)."""
+    if m_r is None:
+        t, R, v, w = (np.array(x) for x in (t, R, v, w))
+        _core.rollout_batch(model.packed, model.flags, t, R, v, w, F, W, dt / steps, steps)
+        return t, R, v, w
+    return _step_jacobians(
+        model,
+        {
+            "position": t,
+            "rotation": R,
+            "velocity": v,
+            "angular_velocity": w,
+            "leg_forces": F,
+            "external_wrench": W,
+            "reflected_mass": m_r,
+        },
+        dt,
+        steps,
+    ).state
 
 
 def _perturbed(t, R, v, w, F, k: int, h: np.ndarray):
@@ -250,13 +347,13 @@ def _steps_of(t, R, v, w, F, h_rel: float) -> np.ndarray:
 
 def _cd_acceleration(model: Dynamics, a: dict, h_rel: float) -> AccelerationJacobians:
     t, R, v, w = a["position"], a["rotation"], a["velocity"], a["angular_velocity"]
-    F, W = a["leg_forces"], a["external_wrench"]
-    acc = _forward(model, t, R, v, w, F, W)
+    F, W, m_r = a["leg_forces"], a["external_wrench"], a.get("reflected_mass")
+    acc = _forward(model, m_r, t, R, v, w, F, W)
     h = _steps_of(t, R, v, w, F, h_rel)
     jac = np.empty((t.shape[0], 6, 18))
     for k in range(18):
-        plus = _forward(model, *_perturbed(t, R, v, w, F, k, h[:, k]), W)
-        minus = _forward(model, *_perturbed(t, R, v, w, F, k, -h[:, k]), W)
+        plus = _forward(model, m_r, *_perturbed(t, R, v, w, F, k, h[:, k]), W)
+        minus = _forward(model, m_r, *_perturbed(t, R, v, w, F, k, -h[:, k]), W)
         jac[:, :, k] = (plus - minus) / (2.0 * h[:, k, None])
     out = AccelerationJacobians(acc, jac[:, :, 0:6].copy(), jac[:, :, 6:12].copy(), jac[:, :, 12:18].copy())
     _nan_rows(_row_finite(*out), *out)
@@ -271,13 +368,13 @@ def _tangent_state(t, R, v, w, R_about) -> np.ndarray:
 
 def _cd_step(model: Dynamics, a: dict, dt: float, steps: int, h_rel: float) -> StepJacobians:
     t, R, v, w = a["position"], a["rotation"], a["velocity"], a["angular_velocity"]
-    F, W = a["leg_forces"], a["external_wrench"]
-    nt, nR, nv, nw = _rollout(model, t, R, v, w, F, W, dt, steps)
+    F, W, m_r = a["leg_forces"], a["external_wrench"], a.get("reflected_mass")
+    nt, nR, nv, nw = _rollout(model, m_r, t, R, v, w, F, W, dt, steps)
     h = _steps_of(t, R, v, w, F, h_rel)
     jac = np.empty((t.shape[0], 12, 18))
     for k in range(18):
-        plus = _tangent_state(*_rollout(model, *_perturbed(t, R, v, w, F, k, h[:, k]), W, dt, steps), nR)
-        minus = _tangent_state(*_rollout(model, *_perturbed(t, R, v, w, F, k, -h[:, k]), W, dt, steps), nR)
+        plus = _tangent_state(*_rollout(model, m_r, *_perturbed(t, R, v, w, F, k, h[:, k]), W, dt, steps), nR)
+        minus = _tangent_state(*_rollout(model, m_r, *_perturbed(t, R, v, w, F, k, -h[:, k]), W, dt, steps), nR)
         jac[:, :, k] = (plus - minus) / (2.0 * h[:, k, None])
     out = StepJacobians(PlatformState(nt, nR, nv, nw), jac[:, :, :12].copy(), jac[:, :, 12:].copy())
     _nan_rows(_row_finite(nt, nR, nv, nw, out.A, out.B), nt, nR, nv, nw, out.A, out.B)
@@ -295,6 +392,7 @@ def central_differences(
     steps=1,
     external_wrench=None,
     *,
+    reflected_mass=None,
     step_size: float = CENTRAL_DIFFERENCE_STEP,
 ):
     """The Jacobians of :meth:`Dynamics.acceleration_jacobians` (``dt`` None) or of
@@ -315,6 +413,7 @@ def central_differences(
         dt: None for the acceleration's Jacobians, or the control step, s, for the step's.
         steps: the RK4 substeps of the step (>= 1).
         external_wrench: (6,) [force at P, N; moment, N m], or None for none.
+        reflected_mass: (6,) the legs' reflected drive masses m_r, kg, or None for none.
         step_size: the relative difference step (> 0).
 
     Returns:
@@ -329,7 +428,9 @@ def central_differences(
     step_size = validation.real("step_size", step_size, 0.0, 1.0, low_open=True)
     if dt is not None:
         dt, steps = _step_args(dt, steps)
-    n, batched, a = _args(model, position, rotation, velocity, angular_velocity, leg_forces, external_wrench)
+    n, batched, a = _args(
+        model, position, rotation, velocity, angular_velocity, leg_forces, external_wrench, reflected_mass
+    )
     if dt is None:
         out = _cd_acceleration(model, a, step_size)
         return out if batched else AccelerationJacobians(*(x[0] for x in out))
