@@ -255,3 +255,50 @@ def test_results_are_the_documented_named_tuples(dasgupta):
     assert isinstance(step.state, se.PlatformState) and step.state.rotation.shape == (3, 3)
     assert step.A.shape == (12, 12) and step.B.shape == (12, 6)
     assert se.dynamics.AccelerationJacobians is derivatives.AccelerationJacobians
+
+
+def test_the_bindings_take_converted_arrays_and_check_shapes(dasgupta):
+    """Strided, Fortran-ordered and float32 inputs give the numbers of C-contiguous float64 ones (the
+    converted copies held while read: tests/dynamics/test_sanitizer.py runs this under
+    AddressSanitizer); an array of the wrong shape is named."""
+    from stewart_env import _core
+
+    model = se.make_dynamics("improved", dasgupta)
+    states = [moving_state(dasgupta, seed=s) for s in range(3)]
+    t, R, v, w, F, W = (np.stack(x) for x in zip(*states))
+    acc, jac, finite = np.empty((3, 6)), np.empty((3, 6, 18)), np.empty(3, dtype=bool)
+    _core.acceleration_jacobian_batch(model.packed, model.flags, t, R, v, w, F, W, None, acc, jac, finite)
+    wide = np.zeros((3, 12))
+    wide[:, ::2] = F
+    acc2, jac2 = np.empty((3, 6)), np.empty((3, 6, 18))
+    _core.acceleration_jacobian_batch(
+        np.asfortranarray(model.packed),
+        model.flags,
+        t,
+        np.asfortranarray(R),
+        v,
+        w,
+        wide[:, ::2],
+        W,
+        None,
+        acc2,
+        jac2,
+        finite,
+    )
+    assert np.array_equal(acc, acc2) and np.array_equal(jac, jac2)
+    m_r = np.full((1, 6), 20.0, dtype=np.float32)
+    _core.acceleration_jacobian_batch(model.packed, model.flags, t, R, v, w, F, W, m_r, acc2, jac2, finite)
+    assert finite.all() and not np.array_equal(jac, jac2)
+    nxt = [np.empty((3, 3)), np.empty((3, 3, 3)), np.empty((3, 3)), np.empty((3, 3))]
+    with pytest.raises(ValueError, match="leg_forces: expected shape"):
+        _core.step_jacobian_batch(
+            model.packed, model.flags, t, R, v, w, F[:, :5], W, None, 0.01, 1, *nxt, np.empty((3, 12, 18)), finite
+        )
+    with pytest.raises(ValueError, match="jac: expected shape"):
+        _core.step_jacobian_batch(
+            model.packed, model.flags, t, R, v, w, F, W, None, 0.01, 1, *nxt, np.empty((3, 6, 18)), finite
+        )
+    with pytest.raises(ValueError, match="reflected_mass: expected 1 or N rows"):
+        _core.acceleration_jacobian_batch(
+            model.packed, model.flags, t, R, v, w, F, W, np.ones((2, 6)), acc, jac, finite
+        )
