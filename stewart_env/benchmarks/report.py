@@ -229,12 +229,15 @@ def run_bench(
     env: bool = False,
     mujoco: bool = False,
     plot: str | None = None,
+    derivatives: bool = False,
 ) -> None:
     """Print the benchmark's tables: the machine, the first evaluation of a fresh process, each of
     the ``models`` on ``platform``, the scaling table (drawn to the PNG file
     ``plot`` if given); with ``env`` the environments; the vector env's step with resets beside
     its step alone (:func:`resets_row`); with ``mujoco`` MuJoCo beside the kernels
-    (``stewart_env.extras.MissingExtra`` before any timing if the extra is not installed).
+    (``stewart_env.extras.MissingExtra`` before any timing if the extra is not installed); with
+    ``derivatives`` the exact derivatives beside the values and MuJoCo's finite differences
+    (:func:`~stewart_env.benchmarks.derivatives.bench_derivatives`).
 
     Args:
         platform: the shipped platform's name.
@@ -244,6 +247,7 @@ def run_bench(
         env: time the environments too.
         mujoco: time MuJoCo beside the kernels.
         plot: the PNG file to draw the scaling figure to, or None.
+        derivatives: time the exact derivatives too.
 
     Raises:
         MissingExtra: with ``mujoco``, MuJoCo is not installed.
@@ -295,3 +299,9 @@ def run_bench(
             f"MuJoCo {require_mujoco().__version__} on the same mechanism (stewart_env.mujoco), platform at rest at home:"
         )
         print(mujoco_table(bench_mujoco(params)))
+    if derivatives:
+        from stewart_env.benchmarks.derivatives import bench_derivatives, derivatives_table
+
+        print()
+        print("exact derivatives (Dynamics.acceleration_jacobians, step_jacobians), a moving state near home:")
+        print(derivatives_table(bench_derivatives(params)))

@@ -47,6 +47,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help="also time MuJoCo on the same mechanism beside the kernels, the env and the vector env "
         '(needs the extra: pip install -e ".[mujoco]")',
     )
+    p.add_argument(
+        "--derivatives",
+        action="store_true",
+        help="also time the exact derivatives of the dynamics and of a control step beside the values "
+        "(and beside MuJoCo's mjd_transitionFD when the mujoco extra is installed)",
+    )
     return p
 
 
@@ -65,7 +71,9 @@ def run(args: argparse.Namespace) -> int:
     if problem is not None:
         return error(VERB, f"argument --mujoco: {problem}")
     try:
-        run_bench(args.platform, args.models, env=args.env, mujoco=args.mujoco, plot=args.plot)
+        run_bench(
+            args.platform, args.models, env=args.env, mujoco=args.mujoco, plot=args.plot, derivatives=args.derivatives
+        )
     except ImportError as err:  # the MuJoCo library present but failing to load
         return error(VERB, f"argument --mujoco: {err}")
     return 0

@@ -22,6 +22,7 @@ using namespace nb::literals;
 void bind_regressor(nb::module_& m);  // regressor_bindings.cpp
 void bind_constraints(nb::module_& m);  // tasks/constraints_bindings.cpp
 void bind_actuators(nb::module_& m);  // actuators/actuator_bindings.cpp
+void bind_derivatives(nb::module_& m);  // physics/derivatives_bindings.cpp
 
 using In = nb::ndarray<const double, nb::c_contig, nb::device::cpu>;
 using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
@@ -290,6 +291,7 @@ NB_MODULE(STEWART_ENV_CORE_MODULE, m) {  // _core_<instruction-set target> (CMak
     bind_regressor(m);
     bind_constraints(m);
     bind_actuators(m);
+    bind_derivatives(m);
     def_solve_batch<kernels::forward_batch>(m, "forward_batch", "F", "leg_forces");
     def_solve_batch<kernels::inverse_batch>(m, "inverse_batch", "acc", "acceleration");
 

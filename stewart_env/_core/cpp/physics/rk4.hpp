@@ -183,6 +183,32 @@ inline void state_derivative(const T* prm, int64_t flags, const LawRows<T>& src,
     for (int j = 0; j < 6; ++j) dx[7 + j] = acc[j];
 }
 
+// One classical RK4 step of dt seconds from the state x (13,) at time t0 to xn (13,), the leg
+// forces of src at every stage (lanes in skip not evaluated), the quaternion renormalised.
+// Returns, lane by lane, whether xn was finite before the renormalisation.  The step of every
+// rollout (rollout_row) and of its derivatives (derivatives.hpp, T a dual number).
+// docs/physics.md section 5.6 (no paper equation).
+template <typename T, typename Mask>
+inline Mask step_state(const T* prm, int64_t flags, const LawRows<T>& src, double t0, double dt, const T* x,
+                       const T* W, Mask skip, T* xn, const T* m_r = nullptr) {
+    T xs[13], k[4][13], F[6], Rs[9], M[36], h[6], acc[6];
+    state_derivative<T>(prm, flags, src, t0, x, F, W, Rs, M, h, acc, skip, k[0], m_r);
+    for (int j = 0; j < 13; ++j) xs[j] = x[j] + 0.5 * dt * k[0][j];
+    state_derivative<T>(prm, flags, src, t0 + 0.5 * dt, xs, F, W, Rs, M, h, acc, skip, k[1], m_r);
+    for (int j = 0; j < 13; ++j) xs[j] = x[j] + 0.5 * dt * k[1][j];
+    state_derivative<T>(prm, flags, src, t0 + 0.5 * dt, xs, F, W, Rs, M, h, acc, skip, k[2], m_r);
+    for (int j = 0; j < 13; ++j) xs[j] = x[j] + dt * k[2][j];
+    state_derivative<T>(prm, flags, src, t0 + dt, xs, F, W, Rs, M, h, acc, skip, k[3], m_r);
+    Mask finite = !(T(0.0) != T(0.0));
+    for (int j = 0; j < 13; ++j) {
+        xn[j] = x[j] + dt / 6.0 * (k[0][j] + 2.0 * k[1][j] + 2.0 * k[2][j] + k[3][j]);
+        finite = finite && lanes::finite(xn[j]);
+    }
+    const T nq = lanes::sqrt_of(xn[3] * xn[3] + xn[4] * xn[4] + xn[5] * xn[5] + xn[6] * xn[6]);
+    for (int j = 3; j < 7; ++j) xn[j] /= nq;
+    return finite;
+}
+
 // Sample s of lane k of the rows of src (batch row src.b + k) into rec: the lane's state x and
 // the forces there.  docs/physics.md section 5.6 (no paper equation).
 template <typename T>
@@ -225,7 +251,7 @@ inline void rollout_row(const kernels::ParamRows& prm, int64_t flags, double* t,
     const LawRows<T> src{law, ctrl, stride, n_ctrl, b, law == nullptr ? held : nullptr};
     T Wb[6];
     lanes::load(W, 6, b, 6, Wb);
-    T x[13], xs[13], xn[13], k[4][13], F[6], Rs[9], M[36], h[6], acc[6], mr[6];
+    T x[13], xn[13], Rs[9], mr[6];
     if (m_r != nullptr)
         for (int i = 0; i < 6; ++i) mr[i] = T(m_r[i]);
     const T* reflected = m_r != nullptr ? mr : nullptr;
@@ -247,20 +273,7 @@ inline void rollout_row(const kernels::ParamRows& prm, int64_t flags, double* t,
     Mask stopped = none;
     for (int64_t step = 0; step < steps; ++step) {
         const double t0 = time + static_cast<double>(step) * dt;
-        state_derivative<T>(p, flags, src, t0, x, F, Wb, Rs, M, h, acc, stopped, k[0], reflected);
-        for (int j = 0; j < 13; ++j) xs[j] = x[j] + 0.5 * dt * k[0][j];
-        state_derivative<T>(p, flags, src, t0 + 0.5 * dt, xs, F, Wb, Rs, M, h, acc, stopped, k[1], reflected);
-        for (int j = 0; j < 13; ++j) xs[j] = x[j] + 0.5 * dt * k[1][j];
-        state_derivative<T>(p, flags, src, t0 + 0.5 * dt, xs, F, Wb, Rs, M, h, acc, stopped, k[2], reflected);
-        for (int j = 0; j < 13; ++j) xs[j] = x[j] + dt * k[2][j];
-        state_derivative<T>(p, flags, src, t0 + dt, xs, F, Wb, Rs, M, h, acc, stopped, k[3], reflected);
-        Mask finite = !none;
-        for (int j = 0; j < 13; ++j) {
-            xn[j] = x[j] + dt / 6.0 * (k[0][j] + 2.0 * k[1][j] + 2.0 * k[2][j] + k[3][j]);
-            finite = finite && lanes::finite(xn[j]);
-        }
-        const T nq = lanes::sqrt_of(xn[3] * xn[3] + xn[4] * xn[4] + xn[5] * xn[5] + xn[6] * xn[6]);
-        for (int j = 3; j < 7; ++j) xn[j] /= nq;
+        const Mask finite = step_state<T>(p, flags, src, t0, dt, x, Wb, stopped, xn, reflected);
         // a lane stopped at an earlier step keeps its first non-finite state
         for (int j = 0; j < 13; ++j) x[j] = lanes::select(stopped, x[j], xn[j]);
         if (recording && (step + 1) % every == 0) {
