@@ -196,3 +196,15 @@ def test_mismatch_controllers_built_on_ideal_actuators_run_on_electric_drives(mo
         peak[name] = numbers["metrics"]["peak_leg_force"]
     assert seen == [None, "electric"]
     assert peak["ideal"] != peak["electric"]
+
+
+def test_mismatch_matrix_says_the_plants_actuator(tmp_path):
+    from stewart_env.agents.studies.mismatch import run_mismatch
+
+    kwargs = dict(algo=None, platform="motion_simulator", train_models=["improved"], test_models=["improved"])
+    kwargs.update(simplifications=(), cost_plant="improved", episodes=1, max_steps=10, progress=False)
+    run_mismatch(tmp_path / "electric", plant_actuator="electric", **kwargs)
+    text = (tmp_path / "electric" / "matrix.md").read_text()
+    assert "The plants' actuators: electric; the controllers' (ideal) are not the plants'." in text
+    run_mismatch(tmp_path / "same", **kwargs)
+    assert "The plants' actuators" not in (tmp_path / "same" / "matrix.md").read_text()
