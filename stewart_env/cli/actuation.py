@@ -2,7 +2,7 @@
 (:mod:`stewart_env.agents.studies.actuation`) from the command line.  :func:`add_parser` registers
 the verb with its options, :func:`run` runs it and returns the exit code: 0 done, 1 stopped by a
 failing write (the finished cells are kept), 2 a bad request, 130 interrupted (the finished cells
-are kept)."""
+are kept; a training stopped by SIGINT or SIGTERM saves a checkpoint it continues from, 130 or 143)."""
 
 from __future__ import annotations
 
@@ -117,7 +117,13 @@ def run(args: argparse.Namespace) -> int:
     except WriteError as exc:
         print(f"stewart-env {VERB}: error: {exc}{kept}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except ValueError as exc:  # a training's error (another agent in the agents' folder), named
+        return error(VERB, exc)
+    except KeyboardInterrupt as stop:
+        checkpoint = getattr(stop, "checkpoint", None)  # a training stopped by a signal saved one
+        if checkpoint is not None:
+            print(f"stewart-env {VERB}: stopped; checkpoint saved in {checkpoint}{kept}", file=sys.stderr)
+            return stop.exit_code
         print(f"stewart-env {VERB}: interrupted{kept}", file=sys.stderr)
         return 130
     print(f"{len(result['cells'])} cells -> {result['files']['markdown']}")
