@@ -317,7 +317,13 @@ def agent_folder(agents: Path, mode: str, actuator: str, task: str, seed: int) -
 
 def training_env_kwargs(mode: str, actuator: str, task: str) -> dict[str, Any]:
     """The environment kwargs a PPO agent of a cell is trained and evaluated with (its config's
-    first, then the cell's), as run.json records them."""
+    first, then the cell's), as run.json records them.
+
+    Args:
+        mode: the action mode.
+        actuator: the actuator level.
+        task: the task.
+    """
     config = str(config_path("ppo", PPO_CONFIGS[mode]))
     kwargs = env_kwargs_of(mode, "ppo", actuator, task)
     return {**config_env_kwargs("ppo", config), **kwargs, "model": "improved"}
