@@ -208,3 +208,28 @@ def test_mismatch_matrix_says_the_plants_actuator(tmp_path):
     assert "The plants' actuators: electric; the controllers' (ideal) are not the plants'." in text
     run_mismatch(tmp_path / "same", **kwargs)
     assert "The plants' actuators" not in (tmp_path / "same" / "matrix.md").read_text()
+
+
+@pytest.mark.slow
+@pytest.mark.filterwarnings("ignore:You have specified a mini-batch size:UserWarning")
+def test_ppo_agents_are_trained_into_the_study_and_reused(tmp_path, monkeypatch):
+    _tiny_controllers(monkeypatch)
+    trained = []
+    real = actuation.train_agent
+
+    def counted(folder, training, timesteps, progress=False):
+        trained.append((folder.name, timesteps))
+        return real(folder, {**training, "n_envs": 2}, timesteps, progress)
+
+    monkeypatch.setattr(actuation, "train_agent", counted)
+    settings = ActuationSettings(
+        **{**TINY, "actuators": ("electric",)}, ppo_cells=["pose:electric:setpoint"], seeds=(3,), timesteps=64
+    )
+    result = run_actuation(tmp_path, settings, progress=False)
+    assert trained == [("seed_3", 64)]
+    assert (tmp_path / "agents" / "pose-electric-setpoint" / "seed_3" / "model.zip").is_file()
+    ppo = [r for r in result["cells"] if r.cell[2] == "ppo"]
+    assert len(ppo) == 1 and ppo[0].seeds == 1 and math.isfinite(ppo[0].intervals["rms_position_error"][0])
+    assert (tmp_path / "cells/setpoint/pose/ppo/electric/seed_3.json").is_file()
+    run_actuation(tmp_path, settings, progress=False)
+    assert len(trained) == 1  # the finished agent is reused
