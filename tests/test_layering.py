@@ -330,6 +330,7 @@ VERB_MODULES = (
     "train",
     "time_to_agent",
     "mismatch",
+    "actuation",
     "identify",
     "bench",
     "export_mjcf",

@@ -1,11 +1,12 @@
-"""The ``stewart-env`` command: demo, evaluate, reproduce, train, time-to-agent, mismatch, identify, bench,
-export-mjcf, excitation, record.
+"""The ``stewart-env`` command: demo, evaluate, reproduce, train, time-to-agent, mismatch, actuation, identify,
+bench, export-mjcf, excitation, record.
 
     stewart-env demo                       PD baseline on the classical and improved models
     stewart-env evaluate --policy pd ct --model classical improved --task tracking --out results/
     stewart-env evaluate --agent runs/ppo --model classical improved
     stewart-env reproduce --out figures/   the case study of He et al. (2018), Fig. 6-10
     stewart-env train ... / mismatch ...   stewart_env.agents.training and .mismatch
+    stewart-env actuation --out results/actuation   each action mode's controllers on each actuator level
     stewart-env identify --platform dasgupta1998 --out runs/ident   identification on a stand-in plant
     stewart-env bench ...                  the benchmark (stewart_env.benchmarks)
     stewart-env export-mjcf --platform dasgupta1998 --out stewart.xml   the MuJoCo twin as MJCF
@@ -29,6 +30,7 @@ from collections.abc import Sequence
 from types import ModuleType
 
 from stewart_env.cli import (
+    actuation,
     bench,
     demo,
     evaluate,
@@ -58,6 +60,7 @@ VERBS: dict[str, ModuleType] = {
         train,
         time_to_agent,
         mismatch,
+        actuation,
         identify,
         bench,
         export_mjcf,

@@ -41,6 +41,7 @@ from stewart_env.cli.arguments import (
 )
 from stewart_env.cli.common import check_extras, check_out, error
 from stewart_env.dynamics.threads import MAX_THREADS
+from stewart_env.envs.config import ACTUATORS
 from stewart_env.files import WriteError
 
 __all__ = ["add_parser", "controller_platform", "physics_threads", "run", "simplification_list"]
@@ -240,6 +241,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help="each job's physics threads: auto, the CPUs a Ray job was given (one) or this process's "
         "count with --backend local; or N for every job (default: auto)",
     )
+    p.add_argument(
+        "--plant-actuator",
+        choices=ACTUATORS,
+        default=None,
+        help="the test plants' actuator, when it is not the one the controllers are built on (that of "
+        "--env-kwargs, ideal by default): e.g. electric runs controllers built on ideal force sources on "
+        "electric drives (drives need --platform motion_simulator; lag needs actuator_tau in --env-kwargs)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
     return p
@@ -305,6 +314,7 @@ def run(args: argparse.Namespace) -> int:
             cost_plant=args.cost_plant,
             controller_platforms=args.controller_platform,
             physics_threads=args.physics_threads,
+            plant_actuator=args.plant_actuator,
             progress=not args.no_progress,
         )
     except (BackendError, WriteError) as exc:

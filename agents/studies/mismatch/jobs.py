@@ -110,8 +110,8 @@ def make_policy(kind: str, model: str | ModelSpec, agent=None, platform: str | N
 def evaluate_job(
     spec: dict[str, Any], design_model: ModelSpec | str, plant: ModelSpec | str, agent=None
 ) -> dict[str, Any]:
-    """One evaluation: the controller of ``spec`` (a cell's spec) on its plant; every metric per
-    episode, the episodes' terminations, and the job's wall time (s, the policy's loading included).
+    """One evaluation: the controller of ``spec`` (a cell's spec) on its plant (with the
+    actuator of ``spec["plant_actuator"]`` when the spec has one); every metric per episode, the episodes' terminations, and the job's wall time (s, the policy's loading included).
 
     Args:
         spec: the cell's spec (:func:`~.cells.cell_spec`), which names the models.
@@ -127,9 +127,12 @@ def evaluate_job(
 
     start = time.perf_counter()
     policy = make_policy(spec["kind"], design_model, agent, spec.get("design_platform"))
+    plant_kwargs = {**spec["env_kwargs"], "model": plant, "task": spec["task"]}
+    if spec.get("plant_actuator") is not None:  # the plants' drives, not those the controller was built on
+        plant_kwargs["actuator"] = spec["plant_actuator"]
     result = evaluate(
         policy,
-        {**spec["env_kwargs"], "model": plant, "task": spec["task"]},
+        plant_kwargs,
         episodes=spec["episodes"],
         seed=spec["eval_seed"],
         label=spec["controller"],

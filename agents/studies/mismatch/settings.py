@@ -85,6 +85,14 @@ class MismatchSettings:
             (:data:`~.constants.CPUS_PER_JOB`) and in this process the package's default (one per
             core); or a count from 1 to ``MAX_THREADS`` for every job. Not recorded: the numbers are
             the same on any count.
+        plant_actuator: the actuator of the test plants (``"ideal"``, ``"lag"``, ``"electric"`` or
+            ``"hydraulic"``, the environment's ``actuator``), or None for the actuator of
+            ``env_kwargs`` (the environment's default: ideal force sources).  Controllers are built
+            on the actuator of ``env_kwargs``: the agents train on it, and PD with gravity
+            compensation and computed torque, which command leg forces, take it for ideal force
+            sources; so ``plant_actuator="electric"`` runs controllers built on ideal actuators on
+            electric drives.  A drive (electric, hydraulic) needs a platform with its parameters
+            (``motion_simulator``), the lag its ``actuator_tau`` in ``env_kwargs``.
         hyperparameters: read from ``config`` when it is given (an edited file changes the agents).
     """
 
@@ -110,6 +118,7 @@ class MismatchSettings:
     cost_plant: str | ModelSpec = TRUE_MODEL
     controller_platforms: Sequence[Any] = ()
     physics_threads: int | str = AUTO_THREADS
+    plant_actuator: str | None = None
     hyperparameters: Any = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -172,6 +181,8 @@ class MismatchSettings:
             )
         env_kwargs["platform"] = platform
         set_("env_kwargs", jsonable(env_kwargs))
+        if self.plant_actuator is not None:
+            _check_plant_actuator(self.plant_actuator, self.env_kwargs)
         check_backend(self.backend, self.ray_address)
         if self.physics_threads != AUTO_THREADS:
             set_("physics_threads", _checked(THREADS, "physics_threads", self.physics_threads))
@@ -196,7 +207,7 @@ class MismatchSettings:
     def evaluation(self) -> dict[str, Any]:
         """What every evaluation's numbers depend on besides its row and plant (part of each
         cell's spec)."""
-        return {
+        out = {
             "task": self.task,
             "env_kwargs": self.env_kwargs,
             "episodes": self.episodes,
@@ -205,6 +216,9 @@ class MismatchSettings:
             "position_tolerance": self.position_tolerance,
             "orientation_tolerance": self.orientation_tolerance,
         }
+        if self.plant_actuator is not None:  # only then: the cells of studies on one actuator stay valid
+            out["plant_actuator"] = self.plant_actuator
+        return out
 
     def recorded(self) -> dict[str, Any]:
         """The settings study.json records: those that give the finished cells and agents their
@@ -232,6 +246,20 @@ COUNT = Interval(numbers.Integral, 1, math.inf, expected="a positive integer")
 TOLERANCE = Interval(numbers.Real, 0.0, math.inf, low_open=True, expected="a finite positive number")
 #: A job's physics threads other than "auto" (:func:`stewart_env.set_num_threads`'s range).
 THREADS = Interval(numbers.Integral, 1, MAX_THREADS, expected=f"'auto' or an integer from 1 to {MAX_THREADS}")
+
+
+def _check_plant_actuator(actuator: Any, env_kwargs: Mapping[str, Any]) -> None:
+    """Refuse a test plants' actuator the environment does not simulate with the study's
+    ``env_kwargs`` (an unknown name, a drive the platform has no parameters for, a lag without
+    its time constant), by building the environment on it: a MismatchError naming
+    ``plant_actuator``."""
+    from stewart_env.envs import StewartPlatformEnv
+
+    try:
+        StewartPlatformEnv(**{**env_kwargs, "actuator": actuator}).close()
+    except (ValueError, KeyError, TypeError) as err:
+        problem = err.problem if isinstance(err, UsageError) else str(err)
+        raise MismatchError(f"plant actuator: {problem}", argument="plant_actuator", problem=problem) from None
 
 
 def _checked(constraint: Interval, name: str, value: Any) -> Any:

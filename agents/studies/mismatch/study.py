@@ -78,6 +78,7 @@ def run_mismatch(
     cost_plant: str | ModelSpec = TRUE_MODEL,
     controller_platforms: Sequence[Any] = (),
     physics_threads: int | str = AUTO_THREADS,
+    plant_actuator: str | None = None,
     progress: bool = True,
 ) -> MismatchResult:
     """Run the mismatch study and write it to ``out`` (see :mod:`stewart_env.agents.studies.mismatch`).
@@ -112,6 +113,8 @@ def run_mismatch(
             ``"PLATFORM"``.
         physics_threads: each job's physics threads, ``"auto"`` (the CPUs a Ray job was given; this
             process's count locally) or a count.
+        plant_actuator: the test plants' actuator (None: that of ``env_kwargs``, on which the
+            controllers are built).
         progress: show a progress bar.
 
     Raises:
@@ -145,6 +148,7 @@ def run_mismatch(
         cost_plant=cost_plant,
         controller_platforms=controller_platforms,
         physics_threads=physics_threads,
+        plant_actuator=plant_actuator,
     )
     return run_study(out, settings, progress=progress)
 

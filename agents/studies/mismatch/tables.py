@@ -288,9 +288,18 @@ def markdown(result: MismatchResult, settings: MismatchSettings, wall_time: floa
         wall_time: the study's wall time, s.
     """
     seeds = settings.seeds
+    built_on = settings.env_kwargs.get("actuator", "ideal")
     lines = [
         f"# Model mismatch on the {settings.task} task, platform {settings.platform}",
         "",
+        *(
+            [
+                f"The plants' actuators: {settings.plant_actuator}; the controllers' ({built_on}) are not the plants'.",
+                "",
+            ]
+            if settings.plant_actuator is not None
+            else []
+        ),
         f"Rows: controllers and the dynamics model they were designed or trained on; columns: the plant "
         f"they run on. Each cell: the point estimate and its 95 % interval, a stratified bootstrap over "
         f"the training seeds ({', '.join(map(str, seeds))}; one for the model-based rows) and the "
