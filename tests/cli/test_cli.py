@@ -387,7 +387,17 @@ def test_help_texts_say_what_the_user_needs(capsys):
 def _without(module: str, argv: list[str]) -> subprocess.CompletedProcess:
     """``stewart-env argv`` in a fresh interpreter where ``module`` cannot be imported, as for a
     user who did not install its extra."""
-    code = f"import sys; sys.modules[{module!r}] = None\nfrom stewart_env.cli import main\nsys.exit(main({argv!r}))"
+    # a finder that refuses the module, as an absent one is: not `sys.modules[name] = None`, which
+    # other libraries read as present (scipy's array-API checks look torch up in sys.modules)
+    code = (
+        "import sys, importlib.abc\n"
+        "class Absent(importlib.abc.MetaPathFinder):\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        f"        if name == {module!r} or name.startswith({module!r} + '.'):\n"
+        "            raise ModuleNotFoundError(f'No module named {name!r}', name=name)\n"
+        "sys.meta_path.insert(0, Absent())\n"
+        f"from stewart_env.cli import main\nsys.exit(main({argv!r}))"
+    )
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
 
 
