@@ -54,6 +54,7 @@ __all__ = [
     "WashoutParams",
     "WashoutPolicy",
     "discretize",
+    "head_pose",
     "load_washout_params",
     "washout_transfer_functions",
 ]
@@ -392,9 +393,6 @@ class WashoutPolicy:
         self.params = params
         self.washout = Washout(params, base.control_dt)
         self._actuation = actuation
-        platform = base.platform
-        self._home_position = np.asarray(platform.home_position, dtype=float)
-        self._home_rotation = rpy_to_matrix(np.asarray(platform.home_rpy, dtype=float))
         if head is None:
             head = getattr(getattr(base, "task", None), "head", (0.0, 0.0, 0.0))
         self.head = np.asarray(head, dtype=float)
@@ -406,7 +404,7 @@ class WashoutPolicy:
         self.washout.reset()
 
     def pose(self, displacement, rpy) -> tuple[np.ndarray, np.ndarray]:
-        """The platform pose in {B} that puts the head at home plus ``displacement`` rotated by ``rpy``.
+        """The platform pose in {B} of the head's displacement and the cabin's angles (:func:`head_pose`).
 
         Args:
             displacement: (N, 3) the head's displacement in {H}, m.
@@ -415,11 +413,7 @@ class WashoutPolicy:
         Returns:
             (position (N, 3) of P in {B}, m; rotation (N, 3, 3)).
         """
-        rotation = self._home_rotation @ rpy_to_matrix(rpy)
-        head_home = self._home_rotation @ self.head
-        # P = head point - R head: the cabin turns about the head, which moves by the displacement only
-        position = self._home_position + head_home + displacement @ self._home_rotation.T - rotation @ self.head
-        return position, rotation
+        return head_pose(self.env.unwrapped.platform, self.head, displacement, rpy)
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
         """SB3's interface: (action (6,) or (N, 6), None) for one observation or a batch.
@@ -444,6 +438,32 @@ class WashoutPolicy:
         action = np.stack([self._actuation.pose_command(p, r) for p, r in zip(position, rotation)])
         action = np.clip(action, -1.0, 1.0).astype(np.float32)
         return (action[0] if obs.ndim == 1 else action), None
+
+
+def head_pose(platform, head, displacement, rpy) -> tuple[np.ndarray, np.ndarray]:
+    """The platform pose that puts the head at home plus ``displacement``, the cabin turned by ``rpy``.
+
+    The cabin turns about the head point, which moves by the displacement only:
+    R = R_home R(rpy) and P = P_home + R_home (head + displacement) - R head.
+
+    Args:
+        platform: the platform's parameters (its home pose).
+        head: (3,) the head point in {P}, m.
+        displacement: (..., 3) the head's displacement in {H} (the platform's axes at home), m.
+        rpy: (..., 3) the cabin's roll, pitch, yaw relative to home, rad.
+
+    Returns:
+        (position (..., 3) of P's origin in {B}, m; rotation (..., 3, 3) of {P} in {B}).
+    """
+    home_rotation = rpy_to_matrix(np.asarray(platform.home_rpy, dtype=float))
+    head = np.asarray(head, dtype=float)
+    rotation = home_rotation @ rpy_to_matrix(np.asarray(rpy, dtype=float))
+    position = (
+        np.asarray(platform.home_position, dtype=float)
+        + (head + np.asarray(displacement, dtype=float)) @ home_rotation.T
+        - rotation @ head
+    )
+    return position, rotation
 
 
 def _pose_mode(base) -> bool:
