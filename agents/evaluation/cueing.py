@@ -54,9 +54,14 @@ from stewart_env.tasks.cueing.vestibular import THRESHOLDS, Otolith, Semicircula
 __all__ = [
     "CUEING_METRICS",
     "CHANNELS",
+    "CUEING_COLUMNS",
+    "CUEING_INFO_KEYS",
     "OMCT_FREQUENCIES",
     "correlation",
     "cueing_metrics",
+    "cueing_table",
+    "episode_cueing_metrics",
+    "is_cueing",
     "delay",
     "false_cues",
     "fit_harmonic",
@@ -250,6 +255,93 @@ def _largest(fraction) -> float:
         return math.nan
     values = np.abs(np.asarray(fraction, dtype=float))
     return float(values.max()) if values.size else math.nan
+
+
+#: The step infos of the cueing task that the metrics read (each (N, 3) or (N,) per step).
+CUEING_INFO_KEYS = (
+    "vehicle_specific_force",
+    "vehicle_angular_velocity",
+    "head_specific_force",
+    "head_angular_velocity",
+    "workspace_use",
+    "stroke_use",
+)
+
+
+def is_cueing(env_kwargs) -> bool:
+    """Whether an environment configuration runs the cueing task.
+
+    Args:
+        env_kwargs: the environment's keywords.
+
+    Returns:
+        True for ``task="cueing"``.
+    """
+    return str(dict(env_kwargs or {}).get("task", "")) == "cueing"
+
+
+def episode_cueing_metrics(dt: float, steps: dict, limit_hits: int) -> dict[str, float]:
+    """The cueing metrics of one episode from its step infos (:data:`CUEING_INFO_KEYS`).
+
+    Args:
+        dt: the control step, s.
+        steps: info key -> the episode's values over its steps, (T, 3) or (T,); the workspace and
+            stroke use, when present, are the task's fractions of the limits.
+        limit_hits: the steps after which a constraint was violated.
+
+    Returns:
+        The metrics of :data:`CUEING_METRICS`.
+    """
+    fraction = {
+        k: None if steps.get(k) is None else np.asarray(steps[k])[:, None] for k in ("workspace_use", "stroke_use")
+    }
+    return cueing_metrics(
+        dt,
+        steps["vehicle_specific_force"],
+        steps["vehicle_angular_velocity"],
+        steps["head_specific_force"],
+        steps["head_angular_velocity"],
+        pose_fraction=fraction["workspace_use"],
+        leg_fraction=fraction["stroke_use"],
+        limit_hits=limit_hits,
+    )
+
+
+#: The cueing metrics as the reports show them: title, factor from SI, format.
+CUEING_COLUMNS = {
+    "rms_specific_force_error": ("RMS f err. (m/s²)", 1.0, ".3g"),
+    "rms_angular_velocity_error": ("RMS ω err. (deg/s)", 180.0 / math.pi, ".3g"),
+    "specific_force_correlation": ("corr. f", 1.0, ".3f"),
+    "angular_velocity_correlation": ("corr. ω", 1.0, ".3f"),
+    "specific_force_delay": ("delay f (ms)", 1e3, ".3g"),
+    "angular_velocity_delay": ("delay ω (ms)", 1e3, ".3g"),
+    "false_specific_force_cues": ("false cues f", 1.0, ".3g"),
+    "false_angular_velocity_cues": ("false cues ω", 1.0, ".3g"),
+    "false_cue_time": ("false cue time (s)", 1.0, ".3g"),
+    "workspace_use": ("workspace use", 1.0, ".2f"),
+    "stroke_use": ("stroke use", 1.0, ".2f"),
+    "limit_hits": ("limit hits (steps)", 1.0, ".3g"),
+}
+
+
+def cueing_table(rows: Sequence[tuple[str, str, dict[str, float]]]) -> str:
+    """A Markdown table of the mean cueing metrics, one row per controller.
+
+    Args:
+        rows: (controller, model, {metric: mean}) per result.
+
+    Returns:
+        The table's text.
+    """
+    head = ["controller", "model"] + [title for title, _, _ in CUEING_COLUMNS.values()]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for label, model, means in rows:
+        cells = [label, model]
+        for key, (_, factor, spec) in CUEING_COLUMNS.items():
+            value = means.get(key, math.nan)
+            cells.append("-" if not math.isfinite(value) else format(value * factor, spec))
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 # -- the whole chain over frequency ----------------------------------------------------------------

@@ -61,6 +61,8 @@ TUNED = (
     ("rotational_frequency_roll_pitch", ("rotational_frequency", (0, 1)), (0.1, 4.0)),
     ("rotational_frequency_yaw", ("rotational_frequency", (2,)), (0.1, 4.0)),
 )
+#: The head point in {P} (m): the cueing task's default, a seated person's eyes 0.8 m above P.
+DEFAULT_HEAD = (0.0, 0.0, 0.8)
 #: The scales of the errors in the objective: 1 m/s² of specific force weighs as 0.1 rad/s.
 FORCE_SCALE_ERROR = 1.0
 ANGULAR_SCALE_ERROR = 0.1
@@ -174,7 +176,9 @@ class _Chain:
         return error + PENALTY * float(over.sum()), terms
 
 
-def washout_objective(params: WashoutParams, motions: Sequence[VehicleMotion], platform="dasgupta1998", head=(0.0, 0.0, 0.0)) -> float:
+def washout_objective(
+    params: WashoutParams, motions: Sequence[VehicleMotion], platform="dasgupta1998", head=(0.0, 0.0, 0.0)
+) -> float:
     """The tuning's objective (module docstring) of one parameter set.
 
     Args:
@@ -214,9 +218,9 @@ class TuningResult:
 def tune_washout(
     motions: Sequence[VehicleMotion],
     platform="dasgupta1998",
-    head=(0.0, 0.0, 0.0),
+    head=DEFAULT_HEAD,
     start: WashoutParams | None = None,
-    max_evaluations: int = 400,
+    max_evaluations: int = 300,
 ) -> TuningResult:
     """Tune the washout on training motions (module docstring): bounded Nelder-Mead on log scales.
 
@@ -291,7 +295,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out", default="configs/agents/washout.yaml")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--platform", default="dasgupta1998")
-    parser.add_argument("--max-evaluations", type=int, default=400)
+    parser.add_argument("--max-evaluations", type=int, default=300)
     args = parser.parse_args(argv)
     motions = training_motions(args.seed)
     result = tune_washout(motions, args.platform, max_evaluations=args.max_evaluations)
@@ -299,7 +303,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         f" --{k.replace('_', '-')} {v}" for k, v in vars(args).items()
     )
     publish(args.out, config_text(result, motions, args.platform, command))
-    print(f"J {result.initial_objective:.4g} -> {result.objective:.4g} in {result.evaluations} evaluations, {result.seconds:.0f} s")
+    print(
+        f"J {result.initial_objective:.4g} -> {result.objective:.4g} in {result.evaluations} evaluations, {result.seconds:.0f} s"
+    )
     return 0
 
 

@@ -28,6 +28,8 @@ from stewart_env.cli.common import (
 )
 
 VERB = "evaluate"
+#: The cueing task's baseline: classical washout with the shipped tuning, in pose mode.
+WASHOUT = "washout"
 #: Memory the evaluation keeps per episode and control step, bytes, rounded up: the position and
 #: orientation errors, rates and six leg forces of every step, then stacked into one array each.
 RECORD_BYTES_PER_STEP = 256
@@ -56,10 +58,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument(
         "--policy",
         nargs="+",
-        choices=CONTROLLERS,
+        choices=(*CONTROLLERS, WASHOUT),
         help="pd: task-space PD (paper eq. 56, gains tuned for the control step); pd-gc: the same "
         "with gravity compensation (the improved model's holding forces); ct: computed "
-        "torque with its own internal model (default pd, unless --agent is given)",
+        "torque with its own internal model; washout: classical washout for --task cueing "
+        "(configs/agents/washout.yaml, action_mode pose) (default pd, or washout on --task "
+        "cueing, unless --agent is given)",
     )
     p.add_argument(
         "--agent",
@@ -111,7 +115,12 @@ def _evaluate(args: argparse.Namespace) -> str:
 
     runs = []  # (label, policy or factory, environment kwargs without the model)
     baseline_kwargs = {"task": args.task or "setpoint", "platform": args.platform or "dasgupta1998"}
-    names = args.policy or ([] if args.agent else ["pd"])
+    names = args.policy or ([] if args.agent else [WASHOUT if args.task == "cueing" else "pd"])
+    if WASHOUT in names:
+        from stewart_env.agents.controllers.washout import WashoutPolicy
+
+        runs.append(("washout", lambda env: WashoutPolicy(env, "washout"), {**baseline_kwargs, "action_mode": "pose"}))
+    names = [name for name in names if name != WASHOUT]
     runs += [(label, policy, baseline_kwargs) for label, policy in controllers(names, args.internal_model).items()]
     if args.agent:
         from stewart_env.agents.training import load_agent
@@ -131,6 +140,11 @@ def _evaluate(args: argparse.Namespace) -> str:
     ]
     if args.out is not None:
         write_report(results, args.out)
+    cueing = [r for r in results if r.cueing_keys()]
+    if cueing:
+        from stewart_env.agents.evaluation.cueing import cueing_table
+
+        return markdown_table(results) + "\n\n" + cueing_table([(r.label, r.model, r.summary()) for r in cueing])
     return markdown_table(results)
 
 
@@ -144,6 +158,8 @@ def _problem(args: argparse.Namespace) -> str | None:
         twice = sorted({str(v) for v in values or () if values.count(v) > 1})
         if twice:
             return f"argument {flag}: {', '.join(twice)} given twice"
+    if WASHOUT in (args.policy or ()) and args.task != "cueing":
+        return f"argument --policy: {WASHOUT} cues vehicle motion: give --task cueing"
     missing = [d for d in args.agent or () if not Path(d).is_dir()]
     if missing:
         return f"argument --agent: no such directory: {missing[0]!r}"
