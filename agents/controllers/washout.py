@@ -40,7 +40,6 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
-import scipy.signal
 
 from stewart_env.errors import UsageError
 from stewart_env.files import DocumentError, FileError, load_yaml, read_regular
@@ -53,6 +52,7 @@ __all__ = [
     "Washout",
     "WashoutParams",
     "WashoutPolicy",
+    "bilinear",
     "discretize",
     "head_pose",
     "load_washout_params",
@@ -247,6 +247,45 @@ class DiscreteFilter:
         return y
 
 
+def bilinear(num, den, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """The bilinear (Tustin) transform of a transfer function: s = (2 / dt) (z - 1) / (z + 1).
+
+    Written out with polynomial products (multiplying through by (z + 1)^n, n the denominator's
+    degree), which needs no matrix solve.
+
+    Args:
+        num: the numerator in descending powers of s, of degree at most the denominator's.
+        den: the denominator in descending powers of s.
+        dt: the sampling period, s.
+
+    Returns:
+        (b, a), in descending powers of z (equally of z^-k), normalised so that a[0] = 1.
+    """
+    num = np.trim_zeros(np.atleast_1d(np.asarray(num, dtype=float)), "f")
+    den = np.trim_zeros(np.atleast_1d(np.asarray(den, dtype=float)), "f")
+    n = len(den) - 1
+    c = 2.0 / dt
+
+    def mapped(poly: np.ndarray) -> np.ndarray:
+        out = np.zeros(n + 1)
+        degree = len(poly) - 1
+        for k, coefficient in enumerate(poly):  # coefficient of s^(degree - k)
+            power = degree - k
+            term = coefficient * c**power * np.polymul(_power([1.0, -1.0], power), _power([1.0, 1.0], n - power))
+            out[n + 1 - len(term) :] += term
+        return out
+
+    b, a = mapped(num), mapped(den)
+    return b / a[0], a / a[0]
+
+
+def _power(poly, k: int) -> np.ndarray:
+    out = np.array([1.0])
+    for _ in range(k):
+        out = np.polymul(out, poly)
+    return out
+
+
 def discretize(transfer_functions: list[tuple[np.ndarray, np.ndarray]], dt: float) -> DiscreteFilter:
     """The bilinear (Tustin) discretisation of continuous filters, one per channel, as a bank.
 
@@ -259,8 +298,7 @@ def discretize(transfer_functions: list[tuple[np.ndarray, np.ndarray]], dt: floa
     """
     coefficients = []
     for num, den in transfer_functions:
-        b, a, _ = scipy.signal.cont2discrete((num, den), dt, method="bilinear")
-        coefficients.append((np.ravel(b), np.ravel(a)))
+        coefficients.append(bilinear(num, den, dt))
     return DiscreteFilter(coefficients)
 
 

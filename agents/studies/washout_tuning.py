@@ -122,6 +122,7 @@ class _Chain:
             self.w[: m.n_samples, j] = m.angular_velocity
         self.platform = platform
         self.head = np.asarray(head, dtype=float)
+        self._otolith, self._canal = Otolith().discretize(self.dt), SemicircularCanal().discretize(self.dt)
         self.vehicle = self.perceive(self.f, self.w)
         lim = platform.limits
         self.box_mid = 0.5 * (lim.position_min + lim.position_max)
@@ -132,7 +133,7 @@ class _Chain:
 
     def perceive(self, f, w) -> tuple[np.ndarray, np.ndarray]:
         """The perceived motions (T, M, 3) each of a batch of motions, from rest at the start."""
-        otolith, canal = Otolith().discretize(self.dt), SemicircularCanal().discretize(self.dt)
+        otolith, canal = self._otolith, self._canal
         deviation = f - np.array([0.0, 0.0, STANDARD_GRAVITY])
         otolith.reset(deviation[0])
         canal.reset(w[0])

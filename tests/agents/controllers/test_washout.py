@@ -9,6 +9,7 @@ import pytest
 from stewart_env.agents.controllers.washout import (
     Washout,
     WashoutParams,
+    bilinear,
     discretize,
     load_washout_params,
     washout_transfer_functions,
@@ -50,6 +51,17 @@ def test_each_filter_matches_its_transfer_function(channel):
         expected = np.polyval(num, 1j * FREQUENCIES) / np.polyval(den, 1j * FREQUENCIES)
         # 1 %: the brief's bound; Tustin's frequency warping is below 0.3 % up to 10 rad/s at 10 ms
         np.testing.assert_array_less(np.abs(measured[:, c] - expected) / np.abs(expected), 0.01)
+
+
+def test_bilinear_is_scipys_tustin():
+    import scipy.signal
+
+    for tfs in washout_transfer_functions(WashoutParams(translational_break=(0.5, 0.0, 1.0))).values():
+        for num, den in tfs:
+            b, a = bilinear(num, den, DT)
+            b_ref, a_ref, _ = scipy.signal.cont2discrete((num, den), DT, method="bilinear")
+            np.testing.assert_allclose(b, np.ravel(b_ref)[-len(b) :], rtol=0, atol=1e-12)  # rounding of two routes
+            np.testing.assert_allclose(a, a_ref, rtol=0, atol=1e-12)
 
 
 def test_third_order_position_returns_to_zero_and_second_order_keeps_an_offset():
