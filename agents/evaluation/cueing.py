@@ -60,6 +60,7 @@ __all__ = [
     "correlation",
     "cueing_metrics",
     "cueing_table",
+    "environment_chain",
     "episode_cueing_metrics",
     "is_cueing",
     "delay",
@@ -504,3 +505,58 @@ def kinematic_head_motion(displacement, rpy, dt: float) -> tuple[np.ndarray, np.
     skew = np.einsum("tji,tjk->tik", rotation, rate)  # R^T dR/dt = [omega]x in the cabin's frame
     w = np.stack([skew[:, 2, 1] - skew[:, 1, 2], skew[:, 0, 2] - skew[:, 2, 0], skew[:, 1, 0] - skew[:, 0, 1]], axis=1)
     return f, 0.5 * w
+
+
+def environment_chain(policy, env_kwargs: dict | None = None, folder=None):
+    """The whole chain as a callable for :func:`frequency_response_table`: the motion written as a
+    motion file, one episode of the cueing task on it with ``policy``, the platform's motion at
+    the head read from the step infos.
+
+    Args:
+        policy: an object with SB3's ``predict`` (and optionally ``reset``), or a callable env ->
+            such an object, as :func:`~stewart_env.agents.evaluation.evaluation.evaluate` takes.
+        env_kwargs: the environment's keywords besides the task and its ``motions`` option
+            (e.g. ``{"action_mode": "pose"}`` for washout).
+        folder: where the motion files go (default a temporary folder per call).
+
+    Returns:
+        motion -> (head specific force (T, 3), head angular velocity (T, 3)), the first sample at
+        rest, then one per control step (the motion's sample period must be the control step).
+    """
+    import tempfile
+    from pathlib import Path
+
+    import gymnasium as gym
+
+    from stewart_env.registration import ENV_ID
+    from stewart_env.tasks.cueing.motions import write_motion
+
+    def chain(motion: VehicleMotion) -> tuple[np.ndarray, np.ndarray]:
+        with tempfile.TemporaryDirectory(dir=folder) as tmp:
+            path = write_motion(motion, Path(tmp) / f"{motion.name}.csv")
+            kwargs = dict(env_kwargs or {})
+            options = {**kwargs.pop("task_options", {}), "motions": str(path)}
+            env = gym.make(
+                ENV_ID, task="cueing", task_options=options, max_episode_steps=motion.n_samples - 1, **kwargs
+            )
+            agent = policy(env) if callable(policy) and not hasattr(policy, "predict") else policy
+            if callable(getattr(agent, "reset", None)):
+                agent.reset()
+            obs, _ = env.reset(seed=0)
+            rest = np.array([0.0, 0.0, STANDARD_GRAVITY])
+            head_f, head_w = [rest], [np.zeros(3)]
+            for _ in range(motion.n_samples - 1):
+                action, _ = agent.predict(obs, deterministic=True)
+                obs, _, terminated, truncated, info = env.step(action)
+                head_f.append(np.asarray(info["head_specific_force"], dtype=float))
+                head_w.append(np.asarray(info["head_angular_velocity"], dtype=float))
+                if terminated or truncated:
+                    break
+            env.close()
+        n = motion.n_samples
+        f = np.tile(head_f[-1], (n, 1))
+        w = np.tile(head_w[-1], (n, 1))
+        f[: len(head_f)], w[: len(head_w)] = head_f, head_w
+        return f, w
+
+    return chain

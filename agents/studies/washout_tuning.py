@@ -46,7 +46,7 @@ from stewart_env.rotations import matrix_to_rpy
 from stewart_env.tasks.cueing.motion import STANDARD_GRAVITY, VehicleMotion
 from stewart_env.tasks.cueing.vestibular import Otolith, SemicircularCanal
 
-__all__ = ["TUNED", "TuningResult", "tune_washout", "washout_objective"]
+__all__ = ["TUNED", "TuningResult", "kinematic_chain", "tune_washout", "washout_objective"]
 
 #: The tuned parameters: name, the fields and entries it sets, and its bounds.
 TUNED = (
@@ -266,6 +266,26 @@ def tune_washout(
     best = params_of(np.exp(np.clip(result.x, low, high)), start)
     value, terms = chain.score(best)
     return TuningResult(best, value, initial, terms, count, time.perf_counter() - began)
+
+
+def kinematic_chain(params: WashoutParams, dt: float = 0.01):
+    """The washout alone as a chain for the gain and phase table
+    (:func:`~stewart_env.agents.evaluation.cueing.frequency_response_table`): the cabin follows its
+    commanded pose exactly.
+
+    Args:
+        params: the washout's parameters.
+        dt: the control step, s.
+
+    Returns:
+        motion -> (specific force (T, 3), angular velocity (T, 3)) at the head.
+    """
+
+    def chain(motion: VehicleMotion) -> tuple[np.ndarray, np.ndarray]:
+        displacement, rpy = Washout(params, dt).run(motion.specific_force, motion.angular_velocity)
+        return kinematic_head_motion(displacement, rpy, dt)
+
+    return chain
 
 
 def training_motions(seed: int = 0) -> list[VehicleMotion]:
