@@ -429,7 +429,7 @@ class WashoutPolicy:
             params = load_washout_params(params)
         self.env = env
         self.params = params
-        self.washout = Washout(params, base.control_dt)
+        self.washout = Washout(params, base.dt)
         self._actuation = actuation
         if head is None:
             head = getattr(getattr(base, "task", None), "head", (0.0, 0.0, 0.0))

@@ -3,19 +3,23 @@ case, the parameters' checks and the policy on the cueing task."""
 
 import math
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
 from stewart_env.agents.controllers.washout import (
     Washout,
     WashoutParams,
+    WashoutPolicy,
     bilinear,
     discretize,
+    head_pose,
     load_washout_params,
     washout_transfer_functions,
 )
 from stewart_env.errors import UsageError
 from stewart_env.tasks.cueing.motion import STANDARD_GRAVITY
+from stewart_env.tasks.cueing.task import DEFAULT_HEAD
 
 DT = 0.01
 #: Frequencies of the response checks, rad/s: from below the slowest break to 10 rad/s (1.6 Hz).
@@ -159,3 +163,53 @@ def test_params_round_trip_and_unknown_keys(tmp_path):
     bad.write_text("washout: {}\n")
     with pytest.raises(UsageError, match=r"w.yaml has no 'params' mapping"):
         load_washout_params(bad)
+
+
+@pytest.fixture(scope="module")
+def cueing_env():
+    env = gym.make("StewartPlatform-v1", task="cueing", action_mode="pose", task_options={"motions": ("braking",)})
+    yield env
+    env.close()
+
+
+def test_policy_commands_the_washouts_pose_through_the_envs_normalisation(cueing_env):
+    policy = WashoutPolicy(cueing_env)
+    assert np.array_equal(policy.head, DEFAULT_HEAD)  # the task's head point
+    obs, _ = cueing_env.reset(seed=3)
+    twin = Washout(WashoutParams(), cueing_env.unwrapped.dt)
+    base = cueing_env.unwrapped
+    moved = 0.0
+    for _ in range(400):
+        action, state = policy.predict(obs)
+        assert state is None and action.dtype == np.float32 and action.shape == (6,)
+        part = base.decode_observation(obs[None].astype(float))
+        displacement, rpy = twin.step(part["vehicle_specific_force"], part["vehicle_angular_velocity"])
+        position, rotation = head_pose(base.platform, DEFAULT_HEAD, displacement, rpy)
+        expected = base._core.actuation.pose_command(position[0], rotation[0])
+        np.testing.assert_allclose(action, np.clip(expected, -1, 1), rtol=0, atol=1e-6)  # float32 actions
+        moved = max(moved, float(np.abs(displacement).max()))
+        obs, _, terminated, truncated, _ = cueing_env.step(action)
+        if terminated or truncated:
+            break
+    assert moved > 1e-2  # the braking began: the check saw the washout move
+
+
+def test_policy_restarts_at_episode_start(cueing_env):
+    policy = WashoutPolicy(cueing_env)
+    obs, _ = cueing_env.reset(seed=3)
+    first, _ = policy.predict(obs)
+    for _ in range(150):
+        obs, *_ = cueing_env.step(policy.predict(obs)[0])
+    obs, _ = cueing_env.reset(seed=3)
+    again, _ = policy.predict(obs[None], episode_start=np.array([True]))
+    assert np.array_equal(again[0], first)
+
+
+def test_policy_refuses_other_envs():
+    with pytest.raises(UsageError, match="env: its observations lack .*task='cueing'"):
+        WashoutPolicy(gym.make("StewartPlatform-v1"))
+    with pytest.raises(UsageError, match="env: washout commands poses: make the environment with action_mode='pose'"):
+        WashoutPolicy(gym.make("StewartPlatform-v1", task="cueing"))
+    env = gym.make("StewartPlatform-v1", task="cueing", action_mode="pose")
+    with pytest.raises(UsageError, match=r"head: must be three finite numbers"):
+        WashoutPolicy(env, head=(0.0, 1.0))

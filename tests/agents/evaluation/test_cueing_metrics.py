@@ -3,6 +3,7 @@ counted by hand, the perception's rest, and the gain and phase table of known ch
 
 import math
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -150,3 +151,31 @@ def test_sine_motion_refuses_bad_channels():
     with pytest.raises(UsageError, match="channels: unknown channel 'heave'"):
         frequency_response_table(lambda m: (m.specific_force, m.angular_velocity), channels=("heave",))
     assert THRESHOLDS["specific_force"].shape == (3,)
+
+
+def test_evaluate_on_the_cueing_task_reports_the_cueing_metrics(tmp_path):
+    from stewart_env.agents import WashoutPolicy, evaluate
+
+    kwargs = {"task": "cueing", "action_mode": "pose", "task_options": {"motions": ("braking",)}}
+    result = evaluate(WashoutPolicy, kwargs, episodes=2, seed=0, max_steps=60, out=tmp_path, progress=False)
+    assert result.cueing_keys() == list(CUEING_METRICS)
+    for ep in result.episodes:
+        assert 0.0 <= ep.metrics["workspace_use"] <= 1.0 and 0.0 < ep.metrics["stroke_use"] <= 1.0
+        assert ep.metrics["rms_specific_force_error"] >= 0.0
+    header = (tmp_path / "episodes.csv").read_text().splitlines()[0].split(",")
+    assert header[-len(CUEING_METRICS) :] == list(CUEING_METRICS)
+    assert "## Cueing" in (tmp_path / "results.md").read_text()
+    # the same policy object evaluated twice starts its filters over: the same numbers
+    policy = WashoutPolicy(gym.make("StewartPlatform-v1", **kwargs))
+    first = evaluate(policy, kwargs, episodes=2, seed=0, max_steps=60, progress=False)
+    second = evaluate(policy, kwargs, episodes=2, seed=0, max_steps=60, progress=False)
+    assert [ep.metrics for ep in first.episodes] == [ep.metrics for ep in second.episodes]
+    assert [ep.metrics for ep in first.episodes] == [ep.metrics for ep in result.episodes]
+
+
+def test_evaluate_elsewhere_has_no_cueing_metrics():
+    from stewart_env.agents import PDPolicy, evaluate
+
+    result = evaluate(PDPolicy, {"task": "setpoint"}, episodes=1, seed=0, max_steps=5, progress=False)
+    assert result.cueing_keys() == []
+    assert "rms_specific_force_error" not in result.summary()
