@@ -30,6 +30,9 @@ from stewart_env.cli.common import (
 VERB = "evaluate"
 #: The cueing task's baseline: classical washout with the shipped tuning, in pose mode.
 WASHOUT = "washout"
+#: The cueing task's episodes without --max-steps: they end with their motion, the longest shipped
+#: evaluation motion lasting 120 s (the sweeps) at the 10 ms control step.
+CUEING_MAX_STEPS = 12_001
 #: Memory the evaluation keeps per episode and control step, bytes, rounded up: the position and
 #: orientation errors, rates and six leg forces of every step, then stacked into one array each.
 RECORD_BYTES_PER_STEP = 256
@@ -99,7 +102,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=platform_count, default=5, help="episodes per configuration (default 5)")
     p.add_argument("--seed", type=seed, default=0, help="episode i uses seed + i (default 0)")
     p.add_argument(
-        "--max-steps", type=episode_steps, help="episode length in control steps (default the registered 500)"
+        "--max-steps",
+        type=episode_steps,
+        help=f"episode length in control steps (default the registered 500; on --task cueing {CUEING_MAX_STEPS}, "
+        "the longest motion's, each episode ending with its motion)",
     )
     p.add_argument(
         "--out",
@@ -115,6 +121,8 @@ def _evaluate(args: argparse.Namespace) -> str:
 
     runs = []  # (label, policy or factory, environment kwargs without the model)
     baseline_kwargs = {"task": args.task or "setpoint", "platform": args.platform or "dasgupta1998"}
+    if args.task == "cueing":  # the held-out motions and seeds
+        baseline_kwargs["task_options"] = {"split": "evaluation"}
     names = args.policy or ([] if args.agent else [WASHOUT if args.task == "cueing" else "pd"])
     if WASHOUT in names:
         from stewart_env.agents.controllers.washout import WashoutPolicy
@@ -134,7 +142,7 @@ def _evaluate(args: argparse.Namespace) -> str:
             label = agent.name if names.count(agent.name) == 1 else f"{agent.name} {Path(directory).name}"
             runs.append((label, agent, kwargs))
     results = [
-        evaluate(policy, {**kwargs, "model": model}, args.episodes, args.seed, label=label, max_steps=args.max_steps)
+        evaluate(policy, {**kwargs, "model": model}, args.episodes, args.seed, label=label, max_steps=_max_steps(args))
         for model in args.model
         for label, policy, kwargs in runs
     ]
@@ -146,6 +154,11 @@ def _evaluate(args: argparse.Namespace) -> str:
 
         return markdown_table(results) + "\n\n" + cueing_table([(r.label, r.model, r.summary()) for r in cueing])
     return markdown_table(results)
+
+
+def _max_steps(args: argparse.Namespace) -> int | None:
+    """--max-steps, or on the cueing task enough steps for its longest motion."""
+    return CUEING_MAX_STEPS if args.max_steps is None and args.task == "cueing" else args.max_steps
 
 
 def _problem(args: argparse.Namespace) -> str | None:
@@ -163,7 +176,7 @@ def _problem(args: argparse.Namespace) -> str | None:
     missing = [d for d in args.agent or () if not Path(d).is_dir()]
     if missing:
         return f"argument --agent: no such directory: {missing[0]!r}"
-    steps = args.max_steps or MAX_EPISODE_STEPS
+    steps = _max_steps(args) or MAX_EPISODE_STEPS
     try:  # every episode runs in one batch, each step of each episode kept
         check_batch_memory("--episodes", args.episodes, BYTES_PER_PLATFORM + RECORD_BYTES_PER_STEP * steps)
     except ValueError as err:
