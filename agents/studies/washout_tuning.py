@@ -20,15 +20,14 @@ The search is SciPy's Nelder-Mead in the bounded, log-scaled coordinates from th
 
 The shipped tuning, configs/agents/washout.yaml, was written by::
 
-    python -m stewart_env.agents.studies.washout_tuning --out configs/agents/washout.yaml
+    python -m stewart_env.agents.studies.washout_tuning configs/agents/washout.yaml
 
-(about 3 minutes on one core), which records the motions, seeds, platform, objective and the
-command in the file.
+(training motions from seed 0, the dasgupta1998 platform, 300 evaluations: about 5 minutes on a
+loaded core), which records the motions, platform, objective and the command in the file.
 """
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
 from collections.abc import Sequence
@@ -48,6 +47,8 @@ from stewart_env.tasks.cueing.vestibular import Otolith, SemicircularCanal
 
 __all__ = ["TUNED", "TuningResult", "kinematic_chain", "tune_washout", "washout_objective"]
 
+#: This module's name, as ``python -m`` runs it.
+MODULE = "stewart_env.agents.studies.washout_tuning"
 #: The tuned parameters: name, the fields and entries it sets, and its bounds.
 TUNED = (
     ("force_scale_xy", ("force_scale", (0, 1)), (0.1, 1.0)),
@@ -302,28 +303,32 @@ def training_motions(seed: int = 0) -> list[VehicleMotion]:
     return [make_motion(name, seed + k, 0.01) for k, name in enumerate(TRAINING_MOTIONS)]
 
 
+#: The shipped tuning's settings: the training motions' first seed, the platform, the evaluations.
+SHIPPED_SEED = 0
+SHIPPED_PLATFORM = "dasgupta1998"
+SHIPPED_EVALUATIONS = 300
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Tune on the training motions and write the config: ``--out``, ``--seed``, ``--platform``,
-    ``--max-evaluations``.
+    """Tune with the shipped settings and write the config: ``python -m
+    stewart_env.agents.studies.washout_tuning [OUT]`` (default configs/agents/washout.yaml).
 
     Args:
-        argv: the command line's arguments (default sys.argv's).
+        argv: the command line's arguments after the module (default sys.argv's): at most OUT.
 
     Returns:
-        The exit status.
+        The exit status: 0, or 2 with a one-line usage error.
     """
-    parser = argparse.ArgumentParser(prog="python -m stewart_env.agents.studies.washout_tuning")
-    parser.add_argument("--out", default="configs/agents/washout.yaml")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--platform", default="dasgupta1998")
-    parser.add_argument("--max-evaluations", type=int, default=300)
-    args = parser.parse_args(argv)
-    motions = training_motions(args.seed)
-    result = tune_washout(motions, args.platform, max_evaluations=args.max_evaluations)
-    command = "python -m stewart_env.agents.studies.washout_tuning" + "".join(
-        f" --{k.replace('_', '-')} {v}" for k, v in vars(args).items()
-    )
-    publish(args.out, config_text(result, motions, args.platform, command))
+    import sys
+
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if len(argv) > 1 or (argv and argv[0].startswith("-")):
+        print(f"usage: python -m {MODULE} [OUT]  (got {' '.join(argv)})", file=sys.stderr)
+        return 2
+    out = argv[0] if argv else "configs/agents/washout.yaml"
+    motions = training_motions(SHIPPED_SEED)
+    result = tune_washout(motions, SHIPPED_PLATFORM, max_evaluations=SHIPPED_EVALUATIONS)
+    publish(out, config_text(result, motions, SHIPPED_PLATFORM, f"python -m {MODULE} {out}"))
     print(
         f"J {result.initial_objective:.4g} -> {result.objective:.4g} in {result.evaluations} evaluations, {result.seconds:.0f} s"
     )

@@ -89,3 +89,12 @@ def test_gain_and_phase_of_the_washout_alone_in_yaw():
         # 1 %: Tustin's warping and the central differences, both below 0.3 % up to 8 rad/s at 10 ms
         assert row["gain"] == pytest.approx(abs(expected), rel=0.01)
         assert row["phase"] == pytest.approx(np.degrees(np.angle(expected)), abs=1.0)
+
+
+def test_command_refuses_options_in_one_line(capsys):
+    from stewart_env.agents.studies.washout_tuning import main
+
+    assert main(["--seed", "3"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: python -m stewart_env.agents.studies.washout_tuning [OUT]")
+    assert len(err.splitlines()) == 1
