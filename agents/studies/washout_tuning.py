@@ -22,8 +22,8 @@ The shipped tuning, configs/agents/washout.yaml, was written by::
 
     python -m stewart_env.agents.studies.washout_tuning configs/agents/washout.yaml
 
-(training motions from seed 0, the dasgupta1998 platform, 300 evaluations: about 5 minutes on a
-loaded core), which records the motions, platform, objective and the command in the file.
+(training motions from seed 0, the dasgupta1998 platform, 300 evaluations: under 5 minutes on
+one core), which records the motions, platform, objective and the command in the file.
 """
 
 from __future__ import annotations
