@@ -1,6 +1,6 @@
 """Baseline controllers, the evaluation harness and the reproduction of He et al. (2018).
 
-The package by job: controllers (PD, computed torque), evaluation (the harness, the statistics),
+The package by job: controllers (PD, computed torque, washout), evaluation (the harness, the statistics),
 studies (the reproduction, time to a precise agent, the model-mismatch study) and training
 (stable-baselines3); the names below are re-exported from them.
 
@@ -18,6 +18,8 @@ from stewart_env.agents.controllers import (
     ComputedTorquePolicy,
     PDPolicy,
     TaskSpacePD,
+    WashoutParams,
+    WashoutPolicy,
     pd_control_law,
     pd_control_params,
     preview_acceleration,
@@ -48,6 +50,8 @@ __all__ = [
     "Metric",
     "PDPolicy",
     "TaskSpacePD",
+    "WashoutParams",
+    "WashoutPolicy",
     "compare",
     "episode_metrics",
     "evaluate",

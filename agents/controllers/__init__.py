@@ -1,9 +1,11 @@
 """The baseline controllers: the task-space PD law (He et al. 2018, eq. 56) and computed torque,
-each as a control law and as a policy of the environment.
+each as a control law and as a policy of the environment; and classical washout, the motion
+cueing baseline.
 
 The package, one module per controller: :mod:`~stewart_env.agents.controllers.pd` (the PD law,
 its compiled form and its discrete-time gains) and
-:mod:`~stewart_env.agents.controllers.computed_torque` (the inverse-dynamics controller).
+:mod:`~stewart_env.agents.controllers.computed_torque` (the inverse-dynamics controller) and
+:mod:`~stewart_env.agents.controllers.washout` (classical washout for the cueing task).
 """
 
 from stewart_env.agents.controllers.computed_torque import ComputedTorque, ComputedTorquePolicy, preview_acceleration
@@ -20,6 +22,7 @@ from stewart_env.agents.controllers.pd import (
     zoh_pd_gains,
     zoh_spectral_radius,
 )
+from stewart_env.agents.controllers.washout import Washout, WashoutParams, WashoutPolicy, load_washout_params
 
 __all__ = [
     "PAPER_KD",
@@ -30,6 +33,10 @@ __all__ = [
     "EnvPolicy",
     "PDPolicy",
     "TaskSpacePD",
+    "Washout",
+    "WashoutParams",
+    "WashoutPolicy",
+    "load_washout_params",
     "pd_control_law",
     "pd_control_params",
     "preview_acceleration",

@@ -35,6 +35,11 @@ metrics: the **cost rate**, the mean cost per control step over every step of ev
 (:meth:`EvaluationResult.cost_rate`; 0 inside every limit), and the **limit hits**, the steps
 after which each constraint was violated, summed over the episodes
 (:meth:`EvaluationResult.limit_hits`).  The tables, the CSV and ``results.json`` show both.
+
+On the cueing task (``task="cueing"``) each episode also gets the cueing metrics of
+:mod:`~stewart_env.agents.evaluation.cueing` (perceived errors, correlation, delay, false cues,
+workspace and stroke use, limit hits), from the step infos; the CSV, ``results.json`` and
+``results.md`` carry them.
 """
 
 from __future__ import annotations
@@ -56,6 +61,13 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import stewart_env as se
+from stewart_env.agents.evaluation.cueing import (
+    CUEING_INFO_KEYS,
+    CUEING_METRICS,
+    cueing_table,
+    episode_cueing_metrics,
+    is_cueing,
+)
 from stewart_env.files import lock_folder, publish, publishing
 from stewart_env.progress import progress as progress_bar
 from stewart_env.registration import ENV_ID
@@ -262,10 +274,14 @@ class EvaluationResult:
         """Mean of every metric over the episodes (NaN-ignoring: settling time and overshoot are
         averaged over the episodes where they are defined; NaN if none)."""
         out = {}
-        for key in (m.key for m in METRICS):
+        for key in [m.key for m in METRICS] + self.cueing_keys():
             values = np.array([ep.metrics[key] for ep in self.episodes], dtype=float)
             out[key] = float(np.mean(values[np.isfinite(values)])) if np.isfinite(values).any() else math.nan
         return out
+
+    def cueing_keys(self) -> list[str]:
+        """The cueing metrics the episodes carry (all of :data:`CUEING_METRICS` on the cueing task, else none)."""
+        return [key for key in CUEING_METRICS if self.episodes and all(key in ep.metrics for ep in self.episodes)]
 
     def cost_rate(self) -> float:
         """The mean constraint cost per control step over every step of every episode (the sum of
@@ -363,8 +379,12 @@ def evaluate(
     if steps is None:
         raise ValueError("max_steps: the environment has no time limit; give max_steps")
     obs, _ = env.reset(seed=int(seed))
+    if callable(getattr(agent, "reset", None)):  # a policy with a state of its own (washout's filters) starts over
+        agent.reset()
+    cueing = is_cueing(env_kwargs)
     pos_err, ori_err, rates = _measure(base)
     record = {"p": [pos_err], "o": [ori_err], "r": [rates], "f": [], "c": [], "k": []}
+    cues: dict[str, list[np.ndarray]] = {key: [] for key in CUEING_INFO_KEYS}
     constraints: list[str] = []  # the platform's, from the step infos' cost_<name> keys
     alive = np.ones(n, dtype=bool)
     length = np.full(n, steps)
@@ -386,6 +406,10 @@ def evaluate(
                 constraints = [key[len("cost_") :] for key in info if key.startswith("cost_")]
             record["c"].append(np.array(info["cost"], dtype=float))
             record["k"].append(np.stack([info[f"cost_{name}"] for name in constraints], axis=1) > 0)
+            if cueing:
+                for key in CUEING_INFO_KEYS:
+                    if key in info:
+                        cues[key].append(np.array(info[key], dtype=float))
             pos_err, ori_err, rates = _measure(base)
             record["p"].append(pos_err)
             record["o"].append(ori_err)
@@ -399,6 +423,7 @@ def evaluate(
                 break
     env.close()
     arrays = {key: np.stack(v, axis=1) for key, v in record.items()}  # (n, T(+1), ...)
+    cue_arrays = {key: np.stack(v, axis=1) for key, v in cues.items() if v}
     results = []
     for i in range(n):
         t_end = int(length[i])
@@ -425,6 +450,10 @@ def evaluate(
             orientation_tolerance,
             final_window,
         )
+        if cueing:
+            steps = {key: value[i, :t_end] for key, value in cue_arrays.items()}
+            hits = int(arrays["k"][i, :t_end].any(axis=1).sum()) if constraints else 0
+            ep.metrics.update(episode_cueing_metrics(dt, steps, hits))
         results.append(ep)
     result = EvaluationResult(label, env_kwargs, int(seed), results)
     if out is not None:
@@ -585,13 +614,14 @@ def _write_report(results: Sequence[EvaluationResult], out: Path, title: str) ->
         "error_norms": out / "error_norms.png",
     }
     constraints = list(dict.fromkeys(name for r in results for ep in r.episodes for name in ep.limit_hits))
+    cue_keys = [key for key in CUEING_METRICS if any(key in r.cueing_keys() for r in results)]
     publish(
         paths["markdown"],
         f"# {title}\n\n" + markdown_table(results) + "\n\n"
         "Means over the episodes (settling time and overshoot over the episodes where they are defined; "
         "'-' where none); the cost rate is the mean constraint cost per step, the limit hits the steps "
         "with each constraint violated, summed over the episodes. Metric definitions: "
-        "`stewart_env.agents.evaluation`.\n",
+        "`stewart_env.agents.evaluation`.\n" + _cueing_section(results),
     )
     with publishing(paths["csv"]) as tmp, tmp.open("w", newline="") as f:
         writer = csv.writer(f)
@@ -600,6 +630,7 @@ def _write_report(results: Sequence[EvaluationResult], out: Path, title: str) ->
             + [m.key for m in METRICS]
             + ["cost_rate"]
             + [f"hits_{name}" for name in constraints]
+            + cue_keys
         )
         for r in results:
             platform = _platform_name(r)
@@ -610,6 +641,7 @@ def _write_report(results: Sequence[EvaluationResult], out: Path, title: str) ->
                     + [f"{ep.metrics[m.key]:.9g}" for m in METRICS]
                     + [f"{rate:.9g}"]
                     + [ep.limit_hits.get(name, "") for name in constraints]
+                    + [f"{ep.metrics[key]:.9g}" if key in ep.metrics else "" for key in cue_keys]
                 )
     publish(paths["json"], json.dumps([_result_record(r) for r in results], indent=2) + "\n")
     with publishing(paths["error_norms"]) as tmp:
@@ -619,6 +651,18 @@ def _write_report(results: Sequence[EvaluationResult], out: Path, title: str) ->
         _plot_trajectory(r, path)
         paths[f"trajectory {r.label} {r.model}"] = path
     return paths
+
+
+def _cueing_section(results: Sequence[EvaluationResult]) -> str:
+    """The cueing metrics' table of the results on the cueing task, with a heading; "" if none."""
+    cueing = [r for r in results if r.cueing_keys()]
+    if not cueing:
+        return ""
+    table = cueing_table([(r.label, r.model, r.summary()) for r in cueing])
+    return (
+        "\n## Cueing\n\n" + table + "\n\nMeans over the episodes; definitions: "
+        "`stewart_env.agents.evaluation.cueing`.\n"
+    )
 
 
 def _platform_name(result: EvaluationResult) -> str:

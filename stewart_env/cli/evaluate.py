@@ -28,6 +28,11 @@ from stewart_env.cli.common import (
 )
 
 VERB = "evaluate"
+#: The cueing task's baseline: classical washout with the shipped tuning, in pose mode.
+WASHOUT = "washout"
+#: The cueing task's episodes without --max-steps: they end with their motion, the longest shipped
+#: evaluation motion lasting 120 s (the sweeps) at the 10 ms control step.
+CUEING_MAX_STEPS = 12_001
 #: Memory the evaluation keeps per episode and control step, bytes, rounded up: the position and
 #: orientation errors, rates and six leg forces of every step, then stacked into one array each.
 RECORD_BYTES_PER_STEP = 256
@@ -56,10 +61,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument(
         "--policy",
         nargs="+",
-        choices=CONTROLLERS,
+        choices=(*CONTROLLERS, WASHOUT),
         help="pd: task-space PD (paper eq. 56, gains tuned for the control step); pd-gc: the same "
         "with gravity compensation (the improved model's holding forces); ct: computed "
-        "torque with its own internal model (default pd, unless --agent is given)",
+        "torque with its own internal model; washout: classical washout for --task cueing "
+        "(configs/agents/washout.yaml, action_mode pose) (default pd, or washout on --task "
+        "cueing, unless --agent is given)",
     )
     p.add_argument(
         "--agent",
@@ -95,7 +102,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=platform_count, default=5, help="episodes per configuration (default 5)")
     p.add_argument("--seed", type=seed, default=0, help="episode i uses seed + i (default 0)")
     p.add_argument(
-        "--max-steps", type=episode_steps, help="episode length in control steps (default the registered 500)"
+        "--max-steps",
+        type=episode_steps,
+        help=f"episode length in control steps (default the registered 500; on --task cueing {CUEING_MAX_STEPS}, "
+        "the longest motion's, each episode ending with its motion)",
     )
     p.add_argument(
         "--out",
@@ -111,7 +121,14 @@ def _evaluate(args: argparse.Namespace) -> str:
 
     runs = []  # (label, policy or factory, environment kwargs without the model)
     baseline_kwargs = {"task": args.task or "setpoint", "platform": args.platform or "dasgupta1998"}
-    names = args.policy or ([] if args.agent else ["pd"])
+    if args.task == "cueing":  # the held-out motions and seeds
+        baseline_kwargs["task_options"] = {"split": "evaluation"}
+    names = args.policy or ([] if args.agent else [WASHOUT if args.task == "cueing" else "pd"])
+    if WASHOUT in names:
+        from stewart_env.agents.controllers.washout import WashoutPolicy
+
+        runs.append(("washout", lambda env: WashoutPolicy(env, "washout"), {**baseline_kwargs, "action_mode": "pose"}))
+    names = [name for name in names if name != WASHOUT]
     runs += [(label, policy, baseline_kwargs) for label, policy in controllers(names, args.internal_model).items()]
     if args.agent:
         from stewart_env.agents.training import load_agent
@@ -125,13 +142,23 @@ def _evaluate(args: argparse.Namespace) -> str:
             label = agent.name if names.count(agent.name) == 1 else f"{agent.name} {Path(directory).name}"
             runs.append((label, agent, kwargs))
     results = [
-        evaluate(policy, {**kwargs, "model": model}, args.episodes, args.seed, label=label, max_steps=args.max_steps)
+        evaluate(policy, {**kwargs, "model": model}, args.episodes, args.seed, label=label, max_steps=_max_steps(args))
         for model in args.model
         for label, policy, kwargs in runs
     ]
     if args.out is not None:
         write_report(results, args.out)
+    cueing = [r for r in results if r.cueing_keys()]
+    if cueing:
+        from stewart_env.agents.evaluation.cueing import cueing_table
+
+        return markdown_table(results) + "\n\n" + cueing_table([(r.label, r.model, r.summary()) for r in cueing])
     return markdown_table(results)
+
+
+def _max_steps(args: argparse.Namespace) -> int | None:
+    """--max-steps, or on the cueing task enough steps for its longest motion."""
+    return CUEING_MAX_STEPS if args.max_steps is None and args.task == "cueing" else args.max_steps
 
 
 def _problem(args: argparse.Namespace) -> str | None:
@@ -144,10 +171,12 @@ def _problem(args: argparse.Namespace) -> str | None:
         twice = sorted({str(v) for v in values or () if values.count(v) > 1})
         if twice:
             return f"argument {flag}: {', '.join(twice)} given twice"
+    if WASHOUT in (args.policy or ()) and args.task != "cueing":
+        return f"argument --policy: {WASHOUT} cues vehicle motion: give --task cueing"
     missing = [d for d in args.agent or () if not Path(d).is_dir()]
     if missing:
         return f"argument --agent: no such directory: {missing[0]!r}"
-    steps = args.max_steps or MAX_EPISODE_STEPS
+    steps = _max_steps(args) or MAX_EPISODE_STEPS
     try:  # every episode runs in one batch, each step of each episode kept
         check_batch_memory("--episodes", args.episodes, BYTES_PER_PLATFORM + RECORD_BYTES_PER_STEP * steps)
     except ValueError as err:
