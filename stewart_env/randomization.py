@@ -151,10 +151,23 @@ class Randomization:
         Returns:
             (m, k) float64, row j the factors of row j in the order of ``self.ranges``.
         """
-        k = len(self.ranges)
-        unit = np.empty((len(rngs), k))
+        unit = np.empty((len(rngs), len(self.ranges)))
         for rng, row in zip(rngs, unit):
             rng.random(out=row)  # random(k) drawn straight into the row: the same numbers
+        return self.factors_of(unit)
+
+    def factors_of(self, unit: np.ndarray) -> np.ndarray:
+        """The factors of rows whose ``random()`` draws are ``unit``: ``low + (high - low) * u``
+        per key, the numbers :meth:`sample` draws from the same generator state (a caller that
+        draws more from each row than the factors takes them in one call and hands these here).
+
+        Args:
+            unit: (m, k) draws of ``random()`` in [0, 1), column c for the c-th key of ``self.ranges``.
+
+        Returns:
+            (m, k) float64, the factors in the order of ``self.ranges``.
+        """
+        k = len(self.ranges)
         bounds = np.array(list(self.ranges.values()), dtype=np.float64).reshape(k, 2)
         low = bounds[:, 0]
         return low + (bounds[:, 1] - low) * unit

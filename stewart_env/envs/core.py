@@ -412,9 +412,19 @@ class PlatformBatch:
             # one row (the single environment), which numpy's overhead per call makes cheaper row by
             # row, or a generator shared by rows, whose draws must go row after row
             return self._draw_episodes_by_row(rows, rngs)
-        factors = None if rnd is None else rnd.sample_rows(rngs)
-        start, episode = self.task.initialize_episodes(rngs)
-        return factors, start, episode
+        draws = self.task.episode_draws
+        if rnd is None or not draws:
+            factors = None if rnd is None else rnd.sample_rows(rngs)
+            start, episode = self.task.initialize_episodes(rngs)
+            return factors, start, episode
+        # a row's factors and its episode's first draws are consecutive numbers of its generator:
+        # one random(k + draws) call per row gives both, the same numbers as two calls
+        k = len(rnd.ranges)
+        unit = np.empty((len(rngs), k + draws))
+        for rng, row in zip(rngs, unit):
+            rng.random(out=row)
+        start, episode = self.task.initialize_episodes(rngs, unit[:, k:])
+        return rnd.factors_of(unit[:, :k]), start, episode
 
     def _draw_episodes_by_row(
         self, rows: np.ndarray, rngs: Sequence[np.random.Generator]

@@ -792,13 +792,23 @@ class Task:
         """
         raise NotImplementedError
 
-    def initialize_episodes(self, rngs: Sequence[np.random.Generator]) -> tuple[PlatformState, dict[str, np.ndarray]]:
+    #: How many ``random()`` numbers each row's episode starts with when drawn by
+    #: :meth:`initialize_episodes` (0: none known in advance).  A caller that draws from the rows'
+    #: generators just before (the randomisation factors) may draw these in the same call per row
+    #: and hand them over as ``unit``.
+    episode_draws: int = 0
+
+    def initialize_episodes(
+        self, rngs: Sequence[np.random.Generator], unit: np.ndarray | None = None
+    ) -> tuple[PlatformState, dict[str, np.ndarray]]:
         """Draw the episodes of m rows, row j from ``rngs[j]`` (each a different generator): the
         same numbers as :meth:`initialize_episode` row by row.  This default calls it per row; a
         task may draw all rows at once.
 
         Args:
             rngs: one generator per row.
+            unit: None, or (m, :attr:`episode_draws`) the first ``random()`` numbers of each row's
+                episode, already drawn from its generator (only with ``episode_draws`` > 0).
 
         Returns:
             The rows' initial states (a PlatformState of (m, ...) arrays) and their

@@ -185,7 +185,13 @@ class SetpointTask(Task):
         rotation = rpy_to_matrix(rpy)
         return position, rotation, pose_margins(self.kinematics, position, rpy, rotation=rotation)
 
-    def initialize_episodes(self, rngs):
+    @property
+    def episode_draws(self) -> int:
+        """The ``random()`` numbers of a row's first two candidate poses (12) when the poses are
+        drawn, else 0 (see :attr:`Task.episode_draws`)."""
+        return 12 if self.randomize else 0
+
+    def initialize_episodes(self, rngs, unit=None):
         """The start and target poses of every row at once, bit for bit those of
         :meth:`initialize_episode` row by row: each row draws its first two candidates (start,
         target) in one call, all are checked together, and the few rows that rejected one go on
@@ -193,17 +199,20 @@ class SetpointTask(Task):
 
         Args:
             rngs: one generator per row.
+            unit: None, or (m, 12) those first two candidates' draws, already taken from the rows'
+                generators (see :attr:`Task.episode_draws`).
 
         Returns:
             The rows' start states and their target poses, as :meth:`Task.initialize_episodes`.
         """
         if not self.randomize:
-            return super().initialize_episodes(rngs)
+            return super().initialize_episodes(rngs, unit)
         m = len(rngs)
-        unit = np.empty((m, 2, 6))
-        for rng, row in zip(rngs, unit):
-            rng.random(out=row)  # random(12) drawn straight into the row: the same numbers
-        position, rotation, ok = self._candidates(unit.reshape(2 * m, 6))
+        if unit is None:
+            unit = np.empty((m, 12))
+            for rng, row in zip(rngs, unit):
+                rng.random(out=row)  # random(12) drawn straight into the row: the same numbers
+        position, rotation, ok = self._candidates(np.reshape(unit, (2 * m, 6)))
         position, rotation, ok = position.reshape(m, 2, 3), rotation.reshape(m, 2, 3, 3), ok.reshape(m, 2)
         # a rejected start: the second candidate is the start's next draw (both rejected: redrawn below)
         start_second = ~ok[:, 0]

@@ -1,0 +1,52 @@
+"""Tests of the randomised episode start done in one pass per row: each row's generator called once
+for its randomisation factors and its episode's first draws, the same numbers as drawing them in
+turn (stewart_env.envs.core, .tasks.setpoint, .randomization)."""
+
+import numpy as np
+import pytest
+
+from stewart_env.envs.config import EnvConfig
+from stewart_env.envs.core import PlatformBatch
+
+pytestmark = pytest.mark.env
+
+RANDOMIZATION = {"mass": (0.8, 1.2), "inertia": (0.9, 1.1), "damping": (0.5, 2.0)}
+
+
+class CountingGenerator:
+    """A numpy Generator whose ``random`` calls are counted (every other method passed through)."""
+
+    def __init__(self, seed: int):
+        self.rng, self.random_calls = np.random.default_rng(seed), 0
+
+    def random(self, *args, **kwargs):
+        self.random_calls += 1
+        return self.rng.random(*args, **kwargs)
+
+    def __getattr__(self, name):
+        return getattr(self.rng, name)
+
+
+def test_a_randomised_setpoint_reset_calls_each_generator_once_for_factors_and_poses():
+    batch = PlatformBatch(8, EnvConfig.of(randomization=RANDOMIZATION))
+    rngs = [CountingGenerator(s) for s in range(8)]
+    batch.reset_rows(np.arange(8), rngs)
+    # random() drew the factors and the first two candidate poses in one call per row (two before)
+    assert [g.random_calls for g in rngs] == [1] * 8
+
+
+def test_the_one_pass_draws_equal_the_factors_then_the_episode_in_turn():
+    seeds = range(64)
+    batch = PlatformBatch(64, EnvConfig.of(randomization=RANDOMIZATION))
+    rngs = [np.random.default_rng(s) for s in seeds]
+    factors, start, episode = batch._draw_episodes(np.arange(64), rngs)
+    for j, s in enumerate(seeds):
+        rng = np.random.default_rng(s)
+        # the row-by-row order: the factors, then the task's episode, from the same generator
+        assert list(batch.randomization.sample(rng).values()) == factors[j].tolist()
+        row_start, row_episode = batch.task.initialize_episode(rng)
+        for a, b in zip(start, row_start):
+            np.testing.assert_array_equal(a[j], b)
+        for k, v in row_episode.items():
+            np.testing.assert_array_equal(episode[k][j], v)
+        assert rngs[j].random() == rng.random()  # both consumed the same numbers
