@@ -1,12 +1,14 @@
-"""Tests of the randomised episode start done in one pass per row: each row's generator called once
-for its randomisation factors and its episode's first draws, the same numbers as drawing them in
-turn (stewart_env.envs.core, .tasks.setpoint, .randomization)."""
+"""Tests of the episode start done in one pass per row: each row's generator called once for its
+randomisation factors and its episode's first draws, the same numbers as drawing them in turn, and
+the start poses' leg sensors measured once, when the task checks them (stewart_env.envs.core,
+.tasks.setpoint, .randomization)."""
 
 import numpy as np
 import pytest
 
 from stewart_env.envs.config import EnvConfig
 from stewart_env.envs.core import PlatformBatch
+from stewart_env.kinematics import leg_sensors_inplace
 
 pytestmark = pytest.mark.env
 
@@ -39,7 +41,7 @@ def test_the_one_pass_draws_equal_the_factors_then_the_episode_in_turn():
     seeds = range(64)
     batch = PlatformBatch(64, EnvConfig.of(randomization=RANDOMIZATION))
     rngs = [np.random.default_rng(s) for s in seeds]
-    factors, start, episode = batch._draw_episodes(np.arange(64), rngs)
+    factors, start, episode, _ = batch._draw_episodes(np.arange(64), rngs)
     for j, s in enumerate(seeds):
         rng = np.random.default_rng(s)
         # the row-by-row order: the factors, then the task's episode, from the same generator
@@ -50,3 +52,41 @@ def test_the_one_pass_draws_equal_the_factors_then_the_episode_in_turn():
         for k, v in row_episode.items():
             np.testing.assert_array_equal(episode[k][j], v)
         assert rngs[j].random() == rng.random()  # both consumed the same numbers
+
+
+@pytest.mark.parametrize(
+    "arguments",
+    [
+        {},
+        {"model": "classical"},
+        {"platform": "motion_simulator", "actuator": "electric", "action_mode": "pose"},
+        # about half the candidates rejected: rows whose start is drawn again row by row
+        {"task_options": {"position_range": [0.25, 0.25, 0.15], "angle_range": [0.3, 0.3, 0.3]}},
+    ],
+)
+def test_the_start_sensors_the_task_measured_are_those_of_the_nominal_model(arguments):
+    m = 200
+    batch = PlatformBatch(m, EnvConfig.of(**arguments))
+    rngs = [np.random.default_rng(s) for s in range(m)]
+    _, start, _, sensors = batch._draw_episodes(np.arange(m), rngs)
+    assert sensors is not None
+    expected = (np.empty((m, 6)), np.empty((m, 6)), np.empty(m))
+    leg_sensors_inplace(batch.nominal_model, *start, batch.platform.limits.max_condition, *expected)
+    for got, want in zip(sensors, expected):
+        np.testing.assert_array_equal(got, want)
+    # the reset reads them instead of measuring: the batch holds the same numbers
+    batch.reset_rows(np.arange(m), [np.random.default_rng(s) for s in range(m)])
+    np.testing.assert_array_equal(batch.leg_lengths, expected[0])
+    np.testing.assert_array_equal(batch.leg_rates, expected[1])
+    np.testing.assert_array_equal(batch.condition, expected[2])
+
+
+def test_a_measured_reset_reads_the_sensors_it_is_given():
+    batch = PlatformBatch(4, EnvConfig.of())
+    assert batch.fused
+    rngs = [np.random.default_rng(s) for s in range(4)]
+    _, start, _, sensors = batch._draw_episodes(np.arange(4), rngs)
+    marked = tuple(np.full_like(x, 7.0) for x in sensors)
+    batch._start_rows(np.arange(4), start, None, marked)
+    # 7 everywhere: read, not measured again (a measurement gives legs of some 0.4-0.6 m)
+    assert (batch.leg_lengths == 7.0).all() and (batch.condition == 7.0).all()
