@@ -409,7 +409,7 @@ class PlatformBatch:
         states (a PlatformState of (m, ...) arrays), their episode arrays by name, and the start
         states' leg sensors if the task measured them (None: not)."""
         rnd = self.randomization
-        if len(rngs) == 1 or len({id(rng) for rng in rngs}) < len(rngs):
+        if len(rngs) == 1 or len(set(map(id, rngs))) < len(rngs):
             # one row (the single environment), which numpy's overhead per call makes cheaper row by
             # row, or a generator shared by rows, whose draws must go row after row
             return self._draw_episodes_by_row(rows, rngs)
