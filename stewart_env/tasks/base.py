@@ -847,7 +847,8 @@ class Task:
             :func:`~stewart_env.kinematics.leg_sensors_inplace` gives them for the nominal
             parameters and limits.max_condition.
         """
-        start, episode = self.initialize_episodes(rngs, unit)
+        # without unit, called as a task of its own that overrides initialize_episodes(rngs) expects
+        start, episode = self.initialize_episodes(rngs) if unit is None else self.initialize_episodes(rngs, unit)
         return start, episode, None
 
     def reference(self, episode: Mapping[str, np.ndarray], time: np.ndarray, out: Reference) -> None:

@@ -90,3 +90,16 @@ def test_a_measured_reset_reads_the_sensors_it_is_given():
     batch._start_rows(np.arange(4), start, None, marked)
     # 7 everywhere: read, not measured again (a measurement gives legs of some 0.4-0.6 m)
     assert (batch.leg_lengths == 7.0).all() and (batch.condition == 7.0).all()
+
+
+def test_a_task_of_its_own_with_the_former_initialize_episodes_still_starts_rows():
+    from stewart_env.tasks.hold import HoldTask
+
+    class OwnDraws(HoldTask):
+        def initialize_episodes(self, rngs):  # the signature before episode_draws
+            return super().initialize_episodes(rngs)
+
+    task = OwnDraws.__new__(OwnDraws)
+    task.__dict__.update(PlatformBatch(1, EnvConfig.of(task="hold")).task.__dict__)
+    start, episode, sensors = task.initialize_episodes_measured([np.random.default_rng(0), np.random.default_rng(1)])
+    assert start.position.shape == (2, 3) and sensors is None
