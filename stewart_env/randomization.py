@@ -151,10 +151,23 @@ class Randomization:
         Returns:
             (m, k) float64, row j the factors of row j in the order of ``self.ranges``.
         """
-        k = len(self.ranges)
-        unit = np.empty((len(rngs), k))
+        unit = np.empty((len(rngs), len(self.ranges)))
         for rng, row in zip(rngs, unit):
             rng.random(out=row)  # random(k) drawn straight into the row: the same numbers
+        return self.factors_of(unit)
+
+    def factors_of(self, unit: np.ndarray) -> np.ndarray:
+        """The factors of rows whose ``random()`` draws are ``unit``: ``low + (high - low) * u``
+        per key, the numbers :meth:`sample` draws from the same generator state (a caller that
+        draws more from each row than the factors takes them in one call and hands these here).
+
+        Args:
+            unit: (m, k) draws of ``random()`` in [0, 1), column c for the c-th key of ``self.ranges``.
+
+        Returns:
+            (m, k) float64, the factors in the order of ``self.ranges``.
+        """
+        k = len(self.ranges)
         bounds = np.array(list(self.ranges.values()), dtype=np.float64).reshape(k, 2)
         low = bounds[:, 0]
         return low + (bounds[:, 1] - low) * unit
@@ -171,14 +184,14 @@ class Randomization:
             ConfigError: as :meth:`scale_packed`, for the first row it refuses.
         """
         m = factors.shape[0]
-        column = {key: factors[:, c] for c, key in enumerate(self.ranges)}
-        # the products of _multipliers, in its order, for every row at once
+        part_columns, lows, highs = self._row_tables()
+        # the products of _multipliers, in its order, for every row at once (1 x f is f exactly, so
+        # a part's product starts at its first factor: the same numbers)
         multipliers = np.ones((m, 1 + len(_PARTS)))
-        for p, (_, _, keys) in enumerate(_PARTS):
-            f = np.ones(m)
-            for key in keys:
-                if key in column:
-                    f = f * column[key]
+        for p, columns in part_columns:
+            f = factors[:, columns[0]]
+            for c in columns[1:]:
+                f = f * factors[:, c]
             multipliers[:, p + 1] = f
         # out = multiplier * nominal entry by entry, and each row's largest magnitude, in one pass
         largest = np.empty(m)
@@ -187,13 +200,29 @@ class Randomization:
         _core.scale_parameter_rows(nominal_row, multipliers, _PART_OF, rows, largest)
         if not direct:
             out[...] = rows
-        lows, highs = (np.array([r[i] for r in self.ranges.values()]) for i in (0, 1))
         smallest = multipliers[:, 1 + _PART_NAMES.index("platform.inertia")] * self._smallest_moment(nominal_row)
         ok = ((factors >= lows) & (factors <= highs)).all(axis=1)
         ok &= (rows[:, K.OFF_MP] >= MIN_PLATFORM_MASS) & (largest <= MAX_MAGNITUDE) & (smallest >= MIN_PLATFORM_INERTIA)
         for j in np.flatnonzero(~ok):
             # the row by row check raises the error that names the parameter
             self.scale_packed(nominal_row, dict(zip(self.ranges, factors[j].tolist())), out[j])
+
+    def _row_tables(self) -> tuple[list[tuple[int, list[int]]], np.ndarray, np.ndarray]:
+        """What :meth:`scale_packed_rows` looks up for every batch, made once per spec: each part
+        with factors (its index in _PARTS and the columns of its keys, in _PARTS' order) and the
+        ranges' lows and highs (k,)."""
+        key = tuple(self.ranges.items())
+        cached = self.__dict__.get("_row_tables_cache")
+        if cached is None or cached[0] != key:
+            column = {name: c for c, name in enumerate(self.ranges)}
+            parts = [
+                (p, [column[name] for name in keys if name in column])
+                for p, (_, _, keys) in enumerate(_PARTS)
+                if any(name in column for name in keys)
+            ]
+            lows, highs = (np.array([r[i] for r in self.ranges.values()]) for i in (0, 1))
+            cached = self._row_tables_cache = (key, (parts, lows, highs))
+        return cached[1]
 
     def rows_params(self, params: PlatformParams, factors: np.ndarray) -> ScaledRows:
         """The PlatformParams of rows drawn together, each built only when asked for.

@@ -378,7 +378,7 @@ class PlatformBatch:
             value an (m,) array in the order of ``rows``.
         """
         rows = np.asarray(rows, dtype=np.int64)
-        factors, start, episode = self._draw_episodes(rows, rngs)
+        factors, start, episode, sensors = self._draw_episodes(rows, rngs)
         for k, v in episode.items():
             self.episode[k][rows] = v
         if factors is not None:
@@ -388,7 +388,7 @@ class PlatformBatch:
             # the drives at equilibrium with the holding forces (the platform at rest)
             self.actuation.reset_rows(rows, forces)
             self.actuation.start_plant_drives(self.plant, rows)
-        view = self._start_rows(rows, start, forces)
+        view = self._start_rows(rows, start, forces, sensors)
         self.costs.reset_rows(rows, view.state)
         if self._delay is not None:
             self._delay.reset_rows(rows)  # the rows held no action before their start: zeros
@@ -403,24 +403,33 @@ class PlatformBatch:
 
     def _draw_episodes(
         self, rows: np.ndarray, rngs: Sequence[np.random.Generator]
-    ) -> tuple[np.ndarray | None, PlatformState, dict[str, np.ndarray]]:
+    ) -> tuple[np.ndarray | None, PlatformState, dict[str, np.ndarray], tuple | None]:
         """Draw each row's randomisation factors and the task's episode.  Returns the factors
         (m, k) in the order of the spec's keys (None without randomisation), the rows' start
-        states (a PlatformState of (m, ...) arrays) and their episode arrays by name."""
+        states (a PlatformState of (m, ...) arrays), their episode arrays by name, and the start
+        states' leg sensors if the task measured them (None: not)."""
         rnd = self.randomization
-        if len(rngs) == 1 or len({id(rng) for rng in rngs}) < len(rngs):
+        if len(rngs) == 1 or len(set(map(id, rngs))) < len(rngs):
             # one row (the single environment), which numpy's overhead per call makes cheaper row by
             # row, or a generator shared by rows, whose draws must go row after row
             return self._draw_episodes_by_row(rows, rngs)
-        factors = None if rnd is None else rnd.sample_rows(rngs)
-        start, episode = self.task.initialize_episodes(rngs)
-        return factors, start, episode
+        draws = self.task.episode_draws
+        if rnd is None or not draws:
+            factors = None if rnd is None else rnd.sample_rows(rngs)
+            return factors, *self.task.initialize_episodes_measured(rngs)
+        # a row's factors and its episode's first draws are consecutive numbers of its generator:
+        # one random(k + draws) call per row gives both, the same numbers as two calls
+        k = len(rnd.ranges)
+        unit = np.empty((len(rngs), k + draws))
+        for rng, row in zip(rngs, unit):
+            rng.random(out=row)
+        return rnd.factors_of(unit[:, :k]), *self.task.initialize_episodes_measured(rngs, unit[:, k:])
 
     def _draw_episodes_by_row(
         self, rows: np.ndarray, rngs: Sequence[np.random.Generator]
-    ) -> tuple[np.ndarray | None, PlatformState, dict[str, np.ndarray]]:
+    ) -> tuple[np.ndarray | None, PlatformState, dict[str, np.ndarray], None]:
         """:meth:`_draw_episodes` one row after the other, every draw of a row before the next
-        row's: for rows that share a generator."""
+        row's: for rows that share a generator (the leg sensors not measured: None)."""
         rnd, m = self.randomization, len(rows)
         factors = None if rnd is None else np.empty((m, len(rnd.ranges)))
         start = PlatformState(np.empty((m, 3)), np.empty((m, 3, 3)), np.empty((m, 3)), np.empty((m, 3)))
@@ -433,7 +442,7 @@ class PlatformBatch:
                 dst[j] = src
             for k, v in values.items():
                 episode[k][j] = v
-        return factors, start, episode
+        return factors, start, episode, None
 
     def _set_parameters(self, rows: np.ndarray, factors: np.ndarray) -> None:
         """The randomised parameters of ``rows``: the nominal packed row scaled by each row's
@@ -464,11 +473,15 @@ class PlatformBatch:
         lo, hi = self.platform.limits.leg_force
         return np.clip(model.inverse(*start, zero, zero), lo, hi)
 
-    def _start_rows(self, rows: np.ndarray, start: PlatformState, forces: np.ndarray | None) -> StepView:
+    def _start_rows(
+        self, rows: np.ndarray, start: PlatformState, forces: np.ndarray | None, sensors: tuple | None = None
+    ) -> StepView:
         """Set the rows' start state, a zero clock, external wrench and applied action, their leg
         forces, the reference at t = 0, and their leg sensors and tracking errors at the start
         state: in one compiled call with the fused step, else by the batch's numpy arrays, the
-        same numbers.  Returns a view of those rows alone for the first observation."""
+        same numbers.  ``sensors``: the start states' leg lengths, rates and condition numbers if
+        the task measured them (the fused step then reads them instead of measuring again).
+        Returns a view of those rows alone for the first observation."""
         m = len(rows)
         start = PlatformState(*(np.ascontiguousarray(x, dtype=np.float64) for x in start))
         episode = MappingProxyType({k: v[rows] for k, v in self.episode.items()})
@@ -478,8 +491,11 @@ class PlatformBatch:
         vectors, norms = np.empty((4, m, 3)), np.empty((4, m))
         if self._step.fused:
             pose_and_twist = tuple(getattr(reference, k) for k in PlatformState._fields)
+            measured = sensors is not None
+            if measured:
+                lengths, rates, condition = (np.ascontiguousarray(x, dtype=np.float64) for x in sensors)
             self._step.compiled.reset(
-                rows, tuple(start), forces, pose_and_twist, lengths, rates, condition, vectors, norms
+                rows, tuple(start), forces, pose_and_twist, lengths, rates, condition, vectors, norms, measured
             )
             for k in Reference._fields[len(pose_and_twist) :]:  # the accelerations, which the step never reads
                 getattr(self.reference, k)[rows] = getattr(reference, k)

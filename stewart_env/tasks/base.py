@@ -458,6 +458,7 @@ def pose_margins(
     rpy: np.ndarray,
     margin: float = 0.1,
     rotation: np.ndarray | None = None,
+    sensors: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """Whether poses lie safely inside the platform's limits, (M,) bool.
 
@@ -473,6 +474,9 @@ def pose_margins(
         rpy: (M,3) rad, the roll, pitch and yaw angles.
         margin: the fraction of each half-range kept clear.
         rotation: (M,3,3) the rotation matrices of ``rpy``, if already known.
+        sensors: None, or the arrays (M,6), (M,6), (M,) float64 (C-contiguous) that receive the
+            leg lengths, rates and condition numbers of the poses at rest, as measured for the
+            check (the numbers of :func:`~stewart_env.kinematics.leg_sensors_inplace`).
 
     Returns:
         Whether each pose is safe, (M,) bool.
@@ -484,7 +488,8 @@ def pose_margins(
     rpy = np.atleast_2d(np.asarray(rpy, dtype=np.float64))
     rotation = rpy_to_matrix(rpy) if rotation is None else np.ascontiguousarray(rotation, dtype=np.float64)
     m = position.shape[0]
-    lengths, rates, condition, rest = np.empty((m, 6)), np.empty((m, 6)), np.empty(m), np.zeros((m, 3))
+    lengths, rates, condition = (np.empty((m, 6)), np.empty((m, 6)), np.empty(m)) if sensors is None else sensors
+    rest = np.zeros((m, 3))
     leg_sensors_inplace(
         model, position, rotation.reshape(m, 3, 3), rest, rest, lim.max_condition, lengths, rates, condition
     )
@@ -792,13 +797,23 @@ class Task:
         """
         raise NotImplementedError
 
-    def initialize_episodes(self, rngs: Sequence[np.random.Generator]) -> tuple[PlatformState, dict[str, np.ndarray]]:
+    #: How many ``random()`` numbers each row's episode starts with when drawn by
+    #: :meth:`initialize_episodes` (0: none known in advance).  A caller that draws from the rows'
+    #: generators just before (the randomisation factors) may draw these in the same call per row
+    #: and hand them over as ``unit``.
+    episode_draws: int = 0
+
+    def initialize_episodes(
+        self, rngs: Sequence[np.random.Generator], unit: np.ndarray | None = None
+    ) -> tuple[PlatformState, dict[str, np.ndarray]]:
         """Draw the episodes of m rows, row j from ``rngs[j]`` (each a different generator): the
         same numbers as :meth:`initialize_episode` row by row.  This default calls it per row; a
         task may draw all rows at once.
 
         Args:
             rngs: one generator per row.
+            unit: None, or (m, :attr:`episode_draws`) the first ``random()`` numbers of each row's
+                episode, already drawn from its generator (only with ``episode_draws`` > 0).
 
         Returns:
             The rows' initial states (a PlatformState of (m, ...) arrays) and their
@@ -814,6 +829,27 @@ class Task:
             for k, v in values.items():
                 episode[k][j] = v
         return start, episode
+
+    def initialize_episodes_measured(
+        self, rngs: Sequence[np.random.Generator], unit: np.ndarray | None = None
+    ) -> tuple[PlatformState, dict[str, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
+        """:meth:`initialize_episodes`, and the leg sensors of the start states if the task
+        measured them while drawing (checking candidate poses), so that the environment need not
+        measure them again.  This default measures nothing.
+
+        Args:
+            rngs: one generator per row.
+            unit: as :meth:`initialize_episodes`.
+
+        Returns:
+            The rows' initial states, their episode arrays, and None or the start states' leg
+            lengths (m,6), rates (m,6) and condition numbers (m,) as
+            :func:`~stewart_env.kinematics.leg_sensors_inplace` gives them for the nominal
+            parameters and limits.max_condition.
+        """
+        # without unit, called as a task of its own that overrides initialize_episodes(rngs) expects
+        start, episode = self.initialize_episodes(rngs) if unit is None else self.initialize_episodes(rngs, unit)
+        return start, episode, None
 
     def reference(self, episode: Mapping[str, np.ndarray], time: np.ndarray, out: Reference) -> None:
         """Write the reference at ``time`` (N,) s into ``out`` (N rows).  This default is a fixed

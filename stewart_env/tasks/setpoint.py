@@ -6,7 +6,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from stewart_env.kinematics import inverse_kinematics
+from stewart_env.kinematics import inverse_kinematics, leg_sensors_inplace
 from stewart_env.params import PlatformParams
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState
@@ -24,6 +24,17 @@ PAPER_RPY_OFFSET = np.array([0.0, 0.0, -0.2])
 _MAX_DRAWS = 1000
 # Fixed poses are checked against the limits; beyond this (m or rad) the check itself would overflow.
 _MAX_POSE = 1e3
+
+
+class Candidates(NamedTuple):
+    """Candidate poses of the set-point task's random draws, M of them."""
+
+    position: np.ndarray  #: (M,3) m
+    rotation: np.ndarray  #: (M,3,3)
+    ok: np.ndarray  #: (M,) bool, whether each lies safely inside the limits (pose_margins)
+    #: their leg lengths (M,6) m, rates (M,6) m/s and condition numbers (M,) at rest, as measured
+    #: for the check (the numbers of leg_sensors_inplace for the nominal parameters)
+    sensors: tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 class PaperCase(NamedTuple):
@@ -172,10 +183,9 @@ class SetpointTask(Task):
             "reduce task_options['position_range'] or ['angle_range']"
         )
 
-    def _candidates(self, unit: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _candidates(self, unit: np.ndarray) -> Candidates:
         """Candidate poses of :meth:`_draw_pose` from its draws ``unit`` (M, 6) of ``random()``
-        (``uniform(-1, 1)`` is ``-1 + 2 random()``, the same number): positions (M,3), rotations
-        (M,3,3), and whether each is safely inside the limits (M,) bool."""
+        (``uniform(-1, 1)`` is ``-1 + 2 random()``, the same number): their :class:`Candidates`."""
         p = self.params
         # home + uniform(-1, 1) * range on all six coordinates at once: each number as _draw_pose's
         pose = np.concatenate((p.home_position, p.home_rpy)) + (-1.0 + 2.0 * unit) * np.concatenate(
@@ -183,9 +193,18 @@ class SetpointTask(Task):
         )
         position, rpy = np.ascontiguousarray(pose[:, :3]), np.ascontiguousarray(pose[:, 3:])
         rotation = rpy_to_matrix(rpy)
-        return position, rotation, pose_margins(self.kinematics, position, rpy, rotation=rotation)
+        m = len(position)
+        sensors = (np.empty((m, 6)), np.empty((m, 6)), np.empty(m))
+        ok = pose_margins(self.kinematics, position, rpy, rotation=rotation, sensors=sensors)
+        return Candidates(position, rotation, ok, sensors)
 
-    def initialize_episodes(self, rngs):
+    @property
+    def episode_draws(self) -> int:
+        """The ``random()`` numbers of a row's first two candidate poses (12) when the poses are
+        drawn, else 0 (see :attr:`Task.episode_draws`)."""
+        return 12 if self.randomize else 0
+
+    def initialize_episodes(self, rngs, unit=None):
         """The start and target poses of every row at once, bit for bit those of
         :meth:`initialize_episode` row by row: each row draws its first two candidates (start,
         target) in one call, all are checked together, and the few rows that rejected one go on
@@ -193,35 +212,77 @@ class SetpointTask(Task):
 
         Args:
             rngs: one generator per row.
+            unit: None, or (m, 12) those first two candidates' draws, already taken from the rows'
+                generators (see :attr:`Task.episode_draws`).
 
         Returns:
             The rows' start states and their target poses, as :meth:`Task.initialize_episodes`.
         """
+        start, episode, _ = self.initialize_episodes_measured(rngs, unit)
+        return start, episode
+
+    def initialize_episodes_measured(self, rngs, unit=None):
+        """:meth:`initialize_episodes` and, with random poses, the start poses' leg sensors at
+        rest, measured once as the candidates are checked (see :meth:`Task.initialize_episodes_measured`).
+
+        Args:
+            rngs: one generator per row.
+            unit: as :meth:`initialize_episodes`.
+
+        Returns:
+            The rows' start states, their target poses, and the start states' leg lengths (m,6),
+            rates (m,6) and condition numbers (m,) (None with fixed poses).
+        """
         if not self.randomize:
-            return super().initialize_episodes(rngs)
+            return (*super().initialize_episodes(rngs, unit), None)
         m = len(rngs)
-        unit = np.empty((m, 2, 6))
-        for rng, row in zip(rngs, unit):
-            rng.random(out=row)  # random(12) drawn straight into the row: the same numbers
-        position, rotation, ok = self._candidates(unit.reshape(2 * m, 6))
+        if unit is None:
+            unit = np.empty((m, 12))
+            for rng, row in zip(rngs, unit):
+                rng.random(out=row)  # random(12) drawn straight into the row: the same numbers
+        candidates = self._candidates(np.reshape(unit, (2 * m, 6)))
+        position, rotation, ok = candidates[0], candidates[1], candidates[2]
         position, rotation, ok = position.reshape(m, 2, 3), rotation.reshape(m, 2, 3, 3), ok.reshape(m, 2)
         # a rejected start: the second candidate is the start's next draw (both rejected: redrawn below)
         start_second = ~ok[:, 0]
         start_p = np.where(start_second[:, None], position[:, 1], position[:, 0])
         start_r = np.where(start_second[:, None, None], rotation[:, 1], rotation[:, 0])
+        # the start candidate's leg sensors (the check's numbers, at rest), if the check gave them
+        sensors = getattr(candidates, "sensors", None)
+        if sensors is not None:
+            lengths, rates = (np.where(start_second[:, None], x[1::2], x[0::2]) for x in sensors[:2])
+            condition = np.where(start_second, sensors[2][1::2], sensors[2][0::2])
         target_p, target_r = position[:, 1].copy(), rotation[:, 1].copy()
+        redrawn = []
         for j in np.flatnonzero(start_second | ~ok[:, 1]).tolist():
             rng = rngs[j]
             if not ok[j, 0] and not ok[j, 1]:
                 start_p[j], start_r[j] = self._draw_pose(rng, _MAX_DRAWS - 2)
                 target_p[j], target_r[j] = self._draw_pose(rng)
+                redrawn.append(j)
             else:
                 # the start is accepted; the target had one rejected draw if the start was the first
                 target_p[j], target_r[j] = self._draw_pose(rng, _MAX_DRAWS - int(ok[j, 0]))
         zero = np.zeros((m, 3))
+        if sensors is not None and redrawn:
+            # starts drawn row by row: their sensors as the check measured them, at rest
+            k = len(redrawn)
+            out = (np.empty((k, 6)), np.empty((k, 6)), np.empty(k))
+            rest = np.zeros((k, 3))
+            leg_sensors_inplace(
+                self.kinematics,
+                np.ascontiguousarray(start_p[redrawn]),
+                np.ascontiguousarray(start_r[redrawn]),
+                rest,
+                rest,
+                self.params.limits.max_condition,
+                *out,
+            )
+            lengths[redrawn], rates[redrawn], condition[redrawn] = out
         return (
             PlatformState(start_p, start_r, zero, zero.copy()),
             {"target_position": target_p, "target_rotation": target_r},
+            None if sensors is None else (lengths, rates, condition),
         )
 
     def initialize_episode(self, rng):

@@ -526,10 +526,11 @@ public:
     // rows' position (m,3), rotation (m,3,3), velocity (m,3), angular velocity (m,3)), the leg
     // forces that hold it (m,6) or None (zeros), the reference at t = 0 (a tuple as the state); the
     // rows' leg lengths (m,6), rates (m,6), condition numbers (m,), tracking errors (4,m,3) and norms
-    // (4,m) at the start are written into the last five (env_step::reset_rows).  Every array is
-    // checked (dtype, C-contiguity, shape, the rows' range) before anything is written.
+    // (4,m) at the start are written into the last five (env_step::reset_rows); measured: the leg
+    // sensors' three arrays already hold the start state's (read, not measured again).  Every
+    // array is checked (dtype, C-contiguity, shape, the rows' range) before anything is written.
     void reset(nb::handle rows_, nb::tuple start, nb::handle leg_forces, nb::tuple reference, nb::handle lengths_,
-               nb::handle rates_, nb::handle condition_, nb::handle errors_, nb::handle norms_) {
+               nb::handle rates_, nb::handle condition_, nb::handle errors_, nb::handle norms_, bool measured) {
         using step_records::take;
         const int64_t n = b_.n;
         const auto rows = take<InCodes>(rows_, "rows", {-1});
@@ -558,7 +559,8 @@ public:
         const env_step::Start S{t.data(), R.data(), v.data(), w.data(), forces.is_valid() ? forces.data() : nullptr,
                                 rt.data(), rR.data(), rv.data(), rw.data()};
         env_step::reset_rows(b_, rows.data(), m, S,
-                             {lengths.data(), rates.data(), condition.data(), errors.data(), norms.data()});
+                             {lengths.data(), rates.data(), condition.data(), errors.data(), norms.data()},
+                             measured);
     }
 
     int64_t n_codes() const { return task_->n_codes(); }
@@ -665,11 +667,11 @@ void def_env_kernels(nb::module_& m) {
              "stopped being finite | a row's observation or reward was not (the rows in bad), or "
              "NOT_FINITE_ACTION (nothing done) for an action that is not finite.")
         .def("reset", &BatchStep::reset, "rows"_a, "start"_a, "leg_forces"_a.none(), "reference"_a,
-             "leg_lengths"_a, "leg_rates"_a, "condition"_a, "error_vectors"_a, "error_norms"_a,
+             "leg_lengths"_a, "leg_rates"_a, "condition"_a, "error_vectors"_a, "error_norms"_a, "measured"_a = false,
              "Start new episodes in rows (int64 (m,)): their start state, the leg forces that hold it (or None: "
              "zeros) and the reference at t = 0, each of m rows; a zero clock, external wrench and applied action; "
              "the rows' leg sensors and tracking errors at the start state, written into the batch and into the "
-             "last five arrays (m rows).");
+             "last five arrays (m rows); measured=True: the leg sensors' arrays already hold the start state's.");
 
     m.def("rotation_error_rows", [](In r, In c, Out phi, Out angle) {
         expect(c, "rotation", {-1, 3, 3});

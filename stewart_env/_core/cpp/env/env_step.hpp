@@ -400,14 +400,18 @@ struct StartSensors {
 // (kernels::leg_sensors_row over lanes::for_rows, task_kernels::tracking_errors: the numbers of
 // kernels::leg_sensors_batch and of the step); then write into each row of the batch its state, a
 // zero clock, external wrench and applied action, its leg forces and reference, and those sensors
-// and errors.  The first observation is the observation pipeline's (it draws the noise).
-inline void reset_rows(const Batch& B, const int64_t* rows, int64_t m, const Start& S, const StartSensors& out) {
+// and errors.  measured: out's leg sensors already hold those of S (the task measured them when it
+// checked the start poses, with the same kernel), so they are not measured again.  The first
+// observation is the observation pipeline's (it draws the noise).
+inline void reset_rows(const Batch& B, const int64_t* rows, int64_t m, const Start& S, const StartSensors& out,
+                       bool measured = false) {
     const int64_t n = B.n;
     const kernels::ParamRows sensor_prm(B.c.sensor_prm, B.c.n_sensor_prm, m);
-    lanes::for_rows(m, 1, [&](int64_t b, auto tag) {
-        kernels::leg_sensors_row<decltype(tag)>(sensor_prm, S.t, S.R, S.v, S.w, B.c.max_condition, out.lengths,
-                                                out.rates, out.condition, b);
-    });
+    if (!measured)
+        lanes::for_rows(m, 1, [&](int64_t b, auto tag) {
+            kernels::leg_sensors_row<decltype(tag)>(sensor_prm, S.t, S.R, S.v, S.w, B.c.max_condition, out.lengths,
+                                                    out.rates, out.condition, b);
+        });
     double* e = out.errors;
     task_kernels::tracking_errors(S.t, S.R, S.v, S.w, S.rt, S.rR, S.rv, S.rw, e, e + 3 * m, e + 6 * m, e + 9 * m,
                                   out.norms, 1, m, m);
