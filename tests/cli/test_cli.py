@@ -43,7 +43,9 @@ def test_bench_is_dispatched_with_its_arguments(monkeypatch):
     seen = []
     monkeypatch.setattr(stewart_env.benchmarks, "run_bench", lambda *args, **kwargs: seen.append((args, kwargs)))
     assert main(["bench", "--models", "improved", "--env"]) == 0
-    assert seen == [(("dasgupta1998", [ModelSpec()]), {"env": True, "mujoco": False, "plot": None, "derivatives": False})]
+    assert seen == [
+        (("dasgupta1998", [ModelSpec()]), {"env": True, "mujoco": False, "plot": None, "derivatives": False})
+    ]
 
 
 def test_bench_is_a_subparser_with_its_own_help(capsys):
