@@ -320,7 +320,9 @@ def identify_log(record: logs.Log, nominal: PlatformParams, settings: LogSetting
             "coulomb_friction": float(theta_c[reg.OFF_DRIVE]),
             "reflected_mass": float(theta_c[reg.OFF_DRIVE + 1]),
             "friction_speed": reg.friction_speed(nominal),
-            "written_to": "actuators.electric" if on_drive and nominal.actuators.electric is not None else "report only",
+            "written_to": "actuators.electric"
+            if on_drive and nominal.actuators.electric is not None
+            else "report only",
         },
         "held_out_force_error": {
             "nominal": prediction_error(beta_nominal),

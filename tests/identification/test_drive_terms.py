@@ -38,7 +38,9 @@ def test_the_drive_columns_are_the_leg_motion_they_stand_for(simulator):
     Y = reg.regressor_matrix(model, t[mid], R[mid], v[mid], w[mid], a[mid], alpha[mid])
     ldot = np.einsum("nij,nj->ni", jacobian(simulator, t[mid], R[mid]), np.concatenate([v[mid], w[mid]], 1))
     assert reg.friction_speed(simulator) == 0.005  # motion_simulator's actuators.electric
-    cp, fc, mr = (leg_rows(simulator, t[mid], R[mid], Y[..., k]) for k in (reg.OFF_DAMPING + 1, reg.OFF_DRIVE, reg.OFF_DRIVE + 1))
+    cp, fc, mr = (
+        leg_rows(simulator, t[mid], R[mid], Y[..., k]) for k in (reg.OFF_DAMPING + 1, reg.OFF_DRIVE, reg.OFF_DRIVE + 1)
+    )
     assert np.max(np.abs(cp - ldot)) < 1e-12  # the same products, rounding apart
     assert np.max(np.abs(fc - np.tanh(ldot / 0.005))) < 1e-12
     # central second difference at h = 1e-4 s: truncation ~h^2 L'''' and rounding ~1e-16 L / h^2
