@@ -241,6 +241,7 @@ def consistent(
     start_theta: np.ndarray,
     prior_weight: float = PRIOR_WEIGHT,
     sigma: np.ndarray | None = None,
+    max_nfev: int = CONSISTENT_MAX_NFEV,
 ) -> np.ndarray:
     """A physically consistent full theta: positive masses, inertias of real bodies (see
     :func:`_physical_body`), non-negative friction and reflected mass, fitting the leg forces in
@@ -259,6 +260,7 @@ def consistent(
         prior_weight: the prior's weight relative to the data's largest singular value.
         sigma: (6,) each leg's force noise, N, whose inverse weights its equations, as
             :func:`wls` does (None, or a zero: equal weights).
+        max_nfev: the solver's limit on its evaluations.
 
     Returns:
         The full theta (N_THETA,).
@@ -274,6 +276,12 @@ def consistent(
     n_body = 13 * reg.N_BODY
     scale_theta = np.maximum(np.abs(nominal_theta), 1e-3 * np.abs(nominal_theta).max())
     weight = prior_weight * np.linalg.norm(R, 2)
+    # beta = P theta, so the data term is linear in theta: B theta - Q^T y with B = R P
+    P = np.zeros((base.rank, reg.N_THETA))
+    P[np.arange(base.rank), base.independent] = 1.0
+    P[:, base.dependent] = base.combination
+    B = R @ P
+    prior = weight / scale_theta
 
     def theta_of(phi):
         bodies = [_physical_body(phi[10 * k : 10 * k + 10], shifts[k]) for k in range(13)]
@@ -281,7 +289,23 @@ def consistent(
 
     def residual(phi):
         theta = theta_of(phi)
-        return np.concatenate([R @ base.of_theta(theta) - qy, weight * (theta - nominal_theta) / scale_theta])
+        return np.concatenate([B @ theta - qy, prior * (theta - nominal_theta)])
+
+    def jac(phi):
+        # theta's body k depends on phi's body k only: d theta / d phi is block diagonal, each
+        # 10 x 10 block by central differences of one body (the friction and drive entries: identity)
+        D = np.eye(reg.N_THETA)
+        for k in range(13):
+            p = phi[10 * k : 10 * k + 10]
+            for j in range(10):
+                h = 1e-7 * max(abs(p[j]), 1e-3)
+                up, down = p.copy(), p.copy()
+                up[j] += h
+                down[j] -= h
+                D[10 * k : 10 * k + 10, 10 * k + j] = (
+                    _physical_body(up, shifts[k]) - _physical_body(down, shifts[k])
+                ) / (2 * h)
+        return np.vstack([B @ D, prior[:, None] * D])
 
     floors = [1e-3 * max(nominal_theta[10 * k], 1e-3) for k in range(13)]
     phi0 = np.concatenate(
@@ -294,6 +318,6 @@ def consistent(
     phi0 = np.maximum(phi0, lower + 1e-12)
     x_scale = np.maximum(np.abs(phi0), 1e-3 * np.abs(phi0).max())
     result = scipy.optimize.least_squares(
-        residual, phi0, bounds=(lower, np.inf), method="trf", x_scale=x_scale, max_nfev=CONSISTENT_MAX_NFEV
+        residual, phi0, jac=jac, bounds=(lower, np.inf), method="trf", x_scale=x_scale, max_nfev=max_nfev
     )
     return theta_of(result.x)
