@@ -180,7 +180,7 @@ def test_savitzky_golay_derivatives_of_a_smooth_motion(dasgupta):
         assert np.abs(g[inner] - e[inner]).max() < 1e-2 * np.abs(e).max()
 
 
-@pytest.mark.slow  # the constrained fit of 133 parameters by finite differences: about 20 s
+@pytest.mark.slow  # the constrained fit of 135 parameters to convergence: about a minute
 def test_physically_consistent_estimate_has_real_bodies_and_fits_the_data(noise_free, dasgupta):
     model, base, A, record, truth = noise_free
     rng = np.random.default_rng(2)
