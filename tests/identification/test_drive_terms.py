@@ -144,3 +144,16 @@ def test_the_consistent_fit_predicts_held_out_forces_as_well_as_wls(dasgupta):
     # measured 0.063 N against WLS's 0.082 N (the prior of 1e-3 and 100 evaluations gave 6.8 N):
     # the constraints hold a real body's values, which on a real plant cost no accuracy
     assert error(base.of_theta(theta)) < error(w.beta)
+
+
+def test_the_study_s_agents_step_names_a_bad_pair(tmp_path, capsys):
+    from stewart_env.agents.studies import own_platform
+
+    assert own_platform.main([str(tmp_path), "--agents"]) == 2
+    assert "--agents: expected NAME=RUN_DIR pairs" in capsys.readouterr().err
+    assert own_platform.main([str(tmp_path), "--agents", "identified"]) == 2
+    assert own_platform.main([str(tmp_path), "--agent", "a=b"]) == 2
+    assert "usage:" in capsys.readouterr().err
+    # a run folder without the run's summary: the error names the file, nothing is written
+    assert own_platform.main([str(tmp_path), "--agents", "a=b"]) == 2
+    assert "summary.json" in capsys.readouterr().err and not (tmp_path / "agents.md").exists()
