@@ -30,7 +30,7 @@ from stewart_env import files
 from stewart_env.agents import ComputedTorquePolicy, evaluate
 from stewart_env.identification import experiment, logged, recording
 from stewart_env.identification import log as logs
-from stewart_env.params import load_platform
+from stewart_env.params import PlatformParams, load_platform
 
 #: The controllers compared, by the parameters their computed torque is built on.
 BELIEFS = ("identified", "true", "nominal")
@@ -147,6 +147,62 @@ def run(
     return summary
 
 
+def agents_on_machine(out: str | Path, agents: dict, episodes: int = 5, seed: int = 0) -> dict:
+    """Agents trained by ``stewart-env train`` (on the identified and on the nominal platform, say)
+    evaluated on the machine of a finished :func:`run` (its plant, ``truth.yaml``, the tracking
+    task), each with its own training environment's settings but that plant and platform; writes
+    ``agents.md`` and ``agents.json`` into ``out``.
+
+    Args:
+        out: the folder of a finished :func:`run`.
+        agents: ``{name: run directory}`` of the trained agents.
+        episodes: the tracking episodes per agent.
+        seed: the episodes' seed.
+
+    Returns:
+        ``{name: {rms_position_error_mm, rms_orientation_error_mrad, success, timesteps, platform}}``.
+    """
+    from stewart_env.agents.training import load_agent  # the rl extra's, only for this step
+
+    out = Path(out)
+    run_summary = json.loads((out / "summary.json").read_text())
+    truth = PlatformParams.from_dict(files.load_yaml((out / "truth.yaml").read_text()), "machine")
+    rows = {}
+    for name, directory in agents.items():
+        agent = load_agent(directory)
+        env_kwargs = {**agent.env_kwargs, "model": run_summary["settings"]["plant"], "platform": truth}
+        summary = evaluate(agent, env_kwargs, episodes=episodes, seed=seed, label=name, progress=False).summary()
+        trained_on = agent.env_kwargs.get("platform", "dasgupta1998")
+        rows[name] = {
+            "rms_position_error_mm": 1e3 * summary["rms_position_error"],
+            "rms_orientation_error_mrad": 1e3 * summary["rms_orientation_error"],
+            "success": summary["success"],
+            "timesteps": int(agent.num_timesteps),
+            "platform": trained_on if isinstance(trained_on, str) else getattr(trained_on, "name", "?"),
+        }
+    result = {
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "machine": f"{_processor()}, {os.cpu_count()} logical CPUs, Python {host.python_version()}",
+        "episodes": episodes,
+        "agents": rows,
+    }
+    files.publish(out / "agents.json", json.dumps(experiment._strict(result), indent=1) + "\n")
+    lines = [
+        f"PPO agents on the machine ({run_summary['settings']['plant']}, truth.yaml), tracking task, "
+        f"{episodes} episodes, {result['date']}, {result['machine']}:",
+        "",
+        "| agent | trained on | steps | RMS position error (mm) | RMS orientation error (mrad) | success |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name, row in rows.items():
+        lines.append(
+            f"| {name} | {row['platform']} | {row['timesteps']} | {row['rms_position_error_mm']:.4g} "
+            f"| {row['rms_orientation_error_mrad']:.4g} | {100 * row['success']:.0f} % |"
+        )
+    files.publish(out / "agents.md", "\n".join(lines) + "\n")
+    return result
+
+
 def markdown(summary: dict) -> str:
     """summary.md: the settings, the identification's held-out error and the tracking table.
 
@@ -189,15 +245,30 @@ def main(argv=None) -> int:
     """Run :func:`run` with its defaults into the folder the one argument names.
 
     Args:
-        argv: the arguments, ``[OUT]`` (default the process's).
+        argv: the arguments, ``[OUT]``, or ``[OUT, "--agents", NAME=RUN_DIR, ...]`` to evaluate
+            trained agents on that run's machine (:func:`agents_on_machine`) (default the
+            process's).
 
     Returns:
         The exit status.
     """
     argv = sys.argv[1:] if argv is None else list(argv)
-    if len(argv) != 1 or argv[0].startswith("-"):
-        print("usage: python -m stewart_env.agents.studies.own_platform OUT", file=sys.stderr)
+    usage = "usage: python -m stewart_env.agents.studies.own_platform OUT [--agents NAME=RUN_DIR ...]"
+    if not argv or argv[0].startswith("-") or (len(argv) > 1 and argv[1] != "--agents"):
+        print(usage, file=sys.stderr)
         return 2
+    if len(argv) > 1:
+        pairs = [a.split("=", 1) for a in argv[2:]]
+        if not pairs or any(len(p) != 2 or not p[0] or not p[1] for p in pairs):
+            print(f"own_platform: error: --agents: expected NAME=RUN_DIR pairs; {usage}", file=sys.stderr)
+            return 2
+        try:
+            result = agents_on_machine(argv[0], dict(pairs))
+        except (OSError, ValueError) as err:
+            print(f"own_platform: error: --agents: {err}", file=sys.stderr)
+            return 2
+        print((Path(argv[0]) / "agents.md").read_text())
+        return 0 if result["agents"] else 2
     try:
         summary = run(argv[0])
     except ValueError as err:  # a usage error: the message names the cause

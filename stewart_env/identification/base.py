@@ -10,11 +10,13 @@ that each base parameter stands for.  The regressor of the base parameters is ``
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
 
+from stewart_env.actuators.transmission import BallScrew
 from stewart_env.dynamics.model import Dynamics
 from stewart_env.errors import UsageError
 from stewart_env.identification import regressor as reg
@@ -158,9 +160,15 @@ def base_parameters(model: Dynamics, n_states: int = 400, seed: int = 0) -> Base
 
 
 def params_from_theta(
-    theta: np.ndarray, nominal: PlatformParams, flags: int, name: str | None = None
+    theta: np.ndarray, nominal: PlatformParams, flags: int, name: str | None = None, drive: bool = False
 ) -> PlatformParams:
     """The platform of a full theta, on the nominal's geometry, limits and home pose.
+
+    With ``drive`` (the forces were the drives', from motor currents) and a nominal with an
+    electric drive, theta's Coulomb friction, reflected mass (as the rotor inertia m_r / k^2) and
+    the viscous friction beyond the nominal joint's C_p go into ``actuators.electric``; otherwise
+    the drive's entries stay in theta only (the report shows them) and C_p takes the whole viscous
+    leg friction.
 
     Raises IdentificationError naming the body when theta does not describe a real body (a
     mass <= 0, or an inertia about the CoM that is not positive semidefinite): use a physically
@@ -171,6 +179,13 @@ def params_from_theta(
         nominal: the nominal platform, whose geometry, limits and home pose are kept.
         flags: the model's switch bits (theta's inertias depend on them).
         name: the new platform's name (default the nominal's).
+        drive: theta is of the drives' forces (see above).
+
+    Returns:
+        The platform.
+
+    Raises:
+        IdentificationError: theta is not of a real body, or a friction or reflected mass is negative.
     """
     leg_shift, plat_shift = reg.shifts_of(flags)
 
@@ -191,13 +206,28 @@ def params_from_theta(
         k = reg.N_BODY * (1 + 2 * i)
         upper.append(body(k, leg_shift, f"upper_leg[{i}]", False))
         lower.append(body(k + reg.N_BODY, leg_shift, f"lower_leg[{i}]", False))
-    cu, cp, cs = (float(x) for x in theta[-3:])
+    cu, cp, cs = (float(x) for x in theta[reg.OFF_DAMPING : reg.OFF_DAMPING + 3])
+    fc, mr = (float(x) for x in theta[reg.OFF_DRIVE : reg.OFF_DRIVE + 2])
     if min(cu, cp, cs) < 0:
         raise IdentificationError(f"identified damping ({cu:.4g}, {cp:.4g}, {cs:.4g}) has a negative coefficient")
+    if min(fc, mr) < 0:
+        raise IdentificationError(
+            f"identified drive: Coulomb friction {fc:.4g} N and reflected mass {mr:.4g} kg must be >= 0"
+        )
+    actuators = nominal.actuators
+    electric = actuators.electric
+    if drive and electric is not None:
+        # C_p and the drive's viscous b act alike: the joint keeps its nominal share, the drive the rest
+        b = cp - nominal.damping.prismatic
+        cp, b = (nominal.damping.prismatic, b) if b >= 0 else (cp, 0.0)
+        ratio = BallScrew.from_params(electric).ratio
+        electric = dataclasses.replace(electric, viscous_friction=b, coulomb_friction=fc, rotor_inertia=mr / ratio**2)
+        actuators = dataclasses.replace(actuators, electric=electric)
     return nominal.replace(
         name=name or nominal.name,
         platform=platform,
         upper_leg=tuple(upper),
         lower_leg=tuple(lower),
         damping=Damping(cu, cp, cs),
+        actuators=actuators,
     )

@@ -513,7 +513,7 @@ def run(settings: Settings, nominal: PlatformParams, predicted_by: dict | None =
     w = est.wls(A, record.forces)
     nominal_theta = reg.theta_of(nominal, model.flags)
     theta_wls = base.theta_from(w.beta, nominal_theta)
-    theta_c = est.consistent(A, record.forces, base, nominal_theta, theta_wls)
+    theta_c = est.consistent(A, record.forces, base, nominal_theta, theta_wls, sigma=w.sigma)
     beta_c = base.of_theta(theta_c)
     identified = base_mod.params_from_theta(theta_c, nominal, model.flags, name=f"{nominal.name}_identified")
 
@@ -618,7 +618,7 @@ def _figure(x: float | None, none: str) -> str:
 
 def body_of(name: str) -> str:
     """The body a base parameter belongs to, by its leading entry of theta: ``platform``,
-    ``leg i`` (its upper and lower part turn together) or ``friction``.
+    ``leg i`` (its upper and lower part turn together) or ``friction`` (the joints' and the drives').
 
     Args:
         name: the base parameter's name, as :attr:`~stewart_env.identification.base.BaseParameters.names` gives
@@ -627,7 +627,7 @@ def body_of(name: str) -> str:
     head = name.split(" ")[0].split(".")[0]
     if head.startswith(("upper_leg[", "lower_leg[")):
         return "leg " + head.split("[")[1].rstrip("]")
-    return "friction" if head == "damping" else head
+    return "friction" if head in ("damping", "drive") else head
 
 
 def _by_body(report: dict) -> list[str]:

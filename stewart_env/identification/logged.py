@@ -262,10 +262,13 @@ def identify_log(record: logs.Log, nominal: PlatformParams, settings: LogSetting
     fitted = float(fit.sum()) / record.rate
     _weak_parameters(A, base, source, fitted)
     o, w = est.ols(A, F), est.wls(A, F)
-    nominal_theta = reg.theta_of(nominal, model.flags)
-    theta_c = est.consistent(A, F, base, nominal_theta, base.theta_from(w.beta, nominal_theta))
+    on_drive = drive is not None  # motor currents: the drives' friction and reflected mass are in the forces
+    nominal_theta = reg.theta_of(nominal, model.flags, drive=on_drive)
+    theta_c = est.consistent(A, F, base, nominal_theta, base.theta_from(w.beta, nominal_theta), sigma=w.sigma)
     beta_c = base.of_theta(theta_c)
-    identified = base_mod.params_from_theta(theta_c, nominal, model.flags, name=f"{nominal.name}_identified")
+    identified = base_mod.params_from_theta(
+        theta_c, nominal, model.flags, name=f"{nominal.name}_identified", drive=on_drive
+    )
     A_held, F_held = rows(held), forces[held]
 
     def prediction_error(beta):
@@ -312,6 +315,15 @@ def identify_log(record: logs.Log, nominal: PlatformParams, settings: LogSetting
         "residual_sigma_wls": w.sigma.tolist(),
         "base_parameters_under_10pct_rel_std": int(np.sum(need.rel_std < est.WELL_IDENTIFIED)),
         "held_out_rms_force": float(np.sqrt(np.mean(F_held**2))),
+        "leg_friction_and_drive": {
+            "viscous_Cp": float(theta_c[reg.OFF_DAMPING + 1]),
+            "coulomb_friction": float(theta_c[reg.OFF_DRIVE]),
+            "reflected_mass": float(theta_c[reg.OFF_DRIVE + 1]),
+            "friction_speed": reg.friction_speed(nominal),
+            "written_to": "actuators.electric"
+            if on_drive and nominal.actuators.electric is not None
+            else "report only",
+        },
         "held_out_force_error": {
             "nominal": prediction_error(beta_nominal),
             "ols": prediction_error(o.beta),
@@ -349,6 +361,8 @@ def markdown(report: dict) -> str:
         f"{e['nominal']:.4g}, OLS {e['ols']:.4g}, WLS {e['wls']:.4g}, consistent {e['consistent']:.4g}",
         *experiment._by_body(report),
         "",
+        _friction_line(report["leg_friction_and_drive"]),
+        "",
         "| base parameter | WLS | std | rel. std | consistent | nominal |",
         "|---|---|---|---|---|---|",
     ]
@@ -358,6 +372,20 @@ def markdown(report: dict) -> str:
             f"| `{p['name']}` | {p['wls']:.6g} | {p['wls_std']:.3g} | {rel} | {p['consistent']:.6g} | {p['nominal']:.6g} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def _friction_line(d: dict) -> str:
+    """report.md's line of the leg friction and the drive's reflected mass (consistent fit)."""
+    where = (
+        "written to platform.yaml's actuators.electric"
+        if d["written_to"] == "actuators.electric"
+        else "in this report only (platform.yaml keeps C_p; it has no drive section for the rest)"
+    )
+    return (
+        f"- leg friction (consistent fit): viscous C_p {d['viscous_Cp']:.4g} N s/m, Coulomb "
+        f"{d['coulomb_friction']:.4g} N (as f_c tanh(Ldot / {d['friction_speed']:g} m/s)), reflected mass "
+        f"{d['reflected_mass']:.4g} kg; {where}"
+    )
 
 
 def write(result: dict, out: str | Path) -> Path:

@@ -27,6 +27,7 @@ from stewart_env.identification import base as base_mod
 from stewart_env.identification import excitation as exc
 from stewart_env.identification import experiment
 from stewart_env.identification import log as logs
+from stewart_env.identification import regressor as reg
 from stewart_env.identification.base import IdentificationError
 from stewart_env.kinematics import inverse_kinematics, jacobian
 from stewart_env.params import PlatformParams
@@ -209,6 +210,35 @@ class RecordSettings:
     exact: bool = False
 
 
+def drive_forces(plant: Dynamics | None, truth: PlatformParams, drive: BallScrew, traj) -> np.ndarray:
+    """The force (T, 6) each drive spends on itself along a recorded trajectory, beyond the leg
+    force it delivers: m_r Lddot + b Ldot + f_c tanh(Ldot / v_s), with the screw's reflected mass
+    m_r and the truth's electric friction (b, f_c, v_s; zeros without an ``actuators.electric``
+    section), taken from the regressor's own columns (so a log of motor currents holds exactly
+    the drive terms identification fits).  The plant moves under the leg forces, as if its
+    controller made up for the drives' losses.
+
+    Args:
+        plant: the closed-form plant, whose forward dynamics give the accelerations; None (MuJoCo):
+            the truth's closed-form model gives them.
+        truth: the plant's true platform.
+        drive: the drive's screw (its reflected mass).
+        traj: the recorded trajectory of :func:`~stewart_env.identification.experiment.simulate`.
+
+    Returns:
+        The drive forces (T, 6), N.
+    """
+    model = plant if plant is not None else Dynamics(ModelSpec.parse(MODEL), truth)
+    t, R, v, w = traj.position, traj.rotation, traj.velocity, traj.angular_velocity
+    a, alpha = model.forward(t, R, v, w, traj.leg_forces)
+    b, fc, _ = reg.drive_terms(truth)
+    Y = reg.regressor_matrix(model, t, R, v, w, a, alpha, speed_scale=reg.friction_speed(truth))
+    # C_p's column is J^T Ldot: the drive's viscous b acts through it
+    columns = Y[..., [reg.OFF_DAMPING + 1, reg.OFF_DRIVE, reg.OFF_DRIVE + 1]]
+    wrench = columns @ np.array([b, fc, drive.reflected_mass])
+    return np.linalg.solve(np.swapaxes(jacobian(truth, t, R), 1, 2), wrench[..., None])[..., 0]
+
+
 def record_log(
     trajectory: logs.Log, nominal: PlatformParams, settings: RecordSettings
 ) -> tuple[logs.Log, PlatformParams]:
@@ -254,6 +284,7 @@ def record_log(
     if settings.drive is None:
         data["leg_force"] = forces
     else:
+        forces = forces + drive_forces(plant if plant_spec is not None else None, truth, settings.drive, traj)
         data["motor_current"] = settings.drive.current_from_leg_force(forces)
     if settings.exact:
         a, alpha = plant.forward(traj.position, traj.rotation, traj.velocity, traj.angular_velocity, traj.leg_forces)

@@ -8,7 +8,12 @@ the mass, the first moment (mass times CoM) and the inertia tensor about a point
 * each upper leg: about its platform joint P_i, in {D_i} axes;
 * each lower leg: about its base joint B_i, in {D_i} axes;
 
-then the joints' viscous coefficients C_u, C_p, C_s.  Inertias are the six tensor entries
+then the joints' viscous coefficients C_u, C_p, C_s, then the legs' drives, shared by the six
+legs: the Coulomb friction f_c (force f_c tanh(Ldot / v_s) along each leg, the drive model's
+smooth sign, so that samples near zero speed stay in the fit; v_s is the platform's
+``actuators.electric.friction_speed``, else :data:`FRICTION_SPEED`) and the reflected mass m_r
+(force m_r Lddot).  A drive's viscous friction b acts as C_p does, so C_p holds C_p + b.
+Inertias are the six tensor entries
 (xx, yy, zz, xy, xz, yz).  For a model with C3 (C4) the legs' (the platform's) inertia in theta
 is the one the model effectively uses, the CoM inertia plus twice the parallel-axis term, since
 that model counts the term twice (docs/physics.md sections 5.6 and 6).
@@ -19,12 +24,18 @@ from __future__ import annotations
 import numpy as np
 
 from stewart_env import _core
+from stewart_env.actuators.transmission import BallScrew
 from stewart_env.dynamics import kernels as K
 from stewart_env.dynamics.model import Dynamics, batch_args
 from stewart_env.params import PlatformParams
 
 N_THETA = _core.N_THETA
+#: The speed scale v_s (m/s) of the Coulomb friction's tanh for a platform without an electric drive.
+FRICTION_SPEED = _core.FRICTION_SPEED
 N_BODY = 10
+#: Theta's index of the joints' viscous coefficients (C_u, C_p, C_s) and of the drives' (f_c, m_r).
+OFF_DAMPING = N_THETA - 5
+OFF_DRIVE = N_THETA - 2
 INERTIA_KEYS = ("xx", "yy", "zz", "xy", "xz", "yz")
 _BODY_FIELDS = ("m", "mx", "my", "mz") + tuple(f"I{k}" for k in INERTIA_KEYS)
 _I6 = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
@@ -35,7 +46,8 @@ def _names() -> tuple[str, ...]:
     for i in range(6):
         names += [f"upper_leg[{i}].{f}" for f in _BODY_FIELDS]
         names += [f"lower_leg[{i}].{f}" for f in _BODY_FIELDS]
-    return tuple(names + ["damping.universal", "damping.prismatic", "damping.spherical"])
+    names += ["damping.universal", "damping.prismatic", "damping.spherical"]
+    return tuple(names + ["drive.coulomb_friction", "drive.reflected_mass"])
 
 
 #: The name of each entry of theta, e.g. ``"upper_leg[2].Ixy"``.
@@ -88,12 +100,51 @@ def body_from_theta(p: np.ndarray, shifts: float) -> tuple[float, np.ndarray, np
     return m, com, inertia - shifts * m * _parallel_axis(com)
 
 
-def theta_of(params: PlatformParams, flags: int = 0) -> np.ndarray:
+def friction_speed(params: PlatformParams) -> float:
+    """The speed scale v_s (m/s) of the Coulomb friction's tanh: the electric drive's, else
+    :data:`FRICTION_SPEED`.
+
+    Args:
+        params: the platform.
+
+    Returns:
+        v_s, m/s.
+    """
+    electric = params.actuators.electric
+    return FRICTION_SPEED if electric is None else float(electric.friction_speed)
+
+
+def drive_terms(params: PlatformParams) -> tuple[float, float, float]:
+    """The electric drive's (viscous friction b, Coulomb friction f_c, reflected mass m_r), zeros
+    without an ``actuators.electric`` section.
+
+    Args:
+        params: the platform.
+
+    Returns:
+        (b N s/m, f_c N, m_r kg).
+    """
+    electric = params.actuators.electric
+    if electric is None:
+        return 0.0, 0.0, 0.0
+    return (
+        float(electric.viscous_friction),
+        float(electric.coulomb_friction),
+        BallScrew.from_params(electric).reflected_mass,
+    )
+
+
+def theta_of(params: PlatformParams, flags: int = 0, drive: bool = False) -> np.ndarray:
     """Theta (N_THETA,) of a platform for the model with switch bits ``flags``.
 
     Args:
         params: the platform.
         flags: the model's switch bits (default 0, none set).
+        drive: the forces are the drives' (motor currents): the electric drive's friction and
+            reflected mass are in theta (:func:`drive_terms`); False (load cells): zeros.
+
+    Returns:
+        Theta (N_THETA,).
     """
     leg_shift, plat_shift = shifts_of(flags)
     parts = [body_theta(params.platform.mass, params.platform.com, params.platform.inertia, plat_shift)]
@@ -101,12 +152,13 @@ def theta_of(params: PlatformParams, flags: int = 0) -> np.ndarray:
         for body in (params.upper_leg[i], params.lower_leg[i]):
             parts.append(body_theta(body.mass, body.com, body.inertia, leg_shift))
     d = params.damping
-    parts.append(np.array([d.universal, d.prismatic, d.spherical]))
+    b, fc, mr = drive_terms(params) if drive else (0.0, 0.0, 0.0)
+    parts.append(np.array([d.universal, d.prismatic + b, d.spherical, fc, mr]))
     return np.concatenate(parts)
 
 
 def regressor_matrix(
-    dynamics: Dynamics, position, rotation, velocity, angular_velocity, lin_acc, ang_acc
+    dynamics: Dynamics, position, rotation, velocity, angular_velocity, lin_acc, ang_acc, speed_scale=None
 ) -> np.ndarray:
     """Y (N, 6, N_THETA) (or (6, N_THETA) for one state) with J^T F + W = Y theta for the model
     of ``dynamics`` (its name's switches; its first platform gives the geometry and gravity).
@@ -121,6 +173,11 @@ def regressor_matrix(
         angular_velocity: (3,) angular velocity, rad/s.
         lin_acc: (3,) acceleration a of P's origin, m/s^2.
         ang_acc: (3,) angular acceleration alpha, rad/s^2.
+        speed_scale: v_s (m/s) of the Coulomb column's tanh (None: :func:`friction_speed` of the
+            model's first platform).
+
+    Returns:
+        Y (N, 6, N_THETA), or (6, N_THETA) for one state.
     """
     n, batched, a = batch_args(
         1,
@@ -142,5 +199,6 @@ def regressor_matrix(
         a["angular_velocity"],
         acc,
         Y,
+        friction_speed(dynamics.params[0]) if speed_scale is None else float(speed_scale),
     )
     return Y if batched else Y[0]

@@ -145,8 +145,10 @@ def test_noise_free_data_recover_the_base_parameters_exactly(noise_free):
     est.check_rank(A, base)
     for fit in (est.ols(A, record.forces), est.wls(A, record.forces)):
         # exact data and exact derivatives: only rounding, amplified by the regressor's condition
-        # number (~1e5 for a random series), separates the estimate from the truth
-        scale = np.maximum(np.abs(truth), 1e-6 * np.abs(truth).max())
+        # number (~1e5 for a random series), separates the estimate from the truth; the drive's
+        # Coulomb friction and reflected mass, zero on this plant, come out at ~3e-13 (their columns
+        # are of order one), so a zero is judged against 1e-5 of the largest parameter
+        scale = np.maximum(np.abs(truth), 1e-5 * np.abs(truth).max())
         assert np.max(np.abs(fit.beta - truth) / scale) < 1e-8
 
 
@@ -178,7 +180,7 @@ def test_savitzky_golay_derivatives_of_a_smooth_motion(dasgupta):
         assert np.abs(g[inner] - e[inner]).max() < 1e-2 * np.abs(e).max()
 
 
-@pytest.mark.slow  # the constrained fit of 133 parameters by finite differences: about 20 s
+@pytest.mark.slow  # the constrained fit of 135 parameters to convergence: about a minute
 def test_physically_consistent_estimate_has_real_bodies_and_fits_the_data(noise_free, dasgupta):
     model, base, A, record, truth = noise_free
     rng = np.random.default_rng(2)

@@ -7,7 +7,12 @@
 // * for each leg i = 0..5 (20 each): the upper leg's m_u, first moment m_u r_u0 about P_i in
 //   {D_i} (3), inertia about P_i in {D_i} (6); then the lower leg's m_d, first moment m_d r_d0
 //   about B_i in {D_i} (3), inertia about B_i in {D_i} (6);
-// * the joints' viscous coefficients C_u, C_p, C_s (3).
+// * the joints' viscous coefficients C_u, C_p, C_s (3);
+// * the legs' drives (2, shared by the six legs): the Coulomb friction f_c, whose force on leg i
+//   is f_c tanh(Ldot_i / v_s) (the drive model's smooth sign, v_s the friction_speed argument), and
+//   the reflected mass m_r, whose force is m_r Lddot_i.  Both act along the leg, as C_p's viscous
+//   force C_p Ldot_i does (which so also holds a drive's viscous friction b: C_p + b is one
+//   parameter).
 //
 // How Y is built: each column is the wrench the kernels' own leg and platform functions give for
 // a unit value of that parameter, evaluated in the joint form (eq. 49, flags without CENTROIDAL,
@@ -24,6 +29,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 
 #include "physics/kernels.hpp"
@@ -39,7 +45,10 @@ constexpr int N_BODY = 10;                      // m, m r (3), I (6)
 constexpr int N_LEG = 2 * N_BODY;               // upper leg, lower leg
 constexpr int OFF_LEGS = N_BODY;                // after the platform
 constexpr int OFF_FRICTION = N_BODY + 6 * N_LEG;
-constexpr int N_THETA = OFF_FRICTION + 3;       // 133
+constexpr int OFF_DRIVE = OFF_FRICTION + 3;     // Coulomb friction, reflected mass
+constexpr int N_THETA = OFF_DRIVE + 2;          // 135
+// Default speed scale v_s (m/s) of the Coulomb friction's tanh, for a platform without a drive's.
+constexpr double FRICTION_SPEED = 1e-3;
 
 // Leg i's wrench on the platform at P, {B}, for the leg's LegState<> leg and the acceleration A' of
 // P_i in {D_i} and the platform's angular velocity w ({B}): [-F_s; -q x F_s + C_s (omega_l - omega)] sign-flipped to the inverse-dynamics
@@ -100,9 +109,9 @@ inline void platform_wrench(const double* prm, int64_t flags, const double* R, c
 // model flags, with the geometry (joints, Hooke axes) and gravity of the packed row prm (its
 // inertial and friction entries are not read).  t, R, v, w the state, acc = [a; alpha], {B}.
 // docs/physics.md section 5.7; paper eq. 49 (55) with each body's terms written linear in its
-// inertial parameters.
+// inertial parameters; the drives' columns as at the top of this file (section 10.2's forces).
 inline void regressor_one(const double* prm, int64_t flags, const double* t, const double* R, const double* v,
-                          const double* w, const double* acc, double* Y) {
+                          const double* w, const double* acc, double* Y, double friction_speed = FRICTION_SPEED) {
     std::fill(Y, Y + 6 * N_THETA, 0.0);
     const int64_t joint = flags & (kernels::C1 | kernels::C2);  // joint form, the model's kinematics bits
     const double k_leg = (flags & kernels::C3) ? 2.0 : 1.0;     // parallel-axis shifts of the legs
@@ -187,16 +196,30 @@ inline void regressor_one(const double* prm, int64_t flags, const double* t, con
             leg_wrench(joint, part(false, 0.0, r0, none), leg, A, w, d, col);
             for (int r = 0; r < 6; ++r) Y[N_THETA * r + OFF_FRICTION + j] += col[r];
         }
+        // the drive's forces along the leg: a unit leg force's wrench [e; q x e] times tanh(Ldot / v_s)
+        // (Coulomb) and times Lddot (reflected mass), with leg_accel's Lddot of the model's kinematics
+        const auto [e0, e1, e2] = kernels::to_base(leg.frame, 1.0, 0.0, 0.0);
+        const auto& [q0, q1, q2] = leg.frame.q;
+        const auto [n0, n1, n2] = kernels::cross(q0, q1, q2, e0, e1, e2);
+        const double unit[6] = {e0, e1, e2, n0, n1, n2};
+        const double coulomb = std::tanh(leg.Ldot / friction_speed);
+        const double Lddot =
+            kernels::leg_accel(joint, leg.frame, leg.Ldot, leg.sigma, leg.w1, leg.w2, A[0], A[1], A[2]).Lddot;
+        for (int r = 0; r < 6; ++r) {
+            Y[N_THETA * r + OFF_DRIVE] += coulomb * unit[r];
+            Y[N_THETA * r + OFF_DRIVE + 1] += Lddot * unit[r];
+        }
     }
 }
 
 // Y (n, 6, N_THETA) over a batch: prm (Np, N_PARAMS) with Np in {1, n}; t, v, w (n,3); R (n,3,3);
 // acc (n,6).  docs/physics.md section 5.7 (no paper equation).
 inline void regressor_batch(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
-                            const double* v, const double* w, const double* acc, double* Y, int64_t n) {
+                            const double* v, const double* w, const double* acc, double* Y, int64_t n,
+                            double friction_speed = FRICTION_SPEED) {
     for (int64_t b = 0; b < n; ++b)
         regressor_one(kernels::params_row(prm, n_prm, b), flags, t + 3 * b, R + 9 * b, v + 3 * b, w + 3 * b,
-                      acc + 6 * b, Y + 6 * N_THETA * b);
+                      acc + 6 * b, Y + 6 * N_THETA * b, friction_speed);
 }
 
 }  // namespace regressor

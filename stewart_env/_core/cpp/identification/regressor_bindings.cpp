@@ -4,6 +4,7 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 
@@ -23,6 +24,7 @@ using Out = nb::ndarray<double, nb::c_contig, nb::device::cpu>;
 
 void bind_regressor(nb::module_& m) {
     m.attr("N_THETA") = regressor::N_THETA;
+    m.attr("FRICTION_SPEED") = regressor::FRICTION_SPEED;
     m.attr("FOURIER_COMPUTED_TORQUE") = reinterpret_cast<uintptr_t>(&excitation::fourier_computed_torque);
     m.def("fourier_series", [](In q0, In a, In b, double wf, In times, Out out) {
         array_checks::expect(q0, "q0 (6,)", {6});
@@ -40,7 +42,9 @@ void bind_regressor(nb::module_& m) {
                                        o + 12);
     }, "q0"_a, "a"_a, "b"_a, "wf"_a, "times"_a, "out"_a.noconvert(),
        "q, qdot, qddot (T, 3, 6) of the excitation's Fourier series at the times (excitation_law.hpp).");
-    m.def("regressor_batch", [](In prm, int64_t flags, In t, In R, In v, In w, In acc, Out Y) {
+    m.def("regressor_batch", [](In prm, int64_t flags, In t, In R, In v, In w, In acc, Out Y, double friction_speed) {
+        if (!(friction_speed > 0.0 && std::isfinite(friction_speed)))
+            throw nb::value_error("friction_speed: expected a finite speed > 0 (m/s)");
         array_checks::expect(t, "position (N, 3)", {-1, 3});
         const int64_t n = static_cast<int64_t>(t.shape(0));
         array_checks::expect(prm, "prm (1 or N, N_PARAMS)", {-1, kernels::N_PARAMS});
@@ -53,7 +57,8 @@ void bind_regressor(nb::module_& m) {
         array_checks::expect(Y, "Y (N, 6, N_THETA)", {n, 6, regressor::N_THETA});
         nb::gil_scoped_release release;
         regressor::regressor_batch(prm.data(), np, flags, t.data(), R.data(), v.data(), w.data(), acc.data(),
-                                   Y.data(), n);
+                                   Y.data(), n, friction_speed);
     }, "prm"_a, "flags"_a, "t"_a, "R"_a, "v"_a, "w"_a, "acc"_a, "Y"_a.noconvert(),
+       "friction_speed"_a = regressor::FRICTION_SPEED,
        "The regressor Y (N, 6, N_THETA) of J^T F + W = Y theta (docs/physics.md section 5.7).");
 }
