@@ -9,8 +9,9 @@ the prediction over the horizon is affine,
 
     e_{k+1} = A e_k + B u_k + d,     u_k = F_k - F_ff,
 
-with d = e(next state under F_ff, reference moved on by one step at its twist) - A e_0, the same
-at every step of the horizon (the reference keeps its twist, the Jacobians their values).  The
+with d = e(next state under F_ff, reference moved on by one step at its twist and accelerations)
+- A e_0, the same at every step of the horizon (the reference keeps its accelerations, the
+Jacobians their values).  The
 controller minimises
 
     sum_{k=1}^{N-1} e_k^T Q e_k + e_N^T P e_N + sum_{k=0}^{N-1} u_k^T R u_k
@@ -64,7 +65,7 @@ class LinearisedMPC:
         stewart_env.extras.MissingExtra: osqp is not installed (the extra ``mpc``).
 
     Examples:
-        A 2 cm step up asks for more than the LQR's unconstrained gain allows; the MPC keeps the
+        A 15 cm step up asks for more than the LQR's unconstrained gain allows; the MPC keeps the
         forces within the limits:
 
         >>> import numpy as np, stewart_env as se
@@ -73,7 +74,7 @@ class LinearisedMPC:
         >>> params = se.load_platform("dasgupta1998")
         >>> mpc = LinearisedMPC(params, control_dt=0.01, substeps=10)
         >>> state = PlatformState(params.home_position, np.eye(3), np.zeros(3), np.zeros(3))
-        >>> target = Reference(params.home_position + [0, 0, 0.1], np.eye(3), np.zeros(3), np.zeros(3))
+        >>> target = Reference(params.home_position + [0, 0, 0.15], np.eye(3), np.zeros(3), np.zeros(3))
         >>> forces = mpc(state, target)
         >>> bool(forces.max() <= params.limits.leg_force[1] + 1e-3)
         True
@@ -191,7 +192,7 @@ class LinearisedMPC:
             solver = self._solver(i)
             ff = np.tile(feedforward[i], self.horizon)
             solver.update(Px=hessian[self._upper], q=gradient, l=low - ff, u=high - ff)
-            result = solver.solve()
+            result = solver.solve(raise_error=False)
             self.solve_status.append(result.info.status)
             u0 = result.x[:6] if result.x is not None and np.isfinite(result.x[:6]).all() else np.zeros(6)
             out[i] = feedforward[i] + u0
@@ -199,10 +200,13 @@ class LinearisedMPC:
 
 
 def _advanced(reference: Reference, dt: float) -> Reference:
-    """The reference moved on by ``dt`` s at its twist: position + dt v, exp([dt w]x) R."""
-    position = np.asarray(reference.position, float) + dt * np.asarray(reference.velocity, float)
-    rotation = rotvec_to_matrix(dt * np.asarray(reference.angular_velocity, float)) @ reference.rotation
-    return Reference(position, rotation, reference.velocity, reference.angular_velocity)
+    """The reference moved on by ``dt`` s at its twist and accelerations (held over the step):
+    position + v dt + a dt^2/2, exp([w dt + alpha dt^2/2]x) R, v + a dt, w + alpha dt."""
+    velocity, angular_velocity = np.asarray(reference.velocity, float), np.asarray(reference.angular_velocity, float)
+    lin_acc, ang_acc = np.asarray(reference.lin_acc, float), np.asarray(reference.ang_acc, float)
+    position = np.asarray(reference.position, float) + dt * velocity + 0.5 * dt**2 * lin_acc
+    rotation = rotvec_to_matrix(dt * angular_velocity + 0.5 * dt**2 * ang_acc) @ reference.rotation
+    return Reference(position, rotation, velocity + dt * lin_acc, angular_velocity + dt * ang_acc)
 
 
 class MPCPolicy(LQRPolicy):
