@@ -31,6 +31,7 @@ FLAGS = {
     "cost_plant": "--cost-plant",
     "platform": "--platform",
     "controller_platforms": "--controller-platform",
+    "controllers": "--controllers",
     "env_kwargs": "--env-kwargs",
     "out": "--out",
     "config": "--config",
