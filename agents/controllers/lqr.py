@@ -35,7 +35,14 @@ from stewart_env.params import PlatformParams
 from stewart_env.rotations import rotation_error
 from stewart_env.state import PlatformState, Reference
 
-__all__ = ["FORCE_SCALE", "STATE_SCALES", "LQRPolicy", "LinearQuadraticRegulator", "home_linearisation", "tangent_error"]
+__all__ = [
+    "FORCE_SCALE",
+    "STATE_SCALES",
+    "LQRPolicy",
+    "LinearQuadraticRegulator",
+    "home_linearisation",
+    "tangent_error",
+]
 
 #: Bryson's maxima of the state's error: position (m), orientation (rad), velocity (m/s), angular
 #: velocity (rad/s), three of each: Q = diag(1 / STATE_SCALES^2).

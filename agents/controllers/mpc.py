@@ -116,7 +116,11 @@ class LinearisedMPC:
             n = 6 * self.horizon
             solver = osqp.OSQP()
             solver.setup(
-                self._pattern, np.zeros(n), scipy.sparse.identity(n, format="csc"), -np.ones(n), np.ones(n),
+                self._pattern,
+                np.zeros(n),
+                scipy.sparse.identity(n, format="csc"),
+                -np.ones(n),
+                np.ones(n),
                 **OSQP_SETTINGS,
             )
             self._solvers[row] = solver
@@ -171,7 +175,12 @@ class LinearisedMPC:
             )
         )
         step = self.model.step_jacobians(
-            position, rotation, velocity, angular_velocity, np.ascontiguousarray(feedforward), self.control_dt,
+            position,
+            rotation,
+            velocity,
+            angular_velocity,
+            np.ascontiguousarray(feedforward),
+            self.control_dt,
             self.substeps,
         )
         moved = _advanced(reference, self.control_dt)

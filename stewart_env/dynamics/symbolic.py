@@ -101,7 +101,7 @@ def _unpack(x: np.ndarray):
 
 
 def _chain_in(x: np.ndarray) -> np.ndarray:
-    """d (dt, dtheta_left, v, w) / d (t, theta, v, w) at x: identity but the rotation's J_l(theta)."""
+    """The Jacobian of (dt, dtheta_left, v, w) by (t, theta, v, w) at x: I but the rotation block J_l(theta)."""
     out = np.eye(12)
     out[3:6, 3:6] = left_jacobian(np.asarray(x, dtype=float).reshape(12)[3:6])
     return out

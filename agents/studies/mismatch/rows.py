@@ -90,7 +90,14 @@ def _rows(
     where = "" if platform_name is None else f", on platform {platform_name}"
     analytic = [m for m in models if closed_form(m)]
     rows = [
-        Row(f"{_MODEL_BASED[kind][0]} [{on(m)}]", kind.upper(), str(m), kind, info=_MODEL_BASED[kind][1] + where, **built)
+        Row(
+            f"{_MODEL_BASED[kind][0]} [{on(m)}]",
+            kind.upper(),
+            str(m),
+            kind,
+            info=_MODEL_BASED[kind][1] + where,
+            **built,
+        )
         for kind in controllers
         for m in analytic
     ]

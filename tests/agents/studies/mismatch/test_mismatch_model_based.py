@@ -9,10 +9,11 @@ from pathlib import Path
 
 import pytest
 
-from conftest import exit_code
 from stewart_env.agents.studies import mismatch
 from stewart_env.agents.studies.mismatch import MismatchError, MismatchSettings, run_mismatch
 from stewart_env.agents.studies.mismatch.rows import build_rows
+
+from conftest import exit_code
 
 CONFIG_DIR = Path(__file__).resolve().parents[4] / "configs" / "platforms"
 
@@ -59,9 +60,10 @@ def test_lqr_and_mpc_rows_on_the_classical_model_a_switch_and_an_identified_plat
         rows = {r["controller"]: r for r in csv.DictReader(f)}
     # the identified platform is the truth's parameters: the same controller, the same episodes, bit for bit
     for label in ("LQR", "MPC"):
-        assert rows[f"{label} [improved @ identified]"]["rms_position_error"] == rows[f"{label} [improved]"][
-            "rms_position_error"
-        ]
+        assert (
+            rows[f"{label} [improved @ identified]"]["rms_position_error"]
+            == rows[f"{label} [improved]"]["rms_position_error"]
+        )
     costs = {(d.family, d.simplification, d.metric): d for d in result.differences if d.measure == mismatch.COST}
     for family in ("LQR", "MPC"):
         for simplification in ("classical model", "platform identified"):
@@ -74,7 +76,12 @@ def test_lqr_and_mpc_rows_on_the_classical_model_a_switch_and_an_identified_plat
 def test_default_rows_are_pd_and_ct_and_the_controllers_order_them(tmp_path):
     models = MismatchSettings(test_models=["improved"], algo=None).design_models[:2]
     default = [r.label for r in build_rows(tmp_path, models, None, (0,), False, "dasgupta1998")]
-    assert default == ["PD + gravity comp. [classical]", "PD + gravity comp. [improved]", "CT [classical]", "CT [improved]"]
+    assert default == [
+        "PD + gravity comp. [classical]",
+        "PD + gravity comp. [improved]",
+        "CT [classical]",
+        "CT [improved]",
+    ]
     chosen = build_rows(tmp_path, models, None, (0,), False, "dasgupta1998", controllers=("mpc", "pd"))
     assert [(r.label, r.kind, r.family) for r in chosen] == [
         ("MPC [classical]", "mpc", "MPC"),
