@@ -94,7 +94,12 @@ def test_ipopt_finds_the_holding_forces_with_the_callback_jacobian(model, dasgup
         "hold",
         "ipopt",
         {"x": u, "f": casadi.sumsqr(acc)},
-        {"ipopt.print_level": 0, "print_time": False, "ipopt.hessian_approximation": "limited-memory"},
+        {
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "print_time": False,
+            "ipopt.hessian_approximation": "limited-memory",
+        },
     )
     found = np.array(solver(x0=np.full(6, 150.0))["x"]).ravel()
     holding = model.inverse(x[0:3], np.eye(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3))
