@@ -2,7 +2,8 @@
 
 Each extra brings the libraries of one kind of work: ``rl`` (training and loading agents),
 ``mujoco`` (the MuJoCo twin), ``distributed`` (the study on a Ray cluster), ``laws`` (a user's own
-control laws as numba cfuncs), ``logs`` (drive logs in HDF5), ``jsbsim`` (flight references for the cueing task).  :func:`require` looks the libraries
+control laws as numba cfuncs), ``logs`` (drive logs in HDF5), ``jsbsim`` (flight references for the cueing task),
+``casadi`` (the symbolic model) and ``mpc`` (the model-predictive controller's QP solver).  :func:`require` looks the libraries
 up without importing them, so a command checks its extras before it does any work; :func:`extra_of` names the extra a failed
 import belongs to, so that the command line turns any such ``ImportError`` into one line.
 
@@ -28,6 +29,8 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "laws": ("numba",),
     "logs": ("h5py",),
     "jsbsim": ("jsbsim",),
+    "casadi": ("casadi",),
+    "mpc": ("osqp",),
 }
 #: What an extra asks of the user before ``pip install`` (torch's CPU build for ``rl``: the
 #: default index serves the CUDA build, gigabytes this package does not use).

@@ -35,6 +35,8 @@ EXTRA_MODULES = {
     "docs": ("sphinx", "furo", "myst_parser"),
     "laws": ("numba",),
     "jsbsim": ("jsbsim",),
+    "casadi": ("casadi",),
+    "mpc": ("osqp",),
 }
 
 

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from stewart_env.dynamics import ModelSpec
 
 #: The baseline controllers ``--policy`` offers.
-CONTROLLERS = ("pd", "pd-gc", "ct")
+CONTROLLERS = ("pd", "pd-gc", "ct", "lqr", "mpc")
 
 
 #: The command-line flag of each argument a usage error may name: the keyword of the library call
@@ -31,6 +31,7 @@ FLAGS = {
     "cost_plant": "--cost-plant",
     "platform": "--platform",
     "controller_platforms": "--controller-platform",
+    "controllers": "--controllers",
     "env_kwargs": "--env-kwargs",
     "out": "--out",
     "config": "--config",
@@ -118,10 +119,12 @@ def controllers(names: Sequence[str], internal_model: ModelSpec) -> dict:
     """{table label: policy factory} of the baseline controllers ``names`` (see :data:`CONTROLLERS`).
 
     Args:
-        names: the controllers' names (``pd``, ``pd-gc``, ``ct``).
-        internal_model: the spec of the dynamics model computed torque uses.
+        names: the controllers' names (``pd``, ``pd-gc``, ``ct``, ``lqr``, ``mpc``).
+        internal_model: the spec of the dynamics model computed torque, the LQR and the MPC use.
     """
     from stewart_env.agents.controllers.computed_torque import ComputedTorquePolicy
+    from stewart_env.agents.controllers.lqr import LQRPolicy
+    from stewart_env.agents.controllers.mpc import MPCPolicy
     from stewart_env.agents.controllers.pd import PDPolicy
 
     out = {}
@@ -130,6 +133,10 @@ def controllers(names: Sequence[str], internal_model: ModelSpec) -> dict:
             out["PD"] = PDPolicy
         elif name == "pd-gc":
             out["PD + gravity comp."] = lambda env: PDPolicy(env, gravity_compensation=True)
+        elif name == "lqr":
+            out[f"LQR ({internal_model})"] = lambda env, m=internal_model: LQRPolicy(env, m)
+        elif name == "mpc":
+            out[f"MPC ({internal_model})"] = lambda env, m=internal_model: MPCPolicy(env, m)
         else:
             out[f"CT ({internal_model})"] = lambda env, m=internal_model: ComputedTorquePolicy(env, m)
     return out

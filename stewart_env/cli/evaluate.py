@@ -64,7 +64,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         choices=(*CONTROLLERS, WASHOUT),
         help="pd: task-space PD (paper eq. 56, gains tuned for the control step); pd-gc: the same "
         "with gravity compensation (the improved model's holding forces); ct: computed "
-        "torque with its own internal model; washout: classical washout for --task cueing "
+        "torque with its own internal model; lqr: an LQR around home from the exact Jacobians of the "
+        "control step; mpc: the linearised MPC with the leg force limits (needs the extra mpc); lqr "
+        "and mpc are built on --internal-model too; washout: classical washout for --task cueing "
         "(configs/agents/washout.yaml, action_mode pose) (default pd, or washout on --task "
         "cueing, unless --agent is given)",
     )
@@ -80,7 +82,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "--internal-model",
         type=model_name,
         default="improved",
-        help="the computed-torque controller's dynamics model, independent of the plant's (default improved)",
+        help="the dynamics model of computed torque, the LQR and the MPC, independent of the plant's "
+        "(default improved)",
     )
     p.add_argument(
         "--model",
@@ -194,6 +197,7 @@ def run(args: argparse.Namespace) -> int:
         The exit status, 0 on success.
     """
     needs = ([("rl", "--agent")] if args.agent else []) + plant_extras(args.model)
+    needs += [("mpc", "--policy mpc")] if args.policy and "mpc" in args.policy else []
     problem = check_extras(needs) or _problem(args) or check_out(args)
     if problem is not None:
         return error(VERB, problem)

@@ -13,6 +13,8 @@ from stewart_env.agents.evaluation.evaluation import ORIENTATION_TOLERANCE, POSI
 from stewart_env.agents.studies.mismatch import (
     AUTO_THREADS,
     BACKENDS,
+    CONTROLLERS,
+    DEFAULT_CONTROLLERS,
     FAILURE_THRESHOLD,
     QUICK_TIMESTEPS,
     SIMPLIFICATIONS,
@@ -106,8 +108,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         VERB,
         help="model-mismatch study: controllers built on one model, run on another",
-        description="Train (or load) RL agents per training model and seed, build PD and computed-torque "
-        "controllers on the same models and on the improved model with each of C1..C4 switched on, "
+        description="Train (or load) RL agents per training model and seed, build the model-based "
+        "controllers (--controllers: PD and computed torque, or also the LQR and the MPC) on the same "
+        "models and on the improved model with each of C1..C4 switched on, "
         "evaluate every controller on every test plant, and write DIR/matrix.md, DIR/matrix.csv "
         "(95 % intervals), DIR/differences.csv, DIR/forest.png and DIR/heatmap_<metric>.png.",
     )
@@ -141,6 +144,15 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help="a further platform the controllers are built on (e.g. an identified platform.yaml), "
         "its rows labelled [model @ NAME] (default NAME: the config's name or file stem), run on "
         "--platform's plants; repeat for several",
+    )
+    p.add_argument(
+        "--controllers",
+        nargs="+",
+        choices=CONTROLLERS,
+        default=list(DEFAULT_CONTROLLERS),
+        help="the model-based controllers built on each model: pd (task-space PD with the model's holding "
+        "forces), ct (computed torque), lqr (an LQR around home from the model's control step Jacobians), "
+        "mpc (the linearised MPC with the leg force limits, needs the extra mpc) (default: pd ct)",
     )
     p.add_argument("--out", type=directory_name, required=True, help="study directory")
     p.add_argument(
@@ -257,6 +269,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def _problem(args: argparse.Namespace) -> str | None:
     """What the parsed options ask that cannot run, naming the flag, before the study writes
     anything; None if nothing."""
+    twice = sorted({c for c in args.controllers if args.controllers.count(c) > 1})
+    if twice:
+        return f"argument --controllers: {', '.join(twice)} given twice"
     if args.ray_address is not None and (args.backend != "ray" or not args.ray_address.strip()):
         return (
             "argument --ray-address: only with --backend ray"
@@ -285,6 +300,8 @@ def run(args: argparse.Namespace) -> int:
     needs = [("rl", "training agents (--algo none runs the model-based rows only)")] if args.algo != "none" else []
     if args.backend == "ray":
         needs.append(("distributed", "--backend ray"))
+    if "mpc" in args.controllers:
+        needs.append(("mpc", "--controllers mpc"))
     problem = check_extras(needs) or _problem(args) or check_out(args)
     if problem is not None:
         return error(VERB, problem)
@@ -316,6 +333,7 @@ def run(args: argparse.Namespace) -> int:
             physics_threads=args.physics_threads,
             plant_actuator=args.plant_actuator,
             progress=not args.no_progress,
+            controllers=args.controllers,
         )
     except (BackendError, WriteError) as exc:
         print(f"stewart-env mismatch: error: {exc}{kept}", file=sys.stderr)

@@ -12,7 +12,9 @@ __all__ = [
     "AUTO_THREADS",
     "BACKENDS",
     "CELLS_DIR",
+    "CONTROLLERS",
     "CPUS_PER_JOB",
+    "DEFAULT_CONTROLLERS",
     "DEFAULT_RANDOMIZATION",
     "DEFAULT_STATISTIC",
     "EVAL_SEED_OFFSET",
@@ -38,6 +40,13 @@ class MismatchError(UsageError):
     """A study request that cannot be carried out (a bad setting, a folder holding another
     study or another study's agents, a damaged cell); the message names the argument or path."""
 
+
+#: The model-based controllers a study builds on each model, by kind: task-space PD with the model's
+#: holding forces, computed torque, the LQR around home and the linearised MPC (extra ``mpc``), the
+#: last two from the model's control step Jacobians (stewart_env.agents.controllers).
+CONTROLLERS = ("pd", "ct", "lqr", "mpc")
+#: Those of a study that names none: PD and computed torque.
+DEFAULT_CONTROLLERS = ("pd", "ct")
 
 #: Environment steps per RL agent of the quick default study: a smoke-scale budget (such agents
 #: still lose the platform); --timesteps 1500000 or more for agents that hold a set point.

@@ -78,12 +78,13 @@ def _load_agent(agent):
 
 def make_policy(kind: str, model: str | ModelSpec, agent=None, platform: str | None = None):
     """A policy (or a factory env -> policy) for :func:`~stewart_env.agents.evaluation.evaluate`:
-    the PD law with model ``model``'s holding forces, CT with internal model ``model``, or the
-    trained ``agent`` (a folder, or its files' bytes).  PD and CT are built on ``platform`` (a
-    platform name or config path) when given, on the plant's nominal platform otherwise.
+    the PD law with model ``model``'s holding forces, CT, the LQR or the MPC with internal model
+    ``model``, or the trained ``agent`` (a folder, or its files' bytes).  The model-based
+    controllers are built on ``platform`` (a platform name or config path) when given, on the
+    plant's nominal platform otherwise.
 
     Args:
-        kind: the controller's kind: ``"pd"``, ``"ct"`` or ``"agent"``.
+        kind: the controller's kind: ``"pd"``, ``"ct"``, ``"lqr"``, ``"mpc"`` or ``"agent"``.
         model: the dynamics model the controller is built on, best its
             :class:`~stewart_env.dynamics.ModelSpec` (a name is parsed by the controller).
         agent: the trained agent: its folder or its files' bytes (``kind="agent"`` only).
@@ -104,7 +105,15 @@ def make_policy(kind: str, model: str | ModelSpec, agent=None, platform: str | N
         from stewart_env.agents.controllers.pd import PDPolicy
 
         return lambda env: PDPolicy(env, gravity_compensation=True, gravity_model=model, platform=believed)
-    raise ValueError(f"kind: expected 'pd', 'ct' or 'agent', got {kind!r}")
+    if kind == "lqr":
+        from stewart_env.agents.controllers.lqr import LQRPolicy
+
+        return lambda env: LQRPolicy(env, model, platform=believed)
+    if kind == "mpc":
+        from stewart_env.agents.controllers.mpc import MPCPolicy
+
+        return lambda env: MPCPolicy(env, model, platform=believed)
+    raise ValueError(f"kind: expected 'pd', 'ct', 'lqr', 'mpc' or 'agent', got {kind!r}")
 
 
 def evaluate_job(

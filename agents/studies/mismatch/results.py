@@ -17,9 +17,10 @@ __all__ = ["COST", "DOUBLE_DIFFERENCE", "SHARE_REMOVED", "Difference", "Mismatch
 
 @dataclass
 class Row:
-    """One controller of the study: its label, family ("PD", "CT" or the RL algorithm), the model
-    it was designed or trained on, and for a learned row its training seeds and agent folders
-    (seed -> path).  ``kind`` is "pd", "ct" or "agent"; ``info`` a note for the tables.
+    """One controller of the study: its label, family ("PD", "CT", "LQR", "MPC" or the RL
+    algorithm), the model it was designed or trained on, and for a learned row its training seeds
+    and agent folders (seed -> path).  ``kind`` is "pd", "ct", "lqr", "mpc" or "agent"; ``info``
+    a note for the tables.
     ``platform`` is the platform it was designed or trained on when that is not the study's (a
     controller platform, e.g. an identified one: a name or a config's absolute path), and
     ``platform_name`` its name in the row's label; None for the study's platform."""

@@ -7,7 +7,13 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from stewart_env.agents.studies.mismatch.constants import AGENTS_DIR, DEFAULT_RANDOMIZATION, TRUE_MODEL, MismatchError
+from stewart_env.agents.studies.mismatch.constants import (
+    AGENTS_DIR,
+    DEFAULT_CONTROLLERS,
+    DEFAULT_RANDOMIZATION,
+    TRUE_MODEL,
+    MismatchError,
+)
 from stewart_env.agents.studies.mismatch.results import Row
 from stewart_env.agents.studies.mismatch.settings import Model, closed_form
 from stewart_env.agents.training import (
@@ -35,8 +41,9 @@ def build_rows(
     agent_models: Sequence[Model] | None = None,
     controller_platforms: Sequence[tuple[str, str]] = (),
     platform_models: Sequence[Model] = (),
+    controllers: Sequence[str] = DEFAULT_CONTROLLERS,
 ) -> list[Row]:
-    """The study's controllers; learned rows (on ``agent_models``, default all ``models``) name
+    """The study's controllers: the model-based ``controllers`` on each model; learned rows (on ``agent_models``, default all ``models``) name
     their agent folders (trained or not yet).  Each of ``controller_platforms`` (name, platform)
     adds the rows of ``platform_models`` (those of ``agent_models`` for the learned rows) built on
     it, labelled ``[model @ name]``.  The models are specs (:attr:`MismatchSettings.models
@@ -52,11 +59,13 @@ def build_rows(
         agent_models: the models RL agents are trained on (None: all ``models``).
         controller_platforms: further (name, platform) pairs controllers are built on.
         platform_models: the models whose rows each controller platform adds.
+        controllers: the model-based controllers' kinds (:data:`~.constants.CONTROLLERS`), in
+            the rows' order.
     """
-    rows = _rows(out, models, algo, seeds, domain_randomization, platform, agent_models)
+    rows = _rows(out, models, algo, seeds, domain_randomization, platform, agent_models, None, controllers)
     for name, other in controller_platforms:
         learned = [m for m in platform_models if agent_models is None or m in agent_models]
-        rows += _rows(out, platform_models, algo, seeds, False, other, learned, name)
+        rows += _rows(out, platform_models, algo, seeds, False, other, learned, name, controllers)
     return rows
 
 
@@ -69,6 +78,7 @@ def _rows(
     platform: str,
     agent_models: Sequence[Model] | None,
     platform_name: str | None = None,
+    controllers: Sequence[str] = DEFAULT_CONTROLLERS,
 ) -> list[Row]:
     """The rows of ``models`` built on ``platform``; ``platform_name`` None for the study's own."""
     from stewart_env.agents.evaluation.evaluation import slug
@@ -81,17 +91,14 @@ def _rows(
     analytic = [m for m in models if closed_form(m)]
     rows = [
         Row(
-            f"PD + gravity comp. [{on(m)}]",
-            "PD",
+            f"{_MODEL_BASED[kind][0]} [{on(m)}]",
+            kind.upper(),
             str(m),
-            "pd",
-            info=f"task-space PD, gravity compensation from this model's statics{where}",
+            kind,
+            info=_MODEL_BASED[kind][1] + where,
             **built,
         )
-        for m in analytic
-    ]
-    rows += [
-        Row(f"CT [{on(m)}]", "CT", str(m), "ct", info=f"computed torque, this model's inverse dynamics{where}", **built)
+        for kind in controllers
         for m in analytic
     ]
     if algo is None:
@@ -114,6 +121,15 @@ def _rows(
             )
         )
     return rows
+
+
+#: Each model-based controller's label and note in the tables, by kind (its family: the kind upper-cased).
+_MODEL_BASED = {
+    "pd": ("PD + gravity comp.", "task-space PD, gravity compensation from this model's statics"),
+    "ct": ("CT", "computed torque, this model's inverse dynamics"),
+    "lqr": ("LQR", "LQR around home from this model's control step Jacobians, its inverse dynamics as feed-forward"),
+    "mpc": ("MPC", "linearised MPC on this model, the leg force limits as constraints"),
+}
 
 
 def training_keywords(

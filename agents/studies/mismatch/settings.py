@@ -18,6 +18,8 @@ from stewart_env.agents.studies.mismatch.backends import check_backend
 from stewart_env.agents.studies.mismatch.constants import (
     AGENTS_DIR,
     AUTO_THREADS,
+    CONTROLLERS,
+    DEFAULT_CONTROLLERS,
     EVAL_SEED_OFFSET,
     MAX_STEPS,
     QUICK_TIMESTEPS,
@@ -80,6 +82,9 @@ class MismatchSettings:
             the rows then the shipped name or the file's stem); each adds the rows of every
             training model built and trained on it, run on the plants of ``platform``.  Once
             made, ((name, platform), ...), a config by its absolute path.
+        controllers: the model-based controllers built on each model, by kind
+            (:data:`~.constants.CONTROLLERS`: ``"pd"``, ``"ct"``, ``"lqr"``, ``"mpc"``; default PD
+            and CT), in the rows' order; each name once.
         physics_threads: the threads of each job's physics batches (:func:`stewart_env.set_num_threads`):
             ``"auto"`` (the default), on Ray the CPUs the job was given
             (:data:`~.constants.CPUS_PER_JOB`) and in this process the package's default (one per
@@ -119,6 +124,7 @@ class MismatchSettings:
     controller_platforms: Sequence[Any] = ()
     physics_threads: int | str = AUTO_THREADS
     plant_actuator: str | None = None
+    controllers: Sequence[str] = DEFAULT_CONTROLLERS
     hyperparameters: Any = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -137,6 +143,7 @@ class MismatchSettings:
                 f"simplifications: unknown {', '.join(unknown)}; choose from {', '.join(SIMPLIFICATIONS)}"
             )
         set_("simplifications", tuple(self.simplifications))
+        set_("controllers", _check_controllers(self.controllers))
         platform = _check_platform(self.platform)
         set_("platform", platform)
         set_("train_models", tuple(_check_models(self.train_models, "train models", platform)))
@@ -260,6 +267,24 @@ def _check_plant_actuator(actuator: Any, env_kwargs: Mapping[str, Any]) -> None:
     except (ValueError, KeyError, TypeError) as err:
         problem = err.problem if isinstance(err, UsageError) else str(err)
         raise MismatchError(f"plant actuator: {problem}", argument="plant_actuator", problem=problem) from None
+
+
+def _check_controllers(controllers: Any) -> tuple[str, ...]:
+    """The model-based controllers' kinds as a tuple: known, each once."""
+    items = (controllers,) if isinstance(controllers, str) else tuple(controllers)
+    unknown = [c for c in items if c not in CONTROLLERS]
+    if unknown:
+        raise MismatchError(
+            f"controllers: unknown {', '.join(map(repr, unknown))}; choose from {', '.join(CONTROLLERS)}",
+            argument="controllers",
+            problem=f"unknown {', '.join(map(repr, unknown))}",
+        )
+    twice = sorted({c for c in items if items.count(c) > 1})
+    if twice:
+        raise MismatchError(
+            f"controllers: {', '.join(twice)} given twice", argument="controllers", problem="a controller given twice"
+        )
+    return items
 
 
 def _checked(constraint: Interval, name: str, value: Any) -> Any:

@@ -26,6 +26,7 @@ from stewart_env.agents.studies.mismatch.cells import (
 )
 from stewart_env.agents.studies.mismatch.constants import (
     AUTO_THREADS,
+    DEFAULT_CONTROLLERS,
     QUICK_TIMESTEPS,
     RANKING_METRICS,
     SIMPLIFICATIONS,
@@ -80,6 +81,7 @@ def run_mismatch(
     physics_threads: int | str = AUTO_THREADS,
     plant_actuator: str | None = None,
     progress: bool = True,
+    controllers: Sequence[str] = DEFAULT_CONTROLLERS,
 ) -> MismatchResult:
     """Run the mismatch study and write it to ``out`` (see :mod:`stewart_env.agents.studies.mismatch`).
 
@@ -116,6 +118,8 @@ def run_mismatch(
         plant_actuator: the test plants' actuator (None: that of ``env_kwargs``, on which the
             controllers are built).
         progress: show a progress bar.
+        controllers: the model-based controllers built on each model: ``"pd"``, ``"ct"``,
+            ``"lqr"``, ``"mpc"`` (default PD and CT).
 
     Raises:
         MismatchError: a bad argument, named (a :class:`~stewart_env.errors.UsageError`), or a
@@ -149,6 +153,7 @@ def run_mismatch(
         controller_platforms=controller_platforms,
         physics_threads=physics_threads,
         plant_actuator=plant_actuator,
+        controllers=controllers,
     )
     return run_study(out, settings, progress=progress)
 
@@ -181,6 +186,7 @@ def run_study(
             settings.agent_models,
             settings.controller_platforms,
             settings.train_models,
+            settings.controllers,
         )
         try:
             run_jobs(runner, out, rows, settings, progress)
