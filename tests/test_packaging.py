@@ -4,6 +4,8 @@ installed or from the source tree."""
 import importlib.metadata
 import importlib.resources
 import re
+import subprocess
+import sys
 
 import pytest
 import yaml
@@ -140,3 +142,15 @@ def test_the_wheel_holds_the_compiled_extensions_and_the_configs(tmp_path):
             assert not re.search(r"\tvfn?m(add|sub)", code), module
             if module in ("_core_baseline", "_cpu_features"):
                 assert "%ymm" not in code and "%zmm" not in code, module
+
+
+def test_making_the_environment_imports_no_slow_library():
+    # scipy.signal's import alone takes about a second, scipy.stats' and torch's more: a user's
+    # `gym.make` pays for none of them (the cueing motions and perception import them when used)
+    code = (
+        "import sys, gymnasium, stewart_env\n"
+        "gymnasium.make('StewartPlatform-v1').reset(seed=0)\n"
+        "print(sorted(m for m in ('scipy.signal', 'scipy.stats', 'torch', 'casadi', 'osqp', 'jsbsim') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
+    assert out.stdout.strip() == "[]"

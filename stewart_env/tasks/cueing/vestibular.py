@@ -38,8 +38,6 @@ import types
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
-import scipy.signal
 
 from stewart_env.errors import UsageError
 
@@ -108,13 +106,17 @@ class SensorFilter:
 
     def __init__(self, numerator, denominator, dt: float):
         self.dt = _check_dt(dt)
-        a, b, c, d = scipy.signal.tf2ss(numerator, denominator)
+        # here, not at the top: scipy.signal's and scipy.linalg's imports take about a second together
+        from scipy.linalg import expm
+        from scipy.signal import tf2ss
+
+        a, b, c, d = tf2ss(numerator, denominator)
         n = a.shape[0]
         block = np.zeros((n + 2, n + 2))
         block[:n, :n] = a * self.dt
         block[:n, n : n + 1] = b * self.dt
         block[n, n + 1] = 1.0
-        exponential = scipy.linalg.expm(block)
+        exponential = expm(block)
         phi = exponential[:n, :n]
         gamma_1 = exponential[:n, n]
         gamma_2 = exponential[:n, n + 1]

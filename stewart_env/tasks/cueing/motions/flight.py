@@ -27,10 +27,17 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 
 from stewart_env.tasks.cueing.motion import STANDARD_GRAVITY, VehicleMotion
 from stewart_env.tasks.cueing.motions.kinematics import at_head, motion, motion_rng, smoothstep, uniform
+
+
+def _scipy_signal():
+    """scipy.signal, imported when a motion first needs it: its import takes about a second."""
+    import scipy.signal
+
+    return scipy.signal
+
 
 __all__ = ["AIRCRAFT", "PILOT_HEAD", "Aircraft", "coordinated_turn", "dryden_gusts", "takeoff_roll", "turbulence"]
 
@@ -141,6 +148,7 @@ def takeoff_roll(seed: int, dt: float = 0.01) -> VehicleMotion:
     Returns:
         The motion at the pilot's head.
     """
+    signal = _scipy_signal()
     rng = motion_rng("takeoff_roll", seed)
     a0 = uniform(rng, 2.5, 4.0)
     v_rotate = uniform(rng, 26.0, 40.0)
@@ -231,6 +239,7 @@ def dryden_gusts(
     white = rng.standard_normal((n, 4)) * math.sqrt(math.pi / dt)
 
     def run(num, den, u):
+        signal = _scipy_signal()
         bd, ad = signal.bilinear(num, den, fs=1.0 / dt)
         return signal.lfilter(bd, ad, u)
 
@@ -255,6 +264,7 @@ def dryden_gusts(
 def _ride(gain: float, gust: np.ndarray, dt: float) -> np.ndarray:
     """The acceleration ``K (gust - v)``, ``v' = K (gust - v)``, of a body riding a gust: the gust
     through ``K s / (s + K)`` (bilinear), from rest relative to the air."""
+    signal = _scipy_signal()
     b, a = signal.bilinear([gain, 0.0], [1.0, gain], fs=1.0 / dt)
     return signal.lfilter(b, a, gust)
 
@@ -279,6 +289,7 @@ def turbulence(seed: int, dt: float = 0.01) -> VehicleMotion:
     Returns:
         The motion at the pilot's head.
     """
+    signal = _scipy_signal()
     rng = motion_rng("turbulence", seed)
     speed = uniform(rng, 45.0, 65.0)
     altitude = uniform(rng, 100.0, 300.0)
