@@ -48,6 +48,7 @@ ENTRY_POINTS = [
     pytest.param("stewart_env.mujoco.MujocoPlant", marks=pytest.mark.extra("mujoco")),
     pytest.param("stewart_env.mujoco.to_mjcf", marks=pytest.mark.extra("mujoco")),
     pytest.param("stewart_env.mujoco.platform_acceleration", marks=pytest.mark.extra("mujoco")),
+    pytest.param("stewart_env.dynamics.symbolic.forward_dynamics_function", marks=pytest.mark.extra("casadi")),
 ]
 
 OPTIONS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
