@@ -16,8 +16,8 @@ the environment's own step), and P the stabilising solution of the discrete alge
 equation (:func:`scipy.linalg.solve_discrete_are`), K = (R + B^T P B)^-1 B^T P A.
 
 The weights, by Bryson's rule (each the inverse square of what one accepts of it):
-Q = diag(1/dx_max^2), R = I / F_max^2 with the maxima :data:`STATE_SCALES` (3 mm of position,
-0.01 rad of orientation, 0.05 m/s, 0.5 rad/s) and :data:`FORCE_SCALE` (200 N per leg).  On the
+Q = diag(1/dx_max^2), R = I / F_max^2 with the maxima ``STATE_SCALES`` (3 mm of position,
+0.01 rad of orientation, 0.05 m/s, 0.5 rad/s) and ``FORCE_SCALE`` (200 N per leg).  On the
 dasgupta1998 platform they place the closed loop's slowest pole at a modulus of 0.84 per
 10 ms step (:meth:`LinearQuadraticRegulator.spectral_radius`), a time constant of about 60 ms,
 comparable with computed torque's wn = 20 rad/s.
@@ -99,8 +99,8 @@ class LinearQuadraticRegulator:
             (its Jacobians and its feed-forward), independent of the plant's.
         control_dt: the control step the gain is computed for, s.
         substeps: the step's RK4 substeps.
-        state_scales: Bryson's maxima of the error (12,) (default :data:`STATE_SCALES`).
-        force_scale: Bryson's maximum of each leg's force, N (default :data:`FORCE_SCALE`).
+        state_scales: Bryson's maxima of the error (12,) (default ``STATE_SCALES``).
+        force_scale: Bryson's maximum of each leg's force, N (default ``FORCE_SCALE``).
 
     Raises:
         ValueError: ``platform`` not PlatformParams, an unknown model (a UsageError naming

@@ -19,10 +19,10 @@ controller minimises
 subject to the leg force limits F_min <= F_ff + u_k <= F_max (the platform's
 ``limits.leg_force``), a quadratic programme in the N six-vectors u_k (the states eliminated),
 solved by OSQP warm-started from the previous step's solution, and applies F_ff + u_0.  Q and R
-are the LQR's (Bryson's rule, :data:`~stewart_env.agents.controllers.lqr.STATE_SCALES`,
-:data:`~stewart_env.agents.controllers.lqr.FORCE_SCALE`) and P the LQR's Riccati solution at home,
+are the LQR's (Bryson's rule, ``STATE_SCALES``,
+``FORCE_SCALE``) and P the LQR's Riccati solution at home,
 so that with no constraint active the controller is the LQR, relinearised.  Horizon: N =
-:data:`DEFAULT_HORIZON` = 10 steps (100 ms at the 10 ms control step, about twice the closed
+``DEFAULT_HORIZON`` = 10 steps (100 ms at the 10 ms control step, about twice the closed
 loop's slowest time constant).
 """
 
@@ -62,7 +62,7 @@ class LinearisedMPC:
 
     Raises:
         ValueError: as :class:`LinearQuadraticRegulator`, or a bad ``horizon``.
-        stewart_env.extras.MissingExtra: osqp is not installed (the extra ``mpc``).
+        ImportError: osqp is not installed (``stewart_env.extras.MissingExtra``, naming the extra ``mpc``).
 
     Examples:
         A 15 cm step up asks for more than the LQR's unconstrained gain allows; the MPC keeps the
@@ -134,7 +134,7 @@ class LinearisedMPC:
             B: (12,6) its force Jacobian.
 
         Returns:
-            (S_x (12N,12), S_u (12N,6N), S_1 (12N,12)): S_1 d gives the affine term's part.
+            The matrices S_x (12N, 12), S_u (12N, 6N) and S_1 (12N, 12), S_1 d the affine term's part.
         """
         n = self.horizon
         powers = [np.eye(12)]
@@ -228,11 +228,11 @@ class MPCPolicy(LQRPolicy):
         env: the environment (or its vector environment) with ``observation_mode="pose"``.
         internal_model: the controller's dynamics model name (default ``"improved"``).
         platform: the platform the controller believes (default the environment's nominal one).
-        horizon: N, the control steps predicted (default :data:`DEFAULT_HORIZON`).
+        horizon: N, the control steps predicted (default ``DEFAULT_HORIZON``).
         state_scales, force_scale: the weights, as in :class:`LinearQuadraticRegulator`.
 
     Raises:
-        stewart_env.extras.MissingExtra: osqp is not installed (the extra ``mpc``).
+        ImportError: osqp is not installed (``stewart_env.extras.MissingExtra``, naming the extra ``mpc``).
     """
 
     def __init__(

@@ -29,7 +29,7 @@ class ComputeTime(NamedTuple):
 
     @property
     def real_time_factor(self) -> float:
-        """The mean over the period: below 1 the controller keeps up with real time on average."""
+        """The mean over the period (below 1 the controller keeps up with real time on average)."""
         return self.mean / self.period
 
     def __str__(self) -> str:

@@ -397,7 +397,7 @@ class WashoutPolicy:
 
     It reads the observation's parts ``vehicle_specific_force`` and ``vehicle_angular_velocity``
     (in physical units, through the environment's ``decode_observation``), steps a
-    :class:`Washout` per row and commands the pose it gives: the head at home plus the
+    ``Washout`` per row and commands the pose it gives: the head at home plus the
     displacement, the cabin rotated by the angles about the head point, as the environment's pose
     action (needs ``action_mode="pose"``).  It keeps the filters' state per row: the state starts
     over when the batch's size changes, at SB3's ``episode_start`` rows and at :meth:`reset`.
@@ -442,7 +442,7 @@ class WashoutPolicy:
         self.washout.reset()
 
     def pose(self, displacement, rpy) -> tuple[np.ndarray, np.ndarray]:
-        """The platform pose in {B} of the head's displacement and the cabin's angles (:func:`head_pose`).
+        """The platform pose in {B} of the head's displacement and the cabin's angles (``head_pose``).
 
         Args:
             displacement: (N, 3) the head's displacement in {H}, m.

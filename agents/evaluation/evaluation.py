@@ -280,7 +280,7 @@ class EvaluationResult:
         return out
 
     def cueing_keys(self) -> list[str]:
-        """The cueing metrics the episodes carry (all of :data:`CUEING_METRICS` on the cueing task, else none)."""
+        """The cueing metrics the episodes carry (all of ``CUEING_METRICS`` on the cueing task, else none)."""
         return [key for key in CUEING_METRICS if self.episodes and all(key in ep.metrics for ep in self.episodes)]
 
     def cost_rate(self) -> float:

@@ -70,7 +70,7 @@ class AccelerationJacobians(NamedTuple):
 
     @property
     def finite(self):
-        """Whether each row's numbers are finite: a bool, or (N,) for a batch."""
+        """Whether each row's numbers are finite (a bool, or (N,) for a batch)."""
         return np.isfinite(self.acceleration).all(axis=-1)
 
 
@@ -92,7 +92,7 @@ class StepJacobians(NamedTuple):
 
     @property
     def finite(self):
-        """Whether each row's numbers are finite: a bool, or (N,) for a batch."""
+        """Whether each row's numbers are finite (a bool, or (N,) for a batch)."""
         return np.isfinite(self.state.position).all(axis=-1)
 
 

@@ -476,7 +476,7 @@ def pose_margins(
         rotation: (M,3,3) the rotation matrices of ``rpy``, if already known.
         sensors: None, or the arrays (M,6), (M,6), (M,) float64 (C-contiguous) that receive the
             leg lengths, rates and condition numbers of the poses at rest, as measured for the
-            check (the numbers of :func:`~stewart_env.kinematics.leg_sensors_inplace`).
+            check (the numbers of ``stewart_env.kinematics.leg_sensors_inplace``).
 
     Returns:
         Whether each pose is safe, (M,) bool.
@@ -844,7 +844,7 @@ class Task:
         Returns:
             The rows' initial states, their episode arrays, and None or the start states' leg
             lengths (m,6), rates (m,6) and condition numbers (m,) as
-            :func:`~stewart_env.kinematics.leg_sensors_inplace` gives them for the nominal
+            ``stewart_env.kinematics.leg_sensors_inplace`` gives them for the nominal
             parameters and limits.max_condition.
         """
         # without unit, called as a task of its own that overrides initialize_episodes(rngs) expects

@@ -93,7 +93,7 @@ def jsbsim_motion(
         The motion, named ``jsbsim_<aircraft>_<manoeuvre>``.
 
     Raises:
-        stewart_env.extras.MissingExtra: JSBSim is not installed (the extra ``jsbsim``).
+        ImportError: JSBSim is not installed (``stewart_env.extras.MissingExtra``, naming the extra ``jsbsim``).
         UsageError: an unknown manoeuvre or aircraft, a duration or dt out of range, a trim that fails.
     """
     require("jsbsim", "a JSBSim flight reference")
@@ -163,7 +163,7 @@ def write_jsbsim_reference(path: str | Path, manoeuvre: str = "aileron_doublet",
         The path written.
 
     Raises:
-        stewart_env.extras.MissingExtra: JSBSim is not installed.
+        ImportError: JSBSim is not installed (``stewart_env.extras.MissingExtra``).
         UsageError: as :func:`jsbsim_motion`.
         stewart_env.files.WriteError: the file cannot be written.
     """
