@@ -28,10 +28,8 @@ WELL_IDENTIFIED = 0.1
 #: An estimate within this many of its standard deviations of zero is not told from zero.
 NEAR_ZERO_STD = 2.0
 #: The consistent fit's prior weight relative to the data's largest singular value.  It pulls the
-#: base parameters the excitation hardly moves toward the nominal's values: on a 12 s random record
-#: of a platform perturbed by 30 % that costs held-out force accuracy (6.8 N against WLS's 0.08 N;
-#: 0.06 N at 1e-8), but computed torque built on the fit tracks the machine better, the nominal
-#: being near it (docs/guides/your-own-platform.md: 1.74 against 2.94 times the true model's error).
+#: base parameters the excitation hardly moves toward the nominal's values: a weaker prior fits
+#: held-out forces better but tracks a machine near the nominal worse (docs/guides/your-own-platform.md).
 PRIOR_WEIGHT = 1e-3
 #: The consistent fit's limit on its residual evaluations (beyond the Jacobian's).
 CONSISTENT_MAX_NFEV = 100
