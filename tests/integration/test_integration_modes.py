@@ -20,6 +20,8 @@ import pytest
 # Every test here drives an outside RL library (the integration extra); without torch none can run.
 torch = pytest.importorskip("torch", reason="the integration extra is not installed")
 
+from skrl_ppo import train_skrl_ppo  # noqa: E402
+
 from stewart_env.registration import ENV_ID  # noqa: E402  (after the skip without torch)
 
 pytestmark = pytest.mark.integration
@@ -168,59 +170,14 @@ def test_tianshou_collector_on_a_machine(kwargs):
 
 @pytest.mark.parametrize("kwargs", MACHINES, ids=MACHINE_IDS)
 def test_skrl_ppo_on_the_native_vector_env_on_a_machine(kwargs, tmp_path, headless):
-    from skrl.agents.torch.ppo import PPO, PPO_CFG
     from skrl.envs.wrappers.torch import wrap_env
-    from skrl.memories.torch import RandomMemory
-    from skrl.models.torch import DeterministicMixin, GaussianMixin, Model
-    from skrl.trainers.torch import SequentialTrainer
-
-    class Policy(GaussianMixin, Model):
-        def __init__(self, observation_space, action_space, device):
-            Model.__init__(self, observation_space=observation_space, action_space=action_space, device=device)
-            GaussianMixin.__init__(self, clip_actions=True)
-            self.net = torch.nn.Sequential(
-                torch.nn.Linear(self.num_observations, 16), torch.nn.Tanh(), torch.nn.Linear(16, self.num_actions)
-            )
-            self.log_std = torch.nn.Parameter(torch.full((self.num_actions,), -1.0))
-
-        def compute(self, inputs, role=""):
-            return self.net(inputs["observations"]), {"log_std": self.log_std}
-
-    class Value(DeterministicMixin, Model):
-        def __init__(self, observation_space, device):
-            Model.__init__(self, observation_space=observation_space, device=device)
-            DeterministicMixin.__init__(self)
-            self.net = torch.nn.Sequential(
-                torch.nn.Linear(self.num_observations, 16), torch.nn.Tanh(), torch.nn.Linear(16, 1)
-            )
-
-        def compute(self, inputs, role=""):
-            return self.net(inputs["observations"]), {}
 
     torch.manual_seed(0)
     env = wrap_env(
         gym.make_vec(ENV_ID, num_envs=N_ENVS, vectorization_mode="vector_entry_point", **kwargs), wrapper="gymnasium"
     )
-    cfg = PPO_CFG(rollouts=16, learning_epochs=2, mini_batches=2)
-    cfg.experiment.directory = str(tmp_path)
-    cfg.experiment.write_interval = 0
-    cfg.experiment.checkpoint_interval = 0
-    agent = PPO(
-        models={
-            "policy": Policy(env.observation_space, env.action_space, env.device),
-            "value": Value(env.observation_space, env.device),
-        },
-        memory=RandomMemory(memory_size=16, num_envs=env.num_envs, device=env.device),
-        observation_space=env.observation_space,
-        action_space=env.action_space,
-        device=env.device,
-        cfg=cfg,
-    )
-    trainer = SequentialTrainer(
-        env=env, agents=agent, cfg={"timesteps": 32, "disable_progressbar": True, "close_environment_at_exit": False}
-    )
     try:
-        trainer.train()
+        agent = train_skrl_ppo(env, tmp_path, hidden=16, timesteps=32)
         observations = agent.memory.get_tensor_by_name("observations")
         assert observations.shape == (16, N_ENVS, _obs_dim(kwargs))
         assert torch.isfinite(observations).all()
