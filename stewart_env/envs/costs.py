@@ -89,6 +89,9 @@ class BatchCosts:
         for place, name in enumerate(self.added_reasons):
             self._added_place[1 + CONSTRAINT_NAMES.index(name)] = place
         self._first_code = 0  # set by the batch: the code of added_reasons[0]
+        # a row's info entries on the single environment's step path: each key of a constraint
+        # and its column in out.costs, as Python numbers (a row's tolist() read once)
+        self._row_columns = tuple(zip(constraints.info_keys[1:], constraints.index.tolist()))
 
     def set_first_code(self, code: int) -> None:
         """Number the added reasons' termination codes from ``code`` on (the batch's codes after the task's).
@@ -192,4 +195,12 @@ class BatchCosts:
         Args:
             row: a row, or None for every row.
         """
-        return self.constraints.info(self.out, row)
+        if row is None:
+            return self.constraints.info(self.out)
+        # Constraints.info's entries of the row, read as one list rather than entry by entry
+        # (the single environment's step)
+        costs = self.out.costs[row].tolist()
+        entries = {"cost": self.out.cost.item(row)}
+        for key, column in self._row_columns:
+            entries[key] = costs[column]
+        return entries

@@ -99,6 +99,34 @@ def test_leg_force_costs_one_for_a_force_outside_the_range():
     assert sum(info[key][1] for key in info if key != "cost") == 1.0
 
 
+@pytest.mark.parametrize("platform", ["dasgupta1998", "motion_simulator"])
+def test_a_rows_cost_entries_are_the_constraints_own_floats(platform):
+    # BatchCosts.info(row) reads the row as one list: the keys, their order and the values must be
+    # Constraints.info's of that row, Python floats, for a platform with a subset of the constraints
+    params = load_platform(platform)
+    costs = BatchCosts(params, 0.01, 3, terminate_on=())
+    state = PlatformState(
+        np.tile(params.home_position, (3, 1)),
+        np.tile(rpy_to_matrix(params.home_rpy), (3, 1, 1)),
+        np.zeros((3, 3)),
+        np.zeros((3, 3)),
+    )
+    costs.reset_rows(np.arange(3), state)
+    hi = params.limits.leg_force[1]
+    forces = np.zeros((3, 6))
+    forces[2, 1] = 1.01 * hi  # row 2 outside the force range
+    code, terms, reward = np.zeros(3, dtype=np.int64), {"termination": np.zeros(3)}, np.zeros(3)
+    costs.after_step(state, forces, code, terms, reward, 10.0)
+    for row in range(3):
+        entries = costs.info(row)
+        expected = costs.constraints.info(costs.out, row)
+        assert list(entries) == list(expected) == list(costs.info_keys)
+        assert entries == expected
+        assert all(type(value) is float for value in entries.values())
+    assert costs.info(2)["cost_leg_force"] == 1.0
+    assert costs.info(1)["cost"] == 0.0
+
+
 def test_dasgupta_has_the_three_constraints_of_its_limits():
     env = StewartPlatformEnv()
     env.reset(seed=0)
