@@ -170,6 +170,7 @@ class CueingTask(Task):
         self._canal = SemicircularCanal()
         self._motions: OrderedDict[tuple[int, int], np.ndarray] = OrderedDict()
         self._batch: dict[str, np.ndarray] | None = None
+        self._scheduled: list[tuple[int, int]] = []
 
     # -- options ----------------------------------------------------------------------------------
 
@@ -231,12 +232,41 @@ class CueingTask(Task):
             self._motions.popitem(last=False)
         return samples
 
+    def schedule(self, episodes) -> None:
+        """Play these episodes at the next row resets, in order (a reset of all rows: row i the i-th), then draw again.
+
+        A batch that scores given motions side by side (a washout's tuning in the environment, an
+        evaluation of given manoeuvres) schedules one per row and resets every row; the scheduled
+        episodes draw no random numbers, and the draws resume when the schedule is used up.
+
+        Args:
+            episodes: a sequence of (motion name, seed) pairs, each name one of :attr:`motion_names`
+                and each seed an integer in [0, 2**63).
+
+        Raises:
+            UsageError: a motion not among the task's, or a bad seed (the message names ``episodes``).
+        """
+        pairs = []
+        for k, pair in enumerate(episodes):
+            if not isinstance(pair, (tuple, list)) or len(pair) != 2 or pair[0] not in self.motion_names:
+                raise UsageError.about(
+                    "episodes",
+                    f"entry {k} must be a (motion, seed) pair with a motion of {', '.join(self.motion_names)}, got {pair!r}",
+                )
+            seed = integer(f"episodes[{k}] seed", pair[1], 0, 2**63 - 1)
+            pairs.append((self.motion_names.index(pair[0]), seed))
+        self._scheduled = pairs
+
     def initialize_episode(self, rng):
-        """Draw one row's episode (see :meth:`Task.initialize_episode`): a motion and its seed; the start at rest at home.
+        """Draw one row's episode (see :meth:`Task.initialize_episode`): a motion and its seed (the
+        next scheduled one, :meth:`schedule`, if any); the start at rest at home.
 
         Args:
             rng: the row's generator.
         """
+        if self._scheduled:
+            index, seed = self._scheduled.pop(0)
+            return self._episode(index, seed)
         index = int(rng.integers(len(self.motion_names)))
         if self._file_motion is not None:
             seed = 0
@@ -244,6 +274,10 @@ class CueingTask(Task):
             seed = int(rng.integers(self.training_seeds))
         else:
             seed = int(EVALUATION_SEEDS[int(rng.integers(len(EVALUATION_SEEDS)))])
+        return self._episode(index, seed)
+
+    def _episode(self, index: int, seed: int):
+        """The start at rest at home and the episode arrays of motion ``index`` drawn with ``seed``."""
         samples = self.motion_of(index, seed)
         p = self.params
         home = rpy_to_matrix(p.home_rpy)
