@@ -57,6 +57,7 @@ __all__ = [
     "CUEING_COLUMNS",
     "CUEING_INFO_KEYS",
     "OMCT_FREQUENCIES",
+    "ScheduledEpisodes",
     "correlation",
     "cueing_metrics",
     "cueing_table",
@@ -69,6 +70,8 @@ __all__ = [
     "frequency_response_table",
     "kinematic_head_motion",
     "perceive",
+    "perceive_batch",
+    "perceived_cueing_metrics",
     "rms_error",
     "sine_motion",
     "table_markdown",
@@ -111,6 +114,38 @@ def perceive(specific_force, angular_velocity, dt: float) -> tuple[np.ndarray, n
     deviation = np.array(specific_force, dtype=float, copy=True)
     deviation[:, 2] -= STANDARD_GRAVITY
     return Otolith().perceive(deviation, dt), SemicircularCanal().perceive(angular_velocity, dt)
+
+
+def perceive_batch(specific_force, angular_velocity, lengths, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`perceive` of episodes side by side, in one pass over the samples: the same numbers,
+    episode by episode (the vestibular filters give each element of a batch its own numbers, bit
+    for bit).
+
+    Args:
+        specific_force: (N, T, 3) m/s², in {H}; episode i's samples are its first ``lengths[i]``.
+        angular_velocity: (N, T, 3) rad/s.
+        lengths: (N,) each episode's samples, 1 to T.
+        dt: the sample period, s.
+
+    Returns:
+        (perceived specific force's deviation from rest (N, T, 3), perceived angular velocity
+        (N, T, 3)); past an episode's length, its last sample held.
+    """
+    f = np.array(specific_force, dtype=float, copy=True)
+    w = np.array(angular_velocity, dtype=float, copy=True)
+    n, t = f.shape[:2]
+    for i, length in enumerate(np.asarray(lengths, dtype=np.int64).tolist()):
+        f[i, length:] = f[i, length - 1]
+        w[i, length:] = w[i, length - 1]
+    f[..., 2] -= STANDARD_GRAVITY
+    otolith, canal = Otolith().discretize(dt), SemicircularCanal().discretize(dt)
+    otolith.reset(f[:, 0])
+    canal.reset(w[:, 0])
+    out_f, out_w = np.empty_like(f), np.empty_like(w)
+    for k in range(t):
+        out_f[:, k] = otolith.step(f[:, k])
+        out_w[:, k] = canal.step(w[:, k])
+    return out_f, out_w
 
 
 def rms_error(reference, signal) -> float:
@@ -233,6 +268,29 @@ def cueing_metrics(
     """
     vf, vw = perceive(vehicle_specific_force, vehicle_angular_velocity, dt)
     hf, hw = perceive(head_specific_force, head_angular_velocity, dt)
+    return perceived_cueing_metrics(dt, vf, vw, hf, hw, pose_fraction, leg_fraction, limit_hits, max_delay)
+
+
+def perceived_cueing_metrics(
+    dt: float, vf, vw, hf, hw, pose_fraction=None, leg_fraction=None, limit_hits: int = 0, max_delay: float = 1.0
+) -> dict[str, float]:
+    """:func:`cueing_metrics` of the perceived signals (:func:`perceive`'s outputs, computed once
+    for a batch of episodes by :func:`perceive_batch`).
+
+    Args:
+        dt: the sample period, s.
+        vf: (T, 3) the vehicle's perceived specific force's deviation from rest, m/s².
+        vw: (T, 3) its perceived angular velocity, rad/s.
+        hf: (T, 3) the platform's perceived specific force's deviation from rest, m/s².
+        hw: (T, 3) its perceived angular velocity, rad/s.
+        pose_fraction: as :func:`cueing_metrics`.
+        leg_fraction: as :func:`cueing_metrics`.
+        limit_hits: as :func:`cueing_metrics`.
+        max_delay: as :func:`cueing_metrics`.
+
+    Returns:
+        The metrics by name, the names of :data:`CUEING_METRICS`.
+    """
     f_cues, f_mask = false_cues(vf, hf, THRESHOLDS["specific_force"])
     w_cues, w_mask = false_cues(vw, hw, THRESHOLDS["angular_velocity"])
     return {
@@ -560,3 +618,105 @@ def environment_chain(policy, env_kwargs: dict | None = None, folder=None):
         return f, w
 
     return chain
+
+
+class ScheduledEpisodes:
+    """Given cueing episodes side by side, one row each of the native vector environment (the
+    task's :meth:`~stewart_env.tasks.cueing.task.CueingTask.schedule`), each run until its motion
+    ends or the platform's limits end it, scored by :func:`episode_cueing_metrics`: what a washout's
+    tuning and a comparison of cueing agents on given manoeuvres run.
+
+    Args:
+        episodes: the (motion name, seed) pairs of built-in motions, one row each.
+        env_kwargs: the environment's keywords besides ``task`` (``task_options`` without ``motions``).
+
+    Raises:
+        UsageError: no episodes, an unknown motion or a bad seed (the message names ``episodes``).
+    """
+
+    def __init__(self, episodes: Sequence[tuple[str, int]], env_kwargs: dict | None = None):
+        from stewart_env.envs.vector import StewartPlatformVectorEnv
+
+        self.episodes = [(str(name), seed) for name, seed in episodes]
+        if not self.episodes:
+            raise UsageError.about("episodes", "give at least one (motion, seed) pair")
+        kwargs = dict(env_kwargs or {})
+        names = tuple(dict.fromkeys(name for name, _ in self.episodes))
+        # training_seeds=1: a row that ends before the others restarts on one motion, generated once
+        # (its steps are not scored)
+        options = {**kwargs.pop("task_options", {}), "motions": names, "training_seeds": 1}
+        self.env = StewartPlatformVectorEnv(num_envs=len(self.episodes), task="cueing", task_options=options, **kwargs)
+        task = self.env.task
+        task.schedule(self.episodes)  # checks the pairs before a run
+        self.steps = np.array([len(task.motion_of(task.motion_names.index(m), s)) - 1 for m, s in self.episodes])
+        self.dt = self.env.dt
+
+    def run(self, policy, traces: bool = False) -> list[dict]:
+        """Every episode once, side by side, the environment reset with seed 0.
+
+        Args:
+            policy: an object with SB3's ``predict`` (and optionally ``reset``), or a callable
+                env -> such an object.
+            traces: also return each episode's step signals (the :data:`CUEING_INFO_KEYS`).
+
+        Returns:
+            Per episode, the cueing metrics, ``failed`` (1.0 when the platform's limits ended it
+            before its motion's end, else 0.0), ``played`` (the share of the motion's steps
+            played) and, with ``traces``, ``traces``: key -> (T, 3) or (T,) values over its steps.
+        """
+        env, n = self.env, len(self.episodes)
+        env.task.schedule(self.episodes)
+        agent = policy(env) if callable(policy) and not hasattr(policy, "predict") else policy
+        obs, _ = env.reset(seed=0)
+        if callable(getattr(agent, "reset", None)):
+            agent.reset()
+        alive = np.ones(n, dtype=bool)
+        length = self.steps.copy()
+        failed = np.zeros(n)
+        record: dict[str, list[np.ndarray]] = {key: [] for key in CUEING_INFO_KEYS}
+        hits: list[np.ndarray] = []
+        k = 0
+        while alive.any():
+            action, _ = agent.predict(obs, deterministic=True)
+            obs, _, terminated, truncated, info = env.step(np.asarray(action, dtype=np.float32))
+            for key in CUEING_INFO_KEYS:
+                record[key].append(np.array(info[key], dtype=float))
+            costs = [np.asarray(info[key]) > 0 for key in info if key.startswith("cost_")]
+            hits.append(np.any(costs, axis=0) if costs else np.zeros(n, dtype=bool))
+            k += 1
+            for i in np.flatnonzero(alive & (terminated | truncated)):
+                length[i] = k
+                failed[i] = float(env.termination_reasons[int(info["termination"][i])] != "motion_end")
+            alive &= ~(terminated | truncated)
+        arrays = {key: np.stack(v, axis=1) for key, v in record.items()}
+        limit_hits = np.stack(hits, axis=1)
+        # both motions of every episode perceived in one pass over the steps
+        perceived_f, perceived_w = perceive_batch(
+            np.concatenate([arrays["vehicle_specific_force"], arrays["head_specific_force"]]),
+            np.concatenate([arrays["vehicle_angular_velocity"], arrays["head_angular_velocity"]]),
+            np.concatenate([length, length]),
+            self.dt,
+        )
+        rows = []
+        for i in range(n):
+            t = int(length[i])
+            steps = {key: value[i, :t] for key, value in arrays.items()}
+            metrics: dict = perceived_cueing_metrics(
+                self.dt,
+                perceived_f[i, :t],
+                perceived_w[i, :t],
+                perceived_f[n + i, :t],
+                perceived_w[n + i, :t],
+                pose_fraction=steps["workspace_use"][:, None],
+                leg_fraction=steps["stroke_use"][:, None],
+                limit_hits=int(limit_hits[i, :t].sum()),
+            )
+            metrics.update(failed=float(failed[i]), played=t / max(int(self.steps[i]), 1))
+            if traces:
+                metrics["traces"] = steps
+            rows.append(metrics)
+        return rows
+
+    def close(self) -> None:
+        """Close the environment."""
+        self.env.close()

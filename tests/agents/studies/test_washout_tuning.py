@@ -1,14 +1,18 @@
-"""The washout's tuning: its objective's terms, a short tuning that lowers it within the bounds,
-deterministically, and the config file it writes."""
+"""The washout's tuning in the environment: its objective's terms, a short tuning that lowers it
+within the bounds, deterministically, and the config file it writes."""
 
 import numpy as np
 import pytest
 
-from stewart_env.agents.controllers.washout import WashoutParams, load_washout_params
+from stewart_env.agents.controllers.washout import WashoutParams, WashoutPolicy, load_washout_params
 from stewart_env.agents.evaluation.cueing import frequency_response_table, perceive, rms_error
 from stewart_env.agents.studies.washout_tuning import (
+    FAILURE_COST,
     TUNED,
+    EnvironmentChain,
+    TuningResult,
     config_text,
+    initial_simplex,
     kinematic_chain,
     params_of,
     tune_washout,
@@ -16,16 +20,6 @@ from stewart_env.agents.studies.washout_tuning import (
     washout_objective,
 )
 from stewart_env.errors import UsageError
-from stewart_env.tasks.cueing.motion import STANDARD_GRAVITY, VehicleMotion
-
-
-def braking(n: int = 400, dt: float = 0.01) -> VehicleMotion:
-    """A 4 s braking pulse of -3 m/s², smooth at both ends."""
-    t = np.arange(n) * dt
-    f = np.zeros((n, 3))
-    f[:, 2] = STANDARD_GRAVITY
-    f[:, 0] = -3.0 * np.sin(np.pi * t / t[-1]) ** 2
-    return VehicleMotion("braking", dt, f, np.zeros((n, 3)), source="test")
 
 
 def test_params_vector_round_trip():
@@ -36,47 +30,69 @@ def test_params_vector_round_trip():
 
 
 def test_a_still_washout_scores_the_vehicle_motion_alone():
-    # a washout that scales everything to nothing leaves the cabin at home: the objective is the
+    # a washout that scales everything to nothing holds the cabin at home: the objective is the
     # RMS of what the vehicle's person feels (no penalty: nothing moves)
-    motion = braking()
     still = WashoutParams(force_scale=(0.0, 0.0, 0.0), angular_scale=(0.0, 0.0, 0.0))
-    felt, _ = perceive(motion.specific_force, motion.angular_velocity, motion.dt)
-    expected = rms_error(felt, np.zeros_like(felt))
-    assert expected > 0.5  # the otolith feels most of a 3 m/s² pulse
-    assert washout_objective(still, [motion]) == pytest.approx(expected, rel=1e-12)  # the same filters, batched
-    # the cabin tilted to the limit of the workspace pays the penalty
-    tilted = WashoutParams(
-        force_scale=(1.0, 1.0, 1.0), tilt_frequency=(6.0, 6.0), translational_frequency=(0.5, 0.5, 4.0)
-    )
-    assert washout_objective(tilted, [motion]) > 10.0
+    chain = EnvironmentChain([("braking", 1)])
+    rows = chain.episodes.run(lambda env: WashoutPolicy(env, still), traces=True)
+    chain.close()
+    steps = rows[0]["traces"]
+    felt_f, felt_w = perceive(steps["vehicle_specific_force"], steps["vehicle_angular_velocity"], 0.01)
+    assert rms_error(felt_f, np.zeros_like(felt_f)) > 0.5  # the otolith feels most of a braking's deceleration
+    expected = rms_error(felt_f, np.zeros_like(felt_f)) + rms_error(felt_w, np.zeros_like(felt_w)) / 0.1
+    # 1e-4: the pose loop holds home to within its small residual motion, felt as ~1e-5 of the error
+    assert washout_objective(still, [("braking", 1)]) == pytest.approx(expected, rel=1e-4)
+
+
+def test_a_motion_the_limits_end_costs_the_failure():
+    # the defaults overrun the workspace on this acceleration (the platform's limits end it)
+    value, terms = EnvironmentChain([("acceleration", 2)]).score(WashoutParams())
+    assert terms["failed"] == [1.0]
+    assert value > FAILURE_COST
 
 
 @pytest.mark.slow
 def test_short_tuning_lowers_the_objective_within_bounds_and_repeats():
-    motion = braking()
-    first = tune_washout([motion], max_evaluations=40)
+    episodes = [("braking", 1)]
+    first = tune_washout(episodes, max_evaluations=12)
     assert first.objective < first.initial_objective
-    assert first.evaluations <= 42  # Nelder-Mead may finish its last simplex step
+    assert first.evaluations <= 14  # Nelder-Mead may finish its last simplex step
     for value, (_, _, (low, high)) in zip(vector_of(first.params), TUNED):
         assert low <= value <= high
-    again = tune_washout([motion], max_evaluations=40)
+    again = tune_washout(episodes, max_evaluations=12)
     assert again.params == first.params  # deterministic
 
 
+def test_initial_simplex_stays_within_the_bounds():
+    low, high = np.log([b[0] for _, _, b in TUNED]), np.log([b[1] for _, _, b in TUNED])
+    x0 = np.log(vector_of(WashoutParams()))
+    simplex = initial_simplex(x0, low, high)
+    assert simplex.shape == (len(TUNED) + 1, len(TUNED))
+    assert np.all(simplex >= low) and np.all(simplex <= high)
+    moved = simplex[1:] - x0
+    assert np.count_nonzero(moved) == len(TUNED)  # one coordinate per vertex
+    np.testing.assert_allclose(np.abs(np.diag(moved)), 0.25 * (high - low))
+
+
 def test_config_text_reads_back(tmp_path):
-    motion = braking()
-    result = tune_washout([motion], max_evaluations=3)
+    params = params_of(np.array([b[1] for _, _, b in TUNED]))
+    result = TuningResult(params, 1.0, 2.0, {}, 3, 0.1)
+    held_out = {"defaults": {"braking": {"rms_specific_force_error": 1.0, "failed": 1.0}}}
     path = tmp_path / "washout.yaml"
-    path.write_text(config_text(result, [motion], "dasgupta1998", "python -m x"))
-    assert path.read_text().startswith("# Classical washout tuned")
+    path.write_text(config_text(result, [("braking", 1)], "dasgupta1998", "python -m x", held_out))
+    text = path.read_text()
+    assert text.startswith("# Classical washout tuned")
+    assert "- braking seed 1" in text
     assert load_washout_params(path) == result.params
 
 
 def test_bad_requests_are_named():
-    with pytest.raises(UsageError, match="motions: give at least one training motion"):
+    with pytest.raises(UsageError, match=r"episodes: give at least one \(motion, seed\) pair"):
         tune_washout([])
     with pytest.raises(UsageError, match="max_evaluations: must be a positive integer"):
-        tune_washout([braking()], max_evaluations=0)
+        tune_washout([("braking", 1)], max_evaluations=0)
+    with pytest.raises(UsageError, match="unknown motion"):
+        EnvironmentChain([("no_such_motion", 1)])
 
 
 def test_gain_and_phase_of_the_washout_alone_in_yaw():
