@@ -1,5 +1,5 @@
-"""The ``stewart-env`` command: demo, evaluate, reproduce, train, time-to-agent, mismatch, actuation, identify,
-bench, export-mjcf, excitation, record.
+"""The ``stewart-env`` command: demo, evaluate, reproduce, train, time-to-agent, mismatch, actuation,
+cueing-results, identify, bench, export-mjcf, excitation, record.
 
     stewart-env demo                       PD baseline on the classical and improved models
     stewart-env evaluate --policy pd ct --model classical improved --task tracking --out results/
@@ -7,6 +7,7 @@ bench, export-mjcf, excitation, record.
     stewart-env reproduce --out figures/   the case study of He et al. (2018), Fig. 6-10
     stewart-env train ... / mismatch ...   stewart_env.agents.training and .mismatch
     stewart-env actuation --out results/actuation   each action mode's controllers on each actuator level
+    stewart-env cueing-results --out results/cueing   PPO against the tuned washout on held-out manoeuvres
     stewart-env identify --platform dasgupta1998 --out runs/ident   identification on a stand-in plant
     stewart-env bench ...                  the benchmark (stewart_env.benchmarks)
     stewart-env export-mjcf --platform dasgupta1998 --out stewart.xml   the MuJoCo twin as MJCF
@@ -32,6 +33,7 @@ from types import ModuleType
 from stewart_env.cli import (
     actuation,
     bench,
+    cueing_results,
     demo,
     evaluate,
     excitation,
@@ -61,6 +63,7 @@ VERBS: dict[str, ModuleType] = {
         time_to_agent,
         mismatch,
         actuation,
+        cueing_results,
         identify,
         bench,
         export_mjcf,

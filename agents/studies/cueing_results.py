@@ -1,0 +1,407 @@
+"""The cueing results: PPO with the shipped cueing config against the tuned classical washout on
+held-out manoeuvres, with intervals, and the goals each reaches.
+
+The study (``stewart-env cueing-results``) trains one PPO agent per seed with
+configs/agents/ppo_cueing.yml (``task="cueing"``, pose mode) into ``DIR/agents/seed_S`` (or reads
+them from a folder of trained agents), then runs the tuned washout (configs/agents/washout.yaml)
+and every agent on the same held-out episodes (:data:`MANOEUVRES`, each at the first
+``episodes`` of the task's evaluation seeds, side by side in one vector environment:
+:class:`~stewart_env.agents.evaluation.cueing.ScheduledEpisodes`).  Per manoeuvre it reports the
+perceived specific-force RMS error, the false cues (specific force and angular velocity summed),
+the specific-force correlation and the largest stroke use, each with a 95 % stratified bootstrap
+interval over seeds and episodes (:func:`~stewart_env.agents.evaluation.statistics.stratified_bootstrap`),
+and marks the goals (:data:`GOALS`) reached or not.
+
+A finished evaluation (the washout's, or one agent's) is a file with what its numbers depend on
+(its spec), published whole, so that a second run into the same folder reuses it and an
+interrupted run keeps what it finished.  The study writes ``cueing.md`` (the table),
+``results.json`` and, with matplotlib, ``perceived_specific_force.png`` (the vehicle's perceived
+specific force against the washout's and the first agent's on the first episode of
+:data:`FIGURE_MANOEUVRE`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from stewart_env.agents.controllers.washout import WashoutPolicy, load_washout_params
+from stewart_env.agents.evaluation.cueing import ScheduledEpisodes, perceive
+from stewart_env.agents.evaluation.statistics import stratified_bootstrap
+from stewart_env.errors import UsageError
+from stewart_env.files import publish
+
+__all__ = [
+    "FIGURE_MANOEUVRE",
+    "GOALS",
+    "MANOEUVRES",
+    "CueingResultsSettings",
+    "goals_reached",
+    "main",
+    "results_table",
+    "run_cueing_results",
+]
+
+#: This module's name, as ``python -m`` runs it.
+MODULE = "stewart_env.agents.studies.cueing_results"
+#: The held-out manoeuvres: a lane change, braking, a flight turn and a sweep.
+MANOEUVRES = ("double_lane_change", "braking", "coordinated_turn", "sweep_y")
+#: The manoeuvre of the figure.
+FIGURE_MANOEUVRE = "braking"
+#: The PPO config of the study.
+PPO_CONFIG = "ppo_cueing"
+#: The washout of the study.
+WASHOUT_CONFIG = "washout"
+#: The goals against washout: (metric, how PPO's mean compares with washout's, the factor).
+GOALS = (
+    ("rms_specific_force_error", "at most", 0.8),  # at least 20 % lower perceived specific-force error
+    ("false_cues", "at most", 0.7),  # 30 % fewer false cues
+    ("specific_force_correlation", "at least", 1.0),  # a correlation at least washout's
+    ("stroke_violations", "none", 0.0),  # no stroke violation
+)
+#: The table's metrics: title, format.
+COLUMNS = {
+    "rms_specific_force_error": ("RMS f err. (m/s²)", ".3f"),
+    "false_cues": ("false cues", ".1f"),
+    "specific_force_correlation": ("corr. f", ".2f"),
+    "stroke_use": ("stroke use", ".2f"),
+}
+
+
+@dataclass(frozen=True)
+class CueingResultsSettings:
+    """What the study runs.
+
+    Attributes:
+        seeds: PPO's training seeds.
+        timesteps: environment steps per agent (None: the config's n_timesteps).
+        episodes: held-out seeds per manoeuvre (the first of the task's evaluation seeds), 1 to 10.
+        manoeuvres: the held-out manoeuvres.
+    """
+
+    seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
+    timesteps: int | None = None
+    episodes: int = 3
+    manoeuvres: tuple[str, ...] = MANOEUVRES
+
+    def __post_init__(self) -> None:
+        from stewart_env.tasks.cueing.motions import EVALUATION_SEEDS, MOTIONS
+
+        if not self.seeds or len(set(self.seeds)) != len(self.seeds):
+            raise UsageError.about("seeds", f"give distinct training seeds, got {self.seeds!r}")
+        if not 1 <= self.episodes <= len(EVALUATION_SEEDS):
+            raise UsageError.about("episodes", f"must be 1 to {len(EVALUATION_SEEDS)}, got {self.episodes}")
+        unknown = [m for m in self.manoeuvres if m not in MOTIONS]
+        if unknown or not self.manoeuvres:
+            raise UsageError.about("manoeuvres", f"unknown or none: {unknown or self.manoeuvres!r}")
+
+    def held_out(self) -> list[tuple[str, int]]:
+        """The held-out (motion, seed) pairs, manoeuvre by manoeuvre."""
+        from stewart_env.tasks.cueing.motions import EVALUATION_SEEDS
+
+        return [(m, int(s)) for m in self.manoeuvres for s in EVALUATION_SEEDS[: self.episodes]]
+
+
+def _env_kwargs() -> dict[str, Any]:
+    """The PPO config's environment keywords, which every evaluation uses (the washout reads its
+    parts by name, so the preview does not change it); no time limit: each episode runs to its end."""
+    from stewart_env.agents.studies.mismatch.rows import config_env_kwargs
+
+    kwargs = dict(config_env_kwargs("ppo", PPO_CONFIG))
+    kwargs.pop("max_episode_steps", None)
+    options = dict(kwargs.get("task_options", {}))
+    options.pop("training_seeds", None)
+    kwargs["task_options"] = options
+    return kwargs
+
+
+def _evaluation_spec(settings: CueingResultsSettings, policy: str, seed: int | None, timesteps: int | None) -> dict:
+    return {
+        "policy": policy,
+        "seed": seed,
+        "timesteps": timesteps,
+        "episodes": settings.held_out(),
+        "env_kwargs": _env_kwargs(),
+    }
+
+
+def _read(path: Path, spec: dict) -> dict | None:
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return data if data.get("spec") == json.loads(json.dumps(spec)) else None
+
+
+def _evaluate(
+    out: Path, settings: CueingResultsSettings, name: str, policy, spec: dict, figure: bool
+) -> dict[str, Any]:
+    """One policy's metrics per episode (reused from ``out/evaluations/name.json`` when its spec matches)."""
+    path = out / "evaluations" / f"{name}.json"
+    found = _read(path, spec)
+    if found is not None:
+        return found
+    runner = ScheduledEpisodes(settings.held_out(), _env_kwargs())
+    try:
+        rows = runner.run(policy, traces=figure)
+        dt = runner.dt
+    finally:
+        runner.close()
+    trace = None
+    if figure:
+        first = next(i for i, (m, _) in enumerate(settings.held_out()) if m == FIGURE_MANOEUVRE)
+        steps = rows[first]["traces"]
+        vehicle, _ = perceive(steps["vehicle_specific_force"], steps["vehicle_angular_velocity"], dt)
+        head, _ = perceive(steps["head_specific_force"], steps["head_angular_velocity"], dt)
+        trace = {"dt": dt, "vehicle": vehicle.tolist(), "platform": head.tolist()}
+    for row in rows:
+        row.pop("traces", None)
+    data = {"spec": spec, "episodes": rows, "figure": trace}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    publish(path, json.dumps(data, allow_nan=True))
+    return json.loads(json.dumps(data))
+
+
+def _train(out: Path, agents: Path | None, settings: CueingResultsSettings, seed: int, progress: bool) -> Path | None:
+    """The agent of ``seed``: trained into ``out/agents/seed_S`` (continued if stopped), or read from ``agents``."""
+    from stewart_env.agents.studies.mismatch.rows import finished_agent, train_agent
+
+    if agents is not None:
+        folder = agents / f"seed_{seed}"
+        return folder if folder.is_dir() else None
+    folder = out / "agents" / f"seed_{seed}"
+    kwargs = config_env_kwargs_of_training()
+    if not finished_agent(folder, "ppo", seed, kwargs):
+        training = {"algo": "ppo", "task": "cueing", "seed": seed, "config": PPO_CONFIG}
+        timesteps = settings.timesteps
+        if timesteps is None:
+            from stewart_env.agents.training.hyperparameters import read_hyperparameters
+
+            timesteps = int(float(read_hyperparameters("ppo", PPO_CONFIG)["n_timesteps"]))
+        train_agent(folder, training, timesteps, progress)
+    return folder
+
+
+def config_env_kwargs_of_training() -> dict[str, Any]:
+    """The environment keywords a trained agent's run.json records (the config's, with the task).
+
+    Returns:
+        The keywords.
+    """
+    from stewart_env.agents.studies.mismatch.rows import config_env_kwargs
+
+    return {**config_env_kwargs("ppo", PPO_CONFIG), "task": "cueing"}
+
+
+def run_cueing_results(
+    out, settings: CueingResultsSettings | None = None, agents=None, progress: bool = True
+) -> dict[str, Any]:
+    """Run the study (module docstring) into ``out``.
+
+    Args:
+        out: the study's folder (created; its finished evaluations are reused).
+        settings: what to run (default :class:`CueingResultsSettings`).
+        agents: a folder of trained agents (``seed_S``), read only; None: train them into ``out/agents``.
+        progress: show the training's progress bars.
+
+    Returns:
+        The results: per manoeuvre and policy the intervals, the goals, the seeds evaluated.
+
+    Raises:
+        UsageError: bad settings.
+    """
+    from stewart_env.agents.training import load_agent
+
+    settings = settings or CueingResultsSettings()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    washout = load_washout_params(WASHOUT_CONFIG)
+    evaluations = {
+        "washout": _evaluate(
+            out,
+            settings,
+            "washout",
+            lambda env: WashoutPolicy(env, washout),
+            {**_evaluation_spec(settings, "washout", None, None), "params": washout.as_dict()},
+            True,
+        )
+    }
+    ppo: dict[int, dict] = {}
+    for seed in settings.seeds:
+        folder = _train(out, None if agents is None else Path(agents), settings, seed, progress)
+        if folder is None:
+            continue
+        spec = _evaluation_spec(settings, "ppo", seed, settings.timesteps)
+        spec["agent"] = json.loads((folder / "run.json").read_text()).get("files")
+        ppo[seed] = _evaluate(out, settings, f"ppo_seed_{seed}", load_agent(folder), spec, seed == settings.seeds[0])
+    results = summarize(settings, evaluations["washout"], ppo)
+    publish(out / "results.json", json.dumps(results, indent=1, allow_nan=True))
+    publish(out / "cueing.md", results_table(results) + "\n")
+    trace_ppo = next((e["figure"] for e in ppo.values() if e.get("figure")), None)
+    _figure(out / "perceived_specific_force.png", evaluations["washout"]["figure"], trace_ppo)
+    return results
+
+
+def _values(evaluation: dict, manoeuvre: str, held_out: list[tuple[str, int]], metric: str) -> list[float]:
+    rows = [r for (m, _), r in zip(held_out, evaluation["episodes"]) if m == manoeuvre]
+    if metric == "false_cues":
+        return [r["false_specific_force_cues"] + r["false_angular_velocity_cues"] for r in rows]
+    if metric == "stroke_violations":
+        return [float(r["stroke_use"] >= 1.0 or r["failed"] > 0.0) for r in rows]
+    return [float(r[metric]) for r in rows]
+
+
+def summarize(settings: CueingResultsSettings, washout: dict, ppo: dict[int, dict]) -> dict[str, Any]:
+    """The intervals and goals of the study's evaluations.
+
+    Args:
+        settings: the study's settings.
+        washout: the washout's evaluation.
+        ppo: training seed -> the agent's evaluation.
+
+    Returns:
+        ``{"seeds": [...], "episodes": k, "manoeuvres": {name: {"washout": {metric: interval},
+        "ppo": {...}, "goals": {goal: bool}}}}``, an interval [estimate, low, high].
+    """
+    held_out = settings.held_out()
+    metrics = (*COLUMNS, "stroke_violations")
+    table: dict[str, Any] = {}
+    for manoeuvre in settings.manoeuvres:
+        entry: dict[str, Any] = {}
+        cells = {"washout": {m: np.array([_values(washout, manoeuvre, held_out, m)]) for m in metrics}}
+        if ppo:
+            cells["ppo"] = {m: np.array([_values(e, manoeuvre, held_out, m) for e in ppo.values()]) for m in metrics}
+        for label, cell in cells.items():
+            entry[label] = {}
+            for m, values in cell.items():
+                interval = stratified_bootstrap(values)
+                entry[label][m] = [interval.estimate, interval.low, interval.high]
+        if ppo:
+            entry["goals"] = goals_reached(
+                {m: v[0] for m, v in entry["washout"].items()}, {m: v[0] for m, v in entry["ppo"].items()}
+            )
+        table[manoeuvre] = entry
+    return {"seeds": sorted(ppo), "episodes": settings.episodes, "manoeuvres": table}
+
+
+def goals_reached(washout: dict[str, float], ppo: dict[str, float]) -> dict[str, bool]:
+    """Whether PPO's means reach each of :data:`GOALS` against washout's.
+
+    Args:
+        washout: metric -> washout's mean.
+        ppo: metric -> PPO's mean.
+
+    Returns:
+        metric -> reached.
+    """
+    reached = {}
+    for metric, relation, factor in GOALS:
+        if relation == "none":
+            reached[metric] = bool(ppo[metric] == 0.0)
+        elif relation == "at most":
+            reached[metric] = bool(ppo[metric] <= factor * washout[metric])
+        else:
+            reached[metric] = bool(ppo[metric] >= factor * washout[metric])
+    return reached
+
+
+def _interval(values: Sequence[float], spec: str) -> str:
+    estimate, low, high = values
+    if not math.isfinite(estimate):
+        return "n/a"
+    return f"{estimate:{spec}} [{low:{spec}}, {high:{spec}}]"
+
+
+def results_table(results: dict[str, Any]) -> str:
+    """The study's Markdown table: per manoeuvre and policy the metrics with 95 % intervals, and the goals.
+
+    Args:
+        results: :func:`run_cueing_results`'s results.
+
+    Returns:
+        The Markdown text.
+    """
+    head = ["manoeuvre", "policy", *(title for title, _ in COLUMNS.values()), "stroke violations"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    goal_lines = [
+        "| manoeuvre | f error -20 % | false cues -30 % | corr. f >= washout | no stroke violation |",
+        "|---|---|---|---|---|",
+    ]
+    for manoeuvre, entry in results["manoeuvres"].items():
+        for label in ("washout", "ppo"):
+            if label not in entry:
+                continue
+            cells = [_interval(entry[label][m], spec) for m, (_, spec) in COLUMNS.items()]
+            cells.append(_interval(entry[label]["stroke_violations"], ".2f"))
+            lines.append(f"| {manoeuvre} | {label} | " + " | ".join(cells) + " |")
+        if "goals" in entry:
+            marks = ["reached" if entry["goals"][m] else "not reached" for m, _, _ in GOALS]
+            goal_lines.append(f"| {manoeuvre} | " + " | ".join(marks) + " |")
+    seeds = results["seeds"]
+    note = (
+        f"PPO: {len(seeds)} training seed(s) ({', '.join(map(str, seeds)) or 'none'}), "
+        f"{results['episodes']} held-out episode(s) per manoeuvre; 95 % stratified bootstrap intervals."
+    )
+    text = "\n".join(lines) + "\n\n" + note
+    if len(goal_lines) > 2:
+        text += "\n\n" + "\n".join(goal_lines)
+    return text
+
+
+def _figure(path: Path, washout: dict | None, ppo: dict | None) -> None:
+    """The perceived specific force's x over time: the vehicle's, the washout's and PPO's."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:  # the figure is optional
+        return
+    if washout is None:
+        return
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    dt = washout["dt"]
+    vehicle = np.asarray(washout["vehicle"])
+    t = dt * np.arange(len(vehicle))
+    ax.plot(t, vehicle[:, 0], "k", label="vehicle")
+    w = np.asarray(washout["platform"])
+    ax.plot(dt * np.arange(len(w)), w[:, 0], label="washout")
+    if ppo is not None:
+        p = np.asarray(ppo["platform"])
+        ax.plot(dt * np.arange(len(p)), p[:, 0], label="PPO")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("perceived f_x (m/s²)")
+    ax.set_title(f"{FIGURE_MANOEUVRE}, held-out seed")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m stewart_env.agents.studies.cueing_results OUT``: the study with its defaults.
+
+    Args:
+        argv: the command line's arguments after the module (default sys.argv's): OUT.
+
+    Returns:
+        The exit status: 0, or 2 with a one-line usage error.
+    """
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if len(argv) != 1 or argv[0].startswith("-"):
+        print(f"usage: python -m {MODULE} OUT  (got {' '.join(argv)})", file=sys.stderr)
+        return 2
+    results = run_cueing_results(argv[0])
+    print(results_table(results))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,96 @@
+"""The cueing results study: its goals, its table and its refusals."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from stewart_env.agents.studies.cueing_results import (
+    GOALS,
+    CueingResultsSettings,
+    goals_reached,
+    results_table,
+    summarize,
+)
+from stewart_env.errors import UsageError
+
+
+def metrics(rms: float, false_f: float, corr: float, stroke: float = 0.5, failed: float = 0.0) -> dict:
+    return {
+        "rms_specific_force_error": rms,
+        "false_specific_force_cues": false_f,
+        "false_angular_velocity_cues": 1.0,
+        "specific_force_correlation": corr,
+        "stroke_use": stroke,
+        "failed": failed,
+    }
+
+
+def test_goals_compare_the_means_with_washouts():
+    washout = {
+        "rms_specific_force_error": 1.0,
+        "false_cues": 10.0,
+        "specific_force_correlation": 0.5,
+        "stroke_violations": 0.0,
+    }
+    better = {
+        "rms_specific_force_error": 0.8,
+        "false_cues": 7.0,
+        "specific_force_correlation": 0.5,
+        "stroke_violations": 0.0,
+    }
+    assert goals_reached(washout, better) == {m: True for m, _, _ in GOALS}  # the bounds themselves reach
+    worse = {
+        "rms_specific_force_error": 0.81,
+        "false_cues": 7.1,
+        "specific_force_correlation": 0.49,
+        "stroke_violations": 0.2,
+    }
+    assert goals_reached(washout, worse) == {m: False for m, _, _ in GOALS}
+
+
+def test_summary_and_table_of_two_seeds():
+    settings = CueingResultsSettings(seeds=(0, 1), episodes=2, manoeuvres=("braking",))
+    washout = {"episodes": [metrics(1.0, 4.0, 0.3), metrics(1.2, 6.0, 0.5)]}
+    ppo = {
+        0: {"episodes": [metrics(0.5, 1.0, 0.6), metrics(0.7, 1.0, 0.8)]},
+        1: {"episodes": [metrics(0.6, 2.0, 0.7), metrics(0.6, 2.0, 0.7, stroke=1.0)]},
+    }
+    results = summarize(settings, washout, ppo)
+    entry = results["manoeuvres"]["braking"]
+    assert entry["washout"]["rms_specific_force_error"][0] == pytest.approx(1.1)
+    assert entry["ppo"]["rms_specific_force_error"][0] == pytest.approx(0.6)
+    assert entry["washout"]["false_cues"][0] == pytest.approx(6.0)  # specific force and angular velocity summed
+    assert entry["ppo"]["stroke_violations"][0] == pytest.approx(0.25)  # one episode at the end stop
+    assert entry["goals"] == {
+        "rms_specific_force_error": True,
+        "false_cues": True,
+        "specific_force_correlation": True,
+        "stroke_violations": False,
+    }
+    low, high = entry["ppo"]["rms_specific_force_error"][1:]
+    assert low <= 0.6 <= high and math.isfinite(low)
+    text = results_table(results)
+    assert "| braking | ppo | 0.600 [" in text
+    assert "PPO: 2 training seed(s) (0, 1), 2 held-out episode(s) per manoeuvre" in text
+    assert "| braking | reached | reached | reached | not reached |" in text
+
+
+def test_bad_settings_are_named():
+    with pytest.raises(UsageError, match="episodes: must be 1 to 10, got 11"):
+        CueingResultsSettings(episodes=11)
+    with pytest.raises(UsageError, match="manoeuvres"):
+        CueingResultsSettings(manoeuvres=("no_such_motion",))
+    with pytest.raises(UsageError, match="seeds"):
+        CueingResultsSettings(seeds=())
+
+
+def test_command_refuses_a_bad_episode_count(tmp_path, capsys):
+    pytest.importorskip("stable_baselines3")
+    from stewart_env.cli import main
+
+    assert main(["cueing-results", "--out", str(tmp_path / "out"), "--episodes", "11"]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == "stewart-env cueing-results: error: argument --episodes: must be 1 to 10, got 11"
+    assert not (tmp_path / "out").exists()  # nothing written
