@@ -331,6 +331,7 @@ VERB_MODULES = (
     "time_to_agent",
     "mismatch",
     "actuation",
+    "cueing_results",
     "identify",
     "bench",
     "export_mjcf",

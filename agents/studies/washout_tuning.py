@@ -145,7 +145,14 @@ class EnvironmentChain:
         return self.episodes.run(lambda env: WashoutPolicy(env, params))
 
     def score(self, params: WashoutParams) -> tuple[float, dict]:
-        """The objective (module docstring) and its terms per motion."""
+        """The objective (module docstring) and its terms per motion.
+
+        Args:
+            params: the washout's parameters.
+
+        Returns:
+            (J, the terms by name, a list per motion).
+        """
         return objective_of(self.run(params))
 
     def close(self) -> None:
