@@ -8,7 +8,8 @@ and every agent on the same held-out episodes (:data:`MANOEUVRES`, each at the f
 ``episodes`` of the task's evaluation seeds, side by side in one vector environment:
 :class:`~stewart_env.agents.evaluation.cueing.ScheduledEpisodes`).  Per manoeuvre it reports the
 perceived specific-force RMS error, the false cues (specific force and angular velocity summed),
-the specific-force correlation and the largest stroke use, each with a 95 % stratified bootstrap
+the specific-force correlation, the largest stroke use and the share of episodes ended at a limit
+(the platform's limits ended it, or a leg reached an end stop: a stroke violation), each with a 95 % stratified bootstrap
 interval over seeds and episodes (:func:`~stewart_env.agents.evaluation.statistics.stratified_bootstrap`),
 and marks the goals (:data:`GOALS`) reached or not.
 
@@ -328,7 +329,7 @@ def results_table(results: dict[str, Any]) -> str:
     Returns:
         The Markdown text.
     """
-    head = ["manoeuvre", "policy", *(title for title, _ in COLUMNS.values()), "stroke violations"]
+    head = ["manoeuvre", "policy", *(title for title, _ in COLUMNS.values()), "ended at a limit"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     goal_lines = [
         "| manoeuvre | f error -20 % | false cues -30 % | corr. f >= washout | no stroke violation |",
