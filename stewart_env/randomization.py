@@ -42,7 +42,7 @@ from stewart_env.params import ConfigError, Damping, PlatformParams, RigidBody
 from stewart_env.params.checks import MAX_MAGNITUDE, is_sequence, key_names, number, short
 from stewart_env.params.platform import MIN_PLATFORM_INERTIA, MIN_PLATFORM_MASS
 
-__all__ = ["KEYS", "Randomization", "ScaledRows"]
+__all__ = ["KEYS", "Randomization", "ScaledRows", "draw_unit_rows"]
 
 _BODIES = ("platform", "upper_leg", "lower_leg")
 _QUANTITIES = ("mass", "inertia", "com")
@@ -84,6 +84,26 @@ def _range(value: object, key: str) -> tuple[float, float]:
     if low < lowest or high > highest:
         raise ConfigError(name, f"factors must be {wording}, got ({low}, {high})")
     return low, high
+
+
+def draw_unit_rows(rngs: Sequence[np.random.Generator], out: np.ndarray) -> None:
+    """Row j of ``out`` the numbers ``rngs[j].random(k)`` draws, bit for bit, in one compiled call.
+
+    A numpy Generator's ``random()`` is its bit generator's ``next_double``, so the compiled call
+    draws each row through the bit generator's capsule, holding the generator's lock, as
+    ``Generator.random`` does (``_core.draw_uniform_rows``); rows whose generator it does not know
+    (not a ``numpy.random.Generator``, or without the capsule) draw through ``random(out=...)``.
+    The generators may be of any numpy bit generator; each row's must be its own (a generator
+    shared by rows draws their rows one after the other, as row by row calls would).
+
+    Args:
+        rngs: one generator per row of ``out``.
+        out: (m, k) float64, C-contiguous, overwritten.
+    """
+    rngs = rngs if type(rngs) is list else list(rngs)
+    drawn = _core.draw_uniform_rows(rngs, np.random.Generator, out)
+    for rng, row in zip(rngs[drawn:], out[drawn:]):
+        rng.random(out=row)
 
 
 class Randomization:
@@ -152,8 +172,7 @@ class Randomization:
             (m, k) float64, row j the factors of row j in the order of ``self.ranges``.
         """
         unit = np.empty((len(rngs), len(self.ranges)))
-        for rng, row in zip(rngs, unit):
-            rng.random(out=row)  # random(k) drawn straight into the row: the same numbers
+        draw_unit_rows(rngs, unit)
         return self.factors_of(unit)
 
     def factors_of(self, unit: np.ndarray) -> np.ndarray:

@@ -40,6 +40,7 @@ from stewart_env.envs.plant import Plant, make_plant
 from stewart_env.errors import UsageError
 from stewart_env.kinematics import leg_sensors_inplace
 from stewart_env.params import PlatformParams
+from stewart_env.randomization import draw_unit_rows
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks import LIMIT_REASONS, StepView, make_task, tracking_errors
@@ -421,8 +422,7 @@ class PlatformBatch:
         # one random(k + draws) call per row gives both, the same numbers as two calls
         k = len(rnd.ranges)
         unit = np.empty((len(rngs), k + draws))
-        for rng, row in zip(rngs, unit):
-            rng.random(out=row)
+        draw_unit_rows(rngs, unit)
         return rnd.factors_of(unit[:, :k]), *self.task.initialize_episodes_measured(rngs, unit[:, k:])
 
     def _draw_episodes_by_row(

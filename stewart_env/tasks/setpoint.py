@@ -6,8 +6,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from stewart_env import _core
 from stewart_env.kinematics import inverse_kinematics, leg_sensors_inplace
 from stewart_env.params import PlatformParams
+from stewart_env.randomization import draw_unit_rows
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState
 from stewart_env.tasks.base import Task, motion_ranges, option, pose_margins
@@ -22,6 +24,8 @@ PAPER_RPY_OFFSET = np.array([0.0, 0.0, -0.2])
 # Rejection sampling of random poses gives up after this many draws (each draw is kept with a
 # probability close to 1 for the default ranges).
 _MAX_DRAWS = 1000
+# A drawn pose keeps this fraction of each half-range clear of the limits (pose_margins' default).
+_MARGIN = 0.1
 # Fixed poses are checked against the limits; beyond this (m or rad) the check itself would overflow.
 _MAX_POSE = 1e3
 
@@ -138,6 +142,8 @@ class SetpointTask(Task):
     ):
         super().__init__(params, control_dt, **weights)
         self.randomize = flag(option("randomize"), randomize)
+        # (home pose, ranges, nominal packed row) of the compiled candidates, made at their first draw
+        self._pose_tables: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.position_range, self.angle_range = motion_ranges(
             params, position_range, angle_range, ("position_range", "angle_range")
         )
@@ -176,7 +182,7 @@ class SetpointTask(Task):
             position = p.home_position + rng.uniform(-1.0, 1.0, 3) * self.position_range
             rpy = p.home_rpy + rng.uniform(-1.0, 1.0, 3) * self.angle_range
             rotation = rpy_to_matrix(rpy)
-            if pose_margins(self.kinematics, position, rpy, rotation=rotation)[0]:
+            if pose_margins(self.kinematics, position, rpy, margin=_MARGIN, rotation=rotation)[0]:
                 return position, rotation
         raise RuntimeError(
             f"setpoint: no pose inside the limits of platform {p.name!r} in {_MAX_DRAWS} draws; "
@@ -185,17 +191,42 @@ class SetpointTask(Task):
 
     def _candidates(self, unit: np.ndarray) -> Candidates:
         """Candidate poses of :meth:`_draw_pose` from its draws ``unit`` (M, 6) of ``random()``
-        (``uniform(-1, 1)`` is ``-1 + 2 random()``, the same number): their :class:`Candidates`."""
+        (``uniform(-1, 1)`` is ``-1 + 2 random()``, the same number): their :class:`Candidates`,
+        made, measured and checked in one compiled call (``_core.setpoint_candidates``: the
+        numbers of home + uniform(-1, 1) * range, ``rpy_to_matrix`` and :func:`pose_margins`)."""
         p = self.params
-        # home + uniform(-1, 1) * range on all six coordinates at once: each number as _draw_pose's
-        pose = np.concatenate((p.home_position, p.home_rpy)) + (-1.0 + 2.0 * unit) * np.concatenate(
-            (self.position_range, self.angle_range)
-        )
-        position, rpy = np.ascontiguousarray(pose[:, :3]), np.ascontiguousarray(pose[:, 3:])
-        rotation = rpy_to_matrix(rpy)
-        m = len(position)
+        lim = p.limits
+        if getattr(self, "_pose_tables", None) is None:  # a task pickled before it kept them
+            self._pose_tables = (
+                np.concatenate((p.home_position, p.home_rpy)),
+                np.concatenate((self.position_range, self.angle_range)),
+                np.ascontiguousarray(self.kinematics.packed[:1]),
+            )
+        home, ranges, prm = self._pose_tables
+        unit = np.ascontiguousarray(unit, dtype=np.float64)
+        m = len(unit)
+        position, rpy, rotation = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3, 3))
         sensors = (np.empty((m, 6)), np.empty((m, 6)), np.empty(m))
-        ok = pose_margins(self.kinematics, position, rpy, rotation=rotation, sensors=sensors)
+        ok = np.empty(m, dtype=bool)
+        _core.setpoint_candidates(
+            unit,
+            home,
+            ranges,
+            prm,
+            lim.position_min,
+            lim.position_max,
+            p.home_rpy,
+            lim.max_angle,
+            lim.leg_length[0],
+            lim.leg_length[1],
+            lim.max_condition,
+            _MARGIN,
+            position,
+            rpy,
+            rotation,
+            *sensors,
+            ok,
+        )
         return Candidates(position, rotation, ok, sensors)
 
     @property
@@ -238,8 +269,7 @@ class SetpointTask(Task):
         m = len(rngs)
         if unit is None:
             unit = np.empty((m, 12))
-            for rng, row in zip(rngs, unit):
-                rng.random(out=row)  # random(12) drawn straight into the row: the same numbers
+            draw_unit_rows(rngs, unit)  # random(12) of each row's generator, in one compiled call
         candidates = self._candidates(np.reshape(unit, (2 * m, 6)))
         position, rotation, ok = candidates[0], candidates[1], candidates[2]
         position, rotation, ok = position.reshape(m, 2, 3), rotation.reshape(m, 2, 3, 3), ok.reshape(m, 2)

@@ -10,6 +10,7 @@
 
 #include "physics/array_checks.hpp"
 #include "env/env_step.hpp"
+#include "env/reset_draws.hpp"
 #include "physics/kernels.hpp"
 #include "physics/laws.hpp"
 #include "physics/rk4.hpp"
@@ -845,6 +846,64 @@ void def_env_kernels(nb::module_& m) {
     }, "nominal_row"_a, "multipliers"_a, "part_of"_a, "out"_a.noconvert(), "largest"_a.noconvert(),
        "The packed rows of m randomised platforms: out[j, c] = multipliers[j, part_of[c]] * nominal_row[c], "
        "and largest[j] the largest magnitude of row j (Randomization.scale_packed_rows).");
+
+    m.def("draw_uniform_rows", [](nb::list rngs, nb::handle generator_type, Out out) {
+        const int64_t m = static_cast<int64_t>(nb::len(rngs));
+        expect(out, "out", {m, -1});
+        const int64_t k = static_cast<int64_t>(out.shape(1));
+        if (!PyType_Check(generator_type.ptr())) throw nb::type_error("generator_type: expected a type");
+        const auto* type = reinterpret_cast<PyTypeObject*>(generator_type.ptr());
+        for (int64_t j = 0; j < m; ++j) {
+            nb::object rng = rngs[static_cast<size_t>(j)];
+            // only numpy's own Generator is known to draw random() as next_double of its bit generator
+            if (Py_TYPE(rng.ptr()) != type) return j;
+            nb::object bit_generator = rng.attr("bit_generator");
+            nb::object capsule = bit_generator.attr("capsule");
+            if (!PyCapsule_IsValid(capsule.ptr(), "BitGenerator")) return j;
+            const auto* g = static_cast<const reset_draws::BitGen*>(PyCapsule_GetPointer(capsule.ptr(), "BitGenerator"));
+            // the generator's lock, as Generator.random holds it (another thread may draw from it); its
+            // acquire() waits without the GIL
+            nb::object lock = bit_generator.attr("lock");
+            lock.attr("acquire")();
+            reset_draws::fill_unit(*g, out.data() + k * j, k);
+            lock.attr("release")();
+        }
+        return m;
+    }, "rngs"_a, "generator_type"_a, "out"_a.noconvert(),
+       "Row j of out (m, k) the k numbers rngs[j].random(k) would draw, taken from each generator's bit "
+       "generator (its capsule, under its lock); stops at the first row whose generator is not of "
+       "generator_type with a BitGenerator capsule and returns its index (m: every row drawn).  No pointer is "
+       "kept past the call.");
+
+    m.def("setpoint_candidates", [](In unit, In home, In range, In prm, In position_min, In position_max,
+                                    In home_rpy, double max_angle, double length_min, double length_max,
+                                    double max_condition, double margin, Out position, Out rpy, Out rotation,
+                                    Out lengths, Out rates, Out condition, Flags ok) {
+        expect(unit, "unit", {-1, 6});
+        const int64_t M = static_cast<int64_t>(unit.shape(0));
+        expect(home, "home", {6});
+        expect(range, "range", {6});
+        expect(prm, "prm", {1, kernels::N_PARAMS});
+        expect(position, "position", {M, 3});
+        expect(rpy, "rpy", {M, 3});
+        expect(rotation, "rotation", {M, 3, 3});
+        expect(lengths, "lengths", {M, 6});
+        expect(rates, "rates", {M, 6});
+        expect(condition, "condition", {M});
+        expect(ok, "ok", {M});
+        const reset_draws::CandidateSpec c{
+            home.data(), range.data(), prm.data(), 1,
+            limits_of(position_min, position_max, home_rpy, max_angle, length_min, length_max, max_condition),
+            margin};
+        reset_draws::setpoint_candidates(c, unit.data(), position.data(), rpy.data(), rotation.data(),
+                                         lengths.data(), rates.data(), condition.data(), ok.data(), M);
+    }, "unit"_a, "home"_a, "range"_a, "prm"_a, "position_min"_a, "position_max"_a, "home_rpy"_a, "max_angle"_a,
+       "length_min"_a, "length_max"_a, "max_condition"_a, "margin"_a, "position"_a.noconvert(),
+       "rpy"_a.noconvert(), "rotation"_a.noconvert(), "lengths"_a.noconvert(), "rates"_a.noconvert(),
+       "condition"_a.noconvert(), "ok"_a.noconvert(),
+       "The set-point task's candidate poses of draws unit (M,6): home + (-1 + 2 u) range as position, rpy "
+       "and rotation, their leg sensors at rest (the nominal row prm) and whether each lies inside the limits "
+       "shrunk by margin (tasks.setpoint.SetpointTask._candidates).");
 
     m.def("pose_block", [](In t, In R, In v, In w, Out raw) {
         expect(t, "position", {-1, 3});
