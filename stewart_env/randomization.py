@@ -203,44 +203,48 @@ class Randomization:
             ConfigError: as :meth:`scale_packed`, for the first row it refuses.
         """
         m = factors.shape[0]
-        part_columns, lows, highs = self._row_tables()
-        # the products of _multipliers, in its order, for every row at once (1 x f is f exactly, so
-        # a part's product starts at its first factor: the same numbers)
-        multipliers = np.ones((m, 1 + len(_PARTS)))
-        for p, columns in part_columns:
-            f = factors[:, columns[0]]
-            for c in columns[1:]:
-                f = f * factors[:, c]
-            multipliers[:, p + 1] = f
-        # out = multiplier * nominal entry by entry, and each row's largest magnitude, in one pass
-        largest = np.empty(m)
+        columns, lows, highs = self._row_tables()
+        factors = np.ascontiguousarray(factors, dtype=np.float64)
+        ok = np.empty(m, dtype=bool)
         direct = out.flags.c_contiguous and out.dtype == np.float64
         rows = out if direct else np.empty((m, K.N_PARAMS))
-        _core.scale_parameter_rows(nominal_row, multipliers, _PART_OF, rows, largest)
+        # the multipliers of _multipliers, the packed rows and the checks of every row in one compiled pass
+        _core.scale_randomized_rows(
+            nominal_row,
+            factors,
+            _PART_OF,
+            columns,
+            lows,
+            highs,
+            K.OFF_MP,
+            MIN_PLATFORM_MASS,
+            MAX_MAGNITUDE,
+            _INERTIA_PART,
+            self._smallest_moment(nominal_row),
+            MIN_PLATFORM_INERTIA,
+            rows,
+            ok,
+        )
         if not direct:
             out[...] = rows
-        smallest = multipliers[:, 1 + _PART_NAMES.index("platform.inertia")] * self._smallest_moment(nominal_row)
-        ok = ((factors >= lows) & (factors <= highs)).all(axis=1)
-        ok &= (rows[:, K.OFF_MP] >= MIN_PLATFORM_MASS) & (largest <= MAX_MAGNITUDE) & (smallest >= MIN_PLATFORM_INERTIA)
         for j in np.flatnonzero(~ok):
             # the row by row check raises the error that names the parameter
             self.scale_packed(nominal_row, dict(zip(self.ranges, factors[j].tolist())), out[j])
 
-    def _row_tables(self) -> tuple[list[tuple[int, list[int]]], np.ndarray, np.ndarray]:
-        """What :meth:`scale_packed_rows` looks up for every batch, made once per spec: each part
-        with factors (its index in _PARTS and the columns of its keys, in _PARTS' order) and the
-        ranges' lows and highs (k,)."""
+    def _row_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What :meth:`scale_packed_rows` looks up for every batch, made once per spec: each part's
+        factor columns in the order multiplied, (len(_PARTS), keys) with -1 past a part's last, and
+        the ranges' lows and highs (k,)."""
         key = tuple(self.ranges.items())
-        cached = self.__dict__.get("_row_tables_cache")
+        cached = self.__dict__.get("_scale_tables_cache")
         if cached is None or cached[0] != key:
             column = {name: c for c, name in enumerate(self.ranges)}
-            parts = [
-                (p, [column[name] for name in keys if name in column])
-                for p, (_, _, keys) in enumerate(_PARTS)
-                if any(name in column for name in keys)
-            ]
-            lows, highs = (np.array([r[i] for r in self.ranges.values()]) for i in (0, 1))
-            cached = self._row_tables_cache = (key, (parts, lows, highs))
+            columns = np.full((len(_PARTS), max(len(keys) for _, _, keys in _PARTS)), -1, dtype=np.int64)
+            for p, (_, _, keys) in enumerate(_PARTS):
+                used = [column[name] for name in keys if name in column]
+                columns[p, : len(used)] = used
+            lows, highs = (np.array([r[i] for r in self.ranges.values()], dtype=np.float64) for i in (0, 1))
+            cached = self._scale_tables_cache = (key, (columns, lows, highs))
         return cached[1]
 
     def rows_params(self, params: PlatformParams, factors: np.ndarray) -> ScaledRows:
@@ -406,6 +410,8 @@ def _parts() -> tuple[tuple[str, slice, tuple[str, ...]], ...]:
 
 _PARTS = _parts()
 _PART_NAMES = [name for name, _, _ in _PARTS]
+#: The part of the platform's inertia, whose multiplier scales its smallest principal moment.
+_INERTIA_PART = _PART_NAMES.index("platform.inertia")
 
 
 def _part_of() -> np.ndarray:

@@ -8,7 +8,10 @@ import numpy as np
 import pytest
 
 from stewart_env import _core, load_platform
-from stewart_env.randomization import draw_unit_rows
+from stewart_env.dynamics import kernels as K
+from stewart_env.dynamics import make_dynamics
+from stewart_env.params import ConfigError
+from stewart_env.randomization import Randomization, draw_unit_rows
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.tasks.base import pose_margins
 from stewart_env.tasks.setpoint import SetpointTask
@@ -127,3 +130,55 @@ def test_the_compiled_candidates_refuse_wrong_arrays():
     task = SetpointTask(params, 0.01)
     with pytest.raises(ValueError, match="unit: expected shape"):
         task._candidates(np.zeros((4, 5)))
+
+
+OVERLAPPING = {
+    "platform.mass": (0.5, 2.0),
+    "legs.inertia": (0.7, 1.3),
+    "upper_leg.com": (-1.5, 1.5),
+    "mass": (0.9, 1.1),
+    "inertia": (0.8, 1.2),
+    "damping": (0.0, 2.0),
+    "damping.prismatic": (0.5, 1.5),
+}
+
+
+def test_the_compiled_scaling_equals_scale_packed_with_keys_that_multiply():
+
+    spec = Randomization(OVERLAPPING)
+    nominal = make_dynamics("improved", load_platform("dasgupta1998")).packed[0]
+    factors = spec.sample_rows([np.random.default_rng(s) for s in range(40)])
+    out = np.empty((40, nominal.shape[0]))
+    spec.scale_packed_rows(nominal, factors, out)
+    for j in range(40):
+        row = np.empty_like(nominal)
+        spec.scale_packed(nominal, dict(zip(spec.ranges, factors[j].tolist())), row)
+        assert out[j].tolist() == row.tolist()
+
+
+def test_the_compiled_scaling_refuses_a_row_as_scale_packed_does():
+
+    spec = Randomization(OVERLAPPING)
+    nominal = make_dynamics("improved", load_platform("dasgupta1998")).packed[0]
+    factors = spec.sample_rows([np.random.default_rng(s) for s in range(3)])
+    factors[1, list(spec.ranges).index("damping.prismatic")] = 1.6  # beyond its range's 1.5
+    with pytest.raises(ConfigError, match=r"factors\['damping.prismatic'\].*within \[0.5, 1.5\]"):
+        spec.scale_packed_rows(nominal, factors, np.empty((3, nominal.shape[0])))
+
+
+def test_the_compiled_scaling_refuses_wrong_tables():
+    nominal = np.ones(K.N_PARAMS)
+    part_of = np.zeros(K.N_PARAMS, dtype=np.int64)
+    columns = np.array([[0, -1]], dtype=np.int64)
+    args = (nominal, np.ones((2, 1)), part_of, columns, np.zeros(1), np.ones(1), 0, 0.0, 1e9, 0, 1.0, 0.0)
+    out, ok = np.empty((2, K.N_PARAMS)), np.empty(2, dtype=bool)
+    _core.scale_randomized_rows(*args, out, ok)
+    assert ok.tolist() == [True, True] and out.tolist() == [nominal.tolist()] * 2
+    with pytest.raises(ValueError, match="columns: expected columns of factors"):
+        _core.scale_randomized_rows(*args[:3], np.array([[1]], dtype=np.int64), *args[4:], out, ok)
+    with pytest.raises(ValueError, match="part_of"):
+        _core.scale_randomized_rows(nominal, args[1], part_of + 2, *args[3:], out, ok)
+    with pytest.raises(ValueError, match="inertia_part"):
+        _core.scale_randomized_rows(*args[:9], 1, *args[10:], out, ok)
+    with pytest.raises(ValueError, match="out: expected shape"):
+        _core.scale_randomized_rows(*args, np.empty((3, K.N_PARAMS)), ok)

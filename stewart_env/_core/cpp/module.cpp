@@ -905,6 +905,44 @@ void def_env_kernels(nb::module_& m) {
        "and rotation, their leg sensors at rest (the nominal row prm) and whether each lies inside the limits "
        "shrunk by margin (tasks.setpoint.SetpointTask._candidates).");
 
+    m.def("scale_randomized_rows", [](In nominal, In factors, InCodes part_of, InCodes columns, In lows, In highs,
+                                      int64_t mass_entry, double min_mass, double max_magnitude,
+                                      int64_t inertia_part, double smallest_moment, double min_inertia, Out out,
+                                      Flags ok) {
+        expect(nominal, "nominal_row", {kernels::N_PARAMS});
+        expect(factors, "factors", {-1, -1});
+        const int64_t m = static_cast<int64_t>(factors.shape(0));
+        const int64_t k = static_cast<int64_t>(factors.shape(1));
+        expect(part_of, "part_of", {kernels::N_PARAMS});
+        expect(columns, "columns", {-1, -1});
+        const int64_t parts = static_cast<int64_t>(columns.shape(0));
+        const int64_t keys = static_cast<int64_t>(columns.shape(1));
+        if (keys < 1) throw nb::value_error("columns: expected at least one column");
+        for (int64_t c = 0; c < kernels::N_PARAMS; ++c)
+            if (!(part_of.data()[c] >= 0 && part_of.data()[c] <= parts))
+                throw nb::value_error("part_of: expected 0 or 1 + a part of columns");
+        for (int64_t c = 0; c < parts * keys; ++c)
+            if (!(columns.data()[c] >= -1 && columns.data()[c] < k))
+                throw nb::value_error("columns: expected columns of factors, or -1");
+        expect(lows, "lows", {k});
+        expect(highs, "highs", {k});
+        if (!(mass_entry >= 0 && mass_entry < kernels::N_PARAMS))
+            throw nb::value_error("mass_entry: expected an entry of the packed row");
+        if (!(inertia_part >= 0 && inertia_part < parts))
+            throw nb::value_error("inertia_part: expected a part of columns");
+        expect(out, "out", {m, kernels::N_PARAMS});
+        expect(ok, "ok", {m});
+        const reset_draws::ScaleSpec s{nominal.data(), part_of.data(), columns.data(), parts, keys, lows.data(),
+                                       highs.data(), k, mass_entry, min_mass, max_magnitude, inertia_part,
+                                       smallest_moment, min_inertia};
+        reset_draws::scale_randomized_rows(s, factors.data(), out.data(), ok.data(), m);
+    }, "nominal_row"_a, "factors"_a, "part_of"_a, "columns"_a, "lows"_a, "highs"_a, "mass_entry"_a, "min_mass"_a,
+       "max_magnitude"_a, "inertia_part"_a, "smallest_moment"_a, "min_inertia"_a, "out"_a.noconvert(),
+       "ok"_a.noconvert(),
+       "The packed rows of m randomised platforms from their factors (m, k) and whether each passes the "
+       "checks of PlatformParams (Randomization.scale_packed_rows): each part's multiplier the product of its "
+       "factor columns, out[j, c] = multiplier[part_of[c]] * nominal_row[c].");
+
     m.def("pose_block", [](In t, In R, In v, In w, Out raw) {
         expect(t, "position", {-1, 3});
         const int64_t n = static_cast<int64_t>(t.shape(0));
