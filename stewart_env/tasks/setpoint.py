@@ -273,12 +273,21 @@ class SetpointTask(Task):
         candidates = self._candidates(np.reshape(unit, (2 * m, 6)))
         position, rotation, ok = candidates[0], candidates[1], candidates[2]
         position, rotation, ok = position.reshape(m, 2, 3), rotation.reshape(m, 2, 3, 3), ok.reshape(m, 2)
+        sensors = getattr(candidates, "sensors", None)
+        zero = np.zeros((m, 3))
+        if ok.all():
+            # every row's first two candidates accepted (nearly every reset with the default ranges):
+            # the start the first, the target the second, without the selection below
+            return (
+                PlatformState(position[:, 0].copy(), rotation[:, 0].copy(), zero, zero.copy()),
+                {"target_position": position[:, 1].copy(), "target_rotation": rotation[:, 1].copy()},
+                None if sensors is None else (sensors[0][0::2], sensors[1][0::2], sensors[2][0::2]),
+            )
         # a rejected start: the second candidate is the start's next draw (both rejected: redrawn below)
         start_second = ~ok[:, 0]
         start_p = np.where(start_second[:, None], position[:, 1], position[:, 0])
         start_r = np.where(start_second[:, None, None], rotation[:, 1], rotation[:, 0])
         # the start candidate's leg sensors (the check's numbers, at rest), if the check gave them
-        sensors = getattr(candidates, "sensors", None)
         if sensors is not None:
             lengths, rates = (np.where(start_second[:, None], x[1::2], x[0::2]) for x in sensors[:2])
             condition = np.where(start_second, sensors[2][1::2], sensors[2][0::2])
@@ -293,7 +302,6 @@ class SetpointTask(Task):
             else:
                 # the start is accepted; the target had one rejected draw if the start was the first
                 target_p[j], target_r[j] = self._draw_pose(rng, _MAX_DRAWS - int(ok[j, 0]))
-        zero = np.zeros((m, 3))
         if sensors is not None and redrawn:
             # starts drawn row by row: their sensors as the check measured them, at rest
             k = len(redrawn)
