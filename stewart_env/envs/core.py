@@ -419,7 +419,8 @@ class PlatformBatch:
             factors = None if rnd is None else rnd.sample_rows(rngs)
             return factors, *self.task.initialize_episodes_measured(rngs)
         # a row's factors and its episode's first draws are consecutive numbers of its generator:
-        # one random(k + draws) call per row gives both, the same numbers as two calls
+        # the k + draws numbers of every row give both, the same numbers as two calls, all rows drawn in
+        # one compiled call through their generators' bit generators (draw_unit_rows)
         k = len(rnd.ranges)
         unit = np.empty((len(rngs), k + draws))
         draw_unit_rows(rngs, unit)
