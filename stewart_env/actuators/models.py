@@ -132,7 +132,8 @@ class ElectricActuator:
     """Servo motors on ball screws, one per leg, in current control (docs/physics.md section 10.4).
 
     The current loop is a first-order lag of bandwidth omega_c towards the set point clipped to
-    the current limit and to the voltage envelope (U - K_e |omega_m|) / R at the leg's rate; the
+    the current limit and, for a current with the leg's motion (motoring), to the voltage
+    envelope (U - K_e |omega_m|) / R at the leg's rate (a braking current only to the limit); the
     leg force is eta k K_t i less the viscous and (tanh-smoothed) Coulomb friction.  The rotor's
     inertia is not in the force: it enters the dynamics as :attr:`reflected_mass`.
 

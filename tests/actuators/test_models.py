@@ -98,8 +98,9 @@ def test_the_voltage_envelope_ends_at_the_no_load_speed():
     l_dot = np.array([[0.0, 0.5, 0.999, 1.0 + 1e-9, 1.5, -0.999]]) * speed0
     run_electric(drive, 1e4, l_dot)
     current = drive.current[0]
-    # (U - K_e k |l_dot|) / R, capped at i_max: 90 A, 90 A, 1.6 A, 0, 0, 1.6 A
-    assert current == pytest.approx([90.0, 90.0, 0.001 * 560 / 0.35, 0.0, 0.0, 0.001 * 560 / 0.35], rel=1e-6)
+    # motoring (legs 0-4): (U - K_e k |l_dot|) / R, capped at i_max: 90 A, 90 A, 1.6 A, 0, 0; leg 5
+    # moves against the current (braking): i_max alone, 90 A
+    assert current == pytest.approx([90.0, 90.0, 0.001 * 560 / 0.35, 0.0, 0.0, 90.0], rel=1e-6)
     # beyond the no-load speed the motor gives nothing: the leg feels only the friction
     assert drive.force[0, 3] == pytest.approx(-friction(l_dot[0, 3]), rel=1e-12)
 

@@ -112,8 +112,12 @@ inline double voltage_current_limit(const Electric& d, double omega_m) {
 // The current set point the drive can follow: the command clipped to the current limit i_max and
 // to the voltage envelope at the leg's rate.  docs/physics.md section 10.4 (no paper equation).
 inline double current_reference(const Electric& d, double command, double l_dot) {
-    const double bound = std::min(d.i_max, voltage_current_limit(d, d.k * l_dot));
-    return std::clamp(command, -bound, bound);
+    const double motoring = std::min(d.i_max, voltage_current_limit(d, d.k * l_dot));
+    // the back-EMF bounds the current that drives the motor with its speed; a current against
+    // the speed (braking) is bounded by i_max alone, its power taken by the drive's braking resistor
+    const double upper = l_dot > 0.0 ? motoring : d.i_max;
+    const double lower = l_dot < 0.0 ? motoring : d.i_max;
+    return std::clamp(command, -lower, upper);
 }
 
 // The leg force of a motor current: f = eta k K_t i minus the screw's friction at l_dot.
