@@ -1,16 +1,26 @@
 // Exact derivatives of the forward dynamics and of one control step, by forward-mode automatic
 // differentiation of the kernels themselves (docs/physics.md section 11).
 //
-// kernels::forward_one and rk4::step_state run on dual numbers (dual.hpp) with 18 directions: the
-// state's 12 tangent coordinates x = (dt, dtheta, v, w) and the 6 leg forces.  dt moves P's origin
-// in {B}; dtheta rotates the platform on the left in {B}, R' = exp([dtheta]x) R, so
-// dR/dtheta_k = [e_k]x R and, for the integrator's unit quaternion q, dq/dtheta_k = (0, e_k)/2 * q;
-// v and w are the velocity of P's origin and the angular velocity in {B}.  The next state of a
-// step is read back in the same coordinates about the next rotation: dtheta_next = 2 vec(dq q*).
-// The values are those of the double kernels bit for bit (dual.hpp), so the acceleration is
-// forward_batch's and the next state rollout_batch's.
+// The Jacobians' 18 columns are the state's 12 tangent coordinates x = (dt, dtheta, v, w) and the 6
+// leg forces.  dt moves P's origin in {B}; dtheta rotates the platform on the left in {B},
+// R' = exp([dtheta]x) R, so dR/dtheta_k = [e_k]x R and, for the integrator's quaternion q,
+// dq/dtheta_k = (0, e_k)/2 * q; v and w are the velocity of P's origin and the angular velocity in
+// {B}.  The next state of a step is read back in the same coordinates about the next rotation:
+// dtheta_next = 2 vec(dq q*).
+//
+// kernels::forward_one (and rk4::state_derivative around it) run on dual numbers (dual.hpp) with
+// the 12 state directions only, in two blocks: the pose's (dt, dtheta) and the twist's (v, w), so
+// what depends on the pose alone (the legs' frames, the mass matrix) carries 6 directions.  The
+// forces need no directions: the acceleration is affine in them, M a = J^T F + ..., so
+// da/dF = M^-1 J^T from the values' M and J (force_columns).  A control step chains its RK4 stages
+// by hand: each stage's derivative is evaluated with fresh seeds at the stage's state, and the
+// tangents of the state (13 x 18, the quaternion's four rows among them) are carried through the
+// integrator's sums as plain numbers, as rk4::step_state carries the values.  The values are those
+// of the double kernels bit for bit (dual.hpp), so the acceleration is forward_batch's and the next
+// state rollout_batch's.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
 
@@ -21,11 +31,19 @@
 
 namespace derivatives {
 
-//: Directions of the derivatives: the 12 tangent coordinates of the state, then the 6 leg forces.
+//: Columns of the Jacobians: the 12 tangent coordinates of the state, then the 6 leg forces.
 constexpr int DIRECTIONS = 18;
-using D = dual::Dual<DIRECTIONS>;
+//: Directions the dual numbers carry: the state's, in a block for the pose and one for the twist.
+constexpr int STATE_DIRECTIONS = 12;
+using D = dual::Dual<STATE_DIRECTIONS>;
 
-//: Where each group of directions starts: position, rotation, velocity, angular velocity, forces.
+// x as an active dual of zero derivatives (a seed, before its entries are set).
+inline void activate(D& x) {
+    x.active = true;
+    for (int k = 0; k < STATE_DIRECTIONS; ++k) x.d[k] = 0.0;
+}
+
+//: Where each group of columns starts: position, rotation, velocity, angular velocity, forces.
 constexpr int DIR_T = 0, DIR_THETA = 3, DIR_V = 6, DIR_W = 9, DIR_F = 12;
 
 // The packed parameter row as duals of zero derivative (constants of the differentiation).
@@ -33,28 +51,29 @@ inline void constant_params(const double* prm, D* out) {
     for (int k = 0; k < kernels::N_PARAMS; ++k) out[k] = D(prm[k]);
 }
 
-// A vector of three seeded along directions first, first + 1, first + 2.
-inline void seed3(const double* x, int first, D* out) {
-    for (int j = 0; j < 3; ++j) out[j] = D::seed(x[j], first + j);
-}
-
-// The six leg forces seeded along the force directions, and the wrench as constants.
-inline void seed_forces(const double* F, const double* W, D* Fd, D* Wd) {
-    for (int i = 0; i < 6; ++i) {
-        Fd[i] = D::seed(F[i], DIR_F + i);
-        Wd[i] = D(W[i]);
-    }
-}
-
-// Whether every value and derivative in x (size duals) is finite.
-inline bool all_finite(const D* x, int size) {
-    for (int j = 0; j < size; ++j) {
-        if (!std::isfinite(x[j].v)) return false;
-        if (x[j].active)
-            for (int k = 0; k < DIRECTIONS; ++k)
-                if (!std::isfinite(x[j].d[k])) return false;
-    }
+// Whether every one of the size numbers at x is finite.
+inline bool all_finite(const double* x, int size) {
+    for (int j = 0; j < size; ++j)
+        if (!std::isfinite(x[j])) return false;
     return true;
+}
+
+// The forces' columns of the acceleration's Jacobian at one state, jf (6,6) row-major, column i
+// d[a; alpha]/dF_i: the acceleration is affine in the forces, M [a; alpha] + h = J^T F + W with M
+// (its reflected masses m_r included, nullptr: none) and J free of F, so the column is M^-1 (row i
+// of J).  docs/physics.md sections 5.4 and 11.
+inline void force_columns(const double* prm, int64_t flags, const double* t, const double* R, const double* v,
+                          const double* w, const double* F, const double* m_r, double* jf) {
+    double M[36], h[6], J[36];
+    kernels::assemble_one<double>(prm, flags, t, R, v, w, F, M, h, m_r);
+    kernels::jacobian_one<double>(prm, t, R, J);
+    for (int i = 0; i < 6; ++i) {
+        double Mi[36], b[6], x[6];
+        for (int k = 0; k < 36; ++k) Mi[k] = M[k];
+        for (int r = 0; r < 6; ++r) b[r] = J[6 * i + r];
+        kernels::solve6<double>(Mi, b, x);
+        for (int r = 0; r < 6; ++r) jf[6 * r + i] = x[r];
+    }
 }
 
 // The platform's acceleration acc (6,) and its Jacobian jac (6,18) (columns: dt, dtheta, v, w, F)
@@ -65,18 +84,20 @@ inline bool acceleration_jacobian_one(const double* prm, int64_t flags, const do
                                       const double* m_r, double* acc, double* jac) {
     D P[kernels::N_PARAMS], td[3], Rd[9], vd[3], wd[3], Fd[6], Wd[6], M[36], h[6], out[6], mr[6];
     constant_params(prm, P);
-    seed3(t, DIR_T, td);
-    seed3(v, DIR_V, vd);
-    seed3(w, DIR_W, wd);
-    seed_forces(F, W, Fd, Wd);
+    for (int j = 0; j < 3; ++j) {
+        td[j] = D::seed(t[j], DIR_T + j);
+        vd[j] = D::seed(v[j], DIR_V + j);
+        wd[j] = D::seed(w[j], DIR_W + j);
+    }
+    for (int i = 0; i < 6; ++i) {
+        Fd[i] = D(F[i]);
+        Wd[i] = D(W[i]);
+    }
     // R' = exp([dtheta]x) R: column c of dR/dtheta_k is e_k x (column c of R)
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) {
-            D& x = Rd[3 * r + c];
-            x = D(R[3 * r + c]);
-            x.active = true;
-            for (int k = 0; k < DIRECTIONS; ++k) x.d[k] = 0.0;
-        }
+    for (int j = 0; j < 9; ++j) {
+        Rd[j] = D(R[j]);
+        activate(Rd[j]);
+    }
     for (int c = 0; c < 3; ++c) {
         const double col[3] = {R[c], R[3 + c], R[6 + c]};
         // e_0 x col = (0, -col2, col1), e_1 x col = (col2, 0, -col0), e_2 x col = (-col1, col0, 0)
@@ -90,78 +111,184 @@ inline bool acceleration_jacobian_one(const double* prm, int64_t flags, const do
     if (m_r != nullptr)
         for (int i = 0; i < 6; ++i) mr[i] = D(m_r[i]);
     kernels::forward_one<D>(P, flags, td, Rd, vd, wd, Fd, Wd, M, h, out, m_r == nullptr ? nullptr : mr);
+    double jf[36];
+    force_columns(prm, flags, t, R, v, w, F, m_r, jf);
     for (int r = 0; r < 6; ++r) {
         acc[r] = out[r].v;
-        for (int k = 0; k < DIRECTIONS; ++k) jac[DIRECTIONS * r + k] = out[r].derivative(k);
+        for (int k = 0; k < STATE_DIRECTIONS; ++k) jac[DIRECTIONS * r + k] = out[r].derivative(k);
+        for (int i = 0; i < 6; ++i) jac[DIRECTIONS * r + DIR_F + i] = jf[6 * r + i];
     }
-    return all_finite(out, 6);
+    return all_finite(acc, 6) && all_finite(jac, 6 * DIRECTIONS);
+}
+
+//: The numbers of a control step that stay the same over its stages: the parameters, held forces,
+//: wrench and reflected masses as duals of zero derivative, and the same as doubles.
+struct StepInputs {
+    D P[kernels::N_PARAMS], F[6], W[6], mr[6];
+    const double* prm;
+    int64_t flags;
+    const double* forces;
+    const double* m_r;
+};
+
+// One RK4 stage's derivative k (13,) = dx/dt of rk4::state_derivative at the stage's state xs
+// (13,), and its tangent K (13,18) = dk along the columns whose tangent of xs is Xs (13,18)
+// (row-major).  The stage is differentiated with fresh seeds at xs (its 12 tangent coordinates,
+// the quaternion's as dtheta = 2 vec(dq q*) / |q|^2), then chained with Xs; the quaternion's
+// radial part s = q.dq / |q|^2 moves the rotation not at all and its rate dq/dt = (0, w) q / 2 as
+// s dq/dt.  The forces' columns add M^-1 J^T (force_columns) to the acceleration's rows.
+// docs/physics.md sections 5.6 and 11.
+inline void stage_tangent(const StepInputs& in, const double* xs, const double* Xs, double* k, double* K) {
+    D x[13], F[6], R[9], M[36], h[6], acc[6], dx[13];
+    const double* q = xs + 3;
+    for (int j = 0; j < 3; ++j) {
+        x[j] = D::seed(xs[j], DIR_T + j);
+        x[7 + j] = D::seed(xs[7 + j], DIR_V + j);
+        x[10 + j] = D::seed(xs[10 + j], DIR_W + j);
+    }
+    // dq/dtheta_k = (0, e_k)/2 * q = (-q_k, q0 e_k + e_k x q_vec) / 2 for q = (q0, q_vec)
+    for (int j = 0; j < 4; ++j) {
+        x[3 + j] = D(q[j]);
+        activate(x[3 + j]);
+    }
+    for (int c = 0; c < 3; ++c) {
+        double e[3] = {0.0, 0.0, 0.0};
+        e[c] = 1.0;
+        const double ex[3] = {e[1] * q[3] - e[2] * q[2], e[2] * q[1] - e[0] * q[3], e[0] * q[2] - e[1] * q[1]};
+        x[3].d[DIR_THETA + c] = -0.5 * q[1 + c];
+        for (int j = 0; j < 3; ++j) x[4 + j].d[DIR_THETA + c] = 0.5 * (q[0] * e[j] + ex[j]);
+    }
+    const rk4::LawRows<D> src{nullptr, nullptr, 0, 6, 0, in.F};
+    rk4::state_derivative<D>(in.P, in.flags, src, 0.0, x, F, in.W, R, M, h, acc, false, dx,
+                             in.m_r == nullptr ? nullptr : in.mr);
+    double Rv[9], jf[36];
+    for (int j = 0; j < 9; ++j) Rv[j] = R[j].v;
+    force_columns(in.prm, in.flags, xs, Rv, xs + 7, xs + 10, in.forces, in.m_r, jf);
+    // Xs in the stage's coordinates: Z (12,18) and the quaternion's radial part s (18,)
+    const double n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+    double Z[STATE_DIRECTIONS][DIRECTIONS], s[DIRECTIONS];
+    for (int c = 0; c < DIRECTIONS; ++c) {
+        const double d0 = Xs[DIRECTIONS * 3 + c], d1 = Xs[DIRECTIONS * 4 + c];
+        const double d2 = Xs[DIRECTIONS * 5 + c], d3 = Xs[DIRECTIONS * 6 + c];
+        // 2 vec(dq q*) with q* = (q0, -q_vec)
+        Z[3][c] = 2.0 * (-d0 * q[1] + d1 * q[0] - d2 * q[3] + d3 * q[2]) / n2;
+        Z[4][c] = 2.0 * (-d0 * q[2] + d1 * q[3] + d2 * q[0] - d3 * q[1]) / n2;
+        Z[5][c] = 2.0 * (-d0 * q[3] - d1 * q[2] + d2 * q[1] + d3 * q[0]) / n2;
+        s[c] = (d0 * q[0] + d1 * q[1] + d2 * q[2] + d3 * q[3]) / n2;
+        for (int j = 0; j < 3; ++j) {
+            Z[j][c] = Xs[DIRECTIONS * j + c];
+            Z[6 + j][c] = Xs[DIRECTIONS * (7 + j) + c];
+            Z[9 + j][c] = Xs[DIRECTIONS * (10 + j) + c];
+        }
+    }
+    for (int r = 0; r < 13; ++r) {
+        k[r] = dx[r].v;
+        double row[DIRECTIONS];
+        const double radial = (r >= 3 && r < 7) ? k[r] : 0.0;
+        for (int c = 0; c < DIRECTIONS; ++c) row[c] = radial * s[c];
+        for (int m = 0; m < STATE_DIRECTIONS; ++m) {
+            const double a = dx[r].derivative(m);
+            if (a == 0.0) continue;  // most of the rate rows' entries vanish by structure
+            for (int c = 0; c < DIRECTIONS; ++c) row[c] += a * Z[m][c];
+        }
+        if (r >= 7)
+            for (int i = 0; i < 6; ++i) row[DIR_F + i] += jf[6 * (r - 7) + i];
+        for (int c = 0; c < DIRECTIONS; ++c) K[DIRECTIONS * r + c] = row[c];
+    }
 }
 
 // One control step of `steps` RK4 substeps of dt seconds (forces F and wrench W held) from
 // (t, R, v, w) of one platform: the next state into (t_next, R_next, v_next, w_next) and its
 // Jacobian jac (12,18) (rows: the next state's dt, dtheta, v, w; columns: the state's, then F).
-// The integrator's own steps (rk4::step_state), started as rk4::rollout_row starts them.  Returns
-// whether all are finite.  docs/physics.md sections 5.6 and 11.
+// The values are rk4::step_state's, operation for operation (started as rk4::rollout_row starts
+// them), their tangents carried beside them (stage_tangent).  Returns whether all are finite.
+// docs/physics.md sections 5.6 and 11.
 inline bool step_jacobian_one(const double* prm, int64_t flags, const double* t, const double* R,
                               const double* v, const double* w, const double* F, const double* W,
                               const double* m_r, double dt, int64_t steps, double* t_next, double* R_next,
                               double* v_next, double* w_next, double* jac) {
-    D P[kernels::N_PARAMS], x[13], xn[13], Fd[6], Wd[6], mr[6];
-    constant_params(prm, P);
-    seed3(t, DIR_T, x);
-    seed3(v, DIR_V, x + 7);
-    seed3(w, DIR_W, x + 10);
-    seed_forces(F, W, Fd, Wd);
-    double q[4];
-    rk4::matrix_to_quat(R, q);
-    // dq/dtheta_k = (0, e_k)/2 * q = (-q_k, q0 e_k + e_k x q_vec) / 2 for q = (q0, q_vec)
-    for (int j = 0; j < 4; ++j) {
-        x[3 + j] = D(q[j]);
-        x[3 + j].active = true;
-        for (int k = 0; k < DIRECTIONS; ++k) x[3 + j].d[k] = 0.0;
+    constexpr int S = DIRECTIONS;
+    StepInputs in;
+    constant_params(prm, in.P);
+    for (int i = 0; i < 6; ++i) {
+        in.F[i] = D(F[i]);
+        in.W[i] = D(W[i]);
+        in.mr[i] = D(m_r == nullptr ? 0.0 : m_r[i]);
     }
-    for (int k = 0; k < 3; ++k) {
+    in.prm = prm;
+    in.flags = flags;
+    in.forces = F;
+    in.m_r = m_r;
+    double x[13], X[13 * S], xs[13], Xs[13 * S], k[4][13], K[4][13 * S];
+    for (int j = 0; j < 3; ++j) {
+        x[j] = t[j];
+        x[7 + j] = v[j];
+        x[10 + j] = w[j];
+    }
+    rk4::matrix_to_quat(R, x + 3);
+    for (int j = 0; j < 13 * S; ++j) X[j] = 0.0;
+    for (int j = 0; j < 3; ++j) {
+        X[S * j + DIR_T + j] = 1.0;
+        X[S * (7 + j) + DIR_V + j] = 1.0;
+        X[S * (10 + j) + DIR_W + j] = 1.0;
+    }
+    const double* q = x + 3;
+    for (int c = 0; c < 3; ++c) {  // dq/dtheta_c = (0, e_c)/2 * q
         double e[3] = {0.0, 0.0, 0.0};
-        e[k] = 1.0;
-        const double c[3] = {e[1] * q[3] - e[2] * q[2], e[2] * q[1] - e[0] * q[3], e[0] * q[2] - e[1] * q[1]};
-        x[3].d[DIR_THETA + k] = -0.5 * q[1 + k];
-        for (int j = 0; j < 3; ++j) x[4 + j].d[DIR_THETA + k] = 0.5 * (q[0] * e[j] + c[j]);
+        e[c] = 1.0;
+        const double ex[3] = {e[1] * q[3] - e[2] * q[2], e[2] * q[1] - e[0] * q[3], e[0] * q[2] - e[1] * q[1]};
+        X[S * 3 + DIR_THETA + c] = -0.5 * q[1 + c];
+        for (int j = 0; j < 3; ++j) X[S * (4 + j) + DIR_THETA + c] = 0.5 * (q[0] * e[j] + ex[j]);
     }
-    if (m_r != nullptr)
-        for (int i = 0; i < 6; ++i) mr[i] = D(m_r[i]);
-    const rk4::LawRows<D> src{nullptr, nullptr, 0, 6, 0, Fd};
     bool finite = true;
     for (int64_t step = 0; step < steps && finite; ++step) {
-        finite = rk4::step_state<D>(P, flags, src, static_cast<double>(step) * dt, dt, x, Wd, false, xn,
-                                    m_r == nullptr ? nullptr : mr);
-        for (int j = 0; j < 13; ++j) x[j] = xn[j];
-    }
-    double qn[4];
-    for (int j = 0; j < 4; ++j) qn[j] = x[3 + j].v;
-    rk4::quat_to_matrix<double>(qn, R_next);
-    for (int j = 0; j < 3; ++j) {
-        t_next[j] = x[j].v;
-        v_next[j] = x[7 + j].v;
-        w_next[j] = x[10 + j].v;
-    }
-    for (int k = 0; k < DIRECTIONS; ++k) {
-        // dtheta_next = 2 vec(dq q*), q* = (q0, -q_vec): the left rotation that moves q by dq
-        const double d0 = x[3].derivative(k), d1 = x[4].derivative(k), d2 = x[5].derivative(k);
-        const double d3 = x[6].derivative(k);
-        const double a = qn[0], b = -qn[1], c = -qn[2], e = -qn[3];
-        const double theta[3] = {
-            2.0 * (d0 * b + d1 * a + d2 * e - d3 * c),
-            2.0 * (d0 * c - d1 * e + d2 * a + d3 * b),
-            2.0 * (d0 * e + d1 * c - d2 * b + d3 * a),
-        };
-        for (int j = 0; j < 3; ++j) {
-            jac[DIRECTIONS * j + k] = x[j].derivative(k);
-            jac[DIRECTIONS * (3 + j) + k] = theta[j];
-            jac[DIRECTIONS * (6 + j) + k] = x[7 + j].derivative(k);
-            jac[DIRECTIONS * (9 + j) + k] = x[10 + j].derivative(k);
+        // rk4::step_state's sums, the tangents beside the values
+        stage_tangent(in, x, X, k[0], K[0]);
+        for (int j = 0; j < 13; ++j) xs[j] = x[j] + 0.5 * dt * k[0][j];
+        for (int j = 0; j < 13 * S; ++j) Xs[j] = X[j] + 0.5 * dt * K[0][j];
+        stage_tangent(in, xs, Xs, k[1], K[1]);
+        for (int j = 0; j < 13; ++j) xs[j] = x[j] + 0.5 * dt * k[1][j];
+        for (int j = 0; j < 13 * S; ++j) Xs[j] = X[j] + 0.5 * dt * K[1][j];
+        stage_tangent(in, xs, Xs, k[2], K[2]);
+        for (int j = 0; j < 13; ++j) xs[j] = x[j] + dt * k[2][j];
+        for (int j = 0; j < 13 * S; ++j) Xs[j] = X[j] + dt * K[2][j];
+        stage_tangent(in, xs, Xs, k[3], K[3]);
+        for (int j = 0; j < 13; ++j) {
+            x[j] = x[j] + dt / 6.0 * (k[0][j] + 2.0 * k[1][j] + 2.0 * k[2][j] + k[3][j]);
+            finite = finite && std::isfinite(x[j]);
+        }
+        for (int j = 0; j < 13 * S; ++j) X[j] = X[j] + dt / 6.0 * (K[0][j] + 2.0 * K[1][j] + 2.0 * K[2][j] + K[3][j]);
+        // the quaternion renormalised, q / |q|, and its tangent (dq - q_unit (q_unit . dq)) / |q|
+        const double nq = std::sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5] + x[6] * x[6]);
+        for (int j = 3; j < 7; ++j) x[j] /= nq;
+        for (int c = 0; c < S; ++c) {
+            const double along = x[3] * X[S * 3 + c] + x[4] * X[S * 4 + c] + x[5] * X[S * 5 + c] + x[6] * X[S * 6 + c];
+            for (int j = 3; j < 7; ++j) X[S * j + c] = (X[S * j + c] - x[j] * along) / nq;
         }
     }
-    return finite && all_finite(x, 13);
+    rk4::quat_to_matrix<double>(x + 3, R_next);
+    for (int j = 0; j < 3; ++j) {
+        t_next[j] = x[j];
+        v_next[j] = x[7 + j];
+        w_next[j] = x[10 + j];
+    }
+    const double* qn = x + 3;
+    for (int c = 0; c < S; ++c) {
+        // dtheta_next = 2 vec(dq q*), q* = (q0, -q_vec): the left rotation that moves q by dq
+        const double d0 = X[S * 3 + c], d1 = X[S * 4 + c], d2 = X[S * 5 + c], d3 = X[S * 6 + c];
+        const double theta[3] = {
+            2.0 * (-d0 * qn[1] + d1 * qn[0] - d2 * qn[3] + d3 * qn[2]),
+            2.0 * (-d0 * qn[2] + d1 * qn[3] + d2 * qn[0] - d3 * qn[1]),
+            2.0 * (-d0 * qn[3] - d1 * qn[2] + d2 * qn[1] + d3 * qn[0]),
+        };
+        for (int j = 0; j < 3; ++j) {
+            jac[S * j + c] = X[S * j + c];
+            jac[S * (3 + j) + c] = theta[j];
+            jac[S * (6 + j) + c] = X[S * (7 + j) + c];
+            jac[S * (9 + j) + c] = X[S * (10 + j) + c];
+        }
+    }
+    return finite && all_finite(x, 13) && all_finite(jac, 12 * S);
 }
 
 // The NaN a row that is not finite gets throughout (a partly finite Jacobian is no Jacobian).
