@@ -34,6 +34,11 @@ from stewart_env.params import PlatformParams, load_platform
 
 #: The controllers compared, by the parameters their computed torque is built on.
 BELIEFS = ("identified", "true", "nominal")
+#: The consistent fit's prior weights the study chooses from, by the tracking error of computed
+#: torque built on each identified platform on the machine over validation episodes.
+PRIOR_WEIGHTS = (1e-4, 1e-3, 1e-2, 1e-1)
+#: The validation episodes' seeds start here past the study's seed: none is an evaluation episode.
+VALIDATION_SEED_OFFSET = 1000
 
 
 def _processor() -> str:
@@ -58,6 +63,9 @@ def run(
     episodes: int = 5,
     plant: str = "mujoco",
     random: bool = False,
+    forces: str | None = None,
+    prior_weights: tuple[float, ...] = PRIOR_WEIGHTS,
+    validation_episodes: int = 3,
 ) -> dict:
     """The whole path on a stand-in machine (see the module docstring).
 
@@ -74,6 +82,13 @@ def run(
         episodes: the tracking episodes per controller.
         plant: the machine: ``mujoco`` (the twin) or a closed-form model's name.
         random: a random excitation instead of the optimised one (a quick check).
+        forces: how the identification reads the log's forces (:data:`~stewart_env.identification.logged.FORCES`);
+            None: ``held`` on MuJoCo, whose recorder holds each sample's force until the next as a
+            digital controller does, ``sampled`` on a closed-form plant, whose recorder runs the law
+            at every 1 ms step of the plant.
+        prior_weights: the consistent fit's prior weights to choose from (one: no choice).
+        validation_episodes: the tracking episodes on the machine that score each weight, with
+            seeds from ``seed`` + :data:`VALIDATION_SEED_OFFSET`, apart from the evaluation's.
 
     Returns:
         The summary (what summary.json holds).
@@ -81,6 +96,8 @@ def run(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
+    if forces is None:
+        forces = "held" if plant == "mujoco" else "sampled"
     nominal = load_platform(platform)
     excitation, checks = recording.excitation_log(
         nominal, platform, duration=duration, period=period, seed=seed, random=random
@@ -92,25 +109,37 @@ def run(
     record, truth = recording.record_log(logs.read(out / "excitation.csv", nominal), nominal, settings)
     logs.write(out / "record.csv", record, nominal)
     files.publish(out / "truth.yaml", yaml.safe_dump(truth.to_dict(), sort_keys=False))
-    # identification sees the file only
+    env_kwargs = {"model": plant, "platform": truth, "task": "tracking", "observation_mode": "pose"}
+
+    def tracking(believed: PlatformParams, n: int, first_seed: int, label: str) -> dict:
+        return evaluate(
+            lambda env: ComputedTorquePolicy(env, "improved", platform=believed),
+            env_kwargs,
+            episodes=n,
+            seed=first_seed,
+            label=label,
+            progress=False,
+        ).summary()
+
+    def validation_error(candidate: PlatformParams) -> float:
+        # the machine itself judges the candidate, on episodes the evaluation does not see
+        return tracking(candidate, validation_episodes, seed + VALIDATION_SEED_OFFSET, "CT (candidate)")[
+            "rms_position_error"
+        ]
+
+    # identification sees the file only, and the prior weight is chosen on the machine's validation episodes
     result = logged.identify_log(
-        logs.read(out / "record.csv", nominal, min_duration=2 * experiment.SETTLE + 0.5), nominal
+        logs.read(out / "record.csv", nominal, min_duration=2 * experiment.SETTLE + 0.5),
+        nominal,
+        logged.LogSettings(forces=forces, prior_weight=tuple(prior_weights)),
+        score=validation_error if len(prior_weights) > 1 else None,
     )
     logged.write(result, out / "identified")
     identified = result["identified"]
     believed = {"identified": identified, "true": truth, "nominal": nominal}
-    env_kwargs = {"model": plant, "platform": truth, "task": "tracking", "observation_mode": "pose"}
     rows = {}
     for name in BELIEFS:
-        evaluation = evaluate(
-            lambda env, p=believed[name]: ComputedTorquePolicy(env, "improved", platform=p),
-            env_kwargs,
-            episodes=episodes,
-            seed=seed,
-            label=f"CT ({name})",
-            progress=False,
-        )
-        summary = evaluation.summary()
+        summary = tracking(believed[name], episodes, seed, f"CT ({name})")
         rows[name] = {
             "rms_position_error_mm": 1e3 * summary["rms_position_error"],
             "rms_orientation_error_mrad": 1e3 * summary["rms_orientation_error"],
@@ -132,7 +161,18 @@ def run(
             "noise_force": noise_force,
             "episodes": episodes,
             "excitation": "random" if random else "optimized",
+            "forces": forces,
+            "validation_episodes": validation_episodes,
         },
+        "prior_weights": [
+            {
+                "prior_weight": c["prior_weight"],
+                "validation_rms_position_error_mm": None if c["score"] is None else 1e3 * c["score"],
+                "held_out_force_error": c["held_out_force_error"],
+            }
+            for c in report["prior_weights"]
+        ],
+        "prior_weight": report["settings"]["prior_weight"],
         "excitation_condition_number": checks.condition,
         "held_out_force_error": report["held_out_force_error"],
         "held_out_rms_force": report["held_out_rms_force"],
@@ -225,7 +265,20 @@ def markdown(summary: dict) -> str:
         f"identified from record.csv: {summary['base_parameters_under_10pct_rel_std']} of {summary['rank']} base "
         f"parameters under 10 % relative standard deviation; held-out leg-force RMS error (RMS force "
         f"{summary['held_out_rms_force']:.4g} N): nominal {e['nominal']:.4g} N, WLS {e['wls']:.4g} N, "
-        f"consistent {e['consistent']:.4g} N",
+        f"consistent {e['consistent']:.4g} N; forces read as {s['forces']}",
+        "",
+        f"The consistent fit's prior weight, chosen by computed torque's RMS position error on "
+        f"{s['validation_episodes']} validation episodes on the machine (seeds from {s['seed'] + VALIDATION_SEED_OFFSET}): "
+        f"{summary['prior_weight']:g}",
+        "",
+        "| prior weight | validation RMS position error (mm) | held-out leg-force RMS error (N) |",
+        "|---|---|---|",
+        *(
+            f"| {c['prior_weight']:g} | "
+            + ("" if c["validation_rms_position_error_mm"] is None else f"{c['validation_rms_position_error_mm']:.4g}")
+            + f" | {c['held_out_force_error']:.4g} |"
+            for c in summary["prior_weights"]
+        ),
         "",
         f"Computed torque on the tracking task on the machine, {s['episodes']} episodes:",
         "",

@@ -17,6 +17,7 @@ Logs with jittered time stamps are resampled onto the grid of the header's rate 
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -50,6 +51,13 @@ HELD_OUT = 0.25
 #: so that the poses are as exact as the logged lengths (the regressor's condition number, ~1e5,
 #: turns a 1e-12 m pose error into 1e-7 of the parameters).
 FK_TOLERANCE = 1e-14
+#: How a log's forces (or currents) relate to their time stamps: ``sampled``, each the force at its
+#: stamp (a load cell read at that instant); ``held``, each the force held from its stamp to the
+#: next (a zero-order hold: a drive applying a digital controller's command at the log's rate), so
+#: that the force acting around sample k, the one the filtered accelerations see, is the mean of
+#: samples k - 1 and k.  Taken as sampled, held forces lead the motion by half a period, which the
+#: fit reads as negative joint damping and a wrong model (docs/guides/your-own-platform.md).
+FORCES = ("sampled", "held")
 #: Relative jitter of the time stamps beyond which the log is resampled onto its rate's grid.
 JITTER = 1e-9
 
@@ -58,13 +66,17 @@ JITTER = 1e-9
 class LogSettings:
     """How :func:`identify_log` identifies: the identified structure (a model name), the
     derivatives (``filter``: Savitzky-Golay of the poses; ``exact``: the log's twist and
-    acceleration), the share of the log held out at its end, and the drive constants of a log of
-    motor currents (None: looked for in ``drive.yaml`` beside the log)."""
+    acceleration), the share of the log held out at its end, the drive constants of a log of
+    motor currents (None: looked for in ``drive.yaml`` beside the log), how the logged forces
+    relate to their time stamps (:data:`FORCES`), and the consistent fit's prior weight, or
+    several for :func:`identify_log` to choose from by a score."""
 
     model: str = "improved"
     derivatives: str = "filter"
     held_out: float = HELD_OUT
     drive: BallScrew | None = None
+    forces: str = "sampled"
+    prior_weight: float | tuple[float, ...] = est.PRIOR_WEIGHT
 
 
 def read_drive(path: str | Path) -> BallScrew:
@@ -196,13 +208,24 @@ def _weak_parameters(A: np.ndarray, base: base_mod.BaseParameters, source: str, 
         )
 
 
-def identify_log(record: logs.Log, nominal: PlatformParams, settings: LogSettings = LogSettings()) -> dict:
+def identify_log(
+    record: logs.Log,
+    nominal: PlatformParams,
+    settings: LogSettings = LogSettings(),
+    score: Callable[[PlatformParams], float] | None = None,
+) -> dict:
     """Identify the base parameters from a record log (see the module docstring).
+
+    With several prior weights (``settings.prior_weight`` a tuple) the consistent fit runs at
+    each and keeps the identified platform of the lowest ``score``, e.g. the tracking error of a
+    controller built on it on the machine (a held-out closed-loop test); the report lists every
+    weight's score and held-out force error.
 
     Args:
         record: the checked record log.
         nominal: the nominal platform (geometry, the prior of the consistent fit).
-        settings: the structure, derivatives, held-out share and drive.
+        settings: the structure, derivatives, held-out share, drive, force timing and prior weight.
+        score: the score of an identified platform, lower better (needed with several weights).
 
     Returns:
         ``{"identified": PlatformParams, "report": dict}``.
@@ -218,6 +241,13 @@ def identify_log(record: logs.Log, nominal: PlatformParams, settings: LogSetting
         raise IdentificationError(f"--derivatives: expected filter or exact, got {settings.derivatives!r}")
     if not 0 < settings.held_out < 1:
         raise IdentificationError(f"--held-out: expected a share in (0, 1), got {settings.held_out!r}")
+    if settings.forces not in FORCES:
+        raise IdentificationError(f"--forces: expected {' or '.join(FORCES)}, got {settings.forces!r}")
+    weights = settings.prior_weight if isinstance(settings.prior_weight, tuple) else (settings.prior_weight,)
+    if not weights or not all(isinstance(x, (int, float)) and 0 < x < float("inf") for x in weights):
+        raise IdentificationError(f"--prior-weight: expected positive numbers, got {settings.prior_weight!r}")
+    if len(weights) > 1 and score is None:
+        raise IdentificationError("prior_weight: several weights need a score to choose by")
     spec = ModelSpec.parse(settings.model, "model")
     source = record.source or "log"
     if "motor_current" in record.data:
@@ -246,6 +276,10 @@ def identify_log(record: logs.Log, nominal: PlatformParams, settings: LogSetting
     kept = logs.drop_clipped(source, forces, nominal.limits.leg_force)
     clipped = int((~kept).sum())
     keep &= kept
+    if settings.forces == "held":
+        # the hold's mean over the period centred on each stamp; a clipped sample spoils two means
+        forces = np.concatenate([forces[:1], 0.5 * (forces[1:] + forces[:-1])])
+        keep &= np.concatenate([[False], kept[:-1]])
     split = time[0] + (1 - settings.held_out) * (time[-1] - time[0])
     fit, held = keep & (time < split), keep & (time >= split)
     model = Dynamics(spec, nominal)
@@ -264,15 +298,22 @@ def identify_log(record: logs.Log, nominal: PlatformParams, settings: LogSetting
     o, w = est.ols(A, F), est.wls(A, F)
     on_drive = drive is not None  # motor currents: the drives' friction and reflected mass are in the forces
     nominal_theta = reg.theta_of(nominal, model.flags, drive=on_drive)
-    theta_c = est.consistent(A, F, base, nominal_theta, base.theta_from(w.beta, nominal_theta), sigma=w.sigma)
-    beta_c = base.of_theta(theta_c)
-    identified = base_mod.params_from_theta(
-        theta_c, nominal, model.flags, name=f"{nominal.name}_identified", drive=on_drive
-    )
     A_held, F_held = rows(held), forces[held]
 
     def prediction_error(beta):
         return float(np.sqrt(np.mean((np.einsum("tir,r->ti", A_held, beta) - F_held) ** 2)))
+
+    start = base.theta_from(w.beta, nominal_theta)
+    candidates = []
+    for weight in weights:
+        theta = est.consistent(A, F, base, nominal_theta, start, prior_weight=weight, sigma=w.sigma)
+        params = base_mod.params_from_theta(
+            theta, nominal, model.flags, name=f"{nominal.name}_identified", drive=on_drive
+        )
+        candidates.append((weight, theta, params, None if score is None else float(score(params))))
+    chosen = min(range(len(weights)), key=lambda k: candidates[k][3] if candidates[k][3] is not None else 0.0)
+    prior_weight, theta_c, identified, _ = candidates[chosen]
+    beta_c = base.of_theta(theta_c)
 
     beta_nominal = base.of_theta(nominal_theta)
     noise = float(np.sqrt(np.mean(w.sigma**2)))
@@ -303,7 +344,13 @@ def identify_log(record: logs.Log, nominal: PlatformParams, settings: LogSetting
             "held_out": settings.held_out,
             "forces_from": force_source,
             "drive": None if drive is None else drive.__dict__.copy(),
+            "forces": settings.forces,
+            "prior_weight": prior_weight,
         },
+        "prior_weights": [
+            {"prior_weight": x, "score": sc, "held_out_force_error": prediction_error(base.of_theta(th))}
+            for x, th, _, sc in candidates
+        ],
         "samples": int(record.time.size),
         "resampled": resampled,
         "clipped_samples": clipped,
@@ -348,7 +395,8 @@ def markdown(report: dict) -> str:
     lines = [
         f"# Identification of {report['platform']} from {report['log']}",
         "",
-        f"model `{s['model']}`, derivatives `{s['derivatives']}`, forces from {s['forces_from']}; "
+        f"model `{s['model']}`, derivatives `{s['derivatives']}`, forces from {s['forces_from']} "
+        f"({s.get('forces', 'sampled')}), prior weight {s.get('prior_weight', est.PRIOR_WEIGHT):g}; "
         f"{report['samples']} samples{' (resampled onto the rate grid)' if report['resampled'] else ''}, "
         f"{report['clipped_samples']} clipped and dropped; fitted on {report['fitted_samples']} "
         f"({report['fitted_duration']:.4g} s), {report['held_out_samples']} held out "
