@@ -4,7 +4,9 @@ the file -> computed torque on the identified model, measured on the tracking ta
 The unknown machine is the MuJoCo twin of the platform with every inertial and friction parameter
 perturbed (:func:`stewart_env.identification.experiment.perturbed`).  :func:`run` exports the
 optimised excitation, records the machine following it (leg lengths and leg forces with sensor
-noise, in the drive-log format), identifies the platform from that file alone, and evaluates
+noise, in the drive-log format), identifies the platform from that file alone (the forces read as
+held by the drives on MuJoCo, the consistent fit's prior weight chosen among :data:`PRIOR_WEIGHTS` by
+computed torque's tracking on validation episodes of the machine), and evaluates
 computed torque built on the identified, the true and the nominal parameters on the tracking task
 on the same machine; it writes every file of the path and ``summary.md`` / ``summary.json`` with
 the RMS errors, the machine and the date into ``out``::
