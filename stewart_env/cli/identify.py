@@ -26,6 +26,7 @@ from stewart_env.cli.arguments import (
     model_name,
     plant_model_name,
     platform_name,
+    positive_float,
     positive_int,
     quoted,
     real,
@@ -121,6 +122,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     Returns:
         The command's parser.
     """
+    from stewart_env.identification import estimate as est
+    from stewart_env.identification import logged
+
     p = subparsers.add_parser(
         VERB,
         help="identify a platform's inertial and friction parameters on a stand-in plant",
@@ -217,6 +221,21 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         default=0.25,
         help="with --record: the share of the log, at its end, held out for validation (default 0.25)",
     )
+    p.add_argument(
+        "--forces",
+        choices=logged.FORCES,
+        default="sampled",
+        help="with --record: how the logged forces or currents relate to their time stamps: sampled, each the "
+        "value at its stamp, or held, each held from its stamp to the next (a drive's zero-order hold; read as "
+        "the mean of two samples) (default sampled; docs/guides/log-format.md)",
+    )
+    p.add_argument(
+        "--prior-weight",
+        type=positive_float,
+        default=est.PRIOR_WEIGHT,
+        help=f"with --record: the physically consistent fit's pull towards the nominal parameters "
+        f"(default {est.PRIOR_WEIGHT:g}; docs/guides/your-own-platform.md chooses it by tracking)",
+    )
     return p
 
 
@@ -237,7 +256,12 @@ def _run_record(args: argparse.Namespace) -> int:
         drive = None if args.drive is None else logged.read_drive(args.drive)
         record = log.read(args.record, nominal, min_duration=2 * SETTLE + 0.5)
         settings = logged.LogSettings(
-            model=args.model, derivatives=args.derivatives, held_out=args.held_out, drive=drive
+            model=args.model,
+            derivatives=args.derivatives,
+            held_out=args.held_out,
+            drive=drive,
+            forces=args.forces,
+            prior_weight=args.prior_weight,
         )
         folder = logged.write(logged.identify_log(record, nominal, settings), args.out)
     except ValueError as err:  # LogError, IdentificationError, a busy or unwritable --out: the message names it

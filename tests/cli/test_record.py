@@ -191,3 +191,29 @@ def test_without_a_drive_file_the_platform_config_s_electric_drive_is_used(tmp_p
     assert (drive.lead, drive.torque_constant, drive.efficiency) == (0.025, 1.95, 0.9)
     (tmp_path / "drive.yaml").write_text("lead: 0.01\n")
     assert logged.drive_for(log, None, simulator).lead == 0.01  # the file beside the log first
+
+
+def test_identify_passes_forces_and_prior_weight_to_the_log_settings(tmp_path, capsys, dasgupta, monkeypatch):
+    from stewart_env.identification import logged
+
+    n = 401
+    lengths, _ = se.inverse_kinematics(dasgupta, dasgupta.home_position, np.eye(3))
+    header = {"format": logs.FORMAT, "kind": "record", "platform": "dasgupta1998", "rate_hz": "200"}
+    data = {"time": np.arange(n) / 200.0, "leg_length": np.tile(lengths, (n, 1)), "leg_force": np.ones((n, 6))}
+    path = logs.write(tmp_path / "rec.csv", logs.Log(header, data))
+    seen = []
+
+    def identify_log(record, nominal, settings):
+        seen.append(settings)
+        raise base_mod.IdentificationError("stopped here")
+
+    monkeypatch.setattr(logged, "identify_log", identify_log)
+    argv = ["identify", "--record", str(path), "--out", str(tmp_path / "id")]
+    assert run([*argv, "--forces", "held", "--prior-weight", "0.01"], capsys)[0] == 2
+    assert (seen[-1].forces, seen[-1].prior_weight) == ("held", 0.01)
+    assert run(argv, capsys)[0] == 2
+    assert (seen[-1].forces, seen[-1].prior_weight) == ("sampled", logged.est.PRIOR_WEIGHT)
+    code, _, err = run([*argv, "--prior-weight", "-1"], capsys)
+    assert code == 2 and "--prior-weight" in err and len(seen) == 2
+    code, _, err = run([*argv, "--forces", "late"], capsys)
+    assert code == 2 and "--forces" in err and "held" in err
