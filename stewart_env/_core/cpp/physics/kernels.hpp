@@ -64,6 +64,7 @@
 #include <limits>
 #include <new>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "physics/lanes.hpp"
@@ -712,31 +713,90 @@ inline void leg_share(const T* prm, int64_t flags, int i, const T* t, const T* R
     add_column<T>(M_leg, 5, q0, q1, q2, Qy0 * q0 - Qx0 * q1, Qy1 * q0 - Qx1 * q1, Qy2 * q0 - Qx2 * q1);
 }
 
+#ifdef STEWART_ENV_VECTOR_EXTENSIONS
+// Entry k of the packed row prm spread into lanes P for leg_shares: lane l holds leg l's numbers
+// where the kernels read leg 0's (lanes 6 and 7 repeat leg 5), the platform's numbers the legs
+// read (damping, gravity) are in every lane.  Offsets and sizes are compile-time constants, so the
+// spread is plain loads and stores (it runs at every evaluation outside a SpreadOnce).
+template <int k>
+inline void spread_entry(const double* prm, lanes::Lanes* P) {
+    constexpr LayoutEntry entry = PACKED_LAYOUT[k];
+    constexpr int off = offset_of(k);
+    constexpr int size = entry_size(entry);
+    if constexpr (entry.ndim >= 1 && entry.shape[0] == 6) {
+        constexpr int per_leg = size / 6;
+        for (int j = 0; j < per_leg; ++j)
+            for (int l = 0; l < lanes::LANES; ++l) P[off + j].v[l] = prm[off + per_leg * (l < 5 ? l : 5) + j];
+    } else {
+        for (int j = 0; j < size; ++j) P[off + j] = prm[off + j];
+    }
+}
+template <std::size_t... k>
+inline void spread_entries(const double* prm, lanes::Lanes* P, std::index_sequence<k...>) {
+    (spread_entry<static_cast<int>(k)>(prm, P), ...);
+}
+// The packed row prm (N_PARAMS,) spread into lanes P (N_PARAMS,), one leg per lane (spread_entry).
+inline void spread_legs(const double* prm, lanes::Lanes* P) {
+    spread_entries(prm, P, std::make_index_sequence<N_LAYOUT>{});
+}
+
+//: A packed row and its lanes (spread_legs).
+struct SpreadRow {
+    const double* prm;
+    lanes::Lanes lanes[N_PARAMS];
+};
+//: The row spread by this thread's innermost live SpreadOnce (nullptr: none).
+inline thread_local const SpreadRow* spread_row = nullptr;
+
+//: While it lives, leg_shares on this thread reads the packed row prm from lanes spread once here
+//: rather than spreading it at each evaluation: for a rollout, whose row does not change.  The
+//: numbers are the same bit for bit.  prm must outlive it unchanged.
+class SpreadOnce {
+   public:
+    explicit SpreadOnce(const double* prm) : outer_(spread_row) {
+        row_.prm = prm;
+        spread_legs(prm, row_.lanes);
+        spread_row = &row_;
+    }
+    ~SpreadOnce() { spread_row = outer_; }
+    SpreadOnce(const SpreadOnce&) = delete;
+    SpreadOnce& operator=(const SpreadOnce&) = delete;
+
+   private:
+    SpreadRow row_;
+    const SpreadRow* outer_;
+};
+#endif
+
+//: SpreadOnce where leg_shares spreads rows into lanes (one platform, T = double), else nothing.
+template <typename T>
+struct SpreadFor {
+    explicit SpreadFor(const T*) {}
+};
+#ifdef STEWART_ENV_VECTOR_EXTENSIONS
+template <>
+struct SpreadFor<double> : SpreadOnce {
+    using SpreadOnce::SpreadOnce;
+};
+#endif
+
 // The six legs' shares (leg_share) of one platform, or of one platform per lane: h_leg (6,6),
 // M_leg (6,36) (nullptr: no columns), jac (6,) rows, Lddot_vel (6,) (nullptr: not wanted) the
-// velocity parts of the legs' accelerations.  One platform (T = double) on a processor
+// velocity parts of the legs' accelerations, M_sum (36,) (nullptr: not wanted) the six M_leg
+// summed (leg 0 first, onto zero).  One platform (T = double) on a processor
 // with vector lanes runs its six legs side by side, one per lane, with the same numbers as one by
 // one.  docs/physics.md sections 5.1 and 5.4-5.5; paper eqs. 38-41 and 47-49 (or 51 and 55).
 template <typename T>
 inline void leg_shares(const T* prm, int64_t flags, const T* t, const T* R, const T* v, const T* w, const T* acc,
-                       T (*h_leg)[6], T (*M_leg)[36], Row6<T>* jac, T* Lddot_vel = nullptr) {
+                       T (*h_leg)[6], T (*M_leg)[36], Row6<T>* jac, T* Lddot_vel = nullptr, T* M_sum = nullptr) {
+    const bool columns = M_leg != nullptr || M_sum != nullptr;
 #ifdef STEWART_ENV_VECTOR_EXTENSIONS
     if constexpr (std::is_same_v<T, double>) {
         using lanes::Lanes;
-        // lane l reads leg l's numbers where the kernels read leg 0's (lanes 6 and 7 repeat leg 5);
-        // the platform's numbers the legs read (damping, gravity) in every lane
-        Lanes P[N_PARAMS];
-        for (int k = 0; k < N_LAYOUT; ++k) {
-            const LayoutEntry& entry = PACKED_LAYOUT[k];
-            const int off = offset_of(k);
-            if (entry.ndim >= 1 && entry.shape[0] == 6) {
-                const int per_leg = entry_size(entry) / 6;
-                for (int j = 0; j < per_leg; ++j)
-                    for (int l = 0; l < lanes::LANES; ++l) P[off + j].set(l, prm[off + per_leg * std::min(l, 5) + j]);
-            } else {
-                for (int j = 0; j < entry_size(entry); ++j) P[off + j] = prm[off + j];
-            }
-        }
+        // the row the innermost SpreadOnce of this thread spread already, else spread here
+        Lanes own[N_PARAMS];
+        const Lanes* P = spread_row != nullptr && spread_row->prm == prm ? spread_row->lanes : own;
+        if (P == own) spread_legs(prm, own);
         Lanes tl[3], Rl[9], vl[3], wl[3], al[6], hl[6], Ml[36];
         for (int j = 0; j < 3; ++j) tl[j] = t[j], vl[j] = v[j], wl[j] = w[j];
         for (int j = 0; j < 9; ++j) Rl[j] = R[j];
@@ -744,20 +804,32 @@ inline void leg_shares(const T* prm, int64_t flags, const T* t, const T* R, cons
             for (int j = 0; j < 6; ++j) al[j] = acc[j];
         Row6<Lanes> jl;
         Lanes cl;
-        leg_share<Lanes>(P, flags, 0, tl, Rl, vl, wl, acc == nullptr ? nullptr : al, hl,
-                         M_leg == nullptr ? nullptr : Ml, jl, Lddot_vel == nullptr ? nullptr : &cl);
+        leg_share<Lanes>(P, flags, 0, tl, Rl, vl, wl, acc == nullptr ? nullptr : al, hl, columns ? Ml : nullptr, jl,
+                         Lddot_vel == nullptr ? nullptr : &cl);
         for (int i = 0; i < 6; ++i) {
             for (int r = 0; r < 6; ++r) h_leg[i][r] = hl[r][i], jac[i][r] = jl[r][i];
             if (Lddot_vel != nullptr) Lddot_vel[i] = cl[i];
             if (M_leg != nullptr)
                 for (int k = 0; k < 36; ++k) M_leg[i][k] = Ml[k][i];
         }
+        // summed where the lanes hold them, leg after leg onto zero as the caller would sum them
+        if (M_sum != nullptr)
+            for (int k = 0; k < 36; ++k) {
+                double sum = 0.0;
+                for (int i = 0; i < 6; ++i) sum += Ml[k][i];
+                M_sum[k] = sum;
+            }
         return;
     }
 #endif
-    for (int i = 0; i < 6; ++i)
-        leg_share<T>(prm, flags, i, t, R, v, w, acc, h_leg[i], M_leg == nullptr ? nullptr : M_leg[i], jac[i],
-                     Lddot_vel == nullptr ? nullptr : Lddot_vel + i);
+    if (M_sum != nullptr) std::fill(M_sum, M_sum + 36, 0.0);
+    for (int i = 0; i < 6; ++i) {
+        T columns_i[36];
+        T* Mi = M_leg != nullptr ? M_leg[i] : columns ? columns_i : nullptr;
+        leg_share<T>(prm, flags, i, t, R, v, w, acc, h_leg[i], Mi, jac[i], Lddot_vel == nullptr ? nullptr : Lddot_vel + i);
+        if (M_sum != nullptr)
+            for (int k = 0; k < 36; ++k) M_sum[k] += Mi[k];
+    }
 }
 
 // The reflected masses m_r (6,) of the legs' drives entered into M (6,6) and h (6,), {B}: a rotor
@@ -806,15 +878,14 @@ inline void add_reflected_force(const T* prm, int64_t flags, const T* t, const T
 template <typename T>
 inline void assemble_one(const T* prm, int64_t flags, const T* t, const T* R, const T* v,
                          const T* w, const T* F, T* M, T* h, const T* m_r = nullptr) {
-    T h_leg[6][6], M_leg[6][36], Lddot_vel[6];
+    T h_leg[6][6], Lddot_vel[6];
     Row6<T> jac[6];
-    // bias: each leg's pull at zero platform acceleration, actuator force excluded
-    leg_shares<T>(prm, flags, t, R, v, w, nullptr, h_leg, M_leg, jac, m_r == nullptr ? nullptr : Lddot_vel);
-    std::fill(M, M + 36, 0.0);
+    // bias: each leg's pull at zero platform acceleration, actuator force excluded; M the legs'
+    // columns summed (leg_shares' M_sum)
+    leg_shares<T>(prm, flags, t, R, v, w, nullptr, h_leg, nullptr, jac, m_r == nullptr ? nullptr : Lddot_vel, M);
     std::fill(h, h + 6, 0.0);
     for (int i = 0; i < 6; ++i) {
         for (int r = 0; r < 6; ++r) h[r] += h_leg[i][r];
-        for (int k = 0; k < 36; ++k) M[k] += M_leg[i][k];
         // actuator force along e_i at P_i moves to the right-hand side J^T F
         const T Fi = F[i];
         for (int r = 0; r < 6; ++r) h[r] -= Fi * jac[i][r];

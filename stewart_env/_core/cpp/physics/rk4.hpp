@@ -245,6 +245,8 @@ inline void rollout_row(const kernels::ParamRows& prm, int64_t flags, double* t,
     using Mask = decltype(lanes::finite(T{}));
     kernels::ParamScratch<T> scratch;
     const T* p = prm.rows(b, scratch.rows);
+    // the row does not change over the rollout: one platform's spread into leg lanes once
+    const kernels::SpreadFor<T> spread(p);
     T held[6];
     const int64_t stride = n_ctrl_rows == 1 ? 0 : n_ctrl;
     if (law == nullptr) lanes::load(ctrl, stride, b, 6, held);
