@@ -479,6 +479,23 @@ class Dynamics:
             packed = self._packed = packed.copy()
         self._write_rows(rows, packed_rows, sources)
 
+    def _set_checked_rows(self, rows: np.ndarray, packed_rows: np.ndarray, sources) -> None:
+        """:meth:`set_packed_rows` for rows already checked by their writer, as the environment's
+        reset writes them (``scale_randomized_rows`` refuses a non-finite row): ``rows`` (m,) int64
+        within the batch, ``packed_rows`` (m, N_PARAMS) C-contiguous float64, ``sources`` one
+        function of j (:meth:`with_packed_rows`); nothing checked again."""
+        packed = self._packed
+        if not packed.flags.owndata:
+            packed = self._packed = packed.copy()
+        items = self.params._items
+        for j, r in enumerate(rows.tolist()):
+            items[r] = (sources, j)
+        packed.setflags(write=True)  # its own array: read-only again below
+        try:
+            packed[rows] = packed_rows
+        finally:
+            packed.setflags(write=False)
+
     def _checked_rows(self, rows, packed_rows, sources) -> tuple[list[int], np.ndarray]:
         """The rows (ints) and packed rows (C-contiguous float64) of :meth:`with_packed_rows`,
         checked; ValueError naming the argument otherwise."""

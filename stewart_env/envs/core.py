@@ -458,7 +458,8 @@ class PlatformBatch:
             self._model = self._model.with_packed_rows(rows, packed, params)
             self._model_handed_out = False
         else:
-            self._model.set_packed_rows(rows, packed, params)
+            # rows the compiled draws have checked (scale_packed_rows): written without a second check
+            self._model._set_checked_rows(rows, packed, params)
         self.plant.set_model(self._model, rows)
 
     def _start_forces(self, rows: np.ndarray, start: PlatformState, randomised: bool) -> np.ndarray | None:
