@@ -389,7 +389,7 @@ class PlatformBatch:
             # the drives at equilibrium with the holding forces (the platform at rest)
             self.actuation.reset_rows(rows, forces)
             self.actuation.start_plant_drives(self.plant, rows)
-        view = self._start_rows(rows, start, forces, sensors)
+        view = self._start_rows(rows, start, forces, sensors, episode)
         self.costs.reset_rows(rows, view.state)
         if self._delay is not None:
             self._delay.reset_rows(rows)  # the rows held no action before their start: zeros
@@ -476,17 +476,31 @@ class PlatformBatch:
         return np.clip(model.inverse(*start, zero, zero), lo, hi)
 
     def _start_rows(
-        self, rows: np.ndarray, start: PlatformState, forces: np.ndarray | None, sensors: tuple | None = None
+        self,
+        rows: np.ndarray,
+        start: PlatformState,
+        forces: np.ndarray | None,
+        sensors: tuple | None = None,
+        drawn: dict[str, np.ndarray] | None = None,
     ) -> StepView:
         """Set the rows' start state, a zero clock, external wrench and applied action, their leg
         forces, the reference at t = 0, and their leg sensors and tracking errors at the start
         state: in one compiled call with the fused step, else by the batch's numpy arrays, the
         same numbers.  ``sensors``: the start states' leg lengths, rates and condition numbers if
         the task measured them (the fused step then reads them instead of measuring again).
+        ``drawn``: the rows' episode arrays as drawn, which the view takes instead of copies of
+        the batch's rows when they hold the same numbers (float64 of the rows' shape).
         Returns a view of those rows alone for the first observation."""
         m = len(rows)
         start = PlatformState(*(np.ascontiguousarray(x, dtype=np.float64) for x in start))
-        episode = MappingProxyType({k: v[rows] for k, v in self.episode.items()})
+        episode = {}
+        for k, v in self.episode.items():
+            d = None if drawn is None else drawn.get(k)
+            # the drawn array is what the batch's rows now hold, bit for bit, if it is float64 of their
+            # shape: no fancy-indexed copy
+            same = type(d) is np.ndarray and d.dtype == np.float64 and d.shape == (m, *v.shape[1:])
+            episode[k] = d if same else v[rows]
+        episode = MappingProxyType(episode)
         reference = zero_reference(m)
         self.task.reference(episode, np.zeros(m), reference)
         lengths, rates, condition = np.empty((m, 6)), np.empty((m, 6)), np.empty(m)
