@@ -127,6 +127,9 @@ inline void control_rows(const ControlStep& c, const kernels::ParamRows& prm, co
         for (int64_t j = 0; j < rows; ++j)
             actuation::set_point(A, c.force_half, c.force_mid, kernels::params_row(c.sensor_prm, c.n_sensor_prm, b + j),
                                  clipped + 6 * (b + j), s.t + 3 * (b + j), s.R + 9 * (b + j), sp[j]);
+        // the row does not change over the control step: one platform's spread into leg lanes once
+        kernels::ParamScratch<T> scratch;
+        const kernels::SpreadFor<T> spread(prm.rows(b, scratch.rows));
         for (int64_t k = 0; k < c.substeps; ++k) {
             for (int64_t j = 0; j < rows; ++j)
                 actuation::substep_forces(A, kernels::params_row(c.sensor_prm, c.n_sensor_prm, b + j), sp[j],

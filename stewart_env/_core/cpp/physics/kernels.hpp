@@ -750,10 +750,12 @@ inline thread_local const SpreadRow* spread_row = nullptr;
 
 //: While it lives, leg_shares on this thread reads the packed row prm from lanes spread once here
 //: rather than spreading it at each evaluation: for a rollout, whose row does not change.  The
-//: numbers are the same bit for bit.  prm must outlive it unchanged.
+//: numbers are the same bit for bit.  prm must outlive it unchanged.  Inside one of the same row
+//: (a control step's rollouts of one physics step each) it spreads nothing and reads the outer's.
 class SpreadOnce {
    public:
     explicit SpreadOnce(const double* prm) : outer_(spread_row) {
+        if (outer_ != nullptr && outer_->prm == prm) return;
         row_.prm = prm;
         spread_legs(prm, row_.lanes);
         spread_row = &row_;
