@@ -718,6 +718,7 @@ inline void leg_share(const T* prm, int64_t flags, int i, const T* t, const T* R
 // where the kernels read leg 0's (lanes 6 and 7 repeat leg 5), the platform's numbers the legs
 // read (damping, gravity) are in every lane.  Offsets and sizes are compile-time constants, so the
 // spread is plain loads and stores (it runs at every evaluation outside a SpreadOnce).
+// docs/physics.md section 2 (the packed layout); no paper equation.
 template <int k>
 inline void spread_entry(const double* prm, lanes::Lanes* P) {
     constexpr LayoutEntry entry = PACKED_LAYOUT[k];
@@ -731,11 +732,13 @@ inline void spread_entry(const double* prm, lanes::Lanes* P) {
         for (int j = 0; j < size; ++j) P[off + j] = prm[off + j];
     }
 }
+// Every entry k... of the packed layout spread (spread_entry).  docs/physics.md section 2; no paper equation.
 template <std::size_t... k>
 inline void spread_entries(const double* prm, lanes::Lanes* P, std::index_sequence<k...>) {
     (spread_entry<static_cast<int>(k)>(prm, P), ...);
 }
 // The packed row prm (N_PARAMS,) spread into lanes P (N_PARAMS,), one leg per lane (spread_entry).
+// docs/physics.md section 2; no paper equation.
 inline void spread_legs(const double* prm, lanes::Lanes* P) {
     spread_entries(prm, P, std::make_index_sequence<N_LAYOUT>{});
 }
