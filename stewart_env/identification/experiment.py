@@ -197,7 +197,10 @@ def perturbed(params: PlatformParams, size: float, rng: np.random.Generator) -> 
 
 def _simulate_mujoco(truth: PlatformParams, row: np.ndarray, start: tuple, steps: int, every: int) -> Trajectory:
     """MuJoCo stepping the truth, the law's forces held over each sampling period (zero-order
-    hold, as a digital controller applies them)."""
+    hold, as a digital controller applies them).  The recorded force of sample k is the mean of
+    the forces held before and after its stamp (``forces="held"`` of a log, logged.FORCES): the
+    force around the stamp, where the filtered accelerations are centred; the force applied from
+    the stamp on would lead the motion by half a period."""
     from stewart_env.mujoco import MujocoPlant
 
     plant = MujocoPlant(truth, timestep=PLANT_DT, nthread=0)
@@ -220,6 +223,8 @@ def _simulate_mujoco(truth: PlatformParams, row: np.ndarray, start: tuple, steps
             raise IdentificationError("plant: the MuJoCo simulation diverged along the excitation")
         if k < n - 1:
             plant.step_inplace(t, R, v, w, F, wrench, PLANT_DT, every)
+    applied = rec.leg_forces.copy()
+    rec.leg_forces[1:] = 0.5 * (applied[:-1] + applied[1:])
     return rec
 
 

@@ -507,3 +507,26 @@ def test_a_reference_report_that_does_not_fit_is_refused_before_any_work(tmp_pat
     assert code == 2 and "--predicted-by" in err and "No such file" in err
     run = tmp_path / "run"
     assert not run.exists() or not any(p.name != ".stewart-env.lock" for p in run.iterdir())
+
+
+def test_mujoco_records_the_force_around_each_stamp_not_the_one_held_after_it(dasgupta):
+    """MuJoCo's plant holds the law's force from each 5 ms stamp to the next; the filtered
+    accelerations are centred on the stamp, so the recorded force must be the mean of the forces
+    held before and after it (read as the one held after, it leads the motion by half a period)."""
+    pytest.importorskip("mujoco")
+    from stewart_env.dynamics.rk4 import law_forces
+
+    model = se.make_dynamics("improved", dasgupta)
+    series = exc.random_excitation(dasgupta, model, np.random.default_rng(1), period=3.0)
+    traj = experiment.simulate("mujoco", dasgupta, model, series, 0.1)
+    row = series.law_row(model)[None]
+    law = exc.FOURIER_COMPUTED_TORQUE
+    applied = np.concatenate(
+        [
+            law_forces(law, row, *(x[k : k + 1] for x in traj[1:5]), time=float(traj.time[k]))
+            for k in range(traj.time.size)
+        ]
+    )
+    assert traj.time.size == 21 and np.abs(np.diff(applied, axis=0)).max() > 1.0  # the forces move between stamps
+    assert np.array_equal(traj.leg_forces[1:], 0.5 * (applied[:-1] + applied[1:]))
+    assert np.array_equal(traj.leg_forces[0], applied[0])
