@@ -472,6 +472,8 @@ def frequency_response_table(
     frequencies: Sequence[float] = OMCT_FREQUENCIES,
     amplitudes: dict[str, float] | None = None,
     dt: float = 0.01,
+    periods: float = 6.0,
+    settle: float = 20.0,
 ) -> list[dict]:
     """The whole chain's gain and phase per channel and frequency (module docstring).
 
@@ -484,6 +486,8 @@ def frequency_response_table(
         amplitudes: per channel, the input's amplitude (default 1 m/s² and 0.1 rad/s: inside a
             small platform's reach at the OMCT's middle frequencies).
         dt: the sample period, s.
+        periods: the whole periods the fit uses, after ``settle`` (:func:`sine_motion`).
+        settle: the time left for the chain's transient before the fit, s.
 
     Returns:
         One row per channel and frequency: channel, frequency (rad/s), gain, phase (deg).
@@ -496,7 +500,7 @@ def frequency_response_table(
         default = 1.0 if axis < 3 else 0.1
         amplitude = float((amplitudes or {}).get(channel, default))
         for frequency in frequencies:
-            motion = sine_motion(channel, float(frequency), amplitude, dt)
+            motion = sine_motion(channel, float(frequency), amplitude, dt, periods, settle)
             head_f, head_w = chain(motion)
             output = np.asarray(head_f if axis < 3 else head_w, dtype=float)[:, axis % 3]
             source = (motion.specific_force if axis < 3 else motion.angular_velocity)[:, axis % 3]
@@ -579,7 +583,10 @@ def environment_chain(policy, env_kwargs: dict | None = None, folder=None):
 
     Returns:
         motion -> (head specific force (T, 3), head angular velocity (T, 3)), the first sample at
-        rest, then one per control step (the motion's sample period must be the control step).
+        rest, then one per control step (the motion's sample period must be the control step);
+        after an episode the platform's limits ended, the last sample held to T.  The callable's
+        attribute ``played`` is the control steps its last call played (T - 1 unless the limits
+        ended the episode).
     """
     import tempfile
     from pathlib import Path
@@ -611,12 +618,14 @@ def environment_chain(policy, env_kwargs: dict | None = None, folder=None):
                 if terminated or truncated:
                     break
             env.close()
+        chain.played = len(head_f) - 1
         n = motion.n_samples
         f = np.tile(head_f[-1], (n, 1))
         w = np.tile(head_w[-1], (n, 1))
         f[: len(head_f)], w[: len(head_w)] = head_f, head_w
         return f, w
 
+    chain.played = 0
     return chain
 
 

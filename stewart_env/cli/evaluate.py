@@ -47,6 +47,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     Returns:
         The command's parser.
     """
+    from stewart_env.agents.evaluation.cueing import CHANNELS
     from stewart_env.dynamics import ModelSpec
 
     p = subparsers.add_parser(
@@ -115,14 +116,41 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         type=directory_name,
         help="write the report (results.md, results.json, episodes.csv, PNG plots) into this directory",
     )
+    p.add_argument(
+        "--omct",
+        nargs="*",
+        choices=CHANNELS,
+        metavar="CHANNEL",
+        help="with --task cueing: instead of episodes, the objective motion cueing test of each controller "
+        "and agent on each --model: one sine per channel and frequency through the whole chain, its gain and "
+        f"phase at the head and perceived (omct.md, omct.csv in --out); the channels, of {', '.join(CHANNELS)} "
+        "(default all six)",
+    )
+    p.add_argument(
+        "--omct-frequencies",
+        nargs="+",
+        type=omct_frequency,
+        metavar="W",
+        help="with --omct: the frequencies, rad/s, 0.01 to 50 (default the OMCT's twelve, 0.1 to 15.8)",
+    )
     return p
 
 
-def _evaluate(args: argparse.Namespace) -> str:
-    """The table of every controller and agent on every --model."""
-    from stewart_env.agents.evaluation.evaluation import evaluate, markdown_table, write_report
+def omct_frequency(text: str) -> float:
+    """A frequency of ``--omct-frequencies``, rad/s: a number from 0.01 to 50 (the control step's
+    Nyquist frequency is 314 rad/s; 50 keeps six samples or more per period at the 10 ms step)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a frequency in rad/s, got {text!r}") from None
+    if not 0.01 <= value <= 50.0:
+        raise argparse.ArgumentTypeError(f"expected a frequency from 0.01 to 50 rad/s, got {text}")
+    return value
 
-    runs = []  # (label, policy or factory, environment kwargs without the model)
+
+def _runs(args: argparse.Namespace) -> list[tuple]:
+    """(label, policy or factory, environment kwargs without the model) of every controller and agent."""
+    runs = []
     baseline_kwargs = {"task": args.task or "setpoint", "platform": args.platform or "dasgupta1998"}
     if args.task == "cueing":  # the held-out motions and seeds
         baseline_kwargs["task_options"] = {"split": "evaluation"}
@@ -144,6 +172,14 @@ def _evaluate(args: argparse.Namespace) -> str:
             # agents of one algorithm and model are told apart by their run directory
             label = agent.name if names.count(agent.name) == 1 else f"{agent.name} {Path(directory).name}"
             runs.append((label, agent, kwargs))
+    return runs
+
+
+def _evaluate(args: argparse.Namespace) -> str:
+    """The table of every controller and agent on every --model."""
+    from stewart_env.agents.evaluation.evaluation import evaluate, markdown_table, write_report
+
+    runs = _runs(args)
     results = [
         evaluate(policy, {**kwargs, "model": model}, args.episodes, args.seed, label=label, max_steps=_max_steps(args))
         for model in args.model
@@ -157,6 +193,35 @@ def _evaluate(args: argparse.Namespace) -> str:
 
         return markdown_table(results) + "\n\n" + cueing_table([(r.label, r.model, r.summary()) for r in cueing])
     return markdown_table(results)
+
+
+def _omct(args: argparse.Namespace) -> str:
+    """The OMCT of every controller and agent on every --model; each report in --out (a
+    subfolder per controller and model when there are several)."""
+    from stewart_env.agents.evaluation.cueing import CHANNELS, OMCT_FREQUENCIES
+    from stewart_env.agents.evaluation.omct import omct_markdown, omct_rows, write_omct
+
+    channels = tuple(args.omct) or CHANNELS
+    frequencies = tuple(args.omct_frequencies or OMCT_FREQUENCIES)
+    texts = []
+    pairs = [(model, run) for model in args.model for run in _runs(args)]
+    for model, (label, policy, kwargs) in pairs:
+        env_kwargs = {k: v for k, v in kwargs.items() if k != "task"}
+        env_kwargs["task_options"] = {k: v for k, v in env_kwargs.get("task_options", {}).items() if k != "split"}
+        env_kwargs["model"] = model
+        rows = omct_rows(
+            policy,
+            env_kwargs,
+            channels,
+            frequencies,
+            progress=lambda c, w, name=f"{label} on {model}": print(f"  {name}: {c} at {w:g} rad/s", file=sys.stderr),
+        )
+        title = f"{label} on the {model} model, {kwargs.get('platform', 'dasgupta1998')}"
+        if args.out is not None:
+            out = Path(args.out) if len(pairs) == 1 else Path(args.out) / f"{label}-{model}".replace(" ", "_")
+            write_omct(rows, out, title)
+        texts.append(omct_markdown(rows, title))
+    return "\n".join(texts)
 
 
 def _max_steps(args: argparse.Namespace) -> int | None:
@@ -176,6 +241,13 @@ def _problem(args: argparse.Namespace) -> str | None:
             return f"argument {flag}: {', '.join(twice)} given twice"
     if WASHOUT in (args.policy or ()) and args.task != "cueing":
         return f"argument --policy: {WASHOUT} cues vehicle motion: give --task cueing"
+    if args.omct is not None and args.task != "cueing":
+        return "argument --omct: the objective motion cueing test drives the cueing task: give --task cueing"
+    if args.omct_frequencies is not None and args.omct is None:
+        return "argument --omct-frequencies: give --omct too"
+    twice = sorted({c for c in args.omct or () if args.omct.count(c) > 1})
+    if twice:
+        return f"argument --omct: {', '.join(twice)} given twice"
     missing = [d for d in args.agent or () if not Path(d).is_dir()]
     if missing:
         return f"argument --agent: no such directory: {missing[0]!r}"
@@ -203,7 +275,7 @@ def run(args: argparse.Namespace) -> int:
         return error(VERB, problem)
     start = time.perf_counter()
     try:
-        print(_evaluate(args))
+        print(_omct(args) if args.omct is not None else _evaluate(args))
     except ValueError as err:  # a bad agent directory or environment setting, named in the message
         return error(VERB, err)
     if args.out is not None:

@@ -1,0 +1,89 @@
+"""Videos of the platform under a cueing policy (``stewart_env.agents.evaluation.video``): a
+3-frame clip rendered, written as GIF and MP4, and read back."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from stewart_env.agents.controllers.washout import WashoutPolicy
+from stewart_env.agents.evaluation.video import cueing_frames, main, manoeuvre_start, write_video
+from stewart_env.errors import UsageError
+from stewart_env.tasks.cueing.motions import EVALUATION_SEEDS, make_motion
+
+HAS_FFMPEG = importlib.util.find_spec("imageio_ffmpeg") is not None
+
+
+@pytest.fixture(scope="module")
+def frames():
+    # 3 frames: t = 0.5, 0.54, 0.58 s at 25 fps (every 4th control step of 10 ms)
+    return cueing_frames(
+        lambda env: WashoutPolicy(env, "washout"), {"action_mode": "pose"}, start=0.5, seconds=0.08, size=64
+    )
+
+
+def test_a_clip_has_one_frame_per_period(frames):
+    assert len(frames) == 3
+    assert all(f.shape == (64, 64, 3) and f.dtype == np.uint8 for f in frames)
+    assert not np.array_equal(frames[0], frames[-1])  # the platform moves between them
+
+
+def test_gif_round_trip(frames, tmp_path):
+    path = write_video(frames, tmp_path / "clip.gif", fps=25)
+    with Image.open(path) as gif:
+        assert gif.n_frames == 3
+        assert gif.info["duration"] == 40  # ms per frame at 25 fps
+
+
+@pytest.mark.skipif(not HAS_FFMPEG, reason="MP4 needs imageio-ffmpeg (the extra video)")
+def test_mp4_round_trip(frames, tmp_path):
+    import imageio.v2 as imageio
+
+    path = write_video(frames, tmp_path / "clip.mp4", fps=25)
+    back = imageio.mimread(path)
+    assert len(back) == 3
+    assert back[0].shape == (64, 64, 3)
+    # H.264 at constant quality 28 is lossy: the mean error of a frame stays a few grey levels
+    assert np.abs(back[0].astype(float) - frames[0]).mean() < 8.0
+
+
+def test_the_clip_starts_before_the_track():
+    motion = make_motion("double_lane_change", EVALUATION_SEEDS[0])
+    assert manoeuvre_start("double_lane_change", EVALUATION_SEEDS[0]) == pytest.approx(
+        max(0.0, motion.meta["lead"] / motion.meta["speed"] - 0.5)
+    )
+    assert manoeuvre_start("sweep_x", EVALUATION_SEEDS[0]) == 0.0  # no track
+
+
+@pytest.mark.parametrize(
+    "kwargs, argument",
+    [({"seconds": 0.0}, "seconds"), ({"start": -1.0}, "start"), ({"fps": float("nan")}, "fps"), ({"size": 8}, "size")],
+)
+def test_bad_clip_arguments_are_named(kwargs, argument):
+    with pytest.raises(UsageError, match=argument):
+        cueing_frames(lambda env: WashoutPolicy(env, "washout"), {"action_mode": "pose"}, **kwargs)
+
+
+def test_write_video_refuses_another_format_and_no_frames(frames, tmp_path):
+    with pytest.raises(UsageError, match="path.*suffix must be one of .mp4, .gif"):
+        write_video(frames, tmp_path / "clip.avi")
+    with pytest.raises(UsageError, match="frames.*no frames"):
+        write_video([], tmp_path / "clip.gif")
+
+
+def test_the_command_writes_a_gif(tmp_path, capsys):
+    path = tmp_path / "clip.gif"
+    # moving frames: a GIF merges identical consecutive frames into one
+    assert main([str(path), "--start", "0.5", "--seconds", "0.08", "--size", "64"]) == 0
+    assert "3 frames from t = 0.50 s written to" in capsys.readouterr().out
+    with Image.open(path) as gif:
+        assert gif.n_frames == 3
+
+
+def test_the_command_names_an_unknown_motion(tmp_path, capsys):
+    assert main([str(tmp_path / "clip.gif"), "--motion", "loop_the_loop", "--start", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("video: error: ") and "loop_the_loop" in err
