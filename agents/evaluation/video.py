@@ -83,9 +83,15 @@ def cueing_frames(
     from stewart_env.registration import ENV_ID
 
     for name, value, low in (("start", start, 0.0), ("seconds", seconds, None), ("fps", fps, None)):
-        ok = isinstance(value, (int, float)) and math.isfinite(value) and (value >= low if low is not None else value > 0)
+        ok = (
+            isinstance(value, (int, float))
+            and math.isfinite(value)
+            and (value >= low if low is not None else value > 0)
+        )
         if not ok:
-            raise UsageError.about(name, f"must be a finite {'non-negative' if low is not None else 'positive'} number, got {value!r}")
+            raise UsageError.about(
+                name, f"must be a finite {'non-negative' if low is not None else 'positive'} number, got {value!r}"
+            )
     if isinstance(size, bool) or not isinstance(size, int) or size < 16:
         raise UsageError.about("size", f"must be an integer number of pixels >= 16, got {size!r}")
     kwargs = dict(env_kwargs or {})
@@ -161,13 +167,19 @@ def write_video(frames: Sequence[np.ndarray], path, fps: float = 25.0) -> Path:
         import imageio_ffmpeg  # noqa: F401  (the MP4 writer's ffmpeg)
     except ImportError as err:
         raise UsageError.about(
-            "path", f"{str(path)!r}: MP4 needs imageio and imageio-ffmpeg (pip install -e \".[video]\"), or write a .gif"
+            "path", f'{str(path)!r}: MP4 needs imageio and imageio-ffmpeg (pip install -e ".[video]"), or write a .gif'
         ) from err
     # yuv420p and a constant quality: the H.264 that browsers play, small for a few seconds of
     # a mostly white scene
     with imageio.get_writer(
-        path, fps=fps, codec="libx264", pixelformat="yuv420p", quality=None, macro_block_size=16,
-        ffmpeg_params=["-crf", "28", "-preset", "slow"], ffmpeg_log_level="error",
+        path,
+        fps=fps,
+        codec="libx264",
+        pixelformat="yuv420p",
+        quality=None,
+        macro_block_size=16,
+        ffmpeg_params=["-crf", "28", "-preset", "slow"],
+        ffmpeg_log_level="error",
     ) as writer:
         for frame in frames:
             writer.append_data(np.asarray(frame, dtype=np.uint8))
@@ -193,7 +205,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("path", help="the video file, .mp4 or .gif")
     parser.add_argument("--motion", default="double_lane_change", help="a built-in motion (default double_lane_change)")
-    parser.add_argument("--seed", type=int, default=EVALUATION_SEEDS[0], help="its seed (default the first held-out seed)")
+    parser.add_argument(
+        "--seed", type=int, default=EVALUATION_SEEDS[0], help="its seed (default the first held-out seed)"
+    )
     parser.add_argument(
         "--start", type=float, default=None, help="the clip's start, s (default: half a second before the track)"
     )
