@@ -211,7 +211,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--start", type=float, default=None, help="the clip's start, s (default: half a second before the track)"
     )
-    parser.add_argument("--seconds", type=float, default=6.0, help="the clip's length, s (default 6)")
+    parser.add_argument("--seconds", type=float, default=7.0, help="the clip's length, s (default 7)")
     parser.add_argument("--fps", type=float, default=25.0, help="frames per second (default 25)")
     parser.add_argument("--size", type=int, default=480, help="width and height, px (default 480)")
     args = parser.parse_args(argv)
