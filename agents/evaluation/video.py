@@ -5,18 +5,15 @@ frames of one scheduled cueing episode, written as MP4 or as an animated GIF.
 the frames of a window of it, one every ``1 / fps`` seconds of simulated time;
 :func:`write_video` writes frames as MP4 (H.264, through imageio and imageio-ffmpeg, the extra
 ``video``) or as an animated GIF (through Pillow, which matplotlib already needs), by the path's
-suffix.  From a shell, the tuned washout on the first held-out double lane change::
+suffix; :func:`write_cueing_video` does both.  From a shell, the tuned washout on the first
+held-out double lane change, from half a second before the track for 7 s::
 
-    python -m stewart_env.agents.evaluation.video docs/figures/cueing/video.mp4
-
-(``--motion``, ``--seed``, ``--start``, ``--seconds``, ``--fps``, ``--size``; ``--help`` lists them).
+    stewart-env evaluate --task cueing --video docs/figures/cueing/video.mp4
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -24,7 +21,7 @@ import numpy as np
 
 from stewart_env.errors import UsageError
 
-__all__ = ["VIDEO_SUFFIXES", "cueing_frames", "main", "manoeuvre_start", "write_video"]
+__all__ = ["VIDEO_SUFFIXES", "cueing_frames", "manoeuvre_start", "write_cueing_video", "write_video"]
 
 #: The formats :func:`write_video` writes, by suffix.
 VIDEO_SUFFIXES = (".mp4", ".gif")
@@ -186,53 +183,40 @@ def write_video(frames: Sequence[np.ndarray], path, fps: float = 25.0) -> Path:
     return path
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Render the tuned washout on a held-out cueing episode into a video file.
+def write_cueing_video(
+    policy,
+    env_kwargs: dict | None,
+    path,
+    motion: tuple[str, int] | None = None,
+    start: float | None = None,
+    seconds: float = 7.0,
+    fps: float = 25.0,
+    size: int = 480,
+) -> tuple[Path, int, float]:
+    """Render a policy on one cueing episode (:func:`cueing_frames`) and write the video
+    (:func:`write_video`).
 
     Args:
-        argv: the command line's arguments (default ``sys.argv[1:]``).
+        policy: an object with SB3's ``predict``, or a callable env -> such an object.
+        env_kwargs: the environment's keywords besides ``task`` and ``render_mode``.
+        path: the video file, ``.mp4`` or ``.gif``.
+        motion: the (built-in motion, seed) episode (default the double lane change at the first
+            held-out seed).
+        start: the clip's start, s (default :func:`manoeuvre_start`: half a second before the track).
+        seconds: the clip's length, s.
+        fps: frames per second.
+        size: width and height, px.
 
     Returns:
-        The exit status, 0 on success.
+        (the path written, the frames, the start in s).
+
+    Raises:
+        UsageError: a bad argument, named (see :func:`cueing_frames` and :func:`write_video`).
     """
-    from stewart_env.agents.controllers.washout import WashoutPolicy
     from stewart_env.tasks.cueing.motions import EVALUATION_SEEDS
 
-    parser = argparse.ArgumentParser(
-        prog="python -m stewart_env.agents.evaluation.video",
-        description="The tuned washout (configs/agents/washout.yaml, action_mode pose) on one cueing episode, "
-        "rendered to an MP4 or a GIF.",
-    )
-    parser.add_argument("path", help="the video file, .mp4 or .gif")
-    parser.add_argument("--motion", default="double_lane_change", help="a built-in motion (default double_lane_change)")
-    parser.add_argument(
-        "--seed", type=int, default=EVALUATION_SEEDS[0], help="its seed (default the first held-out seed)"
-    )
-    parser.add_argument(
-        "--start", type=float, default=None, help="the clip's start, s (default: half a second before the track)"
-    )
-    parser.add_argument("--seconds", type=float, default=7.0, help="the clip's length, s (default 7)")
-    parser.add_argument("--fps", type=float, default=25.0, help="frames per second (default 25)")
-    parser.add_argument("--size", type=int, default=480, help="width and height, px (default 480)")
-    args = parser.parse_args(argv)
-    try:
-        start = manoeuvre_start(args.motion, args.seed) if args.start is None else args.start
-        frames = cueing_frames(
-            lambda env: WashoutPolicy(env, "washout"),
-            {"action_mode": "pose"},
-            (args.motion, args.seed),
-            start,
-            args.seconds,
-            args.fps,
-            args.size,
-        )
-        path = write_video(frames, args.path, args.fps)
-    except UsageError as err:
-        print(f"video: error: {err}", file=sys.stderr)
-        return 2
-    print(f"{len(frames)} frames from t = {start:.2f} s written to {path} ({path.stat().st_size / 1e3:.0f} kB)")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    motion = ("double_lane_change", EVALUATION_SEEDS[0]) if motion is None else motion
+    if start is None:
+        start = manoeuvre_start(*motion)
+    frames = cueing_frames(policy, env_kwargs, motion, start, seconds, fps, size)
+    return write_video(frames, path, fps), len(frames), start

@@ -127,6 +127,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "(default all six)",
     )
     p.add_argument(
+        "--video",
+        type=video_path,
+        metavar="PATH",
+        help="with --task cueing: instead of episodes, render the one controller or agent on the first "
+        "held-out double lane change, from half a second before the track for 7 s, into PATH (.mp4 with "
+        "the extra video, or .gif)",
+    )
+    p.add_argument(
         "--omct-frequencies",
         nargs="+",
         type=omct_frequency,
@@ -138,7 +146,17 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def omct_frequency(text: str) -> float:
     """A frequency of ``--omct-frequencies``, rad/s: a number from 0.01 to 50 (the control step's
-    Nyquist frequency is 314 rad/s; 50 keeps six samples or more per period at the 10 ms step)."""
+    Nyquist frequency is 314 rad/s; 50 keeps twelve samples or more per period at the 10 ms step).
+
+    Args:
+        text: the command line's word.
+
+    Returns:
+        The frequency, rad/s.
+
+    Raises:
+        argparse.ArgumentTypeError: not a number from 0.01 to 50.
+    """
     try:
         value = float(text)
     except ValueError:
@@ -224,6 +242,36 @@ def _omct(args: argparse.Namespace) -> str:
     return "\n".join(texts)
 
 
+def video_path(text: str) -> Path:
+    """The file of ``--video``: a path ending in .mp4 or .gif.
+
+    Args:
+        text: the command line's word.
+
+    Returns:
+        The path.
+
+    Raises:
+        argparse.ArgumentTypeError: another suffix.
+    """
+    path = Path(text)
+    if path.suffix.lower() not in (".mp4", ".gif"):
+        raise argparse.ArgumentTypeError(f"expected a .mp4 or .gif file, got {text!r}")
+    return path
+
+
+def _video(args: argparse.Namespace) -> str:
+    """The video of the one controller or agent on the first model."""
+    from stewart_env.agents.evaluation.video import write_cueing_video
+
+    ((label, policy, kwargs),) = _runs(args)
+    env_kwargs = {k: v for k, v in kwargs.items() if k != "task"}
+    env_kwargs["task_options"] = {k: v for k, v in env_kwargs.get("task_options", {}).items() if k != "split"}
+    env_kwargs["model"] = args.model[0]
+    path, frames, start = write_cueing_video(policy, env_kwargs, args.video)
+    return f"{label}: {frames} frames from t = {start:.2f} s written to {path} ({path.stat().st_size / 1e3:.0f} kB)"
+
+
 def _max_steps(args: argparse.Namespace) -> int | None:
     """--max-steps, or on the cueing task enough steps for its longest motion."""
     return CUEING_MAX_STEPS if args.max_steps is None and args.task == "cueing" else args.max_steps
@@ -243,6 +291,14 @@ def _problem(args: argparse.Namespace) -> str | None:
         return f"argument --policy: {WASHOUT} cues vehicle motion: give --task cueing"
     if args.omct is not None and args.task != "cueing":
         return "argument --omct: the objective motion cueing test drives the cueing task: give --task cueing"
+    if args.video is not None and args.task != "cueing":
+        return "argument --video: the video shows a cueing episode: give --task cueing"
+    if args.video is not None and args.omct is not None:
+        return "argument --video: give --video or --omct, not both"
+    if args.video is not None and len(args.policy or ()) + len(args.agent or ()) > 1:
+        return "argument --video: give one --policy or --agent"
+    if args.video is not None and len(args.model) > 1:
+        return "argument --video: give one --model"
     if args.omct_frequencies is not None and args.omct is None:
         return "argument --omct-frequencies: give --omct too"
     twice = sorted({c for c in args.omct or () if args.omct.count(c) > 1})
@@ -275,7 +331,10 @@ def run(args: argparse.Namespace) -> int:
         return error(VERB, problem)
     start = time.perf_counter()
     try:
-        print(_omct(args) if args.omct is not None else _evaluate(args))
+        if args.video is not None:
+            print(_video(args))
+        else:
+            print(_omct(args) if args.omct is not None else _evaluate(args))
     except ValueError as err:  # a bad agent directory or environment setting, named in the message
         return error(VERB, err)
     if args.out is not None:

@@ -10,7 +10,8 @@ import pytest
 from PIL import Image
 
 from stewart_env.agents.controllers.washout import WashoutPolicy
-from stewart_env.agents.evaluation.video import cueing_frames, main, manoeuvre_start, write_video
+from stewart_env.agents.evaluation.video import cueing_frames, manoeuvre_start, write_cueing_video, write_video
+from stewart_env.cli import main
 from stewart_env.errors import UsageError
 from stewart_env.tasks.cueing.motions import EVALUATION_SEEDS, make_motion
 
@@ -74,16 +75,40 @@ def test_write_video_refuses_another_format_and_no_frames(frames, tmp_path):
         write_video([], tmp_path / "clip.gif")
 
 
-def test_the_command_writes_a_gif(tmp_path, capsys):
-    path = tmp_path / "clip.gif"
-    # moving frames: a GIF merges identical consecutive frames into one
-    assert main([str(path), "--start", "0.5", "--seconds", "0.08", "--size", "64"]) == 0
-    assert "3 frames from t = 0.50 s written to" in capsys.readouterr().out
-    with Image.open(path) as gif:
-        assert gif.n_frames == 3
+def test_write_cueing_video_starts_before_the_track_by_default(tmp_path):
+    path, frames, start = write_cueing_video(
+        lambda env: WashoutPolicy(env, "washout"), {"action_mode": "pose"}, tmp_path / "clip.gif", seconds=0.08, size=64
+    )
+    assert (path, frames) == (tmp_path / "clip.gif", 3)
+    assert start == manoeuvre_start("double_lane_change", EVALUATION_SEEDS[0])
 
 
-def test_the_command_names_an_unknown_motion(tmp_path, capsys):
-    assert main([str(tmp_path / "clip.gif"), "--motion", "loop_the_loop", "--start", "0"]) == 2
+def test_the_command_writes_the_video(tmp_path, capsys):
+    path = tmp_path / "clip.mp4" if HAS_FFMPEG else tmp_path / "clip.gif"
+    assert main(["evaluate", "--task", "cueing", "--video", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "washout: 176 frames from t = " in out  # 7 s at 25 frames per second, both ends
+    assert path.stat().st_size > 1000
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--video", "v.mp4"], "argument --video: the video shows a cueing episode: give --task cueing"),
+        (["--task", "cueing", "--video", "v.mp4", "--omct"], "argument --video: give --video or --omct, not both"),
+        (
+            ["--task", "cueing", "--video", "v.gif", "--model", "classical", "improved"],
+            "argument --video: give one --model",
+        ),
+        (["--task", "cueing", "--video", "v.avi"], "expected a .mp4 or .gif file, got 'v.avi'"),
+    ],
+)
+def test_bad_video_options_are_one_line_errors(argv, message, capsys):
+    try:
+        status = main(["evaluate", *argv])
+    except SystemExit as exit_:  # argparse's own errors
+        status = exit_.code
+    assert status != 0
     err = capsys.readouterr().err
-    assert err.startswith("video: error: ") and "loop_the_loop" in err
+    assert message in err
+    assert "Traceback" not in err
