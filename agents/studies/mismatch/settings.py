@@ -137,6 +137,11 @@ class MismatchSettings:
             raise MismatchError(f"algo: unknown algorithm {self.algo!r}; choose one of {', '.join(ALGORITHMS)}")
         if self.task not in TASKS:
             raise MismatchError(f"task: unknown task {self.task!r}; choose one of {', '.join(TASKS)}")
+        if self.task == "cueing":  # its cells would score a cueing agent by the distance from home
+            raise MismatchError(
+                "task: the study scores the position error and success of the setpoint tasks, not the cueing "
+                "metrics; compare cueing controllers with `stewart-env evaluate --task cueing` (docs/guides/cueing.md)"
+            )
         unknown = [c for c in self.simplifications if c not in SIMPLIFICATIONS]
         if unknown:
             raise MismatchError(
