@@ -299,6 +299,13 @@ def _problem(args: argparse.Namespace) -> str | None:
         return "argument --video: give one --policy or --agent"
     if args.video is not None and len(args.model) > 1:
         return "argument --video: give one --model"
+    if args.video is not None:
+        from stewart_env.files import check_writable
+
+        try:  # before the episode runs, not after
+            check_writable(args.video.parent, create=False)
+        except ValueError as err:  # stewart_env.files.FileError
+            return f"argument --video: {err}"
     if args.omct_frequencies is not None and args.omct is None:
         return "argument --omct-frequencies: give --omct too"
     twice = sorted({c for c in args.omct or () if args.omct.count(c) > 1})

@@ -101,6 +101,7 @@ def test_the_command_writes_the_video(tmp_path, capsys):
             "argument --video: give one --model",
         ),
         (["--task", "cueing", "--video", "v.avi"], "expected a .mp4 or .gif file, got 'v.avi'"),
+        (["--task", "cueing", "--video", "/proc/no/v.gif"], "argument --video: "),
     ],
 )
 def test_bad_video_options_are_one_line_errors(argv, message, capsys):
