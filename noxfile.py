@@ -39,7 +39,7 @@ def core(session: nox.Session) -> None:
 def tests(session: nox.Session) -> None:
     """The whole suite with every extra it drives, as the README's test command installs them."""
     session.install(*TORCH)
-    session.install("-e", ".[rl,test,integration,mujoco,distributed,docs,logs,casadi,mpc,jsbsim]")
+    session.install("-e", ".[rl,test,integration,mujoco,distributed,docs,logs,casadi,mpc,jsbsim,video]")
     session.run("python", "-m", "pytest", "-q", *session.posargs, env={"MPLBACKEND": "Agg"})
 
 
