@@ -23,6 +23,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <utility>
 
 #include "physics/dual.hpp"  // first: the kernels' lanes:: calls find its overloads
 #include "physics/kernels.hpp"
@@ -58,41 +59,52 @@ inline bool all_finite(const double* x, int size) {
     return true;
 }
 
-// The forces' columns of the acceleration's Jacobian at one state, jf (6,6) row-major, column i
-// d[a; alpha]/dF_i: the acceleration is affine in the forces, M [a; alpha] + h = J^T F + W with M
-// (its reflected masses m_r included, nullptr: none) and J free of F, so the column is M^-1 (row i
-// of J).  docs/physics.md sections 5.4 and 11.
-inline void force_columns(const double* prm, int64_t flags, const double* t, const double* R, const double* v,
-                          const double* w, const double* F, const double* m_r, double* jf) {
-    double M[36], h[6], J[36];
-    kernels::assemble_one<double>(prm, flags, t, R, v, w, F, M, h, m_r);
-    kernels::jacobian_one<double>(prm, t, R, J);
-    for (int i = 0; i < 6; ++i) {
-        double Mi[36], b[6], x[6];
-        for (int k = 0; k < 36; ++k) Mi[k] = M[k];
-        for (int r = 0; r < 6; ++r) b[r] = J[6 * i + r];
-        kernels::solve6<double>(Mi, b, x);
-        for (int r = 0; r < 6; ++r) jf[6 * r + i] = x[r];
+// Solve M X = B for the 6x6 M (row-major) and the cols columns of B (6, cols), row-major, X into
+// B: Gaussian elimination with partial pivoting, every column at once (M and B are overwritten).
+// A singular M gives non-finite X, which the callers flag.  docs/physics.md section 11 (no paper
+// equation).
+inline void solve_columns(double* M, double* B, int cols) {
+    constexpr int n = 6;
+    for (int c = 0; c < n; ++c) {
+        int p = c;
+        for (int r = c + 1; r < n; ++r)
+            if (std::fabs(M[n * r + c]) > std::fabs(M[n * p + c])) p = r;
+        if (p != c) {
+            for (int k = c; k < n; ++k) std::swap(M[n * c + k], M[n * p + k]);
+            for (int k = 0; k < cols; ++k) std::swap(B[cols * c + k], B[cols * p + k]);
+        }
+        for (int r = c + 1; r < n; ++r) {
+            const double f = M[n * r + c] / M[n * c + c];
+            for (int k = c + 1; k < n; ++k) M[n * r + k] -= f * M[n * c + k];
+            for (int k = 0; k < cols; ++k) B[cols * r + k] -= f * B[cols * c + k];
+        }
+    }
+    for (int c = n - 1; c >= 0; --c) {
+        for (int k = c + 1; k < n; ++k)
+            for (int j = 0; j < cols; ++j) B[cols * c + j] -= M[n * c + k] * B[cols * k + j];
+        for (int j = 0; j < cols; ++j) B[cols * c + j] /= M[n * c + c];
     }
 }
 
-// The platform's acceleration acc (6,) and its Jacobian jac (6,18) (columns: dt, dtheta, v, w, F)
-// for one platform; m_r (6,) the legs' reflected masses or nullptr.  Returns whether all are
-// finite (a singular pose gives NaN or inf, which the caller flags).  docs/physics.md section 11.
-inline bool acceleration_jacobian_one(const double* prm, int64_t flags, const double* t, const double* R,
-                                      const double* v, const double* w, const double* F, const double* W,
-                                      const double* m_r, double* acc, double* jac) {
-    D P[kernels::N_PARAMS], td[3], Rd[9], vd[3], wd[3], Fd[6], Wd[6], M[36], h[6], out[6], mr[6];
-    constant_params(prm, P);
+// The Jacobian jac (6,18) (columns: dt, dtheta, v, w, F) of the acceleration acc (6,) at one
+// state (t, R, v, w) under the forces F and wrench W, acc given (the value kernels'); P the packed
+// row prm as constant duals, m_r (6,) the legs' reflected masses or nullptr (mr the same as
+// duals).  The equations of motion M(x) acc + h(x) - J(x)^T F - W = 0 (their reflected masses'
+// terms included) differentiated at the fixed acc give M dacc = -dr, with r(x) their left side
+// at that acc: the inverse dynamics' sum of the legs' and the platform's pulls (leg_shares and
+// platform_terms with acc), which run on duals of the 12 state directions, with no mass-matrix
+// column among them; M from the values (assemble_one) solves for every column at once, the
+// forces' M^-1 J^T beside the state's.  docs/physics.md sections 5.4, 5.5, 10.2 and 11.
+inline void acceleration_tangent(const double* prm, const D* P, int64_t flags, const double* t, const double* R,
+                                 const double* v, const double* w, const double* F, const double* W,
+                                 const double* m_r, const D* mr, const double* acc, double* jac) {
+    D td[3], Rd[9], vd[3], wd[3], ad[6];
     for (int j = 0; j < 3; ++j) {
         td[j] = D::seed(t[j], DIR_T + j);
         vd[j] = D::seed(v[j], DIR_V + j);
         wd[j] = D::seed(w[j], DIR_W + j);
     }
-    for (int i = 0; i < 6; ++i) {
-        Fd[i] = D(F[i]);
-        Wd[i] = D(W[i]);
-    }
+    for (int j = 0; j < 6; ++j) ad[j] = D(acc[j]);
     // R' = exp([dtheta]x) R: column c of dR/dtheta_k is e_k x (column c of R)
     for (int j = 0; j < 9; ++j) {
         Rd[j] = D(R[j]);
@@ -108,92 +120,118 @@ inline bool acceleration_jacobian_one(const double* prm, int64_t flags, const do
         Rd[3 * 0 + c].d[DIR_THETA + 2] = -col[1];
         Rd[3 * 1 + c].d[DIR_THETA + 2] = col[0];
     }
+    // r: the legs' pulls at acc (as inverse_one sums them), the actuators' J^T F moved to the left
+    D h_leg[6][6], Lddot_vel[6], r[6];
+    kernels::Row6<D> rows[6];
+    kernels::leg_shares<D>(P, flags, td, Rd, vd, wd, ad, h_leg, nullptr, rows, m_r == nullptr ? nullptr : Lddot_vel);
+    for (int k = 0; k < 6; ++k) r[k] = D(0.0);
+    for (int i = 0; i < 6; ++i)
+        for (int k = 0; k < 6; ++k) r[k] += h_leg[i][k] - F[i] * rows[i][k];
+    // the platform's own terms at acc
+    D Mp[36];
+    for (int k = 0; k < 36; ++k) Mp[k] = D(0.0);
+    kernels::platform_terms<D>(P, flags, Rd, wd, Mp, r);
+    for (int k = 0; k < 6; ++k)
+        for (int c = 0; c < 6; ++c) r[k] += Mp[6 * k + c] * acc[c];
+    // a drive's reflected mass pulls m_r,i Lddot_i along its row, Lddot_i = j_i acc + c_i
+    if (m_r != nullptr)
+        for (int i = 0; i < 6; ++i) {
+            if (m_r[i] == 0.0) continue;
+            D Lddot = Lddot_vel[i];
+            for (int c = 0; c < 6; ++c) Lddot += rows[i][c] * acc[c];
+            for (int k = 0; k < 6; ++k) r[k] += mr[i] * Lddot * rows[i][k];
+        }
+    // M [dacc/dx, dacc/dF] = [-dr/dx, J^T]
+    double M[36], h[6], J[36];
+    kernels::assemble_one<double>(prm, flags, t, R, v, w, F, M, h, m_r);
+    kernels::jacobian_one<double>(prm, t, R, J);
+    for (int k = 0; k < 6; ++k) {
+        for (int m = 0; m < STATE_DIRECTIONS; ++m) jac[DIRECTIONS * k + m] = -r[k].derivative(m);
+        for (int i = 0; i < 6; ++i) jac[DIRECTIONS * k + DIR_F + i] = J[6 * i + k];
+    }
+    solve_columns(M, jac, DIRECTIONS);
+}
+
+// The platform's acceleration acc (6,) and its Jacobian jac (6,18) (columns: dt, dtheta, v, w, F)
+// for one platform; m_r (6,) the legs' reflected masses or nullptr.  The acceleration is
+// forward_one's (the value kernel's own), its Jacobian acceleration_tangent's.  Returns whether
+// all are finite (a singular pose gives NaN or inf, which the caller flags).  docs/physics.md
+// section 11.
+inline bool acceleration_jacobian_one(const double* prm, int64_t flags, const double* t, const double* R,
+                                      const double* v, const double* w, const double* F, const double* W,
+                                      const double* m_r, double* acc, double* jac) {
+    D P[kernels::N_PARAMS], mr[6];
+    constant_params(prm, P);
     if (m_r != nullptr)
         for (int i = 0; i < 6; ++i) mr[i] = D(m_r[i]);
-    kernels::forward_one<D>(P, flags, td, Rd, vd, wd, Fd, Wd, M, h, out, m_r == nullptr ? nullptr : mr);
-    double jf[36];
-    force_columns(prm, flags, t, R, v, w, F, m_r, jf);
-    for (int r = 0; r < 6; ++r) {
-        acc[r] = out[r].v;
-        for (int k = 0; k < STATE_DIRECTIONS; ++k) jac[DIRECTIONS * r + k] = out[r].derivative(k);
-        for (int i = 0; i < 6; ++i) jac[DIRECTIONS * r + DIR_F + i] = jf[6 * r + i];
-    }
+    double M[36], h[6];
+    kernels::forward_one<double>(prm, flags, t, R, v, w, F, W, M, h, acc, m_r);
+    acceleration_tangent(prm, P, flags, t, R, v, w, F, W, m_r, mr, acc, jac);
     return all_finite(acc, 6) && all_finite(jac, 6 * DIRECTIONS);
 }
 
-//: The numbers of a control step that stay the same over its stages: the parameters, held forces,
-//: wrench and reflected masses as duals of zero derivative, and the same as doubles.
+//: The numbers of a control step that stay the same over its stages: the parameters and reflected
+//: masses as duals of zero derivative, and the parameters, held forces, wrench and reflected masses
+//: as doubles.
 struct StepInputs {
-    D P[kernels::N_PARAMS], F[6], W[6], mr[6];
+    D P[kernels::N_PARAMS], mr[6];
     const double* prm;
     int64_t flags;
     const double* forces;
+    const double* wrench;
     const double* m_r;
 };
 
 // One RK4 stage's derivative k (13,) = dx/dt of rk4::state_derivative at the stage's state xs
-// (13,), and its tangent K (13,18) = dk along the columns whose tangent of xs is Xs (13,18)
-// (row-major).  The stage is differentiated with fresh seeds at xs (its 12 tangent coordinates,
-// the quaternion's as dtheta = 2 vec(dq q*) / |q|^2), then chained with Xs; the quaternion's
-// radial part s = q.dq / |q|^2 moves the rotation not at all and its rate dq/dt = (0, w) q / 2 as
-// s dq/dt.  The forces' columns add M^-1 J^T (force_columns) to the acceleration's rows.
+// (13,) (the value kernel's own numbers), and its tangent K (13,18) = dk along the columns whose
+// tangent of xs is Xs (13,18) (row-major).  The acceleration's rows chain acceleration_tangent's
+// Jacobian with Xs in the stage's coordinates (the quaternion's as dtheta = 2 vec(dq q*) / |q|^2:
+// the rotation is that of q / |q|); the position's rows are the velocity's tangent, and the
+// quaternion's rate (0, w) q / 2, bilinear, has the tangent ((0, dw) q + (0, w) dq) / 2.
 // docs/physics.md sections 5.6 and 11.
 inline void stage_tangent(const StepInputs& in, const double* xs, const double* Xs, double* k, double* K) {
-    D x[13], F[6], R[9], M[36], h[6], acc[6], dx[13];
+    constexpr int S = DIRECTIONS;
+    double F[6], R[9], M[36], h[6], acc[6], ja[6 * S];
+    const rk4::LawRows<double> src{nullptr, nullptr, 0, 6, 0, in.forces};
+    rk4::state_derivative<double>(in.prm, in.flags, src, 0.0, xs, F, in.wrench, R, M, h, acc, false, k, in.m_r);
+    acceleration_tangent(in.prm, in.P, in.flags, xs, R, xs + 7, xs + 10, in.forces, in.wrench, in.m_r, in.mr, acc,
+                         ja);
     const double* q = xs + 3;
-    for (int j = 0; j < 3; ++j) {
-        x[j] = D::seed(xs[j], DIR_T + j);
-        x[7 + j] = D::seed(xs[7 + j], DIR_V + j);
-        x[10 + j] = D::seed(xs[10 + j], DIR_W + j);
-    }
-    // dq/dtheta_k = (0, e_k)/2 * q = (-q_k, q0 e_k + e_k x q_vec) / 2 for q = (q0, q_vec)
-    for (int j = 0; j < 4; ++j) {
-        x[3 + j] = D(q[j]);
-        activate(x[3 + j]);
-    }
-    for (int c = 0; c < 3; ++c) {
-        double e[3] = {0.0, 0.0, 0.0};
-        e[c] = 1.0;
-        const double ex[3] = {e[1] * q[3] - e[2] * q[2], e[2] * q[1] - e[0] * q[3], e[0] * q[2] - e[1] * q[1]};
-        x[3].d[DIR_THETA + c] = -0.5 * q[1 + c];
-        for (int j = 0; j < 3; ++j) x[4 + j].d[DIR_THETA + c] = 0.5 * (q[0] * e[j] + ex[j]);
-    }
-    const rk4::LawRows<D> src{nullptr, nullptr, 0, 6, 0, in.F};
-    rk4::state_derivative<D>(in.P, in.flags, src, 0.0, x, F, in.W, R, M, h, acc, false, dx,
-                             in.m_r == nullptr ? nullptr : in.mr);
-    double Rv[9], jf[36];
-    for (int j = 0; j < 9; ++j) Rv[j] = R[j].v;
-    force_columns(in.prm, in.flags, xs, Rv, xs + 7, xs + 10, in.forces, in.m_r, jf);
-    // Xs in the stage's coordinates: Z (12,18) and the quaternion's radial part s (18,)
     const double n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
-    double Z[STATE_DIRECTIONS][DIRECTIONS], s[DIRECTIONS];
-    for (int c = 0; c < DIRECTIONS; ++c) {
-        const double d0 = Xs[DIRECTIONS * 3 + c], d1 = Xs[DIRECTIONS * 4 + c];
-        const double d2 = Xs[DIRECTIONS * 5 + c], d3 = Xs[DIRECTIONS * 6 + c];
+    // Xs in the stage's 12 coordinates, Z (12,18)
+    double Z[STATE_DIRECTIONS][S];
+    for (int c = 0; c < S; ++c) {
+        const double d0 = Xs[S * 3 + c], d1 = Xs[S * 4 + c];
+        const double d2 = Xs[S * 5 + c], d3 = Xs[S * 6 + c];
         // 2 vec(dq q*) with q* = (q0, -q_vec)
         Z[3][c] = 2.0 * (-d0 * q[1] + d1 * q[0] - d2 * q[3] + d3 * q[2]) / n2;
         Z[4][c] = 2.0 * (-d0 * q[2] + d1 * q[3] + d2 * q[0] - d3 * q[1]) / n2;
         Z[5][c] = 2.0 * (-d0 * q[3] - d1 * q[2] + d2 * q[1] + d3 * q[0]) / n2;
-        s[c] = (d0 * q[0] + d1 * q[1] + d2 * q[2] + d3 * q[3]) / n2;
         for (int j = 0; j < 3; ++j) {
-            Z[j][c] = Xs[DIRECTIONS * j + c];
-            Z[6 + j][c] = Xs[DIRECTIONS * (7 + j) + c];
-            Z[9 + j][c] = Xs[DIRECTIONS * (10 + j) + c];
+            Z[j][c] = Xs[S * j + c];
+            Z[6 + j][c] = Xs[S * (7 + j) + c];
+            Z[9 + j][c] = Xs[S * (10 + j) + c];
         }
     }
-    for (int r = 0; r < 13; ++r) {
-        k[r] = dx[r].v;
-        double row[DIRECTIONS];
-        const double radial = (r >= 3 && r < 7) ? k[r] : 0.0;
-        for (int c = 0; c < DIRECTIONS; ++c) row[c] = radial * s[c];
+    const double *w = xs + 10;
+    for (int c = 0; c < S; ++c) {
+        for (int j = 0; j < 3; ++j) K[S * j + c] = Xs[S * (7 + j) + c];
+        // dq/dt = (0, w) q / 2 as rk4::state_derivative writes it, in w and in q
+        const double dw0 = Xs[S * 10 + c], dw1 = Xs[S * 11 + c], dw2 = Xs[S * 12 + c];
+        const double d0 = Xs[S * 3 + c], d1 = Xs[S * 4 + c], d2 = Xs[S * 5 + c], d3 = Xs[S * 6 + c];
+        K[S * 3 + c] = 0.5 * ((-dw0 * q[1] - dw1 * q[2] - dw2 * q[3]) + (-w[0] * d1 - w[1] * d2 - w[2] * d3));
+        K[S * 4 + c] = 0.5 * ((dw0 * q[0] + dw1 * q[3] - dw2 * q[2]) + (w[0] * d0 + w[1] * d3 - w[2] * d2));
+        K[S * 5 + c] = 0.5 * ((-dw0 * q[3] + dw1 * q[0] + dw2 * q[1]) + (-w[0] * d3 + w[1] * d0 + w[2] * d1));
+        K[S * 6 + c] = 0.5 * ((dw0 * q[2] - dw1 * q[1] + dw2 * q[0]) + (w[0] * d2 - w[1] * d1 + w[2] * d0));
+    }
+    for (int r = 0; r < 6; ++r) {
+        double row[S];
+        for (int c = 0; c < S; ++c) row[c] = c >= DIR_F ? ja[S * r + c] : 0.0;
         for (int m = 0; m < STATE_DIRECTIONS; ++m) {
-            const double a = dx[r].derivative(m);
-            if (a == 0.0) continue;  // most of the rate rows' entries vanish by structure
-            for (int c = 0; c < DIRECTIONS; ++c) row[c] += a * Z[m][c];
+            const double a = ja[S * r + m];
+            for (int c = 0; c < S; ++c) row[c] += a * Z[m][c];
         }
-        if (r >= 7)
-            for (int i = 0; i < 6; ++i) row[DIR_F + i] += jf[6 * (r - 7) + i];
-        for (int c = 0; c < DIRECTIONS; ++c) K[DIRECTIONS * r + c] = row[c];
+        for (int c = 0; c < S; ++c) K[S * (7 + r) + c] = row[c];
     }
 }
 
@@ -210,14 +248,11 @@ inline bool step_jacobian_one(const double* prm, int64_t flags, const double* t,
     constexpr int S = DIRECTIONS;
     StepInputs in;
     constant_params(prm, in.P);
-    for (int i = 0; i < 6; ++i) {
-        in.F[i] = D(F[i]);
-        in.W[i] = D(W[i]);
-        in.mr[i] = D(m_r == nullptr ? 0.0 : m_r[i]);
-    }
+    for (int i = 0; i < 6; ++i) in.mr[i] = D(m_r == nullptr ? 0.0 : m_r[i]);
     in.prm = prm;
     in.flags = flags;
     in.forces = F;
+    in.wrench = W;
     in.m_r = m_r;
     double x[13], X[13 * S], xs[13], Xs[13 * S], k[4][13], K[4][13 * S];
     for (int j = 0; j < 3; ++j) {
