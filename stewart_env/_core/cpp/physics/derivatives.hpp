@@ -160,6 +160,7 @@ inline void acceleration_tangent(const double* prm, const D* P, int64_t flags, c
 inline bool acceleration_jacobian_one(const double* prm, int64_t flags, const double* t, const double* R,
                                       const double* v, const double* w, const double* F, const double* W,
                                       const double* m_r, double* acc, double* jac) {
+    const kernels::SpreadFor<double> spread(prm);  // for forward_one's legs and assemble_one's
     D P[kernels::N_PARAMS], mr[6];
     constant_params(prm, P);
     if (m_r != nullptr)
@@ -246,6 +247,8 @@ inline bool step_jacobian_one(const double* prm, int64_t flags, const double* t,
                               const double* m_r, double dt, int64_t steps, double* t_next, double* R_next,
                               double* v_next, double* w_next, double* jac) {
     constexpr int S = DIRECTIONS;
+    // the row does not change over the step: the value kernels' legs read it spread once
+    const kernels::SpreadFor<double> spread(prm);
     StepInputs in;
     constant_params(prm, in.P);
     for (int i = 0; i < 6; ++i) in.mr[i] = D(m_r == nullptr ? 0.0 : m_r[i]);
