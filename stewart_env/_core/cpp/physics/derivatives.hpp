@@ -8,16 +8,18 @@
 // {B}.  The next state of a step is read back in the same coordinates about the next rotation:
 // dtheta_next = 2 vec(dq q*).
 //
-// kernels::forward_one (and rk4::state_derivative around it) run on dual numbers (dual.hpp) with
-// the 12 state directions only, in two blocks: the pose's (dt, dtheta) and the twist's (v, w), so
-// what depends on the pose alone (the legs' frames, the mass matrix) carries 6 directions.  The
-// forces need no directions: the acceleration is affine in them, M a = J^T F + ..., so
-// da/dF = M^-1 J^T from the values' M and J (force_columns).  A control step chains its RK4 stages
-// by hand: each stage's derivative is evaluated with fresh seeds at the stage's state, and the
-// tangents of the state (13 x 18, the quaternion's four rows among them) are carried through the
-// integrator's sums as plain numbers, as rk4::step_state carries the values.  The values are those
-// of the double kernels bit for bit (dual.hpp), so the acceleration is forward_batch's and the next
-// state rollout_batch's.
+// The values are the value kernels' own (kernels::forward_one, rk4::state_derivative on double),
+// so the acceleration is forward_batch's and the next state rollout_batch's bit for bit.  The
+// acceleration's Jacobian comes from the equations of motion M(x) acc + h(x) - J(x)^T F - W = 0
+// differentiated at the fixed acceleration: M dacc = -dr for their left side r at that
+// acceleration, the inverse dynamics' pulls of the legs and the platform (kernels::leg_shares and
+// kernels::platform_terms given acc), which run on dual numbers (dual.hpp) of the 12 state
+// directions with no column of the mass matrix among them; the forces' columns are M^-1 J^T (the
+// acceleration is affine in them), and one elimination with the values' M gives all 18 columns
+// (acceleration_tangent).  A control step chains its RK4 stages by hand: each stage's acceleration
+// Jacobian is taken at the stage's state, and the tangents of the state (13 x 18, the
+// quaternion's four rows among them) are carried through the integrator's sums as plain numbers,
+// as rk4::step_state carries the values.
 #pragma once
 
 #include <cmath>
