@@ -44,7 +44,7 @@ from stewart_env.randomization import draw_unit_rows
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.state import PlatformState, Reference
 from stewart_env.tasks import LIMIT_REASONS, StepView, make_task, tracking_errors
-from stewart_env.tasks.base import SuccessTracker, error_norm, errors_in, zero_reference
+from stewart_env.tasks.base import Errors, SuccessTracker, error_norm, errors_in, zero_reference
 
 __all__ = ["TERMINATION_REASONS", "FusedStep", "PlatformBatch", "StepOfParts"]
 
@@ -389,12 +389,18 @@ class PlatformBatch:
             # the drives at equilibrium with the holding forces (the platform at rest)
             self.actuation.reset_rows(rows, forces)
             self.actuation.start_plant_drives(self.plant, rows)
-        view = self._start_rows(rows, start, forces, sensors, episode)
-        self.costs.reset_rows(rows, view.state)
+        if self._step.observes:
+            # the fused step makes the start observation in the same compiled call: no view of the rows
+            state, errors = self._start_observed_rows(rows, start, forces, sensors, episode, rngs)
+        else:
+            view = self._start_rows(rows, start, forces, sensors, episode)
+            state, errors = view.state, view.errors
+        self.costs.reset_rows(rows, state)
         if self._delay is not None:
             self._delay.reset_rows(rows)  # the rows held no action before their start: zeros
-        self._start_success(rows, view.errors)
-        self.observations.reset_rows(rows, view, rngs)
+        self._start_success(rows, errors)
+        if not self._step.observes:
+            self.observations.reset_rows(rows, view, rngs)
         keys = () if factors is None else tuple(self.randomization.ranges)
         if batch_infos:
             return {} if factors is None else {"randomization": dict(zip(keys, factors.T))}
@@ -493,16 +499,7 @@ class PlatformBatch:
         Returns a view of those rows alone for the first observation."""
         m = len(rows)
         start = PlatformState(*(np.ascontiguousarray(x, dtype=np.float64) for x in start))
-        episode = {}
-        for k, v in self.episode.items():
-            d = None if drawn is None else drawn.get(k)
-            # the drawn array is what the batch's rows now hold, bit for bit, if it is float64 of their
-            # shape: no fancy-indexed copy
-            same = type(d) is np.ndarray and d.dtype == np.float64 and d.shape == (m, *v.shape[1:])
-            episode[k] = d if same else v[rows]
-        episode = MappingProxyType(episode)
-        reference = zero_reference(m)
-        self.task.reference(episode, np.zeros(m), reference)
+        episode, reference = self._start_reference(rows, drawn)
         lengths, rates, condition = np.empty((m, 6)), np.empty((m, 6)), np.empty(m)
         vectors, norms = np.empty((4, m, 3)), np.empty((4, m))
         if self._step.fused:
@@ -513,8 +510,7 @@ class PlatformBatch:
             self._step.compiled.reset(
                 rows, tuple(start), forces, pose_and_twist, lengths, rates, condition, vectors, norms, measured
             )
-            for k in Reference._fields[len(pose_and_twist) :]:  # the accelerations, which the step never reads
-                getattr(self.reference, k)[rows] = getattr(reference, k)
+            self._start_accelerations(rows, reference)
         else:
             leg_sensors_inplace(
                 self.nominal_model, *start, self.platform.limits.max_condition, lengths, rates, condition
@@ -545,6 +541,62 @@ class PlatformBatch:
             np.zeros(m, dtype=bool),
             episode,
         )
+
+    def _start_observed_rows(
+        self,
+        rows: np.ndarray,
+        start: PlatformState,
+        forces: np.ndarray | None,
+        sensors: tuple | None,
+        drawn: dict[str, np.ndarray] | None,
+        rngs: Sequence[np.random.Generator],
+    ) -> tuple[PlatformState, Errors]:
+        """:meth:`_start_rows` with the fused step that makes the observation: the same compiled
+        call also makes the rows' start observation (a zero error integral, the noise drawn from
+        rngs[j] for row rows[j], every slot of the delay ring), the numbers of the observation
+        pipeline's ``reset_rows``.  Returns the rows' start states and tracking errors, which is
+        all the rest of the reset reads: no view of the rows is made."""
+        m = len(rows)
+        start = PlatformState(*(np.ascontiguousarray(x, dtype=np.float64) for x in start))
+        _, reference = self._start_reference(rows, drawn)
+        measured = sensors is not None
+        if measured:
+            lengths, rates, condition = (np.ascontiguousarray(x, dtype=np.float64) for x in sensors)
+        else:
+            lengths, rates, condition = np.empty((m, 6)), np.empty((m, 6)), np.empty(m)
+        vectors, norms = np.empty((4, m, 3)), np.empty((4, m))
+        observations = self.observations
+        noise = observations.draw_start_noise(rngs)
+        made_finite = self._step.compiled.reset(
+            rows, tuple(start), forces, reference[:4], lengths, rates, condition, vectors, norms, measured, True, noise
+        )
+        observations.after_compiled_reset(made_finite)
+        self._start_accelerations(rows, reference)
+        return start, Errors(*vectors, *norms)
+
+    def _start_reference(
+        self, rows: np.ndarray, drawn: dict[str, np.ndarray] | None
+    ) -> tuple[MappingProxyType, Reference]:
+        """The episode arrays of ``rows`` (a read-only mapping) and the task's reference at t = 0
+        of those rows (m rows).  ``drawn``: as :meth:`_start_rows`."""
+        m = len(rows)
+        episode = {}
+        for k, v in self.episode.items():
+            d = None if drawn is None else drawn.get(k)
+            # the drawn array is what the batch's rows now hold, bit for bit, if it is float64 of their
+            # shape: no fancy-indexed copy
+            same = type(d) is np.ndarray and d.dtype == np.float64 and d.shape == (m, *v.shape[1:])
+            episode[k] = d if same else v[rows]
+        episode = MappingProxyType(episode)
+        reference = zero_reference(m)
+        self.task.reference(episode, np.zeros(m), reference)
+        return episode, reference
+
+    def _start_accelerations(self, rows: np.ndarray, reference: Reference) -> None:
+        """Write the reference's accelerations at t = 0 into ``rows`` of the batch's reference (the
+        compiled reset writes the pose and twist; the step never reads the accelerations)."""
+        for k in Reference._fields[4:]:
+            getattr(self.reference, k)[rows] = getattr(reference, k)
 
     # -- control step -----------------------------------------------------------------------------------
 
@@ -636,7 +688,9 @@ class PlatformBatch:
             for row, position, orientation in zip(rows.tolist(), errors.position.tolist(), errors.orientation.tolist()):
                 self._success.start_row(row, error_norm(position), error_norm(orientation))
         else:
-            self._success.start(rows, error_norm(errors.position), error_norm(errors.orientation))
+            # |e_p| as the compiled errors measured it, error_norm's numbers ((x^2 + y^2) + z^2, no
+            # fused multiply-add); the orientation's is the norm of e_o, not the angle they hold
+            self._success.start(rows, errors.position_norm, error_norm(errors.orientation))
 
     def track_success(self, code: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every row's outcome for the success criterion after a step; call once after each step.

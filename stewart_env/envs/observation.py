@@ -275,13 +275,38 @@ class ObservationPipeline:
             integral = self.error_integral[rows]
         raw = np.empty((m, self.dim))
         self._measure(view, integral, raw, rows)
-        if self.noise_std is not None:
-            for j in range(m):
-                raw[j] += rngs[j].normal(size=self.dim) * self.noise_std
+        noise = self.draw_start_noise(rngs)
+        if noise is not None:
+            raw += noise
         bad = finite_or_marked(raw, np.zeros(m))
         self._pending[rows] = False if bad is None else bad
         self._any_pending = bool(self._pending.any())
         self._history[:, rows] = raw
+
+    def draw_start_noise(self, rngs: Sequence[np.random.Generator]) -> np.ndarray | None:
+        """The noise of rows' start observations (m, D), row j drawn from rngs[j], or None without
+        noise: what :meth:`reset_rows` adds, and what the environment's compiled reset adds when
+        it makes the start observation itself (:meth:`after_compiled_reset`).
+
+        Args:
+            rngs: one Generator per row.
+        """
+        if self.noise_std is None:
+            return None
+        noise = np.empty((len(rngs), self.dim))
+        for j, rng in enumerate(rngs):
+            noise[j] = rng.normal(size=self.dim) * self.noise_std
+        return noise
+
+    def after_compiled_reset(self, made_finite: int) -> None:
+        """Take note of rows whose start observation the compiled reset made (:meth:`step_record`,
+        ``BatchStep.reset`` with ``observe``): it wrote their error integral, delay ring and
+        pending flags as :meth:`reset_rows` does.
+
+        Args:
+            made_finite: the rows whose start observation was not finite (they are pending).
+        """
+        self._any_pending = bool(made_finite) or bool(self._pending.any())
 
     # -- control step -----------------------------------------------------------------------------
 

@@ -528,10 +528,14 @@ public:
     // forces that hold it (m,6) or None (zeros), the reference at t = 0 (a tuple as the state); the
     // rows' leg lengths (m,6), rates (m,6), condition numbers (m,), tracking errors (4,m,3) and norms
     // (4,m) at the start are written into the last five (env_step::reset_rows); measured: the leg
-    // sensors' three arrays already hold the start state's (read, not measured again).  Every
-    // array is checked (dtype, C-contiguity, shape, the rows' range) before anything is written.
-    void reset(nb::handle rows_, nb::tuple start, nb::handle leg_forces, nb::tuple reference, nb::handle lengths_,
-               nb::handle rates_, nb::handle condition_, nb::handle errors_, nb::handle norms_, bool measured) {
+    // sensors' three arrays already hold the start state's (read, not measured again).  observe
+    // (with an observation record): the rows' first observation too, noise (m,D) or None added
+    // (env_step::start_observation_rows); returns the rows whose start observation was not
+    // finite (0 without observe).  Every array is checked (dtype, C-contiguity, shape, the rows'
+    // range) before anything is written.
+    int64_t reset(nb::handle rows_, nb::tuple start, nb::handle leg_forces, nb::tuple reference, nb::handle lengths_,
+                  nb::handle rates_, nb::handle condition_, nb::handle errors_, nb::handle norms_, bool measured,
+                  bool observe, nb::handle noise) {
         using step_records::take;
         const int64_t n = b_.n;
         const auto rows = take<InCodes>(rows_, "rows", {-1});
@@ -557,11 +561,20 @@ public:
         auto condition = take<Out>(condition_, "condition", {m});
         auto errors = take<Out>(errors_, "error_vectors", {4, m, 3});
         auto norms = take<Out>(norms_, "error_norms", {4, m});
+        if (observe && !b_.observe) throw nb::value_error("observe: the step has no observation record");
+        In noise_array;
+        if (!noise.is_none()) {
+            if (!observe) throw nb::value_error("noise: expected None without observe");
+            noise_array = take<In>(noise, "noise", {m, b_.layout.dim});
+        }
         const env_step::Start S{t.data(), R.data(), v.data(), w.data(), forces.is_valid() ? forces.data() : nullptr,
                                 rt.data(), rR.data(), rv.data(), rw.data()};
         env_step::reset_rows(b_, rows.data(), m, S,
                              {lengths.data(), rates.data(), condition.data(), errors.data(), norms.data()},
                              measured);
+        if (!observe) return 0;
+        return env_step::start_observation_rows(b_, rows.data(), m,
+                                                noise_array.is_valid() ? noise_array.data() : nullptr);
     }
 
     int64_t n_codes() const { return task_->n_codes(); }
@@ -669,10 +682,14 @@ void def_env_kernels(nb::module_& m) {
              "NOT_FINITE_ACTION (nothing done) for an action that is not finite.")
         .def("reset", &BatchStep::reset, "rows"_a, "start"_a, "leg_forces"_a.none(), "reference"_a,
              "leg_lengths"_a, "leg_rates"_a, "condition"_a, "error_vectors"_a, "error_norms"_a, "measured"_a = false,
+             "observe"_a = false, "noise"_a.none() = nb::none(),
              "Start new episodes in rows (int64 (m,)): their start state, the leg forces that hold it (or None: "
              "zeros) and the reference at t = 0, each of m rows; a zero clock, external wrench and applied action; "
              "the rows' leg sensors and tracking errors at the start state, written into the batch and into the "
-             "last five arrays (m rows); measured=True: the leg sensors' arrays already hold the start state's.");
+             "five arrays after the reference (m rows); measured=True: the leg sensors' arrays already hold the "
+             "start state's.  observe=True (a step with an observation record): the rows' first observation too, "
+             "with a zero error integral and noise (m, D) or None added, in every slot of the delay ring; returns "
+             "the rows whose start observation was not finite (made finite and pending), 0 without observe.");
 
     m.def("rotation_error_rows", [](In r, In c, Out phi, Out angle) {
         expect(c, "rotation", {-1, 3, 3});

@@ -445,6 +445,34 @@ inline void reset_rows(const Batch& B, const int64_t* rows, int64_t m, const Sta
     }
 }
 
+// The first observation of rows rows[0 .. m - 1] (envs/observation.py
+// ObservationPipeline.reset_rows), after reset_rows wrote their start into the batch: a zero error
+// integral, the clean observation (measure), the noise (m,D) of row rows[j] in row j added (noise
+// null: none), the finite guard (a row whose start observation is not finite is made finite and
+// pending: its first step terminates), and the row in every slot of the delay ring (a delayed
+// sensor has seen only the start).  Returns the rows made finite.
+inline int64_t start_observation_rows(const Batch& B, const int64_t* rows, int64_t m, const double* noise) {
+    const int64_t n = B.n, D = B.layout.dim;
+    int64_t bad = 0;
+    for (int64_t j = 0; j < m; ++j) {
+        const int64_t r = rows[j];
+        if (B.integral != nullptr)
+            for (int k = 0; k < 6; ++k) B.integral[6 * r + k] = 0.0;
+        measure(B, r, 1);
+        double* o = B.raw + D * r;
+        if (noise != nullptr)
+            for (int64_t k = 0; k < D; ++k) o[k] += noise[D * j + k];
+        bool row_bad = false;
+        for (int64_t k = 0; k < D; ++k) row_bad = row_bad || !(std::fabs(o[k]) <= B.largest);
+        if (row_bad) make_finite(o, D, B.largest);
+        B.pending[r] = row_bad;
+        bad += row_bad ? 1 : 0;
+        for (int64_t slot = 0; slot < B.slots; ++slot)
+            std::memcpy(B.history + (slot * n + r) * D, o, sizeof(double) * D);
+    }
+    return bad;
+}
+
 // The packed parameters of m randomised rows (randomization.Randomization.scale_packed_rows): entry
 // c of row j is multipliers[j, part_of[c]] times nominal[c] (multipliers (m, parts), part_of (N,) in
 // [0, parts); one multiplication, as numpy's), and largest[j] the largest magnitude in row j.

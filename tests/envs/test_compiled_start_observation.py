@@ -1,0 +1,123 @@
+"""The start observation made in the compiled reset (``BatchStep.reset`` with ``observe``): the
+numbers of the observation pipeline's ``reset_rows`` after the step of parts' start, a start
+observation that is not finite included, and the compiled reset's refusals before it writes
+anything (stewart_env.envs.core, .observation)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stewart_env.envs.config import EnvConfig
+from stewart_env.envs.core import PlatformBatch
+from stewart_env.state import PlatformState
+
+pytestmark = pytest.mark.env
+
+#: Every part of the start observation: noise, every slot of a delay ring, the error integral,
+#: the pose block and the sensors' block.
+OPTIONS = [
+    {"observation_noise": 0.02, "observation_delay": 2, "error_integral": True},
+    {"observation_mode": "sensors", "normalize_observation": False, "observation_delay": 1},
+]
+
+
+def _batches(options: dict) -> tuple[PlatformBatch, PlatformBatch]:
+    """Two batches of 4 rows at the same state after a step: the fused step's and the step of parts'."""
+    batches = []
+    for mode in ("fused", "parts"):
+        batch = PlatformBatch(4, EnvConfig.of(**options))
+        batch.set_step_mode(mode)
+        batch.reset_rows(np.arange(4), [np.random.default_rng(s) for s in range(4)])
+        batch.step(np.full((4, 6), 0.3), [np.random.default_rng(10 + s) for s in range(4)])
+        batches.append(batch)
+    assert batches[0]._step.observes and not batches[1]._step.observes
+    return batches[0], batches[1]
+
+
+def _start(position: list[list[float]]) -> PlatformState:
+    m = len(position)
+    return PlatformState(np.array(position), np.tile(np.eye(3), (m, 1, 1)), np.zeros((m, 3)), np.zeros((m, 3)))
+
+
+def _observation_state(batch: PlatformBatch) -> list[np.ndarray]:
+    obs = batch.observations
+    integral = [] if obs.error_integral is None else [obs.error_integral.copy()]
+    return [obs._history.copy(), obs._pending.copy(), np.array(obs._any_pending), *integral]
+
+
+@pytest.mark.parametrize("options", OPTIONS)
+def test_the_compiled_start_observation_is_the_pipelines_one_even_when_not_finite(options):
+    fused, parts = _batches(options)
+    rows = np.array([3, 1], dtype=np.int64)
+    # row 3 starts far beyond the float32 range: its observation is made finite and it is pending
+    start = _start([[1e300, 0.0, 0.0], [0.01, -0.02, 1.0]])
+    state, errors = fused._start_observed_rows(
+        rows, start, None, None, None, [np.random.default_rng(7), np.random.default_rng(8)]
+    )
+    view = parts._start_rows(rows, start, None)
+    parts.observations.reset_rows(rows, view, [np.random.default_rng(7), np.random.default_rng(8)])
+    for a, b in zip(state, view.state):
+        np.testing.assert_array_equal(a, b)
+    for a, b in zip(errors, view.errors):
+        np.testing.assert_array_equal(a, b)
+    for a, b in zip(_observation_state(fused), _observation_state(parts)):
+        np.testing.assert_array_equal(a, b)
+    assert fused.observations._pending.tolist() == [False, False, False, True]
+    assert fused.observations._any_pending
+    # the finite guard's bound: the float32 range (the position's entry, clipped)
+    assert np.abs(fused.observations.latest[3]).max() == np.finfo(np.float32).max
+    # the first step after ends the pending row as not finite, in both step modes
+    codes = [b.step(np.zeros((4, 6)), [np.random.default_rng(s) for s in range(4)])[1] for b in (fused, parts)]
+    np.testing.assert_array_equal(codes[0], codes[1])
+    assert fused.reasons(codes[0])[3] == "non_finite"
+
+
+def _reset_arguments(batch: PlatformBatch, m: int) -> dict:
+    state = tuple(np.ascontiguousarray(x[:m]) for x in batch._state)
+    return {
+        "rows": np.arange(m, dtype=np.int64),
+        "start": state,
+        "leg_forces": None,
+        "reference": state,
+        "leg_lengths": np.empty((m, 6)),
+        "leg_rates": np.empty((m, 6)),
+        "condition": np.empty(m),
+        "error_vectors": np.empty((4, m, 3)),
+        "error_norms": np.empty((4, m)),
+        "measured": False,
+        "observe": True,
+        "noise": None,
+    }
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"noise": np.zeros((2, 5))}, r"^noise: expected shape \(2, \d+\), got \(2, 5\)$"),
+        ({"noise": np.zeros((30, 2)).T}, r"^noise: expected a C-contiguous array of the step's dtype$"),
+        ({"noise": np.zeros((2, 30), dtype=np.float32)}, r"^noise: expected a C-contiguous array of the step's dtype$"),
+        ({"noise": np.zeros((2, 30)), "observe": False}, r"^noise: expected None without observe$"),
+    ],
+)
+def test_the_compiled_reset_refuses_a_bad_noise_before_writing_anything(change, message):
+    batch, _ = _batches({"observation_delay": 1})
+    before = [x.copy() for x in (*batch._state, batch.time, *_observation_state(batch))]
+    arguments = {**_reset_arguments(batch, 2), **change}
+    with pytest.raises(ValueError, match=message):
+        batch._step.compiled.reset(*arguments.values())
+    for x, y in zip(before, (*batch._state, batch.time, *_observation_state(batch))):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_the_compiled_reset_refuses_to_observe_without_an_observation_record():
+    # the tracking task observes terms of its own: the caller makes the observation, and the
+    # compiled step has no record of it
+    batch = PlatformBatch(2, EnvConfig.of(task="tracking"))
+    assert batch.fused and not batch._step.observes
+    batch.reset_rows(np.arange(2), [np.random.default_rng(s) for s in range(2)])
+    before = [x.copy() for x in (*batch._state, batch.time)]
+    with pytest.raises(ValueError, match=r"^observe: the step has no observation record$"):
+        batch._step.compiled.reset(*_reset_arguments(batch, 2).values())
+    for x, y in zip(before, (*batch._state, batch.time)):
+        np.testing.assert_array_equal(x, y)
