@@ -870,20 +870,32 @@ void def_env_kernels(nb::module_& m) {
         const int64_t k = static_cast<int64_t>(out.shape(1));
         if (!PyType_Check(generator_type.ptr())) throw nb::type_error("generator_type: expected a type");
         const auto* type = reinterpret_cast<PyTypeObject*>(generator_type.ptr());
+        // the attribute and method names, made once and kept for the process (interned strings, found
+        // by pointer; never released, so nothing is freed after the interpreter's end)
+        static PyObject* const bit_generator_name = PyUnicode_InternFromString("bit_generator");
+        static PyObject* const capsule_name = PyUnicode_InternFromString("capsule");
+        static PyObject* const lock_name = PyUnicode_InternFromString("lock");
+        static PyObject* const acquire_name = PyUnicode_InternFromString("acquire");
+        static PyObject* const release_name = PyUnicode_InternFromString("release");
         for (int64_t j = 0; j < m; ++j) {
             nb::object rng = rngs[static_cast<size_t>(j)];
             // only numpy's own Generator is known to draw random() as next_double of its bit generator
             if (Py_TYPE(rng.ptr()) != type) return j;
-            nb::object bit_generator = rng.attr("bit_generator");
-            nb::object capsule = bit_generator.attr("capsule");
+            nb::object bit_generator = nb::steal(PyObject_GetAttr(rng.ptr(), bit_generator_name));
+            if (!bit_generator.is_valid()) throw nb::python_error();
+            nb::object capsule = nb::steal(PyObject_GetAttr(bit_generator.ptr(), capsule_name));
+            if (!capsule.is_valid()) throw nb::python_error();
             if (!PyCapsule_IsValid(capsule.ptr(), "BitGenerator")) return j;
             const auto* g = static_cast<const reset_draws::BitGen*>(PyCapsule_GetPointer(capsule.ptr(), "BitGenerator"));
             // the generator's lock, as Generator.random holds it (another thread may draw from it); its
             // acquire() waits without the GIL
-            nb::object lock = bit_generator.attr("lock");
-            lock.attr("acquire")();
+            nb::object lock = nb::steal(PyObject_GetAttr(bit_generator.ptr(), lock_name));
+            if (!lock.is_valid()) throw nb::python_error();
+            nb::object acquired = nb::steal(PyObject_CallMethodNoArgs(lock.ptr(), acquire_name));
+            if (!acquired.is_valid()) throw nb::python_error();
             reset_draws::fill_unit(*g, out.data() + k * j, k);
-            lock.attr("release")();
+            nb::object released = nb::steal(PyObject_CallMethodNoArgs(lock.ptr(), release_name));
+            if (!released.is_valid()) throw nb::python_error();
         }
         return m;
     }, "rngs"_a, "generator_type"_a, "out"_a.noconvert(),
