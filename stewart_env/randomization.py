@@ -186,10 +186,8 @@ class Randomization:
         Returns:
             (m, k) float64, the factors in the order of ``self.ranges``.
         """
-        k = len(self.ranges)
-        bounds = np.array(list(self.ranges.values()), dtype=np.float64).reshape(k, 2)
-        low = bounds[:, 0]
-        return low + (bounds[:, 1] - low) * unit
+        _, lows, highs = self._row_tables()
+        return lows + (highs - lows) * unit
 
     def scale_packed_rows(self, nominal_row: np.ndarray, factors: np.ndarray, out: np.ndarray) -> None:
         """:meth:`scale_packed` for many rows at once: bit for bit the same packed rows.
@@ -227,6 +225,8 @@ class Randomization:
         )
         if not direct:
             out[...] = rows
+        if ok.all():
+            return
         for j in np.flatnonzero(~ok):
             # the row by row check raises the error that names the parameter
             self.scale_packed(nominal_row, dict(zip(self.ranges, factors[j].tolist())), out[j])

@@ -410,15 +410,23 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
             infos["_" + key] = stepped.copy()
         return infos
 
-    def _reset_infos(self, infos: dict[str, Any], rows: np.ndarray, row_infos: dict[str, Any]) -> dict[str, Any]:
+    def _reset_infos(
+        self, infos: dict[str, Any], rows: np.ndarray, row_infos: dict[str, Any], rows_mask: np.ndarray | None = None
+    ) -> dict[str, Any]:
         """Add the reset infos of ``rows`` (a dict of (m,) arrays, or nested dicts of them, in the
         order of ``rows``) to vector infos, with the result of Gymnasium's own rule row by row
         (``VectorEnv._add_info``): an (N,) array per key, of the values' type, and its mask under
-        ``"_" + key``."""
+        ``"_" + key``.  ``rows_mask``: the (N,) mask of ``rows``, made here when None (a new key's
+        mask is a copy of it)."""
         n = self.num_envs
+        if not row_infos:
+            return infos
+        if rows_mask is None:
+            rows_mask = np.zeros(n, dtype=np.bool_)
+            rows_mask[rows] = True
         for key, value in row_infos.items():
             if isinstance(value, dict):
-                array = self._reset_infos(infos.get(key, {}), rows, value)
+                array = self._reset_infos(infos.get(key, {}), rows, value, rows_mask)
             else:
                 array = infos.get(key)
                 if array is None:
@@ -426,8 +434,9 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
                 array[rows] = value
             mask = infos.get("_" + key)
             if mask is None:
-                mask = np.zeros(n, dtype=np.bool_)
-            mask[rows] = True
+                mask = rows_mask.copy()
+            else:
+                mask[rows] = True
             infos[key], infos["_" + key] = array, mask
         return infos
 
