@@ -403,10 +403,14 @@ class StewartPlatformVectorEnv(BatchAttributes, VectorEnv):
             core.costs.info(),
             core.task.step_info(),
         )
-        all_rows = bool(stepped.all())
+        # each value is an array of its own (step_values): the rows not stepped are zeroed in place,
+        # the numbers of _masked(value, stepped)
+        idle = None if stepped.all() else np.flatnonzero(~stepped)
         infos: dict[str, Any] = {}
         for key, value in values.items():
-            infos[key] = value if all_rows else _masked(value, stepped)
+            if idle is not None:
+                value[idle] = 0
+            infos[key] = value
             infos["_" + key] = stepped.copy()
         return infos
 

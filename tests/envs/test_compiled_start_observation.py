@@ -121,3 +121,27 @@ def test_the_compiled_reset_refuses_to_observe_without_an_observation_record():
         batch._step.compiled.reset(*_reset_arguments(batch, 2).values())
     for x, y in zip(before, (*batch._state, batch.time)):
         np.testing.assert_array_equal(x, y)
+
+
+def test_next_step_infos_of_the_rows_reset_instead_of_stepped_are_zeros_of_their_type():
+    import gymnasium as gym
+
+    import stewart_env.registration  # noqa: F401  (registers StewartPlatform-v1)
+
+    envs = gym.make_vec("StewartPlatform-v1", num_envs=4, vectorization_mode="vector_entry_point", max_episode_steps=3)
+    envs.reset(seed=0)
+    hold = np.zeros((4, 6), dtype=np.float32)
+    envs.step(hold)
+    envs.reset(options={"reset_mask": np.array([True, True, False, False])})
+    for _ in range(2):
+        _, _, _, truncated, _ = envs.step(hold)
+    assert truncated.tolist() == [False, False, True, True]
+    _, _, _, _, infos = envs.step(hold)  # rows 2 and 3 are reset, not stepped
+    keys = [k for k in infos if not k.startswith("_") and f"_{k}" in infos and isinstance(infos[k], np.ndarray)]
+    assert {"reward_position", "termination", "time", "is_success", "cost"} <= set(keys)
+    for key in keys:
+        assert infos[f"_{key}"].tolist() == [True, True, False, False], key
+        assert not infos[key][2:].any(), key
+    assert infos["time"][:2].tolist() == [3 * envs.unwrapped._core.control_dt] * 2
+    assert infos["termination"].dtype == np.int64 and infos["is_success"].dtype == np.bool_
+    envs.close()
