@@ -416,7 +416,7 @@ class PlatformBatch:
         states (a PlatformState of (m, ...) arrays), their episode arrays by name, and the start
         states' leg sensors if the task measured them (None: not)."""
         rnd = self.randomization
-        if len(rngs) == 1 or len(set(map(id, rngs))) < len(rngs):
+        if len(rngs) == 1 or _shares_a_generator(rngs):
             # one row (the single environment), which numpy's overhead per call makes cheaper row by
             # row, or a generator shared by rows, whose draws must go row after row
             return self._draw_episodes_by_row(rows, rngs)
@@ -763,6 +763,16 @@ class PlatformBatch:
             code: termination codes, an int array indexing :attr:`termination_reasons` (0: none).
         """
         return self._reason_array[code]
+
+
+def _shares_a_generator(rngs: Sequence[Any]) -> bool:
+    """Whether a generator appears more than once in ``rngs``.  A set of the generators themselves
+    (numpy's hash and compare them by identity) is built without a Python int per row; generators
+    that compare equal while distinct would only be drawn from row after row, the same numbers."""
+    try:
+        return len(set(rngs)) < len(rngs)
+    except TypeError:  # unhashable generators of another kind: by identity
+        return len(set(map(id, rngs))) < len(rngs)
 
 
 # -- the step objects: one chosen when the batch makes its step (PlatformBatch._make_step) -------------

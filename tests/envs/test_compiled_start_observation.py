@@ -145,3 +145,29 @@ def test_next_step_infos_of_the_rows_reset_instead_of_stepped_are_zeros_of_their
     assert infos["time"][:2].tolist() == [3 * envs.unwrapped._core.control_dt] * 2
     assert infos["termination"].dtype == np.int64 and infos["is_success"].dtype == np.bool_
     envs.close()
+
+
+class _Unhashable(np.random.Generator):
+    """A Generator that compares by its state (so unhashable): the rows' generators of another kind."""
+
+    __hash__ = None
+
+    def __eq__(self, other):
+        return self is other
+
+
+def test_a_generator_shared_by_rows_is_found_among_unhashable_ones_too():
+    from stewart_env.envs.core import _shares_a_generator
+
+    a, b = (_Unhashable(np.random.PCG64(s)) for s in (1, 2))
+    assert not _shares_a_generator([a, b]) and _shares_a_generator([a, b, a])
+    c, d = np.random.default_rng(1), np.random.default_rng(1)
+    assert not _shares_a_generator([c, d]) and _shares_a_generator([c, d, c])
+    # a reset of rows with unhashable generators of their own draws as with numpy's own
+    rows = np.arange(3)
+    batches = [PlatformBatch(3, EnvConfig.of()) for _ in range(2)]
+    batches[0].reset_rows(rows, [_Unhashable(np.random.PCG64(s)) for s in range(3)])
+    batches[1].reset_rows(rows, [np.random.Generator(np.random.PCG64(s)) for s in range(3)])
+    for x, y in zip(batches[0]._state, batches[1]._state):
+        np.testing.assert_array_equal(x, y)
+    np.testing.assert_array_equal(batches[0].observation, batches[1].observation)
