@@ -171,3 +171,17 @@ def test_a_generator_shared_by_rows_is_found_among_unhashable_ones_too():
     for x, y in zip(batches[0]._state, batches[1]._state):
         np.testing.assert_array_equal(x, y)
     np.testing.assert_array_equal(batches[0].observation, batches[1].observation)
+
+
+def test_the_compiled_position_error_norm_is_error_norms_bit_for_bit():
+    # the success tracker starts from |e_p| as the compiled reset measured it: error_norm's numbers
+    from stewart_env.tasks.base import error_norm
+
+    batch = PlatformBatch(64, EnvConfig.of())
+    rng = np.random.default_rng(5)
+    rows = np.arange(64, dtype=np.int64)
+    # positions over many magnitudes (the squares' rounding differs with any other order or a fused multiply-add)
+    position = rng.normal(size=(64, 3)) * 10.0 ** rng.uniform(-8, 3, (64, 1)) + batch.platform.home_position
+    _, errors = batch._start_observed_rows(rows, _start(position.tolist()), None, None, None, [rng] * 64)
+    np.testing.assert_array_equal(errors.position_norm, error_norm(errors.position))
+    assert (errors.position_norm > 0).all()
