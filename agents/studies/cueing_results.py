@@ -1,8 +1,10 @@
-"""The cueing results: PPO with the shipped cueing config against the tuned classical washout on
+"""The cueing results: PPO with a shipped cueing config against the tuned classical washout on
 held-out manoeuvres, with intervals, and the goals each reaches.
 
-The study (``stewart-env cueing-results``) trains one PPO agent per seed with
-configs/agents/ppo_cueing.yml (``task="cueing"``, pose mode) into ``DIR/agents/seed_S`` (or reads
+The study (``stewart-env cueing-results``) trains one PPO agent per seed with a cueing config
+(:data:`PPO_CONFIG` by default, configs/agents/ppo_cueing_residual.yml: PPO as a residual on the
+washout, :mod:`stewart_env.agents.training.residual`; or configs/agents/ppo_cueing.yml, PPO
+commanding the pose itself; ``task="cueing"``, pose mode) into ``DIR/agents/seed_S`` (or reads
 them from a folder of trained agents), then runs the tuned washout (configs/agents/washout.yaml)
 and every agent on the same held-out episodes (:data:`MANOEUVRES`, each at the first
 ``episodes`` of the task's evaluation seeds, side by side in one vector environment:
@@ -56,8 +58,8 @@ MODULE = "stewart_env.agents.studies.cueing_results"
 MANOEUVRES = ("double_lane_change", "braking", "coordinated_turn", "sweep_y")
 #: The manoeuvre of the figure.
 FIGURE_MANOEUVRE = "braking"
-#: The PPO config of the study.
-PPO_CONFIG = "ppo_cueing"
+#: The PPO config of the study: PPO as a residual on the tuned washout.
+PPO_CONFIG = "ppo_cueing_residual"
 #: The washout of the study.
 WASHOUT_CONFIG = "washout"
 #: The goals against washout: (metric, how PPO's mean compares with washout's, the factor).
@@ -85,12 +87,15 @@ class CueingResultsSettings:
         timesteps: environment steps per agent (None: the config's n_timesteps).
         episodes: held-out seeds per manoeuvre (the first of the task's evaluation seeds), 1 to 10.
         manoeuvres: the held-out manoeuvres.
+        config: PPO's cueing config, a shipped name or a path (a residual one when its entry
+            holds ``residual_washout``).
     """
 
     seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
     timesteps: int | None = None
     episodes: int = 3
     manoeuvres: tuple[str, ...] = MANOEUVRES
+    config: str = PPO_CONFIG
 
     def __post_init__(self) -> None:
         from stewart_env.tasks.cueing.motions import EVALUATION_SEEDS, MOTIONS
@@ -102,6 +107,24 @@ class CueingResultsSettings:
         unknown = [m for m in self.manoeuvres if m not in MOTIONS]
         if unknown or not self.manoeuvres:
             raise UsageError.about("manoeuvres", f"unknown or none: {unknown or self.manoeuvres!r}")
+        from stewart_env.agents.training import TrainingError
+
+        try:
+            residual, entry = read_config(self.config)
+        except TrainingError as err:
+            raise UsageError.about("config", str(err)) from None
+        if entry.get("env_kwargs", {}).get("action_mode") != "pose":
+            raise UsageError.about("config", f"{self.config}: the cueing study needs env_kwargs action_mode: pose")
+
+    @property
+    def residual(self) -> bool:
+        """Whether the config's agents are residuals on the washout."""
+        return read_config(self.config)[0] is not None
+
+    @property
+    def label(self) -> str:
+        """PPO's row label in the table."""
+        return "ppo (residual on washout)" if self.residual else "ppo"
 
     def held_out(self) -> list[tuple[str, int]]:
         """The held-out (motion, seed) pairs, manoeuvre by manoeuvre."""
@@ -110,12 +133,34 @@ class CueingResultsSettings:
         return [(m, int(s)) for m in self.manoeuvres for s in EVALUATION_SEEDS[: self.episodes]]
 
 
-def _env_kwargs() -> dict[str, Any]:
+def read_config(config: str):
+    """A cueing config's residual settings (None: PPO commands the pose itself) and its entry
+    without them, as SB3's parser reads it.
+
+    Args:
+        config: a shipped config's name or a path.
+
+    Returns:
+        (residual settings or None, the entry).
+
+    Raises:
+        TrainingError: no such config, or bad residual settings.
+    """
+    from stewart_env.agents.training.hyperparameters import parse_hyperparameters, read_hyperparameters
+    from stewart_env.agents.training.residual import RESIDUAL_KEY, residual_settings
+
+    entry = read_hyperparameters("ppo", config)
+    residual = None
+    if RESIDUAL_KEY in entry:
+        residual, entry = residual_settings(entry)
+    parse_hyperparameters("ppo", entry)  # its names and values checked before any work
+    return residual, entry
+
+
+def _env_kwargs(config: str) -> dict[str, Any]:
     """The PPO config's environment keywords, which every evaluation uses (the washout reads its
     parts by name, so the preview does not change it); no time limit: each episode runs to its end."""
-    from stewart_env.agents.studies.mismatch.rows import config_env_kwargs
-
-    kwargs = dict(config_env_kwargs("ppo", PPO_CONFIG))
+    kwargs = dict(read_config(config)[1].get("env_kwargs") or {})
     kwargs.pop("max_episode_steps", None)
     options = dict(kwargs.get("task_options", {}))
     options.pop("training_seeds", None)
@@ -129,7 +174,7 @@ def _evaluation_spec(settings: CueingResultsSettings, policy: str, seed: int | N
         "seed": seed,
         "timesteps": timesteps,
         "episodes": settings.held_out(),
-        "env_kwargs": _env_kwargs(),
+        "env_kwargs": _env_kwargs(settings.config),
     }
 
 
@@ -149,7 +194,7 @@ def _evaluate(
     found = _read(path, spec)
     if found is not None:
         return found
-    runner = ScheduledEpisodes(settings.held_out(), _env_kwargs())
+    runner = ScheduledEpisodes(settings.held_out(), _env_kwargs(settings.config))
     try:
         rows = runner.run(policy, traces=figure)
         dt = runner.dt
@@ -170,35 +215,67 @@ def _evaluate(
     return json.loads(json.dumps(data))
 
 
+def _timesteps(settings: CueingResultsSettings) -> int:
+    if settings.timesteps is not None:
+        return settings.timesteps
+    return int(float(read_config(settings.config)[1]["n_timesteps"]))
+
+
 def _train(out: Path, agents: Path | None, settings: CueingResultsSettings, seed: int, progress: bool) -> Path | None:
-    """The agent of ``seed``: trained into ``out/agents/seed_S`` (continued if stopped), or read from ``agents``."""
+    """The agent of ``seed``: trained into ``out/agents/seed_S`` (continued if stopped; a residual
+    agent trained again), or read from ``agents``."""
     from stewart_env.agents.studies.mismatch.rows import finished_agent, train_agent
 
     if agents is not None:
         folder = agents / f"seed_{seed}"
         return folder if folder.is_dir() else None
     folder = out / "agents" / f"seed_{seed}"
-    kwargs = config_env_kwargs_of_training()
-    if not finished_agent(folder, "ppo", seed, kwargs):
-        training = {"algo": "ppo", "task": "cueing", "seed": seed, "config": PPO_CONFIG}
-        timesteps = settings.timesteps
-        if timesteps is None:
-            from stewart_env.agents.training.hyperparameters import read_hyperparameters
+    timesteps = _timesteps(settings)
+    if settings.residual:
+        from stewart_env.agents.training.residual import MANIFEST, train_residual
 
-            timesteps = int(float(read_hyperparameters("ppo", PPO_CONFIG)["n_timesteps"]))
+        try:
+            done = json.loads((folder / MANIFEST).read_text())
+        except (OSError, ValueError):
+            done = {}
+        wanted = {"config": str(settings.config), "seed": seed}
+        if {k: done.get(k) for k in wanted} != wanted or done.get("num_timesteps", 0) < timesteps:
+            train_residual(folder, settings.config, seed, timesteps, progress_bar=progress)
+        return folder
+    kwargs = config_env_kwargs_of_training(settings.config)
+    if not finished_agent(folder, "ppo", seed, kwargs):
+        training = {"algo": "ppo", "task": "cueing", "seed": seed, "config": settings.config}
         train_agent(folder, training, timesteps, progress)
     return folder
 
 
-def config_env_kwargs_of_training() -> dict[str, Any]:
+def config_env_kwargs_of_training(config: str = PPO_CONFIG) -> dict[str, Any]:
     """The environment keywords a trained agent's run.json records (the config's, with the task).
+
+    Args:
+        config: the PPO config.
 
     Returns:
         The keywords.
     """
     from stewart_env.agents.studies.mismatch.rows import config_env_kwargs
 
-    return {**config_env_kwargs("ppo", PPO_CONFIG), "task": "cueing"}
+    return {**config_env_kwargs("ppo", config), "task": "cueing"}
+
+
+def _agent(folder: Path, residual: bool):
+    """(the agent's policy or its factory, its files' sha256, its training's record)."""
+    if residual:
+        from stewart_env.agents.training.residual import MANIFEST, load_residual
+
+        manifest = json.loads((folder / MANIFEST).read_text())
+        training = {k: manifest.get(k) for k in ("num_timesteps", "cpu_seconds", "wall_seconds", "episode_endings")}
+        return (lambda env: load_residual(folder, env)), manifest["files"], training
+    from stewart_env.agents.training import load_agent
+
+    manifest = json.loads((folder / "run.json").read_text())
+    training = {"num_timesteps": manifest.get("num_timesteps"), "wall_seconds": manifest.get("wall_time")}
+    return load_agent(folder), manifest.get("files"), training
 
 
 def run_cueing_results(
@@ -218,8 +295,6 @@ def run_cueing_results(
     Raises:
         UsageError: bad settings.
     """
-    from stewart_env.agents.training import load_agent
-
     settings = settings or CueingResultsSettings()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -235,18 +310,22 @@ def run_cueing_results(
         )
     }
     ppo: dict[int, dict] = {}
+    training: dict[int, dict] = {}
     for seed in settings.seeds:
         folder = _train(out, None if agents is None else Path(agents), settings, seed, progress)
         if folder is None:
             continue
+        policy, files, training[seed] = _agent(folder, settings.residual)
         spec = _evaluation_spec(settings, "ppo", seed, settings.timesteps)
-        spec["agent"] = json.loads((folder / "run.json").read_text()).get("files")
-        ppo[seed] = _evaluate(out, settings, f"ppo_seed_{seed}", load_agent(folder), spec, seed == settings.seeds[0])
+        spec["agent"] = files
+        spec["config"] = str(settings.config)
+        ppo[seed] = _evaluate(out, settings, f"ppo_seed_{seed}", policy, spec, seed == settings.seeds[0])
     results = summarize(settings, evaluations["washout"], ppo)
+    results["training"] = {str(seed): record for seed, record in training.items()}
     publish(out / "results.json", json.dumps(results, indent=1, allow_nan=True))
     publish(out / "cueing.md", results_table(results) + "\n")
     trace_ppo = next((e["figure"] for e in ppo.values() if e.get("figure")), None)
-    _figure(out / "perceived_specific_force.png", evaluations["washout"]["figure"], trace_ppo)
+    _figure(out / "perceived_specific_force.png", evaluations["washout"]["figure"], trace_ppo, settings.label)
     return results
 
 
@@ -289,7 +368,13 @@ def summarize(settings: CueingResultsSettings, washout: dict, ppo: dict[int, dic
                 {m: v[0] for m, v in entry["washout"].items()}, {m: v[0] for m, v in entry["ppo"].items()}
             )
         table[manoeuvre] = entry
-    return {"seeds": sorted(ppo), "episodes": settings.episodes, "manoeuvres": table}
+    return {
+        "seeds": sorted(ppo),
+        "episodes": settings.episodes,
+        "config": str(settings.config),
+        "label": settings.label,
+        "manoeuvres": table,
+    }
 
 
 def goals_reached(washout: dict[str, float], ppo: dict[str, float]) -> dict[str, bool]:
@@ -341,13 +426,14 @@ def results_table(results: dict[str, Any]) -> str:
                 continue
             cells = [_interval(entry[label][m], spec) for m, (_, spec) in COLUMNS.items()]
             cells.append(_interval(entry[label]["stroke_violations"], ".2f"))
-            lines.append(f"| {manoeuvre} | {label} | " + " | ".join(cells) + " |")
+            shown = results.get("label", "ppo") if label == "ppo" else label
+            lines.append(f"| {manoeuvre} | {shown} | " + " | ".join(cells) + " |")
         if "goals" in entry:
             marks = ["reached" if entry["goals"][m] else "not reached" for m, _, _ in GOALS]
             goal_lines.append(f"| {manoeuvre} | " + " | ".join(marks) + " |")
     seeds = results["seeds"]
     note = (
-        f"PPO: {len(seeds)} training seed(s) ({', '.join(map(str, seeds)) or 'none'}), "
+        f"PPO ({results.get('config', PPO_CONFIG)}): {len(seeds)} training seed(s) ({', '.join(map(str, seeds)) or 'none'}), "
         f"{results['episodes']} held-out episode(s) per manoeuvre; 95 % stratified bootstrap intervals."
     )
     text = "\n".join(lines) + "\n\n" + note
@@ -356,7 +442,7 @@ def results_table(results: dict[str, Any]) -> str:
     return text
 
 
-def _figure(path: Path, washout: dict | None, ppo: dict | None) -> None:
+def _figure(path: Path, washout: dict | None, ppo: dict | None, label: str = "ppo") -> None:
     """The perceived specific force's x over time: the vehicle's, the washout's and PPO's."""
     try:
         import matplotlib
@@ -376,7 +462,7 @@ def _figure(path: Path, washout: dict | None, ppo: dict | None) -> None:
     ax.plot(dt * np.arange(len(w)), w[:, 0], label="washout")
     if ppo is not None:
         p = np.asarray(ppo["platform"])
-        ax.plot(dt * np.arange(len(p)), p[:, 0], label="PPO")
+        ax.plot(dt * np.arange(len(p)), p[:, 0], label=label.replace("ppo", "PPO"))
     ax.set_xlabel("time (s)")
     ax.set_ylabel("perceived f_x (m/s²)")
     ax.set_title(f"{FIGURE_MANOEUVRE}, held-out seed")

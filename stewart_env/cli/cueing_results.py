@@ -29,9 +29,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     """
     p = subparsers.add_parser(
         VERB,
-        help="the cueing results: PPO (configs/agents/ppo_cueing.yml) against the tuned washout on held-out manoeuvres",
-        description="Train one PPO agent per seed with configs/agents/ppo_cueing.yml on task cueing (or read "
-        "them from --agents), then run them and the tuned washout (configs/agents/washout.yaml) on the same "
+        help="the cueing results: PPO (configs/agents/ppo_cueing_residual.yml) against the tuned washout on "
+        "held-out manoeuvres",
+        description="Train one PPO agent per seed with a cueing config (default ppo_cueing_residual: PPO as a "
+        "residual on the tuned washout) on task cueing (or read them from --agents), then run them and the tuned washout (configs/agents/washout.yaml) on the same "
         "held-out episodes of a lane change, braking, a coordinated turn and a lateral sweep: perceived "
         "specific-force RMS error, false cues, specific-force correlation and stroke use with 95 %% intervals, "
         "and the goals against washout marked reached or not. Writes DIR/cueing.md, DIR/results.json and "
@@ -57,6 +58,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help="a folder of trained agents (seed_S, the layout of DIR/agents), read only: a missing agent leaves "
         "its seed out (default: DIR/agents, where the missing agents are trained)",
     )
+    p.add_argument(
+        "--config",
+        default="ppo_cueing_residual",
+        help="PPO's cueing config, a shipped name or a file's path: ppo_cueing_residual (PPO as a residual on "
+        "the washout, its key residual_washout) or ppo_cueing (PPO commands the pose itself) "
+        "(default: ppo_cueing_residual)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
 
@@ -78,7 +86,9 @@ def run(args: argparse.Namespace) -> int:
     from stewart_env.files import WriteError
 
     try:
-        settings = CueingResultsSettings(seeds=tuple(args.seeds), timesteps=args.timesteps, episodes=args.episodes)
+        settings = CueingResultsSettings(
+            seeds=tuple(args.seeds), timesteps=args.timesteps, episodes=args.episodes, config=args.config
+        )
     except UsageError as err:
         return error(VERB, f"argument --{err.argument}: {err.problem}")
     kept = f"; the finished evaluations are kept in {args.out} (run the same command again to continue)"

@@ -468,7 +468,10 @@ def test_config_by_an_unknown_name_lists_the_shipped_ones(tmp_path, capsys):
     assert stop.value.code == 2
     err = capsys.readouterr().err
     assert "argument --config: unknown shipped config 'ppo_fast'" in err
-    assert "crossq, ppo, ppo_6m, ppo_cueing, ppo_integral_6m, ppo_leg_length, ppo_pose, sac, td3, tqc" in err
+    assert (
+        "crossq, ppo, ppo_6m, ppo_cueing, ppo_cueing_residual, ppo_integral_6m, ppo_leg_length, ppo_pose, sac, td3, tqc"
+        in err
+    )
 
 
 @pytest.mark.parametrize(

@@ -72,9 +72,9 @@ def test_summary_and_table_of_two_seeds():
     low, high = entry["ppo"]["rms_specific_force_error"][1:]
     assert low <= 0.6 <= high and math.isfinite(low)
     text = results_table(results)
-    assert "| braking | ppo | 0.600 [" in text
+    assert "| braking | ppo (residual on washout) | 0.600 [" in text
     assert "ended at a limit" in text
-    assert "PPO: 2 training seed(s) (0, 1), 2 held-out episode(s) per manoeuvre" in text
+    assert "PPO (ppo_cueing_residual): 2 training seed(s) (0, 1), 2 held-out episode(s) per manoeuvre" in text
     assert "| braking | reached | reached | reached | not reached |" in text
 
 
