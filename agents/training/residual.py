@@ -1,8 +1,10 @@
 """Residual cueing: PPO trained to correct the tuned classical washout, not to replace it.
 
-The agent's action is added to the washout's pose command, ``clip(washout + scale * residual,
--1, 1)``, and the agent observes the environment's observation followed by the washout's command
-(6 numbers in [-1, 1]): an untrained agent, whose residual is near 0, cues as the washout does and
+The agent's action, low-passed (a first-order filter of time constant ``smoothing``, s), is added
+to the washout's pose command, ``clip(washout + scale * filtered, -1, 1)``, and the agent observes
+the environment's observation followed by the washout's command and the filtered residual (6
+numbers each, in [-1, 1]): the filter keeps the residual from adding a step-to-step jitter to the
+pose, which the person on the platform would feel as false specific-force cues.  An untrained agent, whose residual is near 0, cues as the washout does and
 stays inside the platform's limits, so that training starts from the washout's cueing instead of
 from a platform that explores its whole workspace box and ends at the limits.  The washout runs
 outside the environment, in the agents layer: :class:`ResidualWashoutVecEnv` wraps the training
@@ -36,6 +38,7 @@ from stewart_env.files import publish
 
 __all__ = [
     "RESIDUAL_KEY",
+    "ResidualFilter",
     "ResidualSettings",
     "ResidualWashoutPolicy",
     "ResidualWashoutVecEnv",
@@ -44,7 +47,7 @@ __all__ = [
     "train_residual",
 ]
 
-#: The config entry's key of the residual's settings: ``{washout: <washout config>, scale: <s>}``.
+#: The config entry's key of the residual's settings: ``{washout: <config>, scale: <s>, smoothing: <tau>}``.
 RESIDUAL_KEY = "residual_washout"
 #: The files of a trained agent.
 MODEL_FILE, STATISTICS_FILE, MANIFEST = "model.zip", "vecnormalize.pkl", "residual.json"
@@ -58,18 +61,64 @@ class ResidualSettings:
         washout_config: where they were read (a shipped name or a path).
         scale: the factor of the agent's action, in (0, 2]: a residual of 1 moves the pose command
             by ``scale`` of the pose action's half-range.
+        smoothing: the residual's low-pass time constant, s, 0 to 10 (0: none).
     """
 
-    def __init__(self, washout: str = "washout", scale: float = 0.2):
-        if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0.0 < float(scale) <= 2.0:
-            raise TrainingError(f"{RESIDUAL_KEY}: scale must be a number in (0, 2], got {scale!r}")
+    def __init__(self, washout: str = "washout", scale: float = 0.2, smoothing: float = 0.0):
+        for name, value, low, high in (("scale", scale, 0.0, 2.0), ("smoothing", smoothing, 0.0, 10.0)):
+            bad = isinstance(value, bool) or not isinstance(value, (int, float))
+            if bad or not (low < float(value) <= high if name == "scale" else low <= float(value) <= high):
+                interval = "(0, 2]" if name == "scale" else "[0, 10] s"
+                raise TrainingError(f"{RESIDUAL_KEY}: {name} must be a number in {interval}, got {value!r}")
         self.washout_config = str(washout)
         self.washout: WashoutParams = load_washout_params(self.washout_config)
         self.scale = float(scale)
+        self.smoothing = float(smoothing)
 
     def as_dict(self) -> dict[str, Any]:
         """The settings as the config and ``residual.json`` write them."""
-        return {"washout": self.washout_config, "scale": self.scale}
+        return {"washout": self.washout_config, "scale": self.scale, "smoothing": self.smoothing}
+
+
+class ResidualFilter:
+    """The residuals' first-order low-pass, one per row: ``y += a (u - y)`` with ``a = dt / (tau + dt)``
+    (backward Euler), started at 0 on a new episode.
+
+    Args:
+        tau: the time constant, s (0: ``y = u``).
+        dt: the control step, s.
+    """
+
+    def __init__(self, tau: float, dt: float):
+        self.gain = dt / (tau + dt)
+        self.state = np.zeros((0, 6))
+
+    def reset(self, rows=None) -> None:
+        """Start over (the rows ``rows``, a boolean mask, or all).
+
+        Args:
+            rows: the rows to restart; None: every row.
+        """
+        mask = None if rows is None else np.asarray(rows, dtype=bool).reshape(-1)
+        if mask is None or len(mask) != len(self.state):  # all, or a batch not stepped yet
+            self.state = np.zeros((0, 6))
+        else:
+            self.state[mask] = 0.0
+
+    def step(self, residual) -> np.ndarray:
+        """The filtered residuals (N, 6) after ``residual`` (N, 6), clipped to [-1, 1] first.
+
+        Args:
+            residual: the agent's actions.
+
+        Returns:
+            The filter's output.
+        """
+        residual = np.clip(np.asarray(residual, dtype=float), -1.0, 1.0)  # as SB3 clips a Box action
+        if self.state.shape != residual.shape:  # a new batch
+            self.state = np.zeros_like(residual)
+        self.state = self.state + self.gain * (residual - self.state)
+        return self.state.copy()
 
 
 def residual_settings(entry: Mapping[str, Any]) -> tuple[ResidualSettings, dict[str, Any]]:
@@ -87,9 +136,9 @@ def residual_settings(entry: Mapping[str, Any]) -> tuple[ResidualSettings, dict[
     value = entry.get(RESIDUAL_KEY)
     if not isinstance(value, Mapping):
         raise TrainingError(f"{RESIDUAL_KEY}: the config needs a mapping {RESIDUAL_KEY}: {{washout, scale}}")
-    unknown = sorted(set(value) - {"washout", "scale"})
+    unknown = sorted(set(value) - {"washout", "scale", "smoothing"})
     if unknown:
-        raise TrainingError(f"{RESIDUAL_KEY}: unknown key(s) {', '.join(unknown)}; valid: washout, scale")
+        raise TrainingError(f"{RESIDUAL_KEY}: unknown key(s) {', '.join(unknown)}; valid: washout, scale, smoothing")
     rest = {k: v for k, v in entry.items() if k != RESIDUAL_KEY}
     return ResidualSettings(**value), rest
 
@@ -99,21 +148,20 @@ def combine(washout_action: np.ndarray, residual: np.ndarray, scale: float) -> n
 
     Args:
         washout_action: (N, 6) the washout's pose actions.
-        residual: (N, 6) the agent's actions.
+        residual: (N, 6) the (filtered) residuals, in [-1, 1].
         scale: the residual's factor.
 
     Returns:
         (N, 6) float32 actions.
     """
-    residual = np.clip(np.asarray(residual, dtype=float), -1.0, 1.0)  # as SB3 clips a Box action
     return np.clip(washout_action + scale * residual, -1.0, 1.0).astype(np.float32)
 
 
 def _augmented_space(space):
     from gymnasium import spaces
 
-    low = np.concatenate([space.low, -np.ones(6, dtype=space.dtype)])
-    high = np.concatenate([space.high, np.ones(6, dtype=space.dtype)])
+    low = np.concatenate([space.low, -np.ones(12, dtype=space.dtype)])
+    high = np.concatenate([space.high, np.ones(12, dtype=space.dtype)])
     return spaces.Box(low=low, high=high, dtype=space.dtype)
 
 
@@ -125,7 +173,7 @@ def _vec_env_wrapper():
 
 class ResidualWashoutVecEnv(_vec_env_wrapper()):
     """The training batch of a residual agent: SB3's VecEnv whose action is the residual and whose
-    observation ends with the washout's pose command.
+    observation ends with the washout's pose command and the filtered residual.
 
     Args:
         venv: a :class:`~stewart_env.envs.StewartPlatformSB3VecEnv` on ``task="cueing"`` in pose mode.
@@ -140,6 +188,8 @@ class ResidualWashoutVecEnv(_vec_env_wrapper()):
         self.settings = settings
         self.washout = WashoutPolicy(venv.venv, settings.washout)
         self._base = np.zeros((venv.num_envs, 6), dtype=np.float32)
+        self.filter = ResidualFilter(settings.smoothing, venv.venv.unwrapped.dt)
+        self._filtered = np.zeros((venv.num_envs, 6))
         self._reasons = tuple(venv.venv.unwrapped.termination_reasons)
         #: how the training's episodes ended, by reason ("time_limit": truncated), all and the last 500
         self.endings: collections.Counter = collections.Counter()
@@ -149,12 +199,17 @@ class ResidualWashoutVecEnv(_vec_env_wrapper()):
         """Every row starts over, the washout's filters too.
 
         Returns:
-            The augmented observations (N, obs_dim + 6).
+            The augmented observations (N, obs_dim + 12).
         """
         obs = self.venv.reset()
         self.washout.reset()
+        self.filter.reset()
+        self._filtered = np.zeros((self.num_envs, 6))
         self._base, _ = self.washout.predict(obs)
-        return np.concatenate([obs, self._base], axis=1)
+        return self._augment(obs)
+
+    def _augment(self, obs) -> np.ndarray:
+        return np.concatenate([obs, self._base, self._filtered], axis=1).astype(obs.dtype)
 
     def step_async(self, actions: np.ndarray) -> None:
         """Hold the pose commands of the residual ``actions`` (N, 6).
@@ -162,7 +217,8 @@ class ResidualWashoutVecEnv(_vec_env_wrapper()):
         Args:
             actions: the agent's residuals.
         """
-        self.venv.step_async(combine(self._base, actions, self.settings.scale))
+        self._filtered = self.filter.step(actions)
+        self.venv.step_async(combine(self._base, self._filtered, self.settings.scale))
 
     def step_wait(self):
         """Step the batch; the washout's filters start over on the rows that ended.
@@ -179,9 +235,13 @@ class ResidualWashoutVecEnv(_vec_env_wrapper()):
             self.recent_endings.append(reason)
             terminal = infos[i].get("terminal_observation")
             if terminal is not None:
-                infos[i]["terminal_observation"] = np.concatenate([terminal, self._base[i]])
+                extra = np.concatenate([self._base[i], self._filtered[i]])
+                infos[i]["terminal_observation"] = np.concatenate([terminal, extra]).astype(terminal.dtype)
         self._base, _ = self.washout.predict(obs, episode_start=dones)
-        return np.concatenate([obs, self._base], axis=1), rewards, dones, infos
+        if dones.any():
+            self.filter.reset(dones)
+            self._filtered[dones] = 0.0
+        return self._augment(obs), rewards, dones, infos
 
 
 class ResidualWashoutPolicy:
@@ -196,13 +256,17 @@ class ResidualWashoutPolicy:
 
     def __init__(self, env, model, normalizer, settings: ResidualSettings):
         self.washout = WashoutPolicy(env, settings.washout)
+        self.filter = ResidualFilter(settings.smoothing, env.unwrapped.dt)
+        self._filtered: np.ndarray | None = None
         self.model = model
         self.normalizer = normalizer
         self.settings = settings
 
     def reset(self) -> None:
-        """Start the washout's filters over (a new batch of episodes)."""
+        """Start the washout's and the residual's filters over (a new batch of episodes)."""
         self.washout.reset()
+        self.filter.reset()
+        self._filtered = None
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
         """SB3's interface: (action (6,) or (N, 6), None).
@@ -218,12 +282,21 @@ class ResidualWashoutPolicy:
         """
         obs = np.atleast_2d(np.asarray(observation, dtype=np.float32))
         base, _ = self.washout.predict(obs, episode_start=episode_start)
-        augmented = np.concatenate([obs, base], axis=1)
+        if self._filtered is None or len(self._filtered) != len(obs):  # a new batch
+            self.filter.reset()
+            self._filtered = np.zeros((len(obs), 6))
+        if episode_start is not None:
+            starts = np.asarray(episode_start, dtype=bool).reshape(-1)
+            if starts.any():
+                self.filter.reset(starts)
+                self._filtered[starts] = 0.0
+        augmented = np.concatenate([obs, base, self._filtered], axis=1).astype(np.float32)
         if self.normalizer is not None:
             augmented = self.normalizer.normalize_obs(augmented).astype(np.float32)
         with single_thread():
             residual, _ = self.model.predict(augmented, deterministic=deterministic)
-        action = combine(base, residual, self.settings.scale)
+        self._filtered = self.filter.step(residual)
+        action = combine(base, self._filtered, self.settings.scale)
         return (action[0] if np.ndim(observation) == 1 else action), None
 
 
