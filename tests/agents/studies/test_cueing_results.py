@@ -95,3 +95,20 @@ def test_command_refuses_a_bad_episode_count(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.strip() == "stewart-env cueing-results: error: argument --episodes: must be 1 to 10, got 11"
     assert not (tmp_path / "out").exists()  # nothing written
+
+
+def test_the_config_is_checked_and_names_its_kind():
+    assert CueingResultsSettings().label == "ppo (residual on washout)"  # the default: the residual config
+    assert CueingResultsSettings(config="ppo_cueing").label == "ppo"
+    with pytest.raises(UsageError, match="config: .*needs env_kwargs action_mode: pose"):
+        CueingResultsSettings(config="ppo")  # the set-point task's config: force mode
+
+
+def test_command_refuses_an_unknown_config(tmp_path, capsys):
+    pytest.importorskip("stable_baselines3")
+    from stewart_env.cli import main
+
+    assert main(["cueing-results", "--out", str(tmp_path / "out"), "--config", "ppo_fast"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("stewart-env cueing-results: error: argument --config: unknown shipped config 'ppo_fast'")
+    assert "\n" not in err and not (tmp_path / "out").exists()
