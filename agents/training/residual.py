@@ -227,8 +227,9 @@ class ResidualWashoutVecEnv(_vec_env_wrapper()):
             (augmented observations, rewards, dones, infos), as SB3's VecEnv.
         """
         obs, rewards, dones, infos = self.venv.step_wait()
-        # an ended row's terminal observation keeps the washout's last command: only a truncation
-        # bootstraps from it, and the washout's filters of that row are already the new episode's
+        # an ended row's terminal observation ends with the command and residual of its last step,
+        # not those the washout would give after it: only a truncation bootstraps from it (the
+        # motions end by termination), and the washout's state then starts the row's next episode
         for i in np.flatnonzero(dones):
             reason = "time_limit" if infos[i].get("TimeLimit.truncated") else self._reasons[infos[i]["termination"]]
             self.endings[reason] += 1
