@@ -34,7 +34,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         description="Train one PPO agent per seed with a cueing config (default ppo_cueing_residual: PPO as a "
         "residual on the tuned washout) on task cueing (or read them from --agents), then run them and the tuned washout (configs/agents/washout.yaml) on the same "
         "held-out episodes of a lane change, braking, a coordinated turn and a lateral sweep: perceived "
-        "specific-force RMS error, false cues, specific-force correlation and stroke use with 95 %% intervals, "
+        "specific-force RMS error, false cues, specific-force correlation and stroke use with 95 % intervals, "
         "and the goals against washout marked reached or not. Writes DIR/cueing.md, DIR/results.json and "
         "DIR/perceived_specific_force.png; a second run into DIR reuses the finished evaluations and agents.",
     )

@@ -112,3 +112,12 @@ def test_command_refuses_an_unknown_config(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith("stewart-env cueing-results: error: argument --config: unknown shipped config 'ppo_fast'")
     assert "\n" not in err and not (tmp_path / "out").exists()
+
+
+def test_help_shows_the_interval_as_a_percentage(capsys):
+    from stewart_env.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["cueing-results", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "with 95 % intervals" in out  # argparse prints a description as written: no %% escape
