@@ -349,7 +349,7 @@ def _run_seed(
         result.learning_time, result.learning_steps = timer.learning_time, timer.learning_steps
 
     next_point = interval
-    env = make_training_env(n_envs, env_kwargs, seed, hp.normalize)
+    env = make_training_env(n_envs, env_kwargs, seed, hp.normalize, wrappers=hp.vec_env_wrappers)
     try:
         agent = settings.algorithm(env=env, seed=seed, device="cpu", verbose=0, **hp.algorithm_kwargs)
         policy = TrainedAgent(Path("."), {"algo": algo, "env_kwargs": env_kwargs}, agent, agent.get_vec_normalize_env())

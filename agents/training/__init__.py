@@ -4,6 +4,9 @@ The package, one module per job:
 
 - :mod:`~stewart_env.agents.training.hyperparameters`: rl-baselines3-zoo's YAML configs, read and
   split as rl_zoo3 splits them (``configs/agents/<algo>.yml``, or a shipped config by name);
+- :mod:`~stewart_env.agents.training.action_rate`: :class:`ActionRatePenalty`, the training
+  batch's penalty on the action's change (a config's ``vec_env_wrapper``), imported where named,
+  since it imports stable-baselines3;
 - :mod:`~stewart_env.agents.training.env_kwargs`: ``--env-kwargs`` and JSON-fit settings;
 - :mod:`~stewart_env.agents.training.rundir`: the run directory (manifest, checkpoints, hashes),
   written and read through :mod:`stewart_env.files`;
@@ -42,6 +45,7 @@ from stewart_env.agents.training.hyperparameters import (
     CONFIG_DIR,
     MAX_COUNT,
     OFF_POLICY,
+    VEC_ENV_WRAPPERS,
     ZOO_EVALUATED_KEYS,
     ZOO_KEYS_HANDLED,
     ZOO_KEYS_ZOO_ONLY,
@@ -53,6 +57,7 @@ from stewart_env.agents.training.hyperparameters import (
     parse_hyperparameters,
     read_hyperparameters,
     shipped_configs,
+    vec_env_wrappers,
     zoo_eval,
 )
 from stewart_env.agents.training.rundir import (
@@ -99,6 +104,7 @@ __all__ = [
     "PAUSE_IN_CHECKPOINT_ENV",
     "REPLAY_BUFFER_FILE",
     "VECNORMALIZE_FILE",
+    "VEC_ENV_WRAPPERS",
     "ZOO_EVALUATED_KEYS",
     "ZOO_KEYS_HANDLED",
     "ZOO_KEYS_ZOO_ONLY",
@@ -137,6 +143,7 @@ __all__ = [
     "single_thread",
     "timer_callback",
     "train",
+    "vec_env_wrappers",
     "worker_threads",
     "zoo_eval",
 ]

@@ -55,11 +55,14 @@ def make_training_env(
     normalize: dict[str, Any] | None,
     monitor_path: str | os.PathLike | None = None,
     statistics=None,
+    wrappers: Sequence[tuple[Callable[..., Any], Mapping[str, Any]]] = (),
 ):
     """The training VecEnv: ``n_envs`` platforms in one native batch, VecMonitor (episode
-    statistics, ``monitor_path`` CSV) and, if ``normalize`` is not None, VecNormalize with those
-    kwargs, or the saved VecNormalize ``statistics`` put on this batch (resuming).  Rows are
-    seeded seed, seed + 1, ...; ValueError from the environment for bad kwargs.
+    statistics, ``monitor_path`` CSV), the config's ``wrappers`` (where rl_zoo3 puts its
+    ``vec_env_wrapper``: the monitor records the environment's reward) and, if ``normalize`` is
+    not None, VecNormalize with those kwargs, or the saved VecNormalize ``statistics`` put on this
+    batch (resuming).  Rows are seeded seed, seed + 1, ...; ValueError from the environment for
+    bad kwargs.
 
     Args:
         n_envs: the number of platforms in the batch.
@@ -68,6 +71,8 @@ def make_training_env(
         normalize: VecNormalize's kwargs, or None for no normalisation.
         monitor_path: the CSV file of VecMonitor (None: none).
         statistics: saved VecNormalize statistics to put on the batch (resuming), or None.
+        wrappers: each wrapper's class and keyword arguments
+            (:attr:`~stewart_env.agents.training.Hyperparameters.vec_env_wrappers`), in order.
     """
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
@@ -76,6 +81,8 @@ def make_training_env(
     env = StewartPlatformSB3VecEnv(num_envs=n_envs, **env_kwargs)
     env.seed(seed)
     env = VecMonitor(env, filename=None if monitor_path is None else str(monitor_path), info_keywords=("termination",))
+    for wrapper, options in wrappers:
+        env = wrapper(env, **options)
     if normalize is None:
         return env
     if statistics is not None:

@@ -37,6 +37,7 @@ __all__ = [
     "CONTRIB",
     "MAX_COUNT",
     "OFF_POLICY",
+    "VEC_ENV_WRAPPERS",
     "ZOO_EVALUATED_KEYS",
     "ZOO_KEYS_HANDLED",
     "ZOO_KEYS_ZOO_ONLY",
@@ -49,6 +50,7 @@ __all__ = [
     "parse_hyperparameters",
     "read_hyperparameters",
     "shipped_configs",
+    "vec_env_wrappers",
     "zoo_eval",
 ]
 
@@ -64,8 +66,20 @@ CONFIG_DIR = config_dir("agents")
 #: Keys of a zoo hyperparameter entry that are not constructor arguments of the algorithm.
 #: rl_zoo3 consumes them itself; ``stewart-env train`` handles the first group and refuses the
 #: second with a pointer to rl_zoo3.
-ZOO_KEYS_HANDLED = ("n_timesteps", "policy", "normalize", "n_envs", "env_kwargs", "noise_type", "noise_std")
-ZOO_KEYS_ZOO_ONLY = ("frame_stack", "env_wrapper", "vec_env_wrapper", "callback", "monitor_kwargs")
+ZOO_KEYS_HANDLED = (
+    "n_timesteps",
+    "policy",
+    "normalize",
+    "n_envs",
+    "env_kwargs",
+    "noise_type",
+    "noise_std",
+    "vec_env_wrapper",
+)
+ZOO_KEYS_ZOO_ONLY = ("frame_stack", "env_wrapper", "callback", "monitor_kwargs")
+#: The vector-environment wrappers a config may name under ``vec_env_wrapper``, by the dotted path
+#: rl_zoo3 imports: the package's own only, so that a config names no other code to run.
+VEC_ENV_WRAPPERS = ("stewart_env.agents.training.action_rate.ActionRatePenalty",)
 #: Zoo keys whose string value is a Python expression to rl_zoo3; here, data in that syntax.
 ZOO_EVALUATED_KEYS = ("policy_kwargs", "replay_buffer_class", "replay_buffer_kwargs")
 #: Zoo keys that accept a schedule string "lin_<initial value>".
@@ -249,7 +263,9 @@ class Hyperparameters:
 
     algorithm_kwargs go to the algorithm's constructor (policy included); n_envs rows of the
     native batch; n_timesteps the default budget; normalize the VecNormalize keyword arguments
-    (None: no normalisation); env_kwargs the entry's environment keyword arguments.
+    (None: no normalisation); env_kwargs the entry's environment keyword arguments;
+    vec_env_wrappers the training batch's wrappers (``vec_env_wrapper``), each a class and its
+    keyword arguments, applied in order between VecMonitor and VecNormalize.
     """
 
     algorithm_kwargs: dict[str, Any]
@@ -258,6 +274,7 @@ class Hyperparameters:
     normalize: dict[str, Any] | None
     env_kwargs: dict[str, Any]
     raw: dict[str, Any]
+    vec_env_wrappers: tuple[tuple[type, dict[str, Any]], ...] = ()
 
 
 def check_hyperparameter_names(algo: str, entry: Mapping[str, Any]) -> None:
@@ -330,7 +347,63 @@ def parse_hyperparameters(algo: str, entry: Mapping[str, Any]) -> Hyperparameter
     env_kwargs = entry.get("env_kwargs") or {}
     if not isinstance(env_kwargs, dict):
         raise TrainingError(f"{algo}: env_kwargs must be a mapping, got {env_kwargs!r}")
-    return Hyperparameters(kwargs, n_envs, int(float(entry["n_timesteps"])), normalize, dict(env_kwargs), dict(entry))
+    wrappers = vec_env_wrappers(entry.get("vec_env_wrapper"))
+    return Hyperparameters(
+        kwargs, n_envs, int(float(entry["n_timesteps"])), normalize, dict(env_kwargs), dict(entry), wrappers
+    )
+
+
+def vec_env_wrappers(value: Any) -> tuple[tuple[type, dict[str, Any]], ...]:
+    """The wrappers of a zoo entry's ``vec_env_wrapper``, in rl_zoo3's forms: a dotted class path,
+    a one-key mapping of a path to its keyword arguments, or a list of these; each one of
+    :data:`VEC_ENV_WRAPPERS`, its keyword arguments checked by the class's ``check_options``.
+
+    Args:
+        value: the entry's ``vec_env_wrapper`` (None: no wrapper).
+
+    Returns:
+        Each wrapper's class and keyword arguments, in order.
+
+    Raises:
+        TrainingError: a form, class or keyword argument the entry may not give (the message names
+            ``vec_env_wrapper``).
+    """
+    import importlib
+
+    wrappers = []
+    for item in [] if value is None else value if isinstance(value, list) else [value]:
+        if isinstance(item, dict) and len(item) == 1:
+            name, options = next(iter(item.items()))
+            options = {} if options is None else options
+        else:
+            name, options = item, {}
+        if not isinstance(name, str) or not isinstance(options, dict):
+            raise TrainingError(
+                f"hyperparameter vec_env_wrapper: expected a class path or a mapping of one class path "
+                f"to its keyword arguments, got {excerpt(repr(item))}"
+            )
+        if name not in VEC_ENV_WRAPPERS:
+            raise TrainingError(
+                f"hyperparameter vec_env_wrapper: {excerpt(name)!r} is not a wrapper stewart-env trains with; "
+                f"choose {', '.join(VEC_ENV_WRAPPERS)} (or train with `python -m rl_zoo3.train`)"
+            )
+        module, _, class_name = name.rpartition(".")
+        cls = getattr(importlib.import_module(module), class_name)
+        valid = set(inspect.signature(cls.check_options).parameters)
+        unknown = sorted(map(str, set(options) - valid))
+        if unknown:
+            raise TrainingError(
+                f"hyperparameter vec_env_wrapper: {class_name}: unknown keyword argument(s) {', '.join(unknown)}; "
+                f"valid: {', '.join(sorted(valid))}"
+            )
+        try:
+            cls.check_options(**options)
+        except UsageError as err:
+            raise TrainingError(
+                f"hyperparameter vec_env_wrapper: {class_name}: {err}", argument="vec_env_wrapper", problem=err.problem
+            ) from None
+        wrappers.append((cls, dict(options)))
+    return tuple(wrappers)
 
 
 def check_count(name: str, value: Any, minimum: int, maximum: int = MAX_COUNT) -> None:

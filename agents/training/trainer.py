@@ -338,6 +338,7 @@ def _learn(settings: TrainSettings, plan: RunPlan, stop: StopRequest):
             hp.normalize,
             monitor_path=directory / plan.monitor,
             statistics=statistics,
+            wrappers=hp.vec_env_wrappers,
         )
         try:
             if not resume:
