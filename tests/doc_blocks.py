@@ -13,7 +13,8 @@ Every fenced block of the given documents is taken in order, in one temporary wo
 - ``python``: run as a script (``__name__ == "__main__"``); the blocks under one heading of one
   document share a namespace.  A comment ``# writes PATH`` names a file the block must leave, and
   ``# <column>: <value>`` a figure of the table it prints.
-- ``yaml``: parsed; it must name exactly the keys of a shipped platform config, with its values.
+- ``yaml``: parsed; it must name exactly the keys of a shipped platform config, with its values,
+  or, keyed by the environment's id, be part of a shipped agent config (configs/agents).
 - ``text``: an overview: each ``stewart-env <command>`` must have ``--help``, each listed
   directory must exist.
 - ``{name}``: a MyST directive of a site page (a table of contents, an include): not code.
@@ -41,6 +42,7 @@ import yaml
 
 import stewart_env as se
 from stewart_env.cli import build_parser, main
+from stewart_env.registration import ENV_ID
 
 ROOT = Path(__file__).resolve().parents[1]
 SHELL_TAGS = ("bash", "sh", "")
@@ -193,8 +195,15 @@ def run_shell_block(block: Block, cwd: Path) -> None:
 
 
 def check_yaml(block: Block) -> None:
-    """The config overview names every key of the shipped config, no other, and its values."""
+    """The config overview names every key of the shipped config, no other, and its values; an
+    excerpt of an agent config (keyed by the environment's id) is part of a shipped one."""
     shown = yaml.safe_load(block.text)
+    if isinstance(shown, dict) and set(shown) == {ENV_ID}:
+        configs = sorted((ROOT / "configs" / "agents").glob("*.yml"))
+        assert any(_contains(yaml.safe_load(c.read_text()), shown) for c in configs), (
+            f"{block.where}: the excerpt is part of no shipped agent config"
+        )
+        return
     shipped = se.load_platform("dasgupta1998").to_dict()
 
     def compare(a, b, path):
@@ -217,6 +226,13 @@ def check_yaml(block: Block) -> None:
             )
 
     compare(shown, shipped, "")
+
+
+def _contains(whole, part) -> bool:
+    """Whether ``part`` is ``whole`` with some mapping keys left out (values equal)."""
+    if isinstance(part, dict):
+        return isinstance(whole, dict) and all(k in whole and _contains(whole[k], v) for k, v in part.items())
+    return whole == part
 
 
 def check_text(block: Block) -> None:
