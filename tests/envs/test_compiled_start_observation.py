@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from batch_reset import batch_reset_arguments
 
 from stewart_env.envs.config import EnvConfig
 from stewart_env.envs.core import PlatformBatch
@@ -73,24 +74,6 @@ def test_the_compiled_start_observation_is_the_pipelines_one_even_when_not_finit
     assert fused.reasons(codes[0])[3] == "non_finite"
 
 
-def _reset_arguments(batch: PlatformBatch, m: int) -> dict:
-    state = tuple(np.ascontiguousarray(x[:m]) for x in batch._state)
-    return {
-        "rows": np.arange(m, dtype=np.int64),
-        "start": state,
-        "leg_forces": None,
-        "reference": state,
-        "leg_lengths": np.empty((m, 6)),
-        "leg_rates": np.empty((m, 6)),
-        "condition": np.empty(m),
-        "error_vectors": np.empty((4, m, 3)),
-        "error_norms": np.empty((4, m)),
-        "measured": False,
-        "observe": True,
-        "noise": None,
-    }
-
-
 @pytest.mark.parametrize(
     "change, message",
     [
@@ -103,7 +86,7 @@ def _reset_arguments(batch: PlatformBatch, m: int) -> dict:
 def test_the_compiled_reset_refuses_a_bad_noise_before_writing_anything(change, message):
     batch, _ = _batches({"observation_delay": 1})
     before = [x.copy() for x in (*batch._state, batch.time, *_observation_state(batch))]
-    arguments = {**_reset_arguments(batch, 2), **change}
+    arguments = {**batch_reset_arguments(batch, 2, measured=False, observe=True, noise=None), **change}
     with pytest.raises(ValueError, match=message):
         batch._step.compiled.reset(*arguments.values())
     for x, y in zip(before, (*batch._state, batch.time, *_observation_state(batch))):
@@ -118,7 +101,7 @@ def test_the_compiled_reset_refuses_to_observe_without_an_observation_record():
     batch.reset_rows(np.arange(2), [np.random.default_rng(s) for s in range(2)])
     before = [x.copy() for x in (*batch._state, batch.time)]
     with pytest.raises(ValueError, match=r"^observe: the step has no observation record$"):
-        batch._step.compiled.reset(*_reset_arguments(batch, 2).values())
+        batch._step.compiled.reset(*batch_reset_arguments(batch, 2, measured=False, observe=True, noise=None).values())
     for x, y in zip(before, (*batch._state, batch.time)):
         np.testing.assert_array_equal(x, y)
 

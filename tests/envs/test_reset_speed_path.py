@@ -10,6 +10,7 @@ import pickle
 import gymnasium as gym
 import numpy as np
 import pytest
+from batch_reset import batch_reset_arguments
 from gymnasium.vector import AutoresetMode
 
 import stewart_env.dynamics.kernels
@@ -196,22 +197,6 @@ def test_every_row_ending_at_one_step_resets_them_all_in_one_call():
     envs.close()
 
 
-def _batch_step_arguments(core: PlatformBatch, m: int) -> dict:
-    """Valid arguments of ``BatchStep.reset`` for m rows of ``core``, in its order."""
-    state = tuple(np.ascontiguousarray(x[:m]) for x in core._state)
-    return {
-        "rows": np.arange(m, dtype=np.int64),
-        "start": state,
-        "leg_forces": None,
-        "reference": state,
-        "leg_lengths": np.empty((m, 6)),
-        "leg_rates": np.empty((m, 6)),
-        "condition": np.empty(m),
-        "error_vectors": np.empty((4, m, 3)),
-        "error_norms": np.empty((4, m)),
-    }
-
-
 @pytest.mark.parametrize(
     "change, message",
     [
@@ -228,7 +213,7 @@ def test_the_compiled_reset_refuses_bad_arguments_before_writing_anything(change
     core = PlatformBatch(3, EnvConfig.of())
     core.reset_rows(np.arange(3), [np.random.default_rng(s) for s in range(3)])
     before = [x.copy() for x in (*core._state, core.leg_lengths, core.time, core._error_norms)]
-    arguments = {**_batch_step_arguments(core, 2), **change}
+    arguments = {**batch_reset_arguments(core, 2), **change}
     with pytest.raises(ValueError, match=message):
         core._step.compiled.reset(*arguments.values())
     for x, y in zip(before, (*core._state, core.leg_lengths, core.time, core._error_norms)):
