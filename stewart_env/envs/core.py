@@ -500,18 +500,13 @@ class PlatformBatch:
         m = len(rows)
         start = PlatformState(*(np.ascontiguousarray(x, dtype=np.float64) for x in start))
         episode, reference = self._start_reference(rows, drawn)
-        lengths, rates, condition = np.empty((m, 6)), np.empty((m, 6)), np.empty(m)
-        vectors, norms = np.empty((4, m, 3)), np.empty((4, m))
         if self._step.fused:
-            pose_and_twist = tuple(getattr(reference, k) for k in PlatformState._fields)
-            measured = sensors is not None
-            if measured:
-                lengths, rates, condition = (np.ascontiguousarray(x, dtype=np.float64) for x in sensors)
-            self._step.compiled.reset(
-                rows, tuple(start), forces, pose_and_twist, lengths, rates, condition, vectors, norms, measured
+            (lengths, rates, condition), vectors, norms, _ = self._compiled_start(
+                rows, start, forces, reference, sensors
             )
-            self._start_accelerations(rows, reference)
         else:
+            lengths, rates, condition = np.empty((m, 6)), np.empty((m, 6)), np.empty(m)
+            vectors, norms = np.empty((4, m, 3)), np.empty((4, m))
             leg_sensors_inplace(
                 self.nominal_model, *start, self.platform.limits.max_condition, lengths, rates, condition
             )
@@ -556,23 +551,44 @@ class PlatformBatch:
         rngs[j] for row rows[j], every slot of the delay ring), the numbers of the observation
         pipeline's ``reset_rows``.  Returns the rows' start states and tracking errors, which is
         all the rest of the reset reads: no view of the rows is made."""
-        m = len(rows)
         start = PlatformState(*(np.ascontiguousarray(x, dtype=np.float64) for x in start))
         _, reference = self._start_reference(rows, drawn)
+        observations = self.observations
+        noise = observations.draw_start_noise(rngs)
+        _, vectors, norms, made_finite = self._compiled_start(rows, start, forces, reference, sensors, True, noise)
+        observations.after_compiled_reset(made_finite)
+        return start, Errors(*vectors, *norms)
+
+    def _compiled_start(
+        self,
+        rows: np.ndarray,
+        start: PlatformState,
+        forces: np.ndarray | None,
+        reference: Reference,
+        sensors: tuple | None,
+        observe: bool = False,
+        noise: np.ndarray | None = None,
+    ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray, np.ndarray, object]:
+        """The fused step's compiled reset of ``rows`` (:meth:`_start_rows`' numbers), and with
+        ``observe`` its start observation (``noise``: the observation pipeline's start noise of the
+        rows, None without noise).
+        Returns the rows' leg lengths, rates and condition numbers, their tracking-error vectors
+        (4, m, 3) and norms (4, m), and what the compiled call returned (the observation's finite
+        guard when it observes)."""
+        m = len(rows)
         measured = sensors is not None
         if measured:
             lengths, rates, condition = (np.ascontiguousarray(x, dtype=np.float64) for x in sensors)
         else:
             lengths, rates, condition = np.empty((m, 6)), np.empty((m, 6)), np.empty(m)
         vectors, norms = np.empty((4, m, 3)), np.empty((4, m))
-        observations = self.observations
-        noise = observations.draw_start_noise(rngs)
-        made_finite = self._step.compiled.reset(
-            rows, tuple(start), forces, reference[:4], lengths, rates, condition, vectors, norms, measured, True, noise
+        pose_and_twist = tuple(reference[:4])
+        observed = (True, noise) if observe else ()
+        returned = self._step.compiled.reset(
+            rows, tuple(start), forces, pose_and_twist, lengths, rates, condition, vectors, norms, measured, *observed
         )
-        observations.after_compiled_reset(made_finite)
         self._start_accelerations(rows, reference)
-        return start, Errors(*vectors, *norms)
+        return (lengths, rates, condition), vectors, norms, returned
 
     def _start_reference(
         self, rows: np.ndarray, drawn: dict[str, np.ndarray] | None
