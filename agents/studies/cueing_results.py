@@ -15,6 +15,16 @@ the specific-force correlation, the largest stroke use and the share of episodes
 interval over seeds and episodes (:func:`~stewart_env.agents.evaluation.statistics.stratified_bootstrap`),
 and marks the goals (:data:`GOALS`) reached or not.
 
+What a simplified model costs a cueing agent (the mismatch study's question, asked of cueing):
+with ``agent_models`` the study also trains each seed's agent on each of those dynamics models
+(``DIR/agents_<model>/seed_S``; the classical model, or the improved one with switches C1-C4) and
+runs it on the same held-out episodes of the exact plant (the improved model, as the agents of
+``DIR/agents``): per manoeuvre its metrics, and the cost of the model, the paired difference of
+its agent's metric minus the exact model's agent's of the same seed on the same episodes
+(:func:`~stewart_env.agents.evaluation.statistics.paired_difference`), with its interval.  The
+pose mode's inner loop of the cueing configs (inverse kinematics into the leg servos) uses no
+dynamics model, and the washout none: the model is the agent's alone.
+
 A finished evaluation (the washout's, or one agent's) is a file with what its numbers depend on
 (its spec), published whole, so that a second run into the same folder reuses it and an
 interrupted run keeps what it finished.  The study writes ``cueing.md`` (the table),
@@ -37,7 +47,7 @@ import numpy as np
 
 from stewart_env.agents.controllers.washout import WashoutPolicy, load_washout_params
 from stewart_env.agents.evaluation.cueing import ScheduledEpisodes, perceive
-from stewart_env.agents.evaluation.statistics import stratified_bootstrap
+from stewart_env.agents.evaluation.statistics import paired_difference, stratified_bootstrap
 from stewart_env.errors import UsageError
 from stewart_env.files import publish
 
@@ -62,6 +72,8 @@ FIGURE_MANOEUVRE = "braking"
 PPO_CONFIG = "ppo_cueing_residual"
 #: The washout of the study.
 WASHOUT_CONFIG = "washout"
+#: The exact model: the plant every evaluation runs, and the model of the reference agents.
+TRUE_MODEL = "improved"
 #: The goals against washout: (metric, how PPO's mean compares with washout's, the factor).
 GOALS = (
     ("rms_specific_force_error", "at most", 0.8),  # at least 20 % lower perceived specific-force error
@@ -89,6 +101,10 @@ class CueingResultsSettings:
         manoeuvres: the held-out manoeuvres.
         config: PPO's cueing config, a shipped name or a path (a residual one when its entry
             holds ``residual_washout``).
+        agent_models: dynamics models other agents are trained on, each seed's agent on each,
+            all run on the exact plant (the improved model): the cost of each model to a cueing
+            agent.  Names as the environment's ``model`` (e.g. ``"classical"``,
+            ``"improved+c1"``); the improved model itself is the reference, not one of them.
     """
 
     seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
@@ -96,9 +112,19 @@ class CueingResultsSettings:
     episodes: int = 3
     manoeuvres: tuple[str, ...] = MANOEUVRES
     config: str = PPO_CONFIG
+    agent_models: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
+        from stewart_env.dynamics.spec import ModelSpec
         from stewart_env.tasks.cueing.motions import EVALUATION_SEEDS, MOTIONS
+
+        names = tuple(ModelSpec.parse(m, "agent_models").name for m in self.agent_models)
+        if TRUE_MODEL in names or len(set(names)) != len(names):
+            raise UsageError.about(
+                "agent_models",
+                f"give distinct models other than {TRUE_MODEL!r} (its agents are the reference), got {self.agent_models!r}",
+            )
+        object.__setattr__(self, "agent_models", names)  # a frozen record sets its checked names once, here
 
         if not self.seeds or len(set(self.seeds)) != len(self.seeds):
             raise UsageError.about("seeds", f"give distinct training seeds, got {self.seeds!r}")
@@ -221,15 +247,32 @@ def _timesteps(settings: CueingResultsSettings) -> int:
     return int(float(read_config(settings.config)[1]["n_timesteps"]))
 
 
-def _train(out: Path, agents: Path | None, settings: CueingResultsSettings, seed: int, progress: bool) -> Path | None:
-    """The agent of ``seed``: trained into ``out/agents/seed_S`` (continued if stopped; a residual
-    agent trained again), or read from ``agents``."""
+def agents_folder(root: Path, model: str = TRUE_MODEL) -> Path:
+    """The folder of the agents trained on ``model`` in a study's folder: ``agents`` for the
+    exact model, ``agents_<model>`` for another.
+
+    Args:
+        root: the study's folder.
+        model: the agents' dynamics model (a canonical name).
+
+    Returns:
+        The folder, whose agents are ``seed_S``.
+    """
+    return root / ("agents" if model == TRUE_MODEL else f"agents_{model}")
+
+
+def _train(
+    out: Path, agents: Path | None, settings: CueingResultsSettings, seed: int, progress: bool, model: str = TRUE_MODEL
+) -> Path | None:
+    """The agent of ``seed`` trained on ``model``: trained into ``out/agents/seed_S`` (or
+    ``agents_<model>``; continued if stopped; a residual agent trained again), or read from
+    ``agents`` (its ``seed_S`` for the exact model, the sibling ``agents_<model>/seed_S`` for another)."""
     from stewart_env.agents.studies.mismatch.rows import finished_agent, train_agent
 
     if agents is not None:
-        folder = agents / f"seed_{seed}"
+        folder = (agents if model == TRUE_MODEL else agents_folder(agents.parent, model)) / f"seed_{seed}"
         return folder if folder.is_dir() else None
-    folder = out / "agents" / f"seed_{seed}"
+    folder = agents_folder(out, model) / f"seed_{seed}"
     timesteps = _timesteps(settings)
     if settings.residual:
         from stewart_env.agents.training.residual import MANIFEST, train_residual
@@ -239,12 +282,22 @@ def _train(out: Path, agents: Path | None, settings: CueingResultsSettings, seed
         except (OSError, ValueError):
             done = {}
         wanted = {"config": str(settings.config), "seed": seed}
-        if {k: done.get(k) for k in wanted} != wanted or done.get("num_timesteps", 0) < timesteps:
-            train_residual(folder, settings.config, seed, timesteps, progress_bar=progress)
+        trained_on = (done.get("env_kwargs") or {}).get("model", TRUE_MODEL)
+        if (
+            {k: done.get(k) for k in wanted} != wanted
+            or trained_on != model
+            or done.get("num_timesteps", 0) < timesteps
+        ):
+            env_kwargs = None if model == TRUE_MODEL else {"model": model}
+            train_residual(folder, settings.config, seed, timesteps, env_kwargs=env_kwargs, progress_bar=progress)
         return folder
     kwargs = config_env_kwargs_of_training(settings.config)
+    if model != TRUE_MODEL:
+        kwargs = {**kwargs, "model": model}
     if not finished_agent(folder, "ppo", seed, kwargs):
         training = {"algo": "ppo", "task": "cueing", "seed": seed, "config": settings.config}
+        if model != TRUE_MODEL:
+            training["model"] = model
         train_agent(folder, training, timesteps, progress)
     return folder
 
@@ -311,16 +364,25 @@ def run_cueing_results(
     }
     ppo: dict[int, dict] = {}
     training: dict[int, dict] = {}
-    for seed in settings.seeds:
-        folder = _train(out, None if agents is None else Path(agents), settings, seed, progress)
-        if folder is None:
-            continue
-        policy, files, training[seed] = _agent(folder, settings.residual)
-        spec = _evaluation_spec(settings, "ppo", seed, settings.timesteps)
-        spec["agent"] = files
-        spec["config"] = str(settings.config)
-        ppo[seed] = _evaluate(out, settings, f"ppo_seed_{seed}", policy, spec, seed == settings.seeds[0])
-    results = summarize(settings, evaluations["washout"], ppo)
+    by_model: dict[str, dict[int, dict]] = {}
+    for model in (TRUE_MODEL, *settings.agent_models):
+        evaluated = ppo if model == TRUE_MODEL else by_model.setdefault(model, {})
+        for seed in settings.seeds:
+            folder = _train(out, None if agents is None else Path(agents), settings, seed, progress, model)
+            if folder is None:
+                continue
+            policy, files, record = _agent(folder, settings.residual)
+            spec = _evaluation_spec(settings, "ppo", seed, settings.timesteps)
+            spec["agent"] = files
+            spec["config"] = str(settings.config)
+            if model == TRUE_MODEL:
+                training[seed] = record
+                name, figure = f"ppo_seed_{seed}", seed == settings.seeds[0]
+            else:
+                spec["agent_model"] = model
+                name, figure = f"ppo_{model}_seed_{seed}", False
+            evaluated[seed] = _evaluate(out, settings, name, policy, spec, figure)
+    results = summarize(settings, evaluations["washout"], ppo, by_model)
     results["training"] = {str(seed): record for seed, record in training.items()}
     publish(out / "results.json", json.dumps(results, indent=1, allow_nan=True))
     publish(out / "cueing.md", results_table(results) + "\n")
@@ -338,43 +400,70 @@ def _values(evaluation: dict, manoeuvre: str, held_out: list[tuple[str, int]], m
     return [float(r[metric]) for r in rows]
 
 
-def summarize(settings: CueingResultsSettings, washout: dict, ppo: dict[int, dict]) -> dict[str, Any]:
+def summarize(
+    settings: CueingResultsSettings,
+    washout: dict,
+    ppo: dict[int, dict],
+    by_model: dict[str, dict[int, dict]] | None = None,
+) -> dict[str, Any]:
     """The intervals and goals of the study's evaluations.
 
     Args:
         settings: the study's settings.
         washout: the washout's evaluation.
-        ppo: training seed -> the agent's evaluation.
+        ppo: training seed -> the agent's evaluation (agents trained on the exact model).
+        by_model: dynamics model -> training seed -> the evaluation of the agent trained on that
+            model (run on the exact plant).
 
     Returns:
-        ``{"seeds": [...], "episodes": k, "manoeuvres": {name: {"washout": {metric: interval},
-        "ppo": {...}, "goals": {goal: bool}}}}``, an interval [estimate, low, high].
+        ``{"seeds": [...], "episodes": k, "agent_models": {model: seeds}, "manoeuvres": {name:
+        {"washout": {metric: interval}, "ppo": {...}, "goals": {goal: bool}, "models": {model:
+        {"ppo": {metric: interval}, "cost": {metric: interval}, "seeds": [...]}}}}}``, an interval
+        [estimate, low, high]; a model's cost is its agents' metric minus the exact model's agents'
+        of the same seeds on the same episodes (the seeds both have).
     """
     held_out = settings.held_out()
     metrics = (*COLUMNS, "stroke_violations")
     table: dict[str, Any] = {}
     for manoeuvre in settings.manoeuvres:
-        entry: dict[str, Any] = {}
-        cells = {"washout": {m: np.array([_values(washout, manoeuvre, held_out, m)]) for m in metrics}}
+
+        def cell_of(evaluations: dict[int, dict], seeds, manoeuvre=manoeuvre) -> dict[str, np.ndarray]:
+            return {m: np.array([_values(evaluations[s], manoeuvre, held_out, m) for s in seeds]) for m in metrics}
+
+        entry: dict[str, Any] = {"washout": _intervals(cell_of({0: washout}, [0]))}
         if ppo:
-            cells["ppo"] = {m: np.array([_values(e, manoeuvre, held_out, m) for e in ppo.values()]) for m in metrics}
-        for label, cell in cells.items():
-            entry[label] = {}
-            for m, values in cell.items():
-                interval = stratified_bootstrap(values)
-                entry[label][m] = [interval.estimate, interval.low, interval.high]
-        if ppo:
+            entry["ppo"] = _intervals(cell_of(ppo, list(ppo)))
             entry["goals"] = goals_reached(
                 {m: v[0] for m, v in entry["washout"].items()}, {m: v[0] for m, v in entry["ppo"].items()}
             )
+        for model, evaluations in (by_model or {}).items():
+            shared = [s for s in ppo if s in evaluations]
+            if not shared:
+                continue
+            own, reference = cell_of(evaluations, shared), cell_of(ppo, shared)
+            entry.setdefault("models", {})[model] = {
+                "ppo": _intervals(cell_of(evaluations, list(evaluations))),
+                "cost": {m: _as_list(paired_difference(own[m], reference[m])) for m in metrics},
+                "seeds": shared,
+            }
         table[manoeuvre] = entry
     return {
         "seeds": sorted(ppo),
         "episodes": settings.episodes,
         "config": str(settings.config),
         "label": settings.label,
+        "agent_models": {model: sorted(e) for model, e in (by_model or {}).items()},
         "manoeuvres": table,
     }
+
+
+def _as_list(interval) -> list[float]:
+    return [interval.estimate, interval.low, interval.high]
+
+
+def _intervals(cell: dict[str, np.ndarray]) -> dict[str, list[float]]:
+    """Each metric's stratified bootstrap interval over a cell (seeds, episodes)."""
+    return {m: _as_list(stratified_bootstrap(values)) for m, values in cell.items()}
 
 
 def goals_reached(washout: dict[str, float], ppo: dict[str, float]) -> dict[str, bool]:
@@ -420,14 +509,20 @@ def results_table(results: dict[str, Any]) -> str:
         "| manoeuvre | f error -20 % | false cues -30 % | corr. f >= washout | no stroke violation |",
         "|---|---|---|---|---|",
     ]
+    cost_head = ["manoeuvre", "agents trained on", *(title for title, _ in COLUMNS.values()), "ended at a limit"]
+    cost_lines = ["| " + " | ".join(cost_head) + " |", "|" + "---|" * len(cost_head)]
     for manoeuvre, entry in results["manoeuvres"].items():
-        for label in ("washout", "ppo"):
-            if label not in entry:
-                continue
-            cells = [_interval(entry[label][m], spec) for m, (_, spec) in COLUMNS.items()]
-            cells.append(_interval(entry[label]["stroke_violations"], ".2f"))
-            shown = results.get("label", "ppo") if label == "ppo" else label
+        rows = [(label, entry[label]) for label in ("washout", "ppo") if label in entry]
+        rows += [(f"ppo, trained on {model}", e["ppo"]) for model, e in entry.get("models", {}).items()]
+        for label, intervals in rows:
+            cells = [_interval(intervals[m], spec) for m, (_, spec) in COLUMNS.items()]
+            cells.append(_interval(intervals["stroke_violations"], ".2f"))
+            shown = results.get("label", "ppo") + label[3:] if label.startswith("ppo") else label
             lines.append(f"| {manoeuvre} | {shown} | " + " | ".join(cells) + " |")
+        for model, e in entry.get("models", {}).items():
+            cells = [_interval(e["cost"][m], "+" + spec) for m, (_, spec) in COLUMNS.items()]
+            cells.append(_interval(e["cost"]["stroke_violations"], "+.2f"))
+            cost_lines.append(f"| {manoeuvre} | {model} | " + " | ".join(cells) + " |")
         if "goals" in entry:
             marks = ["reached" if entry["goals"][m] else "not reached" for m, _, _ in GOALS]
             goal_lines.append(f"| {manoeuvre} | " + " | ".join(marks) + " |")
@@ -439,6 +534,13 @@ def results_table(results: dict[str, Any]) -> str:
     text = "\n".join(lines) + "\n\n" + note
     if len(goal_lines) > 2:
         text += "\n\n" + "\n".join(goal_lines)
+    if len(cost_lines) > 2:
+        text += (
+            "\n\nWhat a model costs the cueing agent: the metric of the agents trained on it minus that of the "
+            f"agents trained on the {TRUE_MODEL} model, the same seeds on the same episodes of the {TRUE_MODEL} "
+            "plant (paired 95 % intervals; a higher error, more false cues, a lower correlation are worse).\n\n"
+            + "\n".join(cost_lines)
+        )
     return text
 
 

@@ -65,6 +65,16 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "the washout, its key residual_washout) or ppo_cueing (PPO commands the pose itself) "
         "(default: ppo_cueing_residual)",
     )
+    p.add_argument(
+        "--agent-models",
+        nargs="+",
+        default=(),
+        metavar="MODEL",
+        help="what a model costs the cueing agent: also train each seed's agent on each of these dynamics "
+        "models (e.g. classical, improved+c1) into DIR/agents_MODEL and run it on the improved plant beside "
+        "the agents trained on the improved model; the table gains their rows and each model's cost with "
+        "paired intervals (default: none)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
 
@@ -87,10 +97,14 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         settings = CueingResultsSettings(
-            seeds=tuple(args.seeds), timesteps=args.timesteps, episodes=args.episodes, config=args.config
+            seeds=tuple(args.seeds),
+            timesteps=args.timesteps,
+            episodes=args.episodes,
+            config=args.config,
+            agent_models=tuple(args.agent_models),
         )
     except UsageError as err:
-        return error(VERB, f"argument --{err.argument}: {err.problem}")
+        return error(VERB, f"argument --{err.argument.replace('_', '-')}: {err.problem}")
     kept = f"; the finished evaluations are kept in {args.out} (run the same command again to continue)"
     try:
         results = run_cueing_results(args.out, settings, agents=args.agents, progress=not args.no_progress)

@@ -140,7 +140,8 @@ class MismatchSettings:
         if self.task == "cueing":  # its cells would score a cueing agent by the distance from home
             raise MismatchError(
                 "task: the study scores the position error and success of the setpoint tasks, not the cueing "
-                "metrics; compare cueing controllers with `stewart-env evaluate --task cueing` (docs/guides/cueing.md)"
+                "metrics; what a model costs a cueing agent is `stewart-env cueing-results --agent-models classical` "
+                "(docs/results/cueing.md)"
             )
         unknown = [c for c in self.simplifications if c not in SIMPLIFICATIONS]
         if unknown:

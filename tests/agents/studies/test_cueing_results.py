@@ -121,3 +121,64 @@ def test_help_shows_the_interval_as_a_percentage(capsys):
         main(["cueing-results", "--help"])
     out = " ".join(capsys.readouterr().out.split())
     assert "with 95 % intervals" in out  # argparse prints a description as written: no %% escape
+
+
+def test_a_models_cost_is_the_paired_difference_with_the_exact_models_agents():
+    settings = CueingResultsSettings(seeds=(0, 1), episodes=2, manoeuvres=("braking",), agent_models=("Classical",))
+    assert settings.agent_models == ("classical",)  # the canonical name: its folder and its rows
+    washout = {"episodes": [metrics(1.0, 4.0, 0.3), metrics(1.2, 6.0, 0.5)]}
+    ppo = {
+        0: {"episodes": [metrics(0.5, 1.0, 0.6), metrics(0.7, 1.0, 0.8)]},
+        1: {"episodes": [metrics(0.6, 2.0, 0.7), metrics(0.6, 2.0, 0.7)]},
+    }
+    # every episode 0.1 m/s^2 worse and one false cue more: the cost is exactly that, in every resample
+    classical = {
+        s: {"episodes": [metrics(m["rms_specific_force_error"] + 0.1, m["false_specific_force_cues"] + 1.0, 0.2)
+                         for m in e["episodes"]]}
+        for s, e in ppo.items()
+    }  # fmt: skip
+    results = summarize(settings, washout, ppo, {"classical": classical})
+    model = results["manoeuvres"]["braking"]["models"]["classical"]
+    assert model["seeds"] == [0, 1]
+    assert model["cost"]["rms_specific_force_error"] == pytest.approx([0.1, 0.1, 0.1])
+    assert model["cost"]["false_cues"] == pytest.approx([1.0, 1.0, 1.0])
+    assert model["cost"]["specific_force_correlation"][0] == pytest.approx(0.2 - 0.7)
+    assert model["ppo"]["rms_specific_force_error"][0] == pytest.approx(0.7)
+    assert results["agent_models"] == {"classical": [0, 1]}
+    text = results_table(results)
+    assert "| braking | ppo (residual on washout), trained on classical | 0.700 [" in text
+    assert "| braking | classical | +0.100 [+0.100, +0.100] | +1.0 [+1.0, +1.0] | -0.50 [" in text
+
+
+def test_a_models_cost_uses_the_seeds_both_have():
+    settings = CueingResultsSettings(seeds=(0, 1), episodes=1, manoeuvres=("braking",), agent_models=("classical",))
+    washout = {"episodes": [metrics(1.0, 4.0, 0.3)]}
+    ppo = {0: {"episodes": [metrics(0.5, 1.0, 0.6)]}, 1: {"episodes": [metrics(0.9, 1.0, 0.6)]}}
+    classical = {1: {"episodes": [metrics(1.2, 1.0, 0.6)]}}  # seed 0's agent missing
+    model = summarize(settings, washout, ppo, {"classical": classical})["manoeuvres"]["braking"]["models"]["classical"]
+    assert model["seeds"] == [1]
+    assert model["cost"]["rms_specific_force_error"][0] == pytest.approx(0.3)  # against seed 1's 0.9, not the mean
+
+
+@pytest.mark.parametrize(
+    ("models", "message"),
+    [
+        (("improved",), "give distinct models other than 'improved'"),
+        (("classical", "CLASSICAL"), "give distinct models"),
+        (("newtonian",), "unknown model 'newtonian'"),
+    ],
+)
+def test_bad_agent_models_are_named(models, message):
+    with pytest.raises(UsageError, match=message) as err:
+        CueingResultsSettings(agent_models=models)
+    assert err.value.argument == "agent_models"
+
+
+def test_command_names_a_bad_agent_model(tmp_path, capsys):
+    from stewart_env.cli import main
+
+    assert main(["cueing-results", "--out", str(tmp_path / "s"), "--agent-models", "newtonian"]) == 2
+    err = capsys.readouterr().err
+    assert "argument --agent-models: unknown model 'newtonian'; choose one of improved" in err
+    assert "Traceback" not in err
+    assert not (tmp_path / "s").exists()
