@@ -56,7 +56,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         type=existing_directory,
         default=None,
         help="a folder of trained agents (seed_S, the layout of DIR/agents), read only: a missing agent leaves "
-        "its seed out (default: DIR/agents, where the missing agents are trained)",
+        "its seed out; agents trained on another model (--agent-models) are read from its sibling agents_MODEL "
+        "(default: DIR/agents, where the missing agents are trained)",
     )
     p.add_argument(
         "--config",
