@@ -49,7 +49,7 @@ import numpy as np
 from stewart_env.errors import UsageError
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.tasks.cueing.motion import STANDARD_GRAVITY, VehicleMotion
-from stewart_env.tasks.cueing.vestibular import THRESHOLDS, Otolith, SemicircularCanal
+from stewart_env.tasks.cueing.vestibular import THRESHOLDS, Otolith, SemicircularCanal, false_cue_samples
 
 __all__ = [
     "CUEING_METRICS",
@@ -231,9 +231,7 @@ def false_cues(reference, signal, threshold) -> tuple[int, np.ndarray]:
         (the number of runs of consecutive false samples, summed over the axes; the (T, k) mask
         of the false samples).
     """
-    p = np.asarray(reference, dtype=float)
-    q = np.asarray(signal, dtype=float)
-    false = (np.abs(q) > np.asarray(threshold, dtype=float)) & (p * q <= 0.0)
+    false = false_cue_samples(reference, signal, threshold)
     starts = false & ~np.vstack([np.zeros((1, false.shape[1]), dtype=bool), false[:-1]])
     return int(starts.sum()), false
 

@@ -68,6 +68,7 @@ def test_every_action_mode_runs_and_reports_the_signals(mode):
         "reward_workspace",
         "reward_stroke",
         "reward_control",
+        "reward_false_cues",
         "reward_termination",
     }
     assert reward == pytest.approx(sum(terms.values()), rel=1e-12)  # the reward is its terms' sum
@@ -326,3 +327,49 @@ def test_a_motion_file_is_the_episode(tmp_path):
 def test_options_error_is_a_usage_error():
     with pytest.raises(UsageError):
         make_task("cueing", stewart_env_platform(), 0.01, {"split": "x"})
+
+
+def test_false_cue_samples_by_hand():
+    from stewart_env.tasks.cueing.vestibular import false_cue_samples
+
+    thresholds = np.array([0.17, 0.17, 0.28])
+    vehicle = np.array([[1.0, -1.0, 0.5], [0.0, 0.2, -0.1]])
+    platform = np.array([[-0.3, -0.5, 0.1], [0.2, -0.16, 0.29]])
+    # x: wrong sign above 0.17; y: same sign; z: below 0.28 | x: the vehicle still, platform above;
+    # y: wrong sign but below 0.17; z: wrong sign above 0.28
+    expected = np.array([[True, False, False], [True, False, True]])
+    np.testing.assert_array_equal(false_cue_samples(vehicle, platform, thresholds), expected)
+
+
+def test_the_false_cue_penalty_counts_the_samples_the_evaluation_counts():
+    from stewart_env.agents.evaluation.cueing import perceive
+    from stewart_env.tasks.cueing.vestibular import THRESHOLDS, false_cue_samples
+
+    env = make(action_mode="pose", task_options={"false_cue_weight": 0.5, "motions": ("braking",)})
+    env.reset(seed=3)
+    rng = np.random.default_rng(0)
+    keys = ("vehicle_specific_force", "vehicle_angular_velocity", "head_specific_force", "head_angular_velocity")
+    trace = {k: [] for k in (*keys, "reward_false_cues")}
+    action = holding_pose_action()
+    for step in range(320):
+        if step >= 20:  # held at home first: the evaluation's perception starts adapted to its first sample
+            action = np.clip(action + 0.01 * rng.standard_normal(6), -0.5, 0.5).astype(np.float32)
+        _, _, terminated, truncated, info = env.step(action)
+        assert not (terminated or truncated)
+        for k in trace:
+            trace[k].append(np.array(info[k]))
+    t = {k: np.array(v) for k, v in trace.items()}
+    vf, vw = perceive(t["vehicle_specific_force"], t["vehicle_angular_velocity"], 0.01)
+    hf, hw = perceive(t["head_specific_force"], t["head_angular_velocity"], 0.01)
+    counted = false_cue_samples(vf, hf, THRESHOLDS["specific_force"]).sum(axis=1)
+    counted += false_cue_samples(vw, hw, THRESHOLDS["angular_velocity"]).sum(axis=1)
+    assert counted.sum() > 100  # the wandering pose makes false cues to count
+    np.testing.assert_array_equal(-t["reward_false_cues"] / 0.5, counted)  # step by step, the same samples
+
+
+def test_the_false_cue_penalty_is_off_by_default():
+    env = make(action_mode="pose")
+    env.reset(seed=3)
+    for _ in range(30):
+        _, _, _, _, info = env.step(np.full(6, 0.3, dtype=np.float32))
+    assert info["reward_false_cues"] == 0.0

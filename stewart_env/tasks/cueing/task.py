@@ -32,7 +32,7 @@ from stewart_env.tasks.cueing.motions import (
     make_motion,
     read_motion,
 )
-from stewart_env.tasks.cueing.vestibular import Otolith, SemicircularCanal
+from stewart_env.tasks.cueing.vestibular import THRESHOLDS, Otolith, SemicircularCanal, false_cue_samples
 from stewart_env.validation import choice, integer, real, vector
 
 __all__ = ["CueingTask", "DEFAULT_HEAD", "MAX_PREVIEW"]
@@ -67,12 +67,17 @@ class CueingTask(Task):
         r = specific_force_weight    exp(-(|f_hat_v - f_hat_p| / specific_force_scale)^2)
           + angular_velocity_weight  exp(-(|w_hat_v - w_hat_p| / angular_velocity_scale)^2)
           - workspace_weight u_w^2 - stroke_weight u_s^2 - ctrl_cost_weight mean(a^2)
+          - false_cue_weight n_false
           - termination_cost on a failure,
 
     ``u_w`` the workspace use (the largest of |p - box centre| / half-box on x, y, z and
     |rpy - home rpy| / max_angle, at most 1), ``u_s`` the stroke use (the largest
-    |L_i - mid-stroke| / half-stroke, at most 1). The perception terms are one less their bounded
-    perceived errors, so that a step inside the motion is always worth more than an early end.
+    |L_i - mid-stroke| / half-stroke, at most 1), ``n_false`` the axes of the two channels (0 to
+    6) on which the platform's perceived motion is a false cue at the step (above the perception
+    threshold with the sign opposite to the vehicle's perceived motion, the specific forces taken
+    as deviations from rest: the samples the evaluation's false cues count). The perception terms
+    are one less their bounded perceived errors, so that a step inside the motion is always worth
+    more than an early end (with ``false_cue_weight`` 0, the default).
 
     Observation terms: ``vehicle_specific_force`` (3, m/s², scale |g|), ``vehicle_angular_velocity``
     (3, rad/s, scale 1), with ``preview`` > 0 ``preview`` (6 x preview: the vehicle's f and w
@@ -97,6 +102,7 @@ class CueingTask(Task):
         workspace_weight: default 0.2.
         stroke_weight: default 0.2.
         ctrl_cost_weight: default 0.0.
+        false_cue_weight: the penalty per false-cue axis and step, default 0.0.
         termination_cost: default 10.0.
 
     Raises:
@@ -127,6 +133,7 @@ class CueingTask(Task):
         workspace_weight: float = 0.2,
         stroke_weight: float = 0.2,
         ctrl_cost_weight: float = 0.0,
+        false_cue_weight: float = 0.0,
         termination_cost: float = 10.0,
     ):
         self.split = choice(option("split"), split, ("train", "evaluation"))
@@ -146,6 +153,7 @@ class CueingTask(Task):
             ),
             "workspace_weight": real(option("workspace_weight"), workspace_weight, 0.0, 1e6),
             "stroke_weight": real(option("stroke_weight"), stroke_weight, 0.0, 1e6),
+            "false_cue_weight": real(option("false_cue_weight"), false_cue_weight, 0.0, 1e6),
         }
         self._file_motion = None
         self.motion_names = self._motion_names(motions)
@@ -397,7 +405,7 @@ class CueingTask(Task):
 
     def reward_terms(self, view: StepView) -> dict[str, np.ndarray]:
         """The reward terms (N,) each of a step (see the class docstring): ``specific_force``,
-        ``angular_velocity``, ``workspace``, ``stroke``, ``control``.  Advances the perception.
+        ``angular_velocity``, ``workspace``, ``stroke``, ``control``, ``false_cues``.  Advances the perception.
 
         Args:
             view: the batch's :class:`StepView` after the step.
@@ -413,12 +421,26 @@ class CueingTask(Task):
         stroke = np.minimum((np.abs(view.leg_lengths - self._stroke_mid) / self._stroke_half).max(axis=1), 1.0)
         signals["workspace_use"], signals["stroke_use"] = workspace, stroke
         action = view.action
+        false_cues = np.zeros(len(workspace))
+        if w["false_cue_weight"] > 0.0:
+            # the otolith's output at rest (its gain at rest times |g|, along z as the evaluation takes it)
+            rest = self._otolith.gain * np.array([0.0, 0.0, STANDARD_GRAVITY])
+            false_cues = false_cue_samples(
+                signals["perceived_vehicle_specific_force"] - rest,
+                signals["perceived_head_specific_force"] - rest,
+                THRESHOLDS["specific_force"],
+            ).sum(axis=1) + false_cue_samples(
+                signals["perceived_vehicle_angular_velocity"],
+                signals["perceived_head_angular_velocity"],
+                THRESHOLDS["angular_velocity"],
+            ).sum(axis=1)
         return {
             "specific_force": w["specific_force_weight"] * np.exp(-(e_f * e_f)),
             "angular_velocity": w["angular_velocity_weight"] * np.exp(-(e_w * e_w)),
             "workspace": -w["workspace_weight"] * workspace * workspace,
             "stroke": -w["stroke_weight"] * stroke * stroke,
             "control": -self.weights.ctrl_cost_weight * np.mean(action * action, axis=1),
+            "false_cues": -w["false_cue_weight"] * false_cues,
         }
 
     def termination(self, view: StepView) -> np.ndarray:

@@ -43,6 +43,7 @@ from stewart_env.errors import UsageError
 
 __all__ = [
     "THRESHOLDS",
+    "false_cue_samples",
     "THRESHOLDS_SOURCE",
     "Otolith",
     "SemicircularCanal",
@@ -54,6 +55,23 @@ THRESHOLDS_SOURCE = (
     "angular velocity 3.0, 3.6, 2.6 deg/s (roll, pitch, yaw)"
 )
 """Where :data:`THRESHOLDS` come from."""
+
+
+def false_cue_samples(reference, signal, threshold) -> np.ndarray:
+    """Where the platform's perceived motion is a false cue: above the perception threshold with
+    the sign opposite to the vehicle's perceived motion (or where the vehicle's is zero).
+
+    Args:
+        reference: (..., k) the vehicle's perceived signal, per axis.
+        signal: (..., k) the platform's perceived signal.
+        threshold: (k,) the perception thresholds per axis (:data:`THRESHOLDS`).
+
+    Returns:
+        The (..., k) boolean mask of the false samples.
+    """
+    p = np.asarray(reference, dtype=float)
+    q = np.asarray(signal, dtype=float)
+    return (np.abs(q) > np.asarray(threshold, dtype=float)) & (p * q <= 0.0)
 
 
 def _read_only(values) -> np.ndarray:
