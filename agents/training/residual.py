@@ -408,12 +408,11 @@ def load_residual(directory: str | os.PathLike, env) -> ResidualWashoutPolicy:
         manifest = json.loads((path / MANIFEST).read_text())
     except (OSError, ValueError) as err:
         raise TrainingError(f"{path}: no residual agent ({MANIFEST}: {err})") from None
-    data = {}
-    for name, digest in manifest["files"].items():
-        data[name] = (path / name).read_bytes()
-        if _sha256(data[name]) != digest:
-            raise TrainingError(f"{path / name}: its sha256 is not the one {MANIFEST} records; refusing to load it")
     from stewart_env.agents.training.hyperparameters import algorithm_class
+    from stewart_env.agents.training.rundir import verified_bytes
+
+    hashes = manifest["files"]
+    data = {name: verified_bytes(path, hashes, name, MANIFEST) for name in hashes}
 
     with single_thread():
         model = algorithm_class("ppo").load(io.BytesIO(data[MODEL_FILE]), device="cpu")

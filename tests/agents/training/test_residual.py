@@ -129,5 +129,9 @@ def test_a_trained_agent_loads_back_and_refuses_a_changed_file(tmp_path):
     env.close()
     model = tmp_path / "agent" / MODEL_FILE
     model.write_bytes(model.read_bytes() + b"\0")
-    with pytest.raises(TrainingError, match=f"its sha256 is not the one {MANIFEST} records"):
+    with pytest.raises(TrainingError, match=f"its sha256 does not match {MANIFEST}: the file was changed"):
+        load_residual(tmp_path / "agent", env)
+    # a file the manifest lists but the folder lost: a named error, not a raw OSError
+    model.unlink()
+    with pytest.raises(TrainingError, match=f"{MODEL_FILE}: missing \\({MANIFEST} lists it\\)"):
         load_residual(tmp_path / "agent", env)
