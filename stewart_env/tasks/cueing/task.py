@@ -175,6 +175,9 @@ class CueingTask(Task):
         self._stroke_mid = 0.5 * (lim.leg_length[0] + lim.leg_length[1])
         self._stroke_half = 0.5 * (lim.leg_length[1] - lim.leg_length[0])
         self._otolith = Otolith()
+        # the otolith's output at rest (its gain at rest times |g| along z, as the evaluation takes it):
+        # the false cues are counted on the deviations from it
+        self._perceived_rest_specific_force = self._otolith.gain * np.array([0.0, 0.0, STANDARD_GRAVITY])
         self._canal = SemicircularCanal()
         self._motions: OrderedDict[tuple[int, int], np.ndarray] = OrderedDict()
         self._batch: dict[str, np.ndarray] | None = None
@@ -423,8 +426,7 @@ class CueingTask(Task):
         action = view.action
         false_cues = np.zeros(len(workspace))
         if w["false_cue_weight"] > 0.0:
-            # the otolith's output at rest (its gain at rest times |g|, along z as the evaluation takes it)
-            rest = self._otolith.gain * np.array([0.0, 0.0, STANDARD_GRAVITY])
+            rest = self._perceived_rest_specific_force
             false_cues = false_cue_samples(
                 signals["perceived_vehicle_specific_force"] - rest,
                 signals["perceived_head_specific_force"] - rest,

@@ -43,11 +43,11 @@ from stewart_env.errors import UsageError
 
 __all__ = [
     "THRESHOLDS",
-    "false_cue_samples",
     "THRESHOLDS_SOURCE",
     "Otolith",
     "SemicircularCanal",
     "SensorFilter",
+    "false_cue_samples",
 ]
 
 THRESHOLDS_SOURCE = (
