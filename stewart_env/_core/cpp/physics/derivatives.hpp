@@ -38,45 +38,54 @@ namespace derivatives {
 constexpr int DIRECTIONS = 18;
 //: Directions the dual numbers carry: the state's, in a block for the pose and one for the twist.
 constexpr int STATE_DIRECTIONS = 12;
-using D = dual::Dual<STATE_DIRECTIONS>;
+//: The duals of the state directions over the number type V: double (one platform) or
+//: lanes::Lanes (one platform per lane, the same numbers in each as alone).
+template <typename V>
+using DualOf = dual::Dual<STATE_DIRECTIONS, V>;
+using D = DualOf<double>;
 
 // x as an active dual of zero derivatives (a seed, before its entries are set).
-inline void activate(D& x) {
+template <typename V>
+inline void activate(DualOf<V>& x) {
     x.active = true;
-    for (int k = 0; k < STATE_DIRECTIONS; ++k) x.d[k] = 0.0;
+    for (int k = 0; k < STATE_DIRECTIONS; ++k) x.d[k] = V(0.0);
 }
 
 //: Where each group of columns starts: position, rotation, velocity, angular velocity, forces.
 constexpr int DIR_T = 0, DIR_THETA = 3, DIR_V = 6, DIR_W = 9, DIR_F = 12;
 
 // The packed parameter row as duals of zero derivative (constants of the differentiation).
-inline void constant_params(const double* prm, D* out) {
-    for (int k = 0; k < kernels::N_PARAMS; ++k) out[k] = D(prm[k]);
+template <typename V>
+inline void constant_params(const V* prm, DualOf<V>* out) {
+    for (int k = 0; k < kernels::N_PARAMS; ++k) out[k] = DualOf<V>(prm[k]);
 }
 
-// Whether every one of the size numbers at x is finite.
-inline bool all_finite(const double* x, int size) {
-    for (int j = 0; j < size; ++j)
-        if (!std::isfinite(x[j])) return false;
-    return true;
+// Whether every one of the size numbers at x is finite (lane by lane).
+template <typename V>
+inline auto all_finite(const V* x, int size) {
+    auto finite = lanes::finite(x[0]);
+    for (int j = 1; j < size; ++j) finite = finite && lanes::finite(x[j]);
+    return finite;
 }
 
 // Solve M X = B for the 6x6 M (row-major) and the cols columns of B (6, cols), row-major, X into
-// B: Gaussian elimination with partial pivoting, every column at once (M and B are overwritten).
-// A singular M gives non-finite X, which the callers flag.  docs/physics.md section 11 (no paper
-// equation).
-inline void solve_columns(double* M, double* B, int cols) {
+// B: Gaussian elimination with partial pivoting (kernels::pivot_row, the first of the largest),
+// every column at once (M and B are overwritten), for one platform (V = double) or one per lane
+// (each lane pivots on its own numbers).  A singular M gives non-finite X, which the callers flag.
+// docs/physics.md section 11 (no paper equation).
+template <typename V>
+inline void solve_columns(V* M, V* B, int cols) {
     constexpr int n = 6;
     for (int c = 0; c < n; ++c) {
-        int p = c;
-        for (int r = c + 1; r < n; ++r)
-            if (std::fabs(M[n * r + c]) > std::fabs(M[n * p + c])) p = r;
-        if (p != c) {
-            for (int k = c; k < n; ++k) std::swap(M[n * c + k], M[n * p + k]);
-            for (int k = 0; k < cols; ++k) std::swap(B[cols * c + k], B[cols * p + k]);
+        const V p = kernels::pivot_row<V>(M, c);
+        for (int r = c + 1; r < n; ++r) {
+            const auto swap = p == V(r);
+            if (!lanes::any(swap)) continue;
+            for (int k = c; k < n; ++k) kernels::trade(swap, M[n * c + k], M[n * r + k]);
+            for (int k = 0; k < cols; ++k) kernels::trade(swap, B[cols * c + k], B[cols * r + k]);
         }
         for (int r = c + 1; r < n; ++r) {
-            const double f = M[n * r + c] / M[n * c + c];
+            const V f = M[n * r + c] / M[n * c + c];
             for (int k = c + 1; k < n; ++k) M[n * r + k] -= f * M[n * c + k];
             for (int k = 0; k < cols; ++k) B[cols * r + k] -= f * B[cols * c + k];
         }
@@ -97,9 +106,11 @@ inline void solve_columns(double* M, double* B, int cols) {
 // platform_terms with acc), which run on duals of the 12 state directions, with no mass-matrix
 // column among them; M from the values (assemble_one) solves for every column at once, the
 // forces' M^-1 J^T beside the state's.  docs/physics.md sections 5.4, 5.5, 10.2 and 11.
-inline void acceleration_tangent(const double* prm, const D* P, int64_t flags, const double* t, const double* R,
-                                 const double* v, const double* w, const double* F, const double* W,
-                                 const double* m_r, const D* mr, const double* acc, double* jac) {
+template <typename V>
+inline void acceleration_tangent(const V* prm, const DualOf<V>* P, int64_t flags, const V* t, const V* R, const V* v,
+                                 const V* w, const V* F, const V* W, const V* m_r, const DualOf<V>* mr, const V* acc,
+                                 V* jac) {
+    using D = DualOf<V>;
     D td[3], Rd[9], vd[3], wd[3], ad[6];
     for (int j = 0; j < 3; ++j) {
         td[j] = D::seed(t[j], DIR_T + j);
@@ -110,10 +121,10 @@ inline void acceleration_tangent(const double* prm, const D* P, int64_t flags, c
     // R' = exp([dtheta]x) R: column c of dR/dtheta_k is e_k x (column c of R)
     for (int j = 0; j < 9; ++j) {
         Rd[j] = D(R[j]);
-        activate(Rd[j]);
+        activate<V>(Rd[j]);
     }
     for (int c = 0; c < 3; ++c) {
-        const double col[3] = {R[c], R[3 + c], R[6 + c]};
+        const V col[3] = {R[c], R[3 + c], R[6 + c]};
         // e_0 x col = (0, -col2, col1), e_1 x col = (col2, 0, -col0), e_2 x col = (-col1, col0, 0)
         Rd[3 * 1 + c].d[DIR_THETA + 0] = -col[2];
         Rd[3 * 2 + c].d[DIR_THETA + 0] = col[1];
@@ -128,61 +139,64 @@ inline void acceleration_tangent(const double* prm, const D* P, int64_t flags, c
     kernels::leg_shares<D>(P, flags, td, Rd, vd, wd, ad, h_leg, nullptr, rows, m_r == nullptr ? nullptr : Lddot_vel);
     for (int k = 0; k < 6; ++k) r[k] = D(0.0);
     for (int i = 0; i < 6; ++i)
-        for (int k = 0; k < 6; ++k) r[k] += h_leg[i][k] - F[i] * rows[i][k];
+        for (int k = 0; k < 6; ++k) r[k] += h_leg[i][k] - D(F[i]) * rows[i][k];
     // the platform's own terms at acc
     D Mp[36];
     for (int k = 0; k < 36; ++k) Mp[k] = D(0.0);
     kernels::platform_terms<D>(P, flags, Rd, wd, Mp, r);
     for (int k = 0; k < 6; ++k)
-        for (int c = 0; c < 6; ++c) r[k] += Mp[6 * k + c] * acc[c];
+        for (int c = 0; c < 6; ++c) r[k] += Mp[6 * k + c] * D(acc[c]);
     // a drive's reflected mass pulls m_r,i Lddot_i along its row, Lddot_i = j_i acc + c_i
     if (m_r != nullptr)
         for (int i = 0; i < 6; ++i) {
-            if (m_r[i] == 0.0) continue;
+            // a leg without drive inertia adds nothing (lane by lane)
+            const auto inert = m_r[i] != V(0.0);
+            if (!lanes::any(inert)) continue;
             D Lddot = Lddot_vel[i];
-            for (int c = 0; c < 6; ++c) Lddot += rows[i][c] * acc[c];
-            for (int k = 0; k < 6; ++k) r[k] += mr[i] * Lddot * rows[i][k];
+            for (int c = 0; c < 6; ++c) Lddot += rows[i][c] * D(acc[c]);
+            for (int k = 0; k < 6; ++k) r[k] = lanes::select(inert, r[k] + mr[i] * Lddot * rows[i][k], r[k]);
         }
     // M [dacc/dx, dacc/dF] = [-dr/dx, J^T]
-    double M[36], h[6], J[36];
-    kernels::assemble_one<double>(prm, flags, t, R, v, w, F, M, h, m_r);
-    kernels::jacobian_one<double>(prm, t, R, J);
+    V M[36], h[6], J[36];
+    kernels::assemble_one<V>(prm, flags, t, R, v, w, F, M, h, m_r);
+    kernels::jacobian_one<V>(prm, t, R, J);
     for (int k = 0; k < 6; ++k) {
         for (int m = 0; m < STATE_DIRECTIONS; ++m) jac[DIRECTIONS * k + m] = -r[k].derivative(m);
         for (int i = 0; i < 6; ++i) jac[DIRECTIONS * k + DIR_F + i] = J[6 * i + k];
     }
-    solve_columns(M, jac, DIRECTIONS);
+    solve_columns<V>(M, jac, DIRECTIONS);
 }
 
 // The platform's acceleration acc (6,) and its Jacobian jac (6,18) (columns: dt, dtheta, v, w, F)
-// for one platform; m_r (6,) the legs' reflected masses or nullptr.  The acceleration is
-// forward_one's (the value kernel's own), its Jacobian acceleration_tangent's.  Returns whether
-// all are finite (a singular pose gives NaN or inf, which the caller flags).  docs/physics.md
-// section 11.
-inline bool acceleration_jacobian_one(const double* prm, int64_t flags, const double* t, const double* R,
-                                      const double* v, const double* w, const double* F, const double* W,
-                                      const double* m_r, double* acc, double* jac) {
-    const kernels::SpreadFor<double> spread(prm);  // for forward_one's legs and assemble_one's
-    D P[kernels::N_PARAMS], mr[6];
-    constant_params(prm, P);
+// for one platform (V = double) or one per lane (V = lanes::Lanes, prm the lanes' rows); m_r (6,)
+// the legs' reflected masses or nullptr.  The acceleration is forward_one's (the value kernel's
+// own), its Jacobian acceleration_tangent's.  Returns, lane by lane, whether all are finite (a
+// singular pose gives NaN or inf, which the caller flags).  docs/physics.md section 11.
+template <typename V>
+inline auto acceleration_jacobian(const V* prm, int64_t flags, const V* t, const V* R, const V* v, const V* w,
+                                  const V* F, const V* W, const V* m_r, V* acc, V* jac) {
+    const kernels::SpreadFor<V> spread(prm);  // for forward_one's legs and assemble_one's
+    DualOf<V> P[kernels::N_PARAMS], mr[6];
+    constant_params<V>(prm, P);
     if (m_r != nullptr)
-        for (int i = 0; i < 6; ++i) mr[i] = D(m_r[i]);
-    double M[36], h[6];
-    kernels::forward_one<double>(prm, flags, t, R, v, w, F, W, M, h, acc, m_r);
-    acceleration_tangent(prm, P, flags, t, R, v, w, F, W, m_r, mr, acc, jac);
-    return all_finite(acc, 6) && all_finite(jac, 6 * DIRECTIONS);
+        for (int i = 0; i < 6; ++i) mr[i] = DualOf<V>(m_r[i]);
+    V M[36], h[6];
+    kernels::forward_one<V>(prm, flags, t, R, v, w, F, W, M, h, acc, m_r);
+    acceleration_tangent<V>(prm, P, flags, t, R, v, w, F, W, m_r, mr, acc, jac);
+    return all_finite<V>(acc, 6) && all_finite<V>(jac, 6 * DIRECTIONS);
 }
 
 //: The numbers of a control step that stay the same over its stages: the parameters and reflected
 //: masses as duals of zero derivative, and the parameters, held forces, wrench and reflected masses
-//: as doubles.
+//: as numbers of type V.
+template <typename V>
 struct StepInputs {
-    D P[kernels::N_PARAMS], mr[6];
-    const double* prm;
+    DualOf<V> P[kernels::N_PARAMS], mr[6];
+    const V* prm;
     int64_t flags;
-    const double* forces;
-    const double* wrench;
-    const double* m_r;
+    const V* forces;
+    const V* wrench;
+    const V* m_r;
 };
 
 // One RK4 stage's derivative k (13,) = dx/dt of rk4::state_derivative at the stage's state xs
@@ -192,20 +206,22 @@ struct StepInputs {
 // the rotation is that of q / |q|); the position's rows are the velocity's tangent, and the
 // quaternion's rate (0, w) q / 2, bilinear, has the tangent ((0, dw) q + (0, w) dq) / 2.
 // docs/physics.md sections 5.6 and 11.
-inline void stage_tangent(const StepInputs& in, const double* xs, const double* Xs, double* k, double* K) {
+template <typename V>
+inline void stage_tangent(const StepInputs<V>& in, const V* xs, const V* Xs, V* k, V* K) {
     constexpr int S = DIRECTIONS;
-    double F[6], R[9], M[36], h[6], acc[6], ja[6 * S];
-    const rk4::LawRows<double> src{nullptr, nullptr, 0, 6, 0, in.forces};
-    rk4::state_derivative<double>(in.prm, in.flags, src, 0.0, xs, F, in.wrench, R, M, h, acc, false, k, in.m_r);
-    acceleration_tangent(in.prm, in.P, in.flags, xs, R, xs + 7, xs + 10, in.forces, in.wrench, in.m_r, in.mr, acc,
-                         ja);
-    const double* q = xs + 3;
-    const double n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+    V F[6], R[9], M[36], h[6], acc[6], ja[6 * S];
+    const rk4::LawRows<V> src{nullptr, nullptr, 0, 6, 0, in.forces};
+    const auto evaluate_all = V(0.0) != V(0.0);  // no lane skipped
+    rk4::state_derivative<V>(in.prm, in.flags, src, 0.0, xs, F, in.wrench, R, M, h, acc, evaluate_all, k, in.m_r);
+    acceleration_tangent<V>(in.prm, in.P, in.flags, xs, R, xs + 7, xs + 10, in.forces, in.wrench, in.m_r, in.mr, acc,
+                            ja);
+    const V* q = xs + 3;
+    const V n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
     // Xs in the stage's 12 coordinates, Z (12,18)
-    double Z[STATE_DIRECTIONS][S];
+    V Z[STATE_DIRECTIONS][S];
     for (int c = 0; c < S; ++c) {
-        const double d0 = Xs[S * 3 + c], d1 = Xs[S * 4 + c];
-        const double d2 = Xs[S * 5 + c], d3 = Xs[S * 6 + c];
+        const V d0 = Xs[S * 3 + c], d1 = Xs[S * 4 + c];
+        const V d2 = Xs[S * 5 + c], d3 = Xs[S * 6 + c];
         // 2 vec(dq q*) with q* = (q0, -q_vec)
         Z[3][c] = 2.0 * (-d0 * q[1] + d1 * q[0] - d2 * q[3] + d3 * q[2]) / n2;
         Z[4][c] = 2.0 * (-d0 * q[2] + d1 * q[3] + d2 * q[0] - d3 * q[1]) / n2;
@@ -216,22 +232,22 @@ inline void stage_tangent(const StepInputs& in, const double* xs, const double* 
             Z[9 + j][c] = Xs[S * (10 + j) + c];
         }
     }
-    const double *w = xs + 10;
+    const V* w = xs + 10;
     for (int c = 0; c < S; ++c) {
         for (int j = 0; j < 3; ++j) K[S * j + c] = Xs[S * (7 + j) + c];
         // dq/dt = (0, w) q / 2 as rk4::state_derivative writes it, in w and in q
-        const double dw0 = Xs[S * 10 + c], dw1 = Xs[S * 11 + c], dw2 = Xs[S * 12 + c];
-        const double d0 = Xs[S * 3 + c], d1 = Xs[S * 4 + c], d2 = Xs[S * 5 + c], d3 = Xs[S * 6 + c];
+        const V dw0 = Xs[S * 10 + c], dw1 = Xs[S * 11 + c], dw2 = Xs[S * 12 + c];
+        const V d0 = Xs[S * 3 + c], d1 = Xs[S * 4 + c], d2 = Xs[S * 5 + c], d3 = Xs[S * 6 + c];
         K[S * 3 + c] = 0.5 * ((-dw0 * q[1] - dw1 * q[2] - dw2 * q[3]) + (-w[0] * d1 - w[1] * d2 - w[2] * d3));
         K[S * 4 + c] = 0.5 * ((dw0 * q[0] + dw1 * q[3] - dw2 * q[2]) + (w[0] * d0 + w[1] * d3 - w[2] * d2));
         K[S * 5 + c] = 0.5 * ((-dw0 * q[3] + dw1 * q[0] + dw2 * q[1]) + (-w[0] * d3 + w[1] * d0 + w[2] * d1));
         K[S * 6 + c] = 0.5 * ((dw0 * q[2] - dw1 * q[1] + dw2 * q[0]) + (w[0] * d2 - w[1] * d1 + w[2] * d0));
     }
     for (int r = 0; r < 6; ++r) {
-        double row[S];
-        for (int c = 0; c < S; ++c) row[c] = c >= DIR_F ? ja[S * r + c] : 0.0;
+        V row[S];
+        for (int c = 0; c < S; ++c) row[c] = c >= DIR_F ? ja[S * r + c] : V(0.0);
         for (int m = 0; m < STATE_DIRECTIONS; ++m) {
-            const double a = ja[S * r + m];
+            const V a = ja[S * r + m];
             for (int c = 0; c < S; ++c) row[c] += a * Z[m][c];
         }
         for (int c = 0; c < S; ++c) K[S * (7 + r) + c] = row[c];
@@ -239,84 +255,86 @@ inline void stage_tangent(const StepInputs& in, const double* xs, const double* 
 }
 
 // One control step of `steps` RK4 substeps of dt seconds (forces F and wrench W held) from
-// (t, R, v, w) of one platform: the next state into (t_next, R_next, v_next, w_next) and its
-// Jacobian jac (12,18) (rows: the next state's dt, dtheta, v, w; columns: the state's, then F).
-// The values are rk4::step_state's, operation for operation (started as rk4::rollout_row starts
-// them), their tangents carried beside them (stage_tangent).  Returns whether all are finite.
-// docs/physics.md sections 5.6 and 11.
-inline bool step_jacobian_one(const double* prm, int64_t flags, const double* t, const double* R,
-                              const double* v, const double* w, const double* F, const double* W,
-                              const double* m_r, double dt, int64_t steps, double* t_next, double* R_next,
-                              double* v_next, double* w_next, double* jac) {
+// (t, R, v, w) of one platform (V = double) or one per lane (V = lanes::Lanes, prm the lanes'
+// rows; the quaternions q0 (4,) of the start, rk4::matrix_to_quat's of R): the next state into
+// (t_next, R_next, v_next, w_next) and its Jacobian jac (12,18) (rows: the next state's dt,
+// dtheta, v, w; columns: the state's, then F).  The values are rk4::step_state's, operation for
+// operation (started as rk4::rollout_row starts them), their tangents carried beside them
+// (stage_tangent).  Returns, lane by lane, whether all are finite.  docs/physics.md sections 5.6
+// and 11.
+template <typename V>
+inline auto step_jacobian(const V* prm, int64_t flags, const V* t, const V* q0, const V* v, const V* w, const V* F,
+                          const V* W, const V* m_r, double dt, int64_t steps, V* t_next, V* R_next, V* v_next,
+                          V* w_next, V* jac) {
     constexpr int S = DIRECTIONS;
     // the row does not change over the step: the value kernels' legs read it spread once
-    const kernels::SpreadFor<double> spread(prm);
-    StepInputs in;
-    constant_params(prm, in.P);
-    for (int i = 0; i < 6; ++i) in.mr[i] = D(m_r == nullptr ? 0.0 : m_r[i]);
+    const kernels::SpreadFor<V> spread(prm);
+    StepInputs<V> in;
+    constant_params<V>(prm, in.P);
+    for (int i = 0; i < 6; ++i) in.mr[i] = DualOf<V>(m_r == nullptr ? V(0.0) : m_r[i]);
     in.prm = prm;
     in.flags = flags;
     in.forces = F;
     in.wrench = W;
     in.m_r = m_r;
-    double x[13], X[13 * S], xs[13], Xs[13 * S], k[4][13], K[4][13 * S];
+    V x[13], X[13 * S], xs[13], Xs[13 * S], k[4][13], K[4][13 * S];
     for (int j = 0; j < 3; ++j) {
         x[j] = t[j];
         x[7 + j] = v[j];
         x[10 + j] = w[j];
     }
-    rk4::matrix_to_quat(R, x + 3);
-    for (int j = 0; j < 13 * S; ++j) X[j] = 0.0;
+    for (int j = 0; j < 4; ++j) x[3 + j] = q0[j];
+    for (int j = 0; j < 13 * S; ++j) X[j] = V(0.0);
     for (int j = 0; j < 3; ++j) {
-        X[S * j + DIR_T + j] = 1.0;
-        X[S * (7 + j) + DIR_V + j] = 1.0;
-        X[S * (10 + j) + DIR_W + j] = 1.0;
+        X[S * j + DIR_T + j] = V(1.0);
+        X[S * (7 + j) + DIR_V + j] = V(1.0);
+        X[S * (10 + j) + DIR_W + j] = V(1.0);
     }
-    const double* q = x + 3;
+    const V* q = x + 3;
     for (int c = 0; c < 3; ++c) {  // dq/dtheta_c = (0, e_c)/2 * q
         double e[3] = {0.0, 0.0, 0.0};
         e[c] = 1.0;
-        const double ex[3] = {e[1] * q[3] - e[2] * q[2], e[2] * q[1] - e[0] * q[3], e[0] * q[2] - e[1] * q[1]};
+        const V ex[3] = {e[1] * q[3] - e[2] * q[2], e[2] * q[1] - e[0] * q[3], e[0] * q[2] - e[1] * q[1]};
         X[S * 3 + DIR_THETA + c] = -0.5 * q[1 + c];
         for (int j = 0; j < 3; ++j) X[S * (4 + j) + DIR_THETA + c] = 0.5 * (q[0] * e[j] + ex[j]);
     }
-    bool finite = true;
-    for (int64_t step = 0; step < steps && finite; ++step) {
+    auto finite = lanes::finite(V(0.0));  // true in every lane
+    for (int64_t step = 0; step < steps && lanes::any(finite); ++step) {
         // rk4::step_state's sums, the tangents beside the values
-        stage_tangent(in, x, X, k[0], K[0]);
+        stage_tangent<V>(in, x, X, k[0], K[0]);
         for (int j = 0; j < 13; ++j) xs[j] = x[j] + 0.5 * dt * k[0][j];
         for (int j = 0; j < 13 * S; ++j) Xs[j] = X[j] + 0.5 * dt * K[0][j];
-        stage_tangent(in, xs, Xs, k[1], K[1]);
+        stage_tangent<V>(in, xs, Xs, k[1], K[1]);
         for (int j = 0; j < 13; ++j) xs[j] = x[j] + 0.5 * dt * k[1][j];
         for (int j = 0; j < 13 * S; ++j) Xs[j] = X[j] + 0.5 * dt * K[1][j];
-        stage_tangent(in, xs, Xs, k[2], K[2]);
+        stage_tangent<V>(in, xs, Xs, k[2], K[2]);
         for (int j = 0; j < 13; ++j) xs[j] = x[j] + dt * k[2][j];
         for (int j = 0; j < 13 * S; ++j) Xs[j] = X[j] + dt * K[2][j];
-        stage_tangent(in, xs, Xs, k[3], K[3]);
+        stage_tangent<V>(in, xs, Xs, k[3], K[3]);
         for (int j = 0; j < 13; ++j) {
             x[j] = x[j] + dt / 6.0 * (k[0][j] + 2.0 * k[1][j] + 2.0 * k[2][j] + k[3][j]);
-            finite = finite && std::isfinite(x[j]);
+            finite = finite && lanes::finite(x[j]);
         }
         for (int j = 0; j < 13 * S; ++j) X[j] = X[j] + dt / 6.0 * (K[0][j] + 2.0 * K[1][j] + 2.0 * K[2][j] + K[3][j]);
         // the quaternion renormalised, q / |q|, and its tangent (dq - q_unit (q_unit . dq)) / |q|
-        const double nq = std::sqrt(x[3] * x[3] + x[4] * x[4] + x[5] * x[5] + x[6] * x[6]);
+        const V nq = lanes::sqrt_of(x[3] * x[3] + x[4] * x[4] + x[5] * x[5] + x[6] * x[6]);
         for (int j = 3; j < 7; ++j) x[j] /= nq;
         for (int c = 0; c < S; ++c) {
-            const double along = x[3] * X[S * 3 + c] + x[4] * X[S * 4 + c] + x[5] * X[S * 5 + c] + x[6] * X[S * 6 + c];
+            const V along = x[3] * X[S * 3 + c] + x[4] * X[S * 4 + c] + x[5] * X[S * 5 + c] + x[6] * X[S * 6 + c];
             for (int j = 3; j < 7; ++j) X[S * j + c] = (X[S * j + c] - x[j] * along) / nq;
         }
     }
-    rk4::quat_to_matrix<double>(x + 3, R_next);
+    rk4::quat_to_matrix<V>(x + 3, R_next);
     for (int j = 0; j < 3; ++j) {
         t_next[j] = x[j];
         v_next[j] = x[7 + j];
         w_next[j] = x[10 + j];
     }
-    const double* qn = x + 3;
+    const V* qn = x + 3;
     for (int c = 0; c < S; ++c) {
         // dtheta_next = 2 vec(dq q*), q* = (q0, -q_vec): the left rotation that moves q by dq
-        const double d0 = X[S * 3 + c], d1 = X[S * 4 + c], d2 = X[S * 5 + c], d3 = X[S * 6 + c];
-        const double theta[3] = {
+        const V d0 = X[S * 3 + c], d1 = X[S * 4 + c], d2 = X[S * 5 + c], d3 = X[S * 6 + c];
+        const V theta[3] = {
             2.0 * (-d0 * qn[1] + d1 * qn[0] - d2 * qn[3] + d3 * qn[2]),
             2.0 * (-d0 * qn[2] + d1 * qn[3] + d2 * qn[0] - d3 * qn[1]),
             2.0 * (-d0 * qn[3] - d1 * qn[2] + d2 * qn[1] + d3 * qn[0]),
@@ -328,7 +346,7 @@ inline bool step_jacobian_one(const double* prm, int64_t flags, const double* t,
             jac[S * (9 + j) + c] = X[S * (10 + j) + c];
         }
     }
-    return finite && all_finite(x, 13) && all_finite(jac, 12 * S);
+    return finite && all_finite<V>(x, 13) && all_finite<V>(jac, 12 * S);
 }
 
 // The NaN a row that is not finite gets throughout (a partly finite Jacobian is no Jacobian).
@@ -336,46 +354,102 @@ inline void fill_nan(double* x, int size) {
     for (int j = 0; j < size; ++j) x[j] = std::numeric_limits<double>::quiet_NaN();
 }
 
-// acceleration_jacobian_one over a batch of n rows: prm (n_prm, N_PARAMS) with n_prm 1 or n; t, v,
-// w (n,3); R (n,3,3); F, W (n,6); m_r (n_mr, 6) with n_mr 1 or n, or nullptr; acc (n,6), jac
-// (n,6,18), a row NaN throughout where not finite; finite (n,) whether it is.  Rows run on every
-// core (lanes::for_each_row), each row's numbers those it has alone.
+// Rows b, b + 1, ... of acceleration_jacobian_batch, as many as V carries: acceleration_jacobian
+// on the rows' numbers loaded into V, written back, a row NaN throughout where not finite.
+template <typename V>
+inline void acceleration_jacobian_row(const kernels::ParamRows& prm, int64_t flags, const double* t, const double* R,
+                                      const double* v, const double* w, const double* F, const double* W,
+                                      const double* m_r, int64_t n_mr, double* acc, double* jac, bool* finite,
+                                      int64_t b) {
+    constexpr int width = lanes::width<V>;
+    kernels::ParamScratch<V> scratch;
+    V tl[3], Rl[9], vl[3], wl[3], Fl[6], Wl[6], mr[6], al[6], jl[6 * DIRECTIONS];
+    lanes::load(t, 3, b, 3, tl);
+    lanes::load(R, 9, b, 9, Rl);
+    lanes::load(v, 3, b, 3, vl);
+    lanes::load(w, 3, b, 3, wl);
+    lanes::load(F, 6, b, 6, Fl);
+    lanes::load(W, 6, b, 6, Wl);
+    if (m_r != nullptr) lanes::load(m_r, n_mr == 1 ? 0 : 6, n_mr == 1 ? 0 : b, 6, mr);
+    const auto ok = acceleration_jacobian<V>(prm.rows(b, scratch.rows), flags, tl, Rl, vl, wl, Fl, Wl,
+                                             m_r == nullptr ? nullptr : mr, al, jl);
+    lanes::store(al, 6, acc, 6, b);
+    lanes::store(jl, 6 * DIRECTIONS, jac, 6 * DIRECTIONS, b);
+    for (int k = 0; k < width; ++k) {
+        finite[b + k] = lanes::lane(ok, k);
+        if (!finite[b + k]) {
+            fill_nan(acc + 6 * (b + k), 6);
+            fill_nan(jac + 6 * DIRECTIONS * (b + k), 6 * DIRECTIONS);
+        }
+    }
+}
+
+// acceleration_jacobian over a batch of n rows: prm (n_prm, N_PARAMS) with n_prm 1 or n; t, v, w
+// (n,3); R (n,3,3); F, W (n,6); m_r (n_mr, 6) with n_mr 1 or n, or nullptr; acc (n,6), jac
+// (n,6,18), a row NaN throughout where not finite; finite (n,) whether it is.  Blocks of rows run
+// in vector lanes and on every core (lanes::for_rows), each row's numbers those it has alone.
 inline void acceleration_jacobian_batch(const double* prm, int64_t n_prm, int64_t flags, const double* t,
                                         const double* R, const double* v, const double* w, const double* F,
                                         const double* W, const double* m_r, int64_t n_mr, double* acc, double* jac,
                                         bool* finite, int64_t n) {
+    const kernels::ParamRows rows(prm, n_prm, n);
     // a row costs about 30 forward evaluations
-    lanes::for_each_row(n, 30, [&](int64_t b) {
-        const double* mr = m_r == nullptr ? nullptr : m_r + 6 * (n_mr == 1 ? 0 : b);
-        finite[b] = acceleration_jacobian_one(kernels::params_row(prm, n_prm, b), flags, t + 3 * b, R + 9 * b,
-                                              v + 3 * b, w + 3 * b, F + 6 * b, W + 6 * b, mr, acc + 6 * b,
-                                              jac + 6 * DIRECTIONS * b);
-        if (!finite[b]) {
-            fill_nan(acc + 6 * b, 6);
-            fill_nan(jac + 6 * DIRECTIONS * b, 6 * DIRECTIONS);
-        }
+    lanes::for_rows(n, 30, [&](int64_t b, auto tag) {
+        acceleration_jacobian_row<decltype(tag)>(rows, flags, t, R, v, w, F, W, m_r, n_mr, acc, jac, finite, b);
     });
 }
 
-// step_jacobian_one over a batch (shapes as acceleration_jacobian_batch; t_next, v_next, w_next
+// Rows b, b + 1, ... of step_jacobian_batch, as many as V carries (as acceleration_jacobian_row).
+template <typename V>
+inline void step_jacobian_row(const kernels::ParamRows& prm, int64_t flags, const double* t, const double* R,
+                              const double* v, const double* w, const double* F, const double* W, const double* m_r,
+                              int64_t n_mr, double dt, int64_t steps, double* t_next, double* R_next, double* v_next,
+                              double* w_next, double* jac, bool* finite, int64_t b) {
+    constexpr int width = lanes::width<V>;
+    constexpr int S = DIRECTIONS;
+    kernels::ParamScratch<V> scratch;
+    V tl[3], ql[4], vl[3], wl[3], Fl[6], Wl[6], mr[6], tn[3], Rn[9], vn[3], wn[3], jl[12 * S];
+    lanes::load(t, 3, b, 3, tl);
+    lanes::load(v, 3, b, 3, vl);
+    lanes::load(w, 3, b, 3, wl);
+    lanes::load(F, 6, b, 6, Fl);
+    lanes::load(W, 6, b, 6, Wl);
+    if (m_r != nullptr) lanes::load(m_r, n_mr == 1 ? 0 : 6, n_mr == 1 ? 0 : b, 6, mr);
+    for (int k = 0; k < width; ++k) {  // as rk4::rollout_row starts
+        double q[4];
+        rk4::matrix_to_quat(R + 9 * (b + k), q);
+        for (int j = 0; j < 4; ++j) lanes::put(ql[j], k, q[j]);
+    }
+    const auto ok = step_jacobian<V>(prm.rows(b, scratch.rows), flags, tl, ql, vl, wl, Fl, Wl,
+                                     m_r == nullptr ? nullptr : mr, dt, steps, tn, Rn, vn, wn, jl);
+    lanes::store(tn, 3, t_next, 3, b);
+    lanes::store(Rn, 9, R_next, 9, b);
+    lanes::store(vn, 3, v_next, 3, b);
+    lanes::store(wn, 3, w_next, 3, b);
+    lanes::store(jl, 12 * S, jac, 12 * S, b);
+    for (int k = 0; k < width; ++k) {
+        finite[b + k] = lanes::lane(ok, k);
+        if (!finite[b + k]) {
+            fill_nan(t_next + 3 * (b + k), 3);
+            fill_nan(R_next + 9 * (b + k), 9);
+            fill_nan(v_next + 3 * (b + k), 3);
+            fill_nan(w_next + 3 * (b + k), 3);
+            fill_nan(jac + 12 * S * (b + k), 12 * S);
+        }
+    }
+}
+
+// step_jacobian over a batch (shapes as acceleration_jacobian_batch; t_next, v_next, w_next
 // (n,3), R_next (n,3,3), jac (n,12,18)).
 inline void step_jacobian_batch(const double* prm, int64_t n_prm, int64_t flags, const double* t, const double* R,
                                 const double* v, const double* w, const double* F, const double* W,
                                 const double* m_r, int64_t n_mr, double dt, int64_t steps, double* t_next,
                                 double* R_next, double* v_next, double* w_next, double* jac, bool* finite,
                                 int64_t n) {
-    lanes::for_each_row(n, 120 * steps, [&](int64_t b) {
-        const double* mr = m_r == nullptr ? nullptr : m_r + 6 * (n_mr == 1 ? 0 : b);
-        finite[b] = step_jacobian_one(kernels::params_row(prm, n_prm, b), flags, t + 3 * b, R + 9 * b, v + 3 * b,
-                                      w + 3 * b, F + 6 * b, W + 6 * b, mr, dt, steps, t_next + 3 * b,
-                                      R_next + 9 * b, v_next + 3 * b, w_next + 3 * b, jac + 12 * DIRECTIONS * b);
-        if (!finite[b]) {
-            fill_nan(t_next + 3 * b, 3);
-            fill_nan(R_next + 9 * b, 9);
-            fill_nan(v_next + 3 * b, 3);
-            fill_nan(w_next + 3 * b, 3);
-            fill_nan(jac + 12 * DIRECTIONS * b, 12 * DIRECTIONS);
-        }
+    const kernels::ParamRows rows(prm, n_prm, n);
+    lanes::for_rows(n, 120 * steps, [&](int64_t b, auto tag) {
+        step_jacobian_row<decltype(tag)>(rows, flags, t, R, v, w, F, W, m_r, n_mr, dt, steps, t_next, R_next, v_next,
+                                         w_next, jac, finite, b);
     });
 }
 

@@ -18,6 +18,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <type_traits>
 
 #include "physics/lanes.hpp"
 
@@ -32,45 +33,65 @@
 namespace dual {
 
 //: A value v and its derivatives d[0..N) along N directions; d is meaningful only when active.
+//: V is double (one platform) or lanes::Lanes (one platform per lane, lanes.hpp): every operation
+//: then acts on each lane alone with the operations double does, so a platform's value and
+//: derivatives in a lane are bit for bit its own alone.  Activity is the same in every lane: it
+//: follows the kernel's code path (which numbers depend on a seed), not the data.
 //: The derivatives first and the whole on a cache line's boundary: the kernels copy Duals by value
 //: (V3 and friends), and a copy or an operation on d that straddles no line runs in whole vector
 //: moves (the step's Jacobians in half the time of the unaligned layout).
-template <int N>
+template <int N, typename V = double>
 struct alignas(64) Dual {
-    double d[N];
-    double v;
+    V d[N];
+    V v;
     bool active;
     Dual() = default;
-    Dual(double x) : v(x), active(false) {}  // NOLINT: implicit, so literals and parameters mix with duals
+    // A copy carries the derivatives only when active: most numbers a kernel copies are parameters
+    // (inactive), whose derivatives would be dead bytes (in lanes, most of a kilobyte each).
+    Dual(const Dual& o) : v(o.v), active(o.active) {
+        if (active)
+            for (int k = 0; k < N; ++k) d[k] = o.d[k];
+    }
+    Dual& operator=(const Dual& o) {
+        v = o.v;
+        active = o.active;
+        if (active)
+            for (int k = 0; k < N; ++k) d[k] = o.d[k];
+        return *this;
+    }
+    Dual(const V& x) : v(x), active(false) {}  // NOLINT: implicit, so literals and parameters mix with duals
+    //: A literal in lanes: the same in every lane.
+    template <typename U = V, typename = std::enable_if_t<!std::is_same_v<U, double>>>
+    Dual(double x) : v(x), active(false) {}  // NOLINT: implicit, as above
     //: The value x with derivative 1 along direction k (a seed of forward mode).
-    static Dual seed(double x, int k) {
+    static Dual seed(const V& x, int k) {
         Dual r(x);
         r.active = true;
-        for (int j = 0; j < N; ++j) r.d[j] = 0.0;
-        r.d[k] = 1.0;
+        for (int j = 0; j < N; ++j) r.d[j] = V(0.0);
+        r.d[k] = V(1.0);
         return r;
     }
     //: Derivative along direction k (0 when inactive).
-    double derivative(int k) const { return active ? d[k] : 0.0; }
+    V derivative(int k) const { return active ? d[k] : V(0.0); }
 };
 
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N> operator+(const Dual<N>& a, const Dual<N>& b) {
-    Dual<N> r(a.v + b.v);
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V> operator+(const Dual<N, V>& a, const Dual<N, V>& b) {
+    Dual<N, V> r(a.v + b.v);
     if (a.active && b.active) {
         r.active = true;
         for (int k = 0; k < N; ++k) r.d[k] = a.d[k] + b.d[k];
     } else if (a.active || b.active) {
         r.active = true;
-        const double* d = a.active ? a.d : b.d;
+        const V* d = a.active ? a.d : b.d;
         for (int k = 0; k < N; ++k) r.d[k] = d[k];
     }
     return r;
 }
 
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N> operator-(const Dual<N>& a) {
-    Dual<N> r(-a.v);
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V> operator-(const Dual<N, V>& a) {
+    Dual<N, V> r(-a.v);
     if (a.active) {
         r.active = true;
         for (int k = 0; k < N; ++k) r.d[k] = -a.d[k];
@@ -78,9 +99,9 @@ STEWART_ENV_DUAL_INLINE Dual<N> operator-(const Dual<N>& a) {
     return r;
 }
 
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N> operator-(const Dual<N>& a, const Dual<N>& b) {
-    Dual<N> r(a.v - b.v);
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V> operator-(const Dual<N, V>& a, const Dual<N, V>& b) {
+    Dual<N, V> r(a.v - b.v);
     if (a.active && b.active) {
         r.active = true;
         for (int k = 0; k < N; ++k) r.d[k] = a.d[k] - b.d[k];
@@ -95,9 +116,9 @@ STEWART_ENV_DUAL_INLINE Dual<N> operator-(const Dual<N>& a, const Dual<N>& b) {
 }
 
 // (ab)' = a' b + a b'
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N> operator*(const Dual<N>& a, const Dual<N>& b) {
-    Dual<N> r(a.v * b.v);
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V> operator*(const Dual<N, V>& a, const Dual<N, V>& b) {
+    Dual<N, V> r(a.v * b.v);
     if (a.active && b.active) {
         r.active = true;
         for (int k = 0; k < N; ++k) r.d[k] = a.d[k] * b.v + a.v * b.d[k];
@@ -112,9 +133,9 @@ STEWART_ENV_DUAL_INLINE Dual<N> operator*(const Dual<N>& a, const Dual<N>& b) {
 }
 
 // (a/b)' = (a' - (a/b) b') / b
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N> operator/(const Dual<N>& a, const Dual<N>& b) {
-    Dual<N> r(a.v / b.v);
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V> operator/(const Dual<N, V>& a, const Dual<N, V>& b) {
+    Dual<N, V> r(a.v / b.v);
     if (a.active && b.active) {
         r.active = true;
         for (int k = 0; k < N; ++k) r.d[k] = (a.d[k] - r.v * b.d[k]) / b.v;
@@ -128,72 +149,72 @@ STEWART_ENV_DUAL_INLINE Dual<N> operator/(const Dual<N>& a, const Dual<N>& b) {
     return r;
 }
 
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N>& operator+=(Dual<N>& a, const Dual<N>& b) {
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V>& operator+=(Dual<N, V>& a, const Dual<N, V>& b) {
     return a = a + b;
 }
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N>& operator-=(Dual<N>& a, const Dual<N>& b) {
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V>& operator-=(Dual<N, V>& a, const Dual<N, V>& b) {
     return a = a - b;
 }
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N>& operator*=(Dual<N>& a, const Dual<N>& b) {
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V>& operator*=(Dual<N, V>& a, const Dual<N, V>& b) {
     return a = a * b;
 }
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N>& operator/=(Dual<N>& a, const Dual<N>& b) {
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V>& operator/=(Dual<N, V>& a, const Dual<N, V>& b) {
     return a = a / b;
 }
 
 // Mixed with a double (a literal): the double is a constant, no Dual made of it.
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N> operator+(double a, const Dual<N>& b) {
-    return Dual<N>(a) + b;
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V> operator+(double a, const Dual<N, V>& b) {
+    return Dual<N, V>(a) + b;
 }
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N> operator+(const Dual<N>& a, double b) {
-    return a + Dual<N>(b);
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V> operator+(const Dual<N, V>& a, double b) {
+    return a + Dual<N, V>(b);
 }
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N> operator-(double a, const Dual<N>& b) {
-    return Dual<N>(a) - b;
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V> operator-(double a, const Dual<N, V>& b) {
+    return Dual<N, V>(a) - b;
 }
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N> operator-(const Dual<N>& a, double b) {
-    return a - Dual<N>(b);
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V> operator-(const Dual<N, V>& a, double b) {
+    return a - Dual<N, V>(b);
 }
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N> operator*(double a, const Dual<N>& b) {
-    return Dual<N>(a) * b;
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V> operator*(double a, const Dual<N, V>& b) {
+    return Dual<N, V>(a) * b;
 }
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N> operator*(const Dual<N>& a, double b) {
-    return a * Dual<N>(b);
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V> operator*(const Dual<N, V>& a, double b) {
+    return a * Dual<N, V>(b);
 }
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N> operator/(double a, const Dual<N>& b) {
-    return Dual<N>(a) / b;
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V> operator/(double a, const Dual<N, V>& b) {
+    return Dual<N, V>(a) / b;
 }
-template <int N>
-STEWART_ENV_DUAL_INLINE Dual<N> operator/(const Dual<N>& a, double b) {
-    return a / Dual<N>(b);
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE Dual<N, V> operator/(const Dual<N, V>& a, double b) {
+    return a / Dual<N, V>(b);
 }
 
 // Comparisons on the value part: the branch the values take.
-template <int N>
-STEWART_ENV_DUAL_INLINE bool operator>(const Dual<N>& a, const Dual<N>& b) {
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE auto operator>(const Dual<N, V>& a, const Dual<N, V>& b) {
     return a.v > b.v;
 }
-template <int N>
-STEWART_ENV_DUAL_INLINE bool operator<(const Dual<N>& a, const Dual<N>& b) {
-    return a.v < b.v;
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE auto operator<(const Dual<N, V>& a, const Dual<N, V>& b) {
+    return b.v > a.v;  // as >: Lanes compare with > alone
 }
-template <int N>
-STEWART_ENV_DUAL_INLINE bool operator==(const Dual<N>& a, const Dual<N>& b) {
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE auto operator==(const Dual<N, V>& a, const Dual<N, V>& b) {
     return a.v == b.v;
 }
-template <int N>
-STEWART_ENV_DUAL_INLINE bool operator!=(const Dual<N>& a, const Dual<N>& b) {
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE auto operator!=(const Dual<N, V>& a, const Dual<N, V>& b) {
     return a.v != b.v;
 }
 
@@ -204,12 +225,12 @@ namespace lanes {
 // The Dual faces of the kernels' operations (lanes.hpp has the double and Lanes ones).
 
 // sqrt(a)' = a' / (2 sqrt(a)): infinite at a = 0 (a leg of zero length), which the callers flag.
-template <int N>
-STEWART_ENV_DUAL_INLINE dual::Dual<N> sqrt_of(const dual::Dual<N>& a) {
-    dual::Dual<N> r(std::sqrt(a.v));
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE dual::Dual<N, V> sqrt_of(const dual::Dual<N, V>& a) {
+    dual::Dual<N, V> r(lanes::sqrt_of(a.v));
     if (a.active) {
         r.active = true;
-        const double twice = 2.0 * r.v;
+        const V twice = 2.0 * r.v;
         for (int k = 0; k < N; ++k) r.d[k] = a.d[k] / twice;
     }
     return r;
@@ -223,9 +244,9 @@ template <int N>
 STEWART_ENV_DUAL_INLINE dual::Dual<N> select(bool m, const dual::Dual<N>& a, const dual::Dual<N>& b) {
     return m ? a : b;
 }
-template <int N>
-STEWART_ENV_DUAL_INLINE bool finite(const dual::Dual<N>& a) {
-    return std::isfinite(a.v);
+template <int N, typename V>
+STEWART_ENV_DUAL_INLINE auto finite(const dual::Dual<N, V>& a) {
+    return lanes::finite(a.v);
 }
 template <int N>
 STEWART_ENV_DUAL_INLINE double get(const dual::Dual<N>& x, int) {
@@ -235,5 +256,25 @@ template <int N>
 STEWART_ENV_DUAL_INLINE void put(dual::Dual<N>& x, int, double value) {
     x = dual::Dual<N>(value);
 }
+
+#ifdef STEWART_ENV_VECTOR_EXTENSIONS
+// a where m holds, else b, lane by lane, derivatives too; an inactive side's derivatives are zero
+// in the lanes that take it (where one platform alone would have taken an inactive number).
+template <int N>
+STEWART_ENV_DUAL_INLINE dual::Dual<N, Lanes> select(Mask m, const dual::Dual<N, Lanes>& a,
+                                                     const dual::Dual<N, Lanes>& b) {
+    dual::Dual<N, Lanes> r(select(m, a.v, b.v));
+    if (a.active || b.active) {
+        r.active = true;
+        const Lanes zero(0.0);
+        for (int k = 0; k < N; ++k) r.d[k] = select(m, a.active ? a.d[k] : zero, b.active ? b.d[k] : zero);
+    }
+    return r;
+}
+template <int N>
+STEWART_ENV_DUAL_INLINE dual::Dual<N, Lanes> abs_of(const dual::Dual<N, Lanes>& a) {
+    return select(Lanes(0.0) > a.v, -a, a);
+}
+#endif
 
 }  // namespace lanes
