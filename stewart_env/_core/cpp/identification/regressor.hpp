@@ -64,7 +64,7 @@ inline void leg_wrench(int64_t flags, const LegBodies<>& bodies, const LegState<
     const auto [f0, f1, f2] = kernels::leg_force(prm, flags, bodies, leg, A[0], A[1], A[2], 0.0);
     const auto [fs0, fs1, fs2] = kernels::to_base(fr, f0, f1, f2);
     const auto& [q0, q1, q2] = fr.q;
-    const auto [m0, m1, m2] = kernels::cross(q0, q1, q2, fs0, fs1, fs2);
+    const auto [m0, m1, m2] = kernels::cross<double>(q0, q1, q2, fs0, fs1, fs2);
     const auto [wl0, wl1, wl2] = kernels::to_base(fr, leg.sigma, leg.w1, leg.w2);
     const double cs = damping[2];
     out[0] = fs0;
@@ -200,7 +200,7 @@ inline void regressor_one(const double* prm, int64_t flags, const double* t, con
         // (Coulomb) and times Lddot (reflected mass), with leg_accel's Lddot of the model's kinematics
         const auto [e0, e1, e2] = kernels::to_base(leg.frame, 1.0, 0.0, 0.0);
         const auto& [q0, q1, q2] = leg.frame.q;
-        const auto [n0, n1, n2] = kernels::cross(q0, q1, q2, e0, e1, e2);
+        const auto [n0, n1, n2] = kernels::cross<double>(q0, q1, q2, e0, e1, e2);
         const double unit[6] = {e0, e1, e2, n0, n1, n2};
         const double coulomb = std::tanh(leg.Ldot / friction_speed);
         const double Lddot =

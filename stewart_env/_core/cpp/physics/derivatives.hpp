@@ -44,14 +44,9 @@ template <typename V>
 using DualOf = dual::Dual<STATE_DIRECTIONS, V>;
 using D = DualOf<double>;
 
-// x as an active dual of zero derivatives (a seed, before its entries are set).
-template <typename V>
-inline void activate(DualOf<V>& x) {
-    x.active = true;
-    for (int k = 0; k < STATE_DIRECTIONS; ++k) x.d[k] = V(0.0);
-}
-
 //: Where each group of columns starts: position, rotation, velocity, angular velocity, forces.
+//: The pose's six directions fill the duals' first block, the twist's six the second
+//: (dual::BLOCKS), so that what depends on the pose alone carries six derivatives, not twelve.
 constexpr int DIR_T = 0, DIR_THETA = 3, DIR_V = 6, DIR_W = 9, DIR_F = 12;
 
 // The packed parameter row as duals of zero derivative (constants of the differentiation).
@@ -66,6 +61,16 @@ inline auto all_finite(const V* x, int size) {
     auto finite = lanes::finite(x[0]);
     for (int j = 1; j < size; ++j) finite = finite && lanes::finite(x[j]);
     return finite;
+}
+
+// x + 0 for the size numbers at x: a zero's sign made +, every other number as it is.  The
+// derivatives' zeros are signed as their operations sign them, and one platform alone and one in
+// lanes sign some differently (dual.hpp: an inactive block's zeros against computed ones); a zero
+// never becomes another number by multiplication and addition, so after this the two are the
+// same bits.
+template <typename V>
+inline void unsigned_zeros(V* x, int size) {
+    for (int j = 0; j < size; ++j) x[j] = x[j] + V(0.0);
 }
 
 // Solve M X = B for the 6x6 M (row-major) and the cols columns of B (6, cols), row-major, X into
@@ -98,18 +103,18 @@ inline void solve_columns(V* M, V* B, int cols) {
 }
 
 // The Jacobian jac (6,18) (columns: dt, dtheta, v, w, F) of the acceleration acc (6,) at one
-// state (t, R, v, w) under the forces F and wrench W, acc given (the value kernels'); P the packed
-// row prm as constant duals, m_r (6,) the legs' reflected masses or nullptr (mr the same as
-// duals).  The equations of motion M(x) acc + h(x) - J(x)^T F - W = 0 (their reflected masses'
-// terms included) differentiated at the fixed acc give M dacc = -dr, with r(x) their left side
-// at that acc: the inverse dynamics' sum of the legs' and the platform's pulls (leg_shares and
-// platform_terms with acc), which run on duals of the 12 state directions, with no mass-matrix
-// column among them; M from the values (assemble_one) solves for every column at once, the
-// forces' M^-1 J^T beside the state's.  docs/physics.md sections 5.4, 5.5, 10.2 and 11.
+// state (t, R, v, w) under the forces F, acc given (the value kernels'); P the packed row as
+// constant duals, m_r (6,) the legs' reflected masses or nullptr (mr the same as duals), M (6,6)
+// the state's mass matrix (forward_one's, kept before its solve; overwritten here).  The equations
+// of motion M(x) acc + h(x) - J(x)^T F - W = 0 (their reflected masses' terms included)
+// differentiated at the fixed acc give M dacc = -dr, with r(x) their left side at that acc: the
+// inverse dynamics' sum of the legs' and the platform's pulls (leg_shares and platform_terms with
+// acc), which run on duals of the 12 state directions, with no mass-matrix column among them; M
+// solves for every column at once, the forces' M^-1 J^T beside the state's (J's rows the legs'
+// rows' values).  docs/physics.md sections 5.4, 5.5, 10.2 and 11.
 template <typename V>
-inline void acceleration_tangent(const V* prm, const DualOf<V>* P, int64_t flags, const V* t, const V* R, const V* v,
-                                 const V* w, const V* F, const V* W, const V* m_r, const DualOf<V>* mr, const V* acc,
-                                 V* jac) {
+inline void acceleration_tangent(const DualOf<V>* P, int64_t flags, const V* t, const V* R, const V* v, const V* w,
+                                 const V* F, const V* m_r, const DualOf<V>* mr, const V* acc, V* M, V* jac) {
     using D = DualOf<V>;
     D td[3], Rd[9], vd[3], wd[3], ad[6];
     for (int j = 0; j < 3; ++j) {
@@ -121,17 +126,17 @@ inline void acceleration_tangent(const V* prm, const DualOf<V>* P, int64_t flags
     // R' = exp([dtheta]x) R: column c of dR/dtheta_k is e_k x (column c of R)
     for (int j = 0; j < 9; ++j) {
         Rd[j] = D(R[j]);
-        activate<V>(Rd[j]);
+        Rd[j].activate(0);  // the pose's block: dR depends on dtheta alone
     }
     for (int c = 0; c < 3; ++c) {
         const V col[3] = {R[c], R[3 + c], R[6 + c]};
         // e_0 x col = (0, -col2, col1), e_1 x col = (col2, 0, -col0), e_2 x col = (-col1, col0, 0)
-        Rd[3 * 1 + c].d[DIR_THETA + 0] = -col[2];
-        Rd[3 * 2 + c].d[DIR_THETA + 0] = col[1];
-        Rd[3 * 0 + c].d[DIR_THETA + 1] = col[2];
-        Rd[3 * 2 + c].d[DIR_THETA + 1] = -col[0];
-        Rd[3 * 0 + c].d[DIR_THETA + 2] = -col[1];
-        Rd[3 * 1 + c].d[DIR_THETA + 2] = col[0];
+        Rd[3 * 1 + c].at(DIR_THETA + 0) = -col[2];
+        Rd[3 * 2 + c].at(DIR_THETA + 0) = col[1];
+        Rd[3 * 0 + c].at(DIR_THETA + 1) = col[2];
+        Rd[3 * 2 + c].at(DIR_THETA + 1) = -col[0];
+        Rd[3 * 0 + c].at(DIR_THETA + 2) = -col[1];
+        Rd[3 * 1 + c].at(DIR_THETA + 2) = col[0];
     }
     // r: the legs' pulls at acc (as inverse_one sums them), the actuators' J^T F moved to the left
     D h_leg[6][6], Lddot_vel[6], r[6];
@@ -156,13 +161,10 @@ inline void acceleration_tangent(const V* prm, const DualOf<V>* P, int64_t flags
             for (int c = 0; c < 6; ++c) Lddot += rows[i][c] * D(acc[c]);
             for (int k = 0; k < 6; ++k) r[k] = lanes::select(inert, r[k] + mr[i] * Lddot * rows[i][k], r[k]);
         }
-    // M [dacc/dx, dacc/dF] = [-dr/dx, J^T]
-    V M[36], h[6], J[36];
-    kernels::assemble_one<V>(prm, flags, t, R, v, w, F, M, h, m_r);
-    kernels::jacobian_one<V>(prm, t, R, J);
+    // M [dacc/dx, dacc/dF] = [-dr/dx, J^T]; J's rows are the legs' rows' values (jacobian_row's)
     for (int k = 0; k < 6; ++k) {
         for (int m = 0; m < STATE_DIRECTIONS; ++m) jac[DIRECTIONS * k + m] = -r[k].derivative(m);
-        for (int i = 0; i < 6; ++i) jac[DIRECTIONS * k + DIR_F + i] = J[6 * i + k];
+        for (int i = 0; i < 6; ++i) jac[DIRECTIONS * k + DIR_F + i] = rows[i][k].v;
     }
     solve_columns<V>(M, jac, DIRECTIONS);
 }
@@ -180,9 +182,10 @@ inline auto acceleration_jacobian(const V* prm, int64_t flags, const V* t, const
     constant_params<V>(prm, P);
     if (m_r != nullptr)
         for (int i = 0; i < 6; ++i) mr[i] = DualOf<V>(m_r[i]);
-    V M[36], h[6];
-    kernels::forward_one<V>(prm, flags, t, R, v, w, F, W, M, h, acc, m_r);
-    acceleration_tangent<V>(prm, P, flags, t, R, v, w, F, W, m_r, mr, acc, jac);
+    V M[36], h[6], M_kept[36];
+    kernels::forward_one<V>(prm, flags, t, R, v, w, F, W, M, h, acc, m_r, M_kept);
+    acceleration_tangent<V>(P, flags, t, R, v, w, F, m_r, mr, acc, M_kept, jac);
+    unsigned_zeros<V>(jac, 6 * DIRECTIONS);
     return all_finite<V>(acc, 6) && all_finite<V>(jac, 6 * DIRECTIONS);
 }
 
@@ -209,12 +212,12 @@ struct StepInputs {
 template <typename V>
 inline void stage_tangent(const StepInputs<V>& in, const V* xs, const V* Xs, V* k, V* K) {
     constexpr int S = DIRECTIONS;
-    V F[6], R[9], M[36], h[6], acc[6], ja[6 * S];
+    V F[6], R[9], M[36], h[6], acc[6], ja[6 * S], M_kept[36];
     const rk4::LawRows<V> src{nullptr, nullptr, 0, 6, 0, in.forces};
     const auto evaluate_all = V(0.0) != V(0.0);  // no lane skipped
-    rk4::state_derivative<V>(in.prm, in.flags, src, 0.0, xs, F, in.wrench, R, M, h, acc, evaluate_all, k, in.m_r);
-    acceleration_tangent<V>(in.prm, in.P, in.flags, xs, R, xs + 7, xs + 10, in.forces, in.wrench, in.m_r, in.mr, acc,
-                            ja);
+    rk4::state_derivative<V>(in.prm, in.flags, src, 0.0, xs, F, in.wrench, R, M, h, acc, evaluate_all, k, in.m_r,
+                             M_kept);
+    acceleration_tangent<V>(in.P, in.flags, xs, R, xs + 7, xs + 10, in.forces, in.m_r, in.mr, acc, M_kept, ja);
     const V* q = xs + 3;
     const V n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
     // Xs in the stage's 12 coordinates, Z (12,18)
@@ -346,6 +349,7 @@ inline auto step_jacobian(const V* prm, int64_t flags, const V* t, const V* q0, 
             jac[S * (9 + j) + c] = X[S * (10 + j) + c];
         }
     }
+    unsigned_zeros<V>(jac, 12 * S);
     return finite && all_finite<V>(x, 13) && all_finite<V>(jac, 12 * S);
 }
 
@@ -357,13 +361,13 @@ inline void fill_nan(double* x, int size) {
 // Rows b, b + 1, ... of acceleration_jacobian_batch, as many as V carries: acceleration_jacobian
 // on the rows' numbers loaded into V, written back, a row NaN throughout where not finite.
 template <typename V>
-inline void acceleration_jacobian_row(const kernels::ParamRows& prm, int64_t flags, const double* t, const double* R,
-                                      const double* v, const double* w, const double* F, const double* W,
-                                      const double* m_r, int64_t n_mr, double* acc, double* jac, bool* finite,
-                                      int64_t b) {
-    constexpr int width = lanes::width<V>;
+inline void acceleration_jacobian_rows(const kernels::ParamRows& prm, int64_t flags, const double* t,
+                                       const double* R, const double* v, const double* w, const double* F,
+                                       const double* W, const double* m_r, int64_t n_mr, double* acc, double* jac,
+                                       bool* finite, int64_t b) {
+    constexpr int S = DIRECTIONS;
     kernels::ParamScratch<V> scratch;
-    V tl[3], Rl[9], vl[3], wl[3], Fl[6], Wl[6], mr[6], al[6], jl[6 * DIRECTIONS];
+    V tl[3], Rl[9], vl[3], wl[3], Fl[6], Wl[6], mr[6], al[6], jl[6 * S];
     lanes::load(t, 3, b, 3, tl);
     lanes::load(R, 9, b, 9, Rl);
     lanes::load(v, 3, b, 3, vl);
@@ -374,12 +378,12 @@ inline void acceleration_jacobian_row(const kernels::ParamRows& prm, int64_t fla
     const auto ok = acceleration_jacobian<V>(prm.rows(b, scratch.rows), flags, tl, Rl, vl, wl, Fl, Wl,
                                              m_r == nullptr ? nullptr : mr, al, jl);
     lanes::store(al, 6, acc, 6, b);
-    lanes::store(jl, 6 * DIRECTIONS, jac, 6 * DIRECTIONS, b);
-    for (int k = 0; k < width; ++k) {
+    lanes::store(jl, 6 * S, jac, 6 * S, b);
+    for (int k = 0; k < lanes::width<V>; ++k) {
         finite[b + k] = lanes::lane(ok, k);
         if (!finite[b + k]) {
             fill_nan(acc + 6 * (b + k), 6);
-            fill_nan(jac + 6 * DIRECTIONS * (b + k), 6 * DIRECTIONS);
+            fill_nan(jac + 6 * S * (b + k), 6 * S);
         }
     }
 }
@@ -387,7 +391,8 @@ inline void acceleration_jacobian_row(const kernels::ParamRows& prm, int64_t fla
 // acceleration_jacobian over a batch of n rows: prm (n_prm, N_PARAMS) with n_prm 1 or n; t, v, w
 // (n,3); R (n,3,3); F, W (n,6); m_r (n_mr, 6) with n_mr 1 or n, or nullptr; acc (n,6), jac
 // (n,6,18), a row NaN throughout where not finite; finite (n,) whether it is.  Blocks of rows run
-// in vector lanes and on every core (lanes::for_rows), each row's numbers those it has alone.
+// in vector lanes and on every core (lanes::for_rows), the rows left over one by one, each row's
+// numbers those it has alone.
 inline void acceleration_jacobian_batch(const double* prm, int64_t n_prm, int64_t flags, const double* t,
                                         const double* R, const double* v, const double* w, const double* F,
                                         const double* W, const double* m_r, int64_t n_mr, double* acc, double* jac,
@@ -395,17 +400,18 @@ inline void acceleration_jacobian_batch(const double* prm, int64_t n_prm, int64_
     const kernels::ParamRows rows(prm, n_prm, n);
     // a row costs about 30 forward evaluations
     lanes::for_rows(n, 30, [&](int64_t b, auto tag) {
-        acceleration_jacobian_row<decltype(tag)>(rows, flags, t, R, v, w, F, W, m_r, n_mr, acc, jac, finite, b);
+        acceleration_jacobian_rows<decltype(tag)>(rows, flags, t, R, v, w, F, W, m_r, n_mr, acc, jac, finite, b);
     });
 }
 
-// Rows b, b + 1, ... of step_jacobian_batch, as many as V carries (as acceleration_jacobian_row).
+// Rows b, b + 1, ... of step_jacobian_batch, as many as V carries (as acceleration_jacobian_rows),
+// each started from the quaternion of its R as rk4::rollout_row starts (rk4::matrix_to_quat).
 template <typename V>
-inline void step_jacobian_row(const kernels::ParamRows& prm, int64_t flags, const double* t, const double* R,
-                              const double* v, const double* w, const double* F, const double* W, const double* m_r,
-                              int64_t n_mr, double dt, int64_t steps, double* t_next, double* R_next, double* v_next,
-                              double* w_next, double* jac, bool* finite, int64_t b) {
-    constexpr int width = lanes::width<V>;
+inline void step_jacobian_rows(const kernels::ParamRows& prm, int64_t flags, const double* t, const double* R,
+                               const double* v, const double* w, const double* F, const double* W,
+                               const double* m_r, int64_t n_mr, double dt, int64_t steps, double* t_next,
+                               double* R_next, double* v_next, double* w_next, double* jac, bool* finite,
+                               int64_t b) {
     constexpr int S = DIRECTIONS;
     kernels::ParamScratch<V> scratch;
     V tl[3], ql[4], vl[3], wl[3], Fl[6], Wl[6], mr[6], tn[3], Rn[9], vn[3], wn[3], jl[12 * S];
@@ -415,7 +421,7 @@ inline void step_jacobian_row(const kernels::ParamRows& prm, int64_t flags, cons
     lanes::load(F, 6, b, 6, Fl);
     lanes::load(W, 6, b, 6, Wl);
     if (m_r != nullptr) lanes::load(m_r, n_mr == 1 ? 0 : 6, n_mr == 1 ? 0 : b, 6, mr);
-    for (int k = 0; k < width; ++k) {  // as rk4::rollout_row starts
+    for (int k = 0; k < lanes::width<V>; ++k) {
         double q[4];
         rk4::matrix_to_quat(R + 9 * (b + k), q);
         for (int j = 0; j < 4; ++j) lanes::put(ql[j], k, q[j]);
@@ -427,7 +433,7 @@ inline void step_jacobian_row(const kernels::ParamRows& prm, int64_t flags, cons
     lanes::store(vn, 3, v_next, 3, b);
     lanes::store(wn, 3, w_next, 3, b);
     lanes::store(jl, 12 * S, jac, 12 * S, b);
-    for (int k = 0; k < width; ++k) {
+    for (int k = 0; k < lanes::width<V>; ++k) {
         finite[b + k] = lanes::lane(ok, k);
         if (!finite[b + k]) {
             fill_nan(t_next + 3 * (b + k), 3);
@@ -448,8 +454,8 @@ inline void step_jacobian_batch(const double* prm, int64_t n_prm, int64_t flags,
                                 int64_t n) {
     const kernels::ParamRows rows(prm, n_prm, n);
     lanes::for_rows(n, 120 * steps, [&](int64_t b, auto tag) {
-        step_jacobian_row<decltype(tag)>(rows, flags, t, R, v, w, F, W, m_r, n_mr, dt, steps, t_next, R_next, v_next,
-                                         w_next, jac, finite, b);
+        step_jacobian_rows<decltype(tag)>(rows, flags, t, R, v, w, F, W, m_r, n_mr, dt, steps, t_next, R_next,
+                                          v_next, w_next, jac, finite, b);
     });
 }
 

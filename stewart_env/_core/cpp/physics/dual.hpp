@@ -11,6 +11,10 @@
 // A Dual whose derivatives are all zero (a parameter, a literal) is marked inactive and its
 // derivatives are neither stored nor computed: most of a kernel's operations touch a parameter, and
 // an operation with one inactive operand costs N multiplications instead of 2N and an addition.
+// In lanes the two halves of the directions are active apart (Dual::BLOCKS): the caller orders
+// its directions so that many numbers depend on one half alone (the derivatives put the pose's
+// six first and the twist's six after, and a leg's frame, length and inertias depend on the pose
+// alone), and an operation costs nothing in a half neither operand carries.
 //
 // Include this header before kernels.hpp and rk4.hpp: the kernels call lanes::sqrt_of,
 // lanes::select, ... by their qualified names, which finds the overloads declared before them.
@@ -29,88 +33,136 @@
 #else
 #define STEWART_ENV_DUAL_INLINE inline
 #endif
+// The loops over the blocks unrolled, so that each block's offset is a constant (whole aligned
+// vector moves) and its activity tests are plain branches.
+#if defined(__clang__)
+#define STEWART_ENV_EACH_BLOCK _Pragma("unroll")
+#elif defined(__GNUC__)
+#define STEWART_ENV_EACH_BLOCK _Pragma("GCC unroll 2")
+#else
+#define STEWART_ENV_EACH_BLOCK
+#endif
 
 namespace dual {
 
-//: A value v and its derivatives d[0..N) along N directions; d is meaningful only when active.
+//: A value v and its derivatives d[0..N) along N directions, in BLOCKS blocks of N / BLOCKS whose
+//: activity is kept apart: the derivatives of block b are meaningful only when active[b].
 //: V is double (one platform) or lanes::Lanes (one platform per lane, lanes.hpp): every operation
-//: then acts on each lane alone with the operations double does, so a platform's value and
-//: derivatives in a lane are bit for bit its own alone.  Activity is the same in every lane: it
-//: follows the kernel's code path (which numbers depend on a seed), not the data.
+//: then acts on each lane alone with the operations double does, so a platform's value is bit for
+//: bit its own alone, and its derivatives too up to the sign of a zero (an inactive block's
+//: derivatives are +0 where one platform's may be a computed -0; the callers add +0 to what they
+//: return, which makes them the same bits).  Activity is the same in every lane: it follows the
+//: kernel's code path (which numbers depend on a seed), not the data.
+//: One platform keeps one block (its twelve derivatives are one and a half vector moves, and
+//: testing two blocks at every operation costs it more than the blocks save); in lanes, where
+//: each direction is a whole vector, two (the first half and the second).
 //: The derivatives first and the whole on a cache line's boundary: the kernels copy Duals by value
 //: (V3 and friends), and a copy or an operation on d that straddles no line runs in whole vector
 //: moves (the step's Jacobians in half the time of the unaligned layout).
 template <int N, typename V = double>
 struct alignas(64) Dual {
+    //: Blocks of directions active apart.
+    static constexpr int BLOCKS = std::is_same_v<V, double> ? 1 : 2;
+    static_assert(N % BLOCKS == 0, "the directions split into BLOCKS blocks of equal size");
+    //: Directions per block.
+    static constexpr int STRIDE = N / BLOCKS;
     V d[N];
     V v;
-    bool active;
+    bool active[BLOCKS];
     Dual() = default;
-    // A copy carries the derivatives only when active: most numbers a kernel copies are parameters
-    // (inactive), whose derivatives would be dead bytes (in lanes, most of a kilobyte each).
-    Dual(const Dual& o) : v(o.v), active(o.active) {
-        if (active)
-            for (int k = 0; k < N; ++k) d[k] = o.d[k];
-    }
+    // A copy carries the derivatives of its active blocks only: most numbers a kernel copies are
+    // parameters (inactive), whose derivatives would be dead bytes (in lanes, most of a kilobyte).
+    Dual(const Dual& o) : v(o.v) { copy_derivatives(o); }
     Dual& operator=(const Dual& o) {
         v = o.v;
-        active = o.active;
-        if (active)
-            for (int k = 0; k < N; ++k) d[k] = o.d[k];
+        copy_derivatives(o);
         return *this;
     }
-    Dual(const V& x) : v(x), active(false) {}  // NOLINT: implicit, so literals and parameters mix with duals
+    Dual(const V& x) : v(x), active{} {}  // NOLINT: implicit, so literals and parameters mix with duals
     //: A literal in lanes: the same in every lane.
     template <typename U = V, typename = std::enable_if_t<!std::is_same_v<U, double>>>
-    Dual(double x) : v(x), active(false) {}  // NOLINT: implicit, as above
-    //: The value x with derivative 1 along direction k (a seed of forward mode).
+    Dual(double x) : v(x), active{} {}  // NOLINT: implicit, as above
+    //: The value x with derivative 1 along direction k (a seed of forward mode): k's block active.
     static Dual seed(const V& x, int k) {
         Dual r(x);
-        r.active = true;
-        for (int j = 0; j < N; ++j) r.d[j] = V(0.0);
-        r.d[k] = V(1.0);
+        r.activate(k / STRIDE);
+        r.at(k) = V(1.0);
         return r;
     }
-    //: Derivative along direction k (0 when inactive).
-    V derivative(int k) const { return active ? d[k] : V(0.0); }
+    //: Block b made active with zero derivatives (before a caller sets some).
+    void activate(int b) {
+        active[b] = true;
+        for (int j = b * STRIDE; j < (b + 1) * STRIDE; ++j) d[j] = V(0.0);
+    }
+    //: The derivative along direction k, as stored (its block must be active).
+    V& at(int k) { return d[k]; }
+    //: Derivative along direction k (0 when its block is inactive).
+    V derivative(int k) const { return active[k / STRIDE] ? d[k] : V(0.0); }
+
+   private:
+    void copy_derivatives(const Dual& o) {
+        for (int b = 0; b < BLOCKS; ++b) {
+            active[b] = o.active[b];
+            if (active[b])
+                for (int k = b * STRIDE; k < (b + 1) * STRIDE; ++k) d[k] = o.d[k];
+        }
+    }
 };
+
+// Each operation below is the chain rule on each block of directions: an operand inactive in a
+// block contributes nothing there, and a block neither operand carries stays inactive.
 
 template <int N, typename V>
 STEWART_ENV_DUAL_INLINE Dual<N, V> operator+(const Dual<N, V>& a, const Dual<N, V>& b) {
+    constexpr int S = Dual<N, V>::STRIDE;
     Dual<N, V> r(a.v + b.v);
-    if (a.active && b.active) {
-        r.active = true;
-        for (int k = 0; k < N; ++k) r.d[k] = a.d[k] + b.d[k];
-    } else if (a.active || b.active) {
-        r.active = true;
-        const V* d = a.active ? a.d : b.d;
-        for (int k = 0; k < N; ++k) r.d[k] = d[k];
+    STEWART_ENV_EACH_BLOCK
+    for (int blk = 0; blk < Dual<N, V>::BLOCKS; ++blk) {
+        const int lo = blk * S;
+        if (a.active[blk] && b.active[blk]) {
+            r.active[blk] = true;
+            for (int k = lo; k < lo + S; ++k) r.d[k] = a.d[k] + b.d[k];
+        } else if (a.active[blk] || b.active[blk]) {
+            r.active[blk] = true;
+            const V* d = a.active[blk] ? a.d : b.d;
+            for (int k = lo; k < lo + S; ++k) r.d[k] = d[k];
+        }
     }
     return r;
 }
 
 template <int N, typename V>
 STEWART_ENV_DUAL_INLINE Dual<N, V> operator-(const Dual<N, V>& a) {
+    constexpr int S = Dual<N, V>::STRIDE;
     Dual<N, V> r(-a.v);
-    if (a.active) {
-        r.active = true;
-        for (int k = 0; k < N; ++k) r.d[k] = -a.d[k];
+    STEWART_ENV_EACH_BLOCK
+    for (int blk = 0; blk < Dual<N, V>::BLOCKS; ++blk) {
+        const int lo = blk * S;
+        if (a.active[blk]) {
+            r.active[blk] = true;
+            for (int k = lo; k < lo + S; ++k) r.d[k] = -a.d[k];
+        }
     }
     return r;
 }
 
 template <int N, typename V>
 STEWART_ENV_DUAL_INLINE Dual<N, V> operator-(const Dual<N, V>& a, const Dual<N, V>& b) {
+    constexpr int S = Dual<N, V>::STRIDE;
     Dual<N, V> r(a.v - b.v);
-    if (a.active && b.active) {
-        r.active = true;
-        for (int k = 0; k < N; ++k) r.d[k] = a.d[k] - b.d[k];
-    } else if (a.active) {
-        r.active = true;
-        for (int k = 0; k < N; ++k) r.d[k] = a.d[k];
-    } else if (b.active) {
-        r.active = true;
-        for (int k = 0; k < N; ++k) r.d[k] = -b.d[k];
+    STEWART_ENV_EACH_BLOCK
+    for (int blk = 0; blk < Dual<N, V>::BLOCKS; ++blk) {
+        const int lo = blk * S;
+        if (a.active[blk] && b.active[blk]) {
+            r.active[blk] = true;
+            for (int k = lo; k < lo + S; ++k) r.d[k] = a.d[k] - b.d[k];
+        } else if (a.active[blk]) {
+            r.active[blk] = true;
+            for (int k = lo; k < lo + S; ++k) r.d[k] = a.d[k];
+        } else if (b.active[blk]) {
+            r.active[blk] = true;
+            for (int k = lo; k < lo + S; ++k) r.d[k] = -b.d[k];
+        }
     }
     return r;
 }
@@ -118,16 +170,21 @@ STEWART_ENV_DUAL_INLINE Dual<N, V> operator-(const Dual<N, V>& a, const Dual<N, 
 // (ab)' = a' b + a b'
 template <int N, typename V>
 STEWART_ENV_DUAL_INLINE Dual<N, V> operator*(const Dual<N, V>& a, const Dual<N, V>& b) {
+    constexpr int S = Dual<N, V>::STRIDE;
     Dual<N, V> r(a.v * b.v);
-    if (a.active && b.active) {
-        r.active = true;
-        for (int k = 0; k < N; ++k) r.d[k] = a.d[k] * b.v + a.v * b.d[k];
-    } else if (a.active) {
-        r.active = true;
-        for (int k = 0; k < N; ++k) r.d[k] = a.d[k] * b.v;
-    } else if (b.active) {
-        r.active = true;
-        for (int k = 0; k < N; ++k) r.d[k] = a.v * b.d[k];
+    STEWART_ENV_EACH_BLOCK
+    for (int blk = 0; blk < Dual<N, V>::BLOCKS; ++blk) {
+        const int lo = blk * S;
+        if (a.active[blk] && b.active[blk]) {
+            r.active[blk] = true;
+            for (int k = lo; k < lo + S; ++k) r.d[k] = a.d[k] * b.v + a.v * b.d[k];
+        } else if (a.active[blk]) {
+            r.active[blk] = true;
+            for (int k = lo; k < lo + S; ++k) r.d[k] = a.d[k] * b.v;
+        } else if (b.active[blk]) {
+            r.active[blk] = true;
+            for (int k = lo; k < lo + S; ++k) r.d[k] = a.v * b.d[k];
+        }
     }
     return r;
 }
@@ -135,16 +192,21 @@ STEWART_ENV_DUAL_INLINE Dual<N, V> operator*(const Dual<N, V>& a, const Dual<N, 
 // (a/b)' = (a' - (a/b) b') / b
 template <int N, typename V>
 STEWART_ENV_DUAL_INLINE Dual<N, V> operator/(const Dual<N, V>& a, const Dual<N, V>& b) {
+    constexpr int S = Dual<N, V>::STRIDE;
     Dual<N, V> r(a.v / b.v);
-    if (a.active && b.active) {
-        r.active = true;
-        for (int k = 0; k < N; ++k) r.d[k] = (a.d[k] - r.v * b.d[k]) / b.v;
-    } else if (a.active) {
-        r.active = true;
-        for (int k = 0; k < N; ++k) r.d[k] = a.d[k] / b.v;
-    } else if (b.active) {
-        r.active = true;
-        for (int k = 0; k < N; ++k) r.d[k] = -(r.v * b.d[k]) / b.v;
+    STEWART_ENV_EACH_BLOCK
+    for (int blk = 0; blk < Dual<N, V>::BLOCKS; ++blk) {
+        const int lo = blk * S;
+        if (a.active[blk] && b.active[blk]) {
+            r.active[blk] = true;
+            for (int k = lo; k < lo + S; ++k) r.d[k] = (a.d[k] - r.v * b.d[k]) / b.v;
+        } else if (a.active[blk]) {
+            r.active[blk] = true;
+            for (int k = lo; k < lo + S; ++k) r.d[k] = a.d[k] / b.v;
+        } else if (b.active[blk]) {
+            r.active[blk] = true;
+            for (int k = lo; k < lo + S; ++k) r.d[k] = -(r.v * b.d[k]) / b.v;
+        }
     }
     return r;
 }
@@ -227,11 +289,14 @@ namespace lanes {
 // sqrt(a)' = a' / (2 sqrt(a)): infinite at a = 0 (a leg of zero length), which the callers flag.
 template <int N, typename V>
 STEWART_ENV_DUAL_INLINE dual::Dual<N, V> sqrt_of(const dual::Dual<N, V>& a) {
+    constexpr int S = dual::Dual<N, V>::STRIDE;
     dual::Dual<N, V> r(lanes::sqrt_of(a.v));
-    if (a.active) {
-        r.active = true;
-        const V twice = 2.0 * r.v;
-        for (int k = 0; k < N; ++k) r.d[k] = a.d[k] / twice;
+    const V twice = 2.0 * r.v;
+    STEWART_ENV_EACH_BLOCK
+    for (int blk = 0; blk < dual::Dual<N, V>::BLOCKS; ++blk) {
+        if (!a.active[blk]) continue;
+        r.active[blk] = true;
+        for (int k = blk * S; k < (blk + 1) * S; ++k) r.d[k] = a.d[k] / twice;
     }
     return r;
 }
@@ -263,11 +328,15 @@ STEWART_ENV_DUAL_INLINE void put(dual::Dual<N>& x, int, double value) {
 template <int N>
 STEWART_ENV_DUAL_INLINE dual::Dual<N, Lanes> select(Mask m, const dual::Dual<N, Lanes>& a,
                                                      const dual::Dual<N, Lanes>& b) {
+    constexpr int S = dual::Dual<N, Lanes>::STRIDE;
     dual::Dual<N, Lanes> r(select(m, a.v, b.v));
-    if (a.active || b.active) {
-        r.active = true;
-        const Lanes zero(0.0);
-        for (int k = 0; k < N; ++k) r.d[k] = select(m, a.active ? a.d[k] : zero, b.active ? b.d[k] : zero);
+    const Lanes zero(0.0);
+    STEWART_ENV_EACH_BLOCK
+    for (int blk = 0; blk < dual::Dual<N, Lanes>::BLOCKS; ++blk) {
+        if (!a.active[blk] && !b.active[blk]) continue;
+        r.active[blk] = true;
+        for (int k = blk * S; k < (blk + 1) * S; ++k)
+            r.d[k] = select(m, a.active[blk] ? a.d[k] : zero, b.active[blk] ? b.d[k] : zero);
     }
     return r;
 }

@@ -79,6 +79,12 @@ using Inertia = std::array<T, 6>;
 template <typename T = double>
 using Row6 = std::array<T, 6>;
 
+//: How the small kernels below take a number: by value where it fits a vector register (double,
+//: Lanes), by reference where it does not (a dual number, in lanes most of a kilobyte, whose copy
+//: would cost more than its use).
+template <typename T>
+using Arg = std::conditional_t<(sizeof(T) <= 64), T, const T&>;
+
 constexpr int64_t C1 = 1;
 constexpr int64_t C2 = 2;
 constexpr int64_t C3 = 4;
@@ -189,14 +195,14 @@ struct LegAccel {
 
 // Components of a x b (docs/physics.md section 3.2; no paper equation).
 template <typename T>
-inline V3<T> cross(T a0, T a1, T a2, T b0, T b1, T b2) {
+inline V3<T> cross(Arg<T> a0, Arg<T> a1, Arg<T> a2, Arg<T> b0, Arg<T> b1, Arg<T> b2) {
     return {a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0};
 }
 
 // {B} components of a vector given in the leg frame fr = [e y z]: u = T_i u'.
 // docs/physics.md section 1; paper eq. 15 (T_i).
 template <typename T>
-inline V3<T> to_base(const LegFrame<T>& fr, T u0, T u1, T u2) {
+inline V3<T> to_base(const LegFrame<T>& fr, Arg<T> u0, Arg<T> u1, Arg<T> u2) {
     const auto& [e0, e1, e2] = fr.e;
     const auto& [y0, y1, y2] = fr.y;
     const auto& [z0, z1, z2] = fr.z;
@@ -206,7 +212,7 @@ inline V3<T> to_base(const LegFrame<T>& fr, T u0, T u1, T u2) {
 // Leg-frame components (u . e, u . y, u . z) of a vector given in {B}: u' = T_i^T u.
 // docs/physics.md section 1; paper eq. 15 (T_i).
 template <typename T>
-inline V3<T> to_leg(const LegFrame<T>& fr, T u0, T u1, T u2) {
+inline V3<T> to_leg(const LegFrame<T>& fr, Arg<T> u0, Arg<T> u1, Arg<T> u2) {
     const auto& [e0, e1, e2] = fr.e;
     const auto& [y0, y1, y2] = fr.y;
     const auto& [z0, z1, z2] = fr.z;
@@ -231,7 +237,7 @@ inline V3<T> with_platform_acc(const T* acc, const LegFrame<T>& fr, const V3<T>&
 // docs/physics.md sections 5.2 and 6 (C3, C4); the paper's shifted inertias before eq. 32 and
 // eq. 44, its CoM inertias eqs. 50 and 52.
 template <typename T>
-inline Inertia<T> inertia(const T* prm, int off, T s, T m, T r0, T r1, T r2) {
+inline Inertia<T> inertia(const T* prm, int off, Arg<T> s, Arg<T> m, Arg<T> r0, Arg<T> r1, Arg<T> r2) {
     const T rr = r0 * r0 + r1 * r1 + r2 * r2;
     const T sm = s * m;
     return {
@@ -247,7 +253,7 @@ inline Inertia<T> inertia(const T* prm, int off, T s, T m, T r0, T r1, T r2) {
 // Inertial moment I alpha + w x (I w) of a symmetric inertia I = (xx, yy, zz, xy, xz, yz).
 // docs/physics.md sections 5.2-5.3; the Euler terms of paper eqs. 32, 46, 50 and 53.
 template <typename T>
-inline V3<T> euler(const Inertia<T>& I, T a0, T a1, T a2, T w0, T w1, T w2) {
+inline V3<T> euler(const Inertia<T>& I, Arg<T> a0, Arg<T> a1, Arg<T> a2, Arg<T> w0, Arg<T> w1, Arg<T> w2) {
     const auto& [i00, i11, i22, i01, i02, i12] = I;
     const T iw0 = i00 * w0 + i01 * w1 + i02 * w2;
     const T iw1 = i01 * w0 + i11 * w1 + i12 * w2;
@@ -266,7 +272,7 @@ inline V3<T> euler(const Inertia<T>& I, T a0, T a1, T a2, T w0, T w1, T w2) {
 // form needs (C3).  docs/physics.md sections 4.3 (CoMs), 5.2 and 6 (C3); paper eqs. 28-29
 // (r_u, r_d), the inertias about B_i before eq. 32 and about the CoM in eq. 50.
 template <typename T>
-inline LegBodies<T> leg_bodies(const T* prm, int i, int64_t flags, T L) {
+inline LegBodies<T> leg_bodies(const T* prm, int i, int64_t flags, Arg<T> L) {
     const T m_u = prm[OFF_MU + i];
     const T m_d = prm[OFF_MD + i];
     const V3<T> r_u = {L + prm[OFF_RU + 3 * i], prm[OFF_RU + 3 * i + 1], prm[OFF_RU + 3 * i + 2]};
@@ -318,7 +324,7 @@ inline LegFrame<T> leg_frame(const T* prm, int i, const T* t, const T* R) {
 // docs/physics.md section 4.2; paper eqs. 13 (Ldot), 20-21 (w_perp) and 22 (the spin sigma);
 // C1 sets sigma = 0 (section 6).
 template <typename T>
-inline LegRates<T> leg_rates(int64_t flags, const LegFrame<T>& fr, T u0, T u1, T u2) {
+inline LegRates<T> leg_rates(int64_t flags, const LegFrame<T>& fr, Arg<T> u0, Arg<T> u1, Arg<T> u2) {
     const T w1 = -u2 / fr.L;
     const T w2 = u1 / fr.L;
     const T sigma = (flags & C1) ? 0.0 : fr.kx * w2 / fr.kz;
@@ -331,8 +337,8 @@ inline LegRates<T> leg_rates(int64_t flags, const LegFrame<T>& fr, T u0, T u1, T
 // docs/physics.md section 4.3; paper eqs. 14 (Lddot), 23-24 (alpha_perp = (al1, al2)), 26
 // (alpha_e = al0) and 27; C1 sets al0 = 0 (section 6).
 template <typename T>
-inline LegAccel<T> leg_accel(int64_t flags, const LegFrame<T>& fr, T Ldot, T sigma, T w1, T w2,
-                          T A0, T A1, T A2) {
+inline LegAccel<T> leg_accel(int64_t flags, const LegFrame<T>& fr, Arg<T> Ldot, Arg<T> sigma, Arg<T> w1, Arg<T> w2,
+                          Arg<T> A0, Arg<T> A1, Arg<T> A2) {
     const T L = fr.L, kx = fr.kx, kz = fr.kz;
     const T Lddot = A0 + L * (w1 * w1 + w2 * w2);
     const T al1 = (-A2 - 2.0 * Ldot * w1) / L + sigma * w2;
@@ -352,7 +358,7 @@ inline LegAccel<T> leg_accel(int64_t flags, const LegFrame<T>& fr, T Ldot, T sig
 // axial is e . F_s from the upper leg's Newton equation.  Linear in (N, axial).
 // docs/physics.md sections 5.1 and 6 (C2); paper eqs. 35, 37 (mu), 38 and 40.
 template <typename T>
-inline V3<T> leg_split(int64_t flags, const LegFrame<T>& fr, T N0, T N1, T N2, T axial) {
+inline V3<T> leg_split(int64_t flags, const LegFrame<T>& fr, Arg<T> N0, Arg<T> N1, Arg<T> N2, Arg<T> axial) {
     const T n2 = (flags & C2) ? N2 : N2 + N0 * fr.kx / fr.kz;
     return {axial, n2 / fr.L, -N1 / fr.L};
 }
@@ -363,8 +369,8 @@ inline V3<T> leg_split(int64_t flags, const LegFrame<T>& fr, T N0, T N1, T N2, T
 // docs/physics.md sections 5.1-5.2 and 6 (C3); paper eqs. 30-31, 33, 36 and 39 (their
 // acceleration terms), 41 and, in the centroidal form, 51.
 template <typename T>
-inline V3<T> leg_inertial_force(int64_t flags, const LegBodies<T>& bodies, const LegFrame<T>& fr, T Lddot,
-                             T al0, T al1, T al2) {
+inline V3<T> leg_inertial_force(int64_t flags, const LegBodies<T>& bodies, const LegFrame<T>& fr, Arg<T> Lddot,
+                             Arg<T> al0, Arg<T> al1, Arg<T> al2) {
     const T m_u = bodies.m_u, m_d = bodies.m_d;
     const auto& [ru0, ru1, ru2] = bodies.r_u;
     const auto& [rd0, rd1, rd2] = bodies.r_d;
@@ -433,8 +439,8 @@ inline V3<T> leg_rate_force(const T* prm, int64_t flags, const LegBodies<T>& bod
 // pushes the upper leg along e.  Returns (F0, F1, F2): the acceleration part plus the rate part.
 // docs/physics.md section 5.1; paper eqs. 38-41 (joint form) and 51 (centroidal form).
 template <typename T>
-inline V3<T> leg_force(const T* prm, int64_t flags, const LegBodies<T>& bodies, const LegState<T>& leg, T A0,
-                    T A1, T A2, T F_act) {
+inline V3<T> leg_force(const T* prm, int64_t flags, const LegBodies<T>& bodies, const LegState<T>& leg, Arg<T> A0,
+                    Arg<T> A1, Arg<T> A2, Arg<T> F_act) {
     const LegAccel<T> acc = leg_accel<T>(flags, leg.frame, leg.Ldot, leg.sigma, leg.w1, leg.w2, A0, A1, A2);
     const auto [a0, a1, a2] = leg_inertial_force<T>(flags, bodies, leg.frame, acc.Lddot, acc.al0, acc.al1, acc.al2);
     const auto [r0, r1, r2] = leg_rate_force<T>(prm, flags, bodies, leg);
@@ -445,8 +451,8 @@ inline V3<T> leg_force(const T* prm, int64_t flags, const LegBodies<T>& bodies, 
 // of Q_i when A' is a {B} unit vector in {D_i}.  docs/physics.md section 5.4; paper eqs. 41 and
 // 47-48.
 template <typename T>
-inline V3<T> unit_inertial_force(int64_t flags, const LegBodies<T>& bodies, const LegFrame<T>& fr, T A0, T A1,
-                              T A2) {
+inline V3<T> unit_inertial_force(int64_t flags, const LegBodies<T>& bodies, const LegFrame<T>& fr, Arg<T> A0, Arg<T> A1,
+                              Arg<T> A2) {
     const LegAccel<T> acc = leg_accel<T>(flags, fr, 0.0, 0.0, 0.0, 0.0, A0, A1, A2);
     return leg_inertial_force<T>(flags, bodies, fr, acc.Lddot, acc.al0, acc.al1, acc.al2);
 }
@@ -601,7 +607,7 @@ inline void platform_terms(const T* prm, int64_t flags, const T* R, const T* w, 
 // Add the wrench at P of a force f at P_i (q = P_i - P) to column c of M: [f; q x f].
 // docs/physics.md section 5.4; paper eqs. 47-48.
 template <typename T>
-inline void add_column(T* M, int c, T q0, T q1, T q2, T f0, T f1, T f2) {
+inline void add_column(T* M, int c, Arg<T> q0, Arg<T> q1, Arg<T> q2, Arg<T> f0, Arg<T> f1, Arg<T> f2) {
     const auto [n0, n1, n2] = cross<T>(q0, q1, q2, f0, f1, f2);
     M[6 * 0 + c] += f0;
     M[6 * 1 + c] += f1;
@@ -904,11 +910,14 @@ inline void assemble_one(const T* prm, int64_t flags, const T* t, const T* R, co
 // M (6,6) and h (6,) are scratch.  Assembles M [a; alpha] + h = J^T F + W and solves it; with the
 // legs' reflected masses m_r (6,) (nullptr: none), (M + J^T diag(m_r) J) [a; alpha] + h +
 // J^T diag(m_r) c = J^T F + W (add_reflected_mass).  docs/physics.md sections 5.4 and 10.2; paper
-// eq. 49 (joint form) or 55 (centroidal form).
+// eq. 49 (joint form) or 55 (centroidal form).  M_kept (36,), when not nullptr, receives the mass
+// matrix before the solve overwrites M (the derivatives solve with it again).
 template <typename T>
 inline void forward_one(const T* prm, int64_t flags, const T* t, const T* R, const T* v,
-                        const T* w, const T* F, const T* W, T* M, T* h, T* out, const T* m_r = nullptr) {
+                        const T* w, const T* F, const T* W, T* M, T* h, T* out, const T* m_r = nullptr,
+                        T* M_kept = nullptr) {
     assemble_one<T>(prm, flags, t, R, v, w, F, M, h, m_r);
+    if (M_kept != nullptr) std::copy(M, M + 36, M_kept);
     for (int r = 0; r < 6; ++r) h[r] = W[r] - h[r];
     solve6<T>(M, h, out);
 }

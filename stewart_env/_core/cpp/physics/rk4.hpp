@@ -159,13 +159,15 @@ inline void matrix_to_quat(const double* R, double* q) {
 
 // dx/dt for x = [t (3), quaternion (4), v (3), w (3)] under the leg forces of leg_forces at
 // (time, x) (lanes in skip not evaluated); quaternion rate 0.5 (0, w) * q.  F, R, M, h, acc are
-// scratch.  docs/physics.md section 5.6; the accelerations from paper eq. 49 or 55.
+// scratch; M_kept (36,), when not nullptr, receives the mass matrix (kernels::forward_one).
+// docs/physics.md section 5.6; the accelerations from paper eq. 49 or 55.
 template <typename T, typename Mask>
 inline void state_derivative(const T* prm, int64_t flags, const LawRows<T>& src, double time, const T* x, T* F,
-                             const T* W, T* R, T* M, T* h, T* acc, Mask skip, T* dx, const T* m_r = nullptr) {
+                             const T* W, T* R, T* M, T* h, T* acc, Mask skip, T* dx, const T* m_r = nullptr,
+                             T* M_kept = nullptr) {
     quat_to_matrix<T>(x + 3, R);
     const T* forces = leg_forces<T>(src, time, x, R, skip, F);
-    kernels::forward_one<T>(prm, flags, x, R, x + 7, x + 10, forces, W, M, h, acc, m_r);
+    kernels::forward_one<T>(prm, flags, x, R, x + 7, x + 10, forces, W, M, h, acc, m_r, M_kept);
     dx[0] = x[7];
     dx[1] = x[8];
     dx[2] = x[9];
