@@ -50,6 +50,10 @@ home = se.Reference(params.home_position, se.rpy_to_matrix(params.home_rpy), np.
 law_params = pd_control_params(params, home, gravity_compensation=True)
 add(*se.rollout(model, t[:16], R[:16], v[:16], w[:16], dt=1e-3, steps=200, control_law=pd_control_law,
                 control_params=law_params))
+# the exact derivatives: a block of eight rows in vector lanes and three left over
+add(*model.acceleration_jacobians(t[:11], R[:11], v[:11], w[:11], F[:11], W[:11]))
+jac = model.step_jacobians(t[:11], R[:11], v[:11], w[:11], F[:11], 0.01, 10, W[:11])
+add(jac.A, jac.B, *jac.state)
 
 env = gym.make("StewartPlatform-v1", task="tracking")
 obs, _ = env.reset(seed=0)
