@@ -7,6 +7,8 @@ The package, one module per job:
 - :mod:`~stewart_env.agents.training.action_rate`: :class:`ActionRatePenalty`, the training
   batch's penalty on the action's change (a config's ``vec_env_wrapper``), imported where named,
   since it imports stable-baselines3;
+- :mod:`~stewart_env.agents.training.precision`: :class:`PrecisionReward`, the training batch's
+  reward at the success band's scale (a config's ``vec_env_wrapper``), imported where named;
 - :mod:`~stewart_env.agents.training.env_kwargs`: ``--env-kwargs`` and JSON-fit settings;
 - :mod:`~stewart_env.agents.training.rundir`: the run directory (manifest, checkpoints, hashes),
   written and read through :mod:`stewart_env.files`;

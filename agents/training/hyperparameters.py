@@ -79,7 +79,10 @@ ZOO_KEYS_HANDLED = (
 ZOO_KEYS_ZOO_ONLY = ("frame_stack", "env_wrapper", "callback", "monitor_kwargs")
 #: The vector-environment wrappers a config may name under ``vec_env_wrapper``, by the dotted path
 #: rl_zoo3 imports: the package's own only, so that a config names no other code to run.
-VEC_ENV_WRAPPERS = ("stewart_env.agents.training.action_rate.ActionRatePenalty",)
+VEC_ENV_WRAPPERS = (
+    "stewart_env.agents.training.action_rate.ActionRatePenalty",
+    "stewart_env.agents.training.precision.PrecisionReward",
+)
 #: Zoo keys whose string value is a Python expression to rl_zoo3; here, data in that syntax.
 ZOO_EVALUATED_KEYS = ("policy_kwargs", "replay_buffer_class", "replay_buffer_kwargs")
 #: Zoo keys that accept a schedule string "lin_<initial value>".

@@ -32,7 +32,8 @@ class StewartPlatformSB3VecEnv(VecEnv):
     ``infos[i]["is_success"]`` whether the episode met the task's success criterion, as the
     environment's ``info["is_success"]`` (what SB3's ``EvalCallback`` and ``Monitor`` read at an
     episode's end).  Every row's info holds the step's constraint costs, ``cost`` and
-    ``cost_<constraint>`` (floats), as the environment's.  ``seed(s)`` seeds row i with s + i at the next ``reset()``, as SB3's own VecEnvs
+    ``cost_<constraint>``, and the errors of the success criterion, ``position_error`` (m) and
+    ``orientation_error`` (rad) (floats), as the environment's.  ``seed(s)`` seeds row i with s + i at the next ``reset()``, as SB3's own VecEnvs
     do, so row i reproduces ``gymnasium.make("StewartPlatform-v1")`` reset with seed s + i.
     Wrap in ``VecMonitor`` for episode statistics.
 
@@ -148,7 +149,7 @@ class StewartPlatformSB3VecEnv(VecEnv):
         done = terminated | truncated
         time_limit = truncated & ~terminated
         row_infos = [{"TimeLimit.truncated": bool(time_limit[i])} for i in range(self.num_envs)]
-        self._add_costs(row_infos, infos, done)
+        self._add_step_values(row_infos, infos, done)
         if done.any():
             rows = np.flatnonzero(done)
             codes, success = infos["final_info"]["termination"], infos["final_info"]["is_success"]
@@ -159,11 +160,12 @@ class StewartPlatformSB3VecEnv(VecEnv):
                 self.reset_infos[i] = info
         return obs, reward.astype(np.float32), done, row_infos
 
-    def _add_costs(self, row_infos: list[dict[str, Any]], infos: dict[str, Any], done: np.ndarray) -> None:
-        """Each row's constraint costs of the step (``cost``, ``cost_<constraint>``, floats), read
-        from the vector infos: a done row's from its final info."""
+    def _add_step_values(self, row_infos: list[dict[str, Any]], infos: dict[str, Any], done: np.ndarray) -> None:
+        """Each row's constraint costs of the step (``cost``, ``cost_<constraint>``) and its errors
+        (``position_error``, ``orientation_error``), floats, read from the vector infos: a done
+        row's from its final info."""
         final = infos.get("final_info", {})
-        for key in self.venv._core.costs.info_keys:
+        for key in (*self.venv._core.costs.info_keys, "position_error", "orientation_error"):
             values = infos[key].tolist()
             if done.any():
                 for i, value in zip(np.flatnonzero(done).tolist(), final[key][done].tolist()):

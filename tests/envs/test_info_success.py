@@ -292,6 +292,27 @@ def test_the_sb3_vec_env_reports_is_success_at_an_episode_s_end():
     assert dones.all() and [info["is_success"] for info in infos] == [True, True]
 
 
+def test_the_sb3_vec_env_rows_carry_the_errors_of_the_vector_env_also_at_an_episode_s_end():
+    pytest.importorskip("stable_baselines3")
+    from gymnasium.vector import AutoresetMode
+
+    from stewart_env.envs import StewartPlatformSB3VecEnv, StewartPlatformVectorEnv
+
+    venv = StewartPlatformSB3VecEnv(num_envs=2, max_episode_steps=3)
+    vector = StewartPlatformVectorEnv(num_envs=2, max_episode_steps=3, autoreset_mode=AutoresetMode.SAME_STEP)
+    venv.seed(0)
+    venv.reset()
+    vector.reset(seed=0)
+    for _ in range(3):
+        action = np.full((2, 6), 0.1, np.float32)
+        *_, dones, infos = venv.step(action)
+        expected = vector.step(action)[-1]
+    assert dones.all()  # the errors of the episode's last step, not of the reset
+    for key in ("position_error", "orientation_error"):
+        np.testing.assert_array_equal([info[key] for info in infos], expected["final_info"][key])
+        assert all(type(info[key]) is float and info[key] > 0 for info in infos)
+
+
 # -- outside tools ------------------------------------------------------------------------------------------
 
 

@@ -127,9 +127,14 @@ def test_training_env_puts_the_wrapper_between_monitor_and_normalisation():
         env.close()
 
 
-def test_shipped_pose_config_trains_with_the_penalty():
+def test_shipped_pose_config_trains_with_the_penalty_and_the_precision_reward():
+    from stewart_env.agents.training.precision import PrecisionReward
+
     hp = parse_hyperparameters("ppo", read_hyperparameters("ppo", "ppo_pose"))
-    assert [(cls, options) for cls, options in hp.vec_env_wrappers] == [(ActionRatePenalty, {"weight": 2.0})]
+    assert [(cls, options) for cls, options in hp.vec_env_wrappers] == [
+        (ActionRatePenalty, {"weight": 2.0}),
+        (PrecisionReward, {"weight": 0.5, "position_scale": 0.01, "orientation_scale": 0.02}),
+    ]
     assert "vec_env_wrapper" not in hp.algorithm_kwargs
 
 
