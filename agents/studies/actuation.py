@@ -122,6 +122,9 @@ class ActuationSettings:
             read only: a missing agent leaves its cell out (None: the study's ``agents`` folder,
             where it trains the missing ones).
         max_steps: evaluation episode length in control steps (None: the registered 500).
+        ppo_trained_on: the actuator every PPO agent is trained on, whatever actuator its cell
+            runs (None: each cell's own): ``"ideal"`` runs the agents trained on ideal force
+            sources on every actuator of the cells, what the drives cost one agent.
     """
 
     tasks: Sequence[str] = TASKS
@@ -133,6 +136,7 @@ class ActuationSettings:
     timesteps: int | None = None
     agents: str | os.PathLike | None = None
     max_steps: int | None = None
+    ppo_trained_on: str | None = None
 
     def __post_init__(self) -> None:
         def set_(name: str, value: Any) -> None:  # a frozen record sets its checked values once, here
@@ -146,6 +150,9 @@ class ActuationSettings:
                 raise ActuationError(f"{name}: {problem}", argument=name, problem=problem)
             set_(name, tuple(dict.fromkeys(given)))
         set_("ppo_cells", tuple(_ppo_cell(c) for c in self.ppo_cells))
+        if self.ppo_trained_on is not None and self.ppo_trained_on not in ACTUATORS:
+            problem = f"expected one of {', '.join(ACTUATORS)} or None, got {self.ppo_trained_on!r}"
+            raise ActuationError(f"ppo_trained_on: {problem}", argument="ppo_trained_on", problem=problem)
         for name in ("episodes", "timesteps", "max_steps"):
             value = getattr(self, name)
             if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
@@ -164,6 +171,10 @@ class ActuationSettings:
                 problem = f"{folder} is not a folder of trained agents"
                 raise ActuationError(f"agents: {problem}", argument="agents", problem=problem)
             set_("agents", str(folder.resolve()))
+
+    def training_actuator(self, actuator: str) -> str:
+        """The actuator the PPO agents of a cell on ``actuator`` are trained on."""
+        return actuator if self.ppo_trained_on is None else self.ppo_trained_on
 
     def cells(self) -> list[tuple[str, str, str, str]]:
         """Every (task, mode, controller, actuator) cell of the study, in the tables' order."""
@@ -362,6 +373,8 @@ def cell_spec(settings: ActuationSettings, cell, agent: Path | None, seed: int |
     }
     if agent is not None:
         spec["env_kwargs"] = jsonable(training_env_kwargs(mode, actuator, task))
+        if settings.ppo_trained_on is not None:  # (a study's own agents keep the spec they had)
+            spec["agent_trained_on"] = settings.ppo_trained_on
         spec["agent_seed"] = seed
         spec["agent_sha256"] = read_manifest(agent)["files"][MODEL_FILE]
     return spec
@@ -440,7 +453,8 @@ def run_actuation(
             task, mode, controller, actuator = cell
             seeds = settings.seeds if controller == "ppo" else (None,)
             for seed in seeds:
-                agent = None if seed is None else agent_folder(agents, mode, actuator, task, seed)
+                trained_on = settings.training_actuator(actuator)
+                agent = None if seed is None else agent_folder(agents, mode, trained_on, task, seed)
                 if seed is not None and (cell, seed) in missing:
                     continue
                 jobs.append((cell, seed, agent))
@@ -463,15 +477,16 @@ def _train_agents(agents: Path, settings: ActuationSettings, own: bool, progress
         if mode not in settings.modes or actuator not in settings.actuators or task not in settings.tasks:
             continue
         cell = (task, mode, "ppo", actuator)
-        expected = jsonable(training_env_kwargs(mode, actuator, task))
+        trained_on = settings.training_actuator(actuator)
+        expected = jsonable(training_env_kwargs(mode, trained_on, task))
         for seed in settings.seeds:
-            folder = agent_folder(agents, mode, actuator, task, seed)
+            folder = agent_folder(agents, mode, trained_on, task, seed)
             if finished_agent(folder, "ppo", seed, expected):
                 continue
             if not own:
                 missing.add((cell, seed))
                 continue
-            rest = {k: v for k, v in training_env_kwargs(mode, actuator, task).items() if k not in ("model", "task")}
+            rest = {k: v for k, v in training_env_kwargs(mode, trained_on, task).items() if k not in ("model", "task")}
             training = dict(
                 algo="ppo", model="improved", task=task, seed=seed, n_envs=None, checkpoint_freq=0,
                 env_kwargs=rest, config=str(config_path("ppo", PPO_CONFIGS[mode])),
@@ -584,7 +599,15 @@ def _write_outputs(
         "# What actuation costs\n\n"
         f"Platform {PLATFORM}; the lag actuator's time constant {LAG_TAU} s; {settings.episodes} evaluation "
         "episodes a cell (and a PPO seed); each number the mean with its 95 % stratified bootstrap interval "
-        "over seeds and episodes.\n\n" + markdown_table(results) + note
+        "over seeds and episodes."
+        + (
+            ""
+            if settings.ppo_trained_on is None
+            else f" Every PPO agent was trained on the {settings.ppo_trained_on} actuator and runs on its row's."
+        )
+        + "\n\n"
+        + markdown_table(results)
+        + note
     )
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
@@ -600,6 +623,7 @@ def _write_outputs(
         "episodes": settings.episodes,
         "eval_seed": EVAL_SEED,
         "ppo_seeds": list(settings.seeds),
+        "ppo_trained_on": settings.ppo_trained_on,
         "wall_time": wall_time,
         "cells": [
             {

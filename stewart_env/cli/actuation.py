@@ -77,6 +77,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument(
         "--max-steps", type=positive_int, default=None, help="episode length in control steps (default: 500)"
     )
+    p.add_argument(
+        "--ppo-trained-on",
+        default=None,
+        metavar="ACTUATOR",
+        help="train every PPO agent on this actuator and run it on its cell's (e.g. ideal: what the drives cost "
+        "one agent; default: each cell's own actuator)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
 
@@ -108,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
             timesteps=args.timesteps,
             agents=args.agents,
             max_steps=args.max_steps,
+            ppo_trained_on=args.ppo_trained_on,
         )
     except ActuationError as err:
         return error(VERB, f"argument --{err.argument.replace('_cells', '').replace('_', '-')}: {err.problem}")

@@ -128,6 +128,7 @@ def test_ppo_cells_without_an_agent_in_a_given_folder_are_left_out_and_listed(tm
         ({"episodes": 0}, "episodes", "expected a positive integer, got 0"),
         ({"seeds": (1, 1)}, "seeds", "each seed once"),
         ({"agents": "/nonexistent/agents"}, "agents", "is not a folder of trained agents"),
+        ({"ppo_trained_on": "pneumatic"}, "ppo_trained_on", "expected one of ideal, lag, electric, hydraulic"),
     ],
 )
 def test_bad_settings_name_themselves(kwargs, argument, message):
@@ -233,3 +234,35 @@ def test_ppo_agents_are_trained_into_the_study_and_reused(tmp_path, monkeypatch)
     assert (tmp_path / "cells/setpoint/pose/ppo/electric/seed_3.json").is_file()
     run_actuation(tmp_path, settings, progress=False)
     assert len(trained) == 1  # the finished agent is reused
+
+
+def test_ppo_agents_trained_on_one_actuator_run_on_every_cell(tmp_path, monkeypatch):
+    """ppo_trained_on="ideal": one agent per seed, trained on ideal force sources, runs both the
+    ideal and the electric cell; the spec and the table say so."""
+    _tiny_controllers(monkeypatch)
+    trained = []
+    real = actuation.train_agent
+
+    def counted(folder, training, timesteps, progress=False):
+        trained.append((folder.parent.name, training["env_kwargs"]["actuator"]))
+        return real(folder, {**training, "n_envs": 2}, timesteps, progress)
+
+    monkeypatch.setattr(actuation, "train_agent", counted)
+    settings = ActuationSettings(
+        **{**TINY, "actuators": ("ideal", "electric")},
+        ppo_cells=["pose:ideal:setpoint", "pose:electric:setpoint"],
+        seeds=(2,),
+        timesteps=64,
+        ppo_trained_on="ideal",
+    )
+    result = run_actuation(tmp_path, settings, progress=False)
+    assert trained == [("pose-ideal-setpoint", "ideal")]  # one agent, trained once, on ideal sources
+    assert not (tmp_path / "agents" / "pose-electric-setpoint").exists()
+    ppo = {r.cell[3]: r for r in result["cells"] if r.cell[2] == "ppo"}
+    assert sorted(ppo) == ["electric", "ideal"]
+    electric = json.loads((tmp_path / "cells/setpoint/pose/ppo/electric/seed_2.json").read_text())
+    assert electric["spec"]["agent_trained_on"] == "ideal"
+    assert electric["spec"]["env_kwargs"]["actuator"] == "electric"  # it runs on the electric drives
+    ideal = json.loads((tmp_path / "cells/setpoint/pose/ppo/ideal/seed_2.json").read_text())
+    assert ideal["spec"]["agent_sha256"] == electric["spec"]["agent_sha256"]
+    assert "trained on the ideal actuator" in (tmp_path / "actuation.md").read_text()

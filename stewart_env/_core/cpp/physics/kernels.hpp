@@ -339,7 +339,7 @@ inline LegRates<T> leg_rates(int64_t flags, const LegFrame<T>& fr, Arg<T> u0, Ar
 template <typename T>
 inline LegAccel<T> leg_accel(int64_t flags, const LegFrame<T>& fr, Arg<T> Ldot, Arg<T> sigma, Arg<T> w1, Arg<T> w2,
                           Arg<T> A0, Arg<T> A1, Arg<T> A2) {
-    const T L = fr.L, kx = fr.kx, kz = fr.kz;
+    const Arg<T> L = fr.L, kx = fr.kx, kz = fr.kz;
     const T Lddot = A0 + L * (w1 * w1 + w2 * w2);
     const T al1 = (-A2 - 2.0 * Ldot * w1) / L + sigma * w2;
     const T al2 = (A1 - 2.0 * Ldot * w2) / L - sigma * w1;
@@ -371,7 +371,7 @@ inline V3<T> leg_split(int64_t flags, const LegFrame<T>& fr, Arg<T> N0, Arg<T> N
 template <typename T>
 inline V3<T> leg_inertial_force(int64_t flags, const LegBodies<T>& bodies, const LegFrame<T>& fr, Arg<T> Lddot,
                              Arg<T> al0, Arg<T> al1, Arg<T> al2) {
-    const T m_u = bodies.m_u, m_d = bodies.m_d;
+    const Arg<T> m_u = bodies.m_u, m_d = bodies.m_d;
     const auto& [ru0, ru1, ru2] = bodies.r_u;
     const auto& [rd0, rd1, rd2] = bodies.r_d;
     const auto [x0, x1, x2] = cross<T>(al0, al1, al2, ru0, ru1, ru2);
@@ -397,10 +397,10 @@ inline V3<T> leg_inertial_force(int64_t flags, const LegBodies<T>& bodies, const
 // gravity and friction terms), 41 and, in the centroidal form, 51.
 template <typename T>
 inline V3<T> leg_rate_force(const T* prm, int64_t flags, const LegBodies<T>& bodies, const LegState<T>& leg) {
-    const T Ldot = leg.Ldot, w0 = leg.sigma, w1 = leg.w1, w2 = leg.w2;
+    const Arg<T> Ldot = leg.Ldot, w0 = leg.sigma, w1 = leg.w1, w2 = leg.w2;
     const auto& [o0, o1, o2] = leg.omega;
     const auto& [g0, g1, g2] = leg.gravity;
-    const T m_u = bodies.m_u, m_d = bodies.m_d;
+    const Arg<T> m_u = bodies.m_u, m_d = bodies.m_d;
     const auto& [ru0, ru1, ru2] = bodies.r_u;
     const auto& [rd0, rd1, rd2] = bodies.r_d;
     const T ww = w0 * w0 + w1 * w1 + w2 * w2;
