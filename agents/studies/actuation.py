@@ -445,6 +445,7 @@ def run_actuation(
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     with lock_folder(out):  # one command at a time on a study
+        _check_observations_match(settings)
         agents = Path(settings.agents) if settings.agents is not None else out / AGENTS_DIR
         missing = _train_agents(agents, settings, own=settings.agents is None, progress=progress)
         cells = settings.cells()
@@ -467,6 +468,37 @@ def run_actuation(
         results = [r for r in results if r is not None]
         files = _write_outputs(out, results, settings, missing, time.perf_counter() - start)
     return {"cells": results, "missing": sorted(missing), "files": files}
+
+
+def _check_observations_match(settings: ActuationSettings) -> None:
+    """With ``ppo_trained_on``, every PPO cell's observation must be the one its agents were
+    trained on: an actuator whose drive state the observation carries (the lag's forces) has more.
+
+    Raises:
+        ActuationError: a cell whose observation differs, naming ``ppo_trained_on`` and the actuator.
+    """
+    if settings.ppo_trained_on is None:
+        return
+    import gymnasium as gym
+
+    def shape(mode: str, actuator: str, task: str) -> tuple[int, ...]:
+        env = gym.make("StewartPlatform-v1", **training_env_kwargs(mode, actuator, task))
+        try:
+            return env.observation_space.shape
+        finally:
+            env.close()
+
+    for mode, actuator, task in settings.ppo_cells:
+        if mode not in settings.modes or actuator not in settings.actuators or task not in settings.tasks:
+            continue
+        trained, runs = shape(mode, settings.ppo_trained_on, task), shape(mode, actuator, task)
+        if trained != runs:
+            problem = (
+                f"an agent trained on the {settings.ppo_trained_on} actuator observes {trained[0]} numbers, the "
+                f"{actuator} actuator's observation has {runs[0]} ({mode}, {task}): drop that cell or train its "
+                "agents on its own actuator (no ppo_trained_on)"
+            )
+            raise ActuationError(f"ppo_trained_on: {problem}", argument="ppo_trained_on", problem=problem)
 
 
 def _train_agents(agents: Path, settings: ActuationSettings, own: bool, progress: bool) -> set:

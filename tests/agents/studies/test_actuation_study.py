@@ -266,3 +266,15 @@ def test_ppo_agents_trained_on_one_actuator_run_on_every_cell(tmp_path, monkeypa
     ideal = json.loads((tmp_path / "cells/setpoint/pose/ppo/ideal/seed_2.json").read_text())
     assert ideal["spec"]["agent_sha256"] == electric["spec"]["agent_sha256"]
     assert "trained on the ideal actuator" in (tmp_path / "actuation.md").read_text()
+
+
+def test_agents_trained_on_one_actuator_cannot_run_where_the_observation_differs(tmp_path):
+    """The lag actuator's observation carries the lagged forces (six numbers more): an agent
+    trained on ideal sources cannot read it, and the study says so before it trains anything."""
+    settings = ActuationSettings(
+        **{**TINY, "actuators": ("ideal", "lag")}, ppo_cells=["pose:lag:setpoint"], seeds=(0,), ppo_trained_on="ideal"
+    )
+    with pytest.raises(ActuationError, match="observes 27 numbers, the lag actuator's observation has 33") as err:
+        run_actuation(tmp_path, settings, progress=False)
+    assert err.value.argument == "ppo_trained_on"
+    assert not (tmp_path / "agents").exists()
