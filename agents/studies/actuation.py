@@ -115,7 +115,8 @@ class ActuationSettings:
         actuators: the actuator levels, of the environment's ``ACTUATORS``.
         episodes: evaluation episodes per cell (and per PPO seed), seeds EVAL_SEED + k.
         ppo_cells: the (mode, actuator, task) cells PPO runs in, each ``"MODE:ACTUATOR:TASK"``
-            or a triple; () for the model-based controllers only.
+            or a triple, or ``"all"`` for every cell of the study; () for the model-based
+            controllers only.
         seeds: PPO's training seeds, one agent each per PPO cell.
         timesteps: environment steps per agent (None: the mode's config's n_timesteps).
         agents: a folder of trained agents, laid out as the study's own (``MODE-ACTUATOR-TASK/seed_S``),
@@ -149,7 +150,12 @@ class ActuationSettings:
                 problem = f"expected one or more of {', '.join(choices)}, got {list(given)!r}"
                 raise ActuationError(f"{name}: {problem}", argument=name, problem=problem)
             set_(name, tuple(dict.fromkeys(given)))
-        set_("ppo_cells", tuple(_ppo_cell(c) for c in self.ppo_cells))
+        cells = list(self.ppo_cells)
+        if "all" in cells:  # every (mode, actuator, task) of the study
+            cells = [c for c in cells if c != "all"] + [
+                (m, a, t) for m in self.modes for a in self.actuators for t in self.tasks
+            ]
+        set_("ppo_cells", tuple(dict.fromkeys(_ppo_cell(c) for c in cells)))
         if self.ppo_trained_on is not None and self.ppo_trained_on not in ACTUATORS:
             problem = f"expected one of {', '.join(ACTUATORS)} or None, got {self.ppo_trained_on!r}"
             raise ActuationError(f"ppo_trained_on: {problem}", argument="ppo_trained_on", problem=problem)

@@ -56,7 +56,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         nargs="*",
         default=[],
         metavar="MODE:ACTUATOR:TASK",
-        help="the cells PPO runs in, e.g. pose:electric:setpoint (default: none, the model-based controllers only)",
+        help="the cells PPO runs in, e.g. pose:electric:setpoint, or all (every mode, actuator and task asked; "
+        "default: none, the model-based controllers only)",
     )
     p.add_argument(
         "--seeds", type=seed_list, default=(0, 1, 2), help="PPO's training seeds, comma-separated (default: 0,1,2)"

@@ -278,3 +278,8 @@ def test_agents_trained_on_one_actuator_cannot_run_where_the_observation_differs
         run_actuation(tmp_path, settings, progress=False)
     assert err.value.argument == "ppo_trained_on"
     assert not (tmp_path / "agents").exists()
+
+
+def test_all_ppo_cells_are_every_mode_actuator_and_task_of_the_study():
+    settings = ActuationSettings(**TINY, ppo_cells=["all", "pose:ideal:setpoint"])
+    assert settings.ppo_cells == (("pose", "ideal", "setpoint"), ("pose", "electric", "setpoint"))
