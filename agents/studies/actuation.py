@@ -179,7 +179,11 @@ class ActuationSettings:
             set_("agents", str(folder.resolve()))
 
     def training_actuator(self, actuator: str) -> str:
-        """The actuator the PPO agents of a cell on ``actuator`` are trained on."""
+        """The actuator the PPO agents of a cell are trained on.
+
+        Args:
+            actuator: the cell's actuator, the one its agents run on.
+        """
         return actuator if self.ppo_trained_on is None else self.ppo_trained_on
 
     def cells(self) -> list[tuple[str, str, str, str]]:
