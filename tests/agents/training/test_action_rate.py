@@ -9,8 +9,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from gymnasium import spaces  # noqa: E402
-from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize  # noqa: E402
+from scripted_batch import ScriptedBatch  # noqa: E402
+from stable_baselines3.common.vec_env import VecMonitor, VecNormalize  # noqa: E402
 
 from stewart_env.agents.training import (  # noqa: E402
     TrainingError,
@@ -22,39 +22,6 @@ from stewart_env.agents.training.action_rate import ActionRatePenalty, action_ra
 from stewart_env.errors import UsageError  # noqa: E402
 
 WRAPPER = "stewart_env.agents.training.action_rate.ActionRatePenalty"
-
-
-class ScriptedBatch(VecEnv):
-    """Two rows of two action components in [-1, 1], reward 1 every step, the dones given by the test."""
-
-    def __init__(self):
-        super().__init__(2, spaces.Box(-1.0, 1.0, (1,)), spaces.Box(-1.0, 1.0, (2,)))
-        self.dones = np.zeros(2, dtype=bool)
-        self.received = None
-
-    def reset(self):
-        return np.zeros((2, 1), np.float32)
-
-    def step_async(self, actions):
-        self.received = np.array(actions)
-
-    def step_wait(self):
-        return np.zeros((2, 1), np.float32), np.ones(2, np.float32), self.dones.copy(), [{}, {}]
-
-    def close(self):
-        pass
-
-    def get_attr(self, attr_name, indices=None):
-        return [None, None]
-
-    def set_attr(self, attr_name, value, indices=None):
-        pass
-
-    def env_method(self, method_name, *args, indices=None, **kwargs):
-        return [None, None]
-
-    def env_is_wrapped(self, wrapper_class, indices=None):
-        return [False, False]
 
 
 def step(env: ActionRatePenalty, actions) -> np.ndarray:

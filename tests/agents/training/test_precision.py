@@ -9,47 +9,14 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from gymnasium import spaces  # noqa: E402
-from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize  # noqa: E402
+from scripted_batch import ScriptedBatch  # noqa: E402
+from stable_baselines3.common.vec_env import VecMonitor, VecNormalize  # noqa: E402
 
 from stewart_env.agents.training import TrainingError, make_training_env, parse_hyperparameters  # noqa: E402
 from stewart_env.agents.training.precision import PrecisionReward, precision_reward  # noqa: E402
 from stewart_env.errors import UsageError  # noqa: E402
 
 WRAPPER = "stewart_env.agents.training.precision.PrecisionReward"
-
-
-class ScriptedBatch(VecEnv):
-    """Two rows, reward 1 every step, the infos given by the test."""
-
-    def __init__(self):
-        super().__init__(2, spaces.Box(-1.0, 1.0, (1,)), spaces.Box(-1.0, 1.0, (2,)))
-        self.infos = [{}, {}]
-        self.dones = np.zeros(2, dtype=bool)
-
-    def reset(self):
-        return np.zeros((2, 1), np.float32)
-
-    def step_async(self, actions):
-        pass
-
-    def step_wait(self):
-        return np.zeros((2, 1), np.float32), np.ones(2, np.float32), self.dones.copy(), [dict(i) for i in self.infos]
-
-    def close(self):
-        pass
-
-    def get_attr(self, attr_name, indices=None):
-        return [None, None]
-
-    def set_attr(self, attr_name, value, indices=None):
-        pass
-
-    def env_method(self, method_name, *args, indices=None, **kwargs):
-        return [None, None]
-
-    def env_is_wrapped(self, wrapper_class, indices=None):
-        return [False, False]
 
 
 def step(env: PrecisionReward, infos) -> np.ndarray:
