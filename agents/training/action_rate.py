@@ -14,13 +14,13 @@ action and no penalty: the episode's first command is free to jump to wherever t
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from stewart_env.errors import UsageError
+from stewart_env.validation import real
 
 __all__ = ["ActionRatePenalty", "action_rate_penalty"]
 
@@ -89,11 +89,7 @@ class ActionRatePenalty(VecEnvWrapper):
         Raises:
             UsageError: ``weight`` not a finite number at least 0 (the message names it).
         """
-        if isinstance(weight, bool) or not isinstance(weight, (int, float)) or not math.isfinite(weight) or weight < 0:
-            raise UsageError.about(
-                "weight", f"expected a finite number >= 0 (the action-rate penalty's weight), got {weight!r}"
-            )
-        return {"weight": float(weight)}
+        return {"weight": real("weight", weight, 0.0)}
 
     def reset(self) -> Any:
         """Reset every row; none has a previous action.

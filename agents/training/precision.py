@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from stewart_env.errors import UsageError
 from stewart_env.tasks.base import ORIENTATION_TOLERANCE, POSITION_TOLERANCE
+from stewart_env.validation import real
 
 __all__ = ["PrecisionReward", "precision_reward"]
 
@@ -107,18 +107,11 @@ class PrecisionReward(VecEnvWrapper):
         Raises:
             UsageError: an option out of its range (the message names it).
         """
-        checked = {}
-        for name, value, positive in (
-            ("weight", weight, False),
-            ("position_scale", position_scale, True),
-            ("orientation_scale", orientation_scale, True),
-        ):
-            number = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
-            if not number or value < 0 or (positive and value == 0):
-                expected = "a finite number > 0" if positive else "a finite number >= 0"
-                raise UsageError.about(name, f"expected {expected} (the precision reward's {name}), got {value!r}")
-            checked[name] = float(value)
-        return checked
+        return {
+            "weight": real("weight", weight, 0.0),
+            "position_scale": real("position_scale", position_scale, 0.0, low_open=True),
+            "orientation_scale": real("orientation_scale", orientation_scale, 0.0, low_open=True),
+        }
 
     def reset(self) -> Any:
         """Reset every row.
