@@ -3,22 +3,25 @@ so that the motion a person perceives on it matches the vehicle's, inside the wo
 the false cues as constraints; a policy of the cueing task in ``action_mode="pose"``.
 
 **The model** (per pair of axes of the head frame {H}, at the control step dt, small angles).
-The head's translation along an axis is a double integrator driven by its acceleration a, the
-cabin's angle about the paired axis an integrator of its rate r (inputs held over the step):
+The head's translation along an axis is a triple integrator of its jerk j, the cabin's angle about
+the paired axis a double integrator of its angular acceleration alpha (inputs held over the step,
+so that the acceleration and the angular velocity are continuous: the pose loop cannot follow
+steps in them):
 
-    p_{k+1} = p_k + dt v_k + dt²/2 a_k,   v_{k+1} = v_k + dt a_k,   theta_{k+1} = theta_k + dt r_k.
+    p_{k+1} = p_k + dt v_k + dt²/2 a_k + dt³/6 j_k,   v_{k+1} = v_k + dt a_k + dt²/2 j_k,
+    a_{k+1} = a_k + dt j_k,   theta_{k+1} = theta_k + dt r_k + dt²/2 alpha_k,   r_{k+1} = r_k + dt alpha_k.
 
 The pairs are (x, pitch), (y, roll) and (z, yaw).  The rendered specific force's deviation from
-rest is the head's acceleration plus the gravity the tilt brings into the axis, and the angular
-velocity the angle's rate:
+rest is the head's acceleration (its mean over the step, as the task measures it) plus the
+gravity the tilt brings into the axis, and the angular velocity the angle's mean rate:
 
     f_x = a_x - g theta_pitch,   f_y = a_y + g theta_roll,   f_z = a_z,   omega = r,
 
-with theta the angle at the step's end (f = R^T (0, 0, g) of a cabin at rest tilted by R: a pitch
-theta gives f_x = -g sin theta, a roll phi gives f_y = g sin phi; washout's pitch = -asin(f_x / g)
-is the same sign; checked to 0.7 % at 0.2 rad in the tests).  The cabin turns about the head point
-(:func:`~stewart_env.agents.controllers.washout.head_pose`), so that the platform's origin moves
-by P_x = p_x - h sin theta_pitch and P_y = p_y + h sin theta_roll (h the head's height above P's
+(f = R^T (0, 0, g) of a cabin at rest tilted by R: a pitch theta gives f_x = -g sin theta, a roll
+phi f_y = g sin phi; washout's pitch = -asin(f_x / g) has the same sign; the tests check a held
+tilt of 0.1 rad against g sin theta).  The cabin turns about the head point
+(:func:`~stewart_env.agents.controllers.washout.head_pose`), so that P's origin moves by
+P_x = p_x - h sin theta_pitch and P_y = p_y + h sin theta_roll (h the head's height above P's
 origin): these, linearised, are the workspace constraints.
 
 **Perception.** The otolith's and the canal's transfer functions
@@ -32,24 +35,33 @@ y_k = C x_k + D u_k, written with xi_k = x_k - Gamma_2 u_k as the state-space fo
 perceived f and omega are these filters' outputs on the model's f and omega, the vehicle's on the
 observed samples: the policy runs the vehicle's filters on the observations and predicts their
 outputs over the horizon from the reference, the preview the environment observes
-(``task_options`` ``preview``, 0-100 samples) and its last sample held after it.
+(``task_options`` ``preview``, 0-100 samples) and its last sample held after it.  It uses nothing
+the environment does not observe.  With ``feedback`` the platform's perceived state is driven by
+the head's motion measured from the observed platform state (the task's
+:func:`~stewart_env.tasks.cueing.head.head_motion`) rather than by the model's: the perception the
+metrics score.
 
 **The QP.** Over a horizon of N steps, the inputs held over blocks of ``block`` steps (move
 blocking), the controller minimises, per pair,
 
-    sum_k w_f (fhat_p,k - fhat_v,k)² + w_w (what_p,k - what_v,k)²
-          + w_p p_{k+1}² + w_v v_{k+1}² + w_t theta_{k+1}² + w_a a_k² + w_r r_k² + rho |sigma|²
+    sum_k w_f (fhat_p,k - fhat_v,k)² + w_w (what_p,k - what_v,k)² + w_p p_{k+1}² + w_v v_{k+1}²
+          + w_t theta_{k+1}² + w_a a_{k+1}² + w_r r_{k+1}² + w_j j_k² + w_alpha alpha_k² + rho (sigma / thr)²
 
 subject to the workspace (|P| <= the bound, |theta| <= the angle bound) and the **false-cue
 constraints**, at every ``stride``-th step: where the vehicle's predicted perceived signal is above
-``band``, the platform's must not be below -m thr (the perception threshold thr times a margin m
-< 1); below -band, not above m thr; in between, within ±m thr.  These are linear in the inputs,
-so the problem stays a QP; they are soft (the slacks sigma, weighed by rho), so that it is always
-feasible.  The model is linear and time-invariant: the QP's matrices are built once and only its
-linear term and bounds change with the state and the reference, so OSQP solves each step
-warm-started, without refactorising.  The first input is applied to the model (the controller
-keeps its own model's state, open loop, as washout keeps its filters') and the model's pose after
-the step goes to the environment as the pose action.
+``band`` thr, the platform's must not be below -m thr (thr the perception threshold, m < 1 a
+margin); below -band thr, not above m thr; in between, within ±m thr.  These are linear in the
+inputs, so the problem stays a QP; they are soft (the slacks sigma, weighed by rho), so that it is
+always feasible.  The model is linear and time-invariant: the QP's matrices are built once and only
+its linear term and bounds change with the state and the reference, so OSQP solves each step
+warm-started, without refactorising.
+
+**The pose loop.** The environment's pose mode tracks the commanded pose with its leg servos; on
+dasgupta1998 each coordinate of P's pose responds to its command roughly as a lightly damped
+second-order system (``loop_*``: identified from random steps, P's x and y w_n = 14 rad/s,
+zeta = 0.25 and a delay of 2 steps).  The first input is applied to the model, and the pose
+commanded is the inverse of that response applied to the plan (:meth:`CueingMPC.loop_command`),
+so that the platform follows the planned motion rather than lagging and ringing behind it.
 """
 
 from __future__ import annotations
@@ -109,6 +121,9 @@ class CueingMPCParams:
             the planned pose is commanded as it is.
         loop_damping: zeta of the same responses.
         loop_delay: their delays, control steps (at most ``block`` - 1).
+        feedback: whether the platform's perceived state is driven by the motion measured at the
+            head (the observed platform state's step, as the task measures it) instead of the
+            model's: the perception the metrics score, whatever the pose loop did.
     """
 
     horizon: int = 200
@@ -124,14 +139,15 @@ class CueingMPCParams:
     jerk_weight: float = 1e-2
     angular_acceleration_weight: float = 10.0
     slack_weight: float = 1e3
-    position_bound: tuple[float, float, float] = (0.15, 0.15, 0.08)
-    angle_bound: tuple[float, float, float] = (0.2, 0.2, 0.2)
+    position_bound: tuple[float, float, float] = (0.12, 0.12, 0.06)
+    angle_bound: tuple[float, float, float] = (0.15, 0.15, 0.1)
     margin: float = 0.8
     band: float = 0.5
     false_cue_constraints: bool = True
     loop_frequency: tuple[float, ...] | None = (14.0, 14.0, 14.5, 31.5, 33.0, 38.5)
     loop_damping: tuple[float, ...] = (0.25, 0.25, 0.35, 0.45, 0.45, 0.9)
     loop_delay: tuple[int, ...] = (2, 2, 0, 0, 0, 0)
+    feedback: bool = True
 
     def __post_init__(self) -> None:
         """Check the horizon's integers and that every weight and bound is finite and positive."""
@@ -432,6 +448,7 @@ class CueingMPC:
         self.vehicle_otolith: np.ndarray | None = None  # (rows, 3 axes, 2)
         self.vehicle_canal: np.ndarray | None = None
         self.status: list[str] = []
+        self._perceived_before: np.ndarray | None = None
 
     def reset(self, rows=None) -> None:
         """Start over (the rows ``rows`` of the batch, or all): the platform at home, at rest.
@@ -440,11 +457,13 @@ class CueingMPC:
             rows: a boolean mask or indices of the batch; None: everything.
         """
         if rows is None or self.state is None:
-            self.state = None
+            self.state = self._perceived_before = None
             self.vehicle_otolith = self.vehicle_canal = None
             return
         rows = np.flatnonzero(np.asarray(rows)) if np.asarray(rows).dtype == bool else np.asarray(rows)
         self.state[rows] = 0.0
+        if self._perceived_before is not None and self._perceived_before.shape[0] == self.state.shape[0]:
+            self._perceived_before[rows] = 0.0
         self.vehicle_otolith[rows] = np.nan  # restarted steady at the next sample
         self.vehicle_canal[rows] = np.nan
         for pair in self.pairs:
@@ -504,6 +523,7 @@ class CueingMPC:
             samples[:, :k] = known[:, :k]
             samples[:, k:] = known[:, k - 1 : k]
         self.status = []
+        self._perceived_before = self.state[:, :, 5:9].copy()
         self.inputs = np.zeros((rows, 3, 2))
         displacement = np.zeros((rows, 3))
         rpy = np.zeros((rows, 3))
@@ -524,6 +544,27 @@ class CueingMPC:
                 displacement[i, axis] = self.state[i, axis, 0]
                 rpy[i, rot] = self.state[i, axis, 3]
         return displacement, rpy
+
+    def correct(self, specific_force, angular_velocity) -> None:
+        """Drive the platform's perceived state of the last step by the motion measured at the head.
+
+        Args:
+            specific_force: (rows, 3) the head's specific force over the last step, m/s², in {H}.
+            angular_velocity: (rows, 3) its angular velocity, rad/s.
+        """
+        if self.state is None or self._perceived_before is None:
+            return
+        if self._perceived_before.shape[0] != self.state.shape[0]:
+            return
+        f = np.array(specific_force, dtype=float, ndmin=2)
+        f[:, 2] -= STANDARD_GRAVITY
+        w = np.asarray(angular_velocity, dtype=float)
+        rotation_of = (1, 0, 2)
+        (po, go, _, _), (pc, gc, _, _) = self.otolith, self.canal
+        for axis in range(3):
+            before = self._perceived_before[:, axis]
+            self.state[:, axis, 5:7] = before[:, :2] @ po.T + f[:, axis, None] * go
+            self.state[:, axis, 7:9] = before[:, 2:] @ pc.T + w[:, rotation_of[axis], None] * gc
 
     def loop_command(self) -> tuple[np.ndarray, np.ndarray]:
         """The pose command that makes the pose loop's response follow the plan (after :meth:`step`).
@@ -612,10 +653,46 @@ class CueingMPCPolicy:
         self.mpc = CueingMPC(self.params, base.dt, float(self.head[2]))
         self._actuation = actuation
         self.preview = "preview" in base.observation_layout
+        self._previous: tuple[np.ndarray, np.ndarray] | None = None
+        if self.params.feedback and "velocity" not in base.observation_layout:
+            raise UsageError.about("params", "feedback needs the platform's pose state: observation_mode='pose'")
 
     def reset(self) -> None:
         """Start every row over (a new batch of episodes)."""
         self.mpc.reset()
+        self._previous = None
+
+    def _measure(self, part: dict, episode_start) -> None:
+        """The head's motion over the last step from the observed platform state (the task's
+        ``head_motion``), into the MPC's perceived state."""
+        from stewart_env.tasks.cueing.head import head_motion
+
+        first = np.asarray(part["orientation"], dtype=float)[:, :3]
+        second = np.asarray(part["orientation"], dtype=float)[:, 3:]
+        rotation = np.stack([first, second, np.cross(first, second)], axis=2)
+        velocity = np.asarray(part["velocity"], dtype=float)
+        angular_velocity = np.asarray(part["angular_velocity"], dtype=float)
+        rows = velocity.shape[0]
+        if self._previous is None or self._previous[0].shape[0] != rows:
+            self._previous = (np.zeros((rows, 3)), np.zeros((rows, 3)))
+        elif episode_start is not None:
+            starts = np.asarray(episode_start, dtype=bool).reshape(-1)
+            self._previous[0][starts] = 0.0
+            self._previous[1][starts] = 0.0
+        platform = self.env.unwrapped.platform
+        f, w = head_motion(
+            rotation,
+            velocity,
+            angular_velocity,
+            self._previous[0],
+            self._previous[1],
+            self.env.unwrapped.dt,
+            self.head,
+            np.asarray(platform.gravity, dtype=float),
+            rpy_to_matrix(np.asarray(platform.home_rpy, dtype=float)),
+        )
+        self._previous = (velocity.copy(), angular_velocity.copy())
+        self.mpc.correct(f, w)
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
         """SB3's interface: (action (6,) or (N, 6), None) for one observation or a batch.
@@ -639,6 +716,8 @@ class CueingMPCPolicy:
         if self.preview:
             values = np.asarray(part["preview"], dtype=float)
             preview = values.reshape(values.shape[0], -1, 6)
+        if self.params.feedback:
+            self._measure(part, episode_start)
         displacement, rpy = self.mpc.step(part["vehicle_specific_force"], part["vehicle_angular_velocity"], preview)
         if self.params.loop_frequency is None:
             position, rotation = head_pose(self.env.unwrapped.platform, self.head, displacement, rpy)
