@@ -126,10 +126,10 @@ class CueingMPCParams:
             model's: the perception the metrics score, whatever the pose loop did.
     """
 
-    horizon: int = 200
+    horizon: int = 300
     block: int = 10
     stride: int = 5
-    force_weight: float = 1.0
+    force_weight: float = 3.0
     rate_weight: float = 300.0
     position_weight: float = 1.0
     velocity_weight: float = 1.0
@@ -140,8 +140,8 @@ class CueingMPCParams:
     angular_acceleration_weight: float = 10.0
     slack_weight: float = 1e3
     position_bound: tuple[float, float, float] = (0.12, 0.12, 0.06)
-    angle_bound: tuple[float, float, float] = (0.15, 0.15, 0.1)
-    margin: float = 0.8
+    angle_bound: tuple[float, float, float] = (0.25, 0.25, 0.1)
+    margin: float = 0.7
     band: float = 0.5
     false_cue_constraints: bool = True
     loop_frequency: tuple[float, ...] | None = (14.0, 14.0, 14.5, 31.5, 33.0, 38.5)
