@@ -608,7 +608,15 @@ class CueingMPC:
 
     def head_offset(self, displacement, rpy) -> np.ndarray:
         """P's offset from home of the head displaced by ``displacement``, the cabin turned by ``rpy``
-        about it (in home's axes): displacement + head - R(rpy) head."""
+        about it (in home's axes): displacement + head - R(rpy) head.
+
+        Args:
+            displacement: (..., 3) the head's displacement, m.
+            rpy: (..., 3) the cabin's roll, pitch, yaw, rad.
+
+        Returns:
+            (..., 3) P's offset from home, m.
+        """
         head = np.array([0.0, 0.0, self.head_height])
         return np.asarray(displacement) + head - rpy_to_matrix(np.asarray(rpy)) @ head
 
