@@ -124,6 +124,8 @@ class CueingMPCParams:
         feedback: whether the platform's perceived state is driven by the motion measured at the
             head (the observed platform state's step, as the task measures it) instead of the
             model's: the perception the metrics score, whatever the pose loop did.
+        reference_decay: the time constant (s) with which the reference beyond the preview decays
+            to rest (specific force (0, 0, g), no rotation); None: its last sample held.
     """
 
     horizon: int = 300
@@ -148,6 +150,7 @@ class CueingMPCParams:
     loop_damping: tuple[float, ...] = (0.25, 0.25, 0.35, 0.45, 0.45, 0.9)
     loop_delay: tuple[int, ...] = (2, 2, 0, 0, 0, 0)
     feedback: bool = True
+    reference_decay: float | None = None
 
     def __post_init__(self) -> None:
         """Check the horizon's integers and that every weight and bound is finite and positive."""
@@ -179,6 +182,21 @@ class CueingMPCParams:
             if value.shape != (3,) or not np.all(np.isfinite(value)) or np.any(value <= 0):
                 raise UsageError.about(name, f"must be three finite numbers > 0, got {getattr(self, name)!r}")
             object.__setattr__(self, name, tuple(float(v) for v in value))
+        if self.loop_frequency is not None:
+            for name in ("loop_frequency", "loop_damping", "loop_delay"):
+                value = np.asarray(getattr(self, name), dtype=float)
+                if value.shape != (6,) or not np.all(np.isfinite(value)) or np.any(value < 0):
+                    raise UsageError.about(name, f"must be six finite numbers >= 0, got {getattr(self, name)!r}")
+            if np.any(np.asarray(self.loop_frequency) <= 0):
+                raise UsageError.about("loop_frequency", f"must be > 0, got {self.loop_frequency!r}")
+            if any(int(d) != d or not 0 <= d < self.block for d in self.loop_delay):
+                raise UsageError.about(
+                    "loop_delay", f"must be whole steps from 0 to block - 1, got {self.loop_delay!r}"
+                )
+        if self.reference_decay is not None and not (
+            isinstance(self.reference_decay, (int, float)) and 0 < self.reference_decay < math.inf
+        ):
+            raise UsageError.about("reference_decay", f"must be None or a time > 0 s, got {self.reference_decay!r}")
 
 
 def foh_state_space(numerator, denominator, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -512,16 +530,18 @@ class CueingMPC:
         if ahead.shape[1]:
             ahead = ahead.copy()
             ahead[:, :, 2] -= STANDARD_GRAVITY
-        known = (
-            np.concatenate([np.concatenate([f, w], axis=1)[:, None], ahead], axis=1)[:, 1:] if ahead.shape[1] else None
-        )
+        # the reference: the samples after this one (the step's motion is compared with the next),
+        # the preview's, then its last held; with no preview, this sample held
         samples = np.empty((rows, n, 6))
-        if known is None:
-            samples[:] = np.concatenate([f, w], axis=1)[:, None]
+        if ahead.shape[1]:
+            k = min(ahead.shape[1], n)
+            samples[:, :k] = ahead[:, :k]
+            samples[:, k:] = ahead[:, k - 1 : k]
         else:
-            k = min(known.shape[1], n)
-            samples[:, :k] = known[:, :k]
-            samples[:, k:] = known[:, k - 1 : k]
+            k = 0
+            samples[:] = np.concatenate([f, w], axis=1)[:, None]
+        if self.params.reference_decay is not None:
+            samples[:, k:] *= np.exp(-self.dt * np.arange(1, n - k + 1) / self.params.reference_decay)[None, :, None]
         self.status = []
         self._perceived_before = self.state[:, :, 5:9].copy()
         self.inputs = np.zeros((rows, 3, 2))

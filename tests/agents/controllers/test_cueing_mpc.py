@@ -75,7 +75,17 @@ def test_the_head_offset_is_head_pose():
 
 
 @pytest.mark.parametrize(
-    "field, value", [("horizon", 0), ("block", 7), ("stride", 2.5), ("force_weight", -1.0), ("angle_bound", (0.1, 0.1))]
+    "field, value",
+    [
+        ("horizon", 0),
+        ("block", 7),
+        ("stride", 2.5),
+        ("force_weight", -1.0),
+        ("angle_bound", (0.1, 0.1)),
+        ("loop_delay", (0, 0, 0, 0, 0, 10)),
+        ("loop_frequency", (14.0, 14.0, 0.0, 30.0, 30.0, 30.0)),
+        ("reference_decay", 0.0),
+    ],
 )
 def test_bad_parameters_are_refused(field, value):
     with pytest.raises(UsageError, match=field):
