@@ -8,11 +8,12 @@ its compiled form and its discrete-time gains),
 :mod:`~stewart_env.agents.controllers.lqr` (the LQR around home, from the control step's exact
 Jacobians), :mod:`~stewart_env.agents.controllers.mpc` (the linearised MPC with the force limits,
 extra ``mpc``), :mod:`~stewart_env.agents.controllers.washout` (classical washout for the cueing
-task); and :mod:`~stewart_env.agents.controllers.timing` (a controller's compute time per control
+task), :mod:`~stewart_env.agents.controllers.cueing_mpc` (model-predictive cueing, extra ``mpc``); and :mod:`~stewart_env.agents.controllers.timing` (a controller's compute time per control
 step against the control period).
 """
 
 from stewart_env.agents.controllers.computed_torque import ComputedTorque, ComputedTorquePolicy, preview_acceleration
+from stewart_env.agents.controllers.cueing_mpc import CueingMPC, CueingMPCParams, CueingMPCPolicy
 from stewart_env.agents.controllers.lqr import LinearQuadraticRegulator, LQRPolicy
 from stewart_env.agents.controllers.mpc import LinearisedMPC, MPCPolicy
 from stewart_env.agents.controllers.pd import (
@@ -38,6 +39,9 @@ __all__ = [
     "ComputeTime",
     "ComputedTorque",
     "ComputedTorquePolicy",
+    "CueingMPC",
+    "CueingMPCParams",
+    "CueingMPCPolicy",
     "EnvPolicy",
     "LQRPolicy",
     "LinearQuadraticRegulator",
