@@ -25,7 +25,13 @@ its agent's metric minus the exact model's agent's of the same seed on the same 
 pose mode's inner loop of the cueing configs (inverse kinematics into the leg servos) uses no
 dynamics model, and the washout none: the model is the agent's alone.
 
-A finished evaluation (the washout's, or one agent's) is a file with what its numbers depend on
+With ``mpc_previews`` the study also runs the model-predictive cueing baseline
+(:class:`~stewart_env.agents.controllers.cueing_mpc.CueingMPCPolicy`, extra ``mpc``) on the same
+held-out episodes, once per preview (the task option ``preview``, the samples of the vehicle's
+coming motion the environment observes; the other evaluations keep the config's): its rows
+``mpc (preview N)`` and its goals against washout.
+
+A finished evaluation (the washout's, the MPC's, or one agent's) is a file with what its numbers depend on
 (its spec), published whole, so that a second run into the same folder reuses it and an
 interrupted run keeps what it finished.  The study writes ``cueing.md`` (the table),
 ``results.json`` and, with matplotlib, ``perceived_specific_force.png`` (the vehicle's perceived
@@ -50,6 +56,7 @@ from stewart_env.agents.evaluation.cueing import ScheduledEpisodes, perceive
 from stewart_env.agents.evaluation.statistics import paired_difference, stratified_bootstrap
 from stewart_env.errors import UsageError
 from stewart_env.files import publish
+from stewart_env.validation import integer
 
 __all__ = [
     "FIGURE_MANOEUVRE",
@@ -72,6 +79,8 @@ FIGURE_MANOEUVRE = "braking"
 PPO_CONFIG = "ppo_cueing_residual"
 #: The washout of the study.
 WASHOUT_CONFIG = "washout"
+#: The largest preview of the cueing task (its ``preview`` option), samples.
+MAX_PREVIEW = 100
 #: The exact model: the plant every evaluation runs, and the model of the reference agents.
 TRUE_MODEL = "improved"
 #: The goals against washout: (metric, how PPO's mean compares with washout's, the factor).
@@ -105,6 +114,8 @@ class CueingResultsSettings:
             all run on the exact plant (the improved model): the cost of each model to a cueing
             agent.  Names as the environment's ``model`` (e.g. ``"classical"``,
             ``"improved+c1"``); the improved model itself is the reference, not one of them.
+        mpc_previews: the previews (task option ``preview``, samples, 0 to 100) at which the
+            model-predictive cueing baseline runs, each its own rows; () for none.
     """
 
     seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
@@ -113,6 +124,7 @@ class CueingResultsSettings:
     manoeuvres: tuple[str, ...] = MANOEUVRES
     config: str = PPO_CONFIG
     agent_models: tuple[str, ...] = ()
+    mpc_previews: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         from stewart_env.dynamics.spec import ModelSpec
@@ -126,6 +138,10 @@ class CueingResultsSettings:
             )
         object.__setattr__(self, "agent_models", names)  # a frozen record sets its checked names once, here
 
+        previews = tuple(integer("mpc_previews", p, 0, MAX_PREVIEW) for p in self.mpc_previews)
+        if len(set(previews)) != len(previews):
+            raise UsageError.about("mpc_previews", f"give distinct previews, got {self.mpc_previews!r}")
+        object.__setattr__(self, "mpc_previews", previews)
         if not self.seeds or len(set(self.seeds)) != len(self.seeds):
             raise UsageError.about("seeds", f"give distinct training seeds, got {self.seeds!r}")
         if not 1 <= self.episodes <= len(EVALUATION_SEEDS):
@@ -220,7 +236,7 @@ def _evaluate(
     found = _read(path, spec)
     if found is not None:
         return found
-    runner = ScheduledEpisodes(settings.held_out(), _env_kwargs(settings.config))
+    runner = ScheduledEpisodes(settings.held_out(), spec["env_kwargs"])
     try:
         rows = runner.run(policy, traces=figure)
         dt = runner.dt
@@ -239,6 +255,21 @@ def _evaluate(
     path.parent.mkdir(parents=True, exist_ok=True)
     publish(path, json.dumps(data, allow_nan=True))
     return json.loads(json.dumps(data))
+
+
+def _evaluate_mpc(out: Path, settings: CueingResultsSettings, preview: int) -> dict[str, Any]:
+    """The model-predictive cueing baseline's metrics per episode, with the task's ``preview`` set."""
+    from dataclasses import asdict
+
+    from stewart_env.agents.controllers.cueing_mpc import CueingMPCParams, CueingMPCPolicy
+
+    params = CueingMPCParams()
+    spec = {**_evaluation_spec(settings, "mpc", None, None), "params": asdict(params)}
+    spec["env_kwargs"] = {
+        **spec["env_kwargs"],
+        "task_options": {**spec["env_kwargs"]["task_options"], "preview": preview},
+    }
+    return _evaluate(out, settings, f"mpc_preview_{preview}", lambda env: CueingMPCPolicy(env, params), spec, False)
 
 
 def _timesteps(settings: CueingResultsSettings) -> int:
@@ -362,6 +393,7 @@ def run_cueing_results(
             True,
         )
     }
+    mpc = {preview: _evaluate_mpc(out, settings, preview) for preview in settings.mpc_previews}
     ppo: dict[int, dict] = {}
     training: dict[int, dict] = {}
     by_model: dict[str, dict[int, dict]] = {}
@@ -382,7 +414,7 @@ def run_cueing_results(
                 spec["agent_model"] = model
                 name, figure = f"ppo_{model}_seed_{seed}", False
             evaluated[seed] = _evaluate(out, settings, name, policy, spec, figure)
-    results = summarize(settings, evaluations["washout"], ppo, by_model)
+    results = summarize(settings, evaluations["washout"], ppo, by_model, mpc)
     results["training"] = {str(seed): record for seed, record in training.items()}
     publish(out / "results.json", json.dumps(results, indent=1, allow_nan=True))
     publish(out / "cueing.md", results_table(results) + "\n")
@@ -405,6 +437,7 @@ def summarize(
     washout: dict,
     ppo: dict[int, dict],
     by_model: dict[str, dict[int, dict]] | None = None,
+    mpc: dict[int, dict] | None = None,
 ) -> dict[str, Any]:
     """The intervals and goals of the study's evaluations.
 
@@ -414,12 +447,14 @@ def summarize(
         ppo: training seed -> the agent's evaluation (agents trained on the exact model).
         by_model: dynamics model -> training seed -> the evaluation of the agent trained on that
             model (run on the exact plant).
+        mpc: preview -> the model-predictive cueing baseline's evaluation at that preview.
 
     Returns:
         ``{"seeds": [...], "episodes": k, "agent_models": {model: seeds}, "manoeuvres": {name:
         {"washout": {metric: interval}, "ppo": {...}, "goals": {goal: bool}, "models": {model:
         {"ppo": {metric: interval}, "cost": {metric: interval}, "seeds": [...]}}}}}``, an interval
-        [estimate, low, high]; a model's cost is its agents' metric minus the exact model's agents'
+        [estimate, low, high], and per manoeuvre ``"mpc": {preview: {"intervals": {...}, "goals":
+        {...}}}`` with ``mpc``; a model's cost is its agents' metric minus the exact model's agents'
         of the same seeds on the same episodes (the seeds both have).
     """
     held_out = settings.held_out()
@@ -431,6 +466,13 @@ def summarize(
             return {m: np.array([_values(evaluations[s], manoeuvre, held_out, m) for s in seeds]) for m in metrics}
 
         entry: dict[str, Any] = {"washout": _intervals(cell_of({0: washout}, [0]))}
+        washout_means = {m: v[0] for m, v in entry["washout"].items()}
+        for preview, evaluation in (mpc or {}).items():
+            intervals = _intervals(cell_of({0: evaluation}, [0]))
+            entry.setdefault("mpc", {})[str(preview)] = {
+                "intervals": intervals,
+                "goals": goals_reached(washout_means, {m: v[0] for m, v in intervals.items()}),
+            }
         if ppo:
             entry["ppo"] = _intervals(cell_of(ppo, list(ppo)))
             entry["goals"] = goals_reached(
@@ -453,6 +495,7 @@ def summarize(
         "config": str(settings.config),
         "label": settings.label,
         "agent_models": {model: sorted(e) for model, e in (by_model or {}).items()},
+        "mpc_previews": sorted(mpc or {}),
         "manoeuvres": table,
     }
 
@@ -509,10 +552,16 @@ def results_table(results: dict[str, Any]) -> str:
         "| manoeuvre | f error -20 % | false cues -30 % | corr. f >= washout | no stroke violation |",
         "|---|---|---|---|---|",
     ]
+    mpc_goal_lines = [
+        "| manoeuvre | policy | f error -20 % | false cues -30 % | corr. f >= washout | no stroke violation |",
+        "|---|---|---|---|---|---|",
+    ]
     cost_head = ["manoeuvre", "agents trained on", *(title for title, _ in COLUMNS.values()), "ended at a limit"]
     cost_lines = ["| " + " | ".join(cost_head) + " |", "|" + "---|" * len(cost_head)]
     for manoeuvre, entry in results["manoeuvres"].items():
-        rows = [(label, entry[label]) for label in ("washout", "ppo") if label in entry]
+        rows = [("washout", entry["washout"])]
+        rows += [(f"mpc (preview {p})", e["intervals"]) for p, e in entry.get("mpc", {}).items()]
+        rows += [("ppo", entry["ppo"])] if "ppo" in entry else []
         rows += [(f"ppo, trained on {model}", e["ppo"]) for model, e in entry.get("models", {}).items()]
         for label, intervals in rows:
             cells = [_interval(intervals[m], spec) for m, (_, spec) in COLUMNS.items()]
@@ -526,6 +575,9 @@ def results_table(results: dict[str, Any]) -> str:
         if "goals" in entry:
             marks = ["reached" if entry["goals"][m] else "not reached" for m, _, _ in GOALS]
             goal_lines.append(f"| {manoeuvre} | " + " | ".join(marks) + " |")
+        for preview, e in entry.get("mpc", {}).items():
+            marks = ["reached" if e["goals"][m] else "not reached" for m, _, _ in GOALS]
+            mpc_goal_lines.append(f"| {manoeuvre} | mpc (preview {preview}) | " + " | ".join(marks) + " |")
     seeds = results["seeds"]
     note = (
         f"PPO ({results.get('config', PPO_CONFIG)}): {len(seeds)} training seed(s) ({', '.join(map(str, seeds)) or 'none'}), "
@@ -534,6 +586,12 @@ def results_table(results: dict[str, Any]) -> str:
     text = "\n".join(lines) + "\n\n" + note
     if len(goal_lines) > 2:
         text += "\n\n" + "\n".join(goal_lines)
+    if len(mpc_goal_lines) > 2:
+        text += (
+            "\n\nThe model-predictive cueing baseline (CueingMPCPolicy, its default parameters) against washout, "
+            "at each preview of the vehicle's coming motion (samples of the control step); "
+            "its intervals over the held-out episodes.\n\n" + "\n".join(mpc_goal_lines)
+        )
     if len(cost_lines) > 2:
         text += (
             "\n\nWhat a model costs the cueing agent: the metric of the agents trained on it minus that of the "

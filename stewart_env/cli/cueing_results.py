@@ -76,6 +76,16 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "the agents trained on the improved model; the table gains their rows and each model's cost with "
         "paired intervals (default: none)",
     )
+    p.add_argument(
+        "--mpc-preview",
+        nargs="+",
+        type=int,
+        default=(),
+        metavar="N",
+        help="also run the model-predictive cueing baseline (CueingMPCPolicy, needs the extra mpc) on the "
+        "held-out episodes, once per preview N (the task's preview option, 0 to 100 samples of the vehicle's "
+        "coming motion), each its rows and goals against washout (default: none)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
 
@@ -89,7 +99,8 @@ def run(args: argparse.Namespace) -> int:
     Returns:
         The exit status, 0 on success.
     """
-    problem = check_extras([("rl", "PPO")]) or check_out(args)
+    extras = [("rl", "PPO")] + ([("mpc", "the cueing MPC (--mpc-preview)")] if args.mpc_preview else [])
+    problem = check_extras(extras) or check_out(args)
     if problem is not None:
         return error(VERB, problem)
     from stewart_env.agents.studies.cueing_results import CueingResultsSettings, run_cueing_results
@@ -103,9 +114,11 @@ def run(args: argparse.Namespace) -> int:
             episodes=args.episodes,
             config=args.config,
             agent_models=tuple(args.agent_models),
+            mpc_previews=tuple(args.mpc_preview),
         )
     except UsageError as err:
-        return error(VERB, f"argument --{err.argument.replace('_', '-')}: {err.problem}")
+        option = {"mpc_previews": "mpc_preview"}.get(err.argument, err.argument)
+        return error(VERB, f"argument --{option.replace('_', '-')}: {err.problem}")
     kept = f"; the finished evaluations are kept in {args.out} (run the same command again to continue)"
     try:
         results = run_cueing_results(args.out, settings, agents=args.agents, progress=not args.no_progress)

@@ -182,3 +182,47 @@ def test_command_names_a_bad_agent_model(tmp_path, capsys):
     assert "argument --agent-models: unknown model 'newtonian'; choose one of improved" in err
     assert "Traceback" not in err
     assert not (tmp_path / "s").exists()
+
+
+def test_the_mpcs_rows_and_goals_beside_washouts():
+    settings = CueingResultsSettings(seeds=(0,), episodes=2, manoeuvres=("braking",), mpc_previews=(10, 100))
+    washout = {"episodes": [metrics(1.0, 4.0, 0.3), metrics(1.2, 6.0, 0.5)]}
+    mpc = {
+        10: {"episodes": [metrics(1.0, 9.0, 0.6), metrics(1.0, 9.0, 0.6)]},
+        100: {"episodes": [metrics(0.8, 2.0, 0.9), metrics(0.8, 2.0, 0.9)]},
+    }
+    results = summarize(settings, washout, {}, None, mpc)
+    entry = results["manoeuvres"]["braking"]
+    assert results["mpc_previews"] == [10, 100]
+    # 0.8 <= 0.8 x 1.1 and 3 <= 0.7 x 6 (false cues f + ω); 1.0 > 0.88 and 10 > 4.2
+    assert entry["mpc"]["100"]["goals"] == {m: True for m, _, _ in GOALS}
+    assert entry["mpc"]["10"]["goals"] == {
+        "rms_specific_force_error": False,
+        "false_cues": False,
+        "specific_force_correlation": True,
+        "stroke_violations": True,
+    }
+    text = results_table(results)
+    assert "| braking | mpc (preview 100) | 0.800 [0.800, 0.800] | 3.0 [3.0, 3.0] |" in text
+    assert "| braking | mpc (preview 10) | reached" not in text
+    assert "| braking | mpc (preview 10) | not reached | not reached | reached | reached |" in text
+
+
+@pytest.mark.parametrize("previews, message", [((101,), r"\[0, 100\], got 101"), ((10, 10), "distinct previews")])
+def test_bad_mpc_previews_are_named(previews, message):
+    with pytest.raises(UsageError, match=message) as err:
+        CueingResultsSettings(mpc_previews=previews)
+    assert err.value.argument == "mpc_previews"
+
+
+def test_command_names_a_bad_mpc_preview(tmp_path, capsys):
+    pytest.importorskip("stable_baselines3")
+    from stewart_env.cli import main
+
+    assert main(["cueing-results", "--out", str(tmp_path / "s"), "--mpc-preview", "-1"]) == 2
+    err = capsys.readouterr().err
+    assert (
+        err.strip()
+        == "stewart-env cueing-results: error: argument --mpc-preview: expected an integer in [0, 100], got -1"
+    )
+    assert not (tmp_path / "s").exists()
