@@ -77,7 +77,7 @@ from stewart_env.errors import UsageError
 from stewart_env.extras import require
 from stewart_env.rotations import rpy_to_matrix
 from stewart_env.tasks.cueing.motion import STANDARD_GRAVITY
-from stewart_env.tasks.cueing.vestibular import THRESHOLDS, Otolith, SemicircularCanal
+from stewart_env.tasks.cueing.vestibular import THRESHOLDS, Otolith, SemicircularCanal, first_order_hold
 
 __all__ = ["OSQP_SETTINGS", "CueingMPC", "CueingMPCParams", "CueingMPCPolicy", "foh_state_space", "pair_model"]
 
@@ -215,17 +215,7 @@ def foh_state_space(numerator, denominator, dt: float) -> tuple[np.ndarray, np.n
     Returns:
         (Phi (n, n), G (n,), H (n,), J): xi's update and the output's map.
     """
-    from scipy.linalg import expm
-    from scipy.signal import tf2ss
-
-    a, b, c, d = tf2ss(numerator, denominator)
-    n = a.shape[0]
-    block = np.zeros((n + 2, n + 2))
-    block[:n, :n] = a * dt
-    block[:n, n : n + 1] = b * dt
-    block[n, n + 1] = 1.0
-    exponential = expm(block)
-    phi, gamma_1, gamma_2 = exponential[:n, :n], exponential[:n, n], exponential[:n, n + 1]
+    _, _, c, d, phi, gamma_1, gamma_2 = first_order_hold(numerator, denominator, dt)
     g = phi @ gamma_2 + gamma_1 - gamma_2
     return phi, g, c[0].copy(), float(c[0] @ gamma_2 + d[0, 0])
 

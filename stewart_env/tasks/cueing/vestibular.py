@@ -48,6 +48,7 @@ __all__ = [
     "SemicircularCanal",
     "SensorFilter",
     "false_cue_samples",
+    "first_order_hold",
 ]
 
 THRESHOLDS_SOURCE = (
@@ -102,6 +103,36 @@ def _check_time_constant(name: str, value) -> None:
         raise UsageError.about(name, f"must be a finite positive number of seconds, got {value!r}")
 
 
+def first_order_hold(numerator, denominator, dt: float):
+    """A transfer function's state-space form and its first-order-hold discretisation.
+
+    With the controllable form (A, B, C, D) of the transfer function, the exponential of the block
+    matrix [[A dt, B dt, 0], [0, 0, 1], [0, 0, 0]] holds Phi = e^{A dt}, Gamma_1 = int_0^dt e^{A t}
+    dt B and Gamma_2, the weight of the input's slope over the step (:class:`SensorFilter`).
+
+    Args:
+        numerator: the numerator, descending powers of s.
+        denominator: the denominator, descending powers of s.
+        dt: the sample period (s).
+
+    Returns:
+        (A, B, C, D, Phi, Gamma_1, Gamma_2): A (n, n), B (n, 1), C (1, n), D (1, 1) of
+        ``scipy.signal.tf2ss``, Phi (n, n), Gamma_1 (n,), Gamma_2 (n,).
+    """
+    # here, not at the top: scipy.signal's and scipy.linalg's imports take about a second together
+    from scipy.linalg import expm
+    from scipy.signal import tf2ss
+
+    a, b, c, d = tf2ss(numerator, denominator)
+    n = a.shape[0]
+    block = np.zeros((n + 2, n + 2))
+    block[:n, :n] = a * dt
+    block[:n, n : n + 1] = b * dt
+    block[n, n + 1] = 1.0
+    exponential = expm(block)
+    return a, b, c, d, exponential[:n, :n], exponential[:n, n], exponential[:n, n + 1]
+
+
 class SensorFilter:
     """A vestibular model discretised with a first-order hold: a stateful filter over (..., 3) inputs.
 
@@ -124,20 +155,8 @@ class SensorFilter:
 
     def __init__(self, numerator, denominator, dt: float):
         self.dt = _check_dt(dt)
-        # here, not at the top: scipy.signal's and scipy.linalg's imports take about a second together
-        from scipy.linalg import expm
-        from scipy.signal import tf2ss
-
-        a, b, c, d = tf2ss(numerator, denominator)
+        a, b, c, d, phi, gamma_1, gamma_2 = first_order_hold(numerator, denominator, self.dt)
         n = a.shape[0]
-        block = np.zeros((n + 2, n + 2))
-        block[:n, :n] = a * self.dt
-        block[:n, n : n + 1] = b * self.dt
-        block[n, n + 1] = 1.0
-        exponential = expm(block)
-        phi = exponential[:n, :n]
-        gamma_1 = exponential[:n, n]
-        gamma_2 = exponential[:n, n + 1]
         # Plain floats, combined element by element in a fixed order: the same arithmetic for
         # every element of a batch, whatever its shape.
         self._phi = [[float(v) for v in row] for row in phi]
