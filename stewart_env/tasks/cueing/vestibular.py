@@ -116,8 +116,8 @@ def first_order_hold(numerator, denominator, dt: float):
         dt: the sample period (s).
 
     Returns:
-        (A, B, C, D, Phi, Gamma_1, Gamma_2): A (n, n), B (n, 1), C (1, n), D (1, 1) of
-        ``scipy.signal.tf2ss``, Phi (n, n), Gamma_1 (n,), Gamma_2 (n,).
+        The seven arrays A (n, n), B (n, 1), C (1, n) and D (1, 1) of ``scipy.signal.tf2ss``, then
+        Phi (n, n), Gamma_1 (n,) and Gamma_2 (n,), in that order.
     """
     # here, not at the top: scipy.signal's and scipy.linalg's imports take about a second together
     from scipy.linalg import expm
