@@ -72,7 +72,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse
 
-from stewart_env.agents.controllers.washout import _pose_mode, head_pose
+from stewart_env.agents.controllers.washout import _pose_mode, head_pose, pose_actions, starting_rows
 from stewart_env.errors import UsageError
 from stewart_env.extras import require
 from stewart_env.rotations import rpy_to_matrix
@@ -726,10 +726,9 @@ class CueingMPCPolicy:
         """
         obs = np.asarray(observation)
         part = self.env.unwrapped.decode_observation(np.atleast_2d(obs).astype(float))
-        if episode_start is not None:
-            starts = np.asarray(episode_start, dtype=bool).reshape(-1)
-            if starts.any():
-                self.mpc.reset(starts)
+        starts = starting_rows(episode_start)
+        if starts is not None:
+            self.mpc.reset(starts)
         preview = None
         if self.preview:
             values = np.asarray(part["preview"], dtype=float)
@@ -745,6 +744,4 @@ class CueingMPCPolicy:
             home_rotation = rpy_to_matrix(np.asarray(platform.home_rpy, dtype=float))
             position = np.asarray(platform.home_position, dtype=float) + offset @ home_rotation.T
             rotation = home_rotation @ rpy_to_matrix(angles)
-        action = np.stack([self._actuation.pose_command(p, r) for p, r in zip(position, rotation)])
-        action = np.clip(action, -1.0, 1.0).astype(np.float32)
-        return (action[0] if obs.ndim == 1 else action), None
+        return pose_actions(self._actuation, position, rotation, obs.ndim == 1), None

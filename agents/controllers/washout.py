@@ -467,15 +467,41 @@ class WashoutPolicy:
         """
         obs = np.asarray(observation)
         part = self.env.unwrapped.decode_observation(np.atleast_2d(obs).astype(float))
-        if episode_start is not None:
-            starts = np.asarray(episode_start, dtype=bool).reshape(-1)
-            if starts.any():
-                self.washout.reset(starts)
+        starts = starting_rows(episode_start)
+        if starts is not None:
+            self.washout.reset(starts)
         displacement, rpy = self.washout.step(part["vehicle_specific_force"], part["vehicle_angular_velocity"])
         position, rotation = self.pose(displacement, rpy)
-        action = np.stack([self._actuation.pose_command(p, r) for p, r in zip(position, rotation)])
-        action = np.clip(action, -1.0, 1.0).astype(np.float32)
-        return (action[0] if obs.ndim == 1 else action), None
+        return pose_actions(self._actuation, position, rotation, obs.ndim == 1), None
+
+
+def starting_rows(episode_start) -> np.ndarray | None:
+    """SB3's ``episode_start`` as the (N,) mask of the rows that start over, or None when none does.
+
+    Args:
+        episode_start: None or (N,) booleans.
+    """
+    if episode_start is None:
+        return None
+    starts = np.asarray(episode_start, dtype=bool).reshape(-1)
+    return starts if starts.any() else None
+
+
+def pose_actions(actuation, position, rotation, single: bool) -> np.ndarray:
+    """The pose-mode actions of commanded poses: the environment's normalisation, clipped to [-1, 1].
+
+    Args:
+        actuation: the environment's actuation (its ``pose_command``).
+        position: (N, 3) P's commanded positions, m.
+        rotation: (N, 3, 3) the commanded rotations.
+        single: return the first row's (6,) action, for one observation.
+
+    Returns:
+        The float32 actions, (N, 6) or (6,).
+    """
+    action = np.stack([actuation.pose_command(p, r) for p, r in zip(position, rotation)])
+    action = np.clip(action, -1.0, 1.0).astype(np.float32)
+    return action[0] if single else action
 
 
 def head_pose(platform, head, displacement, rpy) -> tuple[np.ndarray, np.ndarray]:
