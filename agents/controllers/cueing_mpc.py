@@ -501,7 +501,8 @@ class CueingMPC:
         return psi @ xi + gamma @ samples
 
     def step(self, specific_force, angular_velocity, preview=None) -> tuple[np.ndarray, np.ndarray]:
-        """One control step: the head's displacement and the cabin's angles after it.
+        """One control step: the head's displacement and the cabin's angles after it
+        (:meth:`observe`, then :meth:`solve`, then :meth:`apply`).
 
         Args:
             specific_force: (rows, 3) the vehicle's specific force now, m/s², in {H}.
@@ -510,6 +511,19 @@ class CueingMPC:
 
         Returns:
             (displacement (rows, 3) m, rpy (rows, 3) rad), relative to home, in {H}.
+        """
+        self.observe(specific_force, angular_velocity, preview)
+        return self.apply(self.solve())
+
+    def observe(self, specific_force, angular_velocity, preview=None) -> None:
+        """Advance the vehicle's perception by the sample now and hold the horizon's reference: the
+        samples after this one (the step's motion is compared with the next), the preview's, then
+        its last held; with no preview, this sample held.
+
+        Args:
+            specific_force: (rows, 3) the vehicle's specific force now, m/s², in {H}.
+            angular_velocity: (rows, 3) its angular velocity now, rad/s.
+            preview: (rows, k, 6) the next k samples [f, omega] (k may be 0), or None.
         """
         f = np.array(specific_force, dtype=float, ndmin=2)
         f[:, 2] -= STANDARD_GRAVITY
@@ -520,8 +534,6 @@ class CueingMPC:
         if ahead.shape[1]:
             ahead = ahead.copy()
             ahead[:, :, 2] -= STANDARD_GRAVITY
-        # the reference: the samples after this one (the step's motion is compared with the next),
-        # the preview's, then its last held; with no preview, this sample held
         samples = np.empty((rows, n, 6))
         if ahead.shape[1]:
             k = min(ahead.shape[1], n)
@@ -532,27 +544,66 @@ class CueingMPC:
             samples[:] = np.concatenate([f, w], axis=1)[:, None]
         if self.params.reference_decay is not None:
             samples[:, k:] *= np.exp(-self.dt * np.arange(1, n - k + 1) / self.params.reference_decay)[None, :, None]
-        self.status = []
+        self._samples = samples
         self._perceived_before = self.state[:, :, 5:9].copy()
-        self.inputs = np.zeros((rows, 3, 2))
-        displacement = np.zeros((rows, 3))
-        rpy = np.zeros((rows, 3))
+
+    def features(self) -> np.ndarray:
+        """The controller's state after :meth:`observe`, what its programme starts from besides the
+        reference: per pair the model's state (p, v, a, theta, r and the platform's perceived
+        states, 9), then the vehicle's otolith and canal states (2 per axis each).
+
+        Returns:
+            (rows, 39) values.
+        """
+        rows = self.state.shape[0]
+        return np.concatenate(
+            [self.state.reshape(rows, 27), self.vehicle_otolith.reshape(rows, 6), self.vehicle_canal.reshape(rows, 6)],
+            axis=1,
+        )
+
+    def solve(self) -> np.ndarray:
+        """The first inputs of the programmes over the horizon (after :meth:`observe`); their
+        solver's status per row and pair in ``status``.
+
+        Returns:
+            (rows, 3 pairs, 2) the jerk and the angular acceleration of each pair.
+        """
+        rows = self.state.shape[0]
+        self.status = []
+        inputs = np.zeros((rows, 3, 2))
         rotation_of = (1, 0, 2)  # pitch, roll, yaw: the rotation paired with x, y, z
         for i in range(rows):
             for axis, pair in enumerate(self.pairs):
                 rot = rotation_of[axis]
                 f_ref = self._perceived_reference(
-                    self.otolith_prediction, self.vehicle_otolith[i, axis], samples[i, :, axis]
+                    self.otolith_prediction, self.vehicle_otolith[i, axis], self._samples[i, :, axis]
                 )
                 w_ref = self._perceived_reference(
-                    self.canal_prediction, self.vehicle_canal[i, rot], samples[i, :, 3 + rot]
+                    self.canal_prediction, self.vehicle_canal[i, rot], self._samples[i, :, 3 + rot]
                 )
-                u, status = pair.solve(i, self.state[i, axis], f_ref, w_ref)
+                inputs[i, axis], status = pair.solve(i, self.state[i, axis], f_ref, w_ref)
                 self.status.append(status)
-                self.inputs[i, axis] = u
-                self.state[i, axis] = pair.a @ self.state[i, axis] + pair.b @ u
+        return inputs
+
+    def apply(self, inputs) -> tuple[np.ndarray, np.ndarray]:
+        """Move the model's state on under ``inputs``, held over the step.
+
+        Args:
+            inputs: (rows, 3 pairs, 2) the jerk and the angular acceleration of each pair.
+
+        Returns:
+            (displacement (rows, 3) m, rpy (rows, 3) rad), relative to home, in {H}.
+        """
+        self.inputs = np.array(inputs, dtype=float)
+        rows = self.state.shape[0]
+        displacement = np.zeros((rows, 3))
+        rpy = np.zeros((rows, 3))
+        rotation_of = (1, 0, 2)
+        for i in range(rows):
+            for axis, pair in enumerate(self.pairs):
+                self.state[i, axis] = pair.a @ self.state[i, axis] + pair.b @ self.inputs[i, axis]
                 displacement[i, axis] = self.state[i, axis, 0]
-                rpy[i, rot] = self.state[i, axis, 3]
+                rpy[i, rotation_of[axis]] = self.state[i, axis, 3]
         return displacement, rpy
 
     def correct(self, specific_force, angular_velocity) -> None:
