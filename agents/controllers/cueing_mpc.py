@@ -72,7 +72,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse
 
-from stewart_env.agents.controllers.washout import _pose_mode, head_pose, pose_actions, starting_rows
+from stewart_env.agents.controllers.washout import _pose_mode, cueing_environment, head_pose, pose_actions, starting_rows
 from stewart_env.errors import UsageError
 from stewart_env.extras import require
 from stewart_env.rotations import rpy_to_matrix
@@ -692,7 +692,7 @@ class CueingMPCPolicy:
     (``head_pose``), as the environment's pose action.
 
     Args:
-        env: the cueing environment (single or vector), ``action_mode="pose"``.
+        env: the cueing environment (single, vector or SB3 VecEnv), ``action_mode="pose"``.
         params: the MPC's parameters (default :class:`CueingMPCParams`).
         head: the head point in {P}, m (default the task's ``head``).
 
@@ -705,7 +705,7 @@ class CueingMPCPolicy:
 
     def __init__(self, env, params: CueingMPCParams | None = None, head=None):
         require("mpc", "the cueing MPC (CueingMPCPolicy)")
-        base = env.unwrapped
+        env = base = cueing_environment(env)
         missing = [k for k in self.PARTS if k not in base.observation_layout]
         if missing:
             raise UsageError.about("env", f"its observations lack {missing}; the cueing MPC needs task='cueing'")

@@ -403,7 +403,7 @@ class WashoutPolicy:
     over when the batch's size changes, at SB3's ``episode_start`` rows and at :meth:`reset`.
 
     Args:
-        env: the cueing environment (single or vector), ``action_mode="pose"``.
+        env: the cueing environment (single, vector or SB3 VecEnv), ``action_mode="pose"``.
         params: the washout's parameters, or a path to a YAML file of them (default the
             :class:`WashoutParams` defaults).
         head: the head point in {P}, m: the centre of the cabin's rotations (default P's origin,
@@ -416,7 +416,7 @@ class WashoutPolicy:
     PARTS = ("vehicle_specific_force", "vehicle_angular_velocity")
 
     def __init__(self, env, params: WashoutParams | str | None = None, head=None):
-        base = env.unwrapped
+        env = base = cueing_environment(env)
         missing = [k for k in self.PARTS if k not in base.observation_layout]
         if missing:
             raise UsageError.about("env", f"its observations lack {missing}; washout needs task='cueing'")
@@ -528,6 +528,25 @@ def head_pose(platform, head, displacement, rpy) -> tuple[np.ndarray, np.ndarray
         - rotation @ head
     )
     return position, rotation
+
+
+def cueing_environment(env):
+    """The stewart-env environment under ``env``: a Gymnasium or native vector environment's
+    ``unwrapped``, or the one a Stable-Baselines3 ``VecEnv`` wraps (``venv``, followed down).
+
+    Args:
+        env: an environment of this package, or a wrapper of one.
+
+    Raises:
+        UsageError: no such environment under ``env`` (the message names ``env``).
+    """
+    seen = 0
+    while env is not None and seen < 16:
+        base = getattr(env, "unwrapped", None)
+        if hasattr(base, "observation_layout") and hasattr(base, "decode_observation"):
+            return base
+        env, seen = getattr(env, "venv", None), seen + 1
+    raise UsageError.about("env", "expected a stewart-env environment (Gymnasium, vector or SB3 VecEnv) on task='cueing'")
 
 
 def _pose_mode(base) -> bool:

@@ -119,3 +119,18 @@ def test_the_cueing_mpc_without_osqp_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "osqp", None)  # find_spec: not installed
     with pytest.raises(MissingExtra, match=r'needs osqp.*pip install -e "\.\[mpc\]"'):
         CueingMPC()
+
+
+def test_policy_drives_an_sb3_vec_env():
+    pytest.importorskip("osqp")
+    from stewart_env.agents.controllers.cueing_mpc import CueingMPCPolicy
+    from stewart_env.envs import StewartPlatformSB3VecEnv
+
+    vec = StewartPlatformSB3VecEnv(num_envs=2, task="cueing", action_mode="pose")
+    try:
+        vec.seed(0)
+        obs = vec.reset()
+        action, _ = CueingMPCPolicy(vec).predict(obs)
+        assert action.shape == (2, 6) and np.all(np.abs(action) <= 1.0)
+    finally:
+        vec.close()

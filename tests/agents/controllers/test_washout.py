@@ -213,3 +213,18 @@ def test_policy_refuses_other_envs():
     env = gym.make("StewartPlatform-v1", task="cueing", action_mode="pose")
     with pytest.raises(UsageError, match=r"head: must be three finite numbers"):
         WashoutPolicy(env, head=(0.0, 1.0))
+
+
+def test_policy_drives_an_sb3_vec_env_and_refuses_a_stranger():
+    from stewart_env.envs import StewartPlatformSB3VecEnv
+
+    vec = StewartPlatformSB3VecEnv(num_envs=2, task="cueing", action_mode="pose")
+    try:
+        vec.seed(0)
+        obs = vec.reset()
+        action, _ = WashoutPolicy(vec).predict(obs)  # the VecEnv's own environment is found under it
+        assert action.shape == (2, 6) and np.all(np.isfinite(action))
+    finally:
+        vec.close()
+    with pytest.raises(UsageError, match=r"env: expected a stewart-env environment"):
+        WashoutPolicy(object())
