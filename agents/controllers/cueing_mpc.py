@@ -72,7 +72,13 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse
 
-from stewart_env.agents.controllers.washout import _pose_mode, cueing_environment, head_pose, pose_actions, starting_rows
+from stewart_env.agents.controllers.washout import (
+    _pose_mode,
+    cueing_environment,
+    head_pose,
+    pose_actions,
+    starting_rows,
+)
 from stewart_env.errors import UsageError
 from stewart_env.extras import require
 from stewart_env.rotations import rpy_to_matrix
@@ -764,7 +770,8 @@ class CueingMPCPolicy:
         self.mpc.correct(f, w)
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
-        """SB3's interface: (action (6,) or (N, 6), None) for one observation or a batch.
+        """SB3's interface: (action (6,) or (N, 6), None) for one observation or a batch
+        (:meth:`prepare`, the programmes' first inputs, then :meth:`command`).
 
         Args:
             observation: one observation (obs_dim,) or a batch (N, obs_dim).
@@ -774,6 +781,20 @@ class CueingMPCPolicy:
 
         Returns:
             (action, None).
+        """
+        self.prepare(observation, episode_start)
+        return self.command(self.mpc.solve(), np.ndim(observation) == 1), None
+
+    def prepare(self, observation, episode_start=None) -> np.ndarray:
+        """Read an observation into the controller: the rows that start over, the platform's
+        perceived state from the measured motion (``feedback``), the vehicle's sample and preview.
+
+        Args:
+            observation: one observation (obs_dim,) or a batch (N, obs_dim).
+            episode_start: SB3's episode starts (N,) bool: those rows start over.
+
+        Returns:
+            (N, 39) the controller's state (:meth:`CueingMPC.features`).
         """
         obs = np.asarray(observation)
         part = self.env.unwrapped.decode_observation(np.atleast_2d(obs).astype(float))
@@ -786,7 +807,21 @@ class CueingMPCPolicy:
             preview = values.reshape(values.shape[0], -1, 6)
         if self.params.feedback:
             self._measure(part, episode_start)
-        displacement, rpy = self.mpc.step(part["vehicle_specific_force"], part["vehicle_angular_velocity"], preview)
+        self.mpc.observe(part["vehicle_specific_force"], part["vehicle_angular_velocity"], preview)
+        return self.mpc.features()
+
+    def command(self, inputs, single: bool = False) -> np.ndarray:
+        """The pose actions after :meth:`prepare` and the step's ``inputs`` (the programmes' or
+        another policy's): the model moved on, and its pose commanded through the pose loop's inverse.
+
+        Args:
+            inputs: (N, 3 pairs, 2) the jerk and the angular acceleration of each pair.
+            single: return the first row's (6,) action.
+
+        Returns:
+            The float32 pose actions, (N, 6) or (6,).
+        """
+        displacement, rpy = self.mpc.apply(inputs)
         if self.params.loop_frequency is None:
             position, rotation = head_pose(self.env.unwrapped.platform, self.head, displacement, rpy)
         else:
@@ -795,4 +830,4 @@ class CueingMPCPolicy:
             home_rotation = rpy_to_matrix(np.asarray(platform.home_rpy, dtype=float))
             position = np.asarray(platform.home_position, dtype=float) + offset @ home_rotation.T
             rotation = home_rotation @ rpy_to_matrix(angles)
-        return pose_actions(self._actuation, position, rotation, obs.ndim == 1), None
+        return pose_actions(self._actuation, position, rotation, single)

@@ -546,7 +546,9 @@ def cueing_environment(env):
         if hasattr(base, "observation_layout") and hasattr(base, "decode_observation"):
             return base
         env, seen = getattr(env, "venv", None), seen + 1
-    raise UsageError.about("env", "expected a stewart-env environment (Gymnasium, vector or SB3 VecEnv) on task='cueing'")
+    raise UsageError.about(
+        "env", "expected a stewart-env environment (Gymnasium, vector or SB3 VecEnv) on task='cueing'"
+    )
 
 
 def _pose_mode(base) -> bool:

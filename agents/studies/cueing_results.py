@@ -161,11 +161,22 @@ class CueingResultsSettings:
     @property
     def residual(self) -> bool:
         """Whether the config's agents are residuals on the washout."""
-        return read_config(self.config)[0] is not None
+        from stewart_env.agents.training.residual import ResidualSettings
+
+        return isinstance(read_config(self.config)[0], ResidualSettings)
+
+    @property
+    def imitation(self) -> bool:
+        """Whether the config's agents start from an imitation of the cueing MPC."""
+        from stewart_env.agents.training.imitation import ImitationSettings
+
+        return isinstance(read_config(self.config)[0], ImitationSettings)
 
     @property
     def label(self) -> str:
         """PPO's row label in the table."""
+        if self.imitation:
+            return "ppo (from the MPC's imitation)"
         return "ppo (residual on washout)" if self.residual else "ppo"
 
     def held_out(self) -> list[tuple[str, int]]:
@@ -176,27 +187,33 @@ class CueingResultsSettings:
 
 
 def read_config(config: str):
-    """A cueing config's residual settings (None: PPO commands the pose itself) and its entry
-    without them, as SB3's parser reads it.
+    """A cueing config's own settings (a residual's on the washout, an imitation's of the MPC, or
+    None: PPO commands the pose itself) and its entry without them, as SB3's parser reads it.
 
     Args:
         config: a shipped config's name or a path.
 
     Returns:
-        (residual settings or None, the entry).
+        (the ResidualSettings, ImitationSettings or None, the entry).
 
     Raises:
-        TrainingError: no such config, or bad residual settings.
+        TrainingError: no such config, or bad residual or imitation settings.
     """
+    from stewart_env.agents.training.errors import TrainingError
     from stewart_env.agents.training.hyperparameters import parse_hyperparameters, read_hyperparameters
+    from stewart_env.agents.training.imitation import IMITATION_KEY, imitation_settings
     from stewart_env.agents.training.residual import RESIDUAL_KEY, residual_settings
 
     entry = read_hyperparameters("ppo", config)
-    residual = None
+    special = None
+    if RESIDUAL_KEY in entry and IMITATION_KEY in entry:
+        raise TrainingError(f"{config}: give {RESIDUAL_KEY} or {IMITATION_KEY}, not both")
     if RESIDUAL_KEY in entry:
-        residual, entry = residual_settings(entry)
+        special, entry = residual_settings(entry)
+    elif IMITATION_KEY in entry:
+        special, entry = imitation_settings(entry)
     parse_hyperparameters("ppo", entry)  # its names and values checked before any work
-    return residual, entry
+    return special, entry
 
 
 def _env_kwargs(config: str) -> dict[str, Any]:
@@ -305,11 +322,13 @@ def _train(
         return folder if folder.is_dir() else None
     folder = agents_folder(out, model) / f"seed_{seed}"
     timesteps = _timesteps(settings)
-    if settings.residual:
-        from stewart_env.agents.training.residual import MANIFEST, train_residual
+    if settings.residual or settings.imitation:
+        from stewart_env.agents.training import imitation, residual
 
+        manifest_file = residual.MANIFEST if settings.residual else imitation.MANIFEST
+        train = residual.train_residual if settings.residual else imitation.train_imitation
         try:
-            done = json.loads((folder / MANIFEST).read_text())
+            done = json.loads((folder / manifest_file).read_text())
         except (OSError, ValueError):
             done = {}
         wanted = {"config": str(settings.config), "seed": seed}
@@ -320,7 +339,7 @@ def _train(
             or done.get("num_timesteps", 0) < timesteps
         ):
             env_kwargs = None if model == TRUE_MODEL else {"model": model}
-            train_residual(folder, settings.config, seed, timesteps, env_kwargs=env_kwargs, progress_bar=progress)
+            train(folder, settings.config, seed, timesteps, env_kwargs=env_kwargs, progress_bar=progress)
         return folder
     kwargs = config_env_kwargs_of_training(settings.config)
     if model != TRUE_MODEL:
@@ -347,14 +366,17 @@ def config_env_kwargs_of_training(config: str = PPO_CONFIG) -> dict[str, Any]:
     return {**config_env_kwargs("ppo", config), "task": "cueing"}
 
 
-def _agent(folder: Path, residual: bool):
+def _agent(folder: Path, settings: CueingResultsSettings):
     """(the agent's policy or its factory, its files' sha256, its training's record)."""
-    if residual:
-        from stewart_env.agents.training.residual import MANIFEST, load_residual
+    if settings.residual or settings.imitation:
+        from stewart_env.agents.training import imitation, residual
 
-        manifest = json.loads((folder / MANIFEST).read_text())
-        training = {k: manifest.get(k) for k in ("num_timesteps", "cpu_seconds", "wall_seconds", "episode_endings")}
-        return (lambda env: load_residual(folder, env)), manifest["files"], training
+        manifest_file = residual.MANIFEST if settings.residual else imitation.MANIFEST
+        load = residual.load_residual if settings.residual else imitation.load_imitation
+        manifest = json.loads((folder / manifest_file).read_text())
+        keys = ("num_timesteps", "cpu_seconds", "wall_seconds", "episode_endings", "cpu_seconds_by_stage")
+        training = {k: manifest[k] for k in keys if k in manifest}
+        return (lambda env: load(folder, env)), manifest["files"], training
     from stewart_env.agents.training import load_agent
 
     manifest = json.loads((folder / "run.json").read_text())
@@ -403,7 +425,7 @@ def run_cueing_results(
             folder = _train(out, None if agents is None else Path(agents), settings, seed, progress, model)
             if folder is None:
                 continue
-            policy, files, record = _agent(folder, settings.residual)
+            policy, files, record = _agent(folder, settings)
             spec = _evaluation_spec(settings, "ppo", seed, settings.timesteps)
             spec["agent"] = files
             spec["config"] = str(settings.config)
