@@ -92,7 +92,7 @@ class ImitationSettings:
 
     seeds: int = 4
     max_steps: int = 1000
-    rounds: int = 1
+    rounds: int = 0
     epochs: int = 30
     batch_size: int = 512
     learning_rate: float = 1e-3
@@ -153,21 +153,39 @@ class Standardisation:
 
     @classmethod
     def of(cls, x: np.ndarray, u: np.ndarray) -> Standardisation:
-        """The standardisation of samples ``x`` (n, obs_dim + 39) and ``u`` (n, 6)."""
+        """The standardisation of samples.
+
+        Args:
+            x: (n, obs_dim + 39) the observations and the controller's states.
+            u: (n, 6) the inputs.
+        """
         return cls(x.mean(axis=0), np.maximum(x.std(axis=0), 1e-6), u.mean(axis=0), np.maximum(u.std(axis=0), 1e-12))
 
     def observed(self, observation: np.ndarray, features: np.ndarray) -> np.ndarray:
-        """What the agent observes: (N, obs_dim + 39) float32."""
+        """What the agent observes: (N, obs_dim + 39) float32.
+
+        Args:
+            observation: (N, obs_dim) the environment's observations.
+            features: (N, 39) the controller's states.
+        """
         x = np.concatenate([np.atleast_2d(observation).astype(float), features], axis=1)
         return ((x - self.x_mean) / self.x_scale).astype(np.float32)
 
     def inputs(self, action) -> np.ndarray:
-        """The programmes' inputs (N, 3, 2) of standardised actions (N, 6)."""
+        """The programmes' inputs (N, 3, 2) of standardised actions, clipped to the action's bound.
+
+        Args:
+            action: (N, 6) standardised actions.
+        """
         a = np.clip(np.asarray(action, dtype=float).reshape(-1, 6), -ACTION_BOUND, ACTION_BOUND)
         return (a * self.u_scale + self.u_mean).reshape(-1, 3, 2)
 
     def actions(self, inputs: np.ndarray) -> np.ndarray:
-        """The standardised actions (N, 6) of inputs (N, 6)."""
+        """The standardised actions (N, 6) float32 of inputs.
+
+        Args:
+            inputs: (N, 6) or (N, 3, 2) the programmes' inputs.
+        """
         return ((np.asarray(inputs, dtype=float).reshape(-1, 6) - self.u_mean) / self.u_scale).astype(np.float32)
 
     def arrays(self) -> dict[str, np.ndarray]:
@@ -327,7 +345,11 @@ class ImitatedMPCVecEnv(_vec_env_wrapper()):
         return self.scales.observed(obs, self.controller.prepare(obs))
 
     def step_async(self, actions: np.ndarray) -> None:
-        """Command the poses of the inputs ``actions`` (N, 6), standardised."""
+        """Command the poses of the agent's inputs.
+
+        Args:
+            actions: (N, 6) the standardised inputs.
+        """
         self.venv.step_async(self.controller.command(self.scales.inputs(actions)))
 
     def step_wait(self):
@@ -364,7 +386,12 @@ class ImitatedMPCPolicy:
         self.controller.reset()
 
     def inputs(self, observation, features) -> np.ndarray:
-        """The agent's inputs (N, 3, 2), its mean action, for observations and the controller's states."""
+        """The agent's inputs (N, 3, 2), its mean action.
+
+        Args:
+            observation: (N, obs_dim) raw observations.
+            features: (N, 39) the controller's states.
+        """
         with single_thread():
             action, _ = self.model.predict(self.scales.observed(observation, features), deterministic=True)
         return self.scales.inputs(action)
