@@ -51,8 +51,9 @@ subject to the workspace (|P| <= the bound, |theta| <= the angle bound) and the 
 constraints**, at every ``stride``-th step: where the vehicle's predicted perceived signal is above
 ``band`` thr, the platform's must not be below -m thr (thr the perception threshold, m < 1 a
 margin); below -band thr, not above m thr; in between, within ±m thr.  These are linear in the
-inputs, so the problem stays a QP; they are soft (the slacks sigma, weighed by rho), so that it is
-always feasible.  The model is linear and time-invariant: the QP's matrices are built once and only
+inputs, so the problem stays a QP; they are soft (the slacks sigma, weighed by rho), so that they
+never make it infeasible.  The workspace bounds are hard: a pair whose state is already past one
+gets no input for the step (its programme is infeasible).  The model is linear and time-invariant: the QP's matrices are built once and only
 its linear term and bounds change with the state and the reference, so OSQP solves each step
 warm-started, without refactorising.
 
@@ -88,6 +89,8 @@ from stewart_env.tasks.cueing.vestibular import THRESHOLDS, Otolith, Semicircula
 __all__ = ["OSQP_SETTINGS", "CueingMPC", "CueingMPCParams", "CueingMPCPolicy", "foh_state_space", "pair_model"]
 
 #: OSQP's settings: tolerances of 1e-4 (perceived forces of about 1 m/s²), polishing off, warm start.
+#: OSQP's statuses whose x is a solution (within its tolerances, or beyond its iterations' limit).
+SOLVED = ("solved", "solved inaccurate", "maximum iterations reached")
 OSQP_SETTINGS = {
     "verbose": False,
     "eps_abs": 1e-4,
@@ -422,7 +425,9 @@ class _PairQP:
         result = solver.solve(raise_error=False)
         status = result.info.status
         x = result.x
-        if x is None or not np.all(np.isfinite(x[: self.n_inputs])):
+        # an infeasible programme (a state already past a hard workspace bound) returns OSQP's
+        # certificate in x, not a solution: no input is the safe answer, as for a non-finite one
+        if status not in SOLVED or x is None or not np.all(np.isfinite(x[: self.n_inputs])):
             return np.zeros(2), status
         blocks = self.n_inputs // 2
         return np.array([x[0], x[blocks]]), status

@@ -134,3 +134,21 @@ def test_policy_drives_an_sb3_vec_env():
         assert action.shape == (2, 6) and np.all(np.abs(action) <= 1.0)
     finally:
         vec.close()
+
+
+def test_an_infeasible_programme_gives_no_input():
+    pytest.importorskip("osqp")
+    from stewart_env.agents.controllers.cueing_mpc import SOLVED, CueingMPC
+
+    mpc = CueingMPC(CueingMPCParams(), 0.01, 0.8)
+    heave = mpc.pairs[2]
+    state = np.zeros(9)
+    state[0], state[1] = 0.5, 2.0  # 0.5 m above home and rising at 2 m/s: past the 0.06 m bound at every point
+    reference = np.zeros(mpc.params.horizon)
+    inputs, status = heave.solve(0, state, reference, reference)
+    assert status not in SOLVED  # OSQP's certificate of infeasibility, not a solution
+    assert np.array_equal(inputs, np.zeros(2))
+    inputs, status = heave.solve(1, np.zeros(9), reference, reference)
+    assert status in SOLVED and np.all(
+        np.abs(inputs) < 1e-6
+    )  # at rest with nothing to cue: no input (OSQP's 1e-4 tolerance on a tiny input)
