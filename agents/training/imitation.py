@@ -36,7 +36,7 @@ training's CPU and wall time by stage).
 from __future__ import annotations
 
 import collections
-import hashlib
+import functools
 import io
 import json
 import os
@@ -50,6 +50,8 @@ import numpy as np
 
 from stewart_env.agents.training.environment import single_thread
 from stewart_env.agents.training.errors import TrainingError
+from stewart_env.agents.training.residual import _vec_env_wrapper
+from stewart_env.agents.training.rundir import sha256_hex
 from stewart_env.files import publish
 
 __all__ = [
@@ -60,6 +62,7 @@ __all__ = [
     "Standardisation",
     "demonstrations",
     "imitation_settings",
+    "mean_inputs",
     "load_imitation",
     "train_imitation",
 ]
@@ -309,12 +312,6 @@ def fit_clone(policy, x: np.ndarray, y: np.ndarray, settings: ImitationSettings,
     return loss_sum / n
 
 
-def _vec_env_wrapper():
-    from stable_baselines3.common.vec_env import VecEnvWrapper
-
-    return VecEnvWrapper
-
-
 class ImitatedMPCVecEnv(_vec_env_wrapper()):
     """PPO's training batch: SB3's VecEnv whose action is the standardised inputs of the
     controller's three pairs and whose observation is the standardised observation and state.
@@ -366,6 +363,20 @@ class ImitatedMPCVecEnv(_vec_env_wrapper()):
         return self.scales.observed(obs, features), rewards, dones, infos
 
 
+def mean_inputs(model, scales: Standardisation, observation, features) -> np.ndarray:
+    """A model's inputs (N, 3, 2), its mean action, for raw observations and the controller's states.
+
+    Args:
+        model: the SB3 model.
+        scales: its standardisation.
+        observation: (N, obs_dim) raw observations.
+        features: (N, 39) the controller's states.
+    """
+    with single_thread():
+        action, _ = model.predict(scales.observed(observation, features), deterministic=True)
+    return scales.inputs(action)
+
+
 class ImitatedMPCPolicy:
     """A trained agent on a cueing environment, with SB3's ``predict`` on raw observations.
 
@@ -392,9 +403,7 @@ class ImitatedMPCPolicy:
             observation: (N, obs_dim) raw observations.
             features: (N, 39) the controller's states.
         """
-        with single_thread():
-            action, _ = self.model.predict(self.scales.observed(observation, features), deterministic=True)
-        return self.scales.inputs(action)
+        return mean_inputs(self.model, self.scales, observation, features)
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
         """SB3's interface: (action (6,) or (N, 6), None).
@@ -413,10 +422,6 @@ class ImitatedMPCPolicy:
         features = self.controller.prepare(obs, episode_start)
         action = self.controller.command(self.inputs(obs, features))
         return (action[0] if np.ndim(observation) == 1 else action), None
-
-
-def _sha256(data: bytes) -> str:
-    return hashlib.sha256(data).hexdigest()
 
 
 def train_imitation(
@@ -489,10 +494,14 @@ def train_imitation(
             seconds["cloning"] = time.process_time() - cpu - sum(seconds.values())
             samples = [len(x)]
             for _ in range(settings.rounds):
-                policy = ImitatedMPCPolicy.__new__(ImitatedMPCPolicy)
-                policy.model, policy.scales = agent, scales
                 more_x, more_u = _kept(
-                    *demonstrations(settings, demo_kwargs, clone=policy.inputs, progress=progress_bar), scales
+                    *demonstrations(
+                        settings,
+                        demo_kwargs,
+                        clone=functools.partial(mean_inputs, agent, scales),
+                        progress=progress_bar,
+                    ),
+                    scales,
                 )
                 x, u = np.concatenate([x, more_x]), np.concatenate([u, more_u])
                 samples.append(len(more_x))
@@ -532,7 +541,7 @@ def train_imitation(
         "cpu_seconds_by_stage": seconds,
         "wall_seconds": wall,
         "episode_endings": {"all": dict(imitated.endings)},
-        "files": {name: _sha256(data) for name, data in files.items()},
+        "files": {name: sha256_hex(data) for name, data in files.items()},
     }
     publish(out / MANIFEST, json.dumps(manifest, indent=2) + "\n")
     return manifest

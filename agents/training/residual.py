@@ -20,7 +20,6 @@ training's CPU and wall time).
 from __future__ import annotations
 
 import collections
-import hashlib
 import io
 import json
 import os
@@ -34,6 +33,7 @@ import numpy as np
 from stewart_env.agents.controllers.washout import WashoutParams, WashoutPolicy, load_washout_params
 from stewart_env.agents.training.environment import single_thread
 from stewart_env.agents.training.errors import TrainingError
+from stewart_env.agents.training.rundir import sha256_hex
 from stewart_env.files import publish
 
 __all__ = [
@@ -301,10 +301,6 @@ class ResidualWashoutPolicy:
         return (action[0] if np.ndim(observation) == 1 else action), None
 
 
-def _sha256(data: bytes) -> str:
-    return hashlib.sha256(data).hexdigest()
-
-
 def train_residual(
     out: str | os.PathLike,
     config: str | os.PathLike,
@@ -384,7 +380,7 @@ def train_residual(
         "cpu_seconds": cpu,
         "wall_seconds": wall,
         "episode_endings": endings,
-        "files": {name: _sha256(data) for name, data in files.items()},
+        "files": {name: sha256_hex(data) for name, data in files.items()},
     }
     publish(out / MANIFEST, json.dumps(manifest, indent=2) + "\n")
     return manifest

@@ -60,6 +60,7 @@ from stewart_env.files import (
 from stewart_env.registration import ENV_ID
 
 __all__ = [
+    "sha256_hex",
     "CHECKPOINT_DIR",
     "CHECKPOINT_MANIFEST",
     "DEFAULT_KEEP_CHECKPOINTS",
@@ -126,6 +127,15 @@ def agent_file_writers(model, replay_buffer: bool) -> dict[str, Callable[[Path],
     return writers
 
 
+def sha256_hex(data: bytes) -> str:
+    """The sha256 of ``data`` as a manifest records it and :func:`verified_bytes` checks it.
+
+    Args:
+        data: a file's bytes.
+    """
+    return hashlib.sha256(data).hexdigest()
+
+
 def verified_bytes(folder: Path, hashes: Mapping[str, str], name: str, what: str) -> bytes:
     """The bytes of ``folder/name`` if their sha256 is ``hashes[name]``; TrainingError otherwise.
     Reading once and unpickling these bytes leaves no gap between the check and the load.
@@ -142,7 +152,7 @@ def verified_bytes(folder: Path, hashes: Mapping[str, str], name: str, what: str
     if not os.path.lexists(path):
         raise TrainingError(f"{path}: missing ({what} lists it)")
     data = read_regular(path, MAX_AGENT_FILE_BYTES)
-    if hashlib.sha256(data).hexdigest() != hashes[name]:
+    if sha256_hex(data) != hashes[name]:
         raise TrainingError(
             f"{path}: its sha256 does not match {what}: the file was changed, truncated or "
             "replaced after it was written; refusing to unpickle it"
