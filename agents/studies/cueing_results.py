@@ -176,7 +176,8 @@ class CueingResultsSettings:
     def label(self) -> str:
         """PPO's row label in the table."""
         if self.imitation:
-            return "ppo (from the MPC's imitation)"
+            special = read_config(self.config)[0]
+            return "ppo (residual on the MPC)" if special.residual else "ppo (from the MPC's imitation)"
         return "ppo (residual on washout)" if self.residual else "ppo"
 
     def held_out(self) -> list[tuple[str, int]]:
@@ -201,16 +202,17 @@ def read_config(config: str):
     """
     from stewart_env.agents.training.errors import TrainingError
     from stewart_env.agents.training.hyperparameters import parse_hyperparameters, read_hyperparameters
-    from stewart_env.agents.training.imitation import IMITATION_KEY, imitation_settings
+    from stewart_env.agents.training.imitation import IMITATION_KEY, RESIDUAL_MPC_KEY, imitation_settings
     from stewart_env.agents.training.residual import RESIDUAL_KEY, residual_settings
 
     entry = read_hyperparameters("ppo", config)
     special = None
-    if RESIDUAL_KEY in entry and IMITATION_KEY in entry:
-        raise TrainingError(f"{config}: give {RESIDUAL_KEY} or {IMITATION_KEY}, not both")
+    given = [k for k in (RESIDUAL_KEY, IMITATION_KEY, RESIDUAL_MPC_KEY) if k in entry]
+    if len(given) > 1:
+        raise TrainingError(f"{config}: give one of {', '.join(given)}, not {len(given)}")
     if RESIDUAL_KEY in entry:
         special, entry = residual_settings(entry)
-    elif IMITATION_KEY in entry:
+    elif given:
         special, entry = imitation_settings(entry)
     parse_hyperparameters("ppo", entry)  # its names and values checked before any work
     return special, entry

@@ -28,6 +28,15 @@ Training (:func:`train_imitation`, a zoo-format config whose entry holds :data:`
    MPC would do in the states its own errors lead to;
 4. **PPO** on the cueing task's reward from the clone, for the config's ``n_timesteps``.
 
+**PPO as a residual on the MPC** (the entry's key :data:`RESIDUAL_MPC_KEY`, with
+``residual_scale`` > 0; ``configs/agents/ppo_cueing_mpc_residual.yml``): the programmes are solved
+at every step, and the agent's action, in the demonstrations' deviations of the inputs and times
+``residual_scale``, is added to their inputs (residual policy learning, Silver et al. 2018;
+Johannink et al. 2019).  The demonstrations give only the standardisation; there is no fit: the
+policy's mean starts at zero, so that an untrained agent cues exactly as the MPC does, and the
+MPC's next programme, solved from the state the residual led to, takes its bounds and false cues
+into account.
+
 An agent's folder holds ``model.zip`` (SB3's), ``imitation.npz`` (the standardisations) and
 ``imitation.json`` (the settings, the files' sha256, checked before they are read, and the
 training's CPU and wall time by stage).
@@ -56,6 +65,7 @@ from stewart_env.files import publish
 
 __all__ = [
     "IMITATION_KEY",
+    "RESIDUAL_MPC_KEY",
     "ImitatedMPCPolicy",
     "ImitatedMPCVecEnv",
     "ImitationSettings",
@@ -69,6 +79,10 @@ __all__ = [
 
 #: The config entry's key of the imitation's settings (:class:`ImitationSettings`' fields).
 IMITATION_KEY = "imitate_mpc"
+#: The config entry's key of a residual on the MPC (the same fields, ``residual_scale`` > 0).
+RESIDUAL_MPC_KEY = "residual_mpc"
+#: The largest residual scale, in the inputs' deviations per unit of action.
+MAX_RESIDUAL_SCALE = 10.0
 #: The files of a trained agent.
 MODEL_FILE, SCALES_FILE, MANIFEST = "model.zip", "imitation.npz", "imitation.json"
 #: The controller's state values the agent observes after the environment's observation.
@@ -91,6 +105,9 @@ class ImitationSettings:
         epochs: passes of the fit over the samples, each time it is fitted, 1 to 1000.
         batch_size: samples per gradient step, 16 to 65536.
         learning_rate: Adam's step size of the fit, in (0, 1].
+        residual_scale: 0: the agent's action replaces the MPC's inputs (the imitation); in
+            (0, 10]: it is added to them, a unit of action moving each input by this many of its
+            deviations (the residual; no fit and no DAgger round).
     """
 
     seeds: int = 4
@@ -99,8 +116,14 @@ class ImitationSettings:
     epochs: int = 30
     batch_size: int = 512
     learning_rate: float = 1e-3
+    residual_scale: float = 0.0
 
     def __post_init__(self) -> None:
+        scale = self.residual_scale
+        if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0.0 <= scale <= MAX_RESIDUAL_SCALE:
+            raise TrainingError(
+                f"{RESIDUAL_MPC_KEY}: residual_scale must be a number in [0, {MAX_RESIDUAL_SCALE:g}], got {scale!r}"
+            )
         for name, low, high in (
             ("seeds", 1, 64),
             ("max_steps", 10, 100000),
@@ -110,34 +133,54 @@ class ImitationSettings:
         ):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-                raise TrainingError(f"{IMITATION_KEY}: {name} must be an integer in [{low}, {high}], got {value!r}")
+                raise TrainingError(f"{self.key}: {name} must be an integer in [{low}, {high}], got {value!r}")
         rate = self.learning_rate
         if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0.0 < float(rate) <= 1.0:
-            raise TrainingError(f"{IMITATION_KEY}: learning_rate must be a number in (0, 1], got {rate!r}")
+            raise TrainingError(f"{self.key}: learning_rate must be a number in (0, 1], got {rate!r}")
+        if self.residual and self.rounds:
+            raise TrainingError(f"{self.key}: a residual on the MPC has no DAgger rounds, got rounds={self.rounds}")
+
+    @property
+    def residual(self) -> bool:
+        """Whether the agent's action is added to the MPC's inputs rather than replacing them."""
+        return self.residual_scale > 0
+
+    @property
+    def key(self) -> str:
+        """The config entry's key of these settings."""
+        return RESIDUAL_MPC_KEY if self.residual else IMITATION_KEY
 
 
 def imitation_settings(entry: Mapping[str, Any]) -> tuple[ImitationSettings, dict[str, Any]]:
-    """Split a zoo entry into the imitation's settings and the entry SB3's parser reads.
+    """Split a zoo entry into the imitation's (or the residual's) settings and the entry SB3's
+    parser reads.
 
     Args:
         entry: the config's entry (``read_hyperparameters``).
 
     Returns:
-        (the settings, the entry without :data:`IMITATION_KEY`).
+        (the settings, the entry without :data:`IMITATION_KEY` or :data:`RESIDUAL_MPC_KEY`).
 
     Raises:
-        TrainingError: the entry's :data:`IMITATION_KEY` is not a mapping, or holds a bad value.
+        TrainingError: both keys or neither, a value that is not a mapping, or a bad value
+            (under :data:`RESIDUAL_MPC_KEY`, ``residual_scale`` must be given and > 0).
     """
-    value = entry.get(IMITATION_KEY)
+    keys = [k for k in (IMITATION_KEY, RESIDUAL_MPC_KEY) if k in entry]
+    if len(keys) != 1:
+        raise TrainingError(f"give one of {IMITATION_KEY} or {RESIDUAL_MPC_KEY}, got {keys or 'neither'}")
+    key = keys[0]
+    value = entry[key]
     if not isinstance(value, Mapping):
-        raise TrainingError(f"{IMITATION_KEY}: the config needs a mapping {IMITATION_KEY}: {{seeds, rounds, ...}}")
+        raise TrainingError(f"{key}: the config needs a mapping {key}: {{seeds, rounds, ...}}")
     fields = tuple(ImitationSettings.__dataclass_fields__)
     unknown = sorted(set(value) - set(fields))
     if unknown:
-        raise TrainingError(
-            f"{IMITATION_KEY}: unknown key(s) {', '.join(map(str, unknown))}; valid: {', '.join(fields)}"
-        )
-    rest = {k: v for k, v in entry.items() if k != IMITATION_KEY}
+        raise TrainingError(f"{key}: unknown key(s) {', '.join(map(str, unknown))}; valid: {', '.join(fields)}")
+    if key == RESIDUAL_MPC_KEY and not value.get("residual_scale"):
+        raise TrainingError(f"{key}: residual_scale must be given, > 0 (the residual's size in the inputs' deviations)")
+    if key == IMITATION_KEY and value.get("residual_scale"):
+        raise TrainingError(f"{key}: residual_scale is {RESIDUAL_MPC_KEY}'s; an imitation replaces the MPC's inputs")
+    rest = {k: v for k, v in entry.items() if k != key}
     return ImitationSettings(**value), rest
 
 
@@ -182,6 +225,16 @@ class Standardisation:
         """
         a = np.clip(np.asarray(action, dtype=float).reshape(-1, 6), -ACTION_BOUND, ACTION_BOUND)
         return (a * self.u_scale + self.u_mean).reshape(-1, 3, 2)
+
+    def residual(self, action, scale: float) -> np.ndarray:
+        """The corrections (N, 3, 2) of standardised actions, clipped to the action's bound.
+
+        Args:
+            action: (N, 6) the agent's actions.
+            scale: the inputs' deviations per unit of action.
+        """
+        a = np.clip(np.asarray(action, dtype=float).reshape(-1, 6), -ACTION_BOUND, ACTION_BOUND)
+        return (a * (scale * self.u_scale)).reshape(-1, 3, 2)
 
     def actions(self, inputs: np.ndarray) -> np.ndarray:
         """The standardised actions (N, 6) float32 of inputs.
@@ -320,9 +373,11 @@ class ImitatedMPCVecEnv(_vec_env_wrapper()):
         venv: a :class:`~stewart_env.envs.StewartPlatformSB3VecEnv` on ``task="cueing"`` in pose
             mode with a preview.
         scales: the demonstrations' standardisation.
+        residual_scale: 0: the action is the inputs; > 0: it is added to the MPC's, times this
+            many of the inputs' deviations.
     """
 
-    def __init__(self, venv, scales: Standardisation):
+    def __init__(self, venv, scales: Standardisation, residual_scale: float = 0.0):
         from gymnasium import spaces
 
         size = venv.observation_space.shape[0] + FEATURES
@@ -330,6 +385,7 @@ class ImitatedMPCVecEnv(_vec_env_wrapper()):
         action_space = spaces.Box(-ACTION_BOUND, ACTION_BOUND, (6,), np.float32)
         super().__init__(venv, observation_space=observation_space, action_space=action_space)
         self.scales = scales
+        self.residual_scale = float(residual_scale)
         self.controller = _controller(venv.venv)
         self._reasons = tuple(venv.venv.unwrapped.termination_reasons)
         #: how the training's episodes ended, by reason ("time_limit": truncated)
@@ -342,12 +398,14 @@ class ImitatedMPCVecEnv(_vec_env_wrapper()):
         return self.scales.observed(obs, self.controller.prepare(obs))
 
     def step_async(self, actions: np.ndarray) -> None:
-        """Command the poses of the agent's inputs.
+        """Command the poses of the agent's inputs (or of the MPC's, corrected by the agent's).
 
         Args:
-            actions: (N, 6) the standardised inputs.
+            actions: (N, 6) the standardised inputs or corrections.
         """
-        self.venv.step_async(self.controller.command(self.scales.inputs(actions)))
+        self.venv.step_async(
+            self.controller.command(_inputs(self.controller, self.scales, self.residual_scale, actions))
+        )
 
     def step_wait(self):
         """Step the batch; the controller starts over on the rows that ended."""
@@ -361,6 +419,13 @@ class ImitatedMPCVecEnv(_vec_env_wrapper()):
                 infos[i]["terminal_observation"] = self.scales.observed(terminal[None], state)[0]
         features = self.controller.prepare(obs, episode_start=dones)
         return self.scales.observed(obs, features), rewards, dones, infos
+
+
+def _inputs(controller, scales: Standardisation, residual_scale: float, actions) -> np.ndarray:
+    """The inputs (N, 3, 2) of the agent's actions: themselves, or the MPC's corrected by them."""
+    if residual_scale > 0:
+        return controller.mpc.solve() + scales.residual(actions, residual_scale)
+    return scales.inputs(actions)
 
 
 def mean_inputs(model, scales: Standardisation, observation, features) -> np.ndarray:
@@ -385,25 +450,31 @@ class ImitatedMPCPolicy:
             agent's preview.
         model: the trained SB3 model.
         scales: its standardisation.
+        residual_scale: 0: the agent's action is the inputs; > 0: it corrects the MPC's.
     """
 
-    def __init__(self, env, model, scales: Standardisation):
+    def __init__(self, env, model, scales: Standardisation, residual_scale: float = 0.0):
         self.controller = _controller(env)
         self.model = model
         self.scales = scales
+        self.residual_scale = float(residual_scale)
 
     def reset(self) -> None:
         """Start the controller over (a new batch of episodes)."""
         self.controller.reset()
 
     def inputs(self, observation, features) -> np.ndarray:
-        """The agent's inputs (N, 3, 2), its mean action.
+        """The agent's inputs (N, 3, 2), of its mean action (the controller prepared for this step).
 
         Args:
             observation: (N, obs_dim) raw observations.
             features: (N, 39) the controller's states.
         """
-        return mean_inputs(self.model, self.scales, observation, features)
+        if not self.residual_scale:
+            return mean_inputs(self.model, self.scales, observation, features)
+        with single_thread():
+            action, _ = self.model.predict(self.scales.observed(observation, features), deterministic=True)
+        return _inputs(self.controller, self.scales, self.residual_scale, action)
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
         """SB3's interface: (action (6,) or (N, 6), None).
@@ -437,7 +508,8 @@ def train_imitation(
 
     Args:
         out: the agent's folder (created; its files replaced).
-        config: a PPO zoo config with :data:`IMITATION_KEY` (a shipped name or a path).
+        config: a PPO zoo config with :data:`IMITATION_KEY` or :data:`RESIDUAL_MPC_KEY` (a shipped
+            name or a path).
         seed: seeds torch, numpy, the fit's batches and the platforms (row i gets seed + i).
         timesteps: PPO's environment steps after the imitation (default the config's
             n_timesteps; 0: the clone alone).
@@ -480,17 +552,27 @@ def train_imitation(
         seconds["demonstrations"] = time.process_time() - cpu
         raw = StewartPlatformSB3VecEnv(num_envs=hp.n_envs if n_envs is None else int(n_envs), **kwargs)
         raw.seed(seed)
-        imitated = ImitatedMPCVecEnv(raw, scales)
+        imitated = ImitatedMPCVecEnv(raw, scales, settings.residual_scale)
         env = VecMonitor(imitated, info_keywords=("termination",))
         if hp.normalize is not None:
             env = VecNormalize(env, **{**hp.normalize, "norm_obs": False})  # observed values are standardised
         try:
             agent = algorithm_class("ppo")(env=env, seed=seed, device="cpu", verbose=0, **hp.algorithm_kwargs)
-            losses = [
-                fit_clone(
-                    agent.policy, scales.observed(x[:, :-FEATURES], x[:, -FEATURES:]), scales.actions(u), settings, seed
-                )
-            ]
+            if settings.residual:  # a zero mean: the untrained agent is the MPC
+                with torch.no_grad():
+                    agent.policy.action_net.weight.zero_()
+                    agent.policy.action_net.bias.zero_()
+                losses = []
+            else:
+                losses = [
+                    fit_clone(
+                        agent.policy,
+                        scales.observed(x[:, :-FEATURES], x[:, -FEATURES:]),
+                        scales.actions(u),
+                        settings,
+                        seed,
+                    )
+                ]
             seconds["cloning"] = time.process_time() - cpu - sum(seconds.values())
             samples = [len(x)]
             for _ in range(settings.rounds):
@@ -574,4 +656,8 @@ def load_imitation(directory: str | os.PathLike, env) -> ImitatedMPCPolicy:
         scales = Standardisation(arrays["x_mean"], arrays["x_scale"], arrays["u_mean"], arrays["u_scale"])
     with single_thread():
         model = algorithm_class("ppo").load(io.BytesIO(data[MODEL_FILE]), device="cpu")
-    return ImitatedMPCPolicy(env, model, scales)
+    try:
+        residual_scale = float(manifest.get("imitation", {}).get("residual_scale", 0.0))
+    except (AttributeError, TypeError, ValueError) as err:
+        raise TrainingError(f"{path}: no imitation agent ({MANIFEST}: residual_scale: {err})") from None
+    return ImitatedMPCPolicy(env, model, scales, residual_scale)

@@ -63,8 +63,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "--config",
         default="ppo_cueing_residual",
         help="PPO's cueing config, a shipped name or a file's path: ppo_cueing_residual (PPO as a residual on "
-        "the washout, its key residual_washout), ppo_cueing_mpc (PPO from an imitation of the cueing MPC, its "
-        "key imitate_mpc; extra mpc) or ppo_cueing (PPO commands the pose itself) (default: ppo_cueing_residual)",
+        "the washout, its key residual_washout), ppo_cueing_mpc_residual (PPO as a residual on the cueing MPC, "
+        "its key residual_mpc; extra mpc), ppo_cueing_mpc (PPO from an imitation of the cueing MPC, its key "
+        "imitate_mpc; extra mpc) or ppo_cueing (PPO commands the pose itself) (default: ppo_cueing_residual)",
     )
     p.add_argument(
         "--agent-models",

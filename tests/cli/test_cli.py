@@ -469,7 +469,7 @@ def test_config_by_an_unknown_name_lists_the_shipped_ones(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "argument --config: unknown shipped config 'ppo_fast'" in err
     assert (
-        "crossq, ppo, ppo_6m, ppo_cueing, ppo_cueing_mpc, ppo_cueing_residual, ppo_integral_6m, ppo_leg_length, ppo_pose, sac, td3, tqc"
+        "crossq, ppo, ppo_6m, ppo_cueing, ppo_cueing_mpc, ppo_cueing_mpc_residual, ppo_cueing_residual, ppo_integral_6m, ppo_leg_length, ppo_pose, sac, td3, tqc"
         in err
     )
 

@@ -41,6 +41,25 @@ def test_bad_imitation_settings_are_named():
     assert settings == ImitationSettings(seeds=2) and rest == {"n_timesteps": 5}
 
 
+def test_bad_residual_settings_are_named():
+    with pytest.raises(TrainingError, match=r"residual_mpc: residual_scale must be given, > 0"):
+        imitation_settings({"residual_mpc": {"seeds": 1}})
+    with pytest.raises(TrainingError, match=r"residual_scale must be a number in \[0, 10\], got nan"):
+        imitation_settings({"residual_mpc": {"residual_scale": float("nan")}})
+    with pytest.raises(TrainingError, match=r"residual_mpc: a residual on the MPC has no DAgger rounds, got rounds=1"):
+        imitation_settings({"residual_mpc": {"residual_scale": 1.0, "rounds": 1}})
+    with pytest.raises(TrainingError, match=r"residual_mpc: seeds must be an integer in \[1, 64\], got 0"):
+        imitation_settings({"residual_mpc": {"residual_scale": 1.0, "seeds": 0}})
+    with pytest.raises(TrainingError, match=r"imitate_mpc: residual_scale is residual_mpc's"):
+        imitation_settings({"imitate_mpc": {"residual_scale": 1.0}})
+    with pytest.raises(
+        TrainingError, match=r"give one of imitate_mpc or residual_mpc, got \['imitate_mpc', 'residual_mpc'\]"
+    ):
+        imitation_settings({"imitate_mpc": {}, "residual_mpc": {"residual_scale": 1.0}})
+    settings, rest = imitation_settings({"residual_mpc": {"residual_scale": 0.5}, "n_timesteps": 5})
+    assert settings.residual and settings.key == "residual_mpc" and rest == {"n_timesteps": 5}
+
+
 def test_the_standardisation_round_trips_and_bounds_the_action():
     rng = np.random.default_rng(0)
     x, u = rng.normal(3.0, 2.0, (500, 4 + FEATURES)), rng.normal([0, 1, 2, 3, 4, 5], [1, 2, 3, 4, 5, 6], (500, 6))
@@ -51,6 +70,10 @@ def test_the_standardisation_round_trips_and_bounds_the_action():
     np.testing.assert_allclose(observed.std(axis=0), 1.0, atol=1e-6)
     far = scales.inputs(np.full((1, 6), 1e9)).reshape(6)
     np.testing.assert_allclose(far, scales.u_mean + ACTION_BOUND * scales.u_scale)  # clipped at the action's bound
+    correction = scales.residual(np.array([[1.0, -2.0, 0.0, 0.5, 1e9, -1e9]]), 0.5).reshape(6)
+    np.testing.assert_allclose(
+        correction, [0.5, -1.0, 0.0, 0.25, 0.5 * ACTION_BOUND, -0.5 * ACTION_BOUND] * scales.u_scale
+    )
 
 
 def test_the_fit_learns_a_linear_map():
@@ -135,3 +158,35 @@ def test_an_environment_without_a_preview_is_refused(tmp_path):
     )
     with pytest.raises(TrainingError, match="needs the task option preview > 0"):
         train_imitation(tmp_path / "agent", config)
+
+
+@pytest.mark.extra("rl", "mpc")
+def test_an_untrained_residual_on_the_mpc_is_the_mpc(tmp_path):
+    from stewart_env.agents.controllers.cueing_mpc import CueingMPCPolicy
+
+    config = tmp_path / "residual.yml"
+    config.write_text(
+        "StewartPlatform-v1:\n  n_timesteps: 0\n"
+        "  residual_mpc: {seeds: 1, max_steps: 20, residual_scale: 2.0}\n"
+        "  env_kwargs: {action_mode: pose, max_episode_steps: 200, task_options: {preview: 5, training_seeds: 1}}\n"
+        "  n_envs: 2\n  n_steps: 32\n  batch_size: 32\n  normalize: true\n"
+    )
+    manifest = train_imitation(tmp_path / "agent", config, seed=0)
+    assert manifest["clone_mse"] == [] and manifest["imitation"]["residual_scale"] == 2.0  # no fit
+    kwargs = dict(task="cueing", action_mode="pose", task_options={"preview": 5, "motions": ("braking",)})
+    first, second = (StewartPlatformVectorEnv(num_envs=2, **kwargs) for _ in range(2))
+    mpc, agent = CueingMPCPolicy(first), load_imitation(tmp_path / "agent", second)
+    assert agent.residual_scale == 2.0
+    a, _ = first.reset(seed=3)
+    b, _ = second.reset(seed=3)
+    for _ in range(40):
+        action, _ = mpc.predict(a)
+        again, _ = agent.predict(b)
+        assert np.array_equal(action, again)  # a zero mean adds exactly nothing to the MPC's inputs
+        a, *_ = first.step(action)
+        b, *_ = second.step(again)
+    agent.model.policy.action_net.bias.data.fill_(1.0)  # a correction of one unit on every input
+    moved, _ = agent.predict(b)
+    assert not np.array_equal(moved, mpc.predict(a)[0])
+    first.close()
+    second.close()
