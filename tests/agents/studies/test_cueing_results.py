@@ -100,8 +100,20 @@ def test_command_refuses_a_bad_episode_count(tmp_path, capsys):
 def test_the_config_is_checked_and_names_its_kind():
     assert CueingResultsSettings().label == "ppo (residual on washout)"  # the default: the residual config
     assert CueingResultsSettings(config="ppo_cueing").label == "ppo"
+    assert CueingResultsSettings(config="ppo_cueing_mpc").label == "ppo (from the MPC's imitation)"
+    assert CueingResultsSettings(config="ppo_cueing_mpc_residual").label == "ppo (residual on the MPC)"
     with pytest.raises(UsageError, match="config: .*needs env_kwargs action_mode: pose"):
         CueingResultsSettings(config="ppo")  # the set-point task's config: force mode
+
+
+def test_a_config_with_two_kinds_is_refused(tmp_path):
+    config = tmp_path / "two.yml"
+    config.write_text(
+        "StewartPlatform-v1:\n  n_timesteps: 10\n  residual_washout: {scale: 0.2}\n"
+        "  residual_mpc: {residual_scale: 1.0}\n  env_kwargs: {action_mode: pose}\n"
+    )
+    with pytest.raises(UsageError, match="config: .*two.yml: give one of residual_washout, residual_mpc, not 2"):
+        CueingResultsSettings(config=str(config))
 
 
 def test_command_refuses_an_unknown_config(tmp_path, capsys):

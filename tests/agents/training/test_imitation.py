@@ -190,3 +190,5 @@ def test_an_untrained_residual_on_the_mpc_is_the_mpc(tmp_path):
     assert not np.array_equal(moved, mpc.predict(a)[0])
     first.close()
     second.close()
+    trained = train_imitation(tmp_path / "trained", config, seed=0, timesteps=64)
+    assert trained["num_timesteps"] == 64 and trained["samples"] == manifest["samples"]  # PPO through the MPC
