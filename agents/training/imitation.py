@@ -428,6 +428,13 @@ def _inputs(controller, scales: Standardisation, residual_scale: float, actions)
     return scales.inputs(actions)
 
 
+def _mean_action(model, scales: Standardisation, observation, features) -> np.ndarray:
+    """A model's mean action (N, 6) for raw observations and the controller's states."""
+    with single_thread():
+        action, _ = model.predict(scales.observed(observation, features), deterministic=True)
+    return action
+
+
 def mean_inputs(model, scales: Standardisation, observation, features) -> np.ndarray:
     """A model's inputs (N, 3, 2), its mean action, for raw observations and the controller's states.
 
@@ -437,9 +444,7 @@ def mean_inputs(model, scales: Standardisation, observation, features) -> np.nda
         observation: (N, obs_dim) raw observations.
         features: (N, 39) the controller's states.
     """
-    with single_thread():
-        action, _ = model.predict(scales.observed(observation, features), deterministic=True)
-    return scales.inputs(action)
+    return scales.inputs(_mean_action(model, scales, observation, features))
 
 
 class ImitatedMPCPolicy:
@@ -470,10 +475,7 @@ class ImitatedMPCPolicy:
             observation: (N, obs_dim) raw observations.
             features: (N, 39) the controller's states.
         """
-        if not self.residual_scale:
-            return mean_inputs(self.model, self.scales, observation, features)
-        with single_thread():
-            action, _ = self.model.predict(self.scales.observed(observation, features), deterministic=True)
+        action = _mean_action(self.model, self.scales, observation, features)
         return _inputs(self.controller, self.scales, self.residual_scale, action)
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
@@ -512,7 +514,7 @@ def train_imitation(
             name or a path).
         seed: seeds torch, numpy, the fit's batches and the platforms (row i gets seed + i).
         timesteps: PPO's environment steps after the imitation (default the config's
-            n_timesteps; 0: the clone alone).
+            n_timesteps; 0: the clone alone, or for a residual the MPC itself).
         env_kwargs: environment keywords over the config's.
         n_envs: platforms in PPO's batch (default the config's n_envs).
         progress_bar: progress bars on a terminal.
