@@ -175,10 +175,12 @@ class CueingResultsSettings:
     @property
     def label(self) -> str:
         """PPO's row label in the table."""
-        if self.imitation:
-            special = read_config(self.config)[0]
+        from stewart_env.agents.training.imitation import ImitationSettings
+
+        special = read_config(self.config)[0]
+        if isinstance(special, ImitationSettings):
             return "ppo (residual on the MPC)" if special.residual else "ppo (from the MPC's imitation)"
-        return "ppo (residual on washout)" if self.residual else "ppo"
+        return "ppo" if special is None else "ppo (residual on washout)"
 
     def held_out(self) -> list[tuple[str, int]]:
         """The held-out (motion, seed) pairs, manoeuvre by manoeuvre."""

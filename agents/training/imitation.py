@@ -365,6 +365,11 @@ def fit_clone(policy, x: np.ndarray, y: np.ndarray, settings: ImitationSettings,
     return loss_sum / n
 
 
+def _fit_samples(policy, scales: Standardisation, x, u, settings: ImitationSettings, seed: int) -> float:
+    """:func:`fit_clone` on raw samples (x: observations and states, u: inputs), standardised."""
+    return fit_clone(policy, scales.observed(x[:, :-FEATURES], x[:, -FEATURES:]), scales.actions(u), settings, seed)
+
+
 class ImitatedMPCVecEnv(_vec_env_wrapper()):
     """PPO's training batch: SB3's VecEnv whose action is the standardised inputs of the
     controller's three pairs and whose observation is the standardised observation and state.
@@ -566,15 +571,7 @@ def train_imitation(
                     agent.policy.action_net.bias.zero_()
                 losses = []
             else:
-                losses = [
-                    fit_clone(
-                        agent.policy,
-                        scales.observed(x[:, :-FEATURES], x[:, -FEATURES:]),
-                        scales.actions(u),
-                        settings,
-                        seed,
-                    )
-                ]
+                losses = [_fit_samples(agent.policy, scales, x, u, settings, seed)]
             seconds["cloning"] = time.process_time() - cpu - sum(seconds.values())
             samples = [len(x)]
             for _ in range(settings.rounds):
@@ -589,15 +586,7 @@ def train_imitation(
                 )
                 x, u = np.concatenate([x, more_x]), np.concatenate([u, more_u])
                 samples.append(len(more_x))
-                losses.append(
-                    fit_clone(
-                        agent.policy,
-                        scales.observed(x[:, :-FEATURES], x[:, -FEATURES:]),
-                        scales.actions(u),
-                        settings,
-                        seed,
-                    )
-                )
+                losses.append(_fit_samples(agent.policy, scales, x, u, settings, seed))
             seconds["dagger"] = time.process_time() - cpu - sum(seconds.values())
             if steps > 0:
                 agent.learn(total_timesteps=steps, progress_bar=progress_bar)

@@ -26,6 +26,13 @@ from stewart_env.agents.training.imitation import (  # noqa: E402
 from stewart_env.envs import StewartPlatformVectorEnv  # noqa: E402
 
 
+def _config(tmp_path, name: str, entry: str):
+    """A zoo config file of one StewartPlatform-v1 entry (its YAML lines, indented by two)."""
+    path = tmp_path / name
+    path.write_text("StewartPlatform-v1:\n" + entry)
+    return path
+
+
 def test_bad_imitation_settings_are_named():
     with pytest.raises(TrainingError, match=r"imitate_mpc: seeds must be an integer in \[1, 64\], got 0"):
         imitation_settings({"imitate_mpc": {"seeds": 0}})
@@ -119,12 +126,13 @@ def test_the_mpcs_own_inputs_give_its_actions_through_the_agents_path():
 
 @pytest.mark.extra("rl", "mpc")
 def test_a_trained_agent_loads_back_and_refuses_a_changed_file(tmp_path):
-    config = tmp_path / "imitation.yml"
-    config.write_text(
-        "StewartPlatform-v1:\n  n_timesteps: 64\n"
+    config = _config(
+        tmp_path,
+        "imitation.yml",
+        "  n_timesteps: 64\n"
         "  imitate_mpc: {seeds: 1, max_steps: 30, rounds: 1, epochs: 2, batch_size: 64}\n"
         "  env_kwargs: {action_mode: pose, max_episode_steps: 200, task_options: {preview: 3, training_seeds: 1}}\n"
-        "  n_envs: 2\n  n_steps: 32\n  batch_size: 32\n  n_epochs: 1\n  normalize: true\n"
+        "  n_envs: 2\n  n_steps: 32\n  batch_size: 32\n  n_epochs: 1\n  normalize: true\n",
     )
     manifest = train_imitation(tmp_path / "agent", config, seed=1)
     assert manifest["num_timesteps"] == 64  # 2 platforms x 32 steps a rollout, one rollout
@@ -151,10 +159,11 @@ def test_a_trained_agent_loads_back_and_refuses_a_changed_file(tmp_path):
 
 @pytest.mark.extra("rl", "mpc")
 def test_an_environment_without_a_preview_is_refused(tmp_path):
-    config = tmp_path / "imitation.yml"
-    config.write_text(
-        "StewartPlatform-v1:\n  n_timesteps: 0\n  imitate_mpc: {seeds: 1, max_steps: 10}\n"
-        "  env_kwargs: {action_mode: pose}\n  n_envs: 2\n  n_steps: 32\n  batch_size: 32\n"
+    config = _config(
+        tmp_path,
+        "imitation.yml",
+        "  n_timesteps: 0\n  imitate_mpc: {seeds: 1, max_steps: 10}\n"
+        "  env_kwargs: {action_mode: pose}\n  n_envs: 2\n  n_steps: 32\n  batch_size: 32\n",
     )
     with pytest.raises(TrainingError, match="needs the task option preview > 0"):
         train_imitation(tmp_path / "agent", config)
@@ -164,12 +173,13 @@ def test_an_environment_without_a_preview_is_refused(tmp_path):
 def test_an_untrained_residual_on_the_mpc_is_the_mpc(tmp_path):
     from stewart_env.agents.controllers.cueing_mpc import CueingMPCPolicy
 
-    config = tmp_path / "residual.yml"
-    config.write_text(
-        "StewartPlatform-v1:\n  n_timesteps: 0\n"
+    config = _config(
+        tmp_path,
+        "residual.yml",
+        "  n_timesteps: 0\n"
         "  residual_mpc: {seeds: 1, max_steps: 20, residual_scale: 2.0}\n"
         "  env_kwargs: {action_mode: pose, max_episode_steps: 200, task_options: {preview: 5, training_seeds: 1}}\n"
-        "  n_envs: 2\n  n_steps: 32\n  batch_size: 32\n  normalize: true\n"
+        "  n_envs: 2\n  n_steps: 32\n  batch_size: 32\n  normalize: true\n",
     )
     manifest = train_imitation(tmp_path / "agent", config, seed=0)
     assert manifest["clone_mse"] == [] and manifest["imitation"]["residual_scale"] == 2.0  # no fit
